@@ -1,0 +1,13 @@
+"""Type aliases shared by the package (shapes are stated in docstrings)."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+ArrayLike = npt.ArrayLike
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.intp]
+BoolArray = npt.NDArray[np.bool_]
+
+__all__ = ["ArrayLike", "BoolArray", "FloatArray", "IntArray"]

@@ -1,0 +1,194 @@
+"""Image observations and ground control as plain arrays.
+
+These two containers are what the numerical modules consume; :mod:`config`
+and :mod:`io` build them from a project, :mod:`simulate` builds them from a
+known truth.  Ids are kept as strings (leading zeros matter); numerical work
+uses integer indices into ``photo_ids`` and ``point_ids``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
+
+__all__ = ["ControlPoints", "ControlType", "ImageObservations"]
+
+
+@dataclass(frozen=True)
+class ImageObservations:
+    """Measured image coordinates of points on the photos of one strip.
+
+    Attributes
+    ----------
+    photo_ids : tuple of str, length M
+        Photos in strip (flight) order.
+    point_ids : tuple of str, length P
+        Every point id that occurs, in a fixed order.
+    photo : ndarray of int, shape (K,)
+        Index into ``photo_ids`` of each observation.
+    point : ndarray of int, shape (K,)
+        Index into ``point_ids`` of each observation.
+    xy : ndarray, shape (K, 2)
+        Image coordinates in millimetres, reduced to the principal point, in
+        the image system of method.md section 2 (x along the flight, y to its
+        left).
+    sigma : ndarray, shape (K,)
+        Standard deviation of each coordinate in millimetres (weights are
+        ``1 / sigma**2``).
+    principal_distance : float
+        c in millimetres; the image vector of an observation is (x, y, -c).
+    source_line : ndarray of int, shape (K,), optional
+        Line number of each observation in its input file (0 when unknown), so
+        that messages can name it.
+
+    Observations are sorted by photo index, then by point index; use
+    :meth:`from_ids` to build one from unsorted rows.
+    """
+
+    photo_ids: tuple[str, ...]
+    point_ids: tuple[str, ...]
+    photo: IntArray
+    point: IntArray
+    xy: FloatArray
+    sigma: FloatArray
+    principal_distance: float
+    source_line: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+
+    @classmethod
+    def from_ids(
+        cls,
+        photo: ArrayLike,
+        point: ArrayLike,
+        xy: ArrayLike,
+        principal_distance: float,
+        *,
+        photo_ids: ArrayLike | None = None,
+        sigma: ArrayLike | float = 0.005,
+        source_line: ArrayLike | None = None,
+    ) -> ImageObservations:
+        """Build from one row per observation with string ids.
+
+        Parameters
+        ----------
+        photo, point : array_like of str, shape (K,)
+            Photo id and point id of each observation.
+        xy : array_like, shape (K, 2)
+            Image coordinates in mm reduced to the principal point.
+        principal_distance : float
+            c in mm.
+        photo_ids : sequence of str, optional
+            Strip order of the photos; default: order of first appearance.
+            Observations on photos not listed are dropped.
+        sigma : float or array_like, shape (K,)
+            Image coordinate standard deviation in mm (default 5 µm).
+        source_line : array_like of int, shape (K,), optional
+            Input line numbers, for messages.
+        """
+        photo = np.asarray(photo, dtype=str)
+        point = np.asarray(point, dtype=str)
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        k = photo.shape[0]
+        if point.shape != (k,) or xy.shape[0] != k:
+            raise ValueError(
+                f"Expected photo, point and xy to have K rows, got {photo.shape}, "
+                f"{point.shape}, {xy.shape}"
+            )
+        sigma_arr = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (k,)).copy()
+        lines = (
+            np.zeros(k, dtype=np.intp)
+            if source_line is None
+            else np.asarray(source_line, dtype=np.intp).reshape(k)
+        )
+        if photo_ids is None:
+            _, first = np.unique(photo, return_index=True)
+            order_ids = tuple(str(p) for p in photo[np.sort(first)])
+        else:
+            order_ids = tuple(str(p) for p in np.asarray(photo_ids, dtype=str))
+        lookup = {pid: i for i, pid in enumerate(order_ids)}
+        names, inverse = np.unique(photo, return_inverse=True)
+        name_index = np.array([lookup.get(str(n), -1) for n in names], dtype=np.intp)
+        photo_index = name_index[inverse.reshape(-1)] if k else np.zeros(0, np.intp)
+        keep = photo_index >= 0
+        point_names, point_index = np.unique(point[keep], return_inverse=True)
+        photo_index = photo_index[keep]
+        order = np.lexsort((point_index, photo_index))
+        return cls(
+            photo_ids=order_ids,
+            point_ids=tuple(str(p) for p in point_names),
+            photo=photo_index[order],
+            point=point_index.astype(np.intp)[order],
+            xy=xy[keep][order],
+            sigma=sigma_arr[keep][order],
+            principal_distance=float(principal_distance),
+            source_line=lines[keep][order],
+        )
+
+    @property
+    def n_photos(self) -> int:
+        return len(self.photo_ids)
+
+    @property
+    def n_points(self) -> int:
+        return len(self.point_ids)
+
+    def image_vectors(self) -> FloatArray:
+        """Image vectors ``(x, y, -c)`` in mm, shape (K, 3)."""
+        out = np.empty((self.xy.shape[0], 3))
+        out[:, :2] = self.xy
+        out[:, 2] = -self.principal_distance
+        return out
+
+    def photo_slices(self) -> IntArray:
+        """Start offsets of each photo's observations, shape (M + 1,)."""
+        return np.searchsorted(self.photo, np.arange(self.n_photos + 1)).astype(np.intp)
+
+
+class ControlType(str, Enum):
+    """Role of a ground point: which coordinates enter the adjustment."""
+
+    FULL = "full"
+    PLAN = "plan"
+    HEIGHT = "height"
+    CHECK = "check"
+
+
+@dataclass(frozen=True)
+class ControlPoints:
+    """Ground control and check points.
+
+    Attributes
+    ----------
+    point_ids : tuple of str, length N
+    xyz : ndarray, shape (N, 3)
+        X, Y, H in the control CRS (easting, northing or longitude, latitude in
+        degrees, then ellipsoidal height in metres); NaN where not given.
+    kind : tuple of ControlType, length N
+    sigma_xy, sigma_h : ndarray, shape (N,)
+        Standard deviations in metres.
+    source_line : ndarray of int, shape (N,)
+    """
+
+    point_ids: tuple[str, ...]
+    xyz: FloatArray
+    kind: tuple[ControlType, ...]
+    sigma_xy: FloatArray
+    sigma_h: FloatArray
+    source_line: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+
+    @property
+    def uses_xy(self) -> BoolArray:
+        """True where X and Y enter the adjustment (full and plan points)."""
+        return np.array([k in (ControlType.FULL, ControlType.PLAN) for k in self.kind], bool)
+
+    @property
+    def uses_h(self) -> BoolArray:
+        """True where H enters the adjustment (full and height points)."""
+        return np.array([k in (ControlType.FULL, ControlType.HEIGHT) for k in self.kind], bool)
+
+    @property
+    def is_check(self) -> BoolArray:
+        return np.array([k is ControlType.CHECK for k in self.kind], bool)

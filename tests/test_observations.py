@@ -1,0 +1,23 @@
+"""ImageObservations builder: ordering, index mapping, no mutation of inputs."""
+
+import numpy as np
+
+from strip_aerotri.observations import ImageObservations
+
+
+def test_from_ids_sorts_by_photo_then_point_and_keeps_strip_order():
+    photo = np.array(["1202", "1201", "1202", "1201", "9999"])
+    point = np.array(["b", "b", "a", "007", "a"])
+    xy = np.arange(10.0).reshape(5, 2)
+    xy_before = xy.copy()
+    obs = ImageObservations.from_ids(photo, point, xy, 152.0, photo_ids=["1201", "1202"])
+    assert obs.photo_ids == ("1201", "1202")
+    assert obs.point_ids == ("007", "a", "b")  # leading zero kept
+    np.testing.assert_array_equal(obs.photo, [0, 0, 1, 1])
+    np.testing.assert_array_equal(obs.point, [0, 2, 1, 2])
+    # rows follow the sort: (1201, 007) was row 3, (1201, b) row 1, ...
+    np.testing.assert_array_equal(obs.xy, xy_before[[3, 1, 2, 0]])
+    np.testing.assert_array_equal(xy, xy_before)
+    np.testing.assert_array_equal(obs.photo_slices(), [0, 2, 4])
+    vec = obs.image_vectors()
+    assert vec.shape == (4, 3) and np.all(vec[:, 2] == -152.0)
