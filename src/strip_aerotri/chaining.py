@@ -1,0 +1,327 @@
+"""Strip formation: relative orientation, model formation, scale transfer and
+chaining of the models into one strip model (method.md §1-5).
+
+The strip system is defined as in J (first photo at the origin with the
+identity rotation, first base ``b_x = 1``) or by a given first exterior
+orientation and base length as in B.  Every step works on the points of all
+pairs at once; only the chain of 3 × 3 rotations and the cumulative scale and
+position run along the strip.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._typing import ArrayLike, FloatArray, IntArray
+from .errors import GeometryError
+from .intersection import IntersectionMethod, intersect
+from .observations import ImageObservations
+from .relative import RelativeOrientation, RelativeOrientationMethod, relative_orientation
+from .scaling import ScaleTransfer, scale_ratios
+
+__all__ = ["StripModel", "StripOptions", "form_strip"]
+
+
+@dataclass(frozen=True)
+class StripOptions:
+    """Choices of strip formation (each named after its source formula).
+
+    Attributes
+    ----------
+    relative_orientation : {"dependent", "base"}
+        J(5)-(10) or B(125)-(136).
+    intersection : {"midpoint", "normal"}
+        J(12) or B(138).
+    scale_transfer : {"z", "distance"}
+        J(15) or B(139)-(140).
+    first_rotation : array_like, shape (3, 3), optional
+        Image -> strip rotation of the first photo (identity: J).
+    first_position : array_like, shape (3,), optional
+        Projection centre of the first photo (origin: J).
+    first_base_length : float
+        Length scale of the first model: its base has ``b_x`` equal to this.
+    max_iterations, tolerance
+        Of the relative orientation.
+    """
+
+    relative_orientation: RelativeOrientationMethod = RelativeOrientationMethod.DEPENDENT
+    intersection: IntersectionMethod = IntersectionMethod.MIDPOINT
+    scale_transfer: ScaleTransfer = ScaleTransfer.Z
+    first_rotation: FloatArray | None = None
+    first_position: FloatArray | None = None
+    first_base_length: float = 1.0
+    max_iterations: int = 30
+    tolerance: float = 1e-11
+
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self, "relative_orientation", RelativeOrientationMethod(self.relative_orientation)
+        )
+        object.__setattr__(self, "intersection", IntersectionMethod(self.intersection))
+        object.__setattr__(self, "scale_transfer", ScaleTransfer(self.scale_transfer))
+        if not (np.isfinite(self.first_base_length) and self.first_base_length > 0):
+            raise ValueError(f"Expected first_base_length > 0, got {self.first_base_length!r}")
+
+
+@dataclass(frozen=True)
+class StripModel:
+    """One strip model in the strip system.
+
+    Photo arrays follow ``photo_index`` (the photos that form the models, in
+    strip order); model m is formed by photos m and m + 1 of it.  Arrays with
+    a leading ``n`` axis hold one row per determination of a point in a model
+    (the pair-points of the relative orientation, sorted by model).
+
+    Attributes
+    ----------
+    observations : ImageObservations
+    options : StripOptions
+    photo_index : ndarray of int, shape (n_photos,)
+        Index into ``observations.photo_ids``.
+    centres : ndarray, shape (n_photos, 3)
+        Projection centres, strip system.
+    rotations : ndarray, shape (n_photos, 3, 3)
+        Image -> strip rotations.
+    relative : RelativeOrientation
+    scale : ndarray, shape (n_models,)
+        λ of each model: its base is ``scale * relative.base``.
+    scale_ratio : ndarray, shape (n_models,)
+        λ_m / λ_(m-1) from the tie points (1 for the first model).
+    points : ndarray, shape (n_points, 3)
+        Mean of all determinations of each point of ``observations.point_ids``
+        (NaN for points in no model: seen on one photo only).
+    n_determinations : ndarray of int, shape (n_points,)
+        Number of models that determined each point.
+    model, model_point : ndarray of int, shape (n,)
+        Model and point index of each determination.
+    model_points : ndarray, shape (n, 3)
+        Each determination in the strip system.
+    model_parallax : ndarray, shape (n,)
+        Remaining y-parallax of the rays at the model point, strip units.
+    tie_model, tie_point : ndarray of int, shape (t,)
+        For each tie point of each model m >= 1: the model and the point.
+    tie_difference : ndarray, shape (t, 3)
+        Determination in model m minus determination in model m - 1, strip
+        units (J §3, R4 §2.2: the accuracy criterion of strip formation).
+    tie_count : ndarray of int, shape (n_models,)
+        Tie points used for the scale of each model (0 for the first).
+    tie_rms : ndarray, shape (n_models, 3)
+        RMS of the tie-point differences per model and coordinate (NaN for the
+        first model).
+    """
+
+    observations: ImageObservations
+    options: StripOptions
+    photo_index: IntArray
+    centres: FloatArray
+    rotations: FloatArray
+    relative: RelativeOrientation
+    scale: FloatArray
+    scale_ratio: FloatArray
+    points: FloatArray
+    n_determinations: IntArray
+    model: IntArray
+    model_point: IntArray
+    model_points: FloatArray
+    model_parallax: FloatArray
+    tie_model: IntArray
+    tie_point: IntArray
+    tie_difference: FloatArray
+    tie_count: IntArray
+    tie_rms: FloatArray
+    model_labels: tuple[str, ...] = field(default=())
+
+    @property
+    def photo_ids(self) -> tuple[str, ...]:
+        return tuple(self.observations.photo_ids[i] for i in self.photo_index)
+
+    @property
+    def n_models(self) -> int:
+        return self.scale.shape[0]
+
+    @property
+    def triangulated(self) -> np.ndarray:
+        """Boolean mask (n_points,) of points determined in at least one model."""
+        return self.n_determinations > 0
+
+
+def pair_rows(
+    observations: ImageObservations, photo_index: IntArray
+) -> tuple[IntArray, IntArray, IntArray, IntArray]:
+    """Observations of the points measured on both photos of each model.
+
+    Returns
+    -------
+    model, point, left_row, right_row : ndarray of int, shape (n,)
+        Sorted by model, then point; ``left_row`` and ``right_row`` index the
+        observations on the model's left and right photo.
+    """
+    n_seq = photo_index.shape[0]
+    position = np.full(observations.n_photos, -1, dtype=np.int64)
+    position[photo_index] = np.arange(n_seq)
+    t = position[observations.photo]
+    n_pts = max(observations.n_points, 1)
+    rows = np.arange(t.shape[0])
+    as_left = (t >= 0) & (t <= n_seq - 2)
+    as_right = t >= 1
+    key_left = t[as_left] * n_pts + observations.point[as_left]
+    key_right = (t[as_right] - 1) * n_pts + observations.point[as_right]
+    keys, i_left, i_right = np.intersect1d(
+        key_left, key_right, assume_unique=True, return_indices=True
+    )
+    model = (keys // n_pts).astype(np.intp)
+    point = (keys % n_pts).astype(np.intp)
+    return model, point, rows[as_left][i_left], rows[as_right][i_right]
+
+
+def form_strip(
+    observations: ImageObservations,
+    options: StripOptions | None = None,
+    *,
+    photo_index: ArrayLike | None = None,
+) -> StripModel:
+    """Form one strip model from the image observations of a strip.
+
+    Parameters
+    ----------
+    observations : ImageObservations
+        Image coordinates (mm, reduced to the principal point) of the strip.
+    options : StripOptions, optional
+    photo_index : array_like of int, optional
+        The photos that form the models, in strip order (indices into
+        ``observations.photo_ids``); all photos by default.
+
+    Returns
+    -------
+    StripModel
+
+    Raises
+    ------
+    GeometryError
+        Fewer than two photos, a pair with fewer than five common points, a
+        model with no tie point to the previous model, or a degenerate pair.
+    ConvergenceError
+        A relative orientation that does not converge.
+    """
+    options = options or StripOptions()
+    seq = (
+        np.arange(observations.n_photos, dtype=np.intp)
+        if photo_index is None
+        else np.asarray(photo_index, dtype=np.intp)
+    )
+    if seq.shape[0] < 2:
+        raise GeometryError(f"a strip needs at least two photos, got {seq.shape[0]}")
+    n_models = seq.shape[0] - 1
+    ids = observations.photo_ids
+    labels = [f"pair {ids[seq[m]]}-{ids[seq[m + 1]]}" for m in range(n_models)]
+
+    model, point, row_l, row_r = pair_rows(observations, seq)
+    vectors = observations.image_vectors()
+    rel = relative_orientation(
+        vectors[row_l],
+        vectors[row_r],
+        model,
+        n_models,
+        method=options.relative_orientation,
+        rotation_first=options.first_rotation,
+        sigma_left=observations.sigma[row_l],
+        sigma_right=observations.sigma[row_r],
+        max_iterations=options.max_iterations,
+        tolerance=options.tolerance,
+        labels=labels,
+    )
+
+    # Model formation with the unit base (b_x = 1), relative to the left centre.
+    left = np.einsum("nij,nj->ni", rel.rotation_left[model], vectors[row_l])
+    right = np.einsum("nij,nj->ni", rel.rotation_right[model], vectors[row_r])
+    unit = intersect(
+        rel.base[model],
+        left,
+        right,
+        method=options.intersection,
+        principal_distance=observations.principal_distance,
+    )
+
+    # Tie points: determined in model m and in model m - 1.
+    n_pts = max(observations.n_points, 1)
+    key_now = model.astype(np.int64) * n_pts + point
+    key_prev = (model.astype(np.int64) + 1) * n_pts + point
+    _, i_now, i_prev = np.intersect1d(key_now, key_prev, assume_unique=True, return_indices=True)
+    tie_model = model[i_now]
+    # Same point seen from the shared centre: previous model minus its base.
+    previous = unit.points[i_prev] - rel.base[model[i_prev]]
+    ratio = scale_ratios(
+        previous, unit.points[i_now], tie_model, n_models, method=options.scale_transfer
+    )
+    tie_count = np.bincount(tie_model, minlength=n_models).astype(np.intp)
+    missing = np.flatnonzero(tie_count[1:] == 0) + 1
+    if missing.size:
+        m = int(missing[0])
+        raise GeometryError(
+            f"{labels[m]} shares no tie point with {labels[m - 1]} (no point is measured on "
+            f"all three photos {ids[seq[m - 1]]}, {ids[seq[m]]}, {ids[seq[m + 1]]}): "
+            "the scale cannot be transferred"
+        )
+    bad = np.flatnonzero(~np.isfinite(ratio[1:]) | (ratio[1:] <= 0)) + 1
+    if bad.size:
+        m = int(bad[0])
+        raise GeometryError(f"{labels[m]}: the tie points give no valid scale (ratio {ratio[m]})")
+    ratio[0] = 1.0
+    scale = options.first_base_length * np.cumprod(ratio)
+
+    first_position = (
+        np.zeros(3)
+        if options.first_position is None
+        else np.asarray(options.first_position, float)
+    )
+    steps = scale[:, None] * rel.base
+    centres = np.vstack([first_position, first_position + np.cumsum(steps, axis=0)])
+    rotations = np.concatenate([rel.rotation_left[:1], rel.rotation_right], axis=0)
+
+    model_points = centres[model] + scale[model, None] * unit.points
+    model_parallax = scale[model] * unit.parallax
+    counts = np.bincount(point, minlength=observations.n_points)
+    sums = np.stack(
+        [
+            np.bincount(point, model_points[:, k], minlength=observations.n_points)
+            for k in range(3)
+        ],
+        axis=1,
+    )
+    with np.errstate(invalid="ignore", divide="ignore"):
+        points = sums / counts[:, None]
+    points[counts == 0] = np.nan
+
+    tie_difference = model_points[i_now] - model_points[i_prev]
+    sq = np.stack(
+        [np.bincount(tie_model, tie_difference[:, k] ** 2, minlength=n_models) for k in range(3)],
+        axis=1,
+    )
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tie_rms = np.sqrt(sq / tie_count[:, None])
+    tie_rms[tie_count == 0] = np.nan
+
+    return StripModel(
+        observations=observations,
+        options=options,
+        photo_index=seq,
+        centres=centres,
+        rotations=rotations,
+        relative=rel,
+        scale=scale,
+        scale_ratio=ratio,
+        points=points,
+        n_determinations=counts.astype(np.intp),
+        model=model,
+        model_point=point,
+        model_points=model_points,
+        model_parallax=model_parallax,
+        tie_model=tie_model,
+        tie_point=point[i_now],
+        tie_difference=tie_difference,
+        tie_count=tie_count,
+        tie_rms=tie_rms,
+        model_labels=tuple(labels),
+    )

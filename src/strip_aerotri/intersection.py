@@ -1,0 +1,134 @@
+"""Model formation: space intersection of the rays of a pair (method.md §4).
+
+Both functions work on all points of all pairs at once and return model
+points relative to the left projection centre, in the strip system and in the
+units of the given base.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import NamedTuple
+
+import numpy as np
+
+from ._typing import ArrayLike, FloatArray
+
+__all__ = [
+    "Intersection",
+    "IntersectionMethod",
+    "intersect",
+    "intersect_midpoint",
+    "intersect_normal",
+]
+
+_J = np.array([0.0, 1.0, 0.0])
+
+
+class IntersectionMethod(str, Enum):
+    """Space intersection formula: J(12) midpoint or B(138) normal case."""
+
+    MIDPOINT = "midpoint"
+    NORMAL = "normal"
+
+
+class Intersection(NamedTuple):
+    """Model points and the remaining y-parallax of the rays.
+
+    points : ndarray, shape (n, 3)
+        Model point minus the left projection centre, strip system, base units.
+    parallax : ndarray, shape (n,)
+        Signed length of the shortest y-parallel vector between the rays
+        (J(12)'s q'), base units; zero for rays that meet.
+    """
+
+    points: FloatArray
+    parallax: FloatArray
+
+
+def _rows(base: ArrayLike, left: ArrayLike, right: ArrayLike):
+    left = np.asarray(left, dtype=np.float64)
+    right = np.asarray(right, dtype=np.float64)
+    base = np.broadcast_to(np.asarray(base, dtype=np.float64), left.shape)
+    if left.ndim != 2 or left.shape[1] != 3 or right.shape != left.shape:
+        raise ValueError(
+            f"Expected left and right to have shape (n, 3), got {left.shape} and {right.shape}"
+        )
+    return base, left, right
+
+
+def intersect_midpoint(base: ArrayLike, left: ArrayLike, right: ArrayLike) -> Intersection:
+    """Midpoint of the shortest y-parallel vector between two rays, J(11)-(12).
+
+    Parameters
+    ----------
+    base : array_like, shape (3,) or (n, 3)
+        Base vector from the left to the right projection centre (strip system).
+    left, right : array_like, shape (n, 3)
+        Ray directions ``R @ (x, y, -c)`` of the point on the left and right
+        photo, in the strip system.
+
+    Returns
+    -------
+    Intersection
+        ``k_l = (b × p)·j / ((l × p)·j)``, ``q' = b·(l × p) / (j·(l × p))`` and
+        the point ``k_l l + q'/2 j``.
+    """
+    b, l, p = _rows(base, left, right)
+    lxp = np.cross(l, p)
+    d = lxp[:, 1]
+    k = np.cross(b, p)[:, 1] / d
+    q = np.einsum("ij,ij->i", b, lxp) / d
+    points = k[:, None] * l + 0.5 * q[:, None] * _J
+    return Intersection(points, q)
+
+
+def intersect_normal(
+    base: ArrayLike, left: ArrayLike, right: ArrayLike, principal_distance: float
+) -> Intersection:
+    """Normal-case intersection through rays reduced to horizontal photos, B(137)-(138).
+
+    Each ray ``(X', Y', Z') = A (x, y, -c)`` is reduced to a horizontal photo,
+    ``x0 = -c X'/Z'``, ``y0 = -c Y'/Z'`` (B(137), with the fixed ``y2_0``), and
+    ``N = (B_X + (x2_0 / c) B_Z) / (x1_0 - x2_0)``, ``ΔX = N x1_0``,
+    ``ΔY = N y1_0``, ``ΔZ = -N c`` (B(138)): the rays are intersected in the
+    XZ plane and Y is taken from the left photo.  The returned parallax is
+    the y-parallax at the point, ``(S2 + M p0_2 - S1 - N p0_1)_Y`` in base
+    units.
+
+    Parameters
+    ----------
+    base : array_like, shape (3,) or (n, 3)
+    left, right : array_like, shape (n, 3)
+        Ray directions in the strip system (any length).
+    principal_distance : float
+        c, in the units of the image vectors (mm).
+    """
+    b, l, p = _rows(base, left, right)
+    c = float(principal_distance)
+    x1 = -c * l[:, 0] / l[:, 2]
+    y1 = -c * l[:, 1] / l[:, 2]
+    x2 = -c * p[:, 0] / p[:, 2]
+    y2 = -c * p[:, 1] / p[:, 2]
+    n = (b[:, 0] + (x2 / c) * b[:, 2]) / (x1 - x2)
+    points = np.column_stack([n * x1, n * y1, -n * c])
+    m = n + b[:, 2] / c  # scale of the right ray: -M c = B_Z - N c
+    parallax = b[:, 1] + m * y2 - n * y1
+    return Intersection(points, parallax)
+
+
+def intersect(
+    base: ArrayLike,
+    left: ArrayLike,
+    right: ArrayLike,
+    *,
+    method: IntersectionMethod | str = IntersectionMethod.MIDPOINT,
+    principal_distance: float | None = None,
+) -> Intersection:
+    """Dispatch to :func:`intersect_midpoint` or :func:`intersect_normal`."""
+    method = IntersectionMethod(method)
+    if method is IntersectionMethod.MIDPOINT:
+        return intersect_midpoint(base, left, right)
+    if principal_distance is None:
+        raise ValueError("intersect(method='normal') needs principal_distance")
+    return intersect_normal(base, left, right, principal_distance)
