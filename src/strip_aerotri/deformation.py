@@ -1,0 +1,817 @@
+"""Polynomial correction of the systematic deformation of a strip.
+
+After the similarity transformation a strip still shows systematic errors
+(bending along the strip, twist, scale drift).  Following J(16)-(18) and
+B(150)-(151) (method.md sections 6.3 and 6.4), each coordinate of the
+deformation
+
+``w = photogrammetric - control``
+
+is modelled by a polynomial in the photogrammetric plan coordinates (X, Y) of
+a frame whose X axis runs along the strip:
+
+====  ============================================
+kind  terms of each polynomial (J(16))
+====  ============================================
+0     none (similarity only)
+1     1, X, Y, XY
+2     1, X, Y, XY, X²
+3     1, X, Y, XY, X², X³   (= B(150))
+====  ============================================
+
+Full control feeds the X, Y and Z polynomials, plan control X and Y, height
+control Z (J(17), B(151)).  Points on a straight line along the strip (a
+road, a railway, a staked line; no ground coordinates) add equations to the
+Y polynomial (J(18) with the fix of method.md section 6.4).  Corrected
+coordinates are ``xyz - w(X, Y)``.
+
+For conditioning, X and Y are normalised inside :func:`fit_deformation`
+about the centroid of the data by the half-extent along X (see
+:class:`Normalization`); coefficients refer to the normalised variables.
+
+All coordinates are Cartesian, metres, rows of shape (N, 3).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from scipy.stats import chi2
+
+from ._typing import ArrayLike, FloatArray
+from .errors import GeometryError, StripAerotriWarning
+from .similarity import (
+    _check_ids,
+    _check_mask,
+    _check_points,
+    _check_sigma,
+    _normal_inverse,
+    _normalized,
+    _quote,
+    _redundancy_numbers,
+)
+
+__all__ = [
+    "DeformationResult",
+    "KindSelection",
+    "KindSummary",
+    "Normalization",
+    "StraightLine",
+    "fit_deformation",
+    "n_terms",
+    "polynomial_terms",
+    "select_kind_auto",
+]
+
+_N_TERMS = {0: 0, 1: 4, 2: 5, 3: 6}
+_TERM_NAMES = ("1", "X", "Y", "XY", "X^2", "X^3")
+#: Condition number of a column-equilibrated normal matrix treated as singular.
+SINGULAR_COND = 1e12
+#: Condition number above which a warning is issued.
+WEAK_COND = 1e8
+
+
+def _check_kind(kind: object) -> int:
+    if (
+        isinstance(kind, bool)
+        or not isinstance(kind, int | np.integer)
+        or int(kind) not in _N_TERMS
+    ):
+        raise ValueError(f"Expected polynomial `kind` to be one of 0, 1, 2, 3, got {kind!r}")
+    return int(kind)
+
+
+def n_terms(kind: int) -> int:
+    """Number of terms per coordinate of a J(16) polynomial type (0, 4, 5 or 6)."""
+    return _N_TERMS[_check_kind(kind)]
+
+
+def polynomial_terms(x: ArrayLike, y: ArrayLike, kind: int) -> FloatArray:
+    """Design columns of the J(16) polynomial of type `kind`.
+
+    Parameters
+    ----------
+    x, y : array_like, shape (...)
+        Plan coordinates, broadcast against each other.  No normalisation is
+        done here: pass normalised values (as :func:`fit_deformation` does,
+        see :class:`Normalization`) to keep the columns well conditioned.
+    kind : int
+        0 (no terms), 1 ``[1, X, Y, XY]``, 2 ``+ X²``, 3 ``+ X³`` (B(150)).
+
+    Returns
+    -------
+    ndarray, shape (..., n_terms(kind))
+
+    Examples
+    --------
+    >>> polynomial_terms([2.0], [3.0], 3)
+    array([[1., 2., 3., 6., 4., 8.]])
+    """
+    k = _check_kind(kind)
+    x_arr, y_arr = np.broadcast_arrays(
+        np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    )
+    columns = [np.ones_like(x_arr), x_arr, y_arr, x_arr * y_arr, x_arr**2, x_arr**3]
+    if k == 0:
+        return np.zeros((*x_arr.shape, 0))
+    return np.stack(columns[: _N_TERMS[k]], axis=-1)
+
+
+class Normalization(NamedTuple):
+    """Normalisation of the plan coordinates of the polynomials.
+
+    ``u = (X - centre[0]) / half_extent``, ``v = (Y - centre[1]) / half_extent``
+    (metres in, unitless out); the strip then spans about -1..1 in u.
+    """
+
+    centre: FloatArray
+    half_extent: float
+
+    def apply(self, xyz: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """Normalised (u, v), each of shape (N,), from points of shape (N, 3) or (N, 2)."""
+        arr = np.asarray(xyz, dtype=np.float64)
+        return (
+            (arr[..., 0] - self.centre[0]) / self.half_extent,
+            (arr[..., 1] - self.centre[1]) / self.half_extent,
+        )
+
+
+@dataclass(frozen=True)
+class StraightLine:
+    """Points with no ground coordinates that lie on one straight vertical plane.
+
+    Attributes
+    ----------
+    point_ids : tuple of str, length M
+        Ids of the line points.
+    xyz : ndarray, shape (M, 3)
+        Their photogrammetric coordinates in the strip-aligned frame of the
+        fit (metres).
+    weight : float
+        Weight of a line equation relative to a control coordinate of weight 1
+        (J found about 100 necessary for the condition to show).
+    name : str
+        Name used in messages and reports.
+    """
+
+    point_ids: tuple[str, ...]
+    xyz: FloatArray
+    weight: float = 100.0
+    name: str = "line"
+
+    def __post_init__(self) -> None:
+        ids = tuple(str(p) for p in self.point_ids)
+        xyz = np.array(self.xyz, dtype=np.float64)
+        if xyz.ndim != 2 or xyz.shape[1] != 3:
+            raise ValueError(
+                f"Expected `xyz` of straight line {self.name!r} to have shape (M, 3), "
+                f"got {xyz.shape}"
+            )
+        if len(ids) != xyz.shape[0]:
+            raise ValueError(
+                f"Straight line {self.name!r}: {len(ids)} point ids for {xyz.shape[0]} points"
+            )
+        weight = float(self.weight)
+        if not np.isfinite(weight) or weight <= 0.0:
+            raise ValueError(
+                f"Expected the weight of straight line {self.name!r} to be > 0, got {weight!r}"
+            )
+        xyz.setflags(write=False)
+        object.__setattr__(self, "point_ids", ids)
+        object.__setattr__(self, "xyz", xyz)
+        object.__setattr__(self, "weight", weight)
+        object.__setattr__(self, "name", str(self.name))
+
+
+@dataclass(frozen=True)
+class DeformationResult:
+    """Polynomial deformation fitted to control (and straight-line) observations.
+
+    Attributes
+    ----------
+    kind : int
+        Highest polynomial type used (0..3); sets the number of columns of
+        `coefficients`.
+    kinds : tuple of int
+        Polynomial type of the X, Y and Z polynomials.
+    coefficients : ndarray, shape (3, n_terms(kind))
+        Rows X, Y, Z; columns ``[1, u, v, uv, u², u³][:n]`` in the normalised
+        variables of `normalization`, metres.  Terms above a coordinate's own
+        type are zero.
+    normalization : Normalization
+        Centre (metres) and half-extent (metres) of the normalisation.
+    line_names : tuple of str
+        Names of the straight lines, in order.
+    line_parameters : ndarray, shape (K, 2)
+        (a, b) of each line ``Y = a + b X`` in the un-normalised frame (a in
+        metres, b unitless).
+    residuals : ndarray, shape (N, 3)
+        ``target - corrected`` at the control, metres; NaN where unobserved.
+    line_residuals : tuple of ndarray, each shape (M_k,)
+        Corrected Y of each line point minus the Y of its fitted line at the
+        point's X (metres).
+    sigma0 : float
+        A posteriori standard deviation of unit weight over all three fits
+        (unitless with sigmas given, metres with default unit weights); NaN
+        with no redundancy.
+    redundancy : int
+        Total redundancy (observations - unknowns) of the three fits.
+    sigma0_xyz : ndarray, shape (3,)
+        sigma0 of the X, Y, Z fits separately (NaN where no redundancy).
+    redundancy_xyz : tuple of int
+        Redundancy of the X, Y, Z fits.
+    redundancy_numbers : ndarray, shape (N, 3)
+        Diagonal of ``I - A (AᵀPA)⁻¹ AᵀP`` for the control observations; NaN
+        where unobserved.
+    line_redundancy_numbers : tuple of ndarray, each shape (M_k,)
+        The same for the line equations.
+    normalized_residuals : ndarray, shape (N, 3)
+        w-test ``v / (sigma sqrt(r))`` at the control (a priori sigma).
+    line_normalized_residuals : tuple of ndarray, each shape (M_k,)
+        The same for the line equations (sigma of a line equation is the
+        reference control sigma divided by ``sqrt(weight)``).
+    point_ids : tuple of str
+        Ids of the N control rows.
+    """
+
+    kind: int
+    kinds: tuple[int, int, int]
+    coefficients: FloatArray
+    normalization: Normalization
+    line_names: tuple[str, ...]
+    line_parameters: FloatArray
+    residuals: FloatArray
+    line_residuals: tuple[FloatArray, ...]
+    sigma0: float
+    redundancy: int
+    sigma0_xyz: FloatArray
+    redundancy_xyz: tuple[int, int, int]
+    redundancy_numbers: FloatArray
+    line_redundancy_numbers: tuple[FloatArray, ...]
+    normalized_residuals: FloatArray
+    line_normalized_residuals: tuple[FloatArray, ...]
+    point_ids: tuple[str, ...] = field(default_factory=tuple)
+
+    def evaluate(self, xyz: ArrayLike) -> FloatArray:
+        """Deformation ``w`` (metres) at photogrammetric points.
+
+        Parameters
+        ----------
+        xyz : array_like, shape (N, 3)
+            Photogrammetric coordinates in the frame of the fit.
+
+        Returns
+        -------
+        ndarray, shape (N, 3)
+            ``w = photogrammetric - control`` predicted by the polynomials.
+        """
+        arr = _check_points(xyz, "xyz")
+        u, v = self.normalization.apply(arr)
+        terms = polynomial_terms(u, v, self.kind)
+        return terms @ self.coefficients.T
+
+    def correct(self, xyz: ArrayLike) -> FloatArray:
+        """Corrected coordinates ``xyz - w(X, Y)``, shape (N, 3), metres."""
+        arr = _check_points(xyz, "xyz")
+        return arr - self.evaluate(arr)
+
+
+class _CoordinateFit(NamedTuple):
+    coefficients: FloatArray  # (nterms,)
+    line_params: FloatArray  # (K, 2) normalised (alpha, beta), only for Y
+    v_control: FloatArray  # (m_c,) target - corrected
+    v_line: FloatArray  # (m_l,)
+    r_control: FloatArray
+    r_line: FloatArray
+    vtpv: float
+    redundancy: int
+
+
+def _solve(
+    design: FloatArray,
+    observed: FloatArray,
+    sigma: FloatArray,
+    *,
+    what: str,
+    names: Sequence[str],
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Weighted least squares ``design @ x ≈ observed``; returns x, v = observed - Ax, r, Q."""
+    a_w = design / sigma[:, None]
+    l_w = observed / sigma
+    if design.shape[1] == 0:
+        q = np.zeros((0, 0))
+        return np.zeros(0), observed.copy(), np.ones(design.shape[0]), q
+    q, cond = _normal_inverse(a_w)
+    if not np.isfinite(cond) or cond > SINGULAR_COND:
+        raise GeometryError(
+            f"{what}: the design is singular (condition {cond:.1e}); the points do not "
+            "determine the polynomial (e.g. all control at too few distinct X positions, "
+            f"or on one line across the strip): {_quote(names)}"
+        )
+    if cond > WEAK_COND:
+        warnings.warn(
+            f"{what}: the design is nearly singular (condition {cond:.1e}); the polynomial is "
+            f"weakly determined by: {_quote(names)}",
+            StripAerotriWarning,
+            stacklevel=3,
+        )
+    x = q @ (a_w.T @ l_w)
+    v = observed - design @ x
+    r = _redundancy_numbers(a_w, q)
+    return x, v, r, q
+
+
+def _kinds3(kind: int | Sequence[int]) -> tuple[int, int, int]:
+    if isinstance(kind, int | np.integer) and not isinstance(kind, bool):
+        k = _check_kind(kind)
+        return (k, k, k)
+    if isinstance(kind, str):
+        raise ValueError(
+            f"Expected polynomial `kind` to be 0, 1, 2, 3 or three of them, got {kind!r}"
+        )
+    seq = tuple(kind)
+    if len(seq) != 3:
+        raise ValueError(f"Expected `kind` to be an int or three ints (X, Y, Z), got {kind!r}")
+    kx, ky, kz = (_check_kind(k) for k in seq)
+    return (kx, ky, kz)
+
+
+def fit_deformation(
+    xyz: ArrayLike,
+    target: ArrayLike,
+    *,
+    use_xy: ArrayLike,
+    use_z: ArrayLike,
+    kind: int | Sequence[int],
+    sigma_xy: ArrayLike | None = None,
+    sigma_z: ArrayLike | None = None,
+    lines: Sequence[StraightLine] = (),
+    point_ids: Sequence[str] | None = None,
+) -> DeformationResult:
+    """Fit the J(16) deformation polynomials by weighted least squares.
+
+    Parameters
+    ----------
+    xyz : array_like, shape (N, 3)
+        Photogrammetric coordinates of the control points, metres, in a frame
+        whose X axis runs along the strip and which already matches the
+        control by a similarity transformation.
+    target : array_like, shape (N, 3)
+        Control coordinates in the same frame; NaN where not given (entries
+        not used are never read).
+    use_xy, use_z : array_like of bool, shape (N,)
+        X and Y observed (full and plan control); Z observed (full and height
+        control).
+    kind : int or sequence of three int
+        Polynomial type 0..3 of J(16) for all coordinates, or one per
+        coordinate (X, Y, Z): e.g. ``(1, 3, 1)`` when only the Y polynomial is
+        strengthened by straight lines.
+    sigma_xy, sigma_z : float or array_like, shape (N,), optional
+        A priori standard deviations of the control coordinates, metres
+        (weights ``1/sigma²``; default 1).
+    lines : sequence of StraightLine
+        Straight-line conditions for the Y polynomial.  The sigma of a line
+        equation is ``sigma_ref / sqrt(line.weight)`` with ``sigma_ref`` the
+        median `sigma_xy` of the plan control (1 by default): weight 100 means
+        a line equation counts as 100 control coordinates.
+    point_ids : sequence of str, length N, optional
+        Names for messages and the result.
+
+    Returns
+    -------
+    DeformationResult
+
+    Raises
+    ------
+    GeometryError
+        Fewer usable observations than terms for a coordinate, a straight
+        line with fewer than three points, non-finite used coordinates, or a
+        singular design (messages name the rule and the points).
+    ValueError
+        Bad shapes or arguments.
+
+    Notes
+    -----
+    For each coordinate c the observation equations are J(17)/B(151),
+    ``w_c(X_i, Y_i) = xyz_ic - target_ic`` for the control that observes c.
+    For each point i of straight line k the Y polynomial gets the equation
+    (method.md section 6.4, J(18) with the [fix])
+
+    ``w_Y(X_i, Y_i) + a_k + b_k X_i = Y_i``
+
+    with a_k, b_k extra unknowns, so that the corrected ``Y_i - w_Y`` lies on
+    ``Y = a_k + b_k X``.  (J(18) as printed lacks the observed ``Y_i``: it
+    would force the deformation itself, rather than the corrected points, to
+    be straight.)  The photogrammetric X is used on the right-hand side, an
+    approximation of order ``b_k * w_X`` that vanishes for lines along the
+    strip.
+
+    X and Y are normalised by :class:`Normalization`: the centre is the
+    centroid of the plan coordinates of the used control and line points and
+    the half-extent is half their range in X (or in Y when X has no range).
+
+    A coordinate needs at least as many observations as terms; for Y the
+    line equations count with two fewer per line (the line's a, b).
+    """
+    pts = _check_points(xyz, "xyz")
+    n = pts.shape[0]
+    tgt = _check_points(target, "target", n)
+    mask_xy = _check_mask(use_xy, n, "use_xy")
+    mask_z = _check_mask(use_z, n, "use_z")
+    sxy = _check_sigma(sigma_xy, n, "sigma_xy")
+    sz = _check_sigma(sigma_z, n, "sigma_z")
+    ids = _check_ids(point_ids, n)
+    kinds = _kinds3(kind)
+    lines = tuple(lines)
+    for line in lines:
+        if not isinstance(line, StraightLine):
+            raise TypeError(f"Expected StraightLine objects in `lines`, got {type(line).__name__}")
+
+    used = mask_xy | mask_z
+    bad = (used & ~np.all(np.isfinite(pts[:, :2]), axis=1)) | (mask_z & ~np.isfinite(pts[:, 2]))
+    bad |= mask_xy & ~np.all(np.isfinite(tgt[:, :2]), axis=1)
+    bad |= mask_z & ~np.isfinite(tgt[:, 2])
+    if np.any(bad):
+        raise GeometryError(
+            "deformation polynomial: control points with non-finite used coordinates: "
+            f"{_quote([ids[i] for i in np.flatnonzero(bad)])}"
+        )
+    for line in lines:
+        if line.xyz.shape[0] < 3:
+            raise GeometryError(
+                f"straight line {line.name!r} needs at least 3 points (2 define the line), got "
+                f"{line.xyz.shape[0]}" + (f": {_quote(line.point_ids)}" if line.point_ids else "")
+            )
+        bad_line = ~np.all(np.isfinite(line.xyz[:, :2]), axis=1)
+        if np.any(bad_line):
+            raise GeometryError(
+                f"straight line {line.name!r}: points with non-finite coordinates: "
+                f"{_quote([line.point_ids[i] for i in np.flatnonzero(bad_line)])}"
+            )
+
+    plan_ids = [ids[i] for i in np.flatnonzero(mask_xy)]
+    height_ids = [ids[i] for i in np.flatnonzero(mask_z)]
+    n_plan = len(plan_ids)
+    n_height = len(height_ids)
+    n_line_extra = sum(line.xyz.shape[0] - 2 for line in lines)
+    for axis, count, label, names in (
+        ("X", n_plan, "full or plan control points", plan_ids),
+        ("Z", n_height, "height control points", height_ids),
+    ):
+        need = _N_TERMS[kinds["XYZ".index(axis)]]
+        if count < need:
+            raise GeometryError(
+                f"polynomial type {kinds['XYZ'.index(axis)]} needs at least {need} {label} "
+                f"for {axis}, got {count}" + (f" ({_quote(names)})" if names else "")
+            )
+    need_y = _N_TERMS[kinds[1]]
+    if n_plan + n_line_extra < need_y:
+        line_text = ", ".join(f"{ln.name!r}: {ln.xyz.shape[0]}" for ln in lines)
+        raise GeometryError(
+            f"polynomial type {kinds[1]} needs at least {need_y} observations for Y (full or "
+            "plan control points, plus line points beyond two per straight line), got "
+            f"{n_plan + n_line_extra}: {n_plan} control"
+            + (f" ({_quote(plan_ids)})" if plan_ids else "")
+            + (f" and {n_line_extra} from lines ({line_text})" if lines else "")
+        )
+
+    # Normalisation.
+    xy_data = [pts[used, :2]] + [line.xyz[:, :2] for line in lines]
+    xy_all = np.concatenate(xy_data, axis=0)
+    if xy_all.shape[0]:
+        centre = xy_all.mean(axis=0)
+        half = 0.5 * float(np.ptp(xy_all[:, 0]))
+        if half <= 0.0:
+            half = 0.5 * float(np.ptp(xy_all[:, 1]))
+    else:
+        centre = np.zeros(2)
+        half = 1.0
+    if half <= 0.0:
+        half = 1.0
+    norm = Normalization(centre=centre, half_extent=half)
+    centre.setflags(write=False)
+
+    kind_max = max(kinds)
+    nt = _N_TERMS[kind_max]
+    u_all, v_all = norm.apply(pts)
+    u_all = np.where(used, u_all, 0.0)
+    v_all = np.where(used, v_all, 0.0)
+    terms_all = polynomial_terms(u_all, v_all, kind_max)
+    w_obs = np.where(
+        np.column_stack([mask_xy, mask_xy, mask_z]),
+        pts - np.where(np.column_stack([mask_xy, mask_xy, mask_z]), tgt, 0.0),
+        0.0,
+    )
+
+    coefficients = np.zeros((3, nt))
+    residuals = np.full((n, 3), np.nan)
+    red = np.full((n, 3), np.nan)
+    normalized = np.full((n, 3), np.nan)
+    sigma0_xyz = np.full(3, np.nan)
+    redundancy_xyz = [0, 0, 0]
+    vtpv_total = 0.0
+
+    # X and Z: control only.
+    for c, mask, sig, names in ((0, mask_xy, sxy, plan_ids), (2, mask_z, sz, height_ids)):
+        k_c = _N_TERMS[kinds[c]]
+        design = terms_all[mask, :k_c]
+        x, v_fit, r, _ = _solve(
+            design,
+            w_obs[mask, c],
+            sig[mask],
+            what=f"polynomial type {kinds[c]} for {'XYZ'[c]}",
+            names=names,
+        )
+        coefficients[c, :k_c] = x
+        # residual target - corrected = w_fit - w_obs = -(w_obs - A x)
+        residuals[mask, c] = -v_fit
+        red[mask, c] = r
+        normalized[mask, c] = _normalized(-v_fit, sig[mask], r)
+        redundancy_xyz[c] = int(design.shape[0] - k_c)
+        vtpv = float(np.sum((v_fit / sig[mask]) ** 2))
+        vtpv_total += vtpv
+        if redundancy_xyz[c] > 0:
+            sigma0_xyz[c] = np.sqrt(vtpv / redundancy_xyz[c])
+
+    # Y: control plus straight lines.
+    k_y = _N_TERMS[kinds[1]]
+    n_lines = len(lines)
+    sigma_ref = float(np.median(sxy[mask_xy])) if n_plan else 1.0
+    rows = [terms_all[mask_xy, :k_y]]
+    extra = [np.zeros((n_plan, 2 * n_lines))]
+    obs_y = [w_obs[mask_xy, 1]]
+    sig_y = [sxy[mask_xy]]
+    for k, line in enumerate(lines):
+        u_l, v_l = norm.apply(line.xyz)
+        rows.append(polynomial_terms(u_l, v_l, kinds[1])[:, :k_y])
+        block = np.zeros((u_l.shape[0], 2 * n_lines))
+        block[:, 2 * k] = 1.0
+        block[:, 2 * k + 1] = u_l
+        extra.append(block)
+        obs_y.append(line.xyz[:, 1] - centre[1])
+        sig_y.append(np.full(u_l.shape[0], sigma_ref / np.sqrt(line.weight)))
+    design_y = np.concatenate([np.concatenate(rows, axis=0), np.concatenate(extra, axis=0)], 1)
+    observed_y = np.concatenate(obs_y)
+    sigma_y = np.concatenate(sig_y)
+    names_y = plan_ids + [p for line in lines for p in line.point_ids]
+    x, v_fit, r, _ = _solve(
+        design_y,
+        observed_y,
+        sigma_y,
+        what=f"polynomial type {kinds[1]} for Y" + (" with straight lines" if lines else ""),
+        names=names_y,
+    )
+    coefficients[1, :k_y] = x[:k_y]
+    alpha_beta = x[k_y:].reshape(n_lines, 2)
+    residuals[mask_xy, 1] = -v_fit[:n_plan]
+    red[mask_xy, 1] = r[:n_plan]
+    normalized[mask_xy, 1] = _normalized(-v_fit[:n_plan], sxy[mask_xy], r[:n_plan])
+    redundancy_xyz[1] = int(design_y.shape[0] - design_y.shape[1])
+    vtpv = float(np.sum((v_fit / sigma_y) ** 2))
+    vtpv_total += vtpv
+    if redundancy_xyz[1] > 0:
+        sigma0_xyz[1] = np.sqrt(vtpv / redundancy_xyz[1])
+
+    # Lines: residual = corrected Y - line Y = (Y - w_Y) - (a + bX) = v (observed - fitted).
+    line_res: list[FloatArray] = []
+    line_red: list[FloatArray] = []
+    line_norm: list[FloatArray] = []
+    line_params = np.zeros((n_lines, 2))
+    start = n_plan
+    for k, line in enumerate(lines):
+        m = line.xyz.shape[0]
+        v_k = v_fit[start : start + m].copy()
+        r_k = r[start : start + m].copy()
+        s_k = sigma_y[start : start + m]
+        line_res.append(v_k)
+        line_red.append(r_k)
+        line_norm.append(_normalized(v_k, s_k, r_k))
+        alpha, beta = alpha_beta[k]
+        b = beta / half
+        a = alpha + centre[1] - b * centre[0]
+        line_params[k] = (a, b)
+        start += m
+
+    redundancy = int(sum(redundancy_xyz))
+    sigma0 = float(np.sqrt(vtpv_total / redundancy)) if redundancy > 0 else float("nan")
+    return DeformationResult(
+        kind=kind_max,
+        kinds=kinds,
+        coefficients=coefficients,
+        normalization=norm,
+        line_names=tuple(line.name for line in lines),
+        line_parameters=line_params,
+        residuals=residuals,
+        line_residuals=tuple(line_res),
+        sigma0=sigma0,
+        redundancy=redundancy,
+        sigma0_xyz=sigma0_xyz,
+        redundancy_xyz=(redundancy_xyz[0], redundancy_xyz[1], redundancy_xyz[2]),
+        redundancy_numbers=red,
+        line_redundancy_numbers=tuple(line_red),
+        normalized_residuals=normalized,
+        line_normalized_residuals=tuple(line_norm),
+        point_ids=ids,
+    )
+
+
+# --------------------------------------------------------------------------- automatic choice
+
+
+class KindSummary(NamedTuple):
+    """One row of the table of :func:`select_kind_auto`.
+
+    ``feasible`` False means the kind was not fitted (``reason`` says why) and
+    the numbers are NaN.  ``sigma0_xyz`` is unitless (the fit is weighted
+    with the expected sigmas), ``rms_xyz`` in metres at the control,
+    ``statistic_xyz`` the control part of vᵀPv and ``dof_xyz`` its degrees of
+    freedom (sum of the control redundancy numbers), ``critical_xyz`` the
+    chi-square quantile it is compared with, ``passed`` whether all three
+    tests accept.
+    """
+
+    kind: int
+    feasible: bool
+    reason: str
+    sigma0: float
+    redundancy: int
+    sigma0_xyz: FloatArray
+    redundancy_xyz: tuple[int, int, int]
+    rms_xyz: FloatArray
+    statistic_xyz: FloatArray
+    dof_xyz: FloatArray
+    critical_xyz: FloatArray
+    passed: bool
+
+
+class KindSelection(NamedTuple):
+    """The polynomial type chosen by :func:`select_kind_auto` and the table it used."""
+
+    kind: int
+    table: tuple[KindSummary, ...]
+
+
+def select_kind_auto(
+    xyz: ArrayLike,
+    target: ArrayLike,
+    *,
+    use_xy: ArrayLike,
+    use_z: ArrayLike,
+    expected_sigma_xy: ArrayLike,
+    expected_sigma_z: ArrayLike,
+    lines: Sequence[StraightLine] = (),
+    point_ids: Sequence[str] | None = None,
+    kinds: Sequence[int] = (0, 1, 2, 3),
+    min_redundancy: int = 2,
+    confidence: float = 0.95,
+) -> KindSelection:
+    """Choose the polynomial type ("auto"), as a photogrammetrist would.
+
+    J's criterion (section 2.2): the best polynomial is the one that brings
+    the residuals at the control down to the level expected from the random
+    errors of the control and of the photogrammetric measurement.
+
+    Rule
+    ----
+    1. Each kind in `kinds` (J(16) types 0..3) is fitted with
+       :func:`fit_deformation`, weights ``1/expected_sigma²``, only if every
+       coordinate has enough observations and a redundancy of at least
+       `min_redundancy`; other kinds are listed as infeasible with the reason.
+    2. For each fitted kind and each coordinate X, Y, Z the variance factor
+       is tested: ``T = sum(v²/sigma²)`` over the control observations of
+       that coordinate is compared with the upper quantile of chi-square with
+       ``dof = sum of their redundancy numbers`` (equal to the redundancy when
+       there are no straight lines; line equations are left out of T because
+       their weight is a device to make the condition effective, not a
+       measured precision).  The three tests run at level
+       ``(1 - confidence) / 3`` each (Bonferroni), so the kind is accepted at
+       the overall level ``1 - confidence`` (5 % by default).  A coordinate
+       with ``dof = 0`` is not tested.
+    3. The chosen kind is the lowest accepted one; if none is accepted, the
+       highest feasible kind.
+
+    Parameters
+    ----------
+    xyz, target, use_xy, use_z, lines, point_ids
+        As for :func:`fit_deformation`.
+    expected_sigma_xy, expected_sigma_z : float or array_like, shape (N,)
+        Expected random error (metres) of a control coordinate after a
+        correct deformation model: control survey, identification and
+        photogrammetric measurement together.
+    kinds : sequence of int
+        Kinds to try.
+    min_redundancy : int
+        Minimum redundancy per coordinate for a kind to be tried.
+    confidence : float
+        Confidence level of the test (0.95).
+
+    Returns
+    -------
+    KindSelection
+        ``(kind, table)``; `table` has one :class:`KindSummary` per kind tried.
+
+    Raises
+    ------
+    GeometryError
+        No kind is feasible.
+    """
+    if not 0.0 < float(confidence) < 1.0:
+        raise ValueError(f"Expected `confidence` in (0, 1), got {confidence!r}")
+    if int(min_redundancy) < 0:
+        raise ValueError(f"Expected `min_redundancy` >= 0, got {min_redundancy!r}")
+    kinds_tried = tuple(_check_kind(k) for k in kinds)
+    if not kinds_tried:
+        raise ValueError("Expected at least one kind in `kinds`")
+    alpha = (1.0 - float(confidence)) / 3.0
+    table: list[KindSummary] = []
+    nan3 = np.full(3, np.nan)
+    for k in sorted(set(kinds_tried)):
+        try:
+            res = fit_deformation(
+                xyz,
+                target,
+                use_xy=use_xy,
+                use_z=use_z,
+                kind=k,
+                sigma_xy=expected_sigma_xy,
+                sigma_z=expected_sigma_z,
+                lines=lines,
+                point_ids=point_ids,
+            )
+        except GeometryError as exc:
+            table.append(
+                KindSummary(
+                    k, False, str(exc), np.nan, 0, nan3, (0, 0, 0), nan3, nan3, nan3, nan3, False
+                )
+            )
+            continue
+        if min(res.redundancy_xyz) < int(min_redundancy):
+            table.append(
+                KindSummary(
+                    k,
+                    False,
+                    f"redundancy {res.redundancy_xyz} (X, Y, Z) below {int(min_redundancy)}",
+                    res.sigma0,
+                    res.redundancy,
+                    res.sigma0_xyz,
+                    res.redundancy_xyz,
+                    nan3,
+                    nan3,
+                    nan3,
+                    nan3,
+                    False,
+                )
+            )
+            continue
+        n = res.residuals.shape[0]
+        sig = np.column_stack(
+            [
+                _check_sigma(expected_sigma_xy, n, "expected_sigma_xy"),
+                _check_sigma(expected_sigma_xy, n, "expected_sigma_xy"),
+                _check_sigma(expected_sigma_z, n, "expected_sigma_z"),
+            ]
+        )
+        observed = np.isfinite(res.residuals)
+        rms = np.full(3, np.nan)
+        stat = np.full(3, np.nan)
+        dof = np.full(3, np.nan)
+        crit = np.full(3, np.nan)
+        ok = True
+        for c in range(3):
+            o = observed[:, c]
+            if not np.any(o):
+                continue
+            v = res.residuals[o, c]
+            rms[c] = np.sqrt(np.mean(v**2))
+            stat[c] = np.sum((v / sig[o, c]) ** 2)
+            dof[c] = np.sum(res.redundancy_numbers[o, c])
+            if dof[c] > 1e-9:
+                crit[c] = chi2.ppf(1.0 - alpha, dof[c])
+                ok = ok and bool(stat[c] <= crit[c])
+        table.append(
+            KindSummary(
+                k,
+                True,
+                "",
+                res.sigma0,
+                res.redundancy,
+                res.sigma0_xyz,
+                res.redundancy_xyz,
+                rms,
+                stat,
+                dof,
+                crit,
+                ok,
+            )
+        )
+    feasible = [row for row in table if row.feasible]
+    if not feasible:
+        reasons = "; ".join(f"type {row.kind}: {row.reason}" for row in table)
+        raise GeometryError(f"no polynomial type is feasible for the control: {reasons}")
+    passed = [row for row in feasible if row.passed]
+    chosen = passed[0].kind if passed else feasible[-1].kind
+    return KindSelection(chosen, tuple(table))

@@ -1,0 +1,728 @@
+"""Three-dimensional similarity (seven-parameter, "orthogonal") transformation.
+
+The strip model is brought onto the control by
+
+``target = translation + scale * rotation @ source``
+
+(method.md section 6.1, J section 2.2, B(145)-(149)): ``rotation`` is an
+active rotation matrix that premultiplies column vectors, ``scale`` is
+unitless (target units per source unit) and ``translation`` is in target units
+(metres).  Points are rows, shape (N, 3); both frames are right-handed
+Cartesian frames.
+
+Two estimators are offered:
+
+* :func:`similarity_from_points`, the closed form of Horn / Umeyama for three
+  or more full, non-collinear point pairs;
+* :func:`fit_similarity`, weighted least squares with full (X, Y, H), plan
+  (X, Y) and height (H) control, J's minimum being two full points and one
+  more height, not all in one vertical plane.  It returns residuals, the a
+  posteriori sigma0, the covariance of the seven parameters, the redundancy
+  numbers and the normalised residuals (w-test) needed for data snooping.
+
+No geodesy happens here: both point sets are Cartesian, in metres or model
+units.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ._typing import ArrayLike, BoolArray, FloatArray
+from .errors import ConvergenceError, GeometryError, StripAerotriWarning
+
+__all__ = [
+    "SimilarityResult",
+    "SimilarityTransform",
+    "fit_similarity",
+    "similarity_from_points",
+]
+
+#: Relative size (against the extent of the control) below which plan points
+#: are taken as coincident.
+COINCIDENT_RTOL = 1e-6
+#: Ratio of the smallest to the largest singular value of the centred plan
+#: coordinates of the height points below which they are taken as collinear in
+#: plan (all in one vertical plane): the tilt across that plane is undetermined.
+COLLINEAR_RTOL = 1e-3
+#: Same ratio below which the configuration is accepted but a warning is issued.
+WEAK_COLLINEAR_RTOL = 1e-2
+#: Condition number of the column-equilibrated normal matrix treated as singular.
+SINGULAR_COND = 1e12
+#: Redundancy numbers below this are treated as zero (observation not controlled).
+_R_MIN = 1e-10
+
+
+# --------------------------------------------------------------------------- transform
+
+
+@dataclass(frozen=True)
+class SimilarityTransform:
+    """A 3D similarity transformation ``target = translation + scale * rotation @ source``.
+
+    Attributes
+    ----------
+    scale : float
+        Unitless scale factor (target units per source unit), > 0.
+    rotation : ndarray, shape (3, 3)
+        Active rotation (det +1) that premultiplies column vectors of the
+        source frame.
+    translation : ndarray, shape (3,)
+        Position of the source origin in the target frame, target units.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = SimilarityTransform(2.0, np.eye(3), np.array([1.0, 0.0, 0.0]))
+    >>> t.apply([[1.0, 1.0, 1.0]])
+    array([[3., 2., 2.]])
+    >>> t.inverse().apply(t.apply([[1.0, 2.0, 3.0]]))
+    array([[1., 2., 3.]])
+    """
+
+    scale: float
+    rotation: FloatArray
+    translation: FloatArray
+
+    def __post_init__(self) -> None:
+        scale = float(self.scale)
+        rotation = np.array(self.rotation, dtype=np.float64)
+        translation = np.array(self.translation, dtype=np.float64)
+        if not np.isfinite(scale) or scale <= 0.0:
+            raise ValueError(f"Expected `scale` to be a finite number > 0, got {scale!r}")
+        if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
+            raise ValueError(
+                f"Expected `rotation` to be a finite array of shape (3, 3), got {rotation.shape}"
+            )
+        if translation.shape != (3,) or not np.all(np.isfinite(translation)):
+            raise ValueError(
+                "Expected `translation` to be a finite array of shape (3,), "
+                f"got {translation.shape}"
+            )
+        if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-9) or (
+            np.linalg.det(rotation) < 0.0
+        ):
+            raise ValueError(
+                "Expected `rotation` to be a proper rotation matrix (R Rᵀ = I, det +1)"
+            )
+        rotation.setflags(write=False)
+        translation.setflags(write=False)
+        object.__setattr__(self, "scale", scale)
+        object.__setattr__(self, "rotation", rotation)
+        object.__setattr__(self, "translation", translation)
+
+    @classmethod
+    def identity(cls) -> SimilarityTransform:
+        """The identity transformation (scale 1, no rotation, no translation)."""
+        return cls(1.0, np.eye(3), np.zeros(3))
+
+    def apply(self, xyz: ArrayLike) -> FloatArray:
+        """Transform points.
+
+        Parameters
+        ----------
+        xyz : array_like, shape (N, 3) or (3,)
+            Points in the source frame (rows).
+
+        Returns
+        -------
+        ndarray, shape like `xyz`
+            ``translation + scale * rotation @ xyz`` for each row.
+        """
+        xyz = np.asarray(xyz, dtype=np.float64)
+        if xyz.shape[-1:] != (3,):
+            raise ValueError(f"Expected `xyz` to have shape (N, 3), got {xyz.shape}")
+        return self.translation + self.scale * (xyz @ self.rotation.T)
+
+    def apply_to_rotation(self, rotation: ArrayLike) -> FloatArray:
+        """Carry attitudes (image -> source rotations) into the target frame.
+
+        Parameters
+        ----------
+        rotation : array_like, shape (..., 3, 3)
+            Rotation matrices mapping image vectors to the source frame
+            (``l = R @ l_image``).
+
+        Returns
+        -------
+        ndarray, shape (..., 3, 3)
+            ``self.rotation @ rotation``: image -> target frame.
+        """
+        rotation = np.asarray(rotation, dtype=np.float64)
+        if rotation.shape[-2:] != (3, 3):
+            raise ValueError(
+                f"Expected `rotation` to have shape (..., 3, 3), got {rotation.shape}"
+            )
+        return np.matmul(self.rotation, rotation)
+
+    def inverse(self) -> SimilarityTransform:
+        """The inverse transformation (target -> source)."""
+        rotation_t = self.rotation.T
+        return SimilarityTransform(
+            1.0 / self.scale, rotation_t, -(rotation_t @ self.translation) / self.scale
+        )
+
+    def compose(self, other: SimilarityTransform) -> SimilarityTransform:
+        """Composition ``self ∘ other``: apply `other` first, then `self`.
+
+        ``self.compose(other).apply(x) == self.apply(other.apply(x))``, so
+        chains read like ``model2ground = strip2ground.compose(model2strip)``.
+        """
+        if not isinstance(other, SimilarityTransform):
+            raise TypeError(f"Expected a SimilarityTransform, got {type(other).__name__}")
+        return SimilarityTransform(
+            self.scale * other.scale,
+            self.rotation @ other.rotation,
+            self.translation + self.scale * (self.rotation @ other.translation),
+        )
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _check_points(xyz: ArrayLike, name: str, n: int | None = None) -> FloatArray:
+    arr = np.asarray(xyz, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f"Expected `{name}` to have shape (N, 3), got {arr.shape}")
+    if n is not None and arr.shape[0] != n:
+        raise ValueError(f"Expected `{name}` to have shape ({n}, 3), got {arr.shape}")
+    return arr
+
+
+def _check_mask(mask: ArrayLike, n: int, name: str) -> BoolArray:
+    arr = np.asarray(mask)
+    if arr.shape != (n,):
+        raise ValueError(f"Expected `{name}` to have shape ({n},), got {arr.shape}")
+    if arr.dtype != np.bool_:
+        raise ValueError(f"Expected `{name}` to be boolean, got dtype {arr.dtype}")
+    return arr.astype(np.bool_, copy=True)
+
+
+def _check_sigma(sigma: ArrayLike | None, n: int, name: str) -> FloatArray:
+    if sigma is None:
+        return np.ones(n)
+    arr = np.asarray(sigma, dtype=np.float64)
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise ValueError(f"Expected `{name}` to be a scalar or of shape ({n},), got {arr.shape}")
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
+        raise ValueError(f"Expected `{name}` to be finite and > 0")
+    return arr.copy()
+
+
+def _check_ids(point_ids: Sequence[str] | None, n: int) -> tuple[str, ...]:
+    if point_ids is None:
+        return tuple(f"#{i}" for i in range(n))
+    ids = tuple(str(p) for p in point_ids)
+    if len(ids) != n:
+        raise ValueError(f"Expected `point_ids` to have length {n}, got {len(ids)}")
+    return ids
+
+
+def _quote(ids: Sequence[str], limit: int = 12) -> str:
+    """``'A', 'B', 'C'`` (shortened with ``...`` beyond `limit` ids)."""
+    quoted = [repr(str(i)) for i in ids]
+    if len(quoted) > limit:
+        quoted = [*quoted[:limit], "..."]
+    return ", ".join(quoted)
+
+
+def _skew(u: FloatArray) -> FloatArray:
+    """Cross-product matrices ``[u]x`` of a stack of vectors, shape (..., 3, 3)."""
+    zero = np.zeros(u.shape[:-1])
+    return np.stack(
+        [
+            np.stack([zero, -u[..., 2], u[..., 1]], axis=-1),
+            np.stack([u[..., 2], zero, -u[..., 0]], axis=-1),
+            np.stack([-u[..., 1], u[..., 0], zero], axis=-1),
+        ],
+        axis=-2,
+    )
+
+
+def _normal_inverse(a_white: FloatArray) -> tuple[FloatArray, float]:
+    """Inverse of ``AᵀA`` by column equilibration, and its condition number.
+
+    Returns ``(inverse, cond)``; ``cond`` is that of the equilibrated matrix
+    (inf when a column is zero).
+    """
+    normal = a_white.T @ a_white
+    diag = np.diag(normal).copy()
+    if normal.size == 0:
+        return normal, 1.0
+    if np.any(diag <= 0.0):
+        return np.full_like(normal, np.nan), np.inf
+    d = 1.0 / np.sqrt(diag)
+    scaled = normal * d[:, None] * d[None, :]
+    eig = np.linalg.eigvalsh(scaled)
+    if eig[0] <= 0.0:
+        return np.full_like(normal, np.nan), np.inf
+    cond = float(eig[-1] / eig[0])
+    inverse = np.linalg.inv(scaled) * d[:, None] * d[None, :]
+    return inverse, cond
+
+
+def _redundancy_numbers(a_white: FloatArray, q: FloatArray) -> FloatArray:
+    """Diagonal of ``I - A (AᵀPA)⁻¹ AᵀP`` for whitened rows ``a_white = sqrt(P) A``."""
+    if a_white.shape[1] == 0:
+        return np.ones(a_white.shape[0])
+    h = np.einsum("ij,jk,ik->i", a_white, q, a_white)
+    return np.clip(1.0 - h, 0.0, 1.0)
+
+
+def _normalized(v: FloatArray, sigma: FloatArray, r: FloatArray) -> FloatArray:
+    """w-test statistic ``v / (sigma sqrt(r))``, NaN where ``r`` is (near) zero."""
+    out = np.full(v.shape, np.nan)
+    ok = np.isfinite(v) & (r > _R_MIN)
+    out[ok] = v[ok] / (sigma[ok] * np.sqrt(r[ok]))
+    return out
+
+
+# --------------------------------------------------------------------------- closed form
+
+
+def similarity_from_points(
+    source: ArrayLike, target: ArrayLike, weights: ArrayLike | None = None
+) -> SimilarityTransform:
+    """Closed-form similarity from full point pairs (Horn 1987 / Umeyama 1991).
+
+    Minimises ``sum_i w_i |target_i - (t + s R source_i)|²`` over a rotation
+    with det +1 (a reflection is never returned, even for mirrored data).
+
+    Parameters
+    ----------
+    source, target : array_like, shape (N, 3)
+        Corresponding points, N >= 3, not collinear, all finite.
+    weights : array_like, shape (N,), optional
+        Non-negative weights (default 1).
+
+    Returns
+    -------
+    SimilarityTransform
+        ``target ≈ translation + scale * rotation @ source``.
+
+    Raises
+    ------
+    GeometryError
+        Fewer than three points with positive weight, or the source or target
+        points collinear or coincident.
+    ValueError
+        Bad shapes, non-finite values, negative weights.
+
+    References
+    ----------
+    S. Umeyama, "Least-squares estimation of transformation parameters between
+    two point patterns", IEEE TPAMI 13(4), 1991, doi:10.1109/34.88573.
+    """
+    src = _check_points(source, "source")
+    tgt = _check_points(target, "target", src.shape[0])
+    n = src.shape[0]
+    if not (np.all(np.isfinite(src)) and np.all(np.isfinite(tgt))):
+        raise ValueError("Expected `source` and `target` to be finite")
+    if weights is None:
+        w = np.ones(n)
+    else:
+        w = np.asarray(weights, dtype=np.float64)
+        if w.shape != (n,) or not np.all(np.isfinite(w)) or np.any(w < 0.0):
+            raise ValueError(f"Expected `weights` to be finite, >= 0, of shape ({n},)")
+    used = w > 0.0
+    if np.count_nonzero(used) < 3:
+        raise GeometryError(
+            "similarity from points needs at least three full points, "
+            f"got {np.count_nonzero(used)}"
+        )
+    w = w / w.sum()
+    mu_s = w @ src
+    mu_t = w @ tgt
+    s_c = src - mu_s
+    t_c = tgt - mu_t
+    for name, centred in (("source", s_c), ("target", t_c)):
+        sv = np.linalg.svd(centred * np.sqrt(w)[:, None], compute_uv=False)
+        if sv[0] == 0.0 or sv[1] <= COINCIDENT_RTOL * sv[0]:
+            raise GeometryError(
+                f"similarity from points needs non-collinear points, the {name} points are "
+                "collinear or coincident"
+            )
+    cov = (t_c * w[:, None]).T @ s_c
+    u, d, vt = np.linalg.svd(cov)
+    sign = np.ones(3)
+    sign[2] = 1.0 if np.linalg.det(u) * np.linalg.det(vt) > 0.0 else -1.0
+    rotation = (u * sign) @ vt
+    variance = float(np.sum(w * np.sum(s_c**2, axis=1)))
+    scale = float(np.sum(d * sign) / variance)
+    if scale <= 0.0:
+        raise GeometryError("similarity from points gives a non-positive scale")
+    translation = mu_t - scale * rotation @ mu_s
+    return SimilarityTransform(scale, rotation, translation)
+
+
+# --------------------------------------------------------------------------- least squares
+
+
+@dataclass(frozen=True)
+class SimilarityResult:
+    """Weighted least-squares similarity on full, plan and height control.
+
+    Attributes
+    ----------
+    transform : SimilarityTransform
+        Source -> target.
+    residuals : ndarray, shape (N, 3)
+        ``target - transform.apply(source)`` in target units; NaN where the
+        coordinate is not observed.
+    sigma0 : float
+        A posteriori standard deviation of unit weight, ``sqrt(vᵀPv / r)``
+        with ``P = 1/sigma²``: unitless when sigmas were given (expected
+        about 1), metres with the default unit weights; NaN when r = 0.
+    redundancy : int
+        r = number of observations - 7.
+    iterations : int
+        Gauss-Newton iterations performed.
+    covariance : ndarray, shape (7, 7)
+        Covariance of (tx, ty, tz, scale, phi_x, phi_y, phi_z): ``translation``
+        in target units, ``scale`` unitless, and a small rotation vector in
+        radians applied on the left (``rotation -> expm([phi]x) @ rotation``,
+        i.e. about target-frame axes).  Scaled by sigma0² when r > 0,
+        otherwise the a priori cofactor matrix.
+    redundancy_numbers : ndarray, shape (N, 3)
+        Diagonal of ``R = I - A (AᵀPA)⁻¹ AᵀP`` per observation (0..1); NaN
+        where not observed.  They sum to ``redundancy``.
+    normalized_residuals : ndarray, shape (N, 3)
+        w-test statistic ``v / (sigma sqrt(r_i))`` with the a priori sigma of
+        the observation; NaN where not observed or r_i = 0.
+    point_ids : tuple of str
+        Ids of the N points (``'#i'`` when none were given).
+    """
+
+    transform: SimilarityTransform
+    residuals: FloatArray
+    sigma0: float
+    redundancy: int
+    iterations: int
+    covariance: FloatArray
+    redundancy_numbers: FloatArray
+    normalized_residuals: FloatArray
+    point_ids: tuple[str, ...]
+
+
+def _validate_control_geometry(
+    src: FloatArray,
+    tgt: FloatArray,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    ids: tuple[str, ...],
+) -> None:
+    """Check J's rules for a 3D similarity; raise GeometryError naming the points."""
+    used = use_xy | use_z
+    bad_src = used & ~np.all(np.isfinite(src), axis=1)
+    bad_xy = use_xy & ~np.all(np.isfinite(tgt[:, :2]), axis=1)
+    bad_z = use_z & ~np.isfinite(tgt[:, 2])
+    if np.any(bad_src):
+        raise GeometryError(
+            "control points have non-finite model coordinates: "
+            f"{_quote([ids[i] for i in np.flatnonzero(bad_src)])}"
+        )
+    if np.any(bad_xy):
+        raise GeometryError(
+            "control points used for plan have non-finite target X or Y: "
+            f"{_quote([ids[i] for i in np.flatnonzero(bad_xy)])}"
+        )
+    if np.any(bad_z):
+        raise GeometryError(
+            "control points used for height have non-finite target H: "
+            f"{_quote([ids[i] for i in np.flatnonzero(bad_z)])}"
+        )
+    plan = np.flatnonzero(use_xy)
+    height = np.flatnonzero(use_z)
+    plan_ids = [ids[i] for i in plan]
+    height_ids = [ids[i] for i in height]
+    if plan.size < 2:
+        raise GeometryError(
+            "similarity transformation needs at least two full or plan control points, "
+            f"got {plan.size}" + (f": {_quote(plan_ids)}" if plan.size else "")
+        )
+    if height.size < 3:
+        raise GeometryError(
+            "similarity transformation needs at least three full or height control points, "
+            f"got {height.size}" + (f": {_quote(height_ids)}" if height.size else "")
+        )
+    extent_src = float(np.max(np.ptp(src[used], axis=0)))
+    ranges_tgt = [np.ptp(tgt[plan, 0]), np.ptp(tgt[plan, 1]), np.ptp(tgt[height, 2])]
+    extent_tgt = float(max(ranges_tgt))
+    for frame, xy, extent in (
+        ("model", src[plan, :2], extent_src),
+        ("control", tgt[plan, :2], extent_tgt),
+    ):
+        spread = float(np.max(np.ptp(xy, axis=0)))
+        if spread == 0.0 or spread <= COINCIDENT_RTOL * extent:
+            raise GeometryError(
+                f"plan control points coincide in the {frame} (scale and azimuth are "
+                f"undetermined): {_quote(plan_ids)}"
+            )
+    hxy = src[height, :2] - src[height, :2].mean(axis=0)
+    sv = np.linalg.svd(hxy, compute_uv=False)
+    ratio = 0.0 if sv[0] == 0.0 else float(sv[1] / sv[0])
+    if ratio < COLLINEAR_RTOL:
+        raise GeometryError(
+            "height control points all lie in one vertical plane (collinear in plan, "
+            f"singular value ratio {ratio:.1e}); the tilt across it is undetermined: "
+            f"{_quote(height_ids)}"
+        )
+    if ratio < WEAK_COLLINEAR_RTOL:
+        warnings.warn(
+            "height control points lie nearly in one vertical plane (singular value ratio "
+            f"{ratio:.1e}); the cross tilt is weak: {_quote(height_ids)}",
+            StripAerotriWarning,
+            stacklevel=3,
+        )
+
+
+def _start_values(
+    src_c: FloatArray,
+    tgt_c: FloatArray,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+) -> tuple[float, FloatArray, FloatArray]:
+    """Constructive start (scale, rotation, translation) in the centred frames."""
+    full = use_xy & use_z
+    if np.count_nonzero(full) >= 3:
+        s_f = src_c[full] - src_c[full].mean(axis=0)
+        sv = np.linalg.svd(s_f, compute_uv=False)
+        t_f = tgt_c[full] - tgt_c[full].mean(axis=0)
+        svt = np.linalg.svd(t_f, compute_uv=False)
+        if sv[1] > 1e-3 * sv[0] and svt[1] > 1e-3 * svt[0]:
+            start = similarity_from_points(src_c[full], tgt_c[full])
+            return start.scale, start.rotation.copy(), start.translation.copy()
+    # Plan: 2D Helmert (scale and azimuth about Z) from the plan points.
+    xy_s = src_c[use_xy, :2]
+    xy_t = tgt_c[use_xy, :2]
+    zs = (xy_s[:, 0] - xy_s[:, 0].mean()) + 1j * (xy_s[:, 1] - xy_s[:, 1].mean())
+    zt = (xy_t[:, 0] - xy_t[:, 0].mean()) + 1j * (xy_t[:, 1] - xy_t[:, 1].mean())
+    m = np.sum(np.conj(zs) * zt) / np.sum(np.abs(zs) ** 2)
+    scale = float(np.abs(m))
+    kappa = float(np.angle(m))
+    rz = Rotation.from_euler("z", kappa).as_matrix()
+    # Heights: Z_t = tz + s (z + phi_x y - phi_y x), linear in (tz, phi_x, phi_y).
+    p = src_c[use_z]
+    a = np.column_stack([np.full(p.shape[0], 1.0 / scale), p[:, 1], -p[:, 0]])
+    rhs = tgt_c[use_z, 2] / scale - p[:, 2]
+    sol, *_ = np.linalg.lstsq(a, rhs, rcond=None)
+    tilt = Rotation.from_rotvec([sol[1], sol[2], 0.0]).as_matrix()
+    rotation = rz @ tilt
+    u = src_c @ rotation.T * scale
+    translation = np.array(
+        [
+            np.mean(tgt_c[use_xy, 0] - u[use_xy, 0]),
+            np.mean(tgt_c[use_xy, 1] - u[use_xy, 1]),
+            np.mean(tgt_c[use_z, 2] - u[use_z, 2]),
+        ]
+    )
+    return scale, rotation, translation
+
+
+def fit_similarity(
+    source: ArrayLike,
+    target: ArrayLike,
+    *,
+    use_xy: ArrayLike,
+    use_z: ArrayLike,
+    sigma_xy: ArrayLike | None = None,
+    sigma_z: ArrayLike | None = None,
+    point_ids: Sequence[str] | None = None,
+    max_iterations: int = 30,
+    tolerance: float = 1e-12,
+) -> SimilarityResult:
+    """Seven-parameter similarity by weighted least squares on mixed control.
+
+    Model ``target = translation + scale * rotation @ source`` (active
+    rotation, column vectors; rows in the arrays).  Full control observes X,
+    Y and Z, plan control X and Y, height control Z (J section 2.2, B(149)).
+
+    Parameters
+    ----------
+    source : array_like, shape (N, 3)
+        Model (strip) coordinates of the points, any unit.
+    target : array_like, shape (N, 3)
+        Control coordinates (metres); NaN where a coordinate is not given.
+        Entries not used are never read.
+    use_xy : array_like of bool, shape (N,)
+        X and Y of the point are observed (full and plan control).
+    use_z : array_like of bool, shape (N,)
+        Z of the point is observed (full and height control).
+    sigma_xy, sigma_z : float or array_like, shape (N,), optional
+        A priori standard deviations of the target coordinates in metres
+        (weights ``1/sigma²``).  Default 1 (unit weights; sigma0 is then in
+        metres).
+    point_ids : sequence of str, length N, optional
+        Names used in messages and kept in the result.
+    max_iterations : int
+        Gauss-Newton iteration limit.
+    tolerance : float
+        Convergence when the largest relative update (translation against the
+        control extent, scale against the scale, rotation in radians) falls
+        below it, or stops decreasing at round-off level (below 1e-9).
+
+    Returns
+    -------
+    SimilarityResult
+
+    Raises
+    ------
+    GeometryError
+        Fewer than two plan (full or plan) points, fewer than three height
+        (full or height) points, plan points coincident, height points all in
+        one vertical plane (J: collinear in plan), non-finite used
+        coordinates, or a singular normal matrix.  The message names the rule
+        and the points.
+    ConvergenceError
+        No convergence within `max_iterations`.
+    ValueError
+        Bad shapes or arguments.
+
+    Notes
+    -----
+    Both point sets are centred first (numerical conditioning with large
+    grid coordinates).  Start values: with three or more non-collinear full
+    points the closed form of :func:`similarity_from_points`; otherwise
+    scale and azimuth from a 2D Helmert fit of the plan points and the two
+    tilts (with the height offset) from a linear solve of the heights, which
+    works for J's minimum configuration and assumes the source frame is
+    roughly level (tilts well below 30 degrees), as a strip model is.  Then
+    Gauss-Newton on (translation, scale, small rotation vector updating the
+    rotation multiplicatively) to convergence.
+
+    The redundancy numbers ``r_i`` and the normalised residuals
+    ``w_i = v_i / (sigma_i sqrt(r_i))`` serve data snooping (Baarda): under
+    the null hypothesis each ``w_i`` is standard normal when the a priori
+    sigmas are right.
+    """
+    src = _check_points(source, "source")
+    n = src.shape[0]
+    tgt = _check_points(target, "target", n)
+    mask_xy = _check_mask(use_xy, n, "use_xy")
+    mask_z = _check_mask(use_z, n, "use_z")
+    sxy = _check_sigma(sigma_xy, n, "sigma_xy")
+    sz = _check_sigma(sigma_z, n, "sigma_z")
+    ids = _check_ids(point_ids, n)
+    if int(max_iterations) < 1:
+        raise ValueError(f"Expected `max_iterations` >= 1, got {max_iterations!r}")
+    if not (np.isfinite(tolerance) and tolerance > 0.0):
+        raise ValueError(f"Expected `tolerance` > 0, got {tolerance!r}")
+
+    _validate_control_geometry(src, tgt, mask_xy, mask_z, ids)
+
+    obs = np.column_stack([mask_xy, mask_xy, mask_z])  # (N, 3)
+    sigma = np.column_stack([sxy, sxy, sz])
+    used = mask_xy | mask_z
+    c_src = src[used].mean(axis=0)
+    c_tgt = np.array(
+        [tgt[mask_xy, 0].mean(), tgt[mask_xy, 1].mean(), tgt[mask_z, 2].mean()], dtype=np.float64
+    )
+    src_c = np.where(used[:, None], src - c_src, 0.0)
+    tgt_c = np.where(obs, np.where(obs, tgt, 0.0) - c_tgt, 0.0)
+    extent = float(np.max(np.ptp(np.where(obs, tgt_c, 0.0)[used], axis=0)))
+
+    scale, rotation, shift = _start_values(src_c, tgt_c, mask_xy, mask_z)
+
+    def linearise(
+        scale: float, rotation: FloatArray, shift: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        u = src_c @ rotation.T  # (N, 3)
+        misclosure = (tgt_c - (shift + scale * u))[obs]
+        jac = np.zeros((n, 3, 7))
+        jac[:, :, 0:3] = np.eye(3)
+        jac[:, :, 3] = u
+        jac[:, :, 4:7] = -scale * _skew(u)
+        a = jac[obs]
+        w = 1.0 / sigma[obs]
+        return a * w[:, None], misclosure * w
+
+    iterations = 0
+    previous = np.inf
+    converged = False
+    for iterations in range(1, int(max_iterations) + 1):
+        a_w, l_w = linearise(scale, rotation, shift)
+        q, cond = _normal_inverse(a_w)
+        if not np.isfinite(cond) or cond > SINGULAR_COND:
+            raise GeometryError(
+                "similarity transformation: the normal matrix is singular (condition "
+                f"{cond:.1e}); the control does not determine the 7 parameters: "
+                f"{_quote([ids[i] for i in np.flatnonzero(used)])}"
+            )
+        dx = q @ (a_w.T @ l_w)
+        shift = shift + dx[0:3]
+        scale = scale + dx[3]
+        if scale <= 0.0:
+            raise ConvergenceError(
+                "similarity transformation: the scale became non-positive during iteration "
+                f"{iterations}"
+            )
+        rotation = Rotation.from_rotvec(dx[4:7]).as_matrix() @ rotation
+        step = max(
+            float(np.max(np.abs(dx[0:3]))) / max(extent, np.finfo(float).tiny),
+            abs(float(dx[3])) / scale,
+            float(np.max(np.abs(dx[4:7]))),
+        )
+        if step < tolerance or (step < 1e-9 and step >= previous):
+            converged = True
+            break
+        previous = step
+    if not converged:
+        raise ConvergenceError(
+            f"similarity transformation did not converge in {max_iterations} iterations "
+            f"(last relative update {step:.1e})"
+        )
+    # Re-orthonormalise (accumulated products of rotations).
+    u_svd, _, vt_svd = np.linalg.svd(rotation)
+    rotation = u_svd @ vt_svd
+
+    a_w, l_w = linearise(scale, rotation, shift)
+    q, cond = _normal_inverse(a_w)
+    if not np.isfinite(cond) or cond > SINGULAR_COND:
+        raise GeometryError(
+            "similarity transformation: the normal matrix is singular (condition "
+            f"{cond:.1e}); the control does not determine the 7 parameters: "
+            f"{_quote([ids[i] for i in np.flatnonzero(used)])}"
+        )
+    m = a_w.shape[0]
+    redundancy = m - 7
+    v_obs = l_w * sigma[obs]  # target - fitted, target units
+    residuals = np.full((n, 3), np.nan)
+    residuals[obs] = v_obs
+    if redundancy > 0:
+        sigma0 = float(np.sqrt(np.sum(l_w**2) / redundancy))
+        var_factor = sigma0**2
+    else:
+        sigma0 = float("nan")
+        var_factor = 1.0
+    r_obs = _redundancy_numbers(a_w, q)
+    red = np.full((n, 3), np.nan)
+    red[obs] = r_obs
+    normalized = np.full((n, 3), np.nan)
+    normalized[obs] = _normalized(v_obs, sigma[obs], r_obs)
+
+    translation = c_tgt + shift - scale * (rotation @ c_src)
+    # Covariance of the true translation: t = c_tgt + shift - s R c_src.
+    rc = rotation @ c_src
+    jac = np.eye(7)
+    jac[0:3, 3] = -rc
+    jac[0:3, 4:7] = scale * _skew(rc)
+    covariance = var_factor * (jac @ q @ jac.T)
+
+    return SimilarityResult(
+        transform=SimilarityTransform(scale, rotation, translation),
+        residuals=residuals,
+        sigma0=sigma0,
+        redundancy=int(redundancy),
+        iterations=int(iterations),
+        covariance=covariance,
+        redundancy_numbers=red,
+        normalized_residuals=normalized,
+        point_ids=ids,
+    )
