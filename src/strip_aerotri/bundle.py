@@ -1,0 +1,1004 @@
+"""Rigorous bundle adjustment of a strip by the collinearity equations.
+
+The optional final step after the strip method: the photos' exterior
+orientation and the ground coordinates of all points found by partially
+dependent models serve as initial values of a least-squares adjustment of all
+image coordinates at once, with ground control, GNSS projection centres and
+IMU attitudes entering as weighted observations.  The adjustment works in a
+local Cartesian frame in metres (the local-tangent frame of the geocentric
+route, method.md section 6.2).
+
+Model (conventions of method.md section 2): the image vector of an
+observation is ``(x, y, -c)``; a photo's rotation ``R`` maps image vectors to
+the frame, so with ``v = R.T @ (X - S)``
+
+    x = -c v_x / v_z,        y = -c v_y / v_z.
+
+Unknowns per photo are a shift of the centre ``dS`` (m) and a small rotation
+``delta`` (rad) applied on the right, ``R <- R @ exp([delta]x)``, i.e. about
+the axes of the photo's own image system; three per point.  The normal
+equations are reduced to the photos by the Schur complement on the 3 x 3
+point blocks; the reduced system (6M x 6M, banded for a strip) is solved by a
+sparse LU factorisation.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ._typing import ArrayLike, FloatArray, IntArray
+from .errors import ConvergenceError, GeometryError, StripAerotriWarning
+from .observations import ImageObservations
+
+__all__ = ["BundleResult", "bundle_adjust"]
+
+#: Relative pivot (of the Jacobi-scaled reduced matrix, whose diagonal is 1)
+#: below which the reduced normal matrix is taken as singular.
+_SINGULAR_PIVOT = 1e-11
+#: Relative pivot below which a near-singular reduced matrix is warned about.
+_WEAK_PIVOT = 1e-8
+#: Ratio of smallest to largest singular value of the datum matrix (unit
+#: weights, coordinates reduced to the centroid and scaled by the net's size)
+#: below which a similarity degree of freedom counts as free.
+_DATUM_RANK_TOL = 1e-9
+#: Ratio of smallest to largest eigenvalue of a point's 3 x 3 normal block
+#: below which the point counts as undetermined (e.g. seen on one photo only).
+_POINT_RANK_TOL = 1e-10
+#: Largest number of float64 entries of one block of unit-vector solves.
+_SOLVE_CHUNK = 4_000_000
+
+_MOTION_NAMES = (
+    "shift along X",
+    "shift along Y",
+    "shift along Z",
+    "rotation about X",
+    "rotation about Y",
+    "rotation about Z",
+    "scale",
+)
+_PHOTO_PARAMETER_NAMES = (
+    "X0",
+    "Y0",
+    "Z0",
+    "rotation about x",
+    "rotation about y",
+    "rotation about z",
+)
+
+
+@dataclass(frozen=True)
+class BundleResult:
+    """Result of :func:`bundle_adjust`.
+
+    Attributes
+    ----------
+    centres : ndarray, shape (M, 3)
+        Adjusted projection centres in metres (local frame).
+    rotations : ndarray, shape (M, 3, 3)
+        Adjusted rotation matrices, image -> local frame (``l = R @ l_image``).
+    points : ndarray, shape (P, 3)
+        Adjusted point coordinates in metres, in ``observations.point_ids``
+        order.
+    sigma0 : float
+        A posteriori standard deviation of unit weight,
+        ``sqrt(v.T P v / redundancy)`` (NaN when the redundancy is 0).  It is
+        close to 1 when the given standard deviations are right.
+    redundancy : int
+        Number of scalar observations minus number of unknowns.
+    iterations : int
+        Number of accepted Gauss-Newton / Levenberg-Marquardt steps.
+    converged : bool
+        False when ``max_iterations`` was reached first.
+    residuals_mm : ndarray, shape (K, 2)
+        Image residuals ``v = computed - observed`` in mm at the solution
+        (observed + v = adjusted).
+    control_residuals : ndarray, shape (P, 3)
+        ``adjusted - given`` ground coordinates of the control in metres, NaN
+        for components without control.
+    point_std : ndarray, shape (P, 3)
+        Standard deviations of the adjusted points in metres,
+        ``sigma0 * sqrt(diag(N^-1))`` (NaN when not computed).
+    centre_std : ndarray, shape (M, 3)
+        Standard deviations of the adjusted centres in metres.
+    rotation_std : ndarray, shape (M, 3)
+        Standard deviations of the small rotations about the image x, y, z
+        axes in radians.
+    history : ndarray, shape (iterations + 1,)
+        sigma0 at the initial values and after each accepted step.
+    n_observations : int
+        Number of scalar observations: ``2 K`` image coordinates plus the
+        control, GNSS and IMU components used.
+    """
+
+    centres: FloatArray
+    rotations: FloatArray
+    points: FloatArray
+    sigma0: float
+    redundancy: int
+    iterations: int
+    converged: bool
+    residuals_mm: FloatArray
+    control_residuals: FloatArray
+    point_std: FloatArray
+    centre_std: FloatArray
+    rotation_std: FloatArray
+    history: FloatArray
+    n_observations: int
+
+
+# ----------------------------------------------------------------------------
+# SO(3) kernels
+# ----------------------------------------------------------------------------
+
+
+def _skew(v: FloatArray) -> FloatArray:
+    """Cross-product matrices ``[v]x`` with ``[v]x @ u = v x u``, shape (..., 3, 3)."""
+    out = np.zeros((*v.shape, 3))
+    out[..., 0, 1] = -v[..., 2]
+    out[..., 0, 2] = v[..., 1]
+    out[..., 1, 0] = v[..., 2]
+    out[..., 1, 2] = -v[..., 0]
+    out[..., 2, 0] = -v[..., 1]
+    out[..., 2, 1] = v[..., 0]
+    return out
+
+
+def _exp_so3(w: FloatArray) -> FloatArray:
+    """Rotation matrices ``exp([w]x)`` (Rodrigues) of rotation vectors (..., 3) in radians."""
+    theta = np.linalg.norm(w, axis=-1)
+    small = theta < 1e-6
+    t = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(t) / t)
+    b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(t)) / t**2)
+    k = _skew(w)
+    return np.eye(3) + a[..., None, None] * k + b[..., None, None] * (k @ k)
+
+
+def _log_so3(r: FloatArray) -> FloatArray:
+    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3); angles below pi."""
+    w = 0.5 * np.stack(
+        [r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]],
+        axis=-1,
+    )
+    s = np.linalg.norm(w, axis=-1)
+    c = 0.5 * (np.trace(r, axis1=-2, axis2=-1) - 1.0)
+    theta = np.arctan2(s, c)
+    small = s < 1e-8
+    factor = np.where(small, 1.0 + theta**2 / 6.0, theta / np.where(small, 1.0, s))
+    return factor[..., None] * w
+
+
+def _right_jacobian_inv(e: FloatArray) -> FloatArray:
+    """Inverse right Jacobian of SO(3), ``log(exp(e) exp(d)) = e + Jr^-1(e) d + O(d^2)``."""
+    theta = np.linalg.norm(e, axis=-1)
+    small = theta < 1e-4
+    t = np.where(small, 1.0, theta)
+    coef = np.where(
+        small,
+        1.0 / 12.0 + theta**2 / 720.0,
+        1.0 / t**2 - (1.0 + np.cos(t)) / (2.0 * t * np.sin(t)),
+    )
+    k = _skew(e)
+    return np.eye(3) + 0.5 * k + coef[..., None, None] * (k @ k)
+
+
+# ----------------------------------------------------------------------------
+# Observation equations
+# ----------------------------------------------------------------------------
+
+
+def _project(
+    centres: FloatArray,
+    rotations: FloatArray,
+    points: FloatArray,
+    photo: IntArray,
+    point: IntArray,
+    principal_distance: float,
+) -> tuple[FloatArray, FloatArray]:
+    """Image coordinates by the collinearity equations.
+
+    Parameters
+    ----------
+    centres : ndarray, shape (M, 3)
+        Projection centres, m.
+    rotations : ndarray, shape (M, 3, 3)
+        Image -> frame rotations.
+    points : ndarray, shape (P, 3)
+        Ground points, m.
+    photo, point : ndarray of int, shape (K,)
+        Photo and point index of each observation.
+    principal_distance : float
+        c in mm.
+
+    Returns
+    -------
+    xy : ndarray, shape (K, 2)
+        Computed image coordinates, mm.
+    v : ndarray, shape (K, 3)
+        ``R.T @ (X - S)``, m (``v_z < 0`` for a point in front of the photo).
+    """
+    v = np.einsum("kji,kj->ki", rotations[photo], points[point] - centres[photo])
+    xy = -principal_distance * v[:, :2] / v[:, 2:3]
+    return xy, v
+
+
+def _collinearity(
+    centres: FloatArray,
+    rotations: FloatArray,
+    points: FloatArray,
+    photo: IntArray,
+    point: IntArray,
+    principal_distance: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Collinearity equations and their Jacobians (arguments as :func:`_project`).
+
+    Returns
+    -------
+    xy, v : ndarray, shapes (K, 2), (K, 3)
+        As :func:`_project`.
+    jac_photo : ndarray, shape (K, 2, 6)
+        d(x, y) / d(dS, delta), mm per m and mm per rad, for the update
+        ``S <- S + dS``, ``R <- R @ exp([delta]x)``.
+    jac_point : ndarray, shape (K, 2, 3)
+        d(x, y) / dX, mm per m.
+    """
+    xy, v = _project(centres, rotations, points, photo, point, principal_distance)
+    vz = v[:, 2]
+    f = -principal_distance / vz
+    d_v = np.zeros((v.shape[0], 2, 3))
+    d_v[:, 0, 0] = f
+    d_v[:, 1, 1] = f
+    d_v[:, 0, 2] = -f * v[:, 0] / vz
+    d_v[:, 1, 2] = -f * v[:, 1] / vz
+    # dv/dX = R.T, dv/dS = -R.T, dv/d(delta) = [v]x  (R.T <- (I - [delta]x) R.T).
+    jac_point = np.einsum("kab,kcb->kac", d_v, rotations[photo])
+    jac_photo = np.concatenate([-jac_point, d_v @ _skew(v)], axis=2)
+    return xy, v, jac_photo, jac_point
+
+
+def _imu_residual(rotations: FloatArray, imu_rotations: FloatArray) -> FloatArray:
+    """Attitude residuals ``e = log(R_imu.T @ R)``, shape (M, 3), radians.
+
+    Their Jacobian with respect to ``delta`` is ``_right_jacobian_inv(e)``.
+    """
+    return _log_so3(np.einsum("mji,mjk->mik", imu_rotations, rotations))
+
+
+# ----------------------------------------------------------------------------
+# Problem data
+# ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Problem:
+    photo: IntArray
+    point: IntArray
+    xy: FloatArray
+    sigma: FloatArray
+    c: float
+    n_photos: int
+    n_points: int
+    control_xyz: FloatArray  # (P, 3), 0 where unused
+    control_weight: FloatArray  # (P, 3), 0 where unused
+    gnss_xyz: FloatArray
+    gnss_weight: FloatArray
+    imu_rot: FloatArray  # (M, 3, 3), identity where unused
+    imu_weight: FloatArray  # (M, 3), 0 where unused
+    photo_sum: sp.csr_matrix  # (M, K) incidence
+    point_sum: sp.csr_matrix  # (P, K) incidence
+    pair_k1: IntArray  # observation pairs on the same point
+    pair_k2: IntArray
+    pair_point_sum: sp.csr_matrix  # (P, n_pairs)
+    rows: IntArray  # COO pattern of the reduced matrix: photo blocks, then pairs
+    cols: IntArray
+
+    @property
+    def n_observations(self) -> int:
+        return int(
+            2 * self.photo.size
+            + np.count_nonzero(self.control_weight)
+            + np.count_nonzero(self.gnss_weight)
+            + np.count_nonzero(self.imu_weight)
+        )
+
+
+def _incidence(index: IntArray, n: int) -> sp.csr_matrix:
+    k = index.size
+    return sp.csr_matrix((np.ones(k), (index, np.arange(k))), shape=(n, k))
+
+
+def _observation_pairs(point: IntArray, n_points: int) -> tuple[IntArray, IntArray]:
+    """All ordered pairs (k1, k2) of observations of the same point (k1 == k2 included)."""
+    order = np.argsort(point, kind="stable")
+    counts = np.bincount(point, minlength=n_points)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    per_obs = counts[point[order]]  # partners of each sorted observation
+    first = np.repeat(np.arange(order.size), per_obs)
+    group_start = np.repeat(np.cumsum(per_obs) - per_obs, per_obs)
+    offset = np.arange(first.size) - group_start
+    second = starts[point[order][first]] + offset
+    return order[first], order[second]
+
+
+def _block_pattern(a: IntArray, b: IntArray) -> tuple[IntArray, IntArray]:
+    """Row and column indices (n, 6, 6) of the 6 x 6 blocks (a, b) of a 6M x 6M matrix."""
+    blk = np.arange(6)
+    rows = 6 * a[:, None, None] + blk[None, :, None]
+    cols = 6 * b[:, None, None] + blk[None, None, :]
+    rows, cols = np.broadcast_arrays(rows, cols)
+    return rows, cols
+
+
+def _weights(
+    values: FloatArray | None, sigma: ArrayLike | None, shape: tuple[int, ...], name: str
+) -> tuple[FloatArray, FloatArray]:
+    """Given values with NaN where absent and their sigmas -> (values 0-filled, weights)."""
+    if values is None:
+        return np.zeros(shape), np.zeros(shape)
+    vals = np.asarray(values, dtype=np.float64)
+    if vals.shape != shape:
+        raise ValueError(f"Expected `{name}` to have shape {shape}, got {vals.shape}")
+    if sigma is None:
+        raise ValueError(f"`{name}` given without its standard deviations")
+    sig = np.broadcast_to(np.asarray(sigma, dtype=np.float64), shape)
+    used = np.isfinite(vals) & np.isfinite(sig)
+    if np.any(sig[used] <= 0.0):
+        raise ValueError(f"Expected positive standard deviations for `{name}`")
+    weight = np.zeros(shape)
+    weight[used] = 1.0 / sig[used] ** 2
+    return np.where(used, vals, 0.0), weight
+
+
+def _check_rotations(rotations: FloatArray, name: str) -> None:
+    err = np.abs(np.einsum("...ji,...jk->...ik", rotations, rotations) - np.eye(3))
+    bad = ~np.all(err < 1e-6, axis=(-2, -1)) | ~(np.linalg.det(rotations) > 0.0)
+    if np.any(bad):
+        raise ValueError(
+            f"Expected `{name}` to hold proper rotation matrices, "
+            f"entry {int(np.flatnonzero(bad)[0])} is not"
+        )
+
+
+def _make_problem(
+    obs: ImageObservations,
+    centres: FloatArray,
+    rotations: FloatArray,
+    points: FloatArray,
+    control_xyz: ArrayLike | None,
+    control_sigma: ArrayLike | None,
+    gnss_centres: ArrayLike | None,
+    gnss_sigma: ArrayLike | None,
+    imu_rotations: ArrayLike | None,
+    imu_sigma: ArrayLike | None,
+) -> _Problem:
+    m, p = centres.shape[0], points.shape[0]
+    photo = np.asarray(obs.photo, dtype=np.intp)
+    point = np.asarray(obs.point, dtype=np.intp)
+    xy = np.asarray(obs.xy, dtype=np.float64)
+    k = photo.size
+    sigma = np.broadcast_to(np.asarray(obs.sigma, dtype=np.float64), (k,))
+    if point.shape != (k,) or xy.shape != (k, 2):
+        raise ValueError(
+            f"Expected observations with photo (K,), point (K,), xy (K, 2); got "
+            f"{photo.shape}, {point.shape}, {xy.shape}"
+        )
+    if k and (photo.min() < 0 or photo.max() >= m or point.min() < 0 or point.max() >= p):
+        raise ValueError("Observation indices out of range of `centres0` / `points0`")
+    if not (np.all(np.isfinite(xy)) and np.all(np.isfinite(sigma)) and np.all(sigma > 0)):
+        raise ValueError("Expected finite image coordinates and positive finite sigma")
+    c = float(obs.principal_distance)
+    if not (np.isfinite(c) and c > 0.0):
+        raise ValueError(f"Expected a positive principal distance, got {c}")
+    cxyz, cw = _weights(control_xyz, control_sigma, (p, 3), "control_xyz")
+    gxyz, gw = _weights(gnss_centres, gnss_sigma, (m, 3), "gnss_centres")
+    if imu_rotations is None:
+        imu = np.broadcast_to(np.eye(3), (m, 3, 3)).copy()
+        iw = np.zeros((m, 3))
+    else:
+        imu = np.asarray(imu_rotations, dtype=np.float64)
+        if imu.shape != (m, 3, 3):
+            raise ValueError(
+                f"Expected `imu_rotations` to have shape {(m, 3, 3)}, got {imu.shape}"
+            )
+        if imu_sigma is None:
+            raise ValueError("`imu_rotations` given without `imu_sigma`")
+        present = np.all(np.isfinite(imu), axis=(1, 2))
+        imu = np.where(present[:, None, None], imu, np.eye(3))
+        _check_rotations(imu, "imu_rotations")
+        sig = np.broadcast_to(np.asarray(imu_sigma, dtype=np.float64), (m, 3))
+        used = present[:, None] & np.isfinite(sig)
+        if np.any(sig[used] <= 0.0):
+            raise ValueError("Expected positive standard deviations for `imu_rotations`")
+        iw = np.zeros((m, 3))
+        iw[used] = 1.0 / sig[used] ** 2
+    k1, k2 = _observation_pairs(point, p)
+    rows_u, cols_u = _block_pattern(np.arange(m), np.arange(m))
+    rows_p, cols_p = _block_pattern(photo[k1], photo[k2])
+    return _Problem(
+        photo=photo,
+        point=point,
+        xy=xy,
+        sigma=np.array(sigma),
+        c=c,
+        n_photos=m,
+        n_points=p,
+        control_xyz=cxyz,
+        control_weight=cw,
+        gnss_xyz=gxyz,
+        gnss_weight=gw,
+        imu_rot=imu,
+        imu_weight=iw,
+        photo_sum=_incidence(photo, m),
+        point_sum=_incidence(point, p),
+        pair_k1=k1,
+        pair_k2=k2,
+        pair_point_sum=_incidence(point[k1], p),
+        rows=np.concatenate([rows_u.ravel(), rows_p.ravel()]),
+        cols=np.concatenate([cols_u.ravel(), cols_p.ravel()]),
+    )
+
+
+# ----------------------------------------------------------------------------
+# Normal equations
+# ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _State:
+    centres: FloatArray
+    rotations: FloatArray
+    points: FloatArray
+
+
+@dataclass(frozen=True)
+class _Normals:
+    """Whitened normal equations ``N d = b`` split into photo and point blocks."""
+
+    u: FloatArray  # (M, 6, 6)
+    v: FloatArray  # (P, 3, 3)
+    w: FloatArray  # (K, 6, 3), one block per observation
+    b_photo: FloatArray  # (M, 6)
+    b_point: FloatArray  # (P, 3)
+    cost: float
+    residuals_mm: FloatArray  # (K, 2), computed - observed
+
+
+@dataclass(frozen=True)
+class _Reduced:
+    d_photo: FloatArray  # (M, 6)
+    d_point: FloatArray  # (P, 3)
+    lu: spla.SuperLU
+    scale: FloatArray  # (6M,) Jacobi scale, S^-1 = D Stilde^-1 D
+    v_inv: FloatArray  # (P, 3, 3)
+    y: FloatArray  # (K, 6, 3), W_k V_p^-1
+    min_pivot: float
+    min_pivot_index: int
+
+
+def _cost(prob: _Problem, state: _State) -> float:
+    """Weighted sum of squared residuals; inf when a point lies behind a photo."""
+    xy, v = _project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
+    if not np.all(v[:, 2] < 0.0) or not np.all(np.isfinite(xy)):
+        return float("inf")
+    e_img = (xy - prob.xy) / prob.sigma[:, None]
+    e_ctrl = state.points - prob.control_xyz
+    e_gnss = state.centres - prob.gnss_xyz
+    e_imu = _imu_residual(state.rotations, prob.imu_rot)
+    return float(
+        np.sum(e_img**2)
+        + np.sum(prob.control_weight * e_ctrl**2)
+        + np.sum(prob.gnss_weight * e_gnss**2)
+        + np.sum(prob.imu_weight * e_imu**2)
+    )
+
+
+def _normals(prob: _Problem, state: _State) -> _Normals:
+    """Linearise all observation equations at ``state`` and form the normal blocks."""
+    m, p, k = prob.n_photos, prob.n_points, prob.photo.size
+    xy, _, jac_photo, jac_point = _collinearity(
+        state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c
+    )
+    res = xy - prob.xy
+    inv_s = 1.0 / prob.sigma
+    r = res * inv_s[:, None]
+    a = jac_photo * inv_s[:, None, None]
+    b = jac_point * inv_s[:, None, None]
+    u = (prob.photo_sum @ np.einsum("kai,kaj->kij", a, a).reshape(k, 36)).reshape(m, 6, 6)
+    v = (prob.point_sum @ np.einsum("kai,kaj->kij", b, b).reshape(k, 9)).reshape(p, 3, 3)
+    w = np.einsum("kai,kaj->kij", a, b)
+    b_photo = -(prob.photo_sum @ np.einsum("kai,ka->ki", a, r))
+    b_point = -(prob.point_sum @ np.einsum("kai,ka->ki", b, r))
+    # Control: X - X_c (m), design = identity.
+    e_ctrl = state.points - prob.control_xyz
+    idx3 = np.arange(3)
+    v[:, idx3, idx3] += prob.control_weight
+    b_point -= prob.control_weight * e_ctrl
+    # GNSS centres: S - S_g (m).
+    e_gnss = state.centres - prob.gnss_xyz
+    u[:, idx3, idx3] += prob.gnss_weight
+    b_photo[:, :3] -= prob.gnss_weight * e_gnss
+    # IMU attitudes: log(R_imu.T R) (rad), design Jr^-1(e).
+    e_imu = _imu_residual(state.rotations, prob.imu_rot)
+    j_imu = _right_jacobian_inv(e_imu)
+    wj = prob.imu_weight[:, :, None] * j_imu
+    u[:, 3:, 3:] += np.einsum("mai,maj->mij", j_imu, wj)
+    b_photo[:, 3:] -= np.einsum("mai,ma->mi", wj, e_imu)
+    cost = float(
+        np.sum(r**2)
+        + np.sum(prob.control_weight * e_ctrl**2)
+        + np.sum(prob.gnss_weight * e_gnss**2)
+        + np.sum(prob.imu_weight * e_imu**2)
+    )
+    return _Normals(u, v, w, b_photo, b_point, cost, res)
+
+
+def _check_points(prob: _Problem, normals: _Normals, point_ids: tuple[str, ...]) -> None:
+    """Raise GeometryError for points whose 3 x 3 normal block is (near) singular."""
+    ev = np.linalg.eigvalsh(normals.v)
+    bad = ~(ev[:, 0] > _POINT_RANK_TOL * ev[:, 2])
+    if np.any(bad):
+        n_rays = np.bincount(prob.point, minlength=prob.n_points)
+        idx = np.flatnonzero(bad)
+        listed = ", ".join(f"'{point_ids[i]}' ({n_rays[i]} photo(s))" for i in idx[:5])
+        more = f" and {idx.size - 5} more" if idx.size > 5 else ""
+        raise GeometryError(
+            f"{idx.size} point(s) cannot be determined: {listed}{more}; a point needs "
+            "rays from two photos, or one ray and control that fixes it"
+        )
+
+
+def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
+    """Reduce to the photos (Schur complement on the point blocks), solve, back-substitute.
+
+    ``lam`` is the Levenberg-Marquardt factor: the diagonals of U and V are
+    multiplied by ``1 + lam``.
+    """
+    m = prob.n_photos
+    u, v = normals.u, normals.v
+    if lam > 0.0:
+        i6, i3 = np.arange(6), np.arange(3)
+        u = u.copy()
+        v = v.copy()
+        u[:, i6, i6] *= 1.0 + lam
+        v[:, i3, i3] *= 1.0 + lam
+    v_inv = np.linalg.inv(v)
+    y = np.einsum("kij,kjl->kil", normals.w, v_inv[prob.point])
+    pair_blocks = np.einsum("nij,nlj->nil", y[prob.pair_k1], normals.w[prob.pair_k2])
+    data = np.concatenate([u.ravel(), -pair_blocks.ravel()])
+    s = sp.csc_matrix((data, (prob.rows, prob.cols)), shape=(6 * m, 6 * m))
+    rhs = normals.b_photo - prob.photo_sum @ np.einsum(
+        "kij,kj->ki", y, normals.b_point[prob.point]
+    )
+    diag = s.diagonal()
+    if not np.all(diag > 0.0):
+        j = int(np.flatnonzero(~(diag > 0.0))[0])
+        raise GeometryError(
+            f"photo {j // 6} is not determined: no observation constrains its "
+            f"{_PHOTO_PARAMETER_NAMES[j % 6]}"
+        )
+    scale = 1.0 / np.sqrt(diag)
+    s_tilde = sp.diags(scale) @ s @ sp.diags(scale)
+    try:
+        lu = spla.splu(
+            s_tilde.tocsc(),
+            permc_spec="MMD_AT_PLUS_A",
+            diag_pivot_thresh=0.0,
+            options={"SymmetricMode": True},
+        )
+    except RuntimeError as exc:  # "Factor is exactly singular"
+        raise GeometryError(
+            "the reduced normal matrix is singular: the datum or a photo's orientation is "
+            "not determined by the observations"
+        ) from exc
+    pivots = np.abs(lu.U.diagonal())[lu.perm_c]
+    j = int(np.argmin(pivots))
+    d_photo = (scale * lu.solve(scale * rhs.ravel())).reshape(m, 6)
+    t = normals.b_point - prob.point_sum @ np.einsum("kji,kj->ki", normals.w, d_photo[prob.photo])
+    d_point = np.einsum("pij,pj->pi", v_inv, t)
+    return _Reduced(d_photo, d_point, lu, scale, v_inv, y, float(pivots[j]), j)
+
+
+def _apply(state: _State, step: _Reduced) -> _State:
+    return _State(
+        centres=state.centres + step.d_photo[:, :3],
+        rotations=state.rotations @ _exp_so3(step.d_photo[:, 3:]),
+        points=state.points + step.d_point,
+    )
+
+
+# ----------------------------------------------------------------------------
+# Datum
+# ----------------------------------------------------------------------------
+
+
+def _free_motions(prob: _Problem, state: _State) -> list[str]:
+    """Describe the similarity degrees of freedom left free by control, GNSS and IMU.
+
+    The 7 infinitesimal similarity motions of the whole net (shifts, rotations
+    about the frame axes through the centroid, scale; coordinates scaled by
+    the net's size) are applied to the observed quantities; the rank of that
+    n x 7 matrix (unit weights) tells which motions the observations fix.
+    """
+    ref = np.concatenate([state.points, state.centres])
+    x0 = ref.mean(axis=0)
+    size = float(np.sqrt(np.mean(np.sum((ref - x0) ** 2, axis=1)))) or 1.0
+
+    def motion_rows(xyz: FloatArray) -> FloatArray:
+        q = (xyz - x0) / size
+        g = np.zeros((xyz.shape[0], 3, 7))
+        g[:, :, :3] = np.eye(3)
+        g[:, :, 3:6] = -_skew(q)  # d(omega x q)/d(omega)
+        g[:, :, 6] = q
+        return g
+
+    g_imu = np.zeros((prob.n_photos, 3, 7))
+    g_imu[:, :, 3:6] = np.swapaxes(state.rotations, 1, 2)  # e -> e + R.T omega
+    g = np.concatenate(
+        [
+            motion_rows(state.points)[prob.control_weight > 0],
+            motion_rows(state.centres)[prob.gnss_weight > 0],
+            g_imu[prob.imu_weight > 0],
+        ]
+    )
+    if g.shape[0] == 0:
+        return list(_MOTION_NAMES)
+    _, sv, vt = np.linalg.svd(g, full_matrices=True)
+    rank = int(np.count_nonzero(sv > _DATUM_RANK_TOL * sv[0]))
+    null = vt[rank:]  # (7 - rank, 7) orthonormal basis of the free motions
+    if null.shape[0] == 0:
+        return []
+    share = np.sum(null**2, axis=0)  # squared length of each motion in the null space
+    whole = share > 1.0 - 1e-6
+    free = [_MOTION_NAMES[i] for i in np.flatnonzero(whole)]
+    rest = null.shape[0] - len(free)
+    if rest > 0:
+        parts = [_MOTION_NAMES[i] for i in np.flatnonzero(~whole & (share > 1e-3))]
+        free.append(f"{rest} combination(s) of {', '.join(parts)}")
+    return free
+
+
+# ----------------------------------------------------------------------------
+# Precision
+# ----------------------------------------------------------------------------
+
+
+def _photo_covariance_blocks(
+    prob: _Problem, red: _Reduced, a: IntArray, b: IntArray
+) -> FloatArray:
+    """Blocks ``(a, b)`` of ``S^-1`` (6 x 6 each), by sparse LU solves with unit vectors.
+
+    Columns of ``S^-1`` are found for the photos in chunks of at most
+    ``_SOLVE_CHUNK / (6 M)`` unit vectors; cost ``6 M`` triangular solves
+    with the LU factors (O(M * bandwidth^2) each for a strip) and
+    ``O(M * chunk)`` memory.
+    """
+    m = prob.n_photos
+    n = 6 * m
+    out = np.empty((a.size, 6, 6))
+    per_chunk = max(1, _SOLVE_CHUNK // (n * 6))
+    blk = np.arange(6)
+    for b0 in range(0, m, per_chunk):
+        b1 = min(m, b0 + per_chunk)
+        sel = np.flatnonzero((b >= b0) & (b < b1))
+        if sel.size == 0:
+            continue
+        cols = np.arange(6 * b0, 6 * b1)
+        e = np.zeros((n, cols.size))
+        e[cols, np.arange(cols.size)] = 1.0
+        x = red.scale[:, None] * red.lu.solve(e) * red.scale[cols][None, :]
+        rows_i = 6 * a[sel][:, None, None] + blk[None, :, None]
+        cols_i = 6 * (b[sel] - b0)[:, None, None] + blk[None, None, :]
+        out[sel] = x[rows_i, cols_i]
+    return out
+
+
+def _precision(prob: _Problem, red: _Reduced) -> tuple[FloatArray, FloatArray]:
+    """Cofactor diagonals: photos (M, 6) from S^-1, points (P, 3) via the Schur structure.
+
+    ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1``; its 3 x 3 diagonal blocks need only
+    the blocks of ``S^-1`` for photo pairs that share a point.
+    """
+    m = prob.n_photos
+    pa, pb = prob.photo[prob.pair_k1], prob.photo[prob.pair_k2]
+    keys = np.concatenate([pa * m + pb, np.arange(m) * (m + 1)])
+    uniq, inverse = np.unique(keys, return_inverse=True)
+    blocks = _photo_covariance_blocks(prob, red, uniq // m, uniq % m)
+    diag_blocks = blocks[inverse[pa.size :]]
+    q_photo = np.diagonal(diag_blocks, axis1=1, axis2=2)
+    y1, y2 = red.y[prob.pair_k1], red.y[prob.pair_k2]
+    terms = np.einsum("nji,njk,nkl->nil", y1, blocks[inverse[: pa.size]], y2)
+    q_point = red.v_inv + (prob.pair_point_sum @ terms.reshape(-1, 9)).reshape(-1, 3, 3)
+    return q_photo, np.diagonal(q_point, axis1=1, axis2=2)
+
+
+# ----------------------------------------------------------------------------
+# Driver
+# ----------------------------------------------------------------------------
+
+
+def bundle_adjust(
+    observations: ImageObservations,
+    centres0: ArrayLike,
+    rotations0: ArrayLike,
+    points0: ArrayLike,
+    *,
+    control_xyz: ArrayLike | None = None,
+    control_sigma: ArrayLike | None = None,
+    gnss_centres: ArrayLike | None = None,
+    gnss_sigma: ArrayLike | None = None,
+    imu_rotations: ArrayLike | None = None,
+    imu_sigma: ArrayLike | None = None,
+    max_iterations: int = 20,
+    tolerance: float = 1e-10,
+    compute_precision: bool = True,
+) -> BundleResult:
+    """Least-squares bundle adjustment of a strip by the collinearity equations.
+
+    Parameters
+    ----------
+    observations : ImageObservations
+        Image coordinates (K observations) in mm with their sigmas; photo and
+        point indices refer to the rows of ``centres0`` and ``points0``.
+    centres0 : array_like, shape (M, 3)
+        Initial projection centres in metres, local Cartesian frame.
+    rotations0 : array_like, shape (M, 3, 3)
+        Initial rotations, image -> frame (``l = R @ (x, y, -c)``).
+    points0 : array_like, shape (P, 3)
+        Initial point coordinates in metres, ``P = len(observations.point_ids)``.
+    control_xyz : array_like, shape (P, 3), optional
+        Ground coordinates of the control in the same frame, NaN for
+        components without control (full: 3 given, plan-only: X, Y, height-only:
+        Z).  They enter as observations of the point coordinates.
+    control_sigma : array_like, shape (P, 3) or broadcastable, optional
+        Their standard deviations in metres (inf or NaN where none).
+    gnss_centres : array_like, shape (M, 3), optional
+        Observed projection centres in metres, NaN where none.
+    gnss_sigma : array_like, shape (M, 3) or broadcastable, optional
+        Their standard deviations in metres.
+    imu_rotations : array_like, shape (M, 3, 3), optional
+        Observed rotations (image -> frame), NaN matrices where none.  The
+        observation is ``log(R_imu.T @ R) = 0``: the small rotation vector
+        about the photo's own x, y, z axes that takes the observed attitude
+        to the adjusted one.
+    imu_sigma : float or array_like, shape (M, 3), optional
+        Standard deviations of those rotation components in radians.
+    max_iterations : int
+        Largest number of accepted steps.
+    tolerance : float
+        Stop when the objective changes by less than ``tolerance`` relative,
+        or when the largest correction is below ``tolerance`` (radians, and
+        metres relative to the mean point depth below the photos).
+    compute_precision : bool
+        Compute ``point_std``, ``centre_std`` and ``rotation_std`` (else NaN).
+
+    Returns
+    -------
+    BundleResult
+        Adjusted orientations and points, residuals, sigma0 and precision.
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, non-rotation matrices, non-positive sigmas.
+    GeometryError
+        The datum is not defined by the control / GNSS / IMU observations (the
+        message names the free similarity motions), a point or photo is not
+        determined, a point lies behind a photo at the initial values, or the
+        reduced normal matrix is singular.
+    ConvergenceError
+        The objective cannot be reduced (the iteration diverges).
+
+    Warns
+    -----
+    StripAerotriWarning
+        Not converged within ``max_iterations``; nearly singular reduced
+        normal matrix; no redundancy.
+
+    Notes
+    -----
+    Observation equations (weights ``1 / sigma**2``, a priori sigma0 = 1):
+    image ``x(S, R, X) - x_obs``, control ``X - X_c``, GNSS ``S - S_g``, IMU
+    ``log(R_imu.T R)`` with design ``Jr^-1`` (the inverse right Jacobian of
+    SO(3)).  Unknowns per photo: ``dS`` and ``delta`` with the
+    right-multiplied update ``R <- R @ exp([delta]x)``, so ``delta`` is a
+    rotation about the photo's own image axes; ``dv/d(delta) = [v]x`` with
+    ``v = R.T (X - S)``.
+
+    Each iteration forms the normal blocks ``U`` (6 x 6 per photo), ``V`` (3 x 3
+    per point) and ``W`` (6 x 3 per observation) as whole arrays, reduces to
+    the photos, ``S = U - W V^-1 W.T``, which is assembled in COO form from
+    one 6 x 6 block per pair of observations of the same point, scaled to
+    unit diagonal and factorised by a sparse LU (SuperLU, symmetric mode,
+    minimum-degree ordering); the points follow by back-substitution.
+    Levenberg-Marquardt damping (diagonals times ``1 + lambda``) is used only
+    when a Gauss-Newton step fails to reduce the objective.
+
+    The datum must come from the observations: before iterating, the seven
+    similarity motions of the net are tested against the control, GNSS and
+    IMU observations; a pivot of the scaled reduced matrix below 1e-11
+    likewise means a singular system.
+
+    Precision: ``Q = N^-1`` at the solution (undamped).  Photo blocks of
+    ``S^-1`` are found by solving with the LU factors for the 6 unit vectors
+    of every photo (``6 M`` solves in chunks, each O(nnz(LU)), i.e.
+    O(M^2 * bandwidth) in total for a strip; for M = 200 about a tenth of a
+    second), keeping only the blocks of photo pairs that share a point; the
+    3 x 3 point blocks follow from ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1`` as
+    one batched product over the pairs of observations.  Standard
+    deviations are ``sigma0 * sqrt(diag(Q))``.
+    """
+    if not isinstance(observations, ImageObservations):
+        raise TypeError(
+            f"Expected `observations` to be ImageObservations, got {type(observations).__name__}"
+        )
+    centres = np.asarray(centres0, dtype=np.float64)
+    rotations = np.asarray(rotations0, dtype=np.float64)
+    points = np.asarray(points0, dtype=np.float64)
+    m = centres.shape[0] if centres.ndim == 2 else -1
+    if centres.shape != (m, 3) or m < 1:
+        raise ValueError(f"Expected `centres0` to have shape (M, 3), got {centres.shape}")
+    if rotations.shape != (m, 3, 3):
+        raise ValueError(f"Expected `rotations0` to have shape {(m, 3, 3)}, got {rotations.shape}")
+    p = len(observations.point_ids)
+    if points.shape != (p, 3):
+        raise ValueError(f"Expected `points0` to have shape {(p, 3)}, got {points.shape}")
+    if len(observations.photo_ids) != m:
+        raise ValueError(
+            f"`centres0` has {m} rows but observations list {len(observations.photo_ids)} photos"
+        )
+    if not (np.all(np.isfinite(centres)) and np.all(np.isfinite(points))):
+        raise ValueError("Expected finite `centres0` and `points0`")
+    _check_rotations(rotations, "rotations0")
+    if int(max_iterations) < 1:
+        raise ValueError(f"Expected `max_iterations` >= 1, got {max_iterations}")
+    if not tolerance > 0.0:
+        raise ValueError(f"Expected a positive `tolerance`, got {tolerance}")
+
+    prob = _make_problem(
+        observations,
+        centres,
+        rotations,
+        points,
+        control_xyz,
+        control_sigma,
+        gnss_centres,
+        gnss_sigma,
+        imu_rotations,
+        imu_sigma,
+    )
+    state = _State(centres.copy(), rotations.copy(), points.copy())
+
+    free = _free_motions(prob, state)
+    if free:
+        n_used = int(np.count_nonzero(prob.control_weight))
+        raise GeometryError(
+            "the datum is not defined: the control "
+            f"({n_used} coordinate(s)), GNSS and IMU observations leave free: "
+            f"{'; '.join(free)}. A 3D similarity needs at least two full control points "
+            "and one more height point, not all in one vertical plane (or GNSS centres "
+            "plus control that fixes the roll about the strip axis)"
+        )
+
+    _, v0 = _project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
+    behind = ~(v0[:, 2] < 0.0)
+    if np.any(behind):
+        kk = int(np.flatnonzero(behind)[0])
+        raise GeometryError(
+            f"point '{observations.point_ids[prob.point[kk]]}' lies behind photo "
+            f"'{observations.photo_ids[prob.photo[kk]]}' at the initial values"
+        )
+    depth = float(np.median(-v0[:, 2])) if v0.size else 1.0
+
+    n_obs = prob.n_observations
+    redundancy = n_obs - 6 * m - 3 * p
+
+    def sigma0_of(cost: float) -> float:
+        return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
+
+    normals = _normals(prob, state)
+    _check_points(prob, normals, observations.point_ids)
+    history = [sigma0_of(normals.cost)]
+    lam = 0.0
+    converged = False
+    iterations = 0
+    warned_weak = False
+    for _ in range(int(max_iterations)):
+        cost = normals.cost
+        while True:
+            step = _solve(prob, normals, lam)
+            if lam == 0.0:
+                if step.min_pivot < _SINGULAR_PIVOT:
+                    j = step.min_pivot_index
+                    raise GeometryError(
+                        "the reduced normal matrix is singular (relative pivot "
+                        f"{step.min_pivot:.1e} at the {_PHOTO_PARAMETER_NAMES[j % 6]} of photo "
+                        f"'{observations.photo_ids[j // 6]}'): the datum or that photo's "
+                        "orientation is not determined"
+                    )
+                if step.min_pivot < _WEAK_PIVOT and not warned_weak:
+                    warned_weak = True
+                    warnings.warn(
+                        f"nearly singular reduced normal matrix (relative pivot "
+                        f"{step.min_pivot:.1e}); the solution is weakly determined",
+                        StripAerotriWarning,
+                        stacklevel=2,
+                    )
+            max_step = max(
+                float(np.max(np.abs(step.d_photo[:, :3]), initial=0.0)) / depth,
+                float(np.max(np.abs(step.d_point), initial=0.0)) / depth,
+                float(np.max(np.abs(step.d_photo[:, 3:]), initial=0.0)),
+            )
+            if not np.isfinite(max_step):
+                raise ConvergenceError(
+                    f"bundle adjustment failed: non-finite correction after {iterations} step(s)"
+                )
+            trial = _apply(state, step)
+            trial_cost = _cost(prob, trial)
+            if trial_cost <= cost:
+                break
+            if max_step < tolerance or trial_cost - cost <= tolerance * cost:
+                trial, trial_cost = state, cost  # at the noise floor: nothing to gain
+                break
+            lam = 1e-4 if lam == 0.0 else 10.0 * lam
+            if lam > 1e8:
+                raise ConvergenceError(
+                    "bundle adjustment diverges: the objective could not be reduced after "
+                    f"{iterations} step(s) (sigma0 {history[-1]:.3g}); check the initial "
+                    "values and the observations for blunders"
+                )
+        if trial is not state:
+            iterations += 1
+            state = trial
+            normals = _normals(prob, state)
+            history.append(sigma0_of(normals.cost))
+        lam = 0.0 if lam <= 1e-3 else lam / 10.0
+        if max_step < tolerance or (cost - trial_cost) <= tolerance * cost:
+            converged = True
+            break
+    if not converged:
+        warnings.warn(
+            f"bundle adjustment did not converge in {max_iterations} iterations "
+            f"(sigma0 {history[-1]:.4g})",
+            StripAerotriWarning,
+            stacklevel=2,
+        )
+    sigma0 = sigma0_of(normals.cost)
+    if redundancy <= 0:
+        warnings.warn(
+            "bundle adjustment has no redundancy: sigma0 and precision are undefined",
+            StripAerotriWarning,
+            stacklevel=2,
+        )
+
+    nan_p, nan_m = np.full((p, 3), np.nan), np.full((m, 3), np.nan)
+    point_std, centre_std, rotation_std = nan_p, nan_m, nan_m.copy()
+    if compute_precision:
+        final = _solve(prob, normals, 0.0)
+        q_photo, q_point = _precision(prob, final)
+        point_std = sigma0 * np.sqrt(q_point)
+        centre_std = sigma0 * np.sqrt(q_photo[:, :3])
+        rotation_std = sigma0 * np.sqrt(q_photo[:, 3:])
+
+    control_used = prob.control_weight > 0
+    control_residuals = np.where(control_used, state.points - prob.control_xyz, np.nan)
+    return BundleResult(
+        centres=state.centres,
+        rotations=state.rotations,
+        points=state.points,
+        sigma0=sigma0,
+        redundancy=int(redundancy),
+        iterations=iterations,
+        converged=converged,
+        residuals_mm=normals.residuals_mm,
+        control_residuals=control_residuals,
+        point_std=point_std,
+        centre_std=centre_std,
+        rotation_std=rotation_std,
+        history=np.asarray(history),
+        n_observations=n_obs,
+    )
