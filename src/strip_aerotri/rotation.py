@@ -74,6 +74,12 @@ def skew(v: ArrayLike) -> FloatArray:
     ndarray, shape (..., 3, 3)
         ``[v]x`` such that ``skew(a) @ b == np.cross(a, b)``.
 
+    Notes
+    -----
+    ``[v]x = [[0, -v3, v2], [v3, 0, -v1], [-v2, v1, 0]]``; premultiplies column
+    vectors. ``I + [phi]x`` is the first-order rotation by the small rotation
+    vector ``phi`` (radians).
+
     Examples
     --------
     >>> import numpy as np
@@ -122,8 +128,8 @@ def matrix_from_schut(abc: ArrayLike) -> FloatArray:
 
     References
     ----------
-    J(2): Janiszewski (1975), analytical strip aerotriangulation, formula (2);
-    E. H. Thompson / G. H. Schut's algebraic rotation matrix.
+    J(2): Janiszewski (1975), analytical strip aerotriangulation (ODRA 1204),
+    formula (2), Schut's algebraic rotation matrix.
 
     Examples
     --------
@@ -582,6 +588,11 @@ def matrix_from_rotvec(rotvec: ArrayLike) -> FloatArray:
         Rodrigues' formula ``R = I + sin(t)/t [v]x + (1 - cos t)/t^2 [v]x^2``,
         ``t = |v|``, evaluated with ``sinc`` so that it is exact near 0.
 
+    References
+    ----------
+    Rodrigues' rotation formula; equals
+    ``scipy.spatial.transform.Rotation.from_rotvec(rotvec).as_matrix()``.
+
     Examples
     --------
     >>> import numpy as np
@@ -673,6 +684,11 @@ def rotvec_from_matrix(matrix: ArrayLike) -> FloatArray:
     -----
     Via the unit quaternion (Shepperd's method), so that it is accurate at
     small angles and near 180 deg.
+
+    References
+    ----------
+    S. W. Shepperd, "Quaternion from rotation matrix", Journal of Guidance
+    and Control 1(3), 1978, pp. 223-224.
 
     Examples
     --------
