@@ -49,12 +49,14 @@ class Intersection(NamedTuple):
 def _rows(base: ArrayLike, left: ArrayLike, right: ArrayLike):
     left = np.asarray(left, dtype=np.float64)
     right = np.asarray(right, dtype=np.float64)
-    base = np.broadcast_to(np.asarray(base, dtype=np.float64), left.shape)
     if left.ndim != 2 or left.shape[1] != 3 or right.shape != left.shape:
         raise ValueError(
             f"Expected left and right to have shape (n, 3), got {left.shape} and {right.shape}"
         )
-    return base, left, right
+    base = np.asarray(base, dtype=np.float64)
+    if base.shape not in ((3,), left.shape):
+        raise ValueError(f"Expected base to have shape (3,) or {left.shape}, got {base.shape}")
+    return np.broadcast_to(base, left.shape), left, right
 
 
 def intersect_midpoint(base: ArrayLike, left: ArrayLike, right: ArrayLike) -> Intersection:

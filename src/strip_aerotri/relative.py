@@ -50,6 +50,10 @@ _J = np.array([0.0, 1.0, 0.0])
 _EX = np.array([1.0, 0.0, 0.0])
 _EY = np.array([0.0, 1.0, 0.0])
 _EZ = np.array([0.0, 0.0, 1.0])
+# J(9) fixed: the Schut parameters of the correcting rotation are half of the
+# rotation vector a (phi = 2 (a, b, c)); the printed factor 1 converges only
+# linearly (tests patch this to show it).
+_SCHUT_FACTOR = 0.5
 
 
 class RelativeOrientationMethod(str, Enum):
@@ -311,7 +315,7 @@ def relative_orientation(
 
     history = [state.max_parallax_um()]
     active = np.ones(n_pairs, dtype=bool)
-    converged, iterations, _ = _iterate(
+    converged, iterations, singular_first = _iterate(
         state, weight, starts, max_iterations, tolerance, active, history
     )
     if not converged.all():
@@ -323,8 +327,9 @@ def relative_orientation(
         ok, more, singular = _iterate(
             state, weight, starts, max_iterations, tolerance, retry, history
         )
-        if singular.any():
-            m = int(np.flatnonzero(singular)[0])
+        degenerate = singular | (singular_first & ~ok)
+        if degenerate.any():
+            m = int(np.flatnonzero(degenerate)[0])
             raise GeometryError(
                 f"{_name(labels, m)}: the points do not determine the relative orientation "
                 "(singular normal equations: points collinear, in one plane with the base, "
@@ -505,11 +510,16 @@ class _DependentState:
         self._refresh()
 
     def update(self, corr):
-        b_new = self.b.copy()
-        b_new[:, 1:] += corr[:, :2]
-        r_p = matrix_from_schut(corr[:, 2:] / 2.0) @ self.r_right  # fixed J(9): half of a
-        self.relative = np.swapaxes(self.r_left, 1, 2) @ r_p
-        self.beta = np.einsum("mji,mj->mi", self.r_left, b_new)
+        # Correct in the left image frame: R_l^T R_schut(a) R_l = R_schut(R_l^T a)
+        # exactly, and only the corrections are rotated.  Writing the new relative
+        # rotation as R_l^T R' R_r would feed the round-off of R_l^T R_l != I back
+        # into every later pair of the chain and grow from one iteration to the next.
+        a_left = np.einsum("mji,mj->mi", self.r_left, corr[:, 2:])
+        self.relative = matrix_from_schut(_SCHUT_FACTOR * a_left) @ self.relative
+        db = np.zeros_like(self.b)
+        db[:, 1:] = corr[:, :2]
+        b_x = np.einsum("mi,mi->m", self.r_left[:, 0, :], self.beta)  # before norming
+        self.beta = self.beta / b_x[:, None] + np.einsum("mji,mj->mi", self.r_left, db)
         self._refresh()
 
     def parallax_image_mm(self):
@@ -586,7 +596,7 @@ class _BaseState:
 
     def update(self, corr):
         self.angles_left += corr[:, :2]
-        self.r_right_base = matrix_from_schut(corr[:, 2:] / 2.0) @ self.r_right_base
+        self.r_right_base = matrix_from_schut(_SCHUT_FACTOR * corr[:, 2:]) @ self.r_right_base
         self._refresh()
 
     def parallax_image_mm(self):
