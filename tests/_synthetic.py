@@ -64,7 +64,9 @@ def make_strip(
         v = (world - centres[i]) @ rotations[i]
         x = -c * v[:, 0] / v[:, 2]
         y = -c * v[:, 1] / v[:, 2]
-        seen = np.flatnonzero((np.abs(x) < half_format) & (np.abs(y) < half_format) & (v[:, 2] < 0))
+        seen = np.flatnonzero(
+            (np.abs(x) < half_format) & (np.abs(y) < half_format) & (v[:, 2] < 0)
+        )
         photo += [f"{1000 + i}"] * seen.size
         point += [f"P{j:05d}" for j in seen]
         xy.append(np.column_stack([x[seen], y[seen]]))

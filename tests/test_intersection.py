@@ -39,7 +39,9 @@ def test_midpoint_splits_the_y_parallel_gap():
     np.testing.assert_allclose(res.parallax, 0.01, atol=1e-12)
     # the point lies 0.005 above (in y) the left ray: the midpoint of the gap
     k = (res.points[:, 0] / left[:, 0])[:, None]
-    np.testing.assert_allclose(res.points - k * left, np.tile([0, 0.005, 0], (len(pts), 1)), atol=1e-9)
+    np.testing.assert_allclose(
+        res.points - k * left, np.tile([0, 0.005, 0], (len(pts), 1)), atol=1e-9
+    )
 
 
 def test_printed_b137_misprint_gives_wrong_points():

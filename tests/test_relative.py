@@ -28,7 +28,9 @@ def _relative_truth(syn):
 def test_noise_free_converges_quadratically_to_truth(method):
     syn = make_strip(8)
     left, right, pair, n = _pairs(syn)
-    res = relative_orientation(left, right, pair, n, method=method, rotation_first=syn.rotations[0])
+    res = relative_orientation(
+        left, right, pair, n, method=method, rotation_first=syn.rotations[0]
+    )
     # converged to 1e-10 mm (1e-7 µm) of y-parallax at image scale
     assert res.history[-1] < 1e-7
     assert np.all(res.max_parallax_um < 1e-7)
@@ -74,9 +76,7 @@ def test_sigma0_recovers_image_noise():
     for seed in range(4):
         syn = make_strip(12, seed=seed, noise_mm=0.005)
         left, right, pair, n = _pairs(syn)
-        res = relative_orientation(
-            left, right, pair, n, sigma_left=0.005, sigma_right=0.005
-        )
+        res = relative_orientation(left, right, pair, n, sigma_left=0.005, sigma_right=0.005)
         sig.append(res.sigma0_um)
         # the RMS y-parallax combines two coordinates
         np.testing.assert_allclose(res.rms_parallax_um.mean(), np.sqrt(2) * 5, rtol=0.2)
@@ -117,9 +117,13 @@ def test_printed_schut_factor_converges_only_linearly(monkeypatch, attitude_sd_d
 def test_large_relative_rotations_converge(method):
     """Drone-like pairs: relative rotations of tens of degrees."""
     for seed in range(6):
-        syn = make_strip(5, seed=seed, relative_rotation_deg=25.0, c=100.0, height=800.0, base=300.0)
+        syn = make_strip(
+            5, seed=seed, relative_rotation_deg=25.0, c=100.0, height=800.0, base=300.0
+        )
         left, right, pair, n = _pairs(syn)
-        res = relative_orientation(left, right, pair, n, method=method, rotation_first=syn.rotations[0])
+        res = relative_orientation(
+            left, right, pair, n, method=method, rotation_first=syn.rotations[0]
+        )
         q_true, _ = _relative_truth(syn)
         np.testing.assert_allclose(res.relative_rotation, q_true, atol=1e-9)
 
