@@ -40,7 +40,6 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from scipy.stats import chi2
 
 from ._typing import ArrayLike, FloatArray
 from .errors import GeometryError, StripAerotriWarning
@@ -726,6 +725,8 @@ def select_kind_auto(
     kinds_tried = tuple(_check_kind(k) for k in kinds)
     if not kinds_tried:
         raise ValueError("Expected at least one kind in `kinds`")
+    from scipy.stats import chi2  # deferred: scipy.stats is slow to import
+
     alpha = (1.0 - float(confidence)) / 3.0
     table: list[KindSummary] = []
     nan3 = np.full(3, np.nan)
