@@ -1,0 +1,866 @@
+"""Ground coordinate systems and the local tangent frame of the geocentric route.
+
+This module is the only place where strip_aerotri touches geodesy.  Every
+datum, projection and ellipsoid step is delegated to pyproj; the module itself
+only adds the local tangent frame of B(142)-(144), B(152) (a rotation and a
+shift) and the earth-curvature correction of B(153).
+
+Conventions
+-----------
+* Points are float64 rows, shape ``(N, 3)`` (any ``(..., 3)`` stack works).
+* Coordinates of a :class:`GroundCRS` are in the axis order of pyproj's
+  ``always_xy=True``: easting, northing for projected CRSs; longitude,
+  latitude (in the CRS's angular unit, degrees for nearly every CRS) for
+  geographic ones.  The third column is the ellipsoidal height in metres
+  above the ellipsoid of the CRS's own datum.
+* Geodetic coordinates are ``(latitude, longitude, height)`` in radians,
+  radians, metres, longitude counted from the CRS's own prime meridian.
+* "ECEF" means the geocentric Cartesian system of the CRS's own datum (no
+  datum shift is ever implied); metres.
+* Angles are radians; azimuths are clockwise from north.
+
+See ``docs/geodesy.md`` for the two routes to the ground and the gotchas.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+from pyproj import CRS, Proj, Transformer
+from pyproj.exceptions import CRSError, ProjError
+
+from strip_aerotri.errors import ConfigError, GeometryError
+
+if TYPE_CHECKING:
+    from strip_aerotri._typing import ArrayLike, FloatArray
+
+__all__ = [
+    "MEAN_EARTH_RADIUS",
+    "EllipsoidParameters",
+    "GroundCRS",
+    "LocalTangentFrame",
+    "azimuth_from_local_enu",
+    "earth_curvature_correction",
+    "enu_rotation",
+    "gaussian_mean_radius",
+]
+
+#: Mean radius R1 = (2a + b)/3 of the GRS 80 ellipsoid in metres (Moritz 2000,
+#: "Geodetic Reference System 1980", J. Geodesy 74:128-133,
+#: doi:10.1007/s001900050278).  A fallback earth radius for the projected
+#: route when the ground system is ``"local"`` and has no ellipsoid.
+MEAN_EARTH_RADIUS = 6371008.7714
+
+_LOCAL_NAMES = frozenset({"local"})
+
+_GEOCENTRIC_AXES = [
+    {"name": "Geocentric X", "abbreviation": "X", "direction": "geocentricX", "unit": "metre"},
+    {"name": "Geocentric Y", "abbreviation": "Y", "direction": "geocentricY", "unit": "metre"},
+    {"name": "Geocentric Z", "abbreviation": "Z", "direction": "geocentricZ", "unit": "metre"},
+]
+
+
+class EllipsoidParameters(NamedTuple):
+    """Defining parameters of an ellipsoid (as pyproj reports them).
+
+    Attributes
+    ----------
+    semi_major_metre : float
+        Semi-major axis a in metres.
+    inverse_flattening : float
+        1/f; ``0.0`` for a sphere (pyproj's convention).
+    """
+
+    semi_major_metre: float
+    inverse_flattening: float
+
+    @property
+    def flattening(self) -> float:
+        """Flattening f (0 for a sphere)."""
+        return 0.0 if self.inverse_flattening == 0.0 else 1.0 / self.inverse_flattening
+
+    @property
+    def eccentricity_squared(self) -> float:
+        """First eccentricity squared e² = f (2 − f)."""
+        f = self.flattening
+        return f * (2.0 - f)
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _as_rows(values: ArrayLike, name: str, width: int | tuple[int, ...] = 3) -> FloatArray:
+    """Coerce ``values`` to a float64 array whose last axis has ``width`` columns."""
+    arr = np.asarray(values, dtype=np.float64)
+    widths = (width,) if isinstance(width, int) else width
+    if arr.ndim < 1 or arr.shape[-1] not in widths:
+        expected = " or ".join(f"(..., {w})" for w in widths)
+        raise ValueError(f"Expected `{name}` to have shape {expected}, got {arr.shape}.")
+    return arr
+
+
+def _angle(value: ArrayLike, name: str, degrees: bool) -> FloatArray:
+    arr = np.asarray(value, dtype=np.float64)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"Expected `{name}` to be finite, got {value!r}.")
+    return np.radians(arr) if degrees else arr
+
+
+def _geocentric_of(geodetic: CRS) -> CRS:
+    """The geocentric Cartesian CRS of the datum (or datum ensemble) of ``geodetic``.
+
+    pyproj's ``GeocentricCRS(datum=...)`` rejects datum ensembles (WGS 84,
+    ETRS89), so the CRS is built from the PROJJSON of the geodetic CRS with its
+    ellipsoidal coordinate system replaced by the geocentric X, Y, Z axes.
+    """
+    description = geodetic.to_json_dict()
+    for key in ("id", "ids", "usage", "usages", "scope", "area", "bbox", "remarks"):
+        description.pop(key, None)
+    description["type"] = "GeodeticCRS"
+    description["name"] = f"{geodetic.name} (geocentric)"
+    description["coordinate_system"] = {"subtype": "Cartesian", "axis": _GEOCENTRIC_AXES}
+    return CRS.from_json_dict(description)
+
+
+def _run(transformer: Transformer, columns: tuple[FloatArray, ...], what: str) -> FloatArray:
+    """Apply ``transformer`` to column vectors; return the results stacked as columns."""
+    try:
+        out = transformer.transform(*columns, errcheck=True)
+    except ProjError as exc:
+        raise GeometryError(f"pyproj could not {what}: {exc}") from exc
+    return np.stack([np.asarray(o, dtype=np.float64) for o in out], axis=-1)
+
+
+# --------------------------------------------------------------------------- GroundCRS
+
+
+class GroundCRS:
+    """The ground coordinate reference system of a project (``[control] crs``).
+
+    Build it with :meth:`from_user_input`.  Either ``"local"`` (a local
+    Cartesian site system in metres, no geodesy) or a horizontal CRS that
+    pyproj understands: projected or geographic.  Heights are always
+    ellipsoidal heights in metres above the ellipsoid of the CRS's own datum;
+    conversions to and from ECEF stay in that datum (no datum shift).
+
+    pyproj transformers are built on first use and cached on the instance.
+    Like pyproj's, they must not be shared between threads.
+
+    Attributes
+    ----------
+    crs : pyproj.CRS or None
+        The CRS as given (``None`` for ``"local"``).  A bound CRS (a PROJ
+        string with ``+towgs84``) is kept as given; its source CRS is used for
+        every conversion except :meth:`to_wgs84_lonlat`.
+    name : str
+        The CRS's name, or ``"local"``.
+    is_local, is_geographic : bool
+    """
+
+    __slots__ = ("_base", "_cache", "crs", "name", "text")
+
+    def __init__(self, crs: CRS | None, text: str = "") -> None:
+        self.crs = crs
+        self.text = text
+        self._cache: dict[str, Any] = {}
+        if crs is None:
+            self._base = None
+            self.name = "local"
+            return
+        base = crs.source_crs if crs.is_bound else crs
+        if base is None or not (base.is_projected or base.is_geographic) or base.is_compound:
+            raise ConfigError(
+                f"[control] crs {text or crs.name!r} is a {crs.type_name}; a horizontal "
+                "projected or geographic CRS is needed (heights are taken as ellipsoidal "
+                'heights of its datum), or "local"'
+            )
+        self._base = base
+        self.name = crs.name
+
+    # ----------------------------------------------------------- construction
+
+    @classmethod
+    def from_user_input(cls, text: Any) -> GroundCRS:
+        """Build from the ``[control] crs`` string of the project file.
+
+        Parameters
+        ----------
+        text : str or pyproj.CRS
+            ``"local"`` (any case) or anything :meth:`pyproj.CRS.from_user_input`
+            accepts ("EPSG:32634", WKT, PROJ string, PROJJSON, a CRS object).
+
+        Returns
+        -------
+        GroundCRS
+
+        Raises
+        ------
+        ConfigError
+            pyproj does not understand ``text``, or the CRS is not a horizontal
+            projected or geographic CRS (geocentric, vertical, compound and
+            engineering CRSs are refused).
+
+        Examples
+        --------
+        >>> GroundCRS.from_user_input("EPSG:32634").name
+        'WGS 84 / UTM zone 34N'
+        >>> GroundCRS.from_user_input("Local").is_local
+        True
+        """
+        if isinstance(text, GroundCRS):
+            return text
+        if isinstance(text, str) and text.strip().lower() in _LOCAL_NAMES:
+            return cls(None, text.strip())
+        try:
+            crs = CRS.from_user_input(text.strip() if isinstance(text, str) else text)
+        except CRSError as exc:
+            raise ConfigError(
+                f"[control] crs {text!r} is not a CRS pyproj understands: {exc}"
+            ) from exc
+        return cls(crs, text if isinstance(text, str) else crs.name)
+
+    def __repr__(self) -> str:
+        return f"GroundCRS({self.name!r})"
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, GroundCRS):
+            return NotImplemented
+        if self.crs is None or other.crs is None:
+            return self.crs is None and other.crs is None
+        return self.crs == other.crs
+
+    def __hash__(self) -> int:
+        return hash(None if self.crs is None else self.crs.to_wkt())
+
+    # ----------------------------------------------------------- properties
+
+    @property
+    def is_local(self) -> bool:
+        """True for the local Cartesian site system (no geodesy)."""
+        return self.crs is None
+
+    @property
+    def is_geographic(self) -> bool:
+        """True when X, Y are longitude, latitude."""
+        return self._base is not None and bool(self._base.is_geographic)
+
+    @property
+    def ellipsoid(self) -> EllipsoidParameters | None:
+        """Semi-major axis and inverse flattening of the datum's ellipsoid (None if local)."""
+        if self._base is None:
+            return None
+        ell = self._base.ellipsoid
+        return EllipsoidParameters(float(ell.semi_major_metre), float(ell.inverse_flattening))
+
+    @property
+    def wgs84_operation(self) -> str:
+        """Description of the operation pyproj uses for :meth:`to_wgs84_lonlat`.
+
+        When several operations are candidates, pyproj picks one per point at
+        transformation time; this then names the one used last.
+        """
+        transformer = self._transformer("wgs84")
+        return str(self._cache.get("_wgs84_last", transformer.description))
+
+    # ----------------------------------------------------------- transformers
+
+    def _require_geodesy(self) -> CRS:
+        if self._base is None:
+            raise GeometryError(
+                'the ground system is "local" (no geodesy): the geocentric route and every '
+                "conversion to ECEF, geodetic or WGS 84 coordinates need a real CRS in "
+                '[control] crs (e.g. "EPSG:32634"); use the projected route instead'
+            )
+        return self._base
+
+    def _transformer(self, key: str) -> Transformer:
+        cached = self._cache.get(key)
+        if cached is not None:
+            return cached
+        base = self._require_geodesy()
+        crs3d = base.to_3d()
+        geodetic3d = crs3d.geodetic_crs.to_3d()
+        if key in ("geocentric", "geodetic2ecef"):
+            geocentric = self._cache.get("_geocentric_crs")
+            if geocentric is None:
+                geocentric = _geocentric_of(geodetic3d)
+                self._cache["_geocentric_crs"] = geocentric
+        if key == "geocentric":
+            transformer = Transformer.from_crs(crs3d, geocentric, always_xy=True)
+        elif key == "geodetic":
+            transformer = Transformer.from_crs(crs3d, geodetic3d, always_xy=True)
+        elif key == "geodetic2ecef":
+            transformer = Transformer.from_crs(geodetic3d, geocentric, always_xy=True)
+        elif key == "wgs84":
+            transformer = Transformer.from_crs(self.crs, CRS.from_epsg(4326), always_xy=True)
+        elif key == "proj":
+            transformer = Proj(base)
+        else:  # pragma: no cover - internal keys only
+            raise KeyError(key)
+        self._cache[key] = transformer
+        return transformer
+
+    def _angle_unit(self) -> float:
+        """Radians per unit of the geodetic CRS's angular axes (1 degree for most)."""
+        factor = self._cache.get("_angle_unit")
+        if factor is None:
+            axis = self._require_geodesy().geodetic_crs.axis_info[0]
+            factor = float(axis.unit_conversion_factor)
+            self._cache["_angle_unit"] = factor
+        return factor
+
+    # ----------------------------------------------------------- conversions
+
+    def to_ecef(self, xyh: ArrayLike) -> FloatArray:
+        """Ground coordinates → geocentric X, Y, Z of the same datum.
+
+        Parameters
+        ----------
+        xyh : array_like, shape (..., 3)
+            X, Y in the CRS's ``always_xy`` axis order (easting, northing in
+            metres, or longitude, latitude in the CRS's angular unit), H the
+            ellipsoidal height in metres.  NaN rows give NaN rows.
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            Geocentric X, Y, Z in metres, in the CRS's own datum (no datum shift).
+
+        Raises
+        ------
+        GeometryError
+            The CRS is ``"local"``, or pyproj cannot convert a point.
+        """
+        arr = _as_rows(xyh, "xyh")
+        return _run(
+            self._transformer("geocentric"), tuple(np.moveaxis(arr, -1, 0)), "convert to ECEF"
+        )
+
+    def from_ecef(self, ecef: ArrayLike) -> FloatArray:
+        """Geocentric X, Y, Z of the CRS's datum → ground X, Y, H (inverse of :meth:`to_ecef`).
+
+        Parameters
+        ----------
+        ecef : array_like, shape (..., 3)
+            Geocentric coordinates in metres.
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            X, Y in ``always_xy`` order, H ellipsoidal height in metres.
+        """
+        arr = _as_rows(ecef, "ecef")
+        return self._inverse("geocentric", arr, "convert from ECEF")
+
+    def _inverse(self, key: str, arr: FloatArray, what: str) -> FloatArray:
+        transformer = self._transformer(key)
+        try:
+            out = transformer.transform(
+                *np.moveaxis(arr, -1, 0), direction="INVERSE", errcheck=True
+            )
+        except ProjError as exc:
+            raise GeometryError(f"pyproj could not {what}: {exc}") from exc
+        return np.stack([np.asarray(o, dtype=np.float64) for o in out], axis=-1)
+
+    def to_geodetic(self, xyh: ArrayLike) -> FloatArray:
+        """Ground coordinates → geodetic latitude, longitude, height in the CRS's datum.
+
+        Parameters
+        ----------
+        xyh : array_like, shape (..., 3)
+            Ground X, Y (``always_xy`` order), H ellipsoidal height in metres.
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            Latitude (rad), longitude (rad, from the CRS's prime meridian),
+            ellipsoidal height (m).
+        """
+        arr = _as_rows(xyh, "xyh")
+        lon, lat, h = np.moveaxis(
+            _run(self._transformer("geodetic"), tuple(np.moveaxis(arr, -1, 0)), "convert"),
+            -1,
+            0,
+        )
+        unit = self._angle_unit()
+        return np.stack([lat * unit, lon * unit, h], axis=-1)
+
+    def from_geodetic(self, llh: ArrayLike) -> FloatArray:
+        """Geodetic latitude, longitude (rad), height (m) → ground X, Y, H.
+
+        Parameters
+        ----------
+        llh : array_like, shape (..., 3)
+            Latitude, longitude in radians, ellipsoidal height in metres.
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            Ground X, Y (``always_xy`` order), H in metres.
+        """
+        arr = _as_rows(llh, "llh")
+        unit = self._angle_unit()
+        columns = (arr[..., 1] / unit, arr[..., 0] / unit, arr[..., 2])
+        return self._inverse("geodetic", np.stack(columns, axis=-1), "convert from geodetic")
+
+    def geodetic2ecef(self, llh: ArrayLike) -> FloatArray:
+        """Geodetic latitude, longitude (rad), height (m) → geocentric X, Y, Z (same datum).
+
+        Parameters
+        ----------
+        llh : array_like, shape (..., 3)
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            Geocentric X, Y, Z in metres (method EPSG 9602, done by pyproj).
+        """
+        arr = _as_rows(llh, "llh")
+        unit = self._angle_unit()
+        columns = (arr[..., 1] / unit, arr[..., 0] / unit, arr[..., 2])
+        return _run(self._transformer("geodetic2ecef"), columns, "convert geodetic to ECEF")
+
+    def ecef2geodetic(self, ecef: ArrayLike) -> FloatArray:
+        """Geocentric X, Y, Z (m) → geodetic latitude, longitude (rad), height (m), same datum.
+
+        Parameters
+        ----------
+        ecef : array_like, shape (..., 3)
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            Latitude, longitude in radians, ellipsoidal height in metres.
+        """
+        arr = _as_rows(ecef, "ecef")
+        lon, lat, h = np.moveaxis(self._inverse("geodetic2ecef", arr, "convert ECEF"), -1, 0)
+        unit = self._angle_unit()
+        return np.stack([lat * unit, lon * unit, h], axis=-1)
+
+    def to_wgs84_lonlat(self, xyh: ArrayLike) -> FloatArray:
+        """Ground coordinates → WGS 84 longitude, latitude in degrees (RFC 7946 GeoJSON order).
+
+        Unlike every other method, this one may apply a datum transformation:
+        pyproj's default (best available) operation from the CRS to WGS 84
+        (EPSG:4326), described by :attr:`wgs84_operation`.  Its accuracy is
+        that operation's (metre level for a Helmert or ballpark shift), which
+        is enough for display; never feed these values back into the
+        adjustment.
+
+        Parameters
+        ----------
+        xyh : array_like, shape (..., 2) or (..., 3)
+            Ground X, Y (``always_xy`` order); a third column is ignored.
+
+        Returns
+        -------
+        ndarray, shape (..., 2)
+            Longitude, latitude in degrees.
+        """
+        arr = _as_rows(xyh, "xyh", (2, 3))
+        transformer = self._transformer("wgs84")
+        lonlat = _run(transformer, (arr[..., 0], arr[..., 1]), "convert to WGS 84")
+        try:
+            self._cache["_wgs84_last"] = transformer.get_last_used_operation().description
+        except ProjError:  # no single operation was used (e.g. no point transformed)
+            pass
+        return lonlat
+
+    def meridian_convergence(self, xyh: ArrayLike) -> FloatArray:
+        """Meridian convergence γ of the projection at ground points (from pyproj's factors).
+
+        γ is the angle from true (geodetic) north to grid north, positive
+        clockwise; it is positive east of the central meridian of a
+        transverse Mercator zone in the northern hemisphere.  A direction's
+        grid bearing is its geodetic azimuth minus γ (the arc-to-chord
+        correction, which is below an arc second over a few km, aside).
+        Zero for a geographic CRS.
+
+        Parameters
+        ----------
+        xyh : array_like, shape (..., 2) or (..., 3)
+            Ground X, Y (``always_xy`` order); a third column is ignored.
+
+        Returns
+        -------
+        ndarray, shape (...)
+            γ in radians.
+        """
+        arr = _as_rows(xyh, "xyh", (2, 3))
+        base = self._require_geodesy()
+        if base.is_geographic:
+            return np.zeros(arr.shape[:-1])
+        points = np.concatenate([arr[..., :2], np.zeros((*arr.shape[:-1], 1))], axis=-1)
+        llh = self.to_geodetic(points)
+        # Proj.get_factors takes degrees counted from the CRS's prime meridian.
+        lon = np.degrees(llh[..., 1])
+        lat = np.degrees(llh[..., 0])
+        factors = self._transformer("proj").get_factors(lon, lat, errcheck=True)
+        return np.radians(np.asarray(factors.meridian_convergence, dtype=np.float64))
+
+
+# --------------------------------------------------------------------------- ENU, frame
+
+
+def enu_rotation(
+    latitude: ArrayLike, longitude: ArrayLike, *, degrees: bool = False
+) -> FloatArray:
+    """Rotation from geocentric (ECEF) directions to local east, north, up.
+
+    ``enu = R @ (ecef - ecef_origin)``; the rows of ``R`` are the unit east,
+    north and up vectors in ECEF:
+    ``e = (−sinL, cosL, 0)``, ``n = (−sinB cosL, −sinB sinL, cosB)``,
+    ``u = (cosB cosL, cosB sinL, sinB)`` (EPSG method 9836).
+
+    Parameters
+    ----------
+    latitude, longitude : array_like, broadcastable, shape (...)
+        Geodetic latitude B and longitude L (radians unless ``degrees``).
+    degrees : bool, optional
+        Angles in degrees.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        Rows east, north, up.
+
+    Examples
+    --------
+    >>> enu_rotation(0.0, 0.0).round(12)
+    array([[-0.,  1.,  0.],
+           [-0., -0.,  1.],
+           [ 1.,  0.,  0.]])
+    """
+    b = _angle(latitude, "latitude", degrees)
+    l_ = _angle(longitude, "longitude", degrees)
+    b, l_ = np.broadcast_arrays(b, l_)
+    sb, cb, sl, cl = np.sin(b), np.cos(b), np.sin(l_), np.cos(l_)
+    zero = np.zeros_like(b)
+    east = np.stack([-sl, cl, zero], axis=-1)
+    north = np.stack([-sb * cl, -sb * sl, cb], axis=-1)
+    up = np.stack([cb * cl, cb * sl, sb], axis=-1)
+    return np.stack([east, north, up], axis=-2)
+
+
+def azimuth_from_local_enu(vector: ArrayLike) -> FloatArray:
+    """Azimuth of a horizontal direction given by its east, north components.
+
+    Parameters
+    ----------
+    vector : array_like, shape (..., 2) or (..., 3)
+        (east, north[, up]) components; the up component is ignored.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Azimuth in radians, clockwise from north, in [0, 2π).
+
+    Raises
+    ------
+    ValueError
+        A direction has no horizontal component.
+
+    Examples
+    --------
+    >>> float(np.degrees(azimuth_from_local_enu([1.0, 0.0, 0.0])))
+    90.0
+    """
+    arr = _as_rows(vector, "vector", (2, 3))
+    east, north = arr[..., 0], arr[..., 1]
+    if np.any(np.hypot(east, north) == 0.0) or not np.all(np.isfinite(arr[..., :2])):
+        raise ValueError("Expected `vector` to have a finite, non-zero horizontal component.")
+    return np.mod(np.arctan2(east, north), 2.0 * np.pi)
+
+
+def _frame_rotation(latitude: float, longitude: float, azimuth: float) -> FloatArray:
+    """Rows X, Y, Z of the B(143) frame in ECEF ([fix] signs of b1 and a2)."""
+    east, north, up = enu_rotation(latitude, longitude)
+    ca, sa = math.cos(azimuth), math.sin(azimuth)
+    x_axis = north * ca + east * sa
+    y_axis = north * sa - east * ca
+    return np.stack([x_axis, y_axis, up])
+
+
+@dataclass(frozen=True, eq=False)
+class LocalTangentFrame:
+    """The intermediate local tangent system of the geocentric route, B(142)-(144), B(152).
+
+    Origin ``origin_ecef``; Z along the ellipsoid normal at (B0, L0); X
+    horizontal at azimuth A0 (clockwise from north); Y = Z × X, i.e. to the
+    left of X, like the photos' y.  With ``n``, ``e``, ``u`` the north, east,
+    up unit vectors at (B0, L0):
+
+    ``X = n cosA0 + e sinA0``, ``Y = n sinA0 − e cosA0``, ``Z = u``.
+
+    The rows of :attr:`rotation` are X, Y, Z in ECEF, i.e. the rows are
+    (a1, b1, c1), (a2, b2, c2), (a3, b3, c3) of B(143) with the [fix] of
+    method.md §6.2 (signs of b1 and a2), so ``local = (ecef − origin) @ rotation.T``
+    is B(144) and ``ecef = origin + local @ rotation`` is B(152).
+
+    Parameters
+    ----------
+    origin_ecef : array_like, shape (3,)
+        Geocentric origin in metres (need not lie on the ellipsoid: B(142)
+        puts it at the mean of the control's geocentric coordinates).
+    latitude, longitude : float
+        B0, L0 in radians: the normal that defines Z.
+    azimuth : float
+        A0 in radians, direction of the frame's X axis clockwise from north.
+
+    Attributes
+    ----------
+    rotation : ndarray, shape (3, 3)
+        ECEF → local rotation (rows X, Y, Z), computed; read-only.
+    """
+
+    origin_ecef: FloatArray
+    latitude: float
+    longitude: float
+    azimuth: float
+    rotation: FloatArray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        origin = np.array(self.origin_ecef, dtype=np.float64)
+        if origin.shape != (3,) or not np.all(np.isfinite(origin)):
+            raise ValueError(
+                "Expected `origin_ecef` to be finite with shape (3,), "
+                f"got {np.shape(self.origin_ecef)}."
+            )
+        angles = {}
+        for name in ("latitude", "longitude", "azimuth"):
+            value = float(getattr(self, name))
+            if not math.isfinite(value):
+                raise ValueError(f"Expected `{name}` to be finite, got {value!r}.")
+            angles[name] = value
+        if abs(angles["latitude"]) > math.pi / 2:
+            raise ValueError(f"Expected |latitude| <= pi/2 rad, got {angles['latitude']!r}.")
+        origin.setflags(write=False)
+        rotation = _frame_rotation(angles["latitude"], angles["longitude"], angles["azimuth"])
+        rotation.setflags(write=False)
+        object.__setattr__(self, "origin_ecef", origin)
+        for name, value in angles.items():
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "rotation", rotation)
+
+    # ----------------------------------------------------------- constructors
+
+    @classmethod
+    def at(
+        cls,
+        latitude: float,
+        longitude: float,
+        height: float,
+        azimuth: float,
+        *,
+        crs: GroundCRS,
+        degrees: bool = False,
+    ) -> LocalTangentFrame:
+        """Frame with its origin at a geodetic point of the CRS's datum.
+
+        Parameters
+        ----------
+        latitude, longitude : float
+            Origin's geodetic latitude and longitude (radians unless ``degrees``).
+        height : float
+            Origin's ellipsoidal height in metres.
+        azimuth : float
+            A0, X axis clockwise from north (radians unless ``degrees``).
+        crs : GroundCRS
+            Supplies the datum (ellipsoid); the origin is converted by pyproj.
+        degrees : bool, optional
+            Angles in degrees.
+
+        Returns
+        -------
+        LocalTangentFrame
+        """
+        lat = float(_angle(latitude, "latitude", degrees))
+        lon = float(_angle(longitude, "longitude", degrees))
+        az = float(_angle(azimuth, "azimuth", degrees))
+        origin = GroundCRS.from_user_input(crs).geodetic2ecef([lat, lon, float(height)])
+        return cls(origin, lat, lon, az)
+
+    @classmethod
+    def from_ecef_centroid(
+        cls, ecef: ArrayLike, azimuth: float, *, crs: GroundCRS, degrees: bool = False
+    ) -> LocalTangentFrame:
+        """Frame at the centroid of geocentric points, B(142).
+
+        The origin is the mean of the geocentric coordinates; B0, L0 are the
+        geodetic latitude and longitude of that mean point (B(142) averages
+        the points' B and L instead; over a strip the two differ by far less
+        than the control's accuracy).
+
+        Parameters
+        ----------
+        ecef : array_like, shape (N, 3)
+            Geocentric coordinates (metres) of the points, all finite, N >= 1.
+        azimuth : float
+            A0 (radians unless ``degrees``).
+        crs : GroundCRS
+            Supplies the datum for B0, L0.
+        degrees : bool, optional
+            ``azimuth`` in degrees.
+
+        Returns
+        -------
+        LocalTangentFrame
+        """
+        arr = _as_rows(ecef, "ecef").reshape(-1, 3)
+        if arr.shape[0] == 0:
+            raise ValueError("Expected `ecef` to hold at least one point, got none.")
+        if not np.all(np.isfinite(arr)):
+            bad = int(np.count_nonzero(~np.all(np.isfinite(arr), axis=1)))
+            raise ValueError(f"Expected `ecef` to be finite, got {bad} row(s) with NaN or inf.")
+        origin = arr.mean(axis=0)
+        lat, lon, _ = GroundCRS.from_user_input(crs).ecef2geodetic(origin)
+        return cls(origin, float(lat), float(lon), float(_angle(azimuth, "azimuth", degrees)))
+
+    def with_azimuth(self, azimuth: float, *, degrees: bool = False) -> LocalTangentFrame:
+        """The same origin and normal with another X-axis azimuth."""
+        return LocalTangentFrame(
+            self.origin_ecef,
+            self.latitude,
+            self.longitude,
+            float(_angle(azimuth, "azimuth", degrees)),
+        )
+
+    # ----------------------------------------------------------- mappings
+
+    def ecef2local(self, ecef: ArrayLike) -> FloatArray:
+        """Geocentric → frame coordinates, B(144): ``(ecef − origin) @ rotation.T``.
+
+        Parameters
+        ----------
+        ecef : array_like, shape (..., 3)
+            Geocentric coordinates in metres.
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            X (along A0), Y (left of X), Z (up along the origin's normal), metres.
+        """
+        arr = _as_rows(ecef, "ecef")
+        return (arr - self.origin_ecef) @ self.rotation.T
+
+    def local2ecef(self, local: ArrayLike) -> FloatArray:
+        """Frame → geocentric coordinates, B(152): ``origin + local @ rotation``.
+
+        Parameters
+        ----------
+        local : array_like, shape (..., 3)
+            Frame coordinates in metres.
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            Geocentric coordinates in metres.
+        """
+        arr = _as_rows(local, "local")
+        return arr @ self.rotation + self.origin_ecef
+
+    @property
+    def enu2local(self) -> FloatArray:
+        """Rotation (3, 3) from east, north, up at (B0, L0) to the frame: ``local = M @ enu``.
+
+        Rows are X = (sinA0, cosA0, 0), Y = (−cosA0, sinA0, 0), Z = (0, 0, 1).
+        """
+        ca, sa = math.cos(self.azimuth), math.sin(self.azimuth)
+        return np.array([[sa, ca, 0.0], [-ca, sa, 0.0], [0.0, 0.0, 1.0]])
+
+    def azimuth_of(self, direction: ArrayLike) -> FloatArray:
+        """Azimuth (rad, clockwise from north, [0, 2π)) of a direction given in the frame.
+
+        Parameters
+        ----------
+        direction : array_like, shape (..., 2) or (..., 3)
+            Frame components (X, Y[, Z]); Z is ignored.
+
+        Returns
+        -------
+        ndarray, shape (...)
+        """
+        arr = _as_rows(direction, "direction", (2, 3))
+        enu = arr[..., :2] @ self.enu2local[:2, :2]
+        return azimuth_from_local_enu(enu)
+
+
+# --------------------------------------------------------------------------- curvature
+
+
+def earth_curvature_correction(distance: ArrayLike, radius: ArrayLike) -> FloatArray:
+    """Drop of the earth's surface below the tangent plane, D²/(2R), B(153).
+
+    A point at horizontal distance D from the tangent point lies D²/(2R)
+    below the tangent plane (the exact sagitta of a sphere is
+    ``R − sqrt(R² − D²) = D²/(2R) + D⁴/(8R³) + …``).  So a flat model's
+    height Z and the height H over the curved earth are related by
+
+    ``H = Z + D²/(2R)`` (B(153), Z' = Z + D²/2R) and ``Z = H − D²/(2R)``.
+
+    Sizes: 7.8 cm at 1 km, 7.8 m at 10 km (R = 6371 km).
+
+    Parameters
+    ----------
+    distance : array_like, shape (...)
+        D in metres (from the middle of the net).
+    radius : float or array_like
+        Earth radius R in metres, > 0 (e.g. :func:`gaussian_mean_radius`).
+
+    Returns
+    -------
+    ndarray, shape (...)
+        D²/(2R) in metres (>= 0).
+
+    Examples
+    --------
+    >>> round(float(earth_curvature_correction(1000.0, 6371000.0)), 4)
+    0.0785
+    """
+    d = np.asarray(distance, dtype=np.float64)
+    r = np.asarray(radius, dtype=np.float64)
+    if np.any(~(r > 0.0)):
+        raise ValueError(f"Expected `radius` to be positive, got {radius!r}.")
+    return d * d / (2.0 * r)
+
+
+def gaussian_mean_radius(
+    latitude: ArrayLike, crs: GroundCRS, *, degrees: bool = False
+) -> FloatArray:
+    """Gaussian mean radius of curvature sqrt(M N) of the CRS's ellipsoid at a latitude.
+
+    With a, f of the datum's ellipsoid (from pyproj) and e² = f(2 − f):
+    ``M = a(1 − e²)/W³``, ``N = a/W``, ``W = sqrt(1 − e² sin²B)``, so
+    ``sqrt(M N) = a sqrt(1 − e²)/W²``.
+
+    Parameters
+    ----------
+    latitude : array_like, shape (...)
+        Geodetic latitude (radians unless ``degrees``).
+    crs : GroundCRS or str
+        A non-local ground CRS (its ellipsoid).
+    degrees : bool, optional
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Radius in metres.
+
+    Raises
+    ------
+    ValueError
+        ``crs`` is ``"local"`` (no ellipsoid; use :data:`MEAN_EARTH_RADIUS`).
+    """
+    ground = GroundCRS.from_user_input(crs)
+    ell = ground.ellipsoid
+    if ell is None:
+        raise ValueError(
+            'Expected a CRS with an ellipsoid, got "local"; use MEAN_EARTH_RADIUS instead.'
+        )
+    b = _angle(latitude, "latitude", degrees)
+    e2 = ell.eccentricity_squared
+    w2 = 1.0 - e2 * np.sin(b) ** 2
+    return ell.semi_major_metre * math.sqrt(1.0 - e2) / w2
