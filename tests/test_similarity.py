@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from strip_aerotri.errors import GeometryError
+from strip_aerotri.errors import GeometryError, StripAerotriWarning
 from strip_aerotri.similarity import (
     SimilarityTransform,
     fit_similarity,
@@ -333,6 +333,19 @@ def test_height_points_in_one_vertical_plane_raise():
     src[2, 1] = 1.5
     res = _degenerate([1, 1, 0, 0, 0, 0, 0], [1, 1, 1, 0, 0, 0, 0], src=src)
     assert res.redundancy == 0
+
+
+def test_height_points_nearly_in_one_vertical_plane_warn():
+    # Third height point 30 m (in ground units) off the 10 km line: singular value ratio ~3e-3.
+    src = np.array([[0.0, 0.0, 0.01], [10.0, 1.0, -0.02], [5.0, 0.53, 0.05]])
+    tgt = TRUTH_LOCAL.apply(src)
+    use_xy = np.array([True, True, False])
+    use_z = np.ones(3, dtype=bool)
+    with pytest.warns(StripAerotriWarning, match=r"nearly in one vertical plane"):
+        res = fit_similarity(
+            src, masked(tgt, use_xy, use_z), use_xy=use_xy, use_z=use_z, point_ids=IDS[:3]
+        )
+    np.testing.assert_allclose(res.transform.apply(src), tgt, rtol=0, atol=1e-8)
 
 
 def test_non_finite_used_coordinates_raise_naming_the_point():
