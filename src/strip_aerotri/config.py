@@ -1,0 +1,1344 @@
+"""The project file ``strip.toml`` and the CSV files it names.
+
+This is the only module that reads TOML.  :func:`load_project` validates the
+project strictly (every failure is one :class:`~strip_aerotri.errors.ConfigError`
+line naming the file, the line or key, and the rule broken) and returns frozen
+dataclasses already in library units: image millimetres, ground metres,
+radians.  The option enums (:class:`Route`, :class:`RelativeOrientation`,
+:class:`Intersection`, :class:`ScaleTransfer`) live here so that numerical
+modules can import them without pulling in anything heavy.
+
+The list of valid keys is :data:`PROJECT_KEYS` (with :data:`PROJECT_TABLES`,
+:data:`IMAGE_COLUMNS` and :data:`CONTROL_COLUMNS`); validation, ``stripaero
+check`` and ``docs/project-file.md`` all follow it.
+"""
+
+from __future__ import annotations
+
+import csv
+import difflib
+import itertools
+import math
+import re
+import tomllib
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from enum import StrEnum
+from pathlib import Path
+from typing import Any, Literal, Self
+
+import numpy as np
+
+from ._typing import BoolArray, FloatArray, IntArray
+from .errors import ConfigError
+from .observations import ControlPoints, ControlType, ImageObservations
+
+__all__ = [
+    "CONTROL_COLUMNS",
+    "IMAGE_COLUMNS",
+    "PROJECT_KEYS",
+    "PROJECT_TABLES",
+    "AdjustmentOptions",
+    "Camera",
+    "ColumnSpec",
+    "Intersection",
+    "KeySpec",
+    "Project",
+    "RelativeOrientation",
+    "ReportOptions",
+    "Route",
+    "ScaleTransfer",
+    "StraightLineSpec",
+    "TableSpec",
+    "check_output_directory",
+    "load_project",
+]
+
+
+# --------------------------------------------------------------------------- enums
+
+
+class _OptionEnum(StrEnum):
+    """String option of the project file, matched case-insensitively."""
+
+    @classmethod
+    def create(cls, value: object) -> Self:
+        """Member for ``value`` (a member or a case-insensitive string).
+
+        Raises
+        ------
+        ValueError
+            If ``value`` names no member; the message lists the valid values.
+        """
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, str):
+            member = cls._missing_(value)
+            if member is not None:
+                return member
+        raise ValueError(f"invalid value {value!r}; valid values: {cls.valid_values()}")
+
+    @classmethod
+    def _missing_(cls, value: object) -> Self | None:
+        if isinstance(value, str):
+            wanted = value.strip().lower()
+            for member in cls:
+                if member.value == wanted:
+                    return member
+        return None
+
+    @classmethod
+    def valid_values(cls) -> str:
+        """The valid values as ``"a", "b"`` for messages."""
+        return ", ".join(f'"{m.value}"' for m in cls)
+
+
+class Route(_OptionEnum):
+    """How the strip reaches the ground system (method.md section 6.2)."""
+
+    GEOCENTRIC = "geocentric"
+    """Intermediate local-tangent system at the control centroid, B(142)-(152)."""
+    PROJECTED = "projected"
+    """Similarity directly to the map grid with the earth-curvature term B(153) (J)."""
+
+
+class RelativeOrientation(_OptionEnum):
+    """Parametrisation of the dependent relative orientation (method.md section 3)."""
+
+    DEPENDENT = "dependent"
+    """Base components b_y, b_z and Schut's a, b, c of the right photo (J(5)-(10))."""
+    BASE = "base"
+    """B's rotation-only elements alpha'1, chi'1, alpha'2, omega'2, chi'2 (B(125)-(135))."""
+
+
+class Intersection(_OptionEnum):
+    """Model point formation (method.md section 4)."""
+
+    MIDPOINT = "midpoint"
+    """Middle of the shortest y-parallel vector between the rays (J(11)-(12))."""
+    NORMAL = "normal"
+    """Normal-case reduction to horizontal photos (B(137)-(138))."""
+
+
+class ScaleTransfer(_OptionEnum):
+    """Scaling of each new model to the previous one (method.md section 5)."""
+
+    Z = "z"
+    """Least squares on the Z components of the tie points (J(15))."""
+    DISTANCE = "distance"
+    """Ratio of distances from the common projection centre (B(139)-(140))."""
+
+
+# --------------------------------------------------------------------------- key list
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    """A table of ``strip.toml``.
+
+    Attributes
+    ----------
+    name : str
+        Table name as written in the file.
+    required : bool
+        Whether the table must be present.
+    array : bool
+        True for an array of tables (``[[name]]``).
+    description : str
+        One line for messages and docs.
+    """
+
+    name: str
+    required: bool
+    array: bool
+    description: str
+
+
+@dataclass(frozen=True)
+class KeySpec:
+    """A key of ``strip.toml``.
+
+    Attributes
+    ----------
+    table : str
+        Table the key belongs to.
+    key : str
+        Key name.
+    kind : str
+        Expected value, as named in messages and docs (e.g. ``"positive number"``).
+    required : bool
+        Whether the key must be given.
+    default : object
+        Value used when the key is absent (``None``: no value); for
+        ``[strip] name`` and ``[[straight_line]] name`` a derived default, see
+        ``default_text``.
+    unit : str
+        Unit of the value (empty when none).
+    description : str
+        Meaning, one or two sentences.
+    contract : bool
+        True for keys of the stable contract (formats.md), False for the
+        backward-compatible extensions of this package.
+    default_text : str
+        The default as written in docs and ``stripaero check``.
+    """
+
+    table: str
+    key: str
+    kind: str
+    required: bool
+    default: object
+    unit: str
+    description: str
+    contract: bool = True
+    default_text: str = ""
+
+    @property
+    def qualified(self) -> str:
+        """``[table] key`` (``[[table]] key`` for arrays of tables)."""
+        table = _TABLES_BY_NAME[self.table]
+        brackets = f"[[{self.table}]]" if table.array else f"[{self.table}]"
+        return f"{brackets} {self.key}"
+
+
+PROJECT_TABLES: tuple[TableSpec, ...] = (
+    TableSpec("strip", True, False, "the strip: its name and photos in flight order"),
+    TableSpec("camera", True, False, "interior orientation"),
+    TableSpec("images", True, False, "measured image coordinates"),
+    TableSpec("control", True, False, "ground control and check points"),
+    TableSpec(
+        "straight_line", False, True, "points without ground coordinates on one straight line"
+    ),
+    TableSpec("adjustment", False, False, "choice of method variants"),
+    TableSpec("output", False, False, "where results are written"),
+    TableSpec("report", False, False, "report options"),
+)
+_TABLES_BY_NAME = {t.name: t for t in PROJECT_TABLES}
+
+DEFAULT_IMAGE_SIGMA_MM = 0.005
+DEFAULT_SIGMA_XY_M = 0.02
+DEFAULT_SIGMA_H_M = 0.03
+DEFAULT_LINE_WEIGHT = 100.0
+DEFAULT_MAX_ITERATIONS = 50
+DEFAULT_POLYNOMIAL = 3
+
+# fmt: off
+PROJECT_KEYS: tuple[KeySpec, ...] = (
+    KeySpec(
+        "strip", "name", "string", required=False, default=None, unit="",
+        description="Name of the strip, used in reports.",
+        default_text="name of the folder holding strip.toml",
+    ),
+    KeySpec(
+        "strip", "photos", "list of ids", required=True, default=None, unit="",
+        description="Photo ids (strings) in strip (flight) order; at least two, no "
+        "duplicates; every photo must have observations.",
+    ),
+    KeySpec(
+        "camera", "principal_distance_mm", "positive number", required=True, default=None,
+        unit="mm", description="Principal distance c (calibrated focal length).",
+    ),
+    KeySpec(
+        "camera", "principal_point_mm", "pair of numbers", required=False, default=(0.0, 0.0),
+        unit="mm",
+        description="Principal point x0, y0 in the image system; subtracted from every "
+        "image x, y.",
+        default_text="[0.0, 0.0]",
+    ),
+    KeySpec(
+        "images", "file", "path", required=True, default=None, unit="",
+        description="CSV of image coordinates, relative to the folder of strip.toml.",
+    ),
+    KeySpec(
+        "images", "sigma_mm", "positive number", required=False,
+        default=DEFAULT_IMAGE_SIGMA_MM, unit="mm",
+        description="Standard deviation of an image coordinate, for rows without a sigma "
+        "value.",
+        contract=False,
+    ),
+    KeySpec(
+        "control", "file", "path", required=True, default=None, unit="",
+        description="CSV of ground control and check points, relative to the folder of "
+        "strip.toml.",
+    ),
+    KeySpec(
+        "control", "crs", "string", required=True, default=None, unit="",
+        description="CRS of control X, Y (anything pyproj understands: projected or "
+        'geographic) or "local" for a local Cartesian site system in metres.',
+    ),
+    KeySpec(
+        "control", "sigma_xy_m", "positive number", required=False,
+        default=DEFAULT_SIGMA_XY_M, unit="m",
+        description="Standard deviation of control X and Y, for rows without a sigma_xy "
+        "value.",
+        contract=False,
+    ),
+    KeySpec(
+        "control", "sigma_h_m", "positive number", required=False,
+        default=DEFAULT_SIGMA_H_M, unit="m",
+        description="Standard deviation of control H, for rows without a sigma_h value.",
+        contract=False,
+    ),
+    KeySpec(
+        "straight_line", "points", "list of ids", required=True, default=None, unit="",
+        description="Ids of at least three observed points without ground coordinates that "
+        "lie on one straight vertical plane along the strip (J(18)).",
+    ),
+    KeySpec(
+        "straight_line", "weight", "positive number", required=False,
+        default=DEFAULT_LINE_WEIGHT, unit="",
+        description="Weight of the line equations relative to control equations of "
+        "weight 1.",
+    ),
+    KeySpec(
+        "straight_line", "name", "string", required=False, default=None, unit="",
+        description="Name of the line in reports; unique among the lines.",
+        contract=False,
+        default_text='"line <n>" (n = 1, 2, ... in file order)',
+    ),
+    KeySpec(
+        "adjustment", "route", "choice", required=False, default=None, unit="",
+        description='"geocentric" (local-tangent system, B(142)-(152)) or "projected" '
+        "(map grid directly, J, with B(153)).",
+        default_text='"geocentric"; "projected" when crs = "local"',
+    ),
+    KeySpec(
+        "adjustment", "polynomial", "polynomial", required=False,
+        default=DEFAULT_POLYNOMIAL, unit="",
+        description="Deformation polynomial type: 0 (similarity only), 1, 2, 3 (J(16)) "
+        'or "auto".',
+    ),
+    KeySpec(
+        "adjustment", "relative_orientation", "choice", required=False,
+        default=RelativeOrientation.DEPENDENT, unit="",
+        description='"dependent" (b_y, b_z and Schut a, b, c; J) or "base" '
+        "(B's five angles).",
+        default_text='"dependent"',
+    ),
+    KeySpec(
+        "adjustment", "intersection", "choice", required=False,
+        default=Intersection.MIDPOINT, unit="",
+        description='"midpoint" (J(12)) or "normal" (B(138)).',
+        default_text='"midpoint"',
+    ),
+    KeySpec(
+        "adjustment", "scale_transfer", "choice", required=False, default=ScaleTransfer.Z,
+        unit="", description='"z" (J(15)) or "distance" (B(139)-(140)).',
+        default_text='"z"',
+    ),
+    KeySpec(
+        "adjustment", "max_iterations", "positive integer", required=False,
+        default=DEFAULT_MAX_ITERATIONS, unit="",
+        description="Largest number of iterations of each iterative solution (relative "
+        "orientation); more is a convergence error.",
+        contract=False,
+    ),
+    KeySpec(
+        "output", "directory", "path", required=False, default=None, unit="",
+        description="Result folder, relative to the folder of strip.toml; the CLI's --out "
+        "overrides it. Must not be the project folder nor contain input files.",
+        default_text="none (the CLI then needs --out)",
+    ),
+    KeySpec(
+        "report", "map_scale", "positive number", required=False, default=None, unit="",
+        description="Map scale denominator (e.g. 5000 for 1:5000) for the tolerance "
+        "verdicts of method.md section 7; without it no verdicts are given.",
+        contract=False,
+        default_text="none",
+    ),
+)
+# fmt: on
+
+_ENUM_OF_KEY: dict[tuple[str, str], type[_OptionEnum]] = {
+    ("adjustment", "route"): Route,
+    ("adjustment", "relative_orientation"): RelativeOrientation,
+    ("adjustment", "intersection"): Intersection,
+    ("adjustment", "scale_transfer"): ScaleTransfer,
+}
+
+
+@dataclass(frozen=True)
+class ColumnSpec:
+    """A column of an input CSV (names are matched case-insensitively)."""
+
+    name: str
+    required: bool
+    unit: str
+    description: str
+
+
+IMAGE_COLUMNS: tuple[ColumnSpec, ...] = (
+    ColumnSpec("photo", True, "", "photo id, one of [strip] photos"),
+    ColumnSpec("point", True, "", "point id; the same id is the same ground point on every photo"),
+    ColumnSpec("x", True, "mm", "image x, along the flight"),
+    ColumnSpec("y", True, "mm", "image y, to the left of the flight"),
+    ColumnSpec("sigma", False, "mm", "standard deviation of x and y; empty: [images] sigma_mm"),
+)
+
+CONTROL_COLUMNS: tuple[ColumnSpec, ...] = (
+    ColumnSpec("point", True, "", "point id"),
+    ColumnSpec("X", True, "CRS unit", "easting (or longitude in degrees); empty for height"),
+    ColumnSpec("Y", True, "CRS unit", "northing (or latitude in degrees); empty for height"),
+    ColumnSpec("H", True, "m", "ellipsoidal height; empty for plan"),
+    ColumnSpec("type", True, "", "full, plan, height or check"),
+    ColumnSpec(
+        "sigma_xy", False, "m", "standard deviation of X and Y; empty: [control] sigma_xy_m"
+    ),
+    ColumnSpec("sigma_h", False, "m", "standard deviation of H; empty: [control] sigma_h_m"),
+)
+
+
+# --------------------------------------------------------------------------- results
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Interior orientation.
+
+    Attributes
+    ----------
+    principal_distance_mm : float
+        c in millimetres.
+    principal_point_mm : ndarray, shape (2,)
+        x0, y0 in millimetres (already subtracted from the observations).
+    """
+
+    principal_distance_mm: float
+    principal_point_mm: FloatArray
+
+
+@dataclass(frozen=True)
+class StraightLineSpec:
+    """Points on one straight vertical plane along the strip (J(18)).
+
+    Attributes
+    ----------
+    point_ids : tuple of str
+        Ids of the points, each observed and none a control point.
+    weight : float
+        Weight of the line equations relative to control of weight 1.
+    name : str
+        Name for reports.
+    """
+
+    point_ids: tuple[str, ...]
+    weight: float
+    name: str
+
+
+@dataclass(frozen=True)
+class AdjustmentOptions:
+    """Method variants chosen in ``[adjustment]`` (method.md sections 3-6).
+
+    Attributes
+    ----------
+    route : Route
+    polynomial : int (0..3) or ``"auto"``
+    relative_orientation : RelativeOrientation
+    intersection : Intersection
+    scale_transfer : ScaleTransfer
+    max_iterations : int
+    """
+
+    route: Route = Route.GEOCENTRIC
+    polynomial: int | Literal["auto"] = DEFAULT_POLYNOMIAL
+    relative_orientation: RelativeOrientation = RelativeOrientation.DEPENDENT
+    intersection: Intersection = Intersection.MIDPOINT
+    scale_transfer: ScaleTransfer = ScaleTransfer.Z
+    max_iterations: int = DEFAULT_MAX_ITERATIONS
+
+
+@dataclass(frozen=True)
+class ReportOptions:
+    """Options of ``[report]``.
+
+    Attributes
+    ----------
+    map_scale : float or None
+        Map scale denominator (5000 for 1:5000) for tolerance verdicts.
+    """
+
+    map_scale: float | None = None
+
+
+@dataclass(frozen=True)
+class Project:
+    """A validated project: everything a run needs, in library units.
+
+    Attributes
+    ----------
+    path : Path
+        The project file, as given.
+    name : str
+    photo_ids : tuple of str
+        Photos in strip (flight) order.
+    camera : Camera
+    observations : ImageObservations
+        Image x, y in mm reduced by the principal point; sigma in mm.
+    control : ControlPoints
+        Control and check points observed on at least one photo.
+    crs : str
+        ``[control] crs`` as given (``"local"`` in lower case).
+    straight_lines : tuple of StraightLineSpec
+    adjustment : AdjustmentOptions
+    output_directory : Path or None
+        ``[output] directory`` joined to the project folder.
+    warnings : tuple of str
+        Valid but doubtful things found while loading (each names its point or
+        file); they are not emitted as Python warnings.
+    images_file, control_file : Path
+        The input CSVs, joined to the project folder.
+    report : ReportOptions
+    """
+
+    path: Path
+    name: str
+    photo_ids: tuple[str, ...]
+    camera: Camera
+    observations: ImageObservations
+    control: ControlPoints
+    crs: str
+    straight_lines: tuple[StraightLineSpec, ...]
+    adjustment: AdjustmentOptions
+    output_directory: Path | None
+    warnings: tuple[str, ...]
+    images_file: Path
+    control_file: Path
+    report: ReportOptions = field(default_factory=ReportOptions)
+
+    @property
+    def input_files(self) -> tuple[Path, ...]:
+        """The project file and the CSVs it names."""
+        return (self.path, self.images_file, self.control_file)
+
+    @property
+    def is_local(self) -> bool:
+        """True for ``crs = "local"`` (no geodesy)."""
+        return self.crs == "local"
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _describe(value: object) -> str:
+    """A TOML value as written, for messages."""
+    if isinstance(value, bool):
+        return f"the boolean {str(value).lower()}"
+    if isinstance(value, str):
+        return f'the string "{value}"'
+    if isinstance(value, int | float):
+        return f"the number {value!r}"
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, dict):
+        return "a table"
+    return f"a {type(value).__name__}"
+
+
+def _suggest(word: str, candidates: Sequence[str]) -> str:
+    """`` (did you mean 'x'?)`` or empty."""
+    lower = {c.lower(): c for c in candidates}
+    if word.lower() in lower:
+        return f" (did you mean '{lower[word.lower()]}'?)"
+    match = difflib.get_close_matches(word, list(candidates), n=1, cutoff=0.6)
+    return f" (did you mean '{match[0]}'?)" if match else ""
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _parse_value(spec: KeySpec, value: object, where: str) -> object:
+    """Convert one TOML value after checking it against ``spec.kind``."""
+    kind = spec.kind
+    if kind in ("string", "path"):
+        if not isinstance(value, str) or not value.strip():
+            raise ConfigError(f"{where}: expected a non-empty string, got {_describe(value)}")
+        return value.strip() if kind == "string" else value
+    if kind == "positive number":
+        if not _is_number(value):
+            raise ConfigError(f"{where}: expected a positive number, got {_describe(value)}")
+        number = float(value)  # type: ignore[arg-type]
+        if not math.isfinite(number) or number <= 0.0:
+            raise ConfigError(f"{where}: expected a positive finite number, got {value!r}")
+        return number
+    if kind == "positive integer":
+        if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+            raise ConfigError(f"{where}: expected a positive integer, got {_describe(value)}")
+        return value
+    if kind == "pair of numbers":
+        if (
+            not isinstance(value, list)
+            or len(value) != 2
+            or not all(_is_number(v) and math.isfinite(v) for v in value)
+        ):
+            raise ConfigError(
+                f"{where}: expected a list of two finite numbers like [0.0, 0.0], got {value!r}"
+            )
+        return (float(value[0]), float(value[1]))
+    if kind == "list of ids":
+        if not isinstance(value, list):
+            raise ConfigError(
+                f'{where}: expected a list of id strings like ["1201", "1202"], '
+                f"got {_describe(value)}"
+            )
+        for item in value:
+            if not isinstance(item, str):
+                hint = f' (write "{item}")' if _is_number(item) else ""
+                raise ConfigError(f"{where}: ids must be strings, got {_describe(item)}{hint}")
+            if not item.strip():
+                raise ConfigError(f"{where}: ids must not be empty")
+        ids = [item.strip() for item in value]
+        seen: set[str] = set()
+        for item in ids:
+            if item in seen:
+                raise ConfigError(f"{where}: id '{item}' is listed twice")
+            seen.add(item)
+        return tuple(ids)
+    if kind == "choice":
+        enum = _ENUM_OF_KEY[(spec.table, spec.key)]
+        try:
+            return enum.create(value)
+        except ValueError:
+            raise ConfigError(
+                f"{where}: expected one of {enum.valid_values()} (any case), "
+                f"got {_describe(value)}"
+            ) from None
+    if kind == "polynomial":
+        if isinstance(value, str) and value.strip().lower() == "auto":
+            return "auto"
+        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 3:
+            return value
+        raise ConfigError(f'{where}: expected 0, 1, 2, 3 or "auto", got {_describe(value)}')
+    raise AssertionError(f"unhandled kind {kind!r}")  # pragma: no cover
+
+
+def _check_table(
+    toml_name: str, table: str, content: dict[str, Any], label: str
+) -> dict[str, object]:
+    """Validate one table's keys and convert its values (defaults filled in)."""
+    specs = {s.key: s for s in PROJECT_KEYS if s.table == table}
+    for key in content:
+        if key not in specs:
+            elsewhere = [s.qualified for s in PROJECT_KEYS if s.key == key and s.table != table]
+            hint = f" (it belongs in {elsewhere[0]})" if elsewhere else _suggest(key, list(specs))
+            raise ConfigError(
+                f"{toml_name}: unknown key '{key}' in {label}{hint}; "
+                f"valid keys: {', '.join(specs)}"
+            )
+    out: dict[str, object] = {}
+    for key, spec in specs.items():
+        where = f"{toml_name}: {label} {key}"
+        if key in content:
+            out[key] = _parse_value(spec, content[key], where)
+        elif spec.required:
+            raise ConfigError(f"{toml_name}: {label}: missing required key '{key}'")
+        else:
+            out[key] = spec.default
+    return out
+
+
+_TOML_POSITION = re.compile(r"\s*\(at line (\d+), column (\d+)\)$")
+
+
+def _read_bytes(path: Path, what: str) -> bytes:
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: {what} not found") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: {what} is a folder, not a file") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
+
+
+def _decode(path: Path, data: bytes) -> str:
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise ConfigError(
+            f"{path}:{line}: not valid UTF-8 (byte 0x{data[exc.start]:02x}); "
+            "save the file as UTF-8"
+        ) from None
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    text = _decode(path, _read_bytes(path, "project file"))
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        message = str(exc)
+        match = _TOML_POSITION.search(message)
+        if match:
+            message = message[: match.start()]
+            raise ConfigError(
+                f"{path}:{match.group(1)}:{match.group(2)}: TOML syntax error: {message}"
+            ) from None
+        raise ConfigError(f"{path}: TOML syntax error: {message}") from None
+
+
+# --------------------------------------------------------------------------- CSV
+
+
+@dataclass
+class _CsvTable:
+    """Columns of a CSV as stripped strings, with the file line of each row."""
+
+    path: Path
+    columns: dict[str, Sequence[str]]
+    line: IntArray
+    header_line: int
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.line.shape[0])
+
+    def where(self, row: int) -> str:
+        return f"{self.path}:{int(self.line[row])}"
+
+
+_SKIPPED_LINE = re.compile(r"\n[ \t\f\v]*(?:#[^\n]*)?(?=\n|\Z)")
+
+
+def _split_lines(text: str) -> tuple[list[str], IntArray]:
+    """Data lines of ``text`` (no comments, no blank lines) and their 1-based numbers."""
+    lines = text.split("\n")
+    skipped: list[int] = []
+    index, position = 0, 0
+    text = "\n" + text  # so that every line, the first too, starts after a newline
+    for match in _SKIPPED_LINE.finditer(text):
+        index += text.count("\n", position, match.start())
+        position = match.start()
+        skipped.append(index)
+    if not skipped:
+        return lines, np.arange(1, len(lines) + 1, dtype=np.intp)
+    kept: list[str] = []
+    start = 0
+    for i in skipped:
+        kept.extend(lines[start:i])
+        start = i + 1
+    kept.extend(lines[start:])
+    numbers = np.delete(np.arange(1, len(lines) + 1, dtype=np.intp), skipped)
+    return kept, numbers
+
+
+def _split_fields(path: Path, lines: list[str], numbers: IntArray) -> list[list[str]]:
+    """Fields of each line by the csv module (quotes allowed, one line per record)."""
+    reader = csv.reader(lines, strict=True)
+    try:
+        rows = list(reader)
+    except csv.Error as exc:
+        index = min(max(reader.line_num - 1, 0), len(numbers) - 1)
+        raise ConfigError(f"{path}:{numbers[index]}: malformed CSV: {exc}") from None
+    if len(rows) != len(lines):  # a quoted field ran over a line end
+        reader = csv.reader(lines, strict=True)
+        for count, _ in enumerate(reader, start=1):
+            if reader.line_num != count:
+                break
+        raise ConfigError(
+            f"{path}:{numbers[count - 1]}: malformed CSV: a quoted field is not closed on its line"
+        )
+    return rows
+
+
+def _read_csv(path: Path, columns: Sequence[ColumnSpec], named_by: str) -> _CsvTable:
+    """Read a comma-separated file into string columns (cells not yet stripped).
+
+    Comment lines (first non-blank character ``#``) and blank lines are
+    skipped; UTF-8 with or without BOM; LF or CRLF line ends.  Header names
+    are matched case-insensitively against ``columns``; unknown columns are
+    an error.
+    """
+    data = _read_bytes(path, f"file named by {named_by}")
+    text = _decode(path, data)
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    kept, numbers = _split_lines(text)
+    if not kept:
+        raise ConfigError(f"{path}: no header line (the file is empty or all comments)")
+    header_line = int(numbers[0])
+    header = [name.strip() for name in _split_fields(path, kept[:1], numbers[:1])[0]]
+    canonical = {c.name.lower(): c.name for c in columns}
+    names: list[str] = []
+    for name in header:
+        if not name:
+            raise ConfigError(f"{path}:{header_line}: empty column name in the header")
+        if name.lower() not in canonical:
+            allowed = ", ".join(c.name for c in columns)
+            raise ConfigError(
+                f"{path}:{header_line}: unknown column '{name}'"
+                f"{_suggest(name, [c.name for c in columns])}; allowed columns: {allowed}"
+            )
+        if canonical[name.lower()] in names:
+            raise ConfigError(f"{path}:{header_line}: column '{name}' appears twice")
+        names.append(canonical[name.lower()])
+    missing = [c.name for c in columns if c.required and c.name not in names]
+    if missing:
+        raise ConfigError(
+            f"{path}:{header_line}: missing required column(s) {', '.join(missing)} "
+            f"(header is: {','.join(header)})"
+        )
+    body = kept[1:]
+    line = numbers[1:]
+    n_col = len(names)
+    if '"' in text:
+        rows = _split_fields(path, body, line)
+        lengths = np.fromiter(map(len, rows), dtype=np.intp, count=len(rows))
+    else:  # fast path without quoting: one split of the whole body
+        rows = []
+        lengths = 1 + np.fromiter(
+            map(str.count, body, itertools.repeat(",")), dtype=np.intp, count=len(body)
+        )
+    bad = np.flatnonzero(lengths != n_col)
+    if bad.size:
+        row = int(bad[0])
+        hint = " (decimal commas? use a point)" if lengths[row] > n_col else ""
+        raise ConfigError(
+            f"{path}:{line[row]}: expected {n_col} fields ({','.join(names)}), "
+            f"got {lengths[row]}{hint}"
+        )
+    if rows:
+        cells: Sequence[Sequence[str]] = list(zip(*rows, strict=True))
+    elif body:
+        flat = ",".join(body).split(",")
+        cells = [flat[j::n_col] for j in range(n_col)]
+    else:
+        cells = [[] for _ in names]
+    return _CsvTable(path, dict(zip(names, cells, strict=True)), line, header_line)
+
+
+def _float_column(
+    table: _CsvTable, name: str, *, allow_empty: bool = False, positive: bool = False
+) -> tuple[FloatArray, BoolArray]:
+    """Column ``name`` as float64 (NaN where empty) and the mask of empty cells.
+
+    Raises ConfigError naming the line and column of the first value that is
+    not a number, not finite, or (``positive``) not > 0, and of the first
+    empty cell unless ``allow_empty``.
+    """
+    strings = table.columns[name]
+    n = len(strings)
+    empty = np.zeros(n, dtype=bool)
+    try:  # fast path: float() accepts surrounding white space, not empty cells
+        values = np.asarray(strings, dtype=np.float64).reshape(n)
+    except ValueError:
+        stripped = [s.strip() for s in strings]
+        empty = np.fromiter((not s for s in stripped), dtype=bool, count=n)
+        if empty.any() and not allow_empty:
+            row = int(np.flatnonzero(empty)[0])
+            raise ConfigError(f"{table.where(row)}: column '{name}' is empty") from None
+        filled = [s or "nan" for s in stripped]
+        try:
+            values = np.asarray(filled, dtype=np.float64).reshape(n)
+        except ValueError:
+            row = next(i for i, s in enumerate(filled) if not _is_float(s))
+            raise ConfigError(
+                f"{table.where(row)}: column '{name}': expected a number, got '{stripped[row]}'"
+            ) from None
+    bad = ~np.isfinite(values) & ~empty
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise ConfigError(
+            f"{table.where(row)}: column '{name}': expected a finite number, "
+            f"got '{strings[row].strip()}'"
+        )
+    if positive:
+        bad = (values <= 0.0) & ~empty
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise ConfigError(
+                f"{table.where(row)}: column '{name}': expected a positive number, "
+                f"got '{strings[row].strip()}'"
+            )
+    return values, empty
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _id_column(table: _CsvTable, name: str) -> np.ndarray:
+    """Column ``name`` as a str array with white space stripped; an empty id is an error."""
+    strings = table.columns[name]
+    arr = np.char.strip(np.asarray(strings, dtype=str).reshape(len(strings)))
+    empty = arr == ""
+    if empty.any():
+        row = int(np.flatnonzero(empty)[0])
+        raise ConfigError(f"{table.where(row)}: column '{name}': empty id")
+    return arr
+
+
+# --------------------------------------------------------------------------- images
+
+
+def _load_images(
+    path: Path,
+    photo_ids: tuple[str, ...],
+    principal_distance: float,
+    principal_point: tuple[float, float],
+    default_sigma: float,
+) -> ImageObservations:
+    table = _read_csv(path, IMAGE_COLUMNS, "[images] file")
+    photo = _id_column(table, "photo")
+    point = _id_column(table, "point")
+    x, _ = _float_column(table, "x")
+    y, _ = _float_column(table, "y")
+    if "sigma" in table.columns:
+        sigma, empty = _float_column(table, "sigma", allow_empty=True, positive=True)
+        sigma[empty] = default_sigma
+    else:
+        sigma = np.full(table.n_rows, default_sigma)
+
+    photo_names, photo_first, photo_inverse = np.unique(
+        photo, return_index=True, return_inverse=True
+    )
+    order_of = {pid: i for i, pid in enumerate(photo_ids)}
+    name_index = np.array([order_of.get(str(n), -1) for n in photo_names], dtype=np.intp)
+    unknown = np.flatnonzero(name_index < 0)
+    if unknown.size:
+        row = int(photo_first[unknown].min())
+        raise ConfigError(
+            f"{table.where(row)}: photo '{photo[row]}' is not in [strip] photos "
+            f"of the project file"
+        )
+    present = set(name_index.tolist())
+    for i, pid in enumerate(photo_ids):
+        if i not in present:
+            raise ConfigError(
+                f"{path}: photo '{pid}' (listed in [strip] photos) has no observations"
+            )
+    photo_index = name_index[photo_inverse.reshape(-1)]
+    point_names, point_index = np.unique(point, return_inverse=True)
+    point_index = point_index.reshape(-1).astype(np.intp)
+
+    key = photo_index.astype(np.int64) * max(len(point_names), 1) + point_index
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    dup = np.flatnonzero(sorted_key[1:] == sorted_key[:-1])
+    if dup.size:
+        later = order[dup + 1]
+        d = int(np.argmin(table.line[later]))
+        first, second = int(order[dup[d]]), int(later[d])
+        raise ConfigError(
+            f"{table.where(second)}: duplicate observation of point '{point[second]}' on "
+            f"photo '{photo[second]}' (first at line {table.line[first]})"
+        )
+
+    xy = np.column_stack([x, y])[order]
+    xy -= np.asarray(principal_point, dtype=np.float64)
+    return ImageObservations(
+        photo_ids=photo_ids,
+        point_ids=tuple(point_names.tolist()),
+        photo=_readonly(photo_index[order]),
+        point=_readonly(point_index[order]),
+        xy=_readonly(xy),
+        sigma=_readonly(sigma[order]),
+        principal_distance=float(principal_distance),
+        source_line=_readonly(table.line[order]),
+    )
+
+
+# --------------------------------------------------------------------------- control
+
+
+def _load_control(
+    path: Path, default_sigma_xy: float, default_sigma_h: float
+) -> tuple[_CsvTable, np.ndarray, FloatArray, np.ndarray, FloatArray, FloatArray]:
+    """Parse and check control.csv; returns table, ids, xyz, kinds, sigma_xy, sigma_h."""
+    table = _read_csv(path, CONTROL_COLUMNS, "[control] file")
+    if table.n_rows == 0:
+        raise ConfigError(f"{path}: no control points (only a header)")
+    ids = _id_column(table, "point")
+    xyz = np.empty((table.n_rows, 3))
+    given = np.empty((table.n_rows, 3), dtype=bool)
+    for j, name in enumerate(("X", "Y", "H")):
+        values, empty = _float_column(table, name, allow_empty=True)
+        xyz[:, j] = values
+        given[:, j] = ~empty
+
+    type_strings = np.char.lower(_id_column(table, "type"))
+    valid = [t.value for t in ControlType]
+    type_names, type_first, type_inverse = np.unique(
+        type_strings.reshape(-1), return_index=True, return_inverse=True
+    )
+    bad_types = [i for i, t in enumerate(type_names) if t not in valid]
+    if bad_types:
+        row = int(min(type_first[i] for i in bad_types))
+        got = table.columns["type"][row].strip()
+        raise ConfigError(
+            f"{table.where(row)}: column 'type': unknown type '{got}'{_suggest(got, valid)}; "
+            f"valid types: {', '.join(valid)}"
+        )
+    kind_codes = np.array([valid.index(t) for t in type_names], dtype=np.intp)[
+        type_inverse.reshape(-1)
+    ]
+    full, plan, height, check = (kind_codes == i for i in range(4))
+    gx, gy, gh = given.T
+    rules = (
+        (full & ~(gx & gy & gh), "a full point needs X, Y and H"),
+        (plan & ~(gx & gy), "a plan point needs X and Y"),
+        (plan & gh, "a plan point leaves H empty"),
+        (height & ~gh, "a height point needs H"),
+        (height & (gx | gy), "a height point leaves X and Y empty"),
+        (check & (gx != gy), "a check point gives both X and Y or neither"),
+        (check & ~gx & ~gh, "a check point needs X and Y, or H, or all three"),
+    )
+    found = [(int(np.flatnonzero(mask)[0]), text) for mask, text in rules if mask.any()]
+    if found:
+        row, text = min(found)
+        raise ConfigError(
+            f"{table.where(row)}: point '{ids[row]}' of type '{valid[kind_codes[row]]}': {text}"
+        )
+
+    _, first, inverse, counts = np.unique(
+        ids, return_index=True, return_inverse=True, return_counts=True
+    )
+    if (counts > 1).any():
+        inverse = inverse.reshape(-1)
+        is_repeat = (counts[inverse] > 1) & (np.arange(ids.shape[0]) != first[inverse])
+        row = int(np.flatnonzero(is_repeat)[0])
+        raise ConfigError(
+            f"{table.where(row)}: point '{ids[row]}' is listed twice "
+            f"(first at line {table.line[first[inverse[row]]]})"
+        )
+
+    sigmas = []
+    for name, default in (("sigma_xy", default_sigma_xy), ("sigma_h", default_sigma_h)):
+        if name in table.columns:
+            values, empty = _float_column(table, name, allow_empty=True, positive=True)
+            values[empty] = default
+        else:
+            values = np.full(table.n_rows, default)
+        sigmas.append(values)
+    kinds = np.array([ControlType(v) for v in valid], dtype=object)[kind_codes]
+    return table, ids, xyz, kinds, sigmas[0], sigmas[1]
+
+
+def _check_crs(
+    toml_name: Path, crs: str, route: Route | None, table: _CsvTable, xyz: FloatArray
+) -> tuple[Route, list[str]]:
+    """Validate ``crs`` with pyproj, choose the route and check geographic ranges."""
+    warnings: list[str] = []
+    if crs == "local":
+        if route is Route.GEOCENTRIC:
+            raise ConfigError(
+                f'{toml_name}: [adjustment] route: "geocentric" needs a geodetic CRS; '
+                f'with crs = "local" only "projected" applies'
+            )
+        return Route.PROJECTED, warnings
+    import pyproj  # deferred: only loading a geodetic project needs it
+
+    try:
+        crs_obj = pyproj.CRS.from_user_input(crs)
+    except pyproj.exceptions.CRSError as exc:
+        detail = str(exc).split(": (", 1)[0]
+        raise ConfigError(
+            f"{toml_name}: [control] crs: not a CRS pyproj understands: '{crs}' ({detail})"
+        ) from None
+    if crs_obj.is_geocentric:
+        raise ConfigError(
+            f"{toml_name}: [control] crs: '{crs}' is geocentric; give a horizontal "
+            "(projected or geographic) CRS"
+        )
+    if crs_obj.is_vertical:
+        raise ConfigError(
+            f"{toml_name}: [control] crs: '{crs}' has a vertical component, but H must be "
+            "the ellipsoidal height; give the horizontal CRS only"
+        )
+    if not (crs_obj.is_projected or crs_obj.is_geographic):
+        raise ConfigError(
+            f"{toml_name}: [control] crs: '{crs}' is neither projected nor geographic"
+        )
+    chosen = Route.GEOCENTRIC if route is None else route
+    if crs_obj.is_geographic:
+        if chosen is Route.PROJECTED:
+            raise ConfigError(
+                f'{toml_name}: [adjustment] route: "projected" needs a projected CRS or '
+                f"\"local\"; '{crs}' is geographic (longitude, latitude)"
+            )
+        lon, lat = xyz[:, 0], xyz[:, 1]
+        for bad, text in (
+            (np.abs(lat) > 90.0, "latitude Y outside -90..90 degrees"),
+            (np.abs(lon) > 360.0, "longitude X outside -360..360 degrees"),
+        ):
+            if bad.any():
+                row = int(np.flatnonzero(bad)[0])
+                raise ConfigError(
+                    f"{table.where(row)}: {text} (crs '{crs}' is geographic: X is the "
+                    "longitude and Y the latitude, in degrees)"
+                )
+    else:
+        unit = crs_obj.axis_info[0].unit_name if crs_obj.axis_info else "metre"
+        if unit not in ("metre", "meter") and chosen is Route.PROJECTED:
+            warnings.append(
+                f"{toml_name}: [control] crs: '{crs}' has X, Y in {unit}, but H is in metres; "
+                "the projected route mixes the two"
+            )
+    return chosen, warnings
+
+
+# --------------------------------------------------------------------------- output
+
+
+def _is_within(path: Path, folder: Path) -> bool:
+    return path == folder or folder in path.parents
+
+
+def check_output_directory(
+    directory: str | Path, project: Project, *, source: str = "--out"
+) -> Path:
+    """Check that results may be written to ``directory``.
+
+    Parameters
+    ----------
+    directory : str or Path
+        The result folder (relative paths are relative to the current folder,
+        as for a command-line option).
+    project : Project
+        The loaded project, whose input files are protected.
+    source : str
+        Where the folder came from, for messages (e.g. ``"--out"``).
+
+    Returns
+    -------
+    Path
+        ``directory`` as a Path.
+
+    Raises
+    ------
+    ConfigError
+        If the folder is the project folder, contains an input file, or is a file.
+    """
+    return _check_output(Path(directory), project.input_files, source)
+
+
+def _check_output(directory: Path, inputs: Sequence[Path], source: str) -> Path:
+    target = directory.resolve()
+    if target.exists() and not target.is_dir():
+        raise ConfigError(f"{source}: output folder '{directory}' is a file")
+    project_dir = inputs[0].resolve().parent
+    if target == project_dir:
+        raise ConfigError(
+            f"{source}: output folder '{directory}' is the project folder; "
+            'choose a folder of its own (e.g. "out")'
+        )
+    for item in inputs:
+        if _is_within(item.resolve(), target):
+            raise ConfigError(
+                f"{source}: output folder '{directory}' contains the input file '{item}'; "
+                "results replace the whole folder"
+            )
+    return directory
+
+
+# --------------------------------------------------------------------------- project
+
+
+def load_project(path: str | Path) -> Project:
+    """Read and validate a project file and the CSVs it names.
+
+    Parameters
+    ----------
+    path : str or Path
+        The project file (``strip.toml``); paths inside are relative to its folder.
+
+    Returns
+    -------
+    Project
+        Image coordinates in mm reduced to the principal point, ground in the
+        control CRS (metres for heights), options as enums.  Control points
+        that no photo observes are left out and named in ``Project.warnings``.
+
+    Raises
+    ------
+    ConfigError
+        On the first rule broken, with a one-line message naming the file and
+        the line (CSV) or key (TOML), see ``docs/project-file.md``.
+
+    Notes
+    -----
+    Input files are only read, never written.
+    """
+    toml_path = Path(path)
+    folder = toml_path.parent
+    doc = _read_toml(toml_path)
+
+    for name, content in doc.items():
+        spec = _TABLES_BY_NAME.get(name)
+        if spec is None:
+            owners = [s.qualified for s in PROJECT_KEYS if s.key == name]
+            hint = (
+                f" (keys belong in a table: did you mean {owners[0]}?)"
+                if owners and not isinstance(content, dict)
+                else _suggest(name, list(_TABLES_BY_NAME))
+            )
+            what = "table" if isinstance(content, dict | list) else "top-level key"
+            raise ConfigError(
+                f"{toml_path}: unknown {what} '{name}'{hint}; valid tables: "
+                f"{', '.join(_TABLES_BY_NAME)}"
+            )
+        if spec.array:
+            if not isinstance(content, list) or not all(isinstance(c, dict) for c in content):
+                raise ConfigError(
+                    f"{toml_path}: '{name}' must be an array of tables, written [[{name}]]"
+                )
+        elif not isinstance(content, dict):
+            raise ConfigError(
+                f"{toml_path}: '{name}' must be a table, written [{name}], "
+                f"got {_describe(content)}"
+            )
+    for spec in PROJECT_TABLES:
+        if spec.required and spec.name not in doc:
+            raise ConfigError(f"{toml_path}: missing required table [{spec.name}]")
+
+    def table(name: str) -> dict[str, object]:
+        return _check_table(str(toml_path), name, doc.get(name, {}), f"[{name}]")
+
+    strip, camera, images = table("strip"), table("camera"), table("images")
+    control, adjustment = table("control"), table("adjustment")
+    output, report = table("output"), table("report")
+    lines_raw = [
+        _check_table(str(toml_path), "straight_line", content, f"[[straight_line]] #{i}")
+        for i, content in enumerate(doc.get("straight_line", []), start=1)
+    ]
+
+    photo_ids: tuple[str, ...] = strip["photos"]  # type: ignore[assignment]
+    if len(photo_ids) < 2:
+        raise ConfigError(
+            f"{toml_path}: [strip] photos: a strip needs at least two photos, got {len(photo_ids)}"
+        )
+    name = strip["name"] if strip["name"] is not None else folder.resolve().name
+    crs = str(control["crs"])
+    if crs.lower() == "local":
+        crs = "local"
+
+    principal_point: tuple[float, float] = camera["principal_point_mm"]  # type: ignore[assignment]
+    principal_distance = float(camera["principal_distance_mm"])  # type: ignore[arg-type]
+    images_file = folder / str(images["file"])
+    control_file = folder / str(control["file"])
+    output_directory = None
+    if output["directory"] is not None:
+        output_directory = _check_output(
+            folder / str(output["directory"]),
+            (toml_path, images_file, control_file),
+            f"{toml_path}: [output] directory",
+        )
+
+    observations = _load_images(
+        images_file,
+        photo_ids,
+        principal_distance,
+        principal_point,
+        float(images["sigma_mm"]),  # type: ignore[arg-type]
+    )
+    table_c, ids, xyz, kinds, sigma_xy, sigma_h = _load_control(
+        control_file,
+        float(control["sigma_xy_m"]),  # type: ignore[arg-type]
+        float(control["sigma_h_m"]),  # type: ignore[arg-type]
+    )
+    route, warnings = _check_crs(
+        toml_path,
+        crs,
+        adjustment["route"],  # type: ignore[arg-type]
+        table_c,
+        xyz,
+    )
+
+    observed = set(observations.point_ids)
+    is_observed = np.fromiter((i in observed for i in ids.tolist()), bool, count=ids.shape[0])
+    for row in np.flatnonzero(~is_observed):
+        warnings.append(
+            f"{table_c.where(int(row))}: control point '{ids[row]}' ({kinds[row].value}) is "
+            "not observed on any photo; left out"
+        )
+    keep = np.flatnonzero(is_observed)
+    control_points = ControlPoints(
+        point_ids=tuple(ids[keep].tolist()),
+        xyz=_readonly(xyz[keep]),
+        kind=tuple(kinds[keep].tolist()),
+        sigma_xy=_readonly(sigma_xy[keep]),
+        sigma_h=_readonly(sigma_h[keep]),
+        source_line=_readonly(table_c.line[keep]),
+    )
+
+    rays = np.bincount(observations.point, minlength=observations.n_points)
+    single = np.flatnonzero(rays < 2)
+    if single.size:
+        shown = ", ".join(f"'{observations.point_ids[i]}'" for i in single[:5])
+        more = f" and {single.size - 5} more" if single.size > 5 else ""
+        warnings.append(
+            f"{images_file}: {single.size} point(s) observed on one photo only cannot be "
+            f"triangulated: {shown}{more}"
+        )
+
+    control_ids = {
+        pid
+        for pid, kind in zip(control_points.point_ids, control_points.kind, strict=True)
+        if kind is not ControlType.CHECK
+    }
+    straight_lines = []
+    names_seen: dict[str, int] = {}
+    for i, raw in enumerate(lines_raw, start=1):
+        label = f"{toml_path}: [[straight_line]] #{i}"
+        points: tuple[str, ...] = raw["points"]  # type: ignore[assignment]
+        if len(points) < 3:
+            raise ConfigError(
+                f"{label} points: a straight line needs at least three points "
+                f"(two fix the line alone), got {len(points)}"
+            )
+        for pid in points:
+            if pid not in observed:
+                raise ConfigError(
+                    f"{label} points: point '{pid}' is not observed on any photo in {images_file}"
+                )
+            if pid in control_ids:
+                raise ConfigError(
+                    f"{label} points: point '{pid}' is a control point in {control_file}; "
+                    "line points have no ground coordinates"
+                )
+        line_name = str(raw["name"]) if raw["name"] is not None else f"line {i}"
+        if line_name in names_seen:
+            raise ConfigError(
+                f"{label} name: '{line_name}' is already the name of line #{names_seen[line_name]}"
+            )
+        names_seen[line_name] = i
+        straight_lines.append(
+            StraightLineSpec(points, float(raw["weight"]), line_name)  # type: ignore[arg-type]
+        )
+
+    polynomial: int | Literal["auto"] = adjustment["polynomial"]  # type: ignore[assignment]
+    options = AdjustmentOptions(
+        route=route,
+        polynomial=polynomial,
+        relative_orientation=adjustment["relative_orientation"],  # type: ignore[arg-type]
+        intersection=adjustment["intersection"],  # type: ignore[arg-type]
+        scale_transfer=adjustment["scale_transfer"],  # type: ignore[arg-type]
+        max_iterations=int(adjustment["max_iterations"]),  # type: ignore[call-overload]
+    )
+    map_scale = report["map_scale"]
+    return Project(
+        path=toml_path,
+        name=str(name),
+        photo_ids=photo_ids,
+        camera=Camera(principal_distance, _readonly(np.asarray(principal_point, np.float64))),
+        observations=observations,
+        control=control_points,
+        crs=crs,
+        straight_lines=tuple(straight_lines),
+        adjustment=options,
+        output_directory=output_directory,
+        warnings=tuple(warnings),
+        images_file=images_file,
+        control_file=control_file,
+        report=ReportOptions(None if map_scale is None else float(map_scale)),  # type: ignore[arg-type]
+    )
