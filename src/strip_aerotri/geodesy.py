@@ -173,7 +173,7 @@ class GroundCRS:
         base = crs.source_crs if crs.is_bound else crs
         if base is None or not (base.is_projected or base.is_geographic) or base.is_compound:
             raise ConfigError(
-                f"[control] crs {text or crs.name!r} is a {crs.type_name}; a horizontal "
+                f"[control] crs {(text or crs.name)!r} is a {crs.type_name}; a horizontal "
                 "projected or geographic CRS is needed (heights are taken as ellipsoidal "
                 'heights of its datum), or "local"'
             )
