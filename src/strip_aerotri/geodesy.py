@@ -501,6 +501,33 @@ class GroundCRS:
         factors = self._transformer("proj").get_factors(lon, lat, errcheck=True)
         return np.radians(np.asarray(factors.meridian_convergence, dtype=np.float64))
 
+    def scale_factor(self, xyh: ArrayLike) -> FloatArray:
+        """Point scale factor k of the projection at ground points (pyproj's factors).
+
+        Grid distance = k × ellipsoid distance near the point (for conformal
+        projections k is the same in every direction; otherwise the square root
+        of the areal scale is returned).  1 for a geographic CRS.
+
+        Parameters
+        ----------
+        xyh : array_like, shape (..., 2) or (..., 3)
+            Ground X, Y (``always_xy`` order); a third column is ignored.
+
+        Returns
+        -------
+        ndarray, shape (...)
+        """
+        arr = _as_rows(xyh, "xyh", (2, 3))
+        base = self._require_geodesy()
+        if base.is_geographic:
+            return np.ones(arr.shape[:-1])
+        points = np.concatenate([arr[..., :2], np.zeros((*arr.shape[:-1], 1))], axis=-1)
+        llh = self.to_geodetic(points)
+        factors = self._transformer("proj").get_factors(
+            np.degrees(llh[..., 1]), np.degrees(llh[..., 0]), errcheck=True
+        )
+        return np.sqrt(np.asarray(factors.areal_scale, dtype=np.float64))
+
 
 # --------------------------------------------------------------------------- ENU, frame
 

@@ -1,0 +1,592 @@
+"""From the strip model to the ground (method.md §6): similarity transformation
+on the control, deformation polynomials with the straight-line condition, and
+the two routes to the user's CRS.
+
+Both routes work in a Cartesian *work frame* whose X axis runs along the
+strip, Y to its left and Z up, so that the polynomials of J(16) have their
+meaning:
+
+* ``geocentric`` (B(142)-(152)): the local tangent system at the geocentric
+  centroid of the control, X at the azimuth A0 of the strip axis; the earth's
+  curvature is in the geometry and needs no correction.
+* ``projected`` (J, with B(153)): the map grid itself, rotated by the grid
+  azimuth of the strip axis, with heights reduced to the tangent plane at the
+  centre of the net, ``Z = H − D²/(2R)``.  With ``crs = "local"`` there is
+  no earth curvature correction (a site system is taken as Cartesian).
+
+Plan control has no height and height control no plan position; the work
+frame coordinates of such points need them (through the earth's curvature),
+so they are taken from the adjusted model and the solution is iterated until
+nothing changes (a few passes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from ._typing import FloatArray, IntArray
+from .chaining import StripModel
+from .deformation import (
+    DeformationResult,
+    KindSelection,
+    StraightLine,
+    fit_deformation,
+    select_kind_auto,
+)
+from .errors import GeometryError
+from .geodesy import GroundCRS, LocalTangentFrame, enu_rotation, gaussian_mean_radius
+from .observations import ControlPoints
+from .rotation import matrix_from_rotvec, opk_from_matrix
+from .similarity import SimilarityResult, fit_similarity
+
+__all__ = ["GroundOptions", "GroundResult", "LineSpec", "Route", "adjust_to_ground"]
+
+_MAX_PASSES = 8
+_PASS_TOLERANCE_M = 1e-5
+
+
+class Route(str, Enum):
+    """Way from the strip model to the control CRS (method.md §6.2)."""
+
+    GEOCENTRIC = "geocentric"
+    PROJECTED = "projected"
+
+
+@dataclass(frozen=True)
+class LineSpec:
+    """Points on one straight vertical plane along the strip, J(18)."""
+
+    point_ids: tuple[str, ...]
+    weight: float = 100.0
+    name: str = "line"
+
+
+@dataclass(frozen=True)
+class GroundOptions:
+    """Choices of the ground stage.
+
+    Attributes
+    ----------
+    route : {"geocentric", "projected"}
+    polynomial : int 0..3 or "auto"
+        J(16) type of the deformation polynomials (0: similarity only).
+    """
+
+    route: Route = Route.GEOCENTRIC
+    polynomial: int | str = 3
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "route", Route(self.route))
+        poly = self.polynomial
+        if isinstance(poly, str):
+            if poly.lower() != "auto":
+                raise ValueError(f"Expected polynomial 0, 1, 2, 3 or 'auto', got {poly!r}")
+            object.__setattr__(self, "polynomial", "auto")
+        elif int(poly) not in (0, 1, 2, 3):
+            raise ValueError(f"Expected polynomial 0, 1, 2, 3 or 'auto', got {poly!r}")
+
+
+@dataclass(frozen=True)
+class GroundResult:
+    """The strip in the ground system.
+
+    Work-frame arrays are in metres in the frame described in the module
+    docstring; CRS arrays in the control CRS (X, Y in its axis order as
+    pyproj's ``always_xy`` understands it, H ellipsoidal height in metres).
+    Residuals are *given minus adjusted* in metres along local east, north
+    and up (grid east and north on the projected route).
+
+    Attributes
+    ----------
+    route : Route
+    crs : GroundCRS
+    azimuth : float
+        A0, azimuth (clockwise from north, radians) of the work frame's X
+        axis: geodetic on the geocentric route, grid azimuth on the projected.
+    frame : LocalTangentFrame or None
+        The intermediate system of the geocentric route.
+    similarity : SimilarityResult
+        Strip system -> work frame.
+    deformation : DeformationResult or None
+        None when the polynomial type is 0.
+    kind_selection : KindSelection or None
+        The table behind ``polynomial = "auto"``.
+    points_work, points : ndarray, shape (P, 3)
+        Every point of ``strip.observations.point_ids`` (NaN if not
+        triangulated), work frame and CRS.
+    photo_centres_work, photo_centres : ndarray, shape (M, 3)
+        Photos of ``strip.photo_index``.
+    photo_rotations_work : ndarray, shape (M, 3, 3)
+        Image -> work frame.
+    photo_rotations_enu : ndarray, shape (M, 3, 3)
+        Image -> local east-north-up at the projection centre (image -> X, Y,
+        H axes for ``crs = "local"``).
+    photo_opk : ndarray, shape (M, 3)
+        omega, phi, kappa (radians) of ``photo_rotations_enu = Rx Ry Rz``.
+    control_index : ndarray of int, shape (C,)
+        Rows of ``control`` used or checked (observed and triangulated).
+    control_residuals : ndarray, shape (C, 3)
+        Given minus adjusted (E, N, H), NaN for coordinates not given; check
+        points included (their rows have ``is_check``).
+    is_check : ndarray of bool, shape (C,)
+    left_out : tuple of str
+        Control points not triangulated (seen on fewer than two photos of a
+        model), left out with a warning.
+    passes : int
+        Passes of the plan/height iteration.
+    passes_converged : bool
+    """
+
+    route: Route
+    crs: GroundCRS
+    azimuth: float
+    frame: LocalTangentFrame | None
+    similarity: SimilarityResult
+    deformation: DeformationResult | None
+    kind_selection: KindSelection | None
+    points_work: FloatArray
+    points: FloatArray
+    photo_centres_work: FloatArray
+    photo_centres: FloatArray
+    photo_rotations_work: FloatArray
+    photo_rotations_enu: FloatArray
+    photo_opk: FloatArray
+    control_index: IntArray
+    control_residuals: FloatArray
+    is_check: np.ndarray
+    line_names: tuple[str, ...]
+    line_point_index: tuple[IntArray, ...]
+    line_residuals: tuple[FloatArray, ...]
+    left_out: tuple[str, ...]
+    passes: int
+    passes_converged: bool
+    image_scale: float
+    expected_sigma_plan: float
+    expected_sigma_height: float
+
+    @property
+    def polynomial_kind(self) -> int:
+        return 0 if self.deformation is None else self.deformation.kind
+
+
+# --------------------------------------------------------------------------- frames
+
+
+class _GeocentricWork:
+    """CRS <-> local tangent frame at the control centroid (B(142)-(144), B(152))."""
+
+    def __init__(self, crs: GroundCRS, control_xyh: FloatArray, azimuth: float):
+        ecef = crs.to_ecef(control_xyh)
+        self.crs = crs
+        self.frame = LocalTangentFrame.from_ecef_centroid(ecef, azimuth, crs=crs)
+        self.azimuth = azimuth
+
+    def to_work(self, xyh: FloatArray) -> FloatArray:
+        return self.frame.ecef2local(self.crs.to_ecef(xyh))
+
+    def from_work(self, xyz: FloatArray) -> FloatArray:
+        return self.crs.from_ecef(self.frame.local2ecef(xyz))
+
+    def enu_from_work(self, vectors: FloatArray) -> FloatArray:
+        """Rotate work-frame difference vectors (N, 3) to east, north, up at the origin."""
+        return vectors @ self.frame.enu2local  # local = M enu, so enu rows = local rows @ M
+
+    def rotations_to_enu(self, rot_work: FloatArray, centres_xyh: FloatArray) -> FloatArray:
+        llh = self.crs.to_geodetic(centres_xyh)
+        ecef_from_work = self.frame.rotation.T
+        return enu_rotation(llh[:, 0], llh[:, 1]) @ ecef_from_work @ rot_work
+
+
+class _ProjectedWork:
+    """Map grid rotated by the strip's grid azimuth, heights on the tangent plane
+    at the centre of the net (B(153)); no curvature for a local site system."""
+
+    def __init__(self, crs: GroundCRS, control_xyh: FloatArray, azimuth: float):
+        self.crs = crs
+        self.frame = None
+        self.azimuth = azimuth
+        self.centre = np.nanmean(control_xyh[:, :2], axis=0)
+        if crs.is_local:
+            self.radius = np.inf
+            self.grid_scale = 1.0
+        else:
+            centre = np.array([[*self.centre, 0.0]])
+            llh = crs.to_geodetic(centre)
+            self.radius = float(gaussian_mean_radius(llh[0, 0], crs))
+            # Grid distances are k times ground distances (UTM: 0.9996 on the
+            # central meridian); heights are not.  Reduce the grid to the ground
+            # with k at the centre of the net; its variation over the net is left
+            # to the polynomials (documented in docs/geodesy.md).
+            self.grid_scale = float(crs.scale_factor(centre)[0])
+        s, c = np.sin(azimuth), np.cos(azimuth)
+        # columns: work X and Y axes in grid (east, north); X at azimuth A0, Y to its left
+        self.grid_from_work = np.array([[s, -c, 0.0], [c, s, 0.0], [0.0, 0.0, 1.0]])
+
+    def to_work(self, xyh: FloatArray) -> FloatArray:
+        """Grid (E, N, H) -> tangent plane at the centre of the net.
+
+        The grid is taken as the surface of a sphere of radius R mapped
+        equidistantly about the centre; a point at distance D and height H is
+        then at ``(R + H) sin(D/R)`` from the centre's vertical and
+        ``(R + H) cos(D/R) − R`` above the tangent plane.  To second order the
+        height is B(153), ``Z = H − D²/(2R)``; the plan term ``D·H/R`` is the
+        same effect on elevated points (0.75 m at 4 km for a projection centre
+        1200 m up).
+        """
+        d_en = (xyh[:, :2] - self.centre) / self.grid_scale
+        if np.isinf(self.radius):
+            grid = np.column_stack([d_en, xyh[:, 2]])
+        else:
+            r = self.radius
+            dist = np.hypot(d_en[:, 0], d_en[:, 1])
+            radial = (r + xyh[:, 2]) * np.sin(dist / r)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                factor = np.where(dist > 0, radial / np.where(dist > 0, dist, 1.0), 1.0)
+            z = (r + xyh[:, 2]) * np.cos(dist / r) - r
+            grid = np.column_stack([d_en * factor[:, None], z])
+        return grid @ self.grid_from_work
+
+    def from_work(self, xyz: FloatArray) -> FloatArray:
+        grid = xyz @ self.grid_from_work.T
+        if np.isinf(self.radius):
+            return np.column_stack([grid[:, :2] + self.centre, grid[:, 2]])
+        r = self.radius
+        radial = np.hypot(grid[:, 0], grid[:, 1])
+        dist = r * np.arctan2(radial, r + grid[:, 2])
+        height = np.hypot(radial, r + grid[:, 2]) - r
+        with np.errstate(invalid="ignore", divide="ignore"):
+            factor = np.where(radial > 0, dist / np.where(radial > 0, radial, 1.0), 1.0)
+        en = grid[:, :2] * (factor * self.grid_scale)[:, None] + self.centre
+        return np.column_stack([en, height])
+
+    def enu_from_work(self, vectors: FloatArray) -> FloatArray:
+        return vectors @ self.grid_from_work.T
+
+    def rotations_to_enu(self, rot_work: FloatArray, centres_xyh: FloatArray) -> FloatArray:
+        rot_grid = self.grid_from_work @ rot_work
+        gamma = (
+            np.zeros(len(centres_xyh))
+            if self.crs.is_local
+            else self.crs.meridian_convergence(centres_xyh)
+        )
+        # Grid north lies at azimuth gamma from true north: R_enu = Rz(-gamma) R_grid.
+        rz = matrix_from_rotvec(np.column_stack([np.zeros((len(gamma), 2)), -gamma]))
+        # The vertical at the photo is tilted by D/R against the vertical at the
+        # centre of the net (the tangent plane of the flat model).
+        d_en = (centres_xyh[:, :2] - self.centre) / self.grid_scale
+        tilt = np.column_stack([d_en[:, 1], -d_en[:, 0], np.zeros(len(d_en))]) / self.radius
+        return matrix_from_rotvec(tilt) @ rz @ rot_grid
+
+
+def _make_work(route: Route, crs: GroundCRS, xyh: FloatArray, azimuth: float):
+    if route is Route.GEOCENTRIC:
+        return _GeocentricWork(crs, xyh, azimuth)
+    return _ProjectedWork(crs, xyh, azimuth)
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _deformation_rotation(deformation: DeformationResult, xyz: FloatArray) -> FloatArray:
+    """Local rotation (M, 3, 3) of the correction field -w(X, Y) at points xyz.
+
+    The correction displaces the strip by u = -w(X, Y); a change of u_Z with
+    X or Y tilts the model surface by that slope, and the antisymmetric part
+    of the horizontal gradient turns it about Z.  Photo attitudes get the same
+    small rotation (first order).
+    """
+    h = 1e-3 * max(float(deformation.normalization.half_extent), 1.0)
+    dx = np.array([h, 0.0, 0.0])
+    dy = np.array([0.0, h, 0.0])
+    du_dx = -(deformation.evaluate(xyz + dx) - deformation.evaluate(xyz - dx)) / (2 * h)
+    du_dy = -(deformation.evaluate(xyz + dy) - deformation.evaluate(xyz - dy)) / (2 * h)
+    rotvec = np.column_stack([du_dy[:, 2], -du_dx[:, 2], 0.5 * (du_dx[:, 1] - du_dy[:, 0])])
+    return matrix_from_rotvec(rotvec)
+
+
+def _azimuth_step(vector_work: FloatArray) -> float:
+    """Angle to add to A0 so that X points along a work-frame vector (Y is left,
+    i.e. counter-clockwise, while azimuth is clockwise)."""
+    return -float(np.arctan2(vector_work[1], vector_work[0]))
+
+
+def _image_scale(strip: StripModel, scale: float) -> tuple[float, float]:
+    """Metres on the ground per mm on the image, and height-to-base ratio."""
+    depth = strip.centres[strip.photo_index.searchsorted(strip.photo_index)][:, 2]
+    del depth
+    c = strip.observations.principal_distance
+    left = strip.centres[strip.model]
+    distance = np.linalg.norm(strip.model_points - left, axis=1)
+    metres_per_mm = float(np.median(distance)) * scale / c
+    base = float(np.median(np.linalg.norm(np.diff(strip.centres, axis=0), axis=1)))
+    height_to_base = float(np.median(np.abs(strip.model_points[:, 2] - left[:, 2]))) / base
+    return metres_per_mm, height_to_base
+
+
+# --------------------------------------------------------------------------- main
+
+
+def adjust_to_ground(
+    strip: StripModel,
+    control: ControlPoints,
+    crs: GroundCRS | str,
+    *,
+    lines: Sequence[LineSpec] = (),
+    options: GroundOptions | None = None,
+) -> GroundResult:
+    """Orient the strip model on the control and deliver it in the control CRS.
+
+    Parameters
+    ----------
+    strip : StripModel
+        The strip model from :func:`strip_aerotri.chaining.form_strip`.
+    control : ControlPoints
+        Control (full, plan, height) and check points; coordinates in `crs`.
+    crs : GroundCRS or str
+        The control CRS (``"local"`` for a site system).
+    lines : sequence of LineSpec
+        Straight-line conditions (J(18)).
+    options : GroundOptions
+
+    Returns
+    -------
+    GroundResult
+
+    Raises
+    ------
+    GeometryError
+        Insufficient or degenerate control (the rule and the points named),
+        too few points for the polynomial type, line points not triangulated.
+    """
+    options = options or GroundOptions()
+    if not isinstance(crs, GroundCRS):
+        crs = GroundCRS.from_user_input(crs)
+    route = options.route
+    if crs.is_local and route is Route.GEOCENTRIC:
+        raise GeometryError(
+            'the geocentric route needs a real CRS; with crs = "local" use route = "projected"'
+        )
+    if route is Route.PROJECTED and crs.is_geographic:
+        raise GeometryError(
+            "the projected route needs a projected CRS (or local); "
+            f"{crs.name} is geographic: use the geocentric route"
+        )
+    obs = strip.observations
+    point_lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
+
+    # Control rows that can be used: observed and triangulated.
+    row_point = np.array([point_lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
+    triangulated = np.zeros(len(control.point_ids), dtype=bool)
+    seen = row_point >= 0
+    triangulated[seen] = strip.triangulated[row_point[seen]]
+    left_out = tuple(p for p, ok in zip(control.point_ids, triangulated) if not ok)
+    rows = np.flatnonzero(triangulated)
+    idx = row_point[rows]
+    given = control.xyz[rows]
+    use_xy = control.uses_xy[rows]
+    use_z = control.uses_h[rows]
+    check = control.is_check[rows]
+    ids = tuple(control.point_ids[r] for r in rows)
+    active = use_xy | use_z
+    if not active.any():
+        raise GeometryError("no control point is observed on two photos of a model")
+    strip_xyz = strip.points[idx]
+
+    # Lines: model points of the line points.
+    line_index = []
+    for line in lines:
+        li = np.array([point_lookup.get(p, -1) for p in line.point_ids], dtype=np.intp)
+        missing = [p for p, i in zip(line.point_ids, li) if i < 0 or not strip.triangulated[i]]
+        if missing:
+            raise GeometryError(
+                f"straight line {line.name!r}: point(s) {', '.join(map(repr, missing[:5]))} "
+                "are not triangulated (not measured on both photos of a model)"
+            )
+        line_index.append(li)
+
+    # Initial guesses: plan points at the mean known height, height points at the
+    # centroid of the known plan positions.
+    guess = given.copy()
+    h_known = given[use_z, 2]
+    xy_known = given[use_xy, :2]
+    if h_known.size == 0 or xy_known.size == 0:
+        raise GeometryError(
+            "the similarity transformation needs at least two full or plan control points "
+            "and three full or height control points"
+        )
+    guess[~use_z, 2] = np.mean(h_known)
+    guess[~use_xy, :2] = np.mean(xy_known, axis=0)
+    guess[check] = given[check]
+
+    sig_xy_ctrl = control.sigma_xy[rows]
+    sig_h_ctrl = control.sigma_h[rows]
+    azimuth = 0.0
+    work = _make_work(route, crs, guess[active], azimuth)
+    first, last = strip.centres[0], strip.centres[-1]
+    converged = False
+    previous = None
+    for n_pass in range(1, _MAX_PASSES + 1):
+        target = work.to_work(guess)
+        sim = fit_similarity(
+            strip_xyz[active],
+            target[active],
+            use_xy=use_xy[active],
+            use_z=use_z[active],
+            sigma_xy=sig_xy_ctrl[active],
+            sigma_z=sig_h_ctrl[active],
+            point_ids=[p for p, a in zip(ids, active) if a],
+        )
+        axis = sim.transform.apply(np.vstack([first, last]))
+        step = _azimuth_step(axis[1] - axis[0])
+        if abs(step) > 1e-9:
+            # Re-express in a frame whose X runs along the strip and start over.
+            azimuth += step
+            work = _make_work(route, crs, guess[active], azimuth)
+            continue
+        model_xyz = sim.transform.apply(strip_xyz)
+        metres_per_mm, h_to_b = _image_scale(strip, sim.transform.scale)
+        sigma_plan = float(np.median(obs.sigma)) * metres_per_mm
+        sigma_height = sigma_plan * h_to_b
+        exp_xy = np.hypot(sig_xy_ctrl, sigma_plan)
+        exp_z = np.hypot(sig_h_ctrl, sigma_height)
+        line_objs = [
+            StraightLine(
+                point_ids=line.point_ids,
+                xyz=sim.transform.apply(strip.points[li]),
+                weight=line.weight,
+                name=line.name,
+            )
+            for line, li in zip(lines, line_index)
+        ]
+        deformation, selection = _fit_polynomial(
+            options.polynomial,
+            model_xyz[active],
+            target[active],
+            use_xy[active],
+            use_z[active],
+            exp_xy[active],
+            exp_z[active],
+            line_objs,
+            [p for p, a in zip(ids, active) if a],
+        )
+        corrected = model_xyz if deformation is None else deformation.correct(model_xyz)
+        adjusted = work.from_work(corrected)
+        new_guess = given.copy()
+        new_guess[~use_z & ~check, 2] = adjusted[~use_z & ~check, 2]
+        new_guess[~use_xy & ~check, :2] = adjusted[~use_xy & ~check, :2]
+        change = 0.0 if previous is None else float(np.nanmax(np.abs(new_guess - guess)))
+        guess = new_guess
+        if previous is not None and change < _PASS_TOLERANCE_M:
+            converged = True
+            break
+        previous = guess
+        work = _make_work(route, crs, guess[active], azimuth)
+    # Final products with the last frame and fits.
+    target = work.to_work(guess)
+    transform = sim.transform
+
+    def to_work(xyz: FloatArray) -> FloatArray:
+        out = transform.apply(xyz)
+        return out if deformation is None else deformation.correct(out)
+
+    points_work = np.full((obs.n_points, 3), np.nan)
+    ok = strip.triangulated
+    points_work[ok] = to_work(strip.points[ok])
+    points = np.full_like(points_work, np.nan)
+    points[ok] = work.from_work(points_work[ok])
+
+    centres_model = transform.apply(strip.centres)
+    centres_work = to_work(strip.centres)
+    rot_work = transform.apply_to_rotation(strip.rotations)
+    if deformation is not None:
+        rot_work = _deformation_rotation(deformation, centres_model) @ rot_work
+    centres = work.from_work(centres_work)
+    rot_enu = work.rotations_to_enu(rot_work, centres)
+    opk = opk_from_matrix(rot_enu)
+
+    # Residuals (given minus adjusted) along east, north, up; checks compared in full.
+    given_work = work.to_work(np.where(np.isnan(given), guess, given))
+    diff = work.enu_from_work(given_work - points_work[idx])
+    resid = diff.copy()
+    resid[~(use_xy | check), :2] = np.nan
+    resid[~(use_z | check), 2] = np.nan
+    resid[np.isnan(given)] = np.nan
+
+    line_resid = tuple(
+        np.asarray(r) for r in (deformation.line_residuals if deformation is not None else ())
+    )
+    if deformation is None and lines:
+        line_resid = tuple(_line_residuals(points_work[li]) for li in line_index)
+
+    return GroundResult(
+        route=route,
+        crs=crs,
+        azimuth=float(azimuth),
+        frame=work.frame,
+        similarity=sim,
+        deformation=deformation,
+        kind_selection=selection,
+        points_work=points_work,
+        points=points,
+        photo_centres_work=centres_work,
+        photo_centres=centres,
+        photo_rotations_work=rot_work,
+        photo_rotations_enu=rot_enu,
+        photo_opk=opk,
+        control_index=rows,
+        control_residuals=resid,
+        is_check=check,
+        line_names=tuple(line.name for line in lines),
+        line_point_index=tuple(line_index),
+        line_residuals=line_resid,
+        left_out=left_out,
+        passes=n_pass,
+        passes_converged=converged,
+        image_scale=metres_per_mm,
+        expected_sigma_plan=sigma_plan,
+        expected_sigma_height=sigma_height,
+    )
+
+
+def _line_residuals(xyz: FloatArray) -> FloatArray:
+    """Y residuals of points about their own best straight line Y = a + b X."""
+    design = np.column_stack([np.ones(len(xyz)), xyz[:, 0]])
+    coef, *_ = np.linalg.lstsq(design, xyz[:, 1], rcond=None)
+    return xyz[:, 1] - design @ coef
+
+
+def _fit_polynomial(kind, xyz, target, use_xy, use_z, exp_xy, exp_z, lines, ids):
+    if kind == "auto":
+        selection = select_kind_auto(
+            xyz,
+            target,
+            use_xy=use_xy,
+            use_z=use_z,
+            expected_sigma_xy=exp_xy,
+            expected_sigma_z=exp_z,
+            lines=lines,
+            point_ids=ids,
+        )
+        kind = selection.kind
+    else:
+        selection = None
+    if kind == 0 and not lines:
+        return None, selection
+    return (
+        fit_deformation(
+            xyz,
+            target,
+            use_xy=use_xy,
+            use_z=use_z,
+            kind=kind,
+            sigma_xy=exp_xy,
+            sigma_z=exp_z,
+            lines=lines,
+            point_ids=ids,
+        ),
+        selection,
+    )
