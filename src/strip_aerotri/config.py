@@ -733,18 +733,15 @@ def _split_fields(path: Path, lines: list[str], numbers: IntArray) -> list[list[
     reader = csv.reader(lines, strict=True)
     try:
         rows = list(reader)
+        failure = None if len(rows) == len(lines) else "a quoted field is not closed on its line"
     except csv.Error as exc:
-        index = min(max(reader.line_num - 1, 0), len(numbers) - 1)
-        raise ConfigError(f"{path}:{numbers[index]}: malformed CSV: {exc}") from None
-    if len(rows) != len(lines):  # a quoted field ran over a line end
-        reader = csv.reader(lines, strict=True)
-        for count, _ in enumerate(reader, start=1):
-            if reader.line_num != count:
-                break
-        raise ConfigError(
-            f"{path}:{numbers[count - 1]}: malformed CSV: a quoted field is not closed on its line"
-        )
-    return rows
+        failure = str(exc)
+    if failure is None:
+        return rows
+    # a record may not span lines: the culprit is the first line with an odd number of quotes
+    odd = [i for i, item in enumerate(lines) if item.count('"') % 2]
+    index = odd[0] if odd else min(max(reader.line_num - 1, 0), len(lines) - 1)
+    raise ConfigError(f"{path}:{numbers[index]}: malformed CSV: {failure}")
 
 
 def _read_csv(path: Path, columns: Sequence[ColumnSpec], named_by: str) -> _CsvTable:
@@ -1182,7 +1179,10 @@ def load_project(path: str | Path) -> Project:
                 if owners and not isinstance(content, dict)
                 else _suggest(name, list(_TABLES_BY_NAME))
             )
-            what = "table" if isinstance(content, dict | list) else "top-level key"
+            is_table = isinstance(content, dict) or (
+                isinstance(content, list) and all(isinstance(c, dict) for c in content) and content
+            )
+            what = "table" if is_table else "top-level key"
             raise ConfigError(
                 f"{toml_path}: unknown {what} '{name}'{hint}; valid tables: "
                 f"{', '.join(_TABLES_BY_NAME)}"

@@ -34,9 +34,7 @@ def matrix_from_opk(omega: float, phi: float, kappa: float) -> np.ndarray:
     return rx @ ry @ rz
 
 
-def project(
-    points: np.ndarray, centre: np.ndarray, rotation: np.ndarray, c: float
-) -> np.ndarray:
+def project(points: np.ndarray, centre: np.ndarray, rotation: np.ndarray, c: float) -> np.ndarray:
     """Image x, y in mm of object points (N, 3) on one photo."""
     local = (points - centre) @ rotation  # = R.T @ (P - S) for each row
     return -c * local[:, :2] / local[:, 2:3]
@@ -55,9 +53,7 @@ def observe(
     for pid, centre, opk in zip(photos, centres, angles, strict=True):
         xy = project(points, centre, matrix_from_opk(*opk), c)
         inside = np.all(np.abs(xy) <= half_format, axis=1)
-        rows += [
-            (pid, ids[i], xy[i, 0], xy[i, 1]) for i in np.flatnonzero(inside)
-        ]
+        rows += [(pid, ids[i], xy[i, 0], xy[i, 1]) for i in np.flatnonzero(inside)]
     return rows
 
 
@@ -68,9 +64,7 @@ def minimal() -> None:
     centres = np.array([[0.0, 0.0, 1000.0], [600.0, 0.0, 1005.0], [1200.0, 10.0, 995.0]])
     angles = np.deg2rad(rng.uniform(-1.0, 1.0, size=(3, 3)))
     grid_x, grid_y = np.meshgrid(np.arange(0.0, 1201.0, 300.0), [-400.0, 0.0, 400.0])
-    points = np.column_stack(
-        [grid_x.ravel(), grid_y.ravel(), rng.uniform(0.0, 40.0, grid_x.size)]
-    )
+    points = np.column_stack([grid_x.ravel(), grid_y.ravel(), rng.uniform(0.0, 40.0, grid_x.size)])
     ids = [f"{i + 1:03d}" for i in range(points.shape[0])]
     rows = observe(ids, points, photos, centres, angles, c, 115.0)
     folder = HERE / "minimal"
@@ -87,9 +81,7 @@ def minimal() -> None:
         'crs = "local"\n',
         encoding="utf-8",
     )
-    text = "photo,point,x,y\n" + "".join(
-        f"{p},{q},{x:.3f},{y:.3f}\n" for p, q, x, y in rows
-    )
+    text = "photo,point,x,y\n" + "".join(f"{p},{q},{x:.3f},{y:.3f}\n" for p, q, x, y in rows)
     (folder / "image_points.csv").write_text(text, encoding="utf-8")
     control = [0, 4, 10, 14, 7]  # the four corners and the centre
     text = "point,X,Y,H,type\n" + "".join(
@@ -196,8 +188,7 @@ def full() -> None:
         "# control of the full fixture: UTM 34N, ellipsoidal heights",
         "point,X,Y,H,type,sigma_xy,sigma_h",
     ]
-    for name in ("T01", "T11", "T23", "T33"):
-        rows_c.append(",".join([name, *utm(name), "full", "", ""]))
+    rows_c += [",".join([n, *utm(n), "full", "", ""]) for n in ("T01", "T11", "T23", "T33")]
     e, n, hh = utm("T17")
     rows_c.append(",".join(["T17", e, n, hh, "FULL", "0.01", "0.02"]))
     e, n, _ = utm("T06")
