@@ -316,8 +316,6 @@ def _azimuth_step(vector_work: FloatArray) -> float:
 
 def _image_scale(strip: StripModel, scale: float) -> tuple[float, float]:
     """Metres on the ground per mm on the image, and height-to-base ratio."""
-    depth = strip.centres[strip.photo_index.searchsorted(strip.photo_index)][:, 2]
-    del depth
     c = strip.observations.principal_distance
     left = strip.centres[strip.model]
     distance = np.linalg.norm(strip.model_points - left, axis=1)
@@ -383,7 +381,7 @@ def adjust_to_ground(
     triangulated = np.zeros(len(control.point_ids), dtype=bool)
     seen = row_point >= 0
     triangulated[seen] = strip.triangulated[row_point[seen]]
-    left_out = tuple(p for p, ok in zip(control.point_ids, triangulated) if not ok)
+    left_out = tuple(p for p, ok in zip(control.point_ids, triangulated, strict=True) if not ok)
     rows = np.flatnonzero(triangulated)
     idx = row_point[rows]
     given = control.xyz[rows]
@@ -400,7 +398,11 @@ def adjust_to_ground(
     line_index = []
     for line in lines:
         li = np.array([point_lookup.get(p, -1) for p in line.point_ids], dtype=np.intp)
-        missing = [p for p, i in zip(line.point_ids, li) if i < 0 or not strip.triangulated[i]]
+        missing = [
+            p
+            for p, i in zip(line.point_ids, li, strict=True)
+            if i < 0 or not strip.triangulated[i]
+        ]
         if missing:
             raise GeometryError(
                 f"straight line {line.name!r}: point(s) {', '.join(map(repr, missing[:5]))} "
@@ -429,7 +431,8 @@ def adjust_to_ground(
     first, last = strip.centres[0], strip.centres[-1]
     converged = False
     previous = None
-    for n_pass in range(1, _MAX_PASSES + 1):
+    n_pass = 0
+    for n_pass in range(1, _MAX_PASSES + 1):  # noqa: B007 (reported as passes)
         target = work.to_work(guess)
         sim = fit_similarity(
             strip_xyz[active],
@@ -438,7 +441,7 @@ def adjust_to_ground(
             use_z=use_z[active],
             sigma_xy=sig_xy_ctrl[active],
             sigma_z=sig_h_ctrl[active],
-            point_ids=[p for p, a in zip(ids, active) if a],
+            point_ids=[p for p, a in zip(ids, active, strict=True) if a],
         )
         axis = sim.transform.apply(np.vstack([first, last]))
         step = _azimuth_step(axis[1] - axis[0])
@@ -460,7 +463,7 @@ def adjust_to_ground(
                 weight=line.weight,
                 name=line.name,
             )
-            for line, li in zip(lines, line_index)
+            for line, li in zip(lines, line_index, strict=True)
         ]
         deformation, selection = _fit_polynomial(
             options.polynomial,
@@ -471,7 +474,7 @@ def adjust_to_ground(
             exp_xy[active],
             exp_z[active],
             line_objs,
-            [p for p, a in zip(ids, active) if a],
+            [p for p, a in zip(ids, active, strict=True) if a],
         )
         corrected = model_xyz if deformation is None else deformation.correct(model_xyz)
         adjusted = work.from_work(corrected)
