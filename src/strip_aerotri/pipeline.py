@@ -1,0 +1,217 @@
+"""One call from a project (or from arrays) to the adjusted strip.
+
+:func:`triangulate` chains strip formation (:mod:`chaining`) and the ground
+stage (:mod:`ground`); :func:`run_project` does the same for a loaded
+:class:`~strip_aerotri.config.Project`.  The result carries every stage's
+figures and the check-point statistics of method.md §7-8.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._typing import FloatArray
+from .chaining import StripModel, StripOptions, form_strip
+from .geodesy import GroundCRS
+from .ground import GroundOptions, GroundResult, LineSpec, adjust_to_ground
+from .observations import ControlPoints, ImageObservations
+
+__all__ = ["AccuracyStatistics", "StripResult", "run_project", "triangulate"]
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class AccuracyStatistics:
+    """Discrepancies (given minus adjusted) at a set of points, metres.
+
+    ``rmse`` is (E, N, H); ``rmse_plan`` = sqrt(rmse_E² + rmse_N²);
+    ``mean_plan`` the mean plan discrepancy (the figure R4 §1.7.7 limits);
+    ``max_plan``, ``max_height`` the largest absolute ones; counts of points
+    with plan and with height discrepancies.
+    """
+
+    n_plan: int
+    n_height: int
+    rmse: FloatArray
+    rmse_plan: float
+    mean_plan: float
+    max_plan: float
+    max_height: float
+
+    @classmethod
+    def from_residuals(cls, residuals: FloatArray) -> AccuracyStatistics:
+        r = np.asarray(residuals, dtype=np.float64).reshape(-1, 3)
+        plan_ok = np.isfinite(r[:, 0]) & np.isfinite(r[:, 1])
+        h_ok = np.isfinite(r[:, 2])
+        with np.errstate(invalid="ignore"):
+            rmse = np.array(
+                [
+                    np.sqrt(np.mean(r[plan_ok, 0] ** 2)) if plan_ok.any() else np.nan,
+                    np.sqrt(np.mean(r[plan_ok, 1] ** 2)) if plan_ok.any() else np.nan,
+                    np.sqrt(np.mean(r[h_ok, 2] ** 2)) if h_ok.any() else np.nan,
+                ]
+            )
+        plan = np.hypot(r[plan_ok, 0], r[plan_ok, 1])
+        return cls(
+            n_plan=int(plan_ok.sum()),
+            n_height=int(h_ok.sum()),
+            rmse=rmse,
+            rmse_plan=float(np.hypot(rmse[0], rmse[1])),
+            mean_plan=float(plan.mean()) if plan.size else float("nan"),
+            max_plan=float(plan.max()) if plan.size else float("nan"),
+            max_height=float(np.abs(r[h_ok, 2]).max()) if h_ok.any() else float("nan"),
+        )
+
+
+@dataclass(frozen=True)
+class StripResult:
+    """Everything a run produced.
+
+    Attributes
+    ----------
+    strip : StripModel
+        The strip model in the strip system (per pair and per model figures).
+    ground : GroundResult
+        The strip on the ground (similarity, polynomials, points, photos).
+    control : ControlPoints
+    control_statistics, check_statistics : AccuracyStatistics
+        At the control actually used and at the check points.
+    warnings : tuple of str
+        Doubtful but valid findings (control not triangulated, ...).
+    timings : dict
+        Seconds per stage.
+    """
+
+    strip: StripModel
+    ground: GroundResult
+    control: ControlPoints
+    control_statistics: AccuracyStatistics
+    check_statistics: AccuracyStatistics
+    warnings: tuple[str, ...] = ()
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def photo_ids(self) -> tuple[str, ...]:
+        return self.strip.photo_ids
+
+    @property
+    def point_ids(self) -> tuple[str, ...]:
+        return self.strip.observations.point_ids
+
+    @property
+    def points(self) -> FloatArray:
+        """(P, 3) X, Y, H in the control CRS (NaN for points not triangulated)."""
+        return self.ground.points
+
+    @property
+    def photo_centres(self) -> FloatArray:
+        """(M, 3) projection centres X, Y, Z in the control CRS."""
+        return self.ground.photo_centres
+
+    @property
+    def photo_opk_degrees(self) -> FloatArray:
+        """(M, 3) omega, phi, kappa in degrees (image -> local east-north-up)."""
+        return np.degrees(self.ground.photo_opk)
+
+
+def triangulate(
+    observations: ImageObservations,
+    control: ControlPoints,
+    crs: GroundCRS | str,
+    *,
+    lines: Sequence[LineSpec] = (),
+    strip_options: StripOptions | None = None,
+    ground_options: GroundOptions | None = None,
+    progress: Progress | None = None,
+    warnings: Sequence[str] = (),
+) -> StripResult:
+    """Strip formation and ground stage in one call.
+
+    Parameters
+    ----------
+    observations : ImageObservations
+        Image coordinates (mm, reduced to the principal point).
+    control : ControlPoints
+        Control and check points in `crs`.
+    crs : GroundCRS or str
+        Control CRS (any pyproj CRS text, or ``"local"``).
+    lines : sequence of LineSpec
+        Straight-line conditions, J(18).
+    strip_options : StripOptions
+    ground_options : GroundOptions
+    progress : callable, optional
+        Called with a short message at each stage (the CLI shows it).
+    warnings : sequence of str
+        Warnings found earlier (e.g. while loading), carried into the result.
+
+    Returns
+    -------
+    StripResult
+    """
+    say = progress or (lambda message: None)
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    say(
+        f"forming the strip: {observations.n_photos} photos, {len(observations.photo)} observations"
+    )
+    strip = form_strip(observations, strip_options)
+    timings["strip_formation"] = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    say("orienting the strip on the control")
+    ground = adjust_to_ground(strip, control, crs, lines=lines, options=ground_options)
+    timings["ground"] = time.perf_counter() - t1
+    notes = list(warnings)
+    notes += [
+        f"control point {p!r} is not triangulated (seen on fewer than two photos of a model): "
+        "left out"
+        for p in ground.left_out
+    ]
+    not_seen = np.flatnonzero(~strip.triangulated)
+    if not_seen.size:
+        names = ", ".join(repr(observations.point_ids[i]) for i in not_seen[:5])
+        more = f" and {not_seen.size - 5} more" if not_seen.size > 5 else ""
+        notes.append(
+            f"{not_seen.size} point(s) not triangulated (not on both photos of any model): "
+            f"{names}{more}"
+        )
+    resid = ground.control_residuals
+    return StripResult(
+        strip=strip,
+        ground=ground,
+        control=control,
+        control_statistics=AccuracyStatistics.from_residuals(resid[~ground.is_check]),
+        check_statistics=AccuracyStatistics.from_residuals(resid[ground.is_check]),
+        warnings=tuple(notes),
+        timings=timings,
+    )
+
+
+def run_project(project, *, progress: Progress | None = None) -> StripResult:
+    """Adjust a loaded project (:func:`strip_aerotri.config.load_project`)."""
+    adj = project.adjustment
+    strip_options = StripOptions(
+        relative_orientation=str(adj.relative_orientation.value),
+        intersection=str(adj.intersection.value),
+        scale_transfer=str(adj.scale_transfer.value),
+        max_iterations=int(adj.max_iterations),
+    )
+    ground_options = GroundOptions(route=str(adj.route.value), polynomial=adj.polynomial)
+    lines = [
+        LineSpec(point_ids=tuple(spec.point_ids), weight=spec.weight, name=spec.name)
+        for spec in project.straight_lines
+    ]
+    return triangulate(
+        project.observations,
+        project.control,
+        project.crs,
+        lines=lines,
+        strip_options=strip_options,
+        ground_options=ground_options,
+        progress=progress,
+        warnings=project.warnings,
+    )
