@@ -157,7 +157,8 @@ def triangulate(
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     say(
-        f"forming the strip: {observations.n_photos} photos, {len(observations.photo)} observations"
+        f"forming the strip: {observations.n_photos} photos, "
+        f"{len(observations.photo)} observations"
     )
     strip = form_strip(observations, strip_options)
     timings["strip_formation"] = time.perf_counter() - t0
