@@ -631,3 +631,12 @@ def test_missing_project_file(tmp_path: Path) -> None:
 
 def test_at_least_twenty_distinct_bad_inputs() -> None:
     assert len({i for _, _, i in BAD_INPUTS}) == len(BAD_INPUTS) >= 20
+
+
+def test_key_list_defaults_match_the_dataclass_defaults() -> None:
+    defaults = AdjustmentOptions()
+    for spec in PROJECT_KEYS:
+        if spec.table == "adjustment" and spec.key != "route":
+            assert getattr(defaults, spec.key) == spec.default, spec.key
+        assert spec.default_display  # something to show in docs and `stripaero check`
+    assert {s.table for s in PROJECT_KEYS} == {t.name for t in PROJECT_TABLES}

@@ -194,6 +194,19 @@ class KeySpec:
     default_text: str = ""
 
     @property
+    def default_display(self) -> str:
+        """The default as shown to users (``"required"`` for required keys)."""
+        if self.required:
+            return "required"
+        if self.default_text:
+            return self.default_text
+        if isinstance(self.default, tuple):
+            return "[" + ", ".join(repr(v) for v in self.default) + "]"
+        if isinstance(self.default, StrEnum):
+            return f'"{self.default.value}"'
+        return "none" if self.default is None else repr(self.default)
+
+    @property
     def qualified(self) -> str:
         """``[table] key`` (``[[table]] key`` for arrays of tables)."""
         table = _TABLES_BY_NAME[self.table]
