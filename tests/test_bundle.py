@@ -419,3 +419,50 @@ def test_iteration_limit_warns_and_reports_not_converged():
             max_iterations=1,
         )
     assert not res.converged and res.iterations == 1 and res.history.shape == (2,)
+
+
+def strip_with_weak_first_photo(strip: Strip, n_keep: int) -> tuple[ImageObservations, np.ndarray]:
+    """Keep only ``n_keep`` rays on photo 0 (of points seen on 3 photos), drop points left
+    with fewer than two rays; returns the observations and the kept point indices."""
+    triple = np.flatnonzero(np.bincount(strip.point) == 3)
+    on_first = np.intersect1d(strip.point[strip.photo == 0], triple)[:n_keep]
+    keep = (strip.photo != 0) | np.isin(strip.point, on_first)
+    rays = np.bincount(strip.point[keep], minlength=strip.points.shape[0])
+    kept_points = np.flatnonzero(rays >= 2)
+    keep &= np.isin(strip.point, kept_points)
+    new_index = np.full(strip.points.shape[0], -1)
+    new_index[kept_points] = np.arange(kept_points.size)
+    obs = strip.observations()
+    return (
+        ImageObservations(
+            obs.photo_ids,
+            tuple(obs.point_ids[i] for i in kept_points),
+            obs.photo[keep],
+            new_index[obs.point[keep]],
+            obs.xy[keep],
+            obs.sigma[keep],
+            C_MM,
+        ),
+        kept_points,
+    )
+
+
+def test_photo_with_two_points_is_singular_unless_its_centre_is_observed():
+    strip = make_strip()
+    obs, kept = strip_with_weak_first_photo(strip, 2)
+    points = strip.points[kept]
+    ctrl = np.full(points.shape, np.nan)
+    idx = corner_points(
+        Strip(strip.centres, strip.rotations, points, obs.photo, obs.point, obs.xy)
+    )
+    ctrl[idx] = points[idx]
+    args = (obs, strip.centres, strip.rotations, points)
+    with pytest.raises(GeometryError, match=r"singular.*photo '001'"):
+        bundle_adjust(*args, control_xyz=ctrl, control_sigma=0.01)
+    # two rays plus an observed centre: 4 + 3 observations for 6 unknowns
+    gnss = np.full(strip.centres.shape, np.nan)
+    gnss[0] = strip.centres[0]
+    res = bundle_adjust(
+        *args, control_xyz=ctrl, control_sigma=0.01, gnss_centres=gnss, gnss_sigma=0.05
+    )
+    np.testing.assert_allclose(res.centres, strip.centres, atol=1e-6, rtol=0)
