@@ -466,3 +466,37 @@ def test_photo_with_two_points_is_singular_unless_its_centre_is_observed():
         *args, control_xyz=ctrl, control_sigma=0.01, gnss_centres=gnss, gnss_sigma=0.05
     )
     np.testing.assert_allclose(res.centres, strip.centres, atol=1e-6, rtol=0)
+
+
+def test_poor_start_needs_damping_and_still_converges(monkeypatch):
+    import strip_aerotri.bundle as bundle_module
+
+    damping = []
+    solve = bundle_module._solve
+
+    def recording_solve(prob, normals, lam):
+        damping.append(lam)
+        return solve(prob, normals, lam)
+
+    monkeypatch.setattr(bundle_module, "_solve", recording_solve)
+    strip = make_strip()
+    rng = np.random.default_rng(3)
+    m, p = strip.centres.shape[0], strip.points.shape[0]
+    # centres and points +-600 m, rotations +-40 deg: plain Gauss-Newton steps overshoot
+    centres0 = strip.centres + rng.uniform(-600, 600, (m, 3))
+    rot0 = strip.rotations @ _exp_so3(rng.uniform(-np.radians(40), np.radians(40), (m, 3)))
+    points0 = strip.points + rng.uniform(-600, 600, (p, 3))
+    ctrl, sigma = full_control(strip, corner_points(strip))
+    res = bundle_adjust(
+        strip.observations(),
+        centres0,
+        rot0,
+        points0,
+        control_xyz=ctrl,
+        control_sigma=sigma,
+        max_iterations=50,
+    )
+    assert any(lam > 0 for lam in damping)
+    assert res.converged
+    np.testing.assert_allclose(res.points, strip.points, atol=1e-6, rtol=0)
+    assert np.all(np.diff(res.history) <= 0.0)  # accepted steps never increase the objective

@@ -1012,10 +1012,12 @@ def bundle_adjust(
             state = trial
             normals = _normals(prob, state)
             history.append(sigma0_of(normals.cost))
-        lam = 0.0 if lam <= 1e-3 else lam / 10.0
-        if max_step < tolerance or (cost - trial_cost) <= tolerance * cost:
+        # A damped step may be small or gain little without being at the minimum:
+        # only an undamped (Gauss-Newton) step can end the iteration.
+        if lam == 0.0 and (max_step < tolerance or (cost - trial_cost) <= tolerance * cost):
             converged = True
             break
+        lam = 0.0 if lam <= 1e-3 else lam / 10.0
     if not converged:
         warnings.warn(
             f"bundle adjustment did not converge in {max_iterations} iterations "
