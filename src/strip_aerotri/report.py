@@ -13,7 +13,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -376,7 +376,9 @@ def _options(result, project) -> dict[str, Any]:
     return opts
 
 
-def build_report(result, *, project=None, map_scale: float | None = None) -> dict[str, Any]:
+def build_report(
+    result, *, project=None, map_scale: float | None = None, notes: Sequence[str] = ()
+) -> dict[str, Any]:
     """Content of ``report.json`` (plain JSON types; NaN written as None).
 
     Parameters
@@ -389,6 +391,8 @@ def build_report(result, *, project=None, map_scale: float | None = None) -> dic
     map_scale : float, optional
         Map scale denominator S for the tolerance verdicts; overrides the
         project's.
+    notes : sequence of str
+        Further warnings (from writing the outputs), appended to ``warnings``.
 
     Returns
     -------
@@ -483,16 +487,907 @@ def build_report(result, *, project=None, map_scale: float | None = None) -> dic
             "passed": None if not judged else all(judged),
             "criteria": [c.as_dict() for c in criteria],
         },
-        "warnings": list(result.warnings),
+        "warnings": [*result.warnings, *notes],
         "timings_s": dict(result.timings),
+        "outputs": {
+            "points.geojson": {
+                "written": not ground.crs.is_local,
+                "wgs84_operation": None,
+            }
+        },
     }
     return _clean(report)
+
+
+# --------------------------------------------------------------------------- points.geojson
+
+GEOJSON_DECIMALS = 8
+"""Decimals of longitude and latitude in points.geojson (1e-8 degree is about 1 mm)."""
+
+
+def points_geojson(result) -> str | None:
+    """Text of ``points.geojson``: RFC 7946 FeatureCollection in WGS 84 lon/lat.
+
+    One Point feature per triangulated point, converted with
+    :meth:`~strip_aerotri.geodesy.GroundCRS.to_wgs84_lonlat` (pyproj's best
+    operation to WGS 84; display accuracy).  Properties: ``id``, ``role``,
+    ``H`` (ellipsoidal height in metres on the control CRS's datum, as in
+    points.csv), ``n_models``.  None for ``crs = "local"`` (no geodesy).
+    """
+    crs = result.ground.crs
+    if crs.is_local:
+        return None
+    points = np.asarray(result.points, dtype=np.float64)
+    ok = np.isfinite(points).all(axis=1)
+    lonlat = np.round(crs.to_wgs84_lonlat(points[ok]), GEOJSON_DECIMALS)
+    ids = np.asarray(result.point_ids, dtype=object)[ok]
+    roles = point_roles(result)[ok]
+    heights = np.round(points[ok, 2], 4)
+    n_det = np.asarray(result.strip.n_determinations)[ok]
+    features = [
+        {
+            "type": "Feature",
+            "id": str(pid),
+            "geometry": {"type": "Point", "coordinates": [float(lon), float(lat)]},
+            "properties": {
+                "id": str(pid),
+                "role": str(role),
+                "H": float(h),
+                "n_models": int(n),
+            },
+        }
+        for pid, (lon, lat), role, h, n in zip(
+            ids, lonlat.tolist(), roles, heights.tolist(), n_det.tolist(), strict=True
+        )
+    ]
+    collection = {"type": "FeatureCollection", "features": features}
+    return json.dumps(collection, ensure_ascii=False, allow_nan=False, separators=(",", ":"))
+
+
+# --------------------------------------------------------------------------- figures
+
+_MAX_PLOT_POINTS = 20000
+_ROLE_STYLE = {
+    # role: (label, marker, colour, size, zorder)
+    "tie": ("tie points", ".", "#9a9a9a", 4, 2),
+    "model": ("points in one model", ".", "#c8c8c8", 4, 2),
+    "line": ("straight-line points", "x", "#e67e00", 22, 4),
+    "control-full": ("full control", "^", "#c0392b", 60, 6),
+    "control-plan": ("plan control", ">", "#2471a3", 55, 6),
+    "control-height": ("height control", "o", "#1e8449", 45, 6),
+    "check": ("check points", "s", "#8e44ad", 45, 7),
+}
+
+
+def _png(fig) -> str:
+    import io as _bio
+
+    buffer = _bio.BytesIO()
+    fig.savefig(buffer, format="png", dpi=96, bbox_inches="tight")
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    import base64
+
+    return base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+class _Plan:
+    """Plan coordinates for plotting: metres east and north (grid or local).
+
+    Projected and local CRSs are plotted in their own X, Y; a geographic CRS
+    in metres on a plane tangent at the strip's centre (display only).
+    Directions from local east-north-up are turned into grid directions by the
+    meridian convergence.
+    """
+
+    def __init__(self, result):
+        crs = result.ground.crs
+        self.crs = crs
+        centres = np.asarray(result.photo_centres, dtype=np.float64)
+        self.geographic = crs.is_geographic
+        if self.geographic:
+            ok = np.isfinite(centres).all(axis=1)
+            self.lon0, self.lat0 = np.mean(centres[ok, :2], axis=0)
+            ell = crs.ellipsoid
+            self.radius = float(ell.semi_major_metre)
+            self.unit = "m from the strip centre"
+        else:
+            self.unit = "m"
+        self.centres = centres
+
+    def xy(self, xyh: np.ndarray) -> np.ndarray:
+        xyh = np.asarray(xyh, dtype=np.float64)
+        if not self.geographic:
+            return xyh[:, :2]
+        k = np.pi / 180.0 * self.radius
+        return np.column_stack(
+            [
+                (xyh[:, 0] - self.lon0) * k * np.cos(np.radians(self.lat0)),
+                (xyh[:, 1] - self.lat0) * k,
+            ]
+        )
+
+    def convergence(self, xyh: np.ndarray) -> np.ndarray:
+        if self.crs.is_local or self.geographic:
+            return np.zeros(len(xyh))
+        try:
+            return np.asarray(self.crs.meridian_convergence(xyh), dtype=np.float64)
+        except Exception:  # display only: fall back to true north
+            return np.zeros(len(xyh))
+
+
+def _footprints(result, plan: _Plan) -> np.ndarray | None:
+    """(M, 4, 2) plan corners of each photo's footprint at the mean point height."""
+    obs = result.strip.observations
+    xy = np.asarray(obs.xy, dtype=np.float64)
+    if xy.size == 0:
+        return None
+    half = np.max(np.abs(xy), axis=0)
+    c = float(obs.principal_distance)
+    corners = np.array(
+        [
+            [half[0], half[1], -c],
+            [-half[0], half[1], -c],
+            [-half[0], -half[1], -c],
+            [half[0], -half[1], -c],
+        ]
+    )
+    rot = np.asarray(result.ground.photo_rotations_enu, dtype=np.float64)
+    rays = np.einsum("mij,kj->mki", rot, corners)  # (M, 4, 3) east, north, up
+    centres = np.asarray(result.photo_centres, dtype=np.float64)
+    points = np.asarray(result.points, dtype=np.float64)
+    h = np.nanmedian(points[:, 2]) if np.isfinite(points[:, 2]).any() else 0.0
+    depth = centres[:, 2] - h
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -depth[:, None] / rays[:, :, 2]
+    en = rays[:, :, :2] * t[:, :, None]
+    gamma = plan.convergence(centres)
+    cg, sg = np.cos(gamma)[:, None], np.sin(gamma)[:, None]
+    # true azimuth alpha -> grid azimuth alpha - gamma: turn counter-clockwise by gamma
+    e = cg * en[:, :, 0] - sg * en[:, :, 1]
+    n = sg * en[:, :, 0] + cg * en[:, :, 1]
+    grid = np.stack([e, n], axis=-1)
+    # the grid scale factor (about 1) is ignored: display only
+    out = plan.xy(centres)[:, None, :] + grid
+    bad = ~np.isfinite(out).all(axis=(1, 2)) | (t <= 0).any(axis=1)
+    return out[~bad]
+
+
+def _decimate(index: np.ndarray, limit: int) -> np.ndarray:
+    if index.size <= limit:
+        return index
+    return index[np.linspace(0, index.size - 1, limit).astype(np.intp)]
+
+
+def _figure_layout(result, plan: _Plan, roles: np.ndarray) -> str:
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    points = np.asarray(result.points, dtype=np.float64)
+    ok = np.isfinite(points).all(axis=1)
+    pxy = np.full((len(points), 2), np.nan)
+    pxy[ok] = plan.xy(points[ok])
+    cxy = plan.xy(plan.centres)
+    fig, ax = plt.subplots(figsize=(10, 6.5))
+    feet = _footprints(result, plan)
+    if feet is not None and len(feet):
+        step = max(1, len(feet) // 400)
+        ax.add_collection(
+            PolyCollection(
+                feet[::step],
+                facecolors="#5dade2",
+                edgecolors="#2e86c1",
+                alpha=0.08,
+                linewidths=0.6,
+                zorder=1,
+                label="photo footprints",
+            )
+        )
+    ax.plot(cxy[:, 0], cxy[:, 1], "-", color="#2e86c1", lw=0.8, zorder=3)
+    ax.plot(
+        cxy[:, 0], cxy[:, 1], "o", ms=3.5, color="#1b4f72", zorder=3, label="projection centres"
+    )
+    ax.annotate(
+        result.photo_ids[0],
+        cxy[0],
+        textcoords="offset points",
+        xytext=(4, 4),
+        fontsize=8,
+        color="#1b4f72",
+    )
+    ax.annotate(
+        result.photo_ids[-1],
+        cxy[-1],
+        textcoords="offset points",
+        xytext=(4, 4),
+        fontsize=8,
+        color="#1b4f72",
+    )
+    for role, (label, marker, colour, size, z) in _ROLE_STYLE.items():
+        sel = np.flatnonzero(ok & (roles == role))
+        if sel.size == 0:
+            continue
+        sel = _decimate(sel, _MAX_PLOT_POINTS)
+        ax.scatter(
+            pxy[sel, 0],
+            pxy[sel, 1],
+            s=size,
+            marker=marker,
+            c=colour,
+            zorder=z,
+            label=f"{label} ({int(np.count_nonzero(ok & (roles == role)))})",
+            linewidths=1.0 if marker == "x" else 0.4,
+            edgecolors=colour if marker in (".", "x") else "black",
+        )
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
+    ax.set_xlabel(f"X (east) [{plan.unit}]")
+    ax.set_ylabel(f"Y (north) [{plan.unit}]")
+    ax.ticklabel_format(useOffset=False, style="plain")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.legend(loc="best", fontsize=8, framealpha=0.85)
+    ax.set_title("Strip layout")
+    return _png(fig)
+
+
+def _nice(value: float) -> float:
+    """1, 2 or 5 times a power of ten, not above ``value``."""
+    if not (np.isfinite(value) and value > 0):
+        return 1.0
+    exp = np.floor(np.log10(value))
+    base = value / 10**exp
+    step = 5.0 if base >= 5 else 2.0 if base >= 2 else 1.0
+    return float(step * 10**exp)
+
+
+def _figure_residuals(result, plan: _Plan) -> str | None:
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import TwoSlopeNorm
+
+    idx, resid = _control_rows(result)
+    if idx.size == 0:
+        return None
+    is_check = np.asarray(result.ground.is_check, dtype=bool)
+    pxy = plan.xy(np.asarray(result.points, dtype=np.float64)[idx])
+    cxy = plan.xy(plan.centres)
+    # residuals are along east/north; turn them to the grid like the footprints
+    gamma = plan.convergence(np.asarray(result.points, dtype=np.float64)[idx])
+    de = np.cos(gamma) * resid[:, 0] - np.sin(gamma) * resid[:, 1]
+    dn = np.sin(gamma) * resid[:, 0] + np.cos(gamma) * resid[:, 1]
+    plan_len = np.hypot(de, dn)
+    fig, ax = plt.subplots(figsize=(10, 6.5))
+    ax.plot(
+        cxy[:, 0], cxy[:, 1], "-", color="#aab7b8", lw=1.0, zorder=1, label="projection centres"
+    )
+    extent = float(np.nanmax(np.ptp(np.vstack([cxy, pxy]), axis=0))) or 1.0
+    largest = float(np.nanmax(plan_len)) if np.isfinite(plan_len).any() else 0.0
+    key = _nice(largest) if largest > 0 else 0.1
+    # arrow of the largest residual: 8 % of the extent
+    scale = (largest if largest > 0 else key) / (0.08 * extent)
+    has_plan = np.isfinite(plan_len)
+    for sel, colour, label in ((~is_check, "#c0392b", "control"), (is_check, "#8e44ad", "check")):
+        sel = sel & has_plan
+        if sel.any():
+            q = ax.quiver(
+                pxy[sel, 0],
+                pxy[sel, 1],
+                de[sel],
+                dn[sel],
+                angles="xy",
+                scale_units="xy",
+                scale=scale,
+                color=colour,
+                width=0.0025,
+                zorder=4,
+                label=f"plan residual, {label}",
+            )
+    if has_plan.any():
+        ax.quiverkey(
+            q, 0.85, 0.04, key, f"{key:g} m", labelpos="E", coordinates="axes", color="black"
+        )
+    dh = resid[:, 2]
+    has_h = np.isfinite(dh)
+    if has_h.any():
+        lim = float(np.nanmax(np.abs(dh))) or 1.0
+        norm = TwoSlopeNorm(vcenter=0.0, vmin=-lim, vmax=lim)
+        for sel, marker in ((~is_check, "^"), (is_check, "s")):
+            sel = sel & has_h
+            if sel.any():
+                sc = ax.scatter(
+                    pxy[sel, 0],
+                    pxy[sel, 1],
+                    c=dh[sel],
+                    cmap="RdBu_r",
+                    norm=norm,
+                    marker=marker,
+                    s=70,
+                    edgecolors="black",
+                    linewidths=0.5,
+                    zorder=5,
+                )
+        bar = fig.colorbar(sc, ax=ax, shrink=0.8, pad=0.02)
+        bar.set_label("height residual dH [m] (given − adjusted)")
+    no_h = ~has_h
+    if no_h.any():
+        ax.scatter(
+            pxy[no_h, 0],
+            pxy[no_h, 1],
+            facecolors="white",
+            edgecolors="black",
+            marker="o",
+            s=30,
+            zorder=5,
+            label="no height residual",
+        )
+    names = np.asarray(result.point_ids, dtype=object)[idx]
+    if idx.size <= 60:
+        for (x, y), name in zip(pxy, names, strict=True):
+            ax.annotate(
+                str(name),
+                (x, y),
+                textcoords="offset points",
+                xytext=(5, -10),
+                fontsize=7,
+                color="#333333",
+            )
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel(f"X (east) [{plan.unit}]")
+    ax.set_ylabel(f"Y (north) [{plan.unit}]")
+    ax.ticklabel_format(useOffset=False, style="plain")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.legend(loc="upper left", fontsize=8, framealpha=0.85)
+    ax.set_title("Residuals at control (▲) and check (■) points: arrows plan, colour height")
+    return _png(fig)
+
+
+def _bars_or_lines(ax, x, values, labels, colours, width=0.4):
+    many = len(x) > 120
+    for k, (v, label, colour) in enumerate(zip(values, labels, colours, strict=True)):
+        if many:
+            ax.plot(x, v, "-", lw=0.9, color=colour, label=label)
+        else:
+            offset = (k - (len(values) - 1) / 2) * width
+            ax.bar(x + offset, v, width=width, color=colour, label=label)
+
+
+def _figure_parallax(result) -> str:
+    import matplotlib.pyplot as plt
+
+    rel = result.strip.relative
+    x = np.arange(rel.n_pairs)
+    fig, (ax, hx) = plt.subplots(1, 2, figsize=(11, 3.8), gridspec_kw={"width_ratios": [2.3, 1]})
+    _bars_or_lines(
+        ax,
+        x,
+        [np.asarray(rel.sigma0_um), np.asarray(rel.max_parallax_um)],
+        ["σ0 (one image coordinate)", "max |y-parallax|"],
+        ["#2e86c1", "#e67e22"],
+    )
+    ax.set_xlabel("pair (left photo's position in the strip)")
+    ax.set_ylabel("µm at image scale")
+    ax.set_title("Relative orientation: residual y-parallax per pair")
+    ax.grid(True, axis="y", lw=0.3)
+    ax.legend(fontsize=8)
+    q = np.asarray(rel.parallax_um, dtype=np.float64)
+    q = q[np.isfinite(q)]
+    if q.size:
+        rms = float(np.sqrt(np.mean(q**2)))
+        hx.hist(q, bins=min(60, max(10, q.size // 20)), color="#5d6d7e")
+        for sign in (-1, 1):
+            hx.axvline(sign * 3 * rms, color="#c0392b", lw=1.0, ls="--")
+        hx.set_title(f"All {q.size} y-parallaxes; ±3 RMS dashed", fontsize=10)
+        hx.set_xlabel("µm")
+    return _png(fig)
+
+
+def _figure_ties(result, models: list[dict[str, Any]]) -> str | None:
+    import matplotlib.pyplot as plt
+
+    if len(models) < 2:
+        return None
+    x = np.array([m["index"] for m in models], dtype=np.float64)
+    rms = np.array(
+        [[np.nan if v is None else v for v in m["tie_rms_m"]] for m in models], dtype=np.float64
+    )
+    plan = np.hypot(rms[:, 0], rms[:, 1])
+    fig, ax = plt.subplots(figsize=(11, 3.6))
+    _bars_or_lines(
+        ax,
+        x[1:],
+        [plan[1:], np.abs(rms[1:, 2])],
+        ["plan (X, Y)", "height (Z)"],
+        ["#16a085", "#8e44ad"],
+    )
+    ax.set_xlabel("model (left photo's position in the strip)")
+    ax.set_ylabel("RMS difference [m]")
+    ax.set_title("Differences between the two determinations of tie points, per model")
+    ax.grid(True, axis="y", lw=0.3)
+    ax.legend(fontsize=8)
+    return _png(fig)
+
+
+# --------------------------------------------------------------------------- report.html
+
+_CSS = """
+body{font-family:-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;color:#1c2833;
+max-width:1150px;margin:24px auto;padding:0 18px;line-height:1.4}
+h1{font-size:1.7em;margin-bottom:0.1em}h2{border-bottom:2px solid #d5d8dc;padding-bottom:3px;
+margin-top:1.6em;font-size:1.3em}h3{font-size:1.05em;margin-bottom:0.3em}
+.sub{color:#5d6d7e;margin-top:0}
+table{border-collapse:collapse;margin:0.4em 0 1em 0;font-size:0.88em}
+th,td{border:1px solid #d5d8dc;padding:3px 8px;text-align:right;white-space:nowrap}
+th{background:#eaf2f8;text-align:center}td.l,th.l{text-align:left}
+tr:nth-child(even) td{background:#fbfcfc}
+.pass{color:#196f3d;font-weight:bold}.fail{color:#b03a2e;font-weight:bold}
+.na{color:#7f8c8d}.verdict{font-size:1.15em;padding:6px 10px;display:inline-block;
+border-radius:4px;margin:0.3em 0}
+.verdict.pass{background:#d5f5e3}.verdict.fail{background:#fadbd8}.verdict.na{background:#eaeded}
+figure{margin:0.6em 0 1.2em 0}figure img{max-width:100%;height:auto;border:1px solid #eaeded}
+figcaption{color:#5d6d7e;font-size:0.88em}
+.scroll{max-height:420px;overflow-y:auto;display:inline-block;border:1px solid #eaeded}
+.scroll table{margin:0}
+ul.warn li{color:#7e5109}
+footer{margin-top:2em;color:#7f8c8d;font-size:0.8em}
+"""
+
+
+def _esc(value: Any) -> str:
+    import html
+
+    return html.escape(str(value), quote=True)
+
+
+def _fmt(value: Any, digits: int = 3) -> str:
+    if value is None:
+        return "–"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        if not math.isfinite(float(value)):
+            return "–"
+        return f"{float(value):.{digits}f}"
+    return _esc(value)
+
+
+def _table(
+    header: list[str],
+    rows: list[list[Any]],
+    *,
+    left: int = 1,
+    scroll: bool = False,
+    digits: list[int] | int = 3,
+) -> str:
+    if not rows:
+        return "<p class='na'>none</p>"
+    if isinstance(digits, int):
+        digits = [digits] * len(header)
+    head = "".join(
+        ("<th class='l'>" if i < left else "<th>") + f"{_esc(h)}</th>"
+        for i, h in enumerate(header)
+    )
+    body = []
+    for row in rows:
+        cells = []
+        for i, v in enumerate(row):
+            text = v[0] if isinstance(v, tuple) else _fmt(v, digits[i])
+            cls = " class='l'" if i < left else ""
+            cells.append(f"<td{cls}>{text}</td>")
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    html_table = f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+    return f"<div class='scroll'>{html_table}</div>" if scroll and len(rows) > 25 else html_table
+
+
+def _verdict_cell(passed: bool | None) -> tuple[str]:
+    if passed is None:
+        return ("<span class='na'>not judged</span>",)
+    return ("<span class='pass'>PASS</span>",) if passed else ("<span class='fail'>FAIL</span>",)
+
+
+def _figure(b64: str | None, caption: str, alt: str) -> str:
+    if b64 is None:
+        return f"<p class='na'>{_esc(caption)}: nothing to show.</p>"
+    return (
+        f"<figure><img alt='{_esc(alt)}' src='data:image/png;base64,{b64}'>"
+        f"<figcaption>{_esc(caption)}</figcaption></figure>"
+    )
+
+
+def build_html(result, report: Mapping[str, Any]) -> str:
+    """Text of ``report.html``: one self-contained page (inline PNG figures, no scripts).
+
+    Parameters
+    ----------
+    result : StripResult
+    report : mapping
+        :func:`build_report` of the same result.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    with plt.rc_context({"font.size": 9, "axes.titlesize": 11}):
+        plan = _Plan(result)
+        roles = point_roles(result)
+        fig_layout = _figure_layout(result, plan, roles)
+        fig_resid = _figure_residuals(result, plan)
+        fig_par = _figure_parallax(result)
+        fig_ties = _figure_ties(result, report["models"])
+    return _html_page(report, fig_layout, fig_resid, fig_par, fig_ties)
+
+
+def _stat_rows(report: Mapping[str, Any]) -> list[list[Any]]:
+    rows = []
+    for key, label in (("control", "control (used)"), ("check", "check (not used)")):
+        st = report[key]["statistics"]
+        rows.append(
+            [
+                label,
+                st["n_plan"],
+                st["n_height"],
+                st["rmse_e_m"],
+                st["rmse_n_m"],
+                st["rmse_h_m"],
+                st["rmse_plan_m"],
+                st["mean_plan_m"],
+                st["max_plan_m"],
+                st["max_height_m"],
+            ]
+        )
+    return rows
+
+
+def _html_page(report, fig_layout, fig_resid, fig_par, fig_ties) -> str:
+    proj = report["project"]
+    inp = report["inputs"]
+    tol = report["tolerances"]
+    name = proj["name"] or "Strip aerotriangulation"
+    ctrl = inp["control"]
+    overall = tol["passed"]
+    overall_cls = "na" if overall is None else "pass" if overall else "fail"
+    overall_text = (
+        "not judged"
+        if overall is None
+        else "all judged criteria pass"
+        if overall
+        else "at least one criterion fails"
+    )
+    chk = report["check"]["statistics"]
+    pairs = report["pairs"]
+    sig = [p["sigma0_um"] for p in pairs if p["sigma0_um"] is not None]
+    mx = [p["max_parallax_um"] for p in pairs if p["max_parallax_um"] is not None]
+    opt = report["options"]
+    summary = [
+        ["CRS", (_esc(f"{proj['crs_name']}"),)],
+        ["route to the ground", (_esc(report["ground"]["route"]),)],
+        ["photos", inp["n_photos"]],
+        [
+            "points triangulated / measured",
+            (f"{inp['n_points_triangulated']} / {inp['n_points']}",),
+        ],
+        ["image observations", inp["n_observations"]],
+        ["control full / plan / height", (f"{ctrl['full']} / {ctrl['plan']} / {ctrl['height']}",)],
+        ["check points", ctrl["check"]],
+        [
+            "polynomial (requested → used)",
+            (f"{_esc(opt['polynomial'])} → {report['polynomial']['kind']}",),
+        ],
+        ["image scale [m per mm]", report["ground"]["image_scale_m_per_mm"]],
+        ["y-parallax σ0, median of pairs [µm]", float(np.median(sig)) if sig else None],
+        ["largest y-parallax [µm]", float(np.max(mx)) if mx else None],
+        [
+            "check RMSE E / N / H [m]",
+            (" / ".join(_fmt(chk[k]) for k in ("rmse_e_m", "rmse_n_m", "rmse_h_m")),),
+        ],
+        [
+            "check RMSE plan / mean plan [m]",
+            (f"{_fmt(chk['rmse_plan_m'])} / {_fmt(chk['mean_plan_m'])}",),
+        ],
+        [
+            "map scale for the verdicts",
+            ("–" if tol["map_scale"] is None else f"1:{tol['map_scale']:g}",),
+        ],
+        ["R4 §1.7.7 verdict", (f"<span class='{overall_cls}'>{_esc(overall_text)}</span>",)],
+    ]
+    parts = [
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>",
+        f"<title>{_esc(name)} – strip aerotriangulation report</title>",
+        f"<style>{_CSS}</style></head><body>",
+        f"<h1>{_esc(name)}</h1>",
+        "<p class='sub'>Analytical strip aerotriangulation by partially dependent models"
+        f" · strip_aerotri {_esc(report['software']['version'])}"
+        f" · {_esc(report['created_utc'])}</p>",
+        f"<div class='verdict {overall_cls}'>Tolerances (R4 §1.7.7): {_esc(overall_text)}</div>",
+        "<h2>Summary</h2>",
+        _table(["item", "value"], summary, left=1),
+        "<h3>Accuracy at control and check points (given − adjusted, metres)</h3>",
+        _table(
+            [
+                "set",
+                "n plan",
+                "n height",
+                "RMSE E",
+                "RMSE N",
+                "RMSE H",
+                "RMSE plan",
+                "mean plan",
+                "max plan",
+                "max |dH|",
+            ],
+            _stat_rows(report),
+            digits=3,
+        ),
+        "<h2>Figures</h2>",
+        _figure(
+            fig_layout,
+            "Figure 1. Strip layout: projection centres, photo footprints at "
+            "the median point height, all points by role.",
+            "strip layout",
+        ),
+        _figure(
+            fig_resid,
+            "Figure 2. Residuals (given − adjusted) at control and check "
+            "points: plan as arrows (scale in the key), height as colour.",
+            "residual vectors",
+        ),
+        _figure(
+            fig_par,
+            "Figure 3. Residual y-parallax of the relative orientation per pair "
+            "(left) and of all points (right), µm at image scale.",
+            "y-parallax",
+        ),
+        _figure(
+            fig_ties,
+            "Figure 4. RMS of the differences between the two determinations of "
+            "the tie points of each model and the previous one, in metres.",
+            "tie-point differences",
+        ),
+        "<h2>Tolerance verdicts (R4 §1.7.7)</h2>",
+        _table(
+            ["criterion", "source", "n", "value", "limit", "unit", "verdict", "explanation"],
+            [
+                [
+                    c["name"],
+                    c["source"],
+                    c["n"],
+                    c["value"],
+                    c["limit"],
+                    c["unit"],
+                    _verdict_cell(c["passed"]),
+                    (f"<span style='white-space:normal'>{_esc(c['explanation'])}</span>",),
+                ]
+                for c in tol["criteria"]
+            ],
+            left=2,
+            digits=[0, 0, 0, 4, 4, 0, 0, 0],
+        ),
+    ]
+    parts += _html_tables(report)
+    parts.append(
+        "<footer>Residuals and discrepancies are given minus adjusted, along local east, "
+        "north and up. photos.csv angles: R = Rx(ω)·Ry(φ)·Rz(κ) maps image vectors to local "
+        "east-north-up. See docs/outputs.md for every figure of this report.</footer>"
+        "</body></html>"
+    )
+    return "\n".join(parts)
+
+
+def _html_tables(report: Mapping[str, Any]) -> list[str]:
+    out = ["<h2>Relative orientation per pair</h2>"]
+    ro = report["relative_orientation"]
+    names = ro["element_names"]
+    units = ro["element_units"]
+    el_head = [f"{n} [{u}]" if u else n for n, u in zip(names, units, strict=True)]
+    out.append(
+        _table(
+            [
+                "pair",
+                "left",
+                "right",
+                "points",
+                "iterations",
+                "σ0 [µm]",
+                "RMS q [µm]",
+                "max q [µm]",
+                *el_head,
+            ],
+            [
+                [
+                    p["index"],
+                    p["left"],
+                    p["right"],
+                    p["n_points"],
+                    p["iterations"],
+                    p["sigma0_um"],
+                    p["rms_parallax_um"],
+                    p["max_parallax_um"],
+                    *[p["elements"][n] for n in names],
+                ]
+                for p in report["pairs"]
+            ],
+            left=0,
+            scroll=True,
+            digits=[0, 0, 0, 0, 0, 2, 2, 2, 6, 6, 6, 6, 6],
+        )
+    )
+    out.append("<h2>Models</h2>")
+    out.append(
+        _table(
+            [
+                "model",
+                "left",
+                "right",
+                "points",
+                "scale λ",
+                "λ ratio",
+                "tie points",
+                "tie RMS X [m]",
+                "tie RMS Y [m]",
+                "tie RMS Z [m]",
+            ],
+            [
+                [
+                    m["index"],
+                    m["left"],
+                    m["right"],
+                    m["n_points"],
+                    m["scale"],
+                    m["scale_ratio"],
+                    m["tie_points"],
+                    *m["tie_rms_m"],
+                ]
+                for m in report["models"]
+            ],
+            left=0,
+            scroll=True,
+            digits=[0, 0, 0, 0, 5, 5, 0, 3, 3, 3],
+        )
+    )
+    sim = report["similarity"]
+    out.append("<h2>Similarity transformation (strip system → work frame)</h2>")
+    out.append(
+        _table(
+            [
+                "scale",
+                "ω [°]",
+                "φ [°]",
+                "κ [°]",
+                "tX [m]",
+                "tY [m]",
+                "tZ [m]",
+                "σ0",
+                "redundancy",
+                "iterations",
+            ],
+            [
+                [
+                    sim["scale"],
+                    *sim["rotation_opk_deg"],
+                    *sim["translation_m"],
+                    sim["sigma0"],
+                    sim["redundancy"],
+                    sim["iterations"],
+                ]
+            ],
+            left=0,
+            digits=[4, 5, 5, 5, 3, 3, 3, 3, 0, 0],
+        )
+    )
+    for key, title in (("control", "Control residuals"), ("check", "Check-point discrepancies")):
+        out.append(f"<h2>{title} (given − adjusted, m)</h2>")
+        out.append(
+            _table(
+                ["point", "type", "dE", "dN", "dH", "plan"],
+                [
+                    [p["point"], p["type"], p["dE_m"], p["dN_m"], p["dH_m"], p["plan_m"]]
+                    for p in report[key]["points"]
+                ],
+                left=2,
+                scroll=True,
+            )
+        )
+    poly = report["polynomial"]
+    out.append("<h2>Deformation polynomials (J(16))</h2>")
+    if poly.get("coefficients_m"):
+        terms = poly["terms"]
+        out.append(
+            f"<p>Type {poly['kind']} (X, Y, Z types {poly['kinds_xyz']}); normalised "
+            f"variables u = (X − X0)/h, v = (Y − Y0)/h with h = "
+            f"{_fmt(poly['normalization']['half_extent_m'], 1)} m; σ0 = "
+            f"{_fmt(poly['sigma0'])}, redundancy {poly['redundancy']}. Coefficients in metres."
+            "</p>"
+        )
+        out.append(
+            _table(
+                ["coordinate", *terms],
+                [[axis, *poly["coefficients_m"][axis]] for axis in "XYZ"],
+                left=1,
+                digits=4,
+            )
+        )
+    else:
+        out.append("<p class='na'>Similarity only (type 0).</p>")
+    if poly.get("auto"):
+        out.append("<h3>Automatic choice of the type</h3>")
+        out.append(
+            _table(
+                [
+                    "type",
+                    "feasible",
+                    "σ0",
+                    "redundancy",
+                    "RMS X [m]",
+                    "RMS Y [m]",
+                    "RMS Z [m]",
+                    "accepted",
+                    "note",
+                ],
+                [
+                    [
+                        r["kind"],
+                        r["feasible"],
+                        r["sigma0"],
+                        r["redundancy"],
+                        *r["rms_xyz_m"],
+                        r["passed"],
+                        r["reason"],
+                    ]
+                    for r in poly["auto"]["table"]
+                ],
+                left=1,
+                digits=[0, 0, 3, 0, 3, 3, 3, 0, 0],
+            )
+        )
+    if report["straight_lines"]:
+        out.append("<h2>Straight lines (J(18))</h2>")
+        out.append(
+            _table(
+                ["line", "weight", "points", "a [m]", "b", "RMS [m]", "max |dY| [m]"],
+                [
+                    [
+                        ln["name"],
+                        ln["weight"],
+                        ln["n_points"],
+                        ln["a_m"],
+                        ln["b"],
+                        ln["rms_m"],
+                        ln["max_abs_m"],
+                    ]
+                    for ln in report["straight_lines"]
+                ],
+                left=1,
+                digits=[0, 1, 0, 3, 6, 3, 3],
+            )
+        )
+    out.append("<h2>Warnings</h2>")
+    if report["warnings"]:
+        out.append(
+            "<ul class='warn'>"
+            + "".join(f"<li>{_esc(w)}</li>" for w in report["warnings"])
+            + "</ul>"
+        )
+    else:
+        out.append("<p class='na'>none</p>")
+    out.append("<h2>Options and timings</h2>")
+    out.append(
+        _table(["option", "value"], [[k, (_esc(v),)] for k, v in report["options"].items()])
+    )
+    out.append(
+        _table(["stage", "seconds"], [[k, v] for k, v in report["timings_s"].items()], digits=3)
+    )
+    return out
 
 
 # --------------------------------------------------------------------------- all files
 
 
-def build_outputs(result, *, project=None, map_scale: float | None = None) -> dict[str, bytes]:
+def build_outputs(
+    result, *, project=None, map_scale: float | None = None, html: bool = True
+) -> dict[str, bytes]:
     """Every file of a result folder, name -> content (UTF-8 bytes).
 
     Parameters
@@ -503,17 +1398,36 @@ def build_outputs(result, *, project=None, map_scale: float | None = None) -> di
     map_scale : float, optional
         Map scale denominator for the tolerance verdicts (overrides the
         project's ``[report] map_scale``).
+    html : bool
+        Also build ``report.html`` (matplotlib figures; the slowest part).
 
     Returns
     -------
     dict of str to bytes
-        ``points.csv``, ``photos.csv``, ``report.json`` (see docs/outputs.md).
+        ``points.csv``, ``photos.csv``, ``report.json``, ``report.html`` and,
+        unless the CRS is ``"local"``, ``points.geojson`` (see
+        docs/outputs.md).  When the GeoJSON is left out, ``report.json``
+        says so under ``warnings``.
     """
-    report = build_report(result, project=project, map_scale=map_scale)
-    return {
+    notes: list[str] = []
+    geojson = points_geojson(result)
+    if geojson is None:
+        notes.append('points.geojson not written: crs is "local" (no geodesy to WGS 84)')
+    report = build_report(result, project=project, map_scale=map_scale, notes=notes)
+    if geojson is not None:
+        report["outputs"]["points.geojson"] = {
+            "written": True,
+            "wgs84_operation": result.ground.crs.wgs84_operation,
+        }
+    files = {
         "points.csv": points_csv(result).encode("utf-8"),
         "photos.csv": photos_csv(result).encode("utf-8"),
-        "report.json": (
-            json.dumps(report, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
-        ).encode("utf-8"),
     }
+    if geojson is not None:
+        files["points.geojson"] = (geojson + "\n").encode("utf-8")
+    if html:
+        files["report.html"] = build_html(result, report).encode("utf-8")
+    files["report.json"] = (
+        json.dumps(report, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
+    ).encode("utf-8")
+    return files
