@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._typing import ArrayLike, FloatArray, IntArray
+from .blunders import BlunderOptions, Rejection, robust_variance_factor
 from .errors import GeometryError
 from .intersection import IntersectionMethod, intersect
 from .observations import ImageObservations
@@ -110,6 +111,15 @@ class StripModel:
     tie_rms : ndarray, shape (n_models, 3)
         RMS of the tie-point differences per model and coordinate (NaN for the
         first model).
+    model_labels : tuple of str
+        "pair A-B" for each model.
+    rejections : tuple of Rejection
+        Observations that failed the blunder tests of the relative
+        orientation (y-parallaxes) and of the scale transfer (tie-point
+        differences), in the order found.
+    rejected_points : tuple of str
+        Points whose determinations in consecutive models disagree (a failed
+        tie test): left out of the strip model (NaN in ``points``).
     """
 
     observations: ImageObservations
@@ -132,6 +142,8 @@ class StripModel:
     tie_count: IntArray
     tie_rms: FloatArray
     model_labels: tuple[str, ...] = field(default=())
+    rejections: tuple[Rejection, ...] = field(default=())
+    rejected_points: tuple[str, ...] = field(default=())
 
     @property
     def photo_ids(self) -> tuple[str, ...]:
@@ -181,6 +193,7 @@ def form_strip(
     options: StripOptions | None = None,
     *,
     photo_index: ArrayLike | None = None,
+    blunders: BlunderOptions | None = None,
 ) -> StripModel:
     """Form one strip model from the image observations of a strip.
 
@@ -192,6 +205,9 @@ def form_strip(
     photo_index : array_like of int, optional
         The photos that form the models, in strip order (indices into
         ``observations.photo_ids``); all photos by default.
+    blunders : BlunderOptions, optional
+        Gross-error tests of the y-parallaxes and the tie points (default:
+        test and reject, see :mod:`strip_aerotri.blunders`).
 
     Returns
     -------
@@ -217,21 +233,59 @@ def form_strip(
     ids = observations.photo_ids
     labels = [f"pair {ids[seq[m]]}-{ids[seq[m + 1]]}" for m in range(n_models)]
 
+    blunders = blunders or BlunderOptions()
     model, point, row_l, row_r = pair_rows(observations, seq)
+    keep = _excluded_rows(observations, blunders, row_l, row_r)
+    model, point, row_l, row_r = model[keep], point[keep], row_l[keep], row_r[keep]
     vectors = observations.image_vectors()
-    rel = relative_orientation(
-        vectors[row_l],
-        vectors[row_r],
-        model,
-        n_models,
-        method=options.relative_orientation,
-        rotation_first=options.first_rotation,
-        sigma_left=observations.sigma[row_l],
-        sigma_right=observations.sigma[row_r],
-        max_iterations=options.max_iterations,
-        tolerance=options.tolerance,
-        labels=labels,
-    )
+    rejections: list[Rejection] = []
+    n_rows = model.shape[0]
+    while True:
+        rel = relative_orientation(
+            vectors[row_l],
+            vectors[row_r],
+            model,
+            n_models,
+            method=options.relative_orientation,
+            rotation_first=options.first_rotation,
+            sigma_left=observations.sigma[row_l],
+            sigma_right=observations.sigma[row_r],
+            max_iterations=options.max_iterations,
+            tolerance=options.tolerance,
+            labels=labels,
+        )
+        if not blunders.testing:
+            break
+        worst = _worst_parallaxes(rel, blunders)
+        if worst.size == 0:
+            break
+        for row in worst:
+            m, pid = int(model[row]), observations.point_ids[point[row]]
+            rejections.append(
+                Rejection(
+                    stage="relative_orientation",
+                    point=pid,
+                    photos=(ids[seq[m]], ids[seq[m + 1]]),
+                    component="y-parallax",
+                    residual=float(rel.parallax_um[row]),
+                    unit="µm",
+                    w=float(rel.w_statistic[row] / np.sqrt(_factor(rel))),
+                    critical=blunders.critical("relative_orientation", n_rows),
+                    applied=blunders.rejecting,
+                    effect=f"sigma0 of the pair {rel.sigma0_um[m]:.2f} µm before",
+                )
+            )
+        if not blunders.rejecting:
+            break
+        drop = np.zeros(model.shape[0], dtype=bool)
+        drop[worst] = True
+        model, point, row_l, row_r = model[~drop], point[~drop], row_l[~drop], row_r[~drop]
+        if n_rows - model.shape[0] > blunders.max_fraction * n_rows:
+            raise GeometryError(
+                f"relative orientation: more than {blunders.max_fraction:.0%} of the "
+                f"y-parallaxes fail the blunder test ({n_rows - model.shape[0]} of {n_rows}); "
+                "the image coordinates or point ids cannot be trusted"
+            )
 
     # Model formation with the unit base (b_x = 1), relative to the left centre.
     left = np.einsum("nij,nj->ni", rel.rotation_left[model], vectors[row_l])
@@ -249,20 +303,59 @@ def form_strip(
     key_now = model.astype(np.int64) * n_pts + point
     key_prev = (model.astype(np.int64) + 1) * n_pts + point
     _, i_now, i_prev = np.intersect1d(key_now, key_prev, assume_unique=True, return_indices=True)
+    tie_ok = np.ones(i_now.shape[0], dtype=bool)
+    while True:
+        tie_model = model[i_now[tie_ok]]
+        # Same point seen from the shared centre: previous model minus its base.
+        previous = unit.points[i_prev[tie_ok]] - rel.base[model[i_prev[tie_ok]]]
+        new_pts = unit.points[i_now[tie_ok]]
+        ratio = scale_ratios(previous, new_pts, tie_model, n_models, method=options.scale_transfer)
+        if not blunders.testing or tie_model.size < 8:
+            break
+        failing, crit = _worst_ties(previous, new_pts, tie_model, ratio, blunders)
+        if failing.size == 0:
+            break
+        index_ok = np.flatnonzero(tie_ok)
+        components = np.array(["X", "Y", "Z"])[failing["component"]]
+        for k, comp, w, resid in zip(
+            failing["index"], components, failing["w"], failing["residual"], strict=True
+        ):
+            row = i_now[index_ok[k]]
+            m = int(model[row])
+            rejections.append(
+                Rejection(
+                    stage="tie_points",
+                    point=observations.point_ids[point[row]],
+                    photos=(ids[seq[m - 1]], ids[seq[m]], ids[seq[m + 1]]),
+                    component=comp,
+                    residual=float(resid),
+                    unit="base units",
+                    w=float(w),
+                    critical=float(crit),
+                    applied=blunders.rejecting,
+                    effect="point left out of the scale transfer and the strip model",
+                )
+            )
+        if not blunders.rejecting:
+            break
+        tie_ok[index_ok[failing["index"]]] = False
+        if (~tie_ok).sum() > blunders.max_fraction * tie_ok.size:
+            raise GeometryError(
+                f"scale transfer: more than {blunders.max_fraction:.0%} of the tie points fail "
+                "the blunder test; the strip cannot be formed reliably"
+            )
+    rejected_point_index = np.unique(point[i_now[~tie_ok]])
+    i_now, i_prev = i_now[tie_ok], i_prev[tie_ok]
     tie_model = model[i_now]
-    # Same point seen from the shared centre: previous model minus its base.
-    previous = unit.points[i_prev] - rel.base[model[i_prev]]
-    ratio = scale_ratios(
-        previous, unit.points[i_now], tie_model, n_models, method=options.scale_transfer
-    )
     tie_count = np.bincount(tie_model, minlength=n_models).astype(np.intp)
     missing = np.flatnonzero(tie_count[1:] == 0) + 1
     if missing.size:
         m = int(missing[0])
         raise GeometryError(
             f"{labels[m]} shares no tie point with {labels[m - 1]} (no point is measured on "
-            f"all three photos {ids[seq[m - 1]]}, {ids[seq[m]]}, {ids[seq[m + 1]]}): "
-            "the scale cannot be transferred"
+            f"all three photos {ids[seq[m - 1]]}, {ids[seq[m]]}, {ids[seq[m + 1]]}"
+            + (", after rejecting blunders" if rejected_point_index.size else "")
+            + "): the scale cannot be transferred"
         )
     bad = np.flatnonzero(~np.isfinite(ratio[1:]) | (ratio[1:] <= 0)) + 1
     if bad.size:
@@ -282,10 +375,11 @@ def form_strip(
 
     model_points = centres[model] + scale[model, None] * unit.points
     model_parallax = scale[model] * unit.parallax
-    counts = np.bincount(point, minlength=observations.n_points)
+    usable = ~np.isin(point, rejected_point_index)
+    counts = np.bincount(point[usable], minlength=observations.n_points)
     sums = np.stack(
         [
-            np.bincount(point, model_points[:, k], minlength=observations.n_points)
+            np.bincount(point[usable], model_points[usable, k], minlength=observations.n_points)
             for k in range(3)
         ],
         axis=1,
@@ -324,4 +418,80 @@ def form_strip(
         tie_count=tie_count,
         tie_rms=tie_rms,
         model_labels=tuple(labels),
+        rejections=tuple(rejections),
+        rejected_points=tuple(observations.point_ids[i] for i in rejected_point_index),
     )
+
+
+def _excluded_rows(observations, blunders, row_l, row_r) -> np.ndarray:
+    """Mask of pair rows kept after the user's exclusions (points, observations)."""
+    drop_obs = np.zeros(observations.photo.shape[0], dtype=bool)
+    if blunders.exclude_points:
+        names = np.asarray(observations.point_ids)
+        drop_obs |= np.isin(names[observations.point], list(blunders.exclude_points))
+    if blunders.exclude_observations:
+        photo_names = np.asarray(observations.photo_ids)[observations.photo]
+        point_names = np.asarray(observations.point_ids)[observations.point]
+        keys = np.char.add(np.char.add(photo_names, "\x00"), point_names)
+        wanted = [f"{ph}\x00{pt}" for ph, pt in blunders.exclude_observations]
+        drop_obs |= np.isin(keys, wanted)
+    return ~(drop_obs[row_l] | drop_obs[row_r])
+
+
+def _factor(rel: RelativeOrientation) -> float:
+    return robust_variance_factor(rel.w_statistic)
+
+
+def _worst_parallaxes(rel: RelativeOrientation, blunders: BlunderOptions) -> np.ndarray:
+    """Rows to reject: per pair the largest |w| above the critical value (all
+    failing rows when only reporting)."""
+    w = np.abs(rel.w_statistic) / np.sqrt(_factor(rel))
+    crit = blunders.critical("relative_orientation", int(np.isfinite(w).sum()))
+    failing = np.isfinite(w) & (w > crit)
+    if not failing.any():
+        return np.zeros(0, dtype=np.intp)
+    if not blunders.rejecting:
+        return np.flatnonzero(failing)
+    # the largest per pair: sort by (pair, w) and take the last of each failing pair
+    order = np.lexsort((np.where(failing, w, -1.0), rel.pair))
+    last = np.r_[rel.pair[order][1:] != rel.pair[order][:-1], True]
+    pick = order[last]
+    return pick[failing[pick]]
+
+
+_TIE_DTYPE = [("index", np.intp), ("component", np.intp), ("w", float), ("residual", float)]
+
+
+def _worst_ties(previous, new_pts, tie_model, ratio, blunders):
+    """Tie points whose two height determinations disagree beyond the critical value.
+
+    As J tested after each scaling, the Z differences of the tie points are
+    tested (X and Y differences of a point are dominated by the ray of the
+    photo both models share, far from normally distributed; y-parallaxes are
+    tested in the relative orientation).  The Z difference, in the previous
+    model's unit-base units, is standardised by a robust scale (1.4826 × MAD
+    over all tie points of the strip); per model the worst one above the
+    critical value is returned (all failing ones when only reporting).
+    """
+    diff = ratio[tie_model] * new_pts[:, 2] - previous[:, 2]
+    centre = np.median(diff)
+    mad = 1.4826 * np.median(np.abs(diff - centre))
+    mad = max(mad, 1e-12 * max(float(np.abs(previous).max()), 1.0))
+    w = np.abs(diff - centre) / mad
+    crit = blunders.critical("tie_points", w.size)
+    failing = w > crit
+    if not failing.any():
+        return np.zeros(0, dtype=_TIE_DTYPE), crit
+    if blunders.rejecting:
+        order = np.lexsort((np.where(failing, w, -1.0), tie_model))
+        last = np.r_[tie_model[order][1:] != tie_model[order][:-1], True]
+        pick = order[last]
+        pick = pick[failing[pick]]
+    else:
+        pick = np.flatnonzero(failing)
+    out = np.zeros(pick.size, dtype=_TIE_DTYPE)
+    out["index"] = pick
+    out["component"] = 2
+    out["w"] = w[pick]
+    out["residual"] = diff[pick] - centre
+    return out, crit

@@ -23,12 +23,14 @@ nothing changes (a few passes).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from ._typing import FloatArray, IntArray
+from .blunders import BlunderOptions, Rejection, robust_variance_factor
 from .chaining import StripModel
 from .deformation import (
     DeformationResult,
@@ -139,6 +141,19 @@ class GroundResult:
     passes : int
         Passes of the plan/height iteration.
     passes_converged : bool
+    image_scale : float
+        Metres on the ground per mm on the image (median over the model points).
+    expected_sigma_plan, expected_sigma_height : float
+        Random error of a photogrammetric point expected from the image sigma,
+        metres: the weights of the ground stage combine them with the control
+        sigmas.
+    used_xy, used_h : ndarray of bool, shape (C,)
+        Control coordinates that entered the final adjustment (False where a
+        blunder was rejected or for check points).
+    line_used : tuple of ndarray of bool
+        Line points that entered the final fit.
+    rejections : tuple of Rejection
+        Control and line observations that failed the blunder tests.
     """
 
     route: Route
@@ -167,6 +182,10 @@ class GroundResult:
     image_scale: float
     expected_sigma_plan: float
     expected_sigma_height: float
+    used_xy: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    used_h: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    line_used: tuple[np.ndarray, ...] = ()
+    rejections: tuple[Rejection, ...] = ()
 
     @property
     def polynomial_kind(self) -> int:
@@ -335,6 +354,7 @@ def adjust_to_ground(
     *,
     lines: Sequence[LineSpec] = (),
     options: GroundOptions | None = None,
+    blunders: BlunderOptions | None = None,
 ) -> GroundResult:
     """Orient the strip model on the control and deliver it in the control CRS.
 
@@ -349,6 +369,9 @@ def adjust_to_ground(
     lines : sequence of LineSpec
         Straight-line conditions (J(18)).
     options : GroundOptions
+    blunders : BlunderOptions, optional
+        Tests of the control deviations and line points (data snooping, one
+        rejection at a time; see :mod:`strip_aerotri.blunders`).
 
     Returns
     -------
@@ -426,70 +449,143 @@ def adjust_to_ground(
 
     sig_xy_ctrl = control.sigma_xy[rows]
     sig_h_ctrl = control.sigma_h[rows]
-    azimuth = 0.0
-    work = _make_work(route, crs, guess[active], azimuth)
     first, last = strip.centres[0], strip.centres[-1]
-    converged = False
-    previous = None
-    n_pass = 0
-    for n_pass in range(1, _MAX_PASSES + 1):  # noqa: B007 (reported as passes)
-        target = work.to_work(guess)
-        sim = fit_similarity(
-            strip_xyz[active],
-            target[active],
-            use_xy=use_xy[active],
-            use_z=use_z[active],
-            sigma_xy=sig_xy_ctrl[active],
-            sigma_z=sig_h_ctrl[active],
-            point_ids=[p for p, a in zip(ids, active, strict=True) if a],
-        )
-        axis = sim.transform.apply(np.vstack([first, last]))
-        step = _azimuth_step(axis[1] - axis[0])
-        if abs(step) > 1e-9:
-            # Re-express in a frame whose X runs along the strip and start over.
-            azimuth += step
-            work = _make_work(route, crs, guess[active], azimuth)
-            continue
-        model_xyz = sim.transform.apply(strip_xyz)
-        metres_per_mm, h_to_b = _image_scale(strip, sim.transform.scale)
-        sigma_plan = float(np.median(obs.sigma)) * metres_per_mm
-        sigma_height = sigma_plan * h_to_b
-        exp_xy = np.hypot(sig_xy_ctrl, sigma_plan)
-        exp_z = np.hypot(sig_h_ctrl, sigma_height)
-        line_objs = [
-            StraightLine(
-                point_ids=line.point_ids,
-                xyz=sim.transform.apply(strip.points[li]),
-                weight=line.weight,
-                name=line.name,
+
+    def solve(use_xy: np.ndarray, use_z: np.ndarray, line_keep: list[np.ndarray]):
+        """Similarity and polynomial with the plan/height iteration (passes)."""
+        active = use_xy | use_z
+        act_ids = [p for p, a in zip(ids, active, strict=True) if a]
+        guess_ = guess.copy()
+        azimuth = 0.0
+        work = _make_work(route, crs, guess_[active], azimuth)
+        exp_xy, exp_z = sig_xy_ctrl, sig_h_ctrl
+        converged, previous, n_pass = False, None, 0
+        for n_pass in range(1, _MAX_PASSES + 1):  # noqa: B007 (reported as passes)
+            target = work.to_work(guess_)
+            sim = fit_similarity(
+                strip_xyz[active],
+                target[active],
+                use_xy=use_xy[active],
+                use_z=use_z[active],
+                sigma_xy=exp_xy[active],
+                sigma_z=exp_z[active],
+                point_ids=act_ids,
             )
-            for line, li in zip(lines, line_index, strict=True)
-        ]
-        deformation, selection = _fit_polynomial(
-            options.polynomial,
-            model_xyz[active],
-            target[active],
-            use_xy[active],
-            use_z[active],
-            exp_xy[active],
-            exp_z[active],
-            line_objs,
-            [p for p, a in zip(ids, active, strict=True) if a],
+            metres_per_mm, h_to_b = _image_scale(strip, sim.transform.scale)
+            sigma_plan = float(np.median(obs.sigma)) * metres_per_mm
+            sigma_height = sigma_plan * h_to_b
+            exp_xy = np.hypot(sig_xy_ctrl, sigma_plan)
+            exp_z = np.hypot(sig_h_ctrl, sigma_height)
+            axis = sim.transform.apply(np.vstack([first, last]))
+            step = _azimuth_step(axis[1] - axis[0])
+            if abs(step) > 1e-9:
+                # Re-express in a frame whose X runs along the strip and start over.
+                azimuth += step
+                work = _make_work(route, crs, guess_[active], azimuth)
+                continue
+            model_xyz = sim.transform.apply(strip_xyz)
+            line_objs = [
+                StraightLine(
+                    point_ids=tuple(np.asarray(line.point_ids)[keep]),
+                    xyz=sim.transform.apply(strip.points[li[keep]]),
+                    weight=line.weight,
+                    name=line.name,
+                )
+                for line, li, keep in zip(lines, line_index, line_keep, strict=True)
+            ]
+            deformation, selection = _fit_polynomial(
+                options.polynomial,
+                model_xyz[active],
+                target[active],
+                use_xy[active],
+                use_z[active],
+                exp_xy[active],
+                exp_z[active],
+                line_objs,
+                act_ids,
+            )
+            corrected = model_xyz if deformation is None else deformation.correct(model_xyz)
+            adjusted = work.from_work(corrected)
+            new_guess = given.copy()
+            new_guess[~use_z & ~check, 2] = adjusted[~use_z & ~check, 2]
+            new_guess[~use_xy & ~check, :2] = adjusted[~use_xy & ~check, :2]
+            change = 0.0 if previous is None else float(np.nanmax(np.abs(new_guess - guess_)))
+            guess_ = new_guess
+            if previous is not None and change < _PASS_TOLERANCE_M:
+                converged = True
+                break
+            previous = guess_
+            work = _make_work(route, crs, guess_[active], azimuth)
+        return _Solution(
+            work,
+            guess_,
+            sim,
+            deformation,
+            selection,
+            converged,
+            n_pass,
+            azimuth,
+            metres_per_mm,
+            sigma_plan,
+            sigma_height,
+            active,
+            sig_xy_ctrl,
         )
-        corrected = model_xyz if deformation is None else deformation.correct(model_xyz)
-        adjusted = work.from_work(corrected)
-        new_guess = given.copy()
-        new_guess[~use_z & ~check, 2] = adjusted[~use_z & ~check, 2]
-        new_guess[~use_xy & ~check, :2] = adjusted[~use_xy & ~check, :2]
-        change = 0.0 if previous is None else float(np.nanmax(np.abs(new_guess - guess)))
-        guess = new_guess
-        if previous is not None and change < _PASS_TOLERANCE_M:
-            converged = True
+
+    blunders = blunders or BlunderOptions()
+    use_xy_now, use_z_now = use_xy.copy(), use_z.copy()
+    line_keep = [np.ones(len(li), dtype=bool) for li in line_index]
+    rejections: list[Rejection] = []
+    n_control_obs = int(2 * use_xy.sum() + use_z.sum())
+    while True:
+        try:
+            sol = solve(use_xy_now, use_z_now, line_keep)
+        except GeometryError as exc:
+            if not rejections:
+                raise
+            names = ", ".join(sorted({r.point for r in rejections if r.applied}))
+            raise GeometryError(
+                f"{exc} (after rejecting blunders at {names}: the remaining control cannot "
+                "carry the adjustment; check these points)"
+            ) from exc
+        if not blunders.testing:
             break
-        previous = guess
-        work = _make_work(route, crs, guess[active], azimuth)
+        found = _ground_tests(sol, ids, lines, line_keep, blunders)
+        if not found:
+            break
+        if not blunders.rejecting:
+            rejections.extend(found)
+            break
+        worst = max(found, key=lambda r: abs(r.w) / r.critical)
+        rejections.append(worst)
+        if worst.stage == "control":
+            row = ids.index(worst.point)
+            if worst.component == "height":
+                use_z_now[row] = False
+            else:
+                use_xy_now[row] = False
+        else:
+            k = [line.name for line in lines].index(worst.photos[0] if worst.photos else "")
+            pos = list(lines[k].point_ids).index(worst.point)
+            line_keep[k][pos] = False
+        rejected_obs = n_control_obs - int(2 * use_xy_now.sum() + use_z_now.sum())
+        if rejected_obs > blunders.max_fraction * max(n_control_obs, 1):
+            raise GeometryError(
+                f"control: more than {blunders.max_fraction:.0%} of the control observations "
+                "fail the blunder test; the control cannot be trusted"
+            )
+    work, guess, sim, deformation, selection = (
+        sol.work,
+        sol.guess,
+        sol.sim,
+        sol.deformation,
+        sol.selection,
+    )
+    converged, n_pass, azimuth = sol.converged, sol.n_pass, sol.azimuth
+    metres_per_mm, sigma_plan, sigma_height = sol.metres_per_mm, sol.sigma_plan, sol.sigma_height
+    use_xy_final, use_z_final = use_xy_now, use_z_now
+
     # Final products with the last frame and fits.
-    target = work.to_work(guess)
     transform = sim.transform
 
     def to_work(xyz: FloatArray) -> FloatArray:
@@ -518,11 +614,15 @@ def adjust_to_ground(
     resid[~(use_xy | check), :2] = np.nan
     resid[~(use_z | check), 2] = np.nan
     resid[np.isnan(given)] = np.nan
+    # Rejected control keeps its (large) residual; used_xy/used_h say what was used.
 
-    line_resid = tuple(
-        np.asarray(r) for r in (deformation.line_residuals if deformation is not None else ())
-    )
-    if deformation is None and lines:
+    if deformation is not None and lines:
+        # Every line point (rejected ones too) against its fitted line.
+        line_resid = tuple(
+            points_work[li, 1] - (ab[0] + ab[1] * points_work[li, 0])
+            for li, ab in zip(line_index, deformation.line_parameters, strict=True)
+        )
+    else:
         line_resid = tuple(_line_residuals(points_work[li]) for li in line_index)
 
     return GroundResult(
@@ -552,6 +652,10 @@ def adjust_to_ground(
         image_scale=metres_per_mm,
         expected_sigma_plan=sigma_plan,
         expected_sigma_height=sigma_height,
+        used_xy=use_xy_final & ~check,
+        used_h=use_z_final & ~check,
+        line_used=tuple(k.copy() for k in line_keep),
+        rejections=tuple(rejections),
     )
 
 
@@ -593,3 +697,101 @@ def _fit_polynomial(kind, xyz, target, use_xy, use_z, exp_xy, exp_z, lines, ids)
         ),
         selection,
     )
+
+
+class _Solution(NamedTuple):
+    work: Any
+    guess: FloatArray
+    sim: SimilarityResult
+    deformation: DeformationResult | None
+    selection: KindSelection | None
+    converged: bool
+    n_pass: int
+    azimuth: float
+    metres_per_mm: float
+    sigma_plan: float
+    sigma_height: float
+    active: np.ndarray
+    control_sigma_xy: FloatArray
+
+
+def _ground_tests(sol: _Solution, ids, lines, line_keep, blunders) -> list[Rejection]:
+    """w-tests of the control deviations and line points of a solution.
+
+    The normalised residuals of the last fit (polynomial if any, else the
+    similarity) are tested; sigmas combine the control's and the expected
+    photogrammetric error.  Returns every observation above its critical value.
+    """
+    act_ids = [p for p, a in zip(ids, sol.active, strict=True) if a]
+    found: list[Rejection] = []
+    # J tested twice: the control deviations after the similarity transformation
+    # (high redundancy; the strip's deformation is part of the residuals and
+    # is absorbed by the robust variance factor) and the residual deviations
+    # after the polynomial fit.
+    fits = [("similarity", sol.sim)]
+    if sol.deformation is not None:
+        fits.append(("polynomial", sol.deformation))
+    seen: set[tuple[str, str]] = set()
+    for label, fit in fits:
+        w = np.asarray(fit.normalized_residuals, dtype=float)
+        # The expected sigmas leave out the error the chain accumulates along
+        # the strip; the robust variance factor scales them to the data
+        # (blunders hardly move the median).
+        w = w / np.sqrt(robust_variance_factor(w))
+        resid = np.asarray(fit.residuals, dtype=float)
+        crit = blunders.critical("control", int(np.isfinite(w).sum()))
+        plan_w = np.fmax(np.abs(w[:, 0]), np.abs(w[:, 1]))
+        plan_r = np.hypot(np.nan_to_num(resid[:, 0]), np.nan_to_num(resid[:, 1]))
+        for k, pid in enumerate(act_ids):
+            for comp, value, res in (
+                ("plan", plan_w[k], float(plan_r[k])),
+                ("height", abs(w[k, 2]), float(resid[k, 2])),
+            ):
+                if np.isfinite(value) and value > crit and (pid, comp) not in seen:
+                    seen.add((pid, comp))
+                    found.append(
+                        Rejection(
+                            stage="control",
+                            point=pid,
+                            photos=(),
+                            component=comp,
+                            residual=res,
+                            unit="m",
+                            w=float(value),
+                            critical=crit,
+                            applied=blunders.rejecting,
+                            effect=f"after the {label}, sigma0 {fit.sigma0:.3g} before",
+                        )
+                    )
+    if sol.deformation is not None and lines:
+        # The fit gives a line equation the sigma of plan control / sqrt(weight): a
+        # device that makes the condition effective, not a precision.  A line
+        # point's real cross-strip error is photogrammetric, so its w-test is
+        # rescaled to that sigma.
+        plan_sig = np.hypot(np.median(sol.control_sigma_xy[sol.active]), sol.sigma_plan)
+        line_w = tuple(
+            np.asarray(wk) * (plan_sig / np.sqrt(line.weight)) / sol.sigma_plan
+            for wk, line in zip(sol.deformation.line_normalized_residuals, lines, strict=True)
+        )
+        line_r = sol.deformation.line_residuals
+        n_line = int(sum(np.isfinite(np.asarray(x)).sum() for x in line_w))
+        crit_l = blunders.critical("straight_line", n_line)
+        for line, keep, wk, rk in zip(lines, line_keep, line_w, line_r, strict=True):
+            kept_ids = np.asarray(line.point_ids)[keep]
+            for pid, value, res in zip(kept_ids, np.abs(np.asarray(wk)), rk, strict=True):
+                if np.isfinite(value) and value > crit_l:
+                    found.append(
+                        Rejection(
+                            stage="straight_line",
+                            point=str(pid),
+                            photos=(line.name,),
+                            component="line",
+                            residual=float(res),
+                            unit="m",
+                            w=float(value),
+                            critical=crit_l,
+                            applied=blunders.rejecting,
+                            effect=f"line {line.name!r}",
+                        )
+                    )
+    return found

@@ -104,6 +104,14 @@ class RelativeOrientation:
     history : ndarray, shape (iterations + 1,)
         Largest absolute y-parallax over all pairs (µm) at the start and after
         each iteration; shows the convergence rate.
+    redundancy_numbers : ndarray, shape (n,)
+        Diagonal of ``I − A (AᵀPA)⁻¹ AᵀP`` for each y-parallax (0..1; they
+        sum to n − 5 per pair): the share of a blunder that shows in its own
+        residual.
+    w_statistic : ndarray, shape (n,)
+        Baarda's w-test of each y-parallax with the a priori sigmas:
+        ``q / sqrt((sigma_left² + sigma_right²) · r)`` at image scale (NaN
+        where r ≈ 0).
     """
 
     method: RelativeOrientationMethod
@@ -120,6 +128,8 @@ class RelativeOrientation:
     pair: IntArray
     parallax_um: FloatArray
     history: FloatArray
+    redundancy_numbers: FloatArray | None = None
+    w_statistic: FloatArray | None = None
 
     @property
     def n_pairs(self) -> int:
@@ -364,6 +374,15 @@ def relative_orientation(
     rms = np.sqrt(np.add.reduceat(parallax_um**2, starts) / counts)
     maxabs = np.maximum.reduceat(np.abs(parallax_um), starts)
     rot_left, rot_right, relative = state.rotations()
+    rows, _ = state.design()
+    wa = rows * weight[:, None]
+    normal = np.add.reduceat(wa[:, :, None] * rows[:, None, :], starts, axis=0)
+    n_inv = np.linalg.inv(normal)
+    leverage = weight * np.einsum("ni,nij,nj->n", rows, n_inv[pair], rows)
+    redundancy = np.clip(1.0 - leverage, 0.0, 1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        w_stat = parallax_um / (1000.0 * np.sqrt(var * redundancy))
+    w_stat[redundancy < 1e-6] = np.nan
     return RelativeOrientation(
         method=method,
         base=base,
@@ -379,6 +398,8 @@ def relative_orientation(
         pair=pair,
         parallax_um=parallax_um,
         history=np.asarray(history),
+        redundancy_numbers=redundancy,
+        w_statistic=w_stat,
     )
 
 
