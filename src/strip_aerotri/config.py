@@ -21,7 +21,7 @@ import itertools
 import math
 import re
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
@@ -30,17 +30,33 @@ from typing import Any, Literal, Self
 import numpy as np
 
 from ._typing import BoolArray, FloatArray, IntArray
-from .errors import ConfigError
+from .errors import ConfigError, ConvergenceError, GeometryError
+from .interior import (
+    DEFAULT_DIFFERENCE_TOLERANCE,
+    DEFAULT_SCALE_TOLERANCE,
+    BrownDistortion,
+    DistortionModel,
+    DistortionUnits,
+    FiducialFit,
+    FiducialTransform,
+    FlightDirection,
+    ImageUnits,
+    fit_fiducial_transforms,
+    mm_from_pixel,
+    reduce_image_coordinates,
+)
 from .observations import ControlPoints, ControlType, ImageObservations
 
 __all__ = [
     "CONTROL_COLUMNS",
+    "FIDUCIAL_COLUMNS",
     "IMAGE_COLUMNS",
     "PROJECT_KEYS",
     "PROJECT_TABLES",
     "AdjustmentOptions",
     "Camera",
     "ColumnSpec",
+    "ImageOptions",
     "Intersection",
     "KeySpec",
     "Project",
@@ -218,6 +234,10 @@ PROJECT_TABLES: tuple[TableSpec, ...] = (
     TableSpec("strip", True, False, "the strip: its name and photos in flight order"),
     TableSpec("camera", True, False, "interior orientation"),
     TableSpec("images", True, False, "measured image coordinates"),
+    TableSpec("distortion", False, False, "lens distortion, Brown's polynomials"),
+    TableSpec(
+        "interior_orientation", False, False, "fiducial marks: comparator to calibrated system"
+    ),
     TableSpec("control", True, False, "ground control and check points"),
     TableSpec(
         "straight_line", False, True, "points without ground coordinates on one straight line"
@@ -234,6 +254,8 @@ DEFAULT_SIGMA_H_M = 0.03
 DEFAULT_LINE_WEIGHT = 100.0
 DEFAULT_MAX_ITERATIONS = 50
 DEFAULT_POLYNOMIAL = 3
+DEFAULT_PHOTO_STEP = 1
+DEFAULT_MIN_BASE_TO_HEIGHT = 0.3  # densify.DEFAULT_MIN_BASE_TO_HEIGHT
 
 # fmt: off
 PROJECT_KEYS: tuple[KeySpec, ...] = (
@@ -267,6 +289,109 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         default=DEFAULT_IMAGE_SIGMA_MM, unit="mm",
         description="Standard deviation of an image coordinate, for rows without a sigma "
         "value.",
+        contract=False,
+    ),
+    KeySpec(
+        "images", "units", "choice", required=False, default=ImageUnits.MM, unit="",
+        description='"mm" (x right, y up, in millimetres) or "pixel" (column, row with rows '
+        "growing downwards; converted with pixel_size_mm and principal_point_px).",
+        contract=False,
+    ),
+    KeySpec(
+        "images", "pixel_size_mm", "positive number", required=False, default=None, unit="mm",
+        description='Side of a square pixel; required with units = "pixel", refused '
+        "otherwise.",
+        contract=False,
+        default_text="none",
+    ),
+    KeySpec(
+        "images", "principal_point_px", "pair of numbers", required=False, default=None,
+        unit="px",
+        description="Column c0 and row r0 of the origin of the image coordinates (principal "
+        'point or image centre): x = (col - c0) s, y = -(row - r0) s. Required with units = '
+        '"pixel", refused otherwise.',
+        contract=False,
+        default_text="none",
+    ),
+    KeySpec(
+        "images", "flight_direction", "choice", required=False,
+        default=FlightDirection.PLUS_X, unit="",
+        description='The image axis that points along the flight: "+x", "-x", "+y" or "-y"; '
+        'the coordinates are turned so that x runs along the flight and y to its left '
+        '(e.g. "+y": x\' = y, y\' = -x).',
+        contract=False,
+    ),
+    KeySpec(
+        "distortion", "k1", "number", required=False, default=0.0, unit="mm^-2",
+        description="Radial coefficient of r^2 (unit for units = \"mm\"; none for "
+        '"normalized").',
+        contract=False,
+    ),
+    KeySpec(
+        "distortion", "k2", "number", required=False, default=0.0, unit="mm^-4",
+        description="Radial coefficient of r^4.", contract=False,
+    ),
+    KeySpec(
+        "distortion", "k3", "number", required=False, default=0.0, unit="mm^-6",
+        description="Radial coefficient of r^6.", contract=False,
+    ),
+    KeySpec(
+        "distortion", "p1", "number", required=False, default=0.0, unit="mm^-1",
+        description="Decentring coefficient paired with r^2 + 2x^2 (Brown 1966).",
+        contract=False,
+    ),
+    KeySpec(
+        "distortion", "p2", "number", required=False, default=0.0, unit="mm^-1",
+        description="Decentring coefficient paired with r^2 + 2y^2 (Brown 1966).",
+        contract=False,
+    ),
+    KeySpec(
+        "distortion", "units", "choice", required=False, default=DistortionUnits.MM, unit="",
+        description='"mm": r in millimetres; "normalized": r divided by the principal '
+        "distance (OpenCV, Agisoft).",
+        contract=False,
+    ),
+    KeySpec(
+        "distortion", "model", "choice", required=False, default=DistortionModel.CORRECTION,
+        unit="",
+        description='"correction": corrected = measured + delta(measured) (Brown 1971); '
+        '"projection": measured = ideal + delta(ideal) (OpenCV, Agisoft), inverted by '
+        "iteration.",
+        contract=False,
+    ),
+    KeySpec(
+        "interior_orientation", "fiducials_file", "path", required=True, default=None,
+        unit="",
+        description="CSV photo,mark,x,y of the measured (comparator) coordinates of the "
+        "fiducial marks, in [images] units, relative to the folder of strip.toml.",
+        contract=False,
+    ),
+    KeySpec(
+        "interior_orientation", "calibrated", "mark table", required=True, default=None,
+        unit="mm",
+        description='Calibrated coordinates of each mark, e.g. { "1" = [-106.0, -106.0], '
+        '"2" = [106.0, 106.0] } (camera certificate, x right, y up).',
+        contract=False,
+    ),
+    KeySpec(
+        "interior_orientation", "transform", "choice", required=False,
+        default=FiducialTransform.AFFINE, unit="",
+        description='"similarity" (4 parameters, 2 marks at least) or "affine" (6 '
+        "parameters, 3 marks at least), fitted per photo by least squares.",
+        contract=False,
+    ),
+    KeySpec(
+        "interior_orientation", "scale_tolerance", "positive number", required=False,
+        default=DEFAULT_SCALE_TOLERANCE, unit="",
+        description="R4 1.7.7.1: largest |s - 1| of a scale coefficient (\"a few units of "
+        'the 4th decimal"); a photo over it is warned.',
+        contract=False,
+    ),
+    KeySpec(
+        "interior_orientation", "difference_tolerance", "positive number", required=False,
+        default=DEFAULT_DIFFERENCE_TOLERANCE, unit="",
+        description="R4 1.7.7.1: largest |sx - sy| (\"a few units of the 5th decimal\"); "
+        "a photo over it is warned.",
         contract=False,
     ),
     KeySpec(
@@ -347,6 +472,20 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False,
     ),
     KeySpec(
+        "adjustment", "photo_step", "photo step", required=False,
+        default=DEFAULT_PHOTO_STEP, unit="",
+        description="Models on every k-th photo (k >= 1), the photos between oriented by "
+        'resection; "auto": the smallest k reaching min_base_to_height (high-overlap '
+        "drone strips).",
+        contract=False,
+    ),
+    KeySpec(
+        "adjustment", "min_base_to_height", "positive number", required=False,
+        default=DEFAULT_MIN_BASE_TO_HEIGHT, unit="",
+        description='Smallest base-to-height ratio of a model for photo_step = "auto".',
+        contract=False,
+    ),
+    KeySpec(
         "output", "directory", "path", required=False, default=None, unit="",
         description="Result folder, relative to the folder of strip.toml; the CLI's --out "
         "overrides it. Must not be the project folder nor contain input files.",
@@ -362,11 +501,16 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
 )
 # fmt: on
 
-_ENUM_OF_KEY: dict[tuple[str, str], type[_OptionEnum]] = {
+_ENUM_OF_KEY: dict[tuple[str, str], type[StrEnum]] = {
     ("adjustment", "route"): Route,
     ("adjustment", "relative_orientation"): RelativeOrientation,
     ("adjustment", "intersection"): Intersection,
     ("adjustment", "scale_transfer"): ScaleTransfer,
+    ("images", "units"): ImageUnits,
+    ("images", "flight_direction"): FlightDirection,
+    ("distortion", "units"): DistortionUnits,
+    ("distortion", "model"): DistortionModel,
+    ("interior_orientation", "transform"): FiducialTransform,
 }
 
 
@@ -386,6 +530,13 @@ IMAGE_COLUMNS: tuple[ColumnSpec, ...] = (
     ColumnSpec("x", True, "mm", "image x, along the flight"),
     ColumnSpec("y", True, "mm", "image y, to the left of the flight"),
     ColumnSpec("sigma", False, "mm", "standard deviation of x and y; empty: [images] sigma_mm"),
+)
+
+FIDUCIAL_COLUMNS: tuple[ColumnSpec, ...] = (
+    ColumnSpec("photo", True, "", "photo id, one of [strip] photos"),
+    ColumnSpec("mark", True, "", "fiducial mark id, one of [interior_orientation] calibrated"),
+    ColumnSpec("x", True, "mm or px", "measured x of the mark, in [images] units"),
+    ColumnSpec("y", True, "mm or px", "measured y of the mark, in [images] units"),
 )
 
 CONTROL_COLUMNS: tuple[ColumnSpec, ...] = (
@@ -456,6 +607,10 @@ class AdjustmentOptions:
     intersection : Intersection
     scale_transfer : ScaleTransfer
     max_iterations : int
+    photo_step : int or ``"auto"``
+        Models on every k-th photo (``strip_aerotri.densify``); 1: every photo.
+    min_base_to_height : float
+        Target of ``photo_step = "auto"``.
     """
 
     route: Route = Route.GEOCENTRIC
@@ -464,6 +619,30 @@ class AdjustmentOptions:
     intersection: Intersection = Intersection.MIDPOINT
     scale_transfer: ScaleTransfer = ScaleTransfer.Z
     max_iterations: int = DEFAULT_MAX_ITERATIONS
+    photo_step: int | Literal["auto"] = DEFAULT_PHOTO_STEP
+    min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT
+
+
+@dataclass(frozen=True)
+class ImageOptions:
+    """How the measured image coordinates were given (``[images]``).
+
+    Attributes
+    ----------
+    units : ImageUnits
+        ``"mm"`` (x right, y up) or ``"pixel"`` (column, row; rows down).
+    pixel_size_mm : float or None
+    principal_point_px : ndarray, shape (2,), or None
+        Column and row of the origin for ``"pixel"``.
+    flight_direction : FlightDirection
+        The image axis along the flight; the observations are turned so that
+        x runs along it.
+    """
+
+    units: ImageUnits = ImageUnits.MM
+    pixel_size_mm: float | None = None
+    principal_point_px: FloatArray | None = None
+    flight_direction: FlightDirection = FlightDirection.PLUS_X
 
 
 @dataclass(frozen=True)
@@ -492,7 +671,9 @@ class Project:
         Photos in strip (flight) order.
     camera : Camera
     observations : ImageObservations
-        Image x, y in mm reduced by the principal point; sigma in mm.
+        Image x, y in mm in the method's axes (x along the flight, y to its
+        left), from pixels if so given, through the fiducial transformation,
+        reduced by the principal point, corrected for distortion; sigma in mm.
     control : ControlPoints
         Control and check points observed on at least one photo.
     crs : str
@@ -507,6 +688,13 @@ class Project:
     images_file, control_file : Path
         The input CSVs, joined to the project folder.
     report : ReportOptions
+    images : ImageOptions
+    distortion : BrownDistortion or None
+        ``[distortion]`` (None without the table).
+    fiducials : tuple of FiducialFit
+        Per-photo interior orientation from ``[interior_orientation]`` (empty
+        without it), with the residuals at the marks and R4 §1.7.7.1's check.
+    fiducials_file : Path or None
     """
 
     path: Path
@@ -523,11 +711,16 @@ class Project:
     images_file: Path
     control_file: Path
     report: ReportOptions = field(default_factory=ReportOptions)
+    images: ImageOptions = field(default_factory=ImageOptions)
+    distortion: BrownDistortion | None = None
+    fiducials: tuple[FiducialFit, ...] = ()
+    fiducials_file: Path | None = None
 
     @property
     def input_files(self) -> tuple[Path, ...]:
         """The project file and the CSVs it names."""
-        return (self.path, self.images_file, self.control_file)
+        extra = () if self.fiducials_file is None else (self.fiducials_file,)
+        return (self.path, self.images_file, self.control_file, *extra)
 
     @property
     def is_local(self) -> bool:
@@ -615,13 +808,44 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
         return tuple(ids)
     if kind == "choice":
         enum = _ENUM_OF_KEY[(spec.table, spec.key)]
-        try:
-            return enum.create(value)
-        except ValueError:
+        if isinstance(value, str):
+            wanted = value.strip().lower()
+            for member in enum:
+                if member.value == wanted:
+                    return member
+        valid = ", ".join(f'"{m.value}"' for m in enum)
+        raise ConfigError(f"{where}: expected one of {valid} (any case), got {_describe(value)}")
+    if kind == "number":
+        if not _is_number(value) or not math.isfinite(value):  # type: ignore[arg-type]
+            raise ConfigError(f"{where}: expected a finite number, got {_describe(value)}")
+        return float(value)  # type: ignore[arg-type]
+    if kind == "photo step":
+        if isinstance(value, str) and value.strip().lower() == "auto":
+            return "auto"
+        if isinstance(value, int) and not isinstance(value, bool) and value >= 1:
+            return value
+        raise ConfigError(
+            f'{where}: expected a positive integer or "auto", got {_describe(value)}'
+        )
+    if kind == "mark table":
+        if not isinstance(value, dict) or len(value) < 2:
             raise ConfigError(
-                f"{where}: expected one of {enum.valid_values()} (any case), "
-                f"got {_describe(value)}"
-            ) from None
+                f'{where}: expected a table of at least two marks like {{ "1" = [-106.0, '
+                f'-106.0], "2" = [106.0, 106.0] }}, got {_describe(value)}'
+            )
+        marks: dict[str, tuple[float, float]] = {}
+        for mark, xy in value.items():
+            if (
+                not isinstance(xy, list)
+                or len(xy) != 2
+                or not all(_is_number(v) and math.isfinite(v) for v in xy)
+            ):
+                raise ConfigError(
+                    f"{where}: mark '{mark}': expected a list of two finite numbers (x, y in "
+                    f"mm), got {xy!r}"
+                )
+            marks[str(mark).strip()] = (float(xy[0]), float(xy[1]))
+        return marks
     if kind == "polynomial":
         if isinstance(value, str) and value.strip().lower() == "auto":
             return "auto"
@@ -895,7 +1119,7 @@ def _load_images(
     path: Path,
     photo_ids: tuple[str, ...],
     principal_distance: float,
-    principal_point: tuple[float, float],
+    reduce: Callable[[FloatArray, IntArray], FloatArray],
     default_sigma: float,
 ) -> ImageObservations:
     table = _read_csv(path, IMAGE_COLUMNS, "[images] file")
@@ -944,8 +1168,7 @@ def _load_images(
             f"photo '{photo[second]}' (first at line {table.line[first]})"
         )
 
-    xy = np.column_stack([x, y])[order]
-    xy -= np.asarray(principal_point, dtype=np.float64)
+    xy = reduce(np.column_stack([x, y])[order], photo_index[order])
     return ImageObservations(
         photo_ids=photo_ids,
         point_ids=tuple(point_names.tolist()),
@@ -956,6 +1179,91 @@ def _load_images(
         principal_distance=float(principal_distance),
         source_line=_readonly(table.line[order]),
     )
+
+
+# --------------------------------------------------------------------------- interior
+
+
+def _image_options(toml_path: Path, images: dict[str, object]) -> ImageOptions:
+    """``[images]`` units, pixel keys and flight direction, checked together."""
+    units: ImageUnits = images["units"]  # type: ignore[assignment]
+    pixel_keys = ("pixel_size_mm", "principal_point_px")
+    if units is ImageUnits.PIXEL:
+        for key in pixel_keys:
+            if images[key] is None:
+                raise ConfigError(f'{toml_path}: [images] {key}: required with units = "pixel"')
+    else:
+        for key in pixel_keys:
+            if images[key] is not None:
+                raise ConfigError(
+                    f'{toml_path}: [images] {key}: only used with units = "pixel" (units is "mm")'
+                )
+    pp = images["principal_point_px"]
+    return ImageOptions(
+        units=units,
+        pixel_size_mm=None if images["pixel_size_mm"] is None else float(images["pixel_size_mm"]),  # type: ignore[arg-type]
+        principal_point_px=None if pp is None else _readonly(np.asarray(pp, dtype=np.float64)),
+        flight_direction=images["flight_direction"],  # type: ignore[arg-type]
+    )
+
+
+def _load_fiducials(
+    path: Path,
+    photo_ids: tuple[str, ...],
+    images: ImageOptions,
+    interior: dict[str, object],
+) -> tuple[FiducialFit, ...]:
+    """Read the fiducial CSV and fit each photo's comparator -> calibrated transformation."""
+    calibrated: dict[str, tuple[float, float]] = interior["calibrated"]  # type: ignore[assignment]
+    kind: FiducialTransform = interior["transform"]  # type: ignore[assignment]
+    table = _read_csv(path, FIDUCIAL_COLUMNS, "[interior_orientation] fiducials_file")
+    photo = _id_column(table, "photo")
+    mark = _id_column(table, "mark")
+    x, _ = _float_column(table, "x")
+    y, _ = _float_column(table, "y")
+    order_of = {pid: i for i, pid in enumerate(photo_ids)}
+    photo_index = np.empty(table.n_rows, dtype=np.intp)
+    seen: dict[tuple[str, str], int] = {}
+    for row, (pid, mid) in enumerate(zip(photo.tolist(), mark.tolist(), strict=True)):
+        if pid not in order_of:
+            raise ConfigError(f"{table.where(row)}: photo '{pid}' is not in [strip] photos")
+        if mid not in calibrated:
+            raise ConfigError(
+                f"{table.where(row)}: mark '{mid}' is not in [interior_orientation] calibrated"
+                f"{_suggest(mid, list(calibrated))}"
+            )
+        if (pid, mid) in seen:
+            raise ConfigError(
+                f"{table.where(row)}: mark '{mid}' of photo '{pid}' is listed twice "
+                f"(first at line {seen[(pid, mid)]})"
+            )
+        seen[(pid, mid)] = int(table.line[row])
+        photo_index[row] = order_of[pid]
+    need = 2 if kind is FiducialTransform.SIMILARITY else 3
+    counts = np.bincount(photo_index, minlength=len(photo_ids))
+    for i, pid in enumerate(photo_ids):
+        if counts[i] < need:
+            raise ConfigError(
+                f"{path}: photo '{pid}' has {counts[i]} fiducial mark(s); a {kind.value} "
+                f"transformation needs at least {need}"
+            )
+    measured = np.column_stack([x, y])
+    if images.units is ImageUnits.PIXEL:
+        measured = mm_from_pixel(measured, images.pixel_size_mm, images.principal_point_px)  # type: ignore[arg-type]
+    target = np.array([calibrated[m] for m in mark.tolist()], dtype=np.float64).reshape(-1, 2)
+    try:
+        return fit_fiducial_transforms(
+            photo_index,
+            measured,
+            target,
+            photo_ids,
+            kind,
+            marks=tuple(mark.tolist()),
+            scale_tolerance=float(interior["scale_tolerance"]),  # type: ignore[arg-type]
+            difference_tolerance=float(interior["difference_tolerance"]),  # type: ignore[arg-type]
+        )
+    except GeometryError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
 
 
 # --------------------------------------------------------------------------- control
@@ -1220,6 +1528,8 @@ def load_project(path: str | Path) -> Project:
     strip, camera, images = table("strip"), table("camera"), table("images")
     control, adjustment = table("control"), table("adjustment")
     output, report = table("output"), table("report")
+    distortion_table = table("distortion") if "distortion" in doc else None
+    interior = table("interior_orientation") if "interior_orientation" in doc else None
     lines_raw = [
         _check_table(str(toml_path), "straight_line", content, f"[[straight_line]] #{i}")
         for i, content in enumerate(doc.get("straight_line", []), start=1)
@@ -1243,15 +1553,45 @@ def load_project(path: str | Path) -> Project:
     if output["directory"] is not None:
         output_directory = _check_output(
             folder / str(output["directory"]),
-            (toml_path, images_file, control_file),
+            (toml_path, images_file, control_file)
+            + (() if interior is None else (folder / str(interior["fiducials_file"]),)),
             f"{toml_path}: [output] directory",
         )
+
+    image_options = _image_options(toml_path, images)
+    distortion = None
+    if distortion_table is not None:
+        distortion = BrownDistortion(**distortion_table)  # type: ignore[arg-type]
+    fiducials: tuple[FiducialFit, ...] = ()
+    fiducials_file = None
+    warnings: list[str] = []
+    if interior is not None:
+        fiducials_file = folder / str(interior["fiducials_file"])
+        fiducials = _load_fiducials(fiducials_file, photo_ids, image_options, interior)
+        warnings += [f"{fiducials_file}: {fit.message()}" for fit in fiducials if not fit.passed]
+
+    def reduce(xy: FloatArray, photo: IntArray) -> FloatArray:
+        try:
+            return reduce_image_coordinates(
+                xy,
+                photo,
+                principal_distance,
+                units=image_options.units,
+                pixel_size_mm=image_options.pixel_size_mm,
+                principal_point_px=image_options.principal_point_px,
+                fiducials=fiducials or None,
+                principal_point_mm=principal_point,
+                distortion=distortion,
+                flight_direction=image_options.flight_direction,
+            )
+        except ConvergenceError as exc:
+            raise ConfigError(f"{toml_path}: [distortion]: {exc}") from None
 
     observations = _load_images(
         images_file,
         photo_ids,
         principal_distance,
-        principal_point,
+        reduce,
         float(images["sigma_mm"]),  # type: ignore[arg-type]
     )
     table_c, ids, xyz, kinds, sigma_xy, sigma_h = _load_control(
@@ -1259,13 +1599,14 @@ def load_project(path: str | Path) -> Project:
         float(control["sigma_xy_m"]),  # type: ignore[arg-type]
         float(control["sigma_h_m"]),  # type: ignore[arg-type]
     )
-    route, warnings = _check_crs(
+    route, crs_warnings = _check_crs(
         toml_path,
         crs,
         adjustment["route"],  # type: ignore[arg-type]
         table_c,
         xyz,
     )
+    warnings += crs_warnings
 
     observed = set(observations.point_ids)
     is_observed = np.fromiter((i in observed for i in ids.tolist()), bool, count=ids.shape[0])
@@ -1337,6 +1678,8 @@ def load_project(path: str | Path) -> Project:
         intersection=adjustment["intersection"],  # type: ignore[arg-type]
         scale_transfer=adjustment["scale_transfer"],  # type: ignore[arg-type]
         max_iterations=int(adjustment["max_iterations"]),  # type: ignore[call-overload]
+        photo_step=adjustment["photo_step"],  # type: ignore[arg-type]
+        min_base_to_height=float(adjustment["min_base_to_height"]),  # type: ignore[arg-type]
     )
     map_scale = report["map_scale"]
     return Project(
@@ -1354,4 +1697,8 @@ def load_project(path: str | Path) -> Project:
         images_file=images_file,
         control_file=control_file,
         report=ReportOptions(None if map_scale is None else float(map_scale)),  # type: ignore[arg-type]
+        images=image_options,
+        distortion=distortion,
+        fiducials=fiducials,
+        fiducials_file=fiducials_file,
     )
