@@ -718,7 +718,7 @@ def _figure_layout(result, plan: _Plan, roles: np.ndarray) -> str:
             zorder=z,
             label=f"{label} ({int(np.count_nonzero(ok & (roles == role)))})",
             linewidths=1.0 if marker == "x" else 0.4,
-            edgecolors=colour if marker in (".", "x") else "black",
+            **({} if marker in (".", "x") else {"edgecolors": "black"}),
         )
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
