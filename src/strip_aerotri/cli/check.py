@@ -1,0 +1,297 @@
+"""``stripaero check``: validate a project without adjusting it.
+
+Loading (files, columns, ids, options) stops at the first problem, as
+:func:`strip_aerotri.config.load_project` does.  The geometric checks that
+follow are counts on the observations and the control, the same rules that
+strip formation and the ground stage apply, and every problem found is listed:
+
+* each consecutive pair has at least five points measured on both photos
+  (relative orientation, J(5)-(10));
+* each model after the first shares at least one tie point with the previous
+  model (a point measured on all three photos; scale transfer, J(15));
+* enough control that a pair of photos determines: at least two full or plan
+  points and three full or height points, the plan points not coinciding and
+  the height points not all in one vertical plane (similarity, J(14));
+* enough control for the chosen deformation polynomial (J(16): 4, 5 or 6
+  plan and height points for types 1, 2, 3);
+* every straight-line point is measured on both photos of a pair (J(18));
+* the output folder may be written.
+
+The model-space tests of the run (degenerate pairs, collinearity in the
+model, convergence) need the adjustment and are not repeated here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import click
+import numpy as np
+
+from .options import (
+    DOCS_EPILOG,
+    common_options,
+    echo_error,
+    echo_progress,
+    echo_result,
+    echo_warning,
+    project_arg,
+)
+
+__all__ = ["CheckReport", "check", "check_project"]
+
+
+@dataclass
+class CheckReport:
+    """Findings of :func:`check_project`.
+
+    Attributes
+    ----------
+    problems : list of str
+        Rules broken (each one line naming the file and the pair, model or points).
+    warnings : list of str
+        Valid but doubtful findings.
+    summary : list of str
+        Lines describing the project.
+    details : list of str
+        Per-pair figures (shown with ``-v``).
+    """
+
+    problems: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    summary: list[str] = field(default_factory=list)
+    details: list[str] = field(default_factory=list)
+
+
+def _quote(ids, limit: int = 8) -> str:
+    ids = list(ids)
+    text = ", ".join(f"'{i}'" for i in ids[:limit])
+    return text + (f" and {len(ids) - limit} more" if len(ids) > limit else "")
+
+
+def _plan_metres(xy: np.ndarray, geographic: bool) -> np.ndarray:
+    """Plan coordinates scaled to comparable units (degrees of longitude shrunk by cos φ)."""
+    if not geographic or xy.shape[0] == 0:
+        return xy
+    lat = np.deg2rad(np.mean(xy[:, 1]))
+    return np.column_stack([xy[:, 0] * np.cos(lat), xy[:, 1]])
+
+
+def check_project(project, out: Path | None = None) -> CheckReport:
+    """Check the geometry of a loaded project without adjusting it.
+
+    Parameters
+    ----------
+    project : strip_aerotri.config.Project
+        A project from :func:`strip_aerotri.config.load_project`.
+    out : Path, optional
+        The ``--out`` folder a run would use.
+
+    Returns
+    -------
+    CheckReport
+    """
+    from ..chaining import pair_rows
+    from ..deformation import n_terms
+    from ..errors import StripAerotriError
+    from ..relative import MIN_POINTS_PER_PAIR
+    from ..similarity import COINCIDENT_RTOL, COLLINEAR_RTOL
+    from .run import output_folder
+
+    rep = CheckReport()
+    obs = project.observations
+    images = project.images_file
+    control_file = project.control_file
+    ids = obs.photo_ids
+    n_photos = obs.n_photos
+    n_models = n_photos - 1
+    labels = [f"pair {ids[m]}-{ids[m + 1]}" for m in range(n_models)]
+
+    # Pairs: points on both photos (same rows as strip formation).
+    seq = np.arange(n_photos, dtype=np.intp)
+    model, point, _, _ = pair_rows(obs, seq)
+    counts = np.bincount(model, minlength=n_models)
+    rep.problems += [
+        f"{images}: {labels[m]}: {counts[m]} point(s) measured on both photos; relative "
+        f"orientation needs at least {MIN_POINTS_PER_PAIR}"
+        for m in np.flatnonzero(counts < MIN_POINTS_PER_PAIR)
+    ]
+
+    # Tie points: a point determined in model m and in model m - 1.
+    n_pts = max(obs.n_points, 1)
+    key_now = model.astype(np.int64) * n_pts + point
+    key_prev = (model.astype(np.int64) + 1) * n_pts + point
+    _, i_now, _ = np.intersect1d(key_now, key_prev, assume_unique=True, return_indices=True)
+    ties = np.bincount(model[i_now], minlength=n_models)
+    rep.problems += [
+        f"{images}: {labels[m]} shares no tie point with {labels[m - 1]} (no point is "
+        f"measured on all three photos {ids[m - 1]}, {ids[m]}, {ids[m + 1]}): the scale "
+        "cannot be transferred"
+        for m in np.flatnonzero(ties[1:] == 0) + 1
+    ]
+    rep.details += [
+        f"{labels[m]}: {counts[m]} common points, "
+        + ("first model" if m == 0 else f"{ties[m]} tie points with the previous model")
+        for m in range(n_models)
+    ]
+
+    triangulable = np.zeros(obs.n_points, dtype=bool)
+    triangulable[point] = True
+
+    # Control.
+    ctrl = project.control
+    lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
+    row_point = np.array([lookup.get(p, -1) for p in ctrl.point_ids], dtype=np.intp)
+    ok = np.zeros(len(ctrl.point_ids), dtype=bool)
+    ok[row_point >= 0] = triangulable[row_point[row_point >= 0]]
+    lost = [p for p, good in zip(ctrl.point_ids, ok, strict=True) if not good]
+    if lost:
+        rep.warnings.append(
+            f"{control_file}: {len(lost)} control or check point(s) not measured on both photos "
+            f"of any pair cannot be triangulated and will be left out: {_quote(lost)}"
+        )
+    uses_xy = ctrl.uses_xy & ok
+    uses_h = ctrl.uses_h & ok
+    plan_ids = [ctrl.point_ids[i] for i in np.flatnonzero(uses_xy)]
+    height_ids = [ctrl.point_ids[i] for i in np.flatnonzero(uses_h)]
+    n_plan, n_height = len(plan_ids), len(height_ids)
+    geographic = False
+    if not project.is_local:
+        import pyproj
+
+        geographic = pyproj.CRS.from_user_input(project.crs).is_geographic
+
+    if n_plan < 2:
+        rep.problems.append(
+            f"{control_file}: the similarity transformation needs at least two full or plan "
+            f"control points measured on a pair, got {n_plan}"
+            + (f": {_quote(plan_ids)}" if plan_ids else "")
+        )
+    else:
+        xy = _plan_metres(ctrl.xyz[uses_xy, :2], geographic)
+        spread = float(np.max(np.ptp(xy, axis=0)))
+        every = _plan_metres(ctrl.xyz[:, :2][np.isfinite(ctrl.xyz[:, :2]).all(axis=1)], geographic)
+        extent = float(np.max(np.ptp(every, axis=0)))
+        if spread == 0.0 or spread <= COINCIDENT_RTOL * extent:
+            rep.problems.append(
+                f"{control_file}: the plan control points coincide (scale and azimuth are "
+                f"undetermined): {_quote(plan_ids)}"
+            )
+    if n_height < 3:
+        rep.problems.append(
+            f"{control_file}: the similarity transformation needs at least three full or "
+            f"height control points measured on a pair, got {n_height}"
+            + (f": {_quote(height_ids)}" if height_ids else "")
+        )
+    else:
+        hxy = ctrl.xyz[uses_h, :2]
+        if np.isfinite(hxy).all():
+            hxy = _plan_metres(hxy, geographic)
+            sv = np.linalg.svd(hxy - hxy.mean(axis=0), compute_uv=False)
+            ratio = 0.0 if sv[0] == 0.0 else float(sv[1] / sv[0])
+            if ratio < COLLINEAR_RTOL:
+                rep.problems.append(
+                    f"{control_file}: the height control points all lie in one vertical plane "
+                    f"(collinear in plan, singular value ratio {ratio:.1e}); the tilt across it "
+                    f"is undetermined: {_quote(height_ids)}"
+                )
+
+    # Straight lines.
+    for i, line in enumerate(project.straight_lines, start=1):
+        missing = [p for p in line.point_ids if not triangulable[lookup[p]]]
+        if missing:
+            rep.problems.append(
+                f"{project.path}: [[straight_line]] #{i} ('{line.name}'): point(s) "
+                f"{_quote(missing)} are not measured on both photos of any pair"
+            )
+
+    # Polynomial.
+    kind = project.adjustment.polynomial
+    if kind != "auto" and n_plan >= 2 and n_height >= 3:
+        need = n_terms(int(kind))
+        for axis, count, what in (
+            ("X", n_plan, "full or plan control points"),
+            ("Z", n_height, "full or height control points"),
+        ):
+            if count < need:
+                rep.problems.append(
+                    f"{control_file}: polynomial type {kind} ([adjustment] polynomial in "
+                    f"{project.path}) needs at least {need} {what} for {axis}, got {count}"
+                )
+
+    # Output folder.
+    try:
+        target = output_folder(project, out)
+    except StripAerotriError as exc:
+        rep.problems.append(str(exc))
+        target = None
+
+    kinds = [k.value for k in ctrl.kind]
+    by_kind = ", ".join(f"{kinds.count(k)} {k}" for k in ("full", "plan", "height", "check"))
+    tie_text = (
+        f"; tie points per model {int(ties[1:].min())}..{int(ties[1:].max())}"
+        if n_models > 1
+        else ""
+    )
+    poly = "auto" if kind == "auto" else f"{kind} (needs {n_terms(int(kind))} per coordinate)"
+    rep.summary += [
+        f"project '{project.name}': {project.path}",
+        f"photos: {n_photos} ({ids[0]} ... {ids[-1]}), {n_models} pairs",
+        f"image points: {obs.n_points} on {len(obs.photo)} observations, "
+        f"{int(triangulable.sum())} measured on a pair",
+        f"pairs: {int(counts.min())}..{int(counts.max())} common points{tie_text}",
+        f"control: {by_kind}; usable {n_plan} plan, {n_height} height",
+        f"straight lines: {len(project.straight_lines)}",
+        f"crs: {project.crs}; route {project.adjustment.route.value}; polynomial {poly}",
+    ]
+    if target is not None:
+        rep.summary.append(f"output folder: {target}")
+    return rep
+
+
+@click.command(epilog=DOCS_EPILOG, short_help="Validate a project without adjusting it.")
+@project_arg
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Check this result folder instead of the project's.",
+)
+@common_options
+def check(project_file: Path, out: Path | None) -> None:
+    """Validate STRIP_TOML and its CSV files without adjusting.
+
+    Reads the project like `stripaero run` and then checks the geometry by
+    counting: at least five common points per pair, a tie point between
+    consecutive models, enough control (two plan, three height points, not
+    degenerate; the polynomial's minimum) and straight-line points measured
+    on a pair. Exits with 0 and a summary when the project can be run; with
+    1 and one line per problem otherwise (loading stops at the first
+    problem, the geometric checks list all).
+
+    \b
+    Examples:
+      stripaero check examples/film-strip/strip.toml
+      stripaero check -v strip.toml          # with per-pair figures
+    """
+    from .. import config
+
+    echo_progress(f"loading {project_file}")
+    project = config.load_project(project_file)
+    rep = check_project(project, out)
+    if rep.problems:
+        for message in rep.problems:
+            echo_error(message)
+        raise click.exceptions.Exit(1)
+    for message in (*project.warnings, *rep.warnings):
+        echo_warning(message)
+    for line in rep.summary:
+        echo_result(line)
+    from .options import settings
+
+    if settings().level >= 1:
+        for line in rep.details:
+            echo_result("  " + line)
+    echo_result("OK: the project can be run")

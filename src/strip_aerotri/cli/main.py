@@ -1,0 +1,83 @@
+"""The ``stripaero`` command group and the translation of errors into exit codes.
+
+Exit codes (formats.md): ``0`` success; ``1`` bad input or an adjustment that
+cannot be done, with one line ``stripaero: error: <message>`` on stderr (the
+message names the file, line or point and the rule broken); ``2`` usage
+errors reported by click.  Exceptions are translated here only, at the
+boundary; ``--debug`` adds the Python traceback.
+"""
+
+from __future__ import annotations
+
+import traceback
+
+import click
+
+from .. import __version__
+from .check import check
+from .options import DOCS_EPILOG, Settings, common_options, echo_error, settings
+from .run import run
+from .simulate import simulate
+
+__all__ = ["cli"]
+
+
+class StripaeroGroup(click.Group):
+    """A click group that gives each invocation fresh :class:`Settings` and
+    turns exceptions into one line on stderr and exit code 1."""
+
+    def make_context(self, info_name, args, parent=None, **extra):
+        extra.setdefault("obj", Settings())
+        return super().make_context(info_name, args, parent=parent, **extra)
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except Exception as exc:  # the boundary: every other error becomes exit code 1
+            report_exception(exc, settings(ctx).debug)
+            ctx.exit(1)
+
+
+def report_exception(exc: BaseException, debug: bool) -> None:
+    """Print ``exc`` as one error line (with the traceback first when ``debug``)."""
+    from ..errors import StripAerotriError
+
+    if debug:
+        click.echo("".join(traceback.format_exception(exc)).rstrip(), err=True)
+    if isinstance(exc, StripAerotriError):
+        echo_error(str(exc))
+    elif isinstance(exc, OSError) and exc.filename is not None:
+        echo_error(f"{exc.filename}: {exc.strerror or exc}")
+    else:
+        hint = "" if debug else " (run with --debug for details)"
+        echo_error(f"unexpected {type(exc).__name__}: {exc}{hint}")
+
+
+@click.group(
+    cls=StripaeroGroup,
+    epilog=DOCS_EPILOG,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+@click.version_option(__version__, "--version", prog_name="stripaero")
+@common_options
+def cli() -> None:
+    """Strip aerotriangulation by partially dependent models.
+
+    Reads a project (strip.toml with image_points.csv and control.csv), forms
+    the strip model by dependent relative orientation, scale transfer and
+    chaining, fits it to the ground control (similarity and deformation
+    polynomials) and writes points.csv, photos.csv, report.json and a report.
+
+    \b
+    Examples:
+      stripaero simulate film --out demo        # a ready project to try
+      stripaero check demo/strip.toml           # validate without adjusting
+      stripaero run demo/strip.toml             # adjust; results in demo/out
+    """
+
+
+cli.add_command(run)
+cli.add_command(check)
+cli.add_command(simulate)

@@ -1,0 +1,159 @@
+"""Options and output helpers shared by the ``stripaero`` commands.
+
+The options ``-v/--verbose``, ``-q/--quiet`` and ``--debug`` are accepted both
+by the group (``stripaero -q run ...``) and by each command (``stripaero run
+... -q``); either place sets the same :class:`Settings` object of the
+invocation.  Nothing here imports the numerical modules, so ``stripaero
+--help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import click
+
+__all__ = [
+    "DOCS_EPILOG",
+    "Settings",
+    "common_options",
+    "debug_opt",
+    "echo_error",
+    "echo_progress",
+    "echo_warning",
+    "one_line",
+    "project_arg",
+    "quiet_opt",
+    "settings",
+    "verbose_opt",
+]
+
+PROG = "stripaero"
+
+DOCS_EPILOG = (
+    "Documentation: docs/cli.md (commands), docs/project-file.md (strip.toml and CSVs), "
+    "docs/outputs.md (results), docs/troubleshooting.md (error messages)."
+)
+
+
+@dataclass
+class Settings:
+    """Output settings of one invocation.
+
+    Attributes
+    ----------
+    verbose : int
+        Number of ``-v`` given (group and command together).
+    quiet : int
+        Number of ``-q`` given.
+    debug : bool
+        Show tracebacks of errors.
+    """
+
+    verbose: int = 0
+    quiet: int = 0
+    debug: bool = False
+
+    @property
+    def level(self) -> int:
+        """Verbosity: 0 normal, < 0 quieter, > 0 more detail."""
+        return self.verbose - self.quiet
+
+    @property
+    def log_level(self) -> int:
+        """The ``logging`` level of the verbosity (WARNING by default)."""
+        return max(logging.DEBUG, min(logging.CRITICAL, logging.WARNING - 10 * self.level))
+
+
+def settings(ctx: click.Context | None = None) -> Settings:
+    """The :class:`Settings` of the current invocation (created if missing)."""
+    ctx = ctx or click.get_current_context()
+    found = ctx.find_object(Settings)
+    if found is None:
+        found = ctx.find_root().ensure_object(Settings)
+    return found
+
+
+def _add_count(name: str):
+    def callback(ctx: click.Context, param: click.Parameter, value: int) -> None:
+        if value:
+            obj = settings(ctx)
+            setattr(obj, name, getattr(obj, name) + int(value))
+            logging.getLogger("strip_aerotri").setLevel(obj.log_level)
+
+    return callback
+
+
+def _set_debug(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    if value:
+        settings(ctx).debug = True
+
+
+verbose_opt = click.option(
+    "-v",
+    "--verbose",
+    count=True,
+    expose_value=False,
+    callback=_add_count("verbose"),
+    help="More detail (repeat for more).",
+)
+quiet_opt = click.option(
+    "-q",
+    "--quiet",
+    count=True,
+    expose_value=False,
+    callback=_add_count("quiet"),
+    help="No progress messages; -qq also hides warnings and the summary.",
+)
+debug_opt = click.option(
+    "--debug",
+    is_flag=True,
+    expose_value=False,
+    callback=_set_debug,
+    help="Show the Python traceback of an error.",
+)
+
+
+def common_options(func):
+    """Apply ``-v``, ``-q`` and ``--debug`` to a command."""
+    return verbose_opt(quiet_opt(debug_opt(func)))
+
+
+# Not ``exists=True``: a missing project file is bad input (exit 1, one line from
+# the loader), not a usage error (exit 2), as formats.md counts it.
+project_arg = click.argument(
+    "project_file",
+    metavar="STRIP_TOML",
+    type=click.Path(path_type=Path),
+)
+
+
+def one_line(text: object) -> str:
+    """``text`` as one line (line breaks become ``"; "``)."""
+    parts = [part.strip() for part in str(text).splitlines() if part.strip()]
+    return "; ".join(parts)
+
+
+def echo_error(message: object) -> None:
+    """``stripaero: error: <message>`` on stderr (always shown)."""
+    click.echo(f"{PROG}: error: {one_line(message)}", err=True)
+
+
+def echo_warning(message: object) -> None:
+    """``stripaero: warning: <message>`` on stderr unless ``-qq``."""
+    if settings().level >= -1:
+        click.echo(f"{PROG}: warning: {one_line(message)}", err=True)
+
+
+def echo_progress(message: object, *, level: int = 0) -> None:
+    """A progress message on stderr, shown when the verbosity is at least ``level``."""
+    if settings().level >= level:
+        click.echo(f"{PROG}: {one_line(message)}", err=True)
+
+
+def echo_result(message: str = "") -> None:
+    """A line of the result summary on stdout unless ``-qq``."""
+    if settings().level >= -1:
+        click.echo(message)

@@ -1,0 +1,190 @@
+"""``stripaero run``: adjust a project and write its result folder."""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from pathlib import Path
+
+import click
+
+from .options import (
+    DOCS_EPILOG,
+    common_options,
+    echo_progress,
+    echo_result,
+    echo_warning,
+    project_arg,
+)
+
+__all__ = ["output_folder", "run"]
+
+DEFAULT_OUTPUT = "out"
+"""Result folder (inside the project folder) when neither --out nor [output] directory is given."""
+
+
+def output_folder(project, out: Path | None) -> Path:
+    """The result folder of a run and its checks against the project's inputs.
+
+    ``--out`` (relative to the current folder) wins over ``[output] directory``
+    (relative to the project folder); without either the result goes to
+    ``out`` beside ``strip.toml``.
+
+    Raises
+    ------
+    ConfigError
+        The folder is the project folder, holds an input file or is a file.
+    OutputError
+        The folder exists, is not empty and is not a previous result folder.
+    """
+    from ..config import check_output_directory
+
+    if out is not None:
+        target = check_output_directory(out, project, source="--out")
+    elif project.output_directory is not None:
+        target = project.output_directory
+    else:
+        target = check_output_directory(
+            project.path.parent / DEFAULT_OUTPUT, project, source="default output folder"
+        )
+    _check_replaceable(target, project.input_files)
+    return target
+
+
+def _check_replaceable(target: Path, inputs) -> None:
+    """Refuse early (before adjusting) what :class:`~strip_aerotri.io.ResultFolder` refuses."""
+    from ..io import RESULT_MARKER, OutputError
+
+    if target.is_symlink():
+        raise OutputError(f"output folder '{target}' is a symbolic link; give the real folder")
+    if not target.exists():
+        return
+    if not target.is_dir():
+        raise OutputError(f"output folder '{target}' is a file, not a folder")
+    if not (target / RESULT_MARKER).is_file() and any(target.iterdir()):
+        raise OutputError(
+            f"output folder '{target}' is not empty and is not a stripaero result folder "
+            f"(no {RESULT_MARKER} file); refusing to replace it: choose another --out or "
+            "empty it"
+        )
+    resolved = target.resolve()
+    for item in inputs:
+        item_path = Path(item).resolve()
+        if item_path == resolved or resolved in item_path.parents:
+            raise OutputError(
+                f"output folder '{target}' contains the input file '{item}'; refusing to "
+                "replace it"
+            )
+
+
+def _fmt_m(value: float) -> str:
+    return "n/a" if not math.isfinite(value) else f"{value:.3f} m"
+
+
+def _report_name(names) -> str | None:
+    """The human-readable report among the output file names."""
+    for preferred in ("report.html", "report.md"):
+        if preferred in names:
+            return preferred
+    for name in names:
+        if name.startswith("report.") and not name.endswith(".json"):
+            return name
+    return "report.json" if "report.json" in names else None
+
+
+@click.command(
+    epilog=DOCS_EPILOG,
+    short_help="Adjust a strip and write the results.",
+)
+@project_arg
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Result folder (replaced as a whole). Default: [output] directory of the "
+    "project, else 'out' beside strip.toml.",
+)
+@click.option(
+    "--map-scale",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=None,
+    metavar="N",
+    help="Map scale denominator (5000 for 1:5000) for the tolerance verdicts of the "
+    "report; overrides [report] map_scale.",
+)
+@common_options
+def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
+    """Adjust the strip of STRIP_TOML and write the result folder.
+
+    Loads and validates the project, forms the strip model, fits it to the
+    control and writes points.csv, photos.csv, report.json and the report
+    into the result folder. The folder is replaced as a whole, only when the
+    run succeeds; a folder that is not a previous result is never touched.
+
+    \b
+    Examples:
+      stripaero run examples/film-strip/strip.toml
+      stripaero run strip.toml --out results/2024-05 --map-scale 5000
+      stripaero -q run strip.toml            # no progress messages
+    """
+    from .. import config, pipeline
+    from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+    from ..io import ResultFolder
+
+    started = time.perf_counter()
+    echo_progress(f"loading {project_file}")
+    project = config.load_project(project_file)
+    target = output_folder(project, out)
+    echo_progress(
+        f"project '{project.name}': {len(project.photo_ids)} photos, "
+        f"{project.observations.n_points} points, {len(project.control.point_ids)} control "
+        f"and check points, crs {project.crs}"
+    )
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", StripAerotriWarning)
+        try:
+            result = pipeline.run_project(project, progress=echo_progress)
+        except (GeometryError, ConvergenceError) as exc:
+            raise type(exc)(f"{project.path}: {exc}") from exc
+        echo_progress("writing the report")
+        from .. import report
+
+        scale = map_scale if map_scale is not None else project.report.map_scale
+        files = report.build_outputs(result, project=project, map_scale=scale)
+
+    # Warnings only once the run has succeeded: a failed run prints its one error line.
+    shown: set[str] = set()
+    for text in (*project.warnings, *result.warnings, *(str(w.message) for w in caught)):
+        if text not in shown:
+            shown.add(text)
+            echo_warning(text)
+
+    echo_progress(f"writing {len(files)} files to {target}")
+    with ResultFolder(target, protect=project.input_files) as folder:
+        for name, data in files.items():
+            folder.write_bytes(name, data if isinstance(data, bytes) else str(data).encode())
+
+    elapsed = time.perf_counter() - started
+    n_done = int(result.strip.triangulated.sum())
+    control = result.control_statistics
+    check = result.check_statistics
+    echo_result(f"strip '{project.name}': {len(result.photo_ids)} photos, {n_done} points")
+    echo_result(
+        f"control: {control.n_plan} plan, {control.n_height} height; "
+        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}"
+    )
+    if check.n_plan or check.n_height:
+        echo_result(
+            f"check points: {check.n_plan} plan, {check.n_height} height; "
+            f"RMSE plan {_fmt_m(check.rmse_plan)}, height {_fmt_m(float(check.rmse[2]))}"
+        )
+    else:
+        echo_result("check points: none")
+    report_name = _report_name(files)
+    if report_name is not None:
+        echo_result(f"report: {target / report_name}")
+    echo_result(f"results: {target}")
+    echo_progress(f"done in {elapsed:.1f} s", level=1)
