@@ -551,6 +551,13 @@ def test_run_quiet_levels(project):
     assert result.output == ""
 
 
+def test_run_verbose_details(project):
+    result = invoke("run", "-v", project)
+    assert result.exit_code == 0
+    assert result.stderr.count("sigma0") == 5  # one line per pair of the 6-photo strip
+    assert "pair 1002-1003" in result.stderr and "tie points" in result.stderr
+
+
 def test_run_prints_loader_warning(project):
     rows = read_rows(project.parent / "control.csv")
     rows.append(["G99", "500000.0", "4649000.0", "150.0", "full"] + [""] * (len(rows[0]) - 5))
@@ -676,3 +683,21 @@ def test_usage_errors_exit_2(args, tmp_path, monkeypatch):
     assert result.exit_code == 2, result.output
     assert "Usage:" in result.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+# --------------------------------------------------------------------------- bundled examples
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+@pytest.mark.parametrize("name", ["film-strip", "drone-corridor"])
+def test_bundled_example_runs(tmp_path, name):
+    toml = EXAMPLES / name / "strip.toml"
+    before = snapshot(EXAMPLES / name)
+    assert invoke("-q", "check", toml).exit_code == 0
+    result = invoke("-q", "run", toml, "--out", tmp_path / "out")
+    assert result.exit_code == 0, result.output
+    assert "criteria met" in result.stdout  # [report] map_scale of the example
+    out = read_rows(tmp_path / "out" / "points.csv")
+    assert len(out) > 100
+    assert snapshot(EXAMPLES / name) == before

@@ -82,6 +82,43 @@ def _fmt_m(value: float) -> str:
     return "n/a" if not math.isfinite(value) else f"{value:.3f} m"
 
 
+def _tolerance_verdict(report_json: bytes | None) -> str | None:
+    """One line on the tolerance criteria of report.json, if it has them."""
+    import json
+
+    try:
+        tolerances = json.loads(report_json or b"{}").get("tolerances") or {}
+        scale = float(tolerances["map_scale"])
+        criteria = tolerances["criteria"]
+        failed = [c["name"] for c in criteria if c.get("passed") is False]
+    except (ValueError, KeyError, TypeError, AttributeError):
+        return None
+    head = f"tolerances for 1:{scale:g}: "
+    if failed:
+        return head + f"{len(failed)} of {len(criteria)} criteria failed ({', '.join(failed)})"
+    return head + f"all {len(criteria)} criteria met"
+
+
+def _echo_details(result) -> None:
+    """Per-pair and per-model figures on stderr with ``-v``."""
+    strip = result.strip
+    rel = strip.relative
+    for m, label in enumerate(strip.model_labels):
+        tie = (
+            ""
+            if m == 0
+            else f", {int(strip.tie_count[m])} tie points, scale ratio {strip.scale_ratio[m]:.5f}"
+        )
+        echo_progress(
+            f"{label}: {int(rel.n_points[m])} points, sigma0 {rel.sigma0_um[m]:.1f} µm, "
+            f"largest y-parallax {rel.max_parallax_um[m]:.1f} µm, "
+            f"{int(rel.iterations[m])} iterations{tie}",
+            level=1,
+        )
+    for stage, seconds in result.timings.items():
+        echo_progress(f"{stage}: {seconds:.2f} s", level=1)
+
+
 def _report_name(names) -> str | None:
     """The human-readable report among the output file names."""
     for preferred in ("report.html", "report.md"):
@@ -167,6 +204,7 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         for name, data in files.items():
             folder.write_bytes(name, data if isinstance(data, bytes) else str(data).encode())
 
+    _echo_details(result)
     elapsed = time.perf_counter() - started
     n_done = int(result.strip.triangulated.sum())
     control = result.control_statistics
@@ -183,6 +221,9 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         )
     else:
         echo_result("check points: none")
+    verdict = _tolerance_verdict(files.get("report.json"))
+    if verdict:
+        echo_result(verdict)
     report_name = _report_name(files)
     if report_name is not None:
         echo_result(f"report: {target / report_name}")
