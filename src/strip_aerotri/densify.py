@@ -89,7 +89,7 @@ def model_photo_index(n_photos: int, photo_step: int) -> IntArray:
     >>> model_photo_index(13, 3)
     array([ 0,  3,  6,  9, 12])
     >>> model_photo_index(12, 3)
-    array([ 0,  3,  5,  8, 11])
+    array([ 0,  3,  6,  8, 11])
     """
     n = int(n_photos)
     k = int(photo_step)

@@ -352,9 +352,13 @@ def correct_distortion(
     from .errors import ConvergenceError
 
     ideal = measured.copy()
+    step = float("nan")
     for _ in range(max_iterations):
-        new = measured - distortion_shift(ideal, distortion, principal_distance_mm)
-        step = float(np.max(np.abs(new - ideal), initial=0.0))
+        with np.errstate(over="ignore", invalid="ignore"):
+            new = measured - distortion_shift(ideal, distortion, principal_distance_mm)
+            step = float(np.max(np.abs(new - ideal), initial=0.0))
+        if not np.isfinite(step):
+            break
         ideal = new
         if step <= tolerance_mm:
             return ideal
