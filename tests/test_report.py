@@ -334,3 +334,32 @@ def test_html_local_crs(local):
     page = local[2]["report.html"].decode("utf-8")
     assert page.count("<img") == 4
     assert "points.geojson not written" in page
+
+
+def test_report_enums_are_plain_strings(utm):
+    _, _, files = utm
+    report = json.loads(files["report.json"])
+    assert report["ground"]["route"] == "geocentric"
+    assert report["options"]["intersection"] in ("midpoint", "normal")
+    page = files["report.html"].decode("utf-8")
+    assert "Route." not in page and "geocentric" in page
+
+
+def test_long_strip_drawn_along_its_axis(monkeypatch, utm):
+    import strip_aerotri.report as rep
+
+    _, result, _ = utm
+    calls = []
+    original = rep._figure_residuals_along
+
+    def spy(*args):
+        calls.append(args)
+        return original(*args)
+
+    monkeypatch.setattr(rep, "_figure_residuals_along", spy)
+    build_html(result, build_report(result))
+    assert calls == []  # 7 photos of a corridor: drawn to scale
+    monkeypatch.setattr(rep, "LONG_STRIP_RATIO", 0.1)
+    page = build_html(result, build_report(result))
+    assert len(calls) == 1
+    assert page.count("<img") == 4

@@ -14,6 +14,7 @@ import datetime as _dt
 import json
 import math
 from collections.abc import Mapping, Sequence
+from enum import Enum
 from typing import Any
 
 import numpy as np
@@ -49,6 +50,8 @@ _TERM_NAMES = ("1", "X", "Y", "XY", "X^2", "X^3")
 
 def _clean(value: Any) -> Any:
     """Plain JSON types: numpy scalars and arrays converted, NaN/inf -> None."""
+    if isinstance(value, Enum):
+        return _clean(value.value)
     if isinstance(value, Mapping):
         return {str(k): _clean(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -64,8 +67,6 @@ def _clean(value: Any) -> Any:
         return value if math.isfinite(value) else None
     if value is None or isinstance(value, str):
         return value
-    if hasattr(value, "value") and isinstance(value.value, str):  # Enum
-        return value.value
     return str(value)
 
 
@@ -547,15 +548,17 @@ def points_geojson(result) -> str | None:
 # --------------------------------------------------------------------------- figures
 
 _MAX_PLOT_POINTS = 20000
+LONG_STRIP_RATIO = 8.0
+"""A strip longer than this times its width is drawn along its axis, not to scale."""
 _ROLE_STYLE = {
     # role: (label, marker, colour, size, zorder)
     "tie": ("tie points", ".", "#9a9a9a", 4, 2),
     "model": ("points in one model", ".", "#c8c8c8", 4, 2),
     "line": ("straight-line points", "x", "#e67e00", 22, 4),
-    "control-full": ("full control", "^", "#c0392b", 60, 6),
-    "control-plan": ("plan control", ">", "#2471a3", 55, 6),
-    "control-height": ("height control", "o", "#1e8449", 45, 6),
-    "check": ("check points", "s", "#8e44ad", 45, 7),
+    "check": ("check points", "s", "#8e44ad", 40, 6),
+    "control-full": ("full control", "^", "#c0392b", 60, 7),
+    "control-plan": ("plan control", ">", "#2471a3", 55, 7),
+    "control-height": ("height control", "o", "#1e8449", 45, 7),
 }
 
 
@@ -595,6 +598,19 @@ class _Plan:
         else:
             self.unit = "m"
         self.centres = centres
+        cxy = self.xy(centres)
+        good = np.isfinite(cxy).all(axis=1)
+        self.axis_start = cxy[good][0] if good.any() else np.zeros(2)
+        self.axis_end = cxy[good][-1] if good.any() else np.array([1.0, 0.0])
+        self.long = False
+
+    def decide_long(self, xy: np.ndarray) -> None:
+        """Use strip axes (not to scale) when the strip is much longer than wide."""
+        sa = self.strip_axes(xy[np.isfinite(xy).all(axis=1)])
+        if sa.size:
+            length = float(np.ptp(sa[:, 0]))
+            width = float(np.ptp(sa[:, 1]))
+            self.long = length > LONG_STRIP_RATIO * max(width, 1e-9)
 
     def xy(self, xyh: np.ndarray) -> np.ndarray:
         xyh = np.asarray(xyh, dtype=np.float64)
@@ -607,6 +623,20 @@ class _Plan:
                 (xyh[:, 1] - self.lat0) * k,
             ]
         )
+
+    def strip_axes(self, xy: np.ndarray) -> np.ndarray:
+        """(N, 2) plan xy -> (along, across): metres from the first photo along the
+        line to the last one, and to its left."""
+        d = self.axis_end - self.axis_start
+        u = d / (np.hypot(d[0], d[1]) or 1.0)
+        rel = np.asarray(xy, dtype=np.float64) - self.axis_start
+        return np.stack([rel @ u, rel @ np.array([-u[1], u[0]])], axis=-1)
+
+    def vectors_to_strip(self, de: np.ndarray, dn: np.ndarray) -> np.ndarray:
+        """Plan vectors (grid east, north) -> (along, across) components."""
+        d = self.axis_end - self.axis_start
+        u = d / (np.hypot(d[0], d[1]) or 1.0)
+        return np.stack([de * u[0] + dn * u[1], -de * u[1] + dn * u[0]], axis=-1)
 
     def convergence(self, xyh: np.ndarray) -> np.ndarray:
         if self.crs.is_local or self.geographic:
@@ -637,7 +667,16 @@ def _footprints(result, plan: _Plan) -> np.ndarray | None:
     rays = np.einsum("mij,kj->mki", rot, corners)  # (M, 4, 3) east, north, up
     centres = np.asarray(result.photo_centres, dtype=np.float64)
     points = np.asarray(result.points, dtype=np.float64)
-    h = np.nanmedian(points[:, 2]) if np.isfinite(points[:, 2]).any() else 0.0
+    # mean height of the points seen on each photo (median of all where none)
+    position = np.full(obs.n_photos, -1, dtype=np.intp)
+    position[np.asarray(result.strip.photo_index)] = np.arange(len(centres))
+    row_photo = position[np.asarray(obs.photo)]
+    row_h = points[np.asarray(obs.point), 2]
+    use = (row_photo >= 0) & np.isfinite(row_h)
+    total = np.bincount(row_photo[use], weights=row_h[use], minlength=len(centres))
+    count = np.bincount(row_photo[use], minlength=len(centres))
+    fallback = float(np.nanmedian(points[:, 2])) if np.isfinite(points[:, 2]).any() else 0.0
+    h = np.where(count > 0, total / np.maximum(count, 1), fallback)
     depth = centres[:, 2] - h
     with np.errstate(divide="ignore", invalid="ignore"):
         t = -depth[:, None] / rays[:, :, 2]
@@ -669,8 +708,13 @@ def _figure_layout(result, plan: _Plan, roles: np.ndarray) -> str:
     pxy = np.full((len(points), 2), np.nan)
     pxy[ok] = plan.xy(points[ok])
     cxy = plan.xy(plan.centres)
-    fig, ax = plt.subplots(figsize=(10, 6.5))
     feet = _footprints(result, plan)
+    if plan.long:
+        pxy = plan.strip_axes(pxy)
+        cxy = plan.strip_axes(cxy)
+        if feet is not None and len(feet):
+            feet = plan.strip_axes(feet.reshape(-1, 2)).reshape(feet.shape)
+    fig, ax = plt.subplots(figsize=(10, 4.5 if plan.long else 6.5))
     if feet is not None and len(feet):
         step = max(1, len(feet) // 400)
         ax.add_collection(
@@ -709,26 +753,40 @@ def _figure_layout(result, plan: _Plan, roles: np.ndarray) -> str:
         if sel.size == 0:
             continue
         sel = _decimate(sel, _MAX_PLOT_POINTS)
+        crowded = sel.size > 400 and marker not in (".", "x")
         ax.scatter(
             pxy[sel, 0],
             pxy[sel, 1],
-            s=size,
+            s=size / 4 if crowded else size,
             marker=marker,
             c=colour,
             zorder=z,
             label=f"{label} ({int(np.count_nonzero(ok & (roles == role)))})",
             linewidths=1.0 if marker == "x" else 0.4,
-            **({} if marker in (".", "x") else {"edgecolors": "black"}),
+            **({} if marker in (".", "x") or crowded else {"edgecolors": "black"}),
         )
-    ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
-    ax.set_xlabel(f"X (east) [{plan.unit}]")
-    ax.set_ylabel(f"Y (north) [{plan.unit}]")
+    _plan_axes(ax, plan)
+    if plan.long:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    else:
+        ax.legend(loc="best", fontsize=8, framealpha=0.85)
+    ax.set_title(
+        "Strip layout along the strip axis (not to scale)" if plan.long else "Strip layout"
+    )
+    return _png(fig)
+
+
+def _plan_axes(ax, plan: _Plan) -> None:
+    if plan.long:
+        ax.set_xlabel(f"along the strip from the first photo [{plan.unit}]")
+        ax.set_ylabel("across the strip, left positive [m]")
+    else:
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel(f"X (east) [{plan.unit}]")
+        ax.set_ylabel(f"Y (north) [{plan.unit}]")
     ax.ticklabel_format(useOffset=False, style="plain")
     ax.grid(True, lw=0.3, alpha=0.5)
-    ax.legend(loc="best", fontsize=8, framealpha=0.85)
-    ax.set_title("Strip layout")
-    return _png(fig)
 
 
 def _nice(value: float) -> float:
@@ -756,6 +814,8 @@ def _figure_residuals(result, plan: _Plan) -> str | None:
     de = np.cos(gamma) * resid[:, 0] - np.sin(gamma) * resid[:, 1]
     dn = np.sin(gamma) * resid[:, 0] + np.cos(gamma) * resid[:, 1]
     plan_len = np.hypot(de, dn)
+    if plan.long:
+        return _figure_residuals_along(result, plan, idx, resid, pxy, de, dn, is_check)
     fig, ax = plt.subplots(figsize=(10, 6.5))
     ax.plot(
         cxy[:, 0], cxy[:, 1], "-", color="#aab7b8", lw=1.0, zorder=1, label="projection centres"
@@ -831,13 +891,48 @@ def _figure_residuals(result, plan: _Plan) -> str | None:
                 fontsize=7,
                 color="#333333",
             )
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel(f"X (east) [{plan.unit}]")
-    ax.set_ylabel(f"Y (north) [{plan.unit}]")
-    ax.ticklabel_format(useOffset=False, style="plain")
-    ax.grid(True, lw=0.3, alpha=0.5)
+    _plan_axes(ax, plan)
     ax.legend(loc="upper left", fontsize=8, framealpha=0.85)
     ax.set_title("Residuals at control (▲) and check (■) points: arrows plan, colour height")
+    return _png(fig)
+
+
+def _figure_residuals_along(result, plan, idx, resid, pxy, de, dn, is_check) -> str:
+    """Residual components against the distance along a long strip (three panels)."""
+    import matplotlib.pyplot as plt
+
+    along = plan.strip_axes(pxy)[:, 0]
+    comp = plan.vectors_to_strip(de, dn)
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
+    few = len(idx) <= 300
+    panels = (
+        (comp[:, 0], "along-strip residual [m]"),
+        (comp[:, 1], "across-strip residual [m]"),
+        (resid[:, 2], "height residual dH [m]"),
+    )
+    for ax, (values, label) in zip(axes, panels, strict=True):
+        for sel, marker, colour, name in (
+            (~is_check, "^", "#c0392b", "control"),
+            (is_check, "s", "#8e44ad", "check"),
+        ):
+            sel = sel & np.isfinite(values)
+            if sel.any():
+                ax.scatter(
+                    along[sel],
+                    values[sel],
+                    marker=marker,
+                    c=colour,
+                    s=28 if few else 6,
+                    label=name,
+                    linewidths=0.3 if few else 0.0,
+                    **({"edgecolors": "black"} if few else {}),
+                )
+        ax.axhline(0.0, color="black", lw=0.6)
+        ax.set_ylabel(label)
+        ax.grid(True, lw=0.3, alpha=0.5)
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[-1].set_xlabel(f"along the strip from the first photo [{plan.unit}]")
+    axes[0].set_title("Residuals (given − adjusted) at control and check points along the strip")
     return _png(fig)
 
 
@@ -957,6 +1052,7 @@ def _table(
     rows: list[list[Any]],
     *,
     left: int = 1,
+    left_columns: tuple[int, ...] = (),
     scroll: bool = False,
     digits: list[int] | int = 3,
 ) -> str:
@@ -973,7 +1069,7 @@ def _table(
         cells = []
         for i, v in enumerate(row):
             text = v[0] if isinstance(v, tuple) else _fmt(v, digits[i])
-            cls = " class='l'" if i < left else ""
+            cls = " class='l'" if i < left or i in left_columns else ""
             cells.append(f"<td{cls}>{text}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
     html_table = f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
@@ -1011,6 +1107,9 @@ def build_html(result, report: Mapping[str, Any]) -> str:
 
     with plt.rc_context({"font.size": 9, "axes.titlesize": 11}):
         plan = _Plan(result)
+        points = np.asarray(result.points, dtype=np.float64)
+        finite = np.isfinite(points).all(axis=1)
+        plan.decide_long(np.vstack([plan.xy(plan.centres), plan.xy(points[finite])]))
         roles = point_roles(result)
         fig_layout = _figure_layout(result, plan, roles)
         fig_resid = _figure_residuals(result, plan)
@@ -1069,8 +1168,14 @@ def _html_page(report, fig_layout, fig_resid, fig_par, fig_ties) -> str:
             (f"{inp['n_points_triangulated']} / {inp['n_points']}",),
         ],
         ["image observations", inp["n_observations"]],
-        ["control full / plan / height", (f"{ctrl['full']} / {ctrl['plan']} / {ctrl['height']}",)],
-        ["check points", ctrl["check"]],
+        [
+            "control full / plan / height / check (given)",
+            (f"{ctrl['full']} / {ctrl['plan']} / {ctrl['height']} / {ctrl['check']}",),
+        ],
+        [
+            "control / check points compared",
+            (f"{len(report['control']['points'])} / {len(report['check']['points'])}",),
+        ],
         [
             "polynomial (requested → used)",
             (f"{_esc(opt['polynomial'])} → {report['polynomial']['kind']}",),
@@ -1125,7 +1230,7 @@ def _html_page(report, fig_layout, fig_resid, fig_par, fig_ties) -> str:
         _figure(
             fig_layout,
             "Figure 1. Strip layout: projection centres, photo footprints at "
-            "the median point height, all points by role.",
+            "the mean height of its points, all points by role.",
             "strip layout",
         ),
         _figure(
@@ -1163,6 +1268,7 @@ def _html_page(report, fig_layout, fig_resid, fig_par, fig_ties) -> str:
                 for c in tol["criteria"]
             ],
             left=2,
+            left_columns=(7,),
             digits=[0, 0, 0, 4, 4, 0, 0, 0],
         ),
     ]
