@@ -319,8 +319,12 @@ def test_html_self_contained_with_figures(utm):
         assert f"<td class='l'>{photo}</td>" in page or f"<td>{photo}</td>" in page
 
 
-def test_html_escapes_project_text(utm):
+def test_html_escapes_project_text(monkeypatch, utm):
+    import strip_aerotri.report as rep
+
     _, result, _ = utm
+    for name in ("_figure_layout", "_figure_residuals", "_figure_parallax", "_figure_ties"):
+        monkeypatch.setattr(rep, name, lambda *args: None)
     report = build_report(result)
     report["project"]["name"] = "<b>Strip & co</b>"
     report["warnings"] = ["point '<x>' left out"]
@@ -357,8 +361,10 @@ def test_long_strip_drawn_along_its_axis(monkeypatch, utm):
         return original(*args)
 
     monkeypatch.setattr(rep, "_figure_residuals_along", spy)
-    build_html(result, build_report(result))
-    assert calls == []  # 7 photos of a corridor: drawn to scale
+    plan = rep._Plan(result)
+    ok = np.isfinite(result.points).all(axis=1)
+    plan.decide_long(np.vstack([plan.xy(plan.centres), plan.xy(result.points[ok])]))
+    assert plan.long is False  # 7 photos of a corridor: drawn to scale
     monkeypatch.setattr(rep, "LONG_STRIP_RATIO", 0.1)
     page = build_html(result, build_report(result))
     assert len(calls) == 1
