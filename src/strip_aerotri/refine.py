@@ -1,0 +1,1117 @@
+"""Rigorous refinement of a strip-method result by bundle adjustment.
+
+The strip method (partially dependent models, then similarity and
+polynomials on the control) delivers every photo's exterior orientation and
+every point's ground coordinates.  :func:`refine_bundle` takes them as
+initial values of the simultaneous least-squares adjustment of all image
+coordinates by the collinearity equations (:func:`strip_aerotri.bundle.bundle_adjust`),
+with the ground control and, optionally, GNSS projection centres and IMU
+attitudes as weighted observations; gross errors are searched for by data
+snooping on the image and control residuals, one rejection (or a few
+well-separated ones) at a time.
+
+Frame
+-----
+The adjustment runs in a Cartesian frame in metres in which the collinearity
+equations hold exactly:
+
+* geocentric route: the ground stage's own local tangent frame
+  (``result.ground.frame``, B(142)-(144), X along the strip); its
+  work-frame arrays are the initial values;
+* projected route with a real CRS: a local tangent frame built the same way,
+  at the geocentric centroid of the control, X along the strip (the strip
+  method's CRS results are converted to it through ECEF);
+* ``crs = "local"``: the site system itself (X, Y, H taken as Cartesian, no
+  earth curvature, as in the ground stage).
+
+Plan-only and height-only control have no full position in the frame; their
+missing components are taken from the adjusted points and the adjustment is
+repeated (warm start, a pass or two) until the frame coordinates of the
+control no longer change by more than 1 µm.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
+from .blunders import BlunderOptions, Rejection, robust_variance_factor
+from .bundle import BundleResult, bundle_adjust
+from .errors import GeometryError, StripAerotriWarning
+from .geodesy import GroundCRS, LocalTangentFrame, enu_rotation
+from .observations import ControlPoints, ImageObservations
+from .pipeline import AccuracyStatistics, StripResult
+from .rotation import matrix_from_opk, opk_from_matrix
+
+__all__ = [
+    "FrameRefinement",
+    "GnssCentres",
+    "ImuAttitudes",
+    "RefinedResult",
+    "refine_bundle",
+    "refine_frame",
+]
+
+#: Stage name of the image-coordinate tests in :class:`Rejection` records.
+IMAGE_STAGE = "bundle"
+#: Stage name of the control tests (shared with the ground stage's options).
+CONTROL_STAGE = "control"
+#: Passes for plan / height control in a curved frame stop below this change (m).
+_PASS_TOLERANCE_M = 1e-6
+_MAX_PASSES = 4
+#: Smallest value the photo-unknowns factor of the redundancy numbers may take.
+_MIN_PHOTO_FACTOR = 0.05
+
+
+# --------------------------------------------------------------------------- inputs
+
+
+@dataclass(frozen=True)
+class GnssCentres:
+    """Observed projection centres (GNSS, reduced to the projection centre).
+
+    Attributes
+    ----------
+    photo_ids : tuple of str, length G
+    xyz : ndarray, shape (G, 3)
+        X, Y, H in the control CRS (axis order as the control, H ellipsoidal
+        height in metres).
+    sigma_xy, sigma_z : ndarray, shape (G,)
+        Standard deviations in metres, horizontal and vertical.
+    """
+
+    photo_ids: tuple[str, ...]
+    xyz: FloatArray
+    sigma_xy: FloatArray
+    sigma_z: FloatArray
+
+    def __post_init__(self) -> None:
+        ids = tuple(str(p) for p in self.photo_ids)
+        g = len(ids)
+        xyz = np.asarray(self.xyz, dtype=np.float64)
+        if xyz.shape != (g, 3):
+            raise ValueError(f"Expected `xyz` to have shape {(g, 3)}, got {xyz.shape}")
+        sxy = np.broadcast_to(np.asarray(self.sigma_xy, dtype=np.float64), (g,)).copy()
+        sz = np.broadcast_to(np.asarray(self.sigma_z, dtype=np.float64), (g,)).copy()
+        if not (np.all(sxy > 0) and np.all(sz > 0)):
+            raise ValueError("Expected positive GNSS standard deviations `sigma_xy`, `sigma_z`")
+        object.__setattr__(self, "photo_ids", ids)
+        object.__setattr__(self, "xyz", xyz)
+        object.__setattr__(self, "sigma_xy", sxy)
+        object.__setattr__(self, "sigma_z", sz)
+
+
+@dataclass(frozen=True)
+class ImuAttitudes:
+    """Observed photo attitudes (IMU, boresight-corrected).
+
+    Attributes
+    ----------
+    photo_ids : tuple of str, length G
+    opk : ndarray, shape (G, 3)
+        omega, phi, kappa in radians, ``R = Rx(omega) Ry(phi) Rz(kappa)``
+        mapping image vectors to local east-north-up at the projection centre
+        (the convention of ``photos.csv``; X, Y, H axes for ``crs = "local"``).
+    sigma : ndarray, shape (G,)
+        Standard deviation of each of the three small rotations about the
+        photo's own axes, radians.
+
+    Use :meth:`from_degrees` for angles in degrees.
+    """
+
+    photo_ids: tuple[str, ...]
+    opk: FloatArray
+    sigma: FloatArray
+
+    def __post_init__(self) -> None:
+        ids = tuple(str(p) for p in self.photo_ids)
+        g = len(ids)
+        opk = np.asarray(self.opk, dtype=np.float64)
+        if opk.shape != (g, 3):
+            raise ValueError(f"Expected `opk` to have shape {(g, 3)}, got {opk.shape}")
+        sig = np.broadcast_to(np.asarray(self.sigma, dtype=np.float64), (g,)).copy()
+        if not np.all(sig > 0):
+            raise ValueError("Expected positive IMU standard deviations `sigma`")
+        object.__setattr__(self, "photo_ids", ids)
+        object.__setattr__(self, "opk", opk)
+        object.__setattr__(self, "sigma", sig)
+
+    @classmethod
+    def from_degrees(
+        cls, photo_ids: Sequence[str], opk_deg: ArrayLike, sigma_deg: ArrayLike
+    ) -> ImuAttitudes:
+        """Build from omega, phi, kappa and their sigma in degrees."""
+        return cls(
+            tuple(photo_ids),
+            np.radians(np.asarray(opk_deg, dtype=np.float64)),
+            np.radians(np.asarray(sigma_deg, dtype=np.float64)),
+        )
+
+
+# --------------------------------------------------------------------------- frame
+
+
+class _Frame:
+    """CRS <-> Cartesian adjustment frame (a local tangent frame, or the site system)."""
+
+    def __init__(self, crs: GroundCRS, frame: LocalTangentFrame | None, description: str):
+        self.crs = crs
+        self.frame = frame
+        self.description = description
+
+    @property
+    def curved(self) -> bool:
+        return self.frame is not None
+
+    def to_frame(self, xyh: FloatArray) -> FloatArray:
+        if self.frame is None:
+            return np.array(xyh, dtype=np.float64)
+        return self.frame.ecef2local(self.crs.to_ecef(xyh))
+
+    def from_frame(self, xyz: FloatArray) -> FloatArray:
+        if self.frame is None:
+            return np.array(xyz, dtype=np.float64)
+        return self.crs.from_ecef(self.frame.local2ecef(xyz))
+
+    def enu2frame(self, centres_xyh: FloatArray) -> FloatArray:
+        """Rotations (M, 3, 3) from local east-north-up at each centre to the frame."""
+        m = centres_xyh.shape[0]
+        if self.frame is None:
+            return np.broadcast_to(np.eye(3), (m, 3, 3)).copy()
+        llh = self.crs.to_geodetic(centres_xyh)
+        enu = enu_rotation(llh[:, 0], llh[:, 1])  # ECEF -> ENU
+        return self.frame.rotation @ np.swapaxes(enu, 1, 2)
+
+    def residuals(self, given_xyh: FloatArray, adjusted_xyh: FloatArray) -> FloatArray:
+        """Given minus adjusted along E, N, H in metres (rows with NaN give NaN).
+
+        Projected CRSs and ``"local"``: differences of the CRS coordinates
+        (grid metres).  Geographic CRSs: the ECEF difference rotated into east,
+        north, up at the adjusted point.
+        """
+        if self.crs.is_local or not self.crs.is_geographic:
+            return given_xyh - adjusted_xyh
+        ok = np.all(np.isfinite(given_xyh), axis=1) & np.all(np.isfinite(adjusted_xyh), axis=1)
+        out = np.full(given_xyh.shape, np.nan)
+        if ok.any():
+            d = self.crs.to_ecef(given_xyh[ok]) - self.crs.to_ecef(adjusted_xyh[ok])
+            llh = self.crs.to_geodetic(adjusted_xyh[ok])
+            out[ok] = np.einsum("nij,nj->ni", enu_rotation(llh[:, 0], llh[:, 1]), d)
+        return out
+
+
+def _frame_for(result: StripResult, control_rows: IntArray, point_index: IntArray) -> _Frame:
+    ground = result.ground
+    crs = ground.crs
+    if ground.frame is not None:
+        return _Frame(crs, ground.frame, "local tangent frame of the geocentric route")
+    if crs.is_local:
+        return _Frame(crs, None, 'the site system of crs = "local" (X, Y, H Cartesian)')
+    # Projected route with a real CRS: a tangent frame at the control centroid.
+    pts = result.points[point_index[control_rows]]
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    ecef = crs.to_ecef(pts)
+    frame0 = LocalTangentFrame.from_ecef_centroid(ecef, 0.0, crs=crs)
+    ends = frame0.ecef2local(crs.to_ecef(result.photo_centres[[0, -1]]))
+    azimuth = float(frame0.azimuth_of(ends[1] - ends[0]))
+    return _Frame(
+        crs,
+        frame0.with_azimuth(azimuth),
+        "local tangent frame at the control centroid, X along the strip",
+    )
+
+
+# --------------------------------------------------------------------------- results
+
+
+@dataclass(frozen=True)
+class FrameRefinement:
+    """Result of :func:`refine_frame` (all arrays in the adjustment frame).
+
+    Attributes
+    ----------
+    centres : ndarray, shape (M, 3)
+        Adjusted projection centres, metres.
+    rotations : ndarray, shape (M, 3, 3)
+        Adjusted rotations, image -> frame.
+    points : ndarray, shape (P, 3)
+        Adjusted points, metres; NaN for points left out (no initial value,
+        excluded, or dropped after a rejection left them on one photo).
+    point_used : ndarray of bool, shape (P,)
+    observation_used : ndarray of bool, shape (K,)
+        Image observations that entered the final adjustment.
+    control_used : ndarray of bool, shape (P, 3)
+        Control components that entered the final adjustment.
+    observation_rejected : ndarray of bool, shape (K,)
+        Image observations rejected by the tests.
+    control_rejected : ndarray of bool, shape (P, 3)
+        Control components rejected by the tests.
+    image_residuals_mm : ndarray, shape (K, 2)
+        ``v = computed - observed`` at the solution for every observation of
+        a used point (rejected ones included), NaN otherwise.
+    image_w : ndarray, shape (K, 2)
+        Test values of the image coordinates (NaN where not tested).
+    image_redundancy : ndarray, shape (K, 2)
+        Approximate redundancy numbers used by the test (see Notes of
+        :func:`refine_frame`).
+    control_residuals : ndarray, shape (P, 3)
+        ``adjusted - given`` in metres where control was given (rejected
+        components included), NaN elsewhere.
+    control_w : ndarray, shape (P, 3)
+        Test values of the control components.
+    point_std, centre_std : ndarray, shapes (P, 3), (M, 3)
+        Standard deviations in metres along the frame axes.
+    rotation_std : ndarray, shape (M, 3)
+        Standard deviations of the small rotations about the image axes, rad.
+    sigma0 : float
+    redundancy : int
+    iterations : int
+        Accepted bundle steps over all rounds.
+    rounds : int
+        Adjustments solved (1 + rounds of rejections).
+    converged : bool
+        The final adjustment converged.
+    rejections : tuple of Rejection
+    bundle : BundleResult
+        The final adjustment (on the used points and observations only).
+    """
+
+    centres: FloatArray
+    rotations: FloatArray
+    points: FloatArray
+    point_used: BoolArray
+    observation_used: BoolArray
+    control_used: BoolArray
+    observation_rejected: BoolArray
+    control_rejected: BoolArray
+    image_residuals_mm: FloatArray
+    image_w: FloatArray
+    image_redundancy: FloatArray
+    control_residuals: FloatArray
+    control_w: FloatArray
+    point_std: FloatArray
+    centre_std: FloatArray
+    rotation_std: FloatArray
+    sigma0: float
+    redundancy: int
+    iterations: int
+    rounds: int
+    converged: bool
+    rejections: tuple[Rejection, ...]
+    bundle: BundleResult
+
+
+@dataclass(frozen=True)
+class RefinedResult:
+    """A strip-method result refined by bundle adjustment.
+
+    Layout as :class:`~strip_aerotri.pipeline.StripResult`: points and photos
+    in the control CRS, in ``point_ids`` / ``photo_ids`` order.
+
+    Attributes
+    ----------
+    photo_ids, point_ids : tuple of str
+    points : ndarray, shape (P, 3)
+        X, Y, H in the control CRS (NaN for points not adjusted).
+    photo_centres : ndarray, shape (M, 3)
+        Projection centres X, Y, H in the control CRS.
+    photo_opk : ndarray, shape (M, 3)
+        omega, phi, kappa in radians of ``R = Rx Ry Rz``, image -> local
+        east-north-up at the centre (image -> X, Y, H axes for "local").
+    frame : LocalTangentFrame or None
+        The adjustment frame (None: the site system of ``crs = "local"``).
+    frame_description : str
+    points_frame, photo_centres_frame : ndarray, shapes (P, 3), (M, 3)
+        The same in the frame, metres.
+    photo_rotations_frame : ndarray, shape (M, 3, 3)
+        Image -> frame.
+    sigma0 : float
+        A posteriori sigma of unit weight of the final adjustment.
+    redundancy : int
+    iterations : int
+        Accepted bundle steps over all rounds and passes.
+    converged : bool
+    image_residuals_um : ndarray, shape (K, 2)
+        Image residuals ``computed - observed`` in µm, in the order of
+        ``result.strip.observations`` (NaN for observations of points not
+        adjusted).
+    image_used : ndarray of bool, shape (K,)
+    control_index : ndarray of int, shape (C,)
+        Rows of the control (``result.control``) whose point was adjusted.
+    control_residuals : ndarray, shape (C, 3)
+        Given minus adjusted along E, N, H in metres (grid E, N for projected
+        CRSs and "local"), NaN for components not given or not used; check
+        points compared in full.
+    is_check : ndarray of bool, shape (C,)
+    used_xy, used_h : ndarray of bool, shape (C,)
+        Control components in the final adjustment (False for check points
+        and rejected components).
+    control_statistics, check_statistics : AccuracyStatistics
+        At the control used and at the check points.
+    point_std, centre_std : ndarray, shapes (P, 3), (M, 3)
+        Standard deviations in metres along the frame axes (X along the
+        strip, Y to its left, Z up; X, Y, H for "local"); NaN when not
+        computed.
+    rejections : tuple of Rejection
+    warnings : tuple of str
+    timings : dict
+        Seconds: ``frame`` (conversions), ``bundle`` (adjustments, precision
+        and tests), ``total``.
+    n_observations : int
+        Scalar observations of the final adjustment.
+    """
+
+    photo_ids: tuple[str, ...]
+    point_ids: tuple[str, ...]
+    points: FloatArray
+    photo_centres: FloatArray
+    photo_opk: FloatArray
+    frame: LocalTangentFrame | None
+    frame_description: str
+    points_frame: FloatArray
+    photo_centres_frame: FloatArray
+    photo_rotations_frame: FloatArray
+    sigma0: float
+    redundancy: int
+    iterations: int
+    converged: bool
+    image_residuals_um: FloatArray
+    image_used: BoolArray
+    control_index: IntArray
+    control_residuals: FloatArray
+    is_check: BoolArray
+    used_xy: BoolArray
+    used_h: BoolArray
+    control_statistics: AccuracyStatistics
+    check_statistics: AccuracyStatistics
+    point_std: FloatArray
+    centre_std: FloatArray
+    rejections: tuple[Rejection, ...]
+    warnings: tuple[str, ...] = ()
+    timings: dict[str, float] = field(default_factory=dict)
+    n_observations: int = 0
+
+    @property
+    def photo_opk_degrees(self) -> FloatArray:
+        """(M, 3) omega, phi, kappa in degrees (image -> local east-north-up)."""
+        return np.degrees(self.photo_opk)
+
+
+# --------------------------------------------------------------------------- tests
+
+
+def _point_leverage(
+    obs: ImageObservations,
+    centres: FloatArray,
+    rotations: FloatArray,
+    points: FloatArray,
+    control_weight: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """Leverage of each image coordinate on its own point, photos held fixed.
+
+    Returns ``h`` (K, 2), the diagonal of ``B V^-1 B.T`` per observation with
+    the whitened point Jacobian ``B`` and the point's normal block ``V``
+    (image rays plus control weights), and ``V^-1`` diagonals (P, 3).
+    """
+    photo, point = obs.photo, obs.point
+    rot = rotations[photo]
+    v = np.einsum("kji,kj->ki", rot, points[point] - centres[photo])
+    vz = v[:, 2]
+    f = -obs.principal_distance / vz
+    d_v = np.zeros((v.shape[0], 2, 3))
+    d_v[:, 0, 0] = f
+    d_v[:, 1, 1] = f
+    d_v[:, 0, 2] = -f * v[:, 0] / vz
+    d_v[:, 1, 2] = -f * v[:, 1] / vz
+    b = np.einsum("kab,kcb->kac", d_v, rot) / np.asarray(obs.sigma)[:, None, None]
+    p = points.shape[0]
+    normal = np.zeros((p, 3, 3))
+    np.add.at(normal, point, np.swapaxes(b, 1, 2) @ b)
+    i3 = np.arange(3)
+    normal[:, i3, i3] += control_weight
+    v_inv = np.linalg.inv(normal)
+    h = np.einsum("kai,kij,kaj->ka", b, v_inv[point], b)
+    return h, np.diagonal(v_inv, axis1=1, axis2=2)
+
+
+def _compact(
+    obs: ImageObservations, keep_obs: BoolArray, point_used: BoolArray
+) -> tuple[ImageObservations, IntArray, IntArray]:
+    """Observations of the used points only, points renumbered.
+
+    Returns the sub-observations, the rows of ``obs`` they came from and the
+    original point index of each new point.
+    """
+    rows = np.flatnonzero(keep_obs & point_used[obs.point])
+    points = np.flatnonzero(point_used)
+    new_index = np.full(point_used.shape[0], -1, dtype=np.intp)
+    new_index[points] = np.arange(points.size)
+    sub = ImageObservations(
+        photo_ids=obs.photo_ids,
+        point_ids=tuple(obs.point_ids[i] for i in points),
+        photo=obs.photo[rows],
+        point=new_index[obs.point[rows]],
+        xy=obs.xy[rows],
+        sigma=np.broadcast_to(np.asarray(obs.sigma, dtype=np.float64), obs.photo.shape)[rows],
+        principal_distance=obs.principal_distance,
+    )
+    return sub, rows, points
+
+
+def _separated(candidates: list[tuple[float, int]], photo: IntArray, window: int) -> list[int]:
+    """Greedy pick of failing observations, largest first, pairwise more than
+    ``window`` photos apart (so that no two share a point)."""
+    chosen: list[int] = []
+    taken: list[int] = []
+    for _, k in sorted(candidates, reverse=True):
+        j = int(photo[k])
+        if all(abs(j - t) > window for t in taken):
+            chosen.append(k)
+            taken.append(j)
+    return chosen
+
+
+def refine_frame(
+    observations: ImageObservations,
+    centres0: ArrayLike,
+    rotations0: ArrayLike,
+    points0: ArrayLike,
+    *,
+    control_xyz: ArrayLike | None = None,
+    control_sigma: ArrayLike | None = None,
+    gnss_centres: ArrayLike | None = None,
+    gnss_sigma: ArrayLike | None = None,
+    imu_rotations: ArrayLike | None = None,
+    imu_sigma: ArrayLike | None = None,
+    blunders: BlunderOptions | None = None,
+    max_iterations: int = 20,
+    compute_precision: bool = True,
+    observation_used: ArrayLike | None = None,
+    control_used: ArrayLike | None = None,
+) -> FrameRefinement:
+    """Bundle adjustment in a Cartesian frame with data snooping.
+
+    Parameters
+    ----------
+    observations : ImageObservations
+        K image observations (mm) of P points on M photos.
+    centres0 : array_like, shape (M, 3)
+        Initial projection centres, metres.
+    rotations0 : array_like, shape (M, 3, 3)
+        Initial rotations, image -> frame.
+    points0 : array_like, shape (P, 3)
+        Initial points, metres; rows with NaN are left out (no initial value).
+    control_xyz, control_sigma : array_like, shapes (P, 3), optional
+        Control coordinates in the frame, NaN where not given, and their
+        standard deviations (m).
+    gnss_centres, gnss_sigma : array_like, shapes (M, 3), optional
+        Observed centres in the frame (NaN where none) and sigmas (m).
+    imu_rotations : array_like, shape (M, 3, 3), optional
+        Observed rotations image -> frame (NaN matrices where none).
+    imu_sigma : float or array_like, shape (M, 3), optional
+        Their standard deviations, radians.
+    blunders : BlunderOptions, optional
+        ``action``, ``alpha``, critical values (stages ``"bundle"`` for the
+        image coordinates, ``"control"`` for the control), ``max_fraction``,
+        excluded points and observations.
+    max_iterations : int
+        Per adjustment.
+    compute_precision : bool
+        Standard deviations of points and photos (and exact control tests).
+    observation_used : array_like of bool, shape (K,), optional
+        Observations to start with (default all but the excluded ones).
+    control_used : array_like of bool, shape (P, 3), optional
+        Control components to start with (default all given).
+
+    Returns
+    -------
+    FrameRefinement
+
+    Raises
+    ------
+    GeometryError
+        As :func:`~strip_aerotri.bundle.bundle_adjust`, or more than
+        ``max_fraction`` of the image observations or of the control fail.
+
+    Notes
+    -----
+    Test values are Baarda's ``w = v / (sigma sqrt(r))`` with the a priori
+    sigma; the image tests are divided by the square root of their robust
+    variance factor (:func:`~strip_aerotri.blunders.robust_variance_factor`),
+    the control tests are not (the control's stated accuracy is what is
+    tested, and over a few dozen control components with small redundancy
+    numbers one blunder spreads to its neighbours and would inflate the
+    factor).
+
+    *Control*: ``r = 1 - q / sigma_c**2`` with the cofactor ``q`` of the
+    adjusted coordinate (exact; with ``compute_precision=False`` ``q`` is
+    approximated by the point's own 3 x 3 block, photos held fixed).
+
+    *Image coordinates*: exact redundancy numbers need the photo-by-photo
+    blocks of the inverse normal matrix for every observation; they are
+    approximated by ``r = (1 - h) rho``, where ``h`` is the exact leverage of
+    the coordinate on its own point with the photos held fixed and
+    ``rho = 1 - 6 M / sum(1 - h)`` spreads the photos' unknowns evenly over
+    the image coordinates (so that the numbers add up to the image share of
+    the redundancy).  On the 12-photo film strip the approximation is within
+    0.1 of the exact numbers (tests/test_refine.py).
+
+    Rejection: the largest ``|w| / critical`` is taken.  A control component
+    is rejected alone (a plan point loses X and Y together).  Image
+    observations (both coordinates of a ray) are rejected several per round:
+    the failing ones, largest first, as long as their photos are more than
+    ``n`` photos apart, ``n`` the largest number of photos that see one point
+    (so no two rejections of a round share a point or a photo).  A point
+    left with one ray (and no full control) is dropped.  The adjustment is
+    then solved again from the last solution, until nothing fails.
+    """
+    blunders = blunders or BlunderOptions()
+    obs = observations
+    k_all = obs.photo.shape[0]
+    m = len(obs.photo_ids)
+    p = len(obs.point_ids)
+    centres = np.array(centres0, dtype=np.float64)
+    rotations = np.array(rotations0, dtype=np.float64)
+    points = np.array(points0, dtype=np.float64)
+    if points.shape != (p, 3):
+        raise ValueError(f"Expected `points0` to have shape {(p, 3)}, got {points.shape}")
+    if centres.shape != (m, 3) or rotations.shape != (m, 3, 3):
+        raise ValueError(
+            f"Expected `centres0` (M, 3) and `rotations0` (M, 3, 3) with M = {m}, got "
+            f"{centres.shape}, {rotations.shape}"
+        )
+    sigma_img = np.broadcast_to(np.asarray(obs.sigma, dtype=np.float64), (k_all,))
+
+    # Control in the frame and its weights.
+    if control_xyz is None:
+        c_xyz = np.full((p, 3), np.nan)
+        c_sig = np.full((p, 3), np.inf)
+    else:
+        c_xyz = np.array(control_xyz, dtype=np.float64)
+        if c_xyz.shape != (p, 3):
+            raise ValueError(f"Expected `control_xyz` to have shape {(p, 3)}, got {c_xyz.shape}")
+        if control_sigma is None:
+            raise ValueError("`control_xyz` given without `control_sigma`")
+        c_sig = np.broadcast_to(np.asarray(control_sigma, dtype=np.float64), (p, 3)).copy()
+    given = np.isfinite(c_xyz) & np.isfinite(c_sig)
+    if np.any(c_sig[given] <= 0):
+        raise ValueError("Expected positive standard deviations for `control_xyz`")
+
+    # Starting sets.
+    keep = np.ones(k_all, bool) if observation_used is None else np.array(observation_used, bool)
+    if keep.shape != (k_all,):
+        raise ValueError(f"Expected `observation_used` to have shape {(k_all,)}")
+    ctrl_on = given.copy() if control_used is None else np.array(control_used, bool) & given
+    excluded_pts = set(blunders.exclude_points)
+    excluded_obs = set(blunders.exclude_observations)
+    if excluded_pts:
+        bad = np.array([pid in excluded_pts for pid in obs.point_ids], bool)
+        keep &= ~bad[obs.point]
+        ctrl_on[bad] = False
+    if excluded_obs:
+        pairs = np.array(
+            [
+                (obs.photo_ids[j], obs.point_ids[i]) in excluded_obs
+                for j, i in zip(obs.photo, obs.point, strict=True)
+            ],
+            bool,
+        )
+        keep &= ~pairs
+    has_start = np.all(np.isfinite(points), axis=1)
+    obs_rejected = np.zeros(k_all, bool)
+    ctrl_rejected = np.zeros((p, 3), bool)
+
+    def used_points() -> BoolArray:
+        rays = np.bincount(obs.point[keep], minlength=p)
+        full = np.all(ctrl_on, axis=1)
+        return has_start & ((rays >= 2) | ((rays >= 1) & full))
+
+    rejections: list[Rejection] = []
+    rounds = 0
+    iterations = 0
+    n_img_start = int(keep.sum())
+    n_ctrl_start = int(ctrl_on.sum())
+    window = int(np.max(np.bincount(obs.point, minlength=p), initial=1))
+    previous_effect: int | None = None
+    state = (centres, rotations, points)
+    while True:
+        pt_used = used_points()
+        sub, rows, pts = _compact(obs, keep, pt_used)
+        c_sub = np.where(ctrl_on[pts], c_xyz[pts], np.nan)
+        res = bundle_adjust(
+            sub,
+            state[0],
+            state[1],
+            state[2][pts],
+            control_xyz=c_sub,
+            control_sigma=np.where(ctrl_on[pts], c_sig[pts], np.inf),
+            gnss_centres=gnss_centres,
+            gnss_sigma=gnss_sigma,
+            imu_rotations=imu_rotations,
+            imu_sigma=imu_sigma,
+            max_iterations=max_iterations,
+            compute_precision=compute_precision,
+        )
+        rounds += 1
+        iterations += res.iterations
+        new_points = np.full((p, 3), np.nan)
+        new_points[pts] = res.points
+        # keep initial values of dropped points for a possible later round
+        state = (res.centres, res.rotations, np.where(pt_used[:, None], new_points, points))
+        if previous_effect is not None:
+            r = rejections[previous_effect]
+            rejections[previous_effect] = dataclasses.replace(
+                r, effect=f"{r.effect}, sigma0 {res.sigma0:.4g} after"
+            )
+            for j in range(previous_effect + 1, len(rejections)):
+                rejections[j] = dataclasses.replace(
+                    rejections[j], effect=f"{rejections[j].effect}, sigma0 {res.sigma0:.4g} after"
+                )
+
+        # Residuals of every observation of a used point (rejected ones included).
+        tested = pt_used[obs.point]
+        v_all = np.full((k_all, 2), np.nan)
+        rows_t = np.flatnonzero(tested)
+        vv = np.einsum(
+            "kji,kj->ki",
+            res.rotations[obs.photo[rows_t]],
+            new_points[obs.point[rows_t]] - res.centres[obs.photo[rows_t]],
+        )
+        v_all[rows_t] = -obs.principal_distance * vv[:, :2] / vv[:, 2:3] - obs.xy[rows_t]
+
+        weight_sub = np.where(ctrl_on[pts], 1.0 / np.where(ctrl_on[pts], c_sig[pts], 1.0) ** 2, 0)
+        h_sub, vinv_diag = _point_leverage(sub, res.centres, res.rotations, res.points, weight_sub)
+        free = float(np.sum(1.0 - h_sub))
+        rho = max(_MIN_PHOTO_FACTOR, 1.0 - 6.0 * m / free) if free > 0 else _MIN_PHOTO_FACTOR
+        r_img = np.full((k_all, 2), np.nan)
+        r_img[rows] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
+        w_img = np.full((k_all, 2), np.nan)
+        w_img[rows] = v_all[rows] / (sigma_img[rows, None] * np.sqrt(r_img[rows]))
+        factor_img = robust_variance_factor(w_img[rows].ravel())
+        w_img /= np.sqrt(factor_img)
+
+        ctrl_res = np.full((p, 3), np.nan)
+        ctrl_res[given] = np.where(pt_used[:, None], new_points, np.nan)[given] - c_xyz[given]
+        if compute_precision and np.isfinite(res.sigma0) and res.sigma0 > 0:
+            q = np.full((p, 3), np.nan)
+            q[pts] = (res.point_std / res.sigma0) ** 2
+        else:
+            q = np.full((p, 3), np.nan)
+            q[pts] = vinv_diag
+        r_ctrl = np.where(ctrl_on, 1.0 - q / np.where(given, c_sig, 1.0) ** 2, np.nan)
+        r_ctrl = np.where(ctrl_on, np.clip(r_ctrl, 1e-12, 1.0), np.nan)
+        w_ctrl = np.where(ctrl_on, ctrl_res / (c_sig * np.sqrt(r_ctrl)), np.nan)
+        # Control is tested at its stated sigmas: with a few dozen control
+        # components and small redundancy numbers a single blunder spreads to its
+        # neighbours and would inflate a robust variance factor.
+
+        result = FrameRefinement(
+            centres=res.centres,
+            rotations=res.rotations,
+            points=new_points,
+            point_used=pt_used,
+            observation_used=keep & tested,
+            control_used=ctrl_on & pt_used[:, None],
+            observation_rejected=obs_rejected.copy(),
+            control_rejected=ctrl_rejected.copy(),
+            image_residuals_mm=v_all,
+            image_w=w_img,
+            image_redundancy=r_img,
+            control_residuals=ctrl_res,
+            control_w=w_ctrl,
+            point_std=_expand(res.point_std, pts, p),
+            centre_std=res.centre_std,
+            rotation_std=res.rotation_std,
+            sigma0=res.sigma0,
+            redundancy=res.redundancy,
+            iterations=iterations,
+            rounds=rounds,
+            converged=res.converged,
+            rejections=tuple(rejections),
+            bundle=res,
+        )
+        if not blunders.testing:
+            return result
+
+        # Image tests: per ray, the larger of |w_x|, |w_y| among used observations.
+        crit_img = blunders.critical(IMAGE_STAGE, int(np.count_nonzero(keep & tested)) * 2)
+        ray_w = np.fmax(np.abs(w_img[:, 0]), np.abs(w_img[:, 1]))
+        ray_w = np.where(keep & tested, ray_w, np.nan)
+        fail_img = np.flatnonzero(ray_w > crit_img)
+        # Control tests: plan (max of X, Y) and height.
+        crit_ctrl = blunders.critical(CONTROL_STAGE, int(np.count_nonzero(ctrl_on)))
+        plan_on = ctrl_on[:, 0] & ctrl_on[:, 1]
+        plan_w = np.where(plan_on, np.fmax(np.abs(w_ctrl[:, 0]), np.abs(w_ctrl[:, 1])), np.nan)
+        h_w = np.where(ctrl_on[:, 2], np.abs(w_ctrl[:, 2]), np.nan)
+        found: list[tuple[float, str, int]] = [
+            (float(ray_w[k]) / crit_img, "image", int(k)) for k in fail_img
+        ]
+        found += [
+            (float(plan_w[i]) / crit_ctrl, "plan", int(i))
+            for i in np.flatnonzero(plan_w > crit_ctrl)
+        ]
+        found += [
+            (float(h_w[i]) / crit_ctrl, "height", int(i)) for i in np.flatnonzero(h_w > crit_ctrl)
+        ]
+        if not found:
+            return result
+        effect = f"sigma0 {res.sigma0:.4g} before"
+        new_rejections: list[Rejection] = []
+        worst = max(found)
+        if worst[1] == "image":
+            picks = _separated([(f[0], f[2]) for f in found if f[1] == "image"], obs.photo, window)
+        else:
+            picks = [worst[2]]
+        if not blunders.rejecting:
+            picks_all = [(f[1], f[2]) for f in sorted(found, reverse=True)]
+        else:
+            picks_all = [(worst[1], k) for k in picks]
+        for kind, k in picks_all:
+            if kind == "image":
+                comp = 0 if abs(w_img[k, 0]) >= abs(w_img[k, 1]) else 1
+                new_rejections.append(
+                    Rejection(
+                        stage=IMAGE_STAGE,
+                        point=obs.point_ids[obs.point[k]],
+                        photos=(obs.photo_ids[obs.photo[k]],),
+                        component="xy"[comp],
+                        residual=float(v_all[k, comp] * 1000.0),
+                        unit="µm",
+                        w=float(abs(w_img[k, comp])),
+                        critical=crit_img,
+                        applied=blunders.rejecting,
+                        effect=effect,
+                    )
+                )
+            else:
+                if kind == "plan":
+                    resid = float(np.hypot(ctrl_res[k, 0], ctrl_res[k, 1]))
+                    wv = float(plan_w[k])
+                else:
+                    resid = float(-ctrl_res[k, 2])
+                    wv = float(h_w[k])
+                new_rejections.append(
+                    Rejection(
+                        stage=CONTROL_STAGE,
+                        point=obs.point_ids[k],
+                        photos=(),
+                        component=kind,
+                        residual=resid,
+                        unit="m",
+                        w=wv,
+                        critical=crit_ctrl,
+                        applied=blunders.rejecting,
+                        effect=f"bundle adjustment, {effect}",
+                    )
+                )
+        if not blunders.rejecting:
+            return dataclasses.replace(result, rejections=tuple(rejections + new_rejections))
+        previous_effect = len(rejections)
+        rejections.extend(new_rejections)
+        for kind, k in picks_all:
+            if kind == "image":
+                keep[k] = False
+                obs_rejected[k] = True
+            elif kind == "plan":
+                ctrl_on[k, :2] = False
+                ctrl_rejected[k, :2] = True
+            else:
+                ctrl_on[k, 2] = False
+                ctrl_rejected[k, 2] = True
+        n_img_rej = n_img_start - int(keep.sum())
+        if n_img_rej > blunders.max_fraction * max(n_img_start, 1):
+            raise GeometryError(
+                f"bundle adjustment: more than {blunders.max_fraction:.0%} of the image "
+                f"observations fail the blunder test ({n_img_rej} of {n_img_start}); the "
+                "observations cannot be trusted"
+            )
+        n_ctrl_rej = n_ctrl_start - int(ctrl_on.sum())
+        if n_ctrl_rej > blunders.max_fraction * max(n_ctrl_start, 1):
+            raise GeometryError(
+                f"bundle adjustment: more than {blunders.max_fraction:.0%} of the control "
+                "observations fail the blunder test; the control cannot be trusted"
+            )
+
+
+def _expand(values: FloatArray, index: IntArray, n: int) -> FloatArray:
+    out = np.full((n, *values.shape[1:]), np.nan)
+    out[index] = values
+    return out
+
+
+# --------------------------------------------------------------------------- driver
+
+
+def _photo_lookup(ids: Sequence[str], strip_ids: Sequence[str], what: str) -> IntArray:
+    lookup = {pid: j for j, pid in enumerate(strip_ids)}
+    index = np.array([lookup.get(pid, -1) for pid in ids], dtype=np.intp)
+    unknown = [pid for pid, j in zip(ids, index, strict=True) if j < 0]
+    if unknown:
+        more = f" and {len(unknown) - 5} more" if len(unknown) > 5 else ""
+        warnings.warn(
+            f"{what}: photo(s) {', '.join(map(repr, unknown[:5]))}{more} are not in the strip; "
+            "ignored",
+            StripAerotriWarning,
+            stacklevel=3,
+        )
+    return index
+
+
+def refine_bundle(
+    result: StripResult,
+    *,
+    control: ControlPoints | None = None,
+    gnss: GnssCentres | None = None,
+    imu: ImuAttitudes | None = None,
+    blunders: BlunderOptions | None = None,
+    max_iterations: int = 20,
+    compute_precision: bool = True,
+) -> RefinedResult:
+    """Refine a strip-method result by a rigorous bundle adjustment.
+
+    Parameters
+    ----------
+    result : StripResult
+        From :func:`~strip_aerotri.pipeline.triangulate`; its photos and
+        points are the initial values, its control the ground control
+        (check points are compared, never used).
+    control : ControlPoints, optional
+        Control and check points (same CRS) to use instead of
+        ``result.control``: e.g. fewer ground points once GNSS centres carry
+        the datum; the strip result then only supplies initial values.
+    gnss : GnssCentres, optional
+        Observed projection centres in the control CRS.
+    imu : ImuAttitudes, optional
+        Observed attitudes (omega, phi, kappa, image -> local ENU).
+    blunders : BlunderOptions, optional
+        Data snooping of the image coordinates (stage ``"bundle"``) and the
+        control (stage ``"control"``); default: test and reject.
+    max_iterations : int
+        Largest number of bundle steps per adjustment.
+    compute_precision : bool
+        Standard deviations of points and centres (costs ``6 M`` sparse
+        solves; see :func:`~strip_aerotri.bundle.bundle_adjust`).
+
+    Returns
+    -------
+    RefinedResult
+
+    Raises
+    ------
+    GeometryError
+        The datum is not defined, a point or photo is not determined, or
+        too many observations fail the blunder tests.
+    ConvergenceError
+        The adjustment diverges.
+
+    Notes
+    -----
+    The frame is described in the module docstring.  Control rows enter as
+    observations of their point's frame coordinates with the control's
+    ``sigma_xy`` (X, Y) and ``sigma_h`` (Z); plan-only and height-only
+    components are completed from the adjusted point and iterated (passes)
+    in a curved frame.  Photo centres and attitudes observed by GNSS and IMU
+    are converted into the frame (attitudes through east-north-up at the
+    centre).  Points the strip method did not triangulate have no initial
+    value and are left out (NaN).
+
+    Examples
+    --------
+    >>> from strip_aerotri.simulate import simulate_strip
+    >>> from strip_aerotri.pipeline import triangulate
+    >>> from strip_aerotri.ground import GroundOptions
+    >>> sim = simulate_strip(12, seed=1, crs="local")
+    >>> strip = triangulate(sim.observations, sim.control, sim.crs,
+    ...                     ground_options=GroundOptions(route="projected"))
+    >>> refined = refine_bundle(strip)
+    >>> bool(refined.converged), len(refined.rejections)
+    (True, 0)
+    >>> bool(refined.check_statistics.rmse_plan < strip.check_statistics.rmse_plan)
+    True
+    """
+    t_start = time.perf_counter()
+    obs = result.strip.observations
+    control = result.control if control is None else control
+    m, p = obs.n_photos, obs.n_points
+    ground = result.ground
+
+    point_lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
+    row_point = np.array([point_lookup.get(pid, -1) for pid in control.point_ids], dtype=np.intp)
+    seen = row_point >= 0
+    has_point = np.zeros(len(control.point_ids), bool)
+    has_point[seen] = np.all(np.isfinite(result.points[row_point[seen]]), axis=1)
+    frame = _frame_for(result, np.flatnonzero(has_point), row_point)
+
+    # Initial values in the frame.
+    if ground.frame is not None or frame.frame is None:
+        if ground.frame is not None:
+            points0 = np.array(ground.points_work)
+            centres0 = np.array(ground.photo_centres_work)
+            rotations0 = np.array(ground.photo_rotations_work)
+        else:
+            points0 = np.array(result.points)
+            centres0 = np.array(result.photo_centres)
+            rotations0 = np.array(ground.photo_rotations_enu)
+    else:
+        ok = np.all(np.isfinite(result.points), axis=1)
+        points0 = np.full((p, 3), np.nan)
+        points0[ok] = frame.to_frame(result.points[ok])
+        centres0 = frame.to_frame(result.photo_centres)
+        rotations0 = frame.enu2frame(result.photo_centres) @ ground.photo_rotations_enu
+
+    # Control rows -> per-point observations (check points never used).
+    rows = np.flatnonzero(has_point)
+    idx = row_point[rows]
+    if np.unique(idx).size != idx.size:
+        raise ValueError("a point occurs twice in the control")
+    use_xy = control.uses_xy[rows]
+    use_h = control.uses_h[rows]
+    check = control.is_check[rows]
+    given_crs = control.xyz[rows]
+    sig = np.full((p, 3), np.inf)
+    sig[idx, 0] = sig[idx, 1] = np.where(use_xy, control.sigma_xy[rows], np.inf)
+    sig[idx, 2] = np.where(use_h, control.sigma_h[rows], np.inf)
+    mask = np.zeros((p, 3), bool)
+    mask[idx, 0] = mask[idx, 1] = use_xy
+    mask[idx, 2] = use_h
+
+    # GNSS and IMU in the frame.
+    gnss_xyz = gnss_sig = imu_rot = imu_sig = None
+    if gnss is not None:
+        j = _photo_lookup(gnss.photo_ids, obs.photo_ids, "GNSS centres")
+        ok = j >= 0
+        gnss_xyz = np.full((m, 3), np.nan)
+        gnss_xyz[j[ok]] = frame.to_frame(gnss.xyz[ok])
+        gnss_sig = np.full((m, 3), np.inf)
+        gnss_sig[j[ok], 0] = gnss_sig[j[ok], 1] = gnss.sigma_xy[ok]
+        gnss_sig[j[ok], 2] = gnss.sigma_z[ok]
+    if imu is not None:
+        j = _photo_lookup(imu.photo_ids, obs.photo_ids, "IMU attitudes")
+        ok = j >= 0
+        imu_rot = np.full((m, 3, 3), np.nan)
+        centres_for = result.photo_centres[j[ok]]
+        imu_rot[j[ok]] = frame.enu2frame(centres_for) @ matrix_from_opk(imu.opk[ok])
+        imu_sig = np.full((m, 3), np.inf)
+        imu_sig[j[ok]] = imu.sigma[ok, None]
+    t_frame = time.perf_counter() - t_start
+
+    # Passes: complete missing components from the adjusted points, in the frame.
+    t_bundle = 0.0
+    adjusted_crs = np.array(result.points)
+    state = (centres0, rotations0, points0)
+    obs_used: BoolArray | None = None
+    ctrl_used: BoolArray | None = None
+    rejections: list[Rejection] = []
+    iterations = 0
+    control_frame_prev: FloatArray | None = None
+    notes: list[str] = []
+    for _ in range(_MAX_PASSES):
+        t0 = time.perf_counter()
+        filled = np.where(np.isnan(given_crs), adjusted_crs[idx], given_crs)
+        control_frame = np.full((p, 3), np.nan)
+        control_frame[idx] = frame.to_frame(filled)
+        control_xyz = np.where(mask, control_frame, np.nan)
+        t_frame += time.perf_counter() - t0
+        if control_frame_prev is not None:
+            change = float(np.nanmax(np.abs(control_xyz - control_frame_prev), initial=0.0))
+            if change < _PASS_TOLERANCE_M:
+                break
+        control_frame_prev = control_xyz
+        t0 = time.perf_counter()
+        fr = refine_frame(
+            obs,
+            state[0],
+            state[1],
+            state[2],
+            control_xyz=control_xyz,
+            control_sigma=sig,
+            gnss_centres=gnss_xyz,
+            gnss_sigma=gnss_sig,
+            imu_rotations=imu_rot,
+            imu_sigma=imu_sig,
+            blunders=blunders,
+            max_iterations=max_iterations,
+            compute_precision=compute_precision,
+            observation_used=obs_used,
+            control_used=ctrl_used,
+        )
+        t_bundle += time.perf_counter() - t0
+        iterations += fr.iterations
+        rejections.extend(fr.rejections)
+        # rejections of this pass stay rejected in the next
+        obs_used = ~fr.observation_rejected
+        ctrl_used = ~fr.control_rejected
+        state = (fr.centres, fr.rotations, np.where(fr.point_used[:, None], fr.points, points0))
+        t0 = time.perf_counter()
+        adjusted_crs = np.full((p, 3), np.nan)
+        adjusted_crs[fr.point_used] = frame.from_frame(fr.points[fr.point_used])
+        t_frame += time.perf_counter() - t0
+        if not frame.curved:
+            break
+    else:
+        notes.append(
+            f"plan/height control passes did not settle below {_PASS_TOLERANCE_M * 1e6:.0f} µm "
+            f"in {_MAX_PASSES} passes"
+        )
+
+    t0 = time.perf_counter()
+    centres_crs = frame.from_frame(fr.centres)
+    rot_enu = np.swapaxes(frame.enu2frame(centres_crs), 1, 2) @ fr.rotations
+    opk = opk_from_matrix(rot_enu)
+
+    # Residuals at the control, given minus adjusted along E, N, H.
+    adj_rows = adjusted_crs[idx]
+    filled = np.where(np.isnan(given_crs), adj_rows, given_crs)
+    resid = frame.residuals(filled, adj_rows)
+    used_xy_final = use_xy & fr.control_used[idx, 0] & fr.point_used[idx]
+    used_h_final = use_h & fr.control_used[idx, 2] & fr.point_used[idx]
+    keep_rows = fr.point_used[idx]
+    resid[~(use_xy | check), :2] = np.nan
+    resid[~(use_h | check), 2] = np.nan
+    resid[np.isnan(given_crs)] = np.nan
+    t_frame += time.perf_counter() - t0
+    ctrl_stat_resid = resid.copy()
+    ctrl_stat_resid[~used_xy_final, :2] = np.nan
+    ctrl_stat_resid[~used_h_final, 2] = np.nan
+    out_rows = rows[keep_rows]
+    if np.any(~keep_rows & ~check):
+        dropped = [control.point_ids[r] for r in rows[~keep_rows & ~check]]
+        notes.append(f"control point(s) {', '.join(map(repr, dropped[:5]))} left out")
+    notes += [r.describe() for r in rejections]
+    return RefinedResult(
+        photo_ids=obs.photo_ids,
+        point_ids=obs.point_ids,
+        points=adjusted_crs,
+        photo_centres=centres_crs,
+        photo_opk=opk,
+        frame=frame.frame,
+        frame_description=frame.description,
+        points_frame=fr.points,
+        photo_centres_frame=fr.centres,
+        photo_rotations_frame=fr.rotations,
+        sigma0=fr.sigma0,
+        redundancy=fr.redundancy,
+        iterations=iterations,
+        converged=fr.converged,
+        image_residuals_um=fr.image_residuals_mm * 1000.0,
+        image_used=fr.observation_used,
+        control_index=out_rows,
+        control_residuals=resid[keep_rows],
+        is_check=check[keep_rows],
+        used_xy=used_xy_final[keep_rows],
+        used_h=used_h_final[keep_rows],
+        control_statistics=AccuracyStatistics.from_residuals(ctrl_stat_resid[keep_rows & ~check]),
+        check_statistics=AccuracyStatistics.from_residuals(resid[keep_rows & check]),
+        point_std=fr.point_std,
+        centre_std=fr.centre_std,
+        rejections=tuple(rejections),
+        warnings=tuple(notes),
+        timings={"frame": t_frame, "bundle": t_bundle, "total": time.perf_counter() - t_start},
+        n_observations=fr.bundle.n_observations,
+    )

@@ -1,0 +1,287 @@
+"""Tests of the bundle refinement of a strip-method result (refine.py).
+
+Reference figures are measured on strips from :func:`simulate_strip` (film
+preset: c = 152.87 mm, 1:8000, 60 % overlap, image noise 5 µm, control noise
+2 cm) against the simulator's truth.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from strip_aerotri.blunders import BlunderOptions
+from strip_aerotri.bundle import _collinearity
+from strip_aerotri.errors import StripAerotriWarning
+from strip_aerotri.geodesy import GroundCRS, enu_rotation
+from strip_aerotri.ground import GroundOptions
+from strip_aerotri.observations import ControlPoints, ControlType
+from strip_aerotri.pipeline import triangulate
+from strip_aerotri.refine import (
+    GnssCentres,
+    ImuAttitudes,
+    RefinedResult,
+    refine_bundle,
+    refine_frame,
+)
+from strip_aerotri.rotation import opk_from_matrix
+from strip_aerotri.simulate import simulate_strip
+
+
+def strip_and_result(crs="EPSG:32634", route="geocentric", **kwargs):
+    sim = simulate_strip(12, seed=1, crs=crs, **kwargs)
+    result = triangulate(
+        sim.observations, sim.control, sim.crs, ground_options=GroundOptions(route=route)
+    )
+    return sim, result
+
+
+def true_opk_enu(sim) -> np.ndarray:
+    """True omega, phi, kappa (rad) image -> local ENU at each projection centre."""
+    truth = sim.truth
+    if sim.crs == "local":
+        return opk_from_matrix(truth.photo_rotations_local)
+    llh = GroundCRS.from_user_input(sim.crs).to_geodetic(truth.photo_centres_crs)
+    r_ecef = truth.local_to_ecef.ecef2enu.T @ truth.photo_rotations_local
+    return opk_from_matrix(enu_rotation(llh[:, 0], llh[:, 1]) @ r_ecef)
+
+
+def two_height_points(sim) -> ControlPoints:
+    """Check points of the simulation plus two height points: the full control
+    point nearest the start on the left and nearest the end on the right."""
+    c = sim.control
+    lookup = {pid: i for i, pid in enumerate(sim.observations.point_ids)}
+    full = np.flatnonzero([k is ControlType.FULL for k in c.kind])
+    loc = sim.truth.points_local[[lookup[c.point_ids[i]] for i in full]]
+    az = np.radians(sim.truth.heading_deg)
+    along = loc[:, 0] * np.sin(az) + loc[:, 1] * np.cos(az)
+    left = -loc[:, 0] * np.cos(az) + loc[:, 1] * np.sin(az)
+    ends = {int(full[np.argmin(along - 0.1 * left)]), int(full[np.argmax(along - 0.1 * left)])}
+    rows = [i for i, k in enumerate(c.kind) if k is ControlType.CHECK or i in ends]
+    xyz = c.xyz[rows].copy()
+    kinds = tuple(ControlType.HEIGHT if i in ends else ControlType.CHECK for i in rows)
+    xyz[[k is ControlType.HEIGHT for k in kinds], :2] = np.nan
+    return ControlPoints(
+        tuple(c.point_ids[i] for i in rows), xyz, kinds, c.sigma_xy[rows], c.sigma_h[rows]
+    )
+
+
+def test_refinement_is_no_worse_than_the_strip_method_at_check_points():
+    sim, result = strip_and_result()
+    refined = refine_bundle(result)
+    assert isinstance(refined, RefinedResult)
+    assert refined.converged and refined.rejections == ()
+    strip, bundle = result.check_statistics, refined.check_statistics
+    assert bundle.n_plan == strip.n_plan == 50
+    # measured (seed 1): strip plan 0.092 m, height 0.120 m; bundle 0.066 m, 0.086 m
+    assert bundle.rmse_plan <= strip.rmse_plan
+    assert bundle.rmse[2] <= strip.rmse[2]
+    assert bundle.rmse_plan < 0.075 and bundle.rmse[2] < 0.095
+    # sigma0 ~ 1 with the simulated 5 µm noise and 2 cm control: redundancy 280
+    # gives sigma0 within 1 +- 3 sqrt(1 / 560) = 1 +- 0.13
+    assert abs(refined.sigma0 - 1.0) < 0.13
+    # image residuals: RMS close to the 5 µm noise times sqrt(r / n) (~0.6)
+    used = refined.image_residuals_um[refined.image_used]
+    assert 2.0 < np.sqrt(np.mean(used**2)) < 5.0
+    # the refined points against the truth, all points
+    err = refined.points - sim.truth.points_crs
+    assert np.sqrt(np.nanmean(err[:, 2] ** 2)) < np.sqrt(
+        np.nanmean((result.points - sim.truth.points_crs)[:, 2] ** 2)
+    )
+    # control residuals are small (2 cm control): used components only
+    assert refined.control_statistics.rmse_plan < 0.03
+    assert np.all(np.isfinite(refined.point_std[np.isfinite(refined.points[:, 0])]))
+    assert set(refined.timings) == {"frame", "bundle", "total"}
+
+
+@pytest.mark.parametrize(
+    ("crs", "route"),
+    [("EPSG:32634", "geocentric"), ("EPSG:32634", "projected"), ("local", "projected")],
+    ids=["utm-geocentric", "utm-projected", "local"],
+)
+def test_noise_free_refinement_is_exact(crs, route):
+    sim, result = strip_and_result(crs, route, image_noise_mm=0.0, control_noise_m=0.0)
+    refined = refine_bundle(result)
+    np.testing.assert_allclose(refined.points, sim.truth.points_crs, atol=1e-6, rtol=0)
+    np.testing.assert_allclose(
+        refined.photo_centres, sim.truth.photo_centres_crs, atol=1e-6, rtol=0
+    )
+    np.testing.assert_allclose(refined.photo_opk, true_opk_enu(sim), atol=1e-9, rtol=0)
+    assert refined.check_statistics.max_plan < 1e-6
+    assert refined.check_statistics.max_height < 1e-6
+    assert refined.rejections == ()
+
+
+def gnss_of(sim, rng, sigma=0.05) -> GnssCentres:
+    m = sim.observations.n_photos
+    xyz = sim.truth.photo_centres_crs + rng.normal(0.0, sigma, (m, 3))
+    return GnssCentres(sim.observations.photo_ids, xyz, sigma, sigma)
+
+
+def test_gnss_centres_and_two_height_points():
+    sim, result = strip_and_result()
+    rng = np.random.default_rng(12)
+    control = two_height_points(sim)
+    refined = refine_bundle(result, control=control, gnss=gnss_of(sim, rng))
+    stats = refined.check_statistics
+    assert stats.n_plan == 50
+    assert refined.control_statistics.n_height == 2 and refined.control_statistics.n_plan == 0
+    # Projection centres on one line do not fix the roll of each photo about the
+    # flight line; tie points fix it only through y-parallaxes at +-75 mm, and
+    # it drifts from model to model (about 1e-4 rad per model).  The adjustment
+    # says so itself: predicted plan std at the check points about 0.22 m.
+    chk = [sim.observations.point_ids.index(control.point_ids[r]) for r in refined.control_index]
+    chk = np.array(chk)[refined.is_check]
+    std = refined.point_std[chk]
+    predicted_plan = float(np.sqrt(np.mean(std[:, 0] ** 2 + std[:, 1] ** 2)))
+    predicted_h = float(np.sqrt(np.mean(std[:, 2] ** 2)))
+    assert 0.15 < predicted_plan < 0.3 and 0.08 < predicted_h < 0.16
+    # measured over seeds 0..7: plan RMSE 0.08..0.38 m, height 0.09..0.16 m; here
+    # the errors must agree with the predicted precision (within a factor 2)
+    assert 0.5 * predicted_plan < stats.rmse_plan < 2.0 * predicted_plan
+    assert stats.rmse[2] < 2.0 * predicted_h
+    assert stats.rmse_plan < 0.5 and stats.rmse[2] < 0.25
+
+
+def test_gnss_imu_and_two_height_points_reach_mapping_accuracy():
+    sim, result = strip_and_result()
+    rng = np.random.default_rng(12)
+    m = sim.observations.n_photos
+    sigma_imu = np.radians(0.005)  # a high-grade IMU: 0.005 deg roll / pitch
+    opk = true_opk_enu(sim) + rng.normal(0.0, sigma_imu, (m, 3))
+    imu = ImuAttitudes(sim.observations.photo_ids, opk, sigma_imu)
+    refined = refine_bundle(
+        result, control=two_height_points(sim), gnss=gnss_of(sim, rng), imu=imu
+    )
+    stats = refined.check_statistics
+    # The IMU fixes the roll: 8.7e-5 rad at 1223 m is 0.11 m per photo, averaged
+    # over the 2-3 photos of a point.  Measured over seeds 0..7: plan RMSE
+    # 0.06..0.11 m, height 0.06..0.09 m, i.e. the strip method's accuracy with full
+    # control (0.07..0.11 m, 0.05..0.13 m) without ground control.  1:8000 film
+    # is flown for 1:1000-1:2000 maps (plan tolerance 0.2-0.4 m): plan 0.15 m
+    # and height 0.15 m RMSE are accepted.
+    assert stats.rmse_plan < 0.15 and stats.rmse[2] < 0.15
+    assert abs(refined.sigma0 - 1.0) < 0.15
+
+
+def test_control_blunder_is_rejected():
+    sim = simulate_strip(12, seed=1)
+    c = sim.control
+    full = [i for i, k in enumerate(c.kind) if k is ControlType.FULL]
+    bad = full[len(full) // 2]
+    xyz = c.xyz.copy()
+    xyz[bad, 2] += 0.6  # a 0.6 m height blunder on a full point (30 sigma of control)
+    control = dataclasses.replace(c, xyz=xyz)
+    result = triangulate(sim.observations, control, sim.crs)
+    refined = refine_bundle(result, blunders=BlunderOptions())
+    control_rejections = [r for r in refined.rejections if r.stage == "control"]
+    assert [(r.point, r.component) for r in control_rejections] == [(c.point_ids[bad], "height")]
+    r = control_rejections[0]
+    # given - adjusted before the rejection: the blunder times its redundancy
+    # number (about 0.08: most of it went into the point and its photos)
+    assert r.applied and r.w > r.critical and 0.03 < r.residual < 0.1
+    assert "after" in r.effect
+    row = list(refined.control_index).index(bad)
+    assert refined.used_xy[row] and not refined.used_h[row]
+    # the rejected height keeps its large residual; the check points are clean
+    assert abs(refined.control_residuals[row, 2] - 0.6) < 0.1
+    clean = refine_bundle(triangulate(sim.observations, c, sim.crs))
+    assert abs(refined.check_statistics.rmse[2] - clean.check_statistics.rmse[2]) < 0.01
+    # "report" finds it and changes nothing
+    reported = refine_bundle(result, blunders=BlunderOptions(action="report"))
+    assert any(not x.applied and x.point == c.point_ids[bad] for x in reported.rejections)
+    assert reported.check_statistics.rmse[2] > refined.check_statistics.rmse[2]
+
+
+def test_image_blunder_is_rejected():
+    sim = simulate_strip(12, seed=1)
+    obs = sim.observations
+    counts = np.bincount(obs.point)
+    k = int(np.flatnonzero(counts[obs.point] == 3)[40])  # a ray of a three-ray point
+    xy = obs.xy.copy()
+    xy[k, 1] += 0.040  # 40 µm in y (8 sigma)
+    bad_obs = dataclasses.replace(obs, xy=xy)
+    result = triangulate(bad_obs, sim.control, sim.crs, blunders=BlunderOptions(action="off"))
+    refined = refine_bundle(result)
+    image = [r for r in refined.rejections if r.stage == "bundle"]
+    assert len(image) == 1
+    assert image[0].point == obs.point_ids[obs.point[k]]
+    assert image[0].photos == (obs.photo_ids[obs.photo[k]],)
+    assert image[0].component == "y" and image[0].unit == "µm"
+    assert not refined.image_used[k] and refined.image_used.sum() == obs.photo.size - 1
+    # the residual of the rejected ray shows the blunder
+    assert abs(refined.image_residuals_um[k, 1] + 40.0) < 5.0
+
+
+def test_approximate_redundancy_numbers_against_exact():
+    sim, result = strip_and_result("local", "projected")
+    obs = sim.observations
+    p, m = obs.n_points, obs.n_photos
+    c = sim.control
+    lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
+    cx = np.full((p, 3), np.nan)
+    cs = np.full((p, 3), np.inf)
+    for i, pid in enumerate(c.point_ids):
+        j = lookup[pid]
+        if c.uses_xy[i]:
+            cx[j, :2], cs[j, :2] = c.xyz[i, :2], c.sigma_xy[i]
+        if c.uses_h[i]:
+            cx[j, 2], cs[j, 2] = c.xyz[i, 2], c.sigma_h[i]
+    g = result.ground
+    fr = refine_frame(
+        obs, g.photo_centres_work, g.photo_rotations_enu, result.points,
+        control_xyz=cx, control_sigma=cs,
+    )  # fmt: skip
+    # exact redundancy numbers from the dense design matrix (whitened)
+    _, _, jac_photo, jac_point = _collinearity(
+        fr.centres, fr.rotations, fr.points, obs.photo, obs.point, obs.principal_distance
+    )
+    k = obs.photo.size
+    a = np.zeros((2 * k, 6 * m + 3 * p))
+    rows = np.arange(2 * k).reshape(k, 2)
+    for i in range(2):
+        for j in range(6):
+            a[rows[:, i], 6 * obs.photo + j] = jac_photo[:, i, j] / obs.sigma
+        for j in range(3):
+            a[rows[:, i], 6 * m + 3 * obs.point + j] = jac_point[:, i, j] / obs.sigma
+    given = np.argwhere(np.isfinite(cx))
+    a_c = np.zeros((len(given), a.shape[1]))
+    a_c[np.arange(len(given)), 6 * m + 3 * given[:, 0] + given[:, 1]] = (
+        1.0 / cs[given[:, 0], given[:, 1]]
+    )
+    design = np.vstack([a, a_c])
+    hat = np.einsum("ij,jk,ik->i", design, np.linalg.inv(design.T @ design), design)
+    r = 1.0 - hat
+    assert abs(r.sum() - fr.redundancy) < 1e-6
+    r_img = r[: 2 * k].reshape(k, 2)
+    diff = fr.image_redundancy - r_img
+    # measured: RMS 0.066, largest 0.35 (y of two-ray points, where the photos
+    # take more than their average share)
+    assert np.sqrt(np.mean(diff**2)) < 0.08
+    assert np.max(np.abs(diff)) < 0.4
+    assert abs(np.mean(diff)) < 0.02
+    # control: exact from the point cofactors
+    r_ctrl = r[2 * k :]
+    q = (fr.point_std / fr.sigma0) ** 2
+    r_from_std = 1.0 - q[given[:, 0], given[:, 1]] / cs[given[:, 0], given[:, 1]] ** 2
+    np.testing.assert_allclose(r_from_std, r_ctrl, atol=1e-8)
+
+
+def test_gnss_for_unknown_photos_warns_and_bad_inputs_raise():
+    sim, result = strip_and_result()
+    rng = np.random.default_rng(3)
+    g = gnss_of(sim, rng)
+    extra = GnssCentres((*g.photo_ids, "9999"), np.vstack([g.xyz, g.xyz[-1]]), 0.05, 0.05)
+    with pytest.warns(StripAerotriWarning, match="'9999' are not in the strip"):
+        refined = refine_bundle(result, gnss=extra)
+    assert refined.converged
+    with pytest.raises(ValueError, match="Expected `xyz` to have shape"):
+        GnssCentres(("1",), np.zeros((2, 3)), 0.05, 0.05)
+    with pytest.raises(ValueError, match="positive GNSS"):
+        GnssCentres(("1",), np.zeros((1, 3)), 0.0, 0.05)
+    with pytest.raises(ValueError, match="positive IMU"):
+        ImuAttitudes.from_degrees(("1",), [[0.0, 0.0, 0.0]], -1.0)
+    imu = ImuAttitudes.from_degrees(("1",), [[1.0, 2.0, 90.0]], 0.01)
+    np.testing.assert_allclose(imu.opk, np.radians([[1.0, 2.0, 90.0]]))
