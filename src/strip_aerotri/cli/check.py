@@ -103,13 +103,23 @@ def check_project(project, out: Path | None = None) -> CheckReport:
     obs = project.observations
     images = project.images_file
     control_file = project.control_file
-    ids = obs.photo_ids
+    all_ids = obs.photo_ids
     n_photos = obs.n_photos
-    n_models = n_photos - 1
+    # Models on every k-th photo with [adjustment] photo_step = k (densify); "auto"
+    # chooses k from a first relative orientation, so it is checked as k = 1.
+    step = getattr(project.adjustment, "photo_step", 1)
+    step = step if isinstance(step, int) and step > 1 else 1
+    if step > 1:
+        from ..densify import model_photo_index
+
+        seq = model_photo_index(n_photos, step)
+    else:
+        seq = np.arange(n_photos, dtype=np.intp)
+    ids = [all_ids[i] for i in seq]
+    n_models = len(seq) - 1
     labels = [f"pair {ids[m]}-{ids[m + 1]}" for m in range(n_models)]
 
     # Pairs: points on both photos (same rows as strip formation).
-    seq = np.arange(n_photos, dtype=np.intp)
     model, point, _, _ = pair_rows(obs, seq)
     counts = np.bincount(model, minlength=n_models)
     rep.problems += [
@@ -131,13 +141,16 @@ def check_project(project, out: Path | None = None) -> CheckReport:
         for m in np.flatnonzero(ties[1:] == 0) + 1
     ]
     rep.details += [
-        f"{labels[m]}: {counts[m]} common points, "
+        f"{labels[m]}: {int(counts[m])} common points, "
         + ("first model" if m == 0 else f"{ties[m]} tie points with the previous model")
         for m in range(n_models)
     ]
 
     triangulable = np.zeros(obs.n_points, dtype=bool)
-    triangulable[point] = True
+    if step == 1:
+        triangulable[point] = True
+    else:  # the other photos are resected and every point intersected from all its rays
+        triangulable = np.bincount(obs.point, minlength=obs.n_points) >= 2
 
     # Control.
     ctrl = project.control
@@ -237,7 +250,8 @@ def check_project(project, out: Path | None = None) -> CheckReport:
     poly = "auto" if kind == "auto" else f"{kind} (needs {n_terms(int(kind))} per coordinate)"
     rep.summary += [
         f"project '{project.name}': {project.path}",
-        f"photos: {n_photos} ({ids[0]} ... {ids[-1]}), {n_models} pairs",
+        f"photos: {n_photos} ({all_ids[0]} ... {all_ids[-1]}), {n_models} pairs"
+        + (f" (models on every {step}th photo)" if step > 1 else ""),
         f"image points: {obs.n_points} on {len(obs.photo)} observations, "
         f"{int(triangulable.sum())} measured on a pair",
         f"pairs: {int(counts.min())}..{int(counts.max())} common points{tie_text}",
