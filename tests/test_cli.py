@@ -481,6 +481,14 @@ def test_check_lists_every_problem(project):
         assert all(p in line for p in pieces), (pieces, line)
 
 
+def test_check_follows_photo_step(project):
+    # 60 % overlap: photos two apart share no triple overlap with the next model
+    edit_text(project, "[adjustment]\n", "[adjustment]\nphoto_step = 2\n")
+    result = invoke("-q", "check", project)
+    assert result.exit_code == 1
+    assert "pair 1003-1005 shares no tie point with pair 1001-1003" in result.stderr
+
+
 def test_check_ok(project):
     result = invoke("check", project)
     assert result.exit_code == 0, result.output
