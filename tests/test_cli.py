@@ -486,7 +486,8 @@ def test_check_follows_photo_step(project):
     edit_text(project, "[adjustment]\n", "[adjustment]\nphoto_step = 2\n")
     result = invoke("-q", "check", project)
     assert result.exit_code == 1
-    assert "pair 1003-1005 shares no tie point with pair 1001-1003" in result.stderr
+    # model photos 1001, 1003, 1004, 1006 (densify.model_photo_index(6, 2) = [0, 2, 3, 5])
+    assert "pair 1003-1004 shares no tie point with pair 1001-1003" in result.stderr
 
 
 def test_check_ok(project):
