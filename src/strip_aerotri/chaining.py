@@ -41,8 +41,10 @@ class StripOptions:
         Image -> strip rotation of the first photo (identity: J).
     first_position : array_like, shape (3,), optional
         Projection centre of the first photo (origin: J).
-    first_base_length : float
-        Length scale of the first model: its base has ``b_x`` equal to this.
+    first_base_length : float, optional
+        Length |b| of the first base (B's base length B, B(135)).  None (the
+        default) is J's choice: the first base's component along the first
+        photo's image x axis is 1 (``b_x = 1`` with ``R_1 = I``).
     max_iterations, tolerance
         Of the relative orientation.
     """
@@ -52,7 +54,7 @@ class StripOptions:
     scale_transfer: ScaleTransfer = ScaleTransfer.Z
     first_rotation: FloatArray | None = None
     first_position: FloatArray | None = None
-    first_base_length: float = 1.0
+    first_base_length: float | None = None
     max_iterations: int = 30
     tolerance: float = 1e-11
 
@@ -62,7 +64,9 @@ class StripOptions:
         )
         object.__setattr__(self, "intersection", IntersectionMethod(self.intersection))
         object.__setattr__(self, "scale_transfer", ScaleTransfer(self.scale_transfer))
-        if not (np.isfinite(self.first_base_length) and self.first_base_length > 0):
+        if self.first_base_length is not None and not (
+            np.isfinite(self.first_base_length) and self.first_base_length > 0
+        ):
             raise ValueError(f"Expected first_base_length > 0, got {self.first_base_length!r}")
 
 
@@ -253,6 +257,7 @@ def form_strip(
             max_iterations=options.max_iterations,
             tolerance=options.tolerance,
             labels=labels,
+            robust=blunders.rejecting,
         )
         if not blunders.testing:
             break
@@ -362,7 +367,12 @@ def form_strip(
         m = int(bad[0])
         raise GeometryError(f"{labels[m]}: the tie points give no valid scale (ratio {ratio[m]})")
     ratio[0] = 1.0
-    scale = options.first_base_length * np.cumprod(ratio)
+    first_scale = (
+        1.0
+        if options.first_base_length is None
+        else options.first_base_length / float(np.linalg.norm(rel.base[0]))
+    )
+    scale = first_scale * np.cumprod(ratio)
 
     first_position = (
         np.zeros(3)
@@ -430,10 +440,15 @@ def _excluded_rows(observations, blunders, row_l, row_r) -> np.ndarray:
         names = np.asarray(observations.point_ids)
         drop_obs |= np.isin(names[observations.point], list(blunders.exclude_points))
     if blunders.exclude_observations:
-        photo_names = np.asarray(observations.photo_ids)[observations.photo]
-        point_names = np.asarray(observations.point_ids)[observations.point]
-        keys = np.char.add(np.char.add(photo_names, "\x00"), point_names)
-        wanted = [f"{ph}\x00{pt}" for ph, pt in blunders.exclude_observations]
+        photo_of = {pid: i for i, pid in enumerate(observations.photo_ids)}
+        point_of = {pid: i for i, pid in enumerate(observations.point_ids)}
+        n_pts = max(observations.n_points, 1)
+        wanted = [
+            photo_of[ph] * n_pts + point_of[pt]
+            for ph, pt in blunders.exclude_observations
+            if ph in photo_of and pt in point_of
+        ]
+        keys = observations.photo.astype(np.int64) * n_pts + observations.point
         drop_obs |= np.isin(keys, wanted)
     return ~(drop_obs[row_l] | drop_obs[row_r])
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._typing import FloatArray
+from .blunders import BlunderOptions, Rejection
 from .chaining import StripModel, StripOptions, form_strip
 from .geodesy import GroundCRS
 from .ground import GroundOptions, GroundResult, LineSpec, adjust_to_ground
@@ -100,6 +101,11 @@ class StripResult:
         return self.strip.photo_ids
 
     @property
+    def rejections(self) -> tuple[Rejection, ...]:
+        """Every observation that failed a blunder test, stage by stage."""
+        return self.strip.rejections + self.ground.rejections
+
+    @property
     def point_ids(self) -> tuple[str, ...]:
         return self.strip.observations.point_ids
 
@@ -127,6 +133,7 @@ def triangulate(
     lines: Sequence[LineSpec] = (),
     strip_options: StripOptions | None = None,
     ground_options: GroundOptions | None = None,
+    blunders: BlunderOptions | None = None,
     progress: Progress | None = None,
     warnings: Sequence[str] = (),
 ) -> StripResult:
@@ -144,6 +151,9 @@ def triangulate(
         Straight-line conditions, J(18).
     strip_options : StripOptions
     ground_options : GroundOptions
+    blunders : BlunderOptions, optional
+        Gross-error tests at every stage (default: test and reject; see
+        :mod:`strip_aerotri.blunders`).
     progress : callable, optional
         Called with a short message at each stage (the CLI shows it).
     warnings : sequence of str
@@ -160,13 +170,16 @@ def triangulate(
         f"forming the strip: {observations.n_photos} photos, "
         f"{len(observations.photo)} observations"
     )
-    strip = form_strip(observations, strip_options)
+    strip = form_strip(observations, strip_options, blunders=blunders)
     timings["strip_formation"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     say("orienting the strip on the control")
-    ground = adjust_to_ground(strip, control, crs, lines=lines, options=ground_options)
+    ground = adjust_to_ground(
+        strip, control, crs, lines=lines, options=ground_options, blunders=blunders
+    )
     timings["ground"] = time.perf_counter() - t1
     notes = list(warnings)
+    notes += [r.describe() for r in strip.rejections + ground.rejections]
     notes += [
         f"control point {p!r} is not triangulated (seen on fewer than two photos of a model): "
         "left out"
@@ -192,8 +205,15 @@ def triangulate(
     )
 
 
-def run_project(project, *, progress: Progress | None = None) -> StripResult:
-    """Adjust a loaded project (:func:`strip_aerotri.config.load_project`)."""
+def run_project(
+    project, *, progress: Progress | None = None, blunders: BlunderOptions | None = None
+) -> StripResult:
+    """Adjust a loaded project (:func:`strip_aerotri.config.load_project`).
+
+    ``blunders`` overrides the project's own blunder options, if it has any.
+    """
+    if blunders is None:
+        blunders = getattr(project, "blunders", None)
     adj = project.adjustment
     strip_options = StripOptions(
         relative_orientation=str(adj.relative_orientation.value),
@@ -213,6 +233,7 @@ def run_project(project, *, progress: Progress | None = None) -> StripResult:
         lines=lines,
         strip_options=strip_options,
         ground_options=ground_options,
+        blunders=blunders,
         progress=progress,
         warnings=project.warnings,
     )

@@ -76,7 +76,9 @@ class RelativeOrientation:
     ----------
     method : RelativeOrientationMethod
     base : ndarray, shape (n_pairs, 3)
-        Base vector in the strip system, normalised to ``b_x = 1`` (J(5)).
+        Base vector in the strip system, normalised so that its component
+        along the left photo's image x axis is 1 (J(5)'s ``b_x = 1`` for
+        near-vertical photos of a strip along x; valid for any heading).
     rotation_left, rotation_right : ndarray, shape (n_pairs, 3, 3)
         Image -> strip rotations of the two photos; ``rotation_left[m + 1]``
         equals ``rotation_right[m]``.
@@ -84,7 +86,8 @@ class RelativeOrientation:
         ``rotation_left.T @ rotation_right``: right image -> left image.
     elements : ndarray, shape (n_pairs, 5)
         The five elements of the formulation: ``(b_y, b_z, a, b, c)`` with
-        the Schut parameters of the relative rotation for ``"dependent"``;
+        the base components along the left photo's image y and z axes and the
+        Schut parameters of the relative rotation for ``"dependent"``;
         ``(alpha1, chi1, alpha2, omega2, chi2)`` in radians, the base-system
         angles of B(125)-(135), for ``"base"``.
     iterations : ndarray of int, shape (n_pairs,)
@@ -206,12 +209,41 @@ def _name(labels: list[str] | None, m: int) -> str:
     return labels[m] if labels else f"pair {m}"
 
 
-def _iterate(state, weight, starts, max_iterations, tolerance, active, history):
+def _segment_median(values: FloatArray, pair: IntArray, starts: IntArray) -> FloatArray:
+    """Median of ``values`` within each pair (rows sorted by pair)."""
+    counts = np.diff(np.r_[starts, pair.shape[0]])
+    order = np.lexsort((values, pair))
+    return values[order[starts + counts // 2]]
+
+
+def _cauchy_weights(state, pair, starts) -> FloatArray:
+    """Iteratively reweighted least squares (Cauchy, c = 2.385 robust sigmas per pair).
+
+    Used only to find start values when a pair with gross errors does not
+    converge; the final solution and its tests are ordinary least squares.
+    """
+    q = np.abs(state.parallax_image_mm())
+    q = np.where(np.isfinite(q), q, np.inf)
+    scale = 1.4826 * _segment_median(q, pair, starts)
+    scale = np.maximum(scale, 1e-6)[pair]
+    return 1.0 / (1.0 + (q / (2.385 * scale)) ** 2)
+
+
+def _gross(state, pair, starts) -> np.ndarray:
+    """Rows whose y-parallax exceeds 5 robust sigmas (1.4826 MAD) of their pair."""
+    q = np.abs(state.parallax_image_mm())
+    q = np.where(np.isfinite(q), q, np.inf)
+    scale = 1.4826 * _segment_median(q, pair, starts)
+    return ~(q <= 5.0 * np.maximum(scale, 1e-6)[pair])
+
+
+def _iterate(state, weight, starts, max_iterations, tolerance, active, history, robust=False):
     """Gauss-Newton steps for the active pairs until their corrections vanish.
 
     Returns (converged mask, iterations per pair, singular-at-start mask).
     Pairs that diverge (non-finite or huge corrections) are frozen and
-    reported as not converged.
+    reported as not converged.  With ``robust`` the weights are multiplied by
+    Cauchy weights of the current residuals at every step (IRLS).
     """
     n_pairs = active.shape[0]
     done = ~active
@@ -220,7 +252,8 @@ def _iterate(state, weight, starts, max_iterations, tolerance, active, history):
     singular_start = np.zeros(n_pairs, dtype=bool)
     for it in range(1, max_iterations + 1):
         rows, q = state.design()
-        corr, singular = _solve_normals(rows, -q, weight, starts)
+        w = weight * _cauchy_weights(state, state.pair, starts) if robust else weight
+        corr, singular = _solve_normals(rows, -q, w, starts)
         if it == 1:
             singular_start = singular & active
         size = np.max(np.abs(corr), axis=1)
@@ -249,6 +282,7 @@ def relative_orientation(
     max_iterations: int = 30,
     tolerance: float = 1e-11,
     labels: list[str] | None = None,
+    robust: bool = False,
 ) -> RelativeOrientation:
     """Orient a chain of pairs by the y-parallax equation.
 
@@ -276,6 +310,11 @@ def relative_orientation(
         Convergence limit on the corrections (radians and base units).
     labels : list of str, optional
         Names of the pairs for messages, e.g. ``"pair 1201-1202"``.
+    robust : bool
+        Start with an iteratively reweighted (Cauchy) solution and give y-
+        parallaxes beyond 5 robust sigmas of their pair no weight in the final
+        least squares, so that gross errors cannot distort it; their residuals
+        and w-tests are still returned for the caller to report.
 
     Returns
     -------
@@ -325,6 +364,11 @@ def relative_orientation(
 
     history = [state.max_parallax_um()]
     active = np.ones(n_pairs, dtype=bool)
+    if robust:
+        # Robust start (IRLS, Cauchy) and no weight for gross errors beyond 5
+        # robust sigmas; the tests of the caller then find and name them.
+        _iterate(state, weight, starts, max_iterations, tolerance, active, history, robust=True)
+        weight = np.where(_gross(state, pair, starts), 0.0, weight)
     converged, iterations, singular_first = _iterate(
         state, weight, starts, max_iterations, tolerance, active, history
     )
@@ -348,6 +392,21 @@ def relative_orientation(
         iterations[retry] = more[retry]
         converged |= ok
     if not converged.all():
+        # Gross errors (swapped ids, mm-size blunders) can keep least squares from
+        # converging at all: find start values by robust IRLS from the
+        # near-vertical start, then finish with ordinary least squares.
+        retry = ~converged
+        identity = np.broadcast_to(np.eye(3), (int(retry.sum()), 3, 3))
+        state.restart(retry, identity, np.tile(_EX, (int(retry.sum()), 1)))
+        _iterate(state, weight, starts, max_iterations, tolerance, retry, history, robust=True)
+        # Observations beyond 5 robust sigmas of the robust fit take no part in
+        # the final least squares (their w-tests then fail and they are
+        # reported and rejected by the caller's data snooping).
+        weight = np.where(retry[pair] & _gross(state, pair, starts), 0.0, weight)
+        ok, more, _ = _iterate(state, weight, starts, max_iterations, tolerance, retry, history)
+        iterations[retry] = more[retry]
+        converged |= ok
+    if not converged.all():
         bad = np.flatnonzero(~converged)
         names = ", ".join(_name(labels, int(m)) for m in bad[:5])
         raise ConvergenceError(
@@ -355,14 +414,15 @@ def relative_orientation(
             " (check point ids and image coordinates of these pairs)"
         )
     base = state.base_strip()
-    # With b_x = 1, 1/|b| is the cosine between the base and the strip x axis.
+    # With the base's image-x component 1, 1/|b| is the cosine between the base
+    # and the left photo's image x axis.
     cos_along = 1.0 / np.linalg.norm(base, axis=1)
     weak = np.flatnonzero(~np.isfinite(cos_along) | (cos_along < 0.2))
     if weak.size:
         m = int(weak[0])
         raise GeometryError(
             f"{_name(labels, m)}: the base runs across the image x axis (b = "
-            f"{np.array2string(base[m], precision=3)} with b_x = 1); image x must point "
+            f"{np.array2string(base[m], precision=3)}); image x must point "
             "along the flight (turn the image axes)"
         )
 
@@ -511,8 +571,11 @@ class _DependentState:
         chain = chain_rotations(self.first, self.relative)
         self.r_left = chain[:-1]
         self.r_right = chain[1:]
-        b = np.einsum("mij,mj->mi", self.r_left, self.beta)
-        self.b = b / b[:, :1]
+        # Gauge: the base's component along the left photo's image x axis is 1
+        # (J's b_x = 1 for the first pair of a strip along the strip x axis, and
+        # valid for any given first orientation and heading).
+        self.beta = self.beta / self.beta[:, :1]
+        self.b = np.einsum("mij,mj->mi", self.r_left, self.beta)
         rl = self.r_left[self.pair]
         self.l = np.einsum("nij,nj->ni", rl, self.lz)
         self.p = np.einsum("nij,nj->ni", self.r_right[self.pair], self.pz)
@@ -522,7 +585,12 @@ class _DependentState:
         bn = self.b[self.pair]
         u = bn - self.q[:, None] * _J
         rot = np.cross(self.p, np.cross(u, self.l)) / self.d[:, None]
-        rows = np.column_stack([self.lxp[:, 1:] / self.d[:, None], rot])
+        # base corrections along the left photo's image y and z axes
+        gb = self.lxp / self.d[:, None]
+        r_l = self.r_left[self.pair]
+        rows = np.column_stack(
+            [np.einsum("ni,ni->n", gb, r_l[:, :, 1]), np.einsum("ni,ni->n", gb, r_l[:, :, 2]), rot]
+        )
         return rows, self.q
 
     def restart(self, mask, relative, base_dir):
@@ -537,10 +605,8 @@ class _DependentState:
         # into every later pair of the chain and grow from one iteration to the next.
         a_left = np.einsum("mji,mj->mi", self.r_left, corr[:, 2:])
         self.relative = matrix_from_schut(_SCHUT_FACTOR * a_left) @ self.relative
-        db = np.zeros_like(self.b)
-        db[:, 1:] = corr[:, :2]
-        b_x = np.einsum("mi,mi->m", self.r_left[:, 0, :], self.beta)  # before norming
-        self.beta = self.beta / b_x[:, None] + np.einsum("mji,mj->mi", self.r_left, db)
+        self.beta = self.beta.copy()
+        self.beta[:, 1:] += corr[:, :2]
         self._refresh()
 
     def parallax_image_mm(self):
@@ -564,7 +630,7 @@ class _DependentState:
     def elements(self):
         from .rotation import schut_from_matrix
 
-        return np.column_stack([self.b[:, 1:], schut_from_matrix(self.relative)])
+        return np.column_stack([self.beta[:, 1:], schut_from_matrix(self.relative)])
 
 
 class _BaseState:
@@ -640,7 +706,8 @@ class _BaseState:
         # A_tau_nu = R_left A'^T; its first column is the base direction, B(130).
         a_tau_nu = r_left @ np.swapaxes(self.l_base, 1, 2)
         b = a_tau_nu[:, :, 0]
-        return b / b[:, :1]
+        along = np.einsum("mi,mi->m", b, r_left[:, :, 0])  # component along image x
+        return b / along[:, None]
 
     def elements(self):
         from .rotation import cardan_from_matrix

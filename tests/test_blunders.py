@@ -1,0 +1,200 @@
+"""Gross-error detection at every stage (method.md §7, strip_aerotri.blunders).
+
+Blunders are injected into simulated strips (strip_aerotri.simulate) and must
+be found and named; clean strips must pass without a rejection.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from strip_aerotri.blunders import BlunderOptions, critical_value, robust_variance_factor
+from strip_aerotri.errors import GeometryError
+from strip_aerotri.ground import LineSpec
+from strip_aerotri.pipeline import triangulate
+from strip_aerotri.simulate import simulate_strip
+
+
+def _rows(obs, photo, point):
+    ph = obs.photo_ids.index(photo)
+    pt = obs.point_ids.index(point)
+    return int(np.flatnonzero((obs.photo == ph) & (obs.point == pt))[0])
+
+
+def _tie_observations(obs, k, seed):
+    """k observations (row indices) of points seen on at least three photos,
+    on k different photos away from the strip ends."""
+    counts = np.bincount(obs.point, minlength=obs.n_points)
+    rng = np.random.default_rng(seed)
+    cand = np.flatnonzero((counts[obs.point] >= 3) & (obs.photo > 0))
+    rng.shuffle(cand)
+    picked, photos = [], set()
+    for row in cand:
+        if obs.photo[row] not in photos:
+            picked.append(int(row))
+            photos.add(obs.photo[row])
+        if len(picked) == k:
+            break
+    return picked
+
+
+def test_critical_value_is_bonferroni():
+    assert critical_value(1, 0.05) == pytest.approx(1.95996, abs=1e-4)  # normal 97.5 %
+    assert critical_value(1000, 0.001) == pytest.approx(4.8916, abs=1e-3)
+    assert critical_value(10, 0.001) > critical_value(1, 0.001)
+
+
+def test_robust_variance_factor():
+    rng = np.random.default_rng(1)
+    w = rng.normal(0, 1, 4000)
+    assert robust_variance_factor(w) == pytest.approx(1.0, abs=0.08)
+    assert robust_variance_factor(3 * w) == pytest.approx(9.0, rel=0.08)
+    w[:40] = 50.0  # 1 % blunders barely move it
+    assert robust_variance_factor(w) < 1.1
+
+
+def test_clean_strips_have_no_rejection():
+    """False alarms: none on clean strips at the default thresholds.
+
+    Measured over 40 strips (seeds 0-39, 16 photos, film preset, EPSG:2180,
+    5 µm noise): 0 rejections in about 3100 y-parallaxes, 500 tie points and
+    40 control observations per strip (see docs/blunders.md); the test
+    repeats 6 of them.
+    """
+    for seed in range(6):
+        sim = simulate_strip(16, seed=seed, crs="EPSG:2180")
+        res = triangulate(sim.observations, sim.control, sim.crs)
+        assert res.rejections == (), [r.describe() for r in res.rejections]
+
+
+@pytest.mark.parametrize("size_um", [60, 120, 200])
+def test_image_blunders_in_y_are_found_and_named(size_um):
+    sim = simulate_strip(16, seed=3, crs="EPSG:2180")
+    obs = sim.observations
+    rows = _tie_observations(obs, 3, seed=size_um)
+    xy = obs.xy.copy()
+    xy[rows, 1] += size_um / 1000.0
+    bad = dataclasses.replace(obs, xy=xy)
+    res = triangulate(bad, sim.control, sim.crs)
+    found = {(r.point, r.photos) for r in res.rejections if r.stage == "relative_orientation"}
+    for row in rows:
+        photo = obs.photo_ids[obs.photo[row]]
+        point = obs.point_ids[obs.point[row]]
+        assert any(p == point and photo in photos for p, photos in found), (point, photo, found)
+    clean = triangulate(obs, sim.control, sim.crs)
+    # accuracy after rejection within 10 % of the clean strip
+    assert res.check_statistics.rmse_plan < 1.10 * clean.check_statistics.rmse_plan
+    assert res.check_statistics.rmse[2] < 1.10 * clean.check_statistics.rmse[2]
+
+
+def test_image_blunder_in_x_shows_in_the_tie_heights():
+    """An x error changes the x-parallax, i.e. the height of the point in the
+    model(s) of that photo: found by the Z test of the tie points."""
+    sim = simulate_strip(16, seed=4, crs="EPSG:2180")
+    obs = sim.observations
+    (row,) = _tie_observations(obs, 1, seed=7)
+    xy = obs.xy.copy()
+    xy[row, 0] += 0.15
+    res = triangulate(dataclasses.replace(obs, xy=xy), sim.control, sim.crs)
+    point = obs.point_ids[obs.point[row]]
+    assert point in res.strip.rejected_points
+    assert any(r.stage == "tie_points" and r.point == point for r in res.rejections)
+
+
+def test_swapped_point_ids_on_one_photo_are_found():
+    sim = simulate_strip(16, seed=5, crs="EPSG:2180")
+    obs = sim.observations
+    photo = 6
+    on_photo = np.flatnonzero(obs.photo == photo)
+    counts = np.bincount(obs.point, minlength=obs.n_points)
+    ties = on_photo[counts[obs.point[on_photo]] >= 3]
+    a, b = ties[0], ties[-1]  # far apart on the image
+    point = obs.point.copy()
+    point[[a, b]] = point[[b, a]]
+    res = triangulate(dataclasses.replace(obs, point=point), sim.control, sim.crs)
+    names = {r.point for r in res.rejections}
+    assert {obs.point_ids[obs.point[a]], obs.point_ids[obs.point[b]]} <= names
+
+
+@pytest.mark.parametrize(("component", "size"), [(0, 5.0), (2, 3.0)])
+def test_control_blunder_is_found(component, size):
+    sim = simulate_strip(16, seed=1, crs="EPSG:2180")
+    kinds = [k.value for k in sim.control.kind]
+    row = kinds.index("full", 3)
+    xyz = sim.control.xyz.copy()
+    xyz[row, component] += size
+    res = triangulate(
+        sim.observations, dataclasses.replace(sim.control, xyz=xyz), sim.crs
+    )
+    rejected = [r for r in res.rejections if r.stage == "control"]
+    assert [r.point for r in rejected] == [sim.control.point_ids[row]]
+    assert rejected[0].component == ("height" if component == 2 else "plan")
+    assert abs(rejected[0].residual) > 0.3 * size
+
+
+def test_line_point_off_the_line_is_found():
+    sim = simulate_strip(16, seed=2, crs="EPSG:2180", preset="corridor")
+    lines = [LineSpec(tuple(ids), weight) for ids, weight in sim.lines]
+    obs = sim.observations
+    victim = lines[0].point_ids[len(lines[0].point_ids) // 2]
+    rows = np.flatnonzero(obs.point == obs.point_ids.index(victim))
+    xy = obs.xy.copy()
+    xy[rows, 1] += 0.08  # 80 µm across the strip on every photo: ~0.6 m on the ground
+    res = triangulate(dataclasses.replace(obs, xy=xy), sim.control, sim.crs, lines=lines)
+    line_rej = [r.point for r in res.rejections if r.stage == "straight_line"]
+    assert line_rej == [victim]
+
+
+def test_report_only_changes_nothing():
+    sim = simulate_strip(12, seed=3, crs="EPSG:2180")
+    obs = sim.observations
+    rows = _tie_observations(obs, 2, seed=1)
+    xy = obs.xy.copy()
+    xy[rows, 1] += 0.15
+    bad = dataclasses.replace(obs, xy=xy)
+    off = triangulate(bad, sim.control, sim.crs, blunders=BlunderOptions(action="off"))
+    report = triangulate(bad, sim.control, sim.crs, blunders=BlunderOptions(action="report"))
+    assert off.rejections == ()
+    assert report.rejections and not any(r.applied for r in report.rejections)
+    np.testing.assert_array_equal(report.points, off.points)
+
+
+def test_user_exclusions_and_thresholds():
+    sim = simulate_strip(12, seed=3, crs="EPSG:2180")
+    obs = sim.observations
+    rows = _tie_observations(obs, 1, seed=2)
+    xy = obs.xy.copy()
+    xy[rows, 1] += 0.15
+    bad = dataclasses.replace(obs, xy=xy)
+    photo, point = obs.photo_ids[obs.photo[rows[0]]], obs.point_ids[obs.point[rows[0]]]
+    excluded = triangulate(
+        bad,
+        sim.control,
+        sim.crs,
+        blunders=BlunderOptions(exclude_observations=((photo, point),)),
+    )
+    assert excluded.rejections == ()
+    lax = triangulate(
+        bad,
+        sim.control,
+        sim.crs,
+        blunders=BlunderOptions(critical_values={"relative_orientation": 1e6}),
+    )
+    assert not any(r.stage == "relative_orientation" for r in lax.rejections)
+
+
+def test_too_many_failures_stop_with_a_clear_error():
+    sim = simulate_strip(8, seed=3, crs="EPSG:2180")
+    obs = sim.observations
+    rng = np.random.default_rng(0)
+    # 12 % of the observations 1 mm off in y: far more than max_fraction allows
+    xy = obs.xy.copy()
+    xy[:, 1] += 1.0 * (rng.random(len(obs.xy)) < 0.12) * rng.choice([-1, 1], len(obs.xy))
+    with pytest.raises(GeometryError, match="fail the blunder test|at least 5|cannot"):
+        triangulate(
+            dataclasses.replace(obs, xy=xy),
+            sim.control,
+            sim.crs,
+            blunders=BlunderOptions(max_fraction=0.05),
+        )
