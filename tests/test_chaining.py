@@ -16,6 +16,7 @@ import itertools
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 
 from strip_aerotri import relative as rel_module
 from strip_aerotri.chaining import StripOptions, form_strip, pair_rows
@@ -369,7 +370,9 @@ def test_j7_fixed_linearisation_is_the_derivative_of_j5():
     obs = sim.observations
     model, _, row_l, row_r = pair_rows(obs, np.arange(obs.n_photos))
     vec = obs.image_vectors()
-    state = rel_module._DependentState(vec[row_l], vec[row_r], model, 2, np.eye(3))
+    # a first rotation off the identity (heading 75°): strip and image axes differ
+    first = Rotation.from_euler("z", 75.0, degrees=True).as_matrix()
+    state = rel_module._DependentState(vec[row_l], vec[row_r], model, 2, first)
     rows, q0 = state.design()
     assert np.abs(q0).max() > 1e-4  # start state: large y-parallaxes
 
@@ -383,9 +386,9 @@ def test_j7_fixed_linearisation_is_the_derivative_of_j5():
 
     eps = 1e-7
     numeric = np.empty_like(rows)
-    for k in range(2):  # db_y, db_z
-        step = np.zeros(3)
-        step[k + 1] = eps
+    r_left = state.r_left[model]
+    for k in range(2):  # base corrections along the left photo's image y and z axes
+        step = eps * r_left[:, :, k + 1]
         numeric[:, k] = (parallax(b + step, p0) - parallax(b - step, p0)) / (2 * eps)
     for k in range(3):  # small rotation a of the right bundle: p = p0 + a × p0
         a = np.zeros(3)
