@@ -124,9 +124,7 @@ def test_control_blunder_is_found(component, size):
     row = kinds.index("full", 3)
     xyz = sim.control.xyz.copy()
     xyz[row, component] += size
-    res = triangulate(
-        sim.observations, dataclasses.replace(sim.control, xyz=xyz), sim.crs
-    )
+    res = triangulate(sim.observations, dataclasses.replace(sim.control, xyz=xyz), sim.crs)
     rejected = [r for r in res.rejections if r.stage == "control"]
     assert [r.point for r in rejected] == [sim.control.point_ids[row]]
     assert rejected[0].component == ("height" if component == 2 else "plan")
@@ -191,7 +189,7 @@ def test_too_many_failures_stop_with_a_clear_error():
     # 12 % of the observations 1 mm off in y: far more than max_fraction allows
     xy = obs.xy.copy()
     xy[:, 1] += 1.0 * (rng.random(len(obs.xy)) < 0.12) * rng.choice([-1, 1], len(obs.xy))
-    with pytest.raises(GeometryError, match="fail the blunder test|at least 5|cannot"):
+    with pytest.raises(GeometryError, match=r"fail the blunder test|at least 5|cannot"):
         triangulate(
             dataclasses.replace(obs, xy=xy),
             sim.control,

@@ -256,17 +256,6 @@ def test_polynomial_removes_a_bend_from_an_unmodelled_image_error(
     assert before >= gain_3 * after_3, (before, after_3)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "ground.py _ground_tests (fits = [('similarity', sol.sim)] ...): control is w-tested "
-        "after the similarity even when a polynomial follows, so the bend the polynomial is "
-        "there to remove is taken for blunders: the end control (P0002, P0004, P0042, P0043) "
-        "is rejected and check H RMSE becomes 1.73 m (type 3; 0.15 m without the tests), "
-        "'auto' then picks type 0. Fix: when a deformation is fitted, test (and reject on) "
-        "the polynomial's residuals only; keep the similarity-stage test for polynomial 0."
-    ),
-)
 def test_default_blunder_tests_keep_the_control_of_a_bent_strip():
     sim = simulated(12, seed=1, systematic_k1=2e-8)
     untested = run(sim, polynomial=3, blunders=NO_BLUNDER_TESTS).check_statistics.rmse[2]
@@ -582,15 +571,6 @@ def test_projected_route_attitudes_on_the_central_meridian():
         assert angle_between(ground.photo_rotations_enu, truth).max() < 1.5 * attitude
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "ground.py _ProjectedWork.rotations_to_enu: the earth-curvature tilt is built from "
-        "grid (E, N) offsets but applied after Rz(-gamma), i.e. in true ENU axes; the tilt "
-        "axis is off by the meridian convergence (error gamma*D/R: 3.4e-5 rad for CS92 at "
-        "23 E, 4 km). Fix: return rz @ matrix_from_rotvec(tilt) @ rot_grid."
-    ),
-)
 def test_projected_route_attitudes_far_from_the_central_meridian():
     # CS92 at 23° E, 50.5° N (convergence 3.1°), 8 km, noise-free, polynomial
     # 3 (which absorbs the grid's scale and rotation variation).  Measured now
@@ -721,15 +701,6 @@ def test_too_few_points_for_the_polynomial_type():
     assert run(sim, control, polynomial=1).ground.polynomial_kind == 1
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "deformation.fit_deformation counts plan points, not stations along the strip: "
-        "type 3 (1, X, X², X³ ...) with plan control at three stations (6 points) is "
-        "accepted (condition 8e4 < WEAK_COND) and leaves 1.7/4.3 m errors; it should raise "
-        "GeometryError (a cubic in X needs plan control at >= 4 distinct X stations)."
-    ),
-)
 def test_plan_control_at_three_stations_is_too_few_for_type_3():
     # The "ends" layout without its two quarter plan points: full points at the
     # first, middle and last nadirs only (6 plan points, 3 stations).

@@ -148,6 +148,17 @@ class StripModel:
     model_labels: tuple[str, ...] = field(default=())
     rejections: tuple[Rejection, ...] = field(default=())
     rejected_points: tuple[str, ...] = field(default=())
+    model_photos: IntArray | None = None
+
+    @property
+    def model_photo_positions(self) -> IntArray:
+        """Positions in the photo arrays of the photos that form the models:
+        model m is formed by photos ``model_photo_positions[m]`` and
+        ``[m + 1]`` (all photos unless the strip was completed from every
+        k-th photo, :func:`strip_aerotri.densify.complete_strip`)."""
+        if self.model_photos is None:
+            return np.arange(self.photo_index.shape[0], dtype=np.intp)
+        return self.model_photos
 
     @property
     def photo_ids(self) -> tuple[str, ...]:

@@ -30,6 +30,7 @@ from typing import Any, Literal, Self
 import numpy as np
 
 from ._typing import BoolArray, FloatArray, IntArray
+from .blunders import BlunderOptions
 from .errors import ConfigError, ConvergenceError, GeometryError
 from .interior import (
     DEFAULT_DIFFERENCE_TOLERANCE,
@@ -54,6 +55,7 @@ __all__ = [
     "PROJECT_KEYS",
     "PROJECT_TABLES",
     "AdjustmentOptions",
+    "BlunderAction",
     "Camera",
     "ColumnSpec",
     "ImageOptions",
@@ -107,6 +109,14 @@ class _OptionEnum(StrEnum):
     def valid_values(cls) -> str:
         """The valid values as ``"a", "b"`` for messages."""
         return ", ".join(f'"{m.value}"' for m in cls)
+
+
+class BlunderAction(_OptionEnum):
+    """What the gross-error tests do (``[blunders] action``)."""
+
+    REJECT = "reject"
+    REPORT = "report"
+    OFF = "off"
 
 
 class Route(_OptionEnum):
@@ -245,6 +255,7 @@ PROJECT_TABLES: tuple[TableSpec, ...] = (
     TableSpec("adjustment", False, False, "choice of method variants"),
     TableSpec("output", False, False, "where results are written"),
     TableSpec("report", False, False, "report options"),
+    TableSpec("blunders", False, False, "gross-error tests at every stage"),
 )
 _TABLES_BY_NAME = {t.name: t for t in PROJECT_TABLES}
 
@@ -498,10 +509,59 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False,
         default_text="none",
     ),
+    KeySpec(
+        "blunders", "action", "choice", required=False, default=BlunderAction.REJECT, unit="",
+        description='"reject": test every stage, reject failing observations one at a time '
+        'and re-solve; "report": test and report only; "off": no tests.',
+        contract=False,
+    ),
+    KeySpec(
+        "blunders", "alpha", "positive number", required=False, default=0.001, unit="",
+        description="Family-wise false-alarm probability per stage (Bonferroni over the "
+        "stage's tests), below 1.",
+        contract=False,
+    ),
+    KeySpec(
+        "blunders", "relative_orientation", "positive number", required=False, default=None,
+        unit="", description="Critical |w| of the y-parallax tests (overrides alpha).",
+        contract=False, default_text="from alpha",
+    ),
+    KeySpec(
+        "blunders", "tie_points", "positive number", required=False, default=None, unit="",
+        description="Critical |w| of the tie-point height tests (overrides alpha).",
+        contract=False, default_text="from alpha",
+    ),
+    KeySpec(
+        "blunders", "control", "positive number", required=False, default=None, unit="",
+        description="Critical |w| of the control tests (overrides alpha).",
+        contract=False, default_text="from alpha",
+    ),
+    KeySpec(
+        "blunders", "straight_line", "positive number", required=False, default=None,
+        unit="", description="Critical |w| of the line-point tests (overrides alpha).",
+        contract=False, default_text="from alpha",
+    ),
+    KeySpec(
+        "blunders", "max_fraction", "positive number", required=False, default=0.2, unit="",
+        description="Stop with an error when a stage would reject more than this fraction "
+        "of its observations (at most 1).",
+        contract=False,
+    ),
+    KeySpec(
+        "blunders", "exclude_points", "list of ids", required=False, default=(), unit="",
+        description="Point ids left out of every stage.",
+        contract=False, default_text="none",
+    ),
+    KeySpec(
+        "blunders", "exclude_observations", "list of ids", required=False, default=(), unit="",
+        description='Image observations left out, each written "photo/point".',
+        contract=False, default_text="none",
+    ),
 )
 # fmt: on
 
 _ENUM_OF_KEY: dict[tuple[str, str], type[StrEnum]] = {
+    ("blunders", "action"): BlunderAction,
     ("adjustment", "route"): Route,
     ("adjustment", "relative_orientation"): RelativeOrientation,
     ("adjustment", "intersection"): Intersection,
@@ -715,6 +775,7 @@ class Project:
     distortion: BrownDistortion | None = None
     fiducials: tuple[FiducialFit, ...] = ()
     fiducials_file: Path | None = None
+    blunders: BlunderOptions = field(default_factory=BlunderOptions)
 
     @property
     def input_files(self) -> tuple[Path, ...]:
@@ -1528,6 +1589,7 @@ def load_project(path: str | Path) -> Project:
     strip, camera, images = table("strip"), table("camera"), table("images")
     control, adjustment = table("control"), table("adjustment")
     output, report = table("output"), table("report")
+    blunders = _blunder_options(toml_path, table("blunders"))
     distortion_table = table("distortion") if "distortion" in doc else None
     interior = table("interior_orientation") if "interior_orientation" in doc else None
     lines_raw = [
@@ -1701,4 +1763,37 @@ def load_project(path: str | Path) -> Project:
         distortion=distortion,
         fiducials=fiducials,
         fiducials_file=fiducials_file,
+        blunders=blunders,
+    )
+
+
+def _blunder_options(toml_path: Path, table: dict[str, object]) -> BlunderOptions:
+    """``[blunders]`` as :class:`~strip_aerotri.blunders.BlunderOptions`."""
+    where = f"{toml_path}: [blunders]"
+    alpha = float(table["alpha"])  # type: ignore[arg-type]
+    if not alpha < 1.0:
+        raise ConfigError(f"{where} alpha: expected a probability below 1, got {alpha!r}")
+    fraction = float(table["max_fraction"])  # type: ignore[arg-type]
+    if fraction > 1.0:
+        raise ConfigError(f"{where} max_fraction: expected at most 1, got {fraction!r}")
+    pairs = []
+    for item in table["exclude_observations"]:  # type: ignore[union-attr]
+        photo, sep, point = str(item).partition("/")
+        if not sep or not photo or not point:
+            raise ConfigError(
+                f'{where} exclude_observations: expected "photo/point", got {item!r}'
+            )
+        pairs.append((photo, point))
+    critical = {
+        stage: float(table[stage])  # type: ignore[arg-type]
+        for stage in ("relative_orientation", "tie_points", "control", "straight_line")
+        if table[stage] is not None
+    }
+    return BlunderOptions(
+        action=str(table["action"].value),  # type: ignore[union-attr]
+        alpha=alpha,
+        critical_values=critical,
+        max_fraction=fraction,
+        exclude_points=tuple(table["exclude_points"]),  # type: ignore[arg-type]
+        exclude_observations=tuple(pairs),
     )

@@ -478,6 +478,25 @@ def fit_deformation(
             + (f" and {n_line_extra} from lines ({line_text})" if lines else "")
         )
 
+    # Stations along the strip: a polynomial of degree d in X needs control at
+    # d + 1 distinct X positions, however many points stand at each.
+    all_x = np.concatenate([pts[used, 0]] + [line.xyz[:, 0] for line in lines])
+    tol = 0.02 * max(float(np.ptp(all_x)), 1e-12)
+    line_x = [line.xyz[:, 0] for line in lines]
+    for c, axis, xs, label in (
+        (0, "X", [pts[mask_xy, 0]], "full or plan control"),
+        (1, "Y", [pts[mask_xy, 0], *line_x], "full or plan control and line points"),
+        (2, "Z", [pts[mask_z, 0]], "height control"),
+    ):
+        need = {0: 0, 1: 2, 2: 3, 3: 4}[kinds[c]]
+        got = _stations(np.concatenate(xs), tol)
+        if got < need:
+            raise GeometryError(
+                f"polynomial type {kinds[c]} needs {label} at at least {need} stations along "
+                f"the strip for {axis}, got {got} (points at one X within {tol:.3g} m count "
+                "once)"
+            )
+
     # Normalisation.
     xy_data = [pts[used, :2]] + [line.xyz[:, :2] for line in lines]
     xy_all = np.concatenate(xy_data, axis=0)
@@ -816,3 +835,11 @@ def select_kind_auto(
     passed = [row for row in feasible if row.passed]
     chosen = passed[0].kind if passed else feasible[-1].kind
     return KindSelection(chosen, tuple(table))
+
+
+def _stations(x: FloatArray, tol: float) -> int:
+    """Number of distinct positions in x, positions closer than tol counting once."""
+    if x.size == 0:
+        return 0
+    xs = np.sort(x)
+    return int(1 + np.count_nonzero(np.diff(xs) > tol))

@@ -646,6 +646,7 @@ def complete_strip(
     counts[new] = 1
     return dataclasses.replace(
         strip,
+        model_photos=np.asarray(strip.photo_index, dtype=np.intp)[strip.model_photo_positions],
         photo_index=np.arange(n, dtype=np.intp),
         centres=centres,
         rotations=rotations,
@@ -661,6 +662,7 @@ def form_strip_stepped(
     photo_step: int | Literal["auto"] = 1,
     min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT,
     all_rays: bool = True,
+    blunders=None,
 ) -> StripModel:
     """Form the strip on every k-th photo and complete it (module notes).
 
@@ -689,7 +691,7 @@ def form_strip_stepped(
     if k < 1:
         raise ValueError(f"Expected `photo_step` >= 1, got {photo_step!r}")
     if k == 1:
-        return form_strip(observations, options)
+        return form_strip(observations, options, blunders=blunders)
     seq = model_photo_index(observations.n_photos, k)
-    strip = form_strip(observations, options, photo_index=seq)
+    strip = form_strip(observations, options, photo_index=seq, blunders=blunders)
     return complete_strip(strip, all_rays=all_rays)

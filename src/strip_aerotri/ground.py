@@ -73,16 +73,18 @@ class GroundOptions:
 
     Attributes
     ----------
-    route : {"geocentric", "projected"}
+    route : {"geocentric", "projected"}, optional
+        Default: geocentric, projected when the CRS is "local".
     polynomial : int 0..3 or "auto"
         J(16) type of the deformation polynomials (0: similarity only).
     """
 
-    route: Route = Route.GEOCENTRIC
+    route: Route | None = None
     polynomial: int | str = 3
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "route", Route(self.route))
+        if self.route is not None:
+            object.__setattr__(self, "route", Route(self.route))
         poly = self.polynomial
         if isinstance(poly, str):
             if poly.lower() != "auto":
@@ -298,7 +300,9 @@ class _ProjectedWork:
         # centre of the net (the tangent plane of the flat model).
         d_en = (centres_xyh[:, :2] - self.centre) / self.grid_scale
         tilt = np.column_stack([d_en[:, 1], -d_en[:, 0], np.zeros(len(d_en))]) / self.radius
-        return matrix_from_rotvec(tilt) @ rz @ rot_grid
+        # tilt is built from grid offsets: apply it in the grid frame, then turn
+        # grid north to true north.
+        return rz @ matrix_from_rotvec(tilt) @ rot_grid
 
 
 def _make_work(route: Route, crs: GroundCRS, xyh: FloatArray, azimuth: float):
@@ -336,10 +340,11 @@ def _azimuth_step(vector_work: FloatArray) -> float:
 def _image_scale(strip: StripModel, scale: float) -> tuple[float, float]:
     """Metres on the ground per mm on the image, and height-to-base ratio."""
     c = strip.observations.principal_distance
-    left = strip.centres[strip.model]
+    model_centres = strip.centres[strip.model_photo_positions]
+    left = model_centres[strip.model]
     distance = np.linalg.norm(strip.model_points - left, axis=1)
     metres_per_mm = float(np.median(distance)) * scale / c
-    base = float(np.median(np.linalg.norm(np.diff(strip.centres, axis=0), axis=1)))
+    base = float(np.median(np.linalg.norm(np.diff(model_centres, axis=0), axis=1)))
     height_to_base = float(np.median(np.abs(strip.model_points[:, 2] - left[:, 2]))) / base
     return metres_per_mm, height_to_base
 
@@ -387,6 +392,8 @@ def adjust_to_ground(
     if not isinstance(crs, GroundCRS):
         crs = GroundCRS.from_user_input(crs)
     route = options.route
+    if route is None:
+        route = Route.PROJECTED if crs.is_local else Route.GEOCENTRIC
     if crs.is_local and route is Route.GEOCENTRIC:
         raise GeometryError(
             'the geocentric route needs a real CRS; with crs = "local" use route = "projected"'
@@ -728,9 +735,11 @@ def _ground_tests(sol: _Solution, ids, lines, line_keep, blunders) -> list[Rejec
     # (high redundancy; the strip's deformation is part of the residuals and
     # is absorbed by the robust variance factor) and the residual deviations
     # after the polynomial fit.
-    fits = [("similarity", sol.sim)]
-    if sol.deformation is not None:
-        fits.append(("polynomial", sol.deformation))
+    # With a polynomial only its residuals are tested: the similarity's
+    # residuals contain the strip's bend, which is not a blunder.
+    fits = (
+        [("similarity", sol.sim)] if sol.deformation is None else [("polynomial", sol.deformation)]
+    )
     seen: set[tuple[str, str]] = set()
     for label, fit in fits:
         w = np.asarray(fit.normalized_residuals, dtype=float)

@@ -16,7 +16,8 @@ import numpy as np
 
 from ._typing import FloatArray
 from .blunders import BlunderOptions, Rejection
-from .chaining import StripModel, StripOptions, form_strip
+from .chaining import StripModel, StripOptions
+from .densify import DEFAULT_MIN_BASE_TO_HEIGHT, form_strip_stepped
 from .geodesy import GroundCRS
 from .ground import GroundOptions, GroundResult, LineSpec, adjust_to_ground
 from .observations import ControlPoints, ImageObservations
@@ -134,6 +135,8 @@ def triangulate(
     strip_options: StripOptions | None = None,
     ground_options: GroundOptions | None = None,
     blunders: BlunderOptions | None = None,
+    photo_step: int | str = 1,
+    min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT,
     progress: Progress | None = None,
     warnings: Sequence[str] = (),
 ) -> StripResult:
@@ -154,6 +157,11 @@ def triangulate(
     blunders : BlunderOptions, optional
         Gross-error tests at every stage (default: test and reject; see
         :mod:`strip_aerotri.blunders`).
+    photo_step : int or "auto"
+        Form the models from every k-th photo and orient the others by
+        resection (drone strips with 80-95 % overlap); "auto" chooses the
+        smallest k reaching ``min_base_to_height`` (:mod:`strip_aerotri.densify`).
+    min_base_to_height : float
     progress : callable, optional
         Called with a short message at each stage (the CLI shows it).
     warnings : sequence of str
@@ -170,7 +178,13 @@ def triangulate(
         f"forming the strip: {observations.n_photos} photos, "
         f"{len(observations.photo)} observations"
     )
-    strip = form_strip(observations, strip_options, blunders=blunders)
+    strip = form_strip_stepped(
+        observations,
+        strip_options,
+        photo_step=photo_step,
+        min_base_to_height=min_base_to_height,
+        blunders=blunders,
+    )
     timings["strip_formation"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     say("orienting the strip on the control")
@@ -194,11 +208,15 @@ def triangulate(
             f"{names}{more}"
         )
     resid = ground.control_residuals
+    used = resid[~ground.is_check].copy()
+    # statistics at the control actually used: rejected coordinates left out
+    used[~ground.used_xy[~ground.is_check], :2] = np.nan
+    used[~ground.used_h[~ground.is_check], 2] = np.nan
     return StripResult(
         strip=strip,
         ground=ground,
         control=control,
-        control_statistics=AccuracyStatistics.from_residuals(resid[~ground.is_check]),
+        control_statistics=AccuracyStatistics.from_residuals(used),
         check_statistics=AccuracyStatistics.from_residuals(resid[ground.is_check]),
         warnings=tuple(notes),
         timings=timings,
@@ -234,6 +252,8 @@ def run_project(
         strip_options=strip_options,
         ground_options=ground_options,
         blunders=blunders,
+        photo_step=getattr(adj, "photo_step", 1),
+        min_base_to_height=getattr(adj, "min_base_to_height", DEFAULT_MIN_BASE_TO_HEIGHT),
         progress=progress,
         warnings=project.warnings,
     )
