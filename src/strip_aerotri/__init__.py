@@ -2,28 +2,23 @@
 
 From image coordinates measured on one strip of overlapping photos and a few
 ground control points, compute the ground coordinates of every measured point
-and the exterior orientation of every photo (method.md):
+and the exterior orientation of every photo (docs/method.md):
 
 >>> import strip_aerotri as sa
 >>> sim = sa.simulate_strip(8, seed=1)
 >>> result = sa.triangulate(sim.observations, sim.control, sim.crs)
 >>> bool(result.check_statistics.rmse_plan < 0.2)
 True
+
+The public names are imported on first use (PEP 562), so that the command
+line starts without loading scipy and pyproj.
 """
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
+import importlib
+from typing import Any
 
-from .chaining import StripModel, StripOptions, form_strip
-from .deformation import (
-    DeformationResult,
-    KindSelection,
-    StraightLine,
-    fit_deformation,
-    polynomial_terms,
-    select_kind_auto,
-)
 from .errors import (
     ConfigError,
     ConvergenceError,
@@ -31,60 +26,134 @@ from .errors import (
     StripAerotriError,
     StripAerotriWarning,
 )
-from .geodesy import (
-    GroundCRS,
-    LocalTangentFrame,
-    azimuth_from_local_enu,
-    earth_curvature_correction,
-    enu_rotation,
-    gaussian_mean_radius,
-)
-from .ground import GroundOptions, GroundResult, LineSpec, Route, adjust_to_ground
-from .intersection import IntersectionMethod, intersect, intersect_midpoint, intersect_normal
-from .observations import ControlPoints, ControlType, ImageObservations
-from .pipeline import AccuracyStatistics, StripResult, run_project, triangulate
-from .relative import (
-    RelativeOrientation,
-    RelativeOrientationMethod,
-    chain_rotations,
-    essential_start,
-    relative_orientation,
-)
-from .rotation import (
-    cardan_from_matrix,
-    cardan_from_opk,
-    cardan_from_schut,
-    check_matrix,
-    matrix_from_cardan,
-    matrix_from_opk,
-    matrix_from_rotvec,
-    matrix_from_schut,
-    opk_from_cardan,
-    opk_from_matrix,
-    opk_from_schut,
-    rotvec_from_matrix,
-    schut_from_cardan,
-    schut_from_matrix,
-    schut_from_opk,
-    skew,
-)
-from .scaling import ScaleTransfer, scale_ratios, scale_ratios_distance, scale_ratios_z
-from .similarity import (
-    SimilarityResult,
-    SimilarityTransform,
-    fit_similarity,
-    similarity_from_points,
-)
-from .simulate import PRESETS, SimulatedStrip, SimulationTruth, StripPreset, simulate_strip
+
+__version__ = "0.1.0"
+
+# public name -> module that defines it
+_EXPORTS: dict[str, str] = {
+    "AccuracyStatistics": "pipeline",
+    "BlunderOptions": "blunders",
+    "BrownDistortion": "interior",
+    "BundleResult": "bundle",
+    "ControlPoints": "observations",
+    "ControlType": "observations",
+    "Criterion": "quality",
+    "DeformationResult": "deformation",
+    "FiducialFit": "interior",
+    "FlightDirection": "interior",
+    "GroundCRS": "geodesy",
+    "GroundOptions": "ground",
+    "GroundResult": "ground",
+    "ImageObservations": "observations",
+    "IntersectionMethod": "intersection",
+    "KindSelection": "deformation",
+    "LineSpec": "ground",
+    "LocalTangentFrame": "geodesy",
+    "OutputError": "io",
+    "PRESETS": "simulate",
+    "Project": "config",
+    "Rejection": "blunders",
+    "RelativeOrientation": "relative",
+    "RelativeOrientationMethod": "relative",
+    "ResultFolder": "io",
+    "Route": "ground",
+    "ScaleTransfer": "scaling",
+    "SimilarityResult": "similarity",
+    "SimilarityTransform": "similarity",
+    "SimulatedStrip": "simulate",
+    "SimulationTruth": "simulate",
+    "StraightLine": "deformation",
+    "StripModel": "chaining",
+    "StripOptions": "chaining",
+    "StripPreset": "simulate",
+    "StripResult": "pipeline",
+    "adjust_to_ground": "ground",
+    "azimuth_from_local_enu": "geodesy",
+    "build_outputs": "report",
+    "build_report": "report",
+    "bundle_adjust": "bundle",
+    "cardan_from_matrix": "rotation",
+    "cardan_from_opk": "rotation",
+    "cardan_from_schut": "rotation",
+    "chain_rotations": "relative",
+    "check_matrix": "rotation",
+    "choose_photo_step": "densify",
+    "complete_strip": "densify",
+    "correct_distortion": "interior",
+    "critical_value": "blunders",
+    "earth_curvature_correction": "geodesy",
+    "enu_rotation": "geodesy",
+    "essential_start": "relative",
+    "fit_deformation": "deformation",
+    "fit_fiducial_transform": "interior",
+    "fit_similarity": "similarity",
+    "flight_from_sensor": "interior",
+    "form_strip": "chaining",
+    "form_strip_stepped": "densify",
+    "gaussian_mean_radius": "geodesy",
+    "intersect": "intersection",
+    "intersect_midpoint": "intersection",
+    "intersect_normal": "intersection",
+    "intersect_rays": "densify",
+    "load_project": "config",
+    "matrix_from_cardan": "rotation",
+    "matrix_from_opk": "rotation",
+    "matrix_from_rotvec": "rotation",
+    "matrix_from_schut": "rotation",
+    "mm_from_pixel": "interior",
+    "model_photo_index": "densify",
+    "opk_from_cardan": "rotation",
+    "opk_from_matrix": "rotation",
+    "opk_from_schut": "rotation",
+    "polynomial_terms": "deformation",
+    "reduce_image_coordinates": "interior",
+    "relative_orientation": "relative",
+    "resect": "densify",
+    "rotvec_from_matrix": "rotation",
+    "run_project": "pipeline",
+    "scale_ratios": "scaling",
+    "scale_ratios_distance": "scaling",
+    "scale_ratios_z": "scaling",
+    "schut_from_cardan": "rotation",
+    "schut_from_matrix": "rotation",
+    "schut_from_opk": "rotation",
+    "select_kind_auto": "deformation",
+    "similarity_from_points": "similarity",
+    "simulate_strip": "simulate",
+    "skew": "rotation",
+    "tolerance_verdicts": "quality",
+    "triangulate": "pipeline",
+    "write_result_folder": "io",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'strip_aerotri' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
+
 
 __all__ = [
     "PRESETS",
     "AccuracyStatistics",
+    "BlunderOptions",
+    "BrownDistortion",
+    "BundleResult",
     "ConfigError",
     "ControlPoints",
     "ControlType",
     "ConvergenceError",
+    "Criterion",
     "DeformationResult",
+    "FiducialFit",
+    "FlightDirection",
     "GeometryError",
     "GroundCRS",
     "GroundOptions",
@@ -94,8 +163,12 @@ __all__ = [
     "KindSelection",
     "LineSpec",
     "LocalTangentFrame",
+    "OutputError",
+    "Project",
+    "Rejection",
     "RelativeOrientation",
     "RelativeOrientationMethod",
+    "ResultFolder",
     "Route",
     "ScaleTransfer",
     "SimilarityResult",
@@ -112,30 +185,46 @@ __all__ = [
     "__version__",
     "adjust_to_ground",
     "azimuth_from_local_enu",
+    "build_outputs",
+    "build_report",
+    "bundle_adjust",
     "cardan_from_matrix",
     "cardan_from_opk",
     "cardan_from_schut",
     "chain_rotations",
     "check_matrix",
+    "choose_photo_step",
+    "complete_strip",
+    "correct_distortion",
+    "critical_value",
     "earth_curvature_correction",
     "enu_rotation",
     "essential_start",
     "fit_deformation",
+    "fit_fiducial_transform",
     "fit_similarity",
+    "flight_from_sensor",
     "form_strip",
+    "form_strip_stepped",
     "gaussian_mean_radius",
     "intersect",
     "intersect_midpoint",
     "intersect_normal",
+    "intersect_rays",
+    "load_project",
     "matrix_from_cardan",
     "matrix_from_opk",
     "matrix_from_rotvec",
     "matrix_from_schut",
+    "mm_from_pixel",
+    "model_photo_index",
     "opk_from_cardan",
     "opk_from_matrix",
     "opk_from_schut",
     "polynomial_terms",
+    "reduce_image_coordinates",
     "relative_orientation",
+    "resect",
     "rotvec_from_matrix",
     "run_project",
     "scale_ratios",
@@ -148,5 +237,7 @@ __all__ = [
     "similarity_from_points",
     "simulate_strip",
     "skew",
+    "tolerance_verdicts",
     "triangulate",
+    "write_result_folder",
 ]

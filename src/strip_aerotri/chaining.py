@@ -288,7 +288,7 @@ def form_strip(
                     w=float(rel.w_statistic[row] / np.sqrt(_factor(rel))),
                     critical=blunders.critical("relative_orientation", n_rows),
                     applied=blunders.rejecting,
-                    effect=f"sigma0 of the pair {rel.sigma0_um[m]:.2f} µm before",
+                    effect=f"left out of the pair (pair sigma0 {rel.sigma0_um[m]:.2f} µm)",
                 )
             )
         if not blunders.rejecting:

@@ -488,6 +488,21 @@ def build_report(
             "passed": None if not judged else all(judged),
             "criteria": [c.as_dict() for c in criteria],
         },
+        "rejections": [
+            {
+                "stage": r.stage,
+                "point": r.point,
+                "photos": list(r.photos),
+                "component": r.component,
+                "residual": float(r.residual),
+                "unit": r.unit,
+                "w": float(r.w),
+                "critical": float(r.critical),
+                "applied": bool(r.applied),
+                "effect": r.effect,
+            }
+            for r in getattr(result, "rejections", ())
+        ],
         "warnings": [*result.warnings, *notes],
         "timings_s": dict(result.timings),
         "outputs": {
@@ -1469,6 +1484,41 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
                 digits=[0, 1, 0, 3, 6, 3, 3],
             )
         )
+    out.append("<h2>Gross errors (data snooping, method.md §7)</h2>")
+    out.append(
+        _table(
+            [
+                "stage",
+                "point",
+                "photos / line",
+                "tested",
+                "residual",
+                "unit",
+                "w",
+                "critical",
+                "rejected",
+                "effect",
+            ],
+            [
+                [
+                    r["stage"],
+                    r["point"],
+                    "-".join(r["photos"]),
+                    r["component"],
+                    r["residual"],
+                    r["unit"],
+                    r["w"],
+                    r["critical"],
+                    "yes" if r["applied"] else "no (report only)",
+                    r["effect"],
+                ]
+                for r in report.get("rejections", [])
+            ],
+            left=4,
+            left_columns=(5, 8, 9),
+            digits=[0, 0, 0, 0, 4, 0, 2, 2, 0, 0],
+        )
+    )
     out.append("<h2>Warnings</h2>")
     if report["warnings"]:
         out.append(

@@ -93,10 +93,15 @@ def _tolerance_verdict(report_json: bytes | None) -> str | None:
         failed = [c["name"] for c in criteria if c.get("passed") is False]
     except (ValueError, KeyError, TypeError, AttributeError):
         return None
+    judged = [c for c in criteria if c.get("passed") is not None]
     head = f"tolerances for 1:{scale:g}: "
+    unjudged = len(criteria) - len(judged)
+    tail = f" ({unjudged} not judged: too few values)" if unjudged else ""
     if failed:
-        return head + f"{len(failed)} of {len(criteria)} criteria failed ({', '.join(failed)})"
-    return head + f"all {len(criteria)} criteria met"
+        return (
+            head + f"{len(failed)} of {len(judged)} criteria failed ({', '.join(failed)})" + tail
+        )
+    return head + f"all {len(judged)} judged criteria met" + tail
 
 
 def _echo_details(result) -> None:
