@@ -58,9 +58,9 @@ def test_clean_strips_have_no_rejection():
     """False alarms: none on clean strips at the default thresholds.
 
     Measured over 40 strips (seeds 0-39, 16 photos, film preset, EPSG:2180,
-    5 µm noise): 0 rejections in about 3100 y-parallaxes, 500 tie points and
-    40 control observations per strip (see docs/blunders.md); the test
-    repeats 6 of them.
+    5 µm noise): 0 rejections in about 310 y-parallaxes, 130 tie points and
+    30 control observations per strip (12 500, 5 100 and 1 200 tests in all;
+    see docs/blunders.md); the test repeats 6 of them.
     """
     for seed in range(6):
         sim = simulate_strip(16, seed=seed, crs="EPSG:2180")
