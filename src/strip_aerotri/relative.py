@@ -54,6 +54,7 @@ _EZ = np.array([0.0, 0.0, 1.0])
 # rotation vector a (phi = 2 (a, b, c)); the printed factor 1 converges only
 # linearly (tests patch this to show it).
 _SCHUT_FACTOR = 0.5
+_ROBUST_STEPS = 10  # IRLS steps of the robust start
 
 
 class RelativeOrientationMethod(str, Enum):
@@ -367,7 +368,9 @@ def relative_orientation(
     if robust:
         # Robust start (IRLS, Cauchy) and no weight for gross errors beyond 5
         # robust sigmas; the tests of the caller then find and name them.
-        _iterate(state, weight, starts, max_iterations, tolerance, active, history, robust=True)
+        # Start values only: a few steps at a loose tolerance (IRLS weights keep
+        # moving at the noise level and would never meet the final tolerance).
+        _iterate(state, weight, starts, _ROBUST_STEPS, 1e-6, active, history, robust=True)
         weight = np.where(_gross(state, pair, starts), 0.0, weight)
     converged, iterations, singular_first = _iterate(
         state, weight, starts, max_iterations, tolerance, active, history
@@ -398,7 +401,7 @@ def relative_orientation(
         retry = ~converged
         identity = np.broadcast_to(np.eye(3), (int(retry.sum()), 3, 3))
         state.restart(retry, identity, np.tile(_EX, (int(retry.sum()), 1)))
-        _iterate(state, weight, starts, max_iterations, tolerance, retry, history, robust=True)
+        _iterate(state, weight, starts, max_iterations, 1e-6, retry, history, robust=True)
         # Observations beyond 5 robust sigmas of the robust fit take no part in
         # the final least squares (their w-tests then fail and they are
         # reported and rejected by the caller's data snooping).
