@@ -43,7 +43,7 @@ __all__ = [
     "robust_variance_factor",
 ]
 
-STAGES = ("relative_orientation", "tie_points", "control", "straight_line")
+STAGES = ("relative_orientation", "tie_points", "control", "straight_line", "bundle")
 
 
 @dataclass(frozen=True)

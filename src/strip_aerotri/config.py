@@ -62,6 +62,7 @@ __all__ = [
     "Intersection",
     "KeySpec",
     "Project",
+    "Refine",
     "RelativeOrientation",
     "ReportOptions",
     "Route",
@@ -109,6 +110,13 @@ class _OptionEnum(StrEnum):
     def valid_values(cls) -> str:
         """The valid values as ``"a", "b"`` for messages."""
         return ", ".join(f'"{m.value}"' for m in cls)
+
+
+class Refine(_OptionEnum):
+    """Optional final step (``[adjustment] refine``)."""
+
+    NONE = "none"
+    BUNDLE = "bundle"
 
 
 class BlunderAction(_OptionEnum):
@@ -491,6 +499,13 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False,
     ),
     KeySpec(
+        "adjustment", "refine", "choice", required=False, default=Refine.NONE, unit="",
+        description='"bundle": a rigorous bundle adjustment of all photos and points from '
+        "the strip solution, in the local tangent frame (docs/bundle.md); points.csv and "
+        "photos.csv then hold its results.",
+        contract=False,
+    ),
+    KeySpec(
         "adjustment", "min_base_to_height", "positive number", required=False,
         default=DEFAULT_MIN_BASE_TO_HEIGHT, unit="",
         description='Smallest base-to-height ratio of a model for photo_step = "auto".',
@@ -562,6 +577,7 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
 
 _ENUM_OF_KEY: dict[tuple[str, str], type[StrEnum]] = {
     ("blunders", "action"): BlunderAction,
+    ("adjustment", "refine"): Refine,
     ("adjustment", "route"): Route,
     ("adjustment", "relative_orientation"): RelativeOrientation,
     ("adjustment", "intersection"): Intersection,
@@ -681,6 +697,7 @@ class AdjustmentOptions:
     max_iterations: int = DEFAULT_MAX_ITERATIONS
     photo_step: int | Literal["auto"] = DEFAULT_PHOTO_STEP
     min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT
+    refine: Refine = Refine.NONE
 
 
 @dataclass(frozen=True)
@@ -1742,6 +1759,7 @@ def load_project(path: str | Path) -> Project:
         max_iterations=int(adjustment["max_iterations"]),  # type: ignore[call-overload]
         photo_step=adjustment["photo_step"],  # type: ignore[arg-type]
         min_base_to_height=float(adjustment["min_base_to_height"]),  # type: ignore[arg-type]
+        refine=adjustment["refine"],  # type: ignore[arg-type]
     )
     map_scale = report["map_scale"]
     return Project(

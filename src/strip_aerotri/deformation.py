@@ -481,7 +481,9 @@ def fit_deformation(
     # Stations along the strip: a polynomial of degree d in X needs control at
     # d + 1 distinct X positions, however many points stand at each.
     all_x = np.concatenate([pts[used, 0]] + [line.xyz[:, 0] for line in lines])
-    tol = 0.02 * max(float(np.ptp(all_x)), 1e-12)
+    # Points closer in X than a tenth of the mean spacing of all data points
+    # stand at one station (e.g. the two sides of the strip at one model).
+    tol = 0.1 * max(float(np.ptp(all_x)), 1e-12) / max(all_x.size, 1)
     line_x = [line.xyz[:, 0] for line in lines]
     for c, axis, xs, label in (
         (0, "X", [pts[mask_xy, 0]], "full or plan control"),

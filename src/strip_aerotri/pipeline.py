@@ -8,9 +8,11 @@ figures and the check-point statistics of method.md §7-8.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -87,6 +89,9 @@ class StripResult:
         Doubtful but valid findings (control not triangulated, ...).
     timings : dict
         Seconds per stage.
+    refined : RefinedResult or None
+        The bundle refinement (:mod:`strip_aerotri.refine`) when asked for;
+        then ``points``, ``photo_centres`` and ``photo_opk`` are its values.
     """
 
     strip: StripModel
@@ -96,6 +101,7 @@ class StripResult:
     check_statistics: AccuracyStatistics
     warnings: tuple[str, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
+    refined: Any = None
 
     @property
     def photo_ids(self) -> tuple[str, ...]:
@@ -112,18 +118,24 @@ class StripResult:
 
     @property
     def points(self) -> FloatArray:
-        """(P, 3) X, Y, H in the control CRS (NaN for points not triangulated)."""
-        return self.ground.points
+        """(P, 3) X, Y, H in the control CRS (NaN for points not triangulated);
+        the bundle refinement's when it was run."""
+        return self.ground.points if self.refined is None else self.refined.points
 
     @property
     def photo_centres(self) -> FloatArray:
         """(M, 3) projection centres X, Y, Z in the control CRS."""
-        return self.ground.photo_centres
+        return self.ground.photo_centres if self.refined is None else self.refined.photo_centres
+
+    @property
+    def photo_opk(self) -> FloatArray:
+        """(M, 3) omega, phi, kappa in radians (image -> local east-north-up)."""
+        return self.ground.photo_opk if self.refined is None else self.refined.photo_opk
 
     @property
     def photo_opk_degrees(self) -> FloatArray:
         """(M, 3) omega, phi, kappa in degrees (image -> local east-north-up)."""
-        return np.degrees(self.ground.photo_opk)
+        return np.degrees(self.photo_opk)
 
 
 def triangulate(
@@ -137,6 +149,9 @@ def triangulate(
     blunders: BlunderOptions | None = None,
     photo_step: int | str = 1,
     min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT,
+    refine: str = "none",
+    gnss: Any = None,
+    imu: Any = None,
     progress: Progress | None = None,
     warnings: Sequence[str] = (),
 ) -> StripResult:
@@ -162,6 +177,11 @@ def triangulate(
         resection (drone strips with 80-95 % overlap); "auto" chooses the
         smallest k reaching ``min_base_to_height`` (:mod:`strip_aerotri.densify`).
     min_base_to_height : float
+    refine : {"none", "bundle"}
+        "bundle": a rigorous bundle adjustment from the strip solution
+        (:func:`strip_aerotri.refine.refine_bundle`).
+    gnss, imu : GnssCentres, ImuAttitudes, optional
+        Observed projection centres and attitudes for the bundle refinement.
     progress : callable, optional
         Called with a short message at each stage (the CLI shows it).
     warnings : sequence of str
@@ -212,7 +232,7 @@ def triangulate(
     # statistics at the control actually used: rejected coordinates left out
     used[~ground.used_xy[~ground.is_check], :2] = np.nan
     used[~ground.used_h[~ground.is_check], 2] = np.nan
-    return StripResult(
+    result = StripResult(
         strip=strip,
         ground=ground,
         control=control,
@@ -221,6 +241,21 @@ def triangulate(
         warnings=tuple(notes),
         timings=timings,
     )
+    if refine not in ("none", "bundle"):
+        raise ValueError(f"Expected refine 'none' or 'bundle', got {refine!r}")
+    if refine == "bundle":
+        from .refine import refine_bundle  # refine imports this module
+
+        say("bundle refinement")
+        t2 = time.perf_counter()
+        refined = refine_bundle(result, gnss=gnss, imu=imu, blunders=blunders)
+        timings["bundle"] = time.perf_counter() - t2
+        result = dataclasses.replace(
+            result,
+            refined=refined,
+            warnings=result.warnings + tuple(refined.warnings),
+        )
+    return result
 
 
 def run_project(
@@ -254,6 +289,7 @@ def run_project(
         blunders=blunders,
         photo_step=getattr(adj, "photo_step", 1),
         min_base_to_height=getattr(adj, "min_base_to_height", DEFAULT_MIN_BASE_TO_HEIGHT),
+        refine=str(getattr(getattr(adj, "refine", None), "value", "none")),
         progress=progress,
         warnings=project.warnings,
     )

@@ -171,7 +171,7 @@ def photos_csv(result) -> str:
     return format_photos_csv(
         ids,
         result.photo_centres,
-        result.ground.photo_opk,
+        result.photo_opk,
         extra=extra,
         geographic=result.ground.crs.is_geographic,
     )
@@ -488,6 +488,7 @@ def build_report(
             "passed": None if not judged else all(judged),
             "criteria": [c.as_dict() for c in criteria],
         },
+        "bundle": _bundle(result),
         "rejections": [
             {
                 "stage": r.stage,
@@ -1587,3 +1588,24 @@ def build_outputs(
         json.dumps(report, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
     ).encode("utf-8")
     return files
+
+
+def _bundle(result: Any) -> dict[str, Any] | None:
+    """The bundle refinement's figures, when it was run (docs/bundle.md)."""
+    refined = getattr(result, "refined", None)
+    if refined is None:
+        return None
+    return {
+        "frame": refined.frame_description,
+        "sigma0": _f(refined.sigma0) if hasattr(refined, "sigma0") else None,
+        "redundancy": int(refined.redundancy),
+        "iterations": int(refined.iterations),
+        "converged": bool(refined.converged),
+        "n_observations": int(refined.n_observations),
+        "control": _statistics(refined.control_statistics),
+        "check": _statistics(refined.check_statistics),
+        "point_std_median_m": [_f(v) for v in np.nanmedian(refined.point_std, axis=0)],
+        "centre_std_median_m": [_f(v) for v in np.nanmedian(refined.centre_std, axis=0)],
+        "rejections": [r.describe() for r in refined.rejections],
+        "strip_method_check": _statistics(result.check_statistics),
+    }
