@@ -331,6 +331,18 @@ def _deformation_rotation(deformation: DeformationResult, xyz: FloatArray) -> Fl
     return matrix_from_rotvec(rotvec)
 
 
+def _index_of(ids: Sequence[str], names: Sequence[str]) -> IntArray:
+    """Index of each name in ids (-1 where absent), vectorised by sorting."""
+    ids_arr = np.asarray(ids, dtype=str)
+    names_arr = np.asarray(names, dtype=str)
+    if ids_arr.size == 0 or names_arr.size == 0:
+        return np.full(names_arr.shape[0], -1, dtype=np.intp)
+    order = np.argsort(ids_arr)
+    pos = np.clip(np.searchsorted(ids_arr[order], names_arr), 0, ids_arr.size - 1)
+    found = ids_arr[order][pos] == names_arr
+    return np.where(found, order[pos], -1).astype(np.intp)
+
+
 def _azimuth_step(vector_work: FloatArray) -> float:
     """Angle to add to A0 so that X points along a work-frame vector (Y is left,
     i.e. counter-clockwise, while azimuth is clockwise)."""
@@ -404,10 +416,9 @@ def adjust_to_ground(
             f"{crs.name} is geographic: use the geocentric route"
         )
     obs = strip.observations
-    point_lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
 
     # Control rows that can be used: observed and triangulated.
-    row_point = np.array([point_lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
+    row_point = _index_of(obs.point_ids, control.point_ids)
     triangulated = np.zeros(len(control.point_ids), dtype=bool)
     seen = row_point >= 0
     triangulated[seen] = strip.triangulated[row_point[seen]]
@@ -427,7 +438,7 @@ def adjust_to_ground(
     # Lines: model points of the line points.
     line_index = []
     for line in lines:
-        li = np.array([point_lookup.get(p, -1) for p in line.point_ids], dtype=np.intp)
+        li = _index_of(obs.point_ids, line.point_ids)
         missing = [
             p
             for p, i in zip(line.point_ids, li, strict=True)

@@ -34,7 +34,12 @@ import numpy as np
 
 from ._typing import ArrayLike, FloatArray, IntArray
 from .errors import ConvergenceError, GeometryError
-from .rotation import matrix_from_cardan, matrix_from_schut
+from .rotation import (
+    cardan_from_matrix,
+    matrix_from_cardan,
+    matrix_from_schut,
+    schut_from_matrix,
+)
 
 __all__ = [
     "MIN_POINTS_PER_PAIR",
@@ -631,8 +636,6 @@ class _DependentState:
         return self.r_left.copy(), self.r_right.copy(), self.relative.copy()
 
     def elements(self):
-        from .rotation import schut_from_matrix
-
         return np.column_stack([self.beta[:, 1:], schut_from_matrix(self.relative)])
 
 
@@ -677,8 +680,6 @@ class _BaseState:
         z /= np.linalg.norm(z, axis=1, keepdims=True)
         y = np.cross(z, x)
         left_base = np.stack([x, y, z], axis=1)  # rows: base axes in the left image
-        from .rotation import cardan_from_matrix
-
         angles = cardan_from_matrix(left_base)
         self.angles_left[mask] = angles[:, [0, 2]]
         self.r_right_base[mask] = self._left_base()[mask] @ relative
@@ -713,7 +714,5 @@ class _BaseState:
         return b / along[:, None]
 
     def elements(self):
-        from .rotation import cardan_from_matrix
-
         right = cardan_from_matrix(self.r_right_base)
         return np.column_stack([self.angles_left, right])
