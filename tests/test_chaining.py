@@ -372,27 +372,43 @@ def test_j7_fixed_linearisation_is_the_derivative_of_j5():
     vec = obs.image_vectors()
     # a first rotation off the identity (heading 75°): strip and image axes differ
     first = Rotation.from_euler("z", 75.0, degrees=True).as_matrix()
-    state = rel_module._DependentState(vec[row_l], vec[row_r], model, 2, first)
-    rows, q0 = state.design()
+    left, right = vec[row_l], vec[row_r]
+    state = rel_module._DependentState(left, right, model, 2, first)
+    # The state holds the unknowns in the left photo's image frame; the design
+    # rows are the derivatives with respect to base steps along the left
+    # image's y and z axes and a small rotation a of the right bundle given in
+    # the left image frame.
+    counts = np.bincount(model, minlength=2)
+    starts = rel_module._segment_starts(model, 2)
+    blocks = rel_module._Blocks(left, right, starts, counts, np.arange(2))
+    rows = np.empty((model.size, 5))
+    q0 = np.empty(model.size)
+    for block in blocks.items:
+        m = np.empty((block.rows.shape[0], 6, block.rows.shape[1]))
+        state.terms(block.pairs, block, m)
+        rows[block.rows[block.valid]] = np.moveaxis(m[:, :5], 1, 2)[block.valid]
+        q0[block.rows[block.valid]] = m[:, 5][block.valid]
     assert np.abs(q0).max() > 1e-4  # start state: large y-parallaxes
 
-    b = state.b[model]
-    l, p0 = state.l, state.p
+    # J(5) evaluated independently in the strip frame
+    r_left, r_right = state.r_left[model], state.r_right[model]
+    b = state.base_strip()[model]
+    l = np.einsum("nij,nj->ni", r_left, left)
+    p0 = np.einsum("nij,nj->ni", r_right, right)
     j = np.array([0.0, 1.0, 0.0])
 
     def parallax(b_, p_):
         lxp = np.cross(l, p_)
-        return np.einsum("ij,ij->i", b_, lxp) / lxp[:, 1]
+        return np.einsum("ij,ij->i", b_, lxp) / (lxp @ j)
 
+    np.testing.assert_allclose(q0, parallax(b, p0), rtol=1e-12, atol=1e-15)
     eps = 1e-7
     numeric = np.empty_like(rows)
-    r_left = state.r_left[model]
     for k in range(2):  # base corrections along the left photo's image y and z axes
         step = eps * r_left[:, :, k + 1]
         numeric[:, k] = (parallax(b + step, p0) - parallax(b - step, p0)) / (2 * eps)
-    for k in range(3):  # small rotation a of the right bundle: p = p0 + a × p0
-        a = np.zeros(3)
-        a[k] = eps
+    for k in range(3):  # small rotation a (left image frame) of the right bundle
+        a = eps * r_left[:, :, k]  # the same rotation in the strip frame
         numeric[:, 2 + k] = (
             parallax(b, p0 + np.cross(a, p0)) - parallax(b, p0 - np.cross(a, p0))
         ) / (2 * eps)

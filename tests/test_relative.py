@@ -90,12 +90,14 @@ def _first_pass_history(syn, factor, monkeypatch, iterations=30):
     monkeypatch.setattr(rel_module, "_SCHUT_FACTOR", factor)
     state = rel_module._DependentState(left, right, pair, n, np.eye(3))
     starts = rel_module._segment_starts(pair, n)
-    history = [state.max_parallax_um()]
-    for _ in range(iterations):
-        rows, q = state.design()
-        corr, _ = rel_module._solve_normals(rows, -q, np.ones(pair.size), starts)
+    counts = np.bincount(pair, minlength=n)
+    blocks = rel_module._Blocks(left, right, starts, counts, np.arange(n))
+    history = []
+    for _ in range(iterations + 1):
+        ev = rel_module._evaluate(state, blocks, np.ones(pair.size))
+        history.append(1000.0 * ev.max_parallax_mm.max())
+        corr, _ = rel_module._solve_normals(ev.normal, ev.gradient)
         state.update(corr)
-        history.append(state.max_parallax_um())
     return np.array(history)
 
 

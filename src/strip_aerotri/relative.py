@@ -60,6 +60,8 @@ _EZ = np.array([0.0, 0.0, 1.0])
 # linearly (tests patch this to show it).
 _SCHUT_FACTOR = 0.5
 _ROBUST_STEPS = 10  # IRLS steps of the robust start
+_SUBSAMPLE_POINTS = 40  # points per pair in the first iterations
+_BLOCK_CELLS = 1 << 15  # cells (rows) per block: its temporaries stay in cache
 
 
 class RelativeOrientationMethod(str, Enum):
@@ -159,14 +161,23 @@ def chain_rotations(first: ArrayLike, relative: ArrayLike) -> FloatArray:
     -------
     ndarray, shape (n_pairs + 1, 3, 3)
         ``R[0] = first``, ``R[m + 1] = R[m] @ relative[m]``.
+
+    Notes
+    -----
+    The products are formed by a parallel prefix scan (Hillis-Steele):
+    ``log2(n_pairs)`` batched 3 × 3 products instead of a Python loop over
+    the pairs; the round-off is that of the sequential products.
     """
     first = np.asarray(first, dtype=np.float64)
-    relative = np.asarray(relative, dtype=np.float64)
-    out = np.empty((relative.shape[0] + 1, 3, 3))
+    prefix = np.array(relative, dtype=np.float64)  # a copy
+    shift = 1
+    while shift < prefix.shape[0]:
+        # prefix[m] = relative[m - 2 shift + 1] ... relative[m], in chain order
+        prefix[shift:] = prefix[:-shift] @ prefix[shift:]
+        shift *= 2
+    out = np.empty((prefix.shape[0] + 1, 3, 3))
     out[0] = first
-    # Sequential by nature; 3x3 products only, cheap even for thousands of photos.
-    for m in range(relative.shape[0]):
-        out[m + 1] = out[m] @ relative[m]
+    out[1:] = first @ prefix
     return out
 
 
@@ -187,69 +198,131 @@ def _check_pairs(pair: IntArray, n_pairs: int, labels: list[str] | None) -> IntA
     return counts
 
 
-def _solve_normals(
-    rows: FloatArray, rhs: FloatArray, weight: FloatArray, starts: IntArray
-) -> tuple[FloatArray, np.ndarray]:
-    """Solve the per-pair normal equations of stacked design rows.
+def _name(labels: list[str] | None, m: int) -> str:
+    return labels[m] if labels else f"pair {m}"
 
-    rows (n, u), rhs (n,), weight (n,) -> corrections (n_pairs, u) and a mask
-    of pairs whose (equilibrated) normal matrix is singular or not finite.
+
+@dataclass(frozen=True)
+class _Block:
+    """Rows of a group of pairs as a padded (pairs, width) table.
+
+    ``rows[i, k]`` indexes the flat (pair-sorted) arrays; padding cells repeat
+    the pair's last row and are marked invalid, so maxima need no mask and
+    sums only a zero weight.
     """
-    wa = rows * weight[:, None]
-    normal = np.add.reduceat(wa[:, :, None] * rows[:, None, :], starts, axis=0)
-    gradient = np.add.reduceat(wa * rhs[:, None], starts, axis=0)
+
+    pairs: IntArray  # (nb,)
+    rows: IntArray  # (nb, width)
+    valid: np.ndarray  # (nb, width) bool
+    counts: IntArray  # (nb,) valid cells per pair
+    left: FloatArray  # (3, nb, width) image vectors on the left photo, mm
+    right: FloatArray  # (3, nb, width) and on the right photo
+
+
+class _Blocks:
+    """The pairs' rows gathered into padded 2-D blocks (pairs × points).
+
+    Element-wise work on a block needs no per-row gather of the pairs'
+    unknowns (they broadcast as (pairs, 1) columns), and per-pair sums and
+    medians are row operations.  Pairs are grouped by their number of rows so
+    that padding stays small, and a block holds about ``_BLOCK_CELLS`` cells
+    so that its temporaries stay in cache.  With ``stride > 1`` every
+    stride-th row of a pair is taken (a spread subsample for the first
+    iterations).
+    """
+
+    def __init__(self, left, right, starts, counts, pairs, stride=None):
+        if stride is None:
+            stride = np.ones_like(counts)
+        width_of = -(-counts // stride)  # ceil
+        order = pairs[np.argsort(width_of[pairs], kind="stable")]
+        self.items: list[_Block] = []
+        i = 0
+        while i < order.size:
+            # widths ascend within `order`: the last pair of a block is its widest
+            cells = np.arange(1, order.size - i + 1) * width_of[order[i:]]
+            j = i + max(1, int(np.searchsorted(cells, _BLOCK_CELLS, side="right")))
+            idx = order[i:j]
+            col = np.arange(int(width_of[idx].max()))
+            n = counts[idx][:, None]
+            step = stride[idx][:, None]
+            taken = col * step
+            valid = taken < n
+            rows = starts[idx][:, None] + np.minimum(taken, n - 1)
+            self.items.append(
+                _Block(idx, rows, valid, valid.sum(axis=1), left.T[:, rows], right.T[:, rows])
+            )
+            i = j
+        self.pairs = np.sort(pairs)
+        self.n_rows = int(sum(b.counts.sum() for b in self.items))
+
+
+def _robust_scale(abs_q: FloatArray, block: _Block) -> FloatArray:
+    """1.4826 × the median |q| of each pair of a block (upper median), (nb, 1)."""
+    ranked = np.sort(np.where(block.valid, abs_q, np.inf), axis=1)
+    median = ranked[np.arange(ranked.shape[0]), block.counts // 2]
+    return np.maximum(1.4826 * median, 1e-6)[:, None]
+
+
+class _Evaluation:
+    """Normal equations, residuals and largest parallax of the pairs of a blocking."""
+
+    def __init__(self, n_pairs: int):
+        self.normal = np.zeros((n_pairs, 5, 5))
+        self.gradient = np.zeros((n_pairs, 5))
+        self.max_parallax_mm = np.zeros(n_pairs)
+
+
+def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) -> _Evaluation:
+    """Design rows and y-parallaxes at the current state, reduced to per-pair
+    normal equations ``N x = g`` of the weighted Gauss-Newton step.
+
+    With ``robust`` the weights are multiplied by Cauchy weights of the
+    current residuals, c = 2.385 robust sigmas of the pair (IRLS; start
+    values only, the final solution is ordinary least squares).
+    """
+    ev = _Evaluation(state.n_pairs)
+    for block in blocks.items:
+        m = np.empty((block.rows.shape[0], 6, block.rows.shape[1]))
+        q_img = state.terms(block.pairs, block, m)
+        abs_q = np.abs(q_img)
+        w = weight[block.rows] * block.valid
+        if robust:
+            abs_q = np.where(np.isfinite(abs_q), abs_q, np.inf)
+            w = w / (1.0 + (abs_q / (2.385 * _robust_scale(abs_q, block))) ** 2)
+        normal = (m * w[:, None, :]) @ m.transpose(0, 2, 1)
+        ev.normal[block.pairs] = normal[:, :5, :5]
+        ev.gradient[block.pairs] = -normal[:, :5, 5]
+        ev.max_parallax_mm[block.pairs] = np.max(abs_q, axis=1)
+    return ev
+
+
+def _solve_normals(normal: FloatArray, gradient: FloatArray) -> tuple[FloatArray, np.ndarray]:
+    """Solve per-pair normal equations: (n_pairs, 5, 5), (n_pairs, 5) ->
+    corrections (n_pairs, 5) and a mask of pairs whose (equilibrated) normal
+    matrix is singular or not finite."""
+    normal = normal.copy()
+    gradient = gradient.copy()
     finite = np.isfinite(normal).all(axis=(1, 2)) & np.isfinite(gradient).all(axis=1)
-    normal[~finite] = np.eye(normal.shape[1])
+    normal[~finite] = np.eye(5)
     gradient[~finite] = 0.0
     scale = 1.0 / np.sqrt(np.maximum(np.einsum("mii->mi", normal), 1e-300))
     scaled = normal * scale[:, :, None] * scale[:, None, :]
     eig = np.linalg.eigvalsh(scaled)
-    singular = ~finite | (eig[:, 0] < 1e-10 * eig[:, -1])
-    scaled[singular] = np.eye(normal.shape[1])
+    singular = ~finite | ~(eig[:, 0] > 1e-10 * eig[:, -1])  # also all-zero (no rows) and NaN
+    scaled[singular] = np.eye(5)
     sol = np.linalg.solve(scaled, (gradient * scale)[:, :, None])[:, :, 0] * scale
     sol[singular] = 0.0
     return sol, singular
 
 
-def _name(labels: list[str] | None, m: int) -> str:
-    return labels[m] if labels else f"pair {m}"
-
-
-def _segment_median(values: FloatArray, pair: IntArray, starts: IntArray) -> FloatArray:
-    """Median of ``values`` within each pair (rows sorted by pair)."""
-    counts = np.diff(np.r_[starts, pair.shape[0]])
-    order = np.lexsort((values, pair))
-    return values[order[starts + counts // 2]]
-
-
-def _cauchy_weights(state, pair, starts) -> FloatArray:
-    """Iteratively reweighted least squares (Cauchy, c = 2.385 robust sigmas per pair).
-
-    Used only to find start values when a pair with gross errors does not
-    converge; the final solution and its tests are ordinary least squares.
-    """
-    q = np.abs(state.parallax_image_mm())
-    q = np.where(np.isfinite(q), q, np.inf)
-    scale = 1.4826 * _segment_median(q, pair, starts)
-    scale = np.maximum(scale, 1e-6)[pair]
-    return 1.0 / (1.0 + (q / (2.385 * scale)) ** 2)
-
-
-def _gross(state, pair, starts) -> np.ndarray:
-    """Rows whose y-parallax exceeds 5 robust sigmas (1.4826 MAD) of their pair."""
-    q = np.abs(state.parallax_image_mm())
-    q = np.where(np.isfinite(q), q, np.inf)
-    scale = 1.4826 * _segment_median(q, pair, starts)
-    return ~(q <= 5.0 * np.maximum(scale, 1e-6)[pair])
-
-
-def _iterate(state, weight, starts, max_iterations, tolerance, active, history, robust=False):
+def _iterate(state, blocks, weight, max_iterations, tolerance, active, history, robust=False):
     """Gauss-Newton steps for the active pairs until their corrections vanish.
 
     Returns (converged mask, iterations per pair, singular-at-start mask).
     Pairs that diverge (non-finite or huge corrections) are frozen and
-    reported as not converged.  With ``robust`` the weights are multiplied by
-    Cauchy weights of the current residuals at every step (IRLS).
+    reported as not converged.  ``history`` receives the largest |y-parallax|
+    (µm at image scale) of the pairs that have not failed, before each step.
     """
     n_pairs = active.shape[0]
     done = ~active
@@ -257,22 +330,26 @@ def _iterate(state, weight, starts, max_iterations, tolerance, active, history, 
     iterations = np.zeros(n_pairs, dtype=np.intp)
     singular_start = np.zeros(n_pairs, dtype=bool)
     for it in range(1, max_iterations + 1):
-        rows, q = state.design()
-        w = weight * _cauchy_weights(state, state.pair, starts) if robust else weight
-        corr, singular = _solve_normals(rows, -q, w, starts)
+        ev = _evaluate(state, blocks, weight, robust)
+        history.append(_largest_um(ev.max_parallax_mm[active & ~failed]))
+        corr, singular = _solve_normals(ev.normal, ev.gradient)
         if it == 1:
             singular_start = singular & active
         size = np.max(np.abs(corr), axis=1)
         failed |= active & (singular | ~np.isfinite(size) | (size > 1.0))
         corr[done | failed] = 0.0
         state.update(corr)
-        history.append(state.max_parallax_um(~failed))
         newly = ~done & ~failed & (size < tolerance)
         iterations[newly] = it
         done |= newly
         if (done | failed).all():
             break
     return done & ~failed, iterations, singular_start
+
+
+def _largest_um(max_parallax_mm: FloatArray) -> float:
+    q = max_parallax_mm[np.isfinite(max_parallax_mm)]
+    return float(np.max(q)) * 1000.0 if q.size else float("nan")
 
 
 def relative_orientation(
@@ -317,10 +394,11 @@ def relative_orientation(
     labels : list of str, optional
         Names of the pairs for messages, e.g. ``"pair 1201-1202"``.
     robust : bool
-        Start with an iteratively reweighted (Cauchy) solution and give y-
-        parallaxes beyond 5 robust sigmas of their pair no weight in the final
-        least squares, so that gross errors cannot distort it; their residuals
-        and w-tests are still returned for the caller to report.
+        Pairs whose least-squares y-parallaxes include some beyond 5 robust
+        sigmas (1.4826 MAD) of the pair are solved again from an iteratively
+        reweighted (Cauchy) start, and those y-parallaxes take no part in the
+        final least squares, so that gross errors cannot distort it; their
+        residuals and w-tests are still returned for the caller to report.
 
     Returns
     -------
@@ -368,17 +446,24 @@ def relative_orientation(
     else:
         state = _BaseState(left, right, pair, n_pairs, first)
 
-    history = [state.max_parallax_um()]
-    active = np.ones(n_pairs, dtype=bool)
-    if robust:
-        # Robust start (IRLS, Cauchy) and no weight for gross errors beyond 5
-        # robust sigmas; the tests of the caller then find and name them.
-        # Start values only: a few steps at a loose tolerance (IRLS weights keep
-        # moving at the noise level and would never meet the final tolerance).
-        _iterate(state, weight, starts, _ROBUST_STEPS, 1e-6, active, history, robust=True)
-        weight = np.where(_gross(state, pair, starts), 0.0, weight)
+    def blocks_of(pairs, stride=None):
+        return _Blocks(left, right, starts, counts, pairs, stride)
+
+    everything = np.ones(n_pairs, dtype=bool)
+    full = blocks_of(np.arange(n_pairs))
+    history: list[float] = []
+    stride = np.maximum(counts // _SUBSAMPLE_POINTS, 1)
+    if (stride > 1).any():
+        # From the near-vertical start the first steps only have to reach the
+        # region of quadratic convergence: take them on a spread subsample of
+        # every large pair, then finish on all points.
+        sample = blocks_of(np.arange(n_pairs), stride)
+        ok, _, _ = _iterate(state, sample, weight, max_iterations, 1e-6, everything, history)
+        if not ok.all():
+            identity = np.broadcast_to(np.eye(3), (int((~ok).sum()), 3, 3))
+            state.restart(~ok, identity, np.tile(_EX, (int((~ok).sum()), 1)))
     converged, iterations, singular_first = _iterate(
-        state, weight, starts, max_iterations, tolerance, active, history
+        state, full, weight, max_iterations, tolerance, everything, history
     )
     if not converged.all():
         # Large relative rotations (drone pairs, oblique photos): restart the
@@ -387,7 +472,13 @@ def relative_orientation(
         rotation, base_dir = essential_start(left, right, pair, n_pairs, starts)
         state.restart(retry, rotation[retry], base_dir[retry])
         ok, more, singular = _iterate(
-            state, weight, starts, max_iterations, tolerance, retry, history
+            state,
+            blocks_of(np.flatnonzero(retry)),
+            weight,
+            max_iterations,
+            tolerance,
+            retry,
+            history,
         )
         degenerate = singular | (singular_first & ~ok)
         if degenerate.any():
@@ -399,21 +490,24 @@ def relative_orientation(
             )
         iterations[retry] = more[retry]
         converged |= ok
+    robust_done = np.zeros(n_pairs, dtype=bool)
     if not converged.all():
         # Gross errors (swapped ids, mm-size blunders) can keep least squares from
         # converging at all: find start values by robust IRLS from the
         # near-vertical start, then finish with ordinary least squares.
         retry = ~converged
+        some = blocks_of(np.flatnonzero(retry))
         identity = np.broadcast_to(np.eye(3), (int(retry.sum()), 3, 3))
         state.restart(retry, identity, np.tile(_EX, (int(retry.sum()), 1)))
-        _iterate(state, weight, starts, max_iterations, 1e-6, retry, history, robust=True)
+        _iterate(state, some, weight, max_iterations, 1e-6, retry, history, robust=True)
         # Observations beyond 5 robust sigmas of the robust fit take no part in
         # the final least squares (their w-tests then fail and they are
         # reported and rejected by the caller's data snooping).
-        weight = np.where(retry[pair] & _gross(state, pair, starts), 0.0, weight)
-        ok, more, _ = _iterate(state, weight, starts, max_iterations, tolerance, retry, history)
+        weight = np.where(_gross_rows(state, some, pair.shape[0]), 0.0, weight)
+        ok, more, _ = _iterate(state, some, weight, max_iterations, tolerance, retry, history)
         iterations[retry] = more[retry]
         converged |= ok
+        robust_done = retry
     if not converged.all():
         bad = np.flatnonzero(~converged)
         names = ", ".join(_name(labels, int(m)) for m in bad[:5])
@@ -421,6 +515,30 @@ def relative_orientation(
             f"relative orientation did not converge in {max_iterations} iterations for {names}"
             " (check point ids and image coordinates of these pairs)"
         )
+    if robust:
+        # Gross errors that least squares converged through show as residuals
+        # beyond 5 robust sigmas of their pair: re-solve those pairs from a
+        # robust (IRLS, Cauchy) fit with no weight for such observations, so
+        # that they cannot distort the orientation; the caller's tests then
+        # find and name them.
+        gross = _gross_rows(state, full, pair.shape[0])
+        suspect = np.zeros(n_pairs, dtype=bool)
+        suspect[pair[gross]] = True
+        suspect &= ~robust_done
+        if suspect.any():
+            some = blocks_of(np.flatnonzero(suspect))
+            _iterate(state, some, weight, _ROBUST_STEPS, 1e-6, suspect, history, robust=True)
+            weight = np.where(suspect[pair] & _gross_rows(state, some, pair.shape[0]), 0.0, weight)
+            ok, more, _ = _iterate(
+                state, some, weight, max_iterations, tolerance, suspect, history
+            )
+            if not ok.all():
+                m = int(np.flatnonzero(suspect & ~ok)[0])
+                raise ConvergenceError(
+                    f"relative orientation did not converge in {max_iterations} iterations "
+                    f"for {_name(labels, m)} (check point ids and image coordinates of this pair)"
+                )
+            iterations[suspect] += more[suspect]
     base = state.base_strip()
     # With the base's image-x component 1, 1/|b| is the cosine between the base
     # and the left photo's image x axis.
@@ -434,7 +552,8 @@ def relative_orientation(
             "along the flight (turn the image axes)"
         )
 
-    parallax_um = state.parallax_image_mm() * 1000.0
+    parallax_um, redundancy = _final_residuals(state, full, weight, pair.shape[0])
+    history.append(_largest_um(np.abs(parallax_um) / 1000.0))
     dof = np.maximum(counts - MIN_POINTS_PER_PAIR, 1)
     sum_wq2 = np.add.reduceat(weight * parallax_um**2, starts)
     sigma0 = np.sqrt(sum_wq2 / dof / 2.0)
@@ -442,12 +561,6 @@ def relative_orientation(
     rms = np.sqrt(np.add.reduceat(parallax_um**2, starts) / counts)
     maxabs = np.maximum.reduceat(np.abs(parallax_um), starts)
     rot_left, rot_right, relative = state.rotations()
-    rows, _ = state.design()
-    wa = rows * weight[:, None]
-    normal = np.add.reduceat(wa[:, :, None] * rows[:, None, :], starts, axis=0)
-    n_inv = np.linalg.inv(normal)
-    leverage = weight * np.einsum("ni,nij,nj->n", rows, n_inv[pair], rows)
-    redundancy = np.clip(1.0 - leverage, 0.0, 1.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         w_stat = parallax_um / (1000.0 * np.sqrt(var * redundancy))
     w_stat[redundancy < 1e-6] = np.nan
@@ -469,6 +582,36 @@ def relative_orientation(
         redundancy_numbers=redundancy,
         w_statistic=w_stat,
     )
+
+
+def _gross_rows(state, blocks: _Blocks, n_rows: int) -> np.ndarray:
+    """Rows (flat mask) whose y-parallax exceeds 5 robust sigmas (1.4826 MAD) of their pair."""
+    gross = np.zeros(n_rows, dtype=bool)
+    for block in blocks.items:
+        m = np.empty((block.rows.shape[0], 6, block.rows.shape[1]))
+        abs_q = np.abs(state.terms(block.pairs, block, m))
+        abs_q = np.where(np.isfinite(abs_q), abs_q, np.inf)
+        flag = ~(abs_q <= 5.0 * _robust_scale(abs_q, block)) & block.valid
+        gross[block.rows[flag]] = True
+    return gross
+
+
+def _final_residuals(state, blocks: _Blocks, weight: FloatArray, n_rows: int):
+    """Residual y-parallaxes (µm at image scale) and redundancy numbers
+    ``1 − w aᵀ N⁻¹ a`` of all rows (flat, pair-sorted order)."""
+    parallax_um = np.empty(n_rows)
+    redundancy = np.empty(n_rows)
+    for block in blocks.items:
+        m = np.empty((block.rows.shape[0], 6, block.rows.shape[1]))
+        q_img = state.terms(block.pairs, block, m)
+        a = m[:, :5]
+        w = weight[block.rows] * block.valid
+        normal = (a * w[:, None, :]) @ a.transpose(0, 2, 1)
+        leverage = w * np.einsum("pik,pik->pk", a, np.linalg.inv(normal) @ a)
+        rows = block.rows[block.valid]
+        parallax_um[rows] = 1000.0 * q_img[block.valid]
+        redundancy[rows] = np.clip(1.0 - leverage[block.valid], 0.0, 1.0)
+    return parallax_um, redundancy
 
 
 _W = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
@@ -545,98 +688,86 @@ def essential_start(
     return best_q, best_b
 
 
-def _parallax(b: FloatArray, l: FloatArray, p: FloatArray, j: FloatArray):
-    """q = b·(l×p)/(j·(l×p)) row-wise, with l×p and D."""
-    lxp = np.cross(l, p)
-    d = np.einsum("ij,ij->i", j, lxp) if j.ndim == 2 else lxp @ j
-    q = np.einsum("ij,ij->i", b, lxp) / d
-    return q, lxp, d
-
-
-def _image_scale_parallax(q, b, l, p, j, lxp, d):
-    """Convert a model-space y-parallax to mm at the left photo's image scale.
-
-    The point lies at ``k_l · l`` from the left centre (J(12)); a model length
-    at the point corresponds to ``length / k_l`` mm on the left image.
-    """
-    bxp = np.cross(b, p)
-    jj = j if j.ndim == 2 else np.broadcast_to(j, bxp.shape)
-    k = np.einsum("ij,ij->i", bxp, jj) / d
-    return q / k
+def _rotate(matrices: FloatArray, x: FloatArray, y: FloatArray, z: FloatArray):
+    """Rows of ``matrices`` (nb, 3, 3) applied to the block's vectors (x, y, z),
+    each (nb, width): the components of ``R @ v`` as three (nb, width) arrays."""
+    r = matrices[:, :, :, None]
+    return tuple(r[:, i, 0] * x + r[:, i, 1] * y + r[:, i, 2] * z for i in range(3))
 
 
 class _DependentState:
-    """Unknowns of J's dependent pairs: relative rotation Q and base direction in
-    the left image frame; the strip-frame values follow from the chain."""
+    """Unknowns of J's dependent pairs, solved in the left photo's image frame.
+
+    Per pair: the relative rotation ``Q`` (right image -> left image) and the
+    base components ``(b_y, b_z)`` along the left photo's image y and z axes
+    (``b_x = 1``).  J(5) is invariant to a common rotation of b, l and p except
+    for the strip's y axis j, which enters as ``R_lᵀ j`` (the second row of
+    the left rotation, from the chain).  So the left rays need no rotation and
+    the right rays only ``Q``; the corrections of the rotation are found in
+    the left image frame, where J's correcting rotation is ``R_schut(a / 2)``
+    applied to ``Q`` (fixed J(9)).
+    """
 
     def __init__(self, left, right, pair, n_pairs, first):
-        self.lz, self.pz, self.pair, self.first = left, right, pair, first
+        self.n_pairs = n_pairs
+        self.first = first
         self.relative = np.broadcast_to(np.eye(3), (n_pairs, 3, 3)).copy()
-        self.beta = np.broadcast_to(_EX, (n_pairs, 3)).copy()  # base in the left image frame
+        self.beta = np.zeros((n_pairs, 2))
         self._refresh()
 
     def _refresh(self):
         chain = chain_rotations(self.first, self.relative)
         self.r_left = chain[:-1]
         self.r_right = chain[1:]
-        # Gauge: the base's component along the left photo's image x axis is 1
-        # (J's b_x = 1 for the first pair of a strip along the strip x axis, and
-        # valid for any given first orientation and heading).
-        self.beta = self.beta / self.beta[:, :1]
-        self.b = np.einsum("mij,mj->mi", self.r_left, self.beta)
-        rl = self.r_left[self.pair]
-        self.l = np.einsum("nij,nj->ni", rl, self.lz)
-        self.p = np.einsum("nij,nj->ni", self.r_right[self.pair], self.pz)
-        self.q, self.lxp, self.d = _parallax(self.b[self.pair], self.l, self.p, _J)
+        self.j_left = self.r_left[:, 1, :]  # R_lᵀ (0, 1, 0)
 
-    def design(self):
-        bn = self.b[self.pair]
-        u = bn - self.q[:, None] * _J
-        rot = np.cross(self.p, np.cross(u, self.l)) / self.d[:, None]
-        # base corrections along the left photo's image y and z axes
-        gb = self.lxp / self.d[:, None]
-        r_l = self.r_left[self.pair]
-        rows = np.column_stack(
-            [np.einsum("ni,ni->n", gb, r_l[:, :, 1]), np.einsum("ni,ni->n", gb, r_l[:, :, 2]), rot]
-        )
-        return rows, self.q
+    def terms(self, pairs: IntArray, block: _Block, m: FloatArray) -> FloatArray:
+        """Fill ``m[:, :5]`` with the design rows (J(7) fixed) and ``m[:, 5]``
+        with the y-parallax q (J(5)) of the block; return q at image scale (mm)."""
+        lx, ly, lz = block.left
+        p0, p1, p2 = _rotate(self.relative[pairs], *block.right)
+        b1, b2 = self.beta[pairs].T[:, :, None]
+        j0, j1, j2 = self.j_left[pairs].T[:, :, None]
+        c0 = ly * p2 - lz * p1  # l × p
+        c1 = lz * p0 - lx * p2
+        c2 = lx * p1 - ly * p0
+        inv_d = 1.0 / (j0 * c0 + j1 * c1 + j2 * c2)
+        num = c0 + b1 * c1 + b2 * c2
+        q = num * inv_d
+        np.multiply(c1, inv_d, out=m[:, 0])  # ∂q/∂b_y = (l × p)_y / D
+        np.multiply(c2, inv_d, out=m[:, 1])
+        # ∂q/∂a = p × ((b − q j) × l) / D = (u (p·l) − l (p·u)) / D, u = b − q j
+        u0 = 1.0 - q * j0
+        u1 = b1 - q * j1
+        u2 = b2 - q * j2
+        pl = p0 * lx + p1 * ly + p2 * lz
+        pu = p0 * u0 + p1 * u1 + p2 * u2
+        m[:, 2] = (u0 * pl - lx * pu) * inv_d
+        m[:, 3] = (u1 * pl - ly * pu) * inv_d
+        m[:, 4] = (u2 * pl - lz * pu) * inv_d
+        m[:, 5] = q
+        # At the left photo's image scale: q / k_l with k_l = j·(b × p) / D (J(12)).
+        return num / (j0 * (b1 * p2 - b2 * p1) + j1 * (b2 * p0 - p2) + j2 * (p1 - b1 * p0))
 
     def restart(self, mask, relative, base_dir):
         self.relative[mask] = relative
-        self.beta[mask] = base_dir
+        self.beta[mask] = base_dir[:, 1:] / base_dir[:, :1]
         self._refresh()
 
     def update(self, corr):
-        # Correct in the left image frame: R_l^T R_schut(a) R_l = R_schut(R_l^T a)
-        # exactly, and only the corrections are rotated.  Writing the new relative
-        # rotation as R_l^T R' R_r would feed the round-off of R_l^T R_l != I back
-        # into every later pair of the chain and grow from one iteration to the next.
-        a_left = np.einsum("mji,mj->mi", self.r_left, corr[:, 2:])
-        self.relative = matrix_from_schut(_SCHUT_FACTOR * a_left) @ self.relative
-        self.beta = self.beta.copy()
-        self.beta[:, 1:] += corr[:, :2]
+        self.relative = matrix_from_schut(_SCHUT_FACTOR * corr[:, 2:]) @ self.relative
+        self.beta = self.beta + corr[:, :2]
         self._refresh()
 
-    def parallax_image_mm(self):
-        return _image_scale_parallax(
-            self.q, self.b[self.pair], self.l, self.p, _J, self.lxp, self.d
-        )
-
-    def max_parallax_um(self, keep_pairs=None):
-        q = np.abs(self.parallax_image_mm())
-        if keep_pairs is not None:
-            q = q[keep_pairs[self.pair]]
-        q = q[np.isfinite(q)]
-        return float(np.max(q)) * 1000.0 if q.size else float("nan")
-
     def base_strip(self):
-        return self.b.copy()
+        beta = np.column_stack([np.ones(self.n_pairs), self.beta])
+        return np.einsum("mij,mj->mi", self.r_left, beta)
 
     def rotations(self):
         return self.r_left.copy(), self.r_right.copy(), self.relative.copy()
 
     def elements(self):
-        return np.column_stack([self.beta[:, 1:], schut_from_matrix(self.relative)])
+        return np.column_stack([self.beta, schut_from_matrix(self.relative)])
 
 
 class _BaseState:
@@ -646,7 +777,8 @@ class _BaseState:
     A_tau_nu = R_left · A(alpha'1, 0, chi'1)^T, B(126)-(136)."""
 
     def __init__(self, left, right, pair, n_pairs, first):
-        self.lz, self.pz, self.pair, self.first = left, right, pair, first
+        self.n_pairs = n_pairs
+        self.first = first
         self.angles_left = np.zeros((n_pairs, 2))  # alpha'1, chi'1
         self.r_right_base = np.broadcast_to(np.eye(3), (n_pairs, 3, 3)).copy()
         self._refresh()
@@ -659,18 +791,34 @@ class _BaseState:
 
     def _refresh(self):
         self.l_base = self._left_base()
-        self.l = np.einsum("nij,nj->ni", self.l_base[self.pair], self.lz)
-        self.p = np.einsum("nij,nj->ni", self.r_right_base[self.pair], self.pz)
-        self.bx = np.broadcast_to(_EX, self.l.shape)
-        self.q, self.lxp, self.d = _parallax(self.bx, self.l, self.p, _EY)
 
-    def design(self):
-        u = self.bx - self.q[:, None] * _EY
-        g_left = np.cross(self.l, np.cross(self.p, u)) / self.d[:, None]
-        g_right = np.cross(self.p, np.cross(u, self.l)) / self.d[:, None]
-        ez_left = self.l_base[self.pair][:, :, 2]  # image z axis of the left photo
-        rows = np.column_stack([-g_left[:, 1], np.einsum("ij,ij->i", g_left, ez_left), g_right])
-        return rows, self.q
+    def terms(self, pairs: IntArray, block: _Block, m: FloatArray) -> FloatArray:
+        """As ``_DependentState.terms`` with b = (1, 0, 0) and j = (0, 1, 0) in
+        the base system: B(131)-(136) for the elements alpha'1, chi'1 (left)
+        and a rotation correction of the right photo."""
+        l_base = self.l_base[pairs]
+        l0, l1, l2 = _rotate(l_base, *block.left)
+        p0, p1, p2 = _rotate(self.r_right_base[pairs], *block.right)
+        num = l1 * p2 - l2 * p1  # (l × p)_x
+        inv_d = 1.0 / (l2 * p0 - l0 * p2)  # (l × p)_y
+        q = num * inv_d
+        u1 = -q  # u = b − q j = (1, −q, 0)
+        lu = l0 + u1 * l1
+        pl = p0 * l0 + p1 * l1 + p2 * l2
+        pu = p0 + u1 * p1
+        # left photo: g = l × (p × u) / D = (p (l·u) − u (l·p)) / D
+        g0 = (p0 * lu - pl) * inv_d
+        g1 = (p1 * lu - u1 * pl) * inv_d
+        g2 = p2 * lu * inv_d
+        np.negative(g1, out=m[:, 0])  # alpha'1 turns the left ray about the base-system y axis
+        e0, e1, e2 = l_base[:, :, 2].T[:, :, None]  # chi'1: about the left image z axis
+        m[:, 1] = e0 * g0 + e1 * g1 + e2 * g2
+        # right photo: p × (u × l) / D = (u (p·l) − l (p·u)) / D
+        m[:, 2] = (pl - l0 * pu) * inv_d
+        m[:, 3] = (u1 * pl - l1 * pu) * inv_d
+        m[:, 4] = -l2 * pu * inv_d
+        m[:, 5] = q
+        return num / -p2  # q / k_l with k_l = j·(b × p) / D = −p_z / D
 
     def restart(self, mask, relative, base_dir):
         # Base system: x' along the base, z' in the principal plane of the left
@@ -686,19 +834,9 @@ class _BaseState:
         self._refresh()
 
     def update(self, corr):
-        self.angles_left += corr[:, :2]
+        self.angles_left = self.angles_left + corr[:, :2]
         self.r_right_base = matrix_from_schut(_SCHUT_FACTOR * corr[:, 2:]) @ self.r_right_base
         self._refresh()
-
-    def parallax_image_mm(self):
-        return _image_scale_parallax(self.q, self.bx, self.l, self.p, _EY, self.lxp, self.d)
-
-    def max_parallax_um(self, keep_pairs=None):
-        q = np.abs(self.parallax_image_mm())
-        if keep_pairs is not None:
-            q = q[keep_pairs[self.pair]]
-        q = q[np.isfinite(q)]
-        return float(np.max(q)) * 1000.0 if q.size else float("nan")
 
     def rotations(self):
         relative = np.swapaxes(self.l_base, 1, 2) @ self.r_right_base
