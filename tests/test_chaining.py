@@ -390,16 +390,18 @@ def test_j7_fixed_linearisation_is_the_derivative_of_j5():
         q0[block.rows[block.valid]] = m[:, 5][block.valid]
     assert np.abs(q0).max() > 1e-4  # start state: large y-parallaxes
 
-    # J(5) evaluated independently in the strip frame
-    r_left, r_right = state.r_left[model], state.r_right[model]
+    # J(5) evaluated independently in the strip frame, with the y-parallax
+    # along the left photo's image y axis (J's strip y for R_l = I)
+    r_left, r_right, _ = state.rotations()
+    r_left, r_right = r_left[model], r_right[model]
     b = state.base_strip()[model]
     l = np.einsum("nij,nj->ni", r_left, left)
     p0 = np.einsum("nij,nj->ni", r_right, right)
-    j = np.array([0.0, 1.0, 0.0])
+    j = r_left[:, :, 1]
 
     def parallax(b_, p_):
         lxp = np.cross(l, p_)
-        return np.einsum("ij,ij->i", b_, lxp) / (lxp @ j)
+        return np.einsum("ij,ij->i", b_, lxp) / np.einsum("ij,ij->i", j, lxp)
 
     np.testing.assert_allclose(q0, parallax(b, p0), rtol=1e-12, atol=1e-15)
     eps = 1e-7

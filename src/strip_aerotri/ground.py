@@ -349,16 +349,17 @@ def _azimuth_step(vector_work: FloatArray) -> float:
     return -float(np.arctan2(vector_work[1], vector_work[0]))
 
 
-def _image_scale(strip: StripModel, scale: float) -> tuple[float, float]:
-    """Metres on the ground per mm on the image, and height-to-base ratio."""
+def _image_scale(strip: StripModel) -> tuple[float, float]:
+    """Model units per mm on the image (times the similarity's scale: metres
+    per mm), and the height-to-base ratio; medians over the strip's points."""
     c = strip.observations.principal_distance
     model_centres = strip.centres[strip.model_photo_positions]
     left = model_centres[strip.model]
     distance = np.linalg.norm(strip.model_points - left, axis=1)
-    metres_per_mm = float(np.median(distance)) * scale / c
+    model_per_mm = float(np.median(distance)) / c
     base = float(np.median(np.linalg.norm(np.diff(model_centres, axis=0), axis=1)))
     height_to_base = float(np.median(np.abs(strip.model_points[:, 2] - left[:, 2]))) / base
-    return metres_per_mm, height_to_base
+    return model_per_mm, height_to_base
 
 
 # --------------------------------------------------------------------------- main
@@ -468,6 +469,7 @@ def adjust_to_ground(
     sig_xy_ctrl = control.sigma_xy[rows]
     sig_h_ctrl = control.sigma_h[rows]
     first, last = strip.centres[0], strip.centres[-1]
+    model_per_mm, h_to_b = _image_scale(strip)
 
     def solve(use_xy: np.ndarray, use_z: np.ndarray, line_keep: list[np.ndarray]):
         """Similarity and polynomial with the plan/height iteration (passes)."""
@@ -489,7 +491,7 @@ def adjust_to_ground(
                 sigma_z=exp_z[active],
                 point_ids=act_ids,
             )
-            metres_per_mm, h_to_b = _image_scale(strip, sim.transform.scale)
+            metres_per_mm = model_per_mm * sim.transform.scale
             sigma_plan = float(np.median(obs.sigma)) * metres_per_mm
             sigma_height = sigma_plan * h_to_b
             exp_xy = np.hypot(sig_xy_ctrl, sigma_plan)

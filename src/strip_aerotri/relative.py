@@ -265,12 +265,20 @@ def _robust_scale(abs_q: FloatArray, block: _Block) -> FloatArray:
 
 
 class _Evaluation:
-    """Normal equations, residuals and largest parallax of the pairs of a blocking."""
+    """One evaluation of the pairs of a blocking: per-pair normal equations and
+    largest |y-parallax|, and per block the design rows, the y-parallaxes at
+    image scale and the weights (for the final residuals and redundancy
+    numbers when the state has not moved since)."""
 
-    def __init__(self, n_pairs: int):
+    def __init__(self, n_pairs: int, blocks: _Blocks):
+        self.blocks = blocks
         self.normal = np.zeros((n_pairs, 5, 5))
         self.gradient = np.zeros((n_pairs, 5))
         self.max_parallax_mm = np.zeros(n_pairs)
+        self.design: list[FloatArray] = []
+        self.parallax_mm: list[FloatArray] = []
+        self.weight: list[FloatArray] = []
+        self.current = True  # False once the state has moved after this evaluation
 
 
 def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) -> _Evaluation:
@@ -281,7 +289,7 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
     current residuals, c = 2.385 robust sigmas of the pair (IRLS; start
     values only, the final solution is ordinary least squares).
     """
-    ev = _Evaluation(state.n_pairs)
+    ev = _Evaluation(state.n_pairs, blocks)
     for block in blocks.items:
         m = np.empty((block.rows.shape[0], 6, block.rows.shape[1]))
         q_img = state.terms(block.pairs, block, m)
@@ -294,6 +302,9 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
         ev.normal[block.pairs] = normal[:, :5, :5]
         ev.gradient[block.pairs] = -normal[:, :5, 5]
         ev.max_parallax_mm[block.pairs] = np.max(abs_q, axis=1)
+        ev.design.append(m)
+        ev.parallax_mm.append(q_img)
+        ev.weight.append(w)
     return ev
 
 
@@ -316,19 +327,33 @@ def _solve_normals(normal: FloatArray, gradient: FloatArray) -> tuple[FloatArray
     return sol, singular
 
 
-def _iterate(state, blocks, weight, max_iterations, tolerance, active, history, robust=False):
+def _iterate(
+    state,
+    blocks,
+    weight,
+    max_iterations,
+    tolerance,
+    active,
+    history,
+    robust=False,
+    apply_last=False,
+):
     """Gauss-Newton steps for the active pairs until their corrections vanish.
 
-    Returns (converged mask, iterations per pair, singular-at-start mask).
-    Pairs that diverge (non-finite or huge corrections) are frozen and
-    reported as not converged.  ``history`` receives the largest |y-parallax|
-    (µm at image scale) of the pairs that have not failed, before each step.
+    The iteration stops when the next corrections of all active pairs are
+    below ``tolerance``; they are not applied (unless ``apply_last``), so the
+    last evaluation describes the final state.  Returns (converged mask, iterations per pair, singular-at-start
+    mask, last evaluation).  Pairs that diverge (non-finite or huge
+    corrections) are frozen and reported as not converged.  ``history``
+    receives the largest |y-parallax| (µm at image scale) of the pairs that
+    have not failed, at each evaluation.
     """
     n_pairs = active.shape[0]
     done = ~active
     failed = np.zeros(n_pairs, dtype=bool)
     iterations = np.zeros(n_pairs, dtype=np.intp)
     singular_start = np.zeros(n_pairs, dtype=bool)
+    ev = None
     for it in range(1, max_iterations + 1):
         ev = _evaluate(state, blocks, weight, robust)
         history.append(_largest_um(ev.max_parallax_mm[active & ~failed]))
@@ -337,14 +362,22 @@ def _iterate(state, blocks, weight, max_iterations, tolerance, active, history, 
             singular_start = singular & active
         size = np.max(np.abs(corr), axis=1)
         failed |= active & (singular | ~np.isfinite(size) | (size > 1.0))
-        corr[done | failed] = 0.0
-        state.update(corr)
-        newly = ~done & ~failed & (size < tolerance)
-        iterations[newly] = it
-        done |= newly
-        if (done | failed).all():
+        small = active & ~failed & (size < tolerance)
+        iterations[small & ~done] = it - 1
+        done |= small
+        if (small | ~active | failed).all():
+            if apply_last:  # start values for a later phase: take the last step too
+                corr[~active | failed] = 0.0
+                state.update(corr)
+                ev.current = False
             break
-    return done & ~failed, iterations, singular_start
+        # Pairs that met the tolerance keep taking their (tiny) steps until all
+        # have: the left rotation of a pair moves with every earlier pair of
+        # the chain, and a frozen pair would keep a stale optimum.
+        corr[~active | failed] = 0.0
+        state.update(corr)
+        ev.current = False
+    return done & ~failed, iterations, singular_start, ev
 
 
 def _largest_um(max_parallax_mm: FloatArray) -> float:
@@ -458,20 +491,23 @@ def relative_orientation(
         # region of quadratic convergence: take them on a spread subsample of
         # every large pair, then finish on all points.
         sample = blocks_of(np.arange(n_pairs), stride)
-        ok, _, _ = _iterate(state, sample, weight, max_iterations, 1e-6, everything, history)
+        ok, *_ = _iterate(
+            state, sample, weight, max_iterations, 1e-6, everything, history, apply_last=True
+        )
         if not ok.all():
             identity = np.broadcast_to(np.eye(3), (int((~ok).sum()), 3, 3))
             state.restart(~ok, identity, np.tile(_EX, (int((~ok).sum()), 1)))
-    converged, iterations, singular_first = _iterate(
+    converged, iterations, singular_first, last = _iterate(
         state, full, weight, max_iterations, tolerance, everything, history
     )
     if not converged.all():
         # Large relative rotations (drone pairs, oblique photos): restart the
         # pairs that failed from the linear (essential-matrix) solution.
         retry = ~converged
+        last.current = False
         rotation, base_dir = essential_start(left, right, pair, n_pairs, starts)
         state.restart(retry, rotation[retry], base_dir[retry])
-        ok, more, singular = _iterate(
+        ok, more, singular, _ = _iterate(
             state,
             blocks_of(np.flatnonzero(retry)),
             weight,
@@ -504,7 +540,7 @@ def relative_orientation(
         # the final least squares (their w-tests then fail and they are
         # reported and rejected by the caller's data snooping).
         weight = np.where(_gross_rows(state, some, pair.shape[0]), 0.0, weight)
-        ok, more, _ = _iterate(state, some, weight, max_iterations, tolerance, retry, history)
+        ok, more, *_ = _iterate(state, some, weight, max_iterations, tolerance, retry, history)
         iterations[retry] = more[retry]
         converged |= ok
         robust_done = retry
@@ -526,10 +562,11 @@ def relative_orientation(
         suspect[pair[gross]] = True
         suspect &= ~robust_done
         if suspect.any():
+            last.current = False
             some = blocks_of(np.flatnonzero(suspect))
             _iterate(state, some, weight, _ROBUST_STEPS, 1e-6, suspect, history, robust=True)
             weight = np.where(suspect[pair] & _gross_rows(state, some, pair.shape[0]), 0.0, weight)
-            ok, more, _ = _iterate(
+            ok, more, *_ = _iterate(
                 state, some, weight, max_iterations, tolerance, suspect, history
             )
             if not ok.all():
@@ -552,8 +589,10 @@ def relative_orientation(
             "along the flight (turn the image axes)"
         )
 
-    parallax_um, redundancy = _final_residuals(state, full, weight, pair.shape[0])
-    history.append(_largest_um(np.abs(parallax_um) / 1000.0))
+    if not last.current:
+        last = _evaluate(state, full, weight)
+        history.append(_largest_um(last.max_parallax_mm))
+    parallax_um, redundancy = _final_residuals(last, pair.shape[0])
     dof = np.maximum(counts - MIN_POINTS_PER_PAIR, 1)
     sum_wq2 = np.add.reduceat(weight * parallax_um**2, starts)
     sigma0 = np.sqrt(sum_wq2 / dof / 2.0)
@@ -596,18 +635,18 @@ def _gross_rows(state, blocks: _Blocks, n_rows: int) -> np.ndarray:
     return gross
 
 
-def _final_residuals(state, blocks: _Blocks, weight: FloatArray, n_rows: int):
+def _final_residuals(ev: _Evaluation, n_rows: int):
     """Residual y-parallaxes (µm at image scale) and redundancy numbers
-    ``1 − w aᵀ N⁻¹ a`` of all rows (flat, pair-sorted order)."""
+    ``1 − w aᵀ N⁻¹ a`` of all rows (flat, pair-sorted order) from an
+    evaluation of all pairs at the final state."""
     parallax_um = np.empty(n_rows)
     redundancy = np.empty(n_rows)
-    for block in blocks.items:
-        m = np.empty((block.rows.shape[0], 6, block.rows.shape[1]))
-        q_img = state.terms(block.pairs, block, m)
+    for block, m, q_img, w in zip(
+        ev.blocks.items, ev.design, ev.parallax_mm, ev.weight, strict=True
+    ):
         a = m[:, :5]
-        w = weight[block.rows] * block.valid
-        normal = (a * w[:, None, :]) @ a.transpose(0, 2, 1)
-        leverage = w * np.einsum("pik,pik->pk", a, np.linalg.inv(normal) @ a)
+        n_inv = np.linalg.inv(ev.normal[block.pairs])
+        leverage = w * np.einsum("pik,pik->pk", a, n_inv @ a)
         rows = block.rows[block.valid]
         parallax_um[rows] = 1000.0 * q_img[block.valid]
         redundancy[rows] = np.clip(1.0 - leverage[block.valid], 0.0, 1.0)
@@ -700,12 +739,16 @@ class _DependentState:
 
     Per pair: the relative rotation ``Q`` (right image -> left image) and the
     base components ``(b_y, b_z)`` along the left photo's image y and z axes
-    (``b_x = 1``).  J(5) is invariant to a common rotation of b, l and p except
-    for the strip's y axis j, which enters as ``R_lᵀ j`` (the second row of
-    the left rotation, from the chain).  So the left rays need no rotation and
-    the right rays only ``Q``; the corrections of the rotation are found in
-    the left image frame, where J's correcting rotation is ``R_schut(a / 2)``
-    applied to ``Q`` (fixed J(9)).
+    (``b_x = 1``).  The y-parallax J(5) is taken along the left photo's image
+    y axis, ``j = R_l (0, 1, 0)``: J's strip y axis when ``R_l = I`` (his first
+    pair), and within the photos' tilts of it along a strip flown along x.
+    The triple products of J(5) do not change under a common rotation, so the
+    pair is solved in the left image frame: the left rays need no rotation,
+    the right rays only ``Q``, and a pair's solution does not depend on the
+    orientation of its left photo, whatever the heading and the given first
+    orientation.  The chain of rotations is formed once, at the end.  The
+    corrections of the rotation are found in the left image frame, where
+    J's correcting rotation ``R_schut(a / 2)`` (fixed J(9)) premultiplies ``Q``.
     """
 
     def __init__(self, left, right, pair, n_pairs, first):
@@ -713,13 +756,6 @@ class _DependentState:
         self.first = first
         self.relative = np.broadcast_to(np.eye(3), (n_pairs, 3, 3)).copy()
         self.beta = np.zeros((n_pairs, 2))
-        self._refresh()
-
-    def _refresh(self):
-        chain = chain_rotations(self.first, self.relative)
-        self.r_left = chain[:-1]
-        self.r_right = chain[1:]
-        self.j_left = self.r_left[:, 1, :]  # R_lᵀ (0, 1, 0)
 
     def terms(self, pairs: IntArray, block: _Block, m: FloatArray) -> FloatArray:
         """Fill ``m[:, :5]`` with the design rows (J(7) fixed) and ``m[:, 5]``
@@ -727,44 +763,41 @@ class _DependentState:
         lx, ly, lz = block.left
         p0, p1, p2 = _rotate(self.relative[pairs], *block.right)
         b1, b2 = self.beta[pairs].T[:, :, None]
-        j0, j1, j2 = self.j_left[pairs].T[:, :, None]
         c0 = ly * p2 - lz * p1  # l × p
         c1 = lz * p0 - lx * p2
         c2 = lx * p1 - ly * p0
-        inv_d = 1.0 / (j0 * c0 + j1 * c1 + j2 * c2)
-        num = c0 + b1 * c1 + b2 * c2
+        inv_d = 1.0 / c1  # D = j·(l × p), j = (0, 1, 0)
+        num = c0 + b1 * c1 + b2 * c2  # b·(l × p), b = (1, b_y, b_z)
         q = num * inv_d
         np.multiply(c1, inv_d, out=m[:, 0])  # ∂q/∂b_y = (l × p)_y / D
         np.multiply(c2, inv_d, out=m[:, 1])
         # ∂q/∂a = p × ((b − q j) × l) / D = (u (p·l) − l (p·u)) / D, u = b − q j
-        u0 = 1.0 - q * j0
-        u1 = b1 - q * j1
-        u2 = b2 - q * j2
+        u1 = b1 - q
         pl = p0 * lx + p1 * ly + p2 * lz
-        pu = p0 * u0 + p1 * u1 + p2 * u2
-        m[:, 2] = (u0 * pl - lx * pu) * inv_d
+        pu = p0 + p1 * u1 + p2 * b2
+        m[:, 2] = (pl - lx * pu) * inv_d
         m[:, 3] = (u1 * pl - ly * pu) * inv_d
-        m[:, 4] = (u2 * pl - lz * pu) * inv_d
+        m[:, 4] = (b2 * pl - lz * pu) * inv_d
         m[:, 5] = q
         # At the left photo's image scale: q / k_l with k_l = j·(b × p) / D (J(12)).
-        return num / (j0 * (b1 * p2 - b2 * p1) + j1 * (b2 * p0 - p2) + j2 * (p1 - b1 * p0))
+        return num / (b2 * p0 - p2)
 
     def restart(self, mask, relative, base_dir):
         self.relative[mask] = relative
         self.beta[mask] = base_dir[:, 1:] / base_dir[:, :1]
-        self._refresh()
 
     def update(self, corr):
         self.relative = matrix_from_schut(_SCHUT_FACTOR * corr[:, 2:]) @ self.relative
         self.beta = self.beta + corr[:, :2]
-        self._refresh()
 
     def base_strip(self):
+        r_left, _, _ = self.rotations()
         beta = np.column_stack([np.ones(self.n_pairs), self.beta])
-        return np.einsum("mij,mj->mi", self.r_left, beta)
+        return np.einsum("mij,mj->mi", r_left, beta)
 
     def rotations(self):
-        return self.r_left.copy(), self.r_right.copy(), self.relative.copy()
+        chain = chain_rotations(self.first, self.relative)
+        return chain[:-1], chain[1:], self.relative.copy()
 
     def elements(self):
         return np.column_stack([self.beta, schut_from_matrix(self.relative)])
