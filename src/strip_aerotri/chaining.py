@@ -255,7 +255,10 @@ def form_strip(
     vectors = observations.image_vectors()
     rejections: list[Rejection] = []
     n_rows = model.shape[0]
+    rel = None
     while True:
+        # after a rejection the pairs start from their previous solution: only
+        # the pairs that lost an observation take steps
         rel = relative_orientation(
             vectors[row_l],
             vectors[row_r],
@@ -269,6 +272,7 @@ def form_strip(
             tolerance=options.tolerance,
             labels=labels,
             robust=blunders.rejecting,
+            start=rel,
         )
         if not blunders.testing:
             break

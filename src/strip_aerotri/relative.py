@@ -267,8 +267,7 @@ def _robust_scale(abs_q: FloatArray, block: _Block) -> FloatArray:
 class _Evaluation:
     """One evaluation of the pairs of a blocking: per-pair normal equations and
     largest |y-parallax|, and per block the design rows, the y-parallaxes at
-    image scale and the weights (for the final residuals and redundancy
-    numbers when the state has not moved since)."""
+    image scale and the weights."""
 
     def __init__(self, n_pairs: int, blocks: _Blocks):
         self.blocks = blocks
@@ -278,7 +277,33 @@ class _Evaluation:
         self.design: list[FloatArray] = []
         self.parallax_mm: list[FloatArray] = []
         self.weight: list[FloatArray] = []
-        self.current = True  # False once the state has moved after this evaluation
+
+
+class _Record:
+    """Final residual y-parallaxes (µm at image scale) and redundancy numbers
+    ``1 − w aᵀ N⁻¹ a`` of each row, stored per pair from the evaluation at
+    which the pair converged (pairs are independent: a converged pair does not
+    move while others iterate)."""
+
+    def __init__(self, n_rows: int, n_pairs: int):
+        self.parallax_um = np.full(n_rows, np.nan)
+        self.redundancy = np.full(n_rows, np.nan)
+        self.stored = np.zeros(n_pairs, dtype=bool)
+
+    def store(self, ev: _Evaluation, pairs: np.ndarray) -> None:
+        per_block = zip(ev.blocks.items, ev.design, ev.parallax_mm, ev.weight, strict=True)
+        for block, m, q_img, w in per_block:
+            sel = pairs[block.pairs]
+            if not sel.any():
+                continue
+            a = m[sel, :5]
+            n_inv = np.linalg.inv(ev.normal[block.pairs[sel]])
+            leverage = w[sel] * np.einsum("pik,pik->pk", a, n_inv @ a)
+            valid = block.valid[sel]
+            rows = block.rows[sel][valid]
+            self.parallax_um[rows] = 1000.0 * q_img[sel][valid]
+            self.redundancy[rows] = np.clip(1.0 - leverage[valid], 0.0, 1.0)
+        self.stored |= pairs
 
 
 def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) -> _Evaluation:
@@ -329,55 +354,61 @@ def _solve_normals(normal: FloatArray, gradient: FloatArray) -> tuple[FloatArray
 
 def _iterate(
     state,
-    blocks,
+    blocks_of,
     weight,
     max_iterations,
     tolerance,
     active,
     history,
+    *,
     robust=False,
+    stride=None,
+    record=None,
     apply_last=False,
 ):
     """Gauss-Newton steps for the active pairs until their corrections vanish.
 
-    The iteration stops when the next corrections of all active pairs are
-    below ``tolerance``; they are not applied (unless ``apply_last``), so the
-    last evaluation describes the final state.  Returns (converged mask, iterations per pair, singular-at-start
-    mask, last evaluation).  Pairs that diverge (non-finite or huge
-    corrections) are frozen and reported as not converged.  ``history``
-    receives the largest |y-parallax| (µm at image scale) of the pairs that
-    have not failed, at each evaluation.
+    ``blocks_of(mask, stride)`` gives the blocking of a set of pairs; after
+    each step only the pairs still iterating are evaluated (the pairs are
+    independent of each other).  A pair has converged when its next
+    correction is below ``tolerance``; that correction is not applied
+    (unless ``apply_last``), so the evaluation describes the final state,
+    and its residuals and redundancy numbers go to ``record``.  Returns
+    (converged mask, iterations per pair, singular-at-start mask).  Pairs
+    that diverge (non-finite or huge corrections) are frozen and reported
+    as not converged.  ``history`` receives the largest |y-parallax| (µm at
+    image scale) of the pairs evaluated, at each evaluation.
     """
     n_pairs = active.shape[0]
     done = ~active
     failed = np.zeros(n_pairs, dtype=bool)
     iterations = np.zeros(n_pairs, dtype=np.intp)
     singular_start = np.zeros(n_pairs, dtype=bool)
-    ev = None
+    todo = active.copy()
+    blocks = blocks_of(todo, stride)
     for it in range(1, max_iterations + 1):
         ev = _evaluate(state, blocks, weight, robust)
-        history.append(_largest_um(ev.max_parallax_mm[active & ~failed]))
+        history.append(_largest_um(ev.max_parallax_mm[todo]))
         corr, singular = _solve_normals(ev.normal, ev.gradient)
         if it == 1:
             singular_start = singular & active
         size = np.max(np.abs(corr), axis=1)
-        failed |= active & (singular | ~np.isfinite(size) | (size > 1.0))
-        small = active & ~failed & (size < tolerance)
-        iterations[small & ~done] = it - 1
+        failed |= todo & (singular | ~np.isfinite(size) | (size > 1.0))
+        small = todo & ~failed & (size < tolerance)
+        iterations[small] = it - 1
+        if record is not None and small.any():
+            record.store(ev, small)
         done |= small
-        if (small | ~active | failed).all():
-            if apply_last:  # start values for a later phase: take the last step too
-                corr[~active | failed] = 0.0
-                state.update(corr)
-                ev.current = False
+        step = todo & ~failed & (apply_last | ~small)
+        todo &= ~(small | failed)
+        corr[~step] = 0.0
+        if step.any():
+            state.update(corr)
+        if not todo.any():
             break
-        # Pairs that met the tolerance keep taking their (tiny) steps until all
-        # have: the left rotation of a pair moves with every earlier pair of
-        # the chain, and a frozen pair would keep a stale optimum.
-        corr[~active | failed] = 0.0
-        state.update(corr)
-        ev.current = False
-    return done & ~failed, iterations, singular_start, ev
+        if todo.sum() < 0.8 * blocks.pairs.size:
+            blocks = blocks_of(todo, stride)
+    return done & ~failed, iterations, singular_start
 
 
 def _largest_um(max_parallax_mm: FloatArray) -> float:
@@ -399,6 +430,7 @@ def relative_orientation(
     tolerance: float = 1e-11,
     labels: list[str] | None = None,
     robust: bool = False,
+    start: RelativeOrientation | None = None,
 ) -> RelativeOrientation:
     """Orient a chain of pairs by the y-parallax equation.
 
@@ -432,6 +464,10 @@ def relative_orientation(
         reweighted (Cauchy) start, and those y-parallaxes take no part in the
         final least squares, so that gross errors cannot distort it; their
         residuals and w-tests are still returned for the caller to report.
+    start : RelativeOrientation, optional
+        An earlier solution of the same pairs with the same method (e.g.
+        before a rejected observation was left out), taken as start values:
+        pairs it still solves take no step.
 
     Returns
     -------
@@ -479,42 +515,50 @@ def relative_orientation(
     else:
         state = _BaseState(left, right, pair, n_pairs, first)
 
-    def blocks_of(pairs, stride=None):
-        return _Blocks(left, right, starts, counts, pairs, stride)
+    if start is not None:
+        if start.method is not method or start.n_pairs != n_pairs:
+            raise ValueError(
+                f"Expected a start of {n_pairs} pairs by the {method.value!r} method, got "
+                f"{start.n_pairs} by {start.method.value!r}"
+            )
+        state.set_start(start.elements)
+
+    def blocks_of(mask, stride=None):
+        return _Blocks(left, right, starts, counts, np.flatnonzero(mask), stride)
 
     everything = np.ones(n_pairs, dtype=bool)
-    full = blocks_of(np.arange(n_pairs))
+    record = _Record(pair.shape[0], n_pairs)
     history: list[float] = []
     stride = np.maximum(counts // _SUBSAMPLE_POINTS, 1)
-    if (stride > 1).any():
+    if start is None and (stride > 1).any():
         # From the near-vertical start the first steps only have to reach the
         # region of quadratic convergence: take them on a spread subsample of
         # every large pair, then finish on all points.
-        sample = blocks_of(np.arange(n_pairs), stride)
         ok, *_ = _iterate(
-            state, sample, weight, max_iterations, 1e-6, everything, history, apply_last=True
+            state,
+            blocks_of,
+            weight,
+            max_iterations,
+            1e-6,
+            everything,
+            history,
+            stride=stride,
+            apply_last=True,
         )
         if not ok.all():
             identity = np.broadcast_to(np.eye(3), (int((~ok).sum()), 3, 3))
             state.restart(~ok, identity, np.tile(_EX, (int((~ok).sum()), 1)))
-    converged, iterations, singular_first, last = _iterate(
-        state, full, weight, max_iterations, tolerance, everything, history
+    converged, iterations, singular_first = _iterate(
+        state, blocks_of, weight, max_iterations, tolerance, everything, history, record=record
     )
     if not converged.all():
         # Large relative rotations (drone pairs, oblique photos): restart the
         # pairs that failed from the linear (essential-matrix) solution.
         retry = ~converged
-        last.current = False
         rotation, base_dir = essential_start(left, right, pair, n_pairs, starts)
         state.restart(retry, rotation[retry], base_dir[retry])
-        ok, more, singular, _ = _iterate(
-            state,
-            blocks_of(np.flatnonzero(retry)),
-            weight,
-            max_iterations,
-            tolerance,
-            retry,
-            history,
+        ok, more, singular = _iterate(
+            state, blocks_of, weight, max_iterations, tolerance, retry, history, record=record
         )
         degenerate = singular | (singular_first & ~ok)
         if degenerate.any():
@@ -532,15 +576,16 @@ def relative_orientation(
         # converging at all: find start values by robust IRLS from the
         # near-vertical start, then finish with ordinary least squares.
         retry = ~converged
-        some = blocks_of(np.flatnonzero(retry))
         identity = np.broadcast_to(np.eye(3), (int(retry.sum()), 3, 3))
         state.restart(retry, identity, np.tile(_EX, (int(retry.sum()), 1)))
-        _iterate(state, some, weight, max_iterations, 1e-6, retry, history, robust=True)
+        _iterate(state, blocks_of, weight, max_iterations, 1e-6, retry, history, robust=True)
         # Observations beyond 5 robust sigmas of the robust fit take no part in
         # the final least squares (their w-tests then fail and they are
         # reported and rejected by the caller's data snooping).
-        weight = np.where(_gross_rows(state, some, pair.shape[0]), 0.0, weight)
-        ok, more, *_ = _iterate(state, some, weight, max_iterations, tolerance, retry, history)
+        weight = np.where(_gross_rows(state, blocks_of(retry), pair.shape[0]), 0.0, weight)
+        ok, more, _ = _iterate(
+            state, blocks_of, weight, max_iterations, tolerance, retry, history, record=record
+        )
         iterations[retry] = more[retry]
         converged |= ok
         robust_done = retry
@@ -557,17 +602,19 @@ def relative_orientation(
         # robust (IRLS, Cauchy) fit with no weight for such observations, so
         # that they cannot distort the orientation; the caller's tests then
         # find and name them.
-        gross = _gross_rows(state, full, pair.shape[0])
-        suspect = np.zeros(n_pairs, dtype=bool)
-        suspect[pair[gross]] = True
-        suspect &= ~robust_done
+        suspect = _suspect_pairs(record, pair, var, n_pairs) & ~robust_done
         if suspect.any():
-            last.current = False
-            some = blocks_of(np.flatnonzero(suspect))
-            _iterate(state, some, weight, _ROBUST_STEPS, 1e-6, suspect, history, robust=True)
-            weight = np.where(suspect[pair] & _gross_rows(state, some, pair.shape[0]), 0.0, weight)
-            ok, more, *_ = _iterate(
-                state, some, weight, max_iterations, tolerance, suspect, history
+            _iterate(state, blocks_of, weight, _ROBUST_STEPS, 1e-6, suspect, history, robust=True)
+            weight = np.where(_gross_rows(state, blocks_of(suspect), pair.shape[0]), 0.0, weight)
+            ok, more, _ = _iterate(
+                state,
+                blocks_of,
+                weight,
+                max_iterations,
+                tolerance,
+                suspect,
+                history,
+                record=record,
             )
             if not ok.all():
                 m = int(np.flatnonzero(suspect & ~ok)[0])
@@ -589,10 +636,7 @@ def relative_orientation(
             "along the flight (turn the image axes)"
         )
 
-    if not last.current:
-        last = _evaluate(state, full, weight)
-        history.append(_largest_um(last.max_parallax_mm))
-    parallax_um, redundancy = _final_residuals(last, pair.shape[0])
+    parallax_um, redundancy = record.parallax_um, record.redundancy
     dof = np.maximum(counts - MIN_POINTS_PER_PAIR, 1)
     sum_wq2 = np.add.reduceat(weight * parallax_um**2, starts)
     sigma0 = np.sqrt(sum_wq2 / dof / 2.0)
@@ -635,22 +679,23 @@ def _gross_rows(state, blocks: _Blocks, n_rows: int) -> np.ndarray:
     return gross
 
 
-def _final_residuals(ev: _Evaluation, n_rows: int):
-    """Residual y-parallaxes (µm at image scale) and redundancy numbers
-    ``1 − w aᵀ N⁻¹ a`` of all rows (flat, pair-sorted order) from an
-    evaluation of all pairs at the final state."""
-    parallax_um = np.empty(n_rows)
-    redundancy = np.empty(n_rows)
-    for block, m, q_img, w in zip(
-        ev.blocks.items, ev.design, ev.parallax_mm, ev.weight, strict=True
-    ):
-        a = m[:, :5]
-        n_inv = np.linalg.inv(ev.normal[block.pairs])
-        leverage = w * np.einsum("pik,pik->pk", a, n_inv @ a)
-        rows = block.rows[block.valid]
-        parallax_um[rows] = 1000.0 * q_img[block.valid]
-        redundancy[rows] = np.clip(1.0 - leverage[block.valid], 0.0, 1.0)
-    return parallax_um, redundancy
+def _suspect_pairs(record: _Record, pair: IntArray, var: FloatArray, n_pairs: int):
+    """Pairs whose least-squares y-parallaxes suggest gross errors.
+
+    The y-parallaxes are standardised by their a priori sigmas.  A pair is
+    suspect if one of them exceeds 5 robust sigmas of the strip (1.4826 × the
+    median over the strip, one O(n) pass), or if its RMS exceeds 3 a priori
+    sigmas: many gross errors spread into the fit and inflate the median.  A
+    pair that is only noisier than declared is just re-solved robustly; which
+    of its rows are gross is decided within the pair (``_gross_rows``).
+    """
+    z = np.abs(record.parallax_um) / (1000.0 * np.sqrt(var))
+    z = np.where(np.isfinite(z), z, np.inf)
+    scale = max(1.4826 * float(np.median(z)), 1e-6)
+    over = ~(z <= 5.0 * scale)
+    counts = np.bincount(pair, minlength=n_pairs)
+    rms = np.sqrt(np.bincount(pair, np.minimum(z, 1e150) ** 2, minlength=n_pairs) / counts)
+    return (np.bincount(pair[over], minlength=n_pairs) > 0) | ~(rms <= 3.0)
 
 
 _W = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
@@ -782,6 +827,10 @@ class _DependentState:
         # At the left photo's image scale: q / k_l with k_l = j·(b × p) / D (J(12)).
         return num / (b2 * p0 - p2)
 
+    def set_start(self, elements):
+        self.beta = elements[:, :2].copy()
+        self.relative = matrix_from_schut(elements[:, 2:])
+
     def restart(self, mask, relative, base_dir):
         self.relative[mask] = relative
         self.beta[mask] = base_dir[:, 1:] / base_dir[:, :1]
@@ -864,6 +913,11 @@ class _BaseState:
         angles = cardan_from_matrix(left_base)
         self.angles_left[mask] = angles[:, [0, 2]]
         self.r_right_base[mask] = self._left_base()[mask] @ relative
+        self._refresh()
+
+    def set_start(self, elements):
+        self.angles_left = elements[:, :2].copy()
+        self.r_right_base = matrix_from_cardan(elements[:, 2:])
         self._refresh()
 
     def update(self, corr):
