@@ -308,8 +308,9 @@ def form_strip(
             )
 
     # Model formation with the unit base (b_x = 1), relative to the left centre.
-    left = np.einsum("nij,nj->ni", rel.rotation_left[model], vectors[row_l])
-    right = np.einsum("nij,nj->ni", rel.rotation_right[model], vectors[row_r])
+    per_model = np.bincount(model, minlength=n_models)
+    left = _rotate_rows(rel.rotation_left, per_model, vectors[row_l])
+    right = _rotate_rows(rel.rotation_right, per_model, vectors[row_r])
     unit = intersect(
         rel.base[model],
         left,
@@ -446,6 +447,20 @@ def form_strip(
         rejections=tuple(rejections),
         rejected_points=tuple(observations.point_ids[i] for i in rejected_point_index),
     )
+
+
+def _rotate_rows(matrices: FloatArray, counts: IntArray, vectors: FloatArray) -> FloatArray:
+    """``matrices[m] @ v`` for rows sorted by m, ``counts[m]`` rows each: (n, 3).
+
+    The matrix entries are repeated along the rows once (a contiguous (9, n)
+    array) instead of gathering an (n, 3, 3) stack: about twice as fast.
+    """
+    entries = np.repeat(matrices.reshape(-1, 9).T, counts, axis=1)
+    x, y, z = vectors.T
+    out = np.empty_like(vectors)
+    for i in range(3):
+        out[:, i] = entries[3 * i] * x + entries[3 * i + 1] * y + entries[3 * i + 2] * z
+    return out
 
 
 def _excluded_rows(observations, blunders, row_l, row_r) -> np.ndarray:

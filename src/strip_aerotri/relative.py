@@ -27,7 +27,9 @@ image scale in micrometres.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
@@ -62,6 +64,8 @@ _SCHUT_FACTOR = 0.5
 _ROBUST_STEPS = 10  # IRLS steps of the robust start
 _SUBSAMPLE_POINTS = 40  # points per pair in the first iterations
 _BLOCK_CELLS = 1 << 15  # cells (rows) per block: its temporaries stay in cache
+_THREADED_ROWS = 1 << 17  # evaluations of at least this many rows use threads
+_MAX_THREADS = 4
 
 
 class RelativeOrientationMethod(str, Enum):
@@ -217,6 +221,12 @@ class _Block:
     counts: IntArray  # (nb,) valid cells per pair
     left: FloatArray  # (3, nb, width) image vectors on the left photo, mm
     right: FloatArray  # (3, nb, width) and on the right photo
+    design: FloatArray = field(init=False, repr=False)  # (nb, 6, width) work buffer
+
+    def __post_init__(self):
+        # Reused by every evaluation of the block: fresh 48 bytes per row per
+        # evaluation would cost page faults comparable to the arithmetic.
+        object.__setattr__(self, "design", np.empty((self.rows.shape[0], 6, self.rows.shape[1])))
 
 
 class _Blocks:
@@ -315,8 +325,9 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
     values only, the final solution is ordinary least squares).
     """
     ev = _Evaluation(state.n_pairs, blocks)
-    for block in blocks.items:
-        m = np.empty((block.rows.shape[0], 6, block.rows.shape[1]))
+
+    def one(block):
+        m = block.design
         q_img = state.terms(block.pairs, block, m)
         abs_q = np.abs(q_img)
         w = weight[block.rows] * block.valid
@@ -324,13 +335,30 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
             abs_q = np.where(np.isfinite(abs_q), abs_q, np.inf)
             w = w / (1.0 + (abs_q / (2.385 * _robust_scale(abs_q, block))) ** 2)
         normal = (m * w[:, None, :]) @ m.transpose(0, 2, 1)
+        return m, q_img, w, normal, np.max(abs_q, axis=1)
+
+    pool = _pool() if blocks.n_rows >= _THREADED_ROWS else None
+    results = list(pool.map(one, blocks.items)) if pool else [one(b) for b in blocks.items]
+    for block, (m, q_img, w, normal, max_q) in zip(blocks.items, results, strict=True):
         ev.normal[block.pairs] = normal[:, :5, :5]
         ev.gradient[block.pairs] = -normal[:, :5, 5]
-        ev.max_parallax_mm[block.pairs] = np.max(abs_q, axis=1)
+        ev.max_parallax_mm[block.pairs] = max_q
         ev.design.append(m)
         ev.parallax_mm.append(q_img)
         ev.weight.append(w)
     return ev
+
+
+_POOL: list[ThreadPoolExecutor | None] = []
+
+
+def _pool() -> ThreadPoolExecutor | None:
+    """Threads for the blocks of an evaluation (numpy releases the GIL in its
+    element-wise loops); none on a single core."""
+    if not _POOL:
+        workers = min(os.cpu_count() or 1, _MAX_THREADS)
+        _POOL.append(ThreadPoolExecutor(workers, "strip-aerotri") if workers > 1 else None)
+    return _POOL[0]
 
 
 def _solve_normals(normal: FloatArray, gradient: FloatArray) -> tuple[FloatArray, np.ndarray]:
@@ -389,7 +417,9 @@ def _iterate(
     for it in range(1, max_iterations + 1):
         ev = _evaluate(state, blocks, weight, robust)
         history.append(_largest_um(ev.max_parallax_mm[todo]))
-        corr, singular = _solve_normals(ev.normal, ev.gradient)
+        corr = np.zeros((n_pairs, 5))
+        singular = np.zeros(n_pairs, dtype=bool)
+        corr[todo], singular[todo] = _solve_normals(ev.normal[todo], ev.gradient[todo])
         if it == 1:
             singular_start = singular & active
         size = np.max(np.abs(corr), axis=1)
