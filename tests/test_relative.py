@@ -97,7 +97,7 @@ def _first_pass_history(syn, factor, monkeypatch, iterations=30):
     for _ in range(iterations + 1):
         ev = rel_module._evaluate(state, blocks, np.ones(pair.size))
         history.append(1000.0 * ev.max_parallax_mm.max())
-        corr, _ = rel_module._solve_normals(ev.normal, ev.gradient)
+        corr, *_ = rel_module._solve_normals(ev.normal, ev.gradient)
         state.update(corr)
     return np.array(history)
 

@@ -9,8 +9,9 @@ radians.  The option enums (:class:`Route`, :class:`RelativeOrientation`,
 modules can import them without pulling in anything heavy.
 
 The list of valid keys is :data:`PROJECT_KEYS` (with :data:`PROJECT_TABLES`,
-:data:`IMAGE_COLUMNS` and :data:`CONTROL_COLUMNS`); validation, ``stripaero
-check`` and ``docs/project-file.md`` all follow it.
+:data:`IMAGE_COLUMNS`, :data:`CONTROL_COLUMNS`, :data:`GNSS_COLUMNS` and
+:data:`IMU_COLUMNS`); validation, ``stripaero check`` and
+``docs/project-file.md`` all follow it.
 """
 
 from __future__ import annotations
@@ -21,17 +22,18 @@ import itertools
 import math
 import re
 import tomllib
+import warnings as _warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import Any, Literal, Self
+from typing import TYPE_CHECKING, Any, Literal, Self
 
 import numpy as np
 
 from ._typing import BoolArray, FloatArray, IntArray
 from .blunders import BlunderOptions
-from .errors import ConfigError, ConvergenceError, GeometryError
+from .errors import ConfigError, ConvergenceError, GeometryError, StripAerotriWarning
 from .interior import (
     DEFAULT_DIFFERENCE_TOLERANCE,
     DEFAULT_SCALE_TOLERANCE,
@@ -48,10 +50,15 @@ from .interior import (
 )
 from .observations import ControlPoints, ControlType, ImageObservations
 
+if TYPE_CHECKING:  # refine pulls in the whole adjustment: imported when a table needs it
+    from .refine import GnssCentres, ImuAttitudes
+
 __all__ = [
     "CONTROL_COLUMNS",
     "FIDUCIAL_COLUMNS",
+    "GNSS_COLUMNS",
     "IMAGE_COLUMNS",
+    "IMU_COLUMNS",
     "PROJECT_KEYS",
     "PROJECT_TABLES",
     "AdjustmentOptions",
@@ -264,6 +271,8 @@ PROJECT_TABLES: tuple[TableSpec, ...] = (
     TableSpec("output", False, False, "where results are written"),
     TableSpec("report", False, False, "report options"),
     TableSpec("blunders", False, False, "gross-error tests at every stage"),
+    TableSpec("gnss", False, False, "observed projection centres for the bundle refinement"),
+    TableSpec("imu", False, False, "observed photo attitudes for the bundle refinement"),
 )
 _TABLES_BY_NAME = {t.name: t for t in PROJECT_TABLES}
 
@@ -275,6 +284,9 @@ DEFAULT_MAX_ITERATIONS = 50
 DEFAULT_POLYNOMIAL = 3
 DEFAULT_PHOTO_STEP = 1
 DEFAULT_MIN_BASE_TO_HEIGHT = 0.3  # densify.DEFAULT_MIN_BASE_TO_HEIGHT
+DEFAULT_GNSS_SIGMA_XY_M = 0.05
+DEFAULT_GNSS_SIGMA_Z_M = 0.08
+DEFAULT_IMU_SIGMA_DEG = 0.005
 
 # fmt: off
 PROJECT_KEYS: tuple[KeySpec, ...] = (
@@ -572,6 +584,40 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         description='Image observations left out, each written "photo/point".',
         contract=False, default_text="none",
     ),
+    KeySpec(
+        "gnss", "file", "path", required=True, default=None, unit="",
+        description="CSV photo,X,Y,Z[,sigma_xy,sigma_z] of the GNSS projection centres "
+        "(control CRS, Z ellipsoidal height in metres), relative to the folder of "
+        'strip.toml. The table needs [adjustment] refine = "bundle".',
+        contract=False,
+    ),
+    KeySpec(
+        "gnss", "sigma_xy", "positive number", required=False,
+        default=DEFAULT_GNSS_SIGMA_XY_M, unit="m",
+        description="Standard deviation of a centre's X and Y, for rows without a sigma_xy "
+        "value.",
+        contract=False,
+    ),
+    KeySpec(
+        "gnss", "sigma_z", "positive number", required=False,
+        default=DEFAULT_GNSS_SIGMA_Z_M, unit="m",
+        description="Standard deviation of a centre's Z, for rows without a sigma_z value.",
+        contract=False,
+    ),
+    KeySpec(
+        "imu", "file", "path", required=True, default=None, unit="",
+        description="CSV photo,omega,phi,kappa[,sigma_deg] of the IMU attitudes in degrees "
+        "(image -> local east-north-up, the photos.csv convention), relative to the folder "
+        'of strip.toml. The table needs [adjustment] refine = "bundle".',
+        contract=False,
+    ),
+    KeySpec(
+        "imu", "sigma_deg", "positive number", required=False,
+        default=DEFAULT_IMU_SIGMA_DEG, unit="deg",
+        description="Standard deviation of each attitude angle, for rows without a "
+        "sigma_deg value.",
+        contract=False,
+    ),
 )
 # fmt: on
 
@@ -625,6 +671,25 @@ CONTROL_COLUMNS: tuple[ColumnSpec, ...] = (
         "sigma_xy", False, "m", "standard deviation of X and Y; empty: [control] sigma_xy_m"
     ),
     ColumnSpec("sigma_h", False, "m", "standard deviation of H; empty: [control] sigma_h_m"),
+)
+
+GNSS_COLUMNS: tuple[ColumnSpec, ...] = (
+    ColumnSpec("photo", True, "", "photo id; rows of photos not in [strip] photos are ignored"),
+    ColumnSpec("X", True, "CRS unit", "projection centre easting (or longitude in degrees)"),
+    ColumnSpec("Y", True, "CRS unit", "projection centre northing (or latitude in degrees)"),
+    ColumnSpec("Z", True, "m", "projection centre ellipsoidal height"),
+    ColumnSpec("sigma_xy", False, "m", "standard deviation of X and Y; empty: [gnss] sigma_xy"),
+    ColumnSpec("sigma_z", False, "m", "standard deviation of Z; empty: [gnss] sigma_z"),
+)
+
+IMU_COLUMNS: tuple[ColumnSpec, ...] = (
+    ColumnSpec("photo", True, "", "photo id; rows of photos not in [strip] photos are ignored"),
+    ColumnSpec("omega", True, "deg", "omega of image -> local east-north-up (photos.csv)"),
+    ColumnSpec("phi", True, "deg", "phi of image -> local east-north-up (photos.csv)"),
+    ColumnSpec("kappa", True, "deg", "kappa of image -> local east-north-up (photos.csv)"),
+    ColumnSpec(
+        "sigma_deg", False, "deg", "standard deviation of each angle; empty: [imu] sigma_deg"
+    ),
 )
 
 
@@ -772,6 +837,14 @@ class Project:
         Per-photo interior orientation from ``[interior_orientation]`` (empty
         without it), with the residuals at the marks and R4 §1.7.7.1's check.
     fiducials_file : Path or None
+    blunders : BlunderOptions
+    gnss : GnssCentres or None
+        ``[gnss]``: observed projection centres in the control CRS (None
+        without the table); rows of photos not in the strip are left out.
+    imu : ImuAttitudes or None
+        ``[imu]``: observed attitudes in radians (None without the table).
+    gnss_file, imu_file : Path or None
+        Their CSVs, joined to the project folder.
     """
 
     path: Path
@@ -793,11 +866,17 @@ class Project:
     fiducials: tuple[FiducialFit, ...] = ()
     fiducials_file: Path | None = None
     blunders: BlunderOptions = field(default_factory=BlunderOptions)
+    gnss: GnssCentres | None = None
+    imu: ImuAttitudes | None = None
+    gnss_file: Path | None = None
+    imu_file: Path | None = None
 
     @property
     def input_files(self) -> tuple[Path, ...]:
         """The project file and the CSVs it names."""
-        extra = () if self.fiducials_file is None else (self.fiducials_file,)
+        extra = tuple(
+            f for f in (self.fiducials_file, self.gnss_file, self.imu_file) if f is not None
+        )
         return (self.path, self.images_file, self.control_file, *extra)
 
     @property
@@ -1462,17 +1541,7 @@ def _check_crs(
                 f'{toml_name}: [adjustment] route: "projected" needs a projected CRS or '
                 f"\"local\"; '{crs}' is geographic (longitude, latitude)"
             )
-        lon, lat = xyz[:, 0], xyz[:, 1]
-        for bad, text in (
-            (np.abs(lat) > 90.0, "latitude Y outside -90..90 degrees"),
-            (np.abs(lon) > 360.0, "longitude X outside -360..360 degrees"),
-        ):
-            if bad.any():
-                row = int(np.flatnonzero(bad)[0])
-                raise ConfigError(
-                    f"{table.where(row)}: {text} (crs '{crs}' is geographic: X is the "
-                    "longitude and Y the latitude, in degrees)"
-                )
+        _check_geographic_ranges(crs, table, xyz)
     else:
         unit = crs_obj.axis_info[0].unit_name if crs_obj.axis_info else "metre"
         if unit not in ("metre", "meter") and chosen is Route.PROJECTED:
@@ -1481,6 +1550,128 @@ def _check_crs(
                 "the projected route mixes the two"
             )
     return chosen, warnings
+
+
+def _check_geographic_ranges(crs: str, table: _CsvTable, xyz: FloatArray) -> None:
+    """Longitude X and latitude Y in range (NaN cells pass), for a geographic ``crs``."""
+    lon, lat = xyz[:, 0], xyz[:, 1]
+    for bad, text in (
+        (np.abs(lat) > 90.0, "latitude Y outside -90..90 degrees"),
+        (np.abs(lon) > 360.0, "longitude X outside -360..360 degrees"),
+    ):
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise ConfigError(
+                f"{table.where(row)}: {text} (crs '{crs}' is geographic: X is the "
+                "longitude and Y the latitude, in degrees)"
+            )
+
+
+def _is_geographic(crs: str) -> bool:
+    """True for a geographic CRS (already validated by :func:`_check_crs`)."""
+    if crs == "local":
+        return False
+    import pyproj
+
+    return bool(pyproj.CRS.from_user_input(crs).is_geographic)
+
+
+# --------------------------------------------------------------------------- GNSS, IMU
+
+
+def _strip_rows(
+    table: _CsvTable, photo: np.ndarray, photo_ids: tuple[str, ...], notes: list[str]
+) -> IntArray:
+    """Rows of ``table`` whose photo is in the strip, in strip order.
+
+    A photo listed twice is an error naming both lines.  Rows of photos that
+    are not in ``[strip] photos`` are left out with one warning naming the
+    first of them, appended to ``notes`` and emitted as
+    :class:`~strip_aerotri.errors.StripAerotriWarning` at the caller of
+    :func:`load_project`.
+    """
+    _, first, inverse, counts = np.unique(
+        photo, return_index=True, return_inverse=True, return_counts=True
+    )
+    if (counts > 1).any():
+        inverse = inverse.reshape(-1)
+        is_repeat = (counts[inverse] > 1) & (np.arange(photo.shape[0]) != first[inverse])
+        row = int(np.flatnonzero(is_repeat)[0])
+        raise ConfigError(
+            f"{table.where(row)}: photo '{photo[row]}' is listed twice "
+            f"(first at line {table.line[first[inverse[row]]]})"
+        )
+    order_of = {pid: i for i, pid in enumerate(photo_ids)}
+    index = np.array([order_of.get(pid, -1) for pid in photo.tolist()], dtype=np.intp)
+    unknown = np.flatnonzero(index < 0)
+    if unknown.size:
+        shown = ", ".join(f"'{photo[i]}'" for i in unknown[:5])
+        more = f" and {unknown.size - 5} more" if unknown.size > 5 else ""
+        text = (
+            f"{table.where(int(unknown[0]))}: {unknown.size} row(s) of photo(s) not in "
+            f"[strip] photos ignored: {shown}{more}"
+        )
+        notes.append(text)
+        # _strip_rows <- _load_gnss / _load_imu <- load_project <- caller
+        _warnings.warn(text, StripAerotriWarning, stacklevel=4)
+    known = np.flatnonzero(index >= 0)
+    return known[np.argsort(index[known], kind="stable")]
+
+
+def _optional_sigma(table: _CsvTable, name: str, default: float) -> FloatArray:
+    """Positive column ``name`` with ``default`` where absent or empty."""
+    if name not in table.columns:
+        return np.full(table.n_rows, default)
+    values, empty = _float_column(table, name, allow_empty=True, positive=True)
+    values[empty] = default
+    return values
+
+
+def _load_gnss(
+    path: Path,
+    photo_ids: tuple[str, ...],
+    gnss: dict[str, object],
+    crs: str,
+    notes: list[str],
+) -> GnssCentres:
+    """Read the GNSS centres CSV (``[gnss] file``)."""
+    from .refine import GnssCentres
+
+    table = _read_csv(path, GNSS_COLUMNS, "[gnss] file")
+    if table.n_rows == 0:
+        raise ConfigError(f"{path}: no GNSS centres (only a header)")
+    photo = _id_column(table, "photo")
+    xyz = np.column_stack([_float_column(table, name)[0] for name in ("X", "Y", "Z")])
+    sigma_xy = _optional_sigma(table, "sigma_xy", float(gnss["sigma_xy"]))  # type: ignore[arg-type]
+    sigma_z = _optional_sigma(table, "sigma_z", float(gnss["sigma_z"]))  # type: ignore[arg-type]
+    if _is_geographic(crs):
+        _check_geographic_ranges(crs, table, xyz)
+    rows = _strip_rows(table, photo, photo_ids, notes)
+    return GnssCentres(tuple(photo[rows].tolist()), xyz[rows], sigma_xy[rows], sigma_z[rows])
+
+
+def _load_imu(
+    path: Path, photo_ids: tuple[str, ...], imu: dict[str, object], notes: list[str]
+) -> ImuAttitudes:
+    """Read the IMU attitudes CSV (``[imu] file``), degrees in the file, radians out."""
+    from .refine import ImuAttitudes
+
+    table = _read_csv(path, IMU_COLUMNS, "[imu] file")
+    if table.n_rows == 0:
+        raise ConfigError(f"{path}: no IMU attitudes (only a header)")
+    photo = _id_column(table, "photo")
+    opk = np.column_stack([_float_column(table, n)[0] for n in ("omega", "phi", "kappa")])
+    sigma = _optional_sigma(table, "sigma_deg", float(imu["sigma_deg"]))  # type: ignore[arg-type]
+    rows = _strip_rows(table, photo, photo_ids, notes)
+    return ImuAttitudes.from_degrees(tuple(photo[rows].tolist()), opk[rows], sigma[rows])
+
+
+def _needs_bundle(toml_path: Path, name: str, what: str, refine: Refine) -> None:
+    if refine is not Refine.BUNDLE:
+        raise ConfigError(
+            f"{toml_path}: [{name}]: {what} are observations of the bundle refinement only; "
+            f'add refine = "bundle" to [adjustment], or remove [{name}]'
+        )
 
 
 # --------------------------------------------------------------------------- output
@@ -1609,6 +1800,12 @@ def load_project(path: str | Path) -> Project:
     blunders = _blunder_options(toml_path, table("blunders"))
     distortion_table = table("distortion") if "distortion" in doc else None
     interior = table("interior_orientation") if "interior_orientation" in doc else None
+    gnss_table = table("gnss") if "gnss" in doc else None
+    imu_table = table("imu") if "imu" in doc else None
+    if gnss_table is not None:
+        _needs_bundle(toml_path, "gnss", "GNSS centres", adjustment["refine"])  # type: ignore[arg-type]
+    if imu_table is not None:
+        _needs_bundle(toml_path, "imu", "IMU attitudes", adjustment["refine"])  # type: ignore[arg-type]
     lines_raw = [
         _check_table(str(toml_path), "straight_line", content, f"[[straight_line]] #{i}")
         for i, content in enumerate(doc.get("straight_line", []), start=1)
@@ -1628,12 +1825,18 @@ def load_project(path: str | Path) -> Project:
     principal_distance = float(camera["principal_distance_mm"])  # type: ignore[arg-type]
     images_file = folder / str(images["file"])
     control_file = folder / str(control["file"])
+    gnss_file = None if gnss_table is None else folder / str(gnss_table["file"])
+    imu_file = None if imu_table is None else folder / str(imu_table["file"])
     output_directory = None
     if output["directory"] is not None:
+        extra = (
+            None if interior is None else folder / str(interior["fiducials_file"]),
+            gnss_file,
+            imu_file,
+        )
         output_directory = _check_output(
             folder / str(output["directory"]),
-            (toml_path, images_file, control_file)
-            + (() if interior is None else (folder / str(interior["fiducials_file"]),)),
+            (toml_path, images_file, control_file, *(f for f in extra if f is not None)),
             f"{toml_path}: [output] directory",
         )
 
@@ -1686,6 +1889,10 @@ def load_project(path: str | Path) -> Project:
         xyz,
     )
     warnings += crs_warnings
+    gnss = (
+        None if gnss_file is None else _load_gnss(gnss_file, photo_ids, gnss_table, crs, warnings)
+    )  # type: ignore[arg-type]
+    imu = None if imu_file is None else _load_imu(imu_file, photo_ids, imu_table, warnings)  # type: ignore[arg-type]
 
     observed = set(observations.point_ids)
     is_observed = np.fromiter((i in observed for i in ids.tolist()), bool, count=ids.shape[0])
@@ -1782,6 +1989,10 @@ def load_project(path: str | Path) -> Project:
         fiducials=fiducials,
         fiducials_file=fiducials_file,
         blunders=blunders,
+        gnss=gnss,
+        imu=imu,
+        gnss_file=gnss_file,
+        imu_file=imu_file,
     )
 
 

@@ -66,6 +66,8 @@ _SUBSAMPLE_POINTS = 40  # points per pair in the first iterations
 _BLOCK_CELLS = 1 << 15  # cells (rows) per block: its temporaries stay in cache
 _THREADED_ROWS = 1 << 17  # evaluations of at least this many rows use threads
 _MAX_THREADS = 4
+# Corrections below this fraction of their standard deviation are negligible.
+_PRECISION_FRACTION = 0.01
 
 
 class RelativeOrientationMethod(str, Enum):
@@ -284,6 +286,8 @@ class _Evaluation:
         self.normal = np.zeros((n_pairs, 5, 5))
         self.gradient = np.zeros((n_pairs, 5))
         self.max_parallax_mm = np.zeros(n_pairs)
+        self.sum_wqq = np.zeros(n_pairs)  # Σ w q² (model units)
+        self.n_rows = np.zeros(n_pairs, dtype=np.intp)
         self.design: list[FloatArray] = []
         self.parallax_mm: list[FloatArray] = []
         self.weight: list[FloatArray] = []
@@ -343,6 +347,8 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
         ev.normal[block.pairs] = normal[:, :5, :5]
         ev.gradient[block.pairs] = -normal[:, :5, 5]
         ev.max_parallax_mm[block.pairs] = max_q
+        ev.sum_wqq[block.pairs] = normal[:, 5, 5]
+        ev.n_rows[block.pairs] = block.counts
         ev.design.append(m)
         ev.parallax_mm.append(q_img)
         ev.weight.append(w)
@@ -361,10 +367,12 @@ def _pool() -> ThreadPoolExecutor | None:
     return _POOL[0]
 
 
-def _solve_normals(normal: FloatArray, gradient: FloatArray) -> tuple[FloatArray, np.ndarray]:
+def _solve_normals(
+    normal: FloatArray, gradient: FloatArray
+) -> tuple[FloatArray, np.ndarray, FloatArray]:
     """Solve per-pair normal equations: (n_pairs, 5, 5), (n_pairs, 5) ->
-    corrections (n_pairs, 5) and a mask of pairs whose (equilibrated) normal
-    matrix is singular or not finite."""
+    corrections (n_pairs, 5), a mask of pairs whose (equilibrated) normal
+    matrix is singular or not finite, and the diagonal of N⁻¹ (n_pairs, 5)."""
     normal = normal.copy()
     gradient = gradient.copy()
     finite = np.isfinite(normal).all(axis=(1, 2)) & np.isfinite(gradient).all(axis=1)
@@ -375,9 +383,10 @@ def _solve_normals(normal: FloatArray, gradient: FloatArray) -> tuple[FloatArray
     eig = np.linalg.eigvalsh(scaled)
     singular = ~finite | ~(eig[:, 0] > 1e-10 * eig[:, -1])  # also all-zero (no rows) and NaN
     scaled[singular] = np.eye(5)
-    sol = np.linalg.solve(scaled, (gradient * scale)[:, :, None])[:, :, 0] * scale
+    inverse = np.linalg.inv(scaled)
+    sol = np.einsum("mij,mj->mi", inverse, gradient * scale) * scale
     sol[singular] = 0.0
-    return sol, singular
+    return sol, singular, np.einsum("mii->mi", inverse) * scale**2
 
 
 def _iterate(
@@ -419,12 +428,23 @@ def _iterate(
         history.append(_largest_um(ev.max_parallax_mm[todo]))
         corr = np.zeros((n_pairs, 5))
         singular = np.zeros(n_pairs, dtype=bool)
-        corr[todo], singular[todo] = _solve_normals(ev.normal[todo], ev.gradient[todo])
+        n_inv = np.zeros((n_pairs, 5))
+        corr[todo], singular[todo], n_inv[todo] = _solve_normals(
+            ev.normal[todo], ev.gradient[todo]
+        )
         if it == 1:
             singular_start = singular & active
         size = np.max(np.abs(corr), axis=1)
         failed |= todo & (singular | ~np.isfinite(size) | (size > 1.0))
-        small = todo & ~failed & (size < tolerance)
+        # Negligible: below the tolerance, or below a small fraction of the
+        # unknown's own standard deviation (method.md §3: "negligible against
+        # image measuring accuracy"); exact data fall back on the tolerance.
+        sigma0_sq = ev.sum_wqq / np.maximum(ev.n_rows - MIN_POINTS_PER_PAIR, 1)
+        with np.errstate(invalid="ignore"):
+            negligible = np.maximum(
+                tolerance, _PRECISION_FRACTION * np.sqrt(sigma0_sq[:, None] * n_inv)
+            )
+        small = todo & ~failed & (np.abs(corr) < negligible).all(axis=1)
         iterations[small] = it - 1
         if record is not None and small.any():
             record.store(ev, small)
