@@ -312,11 +312,14 @@ def form_strip(
     left = _rotate_rows(rel.rotation_left, per_model, vectors[row_l])
     right = _rotate_rows(rel.rotation_right, per_model, vectors[row_r])
     unit = intersect(
-        rel.base[model],
+        np.repeat(rel.base, per_model, axis=0),
         left,
         right,
         method=options.intersection,
         principal_distance=observations.principal_distance,
+        # the y-parallax along the left photo's image y axis, as in the
+        # relative orientation
+        across=np.repeat(rel.rotation_left[:, :, 1], per_model, axis=0),
     )
 
     # Tie points: determined in model m and in model m - 1.
