@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_strip import make_strip  # noqa: E402
+from bench_strip import make_strip
 
 
 def write_project(folder: Path, n_photos: int, points_per_photo: int) -> tuple[int, int]:
@@ -80,9 +80,7 @@ def main(argv: list[str] | None = None) -> None:
         folder = Path(tmp)
         n_obs, n_control = write_project(folder, args.photos, args.points)
         size = sum(f.stat().st_size for f in folder.iterdir()) / 1e6
-        startup = statistics.median(
-            timed([exe, "--version"])[0] for _ in range(args.repeats)
-        )
+        startup = statistics.median(timed([exe, "--version"])[0] for _ in range(args.repeats))
         times = []
         for _ in range(args.repeats):
             elapsed, done = timed([exe, "-v", "run", str(folder / "strip.toml")])
