@@ -11,14 +11,14 @@ Two formulations of the same coplanarity condition are offered:
   method.md §3.1): the angles α'1, χ'1 of the left photo and α'2, ω'2, χ'2 of
   the right photo in a system whose x axis is the base.
 
-All pairs of a strip are solved together, one Gauss-Newton step for every pair
-per iteration, on arrays that hold the points of all pairs; the strip's
-sequential dependence (the right photo of pair m is the left photo of pair
-m + 1) enters through the chain of rotations, recomputed at each iteration
-from the pairs' relative rotations.  At convergence every pair satisfies its
-own normal equations with the left rotation taken from the previous pair,
-which is exactly the sequential solution of J, obtained without a Python loop
-over the pairs' points.
+All pairs of a strip are solved together, on padded (pairs × points) blocks
+that hold the points of all pairs.  The y-parallax is taken along the left
+photo's image y axis (J's strip y axis when the left rotation is the identity,
+as for his first pair), so each pair is solved in its left photo's image frame
+independently of the chain, whatever the heading; the strip's sequential
+dependence (the right photo of pair m is the left photo of pair m + 1) enters
+only through the chain of rotations formed from the pairs' relative rotations
+at the end.  See docs/strip-formation.md.
 
 Conventions: image vectors ``(x, y, -c)`` in mm; rotations map image vectors to
 the strip system (``l = R @ l_image``); the residual y-parallax is reported at
@@ -118,9 +118,10 @@ class RelativeOrientation:
         Pair index of each point row.
     parallax_um : ndarray, shape (n,)
         Residual y-parallax of each point at the left photo's image scale, µm.
-    history : ndarray, shape (iterations + 1,)
-        Largest absolute y-parallax over all pairs (µm) at the start and after
-        each iteration; shows the convergence rate.
+    history : ndarray
+        Largest absolute y-parallax (µm) among the pairs still iterating, at
+        each evaluation (the first ones on a subsample of large pairs); shows
+        the convergence rate.
     redundancy_numbers : ndarray, shape (n,)
         Diagonal of ``I − A (AᵀPA)⁻¹ AᵀP`` for each y-parallax (0..1; they
         sum to n − 5 per pair): the share of a blunder that shows in its own
@@ -505,7 +506,8 @@ def relative_orientation(
         (J §3: weights per observation).
     max_iterations : int
     tolerance : float
-        Convergence limit on the corrections (radians and base units).
+        Convergence limit on the corrections (radians and base units); a
+        correction below 1 % of its own standard deviation is negligible too.
     labels : list of str, optional
         Names of the pairs for messages, e.g. ``"pair 1201-1202"``.
     robust : bool
@@ -534,7 +536,8 @@ def relative_orientation(
     -----
     The residual y-parallax of a point, J(5), is
     ``q = b·(l × p) / (j·(l × p))`` with ``l = R_l l_image``,
-    ``p = R_p p_image`` and ``j = (0, 1, 0)``; its linearisation, the fixed
+    ``p = R_p p_image`` and ``j = R_l (0, 1, 0)``, the left photo's image y
+    axis (J's ``(0, 1, 0)`` for ``R_l = I``); its linearisation, the fixed
     J(7), is ``q = q0 + [(l × p0)/D]·db + [p0 × ((b0 − q0 j) × l)/D]·a``
     and the right rotation is updated by ``R_schut(a / 2)`` (fixed J(9)).
     """
