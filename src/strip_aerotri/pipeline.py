@@ -264,6 +264,8 @@ def run_project(
     """Adjust a loaded project (:func:`strip_aerotri.config.load_project`).
 
     ``blunders`` overrides the project's own blunder options, if it has any.
+    The project's GNSS centres and IMU attitudes (``[gnss]``, ``[imu]``), if
+    any, are observations of the bundle refinement.
     """
     if blunders is None:
         blunders = getattr(project, "blunders", None)
@@ -290,6 +292,8 @@ def run_project(
         photo_step=getattr(adj, "photo_step", 1),
         min_base_to_height=getattr(adj, "min_base_to_height", DEFAULT_MIN_BASE_TO_HEIGHT),
         refine=str(getattr(getattr(adj, "refine", None), "value", "none")),
+        gnss=getattr(project, "gnss", None),
+        imu=getattr(project, "imu", None),
         progress=progress,
         warnings=project.warnings,
     )

@@ -17,6 +17,9 @@ strip formation and the ground stage apply, and every problem found is listed:
 * every straight-line point is measured on both photos of a pair (J(18));
 * the output folder may be written.
 
+The summary also counts the GNSS centres and IMU attitudes (``[gnss]``,
+``[imu]``) that the bundle refinement will use.
+
 The model-space tests of the run (degenerate pairs, collinearity in the
 model, convergence) need the adjustment and are not repeated here.
 """
@@ -257,6 +260,16 @@ def check_project(project, out: Path | None = None) -> CheckReport:
         f"pairs: {int(counts.min())}..{int(counts.max())} common points{tie_text}",
         f"control: {by_kind}; usable {n_plan} plan, {n_height} height",
         f"straight lines: {len(project.straight_lines)}",
+    ]
+    for what, observed, source in (
+        ("GNSS centres", getattr(project, "gnss", None), getattr(project, "gnss_file", None)),
+        ("IMU attitudes", getattr(project, "imu", None), getattr(project, "imu_file", None)),
+    ):
+        if observed is not None:
+            rep.summary.append(
+                f"{what}: {len(observed.photo_ids)} of {n_photos} photos ({source})"
+            )
+    rep.summary += [
         f"crs: {project.crs}; route {project.adjustment.route.value}; polynomial {poly}",
     ]
     if target is not None:
@@ -290,17 +303,25 @@ def check(project_file: Path, out: Path | None) -> None:
       stripaero check examples/film-strip/strip.toml
       stripaero check -v strip.toml          # with per-pair figures
     """
+    import warnings
+
     from .. import config
+    from ..errors import StripAerotriWarning
 
     echo_progress(f"loading {project_file}")
-    project = config.load_project(project_file)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", StripAerotriWarning)
+        project = config.load_project(project_file)
     rep = check_project(project, out)
     if rep.problems:
         for message in rep.problems:
             echo_error(message)
         raise click.exceptions.Exit(1)
-    for message in (*project.warnings, *rep.warnings):
-        echo_warning(message)
+    shown: set[str] = set()
+    for message in (*project.warnings, *rep.warnings, *(str(w.message) for w in caught)):
+        if message not in shown:  # loading warns and lists in Project.warnings alike
+            shown.add(message)
+            echo_warning(message)
     for line in rep.summary:
         echo_result(line)
     from .options import settings
