@@ -539,6 +539,8 @@ def test_run_with_gnss_and_imu_end_to_end(tmp_path: Path, monkeypatch) -> None:
 
     result = invoke("-q", "run", toml)
     assert result.exit_code == 0, result.output
+    # the summary reports the refined solution, whose points are written
+    assert "bundle refinement: accuracy below is the refined solution's" in result.output
     out = folder / "out"
     rep = json.loads((out / "report.json").read_text())
     bundle = rep["bundle"]

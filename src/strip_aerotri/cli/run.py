@@ -177,16 +177,15 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
 
     started = time.perf_counter()
     echo_progress(f"loading {project_file}")
-    project = config.load_project(project_file)
-    target = output_folder(project, out)
-    echo_progress(
-        f"project '{project.name}': {len(project.photo_ids)} photos, "
-        f"{project.observations.n_points} points, {len(project.control.point_ids)} control "
-        f"and check points, crs {project.crs}"
-    )
-
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", StripAerotriWarning)
+        project = config.load_project(project_file)
+        target = output_folder(project, out)
+        echo_progress(
+            f"project '{project.name}': {len(project.photo_ids)} photos, "
+            f"{project.observations.n_points} points, {len(project.control.point_ids)} "
+            f"control and check points, crs {project.crs}"
+        )
         try:
             result = pipeline.run_project(project, progress=echo_progress)
         except (GeometryError, ConvergenceError) as exc:
@@ -212,9 +211,13 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     _echo_details(result)
     elapsed = time.perf_counter() - started
     n_done = int(result.strip.triangulated.sum())
-    control = result.control_statistics
-    check = result.check_statistics
+    # With a bundle refinement the written points come from it: so do the figures.
+    final = result.refined if result.refined is not None else result
+    control = final.control_statistics
+    check = final.check_statistics
     echo_result(f"strip '{project.name}': {len(result.photo_ids)} photos, {n_done} points")
+    if result.refined is not None:
+        echo_result("bundle refinement: accuracy below is the refined solution's")
     echo_result(
         f"control: {control.n_plan} plan, {control.n_height} height; "
         f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}"
