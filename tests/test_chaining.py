@@ -373,7 +373,7 @@ def test_j7_fixed_linearisation_is_the_derivative_of_j5():
     # a first rotation off the identity (heading 75°): strip and image axes differ
     first = Rotation.from_euler("z", 75.0, degrees=True).as_matrix()
     left, right = vec[row_l], vec[row_r]
-    state = rel_module._DependentState(left, right, model, 2, first)
+    state = rel_module._DependentState(2, first)
     # The state holds the unknowns in the left photo's image frame; the design
     # rows are the derivatives with respect to base steps along the left
     # image's y and z axes and a small rotation a of the right bundle given in
@@ -394,7 +394,7 @@ def test_j7_fixed_linearisation_is_the_derivative_of_j5():
     # along the left photo's image y axis (J's strip y for R_l = I)
     r_left, r_right, _ = state.rotations()
     r_left, r_right = r_left[model], r_right[model]
-    b = state.base_strip()[model]
+    b = state.base_strip(state.rotations()[0])[model]
     l = np.einsum("nij,nj->ni", r_left, left)
     p0 = np.einsum("nij,nj->ni", r_right, right)
     j = r_left[:, :, 1]

@@ -89,7 +89,7 @@ def _first_pass_history(syn, factor, monkeypatch, iterations=30):
     """Max |q| (µm) per Gauss-Newton step from the near-vertical start."""
     left, right, pair, n = _pairs(syn)
     monkeypatch.setattr(rel_module, "_SCHUT_FACTOR", factor)
-    state = rel_module._DependentState(left, right, pair, n, np.eye(3))
+    state = rel_module._DependentState(n, np.eye(3))
     starts = rel_module._segment_starts(pair, n)
     counts = np.bincount(pair, minlength=n)
     blocks = rel_module._Blocks(left, right, starts, counts, np.arange(n))

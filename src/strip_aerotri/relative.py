@@ -27,6 +27,7 @@ image scale in micrometres.
 
 from __future__ import annotations
 
+import functools
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -356,16 +357,12 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
     return ev
 
 
-_POOL: list[ThreadPoolExecutor | None] = []
-
-
+@functools.cache
 def _pool() -> ThreadPoolExecutor | None:
     """Threads for the blocks of an evaluation (numpy releases the GIL in its
     element-wise loops); none on a single core."""
-    if not _POOL:
-        workers = min(os.cpu_count() or 1, _MAX_THREADS)
-        _POOL.append(ThreadPoolExecutor(workers, "strip-aerotri") if workers > 1 else None)
-    return _POOL[0]
+    workers = min(os.cpu_count() or 1, _MAX_THREADS)
+    return ThreadPoolExecutor(workers, "strip-aerotri") if workers > 1 else None
 
 
 def _solve_normals(
@@ -564,9 +561,9 @@ def relative_orientation(
     weight = 2.0 * sigma_ref2 / var
 
     if method is RelativeOrientationMethod.DEPENDENT:
-        state = _DependentState(left, right, pair, n_pairs, first)
+        state = _DependentState(n_pairs, first)
     else:
-        state = _BaseState(left, right, pair, n_pairs, first)
+        state = _BaseState(n_pairs, first)
 
     if start is not None:
         if start.method is not method or start.n_pairs != n_pairs:
@@ -599,8 +596,7 @@ def relative_orientation(
             apply_last=True,
         )
         if not ok.all():
-            identity = np.broadcast_to(np.eye(3), (int((~ok).sum()), 3, 3))
-            state.restart(~ok, identity, np.tile(_EX, (int((~ok).sum()), 1)))
+            _restart_vertical(state, ~ok)
     converged, iterations, singular_first = _iterate(
         state, blocks_of, weight, max_iterations, tolerance, everything, history, record=record
     )
@@ -629,8 +625,7 @@ def relative_orientation(
         # converging at all: find start values by robust IRLS from the
         # near-vertical start, then finish with ordinary least squares.
         retry = ~converged
-        identity = np.broadcast_to(np.eye(3), (int(retry.sum()), 3, 3))
-        state.restart(retry, identity, np.tile(_EX, (int(retry.sum()), 1)))
+        _restart_vertical(state, retry)
         _iterate(state, blocks_of, weight, max_iterations, 1e-6, retry, history, robust=True)
         # Observations beyond 5 robust sigmas of the robust fit take no part in
         # the final least squares (their w-tests then fail and they are
@@ -655,7 +650,7 @@ def relative_orientation(
         # robust (IRLS, Cauchy) fit with no weight for such observations, so
         # that they cannot distort the orientation; the caller's tests then
         # find and name them.
-        suspect = _suspect_pairs(record, pair, var, n_pairs) & ~robust_done
+        suspect = _suspect_pairs(record, pair, var, counts) & ~robust_done
         if suspect.any():
             _iterate(state, blocks_of, weight, _ROBUST_STEPS, 1e-6, suspect, history, robust=True)
             weight = np.where(_gross_rows(state, blocks_of(suspect), pair.shape[0]), 0.0, weight)
@@ -676,7 +671,8 @@ def relative_orientation(
                     f"for {_name(labels, m)} (check point ids and image coordinates of this pair)"
                 )
             iterations[suspect] += more[suspect]
-    base = state.base_strip()
+    rot_left, rot_right, relative = state.rotations()
+    base = state.base_strip(rot_left)
     # With the base's image-x component 1, 1/|b| is the cosine between the base
     # and the left photo's image x axis.
     cos_along = 1.0 / np.linalg.norm(base, axis=1)
@@ -696,7 +692,6 @@ def relative_orientation(
     sigma0[counts <= MIN_POINTS_PER_PAIR] = np.nan
     rms = np.sqrt(np.add.reduceat(parallax_um**2, starts) / counts)
     maxabs = np.maximum.reduceat(np.abs(parallax_um), starts)
-    rot_left, rot_right, relative = state.rotations()
     with np.errstate(invalid="ignore", divide="ignore"):
         w_stat = parallax_um / (1000.0 * np.sqrt(var * redundancy))
     w_stat[redundancy < 1e-6] = np.nan
@@ -720,19 +715,24 @@ def relative_orientation(
     )
 
 
+def _restart_vertical(state, mask: np.ndarray) -> None:
+    """Back to the near-vertical start (``Q = I``, base along image x) for ``mask``."""
+    n = int(mask.sum())
+    state.restart(mask, np.broadcast_to(np.eye(3), (n, 3, 3)), np.tile(_EX, (n, 1)))
+
+
 def _gross_rows(state, blocks: _Blocks, n_rows: int) -> np.ndarray:
     """Rows (flat mask) whose y-parallax exceeds 5 robust sigmas (1.4826 MAD) of their pair."""
     gross = np.zeros(n_rows, dtype=bool)
     for block in blocks.items:
-        m = np.empty((block.rows.shape[0], 6, block.rows.shape[1]))
-        abs_q = np.abs(state.terms(block.pairs, block, m))
+        abs_q = np.abs(state.terms(block.pairs, block, block.design))
         abs_q = np.where(np.isfinite(abs_q), abs_q, np.inf)
         flag = ~(abs_q <= 5.0 * _robust_scale(abs_q, block)) & block.valid
         gross[block.rows[flag]] = True
     return gross
 
 
-def _suspect_pairs(record: _Record, pair: IntArray, var: FloatArray, n_pairs: int):
+def _suspect_pairs(record: _Record, pair: IntArray, var: FloatArray, counts: IntArray):
     """Pairs whose least-squares y-parallaxes suggest gross errors.
 
     The y-parallaxes are standardised by their a priori sigmas.  A pair is
@@ -746,7 +746,7 @@ def _suspect_pairs(record: _Record, pair: IntArray, var: FloatArray, n_pairs: in
     z = np.where(np.isfinite(z), z, np.inf)
     scale = max(1.4826 * float(np.median(z)), 1e-6)
     over = ~(z <= 5.0 * scale)
-    counts = np.bincount(pair, minlength=n_pairs)
+    n_pairs = counts.shape[0]
     rms = np.sqrt(np.bincount(pair, np.minimum(z, 1e150) ** 2, minlength=n_pairs) / counts)
     return (np.bincount(pair[over], minlength=n_pairs) > 0) | ~(rms <= 3.0)
 
@@ -849,7 +849,7 @@ class _DependentState:
     J's correcting rotation ``R_schut(a / 2)`` (fixed J(9)) premultiplies ``Q``.
     """
 
-    def __init__(self, left, right, pair, n_pairs, first):
+    def __init__(self, n_pairs, first):
         self.n_pairs = n_pairs
         self.first = first
         self.relative = np.broadcast_to(np.eye(3), (n_pairs, 3, 3)).copy()
@@ -892,14 +892,15 @@ class _DependentState:
         self.relative = matrix_from_schut(_SCHUT_FACTOR * corr[:, 2:]) @ self.relative
         self.beta = self.beta + corr[:, :2]
 
-    def base_strip(self):
-        r_left, _, _ = self.rotations()
+    def base_strip(self, r_left):
+        """Base vectors in the strip system, given the left rotations of the chain."""
         beta = np.column_stack([np.ones(self.n_pairs), self.beta])
         return np.einsum("mij,mj->mi", r_left, beta)
 
     def rotations(self):
         chain = chain_rotations(self.first, self.relative)
-        return chain[:-1], chain[1:], self.relative.copy()
+        # separate arrays: rotation_left and rotation_right are not views of each other
+        return chain[:-1].copy(), chain[1:].copy(), self.relative.copy()
 
     def elements(self):
         return np.column_stack([self.beta, schut_from_matrix(self.relative)])
@@ -911,7 +912,7 @@ class _BaseState:
     x axis is the base.  Independent of the chain; the strip values follow from
     A_tau_nu = R_left · A(alpha'1, 0, chi'1)^T, B(126)-(136)."""
 
-    def __init__(self, left, right, pair, n_pairs, first):
+    def __init__(self, n_pairs, first):
         self.n_pairs = n_pairs
         self.first = first
         self.angles_left = np.zeros((n_pairs, 2))  # alpha'1, chi'1
@@ -983,8 +984,8 @@ class _BaseState:
         chain = chain_rotations(self.first, relative)
         return chain[:-1].copy(), chain[1:].copy(), relative
 
-    def base_strip(self):
-        r_left, _, _ = self.rotations()
+    def base_strip(self, r_left):
+        """Base vectors in the strip system, given the left rotations of the chain."""
         # A_tau_nu = R_left A'^T; its first column is the base direction, B(130).
         a_tau_nu = r_left @ np.swapaxes(self.l_base, 1, 2)
         b = a_tau_nu[:, :, 0]
