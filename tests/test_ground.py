@@ -784,3 +784,38 @@ def test_auto_picks_similarity_only_for_an_unbent_strip_and_a_polynomial_for_a_b
     before = run(bent_sim, polynomial=0, blunders=NO_BLUNDER_TESTS).check_statistics.rmse[2]
     assert before > 1.0
     assert bent.check_statistics.rmse[2] < before / 5
+
+
+# --------------------------------------------------------------------------- passes
+
+
+@pytest.mark.parametrize("route", ["geocentric", "projected"])
+def test_full_control_needs_the_azimuth_pass_and_one_more(route):
+    # With only full control nothing is guessed: the pass after the azimuth
+    # pass returns its own input, so a further pass would repeat it.
+    dense = simulated(12, control="dense", seed=4)  # full and check points only
+    ground = run(dense, route=route).ground
+    assert ground.passes == 2 and ground.passes_converged
+    mixed = run(simulated(12, seed=5), route=route).ground  # plan and height points
+    assert mixed.passes > 2 and mixed.passes_converged
+
+
+def test_re_solve_after_a_rejection_equals_a_fresh_solve_without_the_observation():
+    # Re-solves start from the previous similarity (fewer iterations); the
+    # solution must be the one a fresh run without the rejected component gives.
+    sim = simulated(16, seed=1, crs="EPSG:2180")
+    row = [k.value for k in sim.control.kind].index("full", 3)
+    xyz = sim.control.xyz.copy()
+    xyz[row, 0] += 5.0
+    blundered = dataclasses.replace(sim.control, xyz=xyz)
+    tested = run(sim, blundered)
+    assert [r.point for r in tested.rejections if r.stage == "control"] == [
+        sim.control.point_ids[row]
+    ]
+    kinds = list(sim.control.kind)
+    kinds[row] = HEIGHT  # the plan component left out, the height kept
+    fresh = run(sim, dataclasses.replace(blundered, kind=tuple(kinds)), blunders=NO_BLUNDER_TESTS)
+    np.testing.assert_allclose(tested.points, fresh.points, rtol=0, atol=1e-6, equal_nan=True)
+    np.testing.assert_allclose(
+        tested.ground.photo_rotations_enu, fresh.ground.photo_rotations_enu, rtol=0, atol=1e-10
+    )

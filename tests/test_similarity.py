@@ -373,3 +373,49 @@ def test_bad_arguments_raise_value_error():
         fit_similarity(src, src, use_xy=ones, use_z=ones, sigma_z=-1.0)
     with pytest.raises(ValueError, match=r"`target` to have shape \(4, 3\)"):
         fit_similarity(src, src[:3], use_xy=ones, use_z=ones)
+
+
+# --------------------------------------------------------------------------- start values
+
+
+def test_start_values_change_the_iterations_not_the_solution():
+    # Plan and height control only (no closed form): the constructive start needs
+    # several Gauss-Newton steps; a start near the solution (a neighbouring
+    # problem's, as the ground stage's passes give it) needs fewer, and the
+    # solution is the same to the convergence tolerance.
+    sigma = 0.05
+    src = make_model(12, seed=8)
+    rng = np.random.default_rng(77)
+    tgt = TRUTH.apply(src) + rng.normal(size=(12, 3)) * sigma
+    use_xy = np.array([1, 1, 1, 1, 1, 1, 0, 0, 0, 0, 0, 0], dtype=bool)
+    use_z = ~use_xy | (np.arange(12) < 2)
+    kwargs = {"use_xy": use_xy, "use_z": use_z, "sigma_xy": sigma, "sigma_z": sigma}
+    cold = fit_similarity(src, masked(tgt, use_xy, use_z), **kwargs)
+    nudge = SimilarityTransform(
+        1.0 + 2e-8,
+        Rotation.from_rotvec([2e-8, -1e-8, 3e-8]).as_matrix(),
+        np.array([3e-5, -2e-5, 1e-5]),
+    )
+    warm = fit_similarity(
+        src, masked(tgt, use_xy, use_z), **kwargs, start=nudge.compose(cold.transform)
+    )
+    exact = fit_similarity(src, masked(tgt, use_xy, use_z), **kwargs, start=cold.transform)
+    assert exact.iterations == 1
+    assert warm.iterations < cold.iterations
+    for res in (warm, exact):
+        assert res.transform.scale == pytest.approx(cold.transform.scale, rel=1e-11)
+        assert (
+            np.max(np.abs(rotation_error(res.transform.rotation, cold.transform.rotation))) < 1e-11
+        )
+        np.testing.assert_allclose(
+            res.transform.translation, cold.transform.translation, atol=1e-6
+        )
+        np.testing.assert_allclose(res.residuals, cold.residuals, atol=1e-6)
+        np.testing.assert_allclose(res.covariance, cold.covariance, rtol=1e-8, atol=1e-14)
+
+
+def test_start_must_be_a_similarity_transform():
+    src = make_model(6, seed=9)
+    ones = np.ones(6, dtype=bool)
+    with pytest.raises(TypeError, match="start"):
+        fit_similarity(src, TRUTH.apply(src), use_xy=ones, use_z=ones, start=np.eye(3))

@@ -43,12 +43,21 @@ from .errors import GeometryError
 from .geodesy import GroundCRS, LocalTangentFrame, enu_rotation, gaussian_mean_radius
 from .observations import ControlPoints
 from .rotation import matrix_from_rotvec, opk_from_matrix
-from .similarity import SimilarityResult, fit_similarity
+from .similarity import (
+    SimilarityResult,
+    SimilarityTransform,
+    fit_similarity,
+    similarity_from_points,
+)
 
 __all__ = ["GroundOptions", "GroundResult", "LineSpec", "Route", "adjust_to_ground"]
 
 _MAX_PASSES = 8
 _PASS_TOLERANCE_M = 1e-5
+# Probe points (m) that carry a similarity from one work frame to the next.
+_FRAME_PROBE_M = np.array(
+    [[0.0, 0.0, 0.0], [1000.0, 0.0, 0.0], [0.0, 1000.0, 0.0], [0.0, 0.0, 1000.0]]
+)
 
 
 class Route(str, Enum):
@@ -470,6 +479,23 @@ def adjust_to_ground(
     sig_h_ctrl = control.sigma_h[rows]
     first, last = strip.centres[0], strip.centres[-1]
     model_per_mm, h_to_b = _image_scale(strip)
+    sigma_image_mm = float(np.median(obs.sigma))
+    # The last similarity and its work frame: start values of the next fit
+    # (passes, azimuth restarts and re-solves after a rejection change the
+    # problem only a little; the start changes iterations, not the solution).
+    last_fit: list = []
+
+    def start_in(work) -> SimilarityTransform | None:
+        if not last_fit:
+            return None
+        sim_prev, work_prev = last_fit[0]
+        if work is work_prev:
+            return sim_prev
+        # the map between two work frames, from four probe points
+        mapped = work.to_work(work_prev.from_work(_FRAME_PROBE_M))
+        if not np.all(np.isfinite(mapped)):
+            return None
+        return similarity_from_points(_FRAME_PROBE_M, mapped).compose(sim_prev)
 
     def solve(use_xy: np.ndarray, use_z: np.ndarray, line_keep: list[np.ndarray]):
         """Similarity and polynomial with the plan/height iteration (passes)."""
@@ -479,7 +505,7 @@ def adjust_to_ground(
         azimuth = 0.0
         work = _make_work(route, crs, guess_[active], azimuth)
         exp_xy, exp_z = sig_xy_ctrl, sig_h_ctrl
-        converged, previous, n_pass = False, None, 0
+        converged, n_pass = False, 0
         for n_pass in range(1, _MAX_PASSES + 1):  # noqa: B007 (reported as passes)
             target = work.to_work(guess_)
             sim = fit_similarity(
@@ -490,9 +516,11 @@ def adjust_to_ground(
                 sigma_xy=exp_xy[active],
                 sigma_z=exp_z[active],
                 point_ids=act_ids,
+                start=start_in(work),
             )
+            last_fit[:] = [(sim.transform, work)]
             metres_per_mm = model_per_mm * sim.transform.scale
-            sigma_plan = float(np.median(obs.sigma)) * metres_per_mm
+            sigma_plan = sigma_image_mm * metres_per_mm
             sigma_height = sigma_plan * h_to_b
             exp_xy = np.hypot(sig_xy_ctrl, sigma_plan)
             exp_z = np.hypot(sig_h_ctrl, sigma_height)
@@ -529,12 +557,13 @@ def adjust_to_ground(
             new_guess = given.copy()
             new_guess[~use_z & ~check, 2] = adjusted[~use_z & ~check, 2]
             new_guess[~use_xy & ~check, :2] = adjusted[~use_xy & ~check, :2]
-            change = 0.0 if previous is None else float(np.nanmax(np.abs(new_guess - guess_)))
+            # The pass's input guess came back unchanged (always so when every
+            # control point is full): another pass would repeat this one.
+            change = float(np.nanmax(np.abs(new_guess - guess_)))
             guess_ = new_guess
-            if previous is not None and change < _PASS_TOLERANCE_M:
+            if change < _PASS_TOLERANCE_M:
                 converged = True
                 break
-            previous = guess_
             work = _make_work(route, crs, guess_[active], azimuth)
         return _Solution(
             work,

@@ -537,6 +537,7 @@ def fit_similarity(
     point_ids: Sequence[str] | None = None,
     max_iterations: int = 30,
     tolerance: float = 1e-12,
+    start: SimilarityTransform | None = None,
 ) -> SimilarityResult:
     """Seven-parameter similarity by weighted least squares on mixed control.
 
@@ -567,6 +568,10 @@ def fit_similarity(
         Convergence when the largest relative update (translation against the
         control extent, scale against the scale, rotation in radians) falls
         below it, or stops decreasing at round-off level (below 1e-9).
+    start : SimilarityTransform, optional
+        Start values (e.g. the solution of a neighbouring problem); by default
+        they are constructed from the control (see Notes).  They change the
+        number of iterations, not the solution.
 
     Returns
     -------
@@ -628,7 +633,16 @@ def fit_similarity(
     tgt_c = np.where(obs, np.where(obs, tgt, 0.0) - c_tgt, 0.0)
     extent = float(np.max(np.ptp(np.where(obs, tgt_c, 0.0)[used], axis=0)))
 
-    scale, rotation, shift = _start_values(src_c, tgt_c, mask_xy, mask_z)
+    if start is None:
+        scale, rotation, shift = _start_values(src_c, tgt_c, mask_xy, mask_z)
+    else:
+        if not isinstance(start, SimilarityTransform):
+            raise TypeError(
+                f"Expected `start` to be a SimilarityTransform, got {type(start).__name__}"
+            )
+        # target = t + s R source  <=>  target_c = (t + s R c_src - c_tgt) + s R source_c
+        scale, rotation = float(start.scale), start.rotation.copy()
+        shift = start.translation + scale * (rotation @ c_src) - c_tgt
 
     def linearise(
         scale: float, rotation: FloatArray, shift: FloatArray
