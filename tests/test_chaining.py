@@ -468,3 +468,33 @@ def test_random_errors_grow_like_n_to_the_three_halves():
     assert e[3] / e[1] > 4.5, e
     gamma = _free_exponent(lengths.astype(float), e2)
     assert 2.3 < gamma < 3.7, (gamma, e)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_pair_rows_finds_every_common_point_in_any_row_order(seed):
+    # Reference by sets over the photos; rows shuffled, photo sequences that
+    # skip, reverse or take part of the photos.
+    rng = np.random.default_rng(seed)
+    obs = simulate_strip(7, seed=seed).observations
+    perm = rng.permutation(obs.photo.size) if seed % 2 else np.arange(obs.photo.size)
+    obs = dataclasses.replace(
+        obs,
+        photo=obs.photo[perm],
+        point=obs.point[perm],
+        xy=obs.xy[perm],
+        sigma=obs.sigma[perm],
+        source_line=obs.source_line[perm],
+    )
+    seq = [np.arange(7), np.arange(7)[::-1], np.array([0, 2, 3, 5]), np.array([6, 4, 1])][seed % 4]
+    pairs_of_rows = enumerate(zip(obs.photo, obs.point, strict=True))
+    rows_of = {(int(ph), int(pt)): r for r, (ph, pt) in pairs_of_rows}
+    expected = [
+        (m, pt, rows_of[(seq[m], pt)], rows_of[(seq[m + 1], pt)])
+        for m in range(len(seq) - 1)
+        for pt in sorted(
+            {p for (ph, p) in rows_of if ph == seq[m]}
+            & {p for (ph, p) in rows_of if ph == seq[m + 1]}
+        )
+    ]
+    got = np.column_stack(pair_rows(obs, seq.astype(np.intp)))
+    np.testing.assert_array_equal(got, np.array(expected).reshape(-1, 4))

@@ -184,3 +184,27 @@ def test_chain_rotations_composes_in_order():
     first = Rotation.random(random_state=rng).as_matrix()
     chain = chain_rotations(first, rel)
     np.testing.assert_allclose(chain[3], first @ rel[0] @ rel[1] @ rel[2], atol=1e-14)
+
+
+def test_batched_normal_solve_agrees_with_lapack_and_flags_singular_matrices():
+    rng = np.random.default_rng(11)
+    design = rng.normal(size=(60, 40, 5)) * np.array([1.0, 1.0, 30.0, 30.0, 1e3])
+    normal = np.swapaxes(design, 1, 2) @ design
+    gradient = rng.normal(size=(60, 5))
+    # singular: no rows, a zero column, a rank-deficient design, NaN
+    normal[3] = 0.0
+    normal[5, 2, :] = normal[5, :, 2] = 0.0
+    tied = design[9].copy()
+    tied[:, 4] = 2.0 * tied[:, 3] + 1e-12 * rng.normal(size=40)
+    normal[9] = tied.T @ tied
+    normal[12, 0, 0] = np.nan
+    corr, singular, inverse = rel_module._solve_normals(normal, gradient)
+    bad = [3, 5, 9, 12]
+    assert np.flatnonzero(singular).tolist() == bad
+    assert np.all(corr[bad] == 0.0)
+    good = np.setdiff1d(np.arange(60), bad)
+    expected_inverse = np.linalg.inv(normal[good])
+    np.testing.assert_allclose(inverse[good], expected_inverse, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(
+        corr[good], np.linalg.solve(normal[good], gradient[good][:, :, None])[:, :, 0], rtol=1e-9
+    )

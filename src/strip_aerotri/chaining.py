@@ -189,18 +189,32 @@ def pair_rows(
     position = np.full(observations.n_photos, -1, dtype=np.int64)
     position[photo_index] = np.arange(n_seq)
     t = position[observations.photo]
-    n_pts = max(observations.n_points, 1)
-    rows = np.arange(t.shape[0])
-    as_left = (t >= 0) & (t <= n_seq - 2)
-    as_right = t >= 1
-    key_left = t[as_left] * n_pts + observations.point[as_left]
-    key_right = (t[as_right] - 1) * n_pts + observations.point[as_right]
-    keys, i_left, i_right = np.intersect1d(
-        key_left, key_right, assume_unique=True, return_indices=True
+    rows = np.flatnonzero(t >= 0)
+    if rows.size == t.size:
+        key = observations.point * np.int64(n_seq) + t
+    else:
+        key = observations.point[rows] * np.int64(n_seq) + t[rows]
+    # Sorted by (point, position in the strip), a point seen on photos t and
+    # t + 1 has consecutive keys.  Input grouped by photo is a few long sorted
+    # runs in this order, which the stable sort (timsort) merges quickly.
+    order = np.argsort(key, kind="stable")
+    key = key[order]
+    hit = np.flatnonzero(key[1:] - key[:-1] == 1)
+    model = key[hit] % n_seq
+    keep = model < n_seq - 1  # not the last photo and the next point's first
+    hit, model = hit[keep], model[keep]
+    by_model = np.argsort(model, kind="stable")  # then by point: already so
+    hit = hit[by_model]
+    left = order[hit]
+    right = order[hit + 1]
+    if rows.size != t.size:
+        left, right = rows[left], rows[right]
+    return (
+        model[by_model].astype(np.intp),
+        (key[hit] // n_seq).astype(np.intp),
+        left,
+        right,
     )
-    model = (keys // n_pts).astype(np.intp)
-    point = (keys % n_pts).astype(np.intp)
-    return model, point, rows[as_left][i_left], rows[as_right][i_right]
 
 
 def form_strip(
