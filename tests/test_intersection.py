@@ -67,3 +67,22 @@ def test_inputs_unchanged_and_shapes_checked():
         intersect_midpoint(base, left[:, :2], right)
     with pytest.raises(ValueError, match="principal_distance"):
         intersect(base, left, right, method="normal")
+
+
+def test_midpoint_is_invariant_to_a_common_rotation_with_its_y_axis():
+    # form_strip intersects in each left photo's image frame and turns the points
+    # to the strip: the same as intersecting in the strip along the turned j.
+    base, left, right, _ = _rays(seed=3)
+    rng = np.random.default_rng(4)
+    right = right + rng.normal(0.0, 0.01, right.shape)  # rays that do not meet
+    turn = Rotation.from_euler("ZYX", [75.0, 1.5, -2.0], degrees=True).as_matrix()
+    plain = intersect_midpoint(base, left, right)  # j = (0, 1, 0), the written-out form
+    general = intersect_midpoint(base, left, right, across=np.array([0.0, 1.0, 0.0]))
+    np.testing.assert_allclose(plain.points, general.points, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(plain.parallax, general.parallax, rtol=0, atol=1e-14)
+    turned = intersect_midpoint(
+        base @ turn.T, left @ turn.T, right @ turn.T, across=np.tile(turn[:, 1], (len(left), 1))
+    )
+    assert np.max(np.abs(plain.parallax)) > 1e-4
+    np.testing.assert_allclose(turned.points, plain.points @ turn.T, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(turned.parallax, plain.parallax, rtol=0, atol=1e-13)

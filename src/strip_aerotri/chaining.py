@@ -17,7 +17,7 @@ import numpy as np
 from ._typing import ArrayLike, FloatArray, IntArray
 from .blunders import BlunderOptions, Rejection, robust_variance_factor
 from .errors import GeometryError
-from .intersection import IntersectionMethod, intersect
+from .intersection import Intersection, IntersectionMethod, intersect_midpoint, intersect_normal
 from .observations import ImageObservations
 from .relative import RelativeOrientation, RelativeOrientationMethod, relative_orientation
 from .scaling import ScaleTransfer, scale_ratios
@@ -323,18 +323,27 @@ def form_strip(
 
     # Model formation with the unit base (b_x = 1), relative to the left centre.
     per_model = np.bincount(model, minlength=n_models)
-    left = _rotate_rows(rel.rotation_left, per_model, vectors[row_l])
-    right = _rotate_rows(rel.rotation_right, per_model, vectors[row_r])
-    unit = intersect(
-        np.repeat(rel.base, per_model, axis=0),
-        left,
-        right,
-        method=options.intersection,
-        principal_distance=observations.principal_distance,
-        # the y-parallax along the left photo's image y axis, as in the
-        # relative orientation
-        across=np.repeat(rel.rotation_left[:, :, 1], per_model, axis=0),
-    )
+    if IntersectionMethod(options.intersection) is IntersectionMethod.MIDPOINT:
+        # J(11)-(12) with the y-parallax along the left photo's image y axis, as
+        # in the relative orientation.  They do not change under a common
+        # rotation: intersect in each left photo's image frame (the left rays
+        # as measured, j = (0, 1, 0)) and turn the points to the strip once.
+        base_left = np.einsum("mji,mj->mi", rel.rotation_left, rel.base)
+        in_left = intersect_midpoint(
+            np.repeat(base_left, per_model, axis=0),
+            vectors[row_l],
+            _rotate_rows(rel.relative_rotation, per_model, vectors[row_r]),
+        )
+        unit = Intersection(
+            _rotate_rows(rel.rotation_left, per_model, in_left.points), in_left.parallax
+        )
+    else:
+        unit = intersect_normal(
+            np.repeat(rel.base, per_model, axis=0),
+            _rotate_rows(rel.rotation_left, per_model, vectors[row_l]),
+            _rotate_rows(rel.rotation_right, per_model, vectors[row_r]),
+            observations.principal_distance,
+        )
 
     # Tie points: determined in model m and in model m - 1.
     n_pts = max(observations.n_points, 1)

@@ -83,7 +83,9 @@ def intersect_midpoint(
         the point ``k_l l + q'/2 j``.
     """
     b, l, p = _rows(base, left, right)
-    j = _J if across is None else np.asarray(across, dtype=np.float64)
+    if across is None:
+        return _midpoint_along_y(b, l, p)
+    j = np.asarray(across, dtype=np.float64)
     if j.shape not in ((3,), l.shape):
         raise ValueError(f"Expected across to have shape (3,) or {l.shape}, got {j.shape}")
     j0, j1, j2 = np.broadcast_to(j, l.shape).T
@@ -100,6 +102,23 @@ def intersect_midpoint(
     points[:, 0] = k * l0 + half_q * j0
     points[:, 1] = k * l1 + half_q * j1
     points[:, 2] = k * l2 + half_q * j2
+    return Intersection(points, 2.0 * half_q)
+
+
+def _midpoint_along_y(b: FloatArray, l: FloatArray, p: FloatArray) -> Intersection:
+    """J(12) with ``j = (0, 1, 0)`` written out: ``D = (l × p)_y``,
+    ``k_l = (b × p)_y / D``, ``q' = b·(l × p) / D``."""
+    b0, b1, b2 = b.T
+    l0, l1, l2 = l.T
+    p0, p1, p2 = p.T
+    c1 = l2 * p0 - l0 * p2
+    inv_d = 1.0 / c1
+    k = (b2 * p0 - b0 * p2) * inv_d
+    half_q = 0.5 * (b0 * (l1 * p2 - l2 * p1) + b1 * c1 + b2 * (l0 * p1 - l1 * p0)) * inv_d
+    points = np.empty_like(l)
+    points[:, 0] = k * l0
+    points[:, 1] = k * l1 + half_q
+    points[:, 2] = k * l2
     return Intersection(points, 2.0 * half_q)
 
 
