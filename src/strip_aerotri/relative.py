@@ -27,9 +27,6 @@ image scale in micrometres.
 
 from __future__ import annotations
 
-import functools
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -65,8 +62,6 @@ _SCHUT_FACTOR = 0.5
 _ROBUST_STEPS = 10  # IRLS steps of the robust start
 _SUBSAMPLE_POINTS = 40  # points per pair in the first iterations
 _BLOCK_CELLS = 1 << 15  # cells (rows) per block: its temporaries stay in cache
-_THREADED_ROWS = 1 << 17  # evaluations of at least this many rows use threads
-_MAX_THREADS = 4
 # Corrections below this fraction of their standard deviation are negligible.
 _PRECISION_FRACTION = 0.01
 # Singular normal matrices (after equilibration to a unit diagonal): a
@@ -349,9 +344,8 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
         normal = (m * w[:, None, :]) @ m.transpose(0, 2, 1)
         return m, q_img, w, normal, np.max(abs_q, axis=1)
 
-    pool = _pool() if blocks.n_rows >= _THREADED_ROWS else None
-    results = list(pool.map(one, blocks.items)) if pool else [one(b) for b in blocks.items]
-    for block, (m, q_img, w, normal, max_q) in zip(blocks.items, results, strict=True):
+    for block in blocks.items:
+        m, q_img, w, normal, max_q = one(block)
         ev.normal[block.pairs] = normal[:, :5, :5]
         ev.gradient[block.pairs] = -normal[:, :5, 5]
         ev.max_parallax_mm[block.pairs] = max_q
@@ -361,14 +355,6 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
         ev.parallax_mm.append(q_img)
         ev.weight.append(w)
     return ev
-
-
-@functools.cache
-def _pool() -> ThreadPoolExecutor | None:
-    """Threads for the blocks of an evaluation (numpy releases the GIL in its
-    element-wise loops); none on a single core."""
-    workers = min(os.cpu_count() or 1, _MAX_THREADS)
-    return ThreadPoolExecutor(workers, "strip-aerotri") if workers > 1 else None
 
 
 def _solve_normals(
