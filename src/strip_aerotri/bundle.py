@@ -113,6 +113,24 @@ class BundleResult:
     n_observations : int
         Number of scalar observations: ``2 K`` image coordinates plus the
         control, GNSS and IMU components used.
+    gnss_residuals : ndarray, shape (M, 3)
+        ``S - S_gnss``: adjusted minus observed projection centre in metres
+        along the frame axes, NaN for components without a GNSS observation.
+    imu_residuals : ndarray, shape (M, 3)
+        ``log(R_imu.T @ R)`` in radians: the rotation vector about the
+        photo's own image x, y, z axes that takes the observed attitude to the
+        adjusted one (``R = R_imu @ exp([e]x)``; adjusted minus observed), NaN
+        for photos without an IMU observation.
+    gnss_residual_cofactor : ndarray, shape (M, 3, 3)
+        Cofactor matrix of the GNSS residuals, ``Q_vv = P^-1 - Q_SS`` in m^2
+        along the frame axes (``Q_SS`` the centre block of ``N^-1``); the
+        redundancy numbers are ``Q_vv[i, i] / sigma_i**2``.  NaN in the rows
+        and columns of components without GNSS, and everywhere when the
+        precision is not computed.
+    imu_residual_cofactor : ndarray, shape (M, 3, 3)
+        Cofactor matrix of the IMU residuals, ``P^-1 - J Q_dd J.T`` in rad^2
+        about the image axes (``J`` the inverse right Jacobian at the
+        solution, ``Q_dd`` the rotation block of ``N^-1``); NaN as above.
     """
 
     centres: FloatArray
@@ -129,6 +147,10 @@ class BundleResult:
     rotation_std: FloatArray
     history: FloatArray
     n_observations: int
+    gnss_residuals: FloatArray
+    imu_residuals: FloatArray
+    gnss_residual_cofactor: FloatArray
+    imu_residual_cofactor: FloatArray
 
 
 # ----------------------------------------------------------------------------
@@ -726,7 +748,7 @@ def _photo_covariance_blocks(
 
 
 def _precision(prob: _Problem, red: _Reduced) -> tuple[FloatArray, FloatArray]:
-    """Cofactor diagonals: photos (M, 6) from S^-1, points (P, 3) via the Schur structure.
+    """Cofactors: photo blocks (M, 6, 6) of S^-1, point diagonals (P, 3) via the Schur structure.
 
     ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1``; its 3 x 3 diagonal blocks need only
     the blocks of ``S^-1`` for photo pairs that share a point.
@@ -737,11 +759,22 @@ def _precision(prob: _Problem, red: _Reduced) -> tuple[FloatArray, FloatArray]:
     uniq, inverse = np.unique(keys, return_inverse=True)
     blocks = _photo_covariance_blocks(prob, red, uniq // m, uniq % m)
     diag_blocks = blocks[inverse[pa.size :]]
-    q_photo = np.diagonal(diag_blocks, axis1=1, axis2=2)
     y1, y2 = red.y[prob.pair_k1], red.y[prob.pair_k2]
     terms = np.swapaxes(y1, 1, 2) @ blocks[inverse[: pa.size]] @ y2
     q_point = red.v_inv + (prob.pair_point_sum @ terms.reshape(-1, 9)).reshape(-1, 3, 3)
-    return q_photo, np.diagonal(q_point, axis1=1, axis2=2)
+    return diag_blocks, np.diagonal(q_point, axis1=1, axis2=2)
+
+
+def _residual_cofactor(weight: FloatArray, q_hat: FloatArray) -> FloatArray:
+    """``P^-1 - Q_hat`` (M, 3, 3) for direct observations with diagonal weights (M, 3).
+
+    Rows and columns of unobserved components (weight 0) are NaN.
+    """
+    used = weight > 0.0
+    i3 = np.arange(3)
+    out = -np.array(q_hat, dtype=np.float64)
+    out[:, i3, i3] += 1.0 / np.where(used, weight, 1.0)
+    return np.where(used[:, :, None] & used[:, None, :], out, np.nan)
 
 
 # ----------------------------------------------------------------------------
@@ -859,7 +892,10 @@ def bundle_adjust(
     pairs that share a point; the 3 x 3 point blocks follow from
     ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1`` as one batched product over the
     pairs of observations.  Standard deviations are
-    ``sigma0 * sqrt(diag(Q))``.
+    ``sigma0 * sqrt(diag(Q))``.  The cofactors of the GNSS and IMU residuals
+    follow from the photos' own 6 x 6 blocks of ``Q`` at no further cost:
+    ``Q_vv = P^-1 - A Q A.T`` with ``A`` the identity (GNSS) or ``Jr^-1``
+    (IMU).
 
     Examples
     --------
@@ -1035,12 +1071,26 @@ def bundle_adjust(
 
     nan_p, nan_m = np.full((p, 3), np.nan), np.full((m, 3), np.nan)
     point_std, centre_std, rotation_std = nan_p, nan_m, nan_m.copy()
+    gnss_used = prob.gnss_weight > 0
+    imu_used = prob.imu_weight > 0
+    e_imu = _imu_residual(state.rotations, prob.imu_rot)
+    gnss_cofactor = np.full((m, 3, 3), np.nan)
+    imu_cofactor = np.full((m, 3, 3), np.nan)
     if compute_precision:
         final = _solve(prob, normals, 0.0)
-        q_photo, q_point = _precision(prob, final)
+        q_blocks, q_point = _precision(prob, final)
+        q_photo = np.diagonal(q_blocks, axis1=1, axis2=2)
         point_std = sigma0 * np.sqrt(q_point)
         centre_std = sigma0 * np.sqrt(q_photo[:, :3])
         rotation_std = sigma0 * np.sqrt(q_photo[:, 3:])
+        # Residual cofactors of the direct photo observations: exact from the
+        # photo blocks of N^-1 already at hand (no further solves).
+        if gnss_used.any():
+            gnss_cofactor = _residual_cofactor(prob.gnss_weight, q_blocks[:, :3, :3])
+        if imu_used.any():
+            j_imu = _right_jacobian_inv(e_imu)
+            q_imu = j_imu @ q_blocks[:, 3:, 3:] @ np.swapaxes(j_imu, 1, 2)
+            imu_cofactor = _residual_cofactor(prob.imu_weight, q_imu)
 
     control_used = prob.control_weight > 0
     control_residuals = np.where(control_used, state.points - prob.control_xyz, np.nan)
@@ -1059,4 +1109,8 @@ def bundle_adjust(
         rotation_std=rotation_std,
         history=np.asarray(history),
         n_observations=n_obs,
+        gnss_residuals=np.where(gnss_used, state.centres - prob.gnss_xyz, np.nan),
+        imu_residuals=np.where(imu_used, e_imu, np.nan),
+        gnss_residual_cofactor=gnss_cofactor,
+        imu_residual_cofactor=imu_cofactor,
     )

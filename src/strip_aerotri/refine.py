@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
-from .blunders import BlunderOptions, Rejection, robust_variance_factor
+from .blunders import BlunderOptions, Rejection, critical_value, robust_variance_factor
 from .bundle import BundleResult, bundle_adjust
 from .errors import GeometryError, StripAerotriWarning
 from .geodesy import GroundCRS, LocalTangentFrame, enu_rotation
@@ -52,7 +52,9 @@ from .rotation import matrix_from_opk, opk_from_matrix
 __all__ = [
     "FrameRefinement",
     "GnssCentres",
+    "GnssResiduals",
     "ImuAttitudes",
+    "ImuResiduals",
     "RefinedResult",
     "refine_bundle",
     "refine_frame",
@@ -307,6 +309,183 @@ class FrameRefinement:
     bundle: BundleResult
 
 
+def _rms(values: FloatArray) -> FloatArray:
+    """Root mean square over the rows (NaN for no rows)."""
+    if values.shape[0] == 0:
+        return np.full(values.shape[1:], np.nan)
+    return np.sqrt(np.mean(values**2, axis=0))
+
+
+def _max_abs(values: FloatArray) -> FloatArray:
+    """Largest absolute value over the rows (NaN for no rows)."""
+    if values.shape[0] == 0:
+        return np.full(values.shape[1:], np.nan)
+    return np.max(np.abs(values), axis=0)
+
+
+@dataclass(frozen=True)
+class GnssResiduals:
+    """What the GNSS projection centres did in the bundle refinement.
+
+    Residuals are **observed minus adjusted** projection centres in ground
+    metres along local **east, north, up at the adjusted centre** (true
+    north; the site X, Y, H axes for ``crs = "local"``).
+
+    Attributes
+    ----------
+    photo_ids : tuple of str, length G
+        Photos whose GNSS centre entered the adjustment, in strip order.
+    photo_index : ndarray of int, shape (G,)
+        Their positions in the strip.
+    n_given : int
+        Rows of the :class:`GnssCentres` given.
+    unmatched : tuple of str
+        Given photo ids that are not in the strip (ignored with a warning).
+    sigma_xy, sigma_z : ndarray, shape (G,)
+        A priori standard deviations, metres (horizontal, vertical).
+    residuals : ndarray, shape (G, 3)
+        Observed minus adjusted centre, m, along E, N, U.
+    redundancy : ndarray, shape (G, 3)
+        Redundancy numbers of the E, N, U components (``diag(Aᵀ Q_vv P A)``,
+        ``A`` the rotation east-north-up -> adjustment frame); NaN when the
+        precision was not computed.
+    w : ndarray, shape (G, 3)
+        Baarda's test of a blunder along E, N, U,
+        ``w = dᵀ P v / sqrt(dᵀ P Q_vv P d)`` with ``d`` the axis in the frame,
+        at the a priori sigmas (no variance factor); sign of the residual.
+        Equals ``v / (sigma sqrt(r))`` when ``d`` is a frame axis.  NaN when
+        the precision was not computed or the component has no redundancy.
+    critical : float
+        Critical ``|w|`` (Bonferroni over the ``3 G`` components, the
+        refinement's ``alpha``).
+    """
+
+    photo_ids: tuple[str, ...]
+    photo_index: IntArray
+    n_given: int
+    unmatched: tuple[str, ...]
+    sigma_xy: FloatArray
+    sigma_z: FloatArray
+    residuals: FloatArray
+    redundancy: FloatArray
+    w: FloatArray
+    critical: float
+
+    @property
+    def n_used(self) -> int:
+        """Number of GNSS centres in the adjustment (G)."""
+        return len(self.photo_ids)
+
+    @property
+    def plan(self) -> FloatArray:
+        """(G,) horizontal length of the residuals, m."""
+        return np.hypot(self.residuals[:, 0], self.residuals[:, 1])
+
+    @property
+    def rms(self) -> FloatArray:
+        """(3,) RMS of the E, N, U residuals, m (NaN without observations)."""
+        return _rms(self.residuals)
+
+    @property
+    def rms_plan(self) -> float:
+        """sqrt(RMS_E**2 + RMS_N**2), m."""
+        return float(np.hypot(self.rms[0], self.rms[1]))
+
+    @property
+    def max_plan(self) -> float:
+        """Largest horizontal residual, m."""
+        return float(np.max(self.plan, initial=0.0)) if self.n_used else float("nan")
+
+    @property
+    def max_up(self) -> float:
+        """Largest |U| residual, m."""
+        return float(_max_abs(self.residuals[:, 2]))
+
+    @property
+    def failed(self) -> BoolArray:
+        """(G,) some component's ``|w|`` exceeds ``critical`` (NaN w never fails)."""
+        return np.any(np.abs(self.w) > self.critical, axis=1)
+
+
+@dataclass(frozen=True)
+class ImuResiduals:
+    """What the IMU attitudes did in the bundle refinement.
+
+    Residuals are **observed minus adjusted** attitudes as the rotation
+    vector ``v = log(R_adj.T @ R_imu)`` about the adjusted photo's own image
+    axes x (along the flight), y (to its left), z (up), so that
+    ``R_imu = R_adj @ exp([v]x)``; the quantity the adjustment weights and
+    tests.  For a near-vertical photo ``v`` is close to the differences of
+    omega, phi, kappa, which are given as well.
+
+    Attributes
+    ----------
+    photo_ids : tuple of str, length G
+        Photos whose IMU attitude entered the adjustment, in strip order.
+    photo_index : ndarray of int, shape (G,)
+    n_given : int
+        Rows of the :class:`ImuAttitudes` given.
+    unmatched : tuple of str
+        Given photo ids that are not in the strip (ignored with a warning).
+    sigma : ndarray, shape (G,)
+        A priori standard deviation of each rotation component, radians.
+    residuals : ndarray, shape (G, 3)
+        ``v`` in radians, components about the image x, y, z axes.
+    opk_differences : ndarray, shape (G, 3)
+        Observed minus adjusted omega, phi, kappa (image -> local
+        east-north-up, the ``photos.csv`` convention), radians, wrapped to
+        [-pi, pi).
+    redundancy : ndarray, shape (G, 3)
+        Redundancy numbers of the components of ``v`` (NaN when the precision
+        was not computed).
+    w : ndarray, shape (G, 3)
+        Baarda's ``w = v / (sigma sqrt(r))`` at the a priori sigma.
+    critical : float
+        Critical ``|w|`` (Bonferroni over the ``3 G`` components).
+    """
+
+    photo_ids: tuple[str, ...]
+    photo_index: IntArray
+    n_given: int
+    unmatched: tuple[str, ...]
+    sigma: FloatArray
+    residuals: FloatArray
+    opk_differences: FloatArray
+    redundancy: FloatArray
+    w: FloatArray
+    critical: float
+
+    @property
+    def n_used(self) -> int:
+        """Number of IMU attitudes in the adjustment (G)."""
+        return len(self.photo_ids)
+
+    @property
+    def residuals_deg(self) -> FloatArray:
+        """(G, 3) residuals in degrees."""
+        return np.degrees(self.residuals)
+
+    @property
+    def opk_differences_deg(self) -> FloatArray:
+        """(G, 3) omega, phi, kappa differences in degrees."""
+        return np.degrees(self.opk_differences)
+
+    @property
+    def rms(self) -> FloatArray:
+        """(3,) RMS of the residual components, radians."""
+        return _rms(self.residuals)
+
+    @property
+    def max_abs(self) -> FloatArray:
+        """(3,) largest |component| of the residuals, radians."""
+        return _max_abs(self.residuals)
+
+    @property
+    def failed(self) -> BoolArray:
+        """(G,) some component's ``|w|`` exceeds ``critical``."""
+        return np.any(np.abs(self.w) > self.critical, axis=1)
+
+
 @dataclass(frozen=True)
 class RefinedResult:
     """A strip-method result refined by bundle adjustment.
@@ -365,6 +544,10 @@ class RefinedResult:
         and tests), ``total``.
     n_observations : int
         Scalar observations of the final adjustment.
+    gnss : GnssResiduals or None
+        Counts, residuals and tests of the GNSS centres (None without them).
+    imu : ImuResiduals or None
+        Counts, residuals and tests of the IMU attitudes (None without them).
     """
 
     photo_ids: tuple[str, ...]
@@ -396,6 +579,8 @@ class RefinedResult:
     warnings: tuple[str, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
     n_observations: int = 0
+    gnss: GnssResiduals | None = None
+    imu: ImuResiduals | None = None
 
     @property
     def photo_opk_degrees(self) -> FloatArray:
@@ -845,6 +1030,133 @@ def _expand(values: FloatArray, index: IntArray, n: int) -> FloatArray:
     return out
 
 
+# --------------------------------------------------------------------------- GNSS / IMU
+
+
+def _directional_tests(
+    v: FloatArray, q_vv: FloatArray, weight: FloatArray, axes: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Redundancy numbers and w-tests of direct observations along given axes.
+
+    Parameters
+    ----------
+    v : ndarray, shape (G, 3)
+        Observed minus adjusted, frame axes.
+    q_vv : ndarray, shape (G, 3, 3)
+        Cofactor matrices of the residuals, frame axes.
+    weight : ndarray, shape (G, 3)
+        Diagonal weights ``1 / sigma**2`` along the frame axes.
+    axes : ndarray, shape (G, 3, 3)
+        Columns: the test directions as unit vectors in the frame.
+
+    Returns
+    -------
+    redundancy, w : ndarray, shape (G, 3)
+        ``diag(Aᵀ Q_vv P A)`` and ``dᵀ P v / sqrt(dᵀ P Q_vv P d)`` per column
+        ``d`` of ``A``; w is NaN where the component has no redundancy.
+    """
+    pa = weight[:, :, None] * axes  # P A
+    redundancy = np.einsum("gia,gij,gja->ga", axes, q_vv, pa)
+    denominator = np.einsum("gia,gij,gja->ga", pa, q_vv, pa)
+    numerator = np.einsum("gia,gi->ga", pa, v)
+    ok = denominator > 1e-12 * np.einsum("gia,gia->ga", pa, axes)
+    w = np.where(ok, numerator / np.sqrt(np.where(ok, denominator, 1.0)), np.nan)
+    return redundancy, w
+
+
+def _gnss_residuals(
+    gnss: GnssCentres,
+    lookup: IntArray,
+    observed_frame: FloatArray,
+    sigma: FloatArray,
+    bundle: BundleResult,
+    enu2frame: FloatArray,
+    strip_ids: Sequence[str],
+    alpha: float,
+) -> GnssResiduals:
+    """Residuals and tests of the GNSS centres in the final adjustment.
+
+    ``lookup`` (given rows -> strip photo or -1), ``observed_frame`` (M, 3)
+    and ``sigma`` (M, 3) as passed to the bundle, ``enu2frame`` (M, 3, 3)
+    at the adjusted centres.
+    """
+    index = np.flatnonzero(np.all(np.isfinite(observed_frame), axis=1))
+    v_frame = -bundle.gnss_residuals[index]  # observed - adjusted
+    axes = enu2frame[index]
+    weight = 1.0 / sigma[index] ** 2
+    redundancy, w = _directional_tests(v_frame, bundle.gnss_residual_cofactor[index], weight, axes)
+    return GnssResiduals(
+        photo_ids=tuple(strip_ids[j] for j in index),
+        photo_index=index,
+        n_given=len(gnss.photo_ids),
+        unmatched=tuple(pid for pid, j in zip(gnss.photo_ids, lookup, strict=True) if j < 0),
+        sigma_xy=sigma[index, 0],
+        sigma_z=sigma[index, 2],
+        residuals=np.einsum("gia,gi->ga", axes, v_frame),
+        redundancy=redundancy,
+        w=w,
+        critical=critical_value(3 * index.size, alpha),
+    )
+
+
+def _imu_residuals(
+    imu: ImuAttitudes,
+    lookup: IntArray,
+    observed_frame: FloatArray,
+    sigma: FloatArray,
+    bundle: BundleResult,
+    opk_adjusted: FloatArray,
+    strip_ids: Sequence[str],
+    alpha: float,
+) -> ImuResiduals:
+    """Residuals and tests of the IMU attitudes in the final adjustment.
+
+    ``lookup`` (given rows -> strip photo or -1), ``observed_frame``
+    (M, 3, 3) and ``sigma`` (M, 3) as passed to the bundle;
+    ``opk_adjusted`` (M, 3) the adjusted omega, phi, kappa (image -> ENU).
+    """
+    m = observed_frame.shape[0]
+    index = np.flatnonzero(np.all(np.isfinite(observed_frame), axis=(1, 2)))
+    v = -bundle.imu_residuals[index]  # log(R_adj.T R_imu): observed - adjusted
+    ok = lookup >= 0
+    opk_observed = np.full((m, 3), np.nan)
+    opk_observed[lookup[ok]] = imu.opk[ok]
+    d_opk = opk_observed[index] - opk_adjusted[index]
+    d_opk = (d_opk + np.pi) % (2.0 * np.pi) - np.pi
+    weight = 1.0 / sigma[index] ** 2
+    axes = np.broadcast_to(np.eye(3), (index.size, 3, 3))
+    redundancy, w = _directional_tests(v, bundle.imu_residual_cofactor[index], weight, axes)
+    return ImuResiduals(
+        photo_ids=tuple(strip_ids[j] for j in index),
+        photo_index=index,
+        n_given=len(imu.photo_ids),
+        unmatched=tuple(pid for pid, j in zip(imu.photo_ids, lookup, strict=True) if j < 0),
+        sigma=sigma[index, 0],
+        residuals=v,
+        opk_differences=d_opk,
+        redundancy=redundancy,
+        w=w,
+        critical=critical_value(3 * index.size, alpha),
+    )
+
+
+def _failure_note(
+    what: str, photo_ids: tuple[str, ...], failed: BoolArray, w: FloatArray, critical: float
+) -> str | None:
+    """One warning naming the photos whose GNSS / IMU observation fails its test."""
+    rows = np.flatnonzero(failed)
+    if rows.size == 0:
+        return None
+    worst = np.nanmax(np.abs(w[rows]), axis=1)
+    rows = rows[np.argsort(-worst)]
+    listed = ", ".join(f"'{photo_ids[i]}' (|w| {np.nanmax(np.abs(w[i])):.1f})" for i in rows[:5])
+    more = f" and {rows.size - 5} more" if rows.size > 5 else ""
+    return (
+        f"bundle: {what} of photo(s) {listed}{more} fail the w-test (critical "
+        f"{critical:.2f}); they are tested, not rejected: check these observations"
+    )
+
+
 # --------------------------------------------------------------------------- driver
 
 
@@ -983,8 +1295,9 @@ def refine_bundle(
 
     # GNSS and IMU in the frame.
     gnss_xyz = gnss_sig = imu_rot = imu_sig = None
+    gnss_lookup = imu_lookup = np.zeros(0, dtype=np.intp)
     if gnss is not None:
-        j = _photo_lookup(gnss.photo_ids, obs.photo_ids, "GNSS centres")
+        j = gnss_lookup = _photo_lookup(gnss.photo_ids, obs.photo_ids, "GNSS centres")
         ok = j >= 0
         gnss_xyz = np.full((m, 3), np.nan)
         gnss_xyz[j[ok]] = frame.to_frame(gnss.xyz[ok])
@@ -992,7 +1305,7 @@ def refine_bundle(
         gnss_sig[j[ok], 0] = gnss_sig[j[ok], 1] = gnss.sigma_xy[ok]
         gnss_sig[j[ok], 2] = gnss.sigma_z[ok]
     if imu is not None:
-        j = _photo_lookup(imu.photo_ids, obs.photo_ids, "IMU attitudes")
+        j = imu_lookup = _photo_lookup(imu.photo_ids, obs.photo_ids, "IMU attitudes")
         ok = j >= 0
         imu_rot = np.full((m, 3, 3), np.nan)
         centres_for = result.photo_centres[j[ok]]
@@ -1062,8 +1375,22 @@ def refine_bundle(
 
     t0 = time.perf_counter()
     centres_crs = frame.from_frame(fr.centres)
-    rot_enu = np.swapaxes(frame.enu2frame(centres_crs), 1, 2) @ fr.rotations
+    enu2frame = frame.enu2frame(centres_crs)
+    rot_enu = np.swapaxes(enu2frame, 1, 2) @ fr.rotations
     opk = opk_from_matrix(rot_enu)
+
+    # What the GNSS centres and IMU attitudes did (tested, never rejected).
+    alpha = (blunders or BlunderOptions()).alpha
+    testing = (blunders or BlunderOptions()).testing
+    gnss_out = imu_out = None
+    if gnss_xyz is not None and gnss_sig is not None and gnss is not None:
+        gnss_out = _gnss_residuals(
+            gnss, gnss_lookup, gnss_xyz, gnss_sig, fr.bundle, enu2frame, obs.photo_ids, alpha
+        )
+    if imu_rot is not None and imu_sig is not None and imu is not None:
+        imu_out = _imu_residuals(
+            imu, imu_lookup, imu_rot, imu_sig, fr.bundle, opk, obs.photo_ids, alpha
+        )
 
     # Residuals at the control, given minus adjusted along E, N, H.
     adj_rows = adjusted_crs[idx]
@@ -1084,6 +1411,12 @@ def refine_bundle(
         dropped = [control.point_ids[r] for r in rows[~keep_rows & ~check]]
         notes.append(f"control point(s) {', '.join(map(repr, dropped[:5]))} left out")
     notes += [r.describe() for r in rejections]
+    if testing:
+        for what, out in (("GNSS centre(s)", gnss_out), ("IMU attitude(s)", imu_out)):
+            if out is not None:
+                note = _failure_note(what, out.photo_ids, out.failed, out.w, out.critical)
+                if note is not None:
+                    notes.append(note)
     return RefinedResult(
         photo_ids=obs.photo_ids,
         point_ids=obs.point_ids,
@@ -1114,4 +1447,6 @@ def refine_bundle(
         warnings=tuple(notes),
         timings={"frame": t_frame, "bundle": t_bundle, "total": time.perf_counter() - t_start},
         n_observations=fr.bundle.n_observations,
+        gnss=gnss_out,
+        imu=imu_out,
     )

@@ -1497,6 +1497,7 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
                 digits=[0, 1, 0, 3, 6, 3, 3],
             )
         )
+    out += _html_gnss_imu(report)
     out.append("<h2>Gross errors (data snooping, method.md §7)</h2>")
     out.append(
         _table(
@@ -1548,6 +1549,114 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
     out.append(
         _table(["stage", "seconds"], [[k, v] for k, v in report["timings_s"].items()], digits=3)
     )
+    return out
+
+
+def _html_gnss_imu(report: Mapping[str, Any]) -> list[str]:
+    """Section on the GNSS centres and IMU attitudes of the bundle refinement (or nothing)."""
+    bundle = report.get("bundle") or {}
+    gnss, imu = bundle.get("gnss"), bundle.get("imu")
+    if gnss is None and imu is None:
+        return []
+    out = [
+        "<h2>Bundle refinement: GNSS centres and IMU attitudes</h2>",
+        "<p>Residuals are observed − adjusted: GNSS projection centres in metres along "
+        "local east, north, up at the adjusted centre; IMU attitudes in degrees as the "
+        "small rotation about the photo's image axes x (along the flight), y (to its "
+        "left), z (up). r: redundancy numbers; w: Baarda's test at the a-priori σ, "
+        "critical value by Bonferroni over the components. These observations are "
+        "tested, never rejected.</p>",
+    ]
+
+    def largest(sec: Mapping[str, Any]) -> tuple[str]:
+        if sec["max_abs_w"] is None:
+            return ("– (precision not computed)",)
+        return (f"{sec['max_abs_w']:.2f} (photo {_esc(sec['max_abs_w_photo'])})",)
+
+    def counts(sec: Mapping[str, Any]) -> tuple[str]:
+        text = f"{sec['n_used']} / {sec['n_given']}"
+        if sec["n_unmatched"]:
+            text += f" ({sec['n_unmatched']} not in the strip: " + ", ".join(
+                _esc(p) for p in sec["unmatched_photos"][:10]
+            )
+            text += " …)" if sec["n_unmatched"] > 10 else ")"
+        return (text,)
+
+    rows: list[list[Any]] = []
+    if gnss is not None:
+        rows += [
+            ["GNSS centres used / given", counts(gnss)],
+            [
+                "GNSS σ a-priori plan / height [m] (median)",
+                (f"{_fmt(gnss['sigma_xy_m'])} / {_fmt(gnss['sigma_z_m'])}",),
+            ],
+            [
+                "GNSS RMS E / N / U [m]",
+                (" / ".join(_fmt(gnss[k]) for k in ("rms_e_m", "rms_n_m", "rms_u_m")),),
+            ],
+            [
+                "GNSS largest plan / |U| [m]",
+                (f"{_fmt(gnss['max_plan_m'])} / {_fmt(gnss['max_u_m'])}",),
+            ],
+            [
+                "GNSS largest |w| / critical",
+                (f"{largest(gnss)[0]} / {_fmt(gnss['critical_w'], 2)}",),
+            ],
+            ["GNSS centres failing the test", gnss["n_failed"]],
+        ]
+    if imu is not None:
+        rows += [
+            ["IMU attitudes used / given", counts(imu)],
+            ["IMU σ a-priori [°] (median)", (_fmt(imu["sigma_deg"], 4),)],
+            ["IMU RMS x / y / z [°]", (" / ".join(_fmt(v, 4) for v in imu["rms_deg"]),)],
+            [
+                "IMU largest |x| / |y| / |z| [°]",
+                (" / ".join(_fmt(v, 4) for v in imu["max_abs_deg"]),),
+            ],
+            ["IMU largest |w| / critical", (f"{largest(imu)[0]} / {_fmt(imu['critical_w'], 2)}",)],
+            ["IMU attitudes failing the test", imu["n_failed"]],
+        ]
+    out.append(_table(["item", "value"], rows, left=1))
+
+    def failed_cell(value: bool | None) -> tuple[str]:
+        if value is None:
+            return ("<span class='na'>–</span>",)
+        return ("<span class='fail'>FAIL</span>",) if value else ("<span class='pass'>ok</span>",)
+
+    if gnss is not None and gnss["photos"]:
+        out.append("<h3>GNSS centres (observed − adjusted, m)</h3>")
+        out.append(
+            _table(
+                ["photo", "dE", "dN", "dU", "plan", "σ plan", "σ height", "r E", "r N", "r U",
+                 "w E", "w N", "w U", "test"],
+                [
+                    [ph["photo"], ph["dE_m"], ph["dN_m"], ph["dU_m"], ph["plan_m"],
+                     ph["sigma_xy_m"], ph["sigma_z_m"], *ph["redundancy"], *ph["w"],
+                     failed_cell(ph["failed"])]
+                    for ph in gnss["photos"]
+                ],
+                left=1,
+                scroll=True,
+                digits=[0, 3, 3, 3, 3, 3, 3, 2, 2, 2, 2, 2, 2, 0],
+            )
+        )  # fmt: skip
+    if imu is not None and imu["photos"]:
+        out.append("<h3>IMU attitudes (observed − adjusted, degrees)</h3>")
+        out.append(
+            _table(
+                ["photo", "about x", "about y", "about z", "dω", "dφ", "dκ", "σ", "r x", "r y",
+                 "r z", "w x", "w y", "w z", "test"],
+                [
+                    [ph["photo"], ph["rx_deg"], ph["ry_deg"], ph["rz_deg"], ph["d_omega_deg"],
+                     ph["d_phi_deg"], ph["d_kappa_deg"], ph["sigma_deg"], *ph["redundancy"],
+                     *ph["w"], failed_cell(ph["failed"])]
+                    for ph in imu["photos"]
+                ],
+                left=1,
+                scroll=True,
+                digits=[0, 4, 4, 4, 4, 4, 4, 4, 2, 2, 2, 2, 2, 2, 0],
+            )
+        )  # fmt: skip
     return out
 
 
@@ -1616,8 +1725,124 @@ def _bundle(result: Any) -> dict[str, Any] | None:
         "n_observations": int(refined.n_observations),
         "control": _statistics(refined.control_statistics),
         "check": _statistics(refined.check_statistics),
-        "point_std_median_m": [_f(v) for v in np.nanmedian(refined.point_std, axis=0)],
-        "centre_std_median_m": [_f(v) for v in np.nanmedian(refined.centre_std, axis=0)],
+        "point_std_median_m": _column_medians(refined.point_std),
+        "centre_std_median_m": _column_medians(refined.centre_std),
         "rejections": [r.describe() for r in refined.rejections],
         "strip_method_check": _statistics(result.check_statistics),
+        "gnss": _bundle_gnss(getattr(refined, "gnss", None)),
+        "imu": _bundle_imu(getattr(refined, "imu", None)),
+    }
+
+
+def _column_medians(values: Any) -> list[float | None]:
+    """Median of the finite values of each column (None for a column without any)."""
+    a = np.asarray(values, dtype=np.float64)
+    out: list[float | None] = []
+    for col in a.T:
+        col = col[np.isfinite(col)]
+        out.append(_f(np.median(col)) if col.size else None)
+    return out
+
+
+def _largest_w(photo_ids: Sequence[str], w: np.ndarray) -> tuple[float | None, str | None]:
+    """Largest |w| over the photos and the photo it belongs to (None, None if none)."""
+    a = np.abs(np.asarray(w, dtype=np.float64))
+    if a.size == 0 or not np.isfinite(a).any():
+        return None, None
+    row_max = np.max(np.where(np.isfinite(a), a, -np.inf), axis=1)
+    i = int(np.argmax(row_max))
+    return float(row_max[i]), photo_ids[i]
+
+
+def _test_summary(out: Any) -> dict[str, Any]:
+    redundancy = np.asarray(out.redundancy, dtype=np.float64)
+    max_w, max_w_photo = _largest_w(out.photo_ids, out.w)
+    tested = bool(np.isfinite(np.asarray(out.w, dtype=np.float64)).any())
+    return {
+        "redundancy_sum": _f(np.sum(redundancy)) if redundancy.size else None,
+        "critical_w": _f(out.critical),
+        "max_abs_w": max_w,
+        "max_abs_w_photo": max_w_photo,
+        "n_failed": int(np.count_nonzero(out.failed)) if tested else None,
+    }
+
+
+def _bundle_gnss(out: Any) -> dict[str, Any] | None:
+    """GNSS centres in the bundle refinement: counts, residuals, tests (docs/outputs.md)."""
+    if out is None:
+        return None
+    v = np.asarray(out.residuals, dtype=np.float64)
+    rms = out.rms
+    tested = np.isfinite(np.asarray(out.w, dtype=np.float64)).any(axis=1)
+    failed = np.asarray(out.failed)
+    return {
+        "residual": "observed - adjusted",
+        "axes": "east, north, up at the adjusted projection centre (ground metres)",
+        "n_given": int(out.n_given),
+        "n_used": int(out.n_used),
+        "n_unmatched": len(out.unmatched),
+        "unmatched_photos": list(out.unmatched),
+        "sigma_xy_m": _f(np.median(out.sigma_xy)) if out.n_used else None,
+        "sigma_z_m": _f(np.median(out.sigma_z)) if out.n_used else None,
+        "rms_e_m": _f(rms[0]),
+        "rms_n_m": _f(rms[1]),
+        "rms_u_m": _f(rms[2]),
+        "rms_plan_m": _f(out.rms_plan),
+        "max_plan_m": _f(out.max_plan),
+        "max_u_m": _f(out.max_up),
+        **_test_summary(out),
+        "photos": [
+            {
+                "photo": pid,
+                "dE_m": _f(v[i, 0]),
+                "dN_m": _f(v[i, 1]),
+                "dU_m": _f(v[i, 2]),
+                "plan_m": _f(out.plan[i]),
+                "sigma_xy_m": _f(out.sigma_xy[i]),
+                "sigma_z_m": _f(out.sigma_z[i]),
+                "redundancy": np.asarray(out.redundancy[i], dtype=np.float64),
+                "w": np.asarray(out.w[i], dtype=np.float64),
+                "failed": bool(failed[i]) if tested[i] else None,
+            }
+            for i, pid in enumerate(out.photo_ids)
+        ],
+    }
+
+
+def _bundle_imu(out: Any) -> dict[str, Any] | None:
+    """IMU attitudes in the bundle refinement: counts, residuals, tests (docs/outputs.md)."""
+    if out is None:
+        return None
+    v = np.degrees(np.asarray(out.residuals, dtype=np.float64))
+    d_opk = np.degrees(np.asarray(out.opk_differences, dtype=np.float64))
+    tested = np.isfinite(np.asarray(out.w, dtype=np.float64)).any(axis=1)
+    failed = np.asarray(out.failed)
+    return {
+        "residual": "observed - adjusted",
+        "axes": "rotation vector about the photo's image axes x, y, z (x along the flight)",
+        "n_given": int(out.n_given),
+        "n_used": int(out.n_used),
+        "n_unmatched": len(out.unmatched),
+        "unmatched_photos": list(out.unmatched),
+        "sigma_deg": _f(np.degrees(np.median(out.sigma))) if out.n_used else None,
+        "rms_deg": np.degrees(out.rms),
+        "max_abs_deg": np.degrees(out.max_abs),
+        "rms_opk_deg": np.sqrt(np.mean(d_opk**2, axis=0)) if out.n_used else [None] * 3,
+        **_test_summary(out),
+        "photos": [
+            {
+                "photo": pid,
+                "rx_deg": _f(v[i, 0]),
+                "ry_deg": _f(v[i, 1]),
+                "rz_deg": _f(v[i, 2]),
+                "d_omega_deg": _f(d_opk[i, 0]),
+                "d_phi_deg": _f(d_opk[i, 1]),
+                "d_kappa_deg": _f(d_opk[i, 2]),
+                "sigma_deg": _f(np.degrees(out.sigma[i])),
+                "redundancy": np.asarray(out.redundancy[i], dtype=np.float64),
+                "w": np.asarray(out.w[i], dtype=np.float64),
+                "failed": bool(failed[i]) if tested[i] else None,
+            }
+            for i, pid in enumerate(out.photo_ids)
+        ],
     }
