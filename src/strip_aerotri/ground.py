@@ -341,15 +341,32 @@ def _deformation_rotation(deformation: DeformationResult, xyz: FloatArray) -> Fl
 
 
 def _index_of(ids: Sequence[str], names: Sequence[str]) -> IntArray:
-    """Index of each name in ids (-1 where absent), vectorised by sorting."""
-    ids_arr = np.asarray(ids, dtype=str)
-    names_arr = np.asarray(names, dtype=str)
-    if ids_arr.size == 0 or names_arr.size == 0:
-        return np.full(names_arr.shape[0], -1, dtype=np.intp)
-    order = np.argsort(ids_arr)
-    pos = np.clip(np.searchsorted(ids_arr[order], names_arr), 0, ids_arr.size - 1)
-    found = ids_arr[order][pos] == names_arr
-    return np.where(found, order[pos], -1).astype(np.intp)
+    """Index of each name in ids (-1 where absent).
+
+    One pass of set membership over ``ids`` (C-level ``map``), then a dict of
+    the few hits: `names` (control, line points) are few, `ids` (every
+    point of the strip) many, and sorting or hashing all of them costs 3×
+    more.
+    """
+    wanted = frozenset(names)
+    hits = np.flatnonzero(np.fromiter(map(wanted.__contains__, ids), bool, len(ids)))
+    found = {ids[i]: int(i) for i in hits}
+    return np.array([found.get(name, -1) for name in names], dtype=np.intp)
+
+
+def _plan_scale(model_xyz: FloatArray, work_xyz: FloatArray) -> float:
+    """Scale estimate (work metres per model unit): RMS plan spread of the
+    control about its centroid, work frame over model; 1 where undefined (the
+    similarity then names the degenerate control)."""
+    if model_xyz.shape[0] < 2:
+        return 1.0
+    model = model_xyz[:, :2] - model_xyz[:, :2].mean(axis=0)
+    work = work_xyz[:, :2] - work_xyz[:, :2].mean(axis=0)
+    spread_model = float(np.sum(model**2))
+    spread_work = float(np.sum(work**2))
+    if not (spread_model > 0.0 and np.isfinite(spread_work)):
+        return 1.0
+    return float(np.sqrt(spread_work / spread_model))
 
 
 def _azimuth_step(vector_work: FloatArray) -> float:
@@ -363,11 +380,10 @@ def _image_scale(strip: StripModel) -> tuple[float, float]:
     per mm), and the height-to-base ratio; medians over the strip's points."""
     c = strip.observations.principal_distance
     model_centres = strip.centres[strip.model_photo_positions]
-    left = model_centres[strip.model]
-    distance = np.linalg.norm(strip.model_points - left, axis=1)
-    model_per_mm = float(np.median(distance)) / c
+    ray = strip.model_points - model_centres[strip.model]
+    model_per_mm = float(np.median(np.sqrt(np.einsum("ij,ij->i", ray, ray)))) / c
     base = float(np.median(np.linalg.norm(np.diff(model_centres, axis=0), axis=1)))
-    height_to_base = float(np.median(np.abs(strip.model_points[:, 2] - left[:, 2]))) / base
+    height_to_base = float(np.median(np.abs(ray[:, 2]))) / base
     return model_per_mm, height_to_base
 
 
@@ -484,6 +500,11 @@ def adjust_to_ground(
     # (passes, azimuth restarts and re-solves after a rejection change the
     # problem only a little; the start changes iterations, not the solution).
     last_fit: list = []
+    # The expected photogrammetric sigmas weight the control with the image
+    # scale of a first estimate (strip against control spread in plan), the
+    # same in every fit: a fit repeated in a frame turned only in azimuth is
+    # then the same fit turned (one azimuth pass), and re-solves keep it.
+    kept: dict = {"azimuth": 0.0}
 
     def start_in(work) -> SimilarityTransform | None:
         if not last_fit:
@@ -502,12 +523,19 @@ def adjust_to_ground(
         active = use_xy | use_z
         act_ids = [p for p, a in zip(ids, active, strict=True) if a]
         guess_ = guess.copy()
-        azimuth = 0.0
+        azimuth = kept["azimuth"]
         work = _make_work(route, crs, guess_[active], azimuth)
-        exp_xy, exp_z = sig_xy_ctrl, sig_h_ctrl
         converged, n_pass = False, 0
         for n_pass in range(1, _MAX_PASSES + 1):  # noqa: B007 (reported as passes)
             target = work.to_work(guess_)
+            if "metres_per_mm" not in kept:
+                plan = active & use_xy
+                kept["metres_per_mm"] = model_per_mm * _plan_scale(strip_xyz[plan], target[plan])
+            metres_per_mm = kept["metres_per_mm"]
+            sigma_plan = sigma_image_mm * metres_per_mm
+            sigma_height = sigma_plan * h_to_b
+            exp_xy = np.hypot(sig_xy_ctrl, sigma_plan)
+            exp_z = np.hypot(sig_h_ctrl, sigma_height)
             sim = fit_similarity(
                 strip_xyz[active],
                 target[active],
@@ -519,16 +547,12 @@ def adjust_to_ground(
                 start=start_in(work),
             )
             last_fit[:] = [(sim.transform, work)]
-            metres_per_mm = model_per_mm * sim.transform.scale
-            sigma_plan = sigma_image_mm * metres_per_mm
-            sigma_height = sigma_plan * h_to_b
-            exp_xy = np.hypot(sig_xy_ctrl, sigma_plan)
-            exp_z = np.hypot(sig_h_ctrl, sigma_height)
             axis = sim.transform.apply(np.vstack([first, last]))
             step = _azimuth_step(axis[1] - axis[0])
             if abs(step) > 1e-9:
                 # Re-express in a frame whose X runs along the strip and start over.
                 azimuth += step
+                kept["azimuth"] = azimuth
                 work = _make_work(route, crs, guess_[active], azimuth)
                 continue
             model_xyz = sim.transform.apply(strip_xyz)
