@@ -189,11 +189,8 @@ def pair_rows(
     position = np.full(observations.n_photos, -1, dtype=np.int64)
     position[photo_index] = np.arange(n_seq)
     t = position[observations.photo]
-    rows = np.flatnonzero(t >= 0)
-    if rows.size == t.size:
-        key = observations.point * np.int64(n_seq) + t
-    else:
-        key = observations.point[rows] * np.int64(n_seq) + t[rows]
+    rows = np.flatnonzero(t >= 0)  # observations on the photos of the sequence
+    key = observations.point[rows] * np.int64(n_seq) + t[rows]
     # Sorted by (point, position in the strip), a point seen on photos t and
     # t + 1 has consecutive keys.  Input grouped by photo is a few long sorted
     # runs in this order, which the stable sort (timsort) merges quickly.
@@ -205,15 +202,11 @@ def pair_rows(
     hit, model = hit[keep], model[keep]
     by_model = np.argsort(model, kind="stable")  # then by point: already so
     hit = hit[by_model]
-    left = order[hit]
-    right = order[hit + 1]
-    if rows.size != t.size:
-        left, right = rows[left], rows[right]
     return (
         model[by_model].astype(np.intp),
         (key[hit] // n_seq).astype(np.intp),
-        left,
-        right,
+        rows[order[hit]],
+        rows[order[hit + 1]],
     )
 
 

@@ -369,6 +369,17 @@ def _plan_scale(model_xyz: FloatArray, work_xyz: FloatArray) -> float:
     return float(np.sqrt(spread_work / spread_model))
 
 
+def _carried(sim: SimilarityTransform, work_from, work_to) -> SimilarityTransform | None:
+    """A strip -> work similarity carried from one work frame to another (the
+    map between the frames from four probe points); None if it cannot be."""
+    if work_to is work_from:
+        return sim
+    mapped = work_to.to_work(work_from.from_work(_FRAME_PROBE_M))
+    if not np.all(np.isfinite(mapped)):
+        return None
+    return similarity_from_points(_FRAME_PROBE_M, mapped).compose(sim)
+
+
 def _azimuth_step(vector_work: FloatArray) -> float:
     """Angle to add to A0 so that X points along a work-frame vector (Y is left,
     i.e. counter-clockwise, while azimuth is clockwise)."""
@@ -495,47 +506,37 @@ def adjust_to_ground(
     sig_h_ctrl = control.sigma_h[rows]
     first, last = strip.centres[0], strip.centres[-1]
     model_per_mm, h_to_b = _image_scale(strip)
-    sigma_image_mm = float(np.median(obs.sigma))
-    # The last similarity and its work frame: start values of the next fit
-    # (passes, azimuth restarts and re-solves after a rejection change the
-    # problem only a little; the start changes iterations, not the solution).
-    last_fit: list = []
-    # The expected photogrammetric sigmas weight the control with the image
-    # scale of a first estimate (strip against control spread in plan), the
-    # same in every fit: a fit repeated in a frame turned only in azimuth is
-    # then the same fit turned (one azimuth pass), and re-solves keep it.
-    kept: dict = {"azimuth": 0.0}
+    # The expected photogrammetric sigmas weight the control with one first
+    # estimate of the image scale (control spread in plan, work frame over
+    # strip), the same in every fit: a fit repeated in a frame turned only in
+    # azimuth is then the same fit turned, so the azimuth pass is not repeated.
+    target0 = _make_work(route, crs, guess[active], 0.0).to_work(guess)
+    metres_per_mm = model_per_mm * _plan_scale(strip_xyz[use_xy], target0[use_xy])
+    sigma_plan = float(np.median(obs.sigma)) * metres_per_mm
+    sigma_height = sigma_plan * h_to_b
+    exp_xy = np.hypot(sig_xy_ctrl, sigma_plan)
+    exp_z = np.hypot(sig_h_ctrl, sigma_height)
 
-    def start_in(work) -> SimilarityTransform | None:
-        if not last_fit:
-            return None
-        sim_prev, work_prev = last_fit[0]
-        if work is work_prev:
-            return sim_prev
-        # the map between two work frames, from four probe points
-        mapped = work.to_work(work_prev.from_work(_FRAME_PROBE_M))
-        if not np.all(np.isfinite(mapped)):
-            return None
-        return similarity_from_points(_FRAME_PROBE_M, mapped).compose(sim_prev)
+    def solve(
+        use_xy: np.ndarray,
+        use_z: np.ndarray,
+        line_keep: list[np.ndarray],
+        previous: _Solution | None = None,
+    ):
+        """Similarity and polynomial with the plan/height iteration (passes).
 
-    def solve(use_xy: np.ndarray, use_z: np.ndarray, line_keep: list[np.ndarray]):
-        """Similarity and polynomial with the plan/height iteration (passes)."""
+        A re-solve after a rejection starts from the ``previous`` solution's
+        azimuth and similarity; each fit starts from the last one carried
+        into the current frame (fewer iterations, the same solution)."""
         active = use_xy | use_z
         act_ids = [p for p, a in zip(ids, active, strict=True) if a]
         guess_ = guess.copy()
-        azimuth = kept["azimuth"]
+        azimuth = 0.0 if previous is None else previous.azimuth
+        last_fit = None if previous is None else (previous.sim.transform, previous.work)
         work = _make_work(route, crs, guess_[active], azimuth)
         converged, n_pass = False, 0
         for n_pass in range(1, _MAX_PASSES + 1):  # noqa: B007 (reported as passes)
             target = work.to_work(guess_)
-            if "metres_per_mm" not in kept:
-                plan = active & use_xy
-                kept["metres_per_mm"] = model_per_mm * _plan_scale(strip_xyz[plan], target[plan])
-            metres_per_mm = kept["metres_per_mm"]
-            sigma_plan = sigma_image_mm * metres_per_mm
-            sigma_height = sigma_plan * h_to_b
-            exp_xy = np.hypot(sig_xy_ctrl, sigma_plan)
-            exp_z = np.hypot(sig_h_ctrl, sigma_height)
             sim = fit_similarity(
                 strip_xyz[active],
                 target[active],
@@ -544,15 +545,14 @@ def adjust_to_ground(
                 sigma_xy=exp_xy[active],
                 sigma_z=exp_z[active],
                 point_ids=act_ids,
-                start=start_in(work),
+                start=None if last_fit is None else _carried(*last_fit, work),
             )
-            last_fit[:] = [(sim.transform, work)]
+            last_fit = (sim.transform, work)
             axis = sim.transform.apply(np.vstack([first, last]))
             step = _azimuth_step(axis[1] - axis[0])
             if abs(step) > 1e-9:
                 # Re-express in a frame whose X runs along the strip and start over.
                 azimuth += step
-                kept["azimuth"] = azimuth
                 work = _make_work(route, crs, guess_[active], azimuth)
                 continue
             model_xyz = sim.transform.apply(strip_xyz)
@@ -610,9 +610,10 @@ def adjust_to_ground(
     line_keep = [np.ones(len(li), dtype=bool) for li in line_index]
     rejections: list[Rejection] = []
     n_control_obs = int(2 * use_xy.sum() + use_z.sum())
+    sol = None
     while True:
         try:
-            sol = solve(use_xy_now, use_z_now, line_keep)
+            sol = solve(use_xy_now, use_z_now, line_keep, sol)
         except GeometryError as exc:
             if not rejections:
                 raise

@@ -22,8 +22,6 @@ __all__ = [
     "intersect_normal",
 ]
 
-_J = np.array([0.0, 1.0, 0.0])
-
 
 class IntersectionMethod(str, Enum):
     """Space intersection formula: J(12) midpoint or B(138) normal case."""

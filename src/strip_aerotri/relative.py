@@ -333,7 +333,7 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
     """
     ev = _Evaluation(state.n_pairs, blocks)
 
-    def one(block):
+    for block in blocks.items:
         m = block.design
         q_img = state.terms(block.pairs, block, m)
         abs_q = np.abs(q_img)
@@ -342,13 +342,9 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
             abs_q = np.where(np.isfinite(abs_q), abs_q, np.inf)
             w = w / (1.0 + (abs_q / (2.385 * _robust_scale(abs_q, block))) ** 2)
         normal = (m * w[:, None, :]) @ m.transpose(0, 2, 1)
-        return m, q_img, w, normal, np.max(abs_q, axis=1)
-
-    for block in blocks.items:
-        m, q_img, w, normal, max_q = one(block)
         ev.normal[block.pairs] = normal[:, :5, :5]
         ev.gradient[block.pairs] = -normal[:, :5, 5]
-        ev.max_parallax_mm[block.pairs] = max_q
+        ev.max_parallax_mm[block.pairs] = np.max(abs_q, axis=1)
         ev.sum_wqq[block.pairs] = normal[:, 5, 5]
         ev.n_rows[block.pairs] = block.counts
         ev.design.append(m)
