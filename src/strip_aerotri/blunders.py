@@ -22,8 +22,13 @@ automatically and reproducibly:
 
 Stages: ``relative_orientation`` (y-parallaxes), ``tie_points``
 (differences between the determinations of a point in consecutive models),
-``control`` (control deviations after the similarity and polynomial fit) and
-``straight_line`` (line points).
+``control`` (control deviations after the similarity and polynomial fit, and
+in the bundle refinement), ``straight_line`` (line points), and in the bundle
+refinement (:mod:`strip_aerotri.refine`) ``bundle`` (image coordinates),
+``gnss`` (GNSS projection centres, tested along east, north, up, rejected as
+a whole) and ``imu`` (IMU attitudes, tested about the image axes, rejected as
+a whole).  The bundle refinement takes the single largest ``|w| / critical``
+over its four stages in each round.
 """
 
 from __future__ import annotations
@@ -43,7 +48,15 @@ __all__ = [
     "robust_variance_factor",
 ]
 
-STAGES = ("relative_orientation", "tie_points", "control", "straight_line", "bundle")
+STAGES = (
+    "relative_orientation",
+    "tie_points",
+    "control",
+    "straight_line",
+    "bundle",
+    "gnss",
+    "imu",
+)
 
 
 @dataclass(frozen=True)
@@ -114,12 +127,17 @@ class Rejection:
     stage : str
         One of :data:`STAGES`.
     point : str
+        The point id; ``""`` for a GNSS centre or an IMU attitude.
     photos : tuple of str
-        The photos involved (a pair, the photos of a model pair, or none for
-        ground control).
+        The photos involved (a pair, the photos of a model pair, the photo
+        of a GNSS centre or IMU attitude, or none for ground control).
     component : str
         What was tested: ``"y-parallax"``, ``"X"``/``"Y"``/``"Z"`` of a tie
-        difference, ``"plan"``/``"height"`` of a control point, ``"line"``.
+        difference, ``"plan"``/``"height"`` of a control point, ``"line"``,
+        ``"x"``/``"y"`` of an image coordinate, ``"E"``/``"N"``/``"U"`` of a
+        GNSS centre (the component of the largest ``|w|``), ``"about x"``/
+        ``"about y"``/``"about z"`` of an IMU attitude (rotation about the
+        photo's image axis, unit ``"deg"``).
     residual : float
         The residual, in ``unit``.
     unit : str

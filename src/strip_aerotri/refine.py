@@ -7,8 +7,8 @@ initial values of the simultaneous least-squares adjustment of all image
 coordinates by the collinearity equations (:func:`strip_aerotri.bundle.bundle_adjust`),
 with the ground control and, optionally, GNSS projection centres and IMU
 attitudes as weighted observations; gross errors are searched for by data
-snooping on the image and control residuals, one rejection (or a few
-well-separated ones) at a time.
+snooping on the image, control, GNSS and IMU residuals, one rejection (or a
+few well-separated image rays) at a time.
 
 Frame
 -----
@@ -41,13 +41,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
-from .blunders import BlunderOptions, Rejection, critical_value, robust_variance_factor
+from .blunders import BlunderOptions, Rejection, robust_variance_factor
 from .bundle import BundleResult, bundle_adjust
 from .errors import GeometryError, StripAerotriWarning
 from .geodesy import GroundCRS, LocalTangentFrame, enu_rotation
 from .observations import ControlPoints, ImageObservations
 from .pipeline import AccuracyStatistics, StripResult
-from .rotation import matrix_from_opk, opk_from_matrix
+from .rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
 
 __all__ = [
     "FrameRefinement",
@@ -64,6 +64,9 @@ __all__ = [
 IMAGE_STAGE = "bundle"
 #: Stage name of the control tests (shared with the ground stage's options).
 CONTROL_STAGE = "control"
+#: Stage names of the GNSS centre and IMU attitude tests.
+GNSS_STAGE = "gnss"
+IMU_STAGE = "imu"
 #: Passes for plan / height control in a curved frame stop below this change (m).
 _PASS_TOLERANCE_M = 1e-6
 _MAX_PASSES = 4
@@ -282,6 +285,11 @@ class FrameRefinement:
     rejections : tuple of Rejection
     bundle : BundleResult
         The final adjustment (on the used points and observations only).
+    gnss_used, imu_used : ndarray of bool, shape (M,)
+        Photos whose GNSS centre / IMU attitude entered the final adjustment.
+    gnss_rejected, imu_rejected : ndarray of bool, shape (M,)
+        Photos whose GNSS centre / IMU attitude was rejected by the tests
+        (in this call or, through ``gnss_used`` / ``imu_used``, before).
     """
 
     centres: FloatArray
@@ -307,6 +315,10 @@ class FrameRefinement:
     converged: bool
     rejections: tuple[Rejection, ...]
     bundle: BundleResult
+    gnss_used: BoolArray = field(default_factory=lambda: np.zeros(0, bool))
+    gnss_rejected: BoolArray = field(default_factory=lambda: np.zeros(0, bool))
+    imu_used: BoolArray = field(default_factory=lambda: np.zeros(0, bool))
+    imu_rejected: BoolArray = field(default_factory=lambda: np.zeros(0, bool))
 
 
 def _rms(values: FloatArray) -> FloatArray:
@@ -323,18 +335,73 @@ def _max_abs(values: FloatArray) -> FloatArray:
     return np.max(np.abs(values), axis=0)
 
 
+class _PhotoTests:
+    """Counts and test verdicts shared by :class:`GnssResiduals` and :class:`ImuResiduals`.
+
+    The subclasses are frozen dataclasses with the fields ``photo_ids``,
+    ``residuals`` (G, 3), ``w`` (G, 3), ``critical`` and ``rejected`` (G,).
+    """
+
+    photo_ids: tuple[str, ...]
+    residuals: FloatArray
+    w: FloatArray
+    critical: float
+    rejected: BoolArray
+
+    def _normalise_rejected(self) -> None:
+        g = len(self.photo_ids)
+        rejected = np.zeros(g, bool) if self.rejected is None else np.array(self.rejected, bool)
+        if rejected.shape != (g,):
+            raise ValueError(f"Expected `rejected` to have shape {(g,)}, got {rejected.shape}")
+        object.__setattr__(self, "rejected", rejected)
+
+    @property
+    def used(self) -> BoolArray:
+        """(G,) the observation is in the final adjustment (``~rejected``)."""
+        return ~self.rejected
+
+    @property
+    def n_used(self) -> int:
+        """Number of observations in the final adjustment (G minus the rejected)."""
+        return int(np.count_nonzero(~self.rejected))
+
+    @property
+    def n_rejected(self) -> int:
+        """Number of observations rejected by the data snooping."""
+        return int(np.count_nonzero(self.rejected))
+
+    @property
+    def failed(self) -> BoolArray:
+        """(G,) some component's ``|w|`` exceeds ``critical`` (NaN w never fails)."""
+        return np.any(np.abs(self.w) > self.critical, axis=1)
+
+    @property
+    def _used_residuals(self) -> FloatArray:
+        return self.residuals[~self.rejected]
+
+
 @dataclass(frozen=True)
-class GnssResiduals:
+class GnssResiduals(_PhotoTests):
     """What the GNSS projection centres did in the bundle refinement.
 
     Residuals are **observed minus adjusted** projection centres in ground
     metres along local **east, north, up at the adjusted centre** (true
     north; the site X, Y, H axes for ``crs = "local"``).
 
+    Rejected observations (data snooping stages ``"gnss"`` / ``"imu"`` of
+    :func:`refine_bundle`) stay listed with ``rejected`` True: their
+    residuals are still observed minus adjusted (how far the final solution
+    is from them), their ``redundancy`` and ``w`` are NaN (an observation
+    outside the adjustment has no redundancy number; its test value at the
+    time of rejection is in the :class:`~strip_aerotri.blunders.Rejection`
+    record).  The summary statistics (``rms``, ``max_*``) are over the used
+    observations only.
+
     Attributes
     ----------
     photo_ids : tuple of str, length G
-        Photos whose GNSS centre entered the adjustment, in strip order.
+        Photos of the strip with a GNSS centre (used or rejected), in strip
+        order.
     photo_index : ndarray of int, shape (G,)
         Their positions in the strip.
     n_given : int
@@ -348,16 +415,21 @@ class GnssResiduals:
     redundancy : ndarray, shape (G, 3)
         Redundancy numbers of the E, N, U components (``diag(Aᵀ Q_vv P A)``,
         ``A`` the rotation east-north-up -> adjustment frame); NaN when the
-        precision was not computed.
+        precision was not computed and for rejected centres.
     w : ndarray, shape (G, 3)
         Baarda's test of a blunder along E, N, U,
         ``w = dᵀ P v / sqrt(dᵀ P Q_vv P d)`` with ``d`` the axis in the frame,
         at the a priori sigmas (no variance factor); sign of the residual.
         Equals ``v / (sigma sqrt(r))`` when ``d`` is a frame axis.  NaN when
-        the precision was not computed or the component has no redundancy.
+        the precision was not computed, the component has no redundancy, or
+        the centre was rejected.
     critical : float
-        Critical ``|w|`` (Bonferroni over the ``3 G`` components, the
-        refinement's ``alpha``).
+        Critical ``|w|`` of stage ``"gnss"``: Bonferroni over the
+        ``3 n_used`` components at the refinement's ``alpha``, or the value
+        set in ``BlunderOptions.critical_values``.
+    rejected : ndarray of bool, shape (G,)
+        The centre was rejected (all three components left out); default
+        none.
     """
 
     photo_ids: tuple[str, ...]
@@ -370,45 +442,40 @@ class GnssResiduals:
     redundancy: FloatArray
     w: FloatArray
     critical: float
+    rejected: BoolArray = None  # type: ignore[assignment]
 
-    @property
-    def n_used(self) -> int:
-        """Number of GNSS centres in the adjustment (G)."""
-        return len(self.photo_ids)
+    def __post_init__(self) -> None:
+        self._normalise_rejected()
 
     @property
     def plan(self) -> FloatArray:
-        """(G,) horizontal length of the residuals, m."""
+        """(G,) horizontal length of the residuals, m (rejected centres included)."""
         return np.hypot(self.residuals[:, 0], self.residuals[:, 1])
 
     @property
     def rms(self) -> FloatArray:
-        """(3,) RMS of the E, N, U residuals, m (NaN without observations)."""
-        return _rms(self.residuals)
+        """(3,) RMS of the E, N, U residuals of the used centres, m (NaN without any)."""
+        return _rms(self._used_residuals)
 
     @property
     def rms_plan(self) -> float:
-        """sqrt(RMS_E**2 + RMS_N**2), m."""
+        """sqrt(RMS_E**2 + RMS_N**2) of the used centres, m."""
         return float(np.hypot(self.rms[0], self.rms[1]))
 
     @property
     def max_plan(self) -> float:
-        """Largest horizontal residual, m."""
-        return float(np.max(self.plan, initial=0.0)) if self.n_used else float("nan")
+        """Largest horizontal residual of the used centres, m."""
+        used = self._used_residuals
+        return float(np.max(np.hypot(used[:, 0], used[:, 1]))) if used.size else float("nan")
 
     @property
     def max_up(self) -> float:
-        """Largest |U| residual, m."""
-        return float(_max_abs(self.residuals[:, 2]))
-
-    @property
-    def failed(self) -> BoolArray:
-        """(G,) some component's ``|w|`` exceeds ``critical`` (NaN w never fails)."""
-        return np.any(np.abs(self.w) > self.critical, axis=1)
+        """Largest |U| residual of the used centres, m."""
+        return float(_max_abs(self._used_residuals[:, 2]))
 
 
 @dataclass(frozen=True)
-class ImuResiduals:
+class ImuResiduals(_PhotoTests):
     """What the IMU attitudes did in the bundle refinement.
 
     Residuals are **observed minus adjusted** attitudes as the rotation
@@ -418,10 +485,20 @@ class ImuResiduals:
     tests.  For a near-vertical photo ``v`` is close to the differences of
     omega, phi, kappa, which are given as well.
 
+    Rejected observations (data snooping stages ``"gnss"`` / ``"imu"`` of
+    :func:`refine_bundle`) stay listed with ``rejected`` True: their
+    residuals are still observed minus adjusted (how far the final solution
+    is from them), their ``redundancy`` and ``w`` are NaN (an observation
+    outside the adjustment has no redundancy number; its test value at the
+    time of rejection is in the :class:`~strip_aerotri.blunders.Rejection`
+    record).  The summary statistics (``rms``, ``max_*``) are over the used
+    observations only.
+
     Attributes
     ----------
     photo_ids : tuple of str, length G
-        Photos whose IMU attitude entered the adjustment, in strip order.
+        Photos of the strip with an IMU attitude (used or rejected), in strip
+        order.
     photo_index : ndarray of int, shape (G,)
     n_given : int
         Rows of the :class:`ImuAttitudes` given.
@@ -437,11 +514,15 @@ class ImuResiduals:
         [-pi, pi).
     redundancy : ndarray, shape (G, 3)
         Redundancy numbers of the components of ``v`` (NaN when the precision
-        was not computed).
+        was not computed and for rejected attitudes).
     w : ndarray, shape (G, 3)
-        Baarda's ``w = v / (sigma sqrt(r))`` at the a priori sigma.
+        Baarda's ``w = v / (sigma sqrt(r))`` at the a priori sigma (NaN as
+        ``redundancy``).
     critical : float
-        Critical ``|w|`` (Bonferroni over the ``3 G`` components).
+        Critical ``|w|`` of stage ``"imu"``: Bonferroni over the ``3 n_used``
+        components, or the value set in ``BlunderOptions.critical_values``.
+    rejected : ndarray of bool, shape (G,)
+        The attitude was rejected (all three angles left out); default none.
     """
 
     photo_ids: tuple[str, ...]
@@ -454,11 +535,10 @@ class ImuResiduals:
     redundancy: FloatArray
     w: FloatArray
     critical: float
+    rejected: BoolArray = None  # type: ignore[assignment]
 
-    @property
-    def n_used(self) -> int:
-        """Number of IMU attitudes in the adjustment (G)."""
-        return len(self.photo_ids)
+    def __post_init__(self) -> None:
+        self._normalise_rejected()
 
     @property
     def residuals_deg(self) -> FloatArray:
@@ -472,18 +552,13 @@ class ImuResiduals:
 
     @property
     def rms(self) -> FloatArray:
-        """(3,) RMS of the residual components, radians."""
-        return _rms(self.residuals)
+        """(3,) RMS of the residual components of the used attitudes, radians."""
+        return _rms(self._used_residuals)
 
     @property
     def max_abs(self) -> FloatArray:
-        """(3,) largest |component| of the residuals, radians."""
-        return _max_abs(self.residuals)
-
-    @property
-    def failed(self) -> BoolArray:
-        """(G,) some component's ``|w|`` exceeds ``critical``."""
-        return np.any(np.abs(self.w) > self.critical, axis=1)
+        """(3,) largest |component| of the residuals of the used attitudes, radians."""
+        return _max_abs(self._used_residuals)
 
 
 @dataclass(frozen=True)
@@ -679,6 +754,9 @@ def refine_frame(
     compute_precision: bool = True,
     observation_used: ArrayLike | None = None,
     control_used: ArrayLike | None = None,
+    gnss_axes: ArrayLike | None = None,
+    gnss_used: ArrayLike | None = None,
+    imu_used: ArrayLike | None = None,
 ) -> FrameRefinement:
     """Bundle adjustment in a Cartesian frame with data snooping.
 
@@ -703,7 +781,8 @@ def refine_frame(
         Their standard deviations, radians.
     blunders : BlunderOptions, optional
         ``action``, ``alpha``, critical values (stages ``"bundle"`` for the
-        image coordinates, ``"control"`` for the control), ``max_fraction``,
+        image coordinates, ``"control"`` for the control, ``"gnss"`` and
+        ``"imu"`` for the GNSS centres and IMU attitudes), ``max_fraction``,
         excluded points and observations.
     max_iterations : int
         Per adjustment.
@@ -713,6 +792,13 @@ def refine_frame(
         Observations to start with (default all but the excluded ones).
     control_used : array_like of bool, shape (P, 3), optional
         Control components to start with (default all given).
+    gnss_axes : array_like, shape (M, 3, 3), optional
+        Directions along which the GNSS centres are tested, as the columns
+        of a rotation east-north-up -> frame at each centre (the components
+        are named ``"E"``, ``"N"``, ``"U"`` in the rejections); default the
+        frame axes.
+    gnss_used, imu_used : array_like of bool, shape (M,), optional
+        GNSS centres / IMU attitudes to start with (default all given).
 
     Returns
     -------
@@ -722,7 +808,8 @@ def refine_frame(
     ------
     GeometryError
         As :func:`~strip_aerotri.bundle.bundle_adjust`, or more than
-        ``max_fraction`` of the image observations or of the control fail.
+        ``max_fraction`` of the image observations, of the control, of the
+        GNSS centres or of the IMU attitudes fail.
 
     Notes
     -----
@@ -747,8 +834,18 @@ def refine_frame(
     the redundancy).  On the 12-photo film strip the approximation is within
     0.1 of the exact numbers (tests/test_refine.py).
 
-    Rejection: the largest ``|w| / critical`` is taken.  A control component
-    is rejected alone (a plan point loses X and Y together).  Image
+    *GNSS centres and IMU attitudes* (with ``compute_precision`` only): the
+    exact directional tests of :func:`_directional_tests` from the residual
+    cofactors of the bundle (``BundleResult.gnss_residual_cofactor``,
+    ``imu_residual_cofactor``), at the a priori sigmas, along ``gnss_axes``
+    for GNSS and about the image axes for IMU; critical values of stages
+    ``"gnss"`` and ``"imu"`` (Bonferroni over three components per used
+    photo).  A photo's test value is its largest ``|w|``.
+
+    Rejection: the largest ``|w| / critical`` over all four kinds is taken.
+    A control component is rejected alone (a plan point loses X and Y
+    together), a GNSS centre or an IMU attitude as a whole (its three
+    components).  Image
     observations (both coordinates of a ray) are rejected several per round:
     the failing ones, largest first, as long as their photos are more than
     ``n`` photos apart, ``n`` the largest number of photos that see one point
@@ -812,6 +909,40 @@ def refine_frame(
     obs_rejected = np.zeros(k_all, bool)
     ctrl_rejected = np.zeros((p, 3), bool)
 
+    # GNSS centres and IMU attitudes: given, in use, test directions.
+    g_xyz = i_rot = None
+    g_sig = i_sig = np.full((m, 3), np.inf)
+    g_given = np.zeros(m, bool)
+    i_given = np.zeros(m, bool)
+    if gnss_centres is not None:
+        g_xyz = np.array(gnss_centres, dtype=np.float64)
+        if g_xyz.shape != (m, 3):
+            raise ValueError(f"Expected `gnss_centres` to have shape {(m, 3)}, got {g_xyz.shape}")
+        if gnss_sigma is None:
+            raise ValueError("`gnss_centres` given without `gnss_sigma`")
+        g_sig = np.broadcast_to(np.asarray(gnss_sigma, dtype=np.float64), (m, 3))
+        g_given = np.any(np.isfinite(g_xyz) & np.isfinite(g_sig), axis=1)
+    if imu_rotations is not None:
+        i_rot = np.array(imu_rotations, dtype=np.float64)
+        if i_rot.shape != (m, 3, 3):
+            raise ValueError(
+                f"Expected `imu_rotations` to have shape {(m, 3, 3)}, got {i_rot.shape}"
+            )
+        if imu_sigma is None:
+            raise ValueError("`imu_rotations` given without `imu_sigma`")
+        i_sig = np.broadcast_to(np.asarray(imu_sigma, dtype=np.float64), (m, 3))
+        i_given = np.all(np.isfinite(i_rot), axis=(1, 2)) & np.any(np.isfinite(i_sig), axis=1)
+    g_on = g_given & _photo_flags(gnss_used, m, "gnss_used")
+    i_on = i_given & _photo_flags(imu_used, m, "imu_used")
+    g_rejected = g_given & ~g_on
+    i_rejected = i_given & ~i_on
+    if gnss_axes is None:
+        g_axes = np.broadcast_to(np.eye(3), (m, 3, 3))
+    else:
+        g_axes = np.asarray(gnss_axes, dtype=np.float64)
+        if g_axes.shape != (m, 3, 3):
+            raise ValueError(f"Expected `gnss_axes` to have shape {(m, 3, 3)}, got {g_axes.shape}")
+
     def used_points() -> BoolArray:
         rays = np.bincount(obs.point[keep], minlength=p)
         full = np.all(ctrl_on, axis=1)
@@ -836,10 +967,10 @@ def refine_frame(
             state[2][pts],
             control_xyz=c_sub,
             control_sigma=np.where(ctrl_on[pts], c_sig[pts], np.inf),
-            gnss_centres=gnss_centres,
-            gnss_sigma=gnss_sigma,
-            imu_rotations=imu_rotations,
-            imu_sigma=imu_sigma,
+            gnss_centres=None if g_xyz is None else np.where(g_on[:, None], g_xyz, np.nan),
+            gnss_sigma=None if g_xyz is None else g_sig,
+            imu_rotations=None if i_rot is None else np.where(i_on[:, None, None], i_rot, np.nan),
+            imu_sigma=None if i_rot is None else i_sig,
             max_iterations=max_iterations,
             compute_precision=compute_precision,
         )
@@ -920,6 +1051,10 @@ def refine_frame(
             converged=res.converged,
             rejections=tuple(rejections),
             bundle=res,
+            gnss_used=g_on.copy(),
+            gnss_rejected=g_rejected.copy(),
+            imu_used=i_on.copy(),
+            imu_rejected=i_rejected.copy(),
         )
         if not blunders.testing:
             return result
@@ -944,6 +1079,25 @@ def refine_frame(
         found += [
             (float(h_w[i]) / crit_ctrl, "height", int(i)) for i in np.flatnonzero(h_w > crit_ctrl)
         ]
+        # GNSS centres (along gnss_axes) and IMU attitudes (about the image axes).
+        crit_g = blunders.critical(GNSS_STAGE, 3 * int(np.count_nonzero(g_on)))
+        w_g, v_g = _photo_tests(
+            -res.gnss_residuals, res.gnss_residual_cofactor, g_sig, g_axes, g_on
+        )
+        crit_i = blunders.critical(IMU_STAGE, 3 * int(np.count_nonzero(i_on)))
+        w_i, v_i = _photo_tests(
+            -res.imu_residuals, res.imu_residual_cofactor, i_sig, np.eye(3), i_on
+        )
+        photo_w_g = np.max(np.where(np.isfinite(w_g), np.abs(w_g), -1.0), axis=1)
+        photo_w_i = np.max(np.where(np.isfinite(w_i), np.abs(w_i), -1.0), axis=1)
+        found += [
+            (float(photo_w_g[j]) / crit_g, "gnss", int(j))
+            for j in np.flatnonzero(photo_w_g > crit_g)
+        ]
+        found += [
+            (float(photo_w_i[j]) / crit_i, "imu", int(j))
+            for j in np.flatnonzero(photo_w_i > crit_i)
+        ]
         if not found:
             return result
         effect = f"sigma0 {res.sigma0:.4g} before"
@@ -958,7 +1112,26 @@ def refine_frame(
         else:
             picks_all = [(worst[1], k) for k in picks]
         for kind, k in picks_all:
-            if kind == "image":
+            if kind in ("gnss", "imu"):
+                gnss_kind = kind == "gnss"
+                w_k = (w_g if gnss_kind else w_i)[k]
+                comp = int(np.nanargmax(np.abs(w_k)))
+                v_k = float((v_g if gnss_kind else v_i)[k, comp])
+                new_rejections.append(
+                    Rejection(
+                        stage=GNSS_STAGE if gnss_kind else IMU_STAGE,
+                        point="",
+                        photos=(obs.photo_ids[k],),
+                        component="ENU"[comp] if gnss_kind else f"about {'xyz'[comp]}",
+                        residual=v_k if gnss_kind else float(np.degrees(v_k)),
+                        unit="m" if gnss_kind else "deg",
+                        w=float(abs(w_k[comp])),
+                        critical=crit_g if gnss_kind else crit_i,
+                        applied=blunders.rejecting,
+                        effect=f"bundle adjustment, {effect}",
+                    )
+                )
+            elif kind == "image":
                 comp = 0 if abs(w_img[k, 0]) >= abs(w_img[k, 1]) else 1
                 new_rejections.append(
                     Rejection(
@@ -1006,9 +1179,15 @@ def refine_frame(
             elif kind == "plan":
                 ctrl_on[k, :2] = False
                 ctrl_rejected[k, :2] = True
-            else:
+            elif kind == "height":
                 ctrl_on[k, 2] = False
                 ctrl_rejected[k, 2] = True
+            elif kind == "gnss":
+                g_on[k] = False
+                g_rejected[k] = True
+            else:
+                i_on[k] = False
+                i_rejected[k] = True
         n_img_rej = n_img_start - int(keep.sum())
         if n_img_rej > blunders.max_fraction * max(n_img_start, 1):
             raise GeometryError(
@@ -1022,6 +1201,53 @@ def refine_frame(
                 f"bundle adjustment: more than {blunders.max_fraction:.0%} of the control "
                 "observations fail the blunder test; the control cannot be trusted"
             )
+        for stage, what, given_k, rejected_k in (
+            (GNSS_STAGE, "GNSS centres", g_given, g_rejected),
+            (IMU_STAGE, "IMU attitudes", i_given, i_rejected),
+        ):
+            n_given_k = int(np.count_nonzero(given_k))
+            n_rej_k = int(np.count_nonzero(rejected_k))
+            if n_rej_k > blunders.max_fraction * max(n_given_k, 1):
+                raise GeometryError(
+                    f"bundle adjustment, stage {stage!r}: more than {blunders.max_fraction:.0%} "
+                    f"of the {what} fail the blunder test ({n_rej_k} of {n_given_k} photos); "
+                    f"the {what} cannot be trusted"
+                )
+
+
+def _photo_flags(values: ArrayLike | None, m: int, name: str) -> BoolArray:
+    """Per-photo booleans (M,), all True when not given."""
+    if values is None:
+        return np.ones(m, bool)
+    flags = np.array(values, dtype=bool)
+    if flags.shape != (m,):
+        raise ValueError(f"Expected `{name}` to have shape {(m,)}, got {flags.shape}")
+    return flags
+
+
+def _photo_tests(
+    v: FloatArray, q_vv: FloatArray, sigma: FloatArray, axes: FloatArray, on: BoolArray
+) -> tuple[FloatArray, FloatArray]:
+    """w-tests and residuals along ``axes`` of the direct photo observations in use.
+
+    ``v`` (M, 3) observed minus adjusted in the frame, ``q_vv`` (M, 3, 3)
+    residual cofactors, ``sigma`` (M, 3), ``axes`` (M, 3, 3) or (3, 3)
+    (columns: test directions in the frame), ``on`` (M,) the photos whose
+    observation is in the adjustment.  Returns ``w`` and the residuals along
+    the axes, both (M, 3), NaN for photos not in use.
+    """
+    m = v.shape[0]
+    w = np.full((m, 3), np.nan)
+    v_axes = np.full((m, 3), np.nan)
+    rows = np.flatnonzero(on)
+    if rows.size:
+        a = np.broadcast_to(axes, (m, 3, 3))[rows]
+        # unobserved components (weight 0) carry NaN: they take no part
+        v_rows = np.nan_to_num(v[rows], nan=0.0)
+        q_rows = np.nan_to_num(q_vv[rows], nan=0.0)  # all NaN without precision: w NaN
+        _, w[rows] = _directional_tests(v_rows, q_rows, 1.0 / sigma[rows] ** 2, a)
+        v_axes[rows] = np.einsum("gia,gi->ga", a, v_rows)
+    return w, v_axes
 
 
 def _expand(values: FloatArray, index: IntArray, n: int) -> FloatArray:
@@ -1069,22 +1295,26 @@ def _gnss_residuals(
     lookup: IntArray,
     observed_frame: FloatArray,
     sigma: FloatArray,
-    bundle: BundleResult,
+    fr: FrameRefinement,
     enu2frame: FloatArray,
     strip_ids: Sequence[str],
-    alpha: float,
+    options: BlunderOptions,
 ) -> GnssResiduals:
     """Residuals and tests of the GNSS centres in the final adjustment.
 
     ``lookup`` (given rows -> strip photo or -1), ``observed_frame`` (M, 3)
     and ``sigma`` (M, 3) as passed to the bundle, ``enu2frame`` (M, 3, 3)
-    at the adjusted centres.
+    at the adjusted centres.  Rejected centres (``fr.gnss_rejected``) keep
+    their residual, observed minus adjusted; their redundancy and w are NaN
+    (the bundle has no cofactor for them).
     """
     index = np.flatnonzero(np.all(np.isfinite(observed_frame), axis=1))
-    v_frame = -bundle.gnss_residuals[index]  # observed - adjusted
+    v_frame = observed_frame[index] - fr.centres[index]  # observed - adjusted
     axes = enu2frame[index]
     weight = 1.0 / sigma[index] ** 2
-    redundancy, w = _directional_tests(v_frame, bundle.gnss_residual_cofactor[index], weight, axes)
+    q_vv = fr.bundle.gnss_residual_cofactor[index]  # NaN for rejected centres
+    redundancy, w = _directional_tests(v_frame, q_vv, weight, axes)
+    rejected = fr.gnss_rejected[index] if fr.gnss_rejected.size else np.zeros(index.size, bool)
     return GnssResiduals(
         photo_ids=tuple(strip_ids[j] for j in index),
         photo_index=index,
@@ -1095,7 +1325,8 @@ def _gnss_residuals(
         residuals=np.einsum("gia,gi->ga", axes, v_frame),
         redundancy=redundancy,
         w=w,
-        critical=critical_value(3 * index.size, alpha),
+        critical=options.critical(GNSS_STAGE, 3 * int(np.count_nonzero(~rejected))),
+        rejected=rejected,
     )
 
 
@@ -1104,20 +1335,22 @@ def _imu_residuals(
     lookup: IntArray,
     observed_frame: FloatArray,
     sigma: FloatArray,
-    bundle: BundleResult,
+    fr: FrameRefinement,
     opk_adjusted: FloatArray,
     strip_ids: Sequence[str],
-    alpha: float,
+    options: BlunderOptions,
 ) -> ImuResiduals:
     """Residuals and tests of the IMU attitudes in the final adjustment.
 
     ``lookup`` (given rows -> strip photo or -1), ``observed_frame``
     (M, 3, 3) and ``sigma`` (M, 3) as passed to the bundle;
     ``opk_adjusted`` (M, 3) the adjusted omega, phi, kappa (image -> ENU).
+    Rejected attitudes as in :func:`_gnss_residuals`.
     """
     m = observed_frame.shape[0]
     index = np.flatnonzero(np.all(np.isfinite(observed_frame), axis=(1, 2)))
-    v = -bundle.imu_residuals[index]  # log(R_adj.T R_imu): observed - adjusted
+    # log(R_adj.T R_imu): observed - adjusted, about the adjusted photo's axes
+    v = rotvec_from_matrix(np.swapaxes(fr.rotations[index], 1, 2) @ observed_frame[index])
     ok = lookup >= 0
     opk_observed = np.full((m, 3), np.nan)
     opk_observed[lookup[ok]] = imu.opk[ok]
@@ -1125,7 +1358,9 @@ def _imu_residuals(
     d_opk = (d_opk + np.pi) % (2.0 * np.pi) - np.pi
     weight = 1.0 / sigma[index] ** 2
     axes = np.broadcast_to(np.eye(3), (index.size, 3, 3))
-    redundancy, w = _directional_tests(v, bundle.imu_residual_cofactor[index], weight, axes)
+    q_vv = fr.bundle.imu_residual_cofactor[index]  # NaN for rejected attitudes
+    redundancy, w = _directional_tests(v, q_vv, weight, axes)
+    rejected = fr.imu_rejected[index] if fr.imu_rejected.size else np.zeros(index.size, bool)
     return ImuResiduals(
         photo_ids=tuple(strip_ids[j] for j in index),
         photo_index=index,
@@ -1136,24 +1371,8 @@ def _imu_residuals(
         opk_differences=d_opk,
         redundancy=redundancy,
         w=w,
-        critical=critical_value(3 * index.size, alpha),
-    )
-
-
-def _failure_note(
-    what: str, photo_ids: tuple[str, ...], failed: BoolArray, w: FloatArray, critical: float
-) -> str | None:
-    """One warning naming the photos whose GNSS / IMU observation fails its test."""
-    rows = np.flatnonzero(failed)
-    if rows.size == 0:
-        return None
-    worst = np.nanmax(np.abs(w[rows]), axis=1)
-    rows = rows[np.argsort(-worst)]
-    listed = ", ".join(f"'{photo_ids[i]}' (|w| {np.nanmax(np.abs(w[i])):.1f})" for i in rows[:5])
-    more = f" and {rows.size - 5} more" if rows.size > 5 else ""
-    return (
-        f"bundle: {what} of photo(s) {listed}{more} fail the w-test (critical "
-        f"{critical:.2f}); they are tested, not rejected: check these observations"
+        critical=options.critical(IMU_STAGE, 3 * int(np.count_nonzero(~rejected))),
+        rejected=rejected,
     )
 
 
@@ -1202,8 +1421,12 @@ def refine_bundle(
     imu : ImuAttitudes, optional
         Observed attitudes (omega, phi, kappa, image -> local ENU).
     blunders : BlunderOptions, optional
-        Data snooping of the image coordinates (stage ``"bundle"``) and the
-        control (stage ``"control"``); default: test and reject.
+        Data snooping of the image coordinates (stage ``"bundle"``), the
+        control (stage ``"control"``), the GNSS centres (stage ``"gnss"``)
+        and the IMU attitudes (stage ``"imu"``); default: test and reject.
+        A rejected GNSS centre or IMU attitude leaves the adjustment as a
+        whole (its three components); it stays listed in ``gnss`` / ``imu``
+        with ``rejected`` True.
     max_iterations : int
         Largest number of bundle steps per adjustment.
     compute_precision : bool
@@ -1312,6 +1535,8 @@ def refine_bundle(
         imu_rot[j[ok]] = frame.enu2frame(centres_for) @ matrix_from_opk(imu.opk[ok])
         imu_sig = np.full((m, 3), np.inf)
         imu_sig[j[ok]] = imu.sigma[ok, None]
+    # GNSS test directions: east, north, up at the strip method's centres.
+    gnss_axes = None if gnss is None else frame.enu2frame(result.photo_centres)
     t_frame = time.perf_counter() - t_start
 
     # Passes: complete missing components from the adjusted points, in the frame.
@@ -1320,7 +1545,10 @@ def refine_bundle(
     state = (centres0, rotations0, points0)
     obs_used: BoolArray | None = None
     ctrl_used: BoolArray | None = None
+    gnss_used: BoolArray | None = None
+    imu_used: BoolArray | None = None
     rejections: list[Rejection] = []
+    reported: tuple[Rejection, ...] = ()
     iterations = 0
     control_frame_prev: FloatArray | None = None
     notes: list[str] = []
@@ -1353,13 +1581,20 @@ def refine_bundle(
             compute_precision=compute_precision,
             observation_used=obs_used,
             control_used=ctrl_used,
+            gnss_axes=gnss_axes,
+            gnss_used=gnss_used,
+            imu_used=imu_used,
         )
         t_bundle += time.perf_counter() - t0
         iterations += fr.iterations
-        rejections.extend(fr.rejections)
+        rejections.extend(r for r in fr.rejections if r.applied)
+        # what would be rejected ("report"): as found in the last pass only
+        reported = tuple(r for r in fr.rejections if not r.applied)
         # rejections of this pass stay rejected in the next
         obs_used = ~fr.observation_rejected
         ctrl_used = ~fr.control_rejected
+        gnss_used = ~fr.gnss_rejected
+        imu_used = ~fr.imu_rejected
         state = (fr.centres, fr.rotations, np.where(fr.point_used[:, None], fr.points, points0))
         t0 = time.perf_counter()
         adjusted_crs = np.full((p, 3), np.nan)
@@ -1379,17 +1614,17 @@ def refine_bundle(
     rot_enu = np.swapaxes(enu2frame, 1, 2) @ fr.rotations
     opk = opk_from_matrix(rot_enu)
 
-    # What the GNSS centres and IMU attitudes did (tested, never rejected).
-    alpha = (blunders or BlunderOptions()).alpha
-    testing = (blunders or BlunderOptions()).testing
+    # What the GNSS centres and IMU attitudes did (rejected ones included).
+    rejections.extend(reported)
+    options = blunders or BlunderOptions()
     gnss_out = imu_out = None
     if gnss_xyz is not None and gnss_sig is not None and gnss is not None:
         gnss_out = _gnss_residuals(
-            gnss, gnss_lookup, gnss_xyz, gnss_sig, fr.bundle, enu2frame, obs.photo_ids, alpha
+            gnss, gnss_lookup, gnss_xyz, gnss_sig, fr, enu2frame, obs.photo_ids, options
         )
     if imu_rot is not None and imu_sig is not None and imu is not None:
         imu_out = _imu_residuals(
-            imu, imu_lookup, imu_rot, imu_sig, fr.bundle, opk, obs.photo_ids, alpha
+            imu, imu_lookup, imu_rot, imu_sig, fr, opk, obs.photo_ids, options
         )
 
     # Residuals at the control, given minus adjusted along E, N, H.
@@ -1411,12 +1646,6 @@ def refine_bundle(
         dropped = [control.point_ids[r] for r in rows[~keep_rows & ~check]]
         notes.append(f"control point(s) {', '.join(map(repr, dropped[:5]))} left out")
     notes += [r.describe() for r in rejections]
-    if testing:
-        for what, out in (("GNSS centre(s)", gnss_out), ("IMU attitude(s)", imu_out)):
-            if out is not None:
-                note = _failure_note(what, out.photo_ids, out.failed, out.w, out.critical)
-                if note is not None:
-                    notes.append(note)
     return RefinedResult(
         photo_ids=obs.photo_ids,
         point_ids=obs.point_ids,

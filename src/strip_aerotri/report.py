@@ -1564,8 +1564,9 @@ def _html_gnss_imu(report: Mapping[str, Any]) -> list[str]:
         "local east, north, up at the adjusted centre; IMU attitudes in degrees as the "
         "small rotation about the photo's image axes x (along the flight), y (to its "
         "left), z (up). r: redundancy numbers; w: Baarda's test at the a-priori σ, "
-        "critical value by Bonferroni over the components. These observations are "
-        "tested, never rejected.</p>",
+        "critical value by Bonferroni over the components. A failing centre or attitude "
+        "is rejected as a whole by the bundle's data snooping (stages gnss, imu: see "
+        "the warnings); rejected ones stay listed with their residuals.</p>",
     ]
 
     def largest(sec: Mapping[str, Any]) -> tuple[str]:
@@ -1618,7 +1619,9 @@ def _html_gnss_imu(report: Mapping[str, Any]) -> list[str]:
         ]
     out.append(_table(["item", "value"], rows, left=1))
 
-    def failed_cell(value: bool | None) -> tuple[str]:
+    def failed_cell(value: bool | None, rejected: bool = False) -> tuple[str]:
+        if rejected:
+            return ("<span class='fail'>rejected</span>",)
         if value is None:
             return ("<span class='na'>–</span>",)
         return ("<span class='fail'>FAIL</span>",) if value else ("<span class='pass'>ok</span>",)
@@ -1632,7 +1635,7 @@ def _html_gnss_imu(report: Mapping[str, Any]) -> list[str]:
                 [
                     [ph["photo"], ph["dE_m"], ph["dN_m"], ph["dU_m"], ph["plan_m"],
                      ph["sigma_xy_m"], ph["sigma_z_m"], *ph["redundancy"], *ph["w"],
-                     failed_cell(ph["failed"])]
+                     failed_cell(ph["failed"], ph.get("rejected", False))]
                     for ph in gnss["photos"]
                 ],
                 left=1,
@@ -1649,7 +1652,7 @@ def _html_gnss_imu(report: Mapping[str, Any]) -> list[str]:
                 [
                     [ph["photo"], ph["rx_deg"], ph["ry_deg"], ph["rz_deg"], ph["d_omega_deg"],
                      ph["d_phi_deg"], ph["d_kappa_deg"], ph["sigma_deg"], *ph["redundancy"],
-                     *ph["w"], failed_cell(ph["failed"])]
+                     *ph["w"], failed_cell(ph["failed"], ph.get("rejected", False))]
                     for ph in imu["photos"]
                 ],
                 left=1,
@@ -1755,7 +1758,8 @@ def _largest_w(photo_ids: Sequence[str], w: np.ndarray) -> tuple[float | None, s
 
 
 def _test_summary(out: Any) -> dict[str, Any]:
-    redundancy = np.asarray(out.redundancy, dtype=np.float64)
+    rejected = np.asarray(out.rejected, dtype=bool)
+    redundancy = np.asarray(out.redundancy, dtype=np.float64)[~rejected]
     max_w, max_w_photo = _largest_w(out.photo_ids, out.w)
     tested = bool(np.isfinite(np.asarray(out.w, dtype=np.float64)).any())
     return {
@@ -1764,6 +1768,7 @@ def _test_summary(out: Any) -> dict[str, Any]:
         "max_abs_w": max_w,
         "max_abs_w_photo": max_w_photo,
         "n_failed": int(np.count_nonzero(out.failed)) if tested else None,
+        "n_rejected": int(np.count_nonzero(rejected)),
     }
 
 
@@ -1803,6 +1808,7 @@ def _bundle_gnss(out: Any) -> dict[str, Any] | None:
                 "redundancy": np.asarray(out.redundancy[i], dtype=np.float64),
                 "w": np.asarray(out.w[i], dtype=np.float64),
                 "failed": bool(failed[i]) if tested[i] else None,
+                "rejected": bool(out.rejected[i]),
             }
             for i, pid in enumerate(out.photo_ids)
         ],
@@ -1827,7 +1833,11 @@ def _bundle_imu(out: Any) -> dict[str, Any] | None:
         "sigma_deg": _f(np.degrees(np.median(out.sigma))) if out.n_used else None,
         "rms_deg": np.degrees(out.rms),
         "max_abs_deg": np.degrees(out.max_abs),
-        "rms_opk_deg": np.sqrt(np.mean(d_opk**2, axis=0)) if out.n_used else [None] * 3,
+        "rms_opk_deg": (
+            np.sqrt(np.mean(d_opk[~np.asarray(out.rejected)] ** 2, axis=0))
+            if out.n_used
+            else [None] * 3
+        ),
         **_test_summary(out),
         "photos": [
             {
@@ -1842,6 +1852,7 @@ def _bundle_imu(out: Any) -> dict[str, Any] | None:
                 "redundancy": np.asarray(out.redundancy[i], dtype=np.float64),
                 "w": np.asarray(out.w[i], dtype=np.float64),
                 "failed": bool(failed[i]) if tested[i] else None,
+                "rejected": bool(out.rejected[i]),
             }
             for i, pid in enumerate(out.photo_ids)
         ],
