@@ -263,3 +263,37 @@ def test_report_shows_the_rejection(setup) -> None:
     assert any(t.startswith("gnss:") for t in rep["warnings"])
     html = "\n".join(_html_tables(rep))
     assert html.count("<span class='fail'>rejected</span>") == 1
+
+
+def test_report_mode_lists_each_finding_once_over_the_control_passes() -> None:
+    """Geocentric route with plan and height control: the adjustment is repeated
+    (passes) until the control's frame coordinates settle; "report" lists what
+    the last pass finds, once (each pass used to add its own copy)."""
+    sim = simulate_strip(12, seed=1, crs="EPSG:32634")
+    xyz = sim.control.xyz.copy()
+    full = [j for j, kind in enumerate(sim.control.kind) if kind.name == "FULL"]
+    xyz[full[1], 2] += 1.5  # a height blunder in a full control point
+    control = dataclasses.replace(sim.control, xyz=xyz)
+    report = BlunderOptions(action="report")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = triangulate(
+            sim.observations,
+            control,
+            sim.crs,
+            ground_options=GroundOptions(route="geocentric"),
+            blunders=report,
+        )
+        m = sim.observations.n_photos
+        gnss_xyz = sim.truth.photo_centres_crs + np.random.default_rng(7).normal(
+            0.0, SIGMA_GNSS, (m, 3)
+        )
+        gnss_xyz[GNSS_PHOTO, 0] += 1.0
+        gnss = GnssCentres(sim.observations.photo_ids, gnss_xyz, SIGMA_GNSS, SIGMA_GNSS)
+        refined = refine_bundle(result, gnss=gnss, blunders=report)
+    described = [r.describe() for r in refined.rejections]
+    assert len(described) == len(set(described)) > 1
+    assert not any(r.applied for r in refined.rejections)
+    # the control blunder stays in and pulls other centres too: the planted one is the worst
+    listed = [r for r in refined.rejections if r.stage == "gnss"]
+    assert max(listed, key=lambda r: r.w).photos == (sim.observations.photo_ids[GNSS_PHOTO],)
