@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from strip_aerotri.blunders import BlunderOptions
 from strip_aerotri.bundle import _collinearity, _right_jacobian_inv
 from strip_aerotri.errors import StripAerotriWarning
 from strip_aerotri.geodesy import GroundCRS, enu_rotation
@@ -30,6 +31,8 @@ from strip_aerotri.simulate import simulate_strip
 SIGMA_GNSS = 0.05  # m, both components
 SIGMA_IMU_DEG = 0.005
 BLUNDER_PHOTO = 5  # strip position of the photo with the 1 m GNSS blunder
+# The blunder is tested and listed, not rejected (rejection: test_bundle_gnss_imu_rejection.py)
+REPORT = BlunderOptions(action="report")
 NO_IMU_PHOTO = 3  # strip position of the photo without an IMU attitude
 # Keys of report.json's "bundle" section before the GNSS / IMU sections were added.
 OLD_BUNDLE_KEYS = {
@@ -85,7 +88,7 @@ def local_run():
     sim, result = strip("local")
     gnss, imu = observations(sim)
     with pytest.warns(StripAerotriWarning, match="'9999' are not in the strip"):
-        refined = refine_bundle(result, gnss=gnss, imu=imu)
+        refined = refine_bundle(result, gnss=gnss, imu=imu, blunders=REPORT)
     return sim, result, gnss, imu, refined
 
 
@@ -179,7 +182,7 @@ def dense_redundancy(sim, refined, gnss, imu) -> tuple[np.ndarray, np.ndarray]:
 
 def test_redundancy_numbers_and_w_are_exact(local_run) -> None:
     sim, _, gnss, imu, refined = local_run
-    assert refined.rejections == ()  # the final adjustment has every observation
+    assert not any(r.applied for r in refined.rejections)  # every observation is in
     r_gnss, r_imu = dense_redundancy(sim, refined, gnss, imu)
     np.testing.assert_allclose(refined.gnss.redundancy, r_gnss, rtol=0, atol=1e-7)
     np.testing.assert_allclose(refined.imu.redundancy, r_imu, rtol=0, atol=1e-7)
@@ -210,8 +213,10 @@ def test_planted_gnss_blunder_shows_on_its_photo(local_run) -> None:
     assert list(np.flatnonzero(g.failed)) == [BLUNDER_PHOTO]
     assert not refined.imu.failed.any()
     photo = sim.observations.photo_ids[BLUNDER_PHOTO]
-    notes = [w for w in refined.warnings if "GNSS centre(s)" in w]
-    assert len(notes) == 1 and f"'{photo}'" in notes[0] and "not rejected" in notes[0]
+    listed = [r for r in refined.rejections if r.stage == "gnss"]
+    assert [(r.photos, r.component, r.applied) for r in listed] == [((photo,), "E", False)]
+    notes = [w for w in refined.warnings if w.startswith("gnss:")]
+    assert len(notes) == 1 and f"on {photo} would be rejected" in notes[0]
 
 
 def test_report_json_has_the_sections_with_the_numbers(local_run) -> None:
@@ -284,11 +289,13 @@ def test_without_gnss_and_imu_nothing_is_added(local_run) -> None:
 def test_without_precision_residuals_only(local_run) -> None:
     _, result, gnss, imu, refined = local_run
     with pytest.warns(StripAerotriWarning, match="not in the strip"):
-        quick = refine_bundle(result, gnss=gnss, imu=imu, compute_precision=False)
+        quick = refine_bundle(
+            result, gnss=gnss, imu=imu, compute_precision=False, blunders=REPORT
+        )
     np.testing.assert_allclose(quick.gnss.residuals, refined.gnss.residuals, atol=1e-9)
     assert np.isnan(quick.gnss.w).all() and np.isnan(quick.imu.redundancy).all()
     assert not quick.gnss.failed.any()
-    assert not any("GNSS centre(s)" in w for w in quick.warnings)
+    assert not any(w.startswith("gnss:") for w in quick.warnings)
     g = build_report(dataclasses.replace(result, refined=quick))["bundle"]["gnss"]
     assert g["max_abs_w"] is None and g["n_failed"] is None
     assert g["photos"][0]["w"] == [None, None, None] and g["photos"][0]["failed"] is None
@@ -299,7 +306,7 @@ def test_gnss_residuals_along_east_north_up_on_a_projected_crs() -> None:
     sim, result = strip("EPSG:32634")
     gnss, _ = observations(sim)
     with pytest.warns(StripAerotriWarning, match="'9999' are not in the strip"):
-        refined = refine_bundle(result, gnss=gnss)
+        refined = refine_bundle(result, gnss=gnss, blunders=REPORT)
     crs = GroundCRS.from_user_input(sim.crs)
     d_ecef = crs.to_ecef(gnss.xyz[:12]) - crs.to_ecef(refined.photo_centres)
     llh = crs.to_geodetic(refined.photo_centres)
