@@ -118,7 +118,7 @@ def test_gnss_blunder_is_rejected(setup, clean) -> None:
     assert 0.3 < r.residual < 0.55 and r.w > 2 * r.critical
     assert r.critical == pytest.approx(4.19, abs=0.01)
     assert "sigma0" in r.effect and "after" in r.effect
-    assert any(w.startswith("gnss:") and f"on {photo} rejected" in w for w in refined.warnings)
+    assert any(w.startswith("gnss:") and f"photo {photo} rejected" in w for w in refined.warnings)
     g = refined.gnss
     assert list(np.flatnonzero(g.rejected)) == [GNSS_PHOTO]
     assert not refined.imu.rejected.any()
@@ -259,7 +259,7 @@ def test_report_shows_the_rejection(setup) -> None:
     assert row["dE_m"] == pytest.approx(refined.gnss.residuals[GNSS_PHOTO, 0], rel=1e-15)
     assert g["redundancy_sum"] == pytest.approx(np.nansum(refined.gnss.redundancy))
     assert rep["bundle"]["imu"]["n_rejected"] == 0
-    assert any(f"on {photo} rejected" in t for t in rep["bundle"]["rejections"])
+    assert any(f"photo {photo} rejected" in t for t in rep["bundle"]["rejections"])
     assert any(t.startswith("gnss:") for t in rep["warnings"])
     html = "\n".join(_html_tables(rep))
     assert html.count("<span class='fail'>rejected</span>") == 1

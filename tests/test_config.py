@@ -640,3 +640,23 @@ def test_key_list_defaults_match_the_dataclass_defaults() -> None:
             assert getattr(defaults, spec.key) == spec.default, spec.key
         assert spec.default_display  # something to show in docs and `stripaero check`
     assert {s.table for s in PROJECT_KEYS} == {t.name for t in PROJECT_TABLES}
+
+
+def test_blunders_table_sets_the_critical_value_of_every_stage(minimal: Path) -> None:
+    """Every stage of blunders.STAGES, the bundle's GNSS and IMU tests included,
+    takes its critical |w| from [blunders]; stages not given use alpha."""
+    from strip_aerotri.blunders import STAGES
+
+    values = {stage: 3.0 + 0.25 * i for i, stage in enumerate(STAGES)}
+    lines = "\n".join(f"{stage} = {value}" for stage, value in values.items())
+    append("strip.toml", f"\n[blunders]\n{lines}\n")(minimal)
+    options = load_project(minimal / "strip.toml").blunders
+    assert options.critical_values == values
+    assert options.critical("gnss", 36) == values["gnss"]
+    assert options.critical("imu", 36) == values["imu"]
+
+
+def test_blunders_stage_value_must_be_positive(minimal: Path) -> None:
+    append("strip.toml", "\n[blunders]\ngnss = -1.0\n")(minimal)
+    with pytest.raises(ConfigError, match=r"\[blunders\].*gnss"):
+        load_project(minimal / "strip.toml")

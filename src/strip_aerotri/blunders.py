@@ -162,10 +162,14 @@ class Rejection:
     effect: str = ""
 
     def describe(self) -> str:
-        where = f" on {'-'.join(self.photos)}" if self.photos else ""
+        if self.point:
+            where = f" point {self.point!r}"
+            where += f" on {'-'.join(self.photos)}" if self.photos else ""
+        else:  # GNSS centre, IMU attitude: an observation of the photo itself
+            where = f" photo {'-'.join(self.photos)}"
         verb = "rejected" if self.applied else "would be rejected"
         return (
-            f"{self.stage}: point {self.point!r}{where} {verb}: {self.component} residual "
+            f"{self.stage}:{where} {verb}: {self.component} residual "
             f"{self.residual:.4g} {self.unit}, w = {self.w:.2f} > {self.critical:.2f}"
             + (f" ({self.effect})" if self.effect else "")
         )

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any, Literal, Self
 import numpy as np
 
 from ._typing import BoolArray, FloatArray, IntArray
-from .blunders import BlunderOptions
+from .blunders import STAGES, BlunderOptions
 from .errors import ConfigError, ConvergenceError, GeometryError, StripAerotriWarning
 from .interior import (
     DEFAULT_DIFFERENCE_TOLERANCE,
@@ -566,6 +566,22 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
     KeySpec(
         "blunders", "straight_line", "positive number", required=False, default=None,
         unit="", description="Critical |w| of the line-point tests (overrides alpha).",
+        contract=False, default_text="from alpha",
+    ),
+    KeySpec(
+        "blunders", "bundle", "positive number", required=False, default=None, unit="",
+        description="Critical |w| of the bundle refinement's image and control tests "
+        "(overrides alpha).",
+        contract=False, default_text="from alpha",
+    ),
+    KeySpec(
+        "blunders", "gnss", "positive number", required=False, default=None, unit="",
+        description="Critical |w| of the bundle's GNSS centre tests (overrides alpha).",
+        contract=False, default_text="from alpha",
+    ),
+    KeySpec(
+        "blunders", "imu", "positive number", required=False, default=None, unit="",
+        description="Critical |w| of the bundle's IMU attitude tests (overrides alpha).",
         contract=False, default_text="from alpha",
     ),
     KeySpec(
@@ -2015,7 +2031,7 @@ def _blunder_options(toml_path: Path, table: dict[str, object]) -> BlunderOption
         pairs.append((photo, point))
     critical = {
         stage: float(table[stage])  # type: ignore[arg-type]
-        for stage in ("relative_orientation", "tie_points", "control", "straight_line")
+        for stage in STAGES
         if table[stage] is not None
     }
     return BlunderOptions(
