@@ -380,7 +380,7 @@ def test_j7_fixed_linearisation_is_the_derivative_of_j5():
     # the left image frame.
     counts = np.bincount(model, minlength=2)
     starts = rel_module._segment_starts(model, 2)
-    blocks = rel_module._Blocks(left, right, starts, counts, np.arange(2))
+    blocks = rel_module._Blocks(left.T.copy(), right.T.copy(), starts, counts, np.arange(2))
     rows = np.empty((model.size, 5))
     q0 = np.empty(model.size)
     for block in blocks.items:
@@ -498,3 +498,19 @@ def test_pair_rows_finds_every_common_point_in_any_row_order(seed):
     ]
     got = np.column_stack(pair_rows(obs, seq.astype(np.intp)))
     np.testing.assert_array_equal(got, np.array(expected).reshape(-1, 4))
+
+
+def test_rotate_rows_matches_a_stack_of_matrices_across_chunks() -> None:
+    """_rotate_rows works in chunks of rows: over several chunks, with an
+    unsorted matrix index and a partial last chunk, it equals the (n, 3, 3) stack."""
+    from strip_aerotri import chaining
+
+    rng = np.random.default_rng(5)
+    matrices = Rotation.random(7, random_state=6).as_matrix()
+    n = 2 * chaining._CHUNK_ROWS + 123
+    index = rng.integers(0, 7, n)
+    vectors = rng.normal(size=(n, 3))
+    expected = np.einsum("nij,nj->ni", matrices[index], vectors)
+    got = chaining._rotate_rows(matrices, index, vectors)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-14)
+    assert got.flags.c_contiguous and got.shape == (n, 3)

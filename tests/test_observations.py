@@ -21,3 +21,13 @@ def test_from_ids_sorts_by_photo_then_point_and_keeps_strip_order():
     np.testing.assert_array_equal(obs.photo_slices(), [0, 2, 4])
     vec = obs.image_vectors()
     assert vec.shape == (4, 3) and np.all(vec[:, 2] == -152.0)
+
+
+def test_image_vectors_of_chosen_rows_are_those_rows_of_all_vectors():
+    photo = np.array(["1", "1", "2", "2", "2"])
+    point = np.array(["a", "b", "a", "b", "c"])
+    xy = np.arange(10.0).reshape(5, 2) - 4.0
+    obs = ImageObservations.from_ids(photo, point, xy, 100.5)
+    rows = np.array([4, 0, 0, 2])
+    np.testing.assert_array_equal(obs.image_vectors(rows), obs.image_vectors()[rows])
+    assert obs.image_vectors(np.zeros(0, dtype=np.intp)).shape == (0, 3)

@@ -92,7 +92,7 @@ def _first_pass_history(syn, factor, monkeypatch, iterations=30):
     state = rel_module._DependentState(n, np.eye(3))
     starts = rel_module._segment_starts(pair, n)
     counts = np.bincount(pair, minlength=n)
-    blocks = rel_module._Blocks(left, right, starts, counts, np.arange(n))
+    blocks = rel_module._Blocks(left.T.copy(), right.T.copy(), starts, counts, np.arange(n))
     history = []
     for _ in range(iterations + 1):
         ev = rel_module._evaluate(state, blocks, np.ones(pair.size))

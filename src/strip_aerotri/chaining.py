@@ -259,7 +259,9 @@ def form_strip(
     model, point, row_l, row_r = pair_rows(observations, seq)
     keep = _excluded_rows(observations, blunders, row_l, row_r)
     model, point, row_l, row_r = model[keep], point[keep], row_l[keep], row_r[keep]
-    vectors = observations.image_vectors()
+    # Rows of (n, 3) arrays are gathered by np.take / np.compress (axis=0):
+    # several times faster than fancy indexing of 2-D arrays with numpy 2.
+    left, right = observations.image_vectors(row_l), observations.image_vectors(row_r)
     rejections: list[Rejection] = []
     n_rows = model.shape[0]
     rel = None
@@ -267,8 +269,8 @@ def form_strip(
         # after a rejection the pairs start from their previous solution: only
         # the pairs that lost an observation take steps
         rel = relative_orientation(
-            vectors[row_l],
-            vectors[row_r],
+            left,
+            right,
             model,
             n_models,
             method=options.relative_orientation,
@@ -307,6 +309,7 @@ def form_strip(
         drop = np.zeros(model.shape[0], dtype=bool)
         drop[worst] = True
         model, point, row_l, row_r = model[~drop], point[~drop], row_l[~drop], row_r[~drop]
+        left, right = np.compress(~drop, left, axis=0), np.compress(~drop, right, axis=0)
         if n_rows - model.shape[0] > blunders.max_fraction * n_rows:
             raise GeometryError(
                 f"relative orientation: more than {blunders.max_fraction:.0%} of the "
@@ -324,17 +327,17 @@ def form_strip(
         base_left = np.einsum("mji,mj->mi", rel.rotation_left, rel.base)
         in_left = intersect_midpoint(
             np.repeat(base_left, per_model, axis=0),
-            vectors[row_l],
-            _rotate_rows(rel.relative_rotation, per_model, vectors[row_r]),
+            left,
+            _rotate_rows(rel.relative_rotation, model, right),
         )
         unit = Intersection(
-            _rotate_rows(rel.rotation_left, per_model, in_left.points), in_left.parallax
+            _rotate_rows(rel.rotation_left, model, in_left.points), in_left.parallax
         )
     else:
         unit = intersect_normal(
             np.repeat(rel.base, per_model, axis=0),
-            _rotate_rows(rel.rotation_left, per_model, vectors[row_l]),
-            _rotate_rows(rel.rotation_right, per_model, vectors[row_r]),
+            _rotate_rows(rel.rotation_left, model, left),
+            _rotate_rows(rel.rotation_right, model, right),
             observations.principal_distance,
         )
 
@@ -347,8 +350,10 @@ def form_strip(
     while True:
         tie_model = model[i_now[tie_ok]]
         # Same point seen from the shared centre: previous model minus its base.
-        previous = unit.points[i_prev[tie_ok]] - rel.base[model[i_prev[tie_ok]]]
-        new_pts = unit.points[i_now[tie_ok]]
+        previous = np.take(unit.points, i_prev[tie_ok], axis=0) - np.take(
+            rel.base, model[i_prev[tie_ok]], axis=0
+        )
+        new_pts = np.take(unit.points, i_now[tie_ok], axis=0)
         ratio = scale_ratios(previous, new_pts, tie_model, n_models, method=options.scale_transfer)
         if not blunders.testing or tie_model.size < 8:
             break
@@ -418,13 +423,15 @@ def form_strip(
     centres = np.vstack([first_position, first_position + np.cumsum(steps, axis=0)])
     rotations = np.concatenate([rel.rotation_left[:1], rel.rotation_right], axis=0)
 
-    model_points = centres[model] + scale[model, None] * unit.points
+    model_points = np.take(centres, model, axis=0) + scale[model, None] * unit.points
     model_parallax = scale[model] * unit.parallax
     usable = ~np.isin(point, rejected_point_index)
-    counts = np.bincount(point[usable], minlength=observations.n_points)
+    usable_point = point[usable]
+    usable_xyz = np.compress(usable, model_points, axis=0)
+    counts = np.bincount(usable_point, minlength=observations.n_points)
     sums = np.stack(
         [
-            np.bincount(point[usable], model_points[usable, k], minlength=observations.n_points)
+            np.bincount(usable_point, usable_xyz[:, k], minlength=observations.n_points)
             for k in range(3)
         ],
         axis=1,
@@ -433,7 +440,7 @@ def form_strip(
         points = sums / counts[:, None]
     points[counts == 0] = np.nan
 
-    tie_difference = model_points[i_now] - model_points[i_prev]
+    tie_difference = np.take(model_points, i_now, axis=0) - np.take(model_points, i_prev, axis=0)
     sq = np.stack(
         [np.bincount(tie_model, tie_difference[:, k] ** 2, minlength=n_models) for k in range(3)],
         axis=1,
@@ -468,18 +475,26 @@ def form_strip(
     )
 
 
-def _rotate_rows(matrices: FloatArray, counts: IntArray, vectors: FloatArray) -> FloatArray:
-    """``matrices[m] @ v`` for rows sorted by m, ``counts[m]`` rows each: (n, 3).
+def _rotate_rows(matrices: FloatArray, index: IntArray, vectors: FloatArray) -> FloatArray:
+    """``matrices[index[i]] @ vectors[i]`` for every row i: (n, 3).
 
-    The matrix entries are repeated along the rows once (a contiguous (9, n)
-    array) instead of gathering an (n, 3, 3) stack: about twice as fast.
+    In chunks of rows whose temporaries stay in cache (a whole-array (9, n)
+    stack of entries would be fresh memory, paid in page faults), on
+    contiguous components: about 4x faster than an (n, 3, 3) stack.
     """
-    entries = np.repeat(matrices.reshape(-1, 9).T, counts, axis=1)
-    x, y, z = vectors.T
+    entries = np.ascontiguousarray(matrices.reshape(-1, 9).T)
+    components = np.ascontiguousarray(vectors.T)
     out = np.empty_like(vectors)
-    for i in range(3):
-        out[:, i] = entries[3 * i] * x + entries[3 * i + 1] * y + entries[3 * i + 2] * z
+    for start in range(0, vectors.shape[0], _CHUNK_ROWS):
+        rows = slice(start, start + _CHUNK_ROWS)
+        e = np.take(entries, index[rows], axis=1)
+        x, y, z = components[:, rows]
+        for i in range(3):
+            out[rows, i] = e[3 * i] * x + e[3 * i + 1] * y + e[3 * i + 2] * z
     return out
+
+
+_CHUNK_ROWS = 1 << 15
 
 
 def _excluded_rows(observations, blunders, row_l, row_r) -> np.ndarray:

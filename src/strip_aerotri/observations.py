@@ -135,10 +135,12 @@ class ImageObservations:
     def n_points(self) -> int:
         return len(self.point_ids)
 
-    def image_vectors(self) -> FloatArray:
-        """Image vectors ``(x, y, -c)`` in mm, shape (K, 3)."""
-        out = np.empty((self.xy.shape[0], 3))
-        out[:, :2] = self.xy
+    def image_vectors(self, rows: IntArray | None = None) -> FloatArray:
+        """Image vectors ``(x, y, -c)`` in mm, shape (K, 3), or of the
+        observations ``rows`` only (int array, shape (n,)), shape (n, 3)."""
+        xy = self.xy if rows is None else np.take(self.xy, rows, axis=0)
+        out = np.empty((xy.shape[0], 3))
+        out[:, :2] = xy
         out[:, 2] = -self.principal_distance
         return out
 

@@ -245,7 +245,9 @@ class _Blocks:
     iterations).
     """
 
-    def __init__(self, left, right, starts, counts, pairs, stride=None):
+    def __init__(self, left_t, right_t, starts, counts, pairs, stride=None):
+        # left_t, right_t: the image vectors as contiguous (3, n) arrays (np.take
+        # gathers from them several times faster than fancy indexing)
         if stride is None:
             stride = np.ones_like(counts)
         width_of = -(-counts // stride)  # ceil
@@ -264,7 +266,14 @@ class _Blocks:
             valid = taken < n
             rows = starts[idx][:, None] + np.minimum(taken, n - 1)
             self.items.append(
-                _Block(idx, rows, valid, valid.sum(axis=1), left.T[:, rows], right.T[:, rows])
+                _Block(
+                    idx,
+                    rows,
+                    valid,
+                    valid.sum(axis=1),
+                    np.take(left_t, rows, axis=1),
+                    np.take(right_t, rows, axis=1),
+                )
             )
             i = j
         self.pairs = np.sort(pairs)
@@ -290,9 +299,8 @@ class _Evaluation:
         self.max_parallax_mm = np.zeros(n_pairs)
         self.sum_wqq = np.zeros(n_pairs)  # Σ w q² (model units)
         self.n_rows = np.zeros(n_pairs, dtype=np.intp)
-        self.design: list[FloatArray] = []
+        self.design: list[FloatArray] = []  # per block, rows scaled by sqrt(w)
         self.parallax_mm: list[FloatArray] = []
-        self.weight: list[FloatArray] = []
 
 
 class _Record:
@@ -309,16 +317,19 @@ class _Record:
     def store(self, ev: _Evaluation, pairs: np.ndarray, n_inv: FloatArray) -> None:
         """Rows of the pairs in mask ``pairs``; ``n_inv`` (n_pairs, 5, 5) the
         inverse normal matrices of the evaluation."""
-        per_block = zip(ev.blocks.items, ev.design, ev.parallax_mm, ev.weight, strict=True)
-        for block, m, q_img, w in per_block:
+        for block, m, q_img in zip(ev.blocks.items, ev.design, ev.parallax_mm, strict=True):
             sel = pairs[block.pairs]
             if not sel.any():
                 continue
-            a = m[sel, :5]
-            leverage = w[sel] * np.einsum("pik,pik->pk", a, n_inv[block.pairs[sel]] @ a)
-            valid = block.valid[sel]
-            rows = block.rows[sel][valid]
-            self.parallax_um[rows] = 1000.0 * q_img[sel][valid]
+            if sel.all():  # the usual case: every pair of the block converged together
+                a, inv, valid, rows = m[:, :5], n_inv[block.pairs], block.valid, block.rows
+            else:
+                a, inv = m[sel, :5], n_inv[block.pairs[sel]]
+                valid, rows, q_img = block.valid[sel], block.rows[sel], q_img[sel]
+            # the design rows are stored scaled by sqrt(w): w aᵀ N⁻¹ a
+            leverage = np.einsum("pik,pik->pk", a, inv @ a)
+            rows = rows[valid]
+            self.parallax_um[rows] = 1000.0 * q_img[valid]
             self.redundancy[rows] = np.clip(1.0 - leverage[valid], 0.0, 1.0)
         self.stored |= pairs
 
@@ -341,7 +352,8 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
         if robust:
             abs_q = np.where(np.isfinite(abs_q), abs_q, np.inf)
             w = w / (1.0 + (abs_q / (2.385 * _robust_scale(abs_q, block))) ** 2)
-        normal = (m * w[:, None, :]) @ m.transpose(0, 2, 1)
+        m *= np.sqrt(w)[:, None, :]  # in place: the weighted rows serve N and the leverage
+        normal = m @ m.transpose(0, 2, 1)
         ev.normal[block.pairs] = normal[:, :5, :5]
         ev.gradient[block.pairs] = -normal[:, :5, 5]
         ev.max_parallax_mm[block.pairs] = np.max(abs_q, axis=1)
@@ -349,7 +361,6 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
         ev.n_rows[block.pairs] = block.counts
         ev.design.append(m)
         ev.parallax_mm.append(q_img)
-        ev.weight.append(w)
     return ev
 
 
@@ -597,8 +608,10 @@ def relative_orientation(
             )
         state.set_start(start.elements)
 
+    left_t, right_t = np.ascontiguousarray(left.T), np.ascontiguousarray(right.T)
+
     def blocks_of(mask, stride=None):
-        return _Blocks(left, right, starts, counts, np.flatnonzero(mask), stride)
+        return _Blocks(left_t, right_t, starts, counts, np.flatnonzero(mask), stride)
 
     everything = np.ones(n_pairs, dtype=bool)
     record = _Record(pair.shape[0], n_pairs)
