@@ -5,6 +5,7 @@ be found and named; clean strips must pass without a rejection.
 """
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -43,6 +44,15 @@ def test_critical_value_is_bonferroni():
     assert critical_value(1, 0.05) == pytest.approx(1.95996, abs=1e-4)  # normal 97.5 %
     assert critical_value(1000, 0.001) == pytest.approx(4.8916, abs=1e-3)
     assert critical_value(10, 0.001) > critical_value(1, 0.001)
+
+
+@pytest.mark.parametrize("n_tests", [1, 10, 1000, 10**5, 10**7, 10**9])
+@pytest.mark.parametrize("alpha", [0.05, 0.001, 1e-6])
+def test_critical_value_has_the_bonferroni_tail_probability(n_tests, alpha):
+    """The two-sided tail beyond k is alpha / n to near machine precision, far
+    into the tail (2 Φ(-k) = erfc(k / sqrt 2), an independent evaluation)."""
+    k = critical_value(n_tests, alpha)
+    assert math.erfc(k / math.sqrt(2.0)) == pytest.approx(alpha / n_tests, rel=1e-12)
 
 
 def test_robust_variance_factor():

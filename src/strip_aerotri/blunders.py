@@ -34,9 +34,9 @@ over its four stages in each round.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from statistics import NormalDist
 
 import numpy as np
-from scipy.special import ndtri
 
 from ._typing import FloatArray
 
@@ -181,7 +181,8 @@ def critical_value(n_tests: int, alpha: float = 0.001) -> float:
     ``Φ⁻¹(1 − alpha / (2 n))`` (Bonferroni); n < 1 is taken as 1.
     """
     n = max(int(n_tests), 1)
-    return float(ndtri(1.0 - float(alpha) / (2.0 * n)))
+    # the lower tail, Φ⁻¹(alpha / 2n), has no cancellation in 1 − p
+    return -NormalDist().inv_cdf(float(alpha) / (2.0 * n))
 
 
 def robust_variance_factor(w: FloatArray) -> float:

@@ -31,10 +31,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ._typing import ArrayLike, BoolArray, FloatArray
 from .errors import ConvergenceError, GeometryError, StripAerotriWarning
+from .rotation import matrix_from_rotvec
 
 __all__ = [
     "SimilarityResult",
@@ -507,13 +507,13 @@ def _start_values(
     m = np.sum(np.conj(zs) * zt) / np.sum(np.abs(zs) ** 2)
     scale = float(np.abs(m))
     kappa = float(np.angle(m))
-    rz = Rotation.from_euler("z", kappa).as_matrix()
+    rz = matrix_from_rotvec([0.0, 0.0, kappa])
     # Heights: Z_t = tz + s (z + phi_x y - phi_y x), linear in (tz, phi_x, phi_y).
     p = src_c[use_z]
     a = np.column_stack([np.full(p.shape[0], 1.0 / scale), p[:, 1], -p[:, 0]])
     rhs = tgt_c[use_z, 2] / scale - p[:, 2]
     sol, *_ = np.linalg.lstsq(a, rhs, rcond=None)
-    tilt = Rotation.from_rotvec([sol[1], sol[2], 0.0]).as_matrix()
+    tilt = matrix_from_rotvec([sol[1], sol[2], 0.0])
     rotation = rz @ tilt
     u = src_c @ rotation.T * scale
     translation = np.array(
@@ -677,7 +677,7 @@ def fit_similarity(
                 "similarity transformation: the scale became non-positive during iteration "
                 f"{iterations}"
             )
-        rotation = Rotation.from_rotvec(dx[4:7]).as_matrix() @ rotation
+        rotation = matrix_from_rotvec(dx[4:7]) @ rotation
         step = max(
             float(np.max(np.abs(dx[0:3]))) / max(extent, np.finfo(float).tiny),
             abs(float(dx[3])) / scale,
