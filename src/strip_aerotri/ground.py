@@ -391,7 +391,7 @@ def _image_scale(strip: StripModel) -> tuple[float, float]:
     per mm), and the height-to-base ratio; medians over the strip's points."""
     c = strip.observations.principal_distance
     model_centres = strip.centres[strip.model_photo_positions]
-    ray = strip.model_points - model_centres[strip.model]
+    ray = strip.model_points - np.take(model_centres, strip.model, axis=0)
     model_per_mm = float(np.median(np.sqrt(np.einsum("ij,ij->i", ray, ray)))) / c
     base = float(np.median(np.linalg.norm(np.diff(model_centres, axis=0), axis=1)))
     height_to_base = float(np.median(np.abs(ray[:, 2]))) / base
@@ -666,11 +666,12 @@ def adjust_to_ground(
         out = transform.apply(xyz)
         return out if deformation is None else deformation.correct(out)
 
+    # rows by index, not boolean mask: several times faster on (n, 3) arrays
     points_work = np.full((obs.n_points, 3), np.nan)
-    ok = strip.triangulated
-    points_work[ok] = to_work(strip.points[ok])
+    ok = np.flatnonzero(strip.triangulated)
+    points_work[ok] = to_work(np.take(strip.points, ok, axis=0))
     points = np.full_like(points_work, np.nan)
-    points[ok] = work.from_work(points_work[ok])
+    points[ok] = work.from_work(np.take(points_work, ok, axis=0))
 
     centres_model = transform.apply(strip.centres)
     centres_work = to_work(strip.centres)
