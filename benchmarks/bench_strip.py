@@ -25,9 +25,7 @@ route), the median of a few runs, and prints:
 * pair-points per second (million): rows of the relative orientation (a
   point measured on both photos of a pair) per wall-clock second of
   ``form_strip`` (``M/s form``) and of the whole ``triangulate``, the core
-  without file I/O (``M/s core``).  Large evaluations of the relative
-  orientation use a small thread pool, so CPU seconds can exceed wall-clock
-  seconds;
+  without file I/O (``M/s core``);
 * log-log slopes of the time against the number of photos and against the
   points per pair.
 
