@@ -259,8 +259,6 @@ def form_strip(
     model, point, row_l, row_r = pair_rows(observations, seq)
     keep = _excluded_rows(observations, blunders, row_l, row_r)
     model, point, row_l, row_r = model[keep], point[keep], row_l[keep], row_r[keep]
-    # Rows of (n, 3) arrays are gathered by np.take / np.compress (axis=0):
-    # several times faster than fancy indexing of 2-D arrays with numpy 2.
     left, right = observations.image_vectors(row_l), observations.image_vectors(row_r)
     rejections: list[Rejection] = []
     n_rows = model.shape[0]
@@ -306,10 +304,12 @@ def form_strip(
             )
         if not blunders.rejecting:
             break
-        drop = np.zeros(model.shape[0], dtype=bool)
-        drop[worst] = True
-        model, point, row_l, row_r = model[~drop], point[~drop], row_l[~drop], row_r[~drop]
-        left, right = np.compress(~drop, left, axis=0), np.compress(~drop, right, axis=0)
+        kept = np.ones(model.shape[0], dtype=bool)
+        kept[worst] = False
+        model, point, row_l, row_r = model[kept], point[kept], row_l[kept], row_r[kept]
+        # rows of (n, 3) arrays by np.compress / np.take (axis=0) throughout:
+        # several times faster than fancy indexing of 2-D arrays with numpy 2
+        left, right = np.compress(kept, left, axis=0), np.compress(kept, right, axis=0)
         if n_rows - model.shape[0] > blunders.max_fraction * n_rows:
             raise GeometryError(
                 f"relative orientation: more than {blunders.max_fraction:.0%} of the "
@@ -475,6 +475,9 @@ def form_strip(
     )
 
 
+_CHUNK_ROWS = 1 << 15  # rows per chunk of _rotate_rows: its temporaries stay in cache
+
+
 def _rotate_rows(matrices: FloatArray, index: IntArray, vectors: FloatArray) -> FloatArray:
     """``matrices[index[i]] @ vectors[i]`` for every row i: (n, 3).
 
@@ -492,9 +495,6 @@ def _rotate_rows(matrices: FloatArray, index: IntArray, vectors: FloatArray) -> 
         for i in range(3):
             out[rows, i] = e[3 * i] * x + e[3 * i + 1] * y + e[3 * i + 2] * z
     return out
-
-
-_CHUNK_ROWS = 1 << 15
 
 
 def _excluded_rows(observations, blunders, row_l, row_r) -> np.ndarray:

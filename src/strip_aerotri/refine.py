@@ -1079,25 +1079,37 @@ def refine_frame(
         found += [
             (float(h_w[i]) / crit_ctrl, "height", int(i)) for i in np.flatnonzero(h_w > crit_ctrl)
         ]
-        # GNSS centres (along gnss_axes) and IMU attitudes (about the image axes).
-        crit_g = blunders.critical(GNSS_STAGE, 3 * int(np.count_nonzero(g_on)))
-        w_g, v_g = _photo_tests(
-            -res.gnss_residuals, res.gnss_residual_cofactor, g_sig, g_axes, g_on
-        )
-        crit_i = blunders.critical(IMU_STAGE, 3 * int(np.count_nonzero(i_on)))
-        w_i, v_i = _photo_tests(
-            -res.imu_residuals, res.imu_residual_cofactor, i_sig, np.eye(3), i_on
-        )
-        photo_w_g = np.max(np.where(np.isfinite(w_g), np.abs(w_g), -1.0), axis=1)
-        photo_w_i = np.max(np.where(np.isfinite(w_i), np.abs(w_i), -1.0), axis=1)
-        found += [
-            (float(photo_w_g[j]) / crit_g, "gnss", int(j))
-            for j in np.flatnonzero(photo_w_g > crit_g)
-        ]
-        found += [
-            (float(photo_w_i[j]) / crit_i, "imu", int(j))
-            for j in np.flatnonzero(photo_w_i > crit_i)
-        ]
+        # GNSS centres (along gnss_axes, m) and IMU attitudes (about the image
+        # axes, reported in degrees): kind -> stage, w, residuals along the
+        # axes, critical value, component names, unit, residual factor.
+        photo_stages = {
+            "gnss": (
+                GNSS_STAGE,
+                *_photo_tests(
+                    -res.gnss_residuals, res.gnss_residual_cofactor, g_sig, g_axes, g_on
+                ),
+                blunders.critical(GNSS_STAGE, 3 * int(np.count_nonzero(g_on))),
+                ("E", "N", "U"),
+                "m",
+                1.0,
+            ),
+            "imu": (
+                IMU_STAGE,
+                *_photo_tests(
+                    -res.imu_residuals, res.imu_residual_cofactor, i_sig, np.eye(3), i_on
+                ),
+                blunders.critical(IMU_STAGE, 3 * int(np.count_nonzero(i_on))),
+                ("about x", "about y", "about z"),
+                "deg",
+                float(np.degrees(1.0)),
+            ),
+        }
+        for kind, (_, w_k, _, crit_k, *_) in photo_stages.items():
+            photo_w = np.max(np.where(np.isfinite(w_k), np.abs(w_k), -1.0), axis=1)
+            found += [
+                (float(photo_w[j]) / crit_k, kind, int(j))
+                for j in np.flatnonzero(photo_w > crit_k)
+            ]
         if not found:
             return result
         effect = f"sigma0 {res.sigma0:.4g} before"
@@ -1112,21 +1124,19 @@ def refine_frame(
         else:
             picks_all = [(worst[1], k) for k in picks]
         for kind, k in picks_all:
-            if kind in ("gnss", "imu"):
-                gnss_kind = kind == "gnss"
-                w_k = (w_g if gnss_kind else w_i)[k]
-                comp = int(np.nanargmax(np.abs(w_k)))
-                v_k = float((v_g if gnss_kind else v_i)[k, comp])
+            if kind in photo_stages:
+                stage, w_k, v_k, crit_k, names, unit, factor = photo_stages[kind]
+                comp = int(np.nanargmax(np.abs(w_k[k])))
                 new_rejections.append(
                     Rejection(
-                        stage=GNSS_STAGE if gnss_kind else IMU_STAGE,
+                        stage=stage,
                         point="",
                         photos=(obs.photo_ids[k],),
-                        component="ENU"[comp] if gnss_kind else f"about {'xyz'[comp]}",
-                        residual=v_k if gnss_kind else float(np.degrees(v_k)),
-                        unit="m" if gnss_kind else "deg",
-                        w=float(abs(w_k[comp])),
-                        critical=crit_g if gnss_kind else crit_i,
+                        component=names[comp],
+                        residual=factor * float(v_k[k, comp]),
+                        unit=unit,
+                        w=float(abs(w_k[k, comp])),
+                        critical=crit_k,
                         applied=blunders.rejecting,
                         effect=f"bundle adjustment, {effect}",
                     )
