@@ -282,6 +282,7 @@ DEFAULT_SIGMA_H_M = 0.03
 DEFAULT_LINE_WEIGHT = 100.0
 DEFAULT_MAX_ITERATIONS = 50
 DEFAULT_POLYNOMIAL = 3
+DEFAULT_SECTIONS = 1
 DEFAULT_PHOTO_STEP = 1
 DEFAULT_MIN_BASE_TO_HEIGHT = 0.3  # densify.DEFAULT_MIN_BASE_TO_HEIGHT
 DEFAULT_GNSS_SIGMA_XY_M = 0.05
@@ -476,6 +477,14 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         default=DEFAULT_POLYNOMIAL, unit="",
         description="Deformation polynomial type: 0 (similarity only), 1, 2, 3 (J(16)) "
         'or "auto".',
+    ),
+    KeySpec(
+        "adjustment", "sections", "positive integer", required=False,
+        default=DEFAULT_SECTIONS, unit="",
+        description="Sections of equal length along the strip over which the deformation "
+        "polynomials become splines joined without steps (long strips, docs/ground.md); "
+        "1: J(16)'s single polynomial. Every section needs control.",
+        contract=False,
     ),
     KeySpec(
         "adjustment", "relative_orientation", "choice", required=False,
@@ -760,6 +769,8 @@ class AdjustmentOptions:
     ----------
     route : Route
     polynomial : int (0..3) or ``"auto"``
+    sections : int
+        Sections along the strip of the deformation polynomials (1: J(16)).
     relative_orientation : RelativeOrientation
     intersection : Intersection
     scale_transfer : ScaleTransfer
@@ -772,6 +783,7 @@ class AdjustmentOptions:
 
     route: Route = Route.GEOCENTRIC
     polynomial: int | Literal["auto"] = DEFAULT_POLYNOMIAL
+    sections: int = DEFAULT_SECTIONS
     relative_orientation: RelativeOrientation = RelativeOrientation.DEPENDENT
     intersection: Intersection = Intersection.MIDPOINT
     scale_transfer: ScaleTransfer = ScaleTransfer.Z
@@ -1973,9 +1985,16 @@ def load_project(path: str | Path) -> Project:
         )
 
     polynomial: int | Literal["auto"] = adjustment["polynomial"]  # type: ignore[assignment]
+    sections = int(adjustment["sections"])  # type: ignore[call-overload]
+    if sections > 1 and polynomial == 0:
+        raise ConfigError(
+            f"{toml_path}: [adjustment] sections: {sections} sections need a polynomial type "
+            "1, 2, 3 or \"auto\", got polynomial = 0"
+        )
     options = AdjustmentOptions(
         route=route,
         polynomial=polynomial,
+        sections=sections,
         relative_orientation=adjustment["relative_orientation"],  # type: ignore[arg-type]
         intersection=adjustment["intersection"],  # type: ignore[arg-type]
         scale_transfer=adjustment["scale_transfer"],  # type: ignore[arg-type]

@@ -29,6 +29,18 @@ For conditioning, X and Y are normalised inside :func:`fit_deformation`
 about the centroid of the data by the half-extent along X (see
 :class:`Normalization`); coefficients refer to the normalised variables.
 
+Long strips (``sections > 1``, an extension of J(16)): each polynomial is
+``w = f(u) + v g(u)``, J's terms grouped by their power of v.  One section
+is J(16) itself (f of degree 1, 2 or 3 in u, g linear); with S sections of
+equal length along the strip f becomes a spline of the same degree (C1 for
+type 2, C2 for type 3, with its pieces joined at the section breakpoints) and
+g a continuous piecewise-linear function, both fitted in one least-squares
+solution, so that a strip whose error accumulated over many models along the
+chain (a random walk, docs/strip-formation.md) is followed piece by piece
+without steps between sections.  The splines are represented in the
+B-spline basis (local, well conditioned); beyond the first and last
+breakpoints the end pieces continue as polynomials.
+
 All coordinates are Cartesian, metres, rows of shape (N, 3).
 """
 
@@ -60,10 +72,13 @@ __all__ = [
     "KindSummary",
     "Normalization",
     "StraightLine",
+    "bspline_basis",
     "fit_deformation",
     "n_terms",
     "polynomial_terms",
+    "section_terms",
     "select_kind_auto",
+    "term_names",
 ]
 
 _N_TERMS = {0: 0, 1: 4, 2: 5, 3: 6}
@@ -84,9 +99,14 @@ def _check_kind(kind: object) -> int:
     return int(kind)
 
 
-def n_terms(kind: int) -> int:
-    """Number of terms per coordinate of a J(16) polynomial type (0, 4, 5 or 6)."""
-    return _N_TERMS[_check_kind(kind)]
+def n_terms(kind: int, sections: int = 1) -> int:
+    """Number of terms per coordinate of a J(16) polynomial type: 0, 4, 5 or 6
+    for one section; ``degree + 2 S + 1`` over S sections (module docstring)."""
+    k = _check_kind(kind)
+    s = _check_sections(sections)
+    if k == 0:
+        return 0
+    return _N_TERMS[k] if s == 1 else _degree(k) + 2 * s + 1
 
 
 def polynomial_terms(x: ArrayLike, y: ArrayLike, kind: int) -> FloatArray:
@@ -118,6 +138,115 @@ def polynomial_terms(x: ArrayLike, y: ArrayLike, kind: int) -> FloatArray:
     if k == 0:
         return np.zeros((*x_arr.shape, 0))
     return np.stack(columns[: _N_TERMS[k]], axis=-1)
+
+
+def _degree(kind: int) -> int:
+    """Degree in u of the along-strip part f of a J(16) type (1, 2 or 3)."""
+    return {1: 1, 2: 2, 3: 3}[kind]
+
+
+def _check_sections(sections: object) -> int:
+    if (
+        isinstance(sections, bool)
+        or not isinstance(sections, int | np.integer)
+        or int(sections) < 1
+    ):
+        raise ValueError(f"Expected `sections` to be an integer >= 1, got {sections!r}")
+    return int(sections)
+
+
+def bspline_basis(u: ArrayLike, breakpoints: ArrayLike, degree: int) -> FloatArray:
+    """B-spline basis of a spline of `degree` with the given `breakpoints`.
+
+    The knot vector is clamped: the first and last breakpoints repeated
+    ``degree + 1`` times, the interior ones simple (a spline of class
+    C^(degree-1)).  Outside the first and last breakpoints the basis of the
+    end piece continues as polynomials, so the spline extrapolates by its end
+    pieces (as a single polynomial would).
+
+    Parameters
+    ----------
+    u : array_like, shape (N,)
+        Abscissae (normalised along-strip coordinate).
+    breakpoints : array_like, shape (S + 1,)
+        Increasing section boundaries, S >= 1.
+    degree : int
+        1, 2 or 3.
+
+    Returns
+    -------
+    ndarray, shape (N, S + degree)
+        Column j is B_j(u); the columns sum to 1 everywhere.
+
+    Notes
+    -----
+    Cox-de Boor recurrence in the triangular form of Piegl & Tiller, The
+    NURBS Book, algorithm A2.2, vectorised over u with the knot span
+    clipped to the first and last.
+    """
+    x = np.asarray(u, dtype=np.float64).reshape(-1)
+    b = np.asarray(breakpoints, dtype=np.float64)
+    if b.ndim != 1 or b.size < 2 or np.any(np.diff(b) <= 0.0):
+        raise ValueError("Expected at least two increasing `breakpoints`")
+    if degree not in (1, 2, 3):
+        raise ValueError(f"Expected `degree` 1, 2 or 3, got {degree!r}")
+    d = degree
+    n_sections = b.size - 1
+    knots = np.concatenate([np.full(d, b[0]), b, np.full(d, b[-1])])
+    span = d + np.clip(np.searchsorted(b, x, side="right") - 1, 0, n_sections - 1)
+    values = np.zeros((x.size, d + 1))
+    values[:, 0] = 1.0
+    left = np.empty((x.size, d + 1))
+    right = np.empty((x.size, d + 1))
+    for j in range(1, d + 1):
+        left[:, j] = x - knots[span + 1 - j]
+        right[:, j] = knots[span + j] - x
+        saved = np.zeros(x.size)
+        for r in range(j):
+            temp = values[:, r] / (right[:, r + 1] + left[:, j - r])
+            values[:, r] = saved + right[:, r + 1] * temp
+            saved = left[:, j - r] * temp
+        values[:, j] = saved
+    out = np.zeros((x.size, n_sections + d))
+    columns = (span - d)[:, None] + np.arange(d + 1)
+    np.put_along_axis(out, columns, values, axis=1)
+    return out
+
+
+def section_terms(u: ArrayLike, v: ArrayLike, kind: int, breakpoints: ArrayLike) -> FloatArray:
+    """Design columns of a J(16) type over sections: ``[B_j(u)] + [v L_j(u)]``.
+
+    ``B_j`` is the B-spline basis of the degree of the type (1, 2, 3) and
+    ``L_j`` the piecewise-linear one, both on `breakpoints` (normalised u,
+    shape (S + 1,)); see :func:`bspline_basis`.  With one section the columns
+    span exactly J's ``[1, u, v, uv, u², u³][:n]``.
+
+    Returns
+    -------
+    ndarray, shape (N, n_terms(kind, S))
+    """
+    k = _check_kind(kind)
+    u_arr, v_arr = np.broadcast_arrays(
+        np.asarray(u, dtype=np.float64).reshape(-1), np.asarray(v, dtype=np.float64).reshape(-1)
+    )
+    if k == 0:
+        return np.zeros((u_arr.size, 0))
+    f = bspline_basis(u_arr, breakpoints, _degree(k))
+    g = bspline_basis(u_arr, breakpoints, 1) * v_arr[:, None]
+    return np.concatenate([f, g], axis=1)
+
+
+def term_names(kind: int, sections: int = 1) -> tuple[str, ...]:
+    """Names of the design columns: J's ``1, X, Y, XY, X^2, X^3`` for one
+    section, ``f0 .. f(n-1)`` (along-strip B-spline) and ``Y·g0 .. Y·gS``
+    (Y times the piecewise-linear basis) for several."""
+    k = _check_kind(kind)
+    s = _check_sections(sections)
+    if s == 1:
+        return _TERM_NAMES[: _N_TERMS[k]]
+    if k == 0:
+        return ()
+    return tuple(f"f{j}" for j in range(s + _degree(k))) + tuple(f"Y·g{j}" for j in range(s + 1))
 
 
 class Normalization(NamedTuple):
@@ -235,6 +364,11 @@ class DeformationResult:
         reference control sigma divided by ``sqrt(weight)``).
     point_ids : tuple of str
         Ids of the N control rows.
+    breakpoints : ndarray, shape (S + 1,) or None
+        Section boundaries in the normalised u for ``sections > 1`` (module
+        docstring); None for J(16)'s single polynomial.  With sections the
+        columns of `coefficients` are those of :func:`section_terms`
+        (names in :attr:`term_names`).
     """
 
     kind: int
@@ -254,6 +388,26 @@ class DeformationResult:
     normalized_residuals: FloatArray
     line_normalized_residuals: tuple[FloatArray, ...]
     point_ids: tuple[str, ...] = field(default_factory=tuple)
+    breakpoints: FloatArray | None = None
+
+    @property
+    def sections(self) -> int:
+        """Number of sections along the strip (1: J(16))."""
+        return 1 if self.breakpoints is None else int(self.breakpoints.size - 1)
+
+    @property
+    def term_names(self) -> tuple[str, ...]:
+        """Names of the columns of `coefficients` (:func:`term_names`)."""
+        return term_names(self.kind, self.sections)
+
+    @property
+    def breakpoints_x(self) -> FloatArray:
+        """Section boundaries as X of the fit's frame, metres, shape (S + 1,)
+        (empty for a single polynomial)."""
+        if self.breakpoints is None:
+            return np.zeros(0)
+        norm = self.normalization
+        return norm.centre[0] + norm.half_extent * self.breakpoints
 
     def evaluate(self, xyz: ArrayLike) -> FloatArray:
         """Deformation ``w`` (metres) at photogrammetric points.
@@ -270,7 +424,10 @@ class DeformationResult:
         """
         arr = _check_points(xyz, "xyz")
         u, v = self.normalization.apply(arr)
-        terms = polynomial_terms(u, v, self.kind)
+        if self.breakpoints is None:
+            terms = polynomial_terms(u, v, self.kind)
+        else:
+            terms = section_terms(u, v, self.kind, self.breakpoints)
         return terms @ self.coefficients.T
 
     def correct(self, xyz: ArrayLike) -> FloatArray:
@@ -350,6 +507,7 @@ def fit_deformation(
     sigma_z: ArrayLike | None = None,
     lines: Sequence[StraightLine] = (),
     point_ids: Sequence[str] | None = None,
+    sections: int = 1,
 ) -> DeformationResult:
     """Fit the J(16) deformation polynomials by weighted least squares.
 
@@ -379,6 +537,10 @@ def fit_deformation(
         a line equation counts as 100 control coordinates.
     point_ids : sequence of str, length N, optional
         Names for messages and the result.
+    sections : int
+        Number of sections of equal length along the strip, between the
+        first and last control (or line point) in X (module docstring).  1
+        (default) is J(16); more need one type for X, Y and Z.
 
     Returns
     -------
@@ -388,8 +550,9 @@ def fit_deformation(
     ------
     GeometryError
         Fewer usable observations than terms for a coordinate, a straight
-        line with fewer than three points, non-finite used coordinates, or a
-        singular design (messages name the rule and the points).
+        line with fewer than three points, non-finite used coordinates, a
+        section without control for a coordinate, or a singular design
+        (messages name the rule and the points).
     ValueError
         Bad shapes or arguments.
 
@@ -414,7 +577,9 @@ def fit_deformation(
     the half-extent is half their range in X (or in Y when X has no range).
 
     A coordinate needs at least as many observations as terms; for Y the
-    line equations count with two fewer per line (the line's a, b).
+    line equations count with two fewer per line (the line's a, b).  Over
+    sections, every section needs control (or line points, for Y) of every
+    coordinate.
     """
     pts = _check_points(xyz, "xyz")
     n = pts.shape[0]
@@ -425,6 +590,11 @@ def fit_deformation(
     sz = _check_sigma(sigma_z, n, "sigma_z")
     ids = _check_ids(point_ids, n)
     kinds = _kinds3(kind)
+    n_sections = _check_sections(sections)
+    if n_sections > 1 and (len(set(kinds)) > 1 or kinds[0] == 0):
+        raise ValueError(
+            f"Expected one polynomial type >= 1 for X, Y and Z with sections > 1, got {kind!r}"
+        )
     lines = tuple(lines)
     for line in lines:
         if not isinstance(line, StraightLine):
@@ -457,22 +627,24 @@ def fit_deformation(
     n_plan = len(plan_ids)
     n_height = len(height_ids)
     n_line_extra = sum(line.xyz.shape[0] - 2 for line in lines)
+    in_sections = f" in {n_sections} sections" if n_sections > 1 else ""
     for axis, count, label, names in (
         ("X", n_plan, "full or plan control points", plan_ids),
         ("Z", n_height, "height control points", height_ids),
     ):
-        need = _N_TERMS[kinds["XYZ".index(axis)]]
+        need = n_terms(kinds["XYZ".index(axis)], n_sections)
         if count < need:
             raise GeometryError(
-                f"polynomial type {kinds['XYZ'.index(axis)]} needs at least {need} {label} "
+                f"polynomial type {kinds['XYZ'.index(axis)]}{in_sections} needs at least "
+                f"{need} {label} "
                 f"for {axis}, got {count}" + (f" ({_quote(names)})" if names else "")
             )
-    need_y = _N_TERMS[kinds[1]]
+    need_y = n_terms(kinds[1], n_sections)
     if n_plan + n_line_extra < need_y:
         line_text = ", ".join(f"{ln.name!r}: {ln.xyz.shape[0]}" for ln in lines)
         raise GeometryError(
-            f"polynomial type {kinds[1]} needs at least {need_y} observations for Y (full or "
-            "plan control points, plus line points beyond two per straight line), got "
+            f"polynomial type {kinds[1]}{in_sections} needs at least {need_y} observations for Y "
+            "(full or plan control points, plus line points beyond two per straight line), got "
             f"{n_plan + n_line_extra}: {n_plan} control"
             + (f" ({_quote(plan_ids)})" if plan_ids else "")
             + (f" and {n_line_extra} from lines ({line_text})" if lines else "")
@@ -485,19 +657,33 @@ def fit_deformation(
     # stand at one station (e.g. the two sides of the strip at one model).
     tol = 0.1 * max(float(np.ptp(all_x)), 1e-12) / max(all_x.size, 1)
     line_x = [line.xyz[:, 0] for line in lines]
+    # Sections of equal length between the first and last data point in X.
+    x_breaks = np.linspace(all_x.min(), all_x.max(), n_sections + 1) if all_x.size else None
     for c, axis, xs, label in (
         (0, "X", [pts[mask_xy, 0]], "full or plan control"),
         (1, "Y", [pts[mask_xy, 0], *line_x], "full or plan control and line points"),
         (2, "Z", [pts[mask_z, 0]], "height control"),
     ):
-        need = {0: 0, 1: 2, 2: 3, 3: 4}[kinds[c]]
-        got = _stations(np.concatenate(xs), tol)
+        # degree + 1 for one polynomial, degree + S for a spline over S sections
+        need = 0 if kinds[c] == 0 else _degree(kinds[c]) + n_sections
+        x_c = np.concatenate(xs)
+        got = _stations(x_c, tol)
         if got < need:
             raise GeometryError(
-                f"polynomial type {kinds[c]} needs {label} at at least {need} stations along "
-                f"the strip for {axis}, got {got} (points at one X within {tol:.3g} m count "
-                "once)"
+                f"polynomial type {kinds[c]}{in_sections} needs {label} at at least {need} "
+                f"stations along the strip for {axis}, got {got} (points at one X within "
+                f"{tol:.3g} m count once)"
             )
+        if n_sections > 1 and x_breaks is not None:
+            section = np.clip(np.searchsorted(x_breaks, x_c, side="right") - 1, 0, n_sections - 1)
+            empty = np.flatnonzero(np.bincount(section, minlength=n_sections) == 0)
+            if empty.size:
+                j = int(empty[0])
+                raise GeometryError(
+                    f"polynomial type {kinds[c]} in {n_sections} sections: section {j + 1} "
+                    f"(X {x_breaks[j]:.1f} to {x_breaks[j + 1]:.1f} m) has no {label} for "
+                    f"{axis}; use fewer sections or add control there"
+                )
 
     # Normalisation.
     xy_data = [pts[used, :2]] + [line.xyz[:, :2] for line in lines]
@@ -516,11 +702,21 @@ def fit_deformation(
     centre.setflags(write=False)
 
     kind_max = max(kinds)
-    nt = _N_TERMS[kind_max]
+    nt = n_terms(kind_max, n_sections)
+    breakpoints = None
+    if n_sections > 1:
+        breakpoints = (x_breaks - centre[0]) / half
+        breakpoints.setflags(write=False)
+
+    def terms(u, v, k):
+        if breakpoints is None:
+            return polynomial_terms(u, v, k)
+        return section_terms(u, v, k, breakpoints)
+
     u_all, v_all = norm.apply(pts)
     u_all = np.where(used, u_all, 0.0)
     v_all = np.where(used, v_all, 0.0)
-    terms_all = polynomial_terms(u_all, v_all, kind_max)
+    terms_all = terms(u_all, v_all, kind_max)
     w_obs = np.where(
         np.column_stack([mask_xy, mask_xy, mask_z]),
         pts - np.where(np.column_stack([mask_xy, mask_xy, mask_z]), tgt, 0.0),
@@ -537,7 +733,7 @@ def fit_deformation(
 
     # X and Z: control only.
     for c, mask, sig, names in ((0, mask_xy, sxy, plan_ids), (2, mask_z, sz, height_ids)):
-        k_c = _N_TERMS[kinds[c]]
+        k_c = n_terms(kinds[c], n_sections)
         design = terms_all[mask, :k_c]
         x, v_fit, r, _ = _solve(
             design,
@@ -558,7 +754,7 @@ def fit_deformation(
             sigma0_xyz[c] = np.sqrt(vtpv / redundancy_xyz[c])
 
     # Y: control plus straight lines.
-    k_y = _N_TERMS[kinds[1]]
+    k_y = n_terms(kinds[1], n_sections)
     n_lines = len(lines)
     sigma_ref = float(np.median(sxy[mask_xy])) if n_plan else 1.0
     rows = [terms_all[mask_xy, :k_y]]
@@ -567,7 +763,7 @@ def fit_deformation(
     sig_y = [sxy[mask_xy]]
     for k, line in enumerate(lines):
         u_l, v_l = norm.apply(line.xyz)
-        rows.append(polynomial_terms(u_l, v_l, kinds[1])[:, :k_y])
+        rows.append(terms(u_l, v_l, kinds[1])[:, :k_y])
         block = np.zeros((u_l.shape[0], 2 * n_lines))
         block[:, 2 * k] = 1.0
         block[:, 2 * k + 1] = u_l
@@ -636,6 +832,7 @@ def fit_deformation(
         normalized_residuals=normalized,
         line_normalized_residuals=tuple(line_norm),
         point_ids=ids,
+        breakpoints=breakpoints,
     )
 
 
@@ -688,6 +885,7 @@ def select_kind_auto(
     kinds: Sequence[int] = (0, 1, 2, 3),
     min_redundancy: int = 2,
     confidence: float = 0.95,
+    sections: int = 1,
 ) -> KindSelection:
     """Choose the polynomial type ("auto"), as a photogrammetrist would.
 
@@ -728,6 +926,8 @@ def select_kind_auto(
         Minimum redundancy per coordinate for a kind to be tried.
     confidence : float
         Confidence level of the test (0.95).
+    sections : int
+        Sections along the strip for every type >= 1 (:func:`fit_deformation`).
 
     Returns
     -------
@@ -763,6 +963,7 @@ def select_kind_auto(
                 sigma_z=expected_sigma_z,
                 lines=lines,
                 point_ids=point_ids,
+                sections=sections if k > 0 else 1,
             )
         except GeometryError as exc:
             table.append(

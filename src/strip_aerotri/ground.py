@@ -86,10 +86,17 @@ class GroundOptions:
         Default: geocentric, projected when the CRS is "local".
     polynomial : int 0..3 or "auto"
         J(16) type of the deformation polynomials (0: similarity only).
+    sections : int >= 1
+        Sections of equal length along the strip over which the polynomials
+        become splines joined without steps (1: J(16)'s single polynomial;
+        see :mod:`strip_aerotri.deformation`).  A long strip bends beyond
+        one cubic (its error grows as a random walk along the chain); each
+        section needs control of every coordinate.
     """
 
     route: Route | None = None
     polynomial: int | str = 3
+    sections: int = 1
 
     def __post_init__(self) -> None:
         if self.route is not None:
@@ -101,6 +108,14 @@ class GroundOptions:
             object.__setattr__(self, "polynomial", "auto")
         elif int(poly) not in (0, 1, 2, 3):
             raise ValueError(f"Expected polynomial 0, 1, 2, 3 or 'auto', got {poly!r}")
+        sections = self.sections
+        if isinstance(sections, bool) or not isinstance(sections, int | np.integer):
+            raise ValueError(f"Expected sections to be an integer >= 1, got {sections!r}")
+        if sections < 1:
+            raise ValueError(f"Expected sections to be an integer >= 1, got {sections!r}")
+        if sections > 1 and poly == 0:
+            raise ValueError("Expected polynomial 1, 2, 3 or 'auto' with sections > 1, got 0")
+        object.__setattr__(self, "sections", int(sections))
 
 
 @dataclass(frozen=True)
@@ -567,6 +582,7 @@ def adjust_to_ground(
             ]
             deformation, selection = _fit_polynomial(
                 options.polynomial,
+                options.sections,
                 model_xyz[active],
                 target[active],
                 use_xy[active],
@@ -741,7 +757,7 @@ def _line_residuals(xyz: FloatArray) -> FloatArray:
     return xyz[:, 1] - design @ coef
 
 
-def _fit_polynomial(kind, xyz, target, use_xy, use_z, exp_xy, exp_z, lines, ids):
+def _fit_polynomial(kind, sections, xyz, target, use_xy, use_z, exp_xy, exp_z, lines, ids):
     if kind == "auto":
         selection = select_kind_auto(
             xyz,
@@ -752,6 +768,7 @@ def _fit_polynomial(kind, xyz, target, use_xy, use_z, exp_xy, exp_z, lines, ids)
             expected_sigma_z=exp_z,
             lines=lines,
             point_ids=ids,
+            sections=sections,
         )
         kind = selection.kind
     else:
@@ -769,6 +786,7 @@ def _fit_polynomial(kind, xyz, target, use_xy, use_z, exp_xy, exp_z, lines, ids)
             sigma_z=exp_z,
             lines=lines,
             point_ids=ids,
+            sections=sections if kind > 0 else 1,
         ),
         selection,
     )

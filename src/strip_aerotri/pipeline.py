@@ -276,7 +276,9 @@ def run_project(
         scale_transfer=str(adj.scale_transfer.value),
         max_iterations=int(adj.max_iterations),
     )
-    ground_options = GroundOptions(route=str(adj.route.value), polynomial=adj.polynomial)
+    ground_options = GroundOptions(
+        route=str(adj.route.value), polynomial=adj.polynomial, sections=adj.sections
+    )
     lines = [
         LineSpec(point_ids=tuple(spec.point_ids), weight=spec.weight, name=spec.name)
         for spec in project.straight_lines

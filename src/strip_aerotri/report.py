@@ -42,7 +42,6 @@ _ROLE_OF_KIND = {
     ControlType.HEIGHT: "control-height",
     ControlType.CHECK: "check",
 }
-_TERM_NAMES = ("1", "X", "Y", "XY", "X^2", "X^3")
 
 
 # --------------------------------------------------------------------------- helpers
@@ -264,10 +263,12 @@ def _polynomial(result, requested: Any) -> dict[str, Any]:
     out: dict[str, Any] = {"requested": requested, "kind": int(ground.polynomial_kind)}
     if deformation is not None:
         coef = np.asarray(deformation.coefficients, dtype=np.float64)
-        terms = list(_TERM_NAMES[: coef.shape[1]])
+        terms = list(deformation.term_names)
         out.update(
             {
                 "kinds_xyz": [int(k) for k in deformation.kinds],
+                "sections": int(deformation.sections),
+                "breakpoints_x_m": np.asarray(deformation.breakpoints_x, dtype=np.float64),
                 "terms": terms,
                 "coefficients_m": {axis: [_f(v) for v in coef[i]] for i, axis in enumerate("XYZ")},
                 "normalization": {
@@ -1428,12 +1429,22 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
     out.append("<h2>Deformation polynomials (J(16))</h2>")
     if poly.get("coefficients_m"):
         terms = poly["terms"]
+        sections = int(poly.get("sections", 1))
+        spline_text = ""
+        if sections > 1:
+            breaks = ", ".join(_fmt(x, 1) for x in poly["breakpoints_x_m"])
+            spline_text = (
+                f" In {sections} sections along the strip (breakpoints at X = {breaks} m of the "
+                "work frame): each polynomial is f(u) + v g(u) with f a spline of the type's "
+                "degree and g piecewise linear, joined without steps; f0… and Y·g0… are their "
+                "B-spline coefficients."
+            )
         out.append(
             f"<p>Type {poly['kind']} (X, Y, Z types {poly['kinds_xyz']}); normalised "
             f"variables u = (X − X0)/h, v = (Y − Y0)/h with h = "
             f"{_fmt(poly['normalization']['half_extent_m'], 1)} m; σ0 = "
             f"{_fmt(poly['sigma0'])}, redundancy {poly['redundancy']}. Coefficients in metres."
-            "</p>"
+            f"{spline_text}</p>"
         )
         out.append(
             _table(
@@ -1441,6 +1452,7 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
                 [[axis, *poly["coefficients_m"][axis]] for axis in "XYZ"],
                 left=1,
                 digits=4,
+                scroll=sections > 1,
             )
         )
     else:

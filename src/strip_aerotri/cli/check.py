@@ -224,15 +224,18 @@ def check_project(project, out: Path | None = None) -> CheckReport:
 
     # Polynomial.
     kind = project.adjustment.polynomial
+    sections = project.adjustment.sections
+    in_sections = f" in {sections} sections" if sections > 1 else ""
     if kind != "auto" and n_plan >= 2 and n_height >= 3:
-        need = n_terms(int(kind))
+        need = n_terms(int(kind), sections)
         for axis, count, what in (
             ("X", n_plan, "full or plan control points"),
             ("Z", n_height, "full or height control points"),
         ):
             if count < need:
                 rep.problems.append(
-                    f"{control_file}: polynomial type {kind} ([adjustment] polynomial in "
+                    f"{control_file}: polynomial type {kind}{in_sections} ([adjustment] "
+                    f"polynomial{' and sections' if sections > 1 else ''} in "
                     f"{project.path}) needs at least {need} {what} for {axis}, got {count}"
                 )
 
@@ -250,7 +253,11 @@ def check_project(project, out: Path | None = None) -> CheckReport:
         if n_models > 1
         else ""
     )
-    poly = "auto" if kind == "auto" else f"{kind} (needs {n_terms(int(kind))} per coordinate)"
+    poly = (
+        f"auto{in_sections}"
+        if kind == "auto"
+        else f"{kind}{in_sections} (needs {n_terms(int(kind), sections)} per coordinate)"
+    )
     rep.summary += [
         f"project '{project.name}': {project.path}",
         f"photos: {n_photos} ({all_ids[0]} ... {all_ids[-1]}), {n_models} pairs"
