@@ -188,11 +188,6 @@ def test_bspline_basis_rejects_bad_arguments():
         bspline_basis([0.0], [0.0, 1.0], 0)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bspline_basis checks `degree not in (1, 2, 3)`, which lets True and 2.0 through "
-    "(they compare equal to 1 and 2); np.full then raises TypeError instead of ValueError",
-)
 @pytest.mark.parametrize("degree", [True, 2.0])
 def test_bspline_basis_rejects_bool_and_float_degree(degree):
     # style.md: ValueError for bad arguments (as _check_kind does for kind=True).

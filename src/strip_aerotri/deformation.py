@@ -53,7 +53,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._typing import ArrayLike, FloatArray
+from ._typing import ArrayLike, FloatArray, IntArray
 from .errors import GeometryError, StripAerotriWarning
 from .similarity import (
     _check_ids,
@@ -155,6 +155,39 @@ def _check_sections(sections: object) -> int:
     return int(sections)
 
 
+def _bspline_nonzero(
+    x: FloatArray, breakpoints: FloatArray, degree: int
+) -> tuple[FloatArray, IntArray]:
+    """The ``degree + 1`` B-spline values that can be nonzero at each x, (N, d + 1),
+    and the index of the first of them, (N,): the local support that lets a
+    spline be evaluated without a dense (N, S + d) design."""
+    d = degree
+    n_sections = breakpoints.size - 1
+    knots = np.concatenate([np.full(d, breakpoints[0]), breakpoints, np.full(d, breakpoints[-1])])
+    span = d + np.clip(np.searchsorted(breakpoints, x, side="right") - 1, 0, n_sections - 1)
+    values = np.zeros((x.size, d + 1))
+    values[:, 0] = 1.0
+    left = np.empty((x.size, d + 1))
+    right = np.empty((x.size, d + 1))
+    for j in range(1, d + 1):
+        left[:, j] = x - knots[span + 1 - j]
+        right[:, j] = knots[span + j] - x
+        saved = np.zeros(x.size)
+        for r in range(j):
+            temp = values[:, r] / (right[:, r + 1] + left[:, j - r])
+            values[:, r] = saved + right[:, r + 1] * temp
+            saved = left[:, j - r] * temp
+        values[:, j] = saved
+    return values, span - d
+
+
+def _check_breakpoints(breakpoints: ArrayLike) -> FloatArray:
+    b = np.asarray(breakpoints, dtype=np.float64)
+    if b.ndim != 1 or b.size < 2 or np.any(np.diff(b) <= 0.0):
+        raise ValueError("Expected at least two increasing `breakpoints`")
+    return b
+
+
 def bspline_basis(u: ArrayLike, breakpoints: ArrayLike, degree: int) -> FloatArray:
     """B-spline basis of a spline of `degree` with the given `breakpoints`.
 
@@ -185,31 +218,34 @@ def bspline_basis(u: ArrayLike, breakpoints: ArrayLike, degree: int) -> FloatArr
     clipped to the first and last.
     """
     x = np.asarray(u, dtype=np.float64).reshape(-1)
-    b = np.asarray(breakpoints, dtype=np.float64)
-    if b.ndim != 1 or b.size < 2 or np.any(np.diff(b) <= 0.0):
-        raise ValueError("Expected at least two increasing `breakpoints`")
-    if degree not in (1, 2, 3):
+    b = _check_breakpoints(breakpoints)
+    if (
+        isinstance(degree, bool)
+        or not isinstance(degree, int | np.integer)
+        or degree not in (1, 2, 3)
+    ):
         raise ValueError(f"Expected `degree` 1, 2 or 3, got {degree!r}")
-    d = degree
-    n_sections = b.size - 1
-    knots = np.concatenate([np.full(d, b[0]), b, np.full(d, b[-1])])
-    span = d + np.clip(np.searchsorted(b, x, side="right") - 1, 0, n_sections - 1)
-    values = np.zeros((x.size, d + 1))
-    values[:, 0] = 1.0
-    left = np.empty((x.size, d + 1))
-    right = np.empty((x.size, d + 1))
-    for j in range(1, d + 1):
-        left[:, j] = x - knots[span + 1 - j]
-        right[:, j] = knots[span + j] - x
-        saved = np.zeros(x.size)
-        for r in range(j):
-            temp = values[:, r] / (right[:, r + 1] + left[:, j - r])
-            values[:, r] = saved + right[:, r + 1] * temp
-            saved = left[:, j - r] * temp
-        values[:, j] = saved
-    out = np.zeros((x.size, n_sections + d))
-    columns = (span - d)[:, None] + np.arange(d + 1)
-    np.put_along_axis(out, columns, values, axis=1)
+    values, first = _bspline_nonzero(x, b, degree)
+    out = np.zeros((x.size, b.size - 1 + degree))
+    np.put_along_axis(out, first[:, None] + np.arange(degree + 1), values, axis=1)
+    return out
+
+
+def _section_values(
+    u: FloatArray, v: FloatArray, kind: int, breakpoints: FloatArray, coefficients: FloatArray
+) -> FloatArray:
+    """``section_terms(u, v, kind, breakpoints) @ coefficients.T`` from the local
+    support only: (N, 3) for coefficients (3, n_terms)."""
+    d = _degree(kind)
+    n_f = breakpoints.size - 1 + d
+    f_val, f_first = _bspline_nonzero(u, breakpoints, d)
+    g_val, g_first = _bspline_nonzero(u, breakpoints, 1)
+    out = np.zeros((u.size, coefficients.shape[0]))
+    for c in range(coefficients.shape[0]):
+        coef_f, coef_g = coefficients[c, :n_f], coefficients[c, n_f:]
+        f = np.einsum("nr,nr->n", f_val, coef_f[f_first[:, None] + np.arange(d + 1)])
+        g = np.einsum("nr,nr->n", g_val, coef_g[g_first[:, None] + np.arange(2)])
+        out[:, c] = f + v * g
     return out
 
 
@@ -424,11 +460,9 @@ class DeformationResult:
         """
         arr = _check_points(xyz, "xyz")
         u, v = self.normalization.apply(arr)
-        if self.breakpoints is None:
-            terms = polynomial_terms(u, v, self.kind)
-        else:
-            terms = section_terms(u, v, self.kind, self.breakpoints)
-        return terms @ self.coefficients.T
+        if self.breakpoints is not None:
+            return _section_values(u, v, self.kind, self.breakpoints, self.coefficients)
+        return polynomial_terms(u, v, self.kind) @ self.coefficients.T
 
     def correct(self, xyz: ArrayLike) -> FloatArray:
         """Corrected coordinates ``xyz - w(X, Y)``, shape (N, 3), metres."""

@@ -272,7 +272,7 @@ def _redundancy_numbers(a_white: FloatArray, q: FloatArray) -> FloatArray:
     """Diagonal of ``I - A (AᵀPA)⁻¹ AᵀP`` for whitened rows ``a_white = sqrt(P) A``."""
     if a_white.shape[1] == 0:
         return np.ones(a_white.shape[0])
-    h = np.einsum("ij,jk,ik->i", a_white, q, a_white)
+    h = np.einsum("ij,ij->i", a_white @ q, a_white)  # a three-operand einsum is O(n k²) slow
     return np.clip(1.0 - h, 0.0, 1.0)
 
 
