@@ -424,6 +424,17 @@ BAD_INPUTS = [
         "polynomial-range",
     ),
     (
+        append(T, "[adjustment]\nsections = 0\n"),
+        r"\[adjustment\] sections: expected a positive integer",
+        "sections-zero",
+    ),
+    (
+        append(T, "[adjustment]\npolynomial = 0\nsections = 3\n"),
+        r"\[adjustment\] sections: 3 sections need a polynomial type 1, 2, 3 or \"auto\", "
+        r"got polynomial = 0",
+        "sections-without-polynomial",
+    ),
+    (
         append(T, "[adjustment]\nmax_iterations = 0\n"),
         r"\[adjustment\] max_iterations: expected a positive integer",
         "max-iterations",
