@@ -13,7 +13,10 @@ c = 152.87 mm at 1:8000, 60 % overlap, 5 µm image noise, full control of
 then, in this one process and on the same data:
 
 * the strip method, :func:`strip_aerotri.pipeline.triangulate` (projected
-  route, polynomial type 3, blunder tests in "report" mode);
+  route, polynomial type 3 over one section per ``--models-per-section``
+  models, 6 by default: about 1.5 control stations a section, so that a
+  long strip's bend is followed, docs/ground.md "Long strips"; 0: J's
+  single polynomial; blunder tests in "report" mode);
 * the bundle refinement of its result, :func:`strip_aerotri.refine.refine_bundle`
   (also in "report" mode), with and without the precision (``6 M`` sparse
   solves for the standard deviations);
@@ -288,7 +291,9 @@ def pycolmap_time(syn: Synthetic, result) -> float | None:
     return time.perf_counter() - t0
 
 
-def run(cases, *, memory: bool, precision_limit: int, seed: int) -> list[dict]:
+def run(
+    cases, *, memory: bool, precision_limit: int, seed: int, models_per_section: int = 6
+) -> list[dict]:
     rows = []
     report = BlunderOptions(action="report")
     for m, n in cases:
@@ -298,14 +303,19 @@ def run(cases, *, memory: bool, precision_limit: int, seed: int) -> list[dict]:
         obs = syn.observations
         k = obs.photo.size
         strip = None
+        sections = max(1, (m - 1) // models_per_section) if models_per_section > 0 else 1
         for poly in (3, 1, 0):  # a lower type where the control cannot carry type 3
             try:
                 strip, t_strip, mem_strip = measure(
-                    lambda syn=syn, poly=poly: triangulate(
+                    lambda syn=syn, poly=poly, sections=sections: triangulate(
                         syn.observations,
                         syn.control,
                         "local",
-                        ground_options=GroundOptions(route="projected", polynomial=poly),
+                        ground_options=GroundOptions(
+                            route="projected",
+                            polynomial=poly,
+                            sections=sections if poly > 0 else 1,
+                        ),
                         blunders=report,
                     ),
                     memory=memory,
@@ -341,6 +351,7 @@ def run(cases, *, memory: bool, precision_limit: int, seed: int) -> list[dict]:
             "t_bundle": t_bundle,
             "t_precision": t_precision,
             "poly": poly,
+            "sections": sections if poly > 0 else 1,
             "iterations": refined.iterations,
             "mem_strip": mem_strip,
             "mem_bundle": mem_bundle,
@@ -360,7 +371,7 @@ def run(cases, *, memory: bool, precision_limit: int, seed: int) -> list[dict]:
 HEADER = (
     f"{'M':>5} {'pts/ph':>6} {'obs K':>7} {'strip s':>7} {'bundle s':>8} {'ratio':>5} "
     f"{'+prec s':>7} {'ratio':>5} {'strip obs/s':>11} {'bund obs/s':>10} "
-    f"{'strip MB':>8} {'bund MB':>7} {'poly':>4} {'strip plan/h m':>15} "
+    f"{'strip MB':>8} {'bund MB':>7} {'poly':>4} {'sec':>3} {'strip plan/h m':>15} "
     f"{'bundle plan/h m':>15} {'it':>2} {'colmap s':>8}"
 )
 
@@ -378,7 +389,7 @@ def print_row(r: dict) -> None:
         f"{_f(r['t_precision'], '.2f', 7)} {_f(r['t_precision'] / r['t_strip'], '.1f', 5)} "
         f"{r['obs'] / r['t_strip']:>11.0f} {r['obs'] / r['t_bundle']:>10.0f} "
         f"{_f(r['mem_strip'], '.0f', 8)} {_f(r['mem_bundle'], '.0f', 7)} {r['poly']:>4} "
-        f"{r['strip_plan']:>7.3f}/{r['strip_h']:<7.3f} "
+        f"{r['sections']:>3} {r['strip_plan']:>7.3f}/{r['strip_h']:<7.3f} "
         f"{r['bundle_plan']:>7.3f}/{r['bundle_h']:<7.3f} {r['iterations']:>2} "
         f"{_f(r['colmap'], '.2f', 8)}"
     )
@@ -426,6 +437,12 @@ def main(argv=None) -> int:
         help="compute the bundle's standard deviations up to this many photos",
     )
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--models-per-section",
+        type=int,
+        default=6,
+        help="models per section of the strip method's polynomials (0: one polynomial)",
+    )
     args = ap.parse_args(argv)
     if args.photos:
         cases = [(m, n) for m in args.photos for n in (args.points or [30])]
@@ -448,7 +465,8 @@ def main(argv=None) -> int:
     print(
         "times in s; bundle = refinement without standard deviations, +prec = with them; "
         "ratio = that / strip;\nMB = peak traced memory; poly = polynomial type of the strip "
-        "method; plan/h = check-point RMSE vs truth (m);\nit = bundle iterations; colmap = "
+        "method, sec = its sections; plan/h = check-point RMSE vs truth (m);\n"
+        "it = bundle iterations; colmap = "
         "pycolmap bundle_adjustment on the same observations (free network)\n"
     )
     print(HEADER)
@@ -457,6 +475,7 @@ def main(argv=None) -> int:
         memory=not args.no_memory,
         precision_limit=args.precision_limit,
         seed=args.seed,
+        models_per_section=args.models_per_section,
     )
     slopes(rows)
     big = [r for r in rows if r["obs"] >= 25_000]
