@@ -73,6 +73,7 @@ __all__ = [
     "Normalization",
     "StraightLine",
     "bspline_basis",
+    "check_sections",
     "fit_deformation",
     "n_terms",
     "polynomial_terms",
@@ -103,10 +104,9 @@ def n_terms(kind: int, sections: int = 1) -> int:
     """Number of terms per coordinate of a J(16) polynomial type: 0, 4, 5 or 6
     for one section; ``degree + 2 S + 1`` over S sections (module docstring)."""
     k = _check_kind(kind)
-    s = _check_sections(sections)
-    if k == 0:
-        return 0
-    return _N_TERMS[k] if s == 1 else _degree(k) + 2 * s + 1
+    s = check_sections(sections)
+    # f: k + S B-splines, g: S + 1 (for S = 1 J's 4, 5, 6 terms)
+    return 0 if k == 0 else k + 2 * s + 1
 
 
 def polynomial_terms(x: ArrayLike, y: ArrayLike, kind: int) -> FloatArray:
@@ -140,18 +140,17 @@ def polynomial_terms(x: ArrayLike, y: ArrayLike, kind: int) -> FloatArray:
     return np.stack(columns[: _N_TERMS[k]], axis=-1)
 
 
-def _degree(kind: int) -> int:
-    """Degree in u of the along-strip part f of a J(16) type (1, 2 or 3)."""
-    return {1: 1, 2: 2, 3: 3}[kind]
+# The along-strip part f of a J(16) type k has degree k in u (1: u, 2: u², 3: u³).
 
 
-def _check_sections(sections: object) -> int:
+def check_sections(sections: object) -> int:
+    """``sections`` as an int, ValueError unless it is an integer >= 1."""
     if (
         isinstance(sections, bool)
         or not isinstance(sections, int | np.integer)
         or int(sections) < 1
     ):
-        raise ValueError(f"Expected `sections` to be an integer >= 1, got {sections!r}")
+        raise ValueError(f"Expected sections to be an integer >= 1, got {sections!r}")
     return int(sections)
 
 
@@ -236,7 +235,7 @@ def _section_values(
 ) -> FloatArray:
     """``section_terms(u, v, kind, breakpoints) @ coefficients.T`` from the local
     support only: (N, 3) for coefficients (3, n_terms)."""
-    d = _degree(kind)
+    d = kind
     n_f = breakpoints.size - 1 + d
     f_val, f_first = _bspline_nonzero(u, breakpoints, d)
     g_val, g_first = _bspline_nonzero(u, breakpoints, 1)
@@ -267,7 +266,7 @@ def section_terms(u: ArrayLike, v: ArrayLike, kind: int, breakpoints: ArrayLike)
     )
     if k == 0:
         return np.zeros((u_arr.size, 0))
-    f = bspline_basis(u_arr, breakpoints, _degree(k))
+    f = bspline_basis(u_arr, breakpoints, k)
     g = bspline_basis(u_arr, breakpoints, 1) * v_arr[:, None]
     return np.concatenate([f, g], axis=1)
 
@@ -277,12 +276,12 @@ def term_names(kind: int, sections: int = 1) -> tuple[str, ...]:
     section, ``f0 .. f(n-1)`` (along-strip B-spline) and ``Y·g0 .. Y·gS``
     (Y times the piecewise-linear basis) for several."""
     k = _check_kind(kind)
-    s = _check_sections(sections)
+    s = check_sections(sections)
     if s == 1:
         return _TERM_NAMES[: _N_TERMS[k]]
     if k == 0:
         return ()
-    return tuple(f"f{j}" for j in range(s + _degree(k))) + tuple(f"Y·g{j}" for j in range(s + 1))
+    return tuple(f"f{j}" for j in range(s + k)) + tuple(f"Y·g{j}" for j in range(s + 1))
 
 
 class Normalization(NamedTuple):
@@ -624,7 +623,7 @@ def fit_deformation(
     sz = _check_sigma(sigma_z, n, "sigma_z")
     ids = _check_ids(point_ids, n)
     kinds = _kinds3(kind)
-    n_sections = _check_sections(sections)
+    n_sections = check_sections(sections)
     if n_sections > 1 and (len(set(kinds)) > 1 or kinds[0] == 0):
         raise ValueError(
             f"Expected one polynomial type >= 1 for X, Y and Z with sections > 1, got {kind!r}"
@@ -691,15 +690,16 @@ def fit_deformation(
     # stand at one station (e.g. the two sides of the strip at one model).
     tol = 0.1 * max(float(np.ptp(all_x)), 1e-12) / max(all_x.size, 1)
     line_x = [line.xyz[:, 0] for line in lines]
-    # Sections of equal length between the first and last data point in X.
-    x_breaks = np.linspace(all_x.min(), all_x.max(), n_sections + 1) if all_x.size else None
+    # Sections of equal length between the first and last data point in X
+    # (data exist: a type >= 1 has passed the counts above).
+    x_breaks = np.linspace(all_x.min(), all_x.max(), n_sections + 1) if n_sections > 1 else None
     for c, axis, xs, label in (
         (0, "X", [pts[mask_xy, 0]], "full or plan control"),
         (1, "Y", [pts[mask_xy, 0], *line_x], "full or plan control and line points"),
         (2, "Z", [pts[mask_z, 0]], "height control"),
     ):
         # degree + 1 for one polynomial, degree + S for a spline over S sections
-        need = 0 if kinds[c] == 0 else _degree(kinds[c]) + n_sections
+        need = 0 if kinds[c] == 0 else kinds[c] + n_sections
         x_c = np.concatenate(xs)
         got = _stations(x_c, tol)
         if got < need:
@@ -708,7 +708,7 @@ def fit_deformation(
                 f"stations along the strip for {axis}, got {got} (points at one X within "
                 f"{tol:.3g} m count once)"
             )
-        if n_sections > 1 and x_breaks is not None:
+        if x_breaks is not None:
             section = np.clip(np.searchsorted(x_breaks, x_c, side="right") - 1, 0, n_sections - 1)
             empty = np.flatnonzero(np.bincount(section, minlength=n_sections) == 0)
             if empty.size:

@@ -36,6 +36,7 @@ from .deformation import (
     DeformationResult,
     KindSelection,
     StraightLine,
+    check_sections,
     fit_deformation,
     select_kind_auto,
 )
@@ -108,14 +109,10 @@ class GroundOptions:
             object.__setattr__(self, "polynomial", "auto")
         elif int(poly) not in (0, 1, 2, 3):
             raise ValueError(f"Expected polynomial 0, 1, 2, 3 or 'auto', got {poly!r}")
-        sections = self.sections
-        if isinstance(sections, bool) or not isinstance(sections, int | np.integer):
-            raise ValueError(f"Expected sections to be an integer >= 1, got {sections!r}")
-        if sections < 1:
-            raise ValueError(f"Expected sections to be an integer >= 1, got {sections!r}")
+        sections = check_sections(self.sections)
         if sections > 1 and poly == 0:
             raise ValueError("Expected polynomial 1, 2, 3 or 'auto' with sections > 1, got 0")
-        object.__setattr__(self, "sections", int(sections))
+        object.__setattr__(self, "sections", sections)
 
 
 @dataclass(frozen=True)
