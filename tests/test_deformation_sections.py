@@ -535,3 +535,22 @@ def test_auto_choice_with_sections():
     assert kind == 3
     assert np.all(table[2].rms_xyz > 2 * sigma)
     assert np.all(table[3].rms_xyz < 1.5 * sigma)
+
+
+@pytest.mark.parametrize("kind", [1, 2, 3])
+@pytest.mark.parametrize("breakpoints", [UNEVEN, np.linspace(-1.0, 1.0, 14)], ids=["uneven", "13"])
+def test_piecewise_evaluation_equals_the_basis_times_the_coefficients(kind, breakpoints):
+    """The fast evaluation (each section's piece by Horner's rule, in chunks of points)
+    against the dense design of section_terms: inside, at the breakpoints, beyond the ends,
+    over more points than one chunk."""
+    from strip_aerotri.deformation import _CHUNK_POINTS, _section_values
+
+    rng = np.random.default_rng(kind)
+    n = 2 * _CHUNK_POINTS + 17
+    u = rng.uniform(-1.6, 1.6, n)
+    u[: breakpoints.size] = breakpoints
+    v = rng.uniform(-0.2, 0.2, n)
+    coefficients = rng.normal(0.0, 2.0, (3, n_terms(kind, breakpoints.size - 1)))
+    expected = section_terms(u, v, kind, breakpoints) @ coefficients.T
+    got = _section_values(u, v, kind, breakpoints, coefficients)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())

@@ -419,3 +419,28 @@ def test_start_must_be_a_similarity_transform():
     ones = np.ones(6, dtype=bool)
     with pytest.raises(TypeError, match="start"):
         fit_similarity(src, TRUTH.apply(src), use_xy=ones, use_z=ones, start=np.eye(3))
+
+
+@pytest.mark.parametrize("k", [5, 16, 17, 60])
+def test_normal_inverse_and_condition_number_small_exact_large_bounded(k):
+    """Up to 16 unknowns the condition number of the equilibrated normal matrix is exact;
+    beyond, the bound ‖N‖∞‖N⁻¹‖∞ lies between the exact value and k times it.  The inverse
+    is the inverse either way, and a rank-deficient design is singular either way."""
+    from strip_aerotri.similarity import _EXACT_COND_MAX, _normal_inverse
+
+    rng = np.random.default_rng(k)
+    a = rng.normal(size=(3 * k, k)) * np.logspace(0, 3, k)  # columns of very different size
+    inverse, cond = _normal_inverse(a)
+    normal = a.T @ a
+    np.testing.assert_allclose(inverse @ normal, np.eye(k), rtol=0, atol=1e-9)
+    d = 1.0 / np.sqrt(np.diag(normal))
+    eig = np.linalg.eigvalsh(normal * d[:, None] * d[None, :])
+    exact = eig[-1] / eig[0]
+    if k <= _EXACT_COND_MAX:
+        assert cond == pytest.approx(exact, rel=1e-9)
+    else:
+        assert exact * (1 - 1e-9) <= cond <= k * exact
+    deficient = a.copy()
+    deficient[:, -1] = deficient[:, 0] - 2.0 * deficient[:, 1]
+    _, cond_deficient = _normal_inverse(deficient)
+    assert not cond_deficient <= 1e12

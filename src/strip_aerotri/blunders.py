@@ -38,6 +38,7 @@ from statistics import NormalDist
 
 import numpy as np
 
+from ._stats import sample_median
 from ._typing import FloatArray
 
 __all__ = [
@@ -196,4 +197,4 @@ def robust_variance_factor(w: FloatArray) -> float:
     w = w[np.isfinite(w)]
     if w.size < 5:
         return 1.0
-    return max(1.0, float((1.4826 * np.median(np.abs(w))) ** 2))
+    return max(1.0, (1.4826 * sample_median(np.abs(w))) ** 2)

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._stats import sample_median
 from ._typing import ArrayLike, FloatArray, IntArray
 from .blunders import BlunderOptions, Rejection, robust_variance_factor
 from .errors import GeometryError
@@ -553,8 +554,8 @@ def _worst_ties(previous, new_pts, tie_model, ratio, blunders):
     critical value is returned (all failing ones when only reporting).
     """
     diff = ratio[tie_model] * new_pts[:, 2] - previous[:, 2]
-    centre = np.median(diff)
-    mad = 1.4826 * np.median(np.abs(diff - centre))
+    centre = sample_median(diff)
+    mad = 1.4826 * sample_median(np.abs(diff - centre))
     # floor: exact data leave differences at the level of the relative orientation's
     # convergence (its tolerance, 1e-11 by default), which are not blunders
     mad = max(mad, 1e-10 * max(float(np.abs(previous).max()), 1.0))

@@ -1989,7 +1989,7 @@ def load_project(path: str | Path) -> Project:
     if sections > 1 and polynomial == 0:
         raise ConfigError(
             f"{toml_path}: [adjustment] sections: {sections} sections need a polynomial type "
-            "1, 2, 3 or \"auto\", got polynomial = 0"
+            '1, 2, 3 or "auto", got polynomial = 0'
         )
     options = AdjustmentOptions(
         route=route,

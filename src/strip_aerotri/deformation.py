@@ -230,21 +230,66 @@ def bspline_basis(u: ArrayLike, breakpoints: ArrayLike, degree: int) -> FloatArr
     return out
 
 
+def _power_pieces(degree: int, breakpoints: FloatArray, coefficients: FloatArray) -> FloatArray:
+    """Each section's piece of the splines ``Σ_j coefficients[:, j] B_j`` in
+    the power basis of ``t = (u - b_s) / (b_(s+1) - b_s)``: shape
+    (degree + 1, C, S) for coefficients (C, S + degree), row k the
+    coefficient of t^k.
+
+    The pieces are interpolated at degree + 1 equally spaced t in [0, 1] of
+    each section (exact for polynomials of that degree; the Vandermonde
+    matrix of those nodes has condition below 100 for degree 3)."""
+    n_sections = breakpoints.size - 1
+    nodes = np.linspace(0.0, 1.0, degree + 1)
+    width = np.diff(breakpoints)
+    u = (breakpoints[:-1, None] + width[:, None] * nodes).reshape(-1)  # (S (d + 1),)
+    values, first = _bspline_nonzero(u, breakpoints, degree)
+    gathered = np.take(coefficients, first[:, None] + np.arange(degree + 1), axis=1)
+    at_nodes = np.einsum("nr,cnr->cn", values, gathered).reshape(-1, n_sections, degree + 1)
+    vandermonde = nodes[:, None] ** np.arange(degree + 1)
+    return np.linalg.solve(
+        vandermonde, at_nodes.transpose(2, 0, 1).reshape(degree + 1, -1)
+    ).reshape(degree + 1, -1, n_sections)
+
+
+def _horner(pieces: FloatArray, section: IntArray, t: FloatArray) -> FloatArray:
+    """Value at t of the piece of each point's section, from (d + 1, S) power-basis rows."""
+    out = np.take(pieces[-1], section)
+    for row in pieces[-2::-1]:
+        out *= t
+        out += np.take(row, section)
+    return out
+
+
+#: Points per chunk of a spline evaluation (the gathers and Horner steps stay in cache).
+_CHUNK_POINTS = 32_768
+
+
 def _section_values(
     u: FloatArray, v: FloatArray, kind: int, breakpoints: FloatArray, coefficients: FloatArray
 ) -> FloatArray:
-    """``section_terms(u, v, kind, breakpoints) @ coefficients.T`` from the local
-    support only: (N, 3) for coefficients (3, n_terms)."""
-    d = kind
-    n_f = breakpoints.size - 1 + d
-    f_val, f_first = _bspline_nonzero(u, breakpoints, d)
-    g_val, g_first = _bspline_nonzero(u, breakpoints, 1)
-    out = np.zeros((u.size, coefficients.shape[0]))
-    for c in range(coefficients.shape[0]):
-        coef_f, coef_g = coefficients[c, :n_f], coefficients[c, n_f:]
-        f = np.einsum("nr,nr->n", f_val, coef_f[f_first[:, None] + np.arange(d + 1)])
-        g = np.einsum("nr,nr->n", g_val, coef_g[g_first[:, None] + np.arange(2)])
-        out[:, c] = f + v * g
+    """``section_terms(u, v, kind, breakpoints) @ coefficients.T``: (N, 3) for
+    coefficients (3, n_terms).
+
+    Evaluated piece by piece: each point's section by one binary search, then
+    f and g by Horner's rule in the power basis of that section (the end
+    pieces continue beyond the first and last breakpoints), which costs a few
+    operations per point instead of the Cox-de Boor recurrence."""
+    n_f = breakpoints.size - 1 + kind
+    f_pieces = _power_pieces(kind, breakpoints, coefficients[:, :n_f])
+    g_pieces = _power_pieces(1, breakpoints, coefficients[:, n_f:])
+    left, width = breakpoints[:-1], np.diff(breakpoints)
+    out = np.empty((u.size, coefficients.shape[0]))
+    for lo in range(0, u.size, _CHUNK_POINTS):
+        uc, vc = u[lo : lo + _CHUNK_POINTS], v[lo : lo + _CHUNK_POINTS]
+        section = np.searchsorted(breakpoints, uc, side="right") - 1
+        np.clip(section, 0, breakpoints.size - 2, out=section)
+        t = (uc - np.take(left, section)) / np.take(width, section)
+        for c in range(coefficients.shape[0]):
+            g = _horner(g_pieces[:, c], section, t)
+            g *= vc
+            g += _horner(f_pieces[:, c], section, t)
+            out[lo : lo + _CHUNK_POINTS, c] = g
     return out
 
 
@@ -480,6 +525,16 @@ class _CoordinateFit(NamedTuple):
     redundancy: int
 
 
+class _Normals(NamedTuple):
+    """Cofactor matrix ``Q = (AᵀPA)⁻¹``, its condition number and the
+    redundancy numbers of a weighted design, reusable for another right-hand
+    side of the same design (X and Y of the plan control)."""
+
+    q: FloatArray
+    cond: float
+    redundancy: FloatArray
+
+
 def _solve(
     design: FloatArray,
     observed: FloatArray,
@@ -487,14 +542,17 @@ def _solve(
     *,
     what: str,
     names: Sequence[str],
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Weighted least squares ``design @ x ≈ observed``; returns x, v = observed - Ax, r, Q."""
-    a_w = design / sigma[:, None]
-    l_w = observed / sigma
+    normals: _Normals | None = None,
+) -> tuple[FloatArray, FloatArray, _Normals]:
+    """Weighted least squares ``design @ x ≈ observed``; returns x, v = observed - Ax
+    and the normals (``normals`` given: those of the same design and sigma)."""
     if design.shape[1] == 0:
-        q = np.zeros((0, 0))
-        return np.zeros(0), observed.copy(), np.ones(design.shape[0]), q
-    q, cond = _normal_inverse(a_w)
+        return np.zeros(0), observed.copy(), _Normals(np.zeros((0, 0)), 1.0, np.ones(len(design)))
+    a_w = design / sigma[:, None]
+    if normals is None:
+        q, cond = _normal_inverse(a_w)
+    else:
+        q, cond = normals.q, normals.cond
     if not np.isfinite(cond) or cond > SINGULAR_COND:
         raise GeometryError(
             f"{what}: the design is singular (condition {cond:.1e}); the points do not "
@@ -508,10 +566,11 @@ def _solve(
             StripAerotriWarning,
             stacklevel=3,
         )
-    x = q @ (a_w.T @ l_w)
+    x = q @ (a_w.T @ (observed / sigma))
     v = observed - design @ x
-    r = _redundancy_numbers(a_w, q)
-    return x, v, r, q
+    if normals is None:
+        normals = _Normals(q, cond, _redundancy_numbers(a_w, q))
+    return x, v, normals
 
 
 def _kinds3(kind: int | Sequence[int]) -> tuple[int, int, int]:
@@ -766,16 +825,20 @@ def fit_deformation(
     vtpv_total = 0.0
 
     # X and Z: control only.
+    normals_x = None
     for c, mask, sig, names in ((0, mask_xy, sxy, plan_ids), (2, mask_z, sz, height_ids)):
         k_c = n_terms(kinds[c], n_sections)
         design = terms_all[mask, :k_c]
-        x, v_fit, r, _ = _solve(
+        x, v_fit, normals = _solve(
             design,
             w_obs[mask, c],
             sig[mask],
             what=f"polynomial type {kinds[c]} for {'XYZ'[c]}",
             names=names,
         )
+        r = normals.redundancy
+        if c == 0:
+            normals_x = normals
         coefficients[c, :k_c] = x
         # residual target - corrected = w_fit - w_obs = -(w_obs - A x)
         residuals[mask, c] = -v_fit
@@ -808,13 +871,16 @@ def fit_deformation(
     observed_y = np.concatenate(obs_y)
     sigma_y = np.concatenate(sig_y)
     names_y = plan_ids + [p for line in lines for p in line.point_ids]
-    x, v_fit, r, _ = _solve(
+    x, v_fit, normals = _solve(
         design_y,
         observed_y,
         sigma_y,
         what=f"polynomial type {kinds[1]} for Y" + (" with straight lines" if lines else ""),
         names=names_y,
+        # Without lines Y has the design and weights of X: one inverse serves both.
+        normals=normals_x if not lines and kinds[1] == kinds[0] else None,
     )
+    r = normals.redundancy
     coefficients[1, :k_y] = x[:k_y]
     alpha_beta = x[k_y:].reshape(n_lines, 2)
     residuals[mask_xy, 1] = -v_fit[:n_plan]

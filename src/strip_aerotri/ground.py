@@ -29,6 +29,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ._stats import exact_median, sample_median
 from ._typing import FloatArray, IntArray
 from .blunders import BlunderOptions, Rejection, robust_variance_factor
 from .chaining import StripModel
@@ -404,9 +405,9 @@ def _image_scale(strip: StripModel) -> tuple[float, float]:
     c = strip.observations.principal_distance
     model_centres = strip.centres[strip.model_photo_positions]
     ray = strip.model_points - np.take(model_centres, strip.model, axis=0)
-    model_per_mm = float(np.median(np.sqrt(np.einsum("ij,ij->i", ray, ray)))) / c
+    model_per_mm = sample_median(np.sqrt(np.einsum("ij,ij->i", ray, ray))) / c
     base = float(np.median(np.linalg.norm(np.diff(model_centres, axis=0), axis=1)))
-    height_to_base = float(np.median(np.abs(ray[:, 2]))) / base
+    height_to_base = sample_median(np.abs(ray[:, 2])) / base
     return model_per_mm, height_to_base
 
 
@@ -524,7 +525,7 @@ def adjust_to_ground(
     # azimuth is then the same fit turned, so the azimuth pass is not repeated.
     target0 = _make_work(route, crs, guess[active], 0.0).to_work(guess)
     metres_per_mm = model_per_mm * _plan_scale(strip_xyz[use_xy], target0[use_xy])
-    sigma_plan = float(np.median(obs.sigma)) * metres_per_mm
+    sigma_plan = exact_median(obs.sigma) * metres_per_mm
     sigma_height = sigma_plan * h_to_b
     exp_xy = np.hypot(sig_xy_ctrl, sigma_plan)
     exp_z = np.hypot(sig_h_ctrl, sigma_height)

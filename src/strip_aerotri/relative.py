@@ -32,6 +32,7 @@ from enum import Enum
 
 import numpy as np
 
+from ._stats import exact_median, sample_median
 from ._typing import ArrayLike, FloatArray, IntArray
 from .errors import ConvergenceError, GeometryError
 from .rotation import (
@@ -592,7 +593,7 @@ def relative_orientation(
         np.broadcast_to(np.asarray(sigma_left, np.float64), pair.shape) ** 2
         + np.broadcast_to(np.asarray(sigma_right, np.float64), pair.shape) ** 2
     )
-    sigma_ref2 = float(np.median(var)) / 2.0
+    sigma_ref2 = exact_median(var) / 2.0
     weight = 2.0 * sigma_ref2 / var
 
     if method is RelativeOrientationMethod.DEPENDENT:
@@ -781,7 +782,7 @@ def _suspect_pairs(record: _Record, pair: IntArray, var: FloatArray, counts: Int
     """
     z = np.abs(record.parallax_um) / (1000.0 * np.sqrt(var))
     z = np.where(np.isfinite(z), z, np.inf)
-    scale = max(1.4826 * float(np.median(z)), 1e-6)
+    scale = max(1.4826 * sample_median(z), 1e-6)
     over = ~(z <= 5.0 * scale)
     n_pairs = counts.shape[0]
     rms = np.sqrt(np.bincount(pair, np.minimum(z, 1e150) ** 2, minlength=n_pairs) / counts)

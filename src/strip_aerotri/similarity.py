@@ -246,11 +246,19 @@ def _skew(u: FloatArray) -> FloatArray:
     )
 
 
+#: Unknowns up to which the condition number is computed exactly (eigenvalues);
+#: larger designs (deformation splines over many sections) take a bound.
+_EXACT_COND_MAX = 16
+
+
 def _normal_inverse(a_white: FloatArray) -> tuple[FloatArray, float]:
     """Inverse of ``AᵀA`` by column equilibration, and its condition number.
 
-    Returns ``(inverse, cond)``; ``cond`` is that of the equilibrated matrix
-    (inf when a column is zero).
+    Returns ``(inverse, cond)``; ``cond`` is the 2-norm condition number of
+    the equilibrated matrix (inf when a column is zero) for up to
+    ``_EXACT_COND_MAX`` unknowns.  For more it is the upper bound
+    ``‖N‖∞ ‖N⁻¹‖∞``, at most k times the 2-norm one for k unknowns, which
+    costs O(k²) instead of an eigenvalue decomposition (4.5 ms at k = 340).
     """
     normal = a_white.T @ a_white
     diag = np.diag(normal).copy()
@@ -260,12 +268,23 @@ def _normal_inverse(a_white: FloatArray) -> tuple[FloatArray, float]:
         return np.full_like(normal, np.nan), np.inf
     d = 1.0 / np.sqrt(diag)
     scaled = normal * d[:, None] * d[None, :]
-    eig = np.linalg.eigvalsh(scaled)
-    if eig[0] <= 0.0:
-        return np.full_like(normal, np.nan), np.inf
-    cond = float(eig[-1] / eig[0])
-    inverse = np.linalg.inv(scaled) * d[:, None] * d[None, :]
-    return inverse, cond
+    singular = (np.full_like(normal, np.nan), np.inf)
+    exact = scaled.shape[0] <= _EXACT_COND_MAX
+    if exact:
+        eig = np.linalg.eigvalsh(scaled)
+        if eig[0] <= 0.0:
+            return singular
+    try:  # an exactly singular matrix can still show a rounding-size eigenvalue
+        inverse = np.linalg.inv(scaled)
+    except np.linalg.LinAlgError:
+        return singular
+    if exact:
+        cond = float(eig[-1] / eig[0])
+    else:
+        cond = float(np.abs(scaled).sum(axis=1).max() * np.abs(inverse).sum(axis=1).max())
+        if not np.isfinite(cond) or np.any(np.diag(inverse) <= 0.0):
+            return singular
+    return inverse * d[:, None] * d[None, :], cond
 
 
 def _redundancy_numbers(a_white: FloatArray, q: FloatArray) -> FloatArray:

@@ -1,0 +1,36 @@
+"""Medians for the robust scales of the blunder tests, cheap on large strips."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._typing import ArrayLike
+
+#: Values above which a robust scale is taken from an evenly spaced sample.
+MEDIAN_SAMPLE = 65_536
+
+
+def sample_median(values: ArrayLike) -> float:
+    """Median of `values`, or of every k-th of them when there are more than
+    `MEDIAN_SAMPLE` (k the smallest step that leaves at most that many).
+
+    For the robust scales of the tests (1.4826 MAD) and the image scale a
+    sample of 65 536 spread over the whole strip estimates the median within
+    about 0.5 % (its standard error for normal data), far below what the
+    critical values resolve, and costs a tenth of a full partition of a
+    1000-photo strip's 300 000 values.  Smaller arrays give their exact
+    median.
+    """
+    arr = np.asarray(values, dtype=np.float64).reshape(-1)
+    step = -(-arr.size // MEDIAN_SAMPLE)
+    return float(np.median(arr[::step] if step > 1 else arr))
+
+
+def exact_median(values: ArrayLike) -> float:
+    """Median of all `values`; a constant array (one sigma for every
+    observation, the usual case) is recognised in two O(n) passes instead of
+    a partition."""
+    arr = np.asarray(values, dtype=np.float64).reshape(-1)
+    if arr.size and arr.min() == arr.max():
+        return float(arr[0])
+    return float(np.median(arr))
