@@ -13,19 +13,22 @@ rather than for millions of observations.  For each size the script times
 :func:`strip_aerotri.chaining.form_strip` and the full
 :func:`strip_aerotri.pipeline.triangulate` (strip formation plus the ground
 stage on control every 10 photos, local Cartesian ground system, projected
-route), the median of a few runs, and prints:
+route, polynomial type 3 over one section per ``--photos-per-section``
+photos, 20 by default: two control stations a section, docs/ground.md
+"Long strips"; 0 for J's single polynomial), the median of a few runs, and
+prints:
 
 * ``form wall`` / ``form cpu``: wall-clock and CPU seconds of ``form_strip``
   with its defaults (robust start and gross-error tests on); ``no tests``:
   wall-clock seconds with ``BlunderOptions(action="off")``; ``triangulate``: wall-clock
   seconds of the whole run (``n/a`` where the ground stage refuses: the
-  control of a 3600 km strip is collinear, and with noise the random-walk
-  bending of 1000+ photos is beyond the polynomial; ``--noise-um 0`` times
-  it on exact data);
+  control of a 3600 km strip is collinear in plan);
 * pair-points per second (million): rows of the relative orientation (a
   point measured on both photos of a pair) per wall-clock second of
   ``form_strip`` (``M/s form``) and of the whole ``triangulate``, the core
   without file I/O (``M/s core``);
+* ``sec``: the sections of the polynomials; ``RMSE m``: root mean square
+  3D error of the triangulated points against the generator's truth;
 * log-log slopes of the time against the number of photos and against the
   points per pair.
 
@@ -159,21 +162,24 @@ def slope(x, y) -> float:
     return float(np.polyfit(np.log(x), np.log(y), 1)[0])
 
 
-def run(sizes, points, repeats: int, noise_mm: float = 0.005) -> None:
+def run(
+    sizes, points, repeats: int, noise_mm: float = 0.005, photos_per_section: int = 20
+) -> None:
     options = StripOptions()
     no_tests = BlunderOptions(action="off")
-    ground_options = GroundOptions(route="projected", polynomial=3)
     rows = []
     refused: set[str] = set()
     print(
         f"{'photos':>6} {'pts/photo':>9} {'pts/pair':>8} {'pair-pts':>10} {'generate':>9} "
         f"{'form wall':>10} {'form cpu':>9} {'no tests':>9} {'triangulate':>11} "
-        f"{'M/s form':>9} {'M/s core':>9}"
+        f"{'M/s form':>9} {'M/s core':>9} {'sec':>4} {'RMSE m':>7}"
     )
     for n in sizes:
         for k in points:
             t0 = time.perf_counter()
-            obs, control, _ = make_strip(n, k, noise_mm=noise_mm)
+            obs, control, truth = make_strip(n, k, noise_mm=noise_mm)
+            sections = max(n // photos_per_section, 1) if photos_per_section else 1
+            ground_options = GroundOptions(route="projected", polynomial=3, sections=sections)
             t_gen = time.perf_counter() - t0
             model, *_ = pair_rows(obs, np.arange(obs.n_photos))
             n_pair_points = model.size
@@ -183,21 +189,26 @@ def run(sizes, points, repeats: int, noise_mm: float = 0.005) -> None:
             c_plain, _ = median_time(
                 lambda obs=obs: form_strip(obs, options, blunders=no_tests), reps
             )
+            results = []
             try:
                 t_tri, _ = median_time(
-                    lambda obs=obs, control=control: triangulate(
-                        obs, control, "local", ground_options=ground_options
+                    lambda obs=obs, control=control, go=ground_options, out=results: out.append(
+                        triangulate(obs, control, "local", ground_options=go)
                     ),
                     reps,
                 )
             except StripAerotriError as exc:
                 # The ground stage refuses: 5000 photos make a strip 3600 km
-                # long and 1.6 km wide (control collinear in plan); with noise,
-                # the random-walk bending of 1000+ photos (n^1.5: about 150 m
-                # at 1000) is beyond a type-3 polynomial on this control.
+                # long and 1.6 km wide (control collinear in plan).
                 t_tri = float("nan")
                 refused.add(f"{type(exc).__name__}: {str(exc).split(';')[0][:110]}")
             rows.append((n, k, per_pair, t_form, t_tri))
+            if results:
+                error = results[-1].ground.points - truth
+                rmse = float(np.sqrt(np.nanmean(np.sum(error**2, axis=1))))
+                rmse_text = f"{rmse:7.3f}"
+            else:
+                rmse_text = f"{'-':>7}"
             tri_text = f"{t_tri:10.3f}s" if np.isfinite(t_tri) else f"{'n/a':>11}"
             core_text = (
                 f"{n_pair_points / t_tri / 1e6:9.3f}" if np.isfinite(t_tri) else f"{'n/a':>9}"
@@ -205,7 +216,7 @@ def run(sizes, points, repeats: int, noise_mm: float = 0.005) -> None:
             print(
                 f"{n:6d} {k:9d} {per_pair:8.0f} {n_pair_points:10d} {t_gen:8.2f}s "
                 f"{t_form:9.3f}s {c_form:8.3f}s {c_plain:8.3f}s {tri_text} "
-                f"{n_pair_points / t_form / 1e6:9.3f} {core_text}",
+                f"{n_pair_points / t_form / 1e6:9.3f} {core_text} {sections:4d} {rmse_text}",
                 flush=True,
             )
     data = np.array(rows)
@@ -255,6 +266,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--points", default="30,100,300,500", help="points per photo")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--noise-um", type=float, default=5.0, help="image noise, µm")
+    parser.add_argument(
+        "--photos-per-section",
+        type=int,
+        default=20,
+        help="photos per section of the polynomials (0: one polynomial)",
+    )
     parser.add_argument("--profile", metavar="PHOTOSxPOINTS")
     parser.add_argument("--top", type=int, default=25, help="lines of the profile")
     args = parser.parse_args(argv)
@@ -270,7 +287,7 @@ def main(argv: list[str] | None = None) -> None:
     # Strips of hundreds of kilometres on a 1.6 km wide band of control: the
     # ground stage rightly warns that the cross tilt is weak; not the subject here.
     warnings.simplefilter("ignore", StripAerotriWarning)
-    run(sizes, points, args.repeats, args.noise_um / 1000.0)
+    run(sizes, points, args.repeats, args.noise_um / 1000.0, args.photos_per_section)
 
 
 if __name__ == "__main__":
