@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -12,7 +14,7 @@ from strip_aerotri.deformation import (
     polynomial_terms,
     select_kind_auto,
 )
-from strip_aerotri.errors import GeometryError
+from strip_aerotri.errors import GeometryError, StripAerotriWarning
 
 # A synthetic strip 10 km long (X along the strip), 2 km wide, +-30 m relief, in metres.
 LENGTH, HALF_WIDTH = 10_000.0, 1_000.0
@@ -383,13 +385,51 @@ def test_four_control_points_and_a_line_suffice_for_the_y_polynomial():
     # J section 3: "control points 1, 2, 3, 4 and the line points suffice for the Y polynomial".
     xyz, target, road = end_control_and_line()
     corners = [0, 2, 3, 5]
-    res = fit_deformation(
-        xyz[corners],
-        target[corners],
-        use_xy=all_true(4),
-        use_z=all_true(4),
-        kind=(1, 3, 1),
-        lines=[road],
-    )
+    with pytest.warns(StripAerotriWarning, match=r"X \(type 1\), Z \(type 1\) have .*"):
+        res = fit_deformation(
+            xyz[corners],
+            target[corners],
+            use_xy=all_true(4),
+            use_z=all_true(4),
+            kind=(1, 3, 1),
+            lines=[road],
+        )
     assert res.redundancy_xyz == (0, 4 + 11 - 6 - 2, 0)
     np.testing.assert_allclose(res.evaluate(road.xyz), bend_y(road.xyz), atol=1e-9)
+
+
+def test_a_polynomial_without_redundancy_is_a_warning():
+    """As many control observations as terms: the fit passes through the control and cannot
+    show an error in it; the user is told which coordinates, and not for a fit with redundancy
+    nor for the candidates of the automatic choice (judged by their redundancy there)."""
+    # 5 points at 5 stations, alternately on the two sides: type 2 (5 terms) has none to spare
+    rng = np.random.default_rng(4)
+    xyz = np.column_stack(
+        [
+            np.linspace(0.0, LENGTH, 5),
+            HALF_WIDTH * np.array([1, -1, 1, -1, 1]),
+            rng.uniform(-30, 30, 5),
+        ]
+    )
+    target = xyz - true_w(xyz)
+    n = xyz.shape[0]
+    with pytest.warns(
+        StripAerotriWarning,
+        match=r"X \(type 2\), Z \(type 2\) have .*no redundancy",
+    ):
+        res = fit_deformation(xyz, target, use_xy=all_true(n), use_z=all_true(n), kind=(2, 1, 2))
+    assert res.redundancy_xyz == (0, 1, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StripAerotriWarning)
+        more = control_grid(4, 2, seed=4)
+        fit_deformation(
+            more, more - true_w(more), use_xy=all_true(8), use_z=all_true(8), kind=(2, 1, 2)
+        )
+        select_kind_auto(
+            xyz,
+            target,
+            use_xy=all_true(n),
+            use_z=all_true(n),
+            expected_sigma_xy=0.01,
+            expected_sigma_z=0.01,
+        )

@@ -17,7 +17,7 @@ import pytest
 import strip_aerotri as sa
 from strip_aerotri.blunders import BlunderOptions
 from strip_aerotri.deformation import fit_deformation
-from strip_aerotri.errors import GeometryError
+from strip_aerotri.errors import GeometryError, StripAerotriWarning
 from strip_aerotri.geodesy import GroundCRS, enu_rotation
 from strip_aerotri.ground import GroundOptions, LineSpec, adjust_to_ground
 from strip_aerotri.observations import ControlPoints, ControlType, ImageObservations
@@ -697,8 +697,9 @@ def test_too_few_points_for_the_polynomial_type():
         run(sim, control, polynomial=3)
     with pytest.raises(GeometryError, match=r"polynomial type 2 needs at least 5 .* got 4"):
         run(sim, control, polynomial=2)
-    # Type 1 has exactly four terms: it runs.
-    assert run(sim, control, polynomial=1).ground.polynomial_kind == 1
+    # Type 1 has exactly four terms: it runs, and says that X and Y have no redundancy.
+    with pytest.warns(StripAerotriWarning, match=r"X \(type 1\), Y \(type 1\) have .*"):
+        assert run(sim, control, polynomial=1).ground.polynomial_kind == 1
 
 
 def test_plan_control_at_three_stations_is_too_few_for_type_3():

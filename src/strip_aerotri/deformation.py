@@ -920,6 +920,20 @@ def fit_deformation(
         line_params[k] = (a, b)
         start += m
 
+    exact = [
+        f"{a} (type {kinds[c]})"
+        for c, a in enumerate("XYZ")
+        if kinds[c] > 0 and redundancy_xyz[c] == 0
+    ]
+    if exact:
+        warnings.warn(
+            f"deformation polynomial{in_sections}: {', '.join(exact)} "
+            f"{'has' if len(exact) == 1 else 'have'} as many control observations as terms "
+            "(no redundancy): the polynomial passes through that control exactly and an "
+            "error in it cannot be detected; add control or use a lower type",
+            StripAerotriWarning,
+            stacklevel=2,
+        )
     redundancy = int(sum(redundancy_xyz))
     sigma0 = float(np.sqrt(vtpv_total / redundancy)) if redundancy > 0 else float("nan")
     return DeformationResult(
@@ -1061,18 +1075,21 @@ def select_kind_auto(
     nan3 = np.full(3, np.nan)
     for k in sorted(set(kinds_tried)):
         try:
-            res = fit_deformation(
-                xyz,
-                target,
-                use_xy=use_xy,
-                use_z=use_z,
-                kind=k,
-                sigma_xy=expected_sigma_xy,
-                sigma_z=expected_sigma_z,
-                lines=lines,
-                point_ids=point_ids,
-                sections=sections if k > 0 else 1,
-            )
+            with warnings.catch_warnings():
+                # a candidate without redundancy is judged by min_redundancy below
+                warnings.filterwarnings("ignore", ".*no redundancy", StripAerotriWarning)
+                res = fit_deformation(
+                    xyz,
+                    target,
+                    use_xy=use_xy,
+                    use_z=use_z,
+                    kind=k,
+                    sigma_xy=expected_sigma_xy,
+                    sigma_z=expected_sigma_z,
+                    lines=lines,
+                    point_ids=point_ids,
+                    sections=sections if k > 0 else 1,
+                )
         except GeometryError as exc:
             table.append(
                 KindSummary(
