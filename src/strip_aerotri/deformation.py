@@ -271,10 +271,11 @@ def _section_values(
     """``section_terms(u, v, kind, breakpoints) @ coefficients.T``: (N, 3) for
     coefficients (3, n_terms).
 
-    Evaluated piece by piece: each point's section by one binary search, then
-    f and g by Horner's rule in the power basis of that section (the end
-    pieces continue beyond the first and last breakpoints), which costs a few
-    operations per point instead of the Cox-de Boor recurrence."""
+    Evaluated piece by piece: each point's section (by one division for
+    equal sections, by binary search otherwise), then f and g by Horner's
+    rule in the power basis of that section (the end pieces continue beyond
+    the first and last breakpoints), which costs a few operations per point
+    instead of the Cox-de Boor recurrence."""
     n_f = breakpoints.size - 1 + kind
     f_pieces = _power_pieces(kind, breakpoints, coefficients[:, :n_f])
     g_pieces = _power_pieces(1, breakpoints, coefficients[:, n_f:])
@@ -520,17 +521,6 @@ class DeformationResult:
         """Corrected coordinates ``xyz - w(X, Y)``, shape (N, 3), metres."""
         arr = _check_points(xyz, "xyz")
         return arr - self.evaluate(arr)
-
-
-class _CoordinateFit(NamedTuple):
-    coefficients: FloatArray  # (nterms,)
-    line_params: FloatArray  # (K, 2) normalised (alpha, beta), only for Y
-    v_control: FloatArray  # (m_c,) target - corrected
-    v_line: FloatArray  # (m_l,)
-    r_control: FloatArray
-    r_line: FloatArray
-    vtpv: float
-    redundancy: int
 
 
 class _Normals(NamedTuple):
