@@ -444,3 +444,16 @@ def test_normal_inverse_and_condition_number_small_exact_large_bounded(k):
     deficient[:, -1] = deficient[:, 0] - 2.0 * deficient[:, 1]
     _, cond_deficient = _normal_inverse(deficient)
     assert not cond_deficient <= 1e12
+
+
+@pytest.mark.parametrize("shape", [(3,), (7, 3), (2, 4, 3), (5, 2)])
+def test_add_to_columns_is_the_broadcast_sum_in_place(shape):
+    from strip_aerotri._rows import add_to_columns
+
+    rng = np.random.default_rng(len(shape))
+    rows = rng.normal(size=shape)
+    offset = rng.normal(size=shape[-1])
+    expected = rows + offset
+    out = add_to_columns(rows, offset)
+    assert out is rows
+    np.testing.assert_array_equal(out, expected)

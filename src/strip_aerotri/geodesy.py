@@ -32,6 +32,7 @@ import numpy as np
 from pyproj import CRS, Proj, Transformer
 from pyproj.exceptions import CRSError, ProjError
 
+from strip_aerotri._rows import add_to_columns
 from strip_aerotri.errors import ConfigError, GeometryError
 
 if TYPE_CHECKING:
@@ -770,8 +771,8 @@ class LocalTangentFrame:
         ndarray, shape (..., 3)
             X (along A0), Y (left of X), Z (up along the origin's normal), metres.
         """
-        arr = _as_rows(ecef, "ecef")
-        return (arr - self.origin_ecef) @ self.rotation.T
+        arr = np.array(_as_rows(ecef, "ecef"))  # a copy: the origin is taken off in place
+        return add_to_columns(arr, -self.origin_ecef) @ self.rotation.T
 
     def local2ecef(self, local: ArrayLike) -> FloatArray:
         """Frame → geocentric coordinates, B(152): ``origin + local @ rotation``.
@@ -787,7 +788,7 @@ class LocalTangentFrame:
             Geocentric coordinates in metres.
         """
         arr = _as_rows(local, "local")
-        return arr @ self.rotation + self.origin_ecef
+        return add_to_columns(arr @ self.rotation, self.origin_ecef)
 
     @property
     def enu2local(self) -> FloatArray:

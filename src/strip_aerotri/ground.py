@@ -29,6 +29,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ._rows import add_to_columns
 from ._stats import MEDIAN_SAMPLE, exact_median, sample_median
 from ._typing import FloatArray, IntArray
 from .blunders import BlunderOptions, Rejection, robust_variance_factor
@@ -294,8 +295,6 @@ class _ProjectedWork:
         return grid @ self.grid_from_work
 
     def from_work(self, xyz: FloatArray) -> FloatArray:
-        # Column by column: a (2,) row broadcast over (N, 2) runs numpy's inner
-        # loop over two elements, several times slower on a strip's points.
         grid = xyz @ self.grid_from_work.T
         if not np.isinf(self.radius):
             r = self.radius
@@ -308,8 +307,7 @@ class _ProjectedWork:
             factor *= self.grid_scale
             grid[:, 0] *= factor
             grid[:, 1] *= factor
-        grid[:, 0] += self.centre[0]
-        grid[:, 1] += self.centre[1]
+        add_to_columns(grid[:, :2], self.centre)
         return grid
 
     def enu_from_work(self, vectors: FloatArray) -> FloatArray:

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._rows import add_to_columns
 from ._typing import ArrayLike, BoolArray, FloatArray
 from .errors import ConvergenceError, GeometryError, StripAerotriWarning
 from .rotation import matrix_from_rotvec
@@ -137,10 +138,7 @@ class SimilarityTransform:
         xyz = np.asarray(xyz, dtype=np.float64)
         if xyz.shape[-1:] != (3,):
             raise ValueError(f"Expected `xyz` to have shape (N, 3), got {xyz.shape}")
-        out = xyz @ (self.scale * self.rotation.T)
-        for i in range(3):  # by column: a (3,) row broadcast over (N, 3) is several times slower
-            out[..., i] += self.translation[i]
-        return out
+        return add_to_columns(xyz @ (self.scale * self.rotation.T), self.translation)
 
     def apply_to_rotation(self, rotation: ArrayLike) -> FloatArray:
         """Carry attitudes (image -> source rotations) into the target frame.
