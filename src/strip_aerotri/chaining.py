@@ -18,7 +18,12 @@ from ._stats import sample_median
 from ._typing import ArrayLike, FloatArray, IntArray
 from .blunders import BlunderOptions, Rejection, robust_variance_factor
 from .errors import GeometryError
-from .intersection import Intersection, IntersectionMethod, intersect_midpoint, intersect_normal
+from .intersection import (
+    Intersection,
+    IntersectionMethod,
+    intersect_normal,
+    midpoint_along_y_components,
+)
 from .observations import ImageObservations
 from .relative import RelativeOrientation, RelativeOrientationMethod, relative_orientation
 from .scaling import ScaleTransfer, scale_ratios
@@ -260,7 +265,12 @@ def form_strip(
     model, point, row_l, row_r = pair_rows(observations, seq)
     keep = _excluded_rows(observations, blunders, row_l, row_r)
     model, point, row_l, row_r = model[keep], point[keep], row_l[keep], row_r[keep]
-    left, right = observations.image_vectors(row_l), observations.image_vectors(row_r)
+    # Image vectors as contiguous components (3, n): the relative orientation
+    # gathers its blocks from them and the midpoint intersection works on
+    # them; the (n, 3) arrays passed on are their transposes (views).
+    left_t = _image_components(observations, row_l)
+    right_t = _image_components(observations, row_r)
+    left, right = left_t.T, right_t.T
     rejections: list[Rejection] = []
     n_rows = model.shape[0]
     rel = None
@@ -308,9 +318,10 @@ def form_strip(
         kept = np.ones(model.shape[0], dtype=bool)
         kept[worst] = False
         model, point, row_l, row_r = model[kept], point[kept], row_l[kept], row_r[kept]
-        # rows of (n, 3) arrays by np.compress / np.take (axis=0) throughout:
-        # several times faster than fancy indexing of 2-D arrays with numpy 2
-        left, right = np.compress(kept, left, axis=0), np.compress(kept, right, axis=0)
+        # rows of (n, 3) arrays by np.compress / np.take throughout: several
+        # times faster than fancy indexing of 2-D arrays with numpy 2
+        left_t, right_t = np.compress(kept, left_t, axis=1), np.compress(kept, right_t, axis=1)
+        left, right = left_t.T, right_t.T
         if n_rows - model.shape[0] > blunders.max_fraction * n_rows:
             raise GeometryError(
                 f"relative orientation: more than {blunders.max_fraction:.0%} of the "
@@ -319,22 +330,10 @@ def form_strip(
             )
 
     # Model formation with the unit base (b_x = 1), relative to the left centre.
-    per_model = np.bincount(model, minlength=n_models)
     if IntersectionMethod(options.intersection) is IntersectionMethod.MIDPOINT:
-        # J(11)-(12) with the y-parallax along the left photo's image y axis, as
-        # in the relative orientation.  They do not change under a common
-        # rotation: intersect in each left photo's image frame (the left rays
-        # as measured, j = (0, 1, 0)) and turn the points to the strip once.
-        base_left = np.einsum("mji,mj->mi", rel.rotation_left, rel.base)
-        in_left = intersect_midpoint(
-            np.repeat(base_left, per_model, axis=0),
-            left,
-            _rotate_rows(rel.relative_rotation, model, right),
-        )
-        unit = Intersection(
-            _rotate_rows(rel.rotation_left, model, in_left.points), in_left.parallax
-        )
+        unit = _intersect_in_left_frames(rel, model, left_t, right_t)
     else:
+        per_model = np.bincount(model, minlength=n_models)
         unit = intersect_normal(
             np.repeat(rel.base, per_model, axis=0),
             _rotate_rows(rel.rotation_left, model, left),
@@ -476,7 +475,51 @@ def form_strip(
     )
 
 
-_CHUNK_ROWS = 1 << 15  # rows per chunk of _rotate_rows: its temporaries stay in cache
+_CHUNK_ROWS = 1 << 15  # rows per chunk (rotations, intersection): temporaries stay in cache
+
+
+def _image_components(observations: ImageObservations, rows: IntArray) -> FloatArray:
+    """Image vectors ``(x, y, -c)`` (mm) of the observations ``rows`` as
+    contiguous components, shape (3, n)."""
+    out = np.empty((3, rows.shape[0]))
+    out[:2] = np.take(observations.xy, rows, axis=0).T
+    out[2] = -observations.principal_distance
+    return out
+
+
+def _intersect_in_left_frames(
+    rel: RelativeOrientation, model: IntArray, left_t: FloatArray, right_t: FloatArray
+) -> Intersection:
+    """J(11)-(12) for every row, the y-parallax along the left photo's image y
+    axis as in the relative orientation; points relative to the left centre
+    in the strip system, (n, 3), in base units.
+
+    The formulas do not change under a common rotation, so each pair is
+    intersected in its left photo's image frame (the left rays as measured,
+    ``j = (0, 1, 0)``, the right rays turned by the relative rotation Q,
+    the base ``R_lᵀ b``) and the points are turned to the strip by ``R_l``,
+    in chunks of rows whose temporaries stay in cache, on the (3, n)
+    components of the image vectors.
+    """
+    base_left = np.einsum("mji,mj->mi", rel.rotation_left, rel.base)  # R_lᵀ b
+    base_t = np.ascontiguousarray(base_left.T)  # (3, M)
+    q_entries = np.ascontiguousarray(rel.relative_rotation.reshape(-1, 9).T)  # (9, M)
+    r_entries = np.ascontiguousarray(rel.rotation_left.reshape(-1, 9).T)
+    points = np.empty((model.shape[0], 3))
+    parallax = np.empty(model.shape[0])
+    for start in range(0, model.shape[0], _CHUNK_ROWS):
+        rows = slice(start, start + _CHUNK_ROWS)
+        m = model[rows]
+        q = np.take(q_entries, m, axis=1)
+        x, y, z = right_t[:, rows]
+        p = [q[3 * i] * x + q[3 * i + 1] * y + q[3 * i + 2] * z for i in range(3)]
+        u, parallax[rows] = midpoint_along_y_components(
+            np.take(base_t, m, axis=1), left_t[:, rows], p
+        )
+        r = np.take(r_entries, m, axis=1)
+        for i in range(3):
+            points[rows, i] = r[3 * i] * u[0] + r[3 * i + 1] * u[1] + r[3 * i + 2] * u[2]
+    return Intersection(points, parallax)
 
 
 def _rotate_rows(matrices: FloatArray, index: IntArray, vectors: FloatArray) -> FloatArray:

@@ -104,20 +104,31 @@ def intersect_midpoint(
 
 
 def _midpoint_along_y(b: FloatArray, l: FloatArray, p: FloatArray) -> Intersection:
+    """J(12) with ``j = (0, 1, 0)`` for (n, 3) rows (see :func:`midpoint_along_y_components`)."""
+    (u0, u1, u2), parallax = midpoint_along_y_components(b.T, l.T, p.T)
+    points = np.empty_like(l)
+    points[:, 0] = u0
+    points[:, 1] = u1
+    points[:, 2] = u2
+    return Intersection(points, parallax)
+
+
+def midpoint_along_y_components(b, l, p):
     """J(12) with ``j = (0, 1, 0)`` written out: ``D = (l × p)_y``,
-    ``k_l = (b × p)_y / D``, ``q' = b·(l × p) / D``."""
-    b0, b1, b2 = b.T
-    l0, l1, l2 = l.T
-    p0, p1, p2 = p.T
+    ``k_l = (b × p)_y / D``, ``q' = b·(l × p) / D``.
+
+    ``b``, ``l`` and ``p`` are each three component arrays (x, y, z) of the
+    same shape (or broadcasting), e.g. the rows of (3, n) arrays; returns the
+    point's components ``k_l l + q'/2 j`` and ``q'``.
+    """
+    b0, b1, b2 = b
+    l0, l1, l2 = l
+    p0, p1, p2 = p
     c1 = l2 * p0 - l0 * p2
     inv_d = 1.0 / c1
     k = (b2 * p0 - b0 * p2) * inv_d
     half_q = 0.5 * (b0 * (l1 * p2 - l2 * p1) + b1 * c1 + b2 * (l0 * p1 - l1 * p0)) * inv_d
-    points = np.empty_like(l)
-    points[:, 0] = k * l0
-    points[:, 1] = k * l1 + half_q
-    points[:, 2] = k * l2
-    return Intersection(points, 2.0 * half_q)
+    return (k * l0, k * l1 + half_q, k * l2), 2.0 * half_q
 
 
 def intersect_normal(
