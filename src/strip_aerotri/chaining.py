@@ -423,21 +423,24 @@ def form_strip(
     centres = np.vstack([first_position, first_position + np.cumsum(steps, axis=0)])
     rotations = np.concatenate([rel.rotation_left[:1], rel.rotation_right], axis=0)
 
-    model_points = np.take(centres, model, axis=0) + scale[model, None] * unit.points
-    model_parallax = scale[model] * unit.parallax
-    usable = ~np.isin(point, rejected_point_index)
-    usable_point = point[usable]
-    usable_xyz = np.compress(usable, model_points, axis=0)
+    # Column by column: an (n, 1) factor broadcast over (n, 3) rows runs
+    # numpy's inner loop over three elements.
+    model_scale = np.take(scale, model)
+    model_points = np.empty_like(unit.points)
+    for k in range(3):
+        model_points[:, k] = np.take(centres[:, k], model) + model_scale * unit.points[:, k]
+    model_parallax = model_scale * unit.parallax
+    if rejected_point_index.size:
+        usable = ~np.isin(point, rejected_point_index)
+        usable_point, usable_xyz = point[usable], np.compress(usable, model_points, axis=0)
+    else:
+        usable_point, usable_xyz = point, model_points
     counts = np.bincount(usable_point, minlength=observations.n_points)
-    sums = np.stack(
-        [
-            np.bincount(usable_point, usable_xyz[:, k], minlength=observations.n_points)
-            for k in range(3)
-        ],
-        axis=1,
-    )
+    points = np.empty((observations.n_points, 3))
     with np.errstate(invalid="ignore", divide="ignore"):
-        points = sums / counts[:, None]
+        for k in range(3):
+            sums = np.bincount(usable_point, usable_xyz[:, k], minlength=observations.n_points)
+            points[:, k] = sums / counts
     points[counts == 0] = np.nan
 
     tie_difference = np.take(model_points, i_now, axis=0) - np.take(model_points, i_prev, axis=0)

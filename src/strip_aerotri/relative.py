@@ -365,6 +365,47 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
     return ev
 
 
+def _chord(
+    state, ev: _Evaluation, weight: FloatArray, n_inv: FloatArray
+) -> tuple[_Evaluation, FloatArray]:
+    """The y-parallaxes at the current state with the design rows of the
+    previous evaluation ``ev`` (its blocks, rows scaled by sqrt(w)) and its
+    inverse normal matrices ``n_inv`` (n_pairs, 5, 5): an evaluation whose
+    parallaxes are current and design is the previous one, and the chord
+    (simplified Newton) correction ``N⁻¹ Aᵀ W q`` of every pair, (n_pairs, 5).
+
+    Near the solution the chord correction agrees with the Gauss-Newton one to
+    first order in the last step, and it costs a third of a full evaluation
+    (no design rows, no normal equations): a pair whose chord correction is
+    negligible has converged at the current state.
+    """
+    chord = _Evaluation(state.n_pairs, ev.blocks)
+    gradient = np.zeros((state.n_pairs, 5))
+    for block, m in zip(ev.blocks.items, ev.design, strict=True):
+        q, q_img = state.residuals(block.pairs, block)
+        wq = np.sqrt(weight[block.rows] * block.valid) * q
+        gradient[block.pairs] = -(m[:, :5] @ wq[:, :, None])[:, :, 0]
+        chord.sum_wqq[block.pairs] = np.einsum("pr,pr->p", wq, wq)
+        chord.max_parallax_mm[block.pairs] = np.max(np.abs(q_img), axis=1)
+        chord.n_rows[block.pairs] = block.counts
+        chord.design.append(m)
+        chord.parallax_mm.append(q_img)
+    return chord, np.einsum("mij,mj->mi", n_inv, gradient)
+
+
+def _negligible_limit(ev: _Evaluation, n_inv: FloatArray, tolerance: float) -> FloatArray:
+    """Size below which a correction is negligible, (n_pairs, 5): the
+    tolerance, or a small fraction of each unknown's own standard deviation
+    (method.md §3: "negligible against image measuring accuracy"); exact data
+    fall back on the tolerance."""
+    sigma0_sq = ev.sum_wqq / np.maximum(ev.n_rows - MIN_POINTS_PER_PAIR, 1)
+    with np.errstate(invalid="ignore"):
+        return np.maximum(
+            tolerance,
+            _PRECISION_FRACTION * np.sqrt(sigma0_sq[:, None] * np.einsum("mii->mi", n_inv)),
+        )
+
+
 def _solve_normals(
     normal: FloatArray, gradient: FloatArray
 ) -> tuple[FloatArray, np.ndarray, FloatArray]:
@@ -448,6 +489,12 @@ def _iterate(
     that diverge (non-finite or huge corrections) are frozen and reported
     as not converged.  ``history`` receives the largest |y-parallax| (µm at
     image scale) of the pairs evaluated, at each evaluation.
+
+    With ``record`` (least squares to the end), a step is followed by a
+    chord check (``_chord``): the pairs whose chord correction is negligible
+    have converged, with their residuals at the final state and redundancy
+    numbers from the design of the step (which differ by the size of the
+    step, relative); the others are evaluated in full.
     """
     n_pairs = active.shape[0]
     done = ~active
@@ -456,7 +503,24 @@ def _iterate(
     singular_start = np.zeros(n_pairs, dtype=bool)
     todo = active.copy()
     blocks = blocks_of(todo, stride)
+    # (evaluation, N⁻¹, pairs) of a step small enough for a chord check
+    chord_from = None
     for it in range(1, max_iterations + 1):
+        if chord_from is not None:
+            ev, n_inv, near = chord_from
+            ev, corr = _chord(state, ev, weight, n_inv)
+            history.append(_largest_um(ev.max_parallax_mm[todo]))
+            limit = _negligible_limit(ev, n_inv, tolerance)
+            small = todo & near & (np.abs(corr) < limit).all(axis=1)
+            iterations[small] = it - 1
+            if small.any():
+                record.store(ev, small, n_inv)
+            done |= small
+            todo &= ~small
+            if not todo.any():
+                break
+            if todo.sum() < 0.8 * blocks.pairs.size:
+                blocks = blocks_of(todo, stride)
         ev = _evaluate(state, blocks, weight, robust)
         history.append(_largest_um(ev.max_parallax_mm[todo]))
         corr = np.zeros((n_pairs, 5))
@@ -469,16 +533,8 @@ def _iterate(
             singular_start = singular & active
         size = np.max(np.abs(corr), axis=1)
         failed |= todo & (singular | ~np.isfinite(size) | (size > 1.0))
-        # Negligible: below the tolerance, or below a small fraction of the
-        # unknown's own standard deviation (method.md §3: "negligible against
-        # image measuring accuracy"); exact data fall back on the tolerance.
-        sigma0_sq = ev.sum_wqq / np.maximum(ev.n_rows - MIN_POINTS_PER_PAIR, 1)
-        with np.errstate(invalid="ignore"):
-            negligible = np.maximum(
-                tolerance,
-                _PRECISION_FRACTION * np.sqrt(sigma0_sq[:, None] * np.einsum("mii->mi", n_inv)),
-            )
-        small = todo & ~failed & (np.abs(corr) < negligible).all(axis=1)
+        limit = _negligible_limit(ev, n_inv, tolerance)
+        small = todo & ~failed & (np.abs(corr) < limit).all(axis=1)
         iterations[small] = it - 1
         if record is not None and small.any():
             record.store(ev, small, n_inv)
@@ -490,6 +546,18 @@ def _iterate(
             state.update(corr)
         if not todo.any():
             break
+        # Chord checks only near the solution, where they succeed (else they are
+        # lost work): the step reduces Σ w q² by less than half (the residuals
+        # are mostly noise, not an orientation still to be found), and the
+        # next correction, of the order of the step squared, is negligible.
+        near = (
+            step
+            & (np.einsum("mi,mi->m", corr, ev.gradient) < 0.5 * ev.sum_wqq)
+            & (np.max(np.abs(corr), axis=1) ** 2 < np.min(limit, axis=1))
+        )
+        chord_from = (ev, n_inv, near) if record is not None and not robust else None
+        if chord_from is not None and not (todo & near).any():
+            chord_from = None
         if todo.sum() < 0.8 * blocks.pairs.size:
             blocks = blocks_of(todo, stride)
     return done & ~failed, iterations, singular_start
@@ -918,6 +986,17 @@ class _DependentState:
         # At the left photo's image scale: q / k_l with k_l = j·(b × p) / D (J(12)).
         return num / (b2 * p0 - p2)
 
+    def residuals(self, pairs: IntArray, block: _Block) -> tuple[FloatArray, FloatArray]:
+        """The y-parallaxes of ``terms`` without the design rows: q (model
+        units) and q at image scale (mm), by the same operations."""
+        lx, ly, lz = block.left
+        p0, p1, p2 = _rotate(self.relative[pairs], *block.right)
+        b1, b2 = self.beta[pairs].T[:, :, None]
+        c1 = lz * p0 - lx * p2
+        inv_d = 1.0 / c1
+        num = (ly * p2 - lz * p1) + b1 * c1 + b2 * (lx * p1 - ly * p0)
+        return num * inv_d, num / (b2 * p0 - p2)
+
     def set_start(self, elements):
         self.beta = elements[:, :2].copy()
         self.relative = matrix_from_schut(elements[:, 2:])
@@ -993,6 +1072,12 @@ class _BaseState:
         m[:, 4] = -l2 * pu * inv_d
         m[:, 5] = q
         return num / -p2  # q / k_l with k_l = j·(b × p) / D = −p_z / D
+
+    def residuals(self, pairs: IntArray, block: _Block) -> tuple[FloatArray, FloatArray]:
+        """The y-parallaxes of ``terms``: q (model units) and at image scale (mm)."""
+        m = np.empty_like(block.design)
+        q_img = self.terms(pairs, block, m)
+        return m[:, 5], q_img
 
     def restart(self, mask, relative, base_dir):
         # Base system: x' along the base, z' in the principal plane of the left
