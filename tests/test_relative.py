@@ -208,3 +208,21 @@ def test_batched_normal_solve_agrees_with_lapack_and_flags_singular_matrices():
     np.testing.assert_allclose(
         corr[good], np.linalg.solve(normal[good], gradient[good][:, :, None])[:, :, 0], rtol=1e-9
     )
+
+
+def test_rays_of_any_length_give_the_same_orientation():
+    """The y-parallax equation is homogeneous in each ray, so image vectors
+    scaled row by row (their z no longer the one constant -c, which the
+    blocks otherwise keep as a number) give the same orientation."""
+    syn = make_strip(8, seed=3, noise_mm=0.005)
+    left, right, pair, n = _pairs(syn)
+    rng = np.random.default_rng(0)
+    ref = relative_orientation(left, right, pair, n)
+    scaled = relative_orientation(
+        left * rng.uniform(0.5, 2.0, (left.shape[0], 1)),
+        right * rng.uniform(0.5, 2.0, (left.shape[0], 1)),
+        pair,
+        n,
+    )
+    np.testing.assert_allclose(scaled.elements, ref.elements, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(scaled.relative_rotation, ref.relative_rotation, atol=1e-9)

@@ -224,8 +224,10 @@ class _Block:
     rows: IntArray  # (nb, width)
     valid: np.ndarray  # (nb, width) bool
     counts: IntArray  # (nb,) valid cells per pair
-    left: FloatArray  # (3, nb, width) image vectors on the left photo, mm
-    right: FloatArray  # (3, nb, width) and on the right photo
+    # image vectors on the left and the right photo (mm): components x, y, z,
+    # each (nb, width), z a float where it is one constant (-c) for all rows
+    left: tuple
+    right: tuple
     design: FloatArray = field(init=False, repr=False)  # (nb, 6, width) work buffer
 
     def __post_init__(self):
@@ -248,7 +250,9 @@ class _Blocks:
 
     def __init__(self, left_t, right_t, starts, counts, pairs, stride=None):
         # left_t, right_t: image vectors as contiguous (3, n) arrays, which
-        # np.take gathers from 5x faster than fancy indexing of an (n, 3) view
+        # np.take gathers from 5x faster than fancy indexing of an (n, 3) view;
+        # a z component that is one constant (-c) is not gathered
+        left_z, right_z = _constant_or_none(left_t[2]), _constant_or_none(right_t[2])
         if stride is None:
             stride = np.ones_like(counts)
         width_of = -(-counts // stride)  # ceil
@@ -272,13 +276,28 @@ class _Blocks:
                     rows,
                     valid,
                     valid.sum(axis=1),
-                    np.take(left_t, rows, axis=1),
-                    np.take(right_t, rows, axis=1),
+                    _gather_components(left_t, left_z, rows),
+                    _gather_components(right_t, right_z, rows),
                 )
             )
             i = j
         self.pairs = np.sort(pairs)
         self.n_rows = int(sum(b.counts.sum() for b in self.items))
+
+
+def _constant_or_none(values: FloatArray) -> float | None:
+    """The value of an array whose elements are all equal, else None."""
+    if values.size and bool((values == values[0]).all()):
+        return float(values[0])
+    return None
+
+
+def _gather_components(vectors_t: FloatArray, z: float | None, rows: IntArray) -> tuple:
+    """Components (x, y, z) of the rows (nb, width) of (3, n) vectors; z as
+    the float ``z`` where given (one constant for all rows)."""
+    if z is None:
+        return tuple(np.take(vectors_t, rows, axis=1))
+    return (*np.take(vectors_t[:2], rows, axis=1), z)
 
 
 def _robust_scale(abs_q: FloatArray, block: _Block) -> FloatArray:
