@@ -229,11 +229,22 @@ class _Block:
     left: tuple
     right: tuple
     design: FloatArray = field(init=False, repr=False)  # (nb, 6, width) work buffer
+    # (weights, sqrt w of the cells) for the last weights array, see root_weight
+    _root: tuple = field(init=False, repr=False, compare=False, default=(None, None))
 
     def __post_init__(self):
         # Reused by every evaluation of the block: fresh 48 bytes per row per
         # evaluation would cost page faults comparable to the arithmetic.
         object.__setattr__(self, "design", np.empty((self.rows.shape[0], 6, self.rows.shape[1])))
+
+    def root_weight(self, weight: FloatArray) -> FloatArray:
+        """sqrt(w) of the cells (0 in padding), (nb, width), for the flat
+        weights ``weight``; kept for the last weights array passed (the
+        weights are replaced, never changed in place, when rows lose theirs)."""
+        if self._root[0] is not weight:
+            root = np.sqrt(np.take(weight, self.rows) * self.valid)
+            object.__setattr__(self, "_root", (weight, root))
+        return self._root[1]
 
 
 class _Blocks:
@@ -368,11 +379,12 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
         m = block.design
         q_img = state.terms(block.pairs, block, m)
         abs_q = np.abs(q_img)
-        w = weight[block.rows] * block.valid
+        root_w = block.root_weight(weight)
         if robust:
             abs_q = np.where(np.isfinite(abs_q), abs_q, np.inf)
-            w = w / (1.0 + (abs_q / (2.385 * _robust_scale(abs_q, block))) ** 2)
-        m *= np.sqrt(w)[:, None, :]  # in place: the weighted rows serve N and the leverage
+            cauchy = 1.0 + (abs_q / (2.385 * _robust_scale(abs_q, block))) ** 2
+            root_w = root_w / np.sqrt(cauchy)
+        m *= root_w[:, None, :]  # in place: the weighted rows serve N and the leverage
         normal = m @ m.transpose(0, 2, 1)
         ev.normal[block.pairs] = normal[:, :5, :5]
         ev.gradient[block.pairs] = -normal[:, :5, 5]
@@ -402,7 +414,7 @@ def _chord(
     gradient = np.zeros((state.n_pairs, 5))
     for block, m in zip(ev.blocks.items, ev.design, strict=True):
         q, q_img = state.residuals(block.pairs, block)
-        wq = np.sqrt(weight[block.rows] * block.valid) * q
+        wq = block.root_weight(weight) * q
         gradient[block.pairs] = -(m[:, :5] @ wq[:, :, None])[:, :, 0]
         chord.sum_wqq[block.pairs] = np.einsum("pr,pr->p", wq, wq)
         chord.max_parallax_mm[block.pairs] = np.max(np.abs(q_img), axis=1)
