@@ -470,17 +470,25 @@ def test_random_errors_grow_like_n_to_the_three_halves():
     assert 2.3 < gamma < 3.7, (gamma, e)
 
 
+@pytest.mark.parametrize("chunk", [None, 5])
 @pytest.mark.parametrize("seed", range(6))
-def test_pair_rows_finds_every_common_point_in_any_row_order(seed):
+def test_pair_rows_finds_every_common_point_in_any_row_order(seed, chunk, monkeypatch):
     # Reference by sets over the photos; rows shuffled, photo sequences that
-    # skip, reverse or take part of the photos.
+    # skip, reverse or take part of the photos, point indices renumbered at
+    # random (ids that do not follow the flight), and the binary search over
+    # many chunks of rows.
+    from strip_aerotri import chaining
+
+    if chunk is not None:
+        monkeypatch.setattr(chaining, "_CHUNK_ROWS", chunk)
     rng = np.random.default_rng(seed)
     obs = simulate_strip(7, seed=seed).observations
     perm = rng.permutation(obs.photo.size) if seed % 2 else np.arange(obs.photo.size)
+    renumber = rng.permutation(obs.n_points) if seed % 3 else np.arange(obs.n_points)
     obs = dataclasses.replace(
         obs,
         photo=obs.photo[perm],
-        point=obs.point[perm],
+        point=renumber[obs.point[perm]],
         xy=obs.xy[perm],
         sigma=obs.sigma[perm],
         source_line=obs.source_line[perm],
