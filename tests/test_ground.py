@@ -801,6 +801,21 @@ def test_full_control_needs_the_azimuth_pass_and_one_more(route):
     assert mixed.passes > 2 and mixed.passes_converged
 
 
+def test_an_azimuth_that_never_settles_ends_the_passes_unconverged(monkeypatch):
+    # Every pass turning the frame again (a similarity that cannot pin the
+    # strip's direction to 1e-9 rad): the last pass fits the polynomials in
+    # the frame it has and the passes are reported as not converged (this
+    # used to end the passes with no polynomial fitted at all).
+    from strip_aerotri import ground as ground_module
+
+    monkeypatch.setattr(ground_module, "_azimuth_step", lambda vector: 1e-6)
+    with pytest.warns(StripAerotriWarning, match=r"passes did not settle in 8"):
+        result = run(simulated(12, control="dense", seed=4)).ground
+    assert result.passes == ground_module._MAX_PASSES
+    assert not result.passes_converged
+    assert result.deformation is not None
+
+
 def test_re_solve_after_a_rejection_equals_a_fresh_solve_without_the_observation():
     # Re-solves start from the previous similarity (fewer iterations); the
     # solution must be the one a fresh run without the rejected component gives.

@@ -64,6 +64,7 @@ from .similarity import (
     _normalized,
     _quote,
     _redundancy_numbers,
+    row_support,
 )
 
 __all__ = [
@@ -547,8 +548,10 @@ def _solve(
     if design.shape[1] == 0:
         return np.zeros(0), observed.copy(), _Normals(np.zeros((0, 0)), 1.0, np.ones(len(design)))
     a_w = design / sigma[:, None]
+    support = None
     if normals is None:
-        q, cond = _normal_inverse(a_w)
+        support = row_support(a_w)  # splines over sections: a few nonzero terms per row
+        q, cond = _normal_inverse(a_w, support)
     else:
         q, cond = normals.q, normals.cond
     if not np.isfinite(cond) or cond > SINGULAR_COND:
@@ -567,7 +570,7 @@ def _solve(
     x = q @ (a_w.T @ (observed / sigma))
     v = observed - design @ x
     if normals is None:
-        normals = _Normals(q, cond, _redundancy_numbers(a_w, q))
+        normals = _Normals(q, cond, _redundancy_numbers(a_w, q, support))
     return x, v, normals
 
 

@@ -22,6 +22,7 @@ nothing changes (a few passes).
 
 from __future__ import annotations
 
+import warnings
 from bisect import bisect_left
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -43,7 +44,7 @@ from .deformation import (
     fit_deformation,
     select_kind_auto,
 )
-from .errors import GeometryError
+from .errors import GeometryError, StripAerotriWarning
 from .geodesy import GroundCRS, LocalTangentFrame, enu_rotation, gaussian_mean_radius
 from .observations import ControlPoints
 from .rotation import matrix_from_rotvec, opk_from_matrix
@@ -575,7 +576,7 @@ def adjust_to_ground(
         last_fit = None if previous is None else (previous.sim.transform, previous.work)
         work = _make_work(route, crs, guess_[active], azimuth)
         converged, n_pass = False, 0
-        for n_pass in range(1, _MAX_PASSES + 1):  # noqa: B007 (reported as passes)
+        for n_pass in range(1, _MAX_PASSES + 1):
             target = work.to_work(guess_)
             sim = fit_similarity(
                 strip_xyz[active],
@@ -590,8 +591,11 @@ def adjust_to_ground(
             last_fit = (sim.transform, work)
             axis = sim.transform.apply(np.vstack([first, last]))
             step = _azimuth_step(axis[1] - axis[0])
-            if abs(step) > 1e-9:
-                # Re-express in a frame whose X runs along the strip and start over.
+            along = abs(step) <= 1e-9
+            if not along and n_pass < _MAX_PASSES:
+                # Re-express in a frame whose X runs along the strip and start over
+                # (the last pass fits the polynomials in the frame it has, and
+                # the passes are reported as not converged).
                 azimuth += step
                 work = _make_work(route, crs, guess_[active], azimuth)
                 continue
@@ -627,7 +631,7 @@ def adjust_to_ground(
             change = float(np.nanmax(np.abs(new_guess - guess_)))
             guess_ = new_guess
             if change < _PASS_TOLERANCE_M:
-                converged = True
+                converged = along
                 break
             work = _make_work(route, crs, guess_[active], azimuth)
         return _Solution(
@@ -697,6 +701,14 @@ def adjust_to_ground(
         sol.selection,
     )
     converged, n_pass, azimuth = sol.converged, sol.n_pass, sol.azimuth
+    if not converged:
+        warnings.warn(
+            f"ground stage: the passes did not settle in {n_pass} (the work frame's azimuth "
+            "or the estimated coordinates of plan and height control still changed); the "
+            "results are those of the last pass",
+            StripAerotriWarning,
+            stacklevel=2,
+        )
     metres_per_mm, sigma_plan, sigma_height = sol.metres_per_mm, sol.sigma_plan, sol.sigma_height
     use_xy_final, use_z_final = use_xy_now, use_z_now
 
