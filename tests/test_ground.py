@@ -816,6 +816,26 @@ def test_an_azimuth_that_never_settles_ends_the_passes_unconverged(monkeypatch):
     assert result.deformation is not None
 
 
+def test_a_turn_below_the_precision_of_the_azimuth_settles_the_frame(monkeypatch):
+    # After the first turn along the strip, a remaining turn below 1 % of the
+    # similarity's standard deviation of the azimuth (8.3e-6 rad here) is
+    # noise: no further pass (the turns a long strip bent by its chain leaves,
+    # halving from pass to pass, would otherwise use up the passes).
+    from strip_aerotri import ground as ground_module
+
+    real_step = ground_module._azimuth_step
+    calls = []
+
+    def step(vector):
+        calls.append(vector)
+        return real_step(vector) if len(calls) == 1 else 5e-8 / 2 ** (len(calls) - 2)
+
+    monkeypatch.setattr(ground_module, "_azimuth_step", step)
+    result = run(simulated(12, control="dense", seed=4)).ground
+    assert result.passes == 2 and result.passes_converged
+    assert len(calls) == 2
+
+
 def test_re_solve_after_a_rejection_equals_a_fresh_solve_without_the_observation():
     # Re-solves start from the previous similarity (fewer iterations); the
     # solution must be the one a fresh run without the rejected component gives.

@@ -591,7 +591,12 @@ def adjust_to_ground(
             last_fit = (sim.transform, work)
             axis = sim.transform.apply(np.vstack([first, last]))
             step = _azimuth_step(axis[1] - axis[0])
-            along = abs(step) <= 1e-9
+            # Along the strip: to 1e-9 rad, or to 1 % of the azimuth's own
+            # standard deviation in the fit (a long strip bent by its chain:
+            # the similarity stops at negligible steps, and the remaining
+            # turn, halving from pass to pass, is noise, not a frame to turn).
+            sigma_azimuth = float(np.sqrt(sim.covariance[6, 6]))
+            along = abs(step) <= max(1e-9, 0.01 * sigma_azimuth)
             if not along and n_pass < _MAX_PASSES:
                 # Re-express in a frame whose X runs along the strip and start over
                 # (the last pass fits the polynomials in the frame it has, and
