@@ -802,8 +802,8 @@ def test_full_control_needs_the_azimuth_pass_and_one_more(route):
 
 
 def test_an_azimuth_that_never_settles_ends_the_passes_unconverged(monkeypatch):
-    # Every pass turning the frame again (a similarity that cannot pin the
-    # strip's direction to 1e-9 rad): the last pass fits the polynomials in
+    # Every pass turning the frame again by 1e-6 rad (above 1e-9 rad and above
+    # 1 % of the azimuth's standard deviation, 8.3e-8): the last pass fits the polynomials in
     # the frame it has and the passes are reported as not converged (this
     # used to end the passes with no polynomial fitted at all).
     from strip_aerotri import ground as ground_module
