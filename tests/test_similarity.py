@@ -507,3 +507,59 @@ def test_a_fit_too_slow_for_the_tolerance_still_converges(monkeypatch):
     monkeypatch.setattr(similarity_module, "_NEGLIGIBLE_FRACTION", 0.0)
     with pytest.raises(ConvergenceError, match="did not converge in 30 iterations"):
         fit_similarity(bent, tgt, **kwargs)
+
+
+def _long_strip_with_edges(n_stations: int = 200, across: float = 1.5):
+    """Full control on both edges of a strip 2000 bases long and 3 wide
+    (plan singular value ratio 2.6e-3), and the strip's points across its
+    whole width."""
+    x = np.repeat(np.linspace(0.0, 2000.0, n_stations), 2)
+    src = np.column_stack([x, np.tile([-across, across], n_stations), np.zeros_like(x)])
+    served = np.column_stack(
+        [np.linspace(0.0, 2000.0, 999), np.tile([-1.6, 0.0, 1.6], 333), np.zeros(999)]
+    )
+    return src, TRUTH_LOCAL.apply(src), served
+
+
+def test_no_weak_tilt_warning_for_a_long_strip_controlled_on_both_edges():
+    """Judged by the points it serves, the height control on both edges of a
+    strip 2000 times longer than wide determines the tilt across it well (a
+    height error reaches the strip's edge 0.05 times magnified); the ratio
+    of the plan singular values alone (2.6e-3) warns."""
+    import warnings as _warnings
+
+    src, tgt, served = _long_strip_with_edges()
+    use = np.ones(len(src), dtype=bool)
+    with _warnings.catch_warnings():
+        _warnings.simplefilter("error")
+        res = fit_similarity(src, tgt, use_xy=use, use_z=use, served=served)
+    np.testing.assert_allclose(res.transform.apply(src), tgt, rtol=0, atol=1e-8)
+    with pytest.warns(StripAerotriWarning, match=r"nearly in one vertical plane \(singular value"):
+        fit_similarity(src, tgt, use_xy=use, use_z=use)
+
+
+# Height points along a road, every second one `offset` off it, under a strip
+# 3.2 wide: s1 about sqrt(40) offset / 2 and the farthest served point about
+# 1.6 from their plane: magnified 25 and 2.7 times (plan singular value
+# ratios 1.7e-3 and 1.7e-2: the ratio rule would warn about the first only).
+@pytest.mark.parametrize("offset, warns", [(0.02, True), (0.2, False)])
+def test_the_weak_tilt_warning_judged_by_the_points_served(offset, warns):
+    import warnings as _warnings
+
+    x = np.linspace(0.0, 20.0, 40)
+    src = np.column_stack([x, np.where(np.arange(40) % 2, offset, 0.0), np.zeros(40)])
+    tgt = TRUTH_LOCAL.apply(src)
+    use = np.ones(40, dtype=bool)
+    served = np.column_stack([x, np.tile([-1.6, 1.6], 20), np.zeros(40)])
+    if warns:
+        with pytest.warns(StripAerotriWarning, match=r"nearly in one vertical plane .* 25 times"):
+            fit_similarity(src, tgt, use_xy=use, use_z=use, served=served)
+    else:
+        with _warnings.catch_warnings():
+            _warnings.simplefilter("error")
+            fit_similarity(src, tgt, use_xy=use, use_z=use, served=served)
+    # collinear height control is refused by the ratio either way
+    flat = src.copy()
+    flat[:, 1] = 0.0
+    with pytest.raises(GeometryError, match=r"all lie in one vertical plane"):
+        fit_similarity(flat, TRUTH_LOCAL.apply(flat), use_xy=use, use_z=use, served=served)

@@ -558,6 +558,11 @@ def adjust_to_ground(
     exp_xy = np.hypot(sig_xy_ctrl, sigma_plan)
     exp_z = np.hypot(sig_h_ctrl, sigma_height)
 
+    # The points the similarity serves, for its warning about height control
+    # nearly in one vertical plane (the point farthest from that plane
+    # counts): an evenly spaced sample of the strip's points.
+    served = strip.points[:: max(1, -(-strip.points.shape[0] // MEDIAN_SAMPLE))]
+
     def solve(
         use_xy: np.ndarray,
         use_z: np.ndarray,
@@ -587,6 +592,7 @@ def adjust_to_ground(
                 sigma_z=exp_z[active],
                 point_ids=act_ids,
                 start=None if last_fit is None else _carried(*last_fit, work),
+                served=served,
             )
             last_fit = (sim.transform, work)
             axis = sim.transform.apply(np.vstack([first, last]))
