@@ -58,6 +58,7 @@ from .similarity import (
 __all__ = ["GroundOptions", "GroundResult", "LineSpec", "Route", "adjust_to_ground"]
 
 _MAX_PASSES = 8
+_SERVED_SAMPLE = 8192  # strip points for the similarity's test of the cross tilt
 _PASS_TOLERANCE_M = 1e-5
 # Probe points (m) that carry a similarity from one work frame to the next.
 _FRAME_PROBE_M = np.array(
@@ -560,8 +561,9 @@ def adjust_to_ground(
 
     # The points the similarity serves, for its warning about height control
     # nearly in one vertical plane (the point farthest from that plane
-    # counts): an evenly spaced sample of the strip's points.
-    served = strip.points[:: max(1, -(-strip.points.shape[0] // MEDIAN_SAMPLE))]
+    # counts): an evenly spaced sample of the strip's points, which reaches
+    # the strip's edges in every few models.
+    served = strip.points[:: max(1, -(-strip.points.shape[0] // _SERVED_SAMPLE))]
 
     def solve(
         use_xy: np.ndarray,
