@@ -259,11 +259,13 @@ class _Blocks:
     iterations).
     """
 
-    def __init__(self, left_t, right_t, starts, counts, pairs, stride=None):
+    def __init__(
+        self, left_t, right_t, starts, counts, pairs, stride=None, constant_z=(None, None)
+    ):
         # left_t, right_t: image vectors as contiguous (3, n) arrays, which
         # np.take gathers from 5x faster than fancy indexing of an (n, 3) view;
-        # a z component that is one constant (-c) is not gathered
-        left_z, right_z = _constant_or_none(left_t[2]), _constant_or_none(right_t[2])
+        # a z component that is one constant (-c, `constant_z`) is not gathered
+        left_z, right_z = constant_z
         if stride is None:
             stride = np.ones_like(counts)
         width_of = -(-counts // stride)  # ceil
@@ -710,8 +712,10 @@ def relative_orientation(
 
     left_t, right_t = np.ascontiguousarray(left.T), np.ascontiguousarray(right.T)
 
+    constant_z = (_constant_or_none(left_t[2]), _constant_or_none(right_t[2]))
+
     def blocks_of(mask, stride=None):
-        return _Blocks(left_t, right_t, starts, counts, np.flatnonzero(mask), stride)
+        return _Blocks(left_t, right_t, starts, counts, np.flatnonzero(mask), stride, constant_z)
 
     everything = np.ones(n_pairs, dtype=bool)
     record = _Record(pair.shape[0], n_pairs)
