@@ -389,13 +389,18 @@ def test_bad_input_has_one_error_line_without_quiet(tmp_path, project):
     assert not (project.parent / "out").exists()
 
 
-def test_run_collinear_height_control(tmp_path, corridor_sim):
-    """Full control only on the road: all height control in one vertical plane."""
+@pytest.mark.parametrize("off_road_m", [0.0, 0.02])
+def test_run_collinear_height_control(tmp_path, corridor_sim, off_road_m):
+    """Full control only on the road: all height control in one vertical plane,
+    or every second point 2 cm off it (singular value ratio 1e-5, an error of
+    the heights reaching the strip's edge thousands of times magnified): run
+    and check refuse both."""
     folder = tmp_path / "proj"
     toml = corridor_sim.write_project(folder, polynomial=0)
     road = corridor_sim.lines[0][0]
     index = {p: i for i, p in enumerate(corridor_sim.observations.point_ids)}
     xyz = corridor_sim.truth.points_crs[[index[p] for p in road]]
+    xyz[1::2, 1] += off_road_m
     rows = [["point", "X", "Y", "H", "type"]]
     rows += [
         [p, f"{x:.4f}", f"{y:.4f}", f"{h:.4f}", "full"]
@@ -710,3 +715,24 @@ def test_bundled_example_runs(tmp_path, name):
     out = read_rows(tmp_path / "out" / "points.csv")
     assert len(out) > 100
     assert snapshot(EXAMPLES / name) == before
+
+
+def test_check_sizes_a_photo_footprint_from_its_control():
+    """The check's stand-in for the strip's points served: a photo's ground
+    radius from its plan control's spread over their image spread, times its
+    farthest image point; the preset's scale times that point in truth."""
+    from strip_aerotri.cli.check import _footprint_radius
+
+    sim = sa.simulate_strip(12, seed=2)
+    obs, ctrl = sim.observations, sim.control
+    lookup = {p: i for i, p in enumerate(obs.point_ids)}
+    control_point = np.array([lookup.get(p, -1) for p in ctrl.point_ids])
+    has_plan = np.isfinite(ctrl.xyz[:, :2]).all(axis=1)
+    radius = _footprint_radius(obs, control_point, has_plan, ctrl.xyz[has_plan, :2])
+    farthest = np.median([np.hypot(*obs.xy[obs.photo == k].T).max() for k in range(obs.n_photos)])
+    truth = sim.preset.scale_m_per_mm * farthest
+    assert radius == pytest.approx(truth, rel=0.1)
+    # no photo with two plan control points: no size
+    one = np.zeros_like(has_plan)
+    one[np.flatnonzero(has_plan)[0]] = True
+    assert _footprint_radius(obs, control_point, one, ctrl.xyz[one, :2]) is None

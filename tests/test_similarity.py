@@ -8,7 +8,10 @@ from scipy.spatial.transform import Rotation
 
 from strip_aerotri.errors import ConvergenceError, GeometryError, StripAerotriWarning
 from strip_aerotri.similarity import (
+    COLLINEAR_MAGNIFICATION,
+    COLLINEAR_RTOL,
     SimilarityTransform,
+    cross_tilt,
     fit_similarity,
     similarity_from_points,
 )
@@ -563,3 +566,58 @@ def test_the_weak_tilt_warning_judged_by_the_points_served(offset, warns):
     flat[:, 1] = 0.0
     with pytest.raises(GeometryError, match=r"all lie in one vertical plane"):
         fit_similarity(flat, TRUTH_LOCAL.apply(flat), use_xy=use, use_z=use, served=served)
+
+
+def test_a_strip_longer_than_the_ratio_rule_allows_is_accepted_by_the_points_served():
+    """10 000 times longer than wide (plan singular value ratio 5e-4, below
+    COLLINEAR_RTOL) with both edges controlled: the tilt across is as firm as
+    a short strip's (magnified 0.05 times at the edge), so with the points
+    served known the fit goes through; without them the ratio still refuses."""
+    import warnings as _warnings
+
+    src, tgt, served = _long_strip_with_edges()
+    src[:, 0] *= 5.0  # 10 000 bases long
+    served[:, 0] *= 5.0
+    tgt = TRUTH_LOCAL.apply(src)
+    ratio, magnified = cross_tilt(src[:, :2], served[:, :2])
+    assert ratio < COLLINEAR_RTOL and magnified < 0.1
+    use = np.ones(len(src), dtype=bool)
+    with _warnings.catch_warnings():
+        _warnings.simplefilter("error")
+        res = fit_similarity(src, tgt, use_xy=use, use_z=use, served=served)
+    np.testing.assert_allclose(res.transform.apply(src), tgt, rtol=0, atol=1e-7)
+    with pytest.raises(GeometryError, match=r"all lie in one vertical plane \(.* ratio 5"):
+        fit_similarity(src, tgt, use_xy=use, use_z=use)
+
+
+@pytest.mark.parametrize("offset, refused", [(0.002, True), (0.02, False)])
+def test_height_control_nearly_on_one_road_is_refused_by_its_magnification(offset, refused):
+    """Height points along a road 20 long, every second `offset` off it, under
+    a strip 3.2 wide: ratios 1.7e-4 and 1.7e-3, magnified about 250 and 25
+    times at the edge.  Above COLLINEAR_MAGNIFICATION (100) and below
+    COLLINEAR_RTOL the tilt is refused; 25 times is only warned about."""
+    x = np.linspace(0.0, 20.0, 40)
+    src = np.column_stack([x, np.where(np.arange(40) % 2, offset, 0.0), np.zeros(40)])
+    tgt = TRUTH_LOCAL.apply(src)
+    use = np.ones(40, dtype=bool)
+    served = np.column_stack([x, np.tile([-1.6, 1.6], 20), np.zeros(40)])
+    ratio, magnified = cross_tilt(src[:, :2], served[:, :2])
+    assert (ratio < COLLINEAR_RTOL, magnified > COLLINEAR_MAGNIFICATION) == (refused, refused)
+    if refused:
+        with pytest.raises(GeometryError, match=r"reaches the farthest point 2\d\d times"):
+            fit_similarity(src, tgt, use_xy=use, use_z=use, served=served)
+    else:
+        with pytest.warns(StripAerotriWarning, match=r"nearly in one vertical plane .* 25 times"):
+            fit_similarity(src, tgt, use_xy=use, use_z=use, served=served)
+
+
+def test_cross_tilt_magnification_by_hand():
+    # Height points at (0, 0), (10, 0), (10, 2), (0, 2): best plane y = 1, s1 = 2
+    # (4 points 1 off it); the served point (5, 7) is 6 off the plane: 3 times.
+    h = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 2.0], [0.0, 2.0]])
+    ratio, magnified = cross_tilt(h, np.array([[5.0, 7.0], [5.0, 1.0]]))
+    assert ratio == pytest.approx(2.0 / 10.0)
+    assert magnified == pytest.approx(3.0)
+    assert cross_tilt(h, np.array([[5.0, 7.0]]), margin=2.0)[1] == pytest.approx(4.0)
+    assert cross_tilt(h)[1] is None
+    assert cross_tilt(h[:2], h[:1])[1] == np.inf

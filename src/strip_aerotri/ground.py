@@ -25,7 +25,7 @@ from __future__ import annotations
 import warnings
 from bisect import bisect_left
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 from typing import Any, NamedTuple
 
@@ -58,6 +58,7 @@ from .similarity import (
 __all__ = ["GroundOptions", "GroundResult", "LineSpec", "Route", "adjust_to_ground"]
 
 _MAX_PASSES = 8
+_ROLL_TOLERANCE = 0.1  # of the expected plan sigma, over the relief's spread
 _SERVED_SAMPLE = 8192  # strip points for the similarity's test of the cross tilt
 _PASS_TOLERANCE_M = 1e-5
 # Probe points (m) that carry a similarity from one work frame to the next.
@@ -420,6 +421,31 @@ def _carried(sim: SimilarityTransform, work_from, work_to) -> SimilarityTransfor
     return similarity_from_points(_FRAME_PROBE_M, mapped).compose(sim)
 
 
+def _turned_about_x(
+    transform: SimilarityTransform, angle: float, axis_point: FloatArray
+) -> SimilarityTransform:
+    """``transform`` followed by a turn of `angle` radians (counter-clockwise
+    seen from +X) about the work frame's X axis through `axis_point`."""
+    c, s = np.cos(angle), np.sin(angle)
+    turn = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    return SimilarityTransform(
+        scale=transform.scale,
+        rotation=turn @ transform.rotation,
+        translation=axis_point + turn @ (transform.translation - axis_point),
+    )
+
+
+def _cross_slope(deformation: DeformationResult, xyz: FloatArray) -> float:
+    """Mean slope dw_Z/dY of the deformation across the strip at points xyz
+    (work frame): the tilt about the strip's axis left to the polynomial."""
+    h = 1e-3 * max(float(deformation.normalization.half_extent), 1.0)
+    shifted = np.repeat(xyz[None], 2, axis=0)
+    shifted[0, :, 1] += h
+    shifted[1, :, 1] -= h
+    w = deformation.evaluate(shifted.reshape(-1, 3)).reshape(2, -1, 3)
+    return float(np.mean(w[0, :, 2] - w[1, :, 2]) / (2 * h))
+
+
 def _azimuth_step(vector_work: FloatArray) -> float:
     """Angle to add to A0 so that X points along a work-frame vector (Y is left,
     i.e. counter-clockwise, while azimuth is clockwise)."""
@@ -564,6 +590,7 @@ def adjust_to_ground(
     # counts): an evenly spaced sample of the strip's points, which reaches
     # the strip's edges in every few models.
     served = strip.points[:: max(1, -(-strip.points.shape[0] // _SERVED_SAMPLE))]
+    served = served[np.isfinite(served).all(axis=1)]
 
     def solve(
         use_xy: np.ndarray,
@@ -583,8 +610,10 @@ def adjust_to_ground(
         last_fit = None if previous is None else (previous.sim.transform, previous.work)
         work = _make_work(route, crs, guess_[active], azimuth)
         converged, n_pass = False, 0
+        roll = 0.0 if previous is None else previous.roll
         for n_pass in range(1, _MAX_PASSES + 1):
             target = work.to_work(guess_)
+            axis_point = target[active].mean(axis=0)
             sim = fit_similarity(
                 strip_xyz[active],
                 target[active],
@@ -612,6 +641,8 @@ def adjust_to_ground(
                 azimuth += step
                 work = _make_work(route, crs, guess_[active], azimuth)
                 continue
+            if roll:
+                sim = replace(sim, transform=_turned_about_x(sim.transform, roll, axis_point))
             model_xyz = sim.transform.apply(strip_xyz)
             line_objs = [
                 StraightLine(
@@ -634,6 +665,18 @@ def adjust_to_ground(
                 line_objs,
                 act_ids,
             )
+            if deformation is not None and n_pass < _MAX_PASSES:
+                # A long strip bent by its chain leaves the similarity a roll
+                # set by the bend, not by the cross-section; the polynomial
+                # takes the roll as a shear of Z across the strip, which
+                # cannot move the points' Y with their height.  Turn it back
+                # into the similarity when its effect on the relief matters.
+                served_work = sim.transform.apply(served)
+                turn = _cross_slope(deformation, served_work)
+                relief = float(np.std(deformation.correct(served_work)[:, 2]))
+                if abs(turn) * relief > _ROLL_TOLERANCE * sigma_plan:
+                    roll -= float(np.arctan(turn))
+                    continue
             corrected = model_xyz if deformation is None else deformation.correct(model_xyz)
             adjusted = work.from_work(corrected)
             new_guess = given.copy()
@@ -661,6 +704,7 @@ def adjust_to_ground(
             sigma_height,
             active,
             sig_xy_ctrl,
+            roll,
         )
 
     blunders = blunders or BlunderOptions()
@@ -859,6 +903,7 @@ class _Solution(NamedTuple):
     sigma_height: float
     active: np.ndarray
     control_sigma_xy: FloatArray
+    roll: float
 
 
 def _ground_tests(sol: _Solution, ids, lines, line_keep, blunders) -> list[Rejection]:

@@ -81,6 +81,49 @@ def _plan_metres(xy: np.ndarray, geographic: bool) -> np.ndarray:
     return np.column_stack([xy[:, 0] * np.cos(lat), xy[:, 1]])
 
 
+#: The check's estimate of how far the strip reaches (control and check points
+#: widened by a photo's footprint) exceeds the run's by up to this factor; the
+#: check refuses height control in nearly one plane only beyond it, and warns
+#: between it and 1.
+_CHECK_MARGIN = 3.0
+
+
+def _footprint_radius(obs, control_point, has_plan, control_xy) -> float | None:
+    """Median ground radius of a photo's footprint, in the unit of `control_xy`.
+
+    A photo's scale is the spread of the plan control measured on it over the
+    spread of their image coordinates (two or more such points; tilt and
+    relief ignored), its radius that scale times the farthest image point
+    measured on it.  `control_point`: each control row's point index in `obs`
+    (-1 if absent); `control_xy`: plan coordinates of the rows `has_plan`.
+    None when no photo shows two plan control points apart.
+    """
+    xy_rows = np.full((has_plan.size, 2), np.nan)
+    xy_rows[has_plan] = control_xy - control_xy.mean(axis=0)  # small numbers to square
+    which = np.full(obs.n_points, -1, dtype=np.intp)
+    rows = np.flatnonzero((control_point >= 0) & has_plan)
+    which[control_point[rows]] = rows
+    k = which[obs.point]
+    on = k >= 0
+    photo = obs.photo[on]
+
+    def spread(xy):  # sum of squared distances from each photo's centroid
+        n = np.bincount(photo, minlength=obs.n_photos)
+        sums = [np.bincount(photo, xy[:, c], minlength=obs.n_photos) for c in (0, 1)]
+        squares = np.bincount(photo, np.einsum("ij,ij->i", xy, xy), minlength=obs.n_photos)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return n, squares - (sums[0] ** 2 + sums[1] ** 2) / n
+
+    n, image = spread(obs.xy[on])
+    _, ground = spread(xy_rows[k[on]])
+    ok = (n >= 2) & (image > 1e-6 * np.maximum(n, 1)) & (ground > 0.0)  # apart by > 1 µm
+    if not ok.any():
+        return None
+    farthest = np.zeros(obs.n_photos)
+    np.maximum.at(farthest, obs.photo, np.hypot(obs.xy[:, 0], obs.xy[:, 1]))
+    return float(np.median(np.sqrt(ground[ok] / image[ok]) * farthest[ok]))
+
+
 def check_project(project, out: Path | None = None) -> CheckReport:
     """Check the geometry of a loaded project without adjusting it.
 
@@ -99,7 +142,12 @@ def check_project(project, out: Path | None = None) -> CheckReport:
     from ..deformation import n_terms
     from ..errors import StripAerotriError
     from ..relative import MIN_POINTS_PER_PAIR
-    from ..similarity import COINCIDENT_RTOL, COLLINEAR_RTOL
+    from ..similarity import (
+        COINCIDENT_RTOL,
+        COLLINEAR_MAGNIFICATION,
+        COLLINEAR_RTOL,
+        cross_tilt,
+    )
     from .run import output_folder
 
     rep = CheckReport()
@@ -203,15 +251,43 @@ def check_project(project, out: Path | None = None) -> CheckReport:
     else:
         hxy = ctrl.xyz[uses_h, :2]
         if np.isfinite(hxy).all():
+            plan_all = np.isfinite(ctrl.xyz[:, :2]).all(axis=1)
+            known_xy = _plan_metres(ctrl.xyz[plan_all, :2], geographic)
             hxy = _plan_metres(hxy, geographic)
-            sv = np.linalg.svd(hxy - hxy.mean(axis=0), compute_uv=False)
-            ratio = 0.0 if sv[0] == 0.0 else float(sv[1] / sv[0])
+            ratio, _ = cross_tilt(hxy)
             if ratio < COLLINEAR_RTOL:
-                rep.problems.append(
+                # The run judges by the strip's points (similarity.cross_tilt);
+                # here they are the control and check points widened by one
+                # photo's footprint, which overstates r up to about 2.5 times.
+                radius = _footprint_radius(obs, row_point, plan_all, known_xy)
+                _, magnified = cross_tilt(hxy, known_xy, radius or 0.0)
+                text = (
                     f"{control_file}: the height control points all lie in one vertical plane "
-                    f"(collinear in plan, singular value ratio {ratio:.1e}); the tilt across it "
-                    f"is undetermined: {_quote(height_ids)}"
+                    f"(collinear in plan, singular value ratio {ratio:.1e}"
                 )
+                if radius is None:
+                    if magnified > COLLINEAR_MAGNIFICATION:
+                        rep.problems.append(
+                            f"{text}); the tilt across it is undetermined: {_quote(height_ids)}"
+                        )
+                    else:
+                        rep.warnings.append(
+                            f"{text}); no photo shows two plan control points to size the strip, "
+                            "so whether the tilt across it is determined is decided by the run: "
+                            f"{_quote(height_ids)}"
+                        )
+                elif magnified > _CHECK_MARGIN * COLLINEAR_MAGNIFICATION:
+                    rep.problems.append(
+                        f"{text}; an error of their heights reaches the strip's edge about "
+                        f"{magnified:.0f} times magnified); the tilt across it is undetermined: "
+                        f"{_quote(height_ids)}"
+                    )
+                elif magnified > COLLINEAR_MAGNIFICATION:
+                    rep.warnings.append(
+                        f"{text}; an error of their heights may reach the strip's edge up to "
+                        f"{magnified:.0f} times magnified); the run refuses the tilt above "
+                        f"{COLLINEAR_MAGNIFICATION:.0f}: {_quote(height_ids)}"
+                    )
 
     # Straight lines.
     for i, line in enumerate(project.straight_lines, start=1):
