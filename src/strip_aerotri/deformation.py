@@ -47,13 +47,14 @@ All coordinates are Cartesian, metres, rows of shape (N, 3).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
 
+from ._banded import BandedNormals
 from ._typing import ArrayLike, FloatArray, IntArray
 from .errors import GeometryError, StripAerotriWarning
 from .similarity import (
@@ -552,13 +553,30 @@ class DeformationResult:
 
 
 class _Normals(NamedTuple):
-    """Cofactor matrix ``Q = (AᵀPA)⁻¹``, its condition number and the
+    """Solver ``b -> Q b`` with ``Q = (AᵀPA)⁻¹``, its condition number and the
     redundancy numbers of a weighted design, reusable for another right-hand
     side of the same design (X and Y of the plan control)."""
 
-    q: FloatArray
+    solve: Callable[[FloatArray], FloatArray]
     cond: float
     redundancy: FloatArray
+
+
+def _normals(a_w: FloatArray) -> _Normals:
+    """Normals of whitened rows: through a banded factor for a spline over
+    sections (a few nonzero terms per row, strip_aerotri._banded), else the
+    dense inverse."""
+    support = row_support(a_w)
+    if support is not None:
+        banded = BandedNormals.from_rows(support.index, support.value, support.n_columns)
+        if banded is not None:
+            cond = banded.cond
+            if not np.isfinite(cond):
+                return _Normals(banded.solve, cond, np.full(len(a_w), np.nan))
+            h = banded.quadratic_forms(support.index, support.value)
+            return _Normals(banded.solve, cond, np.clip(1.0 - h, 0.0, 1.0))
+    q, cond = _normal_inverse(a_w, support)
+    return _Normals(q.__matmul__, cond, _redundancy_numbers(a_w, q, support))
 
 
 def _solve(
@@ -573,14 +591,11 @@ def _solve(
     """Weighted least squares ``design @ x ≈ observed``; returns x, v = observed - Ax
     and the normals (``normals`` given: those of the same design and sigma)."""
     if design.shape[1] == 0:
-        return np.zeros(0), observed.copy(), _Normals(np.zeros((0, 0)), 1.0, np.ones(len(design)))
+        return np.zeros(0), observed.copy(), _Normals(np.asarray, 1.0, np.ones(len(design)))
     a_w = design / sigma[:, None]
-    support = None
     if normals is None:
-        support = row_support(a_w)  # splines over sections: a few nonzero terms per row
-        q, cond = _normal_inverse(a_w, support)
-    else:
-        q, cond = normals.q, normals.cond
+        normals = _normals(a_w)
+    cond = normals.cond
     if not np.isfinite(cond) or cond > SINGULAR_COND:
         raise GeometryError(
             f"{what}: the design is singular (condition {cond:.1e}); the points do not "
@@ -594,10 +609,8 @@ def _solve(
             StripAerotriWarning,
             stacklevel=3,
         )
-    x = q @ (a_w.T @ (observed / sigma))
+    x = normals.solve(a_w.T @ (observed / sigma))
     v = observed - design @ x
-    if normals is None:
-        normals = _Normals(q, cond, _redundancy_numbers(a_w, q, support))
     return x, v, normals
 
 
