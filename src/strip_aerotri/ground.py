@@ -59,6 +59,7 @@ __all__ = ["GroundOptions", "GroundResult", "LineSpec", "Route", "adjust_to_grou
 
 _MAX_PASSES = 8
 _ROLL_TOLERANCE = 0.1  # of the expected plan sigma, over the relief's spread
+_ROLL_SAMPLE_STEP = 4  # of the served sample: 2048 points for the roll's mean and relief
 _SERVED_SAMPLE = 8192  # strip points for the similarity's test of the cross tilt
 _PASS_TOLERANCE_M = 1e-5
 # Probe points (m) that carry a similarity from one work frame to the next.
@@ -671,7 +672,7 @@ def adjust_to_ground(
                 # takes the roll as a shear of Z across the strip, which
                 # cannot move the points' Y with their height.  Turn it back
                 # into the similarity when its effect on the relief matters.
-                served_work = sim.transform.apply(served)
+                served_work = sim.transform.apply(served[:: _ROLL_SAMPLE_STEP])
                 turn = _cross_slope(deformation, served_work)
                 relief = float(np.std(deformation.correct(served_work)[:, 2]))
                 if abs(turn) * relief > _ROLL_TOLERANCE * sigma_plan:
