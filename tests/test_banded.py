@@ -59,7 +59,9 @@ def test_selected_inverse_is_the_band_of_the_inverse(k, band):
     z = _takahashi(cholesky_banded(upper, lower=False), band)
     inverse = np.linalg.inv(m)
     for d in range(band + 1):
-        np.testing.assert_allclose(z[band - d, d:], np.diagonal(inverse, d), rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(
+            z[band - d, d:], np.diagonal(inverse, d), rtol=1e-12, atol=1e-15
+        )
 
 
 def test_singular_normals_are_refused_by_their_condition():
@@ -102,9 +104,13 @@ def test_deformation_over_many_sections_is_the_dense_fit(monkeypatch):
     xyz = np.column_stack(
         [np.sort(rng.uniform(0, 60_000, n)), rng.uniform(-900, 900, n), rng.normal(0, 30, n)]
     )
-    target = xyz - np.column_stack(
-        [1e-9 * xyz[:, 0] ** 2, 3e-3 * xyz[:, 1], 1e-2 * np.sin(xyz[:, 0] / 5e3)]
-    ) + rng.normal(0, 0.02, (n, 3))
+    target = (
+        xyz
+        - np.column_stack(
+            [1e-9 * xyz[:, 0] ** 2, 3e-3 * xyz[:, 1], 1e-2 * np.sin(xyz[:, 0] / 5e3)]
+        )
+        + rng.normal(0, 0.02, (n, 3))
+    )
     use = np.ones(n, dtype=bool)
     kwargs = dict(use_xy=use, use_z=use, kind=3, sections=120)
     banded = fit_deformation(xyz, target, **kwargs)
@@ -115,3 +121,13 @@ def test_deformation_over_many_sections_is_the_dense_fit(monkeypatch):
     np.testing.assert_allclose(
         banded.redundancy_numbers, dense.redundancy_numbers, rtol=0, atol=1e-9
     )
+
+
+@pytest.mark.parametrize("kind", [1, 2, 3])
+def test_sparse_section_rows_are_the_dense_design(kind):
+    rng = np.random.default_rng(kind)
+    u = np.concatenate([rng.uniform(-1.2, 1.2, 200), np.linspace(-1, 1, 9)])  # breakpoints too
+    v = rng.uniform(-0.1, 0.1, u.size)
+    breakpoints = np.linspace(-1.0, 1.0, 9)
+    rows = deformation._section_support(u, v, kind, breakpoints)
+    np.testing.assert_array_equal(deformation._dense(rows), section_terms(u, v, kind, breakpoints))

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import cho_solve_banded, cholesky_banded
+from scipy.linalg.lapack import dtrtri
 from scipy.sparse import coo_array
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
@@ -151,8 +152,6 @@ def _takahashi(factor: FloatArray, band: int) -> FloatArray:
     blocks); the entries inside the band are returned in the factor's
     storage.
     """
-    from scipy.linalg import solve_triangular
-
     k = factor.shape[1]
     size = max(2 * band, _BLOCK)
     starts = list(range(0, k, size))
@@ -171,7 +170,7 @@ def _takahashi(factor: FloatArray, band: int) -> FloatArray:
         u[np.broadcast_to(rows - start, cols.shape)[ok], cols[ok] - start] = factor[
             np.broadcast_to(band - d[None, :], cols.shape)[ok], cols[ok]
         ]
-        u_inv = solve_triangular(u[:, :n_j], np.eye(n_j), lower=False, check_finite=False)
+        u_inv, _ = dtrtri(u[:, :n_j], lower=0)  # the factor's diagonal is > 0: info 0
         z_jj = u_inv @ u_inv.T
         if z_next is not None:
             z_jn = -u_inv @ (u[:, n_j:] @ z_next)

@@ -58,6 +58,7 @@ from ._banded import BandedNormals
 from ._typing import ArrayLike, FloatArray, IntArray
 from .errors import GeometryError, StripAerotriWarning
 from .similarity import (
+    RowSupport,
     _check_ids,
     _check_mask,
     _check_points,
@@ -344,6 +345,21 @@ def section_terms(u: ArrayLike, v: ArrayLike, kind: int, breakpoints: ArrayLike)
     return np.concatenate([f, g], axis=1)
 
 
+def _section_support(
+    u: FloatArray, v: FloatArray, kind: int, breakpoints: FloatArray
+) -> RowSupport:
+    """:func:`section_terms` as the nonzero entries of each row: the
+    ``kind + 1`` B-splines and the two hats of the row's section, (N, kind + 3)."""
+    f_values, f_first = _bspline_nonzero(u, breakpoints, kind)
+    g_values, g_first = _bspline_nonzero(u, breakpoints, 1)
+    n_f = breakpoints.size - 1 + kind
+    index = np.concatenate(
+        [f_first[:, None] + np.arange(kind + 1), n_f + g_first[:, None] + np.arange(2)], axis=1
+    )
+    value = np.concatenate([f_values, g_values * v[:, None]], axis=1)
+    return RowSupport(index, value, n_f + breakpoints.size)
+
+
 def term_names(kind: int, sections: int = 1) -> tuple[str, ...]:
     """Names of the design columns: J's ``1, X, Y, XY, X^2, X^3`` for one
     section, ``f0 .. f(n-1)`` (along-strip B-spline) and ``Y·g0 .. Y·gS``
@@ -562,25 +578,33 @@ class _Normals(NamedTuple):
     redundancy: FloatArray
 
 
-def _normals(a_w: FloatArray) -> _Normals:
-    """Normals of whitened rows: through a banded factor for a spline over
-    sections (a few nonzero terms per row, strip_aerotri._banded), else the
-    dense inverse."""
-    support = row_support(a_w)
+def _normals(a_w: FloatArray | RowSupport) -> _Normals:
+    """Normals of whitened rows (dense, or their nonzero entries): through a
+    banded factor for a spline over sections (a few nonzero terms per row,
+    strip_aerotri._banded), else the dense inverse."""
+    support = a_w if isinstance(a_w, RowSupport) else row_support(a_w)
     if support is not None:
         banded = BandedNormals.from_rows(support.index, support.value, support.n_columns)
         if banded is not None:
             cond = banded.cond
             if not np.isfinite(cond):
-                return _Normals(banded.solve, cond, np.full(len(a_w), np.nan))
+                return _Normals(banded.solve, cond, np.full(len(support.index), np.nan))
             h = banded.quadratic_forms(support.index, support.value)
             return _Normals(banded.solve, cond, np.clip(1.0 - h, 0.0, 1.0))
+    if isinstance(a_w, RowSupport):
+        a_w = _dense(a_w)
     q, cond = _normal_inverse(a_w, support)
     return _Normals(q.__matmul__, cond, _redundancy_numbers(a_w, q, support))
 
 
+def _dense(rows: RowSupport) -> FloatArray:
+    out = np.zeros((rows.index.shape[0], rows.n_columns))
+    np.add.at(out, (np.arange(len(out))[:, None], rows.index), rows.value)
+    return out
+
+
 def _solve(
-    design: FloatArray,
+    design: FloatArray | RowSupport,
     observed: FloatArray,
     sigma: FloatArray,
     *,
@@ -589,10 +613,17 @@ def _solve(
     normals: _Normals | None = None,
 ) -> tuple[FloatArray, FloatArray, _Normals]:
     """Weighted least squares ``design @ x ≈ observed``; returns x, v = observed - Ax
-    and the normals (``normals`` given: those of the same design and sigma)."""
-    if design.shape[1] == 0:
-        return np.zeros(0), observed.copy(), _Normals(np.asarray, 1.0, np.ones(len(design)))
-    a_w = design / sigma[:, None]
+    and the normals (``normals`` given: those of the same design and sigma).
+    `design`: dense, or the nonzero entries of its rows (a spline over
+    sections: a few of hundreds or thousands of columns)."""
+    sparse = isinstance(design, RowSupport)
+    n_columns = design.n_columns if sparse else design.shape[1]
+    if n_columns == 0:
+        return np.zeros(0), observed.copy(), _Normals(np.asarray, 1.0, np.ones(len(observed)))
+    if sparse:
+        a_w = RowSupport(design.index, design.value / sigma[:, None], n_columns)
+    else:
+        a_w = design / sigma[:, None]
     if normals is None:
         normals = _normals(a_w)
     cond = normals.cond
@@ -609,8 +640,16 @@ def _solve(
             StripAerotriWarning,
             stacklevel=3,
         )
-    x = normals.solve(a_w.T @ (observed / sigma))
-    v = observed - design @ x
+    rhs = observed / sigma
+    if sparse:
+        normal_rhs = np.bincount(
+            a_w.index.ravel(), (a_w.value * rhs[:, None]).ravel(), minlength=n_columns
+        )
+        x = normals.solve(normal_rhs)
+        v = observed - np.einsum("nw,nw->n", design.value, x[design.index])
+    else:
+        x = normals.solve(a_w.T @ rhs)
+        v = observed - design @ x
     return x, v, normals
 
 
@@ -850,7 +889,16 @@ def fit_deformation(
     u_all, v_all = norm.apply(pts)
     u_all = np.where(used, u_all, 0.0)
     v_all = np.where(used, v_all, 0.0)
-    terms_all = terms(u_all, v_all, kind_max)
+    if breakpoints is None:
+        terms_all = terms(u_all, v_all, kind_max)
+    else:  # a few nonzero terms of hundreds or thousands per row
+        support_all = _section_support(u_all, v_all, kind_max, breakpoints)
+
+    def design_rows(mask, k_c):
+        if breakpoints is None:
+            return terms_all[mask, :k_c]
+        return RowSupport(support_all.index[mask], support_all.value[mask], k_c)
+
     w_obs = np.where(
         np.column_stack([mask_xy, mask_xy, mask_z]),
         pts - np.where(np.column_stack([mask_xy, mask_xy, mask_z]), tgt, 0.0),
@@ -869,7 +917,7 @@ def fit_deformation(
     normals_x = None
     for c, mask, sig, names in ((0, mask_xy, sxy, plan_ids), (2, mask_z, sz, height_ids)):
         k_c = n_terms(kinds[c], n_sections)
-        design = terms_all[mask, :k_c]
+        design = design_rows(mask, k_c)
         x, v_fit, normals = _solve(
             design,
             w_obs[mask, c],
@@ -885,7 +933,7 @@ def fit_deformation(
         residuals[mask, c] = -v_fit
         red[mask, c] = r
         normalized[mask, c] = _normalized(-v_fit, sig[mask], r)
-        redundancy_xyz[c] = int(design.shape[0] - k_c)
+        redundancy_xyz[c] = int(v_fit.size - k_c)
         vtpv = float(np.sum((v_fit / sig[mask]) ** 2))
         vtpv_total += vtpv
         if redundancy_xyz[c] > 0:
@@ -895,7 +943,8 @@ def fit_deformation(
     k_y = n_terms(kinds[1], n_sections)
     n_lines = len(lines)
     sigma_ref = float(np.median(sxy[mask_xy])) if n_plan else 1.0
-    rows = [terms_all[mask_xy, :k_y]]
+    plan_rows = design_rows(mask_xy, k_y)
+    rows = [plan_rows]
     extra = [np.zeros((n_plan, 2 * n_lines))]
     obs_y = [w_obs[mask_xy, 1]]
     sig_y = [sxy[mask_xy]]
@@ -908,7 +957,14 @@ def fit_deformation(
         extra.append(block)
         obs_y.append(line.xyz[:, 1] - centre[1])
         sig_y.append(np.full(u_l.shape[0], sigma_ref / np.sqrt(line.weight)))
-    design_y = np.concatenate([np.concatenate(rows, axis=0), np.concatenate(extra, axis=0)], 1)
+    if lines:  # the lines' a, b couple all sections: a dense design
+        if isinstance(plan_rows, RowSupport):
+            rows[0] = _dense(plan_rows)
+        design_y = np.concatenate(
+            [np.concatenate(rows, axis=0), np.concatenate(extra, axis=0)], axis=1
+        )
+    else:  # the plan control's rows alone, sparse over sections
+        design_y = plan_rows
     observed_y = np.concatenate(obs_y)
     sigma_y = np.concatenate(sig_y)
     names_y = plan_ids + [p for line in lines for p in line.point_ids]
@@ -927,7 +983,7 @@ def fit_deformation(
     residuals[mask_xy, 1] = -v_fit[:n_plan]
     red[mask_xy, 1] = r[:n_plan]
     normalized[mask_xy, 1] = _normalized(-v_fit[:n_plan], sxy[mask_xy], r[:n_plan])
-    redundancy_xyz[1] = int(design_y.shape[0] - design_y.shape[1])
+    redundancy_xyz[1] = int(observed_y.size - k_y - 2 * n_lines)
     vtpv = float(np.sum((v_fit / sigma_y) ** 2))
     vtpv_total += vtpv
     if redundancy_xyz[1] > 0:

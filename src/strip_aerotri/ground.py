@@ -666,13 +666,16 @@ def adjust_to_ground(
                 line_objs,
                 act_ids,
             )
+            if deformation is None and roll:
+                roll = 0.0  # "auto" chose the similarity alone: it keeps its own roll
+                continue
             if deformation is not None and n_pass < _MAX_PASSES:
                 # A long strip bent by its chain leaves the similarity a roll
                 # set by the bend, not by the cross-section; the polynomial
                 # takes the roll as a shear of Z across the strip, which
                 # cannot move the points' Y with their height.  Turn it back
                 # into the similarity when its effect on the relief matters.
-                served_work = sim.transform.apply(served[:: _ROLL_SAMPLE_STEP])
+                served_work = sim.transform.apply(served[::_ROLL_SAMPLE_STEP])
                 turn = _cross_slope(deformation, served_work)
                 relief = float(np.std(deformation.correct(served_work)[:, 2]))
                 if abs(turn) * relief > _ROLL_TOLERANCE * sigma_plan:
