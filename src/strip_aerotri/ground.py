@@ -59,6 +59,7 @@ __all__ = ["GroundOptions", "GroundResult", "LineSpec", "Route", "adjust_to_grou
 
 _MAX_PASSES = 8
 _ROLL_TOLERANCE = 0.1  # of the expected plan sigma, over the relief's spread
+_MAX_TURNS = 4  # of the roll in one pass (a large turn settles in one or two)
 _ROLL_SAMPLE_STEP = 4  # of the served sample: 2048 points for the roll's mean and relief
 _SERVED_SAMPLE = 8192  # strip points for the similarity's test of the cross tilt
 _PASS_TOLERANCE_M = 1e-5
@@ -642,45 +643,52 @@ def adjust_to_ground(
                 azimuth += step
                 work = _make_work(route, crs, guess_[active], azimuth)
                 continue
-            if roll:
-                sim = replace(sim, transform=_turned_about_x(sim.transform, roll, axis_point))
-            model_xyz = sim.transform.apply(strip_xyz)
-            line_objs = [
-                StraightLine(
-                    point_ids=tuple(np.asarray(line.point_ids)[keep]),
-                    xyz=sim.transform.apply(strip.points[li[keep]]),
-                    weight=line.weight,
-                    name=line.name,
+            fitted = sim
+            for turns in range(_MAX_TURNS + 1):
+                if roll:
+                    turned = _turned_about_x(fitted.transform, roll, axis_point)
+                    sim = replace(fitted, transform=turned)
+                model_xyz = sim.transform.apply(strip_xyz)
+                line_objs = [
+                    StraightLine(
+                        point_ids=tuple(np.asarray(line.point_ids)[keep]),
+                        xyz=sim.transform.apply(strip.points[li[keep]]),
+                        weight=line.weight,
+                        name=line.name,
+                    )
+                    for line, li, keep in zip(lines, line_index, line_keep, strict=True)
+                ]
+                deformation, selection = _fit_polynomial(
+                    options.polynomial,
+                    options.sections,
+                    model_xyz[active],
+                    target[active],
+                    use_xy[active],
+                    use_z[active],
+                    exp_xy[active],
+                    exp_z[active],
+                    line_objs,
+                    act_ids,
                 )
-                for line, li, keep in zip(lines, line_index, line_keep, strict=True)
-            ]
-            deformation, selection = _fit_polynomial(
-                options.polynomial,
-                options.sections,
-                model_xyz[active],
-                target[active],
-                use_xy[active],
-                use_z[active],
-                exp_xy[active],
-                exp_z[active],
-                line_objs,
-                act_ids,
-            )
-            if deformation is None and roll:
-                roll = 0.0  # "auto" chose the similarity alone: it keeps its own roll
-                continue
-            if deformation is not None and n_pass < _MAX_PASSES:
+                if deformation is None:
+                    if not roll:
+                        break
+                    roll, sim = 0.0, fitted  # "auto" chose the similarity alone: its own roll
+                    continue
+                if turns == _MAX_TURNS:
+                    break
                 # A long strip bent by its chain leaves the similarity a roll
                 # set by the bend, not by the cross-section; the polynomial
                 # takes the roll as a shear of Z across the strip, which
                 # cannot move the points' Y with their height.  Turn it back
-                # into the similarity when its effect on the relief matters.
+                # into the similarity (and fit the polynomial again) when its
+                # effect on the relief matters.
                 served_work = sim.transform.apply(served[::_ROLL_SAMPLE_STEP])
                 turn = _cross_slope(deformation, served_work)
                 relief = float(np.std(deformation.correct(served_work)[:, 2]))
-                if abs(turn) * relief > _ROLL_TOLERANCE * sigma_plan:
-                    roll -= float(np.arctan(turn))
-                    continue
+                if abs(turn) * relief <= _ROLL_TOLERANCE * sigma_plan:
+                    break
+                roll -= float(np.arctan(turn))
             corrected = model_xyz if deformation is None else deformation.correct(model_xyz)
             adjusted = work.from_work(corrected)
             new_guess = given.copy()
