@@ -112,7 +112,7 @@ def test_deformation_over_many_sections_is_the_dense_fit(monkeypatch):
         + rng.normal(0, 0.02, (n, 3))
     )
     use = np.ones(n, dtype=bool)
-    kwargs = dict(use_xy=use, use_z=use, kind=3, sections=120)
+    kwargs = {"use_xy": use, "use_z": use, "kind": 3, "sections": 120}
     banded = fit_deformation(xyz, target, **kwargs)
     monkeypatch.setattr(deformation.BandedNormals, "from_rows", lambda *a, **k: None)
     dense = fit_deformation(xyz, target, **kwargs)

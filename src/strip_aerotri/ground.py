@@ -58,6 +58,10 @@ from .similarity import (
 __all__ = ["GroundOptions", "GroundResult", "LineSpec", "Route", "adjust_to_ground"]
 
 _MAX_PASSES = 8
+#: sigma0 of the last ground fit above which its misfit is warned about (the
+#: test suite's strips reach 26 with blunders left in; one cubic over 300
+#: photos of bench_strip's strip 40, over 1000 photos 65-490).
+_MISFIT_SIGMA0 = 30.0
 _ROLL_TOLERANCE = 0.1  # of the expected plan sigma, over the relief's spread
 _MAX_TURNS = 4  # of the roll in one pass (a large turn settles in one or two)
 _ROLL_SAMPLE_STEP = 4  # of the served sample: 2048 points for the roll's mean and relief
@@ -779,6 +783,27 @@ def adjust_to_ground(
             stacklevel=2,
         )
     metres_per_mm, sigma_plan, sigma_height = sol.metres_per_mm, sol.sigma_plan, sol.sigma_height
+    fit = sim if deformation is None else deformation
+    if np.isfinite(fit.sigma0) and fit.sigma0 > _MISFIT_SIGMA0:
+        what = (
+            "the similarity transformation alone"
+            if deformation is None
+            else f"polynomial type {deformation.kind}"
+            + (f" over {options.sections} sections" if options.sections > 1 else "")
+        )
+        advice = (
+            "use [adjustment] sections (about one per 6-20 models, two control stations "
+            "each; docs/ground.md, Long strips)"
+            if options.sections == 1
+            else "use more sections"
+        )
+        warnings.warn(
+            f"ground stage: {what} leaves the control {fit.sigma0:.0f} times its expected "
+            "error (sigma0): the strip bends more than it can follow, or the control has "
+            f"errors; {advice}, and check the control",
+            StripAerotriWarning,
+            stacklevel=2,
+        )
     use_xy_final, use_z_final = use_xy_now, use_z_now
 
     # Final products with the last frame and fits.
