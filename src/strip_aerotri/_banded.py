@@ -2,33 +2,32 @@
 
 The normal matrix of a spline over many sections couples only neighbouring
 unknowns: each observation row touches at most six of hundreds or thousands
-of columns (the B-splines and hats of its section).  Reordered by reverse
-Cuthill-McKee its nonzeros lie within a band b of about 8 of the diagonal,
-so the Cholesky factor costs O(k b²), a solve O(k b), and the entries of the
-inverse inside the band, all that the redundancy numbers need, O(k b²) by
-Takahashi's recursion, instead of O(k³) for a dense inverse (1670 unknowns:
-about 25 ms instead of 250 ms).
+of columns (the B-splines and hats of its section).  With the unknowns
+ordered along the strip its nonzeros lie within a band of about 6 of the
+diagonal, so in blocks of 64 unknowns it is block tridiagonal: the Cholesky
+factor costs O(k B²), a solve O(k B), and the blocks of the inverse on the
+three diagonals, which hold every entry the redundancy numbers need, come
+from Takahashi's recursion in O(k B²), instead of O(k³) for a dense inverse
+(1670 unknowns: a few ms instead of 250 ms).  numpy alone: importing
+scipy.linalg would cost a run 0.25 s.
 
 Like the dense path (similarity._normal_inverse) the matrix is equilibrated
 to unit diagonal first, and its condition number is that of the
-equilibrated matrix in the 1-norm, with ``‖N⁻¹‖₁`` estimated by Hager's
-method (Higham 1988) from a few solves.
+equilibrated matrix in the 1-norm, ``‖N⁻¹‖₁`` estimated by Hager's method
+(Higham 1988) from a few solves, or by the largest diagonal entry of the
+inverse when that is larger.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import cho_solve_banded, cholesky_banded
-from scipy.linalg.lapack import dtrtri
-from scipy.sparse import coo_array
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ._typing import FloatArray, IntArray
 
+#: Unknowns per block (at least the band).
+BLOCK = 64
 #: A band wider than this fraction 1/n of the unknowns is not worth it.
 MAX_BAND_FRACTION = 8
-#: Unknowns per block of the selected inverse (at least twice the band).
-_BLOCK = 64
 
 
 class BandedNormals:
@@ -39,170 +38,214 @@ class BandedNormals:
     :meth:`quadratic_forms` the ``aᵢᵀ N⁻¹ aᵢ`` of rows.
     """
 
-    def __init__(self, order: IntArray, scale: FloatArray, band: int, upper: FloatArray):
-        self._order = order  # unknown at each position of the band
+    def __init__(
+        self, order: IntArray, scale: FloatArray, diagonal: FloatArray, below: FloatArray
+    ):
+        self._order = order  # unknown at each position
         self._position = np.empty_like(order)
         self._position[order] = np.arange(order.size)
-        self._scale = scale  # 1 / sqrt(diag N), by position
-        self._band = band
+        self._scale = scale  # 1 / sqrt(diag N) by position (1 in the padding)
         k = order.size
-        norm = np.abs(upper).sum(axis=0)  # columns of the symmetric matrix: upper part...
-        for d in range(1, band + 1):  # ...and the lower part, row j of the upper
-            norm[: k - d] += np.abs(upper[band - d, d:])
-        self._norm = float(norm.max())
-        try:
-            self._factor = cholesky_banded(upper, lower=False, check_finite=False)
-        except np.linalg.LinAlgError:
-            self._factor = None
-        self._inverse_band: FloatArray | None = None
+        # 1-norm of the equilibrated matrix: column sums of the diagonal
+        # blocks, of the blocks below and of those above (the transposes).
+        colsum = np.abs(diagonal).sum(axis=1) + np.abs(below).sum(axis=1)
+        colsum[1:] += np.abs(below[:-1]).sum(axis=2)
+        self._norm = float(colsum.reshape(-1)[:k].max())
+        self._inverse_diagonal, self._factor_below = _block_cholesky(diagonal, below)
+        self._selected: tuple[FloatArray, FloatArray] | None = None
 
     @classmethod
-    def from_rows(cls, index: IntArray, value: FloatArray, n_columns: int) -> BandedNormals | None:
+    def from_rows(
+        cls, index: IntArray, value: FloatArray, n_columns: int, order: IntArray
+    ) -> BandedNormals | None:
         """From the rows' nonzero columns ``index`` (n, w) and values ``value``
-        (n, w) (zero-padded, as similarity.RowSupport); None when the band
-        would be wider than ``n_columns // MAX_BAND_FRACTION``."""
+        (n, w) (zero-padded, as similarity.RowSupport), with the unknowns taken
+        in `order` (e.g. along the strip); None when the band in that order is
+        wider than the block or than ``n_columns // MAX_BAND_FRACTION``."""
         k = n_columns
+        position = np.empty(k, dtype=np.intp)
+        position[order] = np.arange(k)
         nonzero = value != 0.0
         pair = nonzero[:, :, None] & nonzero[:, None, :]
-        left = np.broadcast_to(index[:, :, None], pair.shape)[pair]
-        right = np.broadcast_to(index[:, None, :], pair.shape)[pair]
+        p = position[index]
+        p_a = np.broadcast_to(p[:, :, None], pair.shape)[pair]
+        p_b = np.broadcast_to(p[:, None, :], pair.shape)[pair]
         product = (value[:, :, None] * value[:, None, :])[pair]
-        pattern = coo_array((np.ones(left.size), (left, right)), shape=(k, k)).tocsr()
-        order = reverse_cuthill_mckee(pattern, symmetric_mode=True).astype(np.intp)
-        position = np.empty_like(order)
-        position[order] = np.arange(k)
-        p_left, p_right = position[left], position[right]
-        upper_half = p_left <= p_right
-        p_left, p_right, product = p_left[upper_half], p_right[upper_half], product[upper_half]
-        offset = p_right - p_left
-        band = int(offset.max()) if offset.size else 0
-        if band > k // MAX_BAND_FRACTION:
+        band = int(np.max(np.abs(p_a - p_b))) if p_a.size else 0
+        if band > BLOCK or band > k // MAX_BAND_FRACTION:
             return None
-        # LAPACK's upper band storage: N[i, i + d] at [band - d, i + d]
-        flat = (band - offset) * k + p_right
-        upper = np.bincount(flat, product, minlength=(band + 1) * k).reshape(band + 1, k)
-        diag = upper[band]
-        if np.any(diag <= 0.0):
-            scale = np.ones(k)
-            return cls(order, scale, band, _not_definite(band, k))
+        n_blocks = -(-k // BLOCK)
+        lower = p_a // BLOCK >= p_b // BLOCK  # each entry once: blocks on and below the diagonal
+        blocks = np.bincount(
+            _slots(p_a[lower], p_b[lower]), product[lower], minlength=n_blocks * 2 * BLOCK * BLOCK
+        ).reshape(n_blocks, 2, BLOCK, BLOCK)
+        diagonal = blocks[:, 0].copy()
+        below = blocks[:, 1].copy()  # below[J] = N[block J + 1, block J]; the last is 0
+        diag = np.diagonal(diagonal, axis1=1, axis2=2).reshape(-1).copy()
+        diag[k:] = 1.0  # padding of the last block: unit, uncoupled
+        order_padded = np.asarray(order, dtype=np.intp)
+        if np.any(diag[:k] <= 0.0):
+            return cls(order_padded, np.ones(diag.size), _not_definite(diagonal), below * 0.0)
         scale = 1.0 / np.sqrt(diag)
-        for d in range(band + 1):
-            upper[band - d, d:] *= scale[: k - d] * scale[d:]
-        return cls(order, scale, band, upper)
+        s = scale.reshape(n_blocks, BLOCK)
+        diagonal *= s[:, :, None] * s[:, None, :]
+        below[:-1] *= s[1:, :, None] * s[:-1, None, :]
+        idx = np.arange(k, n_blocks * BLOCK)
+        diagonal.reshape(n_blocks * BLOCK, BLOCK)[idx, idx % BLOCK] = 1.0
+        return cls(order_padded, scale, diagonal, below)
 
     @property
     def cond(self) -> float:
         """1-norm condition number (estimate) of the equilibrated matrix."""
-        if self._factor is None:
+        if self._inverse_diagonal is None:
             return np.inf
-        k = self._order.size
-        inverse_norm = _inverse_norm_1(self._solve_scaled, k)
-        diag = self.inverse_band()[self._band]
-        if not np.isfinite(inverse_norm) or np.any(diag <= 0.0):
+        inverse_norm = _inverse_norm_1(self._solve_padded, self._order.size, self._scale.size)
+        z_diag = np.diagonal(self.selected_inverse()[0], axis1=1, axis2=2).reshape(-1)
+        z_diag = z_diag[: self._order.size]
+        if not np.isfinite(inverse_norm) or np.any(z_diag <= 0.0):
             return np.inf
-        return self._norm * inverse_norm
+        # Hager's estimate can miss a null vector orthogonal to its trial
+        # vectors (two unknowns that only move together); the largest
+        # diagonal entry of the inverse cannot, and bounds ‖N⁻¹‖₂ within k.
+        return self._norm * max(inverse_norm, float(z_diag.max()))
 
-    def _solve_scaled(self, rhs: FloatArray) -> FloatArray:
-        return cho_solve_banded((self._factor, False), rhs, check_finite=False)
+    def _solve_padded(self, rhs: FloatArray) -> FloatArray:
+        """Solve with the equilibrated matrix, rhs (k_padded,) by position."""
+        inv, below = self._inverse_diagonal, self._factor_below
+        n_blocks = inv.shape[0]
+        b = rhs.reshape(n_blocks, BLOCK)
+        y = np.empty_like(b)
+        y[0] = inv[0] @ b[0]
+        for j in range(1, n_blocks):  # forward: L y = b
+            y[j] = inv[j] @ (b[j] - below[j - 1] @ y[j - 1])
+        x = np.empty_like(b)
+        x[-1] = inv[-1].T @ y[-1]
+        for j in range(n_blocks - 2, -1, -1):  # backward: Lᵀ x = y
+            x[j] = inv[j].T @ (y[j] - below[j].T @ x[j + 1])
+        return x.reshape(-1)
 
     def solve(self, rhs: FloatArray) -> FloatArray:
         """``N⁻¹ rhs`` for rhs of shape (k,), in the unknowns' own order."""
-        y = self._solve_scaled(rhs[self._order] * self._scale) * self._scale
-        out = np.empty_like(y)
+        k = self._order.size
+        padded = np.zeros(self._scale.size)
+        padded[:k] = rhs[self._order] * self._scale[:k]
+        y = self._solve_padded(padded)[:k] * self._scale[:k]
+        out = np.empty(k)
         out[self._order] = y
         return out
 
-    def inverse_band(self) -> FloatArray:
-        """Entries of the equilibrated matrix's inverse inside the band, in
-        the upper band storage of the factor (Takahashi's recursion)."""
-        if self._inverse_band is None:
-            self._inverse_band = _takahashi(self._factor, self._band)
-        return self._inverse_band
+    def selected_inverse(self) -> tuple[FloatArray, FloatArray]:
+        """Blocks of the equilibrated matrix's inverse on the diagonal and
+        below it (Takahashi's recursion, :func:`_block_takahashi`)."""
+        if self._selected is None:
+            self._selected = _block_takahashi(self._inverse_diagonal, self._factor_below)
+        return self._selected
 
     def quadratic_forms(self, index: IntArray, value: FloatArray) -> FloatArray:
         """``aᵢᵀ N⁻¹ aᵢ`` for rows given by their nonzero entries (n, w)."""
-        band = self._band
-        z = self.inverse_band()
+        z_diagonal, z_below = self.selected_inverse()
+        z = np.stack([z_diagonal, z_below], axis=1).reshape(-1)
         p = self._position[index]  # (n, w)
         w = value * self._scale[p]
-        p_a, p_b = p[:, :, None], p[:, None, :]
-        # padding has value 0: its (clipped) entry is multiplied by 0
-        row = np.maximum(band - np.abs(p_a - p_b), 0)
-        entries = z[row, np.maximum(p_a, p_b)]
-        return np.einsum("nij,ni,nj->n", entries, w, w)
+        p_a = np.broadcast_to(p[:, :, None], p.shape + p.shape[1:])
+        p_b = np.broadcast_to(p[:, None, :], p_a.shape)
+        # padding has value 0: any slot it gets is multiplied by 0
+        slots = _slots(p_a, p_b, clip=z.size - 1)
+        return np.einsum("nij,ni,nj->n", z[slots], w, w)
 
 
-def _not_definite(band: int, k: int) -> FloatArray:
-    upper = np.zeros((band + 1, k))
-    upper[band] = -1.0  # cholesky_banded refuses it: cond is inf
-    return upper
+def _slots(p_a: IntArray, p_b: IntArray, clip: int | None = None) -> IntArray:
+    """Flat index, in blocks (n_blocks, 2, BLOCK, BLOCK) of the diagonal and of
+    the one below it, of the entry (p_a, p_b) of a symmetric matrix (taken
+    from the lower triangle of blocks: the pair is swapped when p_a's block
+    is above p_b's)."""
+    lo_first = p_a // BLOCK >= p_b // BLOCK
+    row = np.where(lo_first, p_a, p_b)
+    col = np.where(lo_first, p_b, p_a)
+    block_col = col // BLOCK
+    which = row // BLOCK - block_col  # 0 diagonal, 1 below
+    slots = ((block_col * 2 + which) * BLOCK + row % BLOCK) * BLOCK + col % BLOCK
+    return slots if clip is None else np.clip(slots, 0, clip)
 
 
-def _takahashi(factor: FloatArray, band: int) -> FloatArray:
-    """Band of ``Z = (UᵀU)⁻¹`` from the upper band factor U (LAPACK's storage).
+def _not_definite(diagonal: FloatArray) -> FloatArray:
+    out = np.zeros_like(diagonal)
+    out[0, 0, 0] = -1.0  # the factorisation refuses it: cond is inf
+    return out
 
-    ``U Z = U⁻ᵀ`` is lower triangular with diagonal blocks ``U_JJ⁻ᵀ``.  In
-    blocks J of at least b unknowns U is block bidiagonal, and block row J of
-    that identity gives, from the last block up (Takahashi's recursion):
 
-        Z_J,J+1 = -U_JJ⁻¹ U_J,J+1 Z_J+1,J+1
-        Z_JJ    =  U_JJ⁻¹ (U_JJ⁻ᵀ - U_J,J+1 Z_J+1,J)     (Z_J+1,J = Z_J,J+1ᵀ)
+def _block_cholesky(
+    diagonal: FloatArray, below: FloatArray
+) -> tuple[FloatArray | None, FloatArray]:
+    """Lower block Cholesky factor of a block tridiagonal matrix: the inverses
+    of its diagonal blocks L_JJ⁻¹ and its blocks below, L_J+1,J = N_J+1,J L_JJ⁻ᵀ;
+    (None, ...) when the matrix is not positive definite."""
+    n_blocks = diagonal.shape[0]
+    inverse = np.empty_like(diagonal)
+    factor_below = np.empty_like(below)
+    schur = diagonal[0]
+    for j in range(n_blocks):
+        try:
+            lower = np.linalg.cholesky(schur)
+        except np.linalg.LinAlgError:
+            return None, factor_below
+        inverse[j] = np.linalg.inv(lower)
+        if j + 1 < n_blocks:
+            factor_below[j] = below[j] @ inverse[j].T
+            schur = diagonal[j + 1] - factor_below[j] @ factor_below[j].T
+    return inverse, factor_below
 
-    Each step is a few dense products of blocks (it is sequential over the
-    blocks); the entries inside the band are returned in the factor's
-    storage.
+
+def _block_takahashi(
+    inverse: FloatArray, factor_below: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Blocks of ``Z = N⁻¹`` on the diagonal and below it, from the lower
+    block factor (L_JJ⁻¹ and L_J+1,J).
+
+    ``Lᵀ Z = L⁻¹`` with L⁻¹ lower triangular; block row J of it gives, from
+    the last block up (Takahashi's recursion):
+
+        Z_J+1,J = -Z_J+1,J+1 L_J+1,J L_JJ⁻¹
+        Z_JJ    =  L_JJ⁻ᵀ (L_JJ⁻¹ - L_J+1,Jᵀ Z_J+1,J)
+
+    (sequential over the blocks; each step a few products of blocks).
     """
-    k = factor.shape[1]
-    size = max(2 * band, _BLOCK)
-    starts = list(range(0, k, size))
-    z = np.zeros_like(factor)
-    d = np.arange(band + 1)
-    z_next = None  # Z_J+1,J+1 of the block below
-    for start in reversed(starts):
-        stop = min(start + size, k)
-        end = min(stop + size, k)  # columns of this block and the next
-        n_j = stop - start
-        # U rows start..stop, columns start..end, from the band storage
-        rows = np.arange(start, stop)[:, None]
-        cols = rows + d[None, :]
-        ok = cols < end
-        u = np.zeros((n_j, end - start))
-        u[np.broadcast_to(rows - start, cols.shape)[ok], cols[ok] - start] = factor[
-            np.broadcast_to(band - d[None, :], cols.shape)[ok], cols[ok]
-        ]
-        u_inv, _ = dtrtri(u[:, :n_j], lower=0)  # the factor's diagonal is > 0: info 0
-        z_jj = u_inv @ u_inv.T
-        if z_next is not None:
-            z_jn = -u_inv @ (u[:, n_j:] @ z_next)
-            z_jj -= u_inv @ (u[:, n_j:] @ z_jn.T)
-            full = np.hstack([z_jj, z_jn])
-        else:
-            full = z_jj
-        z[np.broadcast_to(band - d[None, :], cols.shape)[ok], cols[ok]] = full[
-            np.broadcast_to(rows - start, cols.shape)[ok], cols[ok] - start
-        ]
-        z_next = z_jj
-    return z
+    n_blocks = inverse.shape[0]
+    z_diagonal = np.empty_like(inverse)
+    z_below = np.zeros_like(inverse)
+    z_diagonal[-1] = inverse[-1].T @ inverse[-1]
+    for j in range(n_blocks - 2, -1, -1):
+        z_below[j] = -(z_diagonal[j + 1] @ factor_below[j]) @ inverse[j]
+        z_diagonal[j] = inverse[j].T @ (inverse[j] - factor_below[j].T @ z_below[j])
+    return z_diagonal, z_below
 
 
-def _inverse_norm_1(solve, k: int) -> float:
+def _inverse_norm_1(solve, k: int, k_padded: int | None = None) -> float:
     """Estimate of ``‖A⁻¹‖₁`` for a symmetric A from solves (Hager 1984, with
     Higham's 1988 alternating vector as a safeguard); a lower bound, as a rule
-    within a factor 3 of the true value."""
+    within a factor 3 of the true value.  `solve` takes vectors of
+    `k_padded` entries (default k), of which the first k are A's."""
+    n = k if k_padded is None else k_padded
+
+    def solve_k(x):
+        padded = np.zeros(n)
+        padded[:k] = x
+        return solve(padded)[:k]
+
     x = np.full(k, 1.0 / k)
     estimate = 0.0
     for _ in range(5):
-        y = solve(x)
+        y = solve_k(x)
         norm = float(np.abs(y).sum())
         if norm <= estimate:
             break
         estimate = norm
         sign = np.where(y >= 0.0, 1.0, -1.0)
-        z = solve(sign)  # Aᵀ = A
+        z = solve_k(sign)  # Aᵀ = A
         j = int(np.argmax(np.abs(z)))
         if abs(z[j]) <= float(z @ x):
             break
         x = np.zeros(k)
         x[j] = 1.0
     alternating = (-1.0) ** np.arange(k) * (1.0 + np.arange(k) / max(k - 1, 1))
-    return max(estimate, 2.0 * float(np.abs(solve(alternating)).sum()) / (3.0 * k))
+    return max(estimate, 2.0 * float(np.abs(solve_k(alternating)).sum()) / (3.0 * k))

@@ -578,13 +578,25 @@ class _Normals(NamedTuple):
     redundancy: FloatArray
 
 
-def _normals(a_w: FloatArray | RowSupport) -> _Normals:
+def _band_order(kind: int, n_sections: int) -> IntArray:
+    """The unknowns of a spline over sections along the strip: its B-splines
+    (degree `kind`, centred kind / 2 sections before their index) and hats
+    (half a section) interleaved by centre, which makes the normal matrix
+    banded (about 6 wide)."""
+    centres = np.concatenate(
+        [np.arange(n_sections + kind) - 0.5 * kind, np.arange(n_sections + 1) - 0.5]
+    )
+    return np.argsort(centres, kind="stable")
+
+
+def _normals(a_w: FloatArray | RowSupport, order: IntArray | None = None) -> _Normals:
     """Normals of whitened rows (dense, or their nonzero entries): through a
-    banded factor for a spline over sections (a few nonzero terms per row,
+    banded factor for a spline over sections when its unknowns' `order`
+    along the strip is given (a few nonzero terms per row,
     strip_aerotri._banded), else the dense inverse."""
     support = a_w if isinstance(a_w, RowSupport) else row_support(a_w)
-    if support is not None:
-        banded = BandedNormals.from_rows(support.index, support.value, support.n_columns)
+    if support is not None and order is not None:
+        banded = BandedNormals.from_rows(support.index, support.value, support.n_columns, order)
         if banded is not None:
             cond = banded.cond
             if not np.isfinite(cond):
@@ -611,11 +623,13 @@ def _solve(
     what: str,
     names: Sequence[str],
     normals: _Normals | None = None,
+    order: IntArray | None = None,
 ) -> tuple[FloatArray, FloatArray, _Normals]:
     """Weighted least squares ``design @ x ≈ observed``; returns x, v = observed - Ax
     and the normals (``normals`` given: those of the same design and sigma).
     `design`: dense, or the nonzero entries of its rows (a spline over
-    sections: a few of hundreds or thousands of columns)."""
+    sections: a few of hundreds or thousands of columns, `order` its
+    unknowns along the strip, :func:`_band_order`)."""
     sparse = isinstance(design, RowSupport)
     n_columns = design.n_columns if sparse else design.shape[1]
     if n_columns == 0:
@@ -625,7 +639,7 @@ def _solve(
     else:
         a_w = design / sigma[:, None]
     if normals is None:
-        normals = _normals(a_w)
+        normals = _normals(a_w, order)
     cond = normals.cond
     if not np.isfinite(cond) or cond > SINGULAR_COND:
         raise GeometryError(
@@ -894,6 +908,8 @@ def fit_deformation(
     else:  # a few nonzero terms of hundreds or thousands per row
         support_all = _section_support(u_all, v_all, kind_max, breakpoints)
 
+    band_order = None if breakpoints is None else _band_order(kind_max, n_sections)
+
     def design_rows(mask, k_c):
         if breakpoints is None:
             return terms_all[mask, :k_c]
@@ -924,6 +940,7 @@ def fit_deformation(
             sig[mask],
             what=f"polynomial type {kinds[c]} for {'XYZ'[c]}",
             names=names,
+            order=band_order,
         )
         r = normals.redundancy
         if c == 0:
@@ -976,6 +993,7 @@ def fit_deformation(
         names=names_y,
         # Without lines Y has the design and weights of X: one inverse serves both.
         normals=normals_x if not lines and kinds[1] == kinds[0] else None,
+        order=None if lines else band_order,
     )
     r = normals.redundancy
     coefficients[1, :k_y] = x[:k_y]
