@@ -39,7 +39,9 @@ def write_project(folder: Path, n_photos: int, points_per_photo: int) -> tuple[i
         f"[camera]\nprincipal_distance_mm = {obs.principal_distance!r}\n\n"
         '[images]\nfile = "image_points.csv"\n\n'
         '[control]\nfile = "control.csv"\ncrs = "local"\n\n'
-        '[adjustment]\nroute = "projected"\npolynomial = 3\n',
+        '[adjustment]\nroute = "projected"\npolynomial = 3\n'
+        # one section per 20 photos, two control stations each (bench_strip)
+        f"sections = {max(n_photos // 20, 1)}\n",
         encoding="utf-8",
     )
     photo_names = [obs.photo_ids[i] for i in obs.photo]

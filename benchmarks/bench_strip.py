@@ -21,8 +21,8 @@ prints:
 * ``form wall`` / ``form cpu``: wall-clock and CPU seconds of ``form_strip``
   with its defaults (robust start and gross-error tests on); ``no tests``:
   wall-clock seconds with ``BlunderOptions(action="off")``; ``triangulate``: wall-clock
-  seconds of the whole run (``n/a`` where the ground stage refuses: the
-  control of a 3600 km strip is collinear in plan);
+  seconds of the whole run (``n/a`` where the ground stage refuses, with
+  its reason printed below the table);
 * pair-points per second (million): rows of the relative orientation (a
   point measured on both photos of a pair) per wall-clock second of
   ``form_strip`` (``M/s form``) and of the whole ``triangulate``, the core
@@ -198,8 +198,7 @@ def run(
                     reps,
                 )
             except StripAerotriError as exc:
-                # The ground stage refuses: 5000 photos make a strip 3600 km
-                # long and 1.6 km wide (control collinear in plan).
+                # The ground stage refuses (the reason is printed below).
                 t_tri = float("nan")
                 refused.add(f"{type(exc).__name__}: {str(exc).split(';')[0][:110]}")
             rows.append((n, k, per_pair, t_form, t_tri))
