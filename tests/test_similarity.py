@@ -524,36 +524,51 @@ def _long_strip_with_edges(n_stations: int = 200, across: float = 1.5):
     return src, TRUTH_LOCAL.apply(src), served
 
 
-def test_no_weak_tilt_warning_for_a_long_strip_controlled_on_both_edges():
+@pytest.mark.parametrize("stretch", [1.0, 5.0])
+def test_a_long_strip_controlled_on_both_edges_is_judged_by_the_points_served(stretch):
     """Judged by the points it serves, the height control on both edges of a
-    strip 2000 times longer than wide determines the tilt across it well (a
-    height error reaches the strip's edge 0.05 times magnified); the ratio
-    of the plan singular values alone (2.6e-3) warns."""
+    strip 2000 or 10 000 times longer than wide determines the tilt across it
+    well (a height error reaches the strip's edge 0.05 times magnified): no
+    warning.  The ratio of the plan singular values alone, 2.6e-3 and 5e-4,
+    warns about the first and refuses the second (below COLLINEAR_RTOL)."""
     import warnings as _warnings
 
-    src, tgt, served = _long_strip_with_edges()
+    src, _, served = _long_strip_with_edges()
+    src[:, 0] *= stretch
+    served[:, 0] *= stretch
+    tgt = TRUTH_LOCAL.apply(src)
+    ratio, magnified = cross_tilt(src[:, :2], served[:, :2])
+    assert magnified < 0.1
     use = np.ones(len(src), dtype=bool)
     with _warnings.catch_warnings():
         _warnings.simplefilter("error")
         res = fit_similarity(src, tgt, use_xy=use, use_z=use, served=served)
-    np.testing.assert_allclose(res.transform.apply(src), tgt, rtol=0, atol=1e-8)
-    with pytest.warns(StripAerotriWarning, match=r"nearly in one vertical plane \(singular value"):
-        fit_similarity(src, tgt, use_xy=use, use_z=use)
+    np.testing.assert_allclose(res.transform.apply(src), tgt, rtol=0, atol=1e-7)
+    if ratio < COLLINEAR_RTOL:
+        with pytest.raises(GeometryError, match=r"all lie in one vertical plane \(.* ratio 5"):
+            fit_similarity(src, tgt, use_xy=use, use_z=use)
+    else:
+        with pytest.warns(StripAerotriWarning, match=r"nearly in one vertical plane \(singular"):
+            fit_similarity(src, tgt, use_xy=use, use_z=use)
 
 
-# Height points along a road, every second one `offset` off it, under a strip
-# 3.2 wide: s1 about sqrt(40) offset / 2 and the farthest served point about
-# 1.6 from their plane: magnified 25 and 2.7 times (plan singular value
+def _road_control(offset: float):
+    """Height points along a road 20 long, every second one `offset` off it,
+    under a strip 3.2 wide: s1 about sqrt(40) offset / 2, the farthest served
+    point about 1.6 from their plane."""
+    x = np.linspace(0.0, 20.0, 40)
+    src = np.column_stack([x, np.where(np.arange(40) % 2, offset, 0.0), np.zeros(40)])
+    served = np.column_stack([x, np.tile([-1.6, 1.6], 20), np.zeros(40)])
+    return src, TRUTH_LOCAL.apply(src), np.ones(40, dtype=bool), served
+
+
+# Offsets 0.02 and 0.2: magnified 25 and 2.7 times (plan singular value
 # ratios 1.7e-3 and 1.7e-2: the ratio rule would warn about the first only).
 @pytest.mark.parametrize("offset, warns", [(0.02, True), (0.2, False)])
 def test_the_weak_tilt_warning_judged_by_the_points_served(offset, warns):
     import warnings as _warnings
 
-    x = np.linspace(0.0, 20.0, 40)
-    src = np.column_stack([x, np.where(np.arange(40) % 2, offset, 0.0), np.zeros(40)])
-    tgt = TRUTH_LOCAL.apply(src)
-    use = np.ones(40, dtype=bool)
-    served = np.column_stack([x, np.tile([-1.6, 1.6], 20), np.zeros(40)])
+    src, tgt, use, served = _road_control(offset)
     if warns:
         with pytest.warns(StripAerotriWarning, match=r"nearly in one vertical plane .* 25 times"):
             fit_similarity(src, tgt, use_xy=use, use_z=use, served=served)
@@ -568,39 +583,13 @@ def test_the_weak_tilt_warning_judged_by_the_points_served(offset, warns):
         fit_similarity(flat, TRUTH_LOCAL.apply(flat), use_xy=use, use_z=use, served=served)
 
 
-def test_a_strip_longer_than_the_ratio_rule_allows_is_accepted_by_the_points_served():
-    """10 000 times longer than wide (plan singular value ratio 5e-4, below
-    COLLINEAR_RTOL) with both edges controlled: the tilt across is as firm as
-    a short strip's (magnified 0.05 times at the edge), so with the points
-    served known the fit goes through; without them the ratio still refuses."""
-    import warnings as _warnings
-
-    src, tgt, served = _long_strip_with_edges()
-    src[:, 0] *= 5.0  # 10 000 bases long
-    served[:, 0] *= 5.0
-    tgt = TRUTH_LOCAL.apply(src)
-    ratio, magnified = cross_tilt(src[:, :2], served[:, :2])
-    assert ratio < COLLINEAR_RTOL and magnified < 0.1
-    use = np.ones(len(src), dtype=bool)
-    with _warnings.catch_warnings():
-        _warnings.simplefilter("error")
-        res = fit_similarity(src, tgt, use_xy=use, use_z=use, served=served)
-    np.testing.assert_allclose(res.transform.apply(src), tgt, rtol=0, atol=1e-7)
-    with pytest.raises(GeometryError, match=r"all lie in one vertical plane \(.* ratio 5"):
-        fit_similarity(src, tgt, use_xy=use, use_z=use)
-
-
 @pytest.mark.parametrize("offset, refused", [(0.002, True), (0.02, False)])
 def test_height_control_nearly_on_one_road_is_refused_by_its_magnification(offset, refused):
-    """Height points along a road 20 long, every second `offset` off it, under
-    a strip 3.2 wide: ratios 1.7e-4 and 1.7e-3, magnified about 250 and 25
-    times at the edge.  Above COLLINEAR_MAGNIFICATION (100) and below
-    COLLINEAR_RTOL the tilt is refused; 25 times is only warned about."""
-    x = np.linspace(0.0, 20.0, 40)
-    src = np.column_stack([x, np.where(np.arange(40) % 2, offset, 0.0), np.zeros(40)])
-    tgt = TRUTH_LOCAL.apply(src)
-    use = np.ones(40, dtype=bool)
-    served = np.column_stack([x, np.tile([-1.6, 1.6], 20), np.zeros(40)])
+    """The road of :func:`_road_control` with offsets 0.002 and 0.02: ratios
+    1.7e-4 and 1.7e-3, magnified about 250 and 25 times at the edge.  Above
+    COLLINEAR_MAGNIFICATION (100) and below COLLINEAR_RTOL the tilt is
+    refused; 25 times is only warned about."""
+    src, tgt, use, served = _road_control(offset)
     ratio, magnified = cross_tilt(src[:, :2], served[:, :2])
     assert (ratio < COLLINEAR_RTOL, magnified > COLLINEAR_MAGNIFICATION) == (refused, refused)
     if refused:
