@@ -62,13 +62,13 @@ def _wavy_strip():
     return sim, bent, control
 
 
-def _fit(sections: int):
+def _fit(sections: int, polynomial: int = 3):
     sim, strip, control = _wavy_strip()
     return adjust_to_ground(
         strip,
         control,
         sim.crs,
-        options=GroundOptions(polynomial=3, sections=sections),
+        options=GroundOptions(polynomial=polynomial, sections=sections),
         blunders=sa.BlunderOptions(action="off"),
     )
 
@@ -88,3 +88,12 @@ def test_sections_that_follow_the_strip_are_not_warned_about():
         warnings.simplefilter("error")
         result = _fit(7)
     assert result.deformation.sigma0 < 30
+
+
+def test_the_similarity_alone_is_told_to_take_a_polynomial():
+    with pytest.warns(
+        StripAerotriWarning,
+        match=r"the similarity transformation alone leaves the control \d+ times .*"
+        r"use a deformation polynomial",
+    ):
+        _fit(1, polynomial=0)

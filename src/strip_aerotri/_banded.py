@@ -83,16 +83,16 @@ class BandedNormals:
         below = blocks[:, 1].copy()  # below[J] = N[block J + 1, block J]; the last is 0
         diag = np.diagonal(diagonal, axis1=1, axis2=2).reshape(-1).copy()
         diag[k:] = 1.0  # padding of the last block: unit, uncoupled
-        order_padded = np.asarray(order, dtype=np.intp)
+        order = np.asarray(order, dtype=np.intp)
         if np.any(diag[:k] <= 0.0):
-            return cls(order_padded, np.ones(diag.size), _not_definite(diagonal), below * 0.0)
+            return cls(order, np.ones(diag.size), _not_definite(diagonal), below * 0.0)
         scale = 1.0 / np.sqrt(diag)
         s = scale.reshape(n_blocks, BLOCK)
         diagonal *= s[:, :, None] * s[:, None, :]
         below[:-1] *= s[1:, :, None] * s[:-1, None, :]
         idx = np.arange(k, n_blocks * BLOCK)
         diagonal.reshape(n_blocks * BLOCK, BLOCK)[idx, idx % BLOCK] = 1.0
-        return cls(order_padded, scale, diagonal, below)
+        return cls(order, scale, diagonal, below)
 
     @property
     def cond(self) -> float:

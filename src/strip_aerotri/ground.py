@@ -791,12 +791,17 @@ def adjust_to_ground(
             else f"polynomial type {deformation.kind}"
             + (f" over {options.sections} sections" if options.sections > 1 else "")
         )
-        advice = (
-            "use [adjustment] sections (about one per 6-20 models, two control stations "
-            "each; docs/ground.md, Long strips)"
-            if options.sections == 1
-            else "use more sections"
-        )
+        if deformation is None:
+            advice = "use a deformation polynomial ([adjustment] polynomial), over sections"
+            advice += " for a long strip"
+        elif options.sections == 1:
+            advice = (
+                "use [adjustment] sections (about one per 6-20 models, two control stations "
+                "each; docs/ground.md, Long strips)"
+            )
+        else:
+            advice = "use more sections"
+
         warnings.warn(
             f"ground stage: {what} leaves the control {fit.sigma0:.0f} times its expected "
             "error (sigma0): the strip bends more than it can follow, or the control has "

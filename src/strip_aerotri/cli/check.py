@@ -82,9 +82,10 @@ def _plan_metres(xy: np.ndarray, geographic: bool) -> np.ndarray:
 
 
 #: The check's estimate of how far the strip reaches (control and check points
-#: widened by a photo's footprint) exceeds the run's by up to this factor; the
-#: check refuses height control in nearly one plane only beyond it, and warns
-#: between it and 1.
+#: widened by a photo's footprint) exceeds the run's by up to this factor: the
+#: check refuses height control in nearly one plane only when it is magnified
+#: more than this times COLLINEAR_MAGNIFICATION, and warns between 1 and this
+#: times.
 _CHECK_MARGIN = 3.0
 
 
