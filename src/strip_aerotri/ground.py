@@ -350,6 +350,21 @@ def _make_work(route: Route, crs: GroundCRS, xyh: FloatArray, azimuth: float):
 # --------------------------------------------------------------------------- helpers
 
 
+def _deformation_slopes(
+    deformation: DeformationResult, xyz: FloatArray, axes: Sequence[int]
+) -> list[FloatArray]:
+    """Central differences dw/dX, dw/dY (the `axes` 0, 1) of the deformation
+    at points xyz, each (M, 3): all displaced copies in one evaluation (one
+    set-up of the spline's pieces)."""
+    h = 1e-3 * max(float(deformation.normalization.half_extent), 1.0)
+    shifted = np.repeat(xyz[None], 2 * len(axes), axis=0)
+    for k, axis in enumerate(axes):
+        shifted[2 * k, :, axis] += h
+        shifted[2 * k + 1, :, axis] -= h
+    w = deformation.evaluate(shifted.reshape(-1, 3)).reshape(2 * len(axes), -1, 3)
+    return [(w[2 * k] - w[2 * k + 1]) / (2 * h) for k in range(len(axes))]
+
+
 def _deformation_rotation(deformation: DeformationResult, xyz: FloatArray) -> FloatArray:
     """Local rotation (M, 3, 3) of the correction field -w(X, Y) at points xyz.
 
@@ -358,16 +373,8 @@ def _deformation_rotation(deformation: DeformationResult, xyz: FloatArray) -> Fl
     of the horizontal gradient turns it about Z.  Photo attitudes get the same
     small rotation (first order).
     """
-    h = 1e-3 * max(float(deformation.normalization.half_extent), 1.0)
-    # the four displaced copies in one evaluation (one set-up of the spline's pieces)
-    shifted = np.repeat(xyz[None], 4, axis=0)
-    shifted[0, :, 0] += h
-    shifted[1, :, 0] -= h
-    shifted[2, :, 1] += h
-    shifted[3, :, 1] -= h
-    w = deformation.evaluate(shifted.reshape(-1, 3)).reshape(4, -1, 3)
-    du_dx = -(w[0] - w[1]) / (2 * h)
-    du_dy = -(w[2] - w[3]) / (2 * h)
+    dw_dx, dw_dy = _deformation_slopes(deformation, xyz, (0, 1))
+    du_dx, du_dy = -dw_dx, -dw_dy
     rotvec = np.column_stack([du_dy[:, 2], -du_dx[:, 2], 0.5 * (du_dx[:, 1] - du_dy[:, 0])])
     return matrix_from_rotvec(rotvec)
 
@@ -444,12 +451,8 @@ def _turned_about_x(
 def _cross_slope(deformation: DeformationResult, xyz: FloatArray) -> float:
     """Mean slope dw_Z/dY of the deformation across the strip at points xyz
     (work frame): the tilt about the strip's axis left to the polynomial."""
-    h = 1e-3 * max(float(deformation.normalization.half_extent), 1.0)
-    shifted = np.repeat(xyz[None], 2, axis=0)
-    shifted[0, :, 1] += h
-    shifted[1, :, 1] -= h
-    w = deformation.evaluate(shifted.reshape(-1, 3)).reshape(2, -1, 3)
-    return float(np.mean(w[0, :, 2] - w[1, :, 2]) / (2 * h))
+    (dw_dy,) = _deformation_slopes(deformation, xyz, (1,))
+    return float(np.mean(dw_dy[:, 2]))
 
 
 def _azimuth_step(vector_work: FloatArray) -> float:
@@ -783,32 +786,9 @@ def adjust_to_ground(
             stacklevel=2,
         )
     metres_per_mm, sigma_plan, sigma_height = sol.metres_per_mm, sol.sigma_plan, sol.sigma_height
-    fit = sim if deformation is None else deformation
-    if np.isfinite(fit.sigma0) and fit.sigma0 > _MISFIT_SIGMA0:
-        what = (
-            "the similarity transformation alone"
-            if deformation is None
-            else f"polynomial type {deformation.kind}"
-            + (f" over {options.sections} sections" if options.sections > 1 else "")
-        )
-        if deformation is None:
-            advice = "use a deformation polynomial ([adjustment] polynomial), over sections"
-            advice += " for a long strip"
-        elif options.sections == 1:
-            advice = (
-                "use [adjustment] sections (about one per 6-20 models, two control stations "
-                "each; docs/ground.md, Long strips)"
-            )
-        else:
-            advice = "use more sections"
-
-        warnings.warn(
-            f"ground stage: {what} leaves the control {fit.sigma0:.0f} times its expected "
-            "error (sigma0): the strip bends more than it can follow, or the control has "
-            f"errors; {advice}, and check the control",
-            StripAerotriWarning,
-            stacklevel=2,
-        )
+    misfit = _misfit_message(sim, deformation, options.sections)
+    if misfit:
+        warnings.warn(misfit, StripAerotriWarning, stacklevel=2)
     use_xy_final, use_z_final = use_xy_now, use_z_now
 
     # Final products with the last frame and fits.
@@ -894,6 +874,36 @@ def _line_residuals(xyz: FloatArray) -> FloatArray:
     design = np.column_stack([np.ones(len(xyz)), xyz[:, 0]])
     coef, *_ = np.linalg.lstsq(design, xyz[:, 1], rcond=None)
     return xyz[:, 1] - design @ coef
+
+
+def _misfit_message(
+    sim: SimilarityResult, deformation: DeformationResult | None, sections: int
+) -> str | None:
+    """The warning when the last ground fit leaves the control more than
+    ``_MISFIT_SIGMA0`` times its expected error, else None."""
+    fit = sim if deformation is None else deformation
+    if not (np.isfinite(fit.sigma0) and fit.sigma0 > _MISFIT_SIGMA0):
+        return None
+    if deformation is None:
+        what = "the similarity transformation alone"
+        advice = (
+            "use a deformation polynomial ([adjustment] polynomial), over sections for a "
+            "long strip"
+        )
+    elif sections == 1:
+        what = f"polynomial type {deformation.kind}"
+        advice = (
+            "use [adjustment] sections (about one per 6-20 models, two control stations "
+            "each; docs/ground.md, Long strips)"
+        )
+    else:
+        what = f"polynomial type {deformation.kind} over {sections} sections"
+        advice = "use more sections"
+    return (
+        f"ground stage: {what} leaves the control {fit.sigma0:.0f} times its expected "
+        "error (sigma0): the strip bends more than it can follow, or the control has "
+        f"errors; {advice}, and check the control"
+    )
 
 
 def _fit_polynomial(kind, sections, xyz, target, use_xy, use_z, exp_xy, exp_z, lines, ids):

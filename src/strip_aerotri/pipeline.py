@@ -294,8 +294,8 @@ def run_project(
         photo_step=getattr(adj, "photo_step", 1),
         min_base_to_height=getattr(adj, "min_base_to_height", DEFAULT_MIN_BASE_TO_HEIGHT),
         refine=str(getattr(getattr(adj, "refine", None), "value", "none")),
-        gnss=getattr(project, "gnss", None),
-        imu=getattr(project, "imu", None),
+        gnss=project.gnss,
+        imu=project.imu,
         progress=progress,
         warnings=project.warnings,
     )

@@ -346,8 +346,8 @@ def check_project(project, out: Path | None = None) -> CheckReport:
         f"straight lines: {len(project.straight_lines)}",
     ]
     for what, observed, source in (
-        ("GNSS centres", getattr(project, "gnss", None), getattr(project, "gnss_file", None)),
-        ("IMU attitudes", getattr(project, "imu", None), getattr(project, "imu_file", None)),
+        ("GNSS centres", project.gnss, project.gnss_file),
+        ("IMU attitudes", project.imu, project.imu_file),
     ):
         if observed is not None:
             rep.summary.append(
