@@ -348,7 +348,7 @@ class _PhotoTests:
     critical: float
     rejected: BoolArray
 
-    def _normalise_rejected(self) -> None:
+    def __post_init__(self) -> None:  # run by the subclasses' dataclass __init__
         g = len(self.photo_ids)
         rejected = np.zeros(g, bool) if self.rejected is None else np.array(self.rejected, bool)
         if rejected.shape != (g,):
@@ -444,9 +444,6 @@ class GnssResiduals(_PhotoTests):
     critical: float
     rejected: BoolArray = None  # type: ignore[assignment]
 
-    def __post_init__(self) -> None:
-        self._normalise_rejected()
-
     @property
     def plan(self) -> FloatArray:
         """(G,) horizontal length of the residuals, m (rejected centres included)."""
@@ -536,9 +533,6 @@ class ImuResiduals(_PhotoTests):
     w: FloatArray
     critical: float
     rejected: BoolArray = None  # type: ignore[assignment]
-
-    def __post_init__(self) -> None:
-        self._normalise_rejected()
 
     @property
     def residuals_deg(self) -> FloatArray:

@@ -1784,21 +1784,33 @@ def _test_summary(out: Any) -> dict[str, Any]:
     }
 
 
+def _counts(out: Any) -> dict[str, Any]:
+    """Observations given, used and not in the strip (GNSS centres or IMU attitudes)."""
+    return {
+        "n_given": int(out.n_given),
+        "n_used": int(out.n_used),
+        "n_unmatched": len(out.unmatched),
+        "unmatched_photos": list(out.unmatched),
+    }
+
+
+def _photo_failed(out: Any) -> list[bool | None]:
+    """Per photo: some component failed its test; None where none was tested."""
+    tested = np.isfinite(np.asarray(out.w, dtype=np.float64)).any(axis=1)
+    return [bool(f) if t else None for f, t in zip(np.asarray(out.failed), tested, strict=True)]
+
+
 def _bundle_gnss(out: Any) -> dict[str, Any] | None:
     """GNSS centres in the bundle refinement: counts, residuals, tests (docs/outputs.md)."""
     if out is None:
         return None
     v = np.asarray(out.residuals, dtype=np.float64)
     rms = out.rms
-    tested = np.isfinite(np.asarray(out.w, dtype=np.float64)).any(axis=1)
-    failed = np.asarray(out.failed)
+    failed = _photo_failed(out)
     return {
         "residual": "observed - adjusted",
         "axes": "east, north, up at the adjusted projection centre (ground metres)",
-        "n_given": int(out.n_given),
-        "n_used": int(out.n_used),
-        "n_unmatched": len(out.unmatched),
-        "unmatched_photos": list(out.unmatched),
+        **_counts(out),
         "sigma_xy_m": _f(np.median(out.sigma_xy)) if out.n_used else None,
         "sigma_z_m": _f(np.median(out.sigma_z)) if out.n_used else None,
         "rms_e_m": _f(rms[0]),
@@ -1819,7 +1831,7 @@ def _bundle_gnss(out: Any) -> dict[str, Any] | None:
                 "sigma_z_m": _f(out.sigma_z[i]),
                 "redundancy": np.asarray(out.redundancy[i], dtype=np.float64),
                 "w": np.asarray(out.w[i], dtype=np.float64),
-                "failed": bool(failed[i]) if tested[i] else None,
+                "failed": failed[i],
                 "rejected": bool(out.rejected[i]),
             }
             for i, pid in enumerate(out.photo_ids)
@@ -1833,15 +1845,11 @@ def _bundle_imu(out: Any) -> dict[str, Any] | None:
         return None
     v = np.degrees(np.asarray(out.residuals, dtype=np.float64))
     d_opk = np.degrees(np.asarray(out.opk_differences, dtype=np.float64))
-    tested = np.isfinite(np.asarray(out.w, dtype=np.float64)).any(axis=1)
-    failed = np.asarray(out.failed)
+    failed = _photo_failed(out)
     return {
         "residual": "observed - adjusted",
         "axes": "rotation vector about the photo's image axes x, y, z (x along the flight)",
-        "n_given": int(out.n_given),
-        "n_used": int(out.n_used),
-        "n_unmatched": len(out.unmatched),
-        "unmatched_photos": list(out.unmatched),
+        **_counts(out),
         "sigma_deg": _f(np.degrees(np.median(out.sigma))) if out.n_used else None,
         "rms_deg": np.degrees(out.rms),
         "max_abs_deg": np.degrees(out.max_abs),
@@ -1863,7 +1871,7 @@ def _bundle_imu(out: Any) -> dict[str, Any] | None:
                 "sigma_deg": _f(np.degrees(out.sigma[i])),
                 "redundancy": np.asarray(out.redundancy[i], dtype=np.float64),
                 "w": np.asarray(out.w[i], dtype=np.float64),
-                "failed": bool(failed[i]) if tested[i] else None,
+                "failed": failed[i],
                 "rejected": bool(out.rejected[i]),
             }
             for i, pid in enumerate(out.photo_ids)
