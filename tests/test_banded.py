@@ -7,7 +7,7 @@ import pytest
 
 import strip_aerotri.deformation as deformation
 from strip_aerotri._banded import BandedNormals, _inverse_norm_1
-from strip_aerotri.deformation import fit_deformation, section_terms
+from strip_aerotri.deformation import bspline_basis, fit_deformation, section_terms
 from strip_aerotri.errors import GeometryError
 from strip_aerotri.similarity import _normal_inverse, _redundancy_numbers, row_support
 
@@ -133,4 +133,10 @@ def test_sparse_section_rows_are_the_dense_design(kind):
     v = rng.uniform(-0.1, 0.1, u.size)
     breakpoints = np.linspace(-1.0, 1.0, 9)
     rows = deformation._section_support(u, v, kind, breakpoints)
-    np.testing.assert_array_equal(deformation._dense(rows), section_terms(u, v, kind, breakpoints))
+    # the design of the module docstring, column by column from the B-spline bases
+    expected = np.concatenate(
+        [bspline_basis(u, breakpoints, kind), bspline_basis(u, breakpoints, 1) * v[:, None]],
+        axis=1,
+    )
+    np.testing.assert_array_equal(deformation._dense(rows), expected)
+    np.testing.assert_array_equal(section_terms(u, v, kind, breakpoints), expected)

@@ -144,9 +144,6 @@ def polynomial_terms(x: ArrayLike, y: ArrayLike, kind: int) -> FloatArray:
     return np.stack(columns[: _N_TERMS[k]], axis=-1)
 
 
-# The along-strip part f of a J(16) type k has degree k in u (1: u, 2: u², 3: u³).
-
-
 def check_sections(sections: object) -> int:
     """``sections`` as an int, ValueError unless it is an integer >= 1."""
     if (
@@ -340,9 +337,7 @@ def section_terms(u: ArrayLike, v: ArrayLike, kind: int, breakpoints: ArrayLike)
     )
     if k == 0:
         return np.zeros((u_arr.size, 0))
-    f = bspline_basis(u_arr, breakpoints, k)
-    g = bspline_basis(u_arr, breakpoints, 1) * v_arr[:, None]
-    return np.concatenate([f, g], axis=1)
+    return _dense(_section_support(u_arr, v_arr, k, _check_breakpoints(breakpoints)))
 
 
 def _section_support(
@@ -615,8 +610,10 @@ def _normals(a_w: FloatArray | RowSupport, order: IntArray | None = None) -> _No
 
 
 def _dense(rows: RowSupport) -> FloatArray:
+    """The (n, k) matrix of rows given by their nonzero entries, each column
+    at most once in a row (no padding, as :func:`_section_support`)."""
     out = np.zeros((rows.index.shape[0], rows.n_columns))
-    np.add.at(out, (np.arange(len(out))[:, None], rows.index), rows.value)
+    np.put_along_axis(out, rows.index, rows.value, axis=1)
     return out
 
 
@@ -909,7 +906,7 @@ def fit_deformation(
     u_all = np.where(used, u_all, 0.0)
     v_all = np.where(used, v_all, 0.0)
     if breakpoints is None:
-        terms_all = terms(u_all, v_all, kind_max)
+        terms_all = polynomial_terms(u_all, v_all, kind_max)
     else:  # a few nonzero terms of hundreds or thousands per row
         support_all = _section_support(u_all, v_all, kind_max, breakpoints)
 
