@@ -24,8 +24,10 @@ import numpy as np
 
 from ._typing import FloatArray, IntArray
 
-#: Unknowns per block (at least the band).
+#: Unknowns per block (at least the band; a power of two).
 BLOCK = 64
+_SHIFT = BLOCK.bit_length() - 1
+_MASK = BLOCK - 1
 #: A band wider than this fraction 1/n of the unknowns is not worth it.
 MAX_BAND_FRACTION = 8
 
@@ -65,20 +67,25 @@ class BandedNormals:
         k = n_columns
         position = np.empty(k, dtype=np.intp)
         position[order] = np.arange(k)
-        nonzero = value != 0.0
-        pair = nonzero[:, :, None] & nonzero[:, None, :]
         p = position[index]
-        p_a = np.broadcast_to(p[:, :, None], pair.shape)[pair]
-        p_b = np.broadcast_to(p[:, None, :], pair.shape)[pair]
-        product = (value[:, :, None] * value[:, None, :])[pair]
-        band = int(np.max(np.abs(p_a - p_b))) if p_a.size else 0
+        nonzero = value != 0.0
+        # the band: the widest spread of a row's nonzero positions
+        spread = np.where(nonzero, p, -1).max(axis=1) - np.where(nonzero, p, k).min(axis=1)
+        band = int(spread.max(initial=0))
         if band > BLOCK or band > k // MAX_BAND_FRACTION:
             return None
         n_blocks = -(-k // BLOCK)
-        lower = p_a // BLOCK >= p_b // BLOCK  # each entry once: blocks on and below the diagonal
-        blocks = np.bincount(
-            _slots(p_a[lower], p_b[lower]), product[lower], minlength=n_blocks * 2 * BLOCK * BLOCK
-        ).reshape(n_blocks, 2, BLOCK, BLOCK)
+        # Every product of two entries of a row (padding and zeros add 0); the
+        # products of a block above the diagonal are those below it swapped,
+        # which take the same slot: each counts once.
+        size = n_blocks * 2 * BLOCK * BLOCK
+        slots, lower = _slots(p[:, :, None], p[:, None, :])
+        np.clip(slots, 0, size - 1, out=slots)  # padding paired afar: its product is 0
+        product = value[:, :, None] * value[:, None, :]
+        product *= lower
+        blocks = np.bincount(slots.reshape(-1), product.reshape(-1), minlength=size).reshape(
+            n_blocks, 2, BLOCK, BLOCK
+        )
         diagonal = blocks[:, 0].copy()
         below = blocks[:, 1].copy()  # below[J] = N[block J + 1, block J]; the last is 0
         diag = np.diagonal(diagonal, axis1=1, axis2=2).reshape(-1).copy()
@@ -147,25 +154,27 @@ class BandedNormals:
         z = np.stack([z_diagonal, z_below], axis=1).reshape(-1)
         p = self._position[index]  # (n, w)
         w = value * self._scale[p]
-        p_a = np.broadcast_to(p[:, :, None], p.shape + p.shape[1:])
-        p_b = np.broadcast_to(p[:, None, :], p_a.shape)
         # padding has value 0: any slot it gets is multiplied by 0
-        slots = _slots(p_a, p_b, clip=z.size - 1)
-        return np.einsum("nij,ni,nj->n", z[slots], w, w)
+        slots, _ = _slots(p[:, :, None], p[:, None, :])
+        np.clip(slots, 0, z.size - 1, out=slots)
+        return np.einsum("nij,ni,nj->n", np.take(z, slots), w, w)
 
 
-def _slots(p_a: IntArray, p_b: IntArray, clip: int | None = None) -> IntArray:
+def _slots(p_a: IntArray, p_b: IntArray) -> tuple[IntArray, np.ndarray]:
     """Flat index, in blocks (n_blocks, 2, BLOCK, BLOCK) of the diagonal and of
     the one below it, of the entry (p_a, p_b) of a symmetric matrix (taken
     from the lower triangle of blocks: the pair is swapped when p_a's block
-    is above p_b's)."""
-    lo_first = p_a // BLOCK >= p_b // BLOCK
-    row = np.where(lo_first, p_a, p_b)
-    col = np.where(lo_first, p_b, p_a)
-    block_col = col // BLOCK
-    which = row // BLOCK - block_col  # 0 diagonal, 1 below
-    slots = ((block_col * 2 + which) * BLOCK + row % BLOCK) * BLOCK + col % BLOCK
-    return slots if clip is None else np.clip(slots, 0, clip)
+    is above p_b's), and where p_a's block is not above p_b's (broadcast).
+    Shifts and masks: BLOCK is a power of two, and numpy's integer division
+    is several times slower."""
+    block_a, block_b = p_a >> _SHIFT, p_b >> _SHIFT
+    lower = block_a >= block_b
+    row = np.where(lower, p_a, p_b)
+    col = np.where(lower, p_b, p_a)
+    block_col = np.minimum(block_a, block_b)
+    which = np.abs(block_a - block_b)  # 0 diagonal, 1 below
+    within = ((row & _MASK) << _SHIFT) + (col & _MASK)
+    return (((block_col << 1) + which) << (2 * _SHIFT)) + within, lower
 
 
 def _not_definite(diagonal: FloatArray) -> FloatArray:

@@ -987,10 +987,14 @@ def _ground_tests(sol: _Solution, ids, lines, line_keep, blunders) -> list[Rejec
         crit = blunders.critical("control", int(np.isfinite(w).sum()))
         plan_w = np.fmax(np.abs(w[:, 0]), np.abs(w[:, 1]))
         plan_r = np.hypot(np.nan_to_num(resid[:, 0]), np.nan_to_num(resid[:, 1]))
-        for k, pid in enumerate(act_ids):
+        height_w = np.abs(w[:, 2])
+        with np.errstate(invalid="ignore"):
+            failing = np.flatnonzero((plan_w > crit) | (height_w > crit))  # NaN: not tested
+        for k in failing:
+            pid = act_ids[k]
             for comp, value, res in (
                 ("plan", plan_w[k], float(plan_r[k])),
-                ("height", abs(w[k, 2]), float(resid[k, 2])),
+                ("height", height_w[k], float(resid[k, 2])),
             ):
                 if np.isfinite(value) and value > crit and (pid, comp) not in seen:
                     seen.add((pid, comp))

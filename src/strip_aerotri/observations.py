@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
+from functools import cached_property
 
 import numpy as np
 
@@ -158,6 +159,9 @@ class ControlType(str, Enum):
     CHECK = "check"
 
 
+_KIND_CODE = {key: code for code, kind in enumerate(ControlType) for key in (kind, kind.value)}
+
+
 @dataclass(frozen=True)
 class ControlPoints:
     """Ground control and check points.
@@ -181,16 +185,30 @@ class ControlPoints:
     sigma_h: FloatArray
     source_line: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
 
+    @cached_property
+    def _kind_code(self) -> np.ndarray:
+        """``kind`` as small integers (the position in ControlType), read-only:
+        the masks below are array comparisons, not a Python pass per point."""
+        try:
+            code = np.fromiter(map(_KIND_CODE.__getitem__, self.kind), np.int8, len(self.kind))
+        except KeyError as exc:
+            kinds = [k.value for k in ControlType]
+            raise ValueError(f"Expected control kinds from {kinds}, got {exc}") from None
+        code.setflags(write=False)
+        return code
+
     @property
     def uses_xy(self) -> BoolArray:
         """True where X and Y enter the adjustment (full and plan points)."""
-        return np.array([k in (ControlType.FULL, ControlType.PLAN) for k in self.kind], bool)
+        code = self._kind_code
+        return (code == _KIND_CODE[ControlType.FULL]) | (code == _KIND_CODE[ControlType.PLAN])
 
     @property
     def uses_h(self) -> BoolArray:
         """True where H enters the adjustment (full and height points)."""
-        return np.array([k in (ControlType.FULL, ControlType.HEIGHT) for k in self.kind], bool)
+        code = self._kind_code
+        return (code == _KIND_CODE[ControlType.FULL]) | (code == _KIND_CODE[ControlType.HEIGHT])
 
     @property
     def is_check(self) -> BoolArray:
-        return np.array([k is ControlType.CHECK for k in self.kind], bool)
+        return self._kind_code == _KIND_CODE[ControlType.CHECK]
