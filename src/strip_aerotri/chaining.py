@@ -363,8 +363,8 @@ def form_strip(
     # Tie points: determined in model m and in model m - 1, whose right
     # observation of the point (on photo m) is model m's left one: an inverse
     # lookup, linear in the rows (a sorted intersection of keys costs 5x more).
-    # pair_rows gives an observation at most one model as its left photo's
-    # and the model before as its right photo's.
+    # (In pair_rows an observation is the left one of at most one model and
+    # the right one of at most the model before it.)
     row_of_right = np.full(observations.photo.shape[0], -1, dtype=np.intp)
     row_of_right[row_r] = np.arange(row_r.shape[0])
     previous_row = np.take(row_of_right, row_l)
