@@ -19,7 +19,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from strip_aerotri import relative as rel_module
-from strip_aerotri.chaining import StripOptions, form_strip, pair_rows
+from strip_aerotri.chaining import StripOptions, form_strip, pair_rows, tie_rows
 from strip_aerotri.errors import GeometryError
 from strip_aerotri.observations import ImageObservations
 from strip_aerotri.simulate import simulate_strip
@@ -283,6 +283,23 @@ def test_tie_points_are_the_triple_overlap():
     assert strip.tie_count[0] == 0
     assert np.all(strip.tie_count[1:] >= 1)
     assert np.all(np.isnan(strip.tie_rms[0]))
+
+
+@pytest.mark.parametrize("first", [0, 3])
+def test_tie_rows_are_the_points_of_the_model_before(first):
+    # a sequence of some of the photos too, and rows left out as by a rejection
+    sim = noise_free("film50")
+    obs = sim.observations
+    seq = np.arange(first, obs.n_photos)
+    model, point, row_l, row_r = pair_rows(obs, seq)
+    kept = np.random.default_rng(1).random(model.shape[0]) > 0.1
+    model, point, row_l, row_r = model[kept], point[kept], row_l[kept], row_r[kept]
+    i_now, i_prev = tie_rows(row_l, row_r, obs.photo.shape[0])
+    # by definition: the rows whose (model - 1, point) is a row too
+    rows_of = {(int(m), int(p)): r for r, (m, p) in enumerate(zip(model, point, strict=True))}
+    expected = [(r, rows_of[m - 1, p]) for (m, p), r in rows_of.items() if (m - 1, p) in rows_of]
+    assert len(expected) > 100
+    np.testing.assert_array_equal(np.column_stack([i_now, i_prev]), sorted(expected))
 
 
 def test_tie_differences_vanish_noise_free():

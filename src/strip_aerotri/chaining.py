@@ -235,6 +235,27 @@ def pair_rows(
     )
 
 
+def tie_rows(
+    left_row: IntArray, right_row: IntArray, n_observations: int
+) -> tuple[IntArray, IntArray]:
+    """The tie points of a chain of models: for the model rows of
+    :func:`pair_rows` (``left_row``, ``right_row`` index the observations),
+    the rows ``i_now`` of points that the model before has too and those
+    rows ``i_prev`` in the model before, ``i_now`` ascending.
+
+    Model m - 1's observation of a point on its right photo (photo m) is
+    model m's observation on its left photo: one inverse lookup, linear in
+    the rows (a sorted intersection of (model, point) keys costs 5x more).
+    In pair_rows an observation is the left one of at most one model and
+    the right one of at most the model before it.
+    """
+    row_of_right = np.full(n_observations, -1, dtype=np.intp)
+    row_of_right[right_row] = np.arange(right_row.shape[0])
+    previous_row = np.take(row_of_right, left_row)
+    i_now = np.flatnonzero(previous_row >= 0)
+    return i_now, np.take(previous_row, i_now)
+
+
 def form_strip(
     observations: ImageObservations,
     options: StripOptions | None = None,
@@ -360,16 +381,8 @@ def form_strip(
             observations.principal_distance,
         )
 
-    # Tie points: determined in model m and in model m - 1, whose right
-    # observation of the point (on photo m) is model m's left one: an inverse
-    # lookup, linear in the rows (a sorted intersection of keys costs 5x more).
-    # (In pair_rows an observation is the left one of at most one model and
-    # the right one of at most the model before it.)
-    row_of_right = np.full(observations.photo.shape[0], -1, dtype=np.intp)
-    row_of_right[row_r] = np.arange(row_r.shape[0])
-    previous_row = np.take(row_of_right, row_l)
-    i_now = np.flatnonzero(previous_row >= 0)
-    i_prev = np.take(previous_row, i_now)
+    # Tie points: determined in model m and in model m - 1.
+    i_now, i_prev = tie_rows(row_l, row_r, observations.photo.shape[0])
     tie_ok = np.ones(i_now.shape[0], dtype=bool)
     while True:
         tie_model = model[i_now[tie_ok]]

@@ -33,7 +33,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from ._typing import ArrayLike, FloatArray, IntArray
-from .chaining import StripModel, StripOptions, form_strip, pair_rows
+from .chaining import StripModel, StripOptions, form_strip, pair_rows, tie_rows
 from .errors import ConvergenceError, GeometryError, StripAerotriWarning
 from .intersection import intersect
 from .observations import ImageObservations
@@ -103,14 +103,11 @@ def model_photo_index(n_photos: int, photo_step: int) -> IntArray:
 
 def _overlap_counts(observations: ImageObservations, seq: IntArray) -> tuple[IntArray, IntArray]:
     """Points common to each model's two photos and tie points of each model."""
-    model, point, _, _ = pair_rows(observations, seq)
+    model, _, row_l, row_r = pair_rows(observations, seq)
     n_models = seq.shape[0] - 1
     pair_count = np.bincount(model, minlength=n_models)
-    n_pts = max(observations.n_points, 1)
-    key_now = model.astype(np.int64) * n_pts + point
-    key_prev = (model.astype(np.int64) + 1) * n_pts + point
-    common = np.intersect1d(key_now, key_prev, assume_unique=True)
-    tie_count = np.bincount((common // n_pts).astype(np.intp), minlength=n_models)
+    i_now, _ = tie_rows(row_l, row_r, observations.photo.shape[0])
+    tie_count = np.bincount(np.take(model, i_now), minlength=n_models)
     return pair_count, tie_count
 
 
