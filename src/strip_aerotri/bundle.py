@@ -361,18 +361,36 @@ def _block_pattern(a: IntArray, b: IntArray) -> tuple[IntArray, IntArray]:
     return rows, cols
 
 
-def _weights(
-    values: FloatArray | None, sigma: ArrayLike | None, shape: tuple[int, ...], name: str
+def observed_with_sigma(
+    values: ArrayLike,
+    sigma: ArrayLike | None,
+    shape: tuple[int, ...],
+    name: str,
+    sigma_name: str,
 ) -> tuple[FloatArray, FloatArray]:
-    """Given values with NaN where absent and their sigmas -> (values 0-filled, weights)."""
-    if values is None:
-        return np.zeros(shape), np.zeros(shape)
+    """Observations of ``shape`` (NaN where absent) and their standard
+    deviations, broadcast to (shape[0], 3): three per point or photo (the
+    coordinates of a point or centre, the angles of an attitude); `name` and
+    `sigma_name` are the arguments' names for the messages."""
     vals = np.asarray(values, dtype=np.float64)
     if vals.shape != shape:
         raise ValueError(f"Expected `{name}` to have shape {shape}, got {vals.shape}")
     if sigma is None:
-        raise ValueError(f"`{name}` given without its standard deviations")
-    sig = np.broadcast_to(np.asarray(sigma, dtype=np.float64), shape)
+        raise ValueError(f"`{name}` given without its standard deviations (`{sigma_name}`)")
+    return vals, np.broadcast_to(np.asarray(sigma, dtype=np.float64), (shape[0], 3))
+
+
+def _weights(
+    values: FloatArray | None,
+    sigma: ArrayLike | None,
+    shape: tuple[int, ...],
+    name: str,
+    sigma_name: str,
+) -> tuple[FloatArray, FloatArray]:
+    """Given values with NaN where absent and their sigmas -> (values 0-filled, weights)."""
+    if values is None:
+        return np.zeros(shape), np.zeros(shape)
+    vals, sig = observed_with_sigma(values, sigma, shape, name, sigma_name)
     used = np.isfinite(vals) & np.isfinite(sig)
     if np.any(sig[used] <= 0.0):
         raise ValueError(f"Expected positive standard deviations for `{name}`")
@@ -421,23 +439,18 @@ def _make_problem(
     c = float(obs.principal_distance)
     if not (np.isfinite(c) and c > 0.0):
         raise ValueError(f"Expected a positive principal distance, got {c}")
-    cxyz, cw = _weights(control_xyz, control_sigma, (p, 3), "control_xyz")
-    gxyz, gw = _weights(gnss_centres, gnss_sigma, (m, 3), "gnss_centres")
+    cxyz, cw = _weights(control_xyz, control_sigma, (p, 3), "control_xyz", "control_sigma")
+    gxyz, gw = _weights(gnss_centres, gnss_sigma, (m, 3), "gnss_centres", "gnss_sigma")
     if imu_rotations is None:
         imu = np.broadcast_to(np.eye(3), (m, 3, 3)).copy()
         iw = np.zeros((m, 3))
     else:
-        imu = np.asarray(imu_rotations, dtype=np.float64)
-        if imu.shape != (m, 3, 3):
-            raise ValueError(
-                f"Expected `imu_rotations` to have shape {(m, 3, 3)}, got {imu.shape}"
-            )
-        if imu_sigma is None:
-            raise ValueError("`imu_rotations` given without `imu_sigma`")
+        imu, sig = observed_with_sigma(
+            imu_rotations, imu_sigma, (m, 3, 3), "imu_rotations", "imu_sigma"
+        )
         present = np.all(np.isfinite(imu), axis=(1, 2))
         imu = np.where(present[:, None, None], imu, np.eye(3))
         _check_rotations(imu, "imu_rotations")
-        sig = np.broadcast_to(np.asarray(imu_sigma, dtype=np.float64), (m, 3))
         used = present[:, None] & np.isfinite(sig)
         if np.any(sig[used] <= 0.0):
             raise ValueError("Expected positive standard deviations for `imu_rotations`")

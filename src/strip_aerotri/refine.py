@@ -42,7 +42,7 @@ import numpy as np
 
 from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from .blunders import BlunderOptions, Rejection, robust_variance_factor
-from .bundle import BundleResult, bundle_adjust
+from .bundle import BundleResult, bundle_adjust, observed_with_sigma
 from .errors import GeometryError, StripAerotriWarning
 from .geodesy import GroundCRS, LocalTangentFrame, enu_rotation
 from .observations import ControlPoints, ImageObservations
@@ -909,22 +909,14 @@ def refine_frame(
     g_given = np.zeros(m, bool)
     i_given = np.zeros(m, bool)
     if gnss_centres is not None:
-        g_xyz = np.array(gnss_centres, dtype=np.float64)
-        if g_xyz.shape != (m, 3):
-            raise ValueError(f"Expected `gnss_centres` to have shape {(m, 3)}, got {g_xyz.shape}")
-        if gnss_sigma is None:
-            raise ValueError("`gnss_centres` given without `gnss_sigma`")
-        g_sig = np.broadcast_to(np.asarray(gnss_sigma, dtype=np.float64), (m, 3))
+        g_xyz, g_sig = observed_with_sigma(
+            gnss_centres, gnss_sigma, (m, 3), "gnss_centres", "gnss_sigma"
+        )
         g_given = np.any(np.isfinite(g_xyz) & np.isfinite(g_sig), axis=1)
     if imu_rotations is not None:
-        i_rot = np.array(imu_rotations, dtype=np.float64)
-        if i_rot.shape != (m, 3, 3):
-            raise ValueError(
-                f"Expected `imu_rotations` to have shape {(m, 3, 3)}, got {i_rot.shape}"
-            )
-        if imu_sigma is None:
-            raise ValueError("`imu_rotations` given without `imu_sigma`")
-        i_sig = np.broadcast_to(np.asarray(imu_sigma, dtype=np.float64), (m, 3))
+        i_rot, i_sig = observed_with_sigma(
+            imu_rotations, imu_sigma, (m, 3, 3), "imu_rotations", "imu_sigma"
+        )
         i_given = np.all(np.isfinite(i_rot), axis=(1, 2)) & np.any(np.isfinite(i_sig), axis=1)
     g_on = g_given & _photo_flags(gnss_used, m, "gnss_used")
     i_on = i_given & _photo_flags(imu_used, m, "imu_used")
