@@ -13,6 +13,7 @@ import pytest
 from strip_aerotri.blunders import BlunderOptions, critical_value, robust_variance_factor
 from strip_aerotri.errors import GeometryError
 from strip_aerotri.ground import LineSpec
+from strip_aerotri.observations import ImageObservations
 from strip_aerotri.pipeline import triangulate
 from strip_aerotri.simulate import simulate_strip
 
@@ -225,3 +226,23 @@ def test_one_metre_control_blunder_with_dense_control(component):
     after = res.check_statistics.rmse[k] if k == 2 else res.check_statistics.rmse_plan
     before = clean.check_statistics.rmse[k] if k == 2 else clean.check_statistics.rmse_plan
     assert after < 1.10 * before
+
+
+def test_user_exclusions_as_masks_of_points_and_observations():
+    obs = ImageObservations.from_ids(
+        photo=["1", "1", "2", "2", "3"],
+        point=["a", "b", "a", "b", "b"],
+        xy=np.zeros((5, 2)),
+        principal_distance=150.0,
+    )
+    options = BlunderOptions(
+        exclude_points=("a", "zz"), exclude_observations=(("3", "b"), ("9", "b"))
+    )
+    points, drop = options.excluded(obs)
+    np.testing.assert_array_equal(points, [True, False])  # ids a, b; unknown ids ignored
+    pairs = zip(obs.photo, obs.point, strict=True)
+    named = [(obs.photo_ids[j], obs.point_ids[i]) for j, i in pairs]
+    expected = [p == "a" or (ph, p) == ("3", "b") for ph, p in named]
+    np.testing.assert_array_equal(drop, expected)
+    none_points, none_drop = BlunderOptions().excluded(obs)
+    assert not none_points.any() and not none_drop.any()

@@ -39,7 +39,8 @@ from statistics import NormalDist
 import numpy as np
 
 from ._stats import sample_median
-from ._typing import FloatArray
+from ._typing import BoolArray, FloatArray
+from .observations import ImageObservations
 
 __all__ = [
     "STAGES",
@@ -111,6 +112,28 @@ class BlunderOptions:
     @property
     def rejecting(self) -> bool:
         return self.action == "reject"
+
+    def excluded(self, observations: ImageObservations) -> tuple[BoolArray, BoolArray]:
+        """The user's exclusions as masks: points (P,) of ``exclude_points``
+        and observations (K,) of those points or of ``exclude_observations``
+        (ids not in the observations are ignored)."""
+        points = np.zeros(observations.n_points, dtype=bool)
+        if self.exclude_points:
+            names = np.asarray(observations.point_ids)
+            points = np.isin(names, list(self.exclude_points))
+        drop = points[observations.point]
+        if self.exclude_observations:
+            photo_of = {pid: i for i, pid in enumerate(observations.photo_ids)}
+            point_of = {pid: i for i, pid in enumerate(observations.point_ids)}
+            n_pts = max(observations.n_points, 1)
+            wanted = [
+                photo_of[ph] * n_pts + point_of[pt]
+                for ph, pt in self.exclude_observations
+                if ph in photo_of and pt in point_of
+            ]
+            keys = observations.photo.astype(np.int64) * n_pts + observations.point
+            drop |= np.isin(keys, wanted)
+        return points, drop
 
     def critical(self, stage: str, n_tests: int) -> float:
         """Critical |w| of a stage with n tests."""

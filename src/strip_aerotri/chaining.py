@@ -583,21 +583,7 @@ def _rotate_rows(matrices: FloatArray, index: IntArray, vectors: FloatArray) -> 
 
 def _excluded_rows(observations, blunders, row_l, row_r) -> np.ndarray:
     """Mask of pair rows kept after the user's exclusions (points, observations)."""
-    drop_obs = np.zeros(observations.photo.shape[0], dtype=bool)
-    if blunders.exclude_points:
-        names = np.asarray(observations.point_ids)
-        drop_obs |= np.isin(names[observations.point], list(blunders.exclude_points))
-    if blunders.exclude_observations:
-        photo_of = {pid: i for i, pid in enumerate(observations.photo_ids)}
-        point_of = {pid: i for i, pid in enumerate(observations.point_ids)}
-        n_pts = max(observations.n_points, 1)
-        wanted = [
-            photo_of[ph] * n_pts + point_of[pt]
-            for ph, pt in blunders.exclude_observations
-            if ph in photo_of and pt in point_of
-        ]
-        keys = observations.photo.astype(np.int64) * n_pts + observations.point
-        drop_obs |= np.isin(keys, wanted)
+    _, drop_obs = blunders.excluded(observations)
     return ~(drop_obs[row_l] | drop_obs[row_r])
 
 

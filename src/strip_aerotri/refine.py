@@ -869,12 +869,9 @@ def refine_frame(
         c_xyz = np.full((p, 3), np.nan)
         c_sig = np.full((p, 3), np.inf)
     else:
-        c_xyz = np.array(control_xyz, dtype=np.float64)
-        if c_xyz.shape != (p, 3):
-            raise ValueError(f"Expected `control_xyz` to have shape {(p, 3)}, got {c_xyz.shape}")
-        if control_sigma is None:
-            raise ValueError("`control_xyz` given without `control_sigma`")
-        c_sig = np.broadcast_to(np.asarray(control_sigma, dtype=np.float64), (p, 3)).copy()
+        c_xyz, c_sig = observed_with_sigma(
+            control_xyz, control_sigma, (p, 3), "control_xyz", "control_sigma"
+        )
     given = np.isfinite(c_xyz) & np.isfinite(c_sig)
     if np.any(c_sig[given] <= 0):
         raise ValueError("Expected positive standard deviations for `control_xyz`")
@@ -884,21 +881,9 @@ def refine_frame(
     if keep.shape != (k_all,):
         raise ValueError(f"Expected `observation_used` to have shape {(k_all,)}")
     ctrl_on = given.copy() if control_used is None else np.array(control_used, bool) & given
-    excluded_pts = set(blunders.exclude_points)
-    excluded_obs = set(blunders.exclude_observations)
-    if excluded_pts:
-        bad = np.array([pid in excluded_pts for pid in obs.point_ids], bool)
-        keep &= ~bad[obs.point]
-        ctrl_on[bad] = False
-    if excluded_obs:
-        pairs = np.array(
-            [
-                (obs.photo_ids[j], obs.point_ids[i]) in excluded_obs
-                for j, i in zip(obs.photo, obs.point, strict=True)
-            ],
-            bool,
-        )
-        keep &= ~pairs
+    excluded_points, excluded_obs = blunders.excluded(obs)
+    keep &= ~excluded_obs
+    ctrl_on[excluded_points] = False
     has_start = np.all(np.isfinite(points), axis=1)
     obs_rejected = np.zeros(k_all, bool)
     ctrl_rejected = np.zeros((p, 3), bool)
