@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
+from typing import NamedTuple
 
 import numpy as np
 
@@ -46,9 +47,12 @@ __all__ = [
     "MIN_POINTS_PER_PAIR",
     "RelativeOrientation",
     "RelativeOrientationMethod",
+    "SimilarityStart",
     "chain_rotations",
     "essential_start",
+    "homography_start",
     "relative_orientation",
+    "similarity_start",
 ]
 
 MIN_POINTS_PER_PAIR = 5
@@ -61,10 +65,30 @@ _EZ = np.array([0.0, 0.0, 1.0])
 # linearly (tests patch this to show it).
 _SCHUT_FACTOR = 0.5
 _ROBUST_STEPS = 10  # IRLS steps of the robust start
+# RMS y-parallax (in a priori sigmas) above which a converged pair is tried
+# from the other starts too (a wrong local minimum, or gross errors)
+_DOUBTFUL_MISFIT = 3.0
+# Points whose spread across their best-fitting image line is below this
+# fraction of the spread along it are collinear (_check_not_collinear).
+_COLLINEAR_RATIO = 1e-2
 _SUBSAMPLE_POINTS = 40  # points per pair in the first iterations
 _BLOCK_CELLS = 1 << 15  # cells (rows) per block: its temporaries stay in cache
 # Corrections below this fraction of their standard deviation are negligible.
 _PRECISION_FRACTION = 0.01
+# Step control of the safeguarded Gauss-Newton iteration (_iterate): a step
+# is accepted when Σ w q² does not grow by more than this fraction (rounding),
+# or this absolute amount (noise-free pairs near 0) ...
+_COST_RTOL = 1e-10
+_COST_ATOL = 1e-28
+# ... else Levenberg-Marquardt damping λ starts here, grows tenfold at each
+# failed step and shrinks tenfold at each good one, back to Gauss-Newton
+# below _DAMPING_MIN; beyond _DAMPING_MAX no step lowers the cost: the pair
+# is at a minimum if the Gauss-Newton step would lower the cost by less than
+# _STALL_RTOL of it.
+_DAMPING_START = 1e-3
+_DAMPING_MIN = 1e-7
+_DAMPING_MAX = 1e8
+_STALL_RTOL = 1e-6
 # Singular normal matrices (after equilibration to a unit diagonal): a
 # Cholesky pivot below _PIVOT_MIN or trace(N⁻¹) above _TRACE_MAX (condition
 # number of order 1e10).
@@ -205,6 +229,40 @@ def _check_pairs(pair: IntArray, n_pairs: int, labels: list[str] | None) -> IntA
             f"needs at least {MIN_POINTS_PER_PAIR}"
         )
     return counts
+
+
+def _check_not_collinear(left, pair, starts, counts, labels) -> None:
+    """Refuse pairs whose points lie nearly on one line in the left image.
+
+    Scale-free: the smaller singular value of the pair's centred normalised
+    image coordinates (x / -z, y / -z) below ``_COLLINEAR_RATIO`` of the
+    larger one.  Such points cannot determine the orientation whatever the
+    start (the rotation about their line stays free); the iteration may
+    still stop somewhere, so the verdict comes from the data, not from it.
+    """
+    uv = left[:, :2] / -left[:, 2:3]
+    n = counts[:, None]
+    mean = np.add.reduceat(uv, starts, axis=0) / n
+    d = uv - mean[pair]
+    sxx = np.add.reduceat(d[:, 0] ** 2, starts)
+    syy = np.add.reduceat(d[:, 1] ** 2, starts)
+    sxy = np.add.reduceat(d[:, 0] * d[:, 1], starts)
+    # eigenvalues of the 2 x 2 scatter matrix
+    half_trace = 0.5 * (sxx + syy)
+    root = np.sqrt(np.maximum(half_trace**2 - (sxx * syy - sxy**2), 0.0))
+    small, large = half_trace - root, half_trace + root
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.sqrt(np.maximum(small, 0.0) / large)
+    bad = np.flatnonzero(~(ratio >= _COLLINEAR_RATIO))
+    if bad.size:
+        m = int(bad[0])
+        others = f" (and {bad.size - 1} more pair(s))" if bad.size > 1 else ""
+        raise GeometryError(
+            f"{_name(labels, m)}{others}: the points do not determine the relative "
+            f"orientation: its {int(counts[m])} points lie nearly on one line in the "
+            f"image (spread across that line {ratio[m]:.1e} of the spread along it); "
+            "measure points spread over the whole overlap"
+        )
 
 
 def _name(labels: list[str] | None, m: int) -> str:
@@ -366,6 +424,28 @@ class _Record:
             self.redundancy[rows] = np.clip(1.0 - leverage[valid], 0.0, 1.0)
         self.stored |= pairs
 
+    def snapshot(self) -> tuple[FloatArray, FloatArray, np.ndarray]:
+        return self.parallax_um.copy(), self.redundancy.copy(), self.stored.copy()
+
+    def restore(self, pairs: np.ndarray, pair: IntArray, snapshot) -> None:
+        """Rows of the pairs in mask ``pairs`` (``pair``: pair of each row) back
+        to ``snapshot``."""
+        rows = pairs[pair]
+        self.parallax_um[rows] = snapshot[0][rows]
+        self.redundancy[rows] = snapshot[1][rows]
+        self.stored[pairs] = snapshot[2][pairs]
+
+    def misfit(self, pair: IntArray, var: FloatArray, n_pairs: int) -> FloatArray:
+        """RMS of the y-parallaxes in units of their a priori sigmas, per pair
+        (inf where not stored): about 1 at the solution, far more at a wrong
+        local minimum or with gross errors."""
+        z2 = (self.parallax_um / 1000.0) ** 2 / var
+        z2 = np.where(np.isfinite(z2), z2, np.inf)
+        with np.errstate(invalid="ignore"):
+            out = np.sqrt(np.bincount(pair, z2, minlength=n_pairs) / np.bincount(pair, minlength=n_pairs))
+        out[~self.stored] = np.inf
+        return out
+
 
 def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) -> _Evaluation:
     """Design rows and y-parallaxes at the current state, reduced to per-pair
@@ -496,6 +576,18 @@ def _solve_normals(
     return sol, singular, inverse.transpose(2, 0, 1) * scale[:, :, None] * scale[:, None, :]
 
 
+def _solve_damped(normal: FloatArray, gradient: FloatArray, damping: FloatArray) -> FloatArray:
+    """Levenberg-Marquardt corrections ``(N + λ diag N)⁻¹ g`` of a few pairs:
+    (m, 5, 5), (m, 5), (m,) -> (m, 5); zero where the damped matrix is
+    singular too."""
+    diag = np.einsum("mii->mi", normal)
+    scale = np.where(diag > 0.0, diag, np.maximum(diag.max(axis=1, keepdims=True), 1e-300))
+    damped = normal + (damping[:, None] * scale)[:, :, None] * np.eye(normal.shape[-1])
+    corr, singular, _ = _solve_normals(damped, gradient)
+    corr[singular] = 0.0
+    return corr
+
+
 def _iterate(
     state,
     blocks_of,
@@ -510,31 +602,54 @@ def _iterate(
     record=None,
     apply_last=False,
 ):
-    """Gauss-Newton steps for the active pairs until their corrections vanish.
+    """Safeguarded Gauss-Newton steps for the active pairs until their
+    corrections are negligible.
 
     ``blocks_of(mask, stride)`` gives the blocking of a set of pairs; after
     each step only the pairs still iterating are evaluated (the pairs are
     independent of each other).  A pair has converged when its next
-    correction is below ``tolerance``; that correction is not applied
-    (unless ``apply_last``), so the evaluation describes the final state,
-    and its residuals and redundancy numbers go to ``record``.  Returns
-    (converged mask, iterations per pair, singular-at-start mask).  Pairs
-    that diverge (non-finite or huge corrections) are frozen and reported
-    as not converged.  ``history`` receives the largest |y-parallax| (µm at
-    image scale) of the pairs evaluated, at each evaluation.
+    Gauss-Newton correction is negligible (below ``tolerance`` or 1 % of its
+    own standard deviation); that correction is not applied (unless
+    ``apply_last``), so the evaluation describes the final state, and its
+    residuals and redundancy numbers go to ``record``.
+
+    Every step must lower the pair's Σ w q²: a step that does not is taken
+    back and replaced by a Levenberg-Marquardt step ``(N + λ diag N)⁻¹ g``
+    from the normal equations kept from the accepted state, with λ ten times
+    larger at each failure and ten times smaller at each success (pure
+    Gauss-Newton again below 1e-7).  Gauss-Newton alone diverges or
+    oscillates from a poor start and, with noisy short-base pairs, where the
+    curvature of the y-parallax equation times the residuals matters,
+    near the solution too; the safeguard makes every pair descend.  A pair
+    whose cost no step can lower (λ beyond 1e8) has stopped at a minimum:
+    converged when the Gauss-Newton step would lower its cost by less than
+    1e-6 of it, failed otherwise.  A singular normal matrix is damped the
+    same way.
 
     With ``record`` (least squares to the end), a step is followed by a
     chord check (``_chord``): the pairs whose chord correction is negligible
-    have converged, with their residuals at the final state and redundancy
-    numbers from the design of the step (which differ by the size of the
-    step, relative); the others are evaluated in full.
+    (and whose cost fell) have converged, with their residuals at the final
+    state and redundancy numbers from the design of the step; the others are
+    evaluated in full.
+
+    Returns (converged mask, evaluations per pair, singular mask at the last
+    state of the pairs that did not converge).  ``history`` receives the
+    largest |y-parallax| (µm at image scale) of the pairs evaluated, at each
+    evaluation.
     """
     n_pairs = active.shape[0]
-    done = ~active
+    done = np.zeros(n_pairs, dtype=bool)
     failed = np.zeros(n_pairs, dtype=bool)
+    singular = np.zeros(n_pairs, dtype=bool)
     iterations = np.zeros(n_pairs, dtype=np.intp)
-    singular_start = np.zeros(n_pairs, dtype=bool)
     todo = active.copy()
+    damping = np.zeros(n_pairs)
+    # the accepted state: its cost, normal equations and (for the pairs it
+    # holds) the unknowns
+    kept_cost = np.full(n_pairs, np.inf)
+    kept_normal = np.zeros((n_pairs, 5, 5))
+    kept_gradient = np.zeros((n_pairs, 5))
+    kept = state.snapshot()
     blocks = blocks_of(todo, stride)
     # (evaluation, N⁻¹, pairs) of a step small enough for a chord check
     chord_from = None
@@ -544,7 +659,8 @@ def _iterate(
             ev, corr = _chord(state, ev, weight, n_inv)
             history.append(_largest_um(ev.max_parallax_mm[todo]))
             limit = _negligible_limit(ev, n_inv, tolerance)
-            small = todo & near & (np.abs(corr) < limit).all(axis=1)
+            lower = ev.sum_wqq <= kept_cost * (1.0 + _COST_RTOL)
+            small = todo & near & lower & (np.abs(corr) < limit).all(axis=1)
             iterations[small] = it - 1
             if small.any():
                 record.store(ev, small, n_inv)
@@ -556,36 +672,66 @@ def _iterate(
                 blocks = blocks_of(todo, stride)
         ev = _evaluate(state, blocks, weight, robust)
         history.append(_largest_um(ev.max_parallax_mm[todo]))
+        cost = ev.sum_wqq
+        with np.errstate(invalid="ignore"):
+            worse = todo & ~(cost <= kept_cost * (1.0 + _COST_RTOL) + _COST_ATOL)
+        better = todo & ~worse
+        if worse.any():
+            state.restore(worse, kept)
+            damping[worse] = np.maximum(damping[worse] * 10.0, _DAMPING_START)
+        damping[better] *= 0.1
+        damping[damping < _DAMPING_MIN] = 0.0
+        kept.save(better, state)
+        kept_cost[better] = cost[better]
+        kept_normal[better] = ev.normal[better]
+        kept_gradient[better] = ev.gradient[better]
         corr = np.zeros((n_pairs, 5))
         singular = np.zeros(n_pairs, dtype=bool)
         n_inv = np.zeros((n_pairs, 5, 5))
         corr[todo], singular[todo], n_inv[todo] = _solve_normals(
-            ev.normal[todo], ev.gradient[todo]
+            kept_normal[todo], kept_gradient[todo]
         )
-        if it == 1:
-            singular_start = singular & active
-        size = np.max(np.abs(corr), axis=1)
-        failed |= todo & (singular | ~np.isfinite(size) | (size > 1.0))
-        limit = _negligible_limit(ev, n_inv, tolerance)
-        small = todo & ~failed & (np.abs(corr) < limit).all(axis=1)
+        with np.errstate(invalid="ignore"):
+            sigma0_sq = kept_cost / np.maximum(ev.n_rows - MIN_POINTS_PER_PAIR, 1)
+            limit = np.maximum(
+                tolerance,
+                _PRECISION_FRACTION * np.sqrt(sigma0_sq[:, None] * np.einsum("mii->mi", n_inv)),
+            )
+        small = better & ~singular & (np.abs(corr) < limit).all(axis=1)
+        # a pair no step can lower stops at its minimum when the Gauss-Newton
+        # step would gain next to nothing
+        stuck = todo & ~small & (damping > _DAMPING_MAX)
+        if stuck.any():
+            gain = np.einsum("mi,mi->m", corr, kept_gradient)
+            at_minimum = stuck & better & ~singular & (gain <= _STALL_RTOL * kept_cost)
+            small |= at_minimum
+            failed |= stuck & ~at_minimum
         iterations[small] = it - 1
         if record is not None and small.any():
             record.store(ev, small, n_inv)
         done |= small
-        step = todo & ~failed & (apply_last | ~small)
         todo &= ~(small | failed)
+        damped = todo & ((damping > 0.0) | singular)
+        if damped.any():
+            damping[damped & (damping == 0.0)] = _DAMPING_START
+            corr[damped] = _solve_damped(
+                kept_normal[damped], kept_gradient[damped], damping[damped]
+            )
+        corr[~np.isfinite(corr).all(axis=1)] = 0.0
+        step = todo | (small & apply_last)
         corr[~step] = 0.0
         if step.any():
             state.update(corr)
         if not todo.any():
             break
         # Chord checks only near the solution, where they succeed (else they are
-        # lost work): the step reduces Σ w q² by less than half (the residuals
-        # are mostly noise, not an orientation still to be found), and the
-        # next correction, of the order of the step squared, is negligible.
+        # lost work): an undamped step that reduces Σ w q² by less than half (the
+        # residuals are mostly noise, not an orientation still to be found), and
+        # the next correction, of the order of the step squared, is negligible.
         near = (
             step
-            & (np.einsum("mi,mi->m", corr, ev.gradient) < 0.5 * ev.sum_wqq)
+            & (damping == 0.0)
+            & (np.einsum("mi,mi->m", corr, kept_gradient) < 0.5 * kept_cost)
             & (np.max(np.abs(corr), axis=1) ** 2 < np.min(limit, axis=1))
         )
         chord_from = (ev, n_inv, near) if record is not None and not robust else None
@@ -593,7 +739,7 @@ def _iterate(
             chord_from = None
         if todo.sum() < 0.8 * blocks.pairs.size:
             blocks = blocks_of(todo, stride)
-    return done & ~failed, iterations, singular_start
+    return done, iterations, active & ~done & singular
 
 
 def _largest_um(max_parallax_mm: FloatArray) -> float:
@@ -690,6 +836,7 @@ def relative_orientation(
     first = np.eye(3) if rotation_first is None else np.asarray(rotation_first, np.float64)
     counts = _check_pairs(pair, n_pairs, labels)
     starts = _segment_starts(pair, n_pairs)
+    _check_not_collinear(left, pair, starts, counts, labels)
     var = (
         np.broadcast_to(np.asarray(sigma_left, np.float64), pair.shape) ** 2
         + np.broadcast_to(np.asarray(sigma_right, np.float64), pair.shape) ** 2
@@ -720,11 +867,19 @@ def relative_orientation(
     everything = np.ones(n_pairs, dtype=bool)
     record = _Record(pair.shape[0], n_pairs)
     history: list[float] = []
+    first_start = None
+    if start is None:
+        # The relative rotation and the base from the homography of the two
+        # images: J's near-vertical start (Q = I, b = (1, 0, 0)) is far off
+        # for the swings and tilts of drone photos (relative kappa of 10-15
+        # deg, tilts of 5-8 deg against a base of 0.15 of the height).
+        first_start = homography_start(left, right, pair, n_pairs, starts)
+        state.restart(everything, *first_start)
     stride = np.maximum(counts // _SUBSAMPLE_POINTS, 1)
     if start is None and (stride > 1).any():
-        # From the near-vertical start the first steps only have to reach the
-        # region of quadratic convergence: take them on a spread subsample of
-        # every large pair, then finish on all points.
+        # The first steps only have to reach the region of quadratic
+        # convergence: take them on a spread subsample of every large pair,
+        # then finish on all points.
         ok, *_ = _iterate(
             state,
             blocks_of,
@@ -737,53 +892,58 @@ def relative_orientation(
             apply_last=True,
         )
         if not ok.all():
-            _restart_vertical(state, ~ok)
-    converged, iterations, singular_first = _iterate(
+            state.restart(~ok, first_start[0][~ok], first_start[1][~ok])
+    converged, iterations, always_singular = _iterate(
         state, blocks_of, weight, max_iterations, tolerance, everything, history, record=record
     )
-    if not converged.all():
-        # Large relative rotations (drone pairs, oblique photos): restart the
-        # pairs that failed from the linear (essential-matrix) solution.
-        retry = ~converged
-        rotation, base_dir = essential_start(left, right, pair, n_pairs, starts)
+    # Pairs that did not converge, or converged to y-parallaxes far above
+    # their a priori sigmas (a wrong local minimum, or gross errors), start
+    # again from the other linear starts: J's near-vertical one, and the
+    # essential matrix (large relative rotations, oblique photos; degenerate
+    # over flat ground).  A converged pair keeps the solution of least misfit.
+    misfit = record.misfit(pair, var, n_pairs)
+    for make_start in (_similarity_start, _vertical_start, essential_start):
+        retry = ~converged | (misfit > _DOUBTFUL_MISFIT)
+        if not retry.any():
+            break
+        before = state.snapshot(), record.snapshot()
+        rotation, base_dir = make_start(left, right, pair, n_pairs, starts)
         state.restart(retry, rotation[retry], base_dir[retry])
         ok, more, singular = _iterate(
             state, blocks_of, weight, max_iterations, tolerance, retry, history, record=record
         )
-        degenerate = singular | (singular_first & ~ok)
-        if degenerate.any():
-            m = int(np.flatnonzero(degenerate)[0])
-            raise GeometryError(
-                f"{_name(labels, m)}: the points do not determine the relative orientation "
-                "(singular normal equations: points collinear, in one plane with the base, "
-                "or too close together)"
-            )
-        iterations[retry] = more[retry]
+        new_misfit = record.misfit(pair, var, n_pairs)
+        better = ok & (~converged | (new_misfit < misfit))
+        back = retry & converged & ~better
+        state.restore(back, before[0])
+        record.restore(back, pair, before[1])
+        iterations[better] = more[better]
+        misfit = np.where(better, new_misfit, misfit)
         converged |= ok
+        always_singular &= singular | ~retry
     robust_done = np.zeros(n_pairs, dtype=bool)
     if not converged.all():
         # Gross errors (swapped ids, mm-size blunders) can keep least squares from
         # converging at all: find start values by robust IRLS from the
         # near-vertical start, then finish with ordinary least squares.
         retry = ~converged
-        _restart_vertical(state, retry)
+        rotation, base_dir = first_start or homography_start(left, right, pair, n_pairs, starts)
+        state.restart(retry, rotation[retry], base_dir[retry])
         _iterate(state, blocks_of, weight, max_iterations, 1e-6, retry, history, robust=True)
         # Observations beyond 5 robust sigmas of the robust fit take no part in
         # the final least squares (their w-tests then fail and they are
         # reported and rejected by the caller's data snooping).
         weight = np.where(_gross_rows(state, blocks_of(retry), pair.shape[0]), 0.0, weight)
-        ok, more, _ = _iterate(
+        ok, more, singular = _iterate(
             state, blocks_of, weight, max_iterations, tolerance, retry, history, record=record
         )
         iterations[retry] = more[retry]
         converged |= ok
+        always_singular &= singular | ~retry
         robust_done = retry
     if not converged.all():
-        bad = np.flatnonzero(~converged)
-        names = ", ".join(_name(labels, int(m)) for m in bad[:5])
-        raise ConvergenceError(
-            f"relative orientation did not converge in {max_iterations} iterations for {names}"
-            " (check point ids and image coordinates of these pairs)"
+        _raise_not_oriented(
+            ~converged, always_singular, left, right, pair, starts, counts, labels, max_iterations
         )
     if robust:
         # Gross errors that least squares converged through show as residuals
@@ -795,7 +955,7 @@ def relative_orientation(
         if suspect.any():
             _iterate(state, blocks_of, weight, _ROBUST_STEPS, 1e-6, suspect, history, robust=True)
             weight = np.where(_gross_rows(state, blocks_of(suspect), pair.shape[0]), 0.0, weight)
-            ok, more, _ = _iterate(
+            ok, more, singular = _iterate(
                 state,
                 blocks_of,
                 weight,
@@ -805,11 +965,10 @@ def relative_orientation(
                 history,
                 record=record,
             )
-            if not ok.all():
-                m = int(np.flatnonzero(suspect & ~ok)[0])
-                raise ConvergenceError(
-                    f"relative orientation did not converge in {max_iterations} iterations "
-                    f"for {_name(labels, m)} (check point ids and image coordinates of this pair)"
+            if not ok[suspect].all():
+                _raise_not_oriented(
+                    suspect & ~ok, singular, left, right, pair, starts, counts, labels,
+                    max_iterations,
                 )
             iterations[suspect] += more[suspect]
     rot_left, rot_right, relative = state.rotations()
@@ -856,10 +1015,233 @@ def relative_orientation(
     )
 
 
-def _restart_vertical(state, mask: np.ndarray) -> None:
-    """Back to the near-vertical start (``Q = I``, base along image x) for ``mask``."""
-    n = int(mask.sum())
-    state.restart(mask, np.broadcast_to(np.eye(3), (n, 3, 3)), np.tile(_EX, (n, 1)))
+def _similarity_start(left, right, pair, n_pairs, starts) -> tuple[FloatArray, FloatArray]:
+    """The rotation and base direction of :func:`similarity_start`."""
+    start = similarity_start(left, right, pair, n_pairs, starts)
+    return start.relative, start.base
+
+
+def _vertical_start(left, right, pair, n_pairs, starts) -> tuple[FloatArray, FloatArray]:
+    """J's near-vertical start: ``Q = I`` and the base along image x."""
+    return np.broadcast_to(np.eye(3), (n_pairs, 3, 3)), np.tile(_EX, (n_pairs, 1))
+
+
+class SimilarityStart(NamedTuple):
+    """Start values of the pairs from a 2D similarity between their images.
+
+    Attributes
+    ----------
+    relative : ndarray, shape (n_pairs, 3, 3)
+        Right image -> left image rotation: the relative kappa about image z.
+    base : ndarray, shape (n_pairs, 3)
+        Base direction in the left image (not normalised): the image shift
+        (x, y) of the similarity and the change of scale as z.
+    shift : ndarray, shape (n_pairs, 2)
+        The similarity's shift ``t`` of ``left ≈ a · right + t`` in
+        normalised image units (x / -z, y / -z): about base / height along
+        the base's image direction; its x is positive when the pair's right
+        photo follows the left one along image x.
+    kappa : ndarray, shape (n_pairs,)
+        Relative kappa ``arg a`` in radians.
+    scale : ndarray, shape (n_pairs,)
+        ``|a|``: the ratio of the photos' distances to the ground (right over
+        left).
+    """
+
+    relative: FloatArray
+    base: FloatArray
+    shift: FloatArray
+    kappa: FloatArray
+    scale: FloatArray
+
+
+def similarity_start(
+    left: ArrayLike,
+    right: ArrayLike,
+    pair: ArrayLike,
+    n_pairs: int,
+    starts: IntArray | None = None,
+) -> SimilarityStart:
+    """Linear start values of every pair from a 2D similarity of its images.
+
+    For near-vertical photos the image of a point on the right photo,
+    turned by the relative kappa, is the left one shifted by the base over
+    the height (times c) and scaled by the ratio of the flying heights:
+    ``z_l ≈ a z_r + t`` in complex normalised image coordinates
+    ``z = (x + i y) / (-z_image)``, solved in closed form per pair (least
+    squares over its points).  The start is ``Q = R_z(arg a)`` and the base
+    direction ``(t_x, t_y, |a| - 1)``; the tilts start at zero.  Unlike the
+    essential matrix it is not degenerate over flat ground, and unlike J's
+    start (``Q = I``) it is not far off for the swings of drone photos.
+
+    Parameters
+    ----------
+    left, right : array_like, shape (n, 3)
+        Image vectors of each point on the left and the right photo.
+    pair : array_like of int, shape (n,)
+        Sorted pair index of each row; every pair has at least one row.
+    n_pairs : int
+
+    Returns
+    -------
+    SimilarityStart
+    """
+    l = np.asarray(left, dtype=np.float64)
+    r = np.asarray(right, dtype=np.float64)
+    pair = np.asarray(pair, dtype=np.intp)
+    if starts is None:
+        starts = _segment_starts(pair, n_pairs)
+    zl = (l[:, 0] + 1j * l[:, 1]) / -l[:, 2]
+    zr = (r[:, 0] + 1j * r[:, 1]) / -r[:, 2]
+    counts = np.bincount(pair, minlength=n_pairs)
+    ml = np.add.reduceat(zl, starts) / counts
+    mr = np.add.reduceat(zr, starts) / counts
+    dl, dr = zl - ml[pair], zr - mr[pair]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        a = np.add.reduceat(np.conj(dr) * dl, starts) / np.add.reduceat(np.abs(dr) ** 2, starts)
+    a = np.where(np.isfinite(a), a, 1.0)
+    t = ml - a * mr
+    kappa = np.angle(a)
+    c, s = np.cos(kappa), np.sin(kappa)
+    relative = np.zeros((n_pairs, 3, 3))
+    relative[:, 0, 0], relative[:, 0, 1] = c, -s
+    relative[:, 1, 0], relative[:, 1, 1] = s, c
+    relative[:, 2, 2] = 1.0
+    base = np.column_stack([t.real, t.imag, np.abs(a) - 1.0])
+    # No usable direction from a shift of zero length (identical images) or
+    # across image x (the dependent pair fixes b_x = 1): start along x; the
+    # flight-direction checks name such strips before they get here.
+    base[~(np.abs(t.real) > 0.1 * np.abs(t))] = _EX
+    return SimilarityStart(
+        relative, base, np.column_stack([t.real, t.imag]), kappa, np.abs(a)
+    )
+
+
+def homography_start(
+    left: ArrayLike,
+    right: ArrayLike,
+    pair: ArrayLike,
+    n_pairs: int,
+    starts: IntArray | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """Linear start values of every pair from the homography of its images.
+
+    Over nearly flat ground the two bundles are related by the homography
+    of the ground plane, ``p ~ H l`` with ``H = R + t nᵀ / d`` (``R = Qᵀ``
+    and ``t = -Qᵀ b`` for the right photo, ``n`` the plane's normal and
+    ``d`` its distance in the left image system).  H is the eigenvector of
+    the smallest eigenvalue of each pair's 9 × 9 normal matrix (the DLT on
+    normalised image coordinates), and its decomposition (Malis & Vargas,
+    "Deeper understanding of the homography decomposition for vision-based
+    control", INRIA RR-6303, 2007, §3.1) gives two candidates with the
+    points in front of both photos; the one whose plane normal is nearest
+    the left photo's axis (ground below a near-vertical camera) is kept.
+    Unlike the image similarity it includes the relative tilts, and unlike
+    the essential matrix it is not degenerate over flat ground; relief makes
+    it approximate, which is all a start needs.
+
+    Parameters and returns as :func:`essential_start`.
+    """
+    l = np.asarray(left, dtype=np.float64)
+    p = np.asarray(right, dtype=np.float64)
+    pair = np.asarray(pair, dtype=np.intp)
+    if starts is None:
+        starts = _segment_starts(pair, n_pairs)
+    # image vectors scaled to z = -1: (u, v, -1)
+    a = l / -l[:, 2:3]
+    b = p / -p[:, 2:3]
+    # p × (H l) = 0: two rows per point in the nine entries of H (row-major)
+    zero = np.zeros_like(a)
+    rows1 = np.concatenate([zero, -b[:, 2:3] * a, b[:, 1:2] * a], axis=1)
+    rows2 = np.concatenate([b[:, 2:3] * a, zero, -b[:, 0:1] * a], axis=1)
+    normal = np.add.reduceat(
+        rows1[:, :, None] * rows1[:, None, :] + rows2[:, :, None] * rows2[:, None, :],
+        starts,
+        axis=0,
+    )
+    _, vec = np.linalg.eigh(normal)
+    h = vec[:, :, 0].reshape(-1, 3, 3)
+    # Scale so that the middle singular value is 1 and det(H) > 0.
+    sv = np.linalg.svd(h, compute_uv=False)
+    h = h / (sv[:, 1] * np.sign(np.linalg.det(h)))[:, None, None]
+    lam, v = np.linalg.eigh(np.swapaxes(h, 1, 2) @ h)  # ascending: λ3 <= 1 <= λ1
+    v1, v2, v3 = v[:, :, 2], v[:, :, 1], v[:, :, 0]
+    l1 = np.maximum(lam[:, 2], 1.0)
+    l3 = np.minimum(lam[:, 0], 1.0)
+    spread = np.sqrt(np.maximum(l1 - l3, 1e-300))[:, None]
+    wa = np.sqrt(1.0 - l3)[:, None]
+    wb = np.sqrt(l1 - 1.0)[:, None]
+    candidates = []
+    for sign in (1.0, -1.0):
+        u = (wa * v1 + sign * wb * v3) / spread
+        n = np.cross(v2, u)
+        hv2 = np.einsum("mij,mj->mi", h, v2)
+        hu = np.einsum("mij,mj->mi", h, u)
+        frame_u = np.stack([v2, u, n], axis=2)
+        frame_w = np.stack([hv2, hu, np.cross(hv2, hu)], axis=2)
+        rot = frame_w @ np.swapaxes(frame_u, 1, 2)
+        t = np.einsum("mij,mj->mi", h - rot, n)
+        for flip in (1.0, -1.0):
+            candidates.append((rot, flip * t, flip * n))
+    # In front of the left photo: nᵀ l > 0 for the points (the plane at
+    # distance d > 0 along n); among those, the normal nearest -z (ground
+    # below the camera).
+    best_q = np.broadcast_to(np.eye(3), (n_pairs, 3, 3)).copy()
+    best_b = np.tile(_EX, (n_pairs, 1))
+    best_score = np.full(n_pairs, -np.inf)
+    counts = np.bincount(pair, minlength=n_pairs)
+    for rot, t, n in candidates:
+        in_front = np.bincount(pair, np.einsum("ij,ij->i", n[pair], a) > 0, minlength=n_pairs)
+        norm = np.linalg.norm(n, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            score = np.where(in_front == counts, -n[:, 2] / norm, -np.inf)
+        better = score > best_score
+        q = np.swapaxes(rot, 1, 2)
+        base = -np.einsum("mij,mj->mi", q, t)
+        best_q[better] = q[better]
+        best_b[better] = base[better]
+        best_score = np.where(better, score, best_score)
+    ok = np.isfinite(best_score) & np.isfinite(best_b).all(axis=1) & (np.linalg.norm(best_b, axis=1) > 0)
+    best_q[~ok] = np.eye(3)
+    best_b[~ok] = _EX
+    return best_q, best_b
+
+
+def _raise_not_oriented(
+    failed, singular, left, right, pair, starts, counts, labels, max_iterations
+) -> None:
+    """Say why the pairs in ``failed`` could not be oriented (first one named).
+
+    Singular normal equations at the end of every attempt mean the points do
+    not determine the orientation: the message gives the spread of the
+    pair's points across and along the flight and how nearly they lie on a
+    line.  Otherwise no start converged: the message gives the pair's RMS
+    y-parallax at its best and points at gross errors.
+    """
+    bad = np.flatnonzero(failed)
+    m = int(bad[0])
+    rows = slice(int(starts[m]), int(starts[m]) + int(counts[m]))
+    uv = left[rows, :2] * (left[rows, 2:3] / left[rows, 2:3].mean())
+    extent = np.ptp(uv, axis=0)
+    centred = uv - uv.mean(axis=0)
+    sv = np.linalg.svd(centred, compute_uv=False) if centred.shape[0] >= 2 else np.zeros(2)
+    others = f" (and {bad.size - 1} more pair(s))" if bad.size > 1 else ""
+    layout = (
+        f"its {int(counts[m])} points span {extent[1]:.2f} mm across the flight and "
+        f"{extent[0]:.2f} mm along it on the left photo"
+    )
+    if singular[m]:
+        line = " and lie nearly on one line" if sv[1] < 1e-2 * max(sv[0], 1e-300) else ""
+        raise GeometryError(
+            f"{_name(labels, m)}{others}: the points do not determine the relative "
+            f"orientation (singular normal equations: {layout}{line}; points collinear, in "
+            "one plane with the base, or too close together)"
+        )
+    raise ConvergenceError(
+        f"relative orientation did not converge in {max_iterations} iterations for "
+        f"{_name(labels, m)}{others} from any start ({layout}): check the point ids and "
+        "image coordinates of this pair (a mismatched point, a wrong photo)"
+    )
 
 
 def _gross_rows(state, blocks: _Blocks, n_rows: int) -> np.ndarray:
@@ -966,6 +1348,40 @@ def essential_start(
     return best_q, best_b
 
 
+class _Snapshot:
+    """Copies of a state's unknowns (per-pair arrays), for steps taken back."""
+
+    def __init__(self, state):
+        self.arrays = {name: getattr(state, name).copy() for name in state.UNKNOWNS}
+
+    def save(self, mask: np.ndarray, state) -> None:
+        """Copy the unknowns of the pairs in ``mask`` from ``state``."""
+        if mask.any():
+            for name, values in self.arrays.items():
+                values[mask] = getattr(state, name)[mask]
+
+
+class _StateBase:
+    """Snapshot and restore of the per-pair unknowns listed in ``UNKNOWNS``."""
+
+    UNKNOWNS: tuple[str, ...] = ()
+
+    def snapshot(self) -> _Snapshot:
+        return _Snapshot(self)
+
+    def restore(self, mask: np.ndarray, snapshot: _Snapshot) -> None:
+        """Unknowns of the pairs in ``mask`` back to those of ``snapshot``."""
+        if mask.any():
+            for name, values in snapshot.arrays.items():
+                current = getattr(self, name).copy()
+                current[mask] = values[mask]
+                setattr(self, name, current)
+            self._refresh()
+
+    def _refresh(self) -> None:
+        """Recompute what derives from the unknowns (nothing by default)."""
+
+
 def _rotate(matrices: FloatArray, x: FloatArray, y: FloatArray, z: FloatArray):
     """Rows of ``matrices`` (nb, 3, 3) applied to the block's vectors (x, y, z),
     each (nb, width): the components of ``R @ v`` as three (nb, width) arrays."""
@@ -973,7 +1389,7 @@ def _rotate(matrices: FloatArray, x: FloatArray, y: FloatArray, z: FloatArray):
     return tuple(r[:, i, 0] * x + r[:, i, 1] * y + r[:, i, 2] * z for i in range(3))
 
 
-class _DependentState:
+class _DependentState(_StateBase):
     """Unknowns of J's dependent pairs, solved in the left photo's image frame.
 
     Per pair: the relative rotation ``Q`` (right image -> left image) and the
@@ -989,6 +1405,8 @@ class _DependentState:
     corrections of the rotation are found in the left image frame, where
     J's correcting rotation ``R_schut(a / 2)`` (fixed J(9)) premultiplies ``Q``.
     """
+
+    UNKNOWNS = ("relative", "beta")
 
     def __init__(self, n_pairs, first):
         self.n_pairs = n_pairs
@@ -1058,11 +1476,13 @@ class _DependentState:
         return np.column_stack([self.beta, schut_from_matrix(self.relative)])
 
 
-class _BaseState:
+class _BaseState(_StateBase):
     """Unknowns of B's base system: alpha'1, chi'1 of the left photo and the right
     photo's rotation (alpha'2, omega'2, chi'2) relative to the base system, whose
     x axis is the base.  Independent of the chain; the strip values follow from
     A_tau_nu = R_left · A(alpha'1, 0, chi'1)^T, B(126)-(136)."""
+
+    UNKNOWNS = ("angles_left", "r_right_base")
 
     def __init__(self, n_pairs, first):
         self.n_pairs = n_pairs
