@@ -18,6 +18,7 @@ from strip_aerotri.config import (
     PROJECT_KEYS,
     PROJECT_TABLES,
     AdjustmentOptions,
+    Block,
     Intersection,
     RelativeOrientation,
     Route,
@@ -134,6 +135,7 @@ def test_full_project_every_key_bom_crlf_comments(full: Path) -> None:
         intersection=Intersection.NORMAL,
         scale_transfer=ScaleTransfer.DISTANCE,
         max_iterations=12,
+        block=Block.STRIPS,  # written "Strips"
     )
     assert project.report.map_scale == 5000.0
     assert project.output_directory == full / "results"
@@ -647,7 +649,9 @@ def test_at_least_twenty_distinct_bad_inputs() -> None:
 def test_key_list_defaults_match_the_dataclass_defaults() -> None:
     defaults = AdjustmentOptions()
     for spec in PROJECT_KEYS:
-        if spec.table == "adjustment" and spec.key != "route":
+        # route and block are resolved by the loader (from the CRS; from the
+        # polynomial and sections keys)
+        if spec.table == "adjustment" and spec.key not in ("route", "block"):
             assert getattr(defaults, spec.key) == spec.default, spec.key
         assert spec.default_display  # something to show in docs and `stripaero check`
     assert {s.table for s in PROJECT_KEYS} == {t.name for t in PROJECT_TABLES}
@@ -670,4 +674,28 @@ def test_blunders_table_sets_the_critical_value_of_every_stage(minimal: Path) ->
 def test_blunders_stage_value_must_be_positive(minimal: Path) -> None:
     append("strip.toml", "\n[blunders]\ngnss = -1.0\n")(minimal)
     with pytest.raises(ConfigError, match=r"\[blunders\].*gnss"):
+        load_project(minimal / "strip.toml")
+
+
+@pytest.mark.parametrize(
+    ("lines", "block"),
+    [
+        ("", Block.MODELS),
+        ("polynomial = 3\n", Block.STRIPS),
+        ("sections = 2\n", Block.STRIPS),
+        ('block = "models"\n', Block.MODELS),
+        ('block = "STRIPS"\n', Block.STRIPS),
+        ('block = "strips"\npolynomial = 2\n', Block.STRIPS),
+    ],
+)
+def test_block_default_follows_the_polynomial_keys(minimal: Path, lines: str, block) -> None:
+    """Without a polynomial the models are transformed at once; naming a
+    polynomial or sections asks for J's construction."""
+    append("strip.toml", f"\n[adjustment]\n{lines}")(minimal)
+    assert load_project(minimal / "strip.toml").adjustment.block is block
+
+
+def test_block_models_with_a_polynomial_is_an_error(minimal: Path) -> None:
+    append("strip.toml", '\n[adjustment]\nblock = "models"\npolynomial = 3\n')(minimal)
+    with pytest.raises(ConfigError, match=r"\[adjustment\] polynomial: applies to block"):
         load_project(minimal / "strip.toml")

@@ -22,6 +22,9 @@ automatically and reproducibly:
 
 Stages: ``relative_orientation`` (y-parallaxes), ``tie_points``
 (differences between the determinations of a point in consecutive models),
+``models`` (a point's determination in a model against the adjusted point,
+when the models are transformed at once: a 3-D test, chi-square with three
+degrees of freedom),
 ``control`` (control deviations after the similarity and polynomial fit, and
 in the bundle refinement), ``straight_line`` (line points), and in the bundle
 refinement (:mod:`strip_aerotri.refine`) ``bundle`` (image coordinates),
@@ -53,6 +56,7 @@ __all__ = [
 STAGES = (
     "relative_orientation",
     "tie_points",
+    "models",
     "control",
     "straight_line",
     "bundle",
@@ -135,11 +139,17 @@ class BlunderOptions:
             drop |= np.isin(keys, wanted)
         return points, drop
 
-    def critical(self, stage: str, n_tests: int) -> float:
-        """Critical |w| of a stage with n tests."""
+    def critical(self, stage: str, n_tests: int, dof: int = 1) -> float:
+        """Critical |w| of a stage with n tests; for a test of ``dof``
+        components at once (``w = sqrt(vᵀ P v)``, chi-square) the square root
+        of the chi-square quantile."""
         if stage in self.critical_values:
             return float(self.critical_values[stage])
-        return critical_value(n_tests, self.alpha)
+        if dof == 1:
+            return critical_value(n_tests, self.alpha)
+        from scipy.stats import chi2
+
+        return float(np.sqrt(chi2.isf(float(self.alpha) / max(int(n_tests), 1), dof)))
 
 
 @dataclass(frozen=True)

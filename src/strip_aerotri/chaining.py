@@ -130,6 +130,11 @@ class StripModel:
     rejected_points : tuple of str
         Points whose determinations in consecutive models disagree (a failed
         tie test): left out of the strip model (NaN in ``points``).
+    model_photos : ndarray of int, optional
+        See :attr:`model_photo_positions`.
+    model_rows : ndarray of int, shape (n, 2), optional
+        The observations (rows of ``observations``) on the left and the
+        right photo behind each determination.
     """
 
     observations: ImageObservations
@@ -155,6 +160,7 @@ class StripModel:
     rejections: tuple[Rejection, ...] = field(default=())
     rejected_points: tuple[str, ...] = field(default=())
     model_photos: IntArray | None = None
+    model_rows: IntArray | None = None
 
     @property
     def model_photo_positions(self) -> IntArray:
@@ -512,6 +518,7 @@ def form_strip(
         model_labels=tuple(labels),
         rejections=tuple(rejections),
         rejected_points=tuple(observations.point_ids[i] for i in rejected_point_index),
+        model_rows=np.column_stack([row_l, row_r]),
     )
 
 

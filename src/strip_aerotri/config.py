@@ -62,6 +62,7 @@ __all__ = [
     "PROJECT_KEYS",
     "PROJECT_TABLES",
     "AdjustmentOptions",
+    "Block",
     "BlunderAction",
     "Camera",
     "ColumnSpec",
@@ -150,6 +151,16 @@ class RelativeOrientation(_OptionEnum):
     """Base components b_y, b_z and Schut's a, b, c of the right photo (J(5)-(10))."""
     BASE = "base"
     """B's rotation-only elements alpha'1, chi'1, alpha'2, omega'2, chi'2 (B(125)-(135))."""
+
+
+class Block(_OptionEnum):
+    """How the strip goes to the ground (``[adjustment] block``, method.md §6A)."""
+
+    MODELS = "models"
+    """Every model its own similarity, all at once, tied on common points and
+    projection centres (R4 §3, PAT-M)."""
+    STRIPS = "strips"
+    """The strip as one body: J's similarity and deformation polynomials."""
 
 
 class Intersection(_OptionEnum):
@@ -487,6 +498,14 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False,
     ),
     KeySpec(
+        "adjustment", "block", "choice", required=False, default=None, unit="",
+        description='How the strip goes to the ground: "models" (every model its own 3D '
+        "similarity, all transformed at once onto the control and onto each other on their "
+        'common points and projection centres, R4 3) or "strips" (the strip as one body: '
+        "J's similarity and deformation polynomials).",
+        default_text='"models"; "strips" when polynomial or sections is given',
+    ),
+    KeySpec(
         "adjustment", "relative_orientation", "choice", required=False,
         default=RelativeOrientation.DEPENDENT, unit="",
         description='"dependent" (b_y, b_z and Schut a, b, c; J) or "base" '
@@ -565,6 +584,13 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
     KeySpec(
         "blunders", "tie_points", "positive number", required=False, default=None, unit="",
         description="Critical |w| of the tie-point height tests (overrides alpha).",
+        contract=False, default_text="from alpha",
+    ),
+    KeySpec(
+        "blunders", "models", "positive number", required=False, default=None, unit="",
+        description="Critical value of the tests of a point's determination in a model "
+        'against the adjusted point (block = "models"; square root of a chi-square with 3 '
+        "degrees of freedom; overrides alpha).",
         contract=False, default_text="from alpha",
     ),
     KeySpec(
@@ -650,6 +676,7 @@ _ENUM_OF_KEY: dict[tuple[str, str], type[StrEnum]] = {
     ("blunders", "action"): BlunderAction,
     ("adjustment", "refine"): Refine,
     ("adjustment", "route"): Route,
+    ("adjustment", "block"): Block,
     ("adjustment", "relative_orientation"): RelativeOrientation,
     ("adjustment", "intersection"): Intersection,
     ("adjustment", "scale_transfer"): ScaleTransfer,
@@ -771,6 +798,10 @@ class AdjustmentOptions:
     polynomial : int (0..3) or ``"auto"``
     sections : int
         Sections along the strip of the deformation polynomials (1: J(16)).
+    block : Block
+        ``MODELS`` (every model at once) or ``STRIPS`` (J's polynomials);
+        the loader resolves the default (``STRIPS`` when the project names a
+        polynomial or sections).
     relative_orientation : RelativeOrientation
     intersection : Intersection
     scale_transfer : ScaleTransfer
@@ -791,6 +822,7 @@ class AdjustmentOptions:
     photo_step: int | Literal["auto"] = DEFAULT_PHOTO_STEP
     min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT
     refine: Refine = Refine.NONE
+    block: Block = Block.MODELS
 
 
 @dataclass(frozen=True)
@@ -1991,6 +2023,17 @@ def load_project(path: str | Path) -> Project:
             f"{toml_path}: [adjustment] sections: {sections} sections need a polynomial type "
             '1, 2, 3 or "auto", got polynomial = 0'
         )
+    raw_adjustment = doc.get("adjustment", {})
+    named = [key for key in ("polynomial", "sections") if key in raw_adjustment]
+    block = adjustment["block"]
+    if block is None:
+        block = Block.STRIPS if named else Block.MODELS
+    elif block is Block.MODELS and named:
+        raise ConfigError(
+            f"{toml_path}: [adjustment] {named[0]}: applies to block = \"strips\" (J's "
+            'polynomials); with block = "models" every model has its own similarity. Remove '
+            f"{named[0]} or set block = \"strips\""
+        )
     options = AdjustmentOptions(
         route=route,
         polynomial=polynomial,
@@ -2002,6 +2045,7 @@ def load_project(path: str | Path) -> Project:
         photo_step=adjustment["photo_step"],  # type: ignore[arg-type]
         min_base_to_height=float(adjustment["min_base_to_height"]),  # type: ignore[arg-type]
         refine=adjustment["refine"],  # type: ignore[arg-type]
+        block=block,  # type: ignore[arg-type]
     )
     map_scale = report["map_scale"]
     return Project(

@@ -55,7 +55,15 @@ from .similarity import (
     similarity_from_points,
 )
 
-__all__ = ["GroundOptions", "GroundResult", "LineSpec", "Route", "adjust_to_ground"]
+__all__ = [
+    "Construction",
+    "GroundOptions",
+    "GroundResult",
+    "LineSpec",
+    "Route",
+    "adjust_to_ground",
+    "control_detectability",
+]
 
 _MAX_PASSES = 8
 #: sigma0 of the last ground fit above which its misfit is warned about (the
@@ -89,6 +97,18 @@ class LineSpec:
     name: str = "line"
 
 
+class Construction(str, Enum):
+    """How the strip goes to the ground (the ``block`` key of the project).
+
+    ``MODELS``: every model its own similarity, all at once, tied on their
+    common points and projection centres (R4 §3, PAT-M; ground_models.py).
+    ``STRIPS``: the strip as one body, J's similarity and deformation
+    polynomials (J(16)-(18))."""
+
+    MODELS = "models"
+    STRIPS = "strips"
+
+
 @dataclass(frozen=True)
 class GroundOptions:
     """Choices of the ground stage.
@@ -97,23 +117,44 @@ class GroundOptions:
     ----------
     route : {"geocentric", "projected"}, optional
         Default: geocentric, projected when the CRS is "local".
-    polynomial : int 0..3 or "auto"
-        J(16) type of the deformation polynomials (0: similarity only).
+    polynomial : int 0..3 or "auto", optional
+        J(16) type of the deformation polynomials (0: similarity only) of
+        the construction ``"strips"``; 3 when not given.
     sections : int >= 1
         Sections of equal length along the strip over which the polynomials
         become splines joined without steps (1: J(16)'s single polynomial;
         see :mod:`strip_aerotri.deformation`).  A long strip bends beyond
         one cubic (its error grows as a random walk along the chain); each
         section needs control of every coordinate.
+    construction : {"models", "strips"}, optional
+        ``"models"``: every model transformed at once (the default);
+        ``"strips"``: the strip as one body with J's polynomials, the
+        default when ``polynomial`` or ``sections`` is given.
     """
 
     route: Route | None = None
-    polynomial: int | str = 3
+    polynomial: int | str | None = None
     sections: int = 1
+    construction: Construction | None = None
 
     def __post_init__(self) -> None:
         if self.route is not None:
             object.__setattr__(self, "route", Route(self.route))
+        construction = self.construction
+        if construction is None:
+            named = self.polynomial is not None or self.sections != 1
+            construction = Construction.STRIPS if named else Construction.MODELS
+        construction = Construction(construction)
+        object.__setattr__(self, "construction", construction)
+        if construction is Construction.MODELS and (
+            self.polynomial not in (None, 0) or self.sections != 1
+        ):
+            raise ValueError(
+                "Expected no polynomial and no sections with construction 'models' (every "
+                "model has its own similarity); use construction 'strips' for J's polynomials"
+            )
+        if self.polynomial is None:
+            object.__setattr__(self, "polynomial", 3)
         poly = self.polynomial
         if isinstance(poly, str):
             if poly.lower() != "auto":
@@ -188,7 +229,20 @@ class GroundResult:
     line_used : tuple of ndarray of bool
         Line points that entered the final fit.
     rejections : tuple of Rejection
-        Control and line observations that failed the blunder tests.
+        Control and line observations that failed the blunder tests (and,
+        with ``applied`` False and an ``effect`` saying so, those kept
+        because their rejection would leave the control unable to carry
+        the strip).
+    control_redundancy : ndarray, shape (C, 3)
+        Redundancy numbers of the control components used (NaN elsewhere):
+        the share of an error of the component that shows in its residual.
+    control_mde : ndarray, shape (C, 3)
+        Minimal detectable error of each used component, metres (Baarda:
+        ``σ δ0 / sqrt(r)``, δ0 for the stage's critical value and 80 %
+        power; inf where r is 0: an error there cannot be detected at all).
+    models : ModelAdjustment or None
+        The simultaneous transformation of the models (construction
+        ``"models"``, :mod:`strip_aerotri.ground_models`).
     """
 
     route: Route
@@ -221,6 +275,14 @@ class GroundResult:
     used_h: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     line_used: tuple[np.ndarray, ...] = ()
     rejections: tuple[Rejection, ...] = ()
+    control_redundancy: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    control_mde: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    models: Any = None
+
+    @property
+    def construction(self) -> Construction:
+        """How the strip went to the ground."""
+        return Construction.STRIPS if self.models is None else Construction.MODELS
 
     @property
     def polynomial_kind(self) -> int:
@@ -835,6 +897,16 @@ def adjust_to_ground(
     else:
         line_resid = tuple(_line_residuals(points_work[li]) for li in line_index)
 
+    final_fit = sim if deformation is None else deformation
+    act = sol.active
+    red_act = np.asarray(final_fit.redundancy_numbers, dtype=np.float64)
+    sigma_act = np.column_stack([exp_xy, exp_xy, exp_z])[act]
+    red, mde = control_detectability(
+        red_act, sigma_act, blunders, int(np.isfinite(red_act).sum())
+    )
+    control_red = np.full((rows.shape[0], 3), np.nan)
+    control_mde = np.full((rows.shape[0], 3), np.nan)
+    control_red[act], control_mde[act] = red, mde
     return GroundResult(
         route=route,
         crs=crs,
@@ -866,7 +938,31 @@ def adjust_to_ground(
         used_h=use_z_final & ~check,
         line_used=tuple(k.copy() for k in line_keep),
         rejections=tuple(rejections),
+        control_redundancy=control_red,
+        control_mde=control_mde,
     )
+
+
+def control_detectability(
+    redundancy: FloatArray, sigma: FloatArray, blunders: BlunderOptions, n_tests: int
+) -> tuple[FloatArray, FloatArray]:
+    """Redundancy numbers (clipped to 0..1) and minimal detectable errors of
+    control components, both (C, 3).
+
+    The minimal detectable error (Baarda 1968) is ``σ δ0 / sqrt(r)``, with
+    δ0 the critical value of the stage ``control`` for ``n_tests`` tests
+    plus 0.84 (80 % power): an error that size is found with probability
+    0.8; inf where r is below 1e-6 (the component has no redundancy: its
+    error goes wholly into the solution and cannot show).
+    """
+    from .simultaneous import baarda_delta
+
+    r = np.clip(np.asarray(redundancy, dtype=np.float64), 0.0, 1.0)
+    delta = baarda_delta(blunders.critical("control", max(n_tests, 1)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mde = np.where(r > 1e-6, np.asarray(sigma, dtype=np.float64) * delta / np.sqrt(r), np.inf)
+    mde[~np.isfinite(redundancy)] = np.nan
+    return r, mde
 
 
 def _line_residuals(xyz: FloatArray) -> FloatArray:

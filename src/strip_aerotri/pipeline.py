@@ -21,7 +21,7 @@ from .blunders import BlunderOptions, Rejection
 from .chaining import StripModel, StripOptions
 from .densify import DEFAULT_MIN_BASE_TO_HEIGHT, form_strip_stepped
 from .geodesy import GroundCRS
-from .ground import GroundOptions, GroundResult, LineSpec, adjust_to_ground
+from .ground import Construction, GroundOptions, GroundResult, LineSpec, adjust_to_ground
 from .observations import ControlPoints, ImageObservations
 
 __all__ = ["AccuracyStatistics", "StripResult", "run_project", "triangulate"]
@@ -207,10 +207,19 @@ def triangulate(
     )
     timings["strip_formation"] = time.perf_counter() - t0
     t1 = time.perf_counter()
-    say("orienting the strip on the control")
-    ground = adjust_to_ground(
-        strip, control, crs, lines=lines, options=ground_options, blunders=blunders
-    )
+    ground_options = ground_options or GroundOptions()
+    if ground_options.construction is Construction.MODELS:
+        from .ground_models import adjust_models_to_ground
+
+        say("transforming the models onto the control")
+        ground = adjust_models_to_ground(
+            strip, control, crs, lines=lines, options=ground_options, blunders=blunders
+        )
+    else:
+        say("orienting the strip on the control")
+        ground = adjust_to_ground(
+            strip, control, crs, lines=lines, options=ground_options, blunders=blunders
+        )
     timings["ground"] = time.perf_counter() - t1
     notes = list(warnings)
     notes += [r.describe() for r in strip.rejections + ground.rejections]
@@ -276,8 +285,12 @@ def run_project(
         scale_transfer=str(adj.scale_transfer.value),
         max_iterations=int(adj.max_iterations),
     )
+    block = str(getattr(getattr(adj, "block", None), "value", "strips"))
     ground_options = GroundOptions(
-        route=str(adj.route.value), polynomial=adj.polynomial, sections=adj.sections
+        route=str(adj.route.value),
+        polynomial=adj.polynomial if block == "strips" else None,
+        sections=adj.sections,
+        construction=block,
     )
     lines = [
         LineSpec(point_ids=tuple(spec.point_ids), weight=spec.weight, name=spec.name)

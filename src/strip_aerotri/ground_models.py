@@ -1,0 +1,592 @@
+"""The strip to the ground model by model: every model its own similarity.
+
+R4 §3's construction for one strip (method.md §6A, "block by independent
+models"; PAT-M): the models of the chain are transformed at once, each by
+its own 3D similarity, onto the control and onto each other on the points
+they share (the tie points of the triple overlaps, every point seen in two
+or more models) and on the projection centres (each shared by two
+consecutive models).  The chain's accumulated errors of scale and rotation,
+which J's polynomials can follow only as far as a cubic bends, are taken out
+model by model, with the weight the tie points give them.
+
+Every determination of a point in a model is weighted by its information
+from its two rays (:func:`strip_aerotri.precision.ray_information`, photos
+held fixed: a model point is weak along the rays, above all in height at a
+short base), every projection centre by its information from a space
+resection on the model's points (:func:`strip_aerotri.precision.centre_information`).
+The control enters with its own sigmas, straight lines (J(18)) as
+conditions on the adjusted points.  The solution is
+:func:`strip_aerotri.simultaneous.adjust_units` in the ground stage's work
+frame (docs/ground.md); J's similarity (:func:`strip_aerotri.ground.adjust_to_ground`
+with polynomial 0) gives the frame, the start values and the checks of the
+control's geometry.
+
+Gross errors are tested here too: the control by Baarda's w with exact
+redundancy numbers (one rejection at a time, never one that would leave the
+control unable to carry the strip: such a point is kept and flagged), the
+determinations of a point in a model by their 3-D residual (stage
+``models``), and the line points.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ._typing import FloatArray, IntArray
+from .blunders import BlunderOptions, Rejection
+from .chaining import StripModel
+from .errors import GeometryError, StripAerotriWarning
+from .geodesy import GroundCRS
+from .ground import (
+    GroundOptions,
+    GroundResult,
+    LineSpec,
+    _index_of,
+    _make_work,
+    adjust_to_ground,
+    control_detectability,
+)
+from .observations import ControlPoints
+from .precision import centre_information, ray_information
+from .rotation import opk_from_matrix
+from .similarity import _validate_control_geometry
+from .simultaneous import (
+    LineCondition,
+    SimultaneousResult,
+    UnitObservations,
+    UnitTransforms,
+    adjust_units,
+)
+
+__all__ = ["ModelAdjustment", "adjust_models_to_ground"]
+
+_MAX_PASSES = 8
+_PASS_TOLERANCE_M = 1e-5
+
+
+@dataclass(frozen=True)
+class ModelAdjustment:
+    """The simultaneous transformation of the models of a strip.
+
+    Attributes
+    ----------
+    result : SimultaneousResult
+        Units are the models (unit m is model m); points ``0 .. P − 1`` are
+        the strip's points, ``P + j`` the projection centre of photo j.
+    model : ndarray of int, shape (n,)
+        Model of each determination (rows of the strip's ``model_points``
+        that took part; rejected ones left out).
+    point : ndarray of int, shape (n,)
+        Its point.
+    discrepancy : ndarray, shape (n, 3)
+        Its residual, model point minus adjusted point, metres along the
+        work frame (X along the strip, Y left, Z up): the "differences
+        between determinations" of R4 §2.2, after the adjustment.
+    model_rms : ndarray, shape (M, 3)
+        RMS of the discrepancies of each model's points, metres.
+    centre_discrepancy : ndarray, shape (M, 2, 3)
+        Left and right projection centre of each model minus its adjusted
+        position, metres.
+    rejected : tuple of (str, str)
+        (model label, point id) of determinations left out as gross errors.
+    """
+
+    result: SimultaneousResult
+    model: IntArray
+    point: IntArray
+    discrepancy: FloatArray
+    model_rms: FloatArray
+    centre_discrepancy: FloatArray
+    rejected: tuple[tuple[str, str], ...] = ()
+
+    @property
+    def sigma0(self) -> float:
+        return self.result.sigma0
+
+
+def _weights(strip: StripModel, start_transform, sigma_fallback: float):
+    """Work-frame information matrices of the determinations (n, 3, 3) and of
+    the left and right centre of each model (M, 3, 3) each."""
+    obs = strip.observations
+    c = obs.principal_distance
+    pos = strip.model_photo_positions
+    m = strip.model
+    left, right = pos[m], pos[m + 1]
+    rot = start_transform.apply_to_rotation(strip.rotations)
+    centres = start_transform.apply(strip.centres)
+    points = start_transform.apply(strip.model_points)
+    if strip.model_rows is not None:
+        sig_l = obs.sigma[strip.model_rows[:, 0]]
+        sig_r = obs.sigma[strip.model_rows[:, 1]]
+    else:
+        sig_l = sig_r = np.full(m.shape[0], sigma_fallback)
+    info = ray_information(points, centres[left], rot[left], c, sig_l)
+    info += ray_information(points, centres[right], rot[right], c, sig_r)
+    n_models = strip.n_models
+    c_left = centre_information(points, centres[left], rot[left], c, sig_l, m, n_models)
+    c_right = centre_information(points, centres[right], rot[right], c, sig_r, m, n_models)
+    # A model whose points cannot fix a centre (too few, degenerate): the
+    # centre gets the weight of one of the model's points, isotropic.
+    typical = np.median(np.einsum("nii->n", info)) / 3.0
+    for block in (c_left, c_right):
+        bad = ~np.isfinite(block).all(axis=(1, 2))
+        block[bad] = typical * np.eye(3)
+    return info, c_left, c_right
+
+
+def adjust_models_to_ground(
+    strip: StripModel,
+    control: ControlPoints,
+    crs: GroundCRS | str,
+    *,
+    lines: Sequence[LineSpec] = (),
+    options: GroundOptions | None = None,
+    blunders: BlunderOptions | None = None,
+) -> GroundResult:
+    """Transform every model of the strip at once onto the control.
+
+    Parameters and result as :func:`strip_aerotri.ground.adjust_to_ground`;
+    the result's ``similarity`` is J's similarity of the whole strip (the
+    start values), ``deformation`` is None and ``models`` holds the
+    simultaneous transformation.
+
+    Raises
+    ------
+    GeometryError
+        Insufficient or degenerate control (J's rules for the similarity),
+        line points not triangulated, a model not tied to the others.
+    """
+    options = options or GroundOptions()
+    blunders = blunders or BlunderOptions()
+    if not isinstance(crs, GroundCRS):
+        crs = GroundCRS.from_user_input(crs)
+    obs = strip.observations
+    # J's similarity of the whole strip: the work frame along the strip, the
+    # start values, and the checks of the control's geometry (its own misfit
+    # warnings concern the similarity alone, which the models replace).
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        start = adjust_to_ground(
+            strip,
+            control,
+            crs,
+            options=GroundOptions(route=options.route, polynomial=0, sections=1),
+            blunders=BlunderOptions(action="off"),
+        )
+    route = start.route
+    rows = start.control_index
+    check = start.is_check
+    ids = tuple(control.point_ids[r] for r in rows)
+    idx = _index_of(obs.point_ids, ids)
+    given = control.xyz[rows]
+    use_xy0 = control.uses_xy[rows] & ~check
+    use_z0 = control.uses_h[rows] & ~check
+    guess = np.where(np.isnan(given), start.points[idx], given)
+    active0 = use_xy0 | use_z0
+    work = _make_work(route, crs, guess[active0], start.azimuth)
+    transform = start.similarity.transform
+
+    n_points = obs.n_points
+    pos = strip.model_photo_positions
+    n_models = strip.n_models
+    n_photos = strip.centres.shape[0]
+    info, c_left, c_right = _weights(strip, transform, float(np.median(obs.sigma)))
+
+    line_index = [_index_of(obs.point_ids, line.point_ids) for line in lines]
+    plan_sigma = float(
+        np.hypot(np.median(control.sigma_xy[rows][active0]), start.expected_sigma_plan)
+    )
+    sig_xy, sig_h = control.sigma_xy[rows], control.sigma_h[rows]
+    model_ids = np.arange(n_models)
+    units_all = np.concatenate([strip.model, model_ids, model_ids])
+    points_all = np.concatenate([strip.model_point, n_points + pos[:-1], n_points + pos[1:]])
+    xyz_all = np.vstack([strip.model_points, strip.centres[pos[:-1]], strip.centres[pos[1:]]])
+    weight_all = np.concatenate([info, c_left, c_right])
+    n_det = strip.model.shape[0]
+    start_units = UnitTransforms(
+        np.full(n_models, transform.scale),
+        np.broadcast_to(transform.rotation, (n_models, 3, 3)).copy(),
+        np.broadcast_to(transform.translation, (n_models, 3)).copy(),
+        np.zeros((n_models, 3)),
+    )
+    points0 = np.vstack(
+        [
+            np.where(np.isfinite(start.points_work), start.points_work, 0.0),
+            start.photo_centres_work,
+        ]
+    )
+
+    def solve(keep_rows, use_xy, use_z, line_keep, previous):
+        """The passes of the plan/height iteration for one set of observations."""
+        active = use_xy | use_z
+        unit_obs = UnitObservations(
+            units_all[keep_rows], points_all[keep_rows], xyz_all[keep_rows], weight_all[keep_rows]
+        )
+        conditions = [
+            LineCondition(point=li[keep], sigma=plan_sigma / np.sqrt(line.weight))
+            for line, li, keep in zip(lines, line_index, line_keep, strict=True)
+        ]
+        guess_ = guess.copy() if previous is None else previous[1]
+        starts = start_units if previous is None else previous[0].transforms
+        p0 = points0 if previous is None else np.where(
+            np.isfinite(previous[0].points), previous[0].points, points0
+        )
+        res, converged, n_pass = None, False, 0
+        for n_pass in range(1, _MAX_PASSES + 1):
+            target = work.to_work(guess_)
+            target[~use_xy, :2] = np.nan
+            target[~use_z, 2] = np.nan
+            sigma = np.column_stack([sig_xy, sig_xy, sig_h])
+            res = adjust_units(
+                unit_obs,
+                n_models,
+                n_points + n_photos,
+                start=starts,
+                points0=p0,
+                control_point=idx[active],
+                control_xyz=target[active],
+                control_sigma=sigma[active],
+                lines=conditions,
+            )
+            adjusted = work.from_work(res.points[idx])
+            new_guess = given.copy()
+            new_guess[np.isnan(given)] = adjusted[np.isnan(given)]
+            change = float(np.nanmax(np.abs(new_guess - guess_), initial=0.0))
+            guess_ = new_guess
+            starts, p0 = res.transforms, np.where(np.isfinite(res.points), res.points, p0)
+            if change < _PASS_TOLERANCE_M:
+                converged = True
+                break
+        return res, guess_, converged, n_pass, active
+
+    keep_rows = np.ones(units_all.shape[0], dtype=bool)
+    use_xy, use_z = use_xy0.copy(), use_z0.copy()
+    line_keep = [np.ones(len(li), dtype=bool) for li in line_index]
+    rejections: list[Rejection] = []
+    kept_flags: list[Rejection] = []
+    rejected_rows: list[tuple[str, str]] = []
+    n_control_obs = int(2 * use_xy.sum() + use_z.sum())
+    sol = None
+    while True:
+        sol = solve(keep_rows, use_xy, use_z, line_keep, sol)
+        res, _, _, _, active = sol
+        if not blunders.testing:
+            break
+        found = _tests(res, sol, ids, idx, use_xy, use_z, keep_rows, n_det, strip, lines,
+                       line_index, line_keep, plan_sigma, blunders)
+        found = [f for f in found if (f[0].stage, f[0].point, f[0].component) not in
+                 {(k.stage, k.point, k.component) for k in kept_flags}]
+        if not found:
+            break
+        if not blunders.rejecting:
+            rejections.extend(f[0] for f in found)
+            break
+        worst, apply = max(found, key=lambda f: abs(f[0].w) / f[0].critical)
+        if worst.stage == "control":
+            trial_xy, trial_z = use_xy.copy(), use_z.copy()
+            apply(trial_xy, trial_z)
+            if not _feasible(strip, idx, work.to_work(sol[1]), trial_xy, trial_z, ids):
+                # Rejection must never make the adjustment impossible: keep
+                # the point, flagged with its test value.
+                kept_flags.append(
+                    replace(
+                        worst,
+                        applied=False,
+                        effect="kept: without it the control could not carry the strip "
+                        "(J's rules for the similarity); check this point",
+                    )
+                )
+                continue
+            use_xy, use_z = trial_xy, trial_z
+            rejected_obs = n_control_obs - int(2 * use_xy.sum() + use_z.sum())
+            if rejected_obs > blunders.max_fraction * max(n_control_obs, 1):
+                raise GeometryError(
+                    f"control: more than {blunders.max_fraction:.0%} of the control "
+                    "observations fail the blunder test; the control cannot be trusted"
+                )
+        elif worst.stage == "models":
+            apply(keep_rows)
+            label = worst.photos
+            rejected_rows.append((label[0] if label else "", worst.point))
+            if (~keep_rows[:n_det]).sum() > blunders.max_fraction * n_det:
+                raise GeometryError(
+                    f"models: more than {blunders.max_fraction:.0%} of the determinations "
+                    "fail the blunder test; the image coordinates cannot be trusted"
+                )
+        else:
+            apply(line_keep)
+        rejections.append(worst)
+
+    res, guess, converged, n_pass, active = sol
+    if not converged:
+        warnings.warn(
+            f"ground stage: the passes did not settle in {n_pass} (the estimated coordinates "
+            "of plan and height control still changed); the results are those of the last pass",
+            StripAerotriWarning,
+            stacklevel=2,
+        )
+    return _products(
+        strip, start, work, res, guess, given, idx, rows, check, use_xy, use_z, ids, lines,
+        line_index, line_keep, keep_rows, n_det, n_pass, converged,
+        tuple(rejections + kept_flags), tuple(rejected_rows), blunders,
+        np.column_stack([sig_xy, sig_xy, sig_h]), use_xy0, use_z0,
+    )
+
+
+def _feasible(strip, idx, target, use_xy, use_z, ids) -> bool:
+    """True when the control left satisfies J's rules for the similarity."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        try:
+            _validate_control_geometry(
+                strip.points[idx], target, use_xy, use_z, ids
+            )
+        except GeometryError:
+            return False
+    return True
+
+
+def _tests(res, sol, ids, idx, use_xy, use_z, keep_rows, n_det, strip, lines, line_index,
+           line_keep, plan_sigma, blunders):
+    """Every observation above its critical value, with the change that would
+    reject it: (Rejection, apply) pairs."""
+    found = []
+    active = use_xy | use_z
+    act = np.flatnonzero(active)
+    w = res.control_w  # (n_active, 3)
+    n_tests = int(np.isfinite(w).sum())
+    crit = blunders.critical("control", n_tests)
+    plan_w = np.fmax(np.abs(w[:, 0]), np.abs(w[:, 1]))
+    height_w = np.abs(w[:, 2])
+    resid = res.control_residuals
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # Baarda's estimate of the error behind a failed test: v / r (the
+        # models take most of a control error into the solution: r is small)
+        estimate = np.nan_to_num(resid / res.control_redundancy)
+    for k in np.flatnonzero((plan_w > crit) | (height_w > crit)):
+        row = int(act[k])
+        for comp, value, r, size in (
+            (
+                "plan",
+                plan_w[k],
+                float(np.hypot(np.nan_to_num(resid[k, 0]), np.nan_to_num(resid[k, 1]))),
+                float(np.hypot(estimate[k, 0], estimate[k, 1])),
+            ),
+            ("height", height_w[k], float(resid[k, 2]), float(estimate[k, 2])),
+        ):
+            if np.isfinite(value) and value > crit:
+
+                def apply(xy, z, row=row, comp=comp):
+                    (z if comp == "height" else xy)[row] = False
+
+                found.append(
+                    (
+                        Rejection(
+                            stage="control",
+                            point=ids[row],
+                            photos=(),
+                            component=comp,
+                            residual=r,
+                            unit="m",
+                            w=float(value),
+                            critical=crit,
+                            applied=blunders.rejecting,
+                            effect=f"estimated error {size:.3g} m; sigma0 {res.sigma0:.3g} "
+                            "before",
+                        ),
+                        apply,
+                    )
+                )
+    # determinations: 3-D residual against chi-square(3), as a "w" = sqrt(stat)
+    kept = np.flatnonzero(keep_rows[:n_det])
+    stat = res.row_statistic[: kept.size]
+    n_rows = int(np.isfinite(stat).sum())
+    crit_m = blunders.critical("models", n_rows, dof=3)
+    w_rows = np.sqrt(np.where(np.isfinite(stat), stat, 0.0))
+    worst = np.argsort(-w_rows)[:5]
+    for k in worst:
+        if not w_rows[k] > crit_m:
+            break
+        det = int(kept[k])
+        m = int(strip.model[det])
+        label = strip.model_labels[m] if strip.model_labels else f"model {m}"
+
+        def apply(keep, det=det):
+            keep[det] = False
+
+        found.append(
+            (
+                Rejection(
+                    stage="models",
+                    point=strip.observations.point_ids[strip.model_point[det]],
+                    photos=(label,),
+                    component="model point",
+                    residual=float(np.linalg.norm(res.residuals[k])),
+                    unit="m",
+                    w=float(w_rows[k]),
+                    critical=crit_m,
+                    applied=blunders.rejecting,
+                    effect="determination left out of the adjustment",
+                ),
+                apply,
+            )
+        )
+    # line points: Baarda's w of the line equations
+    if lines:
+        n_line = int(sum(int(k.sum()) for k in line_keep))
+        crit_l = blunders.critical("straight_line", n_line)
+        for li_k, (line, keep, e, wl, rl) in enumerate(
+            zip(lines, line_keep, res.line_residuals, res.line_w, res.line_redundancy, strict=True)
+        ):
+            kept_pos = np.flatnonzero(keep)
+            for j in np.flatnonzero(np.abs(np.nan_to_num(wl)) > crit_l):
+                pos = int(kept_pos[j])
+
+                def apply(keeps, li_k=li_k, pos=pos):
+                    keeps[li_k][pos] = False
+
+                found.append(
+                    (
+                        Rejection(
+                            stage="straight_line",
+                            point=str(line.point_ids[pos]),
+                            photos=(line.name,),
+                            component="line",
+                            residual=float(e[j]),
+                            unit="m",
+                            w=float(abs(wl[j])),
+                            critical=crit_l,
+                            applied=blunders.rejecting,
+                            effect=f"line {line.name!r}; estimated distance from the line "
+                            f"{abs(e[j] / rl[j]):.3g} m",
+                        ),
+                        apply,
+                    )
+                )
+    return found
+
+
+def _mean_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Chordal mean of pairs of rotations (n, 3, 3): the rotation nearest
+    (a + b) / 2 (SVD projection)."""
+    u, _, vt = np.linalg.svd(0.5 * (a + b))
+    d = np.sign(np.linalg.det(u @ vt))
+    u[:, :, 2] *= d[:, None]
+    return u @ vt
+
+
+def _products(strip, start, work, res, guess, given, idx, rows, check, use_xy, use_z, ids,
+              lines, line_index, line_keep, keep_rows, n_det, n_pass, converged, rejections,
+              rejected_rows, blunders, sigma, given_xy, given_z) -> GroundResult:
+    obs = strip.observations
+    n_points = obs.n_points
+    pos = strip.model_photo_positions
+    n_photos = strip.centres.shape[0]
+    points_work = res.points[:n_points].copy()
+    points_work[~strip.triangulated] = np.nan
+    centres_work = res.points[n_points:].copy()
+    # A photo's attitude from the models it belongs to: the chordal mean of
+    # the (one or two) models' transforms applied to its strip rotation.
+    t = res.transforms
+    rot_work = np.full((n_photos, 3, 3), np.nan)
+    left_of = np.full(n_photos, -1)
+    right_of = np.full(n_photos, -1)
+    left_of[pos[:-1]] = np.arange(strip.n_models)  # photo is the left photo of model m
+    right_of[pos[1:]] = np.arange(strip.n_models)
+    m_a = np.where(left_of >= 0, left_of, right_of)
+    m_b = np.where(right_of >= 0, right_of, left_of)
+    in_model = m_a >= 0
+    ra = t.apply_to_rotation(m_a[in_model], strip.rotations[in_model])
+    rb = t.apply_to_rotation(m_b[in_model], strip.rotations[in_model])
+    rot_work[in_model] = _mean_rotation(ra, rb)
+    # Photos between the model photos (photo_step > 1): the transform of the
+    # model whose photos enclose them.
+    between = ~in_model
+    if between.any():
+        model_of = np.clip(np.searchsorted(pos, np.flatnonzero(between)) - 1, 0, strip.n_models - 1)
+        rot_work[between] = t.apply_to_rotation(model_of, strip.rotations[between])
+        centres_work[between] = t.apply(model_of, strip.centres[between])
+        # points no model determined (seen only by those photos): the
+        # transform of the model whose centroid is nearest in plan
+        lonely = np.flatnonzero(strip.triangulated & ~np.isfinite(points_work).all(axis=1))
+        if lonely.size:
+            d = strip.points[lonely, None, :2] - t.centroid[None, :, :2]
+            nearest = np.argmin(np.einsum("pmk,pmk->pm", d, d), axis=1)
+            points_work[lonely] = t.apply(nearest, strip.points[lonely])
+    points = work.from_work(points_work)
+    centres = work.from_work(centres_work)
+    rot_enu = work.rotations_to_enu(rot_work, centres)
+    opk = opk_from_matrix(rot_enu)
+
+    given_work = work.to_work(np.where(np.isnan(given), guess, given))
+    diff = work.enu_from_work(given_work - points_work[idx])
+    resid = diff.copy()
+    # rejected control keeps its (large) residual; used_xy / used_h say what was used
+    resid[~(given_xy | check), :2] = np.nan
+    resid[~(given_z | check), 2] = np.nan
+    resid[np.isnan(given)] = np.nan
+
+    line_resid = tuple(
+        points_work[li, 1] - (ab[0] + ab[1] * points_work[li, 0])
+        for li, ab in zip(line_index, res.line_parameters, strict=True)
+    )
+
+    # per-model discrepancies of the determinations and the centres
+    kept = np.flatnonzero(keep_rows[:n_det])
+    disc = res.residuals[: kept.size]
+    det_model = strip.model[kept]
+    counts = np.bincount(det_model, minlength=strip.n_models)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        model_rms = np.sqrt(
+            np.stack(
+                [np.bincount(det_model, disc[:, k] ** 2, minlength=strip.n_models) for k in range(3)],
+                axis=1,
+            )
+            / counts[:, None]
+        )
+    centre_rows = np.flatnonzero(keep_rows[n_det:]) + kept.size
+    centre_disc = res.residuals[centre_rows].reshape(2, strip.n_models, 3).transpose(1, 0, 2)
+
+    active = use_xy | use_z
+    redundancy, mde = control_detectability(
+        res.control_redundancy, sigma[active], blunders, int(np.isfinite(res.control_w).sum())
+    )
+    red_all = np.full((rows.shape[0], 3), np.nan)
+    mde_all = np.full((rows.shape[0], 3), np.nan)
+    red_all[active], mde_all[active] = redundancy, mde
+    models = ModelAdjustment(
+        result=res,
+        model=det_model,
+        point=strip.model_point[kept],
+        discrepancy=disc,
+        model_rms=model_rms,
+        centre_discrepancy=centre_disc,
+        rejected=rejected_rows,
+    )
+    return replace(
+        start,
+        points_work=points_work,
+        points=points,
+        photo_centres_work=centres_work,
+        photo_centres=centres,
+        photo_rotations_work=rot_work,
+        photo_rotations_enu=rot_enu,
+        photo_opk=opk,
+        control_residuals=resid,
+        line_names=tuple(line.name for line in lines),
+        line_point_index=tuple(line_index),
+        line_residuals=line_resid,
+        passes=n_pass,
+        passes_converged=converged,
+        used_xy=use_xy & ~check,
+        used_h=use_z & ~check,
+        line_used=tuple(k.copy() for k in line_keep),
+        rejections=rejections,
+        models=models,
+        control_redundancy=red_all,
+        control_mde=mde_all,
+    )
