@@ -322,6 +322,47 @@ def break_line_unknown_point(folder: Path) -> tuple[str, ...]:
     return ("strip.toml", "[[straight_line]] #1", "'R99'", "not observed")
 
 
+def break_micrometres(folder: Path) -> tuple[str, ...]:
+    """Image coordinates written in micrometres: 1000 times too large."""
+    rows = read_rows(folder / "image_points.csv")
+    x, y = rows[0].index("x"), rows[0].index("y")
+    for row in rows[1:]:
+        row[x] = f"{float(row[x]) * 1000:.3f}"
+        row[y] = f"{float(row[y]) * 1000:.3f}"
+    write_rows(folder / "image_points.csv", rows)
+    return ("image_points.csv:", "beyond any film or sensor format", "micrometres")
+
+
+def break_metres(folder: Path) -> tuple[str, ...]:
+    """Image coordinates written in metres: 1000 times too small."""
+    rows = read_rows(folder / "image_points.csv")
+    x, y = rows[0].index("x"), rows[0].index("y")
+    for row in rows[1:]:
+        row[x] = f"{float(row[x]) / 1000:.9f}"
+        row[y] = f"{float(row[y]) / 1000:.9f}"
+    write_rows(folder / "image_points.csv", rows)
+    return ("image_points.csv", "in metres instead of millimetres")
+
+
+def break_swapped_control_axes(folder: Path) -> tuple[str, ...]:
+    """Easting and northing swapped in control.csv: a mirrored system."""
+    rows = read_rows(folder / "control.csv")
+    x, y = rows[0].index("X"), rows[0].index("Y")
+    for row in rows[1:]:
+        row[x], row[y] = row[y], row[x]
+    write_rows(folder / "control.csv", rows)
+    return ("control.csv", "mirrored", "X and Y columns swapped")
+
+
+def break_reversed_flight(folder: Path) -> tuple[str, ...]:
+    """[strip] photos listed against the flight."""
+    text = (folder / "strip.toml").read_text(encoding="utf-8")
+    line = next(li for li in text.splitlines() if li.startswith("photos = "))
+    photos = line[len("photos = [") : -1].split(", ")
+    edit_text(folder / "strip.toml", line, "photos = [" + ", ".join(reversed(photos)) + "]")
+    return ("listed against the flight direction", "negative x-parallax")
+
+
 BREAKERS = [
     break_missing_toml,
     break_toml_syntax,
@@ -352,6 +393,10 @@ BREAKERS = [
     break_bad_crs,
     break_geocentric_local,
     break_line_unknown_point,
+    break_micrometres,
+    break_metres,
+    break_swapped_control_axes,
+    break_reversed_flight,
 ]
 
 
@@ -443,6 +488,9 @@ def test_refuses_output_over_inputs(tmp_path, project, where):
 CHECK_BREAKERS = [
     break_toml_syntax,
     break_text_x,
+    break_micrometres,
+    break_swapped_control_axes,
+    break_reversed_flight,
     break_few_pair_points,
     break_no_tie,
     break_one_full_control,
@@ -736,3 +784,14 @@ def test_check_sizes_a_photo_footprint_from_its_control():
     one = np.zeros_like(has_plan)
     one[np.flatnonzero(has_plan)[0]] = True
     assert _footprint_radius(obs, control_point, one, ctrl.xyz[one, :2]) is None
+
+
+@pytest.mark.parametrize("command", ["run", "check"])
+def test_two_photos_out_of_order_are_named(tmp_path, command):
+    """At 80 % overlap two exchanged neighbours still overlap: the pair
+    between them is oriented with its rays meeting behind the photos."""
+    folder = tmp_path / "drone"
+    sa.simulate_strip(10, preset="drone", crs="EPSG:32634", seed=2).write_project(folder)
+    edit_text(folder / "strip.toml", '"1005", "1006"', '"1006", "1005"')
+    result = invoke("-q", command, folder / "strip.toml", *(["--out", tmp_path / "o"] if command == "run" else []))
+    assert_one_error_line(result, ("pair 1006-1005", "meet behind the photos", "flight order"))

@@ -190,7 +190,7 @@ def _write(folder: Path, toml_extra: str, images: str, *, fiducials: str | None 
     if fiducials is not None:
         (folder / "fid.csv").write_text(fiducials)
     toml = (
-        '[strip]\nphotos = ["1", "2"]\n[camera]\nprincipal_distance_mm = 10.0\n'
+        '[strip]\nphotos = ["1", "2"]\n[camera]\nprincipal_distance_mm = 152.0\n'
         'principal_point_mm = [0.01, -0.02]\n[images]\nfile = "image_points.csv"\n'
         '[control]\nfile = "control.csv"\ncrs = "local"\n' + toml_extra
     )

@@ -25,6 +25,7 @@ from .intersection import (
     midpoint_along_y_components,
 )
 from .observations import ImageObservations
+from .plausibility import ray_direction_problems
 from .relative import RelativeOrientation, RelativeOrientationMethod, relative_orientation
 from .scaling import ScaleTransfer, scale_ratios
 
@@ -374,6 +375,12 @@ def form_strip(
                 f"y-parallaxes fail the blunder test ({n_rows - model.shape[0]} of {n_rows}); "
                 "the image coordinates or point ids cannot be trusted"
             )
+
+    wrong_way = ray_direction_problems(
+        rel.rotation_left, rel.rotation_right, rel.base, left, right, model, labels
+    )
+    if wrong_way:
+        raise GeometryError(wrong_way[0])
 
     # Model formation with the unit base (b_x = 1), relative to the left centre.
     if IntersectionMethod(options.intersection) is IntersectionMethod.MIDPOINT:

@@ -48,6 +48,7 @@ from .interior import (
     mm_from_pixel,
     reduce_image_coordinates,
 )
+from .plausibility import image_coordinate_problems
 from .observations import ControlPoints, ControlType, ImageObservations
 
 if TYPE_CHECKING:  # refine pulls in the whole adjustment: imported when a table needs it
@@ -1386,6 +1387,12 @@ def _load_images(
         )
 
     xy = reduce(np.column_stack([x, y])[order], photo_index[order])
+    lines = table.line[order]
+    problems = image_coordinate_problems(
+        xy, principal_distance, where=lambda k: f"{path}:{int(lines[k])}", file=str(path)
+    )
+    if problems:
+        raise ConfigError(problems[0])
     return ImageObservations(
         photo_ids=photo_ids,
         point_ids=tuple(point_names.tolist()),

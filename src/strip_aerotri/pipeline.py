@@ -22,9 +22,11 @@ from .chaining import StripModel, StripOptions
 from .densify import DEFAULT_MIN_BASE_TO_HEIGHT, form_strip_stepped
 from .geodesy import GroundCRS
 from .ground import Construction, GroundOptions, GroundResult, LineSpec, adjust_to_ground
+from .errors import GeometryError
 from .observations import ControlPoints, ImageObservations
+from .plausibility import control_problems
 
-__all__ = ["AccuracyStatistics", "StripResult", "run_project", "triangulate"]
+__all__ = ["AccuracyStatistics", "StripResult", "project_options", "run_project", "triangulate"]
 
 Progress = Callable[[str], None]
 
@@ -154,6 +156,7 @@ def triangulate(
     imu: Any = None,
     progress: Progress | None = None,
     warnings: Sequence[str] = (),
+    control_name: str = "control",
 ) -> StripResult:
     """Strip formation and ground stage in one call.
 
@@ -186,6 +189,8 @@ def triangulate(
         Called with a short message at each stage (the CLI shows it).
     warnings : sequence of str
         Warnings found earlier (e.g. while loading), carried into the result.
+    control_name : str
+        How messages name the control (its file in a project).
 
     Returns
     -------
@@ -194,6 +199,9 @@ def triangulate(
     say = progress or (lambda message: None)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
+    mirrored = control_problems(observations, control, crs, file=control_name)
+    if mirrored:
+        raise GeometryError(mirrored[0])
     say(
         f"forming the strip: {observations.n_photos} photos, "
         f"{len(observations.photo)} observations"
@@ -267,17 +275,8 @@ def triangulate(
     return result
 
 
-def run_project(
-    project, *, progress: Progress | None = None, blunders: BlunderOptions | None = None
-) -> StripResult:
-    """Adjust a loaded project (:func:`strip_aerotri.config.load_project`).
-
-    ``blunders`` overrides the project's own blunder options, if it has any.
-    The project's GNSS centres and IMU attitudes (``[gnss]``, ``[imu]``), if
-    any, are observations of the bundle refinement.
-    """
-    if blunders is None:
-        blunders = getattr(project, "blunders", None)
+def project_options(project) -> tuple[StripOptions, GroundOptions]:
+    """The strip formation's and the ground stage's options of a loaded project."""
     adj = project.adjustment
     strip_options = StripOptions(
         relative_orientation=str(adj.relative_orientation.value),
@@ -292,6 +291,22 @@ def run_project(
         sections=adj.sections,
         construction=block,
     )
+    return strip_options, ground_options
+
+
+def run_project(
+    project, *, progress: Progress | None = None, blunders: BlunderOptions | None = None
+) -> StripResult:
+    """Adjust a loaded project (:func:`strip_aerotri.config.load_project`).
+
+    ``blunders`` overrides the project's own blunder options, if it has any.
+    The project's GNSS centres and IMU attitudes (``[gnss]``, ``[imu]``), if
+    any, are observations of the bundle refinement.
+    """
+    if blunders is None:
+        blunders = getattr(project, "blunders", None)
+    adj = project.adjustment
+    strip_options, ground_options = project_options(project)
     lines = [
         LineSpec(point_ids=tuple(spec.point_ids), weight=spec.weight, name=spec.name)
         for spec in project.straight_lines
@@ -311,4 +326,5 @@ def run_project(
         imu=project.imu,
         progress=progress,
         warnings=project.warnings,
+        control_name=str(project.control_file),
     )

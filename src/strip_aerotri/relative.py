@@ -68,6 +68,7 @@ _ROBUST_STEPS = 10  # IRLS steps of the robust start
 # RMS y-parallax (in a priori sigmas) above which a converged pair is tried
 # from the other starts too (a wrong local minimum, or gross errors)
 _DOUBTFUL_MISFIT = 3.0
+_HOMOGRAPHY_IRLS = 3  # reweighted rounds of the homography start
 # Points whose spread across their best-fitting image line is below this
 # fraction of the spread along it are collinear (_check_not_collinear).
 _COLLINEAR_RATIO = 1e-2
@@ -1117,6 +1118,14 @@ def similarity_start(
     )
 
 
+def _pair_medians(values: FloatArray, pair: IntArray, starts: IntArray) -> FloatArray:
+    """Median of each pair's values (rows sorted by pair), (n_pairs,)."""
+    order = np.lexsort((values, pair))
+    ranked = values[order]
+    counts = np.diff(np.append(starts, values.shape[0]))
+    return 0.5 * (ranked[starts + (counts - 1) // 2] + ranked[starts + counts // 2])
+
+
 def homography_start(
     left: ArrayLike,
     right: ArrayLike,
@@ -1138,7 +1147,9 @@ def homography_start(
     the left photo's axis (ground below a near-vertical camera) is kept.
     Unlike the image similarity it includes the relative tilts, and unlike
     the essential matrix it is not degenerate over flat ground; relief makes
-    it approximate, which is all a start needs.
+    it approximate, which is all a start needs.  The fit is iteratively
+    reweighted (Cauchy weights of the points' transfer errors, three
+    rounds), so that a few gross errors do not turn it.
 
     Parameters and returns as :func:`essential_start`.
     """
@@ -1154,13 +1165,22 @@ def homography_start(
     zero = np.zeros_like(a)
     rows1 = np.concatenate([zero, -b[:, 2:3] * a, b[:, 1:2] * a], axis=1)
     rows2 = np.concatenate([b[:, 2:3] * a, zero, -b[:, 0:1] * a], axis=1)
-    normal = np.add.reduceat(
-        rows1[:, :, None] * rows1[:, None, :] + rows2[:, :, None] * rows2[:, None, :],
-        starts,
-        axis=0,
-    )
-    _, vec = np.linalg.eigh(normal)
-    h = vec[:, :, 0].reshape(-1, 3, 3)
+    products = rows1[:, :, None] * rows1[:, None, :] + rows2[:, :, None] * rows2[:, None, :]
+    weight = np.ones(pair.shape[0])
+    for _ in range(_HOMOGRAPHY_IRLS + 1):
+        normal = np.add.reduceat(weight[:, None, None] * products, starts, axis=0)
+        _, vec = np.linalg.eigh(normal)
+        h = vec[:, :, 0].reshape(-1, 3, 3)
+        # Transfer errors of the points (normalised image units) and Cauchy
+        # weights at 2.385 robust sigmas of the pair: a few gross errors (a
+        # swapped id) must not turn the start, nor the flight-direction check
+        # that uses it.
+        mapped = np.einsum("nij,nj->ni", h[pair], a)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            error = np.hypot(*(mapped[:, :2] / -mapped[:, 2:3] - b[:, :2]).T)
+        error = np.where(np.isfinite(error), error, np.inf)
+        scale = np.maximum(1.4826 * _pair_medians(error, pair, starts), 1e-12)
+        weight = 1.0 / (1.0 + (error / (2.385 * scale[pair])) ** 2)
     # Scale so that the middle singular value is 1 and det(H) > 0.
     sv = np.linalg.svd(h, compute_uv=False)
     h = h / (sv[:, 1] * np.sign(np.linalg.det(h)))[:, None, None]

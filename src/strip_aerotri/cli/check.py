@@ -20,8 +20,10 @@ strip formation and the ground stage apply, and every problem found is listed:
 The summary also counts the GNSS centres and IMU attitudes (``[gnss]``,
 ``[imu]``) that the bundle refinement will use.
 
-The model-space tests of the run (degenerate pairs, collinearity in the
-model, convergence) need the adjustment and are not repeated here.
+When the counts allow it, the strip is then formed as the run forms it
+(relative orientation of every pair, the photos' order, scale transfer), so
+that a pair that cannot be oriented or photos listed against the flight are
+found here too; the ground stage is not run.
 """
 
 from __future__ import annotations
@@ -142,6 +144,7 @@ def check_project(project, out: Path | None = None) -> CheckReport:
     from ..chaining import pair_rows
     from ..deformation import n_terms
     from ..errors import StripAerotriError
+    from ..plausibility import control_problems
     from ..relative import MIN_POINTS_PER_PAIR
     from ..similarity import (
         COINCIDENT_RTOL,
@@ -179,6 +182,10 @@ def check_project(project, out: Path | None = None) -> CheckReport:
         f"orientation needs at least {MIN_POINTS_PER_PAIR}"
         for m in np.flatnonzero(counts < MIN_POINTS_PER_PAIR)
     ]
+
+    # Control not mirrored against the photos: the run's own check
+    # (strip_aerotri.plausibility).
+    rep.problems += control_problems(obs, project.control, project.crs, str(control_file))
 
     # Tie points: a point determined in model m and in model m - 1.
     n_pts = max(obs.n_points, 1)
@@ -290,6 +297,23 @@ def check_project(project, out: Path | None = None) -> CheckReport:
                         f"{COLLINEAR_MAGNIFICATION:.0f}: {_quote(height_ids)}"
                     )
 
+    # Strip formation as the run does it (relative orientation of every pair,
+    # photos in flight order, scale transfer), when the counts allow it.
+    if not rep.problems:
+        from ..densify import form_strip_stepped
+        from ..pipeline import project_options
+
+        try:
+            form_strip_stepped(
+                obs,
+                project_options(project)[0],
+                photo_step=getattr(project.adjustment, "photo_step", 1),
+                min_base_to_height=getattr(project.adjustment, "min_base_to_height", 0.3),
+                blunders=project.blunders,
+            )
+        except StripAerotriError as exc:
+            rep.problems.append(f"{images}: {exc}")
+
     # Straight lines.
     for i, line in enumerate(project.straight_lines, start=1):
         missing = [p for p in line.point_ids if not triangulable[lookup[p]]]
@@ -299,11 +323,13 @@ def check_project(project, out: Path | None = None) -> CheckReport:
                 f"{_quote(missing)} are not measured on both photos of any pair"
             )
 
-    # Polynomial.
+    # Polynomial (J's construction only; with block = "models" every model has
+    # its own similarity).
     kind = project.adjustment.polynomial
     sections = project.adjustment.sections
     in_sections = f" in {sections} sections" if sections > 1 else ""
-    if kind != "auto" and n_plan >= 2 and n_height >= 3:
+    strips = str(getattr(getattr(project.adjustment, "block", None), "value", "strips"))
+    if strips == "strips" and kind != "auto" and n_plan >= 2 and n_height >= 3:
         need = n_terms(int(kind), sections)
         for axis, count, what in (
             ("X", n_plan, "full or plan control points"),
@@ -353,8 +379,11 @@ def check_project(project, out: Path | None = None) -> CheckReport:
             rep.summary.append(
                 f"{what}: {len(observed.photo_ids)} of {n_photos} photos ({source})"
             )
+    construction = (
+        f"polynomial {poly}" if strips == "strips" else "every model at once (block = models)"
+    )
     rep.summary += [
-        f"crs: {project.crs}; route {project.adjustment.route.value}; polynomial {poly}",
+        f"crs: {project.crs}; route {project.adjustment.route.value}; {construction}",
     ]
     if target is not None:
         rep.summary.append(f"output folder: {target}")

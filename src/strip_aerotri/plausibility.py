@@ -1,0 +1,280 @@
+"""Checks that the input is plausible before it is adjusted.
+
+Input that is readable but wrong in a systematic way (wrong units, axes,
+order or handedness) can still run to an "answer"; these checks stop it with
+one line naming the likely cause.  Each returns the problems it finds as
+messages (``stripaero check`` lists them all; a run stops at the first):
+
+* :func:`image_coordinate_problems` — image coordinates far outside any
+  film or sensor format (micrometres or pixels taken for millimetres), or
+  far inside it (metres);
+* :func:`ray_direction_problems` — photos listed against the flight, or a
+  pair in the wrong order: after the relative orientation, the rays of such
+  pairs meet behind the photos (a negative x-parallax); image x across the
+  flight is the relative orientation's own check (the base runs across it);
+* :func:`control_handedness_problems` — control mirrored against the photos
+  (easting and northing, or longitude and latitude, swapped): on each photo
+  that shows three or more plan control points not on one line, a 2D
+  similarity from the image to the control fits far better with a
+  reflection than without.  A near-vertical photo maps its image (x along
+  the flight, y to the left, right-handed with z up) onto east-north-up by
+  a rotation, never by a reflection.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ._typing import ArrayLike, FloatArray, IntArray
+from .observations import ImageObservations
+
+__all__ = [
+    "MAX_IMAGE_RADIUS_MM",
+    "control_handedness_problems",
+    "image_coordinate_problems",
+    "ray_direction_problems",
+]
+
+#: No film or sensor format reaches beyond this radius from the principal
+#: point (230 x 230 mm film: 163 mm at the corners).
+MAX_IMAGE_RADIUS_MM = 250.0
+#: An image radius beyond this many principal distances is a field of view
+#: wider than 157 deg, which no mapping camera has (super-wide film: 1.85).
+_MAX_RADIUS_OVER_C = 5.0
+#: Image points all within this fraction of c: a field of view narrower
+#: than 2.3 deg (a 610 mm lens on 230 mm film still spans 0.27).
+_MIN_SPAN_OVER_C = 0.02
+#: A photo votes "mirrored" when the reflected fit leaves less than this
+#: fraction of the rotated fit's residual (and the other way round).
+_MIRROR_RATIO = 0.1
+
+
+def image_coordinate_problems(
+    xy_mm: ArrayLike,
+    principal_distance: float,
+    where=None,
+    file: str = "image coordinates",
+) -> list[str]:
+    """Image coordinates no camera can produce.
+
+    Parameters
+    ----------
+    xy_mm : array_like, shape (n, 2)
+        Image coordinates in mm, reduced to the principal point.
+    principal_distance : float
+        c in mm.
+    where : callable, optional
+        ``where(k)`` says where row k comes from ("file:line").
+    file : str
+        The file, for messages about all rows.
+
+    Returns
+    -------
+    list of str
+        One message per problem (empty when plausible).
+    """
+    xy = np.asarray(xy_mm, dtype=np.float64).reshape(-1, 2)
+    if xy.shape[0] == 0:
+        return []
+    c = float(principal_distance)
+    radius = np.hypot(xy[:, 0], xy[:, 1])
+    limit = min(MAX_IMAGE_RADIUS_MM, _MAX_RADIUS_OVER_C * c)
+    outside = np.flatnonzero(radius > limit)
+    problems = []
+    if outside.size:
+        k = int(outside[np.argmax(radius[outside])])
+        at = where(k) if where is not None else file
+        share = outside.size / xy.shape[0]
+        if share > 0.5:
+            cause = (
+                f"{share:.0%} of the points are; the coordinates are not in millimetres "
+                "(micrometres? pixels? then [images] units = \"pixel\" with pixel_size_mm)"
+            )
+        else:
+            cause = f"{outside.size} point(s) are: a typing error in the coordinates?"
+        problems.append(
+            f"{at}: image point ({xy[k, 0]:.6g}, {xy[k, 1]:.6g}) mm lies {radius[k]:.4g} mm "
+            f"from the principal point, beyond any film or sensor format with c = {c:g} mm "
+            f"(at most {limit:.4g} mm); {cause}"
+        )
+    span = float(np.max(np.ptp(xy, axis=0)))
+    if xy.shape[0] >= 3 and span < _MIN_SPAN_OVER_C * c:
+        problems.append(
+            f"{file}: all image points lie within {span:.3g} mm of each other, less than "
+            f"{_MIN_SPAN_OVER_C:g} of the principal distance c = {c:g} mm: are the "
+            "coordinates in metres instead of millimetres?"
+        )
+    return problems
+
+
+def ray_direction_problems(
+    rotation_left: ArrayLike,
+    rotation_right: ArrayLike,
+    base: ArrayLike,
+    left: ArrayLike,
+    right: ArrayLike,
+    pair: ArrayLike,
+    labels: Sequence[str],
+) -> list[str]:
+    """Pairs whose rays meet behind the photos, after relative orientation.
+
+    The y-parallax equation does not see the sign of the base (J(5) is
+    linear in b), so a pair whose photos are in the wrong order is oriented
+    with its base pointing forward and its rays meeting behind both photos:
+    the intersection scales ``k_l = j·(b × p) / j·(l × p)`` and
+    ``k_r = j·(b × l) / j·(l × p)`` (J(12)) are negative.  All or most pairs
+    so: the photos are listed against the flight (or image x points against
+    it); a few: those pairs' photos are out of order.
+
+    Parameters
+    ----------
+    rotation_left, rotation_right : array_like, shape (n_pairs, 3, 3)
+        Image -> strip rotations of each pair's photos.
+    base : array_like, shape (n_pairs, 3)
+        Each pair's base in the strip system.
+    left, right : array_like, shape (n, 3)
+        Image vectors of each point on the left and right photo.
+    pair : array_like of int, shape (n,)
+    labels : sequence of str
+        Names of the pairs.
+
+    Returns
+    -------
+    list of str
+    """
+    rot_l = np.asarray(rotation_left, dtype=np.float64)
+    rot_r = np.asarray(rotation_right, dtype=np.float64)
+    b = np.asarray(base, dtype=np.float64)
+    pair = np.asarray(pair, dtype=np.intp)
+    n_pairs = b.shape[0]
+    l = np.einsum("nij,nj->ni", rot_l[pair], np.asarray(left, dtype=np.float64))
+    p = np.einsum("nij,nj->ni", rot_r[pair], np.asarray(right, dtype=np.float64))
+    j = rot_l[pair][:, :, 1]
+    d = np.einsum("ni,ni->n", j, np.cross(l, p))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k_l = np.einsum("ni,ni->n", j, np.cross(b[pair], p)) / d
+        k_r = np.einsum("ni,ni->n", j, np.cross(b[pair], l)) / d
+    behind = ~((k_l > 0) & (k_r > 0))
+    counts = np.bincount(pair, minlength=n_pairs)
+    share = np.bincount(pair, behind, minlength=n_pairs) / np.maximum(counts, 1)
+    wrong = share > 0.5
+    if not wrong.any():
+        return []
+    if wrong.sum() > n_pairs / 2:
+        return [
+            f"the photos appear to be listed against the flight direction: the rays of "
+            f"{int(wrong.sum())} of {n_pairs} pairs meet behind the photos (a consistent "
+            "negative x-parallax); list [strip] photos in flight order, or, if image x points "
+            'against the flight, set [images] flight_direction = "-x"'
+        ]
+    return [
+        f"{labels[m]}: the rays of {share[m]:.0%} of its points meet behind the photos (a "
+        "negative x-parallax, while the strip's other pairs have a positive one): are these "
+        "two photos in flight order in [strip] photos?"
+        for m in np.flatnonzero(wrong)
+    ]
+
+
+def _plan_fit_residual(image_xy: FloatArray, ground_xy: FloatArray) -> float:
+    """Sum of squared residuals of the best 2D similarity image -> ground
+    (a rotation, no reflection), relative to the ground spread."""
+    a = image_xy - image_xy.mean(axis=0)
+    b = ground_xy - ground_xy.mean(axis=0)
+    za = a[:, 0] + 1j * a[:, 1]
+    zb = b[:, 0] + 1j * b[:, 1]
+    scale = np.vdot(za, zb) / np.vdot(za, za)
+    resid = zb - scale * za
+    return float(np.vdot(resid, resid).real / max(np.vdot(zb, zb).real, 1e-300))
+
+
+def control_handedness_problems(
+    observations: ImageObservations,
+    control_point: IntArray,
+    control_xy: ArrayLike,
+    *,
+    geographic: bool = False,
+    file: str = "control",
+) -> list[str]:
+    """Control mirrored against the photos (plan axes swapped).
+
+    Parameters
+    ----------
+    observations : ImageObservations
+    control_point : array_like of int, shape (C,)
+        The observations' point index of each plan control point (−1: not
+        observed).
+    control_xy : array_like, shape (C, 2)
+        Their plan coordinates in the CRS's axis order (always_xy).
+    geographic : bool
+        True when X, Y are longitude and latitude (degrees): longitudes are
+        shrunk by cos(latitude) for the fit.
+    file : str
+        The control file, for the message.
+
+    Returns
+    -------
+    list of str
+        One message when the photos that can tell vote "mirrored".
+    """
+    obs = observations
+    control_point = np.asarray(control_point, dtype=np.intp)
+    xy = np.asarray(control_xy, dtype=np.float64).reshape(-1, 2)
+    ok = (control_point >= 0) & np.isfinite(xy).all(axis=1)
+    if ok.sum() < 3:
+        return []
+    xy = xy[ok]
+    if geographic:
+        xy = np.column_stack([xy[:, 0] * np.cos(np.radians(xy[:, 1].mean())), xy[:, 1]])
+    row_of = np.full(obs.n_points, -1, dtype=np.intp)
+    row_of[control_point[ok]] = np.arange(int(ok.sum()))
+    rows = row_of[obs.point]
+    on = np.flatnonzero(rows >= 0)
+    votes_mirror = votes_proper = 0
+    ratios = []
+    for photo in np.unique(obs.photo[on]):
+        sel = on[obs.photo[on] == photo]
+        if sel.size < 3:
+            continue
+        ground = xy[rows[sel]]
+        centred = ground - ground.mean(axis=0)
+        sv = np.linalg.svd(centred, compute_uv=False)
+        if not sv[1] > 0.1 * sv[0]:
+            continue  # on one line: a reflection about it fits as well
+        image = obs.xy[sel]
+        proper = _plan_fit_residual(image, ground)
+        mirrored = _plan_fit_residual(image * np.array([1.0, -1.0]), ground)
+        if mirrored < _MIRROR_RATIO * proper:
+            votes_mirror += 1
+            ratios.append(proper / max(mirrored, 1e-300))
+        elif proper < _MIRROR_RATIO * mirrored:
+            votes_proper += 1
+    if votes_mirror > votes_proper:
+        return [
+            f"{file}: the control is mirrored against the photos: on {votes_mirror} of "
+            f"{votes_mirror + votes_proper} photos showing three or more plan control points, "
+            "the image maps onto the control by a reflection (the fit with one is "
+            f"{np.median(ratios):.0f} times closer); are the X and Y columns swapped "
+            "(easting and northing, or longitude and latitude)?"
+        ]
+    return []
+
+
+def control_problems(
+    observations: ImageObservations, control, crs, file: str = "control"
+) -> list[str]:
+    """:func:`control_handedness_problems` for a project's control.
+
+    Every control and check point with plan coordinates takes part (check
+    points are measured like control and tell the handedness as well).
+    """
+    from .geodesy import GroundCRS
+
+    crs = crs if isinstance(crs, GroundCRS) else GroundCRS.from_user_input(crs)
+    lookup = {pid: i for i, pid in enumerate(observations.point_ids)}
+    point = np.array([lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
+    xy = np.asarray(control.xyz, dtype=np.float64)[:, :2]
+    return control_handedness_problems(
+        observations, point, xy, geographic=crs.is_geographic, file=file
+    )
