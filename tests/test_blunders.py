@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from strip_aerotri.blunders import BlunderOptions, critical_value, robust_variance_factor
-from strip_aerotri.errors import GeometryError
+from strip_aerotri.errors import GeometryError, StripAerotriWarning
 from strip_aerotri.ground import GroundOptions, LineSpec
 from strip_aerotri.observations import ImageObservations
 from strip_aerotri.pipeline import triangulate
@@ -259,3 +259,61 @@ def test_user_exclusions_as_masks_of_points_and_observations():
     np.testing.assert_array_equal(drop, expected)
     none_points, none_drop = BlunderOptions().excluded(obs)
     assert not none_points.any() and not none_drop.any()
+
+
+def _weak_corridor_control():
+    """A corridor strip (16 photos, a road of straight-line points) with five
+    full control points only: two at the first nadir, one at a third and two
+    thirds of the strip, one at the last nadir."""
+    from strip_aerotri.observations import ControlPoints
+
+    sim = simulate_strip(
+        16, seed=1, crs="EPSG:2180", preset="corridor", control="every_k_models", control_every=5
+    )
+    c = sim.control
+    kinds = [k.value for k in c.kind]
+    full = [i for i, k in enumerate(kinds) if k == "full"]
+    drop = {c.point_ids[i] for i in full[2::3]} | {c.point_ids[full[-1]]}
+    keep = [i for i in range(len(kinds)) if c.point_ids[i] not in drop]
+    control = ControlPoints(
+        point_ids=tuple(c.point_ids[i] for i in keep),
+        xyz=c.xyz[keep].copy(),
+        kind=tuple(c.kind[i] for i in keep),
+        sigma_xy=c.sigma_xy[keep],
+        sigma_h=c.sigma_h[keep],
+        source_line=c.source_line[keep],
+    )
+    lines = [LineSpec(tuple(ids), w) for ids, w in sim.lines]
+    return sim, control, lines
+
+
+def test_rejection_never_makes_the_adjustment_impossible():
+    """Weak control and straight-line points with J's type 2 (5 terms on 5
+    plan points): a 1 m height error at the first point spreads into the
+    plan test of the last one (w 4.75 > 3.72, residual 2 mm), whose
+    rejection left 4 plan points and, before, ended the run with "polynomial
+    type 2 needs at least 5 ... got 4" (and rejecting it anyway with type 1
+    leaves 31 m at the check points: the strip's end has no control).  It is
+    kept and flagged with its test value, and the run completes."""
+    sim, control, lines = _weak_corridor_control()
+    xyz = control.xyz.copy()
+    first = [k.value for k in control.kind].index("full")
+    xyz[first, 2] += 1.0
+    with pytest.warns(StripAerotriWarning, match="no redundancy"):
+        res = triangulate(
+            sim.observations,
+            dataclasses.replace(control, xyz=xyz),
+            sim.crs,
+            lines=lines,
+            ground_options=GroundOptions(polynomial=2),
+        )
+    assert res.ground.polynomial_kind == 2
+    flagged = [r for r in res.rejections if r.stage == "control"]
+    assert flagged and all(not r.applied and r.effect.startswith("kept:") for r in flagged)
+    assert all(r.w > r.critical for r in flagged)
+    assert res.check_statistics.rmse_plan < 0.5
+    # the models construction has nothing to reject here, and says what it
+    # cannot see: the first point's height has no redundancy to speak of
+    models = triangulate(sim.observations, dataclasses.replace(control, xyz=xyz), sim.crs, lines=lines)
+    assert models.ground.control_mde[first, 2] > 1.5
+

@@ -75,6 +75,9 @@ _MAX_TURNS = 4  # of the roll in one pass (a large turn settles in one or two)
 _ROLL_SAMPLE_STEP = 4  # of the served sample: 2048 points for the roll's mean and relief
 _SERVED_SAMPLE = 8192  # strip points for the similarity's test of the cross tilt
 _PASS_TOLERANCE_M = 1e-5
+#: A control observation whose rejection the polynomial cannot afford goes
+#: only when its |w| is at least this many times the critical value.
+_CERTAIN = 3.0
 # Probe points (m) that carry a similarity from one work frame to the next.
 _FRAME_PROBE_M = np.array(
     [[0.0, 0.0, 0.0], [1000.0, 0.0, 0.0], [0.0, 1000.0, 0.0], [0.0, 0.0, 1000.0]]
@@ -668,6 +671,7 @@ def adjust_to_ground(
         use_z: np.ndarray,
         line_keep: list[np.ndarray],
         previous: _Solution | None = None,
+        polynomial: int | str = options.polynomial,
     ):
         """Similarity and polynomial with the plan/height iteration (passes).
 
@@ -728,7 +732,7 @@ def adjust_to_ground(
                     for line, li, keep in zip(lines, line_index, line_keep, strict=True)
                 ]
                 deformation, selection = _fit_polynomial(
-                    options.polynomial,
+                    polynomial,
                     options.sections,
                     model_xyz[active],
                     target[active],
@@ -792,45 +796,77 @@ def adjust_to_ground(
     use_xy_now, use_z_now = use_xy.copy(), use_z.copy()
     line_keep = [np.ones(len(li), dtype=bool) for li in line_index]
     rejections: list[Rejection] = []
+    kept: list[Rejection] = []
     n_control_obs = int(2 * use_xy.sum() + use_z.sum())
-    sol = None
-    while True:
-        try:
-            sol = solve(use_xy_now, use_z_now, line_keep, sol)
-        except GeometryError as exc:
-            if not rejections:
-                raise
-            names = ", ".join(sorted({r.point for r in rejections if r.applied}))
-            raise GeometryError(
-                f"{exc} (after rejecting blunders at {names}: the remaining control cannot "
-                "carry the adjustment; check these points)"
-            ) from exc
-        if not blunders.testing:
-            break
-        found = _ground_tests(sol, ids, lines, line_keep, blunders)
+    polynomial = options.polynomial
+    sol = solve(use_xy_now, use_z_now, line_keep, None, polynomial)
+    while blunders.testing:
+        found = [
+            r
+            for r in _ground_tests(sol, ids, lines, line_keep, blunders)
+            if (r.point, r.component) not in {(k.point, k.component) for k in kept}
+        ]
         if not found:
             break
         if not blunders.rejecting:
             rejections.extend(found)
             break
         worst = max(found, key=lambda r: abs(r.w) / r.critical)
-        rejections.append(worst)
+        trial_xy, trial_z = use_xy_now.copy(), use_z_now.copy()
+        trial_lines = [k.copy() for k in line_keep]
         if worst.stage == "control":
             row = ids.index(worst.point)
-            if worst.component == "height":
-                use_z_now[row] = False
-            else:
-                use_xy_now[row] = False
+            (trial_z if worst.component == "height" else trial_xy)[row] = False
         else:
             k = [line.name for line in lines].index(worst.photos[0] if worst.photos else "")
-            pos = list(lines[k].point_ids).index(worst.point)
-            line_keep[k][pos] = False
+            trial_lines[k][list(lines[k].point_ids).index(worst.point)] = False
+        # A rejection must never make the adjustment impossible.  When the
+        # control left cannot carry the polynomial, the point is kept and
+        # flagged: its test is not to be trusted (an observation the
+        # adjustment cannot do without has little redundancy, and the
+        # strip's deformation or another point's error shows in it), unless
+        # it fails by far (|w| at least _CERTAIN times the critical value):
+        # then it goes and the polynomial drops to a type the control left
+        # can carry.  Without even the similarity the point is kept.
+        trial, lowered = None, polynomial
+        kinds = _lower_kinds(polynomial)
+        if abs(worst.w) < _CERTAIN * worst.critical:
+            kinds = kinds[:1]
+        for kind in kinds:
+            try:
+                trial = solve(trial_xy, trial_z, trial_lines, sol, kind)
+            except GeometryError:
+                continue
+            lowered = kind
+            break
+        if trial is None:
+            what = "polynomial type " + str(polynomial) if polynomial != 0 else "similarity"
+            kept.append(
+                replace(
+                    worst,
+                    applied=False,
+                    effect=f"kept: without it the control cannot carry the {what}; its error "
+                    "cannot be told from the strip's deformation or another point's error: "
+                    "check this point",
+                )
+            )
+            continue
+        if lowered != polynomial:
+            worst = replace(
+                worst,
+                effect=f"{worst.effect}; polynomial type lowered from {polynomial} to "
+                f"{lowered}: the control left cannot carry more",
+            )
+            polynomial = lowered
+        rejections.append(worst)
+        use_xy_now, use_z_now, line_keep, sol = trial_xy, trial_z, trial_lines, trial
         rejected_obs = n_control_obs - int(2 * use_xy_now.sum() + use_z_now.sum())
         if rejected_obs > blunders.max_fraction * max(n_control_obs, 1):
             raise GeometryError(
                 f"control: more than {blunders.max_fraction:.0%} of the control observations "
                 "fail the blunder test; the control cannot be trusted"
             )
+    rejections.extend(kept)
     work, guess, sim, deformation, selection = (
         sol.work,
         sol.guess,
@@ -963,6 +999,14 @@ def control_detectability(
         mde = np.where(r > 1e-6, np.asarray(sigma, dtype=np.float64) * delta / np.sqrt(r), np.inf)
     mde[~np.isfinite(redundancy)] = np.nan
     return r, mde
+
+
+def _lower_kinds(kind: int | str) -> list[int | str]:
+    """The polynomial type asked for, then every lower type down to the
+    similarity alone ("auto" chooses by itself)."""
+    if kind == "auto":
+        return ["auto"]
+    return list(range(int(kind), -1, -1))
 
 
 def _line_residuals(xyz: FloatArray) -> FloatArray:
