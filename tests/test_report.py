@@ -369,3 +369,34 @@ def test_long_strip_drawn_along_its_axis(monkeypatch, utm):
     page = build_html(result, build_report(result))
     assert len(calls) == 1
     assert page.count("<img") == 4
+
+
+def test_report_of_the_models_construction_and_control_detectability():
+    """block = "models": the model adjustment's section, the construction in
+    the options, and per control component its redundancy number and
+    minimal detectable error."""
+    sim = simulate_strip(8, preset="corridor", crs="EPSG:32634", seed=5, n_check=6)
+    lines = [LineSpec(point_ids=tuple(ids), weight=w) for ids, w in sim.lines]
+    result = triangulate(sim.observations, sim.control, sim.crs, lines=lines)
+    report = json.loads(json.dumps(build_report(result)))
+    assert report["options"]["block"] == "models" and report["options"]["polynomial"] is None
+    assert report["ground"]["construction"] == "models"
+    adj = report["model_adjustment"]
+    assert len(adj["models"]) == 7 and adj["converged"]
+    assert 0.5 < adj["sigma0"] < 1.5  # the ray-derived weights fit the noise
+    assert all(len(m["discrepancy_rms_m"]) == 3 for m in adj["models"])
+    points = report["control"]["points"]
+    assert all({"redundancy", "mde_m", "detectable"} <= p.keys() for p in points)
+    full = [p for p in points if p["type"] == "full"]
+    for p in full:
+        assert all(0.0 <= r <= 1.0 for r in p["redundancy"])
+        # MDE = sigma delta0 / sqrt(r) with sigma 2 cm: at least sigma * delta0
+        assert all(m is None or m > 0.02 * 4.0 for m in p["mde_m"])
+    html = build_html(result, report)
+    assert "Every model at once" in html and "MDE" in html
+    # J's construction reports no model adjustment
+    j = triangulate(
+        sim.observations, sim.control, sim.crs, lines=lines,
+        ground_options=GroundOptions(polynomial=3),
+    )
+    assert build_report(j)["model_adjustment"] is None

@@ -344,26 +344,80 @@ def _control_points(result, check: bool) -> list[dict[str, Any]]:
     is_check = np.asarray(ground.is_check, dtype=bool)
     rows = np.asarray(ground.control_index, dtype=np.intp)
     out = []
+    red = np.asarray(getattr(ground, "control_redundancy", np.zeros((0, 3))), dtype=np.float64)
+    mde = np.asarray(getattr(ground, "control_mde", np.zeros((0, 3))), dtype=np.float64)
+    have = red.shape[0] == rows.shape[0]
     for k in np.flatnonzero(is_check == check):
         r = resid[k]
         kind = result.control.kind[rows[k]]
-        out.append(
-            {
-                "point": result.point_ids[idx[k]],
-                "type": str(getattr(kind, "value", kind)),
-                "dE_m": _f(r[0]),
-                "dN_m": _f(r[1]),
-                "dH_m": _f(r[2]),
-                "plan_m": _f(np.hypot(r[0], r[1])),
-            }
-        )
+        row: dict[str, Any] = {
+            "point": result.point_ids[idx[k]],
+            "type": str(getattr(kind, "value", kind)),
+            "dE_m": _f(r[0]),
+            "dN_m": _f(r[1]),
+            "dH_m": _f(r[2]),
+            "plan_m": _f(np.hypot(r[0], r[1])),
+        }
+        if not check:
+            used = [bool(ground.used_xy[k])] * 2 + [bool(ground.used_h[k])]
+            row["redundancy"] = (
+                [_f(v) if u else None for v, u in zip(red[k], used, strict=True)]
+                if have
+                else [None] * 3
+            )
+            row["mde_m"] = (
+                [_f(v) if u and np.isfinite(v) else None for v, u in zip(mde[k], used, strict=True)]
+                if have
+                else [None] * 3
+            )
+            row["detectable"] = (
+                [bool(np.isfinite(v)) if u else None for v, u in zip(mde[k], used, strict=True)]
+                if have
+                else [None] * 3
+            )
+        out.append(row)
     return out
+
+
+def _model_adjustment(result) -> dict[str, Any] | None:
+    """The simultaneous transformation of the models (block = "models")."""
+    models = getattr(result.ground, "models", None)
+    if models is None:
+        return None
+    res = models.result
+    labels = result.strip.model_labels
+    rms = np.asarray(models.model_rms, dtype=np.float64)
+    centres = np.asarray(models.centre_discrepancy, dtype=np.float64)
+    disc = np.asarray(models.discrepancy, dtype=np.float64)
+    return {
+        "sigma0": _f(res.sigma0),
+        "redundancy": int(res.redundancy),
+        "iterations": int(res.iterations),
+        "converged": bool(res.converged),
+        "discrepancy_rms_m": [_f(v) for v in np.sqrt(np.nanmean(disc**2, axis=0))]
+        if disc.size
+        else [None] * 3,
+        "models": [
+            {
+                "index": m,
+                "label": labels[m] if m < len(labels) else str(m),
+                "scale": _f(res.transforms.scale[m]),
+                "discrepancy_rms_m": [_f(v) for v in rms[m]],
+                "left_centre_m": [_f(v) for v in centres[m, 0]],
+                "right_centre_m": [_f(v) for v in centres[m, 1]],
+            }
+            for m in range(rms.shape[0])
+        ],
+        "rejected": [{"model": m, "point": p} for m, p in models.rejected],
+    }
 
 
 def _options(result, project) -> dict[str, Any]:
     strip_opt = result.strip.options
+    construction = getattr(result.ground, "construction", None)
     opts: dict[str, Any] = {
         "route": result.ground.route,
+        "block": str(getattr(construction, "value", "strips")),
         "relative_orientation": strip_opt.relative_orientation,
         "intersection": strip_opt.intersection,
         "scale_transfer": strip_opt.scale_transfer,
@@ -375,6 +429,8 @@ def _options(result, project) -> dict[str, Any]:
     if project is not None:
         adj = project.adjustment
         opts["polynomial"] = adj.polynomial if adj.polynomial == "auto" else int(adj.polynomial)
+    if opts["block"] == "models":
+        opts["polynomial"] = None  # every model its own similarity
     return opts
 
 
@@ -459,6 +515,7 @@ def build_report(
         "models": _models(result),
         "ground": {
             "route": ground.route,
+            "construction": str(getattr(getattr(ground, "construction", None), "value", "strips")),
             "azimuth_deg": _f(np.degrees(ground.azimuth)),
             "passes": int(ground.passes),
             "passes_converged": bool(ground.passes_converged),
@@ -473,6 +530,7 @@ def build_report(
                 "longitude_deg": _f(np.degrees(frame.longitude)),
             },
         },
+        "model_adjustment": _model_adjustment(result),
         "similarity": _similarity(result),
         "polynomial": _polynomial(result, _options(result, project)["polynomial"]),
         "straight_lines": _lines(result, weights),
@@ -1311,6 +1369,14 @@ def _html_page(report, fig_layout, fig_resid, fig_par, fig_ties) -> str:
     return "\n".join(parts)
 
 
+def _plan_of(values, pick):
+    """One plan figure from [E, N, H] values (``pick`` of the two), or None."""
+    if not values:
+        return None
+    plan = [v for v in values[:2] if v is not None]
+    return pick(plan) if plan else None
+
+
 def _html_tables(report: Mapping[str, Any]) -> list[str]:
     out = ["<h2>Relative orientation per pair</h2>"]
     ro = report["relative_orientation"]
@@ -1412,22 +1478,88 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
             digits=[4, 5, 5, 5, 3, 3, 3, 3, 0, 0],
         )
     )
-    for key, title in (("control", "Control residuals"), ("check", "Check-point discrepancies")):
-        out.append(f"<h2>{title} (given − adjusted, m)</h2>")
+    out.append("<h2>Control residuals (given − adjusted, m)</h2>")
+    out.append(
+        "<p>r: redundancy number of the component (the share of an error in it that shows "
+        "in its residual); MDE: the smallest error the blunder test finds with 80 % "
+        "probability (Baarda), m. <em>undetectable</em>: the component has no redundancy "
+        "and an error in it cannot be found by any test; only more control can show it.</p>"
+    )
+
+    def mde_cell(p, k):
+        if p.get("detectable", [None] * 3)[k] is False:
+            return ("<em>undetectable</em>",)
+        return p.get("mde_m", [None] * 3)[k]
+
+    out.append(
+        _table(
+            ["point", "type", "dE", "dN", "dH", "plan", "r plan", "r H", "MDE plan", "MDE H"],
+            [
+                [
+                    p["point"],
+                    p["type"],
+                    p["dE_m"],
+                    p["dN_m"],
+                    p["dH_m"],
+                    p["plan_m"],
+                    _plan_of(p.get("redundancy"), min),
+                    (p.get("redundancy") or [None] * 3)[2],
+                    mde_cell(p, 0)
+                    if p.get("detectable", [None] * 3)[0] is False
+                    else _plan_of(p.get("mde_m"), max),
+                    mde_cell(p, 2),
+                ]
+                for p in report["control"]["points"]
+            ],
+            left=2,
+            scroll=True,
+            digits=[0, 0, 3, 3, 3, 3, 3, 3, 2, 2],
+        )
+    )
+    out.append("<h2>Check-point discrepancies (given − adjusted, m)</h2>")
+    out.append(
+        _table(
+            ["point", "type", "dE", "dN", "dH", "plan"],
+            [
+                [p["point"], p["type"], p["dE_m"], p["dN_m"], p["dH_m"], p["plan_m"]]
+                for p in report["check"]["points"]
+            ],
+            left=2,
+            scroll=True,
+        )
+    )
+    adj = report.get("model_adjustment")
+    if adj:
+        out.append("<h2>Every model at once (block = models, R4 §3)</h2>")
+        out.append(
+            f"<p>Each model transformed by its own 3D similarity onto the control and onto "
+            f"the other models on their common points and projection centres: σ0 = "
+            f"{_fmt(adj['sigma0'])}, redundancy {adj['redundancy']}, {adj['iterations']} "
+            f"iteration(s). The discrepancies are each model's determination of a point "
+            f"minus the adjusted point (R4 §2.2's differences between determinations), "
+            f"along the strip (X), across it (Y) and in height (Z); RMS over all "
+            f"{'X, Y, Z'}: {', '.join(_fmt(v) for v in adj['discrepancy_rms_m'])} m.</p>"
+        )
         out.append(
             _table(
-                ["point", "type", "dE", "dN", "dH", "plan"],
+                ["model", "pair", "scale", "RMS X [m]", "RMS Y [m]", "RMS Z [m]"],
                 [
-                    [p["point"], p["type"], p["dE_m"], p["dN_m"], p["dH_m"], p["plan_m"]]
-                    for p in report[key]["points"]
+                    [m["index"], m["label"], m["scale"], *m["discrepancy_rms_m"]]
+                    for m in adj["models"]
                 ],
                 left=2,
                 scroll=True,
+                digits=[0, 0, 6, 3, 3, 3],
             )
         )
     poly = report["polynomial"]
     out.append("<h2>Deformation polynomials (J(16))</h2>")
-    if poly.get("coefficients_m"):
+    if adj:
+        out.append(
+            "<p class='na'>Not used: every model has its own similarity (block = models); "
+            'J\'s polynomials are block = "strips".</p>'
+        )
+    elif poly.get("coefficients_m"):
         terms = poly["terms"]
         sections = int(poly.get("sections", 1))
         spline_text = ""
@@ -1535,7 +1667,9 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
                     r["unit"],
                     r["w"],
                     r["critical"],
-                    "yes" if r["applied"] else "no (report only)",
+                    "yes"
+                    if r["applied"]
+                    else ("no (kept)" if str(r["effect"]).startswith("kept") else "no (report only)"),
                     r["effect"],
                 ]
                 for r in report.get("rejections", [])
