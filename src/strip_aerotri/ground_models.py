@@ -65,6 +65,7 @@ from .simultaneous import (
 __all__ = ["ModelAdjustment", "adjust_models_to_ground"]
 
 _MAX_PASSES = 8
+_CHI2_3_MEDIAN = 2.365973884375338  # median of chi-square with 3 degrees of freedom
 _PASS_TOLERANCE_M = 1e-5
 
 
@@ -124,9 +125,9 @@ def _weights(strip: StripModel, start_transform, sigma_fallback: float):
         sig_r = obs.sigma[strip.model_rows[:, 1]]
     else:
         sig_l = sig_r = np.full(m.shape[0], sigma_fallback)
+    n_models = strip.n_models
     info = ray_information(points, centres[left], rot[left], c, sig_l)
     info += ray_information(points, centres[right], rot[right], c, sig_r)
-    n_models = strip.n_models
     c_left = centre_information(points, centres[left], rot[left], c, sig_l, m, n_models)
     c_right = centre_information(points, centres[right], rot[right], c, sig_r, m, n_models)
     # A model whose points cannot fix a centre (too few, degenerate): the
@@ -285,7 +286,11 @@ def adjust_models_to_ground(
         if not blunders.rejecting:
             rejections.extend(f[0] for f in found)
             break
-        worst, apply = max(found, key=lambda f: abs(f[0].w) / f[0].critical)
+        # Control and line tests first: their errors show in the determinations
+        # of their points too (the models give way to them), while an error of
+        # a determination seldom makes a control or line test fail.
+        first = [f for f in found if f[0].stage != "models"] or found
+        worst, apply = max(first, key=lambda f: abs(f[0].w) / f[0].critical)
         if worst.stage == "control":
             trial_xy, trial_z = use_xy.copy(), use_z.copy()
             apply(trial_xy, trial_z)
@@ -357,6 +362,9 @@ def _tests(res, sol, ids, idx, use_xy, use_z, keep_rows, n_det, strip, lines, li
     found = []
     active = use_xy | use_z
     act = np.flatnonzero(active)
+    # At their stated sigmas, no variance factor: a control error spreads
+    # through the models into the w of many other control points, and a
+    # factor from their median would hide it (a 5 m error gives a factor of 90).
     w = res.control_w  # (n_active, 3)
     n_tests = int(np.isfinite(w).sum())
     crit = blunders.critical("control", n_tests)
@@ -401,9 +409,16 @@ def _tests(res, sol, ids, idx, use_xy, use_z, keep_rows, n_det, strip, lines, li
                         apply,
                     )
                 )
-    # determinations: 3-D residual against chi-square(3), as a "w" = sqrt(stat)
+    # Determinations: the 3-D residual against chi-square(3), as a "w" =
+    # sqrt(statistic) (row_statistic has mean 1 per row: times 3).  Data
+    # noisier than declared scale it down by the rows' median over
+    # chi-square(3)'s, never up (the statistic's redundancy share is an
+    # estimate, and its tail is heavier than its median says).
     kept = np.flatnonzero(keep_rows[:n_det])
-    stat = res.row_statistic[: kept.size]
+    stat = 3.0 * res.row_statistic[: kept.size]
+    finite = stat[np.isfinite(stat)]
+    if finite.size:
+        stat = stat / max(1.0, float(np.median(finite)) / _CHI2_3_MEDIAN)
     n_rows = int(np.isfinite(stat).sum())
     crit_m = blunders.critical("models", n_rows, dof=3)
     w_rows = np.sqrt(np.where(np.isfinite(stat), stat, 0.0))

@@ -128,3 +128,4 @@ def centre_information(
             centre_cov = np.linalg.inv(normal[good])[:, :3, :3]
             out[good] = np.linalg.inv(centre_cov)
     return out
+

@@ -1,0 +1,424 @@
+"""Robustness and accuracy of the strip method over the envelope of real projects.
+
+Run from the repository root::
+
+    python benchmarks/sweep.py               # every case (a few minutes)
+    python benchmarks/sweep.py --quick       # the subset that tests/test_sweep.py runs
+    python benchmarks/sweep.py --family drone-along -v
+
+Each case is a seeded strip of the package's simulator
+(:func:`strip_aerotri.simulate.simulate_strip`) whose parameters are drawn
+from its family's ranges (camera and format, the format's long side along or
+across the flight, forward overlap, flying height, tilt and kappa scatter,
+relief, image noise, photos, control layout, straight-line points, image and
+control blunders).  A case is *valid* when every pair has at least 12 common
+points spread over at least 55 % of the format across the flight; invalid
+draws are replaced by the next seed.  On each valid case, on the same
+observations:
+
+* the strip method as ``stripaero run`` does it (its defaults: every model
+  at once, blunder tests rejecting), :func:`strip_aerotri.pipeline.triangulate`;
+* its bundle refinement (``refine = "bundle"``);
+* a reference bundle adjustment started from the truth, in the simulator's
+  local east-north-up frame, on the observations without the simulated
+  blunders (what data snooping would leave), with the control at its sigmas
+  (:func:`strip_aerotri.bundle.bundle_adjust`).
+
+The table gives, per case, the check-point RMSE (plan, height) of each and
+the ratios strip / reference and refined / reference; then per family and
+over all cases: success rate and the median and largest ratios.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+import traceback
+import warnings
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from strip_aerotri.bundle import bundle_adjust
+from strip_aerotri.geodesy import GroundCRS
+from strip_aerotri.ground import LineSpec
+from strip_aerotri.pipeline import triangulate
+from strip_aerotri.refine import refine_bundle
+from strip_aerotri.simulate import SimulatedStrip, simulate_strip
+
+#: Cameras: principal distance (mm), format long x short side (mm), pixel
+#: (um; None for film).  Typical values of the classes of camera named.
+CAMERAS = {
+    "film88": (88.5, (230.0, 230.0), None),  # super-wide angle film camera
+    "film152": (152.87, (230.0, 230.0), None),  # wide angle (RC30, RMK TOP 15 class)
+    "film210": (210.0, (230.0, 230.0), None),  # normal angle
+    "ff35": (35.0, (36.0, 24.0), 4.4),  # full frame 35 mm lens (drone mapping camera)
+    "apsc16": (16.0, (23.5, 15.6), 3.9),  # APS-C, 16 mm lens
+    "oneinch": (8.8, (13.2, 8.8), 2.4),  # 1-inch sensor (Phantom 4 Pro class)
+}
+
+
+@dataclass(frozen=True)
+class Case:
+    """One simulated strip of the sweep (lengths in m, angles in deg)."""
+
+    family: str
+    seed: int
+    n_photos: int
+    camera: str
+    long_side: str  # "along" or "across" the flight
+    overlap: float  # forward overlap, fraction
+    height_m: float  # flying height above the mean terrain
+    tilt_deg: float  # standard deviation of omega and phi
+    kappa_deg: float  # standard deviation of kappa about the heading
+    relief_m: float
+    noise_um: float
+    control: str  # simulate_strip's control layout
+    control_every: int = 3
+    line: bool = False
+    image_blunders: int = 0
+    control_blunders: int = 0
+
+    @property
+    def label(self) -> str:
+        extra = (" line" if self.line else "") + (
+            f" bl{self.image_blunders}/{self.control_blunders}"
+            if self.image_blunders or self.control_blunders
+            else ""
+        )
+        return (
+            f"{self.camera}-{self.long_side[:2]} {self.n_photos}ph {self.overlap:.0%} "
+            f"H{self.height_m:.0f} t{self.tilt_deg:.1f} k{self.kappa_deg:.1f} "
+            f"r{self.relief_m:.0f} n{self.noise_um:.1f} {self.control}{extra}"
+        )
+
+
+def _uniform(rng, lo, hi):
+    return float(rng.uniform(lo, hi))
+
+
+def _film(rng, family, seed, camera=None, n=(6, 40)) -> Case:
+    cam = camera or str(rng.choice(["film88", "film152", "film210"]))
+    c = CAMERAS[cam][0]
+    scale = _uniform(rng, 5000, 15000)
+    height = c * scale / 1000.0
+    return Case(
+        family=family,
+        seed=seed,
+        n_photos=int(rng.integers(n[0], n[1] + 1)),
+        camera=cam,
+        long_side="along",
+        overlap=_uniform(rng, 0.57, 0.66),
+        height_m=height,
+        tilt_deg=_uniform(rng, 0.5, 3.0),
+        kappa_deg=_uniform(rng, 1.0, 5.0),
+        relief_m=height * _uniform(rng, 0.02, 0.10),
+        noise_um=_uniform(rng, 2.0, 7.0),
+        control=str(rng.choice(["ends", "every_k_models", "dense"])),
+        control_every=int(rng.integers(3, 6)),
+    )
+
+
+def _drone(rng, family, seed, long_side, n=(20, 80)) -> Case:
+    cam = str(rng.choice(["ff35", "apsc16", "oneinch"]))
+    pixel = CAMERAS[cam][2]
+    return Case(
+        family=family,
+        seed=seed,
+        n_photos=int(rng.integers(n[0], n[1] + 1)),
+        camera=cam,
+        long_side=long_side,
+        overlap=_uniform(rng, 0.70, 0.85),
+        height_m=_uniform(rng, 80.0, 200.0),
+        tilt_deg=_uniform(rng, 1.0, 5.0),
+        kappa_deg=_uniform(rng, 2.0, 10.0),
+        relief_m=_uniform(rng, 2.0, 15.0),
+        noise_um=pixel * _uniform(rng, 0.5, 1.0),
+        control=str(rng.choice(["ends", "every_k_models", "dense"])),
+        control_every=int(rng.integers(4, 9)),
+    )
+
+
+def _family_cases(family: str, count: int, first_seed: int) -> Iterator[Case]:
+    """``count`` draws of a family's parameters (seeds first_seed, ...)."""
+    for k in range(count):
+        seed = first_seed + k
+        rng = np.random.default_rng(10_000 + seed)
+        if family == "film":
+            yield _film(rng, family, seed)
+        elif family == "film-long":
+            yield replace(_film(rng, family, seed, camera="film152", n=(60, 120)), control="every_k_models", control_every=int(rng.integers(4, 8)))
+        elif family == "drone-along":
+            yield _drone(rng, family, seed, "along")
+        elif family == "drone-across":
+            yield _drone(rng, family, seed, "across")
+        elif family == "drone-long":
+            yield replace(_drone(rng, family, seed, str(rng.choice(["along", "across"])), n=(90, 120)), control="every_k_models")
+        elif family == "corridor":
+            base = _film(rng, family, seed) if rng.uniform() < 0.5 else _drone(rng, family, seed, "across")
+            yield replace(base, line=True)
+        else:
+            raise ValueError(f"unknown family {family!r}")
+
+
+FAMILIES = {
+    "film": 14,
+    "film-long": 6,
+    "drone-along": 12,
+    "drone-across": 12,
+    "drone-long": 6,
+    "corridor": 8,
+}
+QUICK = {"film": 3, "drone-along": 3, "drone-across": 2, "corridor": 2}
+
+
+def simulate(case: Case) -> SimulatedStrip:
+    """The simulated strip of a case."""
+    c, (long_mm, short_mm), _ = CAMERAS[case.camera]
+    fmt = (long_mm, short_mm) if case.long_side == "along" else (short_mm, long_mm)
+    across = fmt[1]
+    scale = case.height_m / c  # m per mm
+    base = (1.0 - case.overlap) * fmt[0] * scale
+    gy = 0.33 * across
+    return simulate_strip(
+        case.n_photos,
+        preset="drone",
+        crs="EPSG:2180",
+        centre_lonlat=(19.5, 52.0),
+        heading_deg=float(np.random.default_rng(case.seed).uniform(0.0, 360.0)),
+        seed=case.seed,
+        control=case.control,
+        control_every=case.control_every,
+        line=case.line,
+        principal_distance_mm=c,
+        format_mm=fmt,
+        flying_height_m=case.height_m,
+        forward_overlap=case.overlap,
+        terrain_height_m=150.0,
+        relief_m=case.relief_m,
+        relief_wavelength_m=max(8.0 * base, 20.0 * case.relief_m),
+        attitude_sigma_deg=case.tilt_deg,
+        kappa_sigma_deg=case.kappa_deg,
+        position_wander_m=0.02 * case.height_m,
+        height_wander_m=0.02 * case.height_m,
+        gruber_y_mm=(gy, 0.0, -gy),
+        gruber_points_per_zone=2,
+        gruber_spread_mm=0.04 * across,
+        extra_points_per_photo=10 if c > 60 else 18,
+        image_noise_mm=case.noise_um / 1000.0,
+        control_noise_m=max(0.005, 0.25 * case.noise_um / 1000.0 * scale),
+        line_offset_mm=-0.15 * across,
+    )
+
+
+def valid(sim: SimulatedStrip) -> tuple[bool, str]:
+    """Every pair: >= 12 common points over >= 55 % of the format across."""
+    from strip_aerotri.chaining import pair_rows
+
+    obs = sim.observations
+    model, _, row_l, _ = pair_rows(obs, np.arange(obs.n_photos))
+    n_pairs = obs.n_photos - 1
+    counts = np.bincount(model, minlength=n_pairs)
+    if counts.min() < 12:
+        return False, f"a pair with {counts.min()} common points"
+    y = obs.xy[row_l, 1]
+    lo = np.full(n_pairs, np.inf)
+    hi = np.full(n_pairs, -np.inf)
+    np.minimum.at(lo, model, y)
+    np.maximum.at(hi, model, y)
+    spread = (hi - lo) / sim.preset.format_mm[1]
+    if spread.min() < 0.55:
+        return False, f"a pair's points span {spread.min():.0%} across"
+    return True, ""
+
+
+def _rmse(diff: np.ndarray) -> tuple[float, float]:
+    """Plan and height RMSE of (n, 3) differences (NaN rows left out)."""
+    plan = np.isfinite(diff[:, :2]).all(axis=1)
+    height = np.isfinite(diff[:, 2])
+    return (
+        float(np.sqrt(np.mean(np.sum(diff[plan, :2] ** 2, axis=1)))),
+        float(np.sqrt(np.mean(diff[height, 2] ** 2))),
+    )
+
+
+def control_in_local(sim: SimulatedStrip) -> tuple[np.ndarray, np.ndarray]:
+    """Point index and local east-north-up coordinates (NaN where not given)
+    of the control and check rows."""
+    truth = sim.truth
+    lookup = {p: i for i, p in enumerate(sim.observations.point_ids)}
+    index = np.array([lookup[p] for p in sim.control.point_ids], dtype=np.intp)
+    xyz = np.asarray(sim.control.xyz, dtype=np.float64)
+    filled = np.where(np.isnan(xyz), truth.points_crs[index], xyz)
+    crs = GroundCRS.from_user_input(sim.crs)
+    local = truth.local_to_ecef.ecef2local(crs.to_ecef(filled))
+    return index, np.where(np.isnan(xyz), np.nan, local)
+
+
+def reference_bundle(sim: SimulatedStrip) -> tuple[float, float]:
+    """Check-point RMSE (plan, height) of a bundle adjustment from the truth
+    on the observations without blunders, local frame."""
+    obs = sim.observations
+    truth = sim.truth
+    index, local = control_in_local(sim)
+    kinds = np.array([k.value for k in sim.control.kind])
+    blunder_obs = np.asarray(getattr(truth, "blunder_observations", ()), dtype=np.intp)
+    bad_points = {b[0] if isinstance(b, tuple) else b for b in getattr(truth, "blunder_control", ())}
+    if blunder_obs.size:
+        keep = np.ones(obs.photo.shape[0], dtype=bool)
+        keep[blunder_obs] = False
+        obs = type(obs)(
+            photo_ids=obs.photo_ids,
+            point_ids=obs.point_ids,
+            photo=obs.photo[keep],
+            point=obs.point[keep],
+            xy=obs.xy[keep],
+            sigma=obs.sigma[keep],
+            principal_distance=obs.principal_distance,
+        )
+    n = obs.n_points
+    control_xyz = np.full((n, 3), np.nan)
+    control_sigma = np.full((n, 3), np.inf)
+    use = (kinds != "check") & ~np.isin(np.asarray(sim.control.point_ids), list(bad_points))
+    control_xyz[index[use]] = local[use]
+    sig = np.column_stack([sim.control.sigma_xy, sim.control.sigma_xy, sim.control.sigma_h])
+    control_sigma[index[use]] = sig[use]
+    control_sigma[np.isnan(control_xyz)] = np.inf
+    res = bundle_adjust(
+        obs,
+        truth.photo_centres_local,
+        truth.photo_rotations_local,
+        truth.points_local,
+        control_xyz=control_xyz,
+        control_sigma=control_sigma,
+        compute_precision=False,
+    )
+    check = index[kinds == "check"]
+    return _rmse(truth.points_local[check] - res.points[check])
+
+
+@dataclass
+class Outcome:
+    case: Case
+    ok: bool = False
+    error: str = ""
+    strip: tuple[float, float] = (math.nan, math.nan)
+    refined: tuple[float, float] = (math.nan, math.nan)
+    reference: tuple[float, float] = (math.nan, math.nan)
+    seconds: float = math.nan
+
+    @property
+    def ratio(self) -> tuple[float, float]:
+        return tuple(s / r for s, r in zip(self.strip, self.reference, strict=True))
+
+    @property
+    def refined_ratio(self) -> tuple[float, float]:
+        return tuple(s / r for s, r in zip(self.refined, self.reference, strict=True))
+
+
+def run_case(case: Case, *, refine: bool = True) -> Outcome:
+    """Strip method, its bundle refinement and the reference on one case."""
+    out = Outcome(case)
+    sim = simulate(case)
+    out.reference = reference_bundle(sim)
+    lines = [LineSpec(point_ids=tuple(ids), weight=w) for ids, w in sim.lines]
+    t0 = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = triangulate(sim.observations, sim.control, sim.crs, lines=lines)
+            out.seconds = time.perf_counter() - t0
+            out.strip = (result.check_statistics.rmse_plan, float(result.check_statistics.rmse[2]))
+            if refine:
+                refined = refine_bundle(result, compute_precision=False)
+                stats = refined.check_statistics
+                out.refined = (stats.rmse_plan, float(stats.rmse[2]))
+        out.ok = True
+    except Exception as exc:  # every failure is a result of the sweep
+        out.error = f"{type(exc).__name__}: {exc}"
+    return out
+
+
+def cases(families: dict[str, int], max_tries: int = 5) -> Iterator[tuple[Case, SimulatedStrip | None, str]]:
+    """Valid cases of each family, invalid draws replaced by later seeds."""
+    seed = 0
+    for family, count in families.items():
+        made = 0
+        tries = 0
+        for case in _family_cases(family, count * max_tries, 100 * len(family) + seed):
+            if made == count:
+                break
+            tries += 1
+            try:
+                sim = simulate(case)
+            except ValueError as exc:
+                yield case, None, f"simulation: {exc}"
+                continue
+            ok, why = valid(sim)
+            if not ok:
+                yield case, None, why
+                continue
+            made += 1
+            yield case, sim, ""
+        seed += 1000
+
+
+def _f(values) -> str:
+    return " ".join(f"{v:6.3f}" if np.isfinite(v) else "   n/a" for v in values)
+
+
+def summarise(outcomes: list[Outcome]) -> None:
+    fams = sorted({o.case.family for o in outcomes}, key=list(FAMILIES).index)
+    print()
+    print(f"{'family':14s} {'cases':>5s} {'ok':>4s}  strip/bundle plan, height: median  max   refined/bundle: median  max")
+    for fam in [*fams, "all"]:
+        sel = [o for o in outcomes if fam in ("all", o.case.family)]
+        ok = [o for o in sel if o.ok]
+        r = np.array([o.ratio for o in ok]) if ok else np.full((1, 2), np.nan)
+        rr = np.array([o.refined_ratio for o in ok]) if ok else np.full((1, 2), np.nan)
+        print(
+            f"{fam:14s} {len(sel):5d} {len(ok):4d}  "
+            f"{np.median(r[:, 0]):5.2f} {np.median(r[:, 1]):5.2f}  "
+            f"{np.max(r[:, 0]):5.2f} {np.max(r[:, 1]):5.2f}      "
+            f"{np.median(rr[:, 0]):5.2f} {np.median(rr[:, 1]):5.2f}  "
+            f"{np.max(rr[:, 0]):5.2f} {np.max(rr[:, 1]):5.2f}"
+        )
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="the CI subset")
+    parser.add_argument("--family", action="append", help="only these families")
+    parser.add_argument("--no-refine", action="store_true", help="skip the bundle refinement")
+    parser.add_argument("-v", "--verbose", action="store_true", help="print invalid draws and tracebacks")
+    args = parser.parse_args(argv)
+    families = dict(QUICK if args.quick else FAMILIES)
+    if args.family:
+        families = {f: FAMILIES[f] for f in args.family}
+    outcomes: list[Outcome] = []
+    print(f"{'#':>3s} {'case':62s} {'strip plan/H':>13s} {'refined':>13s} {'bundle':>13s} {'ratio':>11s} {'s':>5s}")
+    t0 = time.perf_counter()
+    for case, sim, why in cases(families):
+        if sim is None:
+            if args.verbose:
+                print(f"    invalid draw {case.label}: {why}")
+            continue
+        out = run_case(case, refine=not args.no_refine)
+        outcomes.append(out)
+        status = _f(out.ratio) if out.ok else "FAILED"
+        print(
+            f"{len(outcomes):3d} {case.family + ' ' + case.label:62.62s} {_f(out.strip)} "
+            f"{_f(out.refined)} {_f(out.reference)} {status:>11s} {out.seconds:5.2f}"
+        )
+        if not out.ok:
+            print(f"      {out.error[:200]}")
+    summarise(outcomes)
+    print(f"\n{len(outcomes)} cases in {time.perf_counter() - t0:.0f} s")
+    return 0 if all(o.ok for o in outcomes) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
