@@ -63,6 +63,7 @@ __all__ = [
     "Route",
     "adjust_to_ground",
     "control_detectability",
+    "intersect_unmodelled",
 ]
 
 _MAX_PASSES = 8
@@ -900,17 +901,17 @@ def adjust_to_ground(
     # similarity, the polynomials and the CRS route carry through as NaN, at
     # less cost than gathering the others and scattering them back.
     points_work = to_work(strip.points)
-    points = work.from_work(points_work)
     not_triangulated = ~strip.triangulated
     if not_triangulated.any():
         points_work[not_triangulated] = np.nan
-        points[not_triangulated] = np.nan
 
     centres_model = transform.apply(strip.centres)
     centres_work = to_work(strip.centres)
     rot_work = transform.apply_to_rotation(strip.rotations)
     if deformation is not None:
         rot_work = _deformation_rotation(deformation, centres_model) @ rot_work
+    points_work = intersect_unmodelled(strip, points_work, centres_work, rot_work)
+    points = work.from_work(points_work)
     centres = work.from_work(centres_work)
     rot_enu = work.rotations_to_enu(rot_work, centres)
     opk = opk_from_matrix(rot_enu)
@@ -977,6 +978,46 @@ def adjust_to_ground(
         control_redundancy=control_red,
         control_mde=control_mde,
     )
+
+
+def intersect_unmodelled(
+    strip: StripModel, points_work: FloatArray, centres_work: FloatArray, rot_work: FloatArray
+) -> FloatArray:
+    """Points no model determined but seen on two or more photos of the strip
+    (e.g. on photos i and i + 2 only), intersected from all their rays with
+    the photos' final orientations (work frame); the others unchanged.
+
+    Parameters
+    ----------
+    strip : StripModel
+    points_work : ndarray, shape (P, 3)
+        Work-frame points, NaN where not triangulated.
+    centres_work, rot_work : ndarray, shapes (M, 3) and (M, 3, 3)
+        The strip's photos (``strip.photo_index``) in the work frame.
+
+    Returns
+    -------
+    ndarray, shape (P, 3)
+    """
+    obs = strip.observations
+    missing = ~np.isfinite(points_work).all(axis=1)
+    if not missing.any():
+        return points_work
+    slot = np.full(obs.n_photos, -1, dtype=np.intp)
+    slot[np.asarray(strip.photo_index, dtype=np.intp)] = np.arange(len(strip.photo_index))
+    rows = np.flatnonzero(missing[obs.point] & (slot[obs.photo] >= 0))
+    if rows.size < 2:
+        return points_work
+    from .densify import intersect_rays
+
+    photos = slot[obs.photo[rows]]
+    vectors = np.column_stack([obs.xy[rows], np.full(rows.size, -obs.principal_distance)])
+    directions = np.einsum("kij,kj->ki", rot_work[photos], vectors)
+    rays = intersect_rays(centres_work[photos], directions, obs.point[rows], obs.n_points)
+    out = points_work.copy()
+    fill = missing & np.isfinite(rays.points).all(axis=1)
+    out[fill] = rays.points[fill]
+    return out
 
 
 def control_detectability(

@@ -49,6 +49,7 @@ from .ground import (
     _make_work,
     adjust_to_ground,
     control_detectability,
+    intersect_unmodelled,
 )
 from .observations import ControlPoints
 from .precision import centre_information, ray_information
@@ -532,6 +533,7 @@ def _products(strip, start, work, res, guess, given, idx, rows, check, use_xy, u
             d = strip.points[lonely, None, :2] - t.centroid[None, :, :2]
             nearest = np.argmin(np.einsum("pmk,pmk->pm", d, d), axis=1)
             points_work[lonely] = t.apply(nearest, strip.points[lonely])
+    points_work = intersect_unmodelled(strip, points_work, centres_work, rot_work)
     points = work.from_work(points_work)
     centres = work.from_work(centres_work)
     rot_enu = work.rotations_to_enu(rot_work, centres)

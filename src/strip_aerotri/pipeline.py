@@ -236,12 +236,12 @@ def triangulate(
         "left out"
         for p in ground.left_out
     ]
-    not_seen = np.flatnonzero(~strip.triangulated)
+    not_seen = np.flatnonzero(~np.isfinite(ground.points).all(axis=1))
     if not_seen.size:
         names = ", ".join(repr(observations.point_ids[i]) for i in not_seen[:5])
         more = f" and {not_seen.size - 5} more" if not_seen.size > 5 else ""
         notes.append(
-            f"{not_seen.size} point(s) not triangulated (not on both photos of any model): "
+            f"{not_seen.size} point(s) not triangulated (seen on fewer than two photos): "
             f"{names}{more}"
         )
     resid = ground.control_residuals

@@ -94,12 +94,16 @@ def point_roles(result) -> np.ndarray:
 
     ``control-full``, ``control-plan``, ``control-height``, ``check`` (from
     the control file), ``line`` (on a straight line), ``tie`` (determined in
-    two or more models), ``model`` (in one model only), ``none`` (not
-    triangulated).
+    two or more models), ``model`` (in one model only), ``rays`` (in no
+    model, intersected from its rays on photos that are not a pair, e.g.
+    photos i and i + 2), ``none`` (not triangulated).
     """
     strip = result.strip
     n_det = np.asarray(strip.n_determinations)
-    roles = np.where(n_det >= 2, "tie", np.where(n_det == 1, "model", "none")).astype(object)
+    found = np.isfinite(np.asarray(result.points, dtype=np.float64)).all(axis=1)
+    roles = np.where(
+        n_det >= 2, "tie", np.where(n_det == 1, "model", np.where(found, "rays", "none"))
+    ).astype(object)
     for index in result.ground.line_point_index:
         roles[np.asarray(index, dtype=np.intp)] = "line"
     lookup = {pid: i for i, pid in enumerate(result.point_ids)}
