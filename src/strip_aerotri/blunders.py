@@ -147,9 +147,9 @@ class BlunderOptions:
             return float(self.critical_values[stage])
         if dof == 1:
             return critical_value(n_tests, self.alpha)
-        from scipy.stats import chi2
+        from scipy.special import chdtri  # inverse of chi-square's upper tail
 
-        return float(np.sqrt(chi2.isf(float(self.alpha) / max(int(n_tests), 1), dof)))
+        return float(np.sqrt(chdtri(dof, float(self.alpha) / max(int(n_tests), 1))))
 
 
 @dataclass(frozen=True)

@@ -238,11 +238,16 @@ def adjust_models_to_ground(
             np.isfinite(previous[0].points), previous[0].points, points0
         )
         res, converged, n_pass = None, False, 0
-        for n_pass in range(1, _MAX_PASSES + 1):
+        # Control given in full needs one pass; plan and height points get
+        # their missing coordinate from the adjustment, pass by pass, and the
+        # statistics (cofactors) are computed in the last one only.
+        guessed = bool(np.isnan(given[active]).any())
+        for n_pass in range(1, _MAX_PASSES + 2):
             target = work.to_work(guess_)
             target[~use_xy, :2] = np.nan
             target[~use_z, 2] = np.nan
             sigma = np.column_stack([sig_xy, sig_xy, sig_h])
+            final = not guessed or converged or n_pass == _MAX_PASSES + 1
             res = adjust_units(
                 unit_obs,
                 n_models,
@@ -253,17 +258,19 @@ def adjust_models_to_ground(
                 control_xyz=target[active],
                 control_sigma=sigma[active],
                 lines=conditions,
+                statistics=final,
             )
+            if final:
+                break
             adjusted = work.from_work(res.points[idx])
             new_guess = given.copy()
             new_guess[np.isnan(given)] = adjusted[np.isnan(given)]
             change = float(np.nanmax(np.abs(new_guess - guess_), initial=0.0))
             guess_ = new_guess
             starts, p0 = res.transforms, np.where(np.isfinite(res.points), res.points, p0)
-            if change < _PASS_TOLERANCE_M:
-                converged = True
-                break
-        return res, guess_, converged, n_pass, active
+            converged = change < _PASS_TOLERANCE_M
+        converged = converged or not guessed
+        return res, guess_, converged, min(n_pass, _MAX_PASSES), active
 
     keep_rows = np.ones(units_all.shape[0], dtype=bool)
     use_xy, use_z = use_xy0.copy(), use_z0.copy()

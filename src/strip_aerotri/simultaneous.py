@@ -225,8 +225,21 @@ def _skew_rows(y: FloatArray) -> FloatArray:
     return out
 
 
+def _summation(index: IntArray, n_groups: int) -> sp.csr_matrix:
+    """(n_groups, n) matrix of ones that sums rows into their groups."""
+    n = index.shape[0]
+    return sp.csr_matrix((np.ones(n), (index, np.arange(n))), shape=(n_groups, n))
+
+
 class _Problem:
-    """Fixed structure of an adjustment: rows, control, lines and indices."""
+    """Fixed structure of an adjustment: rows, control, lines and indices.
+
+    The *coupled rows* are the unit observations (3 equations each, one unit
+    and one point) and the line equations (one equation each, one line and
+    one point).  Every unit and every line is a *block* of 7 reduced unknowns
+    (a line uses the first two, a and b; the other five are fixed at 0), so
+    that the sparse structure of ``N_zp`` (blocks x points) is built once.
+    """
 
     def __init__(
         self,
@@ -248,7 +261,8 @@ class _Problem:
         self.control_given = np.isfinite(control_xyz)
         self.lines = list(lines)
         self.n_lines = len(self.lines)
-        self.n_reduced = N_UNIT * n_units + 2 * self.n_lines
+        self.n_blocks = n_units + self.n_lines
+        self.n_reduced = N_UNIT * self.n_blocks
         counts = np.bincount(obs.unit, minlength=n_units).astype(np.float64)
         if np.any(counts == 0):
             raise GeometryError(f"unit {int(np.flatnonzero(counts == 0)[0])} has no points")
@@ -257,15 +271,54 @@ class _Problem:
         )
         self.offset = obs.xyz - self.centroid[obs.unit]
         self.observed = np.bincount(obs.point, minlength=n_points) > 0
+        self.line_rows = [line.point.shape[0] for line in self.lines]
+        line_point = (
+            np.concatenate([line.point for line in self.lines]) if self.lines else np.zeros(0, int)
+        )
+        line_block = np.repeat(n_units + np.arange(self.n_lines), self.line_rows).astype(np.intp)
+        self.row_block = np.concatenate([obs.unit, line_block]).astype(np.intp)
+        self.row_point = np.concatenate([obs.point, line_point]).astype(np.intp)
+        self.to_block = _summation(self.row_block, self.n_blocks)
+        self.to_point = _summation(self.row_point, n_points)
+        # N_zp's CSR structure: each coupled row contributes a 7 x 3 block at
+        # (its block, its point); data are given in that (row, 7, 3) order.
+        n_r = self.row_block.shape[0]
+        rows = (N_UNIT * self.row_block[:, None, None] + np.arange(N_UNIT)[None, :, None]).repeat(
+            3, axis=2
+        )
+        cols = (3 * self.row_point[:, None, None] + np.arange(3)[None, None, :]).repeat(
+            N_UNIT, axis=1
+        )
+        order = sp.csr_matrix(
+            (np.arange(1, n_r * 3 * N_UNIT + 1, dtype=np.float64), (rows.ravel(), cols.ravel())),
+            shape=(self.n_reduced, 3 * n_points),
+        )
+        order.sort_indices()
+        if order.nnz != n_r * 3 * N_UNIT:  # a point twice in one unit or line
+            raise ValueError("Expected each point at most once in a unit and in a line")
+        self.zp_order = order.data.astype(np.intp) - 1
+        self.zp_indices = order.indices
+        self.zp_indptr = order.indptr
+        # the reduced unknowns fixed at 0: the five unused slots of a line block
+        fixed = np.zeros((self.n_blocks, N_UNIT), dtype=bool)
+        fixed[n_units:, 2:] = True
+        self.fixed = fixed
+
+    def zp_matrix(self, blocks: FloatArray) -> sp.csr_matrix:
+        """Sparse (n_reduced, 3P) matrix from per-row (n_r, 7, 3) blocks."""
+        return sp.csr_matrix(
+            (blocks.ravel()[self.zp_order], self.zp_indices, self.zp_indptr),
+            shape=(self.n_reduced, 3 * self.n_points),
+        )
 
     @property
     def n_observations(self) -> int:
-        n_line = sum(line.point.shape[0] for line in self.lines)
+        n_line = sum(self.line_rows)
         return 3 * self.obs.unit.shape[0] + int(self.control_given.sum()) + n_line
 
     @property
     def n_unknowns(self) -> int:
-        return self.n_reduced + 3 * int(self.observed.sum())
+        return N_UNIT * self.n_units + 2 * self.n_lines + 3 * int(self.observed.sum())
 
 
 class _State:
@@ -308,110 +361,86 @@ def _cost(prob: _Problem, st: _State) -> float:
 
 
 class _Normals:
-    """Reduced normal equations of one iteration: ``S z = r`` for the units
-    and lines, and what back-substitution needs."""
+    """Reduced normal equations of one iteration, ``S z = r`` for the blocks
+    (units and lines), and what back-substitution and cofactors need:
+    ``V⁻¹`` (P, 3, 3; 0 for unobserved points), ``reduce = N_zp V⁻¹``
+    (sparse), the per-row ``N_zp`` blocks (n_r, 7, 3) and ``g_p`` (P, 3)."""
 
-    def __init__(self, s_matrix, rhs, v_inv, n_zp, g_p):
+    def __init__(self, s_matrix, rhs, v_inv, reduce, n_zp_rows, g_p):
         self.s_matrix = s_matrix
         self.rhs = rhs
-        self.v_inv = v_inv  # (P, 3, 3), 0 for unobserved points
-        self.n_zp = n_zp  # sparse (n_reduced, 3P)
-        self.g_p = g_p  # (P, 3)
+        self.v_inv = v_inv
+        self.reduce = reduce
+        self.n_zp_rows = n_zp_rows
+        self.g_p = g_p
 
 
 def _normals(prob: _Problem, st: _State) -> _Normals:
     obs = prob.obs
     n = obs.unit.shape[0]
-    u, p = obs.unit, obs.point
     y, v = _predict(prob, st)
     # Design of a row in its unit's 7 parameters: dt, dω (R <- exp(ω) R),
     # ds / s; its point's is -I.
     a_u = np.zeros((n, 3, N_UNIT))
-    a_u[:, :, :3] = np.eye(3)
+    a_u[:, 0, 0] = a_u[:, 1, 1] = a_u[:, 2, 2] = 1.0
     a_u[:, :, 3:6] = _skew_rows(y)
     a_u[:, :, 6] = y
     w = obs.weight
     wa = w @ a_u  # W A_u
-    n_uu = np.swapaxes(a_u, 1, 2) @ wa  # (n, 7, 7)
-    g_u_rows = -np.einsum("nki,nk->ni", wa, v)  # -A_uᵀ W v
-    # point blocks: Σ W, gradient Σ W v (A_p = -I)
-    v_blocks = np.zeros((prob.n_points, 3, 3))
-    np.add.at(v_blocks, p, w)
-    g_p = np.zeros((prob.n_points, 3))
-    np.add.at(g_p, p, np.einsum("nij,nj->ni", w, v))
-    # control
-    cp, given, sig = prob.control_point, prob.control_given, prob.control_sigma
-    cw = np.where(given, 1.0 / np.where(given, sig, 1.0) ** 2, 0.0)
-    resid_c = np.where(given, st.points[cp] - np.where(given, prob.control_xyz, 0.0), 0.0)
-    diag = np.zeros((cp.shape[0], 3, 3))
-    diag[:, [0, 1, 2], [0, 1, 2]] = cw
-    np.add.at(v_blocks, cp, diag)
-    np.add.at(g_p, cp, -cw * resid_c)
-
-    # Reduced unknowns: units then lines.  N_zz, N_zp, g_z as sparse/dense parts.
-    nz = prob.n_reduced
-    # N_uu blocks (unit diagonal)
-    blocks = np.zeros((prob.n_units, N_UNIT, N_UNIT))
-    np.add.at(blocks, u, n_uu)
-    g_z = np.zeros(nz)
-    np.add.at(g_z.reshape(-1)[: N_UNIT * prob.n_units].reshape(prob.n_units, N_UNIT), u, g_u_rows)
-    rows_i = np.repeat(np.arange(N_UNIT), N_UNIT)
-    cols_i = np.tile(np.arange(N_UNIT), N_UNIT)
-    zz_r = [(N_UNIT * np.arange(prob.n_units)[:, None] + rows_i).ravel()]
-    zz_c = [(N_UNIT * np.arange(prob.n_units)[:, None] + cols_i).ravel()]
-    zz_v = [blocks.reshape(prob.n_units, -1).ravel()]
-    # N_zp per row: A_uᵀ W A_p = -(W A_u)ᵀ  (7 x 3)
-    n_up = -np.swapaxes(wa, 1, 2)  # (n, 7, 3)
-    zp_r = [(N_UNIT * u[:, None, None] + np.arange(N_UNIT)[None, :, None] + 0 * np.arange(3)).ravel()]
-    zp_c = [(3 * p[:, None, None] + np.arange(3)[None, None, :] + 0 * np.arange(N_UNIT)[:, None]).ravel()]
-    zp_v = [n_up.ravel()]
+    n_bb = [np.swapaxes(a_u, 1, 2) @ wa]  # (n, 7, 7)
+    n_bp = [-np.swapaxes(wa, 1, 2)]  # A_uᵀ W A_p, A_p = -I
+    n_pp = [w]
+    g_b = [-np.einsum("nki,nk->ni", wa, v)]  # -A_uᵀ W v
+    g_pr = [np.einsum("nij,nj->ni", w, v)]  # -A_pᵀ W v
     # lines: e = Y - a - b X; de = dY - b dX - da - X db
     for k in range(prob.n_lines):
         xyz, e, wl = _line_terms(prob, st, k)
         b = st.line_ab[k, 1]
-        lp = prob.lines[k].point
-        m = lp.shape[0]
+        m = xyz.shape[0]
         d_p = np.zeros((m, 3))
         d_p[:, 0], d_p[:, 1] = -b, 1.0
-        d_l = np.column_stack([-np.ones(m), -xyz[:, 0]])
-        np.add.at(v_blocks, lp, wl * d_p[:, :, None] * d_p[:, None, :])
-        np.add.at(g_p, lp, -wl * d_p * e[:, None])
-        col0 = N_UNIT * prob.n_units + 2 * k
-        nll = wl * d_l.T @ d_l
-        zz_r.append(col0 + np.array([0, 0, 1, 1]))
-        zz_c.append(col0 + np.array([0, 1, 0, 1]))
-        zz_v.append(nll.ravel())
-        g_z[col0 : col0 + 2] += -wl * d_l.T @ e
-        lp_block = wl * d_l[:, :, None] * d_p[:, None, :]  # (m, 2, 3)
-        zp_r.append((col0 + np.arange(2)[None, :, None] + 0 * lp[:, None, None]).repeat(3, axis=2).ravel())
-        zp_c.append((3 * lp[:, None, None] + np.arange(3)[None, None, :]).repeat(2, axis=1).ravel())
-        zp_v.append(lp_block.ravel())
-    n_zz = sp.csr_matrix(
-        (np.concatenate(zz_v), (np.concatenate(zz_r), np.concatenate(zz_c))), shape=(nz, nz)
-    )
-    n_zp = sp.csr_matrix(
-        (np.concatenate(zp_v), (np.concatenate(zp_r), np.concatenate(zp_c))),
-        shape=(nz, 3 * prob.n_points),
-    )
+        d_l = np.zeros((m, N_UNIT))
+        d_l[:, 0], d_l[:, 1] = -1.0, -xyz[:, 0]
+        n_bb.append(wl * d_l[:, :, None] * d_l[:, None, :])
+        n_bp.append(wl * d_l[:, :, None] * d_p[:, None, :])
+        n_pp.append(wl * d_p[:, :, None] * d_p[:, None, :])
+        g_b.append(-wl * d_l * e[:, None])
+        g_pr.append(-wl * d_p * e[:, None])
+    n_bb_r, n_bp_r = np.concatenate(n_bb), np.concatenate(n_bp)
+    n_pp_r, g_b_r, g_p_r = np.concatenate(n_pp), np.concatenate(g_b), np.concatenate(g_pr)
+    blocks = (prob.to_block @ n_bb_r.reshape(-1, N_UNIT * N_UNIT)).reshape(-1, N_UNIT, N_UNIT)
+    fixed = prob.fixed
+    blocks[:, np.arange(N_UNIT), np.arange(N_UNIT)] += fixed  # unused line slots
+    g_z = prob.to_block @ g_b_r
+    v_blocks = (prob.to_point @ n_pp_r.reshape(-1, 9)).reshape(-1, 3, 3)
+    g_p = prob.to_point @ g_p_r
+    # control
+    cp, given, sig = prob.control_point, prob.control_given, prob.control_sigma
+    cw = np.where(given, 1.0 / np.where(given, sig, 1.0) ** 2, 0.0)
+    resid_c = np.where(given, st.points[cp] - np.where(given, prob.control_xyz, 0.0), 0.0)
+    add_v = np.zeros((prob.n_points, 3))
+    np.add.at(add_v, cp, cw)
+    v_blocks[:, [0, 1, 2], [0, 1, 2]] += add_v
+    g_pc = np.zeros((prob.n_points, 3))
+    np.add.at(g_pc, cp, -cw * resid_c)
+    g_p += g_pc
     # V⁻¹ block by block (unobserved points: 0)
-    obs_pts = prob.observed
     v_inv = np.zeros_like(v_blocks)
     try:
-        v_inv[obs_pts] = np.linalg.inv(v_blocks[obs_pts])
+        v_inv[prob.observed] = np.linalg.inv(v_blocks[prob.observed])
     except np.linalg.LinAlgError as exc:
         raise GeometryError("a point is not determined by its rows (singular 3 x 3 block)") from exc
-    reduce = n_zp @ _block_diag(v_inv)
+    # Schur complement: S = N_zz − N_zp V⁻¹ N_pz, with N_zp V⁻¹ of N_zp's pattern
+    n_zp = prob.zp_matrix(n_bp_r)
+    reduce = prob.zp_matrix(n_bp_r @ v_inv[prob.row_point])
+    n_zz = sp.bsr_matrix(
+        (blocks, np.arange(prob.n_blocks), np.arange(prob.n_blocks + 1)),
+        shape=(prob.n_reduced, prob.n_reduced),
+    )
     s_matrix = (n_zz - reduce @ n_zp.T).tocsc()
-    rhs = g_z - reduce @ g_p.ravel()
-    return _Normals(s_matrix, rhs, v_inv, n_zp, g_p)
-
-
-def _block_diag(blocks: FloatArray) -> sp.csr_matrix:
-    """Sparse block-diagonal matrix of (P, 3, 3) blocks."""
-    n = blocks.shape[0]
-    return sp.bsr_matrix(
-        (blocks, np.arange(n), np.arange(n + 1)), shape=(3 * n, 3 * n)
-    ).tocsr()
+    rhs = g_z.ravel() - reduce @ g_p.ravel()
+    rhs[fixed.ravel()] = 0.0
+    return _Normals(s_matrix, rhs, v_inv, reduce, n_bp_r, g_p)
 
 
 def _factor(s_matrix: sp.csc_matrix):
@@ -452,6 +481,7 @@ def adjust_units(
     lines: Sequence[LineCondition] = (),
     max_iterations: int = 20,
     tolerance: float = 1e-10,
+    statistics: bool = True,
 ) -> SimultaneousResult:
     """Transform all units at once to the control and to each other.
 
@@ -479,6 +509,10 @@ def adjust_units(
         ``tolerance`` (rotations in radians, relative scales), or when the
         weighted sum of squares changes by less than ``tolerance``
         relative.
+    statistics : bool
+        Compute the cofactors of the control points and lines (their
+        redundancy numbers and w); without them (False) those fields are
+        NaN, at a fraction of the cost (start values, intermediate passes).
 
     Returns
     -------
@@ -530,9 +564,7 @@ def adjust_units(
         normals = _normals(prob, st)
         lu, scale = _factor(normals.s_matrix)
         dz = _solve_reduced(lu, scale, normals.rhs)
-        dp = np.einsum(
-            "pij,pj->pi", normals.v_inv, normals.g_p - (normals.n_zp.T @ dz).reshape(-1, 3)
-        )
+        dp = _back_substitute(prob, normals, dz)
         step = 1.0
         for _ in range(30):
             trial = _step(prob, st, dz, dp, step)
@@ -556,15 +588,25 @@ def adjust_units(
         if largest < tolerance or change < tolerance:
             converged = True
             break
-    normals = _normals(prob, st)
-    lu, scale = _factor(normals.s_matrix)
-    return _result(prob, st, normals, lu, scale, cost, iterations, converged)
+    if not converged:
+        normals = _normals(prob, st)
+        lu, scale = _factor(normals.s_matrix)
+    # Converged: the normal equations of the last step serve the statistics
+    # (the state moved by less than the tolerance since).
+    return _result(prob, st, normals, lu, scale, cost, iterations, converged, statistics)
+
+
+def _back_substitute(prob: _Problem, normals: _Normals, dz: FloatArray) -> FloatArray:
+    """Point corrections ``V⁻¹ (g_p − N_pz dz)`` (P, 3)."""
+    dz_rows = dz.reshape(-1, N_UNIT)[prob.row_block]  # (n_r, 7)
+    coupled = prob.to_point @ np.einsum("rki,rk->ri", normals.n_zp_rows, dz_rows)
+    return np.einsum("pij,pj->pi", normals.v_inv, normals.g_p - coupled)
 
 
 def _step(prob: _Problem, st: _State, dz: FloatArray, dp: FloatArray, step: float) -> _State:
     n_u = prob.n_units
     du = dz[: N_UNIT * n_u].reshape(n_u, N_UNIT) * step
-    dl = dz[N_UNIT * n_u :].reshape(-1, 2) * step
+    dl = dz[N_UNIT * n_u :].reshape(-1, N_UNIT)[:, :2] * step
     rotation = matrix_from_rotvec(du[:, 3:6]) @ st.rotation
     points = st.points + step * dp
     return _State(
@@ -576,7 +618,9 @@ def _step(prob: _Problem, st: _State, dz: FloatArray, dp: FloatArray, step: floa
     )
 
 
-def _result(prob, st, normals, lu, scale, cost, iterations, converged) -> SimultaneousResult:
+def _result(
+    prob, st, normals, lu, scale, cost, iterations, converged, statistics=True
+) -> SimultaneousResult:
     obs = prob.obs
     _, v = _predict(prob, st)
     redundancy = prob.n_observations - prob.n_unknowns
@@ -584,7 +628,10 @@ def _result(prob, st, normals, lu, scale, cost, iterations, converged) -> Simult
 
     # Cofactors of the control points: Q_pp = V⁻¹ + V⁻¹ N_pz S⁻¹ N_zp V⁻¹.
     cp = prob.control_point
-    cof = point_cofactors(normals, lu, scale, cp)
+    if statistics:
+        cof = point_cofactors(normals, lu, scale, cp)
+    else:
+        cof = np.full((cp.shape[0], 3, 3), np.nan)
     given = prob.control_given
     resid_c = np.where(given, prob.control_xyz - st.points[cp], np.nan)
     sig = prob.control_sigma
@@ -611,7 +658,10 @@ def _result(prob, st, normals, lu, scale, cost, iterations, converged) -> Simult
     line_r = []
     for k, line in enumerate(prob.lines):
         xyz, e, _ = _line_terms(prob, st, k)
-        r_line = 1.0 - _line_cofactors(prob, st, normals, lu, scale, k, xyz) / line.sigma**2
+        if statistics:
+            r_line = 1.0 - _line_cofactors(prob, st, normals, lu, scale, k, xyz) / line.sigma**2
+        else:
+            r_line = np.full(e.shape, np.nan)
         with np.errstate(invalid="ignore", divide="ignore"):
             wl = e / (line.sigma * np.sqrt(np.maximum(r_line, 0.0)))
         wl[~(r_line > 1e-6)] = np.nan
@@ -656,10 +706,10 @@ def _line_cofactors(prob, st, normals, lu, scale, k, xyz) -> FloatArray:
     vd = np.einsum("mij,mj->mi", normals.v_inv[points], d_p)  # V⁻¹ d_p
     cols = (3 * points[:, None] + np.arange(3)).ravel()
     sel = sp.csr_matrix(
-        (vd.ravel(), (cols, np.repeat(np.arange(m), 3))), shape=(3 * prob.n_points, m)
+        (d_p.ravel(), (cols, np.repeat(np.arange(m), 3))), shape=(3 * prob.n_points, m)
     )
-    u = (normals.n_zp @ sel).toarray()  # (nz, m)
-    col0 = N_UNIT * prob.n_units + 2 * k
+    u = (normals.reduce @ sel).toarray()  # N_zp V⁻¹ d_p: (nz, m)
+    col0 = N_UNIT * (prob.n_units + k)
     u[col0] += 1.0  # − d_z: d_z = −1 at a
     u[col0 + 1] += xyz[:, 0]  # and −X at b
     x = scale[:, None] * lu.solve(scale[:, None] * u)
@@ -674,12 +724,12 @@ def point_cofactors(normals: _Normals, lu, scale: FloatArray, points: IntArray) 
     ``Q_pp = V⁻¹ + V⁻¹ N_pz S⁻¹ N_zp V⁻¹``, solved in chunks of points."""
     n_c = points.shape[0]
     out = normals.v_inv[points].copy()
+    reduce = normals.reduce.tocsc()
     for lo in range(0, n_c, _COFACTOR_CHUNK):
         chunk = points[lo : lo + _COFACTOR_CHUNK]
         m = chunk.shape[0]
         cols = (3 * chunk[:, None] + np.arange(3)).ravel()
-        # N_zp V⁻¹ restricted to the chunk's columns: (nz, 3m)
-        b = (normals.n_zp[:, cols] @ sp.csr_matrix(_block_diag(normals.v_inv[chunk]))).toarray()
+        b = reduce[:, cols].toarray()  # (N_zp V⁻¹) restricted to the chunk: (nz, 3m)
         x = scale[:, None] * lu.solve(scale[:, None] * b)
         out[lo : lo + m] += np.einsum("zci,zcj->cij", b.reshape(-1, m, 3), x.reshape(-1, m, 3))
     return out
