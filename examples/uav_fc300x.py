@@ -114,7 +114,7 @@ def write_project(
     photo_step: int | str = 2,
     camera: str = "cal",
     distortion: bool = True,
-    polynomial: int | str = 1,
+    polynomial: int | str | None = 1,
 ) -> Path:
     """Write ``strip.toml``, ``image_points.csv`` and ``control.csv``.
 
@@ -133,7 +133,9 @@ def write_project(
         centre, or ``cal.cal``'s focal length and principal point.
     distortion : bool
         Apply STRIP.m's radial distortion (r in mm, correction form).
-    polynomial : int or "auto"
+    polynomial : int, "auto" or None
+        J's polynomial (``block = "strips"``); None leaves it out: every
+        model at once (``block = "models"``, the default).
 
     Returns
     -------
@@ -199,7 +201,7 @@ def write_project(
         "",
         "[adjustment]",
         'route = "projected"',
-        f"polynomial = {poly}",
+        *([] if polynomial is None else [f"polynomial = {poly}"]),
         f"photo_step = {step}",
         "",
     ]
