@@ -317,3 +317,48 @@ def test_rejection_never_makes_the_adjustment_impossible():
     models = triangulate(sim.observations, dataclasses.replace(control, xyz=xyz), sim.crs, lines=lines)
     assert models.ground.control_mde[first, 2] > 1.5
 
+
+
+@pytest.mark.parametrize("size", [1.2, 1.9])
+def test_control_blunders_at_sparse_end_control_are_found(size):
+    """R4's strip layout (three full points at each end, height points
+    between; simulate's "fig4"), 20 film photos: a control error of 1.2-1.9
+    m is found wherever it is. With J's polynomial type 1 or "auto" 4-6 of
+    the 30 components with a 1.5 m error went unnoticed although their
+    minimal detectable error was below it; every model at once (the
+    default) finds all 30 (measured), and its minimal detectable errors are
+    0.3-1.1 m."""
+    sim = simulate_strip(20, seed=3, crs="EPSG:2180", control="fig4")
+    control = sim.control
+    kinds = [k.value for k in control.kind]
+    clean = triangulate(sim.observations, control, sim.crs).ground
+    used = ~clean.is_check
+    mde = clean.control_mde[used]
+    assert np.nanmax(mde) < size
+    rows = [i for i, k in enumerate(kinds) if k != "check"]
+    # an end point in plan and in height, a height point in the middle
+    cases = [(rows[0], 0), (rows[-1], 2), (rows[len(rows) // 2], 2)]
+    for row, component in cases:
+        xyz = control.xyz.copy()
+        xyz[row, component] += size
+        res = triangulate(sim.observations, dataclasses.replace(control, xyz=xyz), sim.crs)
+        rejected = [r.point for r in res.rejections if r.stage == "control" and r.applied]
+        assert rejected == [control.point_ids[row]], (row, component, rejected)
+
+
+def test_undetectable_control_errors_are_said_to_be_so():
+    """J's polynomial with exactly as many plan points as terms: the X and Y
+    of every control point have no redundancy; the report marks them
+    undetectable (minimal detectable error infinite) instead of a number."""
+    sim, control, lines = _weak_corridor_control()
+    with pytest.warns(StripAerotriWarning, match="no redundancy"):
+        res = triangulate(
+            sim.observations, control, sim.crs, lines=lines, ground_options=GroundOptions(polynomial=2)
+        )
+    g = res.ground
+    used = ~g.is_check
+    assert np.isinf(g.control_mde[used][:, 0]).all()
+    from strip_aerotri.report import build_report
+
+    points = build_report(res)["control"]["points"]
+    assert all(p["detectable"][0] is False and p["mde_m"][0] is None for p in points)

@@ -53,7 +53,12 @@ first nadir, the last nadir and the middle nadir; height-only points on both
 sides at every third nadir in between; plan-only points on the strip axis at
 the quarter nadirs. ``"every_k_models"``: full points on both sides every
 ``control_every`` models and at the last nadir. ``"dense"``: full points on
-both sides at every nadir. Every other Gruber-zone point that is seen (except
+both sides at every nadir. ``"fig4"`` (R4's strip layout): three full points
+(both sides and the axis) at the first and at the last nadir, height-only
+points on both sides at every third nadir in between. ``"weak"``: two full
+points (both sides) at the first and at the last nadir and one height point
+on the axis at the middle nadir: about the least a strip can be oriented
+and deformed with. Every other Gruber-zone point that is seen (except
 those of the first and last nadir) is a check point. Control coordinates are
 the truth plus N(0, ``control_noise_m``) per coordinate in metres (added in
 the local ENU frame, so also for geographic CRSs); check points carry the
@@ -91,7 +96,7 @@ __all__ = [
 _LOCAL = "local"
 _WGS84 = (6378137.0, 298.257223563)  # semi-major axis (m), inverse flattening
 _DEFAULT_LOCAL_CENTRE = (21.0, 52.0)  # lon, lat (deg) used when crs = "local"
-_CONTROL_LAYOUTS = ("ends", "every_k_models", "dense")
+_CONTROL_LAYOUTS = ("ends", "every_k_models", "dense", "fig4", "weak")
 _ROUTES = ("geocentric", "projected")
 _POLYNOMIALS = (0, 1, 2, 3, "auto")
 
@@ -719,7 +724,7 @@ def simulate_strip(
         Image noise standard deviation in mm; default: the preset's (film
         5 µm). With 0 the observations are exact; their ``sigma`` is then
         0.005 mm.
-    control : {"ends", "every_k_models", "dense"}
+    control : {"ends", "every_k_models", "dense", "fig4", "weak"}
         Control layout (see the module notes).
     control_every : int
         Spacing in models of the full control for "every_k_models".
@@ -1073,6 +1078,14 @@ def _control(
         assign(list(range(m)), sides, ControlType.FULL)
     elif layout == "every_k_models":
         assign(sorted({*range(0, m, every), last}), sides, ControlType.FULL)
+    elif layout == "fig4":
+        every_row = list(range(gy.size))
+        assign([0, last], every_row, ControlType.FULL)
+        assign(list(range(3, last, 3)), sides, ControlType.HEIGHT)
+    elif layout == "weak":
+        assign([0, last], sides, ControlType.FULL)
+        middle = [axis_row] if axis_row >= 0 else sides[:1]
+        assign([last // 2], middle, ControlType.HEIGHT)
     else:  # "ends"
         full = sorted({0, last, last // 2})
         assign(full, sides, ControlType.FULL)
