@@ -10,11 +10,11 @@ Each case is a seeded strip of the package's simulator
 (:func:`strip_aerotri.simulate.simulate_strip`) whose parameters are drawn
 from its family's ranges (camera and format, the format's long side along or
 across the flight, forward overlap, flying height, tilt and kappa scatter,
-relief, image noise, photos, control layout, straight-line points, image and
-control blunders).  A case is *valid* when every pair has at least 12 common
+relief, image noise, photos, control layout: R4's "fig4", "ends", every k
+models, dense, weak; straight-line points; image and control blunders).  A case is *valid* when every pair has at least 12 common
 points spread over at least 55 % of the format across the flight; invalid
-draws are replaced by the next seed.  On each valid case, on the same
-observations:
+draws are replaced by the next seed.  On each valid case (with its gross errors, where the family has them), on
+the same observations:
 
 * the strip method as ``stripaero run`` does it (its defaults: every model
   at once, blunder tests rejecting), :func:`strip_aerotri.pipeline.triangulate`;
@@ -96,6 +96,11 @@ class Case:
         )
 
 
+#: Control layouts of simulate_strip: R4's strip layout (fig4), its "ends"
+#: variant with plan points, full control every k models, dense, and weak.
+LAYOUTS = ("ends", "fig4", "every_k_models", "dense", "weak")
+
+
 def _uniform(rng, lo, hi):
     return float(rng.uniform(lo, hi))
 
@@ -117,7 +122,7 @@ def _film(rng, family, seed, camera=None, n=(6, 40)) -> Case:
         kappa_deg=_uniform(rng, 1.0, 5.0),
         relief_m=height * _uniform(rng, 0.02, 0.10),
         noise_um=_uniform(rng, 2.0, 7.0),
-        control=str(rng.choice(["ends", "every_k_models", "dense"])),
+        control=str(rng.choice(LAYOUTS)),
         control_every=int(rng.integers(3, 6)),
     )
 
@@ -137,7 +142,7 @@ def _drone(rng, family, seed, long_side, n=(20, 80)) -> Case:
         kappa_deg=_uniform(rng, 2.0, 10.0),
         relief_m=_uniform(rng, 2.0, 15.0),
         noise_um=pixel * _uniform(rng, 0.5, 1.0),
-        control=str(rng.choice(["ends", "every_k_models", "dense"])),
+        control=str(rng.choice(LAYOUTS)),
         control_every=int(rng.integers(4, 9)),
     )
 
@@ -160,6 +165,14 @@ def _family_cases(family: str, count: int, first_seed: int) -> Iterator[Case]:
         elif family == "corridor":
             base = _film(rng, family, seed) if rng.uniform() < 0.5 else _drone(rng, family, seed, "across")
             yield replace(base, line=True)
+        elif family == "blunders":
+            base = _film(rng, family, seed) if rng.uniform() < 0.5 else _drone(rng, family, seed, str(rng.choice(["along", "across"])))
+            yield replace(
+                base,
+                control=str(rng.choice(["ends", "fig4", "every_k_models"])),
+                image_blunders=int(rng.integers(1, 4)),
+                control_blunders=int(rng.integers(0, 2)),
+            )
         else:
             raise ValueError(f"unknown family {family!r}")
 
@@ -171,8 +184,51 @@ FAMILIES = {
     "drone-across": 12,
     "drone-long": 6,
     "corridor": 8,
+    "blunders": 8,
 }
-QUICK = {"film": 3, "drone-along": 3, "drone-across": 2, "corridor": 2}
+QUICK = {"film": 3, "drone-along": 3, "drone-across": 2, "corridor": 2, "blunders": 2}
+
+
+@dataclass(frozen=True)
+class Blunders:
+    """Gross errors added to a simulated strip: observation rows (image
+    coordinates shifted by 15-40 times the image noise, at least 50 um, in a
+    random direction) and control rows (one coordinate off by 0.5-2 m)."""
+
+    observations: tuple[int, ...] = ()
+    control: tuple[int, ...] = ()
+
+
+def with_blunders(sim: SimulatedStrip, case: Case) -> tuple[SimulatedStrip, Blunders]:
+    """The case's gross errors added to its simulated strip."""
+    if not (case.image_blunders or case.control_blunders):
+        return sim, Blunders()
+    rng = np.random.default_rng(case.seed + 7)
+    obs = sim.observations
+    # on points seen on three or more photos: a blunder there can be found
+    rays = np.bincount(obs.point, minlength=obs.n_points)
+    candidates = np.flatnonzero(rays[obs.point] >= 3)
+    rows = rng.choice(candidates, size=case.image_blunders, replace=False)
+    size = np.maximum(0.05, case.noise_um / 1000.0 * rng.uniform(15.0, 40.0, rows.size))
+    angle = rng.uniform(0.0, 2.0 * np.pi, rows.size)
+    xy = obs.xy.copy()
+    xy[rows] += size[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+    control = sim.control
+    kinds = np.array([k.value for k in control.kind])
+    used = np.flatnonzero(kinds != "check")
+    bad = rng.choice(used, size=min(case.control_blunders, used.size), replace=False)
+    xyz = control.xyz.copy()
+    for row in bad:
+        given = np.flatnonzero(np.isfinite(xyz[row]))
+        xyz[row, rng.choice(given)] += rng.choice([-1.0, 1.0]) * rng.uniform(0.5, 2.0)
+    return (
+        replace(
+            sim,
+            observations=replace(obs, xy=xy),
+            control=replace(control, xyz=xyz),
+        ),
+        Blunders(tuple(int(r) for r in rows), tuple(int(r) for r in bad)),
+    )
 
 
 def simulate(case: Case) -> SimulatedStrip:
@@ -258,15 +314,15 @@ def control_in_local(sim: SimulatedStrip) -> tuple[np.ndarray, np.ndarray]:
     return index, np.where(np.isnan(xyz), np.nan, local)
 
 
-def reference_bundle(sim: SimulatedStrip) -> tuple[float, float]:
+def reference_bundle(sim: SimulatedStrip, blunders: Blunders = Blunders()) -> tuple[float, float]:
     """Check-point RMSE (plan, height) of a bundle adjustment from the truth
     on the observations without blunders, local frame."""
     obs = sim.observations
     truth = sim.truth
     index, local = control_in_local(sim)
     kinds = np.array([k.value for k in sim.control.kind])
-    blunder_obs = np.asarray(getattr(truth, "blunder_observations", ()), dtype=np.intp)
-    bad_points = {b[0] if isinstance(b, tuple) else b for b in getattr(truth, "blunder_control", ())}
+    blunder_obs = np.asarray(blunders.observations, dtype=np.intp)
+    bad_points = {sim.control.point_ids[r] for r in blunders.control}
     if blunder_obs.size:
         keep = np.ones(obs.photo.shape[0], dtype=bool)
         keep[blunder_obs] = False
@@ -322,8 +378,8 @@ class Outcome:
 def run_case(case: Case, *, refine: bool = True) -> Outcome:
     """Strip method, its bundle refinement and the reference on one case."""
     out = Outcome(case)
-    sim = simulate(case)
-    out.reference = reference_bundle(sim)
+    sim, blunders = with_blunders(simulate(case), case)
+    out.reference = reference_bundle(sim, blunders)
     lines = [LineSpec(point_ids=tuple(ids), weight=w) for ids, w in sim.lines]
     t0 = time.perf_counter()
     try:
@@ -333,7 +389,7 @@ def run_case(case: Case, *, refine: bool = True) -> Outcome:
             out.seconds = time.perf_counter() - t0
             out.strip = (result.check_statistics.rmse_plan, float(result.check_statistics.rmse[2]))
             if refine:
-                refined = refine_bundle(result, compute_precision=False)
+                refined = refine_bundle(result)  # as refine = "bundle" runs it
                 stats = refined.check_statistics
                 out.refined = (stats.rmse_plan, float(stats.rmse[2]))
         out.ok = True

@@ -54,6 +54,13 @@ class StripOptions:
         photo's image x axis is 1 (``b_x = 1`` with ``R_1 = I``).
     max_iterations, tolerance
         Of the relative orientation.
+    allow_breaks : bool
+        A model that shares no tie point with the one before (no point on all
+        three photos) is an error (False, J's chain), or a *break* (True): its
+        scale cannot be transferred, it goes on with the same scale (equal
+        bases), and a ground stage that transforms every model on its own
+        (construction "models") takes the models after it from their own
+        control.
     """
 
     relative_orientation: RelativeOrientationMethod = RelativeOrientationMethod.DEPENDENT
@@ -64,6 +71,7 @@ class StripOptions:
     first_base_length: float | None = None
     max_iterations: int = 30
     tolerance: float = 1e-11
+    allow_breaks: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(
@@ -136,6 +144,9 @@ class StripModel:
     model_rows : ndarray of int, shape (n, 2), optional
         The observations (rows of ``observations``) on the left and the
         right photo behind each determination.
+    breaks : ndarray of int
+        Models that share no tie point with the one before
+        (``StripOptions.allow_breaks``): their scale is not transferred.
     """
 
     observations: ImageObservations
@@ -162,6 +173,7 @@ class StripModel:
     rejected_points: tuple[str, ...] = field(default=())
     model_photos: IntArray | None = None
     model_rows: IntArray | None = None
+    breaks: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
 
     @property
     def model_photo_positions(self) -> IntArray:
@@ -444,7 +456,7 @@ def form_strip(
     tie_model = model[i_now]
     tie_count = np.bincount(tie_model, minlength=n_models).astype(np.intp)
     missing = np.flatnonzero(tie_count[1:] == 0) + 1
-    if missing.size:
+    if missing.size and not options.allow_breaks:
         m = int(missing[0])
         raise GeometryError(
             f"{labels[m]} shares no tie point with {labels[m - 1]} (no point is measured on "
@@ -452,6 +464,9 @@ def form_strip(
             + (", after rejecting blunders" if rejected_point_index.size else "")
             + "): the scale cannot be transferred"
         )
+    # A break (allowed): the scale goes on unchanged (equal bases), and the
+    # ground stage takes the models after it from their own control.
+    ratio[missing] = 1.0
     bad = np.flatnonzero(~np.isfinite(ratio[1:]) | (ratio[1:] <= 0)) + 1
     if bad.size:
         m = int(bad[0])
@@ -526,6 +541,7 @@ def form_strip(
         rejections=tuple(rejections),
         rejected_points=tuple(observations.point_ids[i] for i in rejected_point_index),
         model_rows=np.column_stack([row_l, row_r]),
+        breaks=missing.astype(np.intp),
     )
 
 

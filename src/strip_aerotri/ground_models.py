@@ -195,6 +195,7 @@ def adjust_models_to_ground(
     n_points = obs.n_points
     pos = strip.model_photo_positions
     n_models = strip.n_models
+    _check_breaks(strip, idx, use_xy0, use_z0, ids, work.to_work(guess))
     n_photos = strip.centres.shape[0]
     info, c_left, c_right = _weights(strip, transform, float(np.median(obs.sigma)))
 
@@ -348,6 +349,37 @@ def adjust_models_to_ground(
         tuple(rejections + kept_flags), tuple(rejected_rows), blunders,
         np.column_stack([sig_xy, sig_xy, sig_h]), use_xy0, use_z0,
     )
+
+
+def _check_breaks(strip, idx, use_xy, use_z, ids, target) -> None:
+    """Each run of models between breaks (a model sharing no tie point with
+    the one before: its scale was not transferred) must carry itself on its
+    own control, J's rules for a similarity (two plan and three height
+    points, not degenerate); the shared projection centre holds only the
+    position across a break."""
+    breaks = np.asarray(getattr(strip, "breaks", ()), dtype=np.intp)
+    if breaks.size == 0:
+        return
+    edges = [0, *breaks.tolist(), strip.n_models]
+    labels = strip.model_labels or tuple(f"model {m}" for m in range(strip.n_models))
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        in_run = np.zeros(strip.observations.n_points, dtype=bool)
+        in_run[strip.model_point[(strip.model >= lo) & (strip.model < hi)]] = True
+        here = in_run[idx]
+        xy, z = use_xy & here, use_z & here
+        if _feasible(strip, idx, target, xy, z, ids):
+            continue
+        m = int(breaks[0]) if lo == 0 else lo
+        ids_ = strip.observations.photo_ids
+        seq = strip.photo_index[strip.model_photo_positions]
+        raise GeometryError(
+            f"{labels[m]} shares no tie point with {labels[m - 1]} (no point is measured on all "
+            f"three photos {ids_[seq[m - 1]]}, {ids_[seq[m]]}, {ids_[seq[m + 1]]}): the scale "
+            f"cannot be transferred across it, and the models {labels[lo]} to {labels[hi - 1]} "
+            f"have too little control of their own ({int(xy.sum())} plan and {int(z.sum())} "
+            "height points; a similarity needs two and three, not in one vertical plane): "
+            "measure tie points in that triple overlap or add control there"
+        )
 
 
 def _feasible(strip, idx, target, use_xy, use_z, ids) -> bool:

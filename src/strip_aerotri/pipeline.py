@@ -198,6 +198,11 @@ def triangulate(
     """
     say = progress or (lambda message: None)
     timings: dict[str, float] = {}
+    ground_options = ground_options or GroundOptions()
+    if ground_options.construction is Construction.MODELS:
+        # every model transformed on its own: a model without tie points to the
+        # one before is a break the ground stage can take (from control)
+        strip_options = dataclasses.replace(strip_options or StripOptions(), allow_breaks=True)
     t0 = time.perf_counter()
     mirrored = control_problems(observations, control, crs, file=control_name)
     if mirrored:
@@ -215,7 +220,6 @@ def triangulate(
     )
     timings["strip_formation"] = time.perf_counter() - t0
     t1 = time.perf_counter()
-    ground_options = ground_options or GroundOptions()
     if ground_options.construction is Construction.MODELS:
         from .ground_models import adjust_models_to_ground
 
@@ -278,13 +282,14 @@ def triangulate(
 def project_options(project) -> tuple[StripOptions, GroundOptions]:
     """The strip formation's and the ground stage's options of a loaded project."""
     adj = project.adjustment
+    block = str(getattr(getattr(adj, "block", None), "value", "strips"))
     strip_options = StripOptions(
         relative_orientation=str(adj.relative_orientation.value),
         intersection=str(adj.intersection.value),
         scale_transfer=str(adj.scale_transfer.value),
         max_iterations=int(adj.max_iterations),
+        allow_breaks=block == "models",
     )
-    block = str(getattr(getattr(adj, "block", None), "value", "strips"))
     ground_options = GroundOptions(
         route=str(adj.route.value),
         polynomial=adj.polynomial if block == "strips" else None,

@@ -74,6 +74,40 @@ def ray_information(
     return np.swapaxes(jac, 1, 2) @ jac / (sigma**2)[:, None, None]
 
 
+def _resection_normals(points, centres, rotations, principal_distance, sigma_mm, group, n_groups):
+    """6 x 6 normal matrices (centre, attitude about the image axes) of space
+    resections on fixed points, one per group, and the rays per group."""
+    points = np.asarray(points, dtype=np.float64)
+    rotations = np.asarray(rotations, dtype=np.float64)
+    group = np.asarray(group, dtype=np.intp)
+    jac, v = _image_jacobian(points, np.asarray(centres, dtype=np.float64), rotations, principal_distance)
+    # d image / d S = −J Rᵀ; rotation about the image axes (R ← R exp([δ]×)):
+    # v ← v − δ × v, d image / d δ = J [v]×.
+    d_centre = -(jac @ np.swapaxes(rotations, 1, 2))
+    vx = np.zeros((v.shape[0], 3, 3))
+    vx[:, 0, 1], vx[:, 0, 2], vx[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    vx -= np.swapaxes(vx, 1, 2)
+    d_attitude = jac @ vx
+    sigma = np.broadcast_to(np.asarray(sigma_mm, dtype=np.float64), points.shape[:1])
+    full = np.concatenate([d_centre, d_attitude], axis=2) / sigma[:, None, None]
+    normal = np.zeros((n_groups, 6, 6))
+    np.add.at(normal, group, np.swapaxes(full, 1, 2) @ full)
+    return normal, np.bincount(group, minlength=n_groups)
+
+
+def _resection_covariance(normal, counts):
+    """Inverse 6 x 6 normal matrices, NaN where fewer than three rays or
+    ill-conditioned."""
+    out = np.full(normal.shape, np.nan)
+    ok = counts >= 3
+    if ok.any():
+        cond = np.linalg.cond(normal[ok])
+        good = np.flatnonzero(ok)[cond < 1e12]
+        if good.size:
+            out[good] = np.linalg.inv(normal[good])
+    return out
+
+
 def centre_information(
     points: ArrayLike,
     centres: ArrayLike,
@@ -103,29 +137,12 @@ def centre_information(
         NaN for a group whose rays do not determine the centre (fewer than
         three, or singular).
     """
-    points = np.asarray(points, dtype=np.float64)
-    rotations = np.asarray(rotations, dtype=np.float64)
-    group = np.asarray(group, dtype=np.intp)
-    jac, v = _image_jacobian(points, np.asarray(centres, dtype=np.float64), rotations, principal_distance)
-    # d image / d S = −J Rᵀ; rotation about the image axes (R ← R exp([δ]×)):
-    # v ← v − δ × v, d image / d δ = J [v]×.
-    d_centre = -(jac @ np.swapaxes(rotations, 1, 2))
-    vx = np.zeros((v.shape[0], 3, 3))
-    vx[:, 0, 1], vx[:, 0, 2], vx[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    vx -= np.swapaxes(vx, 1, 2)
-    d_attitude = jac @ vx
-    sigma = np.broadcast_to(np.asarray(sigma_mm, dtype=np.float64), points.shape[:1])
-    full = np.concatenate([d_centre, d_attitude], axis=2) / sigma[:, None, None]
-    normal = np.zeros((n_groups, 6, 6))
-    np.add.at(normal, group, np.swapaxes(full, 1, 2) @ full)
-    counts = np.bincount(group, minlength=n_groups)
-    out = np.full((n_groups, 3, 3), np.nan)
-    ok = counts >= 3
-    if ok.any():
-        cond = np.linalg.cond(normal[ok])
-        good = np.flatnonzero(ok)[cond < 1e12]
-        if good.size:
-            centre_cov = np.linalg.inv(normal[good])[:, :3, :3]
-            out[good] = np.linalg.inv(centre_cov)
+    normal, counts = _resection_normals(
+        points, centres, rotations, principal_distance, sigma_mm, group, n_groups
+    )
+    cov = _resection_covariance(normal, counts)[:, :3, :3]
+    out = np.full(cov.shape, np.nan)
+    ok = np.isfinite(cov).all(axis=(1, 2))
+    out[ok] = np.linalg.inv(cov[ok])
     return out
 

@@ -882,6 +882,7 @@ def refine_frame(
         raise ValueError(f"Expected `observation_used` to have shape {(k_all,)}")
     ctrl_on = given.copy() if control_used is None else np.array(control_used, bool) & given
     excluded_points, excluded_obs = blunders.excluded(obs)
+    rejected_before = ~keep & ~excluded_obs  # by an earlier pass's tests
     keep &= ~excluded_obs
     ctrl_on[excluded_points] = False
     has_start = np.all(np.isfinite(points), axis=1)
@@ -917,7 +918,13 @@ def refine_frame(
     def used_points() -> BoolArray:
         rays = np.bincount(obs.point[keep], minlength=p)
         full = np.all(ctrl_on, axis=1)
-        return has_start & ((rays >= 2) | ((rays >= 1) & full))
+        # A point that lost a ray to a rejection keeps a check on the rest only
+        # with three rays left: with two, the ray rejected may have been the
+        # good one (a wrong ray pulls the point towards itself, and a good
+        # neighbour can show the larger w) and nothing would show it.
+        lost = np.bincount(obs.point[obs_rejected | rejected_before], minlength=p) > 0
+        need = np.where(lost, 3, 2)
+        return has_start & ((rays >= need) | ((rays >= need - 1) & full))
 
     rejections: list[Rejection] = []
     rounds = 0
