@@ -985,7 +985,8 @@ def intersect_unmodelled(
 ) -> FloatArray:
     """Points no model determined but seen on two or more photos of the strip
     (e.g. on photos i and i + 2 only), intersected from all their rays with
-    the photos' final orientations (work frame); the others unchanged.
+    the photos' final orientations (work frame); the others unchanged, and
+    so are the points the strip left out after a failed tie test.
 
     Parameters
     ----------
@@ -1001,6 +1002,9 @@ def intersect_unmodelled(
     """
     obs = strip.observations
     missing = ~np.isfinite(points_work).all(axis=1)
+    if strip.rejected_points:
+        # a point whose determinations failed the tie test stays out
+        missing &= ~np.isin(np.asarray(obs.point_ids), list(strip.rejected_points))
     if not missing.any():
         return points_work
     slot = np.full(obs.n_photos, -1, dtype=np.intp)

@@ -274,6 +274,11 @@ def adjust_models_to_ground(
         return res, guess_, converged, min(n_pass, _MAX_PASSES), active
 
     keep_rows = np.ones(units_all.shape[0], dtype=bool)
+    # points whose determinations disagreed between consecutive models (the
+    # strip's tie test) stay out, as they are out of the strip model
+    if strip.rejected_points:
+        out = np.isin(np.asarray(obs.point_ids)[strip.model_point], list(strip.rejected_points))
+        keep_rows[:n_det] = ~out
     use_xy, use_z = use_xy0.copy(), use_z0.copy()
     line_keep = [np.ones(len(li), dtype=bool) for li in line_index]
     rejections: list[Rejection] = []

@@ -54,6 +54,14 @@ __all__ = [
 #: Parameters of a unit: translation (3), small rotation (3), relative scale.
 N_UNIT = 7
 _Z_BETA = 0.8416212335729143  # standard normal quantile of 0.8: power 80 %
+#: Below this redundancy number an observation is not tested (its w is NaN):
+#: a share of 1e-3 of its error shows in its residual, so the least model
+#: imperfection (the correlations a model's relative orientation puts
+#: between its points are left out of the weights) looks like a blunder of
+#: metres (a 0.1 mm residual at r = 1.4e-5 gave w = 4.9, "estimated error
+#: 8.8 m", on a drone strip with four full points).  Its minimal detectable
+#: error (σ δ0 / √r, more than 150 σ) is reported instead.
+_MIN_TESTED_REDUNDANCY = 1e-3
 
 
 def baarda_delta(critical: float) -> float:
@@ -169,7 +177,8 @@ class SimultaneousResult:
         Redundancy numbers ``1 − q_kk / σ_k²`` of the given components.
     control_w : ndarray, shape (C, 3)
         Baarda's w of the given components at their a priori sigmas (NaN
-        where the redundancy is below 1e-6: the error cannot show).
+        where the redundancy is below 1e-3: too little of an error shows to
+        tell it from the model's imperfections).
     line_parameters : ndarray, shape (L, 2)
         ``a, b`` of each line.
     line_residuals : tuple of ndarray
@@ -178,7 +187,7 @@ class SimultaneousResult:
         Baarda's w of each line equation at its sigma, with its exact
         redundancy number ``1 − q_ee / σ²`` (``q_ee`` the cofactor of the
         adjusted ``Y − a − b X``, the line's ``a, b`` included); NaN where r
-        is below 1e-6.
+        is below 1e-3.
     line_redundancy : tuple of ndarray
         Those redundancy numbers.
     sigma0 : float
@@ -639,7 +648,7 @@ def _result(
     with np.errstate(invalid="ignore", divide="ignore"):
         r = np.where(given, 1.0 - q_diag / np.where(given, sig, 1.0) ** 2, np.nan)
         w = resid_c / (sig * np.sqrt(np.maximum(r, 0.0)))
-    w[~(r > 1e-6)] = np.nan
+    w[~(r > _MIN_TESTED_REDUNDANCY)] = np.nan
 
     # Row statistics: the row's leverage on its own point with the units
     # fixed, h = W^(1/2) V⁻¹ W^(1/2); the units' 7 U parameters spread evenly.
@@ -664,7 +673,7 @@ def _result(
             r_line = np.full(e.shape, np.nan)
         with np.errstate(invalid="ignore", divide="ignore"):
             wl = e / (line.sigma * np.sqrt(np.maximum(r_line, 0.0)))
-        wl[~(r_line > 1e-6)] = np.nan
+        wl[~(r_line > _MIN_TESTED_REDUNDANCY)] = np.nan
         line_resid.append(e)
         line_w.append(wl)
         line_r.append(r_line)
