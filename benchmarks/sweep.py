@@ -11,10 +11,11 @@ Each case is a seeded strip of the package's simulator
 from its family's ranges (camera and format, the format's long side along or
 across the flight, forward overlap, flying height, tilt and kappa scatter,
 relief, image noise, photos, control layout: R4's "fig4", "ends", every k
-models, dense, weak; straight-line points; image and control blunders).  A case is *valid* when every pair has at least 12 common
-points spread over at least 55 % of the format across the flight; invalid
-draws are replaced by the next seed.  On each valid case (with its gross errors, where the family has them), on
-the same observations:
+models, dense, weak; straight-line points; image and control blunders).  A
+case is *valid* when every pair has at least 12 common points spread over at
+least 55 % of the format across the flight; invalid draws are replaced by
+the next seed.  On each valid case (with its gross errors, where the family
+has them), on the same observations:
 
 * the strip method as ``stripaero run`` does it (its defaults: every model
   at once, blunder tests rejecting), :func:`strip_aerotri.pipeline.triangulate`;
@@ -37,10 +38,9 @@ import argparse
 import math
 import sys
 import time
-import traceback
 import warnings
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -49,18 +49,7 @@ from strip_aerotri.geodesy import GroundCRS
 from strip_aerotri.ground import LineSpec
 from strip_aerotri.pipeline import triangulate
 from strip_aerotri.refine import refine_bundle, refine_frame
-from strip_aerotri.simulate import SimulatedStrip, simulate_strip
-
-#: Cameras: principal distance (mm), format long x short side (mm), pixel
-#: (um; None for film).  Typical values of the classes of camera named.
-CAMERAS = {
-    "film88": (88.5, (230.0, 230.0), None),  # super-wide angle film camera
-    "film152": (152.87, (230.0, 230.0), None),  # wide angle (RC30, RMK TOP 15 class)
-    "film210": (210.0, (230.0, 230.0), None),  # normal angle
-    "ff35": (35.0, (36.0, 24.0), 4.4),  # full frame 35 mm lens (drone mapping camera)
-    "apsc16": (16.0, (23.5, 15.6), 3.9),  # APS-C, 16 mm lens
-    "oneinch": (8.8, (13.2, 8.8), 2.4),  # 1-inch sensor (Phantom 4 Pro class)
-}
+from strip_aerotri.simulate import CAMERAS, SimulatedStrip, camera_preset, simulate_strip
 
 
 @dataclass(frozen=True)
@@ -109,7 +98,7 @@ def _uniform(rng, lo, hi):
 
 def _film(rng, family, seed, camera=None, n=(6, 40)) -> Case:
     cam = camera or str(rng.choice(["film88", "film152", "film210"]))
-    c = CAMERAS[cam][0]
+    c = CAMERAS[cam].principal_distance_mm
     scale = _uniform(rng, 5000, 15000)
     height = c * scale / 1000.0
     return Case(
@@ -131,7 +120,7 @@ def _film(rng, family, seed, camera=None, n=(6, 40)) -> Case:
 
 def _drone(rng, family, seed, long_side, n=(20, 80)) -> Case:
     cam = str(rng.choice(["ff35", "apsc16", "oneinch"]))
-    pixel = CAMERAS[cam][2]
+    pixel = CAMERAS[cam].pixel_size_um
     return Case(
         family=family,
         seed=seed,
@@ -157,18 +146,33 @@ def _family_cases(family: str, count: int, first_seed: int) -> Iterator[Case]:
         if family == "film":
             yield _film(rng, family, seed)
         elif family == "film-long":
-            yield replace(_film(rng, family, seed, camera="film152", n=(60, 120)), control="every_k_models", control_every=int(rng.integers(4, 8)))
+            yield replace(
+                _film(rng, family, seed, camera="film152", n=(60, 120)),
+                control="every_k_models",
+                control_every=int(rng.integers(4, 8)),
+            )
         elif family == "drone-along":
             yield _drone(rng, family, seed, "along")
         elif family == "drone-across":
             yield _drone(rng, family, seed, "across")
         elif family == "drone-long":
-            yield replace(_drone(rng, family, seed, str(rng.choice(["along", "across"])), n=(90, 120)), control="every_k_models")
+            yield replace(
+                _drone(rng, family, seed, str(rng.choice(["along", "across"])), n=(90, 120)),
+                control="every_k_models",
+            )
         elif family == "corridor":
-            base = _film(rng, family, seed) if rng.uniform() < 0.5 else _drone(rng, family, seed, "across")
+            base = (
+                _film(rng, family, seed)
+                if rng.uniform() < 0.5
+                else _drone(rng, family, seed, "across")
+            )
             yield replace(base, line=True)
         elif family == "blunders":
-            base = _film(rng, family, seed) if rng.uniform() < 0.5 else _drone(rng, family, seed, str(rng.choice(["along", "across"])))
+            base = (
+                _film(rng, family, seed)
+                if rng.uniform() < 0.5
+                else _drone(rng, family, seed, str(rng.choice(["along", "across"])))
+            )
             yield replace(
                 base,
                 control=str(rng.choice(["ends", "fig4", "every_k_models"])),
@@ -191,84 +195,29 @@ FAMILIES = {
 QUICK = {"film": 3, "drone-along": 3, "drone-across": 2, "corridor": 2, "blunders": 2}
 
 
-@dataclass(frozen=True)
-class Blunders:
-    """Gross errors added to a simulated strip: observation rows (image
-    coordinates shifted by 15-40 times the image noise, at least 50 um, in a
-    random direction) and control rows (one coordinate off by 0.5-2 m)."""
-
-    observations: tuple[int, ...] = ()
-    control: tuple[int, ...] = ()
-
-
-def with_blunders(sim: SimulatedStrip, case: Case) -> tuple[SimulatedStrip, Blunders]:
-    """The case's gross errors added to its simulated strip."""
-    if not (case.image_blunders or case.control_blunders):
-        return sim, Blunders()
-    rng = np.random.default_rng(case.seed + 7)
-    obs = sim.observations
-    # on points seen on three or more photos: a blunder there can be found
-    rays = np.bincount(obs.point, minlength=obs.n_points)
-    candidates = np.flatnonzero(rays[obs.point] >= 3)
-    rows = rng.choice(candidates, size=case.image_blunders, replace=False)
-    size = np.maximum(0.05, case.noise_um / 1000.0 * rng.uniform(15.0, 40.0, rows.size))
-    angle = rng.uniform(0.0, 2.0 * np.pi, rows.size)
-    xy = obs.xy.copy()
-    xy[rows] += size[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
-    control = sim.control
-    kinds = np.array([k.value for k in control.kind])
-    used = np.flatnonzero(kinds != "check")
-    bad = rng.choice(used, size=min(case.control_blunders, used.size), replace=False)
-    xyz = control.xyz.copy()
-    for row in bad:
-        given = np.flatnonzero(np.isfinite(xyz[row]))
-        xyz[row, rng.choice(given)] += rng.choice([-1.0, 1.0]) * rng.uniform(0.5, 2.0)
-    return (
-        replace(
-            sim,
-            observations=replace(obs, xy=xy),
-            control=replace(control, xyz=xyz),
-        ),
-        Blunders(tuple(int(r) for r in rows), tuple(int(r) for r in bad)),
-    )
-
-
 def simulate(case: Case) -> SimulatedStrip:
-    """The simulated strip of a case."""
-    c, (long_mm, short_mm), _ = CAMERAS[case.camera]
-    fmt = (long_mm, short_mm) if case.long_side == "along" else (short_mm, long_mm)
-    across = fmt[1]
-    scale = case.height_m / c  # m per mm
-    base = (1.0 - case.overlap) * fmt[0] * scale
-    gy = 0.33 * across
+    """The simulated strip of a case, its gross errors included."""
     return simulate_strip(
         case.n_photos,
-        preset="drone",
+        preset=camera_preset(
+            case.camera,
+            long_side=case.long_side,
+            forward_overlap=case.overlap,
+            flying_height_m=case.height_m,
+            tilt_deg=case.tilt_deg,
+            kappa_deg=case.kappa_deg,
+            relief_m=case.relief_m,
+            noise_um=case.noise_um,
+            line=case.line,
+        ),
         crs="EPSG:2180",
         centre_lonlat=(19.5, 52.0),
         heading_deg=float(np.random.default_rng(case.seed).uniform(0.0, 360.0)),
         seed=case.seed,
         control=case.control,
         control_every=case.control_every,
-        line=case.line,
-        principal_distance_mm=c,
-        format_mm=fmt,
-        flying_height_m=case.height_m,
-        forward_overlap=case.overlap,
-        terrain_height_m=150.0,
-        relief_m=case.relief_m,
-        relief_wavelength_m=max(8.0 * base, 20.0 * case.relief_m),
-        attitude_sigma_deg=case.tilt_deg,
-        kappa_sigma_deg=case.kappa_deg,
-        position_wander_m=0.02 * case.height_m,
-        height_wander_m=0.02 * case.height_m,
-        gruber_y_mm=(gy, 0.0, -gy),
-        gruber_points_per_zone=2,
-        gruber_spread_mm=0.04 * across,
-        extra_points_per_photo=10 if c > 60 else 18,
-        image_noise_mm=case.noise_um / 1000.0,
-        control_noise_m=max(0.005, 0.25 * case.noise_um / 1000.0 * scale),
-        line_offset_mm=-0.15 * across,
+        image_blunders=case.image_blunders,
+        control_blunders=case.control_blunders,
     )
 
 
@@ -316,9 +265,7 @@ def control_in_local(sim: SimulatedStrip) -> tuple[np.ndarray, np.ndarray]:
     return index, np.where(np.isnan(xyz), np.nan, local)
 
 
-def reference_bundle(
-    sim: SimulatedStrip, blunders: Blunders = Blunders(), *, oracle: bool = False
-) -> tuple[float, float]:
+def reference_bundle(sim: SimulatedStrip, *, oracle: bool = False) -> tuple[float, float]:
     """Check-point RMSE (plan, height) of the package's bundle adjustment
     from the truth, local frame: on the same observations with its data
     snooping (:func:`strip_aerotri.refine.refine_frame`), or with
@@ -328,8 +275,8 @@ def reference_bundle(
     truth = sim.truth
     index, local = control_in_local(sim)
     kinds = np.array([k.value for k in sim.control.kind])
-    blunder_obs = np.asarray(blunders.observations if oracle else (), dtype=np.intp)
-    bad_points = {sim.control.point_ids[r] for r in blunders.control} if oracle else set()
+    blunder_obs = np.asarray(truth.blunder_observations if oracle else (), dtype=np.intp)
+    bad_points = {sim.control.point_ids[r] for r in truth.blunder_control} if oracle else set()
     if blunder_obs.size:
         keep = np.ones(obs.photo.shape[0], dtype=bool)
         keep[blunder_obs] = False
@@ -400,11 +347,11 @@ class Outcome:
 def run_case(case: Case, *, refine: bool = True) -> Outcome:
     """Strip method, its bundle refinement and the reference on one case."""
     out = Outcome(case)
-    sim, blunders = with_blunders(simulate(case), case)
-    out.reference = reference_bundle(sim, blunders)
+    sim = simulate(case)
+    out.reference = reference_bundle(sim)
     out.oracle = (
-        reference_bundle(sim, blunders, oracle=True)
-        if blunders.observations or blunders.control
+        reference_bundle(sim, oracle=True)
+        if sim.truth.blunder_observations or sim.truth.blunder_control
         else out.reference
     )
     lines = [LineSpec(point_ids=tuple(ids), weight=w) for ids, w in sim.lines]
@@ -459,7 +406,9 @@ def _f(values) -> str:
 def summarise(outcomes: list[Outcome]) -> None:
     fams = sorted({o.case.family for o in outcomes}, key=list(FAMILIES).index)
     print()
-    blundered = [o for o in outcomes if o.ok and (o.case.image_blunders or o.case.control_blunders)]
+    blundered = [
+        o for o in outcomes if o.ok and (o.case.image_blunders or o.case.control_blunders)
+    ]
     if blundered:
         r = np.array([o.oracle_ratio for o in blundered])
         print(
@@ -467,7 +416,10 @@ def summarise(outcomes: list[Outcome]) -> None:
             f"{np.median(r[:, 0]):.2f} {np.median(r[:, 1]):.2f}, largest {r[:, 0].max():.2f} "
             f"{r[:, 1].max():.2f} over {len(blundered)} cases"
         )
-    print(f"{'family':14s} {'cases':>5s} {'ok':>4s}  strip/bundle plan, height: median  max   refined/bundle: median  max")
+    print(
+        f"{'family':14s} {'cases':>5s} {'ok':>4s}  strip/bundle plan, height: median  max"
+        "   refined/bundle: median  max"
+    )
     for fam in [*fams, "all"]:
         sel = [o for o in outcomes if fam in ("all", o.case.family)]
         ok = [o for o in sel if o.ok]
@@ -490,15 +442,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--offset", type=int, default=0, help="shift every seed (another draw of the envelope)"
     )
-    parser.add_argument("--scale", type=int, default=1, help="this many times the cases per family")
-    parser.add_argument("-v", "--verbose", action="store_true", help="print invalid draws and tracebacks")
+    parser.add_argument(
+        "--scale", type=int, default=1, help="this many times the cases per family"
+    )
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", help="print invalid draws and tracebacks"
+    )
     args = parser.parse_args(argv)
     families = dict(QUICK if args.quick else FAMILIES)
     if args.family:
         families = {f: FAMILIES[f] for f in args.family}
     families = {f: n * args.scale for f, n in families.items()}
     outcomes: list[Outcome] = []
-    print(f"{'#':>3s} {'case':62s} {'strip plan/H':>13s} {'refined':>13s} {'bundle':>13s} {'ratio':>11s} {'s':>5s}")
+    print(
+        f"{'#':>3s} {'case':62s} {'strip plan/H':>13s} {'refined':>13s} {'bundle':>13s} "
+        f"{'ratio':>11s} {'s':>5s}"
+    )
     t0 = time.perf_counter()
     for case, sim, why in cases(families, offset=args.offset):
         if sim is None:

@@ -314,9 +314,10 @@ def test_rejection_never_makes_the_adjustment_impossible():
     assert res.check_statistics.rmse_plan < 0.5
     # the models construction has nothing to reject here, and says what it
     # cannot see: the first point's height has no redundancy to speak of
-    models = triangulate(sim.observations, dataclasses.replace(control, xyz=xyz), sim.crs, lines=lines)
+    models = triangulate(
+        sim.observations, dataclasses.replace(control, xyz=xyz), sim.crs, lines=lines
+    )
     assert models.ground.control_mde[first, 2] > 1.5
-
 
 
 @pytest.mark.parametrize("size", [1.2, 1.9])
@@ -353,7 +354,11 @@ def test_undetectable_control_errors_are_said_to_be_so():
     sim, control, lines = _weak_corridor_control()
     with pytest.warns(StripAerotriWarning, match="no redundancy"):
         res = triangulate(
-            sim.observations, control, sim.crs, lines=lines, ground_options=GroundOptions(polynomial=2)
+            sim.observations,
+            control,
+            sim.crs,
+            lines=lines,
+            ground_options=GroundOptions(polynomial=2),
         )
     g = res.ground
     used = ~g.is_check

@@ -793,5 +793,10 @@ def test_two_photos_out_of_order_are_named(tmp_path, command):
     folder = tmp_path / "drone"
     sa.simulate_strip(10, preset="drone", crs="EPSG:32634", seed=2).write_project(folder)
     edit_text(folder / "strip.toml", '"1005", "1006"', '"1006", "1005"')
-    result = invoke("-q", command, folder / "strip.toml", *(["--out", tmp_path / "o"] if command == "run" else []))
+    result = invoke(
+        "-q",
+        command,
+        folder / "strip.toml",
+        *(["--out", tmp_path / "o"] if command == "run" else []),
+    )
     assert_one_error_line(result, ("pair 1006-1005", "meet behind the photos", "flight order"))

@@ -360,7 +360,11 @@ def test_blunder_on_a_line_point_is_exposed_by_the_line(seed):
     j_options = GroundOptions(polynomial=3)
 
     quiet = sa.triangulate(
-        obs, sim.control, sim.crs, lines=lines, blunders=NO_BLUNDER_TESTS,
+        obs,
+        sim.control,
+        sim.crs,
+        lines=lines,
+        blunders=NO_BLUNDER_TESTS,
         ground_options=j_options,
     ).ground
     residual = np.abs(quiet.line_residuals[0])
@@ -934,5 +938,7 @@ def test_a_break_without_control_beyond_it_names_it():
         for p, k in zip(sim.control.point_ids, sim.control.kind, strict=True)
     )
     control = dataclasses.replace(sim.control, kind=kinds)
-    with pytest.raises(GeometryError, match=r"pair 1007-1008 shares no tie point.*too little control"):
+    with pytest.raises(
+        GeometryError, match=r"pair 1007-1008 shares no tie point.*too little control"
+    ):
         sa.triangulate(obs, control, sim.crs)

@@ -396,7 +396,10 @@ def test_report_of_the_models_construction_and_control_detectability():
     assert "Every model at once" in html and "MDE" in html
     # J's construction reports no model adjustment
     j = triangulate(
-        sim.observations, sim.control, sim.crs, lines=lines,
+        sim.observations,
+        sim.control,
+        sim.crs,
+        lines=lines,
         ground_options=GroundOptions(polynomial=3),
     )
     assert build_report(j)["model_adjustment"] is None

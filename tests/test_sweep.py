@@ -16,16 +16,12 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import sweep  # noqa: E402
+import sweep
 
 
 @pytest.fixture(scope="module")
 def outcomes():
-    return [
-        sweep.run_case(case)
-        for case, sim, _ in sweep.cases(sweep.QUICK)
-        if sim is not None
-    ]
+    return [sweep.run_case(case) for case, sim, _ in sweep.cases(sweep.QUICK) if sim is not None]
 
 
 def test_every_case_runs(outcomes):

@@ -76,9 +76,7 @@ def test_strip_one_by_models_is_near_the_bundle(uav, tmp_path: Path, photo_step:
     with all rays is not better in plan on this oblique, short strip)."""
     from strip_aerotri.refine import refine_bundle
 
-    toml = uav.write_project(
-        DATA, tmp_path / "project", polynomial=None, photo_step=photo_step
-    )
+    toml = uav.write_project(DATA, tmp_path / "project", polynomial=None, photo_step=photo_step)
     project = load_project(toml)
     assert project.adjustment.block.value == "models"
     result = uav.run(project)

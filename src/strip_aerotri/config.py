@@ -48,8 +48,8 @@ from .interior import (
     mm_from_pixel,
     reduce_image_coordinates,
 )
-from .plausibility import image_coordinate_problems
 from .observations import ControlPoints, ControlType, ImageObservations
+from .plausibility import image_coordinate_problems
 
 if TYPE_CHECKING:  # refine pulls in the whole adjustment: imported when a table needs it
     from .refine import GnssCentres, ImuAttitudes
@@ -2037,9 +2037,9 @@ def load_project(path: str | Path) -> Project:
         block = Block.STRIPS if named else Block.MODELS
     elif block is Block.MODELS and named:
         raise ConfigError(
-            f"{toml_path}: [adjustment] {named[0]}: applies to block = \"strips\" (J's "
+            f'{toml_path}: [adjustment] {named[0]}: applies to block = "strips" (J\'s '
             'polynomials); with block = "models" every model has its own similarity. Remove '
-            f"{named[0]} or set block = \"strips\""
+            f'{named[0]} or set block = "strips"'
         )
     options = AdjustmentOptions(
         route=route,

@@ -938,9 +938,7 @@ def adjust_to_ground(
     act = sol.active
     red_act = np.asarray(final_fit.redundancy_numbers, dtype=np.float64)
     sigma_act = np.column_stack([exp_xy, exp_xy, exp_z])[act]
-    red, mde = control_detectability(
-        red_act, sigma_act, blunders, int(np.isfinite(red_act).sum())
-    )
+    red, mde = control_detectability(red_act, sigma_act, blunders, int(np.isfinite(red_act).sum()))
     control_red = np.full((rows.shape[0], 3), np.nan)
     control_mde = np.full((rows.shape[0], 3), np.nan)
     control_red[act], control_mde[act] = red, mde

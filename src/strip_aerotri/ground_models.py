@@ -33,6 +33,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from itertools import pairwise
 
 import numpy as np
 
@@ -235,8 +236,10 @@ def adjust_models_to_ground(
         ]
         guess_ = guess.copy() if previous is None else previous[1]
         starts = start_units if previous is None else previous[0].transforms
-        p0 = points0 if previous is None else np.where(
-            np.isfinite(previous[0].points), previous[0].points, points0
+        p0 = (
+            points0
+            if previous is None
+            else np.where(np.isfinite(previous[0].points), previous[0].points, points0)
         )
         res, converged, n_pass = None, False, 0
         # Control given in full needs one pass; plan and height points get
@@ -288,13 +291,31 @@ def adjust_models_to_ground(
     sol = None
     while True:
         sol = solve(keep_rows, use_xy, use_z, line_keep, sol)
-        res, _, _, _, active = sol
+        res = sol[0]
         if not blunders.testing:
             break
-        found = _tests(res, sol, ids, idx, use_xy, use_z, keep_rows, n_det, strip, lines,
-                       line_index, line_keep, plan_sigma, blunders)
-        found = [f for f in found if (f[0].stage, f[0].point, f[0].component) not in
-                 {(k.stage, k.point, k.component) for k in kept_flags}]
+        found = _tests(
+            res,
+            sol,
+            ids,
+            idx,
+            use_xy,
+            use_z,
+            keep_rows,
+            n_det,
+            strip,
+            lines,
+            line_index,
+            line_keep,
+            plan_sigma,
+            blunders,
+        )
+        found = [
+            f
+            for f in found
+            if (f[0].stage, f[0].point, f[0].component)
+            not in {(k.stage, k.point, k.component) for k in kept_flags}
+        ]
         if not found:
             break
         if not blunders.rejecting:
@@ -340,7 +361,7 @@ def adjust_models_to_ground(
             apply(line_keep)
         rejections.append(worst)
 
-    res, guess, converged, n_pass, active = sol
+    res, guess, converged, n_pass, _ = sol
     if not converged:
         warnings.warn(
             f"ground stage: the passes did not settle in {n_pass} (the estimated coordinates "
@@ -349,10 +370,31 @@ def adjust_models_to_ground(
             stacklevel=2,
         )
     return _products(
-        strip, start, work, res, guess, given, idx, rows, check, use_xy, use_z, ids, lines,
-        line_index, line_keep, keep_rows, n_det, n_pass, converged,
-        tuple(rejections + kept_flags), tuple(rejected_rows), blunders,
-        np.column_stack([sig_xy, sig_xy, sig_h]), use_xy0, use_z0,
+        strip,
+        start,
+        work,
+        res,
+        guess,
+        given,
+        idx,
+        rows,
+        check,
+        use_xy,
+        use_z,
+        ids,
+        lines,
+        line_index,
+        line_keep,
+        keep_rows,
+        n_det,
+        n_pass,
+        converged,
+        tuple(rejections + kept_flags),
+        tuple(rejected_rows),
+        blunders,
+        np.column_stack([sig_xy, sig_xy, sig_h]),
+        use_xy0,
+        use_z0,
     )
 
 
@@ -367,7 +409,7 @@ def _check_breaks(strip, idx, use_xy, use_z, ids, target) -> None:
         return
     edges = [0, *breaks.tolist(), strip.n_models]
     labels = strip.model_labels or tuple(f"model {m}" for m in range(strip.n_models))
-    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+    for lo, hi in pairwise(edges):
         in_run = np.zeros(strip.observations.n_points, dtype=bool)
         in_run[strip.model_point[(strip.model >= lo) & (strip.model < hi)]] = True
         here = in_run[idx]
@@ -392,16 +434,28 @@ def _feasible(strip, idx, target, use_xy, use_z, ids) -> bool:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StripAerotriWarning)
         try:
-            _validate_control_geometry(
-                strip.points[idx], target, use_xy, use_z, ids
-            )
+            _validate_control_geometry(strip.points[idx], target, use_xy, use_z, ids)
         except GeometryError:
             return False
     return True
 
 
-def _tests(res, sol, ids, idx, use_xy, use_z, keep_rows, n_det, strip, lines, line_index,
-           line_keep, plan_sigma, blunders):
+def _tests(
+    res,
+    sol,
+    ids,
+    idx,
+    use_xy,
+    use_z,
+    keep_rows,
+    n_det,
+    strip,
+    lines,
+    line_index,
+    line_keep,
+    plan_sigma,
+    blunders,
+):
     """Every observation above its critical value, with the change that would
     reject it: (Rejection, apply) pairs."""
     found = []
@@ -448,8 +502,7 @@ def _tests(res, sol, ids, idx, use_xy, use_z, keep_rows, n_det, strip, lines, li
                             w=float(value),
                             critical=crit,
                             applied=blunders.rejecting,
-                            effect=f"estimated error {size:.3g} m; sigma0 {res.sigma0:.3g} "
-                            "before",
+                            effect=f"estimated error {size:.3g} m; sigma0 {res.sigma0:.3g} before",
                         ),
                         apply,
                     )
@@ -539,9 +592,33 @@ def _mean_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
     return u @ vt
 
 
-def _products(strip, start, work, res, guess, given, idx, rows, check, use_xy, use_z, ids,
-              lines, line_index, line_keep, keep_rows, n_det, n_pass, converged, rejections,
-              rejected_rows, blunders, sigma, given_xy, given_z) -> GroundResult:
+def _products(
+    strip,
+    start,
+    work,
+    res,
+    guess,
+    given,
+    idx,
+    rows,
+    check,
+    use_xy,
+    use_z,
+    ids,
+    lines,
+    line_index,
+    line_keep,
+    keep_rows,
+    n_det,
+    n_pass,
+    converged,
+    rejections,
+    rejected_rows,
+    blunders,
+    sigma,
+    given_xy,
+    given_z,
+) -> GroundResult:
     obs = strip.observations
     n_points = obs.n_points
     pos = strip.model_photo_positions
@@ -567,7 +644,9 @@ def _products(strip, start, work, res, guess, given, idx, rows, check, use_xy, u
     # model whose photos enclose them.
     between = ~in_model
     if between.any():
-        model_of = np.clip(np.searchsorted(pos, np.flatnonzero(between)) - 1, 0, strip.n_models - 1)
+        model_of = np.clip(
+            np.searchsorted(pos, np.flatnonzero(between)) - 1, 0, strip.n_models - 1
+        )
         rot_work[between] = t.apply_to_rotation(model_of, strip.rotations[between])
         centres_work[between] = t.apply(model_of, strip.centres[between])
         # points no model determined (seen only by those photos): the
@@ -604,7 +683,10 @@ def _products(strip, start, work, res, guess, given, idx, rows, check, use_xy, u
     with np.errstate(invalid="ignore", divide="ignore"):
         model_rms = np.sqrt(
             np.stack(
-                [np.bincount(det_model, disc[:, k] ** 2, minlength=strip.n_models) for k in range(3)],
+                [
+                    np.bincount(det_model, disc[:, k] ** 2, minlength=strip.n_models)
+                    for k in range(3)
+                ],
                 axis=1,
             )
             / counts[:, None]

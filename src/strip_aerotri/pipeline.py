@@ -20,9 +20,9 @@ from ._typing import FloatArray
 from .blunders import BlunderOptions, Rejection
 from .chaining import StripModel, StripOptions
 from .densify import DEFAULT_MIN_BASE_TO_HEIGHT, form_strip_stepped
+from .errors import GeometryError
 from .geodesy import GroundCRS
 from .ground import Construction, GroundOptions, GroundResult, LineSpec, adjust_to_ground
-from .errors import GeometryError
 from .observations import ControlPoints, ImageObservations
 from .plausibility import control_problems
 

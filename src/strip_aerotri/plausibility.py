@@ -90,7 +90,7 @@ def image_coordinate_problems(
         if share > 0.5:
             cause = (
                 f"{share:.0%} of the points are; the coordinates are not in millimetres "
-                "(micrometres? pixels? then [images] units = \"pixel\" with pixel_size_mm)"
+                '(micrometres? pixels? then [images] units = "pixel" with pixel_size_mm)'
             )
         else:
             cause = f"{outside.size} point(s) are: a typing error in the coordinates?"

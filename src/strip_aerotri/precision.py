@@ -68,7 +68,9 @@ def ray_information(
     """
     points = np.asarray(points, dtype=np.float64)
     rotations = np.asarray(rotations, dtype=np.float64)
-    jac, _ = _image_jacobian(points, np.asarray(centres, dtype=np.float64), rotations, principal_distance)
+    jac, _ = _image_jacobian(
+        points, np.asarray(centres, dtype=np.float64), rotations, principal_distance
+    )
     jac = jac @ np.swapaxes(rotations, 1, 2)
     sigma = np.broadcast_to(np.asarray(sigma_mm, dtype=np.float64), points.shape[:1])
     return np.swapaxes(jac, 1, 2) @ jac / (sigma**2)[:, None, None]
@@ -80,7 +82,9 @@ def _resection_normals(points, centres, rotations, principal_distance, sigma_mm,
     points = np.asarray(points, dtype=np.float64)
     rotations = np.asarray(rotations, dtype=np.float64)
     group = np.asarray(group, dtype=np.intp)
-    jac, v = _image_jacobian(points, np.asarray(centres, dtype=np.float64), rotations, principal_distance)
+    jac, v = _image_jacobian(
+        points, np.asarray(centres, dtype=np.float64), rotations, principal_distance
+    )
     # d image / d S = −J Rᵀ; rotation about the image axes (R ← R exp([δ]×)):
     # v ← v − δ × v, d image / d δ = J [v]×.
     d_centre = -(jac @ np.swapaxes(rotations, 1, 2))
@@ -145,4 +149,3 @@ def centre_information(
     ok = np.isfinite(cov).all(axis=(1, 2))
     out[ok] = np.linalg.inv(cov[ok])
     return out
-

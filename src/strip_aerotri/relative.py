@@ -443,7 +443,9 @@ class _Record:
         z2 = (self.parallax_um / 1000.0) ** 2 / var
         z2 = np.where(np.isfinite(z2), z2, np.inf)
         with np.errstate(invalid="ignore"):
-            out = np.sqrt(np.bincount(pair, z2, minlength=n_pairs) / np.bincount(pair, minlength=n_pairs))
+            out = np.sqrt(
+                np.bincount(pair, z2, minlength=n_pairs) / np.bincount(pair, minlength=n_pairs)
+            )
         out[~self.stored] = np.inf
         return out
 
@@ -968,7 +970,14 @@ def relative_orientation(
             )
             if not ok[suspect].all():
                 _raise_not_oriented(
-                    suspect & ~ok, singular, left, right, pair, starts, counts, labels,
+                    suspect & ~ok,
+                    singular,
+                    left,
+                    right,
+                    pair,
+                    starts,
+                    counts,
+                    labels,
                     max_iterations,
                 )
             iterations[suspect] += more[suspect]
@@ -1113,9 +1122,7 @@ def similarity_start(
     # across image x (the dependent pair fixes b_x = 1): start along x; the
     # flight-direction checks name such strips before they get here.
     base[~(np.abs(t.real) > 0.1 * np.abs(t))] = _EX
-    return SimilarityStart(
-        relative, base, np.column_stack([t.real, t.imag]), kappa, np.abs(a)
-    )
+    return SimilarityStart(relative, base, np.column_stack([t.real, t.imag]), kappa, np.abs(a))
 
 
 def _pair_medians(values: FloatArray, pair: IntArray, starts: IntArray) -> FloatArray:
@@ -1201,8 +1208,7 @@ def homography_start(
         frame_w = np.stack([hv2, hu, np.cross(hv2, hu)], axis=2)
         rot = frame_w @ np.swapaxes(frame_u, 1, 2)
         t = np.einsum("mij,mj->mi", h - rot, n)
-        for flip in (1.0, -1.0):
-            candidates.append((rot, flip * t, flip * n))
+        candidates.extend((rot, flip * t, flip * n) for flip in (1.0, -1.0))
     # In front of the left photo: nᵀ l > 0 for the points (the plane at
     # distance d > 0 along n); among those, the normal nearest -z (ground
     # below the camera).
@@ -1221,7 +1227,11 @@ def homography_start(
         best_q[better] = q[better]
         best_b[better] = base[better]
         best_score = np.where(better, score, best_score)
-    ok = np.isfinite(best_score) & np.isfinite(best_b).all(axis=1) & (np.linalg.norm(best_b, axis=1) > 0)
+    ok = (
+        np.isfinite(best_score)
+        & np.isfinite(best_b).all(axis=1)
+        & (np.linalg.norm(best_b, axis=1) > 0)
+    )
     best_q[~ok] = np.eye(3)
     best_b[~ok] = _EX
     return best_q, best_b

@@ -370,7 +370,10 @@ def _control_points(result, check: bool) -> list[dict[str, Any]]:
                 else [None] * 3
             )
             row["mde_m"] = (
-                [_f(v) if u and np.isfinite(v) else None for v, u in zip(mde[k], used, strict=True)]
+                [
+                    _f(v) if u and np.isfinite(v) else None
+                    for v, u in zip(mde[k], used, strict=True)
+                ]
                 if have
                 else [None] * 3
             )
@@ -1673,7 +1676,9 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
                     r["critical"],
                     "yes"
                     if r["applied"]
-                    else ("no (kept)" if str(r["effect"]).startswith("kept") else "no (report only)"),
+                    else (
+                        "no (kept)" if str(r["effect"]).startswith("kept") else "no (report only)"
+                    ),
                     r["effect"],
                 ]
                 for r in report.get("rejections", [])

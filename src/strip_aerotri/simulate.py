@@ -85,11 +85,14 @@ from ._typing import ArrayLike, FloatArray, IntArray
 from .observations import ControlPoints, ControlType, ImageObservations
 
 __all__ = [
+    "CAMERAS",
     "PRESETS",
+    "Camera",
     "LocalFrame",
     "SimulatedStrip",
     "SimulationTruth",
     "StripPreset",
+    "camera_preset",
     "simulate_strip",
 ]
 
@@ -160,6 +163,8 @@ class StripPreset:
         Road points per model.
     line_weight : float
         Weight of the straight-line condition (J: about 100).
+    pixel_size_um : float or None
+        Pixel size of a digital camera (None for film); for reports only.
     """
 
     name: str
@@ -185,6 +190,7 @@ class StripPreset:
     line_angle_deg: float = 0.3
     line_points_per_model: int = 2
     line_weight: float = 100.0
+    pixel_size_um: float | None = None
 
     @property
     def scale_m_per_mm(self) -> float:
@@ -251,6 +257,114 @@ PRESETS: Mapping[str, StripPreset] = MappingProxyType(
 )
 
 
+class Camera(NamedTuple):
+    """A camera of :data:`CAMERAS`: principal distance and format in mm,
+    pixel size in um (None for film)."""
+
+    principal_distance_mm: float
+    format_long_mm: float
+    format_short_mm: float
+    pixel_size_um: float | None
+
+
+#: Typical cameras of aerial projects: super-wide, wide and normal angle
+#: film (230 x 230 mm), and the sensors of mapping drones.
+CAMERAS: Mapping[str, Camera] = MappingProxyType(
+    {
+        "film88": Camera(88.5, 230.0, 230.0, None),  # super-wide angle film camera
+        "film152": Camera(152.87, 230.0, 230.0, None),  # wide angle (RC30, RMK TOP 15 class)
+        "film210": Camera(210.0, 230.0, 230.0, None),  # normal angle film camera
+        "ff35": Camera(35.0, 36.0, 24.0, 4.4),  # full frame, 35 mm lens
+        "apsc16": Camera(16.0, 23.5, 15.6, 3.9),  # APS-C, 16 mm lens
+        "oneinch": Camera(8.8, 13.2, 8.8, 2.4),  # 1-inch sensor (Phantom 4 Pro class)
+    }
+)
+
+
+def camera_preset(
+    camera: str | Camera = "film152",
+    *,
+    long_side: str = "along",
+    forward_overlap: float = 0.6,
+    flying_height_m: float | None = None,
+    tilt_deg: float = 1.5,
+    kappa_deg: float = 2.0,
+    relief_m: float | None = None,
+    noise_um: float | None = None,
+    line: bool = False,
+) -> StripPreset:
+    """A consistent :class:`StripPreset` for a camera and a flight.
+
+    Parameters
+    ----------
+    camera : str or Camera
+        A name of :data:`CAMERAS` or a Camera.
+    long_side : {"along", "across"}
+        Whether the format's long side runs along the flight or across it.
+    forward_overlap : float
+        Fraction, 0.5-0.95.
+    flying_height_m : float, optional
+        Above the mean terrain; default a photo scale of 1:8000 for film,
+        120 m for drone cameras.
+    tilt_deg, kappa_deg : float
+        Standard deviations of omega and phi, and of kappa about the heading.
+    relief_m : float, optional
+        Default 5 % of the flying height.
+    noise_um : float, optional
+        Image noise; default 5 um on film, 0.7 pixel on sensors.
+    line : bool
+        A straight road along the strip (straight-line points).
+
+    Returns
+    -------
+    StripPreset
+        Gruber rows at 0 and about a third of the format across the flight
+        from the axis, two points per zone, and enough random points per
+        model that every pair shares 25-40 points (sensors) or 15-30 (film).
+    """
+    cam = CAMERAS[camera] if isinstance(camera, str) else camera
+    if long_side not in ("along", "across"):
+        raise ValueError(f'Expected `long_side` "along" or "across", got {long_side!r}')
+    c = float(cam.principal_distance_mm)
+    fmt = (
+        (cam.format_long_mm, cam.format_short_mm)
+        if long_side == "along"
+        else (cam.format_short_mm, cam.format_long_mm)
+    )
+    film = cam.pixel_size_um is None
+    height = (
+        float(flying_height_m) if flying_height_m is not None else (8.0 * c if film else 120.0)
+    )
+    scale = height / c  # m per mm
+    base = (1.0 - forward_overlap) * fmt[0] * scale
+    relief = 0.05 * height if relief_m is None else float(relief_m)
+    noise = (5.0 if film else 0.7 * cam.pixel_size_um) if noise_um is None else float(noise_um)
+    gy = 0.33 * fmt[1]
+    return StripPreset(
+        name=f"{camera if isinstance(camera, str) else 'camera'}-{long_side}",
+        principal_distance_mm=c,
+        format_mm=fmt,
+        flying_height_m=height,
+        forward_overlap=float(forward_overlap),
+        terrain_height_m=150.0,
+        relief_m=relief,
+        relief_wavelength_m=max(8.0 * base, 20.0 * relief),
+        attitude_sigma_deg=float(tilt_deg),
+        kappa_sigma_deg=float(kappa_deg),
+        position_wander_m=0.02 * height,
+        height_wander_m=0.02 * height,
+        gruber_y_mm=(gy, 0.0, -gy),
+        gruber_points_per_zone=2,
+        gruber_spread_mm=0.04 * fmt[1],
+        extra_points_per_photo=10 if film else 18,
+        image_noise_mm=noise / 1000.0,
+        control_noise_m=max(0.005, 0.25 * noise / 1000.0 * scale),
+        line=bool(line),
+        line_offset_mm=-0.15 * fmt[1],
+        pixel_size_um=cam.pixel_size_um,
+    )
+
+
 class LocalFrame(NamedTuple):
     """The local ENU tangent frame of a simulation, in geocentric terms.
 
@@ -308,6 +422,10 @@ class SimulationTruth:
         Azimuth of the flight line, degrees clockwise from north.
     flying_height_m : float
         Planned flying height above the mean terrain, metres.
+    blunder_observations : tuple of int
+        Rows of the observations given a gross error (``image_blunders``).
+    blunder_control : tuple of int
+        Rows of the control given a gross error (``control_blunders``).
     """
 
     photo_centres_local: FloatArray
@@ -320,6 +438,8 @@ class SimulationTruth:
     ellipsoid: tuple[float, float]
     heading_deg: float
     flying_height_m: float
+    blunder_observations: tuple[int, ...] = ()
+    blunder_control: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -699,6 +819,10 @@ def simulate_strip(
     line: bool | None = None,
     systematic_k1: float = 0.0,
     film_shrink_y: float = 1.0,
+    image_blunders: int = 0,
+    image_blunder_mm: float | None = None,
+    control_blunders: int = 0,
+    control_blunder_m: tuple[float, float] = (0.5, 2.0),
     **overrides: object,
 ) -> SimulatedStrip:
     """Simulate one strip of vertical photos with a known truth.
@@ -740,6 +864,17 @@ def simulate_strip(
         adjustment, in mm^-2: ``x' = x (1 + k1 r**2)``, ``y' = y (1 + k1 r**2)``.
     film_shrink_y : float
         Scale applied to the image y coordinates (film shrinkage; 1 = none).
+    image_blunders : int
+        Observations of points seen on three or more photos given a gross
+        error: a shift in a random direction of ``image_blunder_mm`` (default
+        15-40 times the image noise, at least 0.05 mm); their rows are in
+        ``truth.blunder_observations``.
+    image_blunder_mm : float, optional
+    control_blunders : int
+        Control rows (full, plan or height) given a gross error of one given
+        coordinate, a random size in ``control_blunder_m`` with a random
+        sign; their rows are in ``truth.blunder_control``.
+    control_blunder_m : (float, float)
     **overrides
         Any :class:`StripPreset` field except ``name``, e.g.
         ``extra_points_per_photo=10``.
@@ -923,6 +1058,19 @@ def simulate_strip(
     )
     lines = ((line_ids, float(pre.line_weight)),) if len(line_ids) >= 3 else ()
 
+    blunder_obs: tuple[int, ...] = ()
+    blunder_ctrl: tuple[int, ...] = ()
+    if image_blunders or control_blunders:
+        observations, control_points, blunder_obs, blunder_ctrl = _blunders(
+            np.random.default_rng([seed, 7]),
+            observations,
+            control_points,
+            pre,
+            int(image_blunders),
+            image_blunder_mm,
+            int(control_blunders),
+            control_blunder_m,
+        )
     truth = SimulationTruth(
         photo_centres_local=_frozen(centres),
         photo_rotations_local=_frozen(rotations),
@@ -934,6 +1082,8 @@ def simulate_strip(
         ellipsoid=geo.ellipsoid,
         heading_deg=float(heading_deg),
         flying_height_m=pre.flying_height_m,
+        blunder_observations=blunder_obs,
+        blunder_control=blunder_ctrl,
     )
     return SimulatedStrip(
         preset=pre,
@@ -942,6 +1092,36 @@ def simulate_strip(
         crs=crs,
         lines=lines,
         truth=truth,
+    )
+
+
+def _blunders(rng, observations, control, pre, n_image, size_mm, n_control, size_m):
+    """Gross errors added to the observations and the control (module notes);
+    returns both and the rows changed."""
+    obs = observations
+    rays = np.bincount(obs.point, minlength=obs.n_points)
+    candidates = np.flatnonzero(rays[obs.point] >= 3)
+    rows = np.sort(rng.choice(candidates, size=min(n_image, candidates.size), replace=False))
+    if size_mm is None:
+        size = np.maximum(0.05, pre.image_noise_mm * rng.uniform(15.0, 40.0, rows.size))
+    else:
+        size = np.full(rows.size, float(size_mm))
+    angle = rng.uniform(0.0, 2.0 * np.pi, rows.size)
+    xy = obs.xy.copy()
+    xy[rows] += size[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+    kinds = np.array([k.value for k in control.kind])
+    used = np.flatnonzero(kinds != "check")
+    bad = np.sort(rng.choice(used, size=min(n_control, used.size), replace=False))
+    xyz = np.array(control.xyz, dtype=np.float64, copy=True)
+    lo, hi = size_m
+    for row in bad:
+        given = np.flatnonzero(np.isfinite(xyz[row]))
+        xyz[row, rng.choice(given)] += rng.choice([-1.0, 1.0]) * rng.uniform(lo, hi)
+    return (
+        dataclasses.replace(obs, xy=xy),
+        dataclasses.replace(control, xyz=xyz),
+        tuple(int(r) for r in rows),
+        tuple(int(r) for r in bad),
     )
 
 

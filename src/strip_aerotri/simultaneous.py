@@ -438,7 +438,9 @@ def _normals(prob: _Problem, st: _State) -> _Normals:
     try:
         v_inv[prob.observed] = np.linalg.inv(v_blocks[prob.observed])
     except np.linalg.LinAlgError as exc:
-        raise GeometryError("a point is not determined by its rows (singular 3 x 3 block)") from exc
+        raise GeometryError(
+            "a point is not determined by its rows (singular 3 x 3 block)"
+        ) from exc
     # Schur complement: S = N_zz − N_zp V⁻¹ N_pz, with N_zp V⁻¹ of N_zp's pattern
     n_zp = prob.zp_matrix(n_bp_r)
     reduce = prob.zp_matrix(n_bp_r @ v_inv[prob.row_point])
@@ -562,14 +564,16 @@ def adjust_units(
         design = np.column_stack([np.ones(len(xyz)), xyz[:, 0]])
         line_ab[k] = np.linalg.lstsq(design, xyz[:, 1], rcond=None)[0]
     st = _State(s0, r0, t0, points, line_ab)
-    extent = float(np.nanmax(np.ptp(points[prob.observed], axis=0))) if prob.observed.any() else 1.0
+    extent = (
+        float(np.nanmax(np.ptp(points[prob.observed], axis=0))) if prob.observed.any() else 1.0
+    )
     extent = max(extent, 1.0)
 
     cost = _cost(prob, st)
     converged = False
     iterations = 0
     normals = None
-    for iterations in range(1, max_iterations + 1):
+    for iterations in range(1, max_iterations + 1):  # noqa: B007 (reported after the loop)
         normals = _normals(prob, st)
         lu, scale = _factor(normals.s_matrix)
         dz = _solve_reduced(lu, scale, normals.rhs)
