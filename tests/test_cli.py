@@ -30,7 +30,10 @@ from strip_aerotri.io import RESULT_MARKER
 def film_files(tmp_path_factory) -> dict[str, bytes]:
     """A 6-photo film strip (6 full, 2 plan, 2 height control, 18 check points)."""
     folder = tmp_path_factory.mktemp("film")
-    sa.simulate_strip(6, preset="film", crs="EPSG:32634", seed=3).write_project(folder)
+    # J's polynomial type 3 (block = "strips"): the breakers below test its rules too
+    sa.simulate_strip(6, preset="film", crs="EPSG:32634", seed=3).write_project(
+        folder, polynomial=3
+    )
     return {p.name: p.read_bytes() for p in folder.iterdir()}
 
 
@@ -800,3 +803,35 @@ def test_two_photos_out_of_order_are_named(tmp_path, command):
         *(["--out", tmp_path / "o"] if command == "run" else []),
     )
     assert_one_error_line(result, ("pair 1006-1005", "meet behind the photos", "flight order"))
+
+
+def test_simulate_a_camera_and_flight_runs(tmp_path):
+    """--camera with a flight of the envelope: a 35 mm drone strip at 80 %
+    overlap with R4's control layout and two image blunders runs end to end
+    (every model at once) and finds them."""
+    folder = tmp_path / "drone35"
+    result = invoke(
+        "-q", "simulate", "--camera", "ff35", "--overlap", "80", "--height-m", "150",
+        "--tilt-deg", "2.5", "--kappa-deg", "3", "--noise-um", "5", "--photos", "20",
+        "--control", "fig4", "--image-blunders", "2", "--out", folder,
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    text = (folder / "strip.toml").read_text(encoding="utf-8")
+    assert "principal_distance_mm = 35.0" in text and "polynomial" not in text
+    run = invoke("-q", "run", folder / "strip.toml", "--out", tmp_path / "out")
+    assert run.exit_code == 0, run.output
+    report = (tmp_path / "out" / "report.json").read_text(encoding="utf-8")
+    assert '"construction": "models"' in report
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        ((), "give either PRESET or --camera"),
+        (("film", "--camera", "ff35"), "give either PRESET or --camera"),
+        (("film", "--overlap", "70"), "--overlap describes the flight of --camera"),
+    ],
+)
+def test_simulate_preset_or_camera(tmp_path, args, message):
+    result = invoke("simulate", *args, "--out", tmp_path / "x")
+    assert result.exit_code == 2 and message in result.output

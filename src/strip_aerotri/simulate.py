@@ -473,7 +473,7 @@ class SimulatedStrip:
         self,
         directory: str | Path,
         *,
-        polynomial: int | str = 3,
+        polynomial: int | str | None = None,
         route: str | None = None,
         name: str | None = None,
     ) -> Path:
@@ -487,8 +487,9 @@ class SimulatedStrip:
         ----------
         directory : str or Path
             Output folder.
-        polynomial : {0, 1, 2, 3, "auto"}
-            ``[adjustment] polynomial``.
+        polynomial : {0, 1, 2, 3, "auto"}, optional
+            ``[adjustment] polynomial`` (J's construction, ``block =
+            "strips"``); None (the default) writes none: every model at once.
         route : {"geocentric", "projected"}, optional
             ``[adjustment] route``; omitted (the tool's default) when None.
             Only "projected" is valid with ``crs = "local"``.
@@ -505,7 +506,9 @@ class SimulatedStrip:
         ValueError
             For a bad ``polynomial`` or ``route``.
         """
-        if isinstance(polynomial, bool) or polynomial not in _POLYNOMIALS:
+        if polynomial is not None and (
+            isinstance(polynomial, bool) or polynomial not in _POLYNOMIALS
+        ):
             raise ValueError(
                 f"Expected `polynomial` to be one of {_POLYNOMIALS}, got {polynomial!r}"
             )
@@ -541,8 +544,9 @@ class SimulatedStrip:
         lines += ["", "[adjustment]"]
         if route is not None:
             lines.append(f"route = {_toml_str(route)}")
-        poly = _toml_str(polynomial) if isinstance(polynomial, str) else str(polynomial)
-        lines.append(f"polynomial = {poly}")
+        if polynomial is not None:
+            poly = _toml_str(polynomial) if isinstance(polynomial, str) else str(polynomial)
+            lines.append(f"polynomial = {poly}")
         toml_path = directory / "strip.toml"
         toml_path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 

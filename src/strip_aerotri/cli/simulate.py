@@ -8,7 +8,7 @@ import click
 
 from .options import DOCS_EPILOG, common_options, echo_progress, echo_result
 
-__all__ = ["PRESET_NAMES", "simulate"]
+__all__ = ["CAMERA_NAMES", "PRESET_NAMES", "simulate"]
 
 PRESET_NAMES = ("film", "drone", "corridor")
 """Names of :data:`strip_aerotri.simulate.PRESETS` (listed here so that --help
@@ -17,8 +17,76 @@ does not import the simulator)."""
 PROJECT_FILES = ("strip.toml", "image_points.csv", "control.csv")
 
 
+CAMERA_NAMES = ("film88", "film152", "film210", "ff35", "apsc16", "oneinch")
+"""Names of :data:`strip_aerotri.simulate.CAMERAS` (listed here for --help)."""
+
+
 @click.command(epilog=DOCS_EPILOG, short_help="Write a simulated project to try the tool.")
-@click.argument("preset", type=click.Choice(PRESET_NAMES, case_sensitive=False))
+@click.argument("preset", type=click.Choice(PRESET_NAMES, case_sensitive=False), required=False)
+@click.option(
+    "--camera",
+    type=click.Choice(CAMERA_NAMES, case_sensitive=False),
+    default=None,
+    help="A camera instead of PRESET: film 88/152/210 mm on 230 mm, ff35 (35 mm on "
+    "36x24), apsc16, oneinch (8.8 mm on 13.2x8.8).",
+)
+@click.option(
+    "--long-side",
+    type=click.Choice(["along", "across"]),
+    default="along",
+    show_default=True,
+    help="With --camera: the format's long side along or across the flight.",
+)
+@click.option(
+    "--overlap",
+    type=click.FloatRange(51.0, 95.0),
+    default=None,
+    metavar="PCT",
+    help="With --camera: forward overlap in percent (default 60 film, 80 sensors).",
+)
+@click.option(
+    "--height-m",
+    type=click.FloatRange(min=1.0),
+    default=None,
+    help="With --camera: flying height above the terrain, m (default 1:8000 film, 120 m).",
+)
+@click.option(
+    "--tilt-deg",
+    type=click.FloatRange(min=0.0, max=10.0),
+    default=None,
+    help="With --camera: standard deviation of omega and phi (default 1.5).",
+)
+@click.option(
+    "--kappa-deg",
+    type=click.FloatRange(min=0.0, max=30.0),
+    default=None,
+    help="With --camera: standard deviation of kappa about the heading (default 2).",
+)
+@click.option(
+    "--relief-m",
+    type=click.FloatRange(min=0.0),
+    default=None,
+    help="With --camera: terrain relief amplitude, m (default 5 % of the height).",
+)
+@click.option(
+    "--line/--no-line",
+    default=None,
+    help="A straight road along the strip whose points form a straight-line condition.",
+)
+@click.option(
+    "--image-blunders",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="Observations given a gross error (15-40 times the noise).",
+)
+@click.option(
+    "--control-blunders",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="Control points given a gross error of 0.5-2 m in one coordinate.",
+)
 @click.option(
     "-o",
     "--out",
@@ -58,7 +126,7 @@ PROJECT_FILES = ("strip.toml", "image_points.csv", "control.csv")
 @click.option(
     "--control",
     "control_layout",
-    type=click.Choice(["ends", "every_k_models", "dense"]),
+    type=click.Choice(["ends", "fig4", "every_k_models", "dense", "weak"]),
     default="ends",
     show_default=True,
     help="Control layout.",
@@ -66,9 +134,9 @@ PROJECT_FILES = ("strip.toml", "image_points.csv", "control.csv")
 @click.option(
     "--polynomial",
     type=click.Choice(["0", "1", "2", "3", "auto"]),
-    default="3",
-    show_default=True,
-    help="[adjustment] polynomial written to strip.toml.",
+    default=None,
+    help="[adjustment] polynomial written to strip.toml (J's construction); without it "
+    "every model is transformed at once (the default).",
 )
 @click.option(
     "--force",
@@ -77,7 +145,17 @@ PROJECT_FILES = ("strip.toml", "image_points.csv", "control.csv")
 )
 @common_options
 def simulate(
-    preset: str,
+    preset: str | None,
+    camera: str | None,
+    long_side: str,
+    overlap: float | None,
+    height_m: float | None,
+    tilt_deg: float | None,
+    kappa_deg: float | None,
+    relief_m: float | None,
+    line: bool | None,
+    image_blunders: int,
+    control_blunders: int,
     out: Path,
     photos: int,
     crs: str,
@@ -85,22 +163,27 @@ def simulate(
     seed: int,
     noise_um: float | None,
     control_layout: str,
-    polynomial: str,
+    polynomial: str | None,
     force: bool,
 ) -> None:
     """Write a project of a simulated strip of PRESET to the folder --out.
 
     PRESET is "film" (1:8000 wide-angle film, 60 % overlap), "drone" (1-inch
     sensor at 120 m, 80 % overlap) or "corridor" (film with a straight road
-    whose points form a straight-line condition). The strip is simulated on
-    the curved earth with a known truth; control and check points follow the
-    chosen layout. The folder then holds strip.toml, image_points.csv and
-    control.csv, ready for `stripaero run`.
+    whose points form a straight-line condition). Instead of a preset,
+    --camera with --long-side, --overlap, --height-m, --tilt-deg,
+    --kappa-deg and --relief-m describes any camera and flight. The strip is
+    simulated on the curved earth with a known truth; control and check
+    points follow the chosen layout ("fig4": three full points at each end,
+    height points between, R4's strip layout). The folder then holds
+    strip.toml, image_points.csv and control.csv, ready for `stripaero run`.
 
     \b
     Examples:
       stripaero simulate film --out demo
       stripaero simulate corridor --out road --photos 20 --crs EPSG:2180 --seed 3
+      stripaero simulate --camera ff35 --overlap 80 --height-m 150 --tilt-deg 2.5 \\
+          --kappa-deg 3 --noise-um 5 --photos 60 --control fig4 --out drone
       stripaero run demo/strip.toml
     """
     existing = [name for name in PROJECT_FILES if (out / name).exists()]
@@ -115,24 +198,57 @@ def simulate(
 
         raise OutputError(f"--out: '{out}' is a file, not a folder")
 
-    from ..simulate import simulate_strip
+    from ..errors import ConfigError
+    from ..simulate import camera_preset, simulate_strip
 
-    echo_progress(f"simulating a {preset} strip of {photos} photos (seed {seed})")
+    flight = {
+        "--overlap": overlap,
+        "--height-m": height_m,
+        "--tilt-deg": tilt_deg,
+        "--kappa-deg": kappa_deg,
+        "--relief-m": relief_m,
+    }
+    if (preset is None) == (camera is None):
+        raise click.UsageError("give either PRESET or --camera")
+    if camera is None and any(v is not None for v in flight.values()):
+        given = next(k for k, v in flight.items() if v is not None)
+        raise click.UsageError(f"{given} describes the flight of --camera, not of a preset")
+    what = preset.lower() if preset is not None else f"{camera} ({long_side})"
+    echo_progress(f"simulating a {what} strip of {photos} photos (seed {seed})")
     try:
+        if camera is not None:
+            film = camera.lower().startswith("film")
+            chosen = camera_preset(
+                camera.lower(),
+                long_side=long_side,
+                forward_overlap=(overlap if overlap is not None else (60.0 if film else 80.0))
+                / 100.0,
+                flying_height_m=height_m,
+                tilt_deg=1.5 if tilt_deg is None else tilt_deg,
+                kappa_deg=2.0 if kappa_deg is None else kappa_deg,
+                relief_m=relief_m,
+                noise_um=noise_um,
+                line=bool(line),
+            )
+        else:
+            chosen = preset.lower()
         sim = simulate_strip(
             photos,
-            preset=preset.lower(),
+            preset=chosen,
             crs=crs if crs.lower() != "local" else "local",
             heading_deg=heading,
             seed=seed,
-            image_noise_mm=None if noise_um is None else noise_um / 1000.0,
+            image_noise_mm=None if noise_um is None or camera is not None else noise_um / 1000.0,
             control=control_layout,
+            line=line if camera is None else None,
+            image_blunders=image_blunders,
+            control_blunders=control_blunders,
         )
     except ValueError as exc:
-        from ..errors import ConfigError
-
-        raise ConfigError(f"simulate {preset}: {exc}") from exc
-    poly: int | str = polynomial if polynomial == "auto" else int(polynomial)
+        raise ConfigError(f"simulate {what}: {exc}") from exc
+    poly: int | str | None = (
+        None if polynomial is None else polynomial if polynomial == "auto" else int(polynomial)
+    )
     toml_path = sim.write_project(out, polynomial=poly)
     obs = sim.observations
     kinds = [k.value for k in sim.control.kind]
