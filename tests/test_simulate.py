@@ -537,3 +537,38 @@ def test_drone_photos_see_about_thirty_points():
 def test_bad_arguments_raise_value_error(kwargs, match):
     with pytest.raises(ValueError, match=match):
         simulate_strip(**kwargs)
+
+
+@pytest.mark.parametrize("camera", ["film152", "ff35", "oneinch"])
+def test_camera_preset_long_side_and_overlap(camera):
+    """The format's long side follows `long_side`; the photos' footprints
+    overlap as asked (measured on the truth: the along-track spacing of the
+    projection centres over the footprint length at the mean terrain)."""
+    from strip_aerotri.simulate import CAMERAS, camera_preset
+
+    cam = CAMERAS[camera]
+    along = camera_preset(camera, long_side="along", forward_overlap=0.8)
+    across = camera_preset(camera, long_side="across", forward_overlap=0.8)
+    assert along.format_mm == (cam.format_long_mm, cam.format_short_mm)
+    assert across.format_mm == (cam.format_short_mm, cam.format_long_mm)
+    sim = simulate_strip(8, preset=across, seed=2, position_wander_m=0.0)
+    centres = sim.truth.photo_centres_local
+    spacing = np.median(np.linalg.norm(np.diff(centres[:, :2], axis=0), axis=1))
+    footprint = across.format_mm[0] * across.scale_m_per_mm
+    assert 1.0 - spacing / footprint == pytest.approx(0.8, abs=0.01)
+
+
+def test_blunders_are_where_the_truth_says():
+    clean = simulate_strip(10, seed=4)
+    bad = simulate_strip(10, seed=4, image_blunders=3, control_blunders=2)
+    rows = np.asarray(bad.truth.blunder_observations)
+    assert rows.size == 3 and len(bad.truth.blunder_control) == 2
+    shift = np.hypot(*(bad.observations.xy - clean.observations.xy).T)
+    assert np.flatnonzero(shift > 0).tolist() == sorted(rows.tolist())
+    assert np.all(shift[rows] >= 0.05)  # at least 50 um (15-40 sigma of 5 um)
+    diff = np.abs(np.nan_to_num(bad.control.xyz - clean.control.xyz))
+    changed = np.flatnonzero(diff.max(axis=1) > 0)
+    assert changed.tolist() == sorted(bad.truth.blunder_control)
+    assert np.all((diff[changed].max(axis=1) >= 0.5) & (diff[changed].max(axis=1) <= 2.0))
+    # everything else as without blunders (the errors come from their own stream)
+    np.testing.assert_array_equal(clean.truth.points_local, bad.truth.points_local)
