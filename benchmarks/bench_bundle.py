@@ -47,7 +47,7 @@ from strip_aerotri.ground import GroundOptions
 from strip_aerotri.observations import ControlPoints, ControlType, ImageObservations
 from strip_aerotri.pipeline import AccuracyStatistics, triangulate
 from strip_aerotri.refine import refine_bundle
-from strip_aerotri.rotation import matrix_from_opk
+from strip_aerotri.geometry.rotation import matrix_from_opk
 
 C_MM = 152.87
 SCALE = 8000.0  # 1:8000

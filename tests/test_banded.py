@@ -1,15 +1,15 @@
-"""Banded normal equations (strip_aerotri._banded) against the dense path."""
+"""Banded normal equations (strip_aerotri.geometry._banded) against the dense path."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-import strip_aerotri.deformation as deformation
-from strip_aerotri._banded import BandedNormals, _inverse_norm_1
-from strip_aerotri.deformation import bspline_basis, fit_deformation, section_terms
+import strip_aerotri.geometry.deformation as deformation
+from strip_aerotri.geometry._banded import BandedNormals, _inverse_norm_1
+from strip_aerotri.geometry.deformation import bspline_basis, fit_deformation, section_terms
 from strip_aerotri.errors import GeometryError
-from strip_aerotri.similarity import _normal_inverse, _redundancy_numbers, row_support
+from strip_aerotri.geometry.similarity import _normal_inverse, _redundancy_numbers, row_support
 
 
 def _spline_rows(n_sections: int, n: int, seed: int = 0) -> np.ndarray:

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from strip_aerotri.deformation import (
+from strip_aerotri.geometry.deformation import (
     StraightLine,
     fit_deformation,
     n_terms,

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import BSpline
 
-from strip_aerotri.deformation import (
+from strip_aerotri.geometry.deformation import (
     StraightLine,
     bspline_basis,
     fit_deformation,
@@ -545,7 +545,7 @@ def test_piecewise_evaluation_equals_the_basis_times_the_coefficients(kind, brea
     """The fast evaluation (each section's piece by Horner's rule, in chunks of points)
     against the dense design of section_terms: inside, at the breakpoints, beyond the ends,
     over more points than one chunk."""
-    from strip_aerotri.deformation import _CHUNK_POINTS, _section_values
+    from strip_aerotri.geometry.deformation import _CHUNK_POINTS, _section_values
 
     rng = np.random.default_rng(kind)
     n = 2 * _CHUNK_POINTS + 17

@@ -18,8 +18,8 @@ from strip_aerotri.densify import (
 )
 from strip_aerotri.errors import GeometryError, StripAerotriWarning
 from strip_aerotri.observations import ImageObservations
-from strip_aerotri.rotation import matrix_from_opk
-from strip_aerotri.similarity import similarity_from_points
+from strip_aerotri.geometry.rotation import matrix_from_opk
+from strip_aerotri.geometry.similarity import similarity_from_points
 
 
 def _drone(noise: float, seed: int = 3, n: int = 13):

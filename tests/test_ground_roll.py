@@ -19,9 +19,9 @@ import pytest
 
 import strip_aerotri as sa
 import strip_aerotri.ground as ground
-from strip_aerotri.deformation import fit_deformation
+from strip_aerotri.geometry.deformation import fit_deformation
 from strip_aerotri.ground import GroundOptions, adjust_to_ground
-from strip_aerotri.similarity import SimilarityTransform
+from strip_aerotri.geometry.similarity import SimilarityTransform
 
 
 @cache

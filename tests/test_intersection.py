@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from strip_aerotri.intersection import intersect, intersect_midpoint, intersect_normal
+from strip_aerotri.geometry.intersection import intersect, intersect_midpoint, intersect_normal
 
 C = 152.0
 

@@ -26,7 +26,7 @@ from strip_aerotri.refine import (
     refine_bundle,
     refine_frame,
 )
-from strip_aerotri.rotation import opk_from_matrix
+from strip_aerotri.geometry.rotation import opk_from_matrix
 from strip_aerotri.simulate import simulate_strip
 
 

@@ -1,4 +1,4 @@
-"""Tests of strip_aerotri.rotation: parametrisations, round trips, singularities.
+"""Tests of strip_aerotri.geometry.rotation: parametrisations, round trips, singularities.
 
 Independent oracle: ``scipy.spatial.transform.Rotation``.
 """
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from strip_aerotri import rotation
+from strip_aerotri.geometry import rotation
 from strip_aerotri.errors import GeometryError, StripAerotriWarning
-from strip_aerotri.rotation import (
+from strip_aerotri.geometry.rotation import (
     SCHUT_MAX_ANGLE_DEG,
     cardan_from_matrix,
     cardan_from_opk,

@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from strip_aerotri.errors import ConvergenceError, GeometryError, StripAerotriWarning
-from strip_aerotri.similarity import (
+from strip_aerotri.geometry.similarity import (
     COLLINEAR_MAGNIFICATION,
     COLLINEAR_RTOL,
     SimilarityTransform,
@@ -429,7 +429,7 @@ def test_normal_inverse_and_condition_number_small_exact_large_bounded(k):
     """Up to 16 unknowns the condition number of the equilibrated normal matrix is exact;
     beyond, the bound ‖N‖∞‖N⁻¹‖∞ lies between the exact value and k times it.  The inverse
     is the inverse either way, and a rank-deficient design is singular either way."""
-    from strip_aerotri.similarity import _EXACT_COND_MAX, _normal_inverse
+    from strip_aerotri.geometry.similarity import _EXACT_COND_MAX, _normal_inverse
 
     rng = np.random.default_rng(k)
     a = rng.normal(size=(3 * k, k)) * np.logspace(0, 3, k)  # columns of very different size
@@ -485,7 +485,7 @@ def test_a_linearly_converging_fit_stops_when_its_steps_are_negligible(monkeypat
     similarity; it stops once a step is below 1 % of its standard deviation
     instead of running on to the tolerance (3 iterations instead of 9 here),
     and the two solutions agree within that fraction."""
-    from strip_aerotri import similarity as similarity_module
+    from strip_aerotri.geometry import similarity as similarity_module
 
     bent, tgt, kwargs = _bent_long_strip(5e-6)
     stopped = fit_similarity(bent, tgt, **kwargs)
@@ -503,7 +503,7 @@ def test_a_fit_too_slow_for_the_tolerance_still_converges(monkeypatch):
     """Bent four times as much, the linear convergence is too slow to reach
     the tolerance in 30 iterations (the rule before, a ConvergenceError); it
     reaches negligible steps in 11."""
-    from strip_aerotri import similarity as similarity_module
+    from strip_aerotri.geometry import similarity as similarity_module
 
     bent, tgt, kwargs = _bent_long_strip(2e-5)
     assert fit_similarity(bent, tgt, **kwargs).iterations <= 12

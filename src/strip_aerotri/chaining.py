@@ -18,7 +18,7 @@ from ._stats import sample_median
 from ._typing import ArrayLike, FloatArray, IntArray
 from .blunders import BlunderOptions, Rejection, robust_variance_factor
 from .errors import GeometryError
-from .intersection import (
+from .geometry.intersection import (
     Intersection,
     IntersectionMethod,
     intersect_normal,

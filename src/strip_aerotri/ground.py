@@ -36,7 +36,7 @@ from ._stats import MEDIAN_SAMPLE, exact_median, sample_median
 from ._typing import FloatArray, IntArray
 from .blunders import BlunderOptions, Rejection, robust_variance_factor
 from .chaining import StripModel
-from .deformation import (
+from .geometry.deformation import (
     DeformationResult,
     KindSelection,
     StraightLine,
@@ -47,8 +47,8 @@ from .deformation import (
 from .errors import GeometryError, StripAerotriWarning
 from .geodesy import GroundCRS, LocalTangentFrame, enu_rotation, gaussian_mean_radius
 from .observations import ControlPoints
-from .rotation import matrix_from_rotvec, opk_from_matrix
-from .similarity import (
+from .geometry.rotation import matrix_from_rotvec, opk_from_matrix
+from .geometry.similarity import (
     SimilarityResult,
     SimilarityTransform,
     fit_similarity,
@@ -1034,7 +1034,7 @@ def control_detectability(
     0.8; inf where r is below 1e-6 (the component has no redundancy: its
     error goes wholly into the solution and cannot show).
     """
-    from .simultaneous import baarda_delta
+    from .geometry.simultaneous import baarda_delta
 
     r = np.clip(np.asarray(redundancy, dtype=np.float64), 0.0, 1.0)
     delta = baarda_delta(blunders.critical("control", max(n_tests, 1)))

@@ -53,10 +53,10 @@ from .ground import (
     intersect_unmodelled,
 )
 from .observations import ControlPoints
-from .precision import centre_information, ray_information
-from .rotation import opk_from_matrix
-from .similarity import _validate_control_geometry
-from .simultaneous import (
+from .geometry.precision import centre_information, ray_information
+from .geometry.rotation import opk_from_matrix
+from .geometry.similarity import _validate_control_geometry
+from .geometry.simultaneous import (
     LineCondition,
     SimultaneousResult,
     UnitObservations,

@@ -47,7 +47,7 @@ from .errors import GeometryError, StripAerotriWarning
 from .geodesy import GroundCRS, LocalTangentFrame, enu_rotation
 from .observations import ControlPoints, ImageObservations
 from .pipeline import AccuracyStatistics, StripResult
-from .rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
+from .geometry.rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
 
 __all__ = [
     "FrameRefinement",

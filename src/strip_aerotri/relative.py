@@ -36,7 +36,7 @@ import numpy as np
 from ._stats import exact_median, sample_median
 from ._typing import ArrayLike, FloatArray, IntArray
 from .errors import ConvergenceError, GeometryError
-from .rotation import (
+from .geometry.rotation import (
     cardan_from_matrix,
     matrix_from_cardan,
     matrix_from_schut,

@@ -23,7 +23,7 @@ from . import __version__
 from .io import format_photos_csv, format_points_csv
 from .observations import ControlType
 from .quality import tolerance_verdicts
-from .rotation import opk_from_matrix
+from .geometry.rotation import opk_from_matrix
 
 __all__ = [
     "REPORT_FORMAT",

@@ -142,11 +142,11 @@ def check_project(project, out: Path | None = None) -> CheckReport:
     CheckReport
     """
     from ..chaining import pair_rows
-    from ..deformation import n_terms
+    from ..geometry.deformation import n_terms
     from ..errors import StripAerotriError
     from ..plausibility import control_problems
     from ..relative import MIN_POINTS_PER_PAIR
-    from ..similarity import (
+    from ..geometry.similarity import (
         COINCIDENT_RTOL,
         COLLINEAR_MAGNIFICATION,
         COLLINEAR_RTOL,

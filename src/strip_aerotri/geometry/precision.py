@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._typing import ArrayLike, FloatArray
+from .._typing import ArrayLike, FloatArray
 
 __all__ = ["centre_information", "ray_information"]
 

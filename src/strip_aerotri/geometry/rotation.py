@@ -19,8 +19,8 @@ import warnings
 
 import numpy as np
 
-from ._typing import ArrayLike, FloatArray
-from .errors import GeometryError, StripAerotriWarning
+from .._typing import ArrayLike, FloatArray
+from ..errors import GeometryError, StripAerotriWarning
 
 __all__ = [
     "SCHUT_MAX_ANGLE_DEG",

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._typing import FloatArray, IntArray
+from .._typing import FloatArray, IntArray
 
 #: Unknowns per block (at least the band; a power of two).
 BLOCK = 64

@@ -38,8 +38,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-from ._typing import ArrayLike, FloatArray, IntArray
-from .errors import ConvergenceError, GeometryError
+from .._typing import ArrayLike, FloatArray, IntArray
+from ..errors import ConvergenceError, GeometryError
 from .rotation import matrix_from_rotvec
 
 __all__ = [

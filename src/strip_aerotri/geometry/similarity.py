@@ -33,9 +33,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._rows import add_to_columns
-from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
-from .errors import ConvergenceError, GeometryError, StripAerotriWarning
+from .._rows import add_to_columns
+from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
+from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from .rotation import matrix_from_rotvec
 
 __all__ = [

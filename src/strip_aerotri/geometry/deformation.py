@@ -55,8 +55,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ._banded import BandedNormals
-from ._typing import ArrayLike, FloatArray, IntArray
-from .errors import GeometryError, StripAerotriWarning
+from .._typing import ArrayLike, FloatArray, IntArray
+from ..errors import GeometryError, StripAerotriWarning
 from .similarity import (
     RowSupport,
     _check_ids,

@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._typing import ArrayLike, FloatArray
+from .._typing import ArrayLike, FloatArray
 
 __all__ = [
     "Intersection",
