@@ -10,7 +10,7 @@ Strips are generated here by a vectorised generator (flat Cartesian world,
 vertical photos with 1.5° tilts, 60 % forward overlap, evenly spread points
 with relief, 5 µm image noise), because the package's simulator is built for realism
 rather than for millions of observations.  For each size the script times
-:func:`strip_aerotri.chaining.form_strip` and the full
+:func:`strip_aerotri.strip.chaining.form_strip` and the full
 :func:`strip_aerotri.pipeline.triangulate` (strip formation plus the ground
 stage on control every 10 photos, local Cartesian ground system, projected
 route, polynomial type 3 over one section per ``--photos-per-section``
@@ -50,7 +50,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from strip_aerotri.blunders import BlunderOptions
-from strip_aerotri.chaining import StripOptions, form_strip, pair_rows
+from strip_aerotri.strip.chaining import StripOptions, form_strip, pair_rows
 from strip_aerotri.errors import StripAerotriError, StripAerotriWarning
 from strip_aerotri.ground import GroundOptions
 from strip_aerotri.observations import ControlPoints, ControlType, ImageObservations

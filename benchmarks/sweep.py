@@ -223,7 +223,7 @@ def simulate(case: Case) -> SimulatedStrip:
 
 def valid(sim: SimulatedStrip) -> tuple[bool, str]:
     """Every pair: >= 12 common points over >= 55 % of the format across."""
-    from strip_aerotri.chaining import pair_rows
+    from strip_aerotri.strip.chaining import pair_rows
 
     obs = sim.observations
     model, _, row_l, _ = pair_rows(obs, np.arange(obs.n_photos))

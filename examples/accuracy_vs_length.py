@@ -2,7 +2,7 @@
 
 Simulates film strips (1:8000, c = 152.87 mm, 60 % overlap, 5 µm image noise
 by default) of increasing length, forms each strip model with
-:func:`strip_aerotri.chaining.form_strip`, removes the best-fitting 3D
+:func:`strip_aerotri.strip.chaining.form_strip`, removes the best-fitting 3D
 similarity against the true ground points and reports the RMS of what is
 left, split into the along-strip (X), across-strip (Y) and height (Z)
 components, in metres.
@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from strip_aerotri.chaining import StripOptions, form_strip
+from strip_aerotri.strip.chaining import StripOptions, form_strip
 from strip_aerotri.simulate import simulate_strip
 
 try:  # gross-error tests are off: the study is about random errors alone

@@ -217,7 +217,7 @@ def _stepped(result: sa.StripResult) -> bool:
 
 def _run_stepped(project: Project) -> sa.StripResult:
     """``[adjustment] photo_step`` by hand: densify, then the ground stage."""
-    from strip_aerotri.densify import form_strip_stepped
+    from strip_aerotri.strip.densify import form_strip_stepped
 
     adj = project.adjustment
     options = sa.StripOptions(

@@ -1,6 +1,6 @@
 """Strip formation on the package's simulator (method.md §1-5, J §2.1, B(125)-(141)).
 
-Acceptance tests of :func:`strip_aerotri.chaining.form_strip`: the strip model
+Acceptance tests of :func:`strip_aerotri.strip.chaining.form_strip`: the strip model
 of a noise-free simulated strip is the truth up to one 3D similarity for every
 combination of the formulations, the strip system is defined as J or B say,
 points are averaged over their models, failures name the photos, and random
@@ -18,8 +18,8 @@ import pytest
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from strip_aerotri import relative as rel_module
-from strip_aerotri.chaining import StripOptions, form_strip, pair_rows, tie_rows
+from strip_aerotri.strip import relative as rel_module
+from strip_aerotri.strip.chaining import StripOptions, form_strip, pair_rows, tie_rows
 from strip_aerotri.errors import GeometryError
 from strip_aerotri.observations import ImageObservations
 from strip_aerotri.simulate import simulate_strip
@@ -494,7 +494,7 @@ def test_pair_rows_finds_every_common_point_in_any_row_order(seed, chunk, monkey
     # skip, reverse or take part of the photos, point indices renumbered at
     # random (ids that do not follow the flight), and the binary search over
     # many chunks of rows.
-    from strip_aerotri import chaining
+    from strip_aerotri.strip import chaining
 
     if chunk is not None:
         monkeypatch.setattr(chaining, "_CHUNK_ROWS", chunk)
@@ -528,7 +528,7 @@ def test_pair_rows_finds_every_common_point_in_any_row_order(seed, chunk, monkey
 def test_rotate_rows_matches_a_stack_of_matrices_across_chunks() -> None:
     """_rotate_rows works in chunks of rows: over several chunks, with an
     unsorted matrix index and a partial last chunk, it equals the (n, 3, 3) stack."""
-    from strip_aerotri import chaining
+    from strip_aerotri.strip import chaining
 
     rng = np.random.default_rng(5)
     matrices = Rotation.random(7, random_state=6).as_matrix()

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from strip_aerotri import simulate_strip
-from strip_aerotri.chaining import form_strip
-from strip_aerotri.densify import (
+from strip_aerotri.strip.chaining import form_strip
+from strip_aerotri.strip.densify import (
     choose_photo_step,
     complete_strip,
     form_strip_stepped,

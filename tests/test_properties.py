@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from strip_aerotri.config import load_project
 from strip_aerotri.errors import StripAerotriError
 from strip_aerotri.pipeline import triangulate
-from strip_aerotri.relative import relative_orientation
+from strip_aerotri.strip.relative import relative_orientation
 from strip_aerotri.simulate import simulate_strip
 
 PROFILE = settings(

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from _synthetic import make_strip
-from strip_aerotri import relative as rel_module
-from strip_aerotri.chaining import pair_rows
+from strip_aerotri.strip import relative as rel_module
+from strip_aerotri.strip.chaining import pair_rows
 from strip_aerotri.errors import GeometryError
-from strip_aerotri.relative import chain_rotations, essential_start, relative_orientation
+from strip_aerotri.strip.relative import chain_rotations, essential_start, relative_orientation
 
 
 def _pairs(syn):

@@ -16,10 +16,10 @@ overlap.
 import numpy as np
 import pytest
 
-from strip_aerotri import relative as rel_module
-from strip_aerotri.chaining import StripOptions, form_strip, pair_rows
+from strip_aerotri.strip import relative as rel_module
+from strip_aerotri.strip.chaining import StripOptions, form_strip, pair_rows
 from strip_aerotri.errors import ConvergenceError, GeometryError
-from strip_aerotri.relative import homography_start, relative_orientation, similarity_start
+from strip_aerotri.strip.relative import homography_start, relative_orientation, similarity_start
 from strip_aerotri.simulate import simulate_strip
 
 # c (mm), format (along, across) mm, Gruber row offset (mm), noise (mm)

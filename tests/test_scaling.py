@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from strip_aerotri.scaling import scale_ratios
+from strip_aerotri.strip.scaling import scale_ratios
 
 
 def _ties(seed=0):

@@ -35,7 +35,7 @@ from ._rows import add_to_columns
 from ._stats import MEDIAN_SAMPLE, exact_median, sample_median
 from ._typing import FloatArray, IntArray
 from .blunders import BlunderOptions, Rejection, robust_variance_factor
-from .chaining import StripModel
+from .strip.chaining import StripModel
 from .geometry.deformation import (
     DeformationResult,
     KindSelection,
@@ -1010,7 +1010,7 @@ def intersect_unmodelled(
     rows = np.flatnonzero(missing[obs.point] & (slot[obs.photo] >= 0))
     if rows.size < 2:
         return points_work
-    from .densify import intersect_rays
+    from .strip.densify import intersect_rays
 
     photos = slot[obs.photo[rows]]
     vectors = np.column_stack([obs.xy[rows], np.full(rows.size, -obs.principal_distance)])

@@ -39,7 +39,7 @@ import numpy as np
 
 from ._typing import FloatArray, IntArray
 from .blunders import BlunderOptions, Rejection
-from .chaining import StripModel
+from .strip.chaining import StripModel
 from .errors import GeometryError, StripAerotriWarning
 from .geodesy import GroundCRS
 from .ground import (

@@ -18,8 +18,8 @@ import numpy as np
 
 from ._typing import FloatArray
 from .blunders import BlunderOptions, Rejection
-from .chaining import StripModel, StripOptions
-from .densify import DEFAULT_MIN_BASE_TO_HEIGHT, form_strip_stepped
+from .strip.chaining import StripModel, StripOptions
+from .strip.densify import DEFAULT_MIN_BASE_TO_HEIGHT, form_strip_stepped
 from .errors import GeometryError
 from .geodesy import GroundCRS
 from .ground import Construction, GroundOptions, GroundResult, LineSpec, adjust_to_ground

@@ -141,11 +141,11 @@ def check_project(project, out: Path | None = None) -> CheckReport:
     -------
     CheckReport
     """
-    from ..chaining import pair_rows
+    from ..strip.chaining import pair_rows
     from ..geometry.deformation import n_terms
     from ..errors import StripAerotriError
     from ..plausibility import control_problems
-    from ..relative import MIN_POINTS_PER_PAIR
+    from ..strip.relative import MIN_POINTS_PER_PAIR
     from ..geometry.similarity import (
         COINCIDENT_RTOL,
         COLLINEAR_MAGNIFICATION,
@@ -165,7 +165,7 @@ def check_project(project, out: Path | None = None) -> CheckReport:
     step = getattr(project.adjustment, "photo_step", 1)
     step = step if isinstance(step, int) and step > 1 else 1
     if step > 1:
-        from ..densify import model_photo_index
+        from ..strip.densify import model_photo_index
 
         seq = model_photo_index(n_photos, step)
     else:
@@ -300,7 +300,7 @@ def check_project(project, out: Path | None = None) -> CheckReport:
     # Strip formation as the run does it (relative orientation of every pair,
     # photos in flight order, scale transfer), when the counts allow it.
     if not rep.problems:
-        from ..densify import form_strip_stepped
+        from ..strip.densify import form_strip_stepped
         from ..pipeline import project_options
 
         try:

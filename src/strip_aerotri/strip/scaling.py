@@ -12,7 +12,7 @@ from enum import Enum
 
 import numpy as np
 
-from ._typing import ArrayLike, FloatArray
+from .._typing import ArrayLike, FloatArray
 
 __all__ = ["ScaleTransfer", "scale_ratios", "scale_ratios_distance", "scale_ratios_z"]
 

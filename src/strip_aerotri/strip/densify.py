@@ -32,13 +32,13 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
-from ._typing import ArrayLike, FloatArray, IntArray
+from .._typing import ArrayLike, FloatArray, IntArray
 from .chaining import StripModel, StripOptions, form_strip, pair_rows, tie_rows
-from .errors import ConvergenceError, GeometryError, StripAerotriWarning
-from .geometry.intersection import intersect
-from .observations import ImageObservations
+from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+from ..geometry.intersection import intersect
+from ..observations import ImageObservations
 from .relative import relative_orientation
-from .geometry.rotation import matrix_from_rotvec, skew
+from ..geometry.rotation import matrix_from_rotvec, skew
 
 __all__ = [
     "DEFAULT_MIN_BASE_TO_HEIGHT",

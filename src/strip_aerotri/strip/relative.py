@@ -33,10 +33,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._stats import exact_median, sample_median
-from ._typing import ArrayLike, FloatArray, IntArray
-from .errors import ConvergenceError, GeometryError
-from .geometry.rotation import (
+from .._stats import exact_median, sample_median
+from .._typing import ArrayLike, FloatArray, IntArray
+from ..errors import ConvergenceError, GeometryError
+from ..geometry.rotation import (
     cardan_from_matrix,
     matrix_from_cardan,
     matrix_from_schut,

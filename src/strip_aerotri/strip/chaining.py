@@ -14,18 +14,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._stats import sample_median
-from ._typing import ArrayLike, FloatArray, IntArray
-from .blunders import BlunderOptions, Rejection, robust_variance_factor
-from .errors import GeometryError
-from .geometry.intersection import (
+from .._stats import sample_median
+from .._typing import ArrayLike, FloatArray, IntArray
+from ..blunders import BlunderOptions, Rejection, robust_variance_factor
+from ..errors import GeometryError
+from ..geometry.intersection import (
     Intersection,
     IntersectionMethod,
     intersect_normal,
     midpoint_along_y_components,
 )
-from .observations import ImageObservations
-from .plausibility import ray_direction_problems
+from ..observations import ImageObservations
+from ..plausibility import ray_direction_problems
 from .relative import RelativeOrientation, RelativeOrientationMethod, relative_orientation
 from .scaling import ScaleTransfer, scale_ratios
 
