@@ -17,7 +17,7 @@ then, in this one process and on the same data:
   models, 6 by default: about 1.5 control stations a section, so that a
   long strip's bend is followed, docs/ground.md "Long strips"; 0: J's
   single polynomial; blunder tests in "report" mode);
-* the bundle refinement of its result, :func:`strip_aerotri.refine.refine_bundle`
+* the bundle refinement of its result, :func:`strip_aerotri.bundle.refine.refine_bundle`
   (also in "report" mode), with and without the precision (``6 M`` sparse
   solves for the standard deviations);
 
@@ -43,10 +43,10 @@ import numpy as np
 
 from strip_aerotri.blunders import BlunderOptions
 from strip_aerotri.errors import StripAerotriError
-from strip_aerotri.ground import GroundOptions
+from strip_aerotri.ground.polynomials import GroundOptions
 from strip_aerotri.observations import ControlPoints, ControlType, ImageObservations
 from strip_aerotri.pipeline import AccuracyStatistics, triangulate
-from strip_aerotri.refine import refine_bundle
+from strip_aerotri.bundle.refine import refine_bundle
 from strip_aerotri.geometry.rotation import matrix_from_opk
 
 C_MM = 152.87

@@ -23,7 +23,7 @@ has them), on the same observations:
 * the reference: the package's rigorous bundle adjustment with its data
   snooping, started from the truth, in the simulator's local east-north-up
   frame, on the same observations, the control at its sigmas
-  (:func:`strip_aerotri.refine.refine_frame`); where the case has blunders
+  (:func:`strip_aerotri.bundle.refine.refine_frame`); where the case has blunders
   also an *oracle* bundle on the observations without them and no tests
   (what a perfect blunder detection would leave).
 
@@ -44,11 +44,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from strip_aerotri.bundle import bundle_adjust
+from strip_aerotri.bundle.adjust import bundle_adjust
 from strip_aerotri.geodesy import GroundCRS
-from strip_aerotri.ground import LineSpec
+from strip_aerotri.ground.polynomials import LineSpec
 from strip_aerotri.pipeline import triangulate
-from strip_aerotri.refine import refine_bundle, refine_frame
+from strip_aerotri.bundle.refine import refine_bundle, refine_frame
 from strip_aerotri.simulate import CAMERAS, SimulatedStrip, camera_preset, simulate_strip
 
 
@@ -268,7 +268,7 @@ def control_in_local(sim: SimulatedStrip) -> tuple[np.ndarray, np.ndarray]:
 def reference_bundle(sim: SimulatedStrip, *, oracle: bool = False) -> tuple[float, float]:
     """Check-point RMSE (plan, height) of the package's bundle adjustment
     from the truth, local frame: on the same observations with its data
-    snooping (:func:`strip_aerotri.refine.refine_frame`), or with
+    snooping (:func:`strip_aerotri.bundle.refine.refine_frame`), or with
     ``oracle`` on the observations without the simulated blunders and no
     tests (what a perfect blunder detection would leave)."""
     obs = sim.observations

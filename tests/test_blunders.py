@@ -12,7 +12,7 @@ import pytest
 
 from strip_aerotri.blunders import BlunderOptions, critical_value, robust_variance_factor
 from strip_aerotri.errors import GeometryError, StripAerotriWarning
-from strip_aerotri.ground import GroundOptions, LineSpec
+from strip_aerotri.ground.polynomials import GroundOptions, LineSpec
 from strip_aerotri.observations import ImageObservations
 from strip_aerotri.pipeline import triangulate
 from strip_aerotri.simulate import simulate_strip

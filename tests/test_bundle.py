@@ -10,7 +10,7 @@ import pytest
 from scipy import stats
 from scipy.spatial.transform import Rotation
 
-from strip_aerotri.bundle import (
+from strip_aerotri.bundle.adjust import (
     _collinearity,
     _exp_so3,
     _imu_residual,
@@ -469,7 +469,7 @@ def test_photo_with_two_points_is_singular_unless_its_centre_is_observed():
 
 
 def test_poor_start_needs_damping_and_still_converges(monkeypatch):
-    import strip_aerotri.bundle as bundle_module
+    import strip_aerotri.bundle.adjust as bundle_module
 
     damping = []
     solve = bundle_module._solve

@@ -30,7 +30,7 @@ from strip_aerotri.config import (
 )
 from strip_aerotri.errors import ConfigError, StripAerotriWarning
 from strip_aerotri.geodesy import GroundCRS, enu_rotation
-from strip_aerotri.refine import GnssCentres, ImuAttitudes
+from strip_aerotri.bundle.refine import GnssCentres, ImuAttitudes
 from strip_aerotri.geometry.rotation import opk_from_matrix
 from strip_aerotri.simulate import simulate_strip
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from strip_aerotri.ground import _index_of
+from strip_aerotri.ground.polynomials import _index_of
 
 
 def reference(ids, names):

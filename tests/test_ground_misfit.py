@@ -17,7 +17,7 @@ import pytest
 
 import strip_aerotri as sa
 from strip_aerotri.errors import StripAerotriWarning
-from strip_aerotri.ground import GroundOptions, adjust_to_ground
+from strip_aerotri.ground.polynomials import GroundOptions, adjust_to_ground
 from strip_aerotri.observations import ControlPoints, ControlType
 
 

@@ -14,7 +14,7 @@ import strip_aerotri as sa
 from strip_aerotri.cli.main import cli
 from strip_aerotri.geometry.deformation import n_terms
 from strip_aerotri.errors import GeometryError
-from strip_aerotri.ground import GroundOptions
+from strip_aerotri.ground.polynomials import GroundOptions
 
 N_PHOTOS = 60
 SECTIONS = 7  # about 2 control stations per section (control every 4 models)

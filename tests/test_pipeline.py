@@ -10,7 +10,7 @@ import pytest
 
 import strip_aerotri as sa
 from strip_aerotri.config import load_project
-from strip_aerotri.ground import GroundOptions, LineSpec
+from strip_aerotri.ground.polynomials import GroundOptions, LineSpec
 from strip_aerotri.pipeline import AccuracyStatistics
 
 

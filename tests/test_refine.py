@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 from strip_aerotri.blunders import BlunderOptions
-from strip_aerotri.bundle import _collinearity
+from strip_aerotri.bundle.adjust import _collinearity
 from strip_aerotri.errors import StripAerotriWarning
 from strip_aerotri.geodesy import GroundCRS, enu_rotation
-from strip_aerotri.ground import GroundOptions
+from strip_aerotri.ground.polynomials import GroundOptions
 from strip_aerotri.observations import ControlPoints, ControlType
 from strip_aerotri.pipeline import triangulate
-from strip_aerotri.refine import (
+from strip_aerotri.bundle.refine import (
     GnssCentres,
     ImuAttitudes,
     RefinedResult,

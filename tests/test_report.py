@@ -14,7 +14,7 @@ from pyproj import Transformer
 from scipy.spatial.transform import Rotation
 
 from strip_aerotri.config import load_project
-from strip_aerotri.ground import GroundOptions, LineSpec
+from strip_aerotri.ground.polynomials import GroundOptions, LineSpec
 from strip_aerotri.pipeline import run_project, triangulate
 from strip_aerotri.report import (
     build_html,

@@ -74,7 +74,7 @@ def test_strip_one_by_models_is_near_the_bundle(uav, tmp_path: Path, photo_step:
     Measured (plan / height, m): step 1 models 0.065 / 0.070, bundle 0.086 /
     0.062; step 2 models 0.088 / 0.055, bundle 0.076 / 0.057 (the bundle
     with all rays is not better in plan on this oblique, short strip)."""
-    from strip_aerotri.refine import refine_bundle
+    from strip_aerotri.bundle.refine import refine_bundle
 
     toml = uav.write_project(DATA, tmp_path / "project", polynomial=None, photo_step=photo_step)
     project = load_project(toml)

@@ -22,7 +22,7 @@ from .strip.chaining import StripModel, StripOptions
 from .strip.densify import DEFAULT_MIN_BASE_TO_HEIGHT, form_strip_stepped
 from .errors import GeometryError
 from .geodesy import GroundCRS
-from .ground import Construction, GroundOptions, GroundResult, LineSpec, adjust_to_ground
+from .ground.polynomials import Construction, GroundOptions, GroundResult, LineSpec, adjust_to_ground
 from .observations import ControlPoints, ImageObservations
 from .plausibility import control_problems
 
@@ -221,7 +221,7 @@ def triangulate(
     timings["strip_formation"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     if ground_options.construction is Construction.MODELS:
-        from .ground_models import adjust_models_to_ground
+        from .ground.models import adjust_models_to_ground
 
         say("transforming the models onto the control")
         ground = adjust_models_to_ground(
@@ -265,7 +265,7 @@ def triangulate(
     if refine not in ("none", "bundle"):
         raise ValueError(f"Expected refine 'none' or 'bundle', got {refine!r}")
     if refine == "bundle":
-        from .refine import refine_bundle  # refine imports this module
+        from .bundle.refine import refine_bundle  # refine imports this module
 
         say("bundle refinement")
         t2 = time.perf_counter()

@@ -31,12 +31,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ._rows import add_to_columns
-from ._stats import MEDIAN_SAMPLE, exact_median, sample_median
-from ._typing import FloatArray, IntArray
-from .blunders import BlunderOptions, Rejection, robust_variance_factor
-from .strip.chaining import StripModel
-from .geometry.deformation import (
+from .._rows import add_to_columns
+from .._stats import MEDIAN_SAMPLE, exact_median, sample_median
+from .._typing import FloatArray, IntArray
+from ..blunders import BlunderOptions, Rejection, robust_variance_factor
+from ..strip.chaining import StripModel
+from ..geometry.deformation import (
     DeformationResult,
     KindSelection,
     StraightLine,
@@ -44,11 +44,11 @@ from .geometry.deformation import (
     fit_deformation,
     select_kind_auto,
 )
-from .errors import GeometryError, StripAerotriWarning
-from .geodesy import GroundCRS, LocalTangentFrame, enu_rotation, gaussian_mean_radius
-from .observations import ControlPoints
-from .geometry.rotation import matrix_from_rotvec, opk_from_matrix
-from .geometry.similarity import (
+from ..errors import GeometryError, StripAerotriWarning
+from ..geodesy import GroundCRS, LocalTangentFrame, enu_rotation, gaussian_mean_radius
+from ..observations import ControlPoints
+from ..geometry.rotation import matrix_from_rotvec, opk_from_matrix
+from ..geometry.similarity import (
     SimilarityResult,
     SimilarityTransform,
     fit_similarity,
@@ -1010,7 +1010,7 @@ def intersect_unmodelled(
     rows = np.flatnonzero(missing[obs.point] & (slot[obs.photo] >= 0))
     if rows.size < 2:
         return points_work
-    from .strip.densify import intersect_rays
+    from ..strip.densify import intersect_rays
 
     photos = slot[obs.photo[rows]]
     vectors = np.column_stack([obs.xy[rows], np.full(rows.size, -obs.principal_distance)])
@@ -1034,7 +1034,7 @@ def control_detectability(
     0.8; inf where r is below 1e-6 (the component has no redundancy: its
     error goes wholly into the solution and cannot show).
     """
-    from .geometry.simultaneous import baarda_delta
+    from ..geometry.simultaneous import baarda_delta
 
     r = np.clip(np.asarray(redundancy, dtype=np.float64), 0.0, 1.0)
     delta = baarda_delta(blunders.critical("control", max(n_tests, 1)))

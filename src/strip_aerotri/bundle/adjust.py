@@ -31,9 +31,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ._typing import ArrayLike, FloatArray, IntArray
-from .errors import ConvergenceError, GeometryError, StripAerotriWarning
-from .observations import ImageObservations
+from .._typing import ArrayLike, FloatArray, IntArray
+from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+from ..observations import ImageObservations
 
 __all__ = ["BundleResult", "bundle_adjust"]
 

@@ -40,14 +40,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
-from .blunders import BlunderOptions, Rejection, robust_variance_factor
-from .bundle import BundleResult, bundle_adjust, observed_with_sigma
-from .errors import GeometryError, StripAerotriWarning
-from .geodesy import GroundCRS, LocalTangentFrame, enu_rotation
-from .observations import ControlPoints, ImageObservations
-from .pipeline import AccuracyStatistics, StripResult
-from .geometry.rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
+from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
+from ..blunders import BlunderOptions, Rejection, robust_variance_factor
+from .adjust import BundleResult, bundle_adjust, observed_with_sigma
+from ..errors import GeometryError, StripAerotriWarning
+from ..geodesy import GroundCRS, LocalTangentFrame, enu_rotation
+from ..observations import ControlPoints, ImageObservations
+from ..pipeline import AccuracyStatistics, StripResult
+from ..geometry.rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
 
 __all__ = [
     "FrameRefinement",

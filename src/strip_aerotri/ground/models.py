@@ -37,12 +37,12 @@ from itertools import pairwise
 
 import numpy as np
 
-from ._typing import FloatArray, IntArray
-from .blunders import BlunderOptions, Rejection
-from .strip.chaining import StripModel
-from .errors import GeometryError, StripAerotriWarning
-from .geodesy import GroundCRS
-from .ground import (
+from .._typing import FloatArray, IntArray
+from ..blunders import BlunderOptions, Rejection
+from ..strip.chaining import StripModel
+from ..errors import GeometryError, StripAerotriWarning
+from ..geodesy import GroundCRS
+from .polynomials import (
     GroundOptions,
     GroundResult,
     LineSpec,
@@ -52,11 +52,11 @@ from .ground import (
     control_detectability,
     intersect_unmodelled,
 )
-from .observations import ControlPoints
-from .geometry.precision import centre_information, ray_information
-from .geometry.rotation import opk_from_matrix
-from .geometry.similarity import _validate_control_geometry
-from .geometry.simultaneous import (
+from ..observations import ControlPoints
+from ..geometry.precision import centre_information, ray_information
+from ..geometry.rotation import opk_from_matrix
+from ..geometry.similarity import _validate_control_geometry
+from ..geometry.simultaneous import (
     LineCondition,
     SimultaneousResult,
     UnitObservations,
