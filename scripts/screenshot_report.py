@@ -24,7 +24,7 @@ from pathlib import Path
 
 from strip_aerotri.ground.polynomials import GroundOptions, LineSpec
 from strip_aerotri.pipeline import triangulate
-from strip_aerotri.report import build_outputs
+from strip_aerotri.report.outputs import build_outputs
 from strip_aerotri.simulate import simulate_strip
 
 

@@ -363,7 +363,7 @@ def test_undetectable_control_errors_are_said_to_be_so():
     g = res.ground
     used = ~g.is_check
     assert np.isinf(g.control_mde[used][:, 0]).all()
-    from strip_aerotri.report import build_report
+    from strip_aerotri.report.outputs import build_report
 
     points = build_report(res)["control"]["points"]
     assert all(p["detectable"][0] is False and p["mde_m"][0] is None for p in points)

@@ -21,7 +21,7 @@ import strip_aerotri as sa
 from strip_aerotri import pipeline
 from strip_aerotri.cli.main import cli
 from strip_aerotri.cli.simulate import PRESET_NAMES
-from strip_aerotri.io import RESULT_MARKER
+from strip_aerotri.report.files import RESULT_MARKER
 
 # --------------------------------------------------------------------------- fixtures
 
@@ -61,7 +61,7 @@ def fast_report(request, monkeypatch):
     tests named in FULL_REPORT; everything else of the outputs is built."""
     if request.function.__name__ in FULL_REPORT:
         return
-    from strip_aerotri import report
+    from strip_aerotri.report import outputs as report
 
     build = report.build_outputs
 

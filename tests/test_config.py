@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from strip_aerotri.config import (
+from strip_aerotri.project.loader import (
     CONTROL_COLUMNS,
     IMAGE_COLUMNS,
     PROJECT_KEYS,

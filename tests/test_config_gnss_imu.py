@@ -21,7 +21,7 @@ import pytest
 from click.testing import CliRunner
 
 from strip_aerotri.cli.main import cli
-from strip_aerotri.config import (
+from strip_aerotri.project.loader import (
     GNSS_COLUMNS,
     IMU_COLUMNS,
     PROJECT_KEYS,
@@ -497,7 +497,7 @@ E2E_CONTROL = {"P0004": "full", "P0137": "full", "P0061": "height"}
 
 
 def test_run_with_gnss_and_imu_end_to_end(tmp_path: Path, monkeypatch) -> None:
-    from strip_aerotri import report
+    from strip_aerotri.report import outputs as report
 
     build = report.build_outputs  # the HTML figures take seconds; every other file is built
     monkeypatch.setattr(report, "build_outputs", lambda r, **kw: build(r, html=False, **kw))

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from strip_aerotri.config import load_project
+from strip_aerotri.project.loader import load_project
 from strip_aerotri.errors import ConfigError, ConvergenceError, GeometryError
 from strip_aerotri.interior import (
     BrownDistortion,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from strip_aerotri.errors import StripAerotriError
-from strip_aerotri.io import (
+from strip_aerotri.report.files import (
     RESULT_MARKER,
     OutputError,
     ResultFolder,

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from strip_aerotri.config import load_project
+from strip_aerotri.project.loader import load_project
 from strip_aerotri.errors import StripAerotriError
 from strip_aerotri.pipeline import triangulate
 from strip_aerotri.strip.relative import relative_orientation

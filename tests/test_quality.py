@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from strip_aerotri.quality import (
+from strip_aerotri.report.tolerances import (
     CHECK_PLAN_MM,
     MIN_DISTRIBUTION_SIZE,
     Criterion,

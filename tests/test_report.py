@@ -13,10 +13,10 @@ import pytest
 from pyproj import Transformer
 from scipy.spatial.transform import Rotation
 
-from strip_aerotri.config import load_project
+from strip_aerotri.project.loader import load_project
 from strip_aerotri.ground.polynomials import GroundOptions, LineSpec
 from strip_aerotri.pipeline import run_project, triangulate
-from strip_aerotri.report import (
+from strip_aerotri.report.outputs import (
     build_html,
     build_outputs,
     build_report,
@@ -320,7 +320,7 @@ def test_html_self_contained_with_figures(utm):
 
 
 def test_html_escapes_project_text(monkeypatch, utm):
-    import strip_aerotri.report as rep
+    import strip_aerotri.report.outputs as rep
 
     _, result, _ = utm
     for name in ("_figure_layout", "_figure_residuals", "_figure_parallax", "_figure_ties"):
@@ -350,7 +350,7 @@ def test_report_enums_are_plain_strings(utm):
 
 
 def test_long_strip_drawn_along_its_axis(monkeypatch, utm):
-    import strip_aerotri.report as rep
+    import strip_aerotri.report.outputs as rep
 
     _, result, _ = utm
     calls = []

@@ -418,7 +418,7 @@ def check(project_file: Path, out: Path | None) -> None:
     """
     import warnings
 
-    from .. import config
+    from ..project import loader as config
     from ..errors import StripAerotriWarning
 
     echo_progress(f"loading {project_file}")

@@ -38,7 +38,7 @@ def output_folder(project, out: Path | None) -> Path:
     OutputError
         The folder exists, is not empty and is not a previous result folder.
     """
-    from ..config import check_output_directory
+    from ..project.loader import check_output_directory
 
     if out is not None:
         target = check_output_directory(out, project, source="--out")
@@ -54,7 +54,7 @@ def output_folder(project, out: Path | None) -> Path:
 
 def _check_replaceable(target: Path, inputs) -> None:
     """Refuse early (before adjusting) what :class:`~strip_aerotri.io.ResultFolder` refuses."""
-    from ..io import RESULT_MARKER, OutputError
+    from ..report.files import RESULT_MARKER, OutputError
 
     if target.is_symlink():
         raise OutputError(f"output folder '{target}' is a symbolic link; give the real folder")
@@ -171,9 +171,10 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
       stripaero run strip.toml --out results/2024-05 --map-scale 5000
       stripaero -q run strip.toml            # no progress messages
     """
-    from .. import config, pipeline
+    from .. import pipeline
+    from ..project import loader as config
     from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
-    from ..io import ResultFolder
+    from ..report.files import ResultFolder
 
     started = time.perf_counter()
     echo_progress(f"loading {project_file}")
@@ -191,7 +192,7 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         except (GeometryError, ConvergenceError) as exc:
             raise type(exc)(f"{project.path}: {exc}") from exc
         echo_progress("writing the report")
-        from .. import report
+        from ..report import outputs as report
 
         scale = map_scale if map_scale is not None else project.report.map_scale
         files = report.build_outputs(result, project=project, map_scale=scale)

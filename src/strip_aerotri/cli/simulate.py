@@ -188,13 +188,13 @@ def simulate(
     """
     existing = [name for name in PROJECT_FILES if (out / name).exists()]
     if existing and not force:
-        from ..io import OutputError
+        from ..report.files import OutputError
 
         raise OutputError(
             f"{out / existing[0]} already exists; give another --out or --force to overwrite"
         )
     if out.exists() and not out.is_dir():
-        from ..io import OutputError
+        from ..report.files import OutputError
 
         raise OutputError(f"--out: '{out}' is a file, not a folder")
 

@@ -25,8 +25,8 @@ from types import TracebackType
 
 import numpy as np
 
-from ._typing import ArrayLike
-from .errors import StripAerotriError
+from .._typing import ArrayLike
+from ..errors import StripAerotriError
 
 __all__ = [
     "RESULT_MARKER",

@@ -56,7 +56,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._typing import ArrayLike
+from .._typing import ArrayLike
 
 __all__ = [
     "CHECK_PLAN_MM",

@@ -31,10 +31,10 @@ from typing import TYPE_CHECKING, Any, Literal, Self
 
 import numpy as np
 
-from ._typing import BoolArray, FloatArray, IntArray
-from .blunders import STAGES, BlunderOptions
-from .errors import ConfigError, ConvergenceError, GeometryError, StripAerotriWarning
-from .interior import (
+from .._typing import BoolArray, FloatArray, IntArray
+from ..blunders import STAGES, BlunderOptions
+from ..errors import ConfigError, ConvergenceError, GeometryError, StripAerotriWarning
+from ..interior import (
     DEFAULT_DIFFERENCE_TOLERANCE,
     DEFAULT_SCALE_TOLERANCE,
     BrownDistortion,
@@ -48,11 +48,11 @@ from .interior import (
     mm_from_pixel,
     reduce_image_coordinates,
 )
-from .observations import ControlPoints, ControlType, ImageObservations
-from .plausibility import image_coordinate_problems
+from ..observations import ControlPoints, ControlType, ImageObservations
+from ..plausibility import image_coordinate_problems
 
 if TYPE_CHECKING:  # refine pulls in the whole adjustment: imported when a table needs it
-    from .bundle.refine import GnssCentres, ImuAttitudes
+    from ..bundle.refine import GnssCentres, ImuAttitudes
 
 __all__ = [
     "CONTROL_COLUMNS",
@@ -1702,7 +1702,7 @@ def _load_gnss(
     notes: list[str],
 ) -> GnssCentres:
     """Read the GNSS centres CSV (``[gnss] file``)."""
-    from .bundle.refine import GnssCentres
+    from ..bundle.refine import GnssCentres
 
     table = _read_csv(path, GNSS_COLUMNS, "[gnss] file")
     if table.n_rows == 0:
@@ -1721,7 +1721,7 @@ def _load_imu(
     path: Path, photo_ids: tuple[str, ...], imu: dict[str, object], notes: list[str]
 ) -> ImuAttitudes:
     """Read the IMU attitudes CSV (``[imu] file``), degrees in the file, radians out."""
-    from .bundle.refine import ImuAttitudes
+    from ..bundle.refine import ImuAttitudes
 
     table = _read_csv(path, IMU_COLUMNS, "[imu] file")
     if table.n_rows == 0:

@@ -19,11 +19,11 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__
-from .io import format_photos_csv, format_points_csv
-from .observations import ControlType
-from .quality import tolerance_verdicts
-from .geometry.rotation import opk_from_matrix
+from .. import __version__
+from .files import format_photos_csv, format_points_csv
+from ..observations import ControlType
+from .tolerances import tolerance_verdicts
+from ..geometry.rotation import opk_from_matrix
 
 __all__ = [
     "REPORT_FORMAT",
