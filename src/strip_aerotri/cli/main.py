@@ -81,3 +81,4 @@ def cli() -> None:
 cli.add_command(run)
 cli.add_command(check)
 cli.add_command(simulate)
+cli.add_command(__import__(__package__ + ".importer", fromlist=["import_group"]).import_group)

@@ -218,7 +218,9 @@ def to_floats(values: Sequence[str] | StrArray, rows: Rows, column: str) -> Floa
     bad = np.flatnonzero(~np.isfinite(out))
     if bad.size:
         k = int(bad[0])
-        raise ConfigError(f"{rows.where(k)}: {column}: expected a finite number, got {str(arr[k])!r}")
+        raise ConfigError(
+            f"{rows.where(k)}: {column}: expected a finite number, got {str(arr[k])!r}"
+        )
     return out
 
 

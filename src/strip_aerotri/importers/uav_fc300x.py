@@ -91,7 +91,9 @@ def read_image_file(path: Path, prefix: str) -> ImageTable:
     is_jpg = np.char.endswith(np.char.lower(names), ".jpg")
     if not is_jpg.all():
         k = int(np.flatnonzero(~is_jpg)[0])
-        raise ConfigError(f"{rows.where(k)}: image: expected a .JPG file name, got {str(names[k])!r}")
+        raise ConfigError(
+            f"{rows.where(k)}: image: expected a .JPG file name, got {str(names[k])!r}"
+        )
     photo = np.char.rstrip(np.asarray([n[:-4] for n in names], dtype=str))
     point = np.char.add(prefix, rows.column(1))
     xy = np.column_stack(
