@@ -215,3 +215,19 @@ def test_odm_with_colmap_ties_combines_both(tmp_path: Path) -> None:
     assert any(p.startswith("C") for p in points)
     assert any(p.startswith("GCP") for p in points)
     load_project(write_project(project, tmp_path / "p"))
+
+
+def test_centres_of_an_ecef_registered_model_are_transformed() -> None:
+    from pyproj import Transformer
+
+    from strip_aerotri.importers.colmap import georeferenced_centres
+    from strip_aerotri.importers.common import PhotoPositions
+
+    _, _, photos = _truth()
+    utm = np.array([[float(r[k]) for k in "XYZ"] for r in photos.values()])
+    to_ecef = Transformer.from_crs("EPSG:32632", "EPSG:4978", always_xy=True)
+    ecef = np.column_stack(to_ecef.transform(*utm.T))
+    got = georeferenced_centres(PhotoPositions(list(photos), ecef), "EPSG:4978", "EPSG:32632")
+    np.testing.assert_allclose(got.xyz, utm, atol=1e-6)
+    with pytest.raises(ConfigError, match="local site system"):
+        georeferenced_centres(PhotoPositions(list(photos), ecef), "EPSG:4978", "local")

@@ -35,7 +35,7 @@ from strip_aerotri.importers.common import (
 # --------------------------------------------------------------------------- a small strip
 
 
-def _strip_images(n_photos=4, shift=(0.0, -20.0), ids=None, flip=False):
+def _strip_images(n_photos=4, shift=(0.0, -20.0), ids=None):
     """Image points (mm) of a grid seen on consecutive photos that move along image +y.
 
     Each point moves by ``shift`` mm from one photo to the next (the camera
@@ -52,7 +52,7 @@ def _strip_images(n_photos=4, shift=(0.0, -20.0), ids=None, flip=False):
         points += [f"{j:03d}" for j in np.flatnonzero(inside)]
         xy.append(here[inside])
     xy = np.concatenate(xy)
-    return ImageTable(photos, points, -xy if flip else xy)
+    return ImageTable(photos, points, xy)
 
 
 def _control(images: ImageTable, n=8) -> ControlTable:
@@ -400,3 +400,35 @@ def test_assemble_needs_observed_control(tmp_path: Path) -> None:
 def test_strip_selection_is_checked(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="--strips: no strip 2"):
         _project(tmp_path, strips=(2,))
+
+
+def test_strips_from_a_geographic_track(tmp_path: Path) -> None:
+    # the two-line track of _track() in longitude, latitude: the same strips
+    from pyproj import Transformer
+
+    from strip_aerotri.importers.common import PhotoPositions
+
+    names, xyz = _track()
+    to_geo = Transformer.from_crs("EPSG:32632", "EPSG:4326", always_xy=True)
+    lon, lat = to_geo.transform(610000.0 + xyz[:, 0], 5040000.0 + xyz[:, 1])
+    track = PhotoPositions(names, np.column_stack([lon, lat, xyz[:, 2]]))
+    images = ImageTable.concat(
+        [
+            _strip_images(ids=names[:5]),
+            _strip_images(ids=names[6:]),
+        ]
+    )
+    project = assemble(
+        "geo",
+        images,
+        ImageFrame(),
+        Camera(50.0),
+        _control(images),
+        "EPSG:4326",
+        ImportOptions(),
+        inputs=[],
+        default_name="g",
+        track=track,
+        track_crs="EPSG:4326",
+    )
+    assert [s.photos for s in project.strips] == [tuple(names[:5]), tuple(names[6:])]

@@ -472,7 +472,8 @@ def import_colmap(
         inputs=[*model.files, Path(gcps)],
         default_name=Path(model_dir).resolve().name,
         distortion=distortion,
-        track=model.centres,
+        track=gnss if gnss is not None else model.centres,
+        track_crs=crs if gnss is not None else None,
         gnss=gnss,
         notes=[*notes, *gcp.notes],
     )

@@ -1128,6 +1128,13 @@ def split_control(
 # --------------------------------------------------------------------------- assembling
 
 
+def _equirectangular(xyz: FloatArray) -> FloatArray:
+    """Longitude, latitude (degrees) to metres on a sphere about their mean latitude."""
+    lat0 = np.deg2rad(np.mean(xyz[:, 1]))
+    metres = np.deg2rad(1.0) * 6371000.0
+    return np.column_stack([xyz[:, 0] * metres * np.cos(lat0), xyz[:, 1] * metres, xyz[:, 2]])
+
+
 def _check_ids(values: StrArray, what: str, source: str) -> None:
     empty = np.char.str_len(values) == 0 if values.size else np.zeros(0, bool)
     if empty.any():
@@ -1148,6 +1155,7 @@ def assemble(
     distortion: Distortion | None = None,
     strips: Sequence[Strip] | None = None,
     track: PhotoPositions | None = None,
+    track_crs: str | None = None,
     gnss: PhotoPositions | None = None,
     imu: PhotoAttitudes | None = None,
     notes: Sequence[str] = (),
@@ -1171,7 +1179,11 @@ def assemble(
         Strips the source defines (else from ``options.photo_order``, else
         from ``track``, else one strip in photo-name order).
     track : PhotoPositions, optional
-        Positions of the photos in any Cartesian frame, to find the strips.
+        Positions of the photos, to find the strips: in any Cartesian frame,
+        or in ``track_crs``.
+    track_crs : str, optional
+        The CRS of ``track`` when it is the project's; longitude and latitude
+        of a geographic CRS are scaled to metres first.
     gnss : PhotoPositions, optional
         Projection centres in ``crs`` (written as ``gnss.csv``).
     imu : PhotoAttitudes, optional
@@ -1216,6 +1228,8 @@ def assemble(
     elif track is not None and np.isin(observed, track.photo).all():
         rows = np.searchsorted(track.photo, observed, sorter=np.argsort(track.photo))
         xyz = track.xyz[np.argsort(track.photo)[rows]]
+        if track_crs is not None and _is_geographic(track_crs):
+            xyz = _equirectangular(xyz)
         found, dropped = strips_from_positions(observed.tolist(), xyz, turn_deg=options.turn_deg)
         strip_list = [Strip(str(k + 1), s) for k, s in enumerate(found)]
         notes.append(
@@ -1293,6 +1307,13 @@ def assemble(
         control, images, strip_list, options.control_ids, options.check_ids
     )
     notes += more_notes
+    n_full = int(np.sum(control.kind == "full"))
+    if n_full < 7:
+        notes.append(
+            f"{n_full} full control point(s): the default [adjustment] polynomial = 3 needs 6 "
+            "per coordinate and is not checked by fewer than 7; consider polynomial = 1 or "
+            '"auto" (docs/project-file.md)'
+        )
 
     if gnss is not None:
         gnss = gnss.take(np.isin(gnss.photo, in_strips))

@@ -376,6 +376,7 @@ def import_metashape(
         default_name=path.stem,
         distortion=distortion,
         track=gnss,
+        track_crs=crs,
         gnss=gnss,
         imu=imu,
         notes=notes,

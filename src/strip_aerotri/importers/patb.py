@@ -216,6 +216,7 @@ def import_patb(
         inputs=inputs,
         default_name=im_path.stem,
         track=gnss,
+        track_crs=crs,
         gnss=gnss,
         notes=notes,
     )

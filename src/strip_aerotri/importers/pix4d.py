@@ -230,6 +230,7 @@ def import_pix4d(
         inputs=inputs,
         default_name=marks_path.stem,
         track=gnss,
+        track_crs=crs,
         gnss=gnss,
         imu=imu,
         notes=notes,
