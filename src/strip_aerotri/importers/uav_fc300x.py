@@ -227,20 +227,21 @@ def _drop_duplicates(
     tables: list[tuple[str, ImageTable]], tol_mm: float
 ) -> tuple[list[ImageTable], list[str]]:
     """Leave out points of later tables observed within ``tol_mm`` of an earlier one's."""
+    from scipy.spatial import cKDTree
+
     kept: list[ImageTable] = []
     notes: list[str] = []
     for name, table in tables:
         if kept:
             earlier = ImageTable.concat(kept)
             before = earlier.rows_by_photo()
-            mine = table.rows_by_photo()
             duplicate: set[str] = set()
-            for photo, rows in mine.items():  # a loop over photos; points by arrays
+            for photo, rows in table.rows_by_photo().items():  # a loop over photos
                 other = before.get(photo)
                 if other is None:
                     continue
-                d = np.linalg.norm(table.xy[rows, None, :] - earlier.xy[None, other, :], axis=2)
-                duplicate.update(table.point[rows[np.min(d, axis=1) < tol_mm]].tolist())
+                dist, _ = cKDTree(earlier.xy[other]).query(table.xy[rows], k=1)
+                duplicate.update(table.point[rows[dist < tol_mm]].tolist())
             if duplicate:
                 table = table.take(~np.isin(table.point, sorted(duplicate)))
                 notes.append(
