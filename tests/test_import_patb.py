@@ -117,3 +117,11 @@ def test_patb_ori_needs_three_records_per_photo(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="three records per photo"):
         read_ori(tmp_path / "a.ori")
     assert len(read_ori(PATB / "block.ori").photo) == 11
+
+
+def test_patb_con_repeated_point_names_both_lines(tmp_path: Path) -> None:
+    (tmp_path / "a.con").write_text("G1 1.0 2.0 3.0\nG2 1.0 2.0 3.0\nG1 1.5 2.0 3.0\n-99\n")
+    with pytest.raises(
+        ConfigError, match=r"a\.con:3: control point 'G1' is listed twice \(first at line 1\)"
+    ):
+        read_con(tmp_path / "a.con")

@@ -60,6 +60,7 @@ __all__ = [
     "Strip",
     "assemble",
     "attitudes_from_opk",
+    "check_unique",
     "decide_flight_direction",
     "grid_convergence_deg",
     "line_floats",
@@ -222,6 +223,23 @@ def to_floats(values: Sequence[str] | StrArray, rows: Rows, column: str) -> Floa
             f"{rows.where(k)}: {column}: expected a finite number, got {str(arr[k])!r}"
         )
     return out
+
+
+def check_unique(values: StrArray, rows: Rows, what: str) -> None:
+    """Raise naming the line of the first repeated value (and of its first use).
+
+    ``values`` has one entry per record of ``rows``.
+    """
+    values = np.asarray(values, dtype=str)
+    _, inverse, counts = np.unique(values, return_inverse=True, return_counts=True)
+    repeated = np.flatnonzero(counts[inverse.reshape(-1)] > 1)
+    if repeated.size:
+        first = int(repeated[0])
+        second = int(np.flatnonzero(values == values[first])[1])
+        raise ConfigError(
+            f"{rows.where(second)}: {what} '{values[first]}' is listed twice (first at line "
+            f"{int(rows.lines[first])})"
+        )
 
 
 def line_floats(values: Sequence[str], where: str, what: str) -> FloatArray:

@@ -52,6 +52,7 @@ from .common import (
     PhotoPositions,
     assemble,
     attitudes_from_opk,
+    check_unique,
     line_floats,
     matrix_from_opk_deg,
     photo_id,
@@ -135,11 +136,7 @@ def read_opk_text(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str |
                 "Rz(kappa) of the row's angles nor its transpose: the angles follow another "
                 "convention and are not converted"
             )
-    uniq, counts_id = np.unique(photo, return_counts=True)
-    if (counts_id > 1).any():
-        raise ConfigError(
-            f"{path}: photo '{uniq[np.flatnonzero(counts_id > 1)[0]]}' is listed twice"
-        )
+    check_unique(photo, rows, "photo")
     return photo, xyz, opk, crs
 
 

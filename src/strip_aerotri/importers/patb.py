@@ -37,6 +37,7 @@ from .common import (
     ImportOptions,
     PhotoPositions,
     assemble,
+    check_unique,
     line_floats,
     read_text,
     split_rows,
@@ -130,14 +131,7 @@ def read_con(path: Path) -> ControlTable:
         [to_floats(pts.column(k), pts, n) for k, n in ((1, "X"), (2, "Y"), (3, "Z"))]
     )
     ids = pts.column(0)
-    uniq, counts = np.unique(ids, return_counts=True)
-    if (counts > 1).any():
-        pid = uniq[np.flatnonzero(counts > 1)[0]]
-        at = np.flatnonzero(ids == pid)
-        raise ConfigError(
-            f"{pts.where(int(at[1]))}: control point '{pid}' is listed twice (first at line "
-            f"{int(pts.lines[at[0]])})"
-        )
+    check_unique(ids, pts, "control point")
     return ControlTable(ids, xyz)
 
 

@@ -39,6 +39,7 @@ from .common import (
     Rows,
     assemble,
     attitudes_from_opk,
+    check_unique,
     photo_id,
     read_text,
     split_rows,
@@ -125,9 +126,7 @@ def read_gcp_coordinates(path: Path, crs: str, order: str = "auto") -> tuple[Con
         sxy = to_floats(rows.column(4), rows, "accuracy horizontal")
         sh = to_floats(rows.column(5), rows, "accuracy vertical")
     label = rows.column(0)
-    uniq, n = np.unique(label, return_counts=True)
-    if (n > 1).any():
-        raise ConfigError(f"{path}: GCP '{uniq[np.flatnonzero(n > 1)[0]]}' is listed twice")
+    check_unique(label, rows, "GCP")
     note = (
         f"{path.name}: c1, c2 read as "
         + (
@@ -160,9 +159,7 @@ def read_external(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     values = np.column_stack(
         [to_floats(rows.column(k), rows, n) for k, n in zip(columns[1:], names[1:], strict=True)]
     )
-    uniq, n = np.unique(photo, return_counts=True)
-    if (n > 1).any():
-        raise ConfigError(f"{path}: photo '{uniq[np.flatnonzero(n > 1)[0]]}' is listed twice")
+    check_unique(photo, rows, "photo")
     return photo, values[:, :3], values[:, 3:]
 
 

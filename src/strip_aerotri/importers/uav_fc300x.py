@@ -45,6 +45,7 @@ from .common import (
     Rows,
     Strip,
     assemble,
+    check_unique,
     natural_key,
     read_text,
     split_rows,
@@ -110,14 +111,7 @@ def read_gcp_file(path: Path) -> ControlTable:
         [to_floats(rows.column(k), rows, c) for k, c in ((1, "E"), (2, "N"), (3, "H"))]
     )
     point = rows.column(0)
-    uniq, counts = np.unique(point, return_counts=True)
-    if (counts > 1).any():
-        pid = uniq[np.flatnonzero(counts > 1)[0]]
-        lines = rows.lines[point == pid]
-        raise ConfigError(
-            f"{rows.where(int(np.flatnonzero(point == pid)[1]))}: GCP '{pid}' "
-            f"is listed twice (first at line {int(lines[0])})"
-        )
+    check_unique(point, rows, "GCP")
     return ControlTable(point, xyz)
 
 
