@@ -432,3 +432,10 @@ def test_strips_from_a_geographic_track(tmp_path: Path) -> None:
         track_crs="EPSG:4326",
     )
     assert [s.photos for s in project.strips] == [tuple(names[:5]), tuple(names[6:])]
+
+
+def test_photo_order_names_an_unknown_photo(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="--photo-order: photo 'P9' has no image observations"):
+        _project(tmp_path, photo_order=(("P0", "P1", "P9"),))
+    project = _project(tmp_path, photo_order=(("P0", "P1"), ("P2", "P3")))
+    assert [s.photos for s in project.strips] == [("P0", "P1"), ("P2", "P3")]

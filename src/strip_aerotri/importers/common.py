@@ -1225,17 +1225,18 @@ def assemble(
         raise ConfigError(
             f"{source}: point '{images.point[k]}' is observed twice on photo '{images.photo[k]}'"
         )
-    dup_control = np.unique(control.point, return_counts=True)
-    if (dup_control[1] > 1).any():
-        pid = dup_control[0][np.flatnonzero(dup_control[1] > 1)[0]]
-        raise ConfigError(f"{source}: control point '{pid}' is listed twice")
+    names, counts = np.unique(control.point, return_counts=True)
+    if (counts > 1).any():
+        raise ConfigError(
+            f"{source}: control point '{names[np.flatnonzero(counts > 1)[0]]}' is listed twice"
+        )
 
     observed = np.unique(images.photo)
     turn_photos: set[str] = set()
     if options.photo_order is not None:
         listed = [p for s in options.photo_order for p in s]
-        unknown = [p for p in listed if p not in set(observed.tolist())]
-        if unknown:
+        unknown = np.asarray(listed, dtype=str)[~np.isin(listed, observed)]
+        if unknown.size:
             raise ConfigError(
                 f"--photo-order: photo '{unknown[0]}' has no image observations in {source}"
             )
