@@ -15,6 +15,7 @@ import click
 
 from .. import __version__
 from .check import check
+from .importer import import_group
 from .options import DOCS_EPILOG, Settings, common_options, echo_error, settings
 from .run import run
 from .simulate import simulate
@@ -81,3 +82,4 @@ def cli() -> None:
 cli.add_command(run)
 cli.add_command(check)
 cli.add_command(simulate)
+cli.add_command(import_group)
