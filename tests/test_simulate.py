@@ -145,6 +145,35 @@ def test_every_point_is_seen_on_two_photos_inside_the_format(preset, n_photos):
     assert truth.points_local.shape == (obs.n_points, 3)
 
 
+@pytest.mark.parametrize(
+    ("preset", "n_photos", "crs"),
+    [("film", 40, "EPSG:32634"), ("drone", 60, "EPSG:32634"), ("film", 25, "EPSG:4326")],
+    ids=["film40", "drone60", "film25-geographic"],
+)
+def test_each_point_is_observed_on_every_photo_that_sees_it(preset, n_photos, crs):
+    # The simulator projects a point only into photos near it along the strip;
+    # the full (photos x points) projection here must find no photo it missed.
+    strip = simulate_strip(n_photos, preset=preset, crs=crs, image_noise_mm=0.0, seed=2)
+    truth, obs = strip.truth, strip.observations
+    v = np.einsum(
+        "mji,mpj->mpi",
+        truth.photo_rotations_local,
+        truth.points_local[None] - truth.photo_centres_local[:, None],
+    )
+    c = obs.principal_distance
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x, y = -c * v[..., 0] / v[..., 2], -c * v[..., 1] / v[..., 2]
+    half = np.array(strip.preset.format_mm) / 2.0
+    sees = (v[..., 2] < 0) & (np.abs(x) <= half[0]) & (np.abs(y) <= half[1])
+    np.testing.assert_array_equal(_visibility(strip), sees)
+
+
+def test_a_strip_of_two_thousand_photos_is_simulated():
+    strip = simulate_strip(2000, preset="drone", seed=0)
+    assert strip.observations.n_photos == 2000
+    assert np.bincount(strip.observations.photo, minlength=2000).min() >= 6  # R4: six tie points
+
+
 @pytest.mark.parametrize("seed", range(4))
 @pytest.mark.parametrize(
     ("preset", "n_photos", "minimum"),

@@ -758,6 +758,106 @@ class _Terrain:
         return self.mean + self.amplitude * (np.cos(plan @ self.wave.T + self.phase) @ self.weight)
 
 
+def _projection_reach(
+    pre: StripPreset,
+    geo: _Geodesy,
+    opk: FloatArray,
+    camera_h: FloatArray,
+    ground: FloatArray,
+    centres: FloatArray,
+    systematic_k1: float,
+    film_shrink_y: float,
+) -> float:
+    """Distance (m) beyond which no photo can see a point; inf when unknown.
+
+    A point seen inside the format lies on a ray within ``theta = atan(r / c)
+    + tilt`` of the photo's vertical (``r`` the half-diagonal of the format
+    before the systematic errors, ``tilt`` the largest angle of a camera axis
+    from its own vertical); on the terrain it is no lower than
+    ``terrain_height_m - relief_m``. On a sphere of the ellipsoid's smallest
+    radius of curvature (the surface falls away fastest), the ray from the
+    highest camera at ``theta`` meets that height at the distance returned
+    (with 1 % and 10 m to spare), unless it comes back up beyond the far root;
+    so the bound holds when the whole strip is shorter than that root. Radial
+    distortion ``k1 < 0`` can bring far points into the format: no bound then.
+    """
+    if systematic_k1 < 0:
+        return math.inf
+    c = pre.principal_distance_mm
+    half = math.hypot(0.5 * pre.format_mm[0], 0.5 * pre.format_mm[1] / film_shrink_y)
+    cam_tilt = float(np.arccos(np.clip(np.cos(opk[:, 0]) * np.cos(opk[:, 1]), -1.0, 1.0)).max())
+    theta = math.atan(half / c) + cam_tilt
+    if theta >= math.radians(85.0):
+        return math.inf
+    a, rf = geo.ellipsoid
+    e2 = (2.0 - 1.0 / rf) / rf
+    radius = a * (1.0 - e2)  # meridian radius at the equator: the smallest
+    r_cam = radius + float(camera_h.max())
+    r_low = radius + pre.terrain_height_m - pre.relief_m
+    cos_t = math.cos(theta)
+    disc = (r_cam * cos_t) ** 2 - (r_cam**2 - r_low**2)
+    if r_low <= 0 or disc <= 0:
+        return math.inf
+    near, far = r_cam * cos_t - math.sqrt(disc), r_cam * cos_t + math.sqrt(disc)
+    low = np.minimum(ground.min(axis=0), centres.min(axis=0))
+    high = np.maximum(ground.max(axis=0), centres.max(axis=0))
+    if float(np.linalg.norm(high - low)) >= far:
+        return math.inf
+    return 1.01 * near + 10.0
+
+
+def _visible_pairs(
+    ground: FloatArray,
+    centres: FloatArray,
+    rotations: FloatArray,
+    pre: StripPreset,
+    reach: float,
+    ahead: FloatArray,
+    systematic_k1: float,
+    film_shrink_y: float,
+) -> tuple[IntArray, IntArray, FloatArray]:
+    """The (photo, point) pairs in which a point is seen, with its image xy.
+
+    Each point (P, 3) is projected into the photos (M) whose centres lie within
+    ``reach`` metres of it along the unit vector ``ahead`` (a distance along
+    one direction never exceeds the distance itself). Returns photo and point
+    indices, shape (K,), and image x, y in mm, shape (K, 2), of the pairs in
+    which the point is in front of the camera and inside the format.
+    """
+    n_points = ground.shape[0]
+    if math.isfinite(reach):
+        photo_along = centres @ ahead
+        by_along = np.argsort(photo_along, kind="stable")
+        sorted_along = photo_along[by_along]
+        point_along = ground @ ahead
+        lo = np.searchsorted(sorted_along, point_along - reach, side="left")
+        hi = np.searchsorted(sorted_along, point_along + reach, side="right")
+        count = hi - lo
+        pair_point = np.repeat(np.arange(n_points), count)
+        offset = np.arange(pair_point.size) - np.repeat(np.cumsum(count) - count, count)
+        pair_photo = by_along[np.repeat(lo, count) + offset]
+    else:
+        pair_photo = np.repeat(np.arange(centres.shape[0]), n_points)
+        pair_point = np.tile(np.arange(n_points), centres.shape[0])
+    # v = R.T (X - S), summed in the order of einsum("mji,mpj->mpi")
+    d = ground[pair_point] - centres[pair_photo]
+    rot = rotations[pair_photo]
+    v = (rot[:, 0, :] * d[:, 0:1] + rot[:, 1, :] * d[:, 1:2]) + rot[:, 2, :] * d[:, 2:3]
+    c = pre.principal_distance_mm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = -c * v[:, 0] / v[:, 2]
+        y = -c * v[:, 1] / v[:, 2]
+    radial = 1.0 + systematic_k1 * (x * x + y * y)
+    x = x * radial
+    y = y * radial * film_shrink_y
+    visible = (
+        (v[:, 2] < 0.0)
+        & (np.abs(x) <= 0.5 * pre.format_mm[0])
+        & (np.abs(y) <= 0.5 * pre.format_mm[1])
+    )
+    return pair_photo[visible], pair_point[visible], np.column_stack([x[visible], y[visible]])
+
+
 def _matrix_from_opk(opk: FloatArray) -> FloatArray:
     """Rx(omega) Ry(phi) Rz(kappa), radians, (..., 3) -> (..., 3, 3)."""
     return Rotation.from_euler("XYZ", opk.reshape(-1, 3)).as_matrix().reshape(*opk.shape, 3)
@@ -994,34 +1094,33 @@ def simulate_strip(
         kind = np.concatenate([kind, np.full(n_road, _LINE)])
         nadir, row, rank = (np.concatenate([a, np.full(n_road, -1)]) for a in (nadir, row, rank))
 
-    # Collinearity, visibility.
-    v = np.einsum("mji,mpj->mpi", rotations, ground[None, :, :] - centres[:, None, :])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x = -c * v[..., 0] / v[..., 2]
-        y = -c * v[..., 1] / v[..., 2]
-    radial = 1.0 + systematic_k1 * (x * x + y * y)
-    x = x * radial
-    y = y * radial * film_shrink_y
-    visible = (
-        (v[..., 2] < 0.0)
-        & (np.abs(x) <= 0.5 * pre.format_mm[0])
-        & (np.abs(y) <= 0.5 * pre.format_mm[1])
+    # Collinearity and visibility, each point only in the photos that can
+    # reach it (a dense (photos, points) projection is quadratic in the strip).
+    ahead_local = np.array([ahead[0], ahead[1], 0.0])
+    reach = _projection_reach(
+        pre, geo, opk, centre_plan[:, 2], ground, centres, systematic_k1, film_shrink_y
     )
-    keep = visible.sum(axis=0) >= 2
+    pair_photo, pair_point, pair_xy = _visible_pairs(
+        ground, centres, rotations, pre, reach, ahead_local, systematic_k1, film_shrink_y
+    )
+    keep = np.bincount(pair_point, minlength=ground.shape[0]) >= 2
     if keep.sum() < 3:
         raise ValueError("Too few points are seen on two or more photos; check the parameters")
 
     # Number the kept points along the flight.
-    ahead_local = np.array([ahead[0], ahead[1], 0.0])
     kept = np.flatnonzero(keep)
     kept = kept[np.argsort(ground[kept] @ ahead_local, kind="stable")]
     width = max(4, len(str(kept.size)))
-    point_names = np.array([f"P{i + 1:0{width}d}" for i in range(kept.size)])
-    photo_names = np.array([str(1000 + i + 1) for i in range(m)])
+    point_names = np.char.add("P", np.char.zfill(np.arange(1, kept.size + 1).astype(str), width))
+    photo_names = np.arange(1001, 1001 + m).astype(str)
 
-    vis = visible[:, kept]
-    obs_photo, obs_point = np.nonzero(vis)  # photo-major order
-    xy = np.column_stack([x[:, kept][vis], y[:, kept][vis]])
+    # Observations photo by photo, each photo's points in numbering order.
+    number = np.full(ground.shape[0], -1)
+    number[kept] = np.arange(kept.size)
+    seen = keep[pair_point]
+    obs_photo, obs_point, xy = pair_photo[seen], number[pair_point[seen]], pair_xy[seen]
+    order = np.lexsort((obs_point, obs_photo))
+    obs_photo, obs_point, xy = obs_photo[order], obs_point[order], xy[order]
     if pre.image_noise_mm > 0:
         xy = xy + rng.normal(0.0, pre.image_noise_mm, xy.shape)
     sigma = pre.image_noise_mm if pre.image_noise_mm > 0 else 0.005
@@ -1033,9 +1132,9 @@ def simulate_strip(
         photo_ids=photo_names,
         sigma=sigma,
     )
-    # ``from_ids`` orders points by id; ids were assigned in ``kept`` order.
-    order = {name: i for i, name in enumerate(point_names)}
-    kept = kept[[order[p] for p in observations.point_ids]]
+    # ``from_ids`` orders points by id; the ids (sorted, zero-padded) were
+    # assigned in ``kept`` order.
+    kept = kept[np.searchsorted(point_names, np.asarray(observations.point_ids))]
 
     points_local = ground[kept]
     points_crs = geo.local2crs(points_local)
