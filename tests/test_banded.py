@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import strip_aerotri.geometry.deformation as deformation
+from strip_aerotri.errors import GeometryError
 from strip_aerotri.geometry._banded import BandedNormals, _inverse_norm_1
 from strip_aerotri.geometry.deformation import bspline_basis, fit_deformation, section_terms
-from strip_aerotri.errors import GeometryError
 from strip_aerotri.geometry.similarity import _normal_inverse, _redundancy_numbers, row_support
 
 

@@ -20,10 +20,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from strip_aerotri.blunders import STAGES, BlunderOptions
+from strip_aerotri.bundle.refine import GnssCentres, ImuAttitudes, refine_bundle
 from strip_aerotri.errors import GeometryError
 from strip_aerotri.ground.polynomials import GroundOptions
 from strip_aerotri.pipeline import triangulate
-from strip_aerotri.bundle.refine import GnssCentres, ImuAttitudes, refine_bundle
 from strip_aerotri.report.outputs import _html_tables, build_report
 from strip_aerotri.simulate import simulate_strip
 

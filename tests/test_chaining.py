@@ -18,11 +18,11 @@ import pytest
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from strip_aerotri.strip import relative as rel_module
-from strip_aerotri.strip.chaining import StripOptions, form_strip, pair_rows, tie_rows
 from strip_aerotri.errors import GeometryError
 from strip_aerotri.observations import ImageObservations
 from strip_aerotri.simulate import simulate_strip
+from strip_aerotri.strip import relative as rel_module
+from strip_aerotri.strip.chaining import StripOptions, form_strip, pair_rows, tie_rows
 
 # ----------------------------------------------------------------------------
 # helpers

@@ -20,7 +20,7 @@ from click.testing import CliRunner
 import strip_aerotri as sa
 from strip_aerotri import pipeline
 from strip_aerotri.cli.main import cli
-from strip_aerotri.cli.simulate import PRESET_NAMES
+from strip_aerotri.cli.simulate import CAMERA_NAMES, CONTROL_LAYOUTS, PRESET_NAMES
 from strip_aerotri.report.files import RESULT_MARKER
 
 # --------------------------------------------------------------------------- fixtures
@@ -709,6 +709,10 @@ def test_simulate_bad_crs(tmp_path):
 
 def test_preset_names_match_library():
     assert tuple(sa.PRESETS) == PRESET_NAMES
+    from strip_aerotri import simulate as simulate_module
+
+    assert tuple(simulate_module.CAMERAS) == CAMERA_NAMES
+    assert set(simulate_module._CONTROL_LAYOUTS) == set(CONTROL_LAYOUTS)
 
 
 # --------------------------------------------------------------------------- help, usage

@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from strip_aerotri.errors import ConfigError
+from strip_aerotri.observations import ControlType
 from strip_aerotri.project.loader import (
     CONTROL_COLUMNS,
     IMAGE_COLUMNS,
@@ -26,8 +28,6 @@ from strip_aerotri.project.loader import (
     check_output_directory,
     load_project,
 )
-from strip_aerotri.errors import ConfigError
-from strip_aerotri.observations import ControlType
 
 DATA = Path(__file__).parent / "data"
 DOCS = Path(__file__).parents[1] / "docs" / "project-file.md"
@@ -647,14 +647,58 @@ def test_at_least_twenty_distinct_bad_inputs() -> None:
 
 
 def test_key_list_defaults_match_the_dataclass_defaults() -> None:
-    defaults = AdjustmentOptions()
+    from strip_aerotri.options import BlunderOptions, ImageOptions
+
+    dataclass_of = {
+        "adjustment": AdjustmentOptions(),
+        "blunders": BlunderOptions(),
+        "images": ImageOptions(),
+    }
+    compared = 0
     for spec in PROJECT_KEYS:
+        options = dataclass_of.get(spec.table)
         # route and block are resolved by the loader (from the CRS; from the
         # polynomial and sections keys)
-        if spec.table == "adjustment" and spec.key not in ("route", "block"):
-            assert getattr(defaults, spec.key) == spec.default, spec.key
+        if (
+            options is not None
+            and hasattr(options, spec.key)
+            and spec.key not in ("route", "block")
+        ):
+            assert getattr(options, spec.key) == spec.default, spec.qualified
+            compared += 1
         assert spec.default_display  # something to show in docs and `stripaero check`
+    assert compared >= 15
     assert {s.table for s in PROJECT_KEYS} == {t.name for t in PROJECT_TABLES}
+
+
+def test_docs_show_the_key_list_defaults() -> None:
+    """docs/project-file.md's default column is the key list's default."""
+    import re
+
+    text = DOCS.read_text(encoding="utf-8")
+    rows: dict[tuple[str, str], str] = {}
+    table = None
+    for line in text.splitlines():
+        heading = re.match(r"### `\[\[?(\w+)\]\]?`", line)
+        if heading:
+            table = heading.group(1)
+            continue
+        cells = [c.strip() for c in re.split(r"(?<!\\)\|", line.strip().strip("|"))]
+        if table and len(cells) == 5 and re.fullmatch(r"`\w+`", cells[0]):
+            rows[(table, cells[0].strip("`"))] = cells[3]
+    checked = 0
+    for spec in PROJECT_KEYS:
+        shown = rows.get((spec.table, spec.key))
+        assert shown is not None, f"{spec.qualified} has no row in the docs"
+        if spec.required:
+            assert shown.lower() in ("required", ""), (spec.qualified, shown)
+            continue
+        if spec.default is None or spec.default_text:
+            continue  # derived defaults are explained in words
+        first = shown.split(";")[0].strip().strip("`")
+        assert first == spec.default_display, (spec.qualified, shown, spec.default_display)
+        checked += 1
+    assert checked >= 25
 
 
 def test_blunders_table_sets_the_critical_value_of_every_stage(minimal: Path) -> None:

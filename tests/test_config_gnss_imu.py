@@ -20,7 +20,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from strip_aerotri.bundle.refine import GnssCentres, ImuAttitudes
 from strip_aerotri.cli.main import cli
+from strip_aerotri.errors import ConfigError, StripAerotriWarning
+from strip_aerotri.geodesy import GroundCRS, enu_rotation
+from strip_aerotri.geometry.rotation import opk_from_matrix
 from strip_aerotri.project.loader import (
     GNSS_COLUMNS,
     IMU_COLUMNS,
@@ -28,10 +32,6 @@ from strip_aerotri.project.loader import (
     PROJECT_TABLES,
     load_project,
 )
-from strip_aerotri.errors import ConfigError, StripAerotriWarning
-from strip_aerotri.geodesy import GroundCRS, enu_rotation
-from strip_aerotri.bundle.refine import GnssCentres, ImuAttitudes
-from strip_aerotri.geometry.rotation import opk_from_matrix
 from strip_aerotri.simulate import simulate_strip
 
 DATA = Path(__file__).parent / "data"

@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
+from strip_aerotri.errors import GeometryError, StripAerotriWarning
 from strip_aerotri.geometry.deformation import (
     StraightLine,
     fit_deformation,
@@ -14,7 +15,6 @@ from strip_aerotri.geometry.deformation import (
     polynomial_terms,
     select_kind_auto,
 )
-from strip_aerotri.errors import GeometryError, StripAerotriWarning
 
 # A synthetic strip 10 km long (X along the strip), 2 km wide, +-30 m relief, in metres.
 LENGTH, HALF_WIDTH = 10_000.0, 1_000.0

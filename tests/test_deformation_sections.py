@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import BSpline
 
+from strip_aerotri.errors import GeometryError
 from strip_aerotri.geometry.deformation import (
     StraightLine,
     bspline_basis,
@@ -24,7 +25,6 @@ from strip_aerotri.geometry.deformation import (
     select_kind_auto,
     term_names,
 )
-from strip_aerotri.errors import GeometryError
 
 # A synthetic strip 12 km long (X along the strip), 2 km wide, in metres: stations every
 # 1 km, so three sections of 4 km hold four or five stations each.

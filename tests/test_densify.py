@@ -6,6 +6,10 @@ import numpy as np
 import pytest
 
 from strip_aerotri import simulate_strip
+from strip_aerotri.errors import GeometryError, StripAerotriWarning
+from strip_aerotri.geometry.rotation import matrix_from_opk
+from strip_aerotri.geometry.similarity import similarity_from_points
+from strip_aerotri.observations import ImageObservations
 from strip_aerotri.strip.chaining import form_strip
 from strip_aerotri.strip.densify import (
     choose_photo_step,
@@ -16,10 +20,6 @@ from strip_aerotri.strip.densify import (
     photo_step_table,
     resect,
 )
-from strip_aerotri.errors import GeometryError, StripAerotriWarning
-from strip_aerotri.observations import ImageObservations
-from strip_aerotri.geometry.rotation import matrix_from_opk
-from strip_aerotri.geometry.similarity import similarity_from_points
 
 
 def _drone(noise: float, seed: int = 3, n: int = 13):

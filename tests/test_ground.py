@@ -16,13 +16,13 @@ import pytest
 
 import strip_aerotri as sa
 from strip_aerotri.blunders import BlunderOptions
-from strip_aerotri.geometry.deformation import fit_deformation
 from strip_aerotri.errors import GeometryError, StripAerotriWarning
 from strip_aerotri.geodesy import GroundCRS, enu_rotation
-from strip_aerotri.ground.polynomials import GroundOptions, LineSpec, adjust_to_ground
-from strip_aerotri.observations import ControlPoints, ControlType, ImageObservations
+from strip_aerotri.geometry.deformation import fit_deformation
 from strip_aerotri.geometry.rotation import rotvec_from_matrix
 from strip_aerotri.geometry.similarity import similarity_from_points
+from strip_aerotri.ground.polynomials import GroundOptions, LineSpec, adjust_to_ground
+from strip_aerotri.observations import ControlPoints, ControlType, ImageObservations
 
 FULL, PLAN, HEIGHT, CHECK = (
     ControlType.FULL,

@@ -12,8 +12,8 @@ from click.testing import CliRunner
 
 import strip_aerotri as sa
 from strip_aerotri.cli.main import cli
-from strip_aerotri.geometry.deformation import n_terms
 from strip_aerotri.errors import GeometryError
+from strip_aerotri.geometry.deformation import n_terms
 from strip_aerotri.ground.polynomials import GroundOptions
 
 N_PHOTOS = 60

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from strip_aerotri.project.loader import load_project
 from strip_aerotri.errors import ConfigError
 from strip_aerotri.importers import common
 from strip_aerotri.importers.common import (
@@ -31,6 +30,7 @@ from strip_aerotri.importers.common import (
     toml_value,
     write_project,
 )
+from strip_aerotri.project.loader import load_project
 
 # --------------------------------------------------------------------------- a small strip
 

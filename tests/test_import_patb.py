@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from strip_aerotri.project.loader import load_project
 from strip_aerotri.errors import ConfigError
 from strip_aerotri.importers.common import ImportOptions, flight_matrix, write_project
 from strip_aerotri.importers.patb import import_patb, read_con, read_im, read_ori
+from strip_aerotri.project.loader import load_project
 
 SAMPLE = Path(__file__).resolve().parent / "data" / "import"
 PATB = SAMPLE / "patb"

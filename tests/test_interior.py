@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from strip_aerotri.project.loader import load_project
 from strip_aerotri.errors import ConfigError, ConvergenceError, GeometryError
 from strip_aerotri.interior import (
     BrownDistortion,
@@ -19,6 +18,7 @@ from strip_aerotri.interior import (
     reduce_image_coordinates,
     sensor_from_flight,
 )
+from strip_aerotri.project.loader import load_project
 
 RNG = np.random.default_rng(2345)
 

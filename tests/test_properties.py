@@ -10,11 +10,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from strip_aerotri.project.loader import load_project
 from strip_aerotri.errors import StripAerotriError
 from strip_aerotri.pipeline import triangulate
-from strip_aerotri.strip.relative import relative_orientation
+from strip_aerotri.project.loader import load_project
 from strip_aerotri.simulate import simulate_strip
+from strip_aerotri.strip.relative import relative_orientation
 
 PROFILE = settings(
     derandomize=True,

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from _synthetic import make_strip
+from strip_aerotri.errors import GeometryError
 from strip_aerotri.strip import relative as rel_module
 from strip_aerotri.strip.chaining import pair_rows
-from strip_aerotri.errors import GeometryError
 from strip_aerotri.strip.relative import chain_rotations, essential_start, relative_orientation
 
 

@@ -16,11 +16,11 @@ overlap.
 import numpy as np
 import pytest
 
+from strip_aerotri.errors import ConvergenceError, GeometryError
+from strip_aerotri.simulate import simulate_strip
 from strip_aerotri.strip import relative as rel_module
 from strip_aerotri.strip.chaining import StripOptions, form_strip, pair_rows
-from strip_aerotri.errors import ConvergenceError, GeometryError
 from strip_aerotri.strip.relative import homography_start, relative_orientation, similarity_start
-from strip_aerotri.simulate import simulate_strip
 
 # c (mm), format (along, across) mm, Gruber row offset (mm), noise (mm)
 CAMERAS = {

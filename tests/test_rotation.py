@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from strip_aerotri.geometry import rotation
 from strip_aerotri.errors import GeometryError, StripAerotriWarning
+from strip_aerotri.geometry import rotation
 from strip_aerotri.geometry.rotation import (
     SCHUT_MAX_ANGLE_DEG,
     cardan_from_matrix,

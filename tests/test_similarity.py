@@ -509,7 +509,7 @@ def test_a_fit_too_slow_for_the_tolerance_still_converges(monkeypatch):
     assert fit_similarity(bent, tgt, **kwargs).iterations <= 12
     monkeypatch.setattr(similarity_module, "_NEGLIGIBLE_FRACTION", 0.0)
     with pytest.raises(ConvergenceError, match="did not converge in 30 iterations"):
-        fit_similarity(bent, tgt, **kwargs)
+        fit_similarity(bent, tgt, **kwargs, max_iterations=30)
 
 
 def _long_strip_with_edges(n_stations: int = 200, across: float = 1.5):

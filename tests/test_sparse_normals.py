@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 
 from strip_aerotri.geometry.deformation import section_terms
-from strip_aerotri.geometry.similarity import _gram, _normal_inverse, _redundancy_numbers, row_support
+from strip_aerotri.geometry.similarity import (
+    _gram,
+    _normal_inverse,
+    _redundancy_numbers,
+    row_support,
+)
 
 
 def spline_design(n_rows: int, sections: int, seed: int = 0) -> np.ndarray:

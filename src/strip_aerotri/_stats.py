@@ -1,6 +1,8 @@
-"""Medians for the robust scales of the blunder tests, cheap on large strips."""
+"""Critical values of the blunder tests, and medians for their robust scales."""
 
 from __future__ import annotations
+
+from statistics import NormalDist
 
 import numpy as np
 
@@ -34,3 +36,22 @@ def exact_median(values: ArrayLike) -> float:
     if arr.size and arr.min() == arr.max():
         return float(arr[0])
     return float(np.median(arr))
+
+
+def critical_value(n_tests: int, alpha: float = 0.001) -> float:
+    """Two-sided critical value of n normal tests at family-wise level alpha.
+
+    ``Φ⁻¹(1 − alpha / (2 n))`` (Bonferroni); n < 1 is taken as 1.
+    """
+    n = max(int(n_tests), 1)
+    # the lower tail, Φ⁻¹(alpha / 2n), has no cancellation in 1 − p
+    return -NormalDist().inv_cdf(float(alpha) / (2.0 * n))
+
+
+def chi_critical_value(n_tests: int, alpha: float, dof: int) -> float:
+    """Square root of the chi-square(dof) quantile at ``1 − alpha / n``: the
+    critical ``sqrt(vᵀ P v)`` of n tests of ``dof`` components each (Bonferroni).
+    """
+    from scipy.special import chdtri  # inverse upper tail; scipy.stats costs 0.2 s
+
+    return float(np.sqrt(chdtri(int(dof), float(alpha) / max(int(n_tests), 1))))

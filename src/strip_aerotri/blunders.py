@@ -36,14 +36,13 @@ over its four stages in each round.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from statistics import NormalDist
+from dataclasses import dataclass
 
 import numpy as np
 
-from ._stats import sample_median
-from ._typing import BoolArray, FloatArray
-from .observations import ImageObservations
+from ._stats import critical_value, sample_median
+from ._typing import FloatArray
+from .options import STAGES, BlunderOptions
 
 __all__ = [
     "STAGES",
@@ -52,104 +51,6 @@ __all__ = [
     "critical_value",
     "robust_variance_factor",
 ]
-
-STAGES = (
-    "relative_orientation",
-    "tie_points",
-    "models",
-    "control",
-    "straight_line",
-    "bundle",
-    "gnss",
-    "imu",
-)
-
-
-@dataclass(frozen=True)
-class BlunderOptions:
-    """How gross errors are handled.
-
-    Attributes
-    ----------
-    action : {"reject", "report", "off"}
-        ``reject``: reject and re-solve (default); ``report``: compute the
-        tests and report what would be rejected, change nothing; ``off``: no
-        tests.
-    alpha : float
-        Family-wise false-alarm probability per stage (Bonferroni over the
-        stage's tests).
-    critical_values : dict
-        Stage name -> critical |w| overriding ``alpha`` for that stage.
-    max_fraction : float
-        Stop with an error when a stage would reject more than this fraction
-        of its observations: the solution could not be trusted.
-    exclude_points : tuple of str
-        Point ids left out of every stage.
-    exclude_observations : tuple of (photo, point)
-        Image observations left out.
-    """
-
-    action: str = "reject"
-    alpha: float = 0.001
-    critical_values: dict[str, float] = field(default_factory=dict)
-    max_fraction: float = 0.2
-    exclude_points: tuple[str, ...] = ()
-    exclude_observations: tuple[tuple[str, str], ...] = ()
-
-    def __post_init__(self) -> None:
-        if self.action not in ("reject", "report", "off"):
-            raise ValueError(f"Expected action 'reject', 'report' or 'off', got {self.action!r}")
-        if not 0.0 < float(self.alpha) < 1.0:
-            raise ValueError(f"Expected 0 < alpha < 1, got {self.alpha!r}")
-        for stage, value in self.critical_values.items():
-            if stage not in STAGES:
-                raise ValueError(f"Unknown stage {stage!r}; valid: {', '.join(STAGES)}")
-            if not float(value) > 0:
-                raise ValueError(f"Critical value of {stage!r} must be > 0, got {value!r}")
-        if not 0.0 < float(self.max_fraction) <= 1.0:
-            raise ValueError(f"Expected 0 < max_fraction <= 1, got {self.max_fraction!r}")
-
-    @property
-    def testing(self) -> bool:
-        return self.action != "off"
-
-    @property
-    def rejecting(self) -> bool:
-        return self.action == "reject"
-
-    def excluded(self, observations: ImageObservations) -> tuple[BoolArray, BoolArray]:
-        """The user's exclusions as masks: points (P,) of ``exclude_points``
-        and observations (K,) of those points or of ``exclude_observations``
-        (ids not in the observations are ignored)."""
-        points = np.zeros(observations.n_points, dtype=bool)
-        if self.exclude_points:
-            names = np.asarray(observations.point_ids)
-            points = np.isin(names, list(self.exclude_points))
-        drop = points[observations.point]
-        if self.exclude_observations:
-            photo_of = {pid: i for i, pid in enumerate(observations.photo_ids)}
-            point_of = {pid: i for i, pid in enumerate(observations.point_ids)}
-            n_pts = max(observations.n_points, 1)
-            wanted = [
-                photo_of[ph] * n_pts + point_of[pt]
-                for ph, pt in self.exclude_observations
-                if ph in photo_of and pt in point_of
-            ]
-            keys = observations.photo.astype(np.int64) * n_pts + observations.point
-            drop |= np.isin(keys, wanted)
-        return points, drop
-
-    def critical(self, stage: str, n_tests: int, dof: int = 1) -> float:
-        """Critical |w| of a stage with n tests; for a test of ``dof``
-        components at once (``w = sqrt(vᵀ P v)``, chi-square) the square root
-        of the chi-square quantile."""
-        if stage in self.critical_values:
-            return float(self.critical_values[stage])
-        if dof == 1:
-            return critical_value(n_tests, self.alpha)
-        from scipy.special import chdtri  # inverse of chi-square's upper tail
-
-        return float(np.sqrt(chdtri(dof, float(self.alpha) / max(int(n_tests), 1))))
 
 
 @dataclass(frozen=True)
@@ -207,16 +108,6 @@ class Rejection:
             f"{self.residual:.4g} {self.unit}, w = {self.w:.2f} > {self.critical:.2f}"
             + (f" ({self.effect})" if self.effect else "")
         )
-
-
-def critical_value(n_tests: int, alpha: float = 0.001) -> float:
-    """Two-sided critical value of n normal tests at family-wise level alpha.
-
-    ``Φ⁻¹(1 − alpha / (2 n))`` (Bonferroni); n < 1 is taken as 1.
-    """
-    n = max(int(n_tests), 1)
-    # the lower tail, Φ⁻¹(alpha / 2n), has no cancellation in 1 − p
-    return -NormalDist().inv_cdf(float(alpha) / (2.0 * n))
 
 
 def robust_variance_factor(w: FloatArray) -> float:

@@ -26,11 +26,19 @@ in the image plane (det +1), so z stays up and the image vector stays
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import StrEnum
 
 import numpy as np
 
 from ._typing import ArrayLike, FloatArray, IntArray
+from .options import (
+    DEFAULT_DIFFERENCE_TOLERANCE,
+    DEFAULT_SCALE_TOLERANCE,
+    DistortionModel,
+    DistortionUnits,
+    FiducialTransform,
+    FlightDirection,
+    ImageUnits,
+)
 
 __all__ = [
     "DEFAULT_DIFFERENCE_TOLERANCE",
@@ -52,60 +60,6 @@ __all__ = [
     "reduce_image_coordinates",
     "sensor_from_flight",
 ]
-
-#: R4 §1.7.7.1: a scale (deformation) coefficient may differ from 1 by "a few
-#: units of the fourth decimal"; read here as at most 5 units: 5e-4.
-DEFAULT_SCALE_TOLERANCE = 5e-4
-#: R4 §1.7.7.1: the x and y coefficients may differ by "a few units of the
-#: fifth decimal"; read here as at most 5 units: 5e-5.
-DEFAULT_DIFFERENCE_TOLERANCE = 5e-5
-
-
-class ImageUnits(StrEnum):
-    """Unit of the measured image coordinates."""
-
-    MM = "mm"
-    """Millimetres, x right and y up (a comparator or a reduced file)."""
-    PIXEL = "pixel"
-    """Pixel column and row of a digital image, rows growing downwards."""
-
-
-class FlightDirection(StrEnum):
-    """The sensor axis that points along the flight."""
-
-    PLUS_X = "+x"
-    MINUS_X = "-x"
-    PLUS_Y = "+y"
-    MINUS_Y = "-y"
-
-
-class DistortionUnits(StrEnum):
-    """In which units the radius r of the distortion polynomials is taken."""
-
-    MM = "mm"
-    """r in millimetres: k1 in mm^-2, k2 in mm^-4, k3 in mm^-6, p1, p2 in mm^-1."""
-    NORMALIZED = "normalized"
-    """r divided by the principal distance c (dimensionless coefficients, the
-    form of OpenCV and Agisoft)."""
-
-
-class DistortionModel(StrEnum):
-    """Direction in which the Brown polynomials are applied."""
-
-    CORRECTION = "correction"
-    """Brown (1971): corrected = measured + Δ(measured)."""
-    PROJECTION = "projection"
-    """OpenCV / Agisoft: distorted = ideal + Δ(ideal); inverted by iteration."""
-
-
-class FiducialTransform(StrEnum):
-    """Transformation from comparator to calibrated fiducial coordinates."""
-
-    SIMILARITY = "similarity"
-    """4 parameters: shift, rotation, one scale (2 marks at least)."""
-    AFFINE = "affine"
-    """6 parameters: shift, rotation, two scales, non-orthogonality (3 marks at least)."""
-
 
 # --------------------------------------------------------------------------- helpers
 

@@ -8,6 +8,7 @@ uses integer indices into ``photo_ids`` and ``point_ids``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 from functools import cached_property
@@ -15,8 +16,16 @@ from functools import cached_property
 import numpy as np
 
 from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
+from .options import DEFAULT_LINE_WEIGHT
 
-__all__ = ["ControlPoints", "ControlType", "ImageObservations"]
+__all__ = [
+    "ControlPoints",
+    "ControlType",
+    "GnssCentres",
+    "ImageObservations",
+    "ImuAttitudes",
+    "LineSpec",
+]
 
 
 @dataclass(frozen=True)
@@ -212,3 +221,104 @@ class ControlPoints:
     @property
     def is_check(self) -> BoolArray:
         return self._kind_code == _KIND_CODE[ControlType.CHECK]
+
+
+@dataclass(frozen=True)
+class LineSpec:
+    """Points on one straight vertical plane along the strip (J(18)).
+
+    Attributes
+    ----------
+    point_ids : tuple of str
+        Ids of the points, each observed and none a control point.
+    weight : float
+        Weight of the line equations relative to control of weight 1.
+    name : str
+        Name for reports.
+    """
+
+    point_ids: tuple[str, ...]
+    weight: float = DEFAULT_LINE_WEIGHT
+    name: str = "line"
+
+
+@dataclass(frozen=True)
+class GnssCentres:
+    """Observed projection centres (GNSS, reduced to the projection centre).
+
+    Attributes
+    ----------
+    photo_ids : tuple of str, length G
+    xyz : ndarray, shape (G, 3)
+        X, Y, H in the control CRS (axis order as the control, H ellipsoidal
+        height in metres).
+    sigma_xy, sigma_z : ndarray, shape (G,)
+        Standard deviations in metres, horizontal and vertical.
+    """
+
+    photo_ids: tuple[str, ...]
+    xyz: FloatArray
+    sigma_xy: FloatArray
+    sigma_z: FloatArray
+
+    def __post_init__(self) -> None:
+        ids = tuple(str(p) for p in self.photo_ids)
+        g = len(ids)
+        xyz = np.asarray(self.xyz, dtype=np.float64)
+        if xyz.shape != (g, 3):
+            raise ValueError(f"Expected `xyz` to have shape {(g, 3)}, got {xyz.shape}")
+        sxy = np.broadcast_to(np.asarray(self.sigma_xy, dtype=np.float64), (g,)).copy()
+        sz = np.broadcast_to(np.asarray(self.sigma_z, dtype=np.float64), (g,)).copy()
+        if not (np.all(sxy > 0) and np.all(sz > 0)):
+            raise ValueError("Expected positive GNSS standard deviations `sigma_xy`, `sigma_z`")
+        object.__setattr__(self, "photo_ids", ids)
+        object.__setattr__(self, "xyz", xyz)
+        object.__setattr__(self, "sigma_xy", sxy)
+        object.__setattr__(self, "sigma_z", sz)
+
+
+@dataclass(frozen=True)
+class ImuAttitudes:
+    """Observed photo attitudes (IMU, boresight-corrected).
+
+    Attributes
+    ----------
+    photo_ids : tuple of str, length G
+    opk : ndarray, shape (G, 3)
+        omega, phi, kappa in radians, ``R = Rx(omega) Ry(phi) Rz(kappa)``
+        mapping image vectors to local east-north-up at the projection centre
+        (the convention of ``photos.csv``; X, Y, H axes for ``crs = "local"``).
+    sigma : ndarray, shape (G,)
+        Standard deviation of each of the three small rotations about the
+        photo's own axes, radians.
+
+    Use :meth:`from_degrees` for angles in degrees.
+    """
+
+    photo_ids: tuple[str, ...]
+    opk: FloatArray
+    sigma: FloatArray
+
+    def __post_init__(self) -> None:
+        ids = tuple(str(p) for p in self.photo_ids)
+        g = len(ids)
+        opk = np.asarray(self.opk, dtype=np.float64)
+        if opk.shape != (g, 3):
+            raise ValueError(f"Expected `opk` to have shape {(g, 3)}, got {opk.shape}")
+        sig = np.broadcast_to(np.asarray(self.sigma, dtype=np.float64), (g,)).copy()
+        if not np.all(sig > 0):
+            raise ValueError("Expected positive IMU standard deviations `sigma`")
+        object.__setattr__(self, "photo_ids", ids)
+        object.__setattr__(self, "opk", opk)
+        object.__setattr__(self, "sigma", sig)
+
+    @classmethod
+    def from_degrees(
+        cls, photo_ids: Sequence[str], opk_deg: ArrayLike, sigma_deg: ArrayLike
+    ) -> ImuAttitudes:
+        """Build from omega, phi, kappa and their sigma in degrees."""
+        return cls(
+            tuple(photo_ids),
+            np.radians(np.asarray(opk_deg, dtype=np.float64)),
+            np.radians(np.asarray(sigma_deg, dtype=np.float64)),
+        )

@@ -12,19 +12,30 @@ import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ._typing import FloatArray
-from .blunders import BlunderOptions, Rejection
-from .strip.chaining import StripModel, StripOptions
-from .strip.densify import DEFAULT_MIN_BASE_TO_HEIGHT, form_strip_stepped
+from .blunders import Rejection
 from .errors import GeometryError
 from .geodesy import GroundCRS
-from .ground.polynomials import Construction, GroundOptions, GroundResult, LineSpec, adjust_to_ground
-from .observations import ControlPoints, ImageObservations
+from .ground.polynomials import GroundResult, adjust_to_ground
+from .observations import ControlPoints, ImageObservations, LineSpec
+from .options import (
+    DEFAULT_MIN_BASE_TO_HEIGHT,
+    BlunderOptions,
+    Construction,
+    GroundOptions,
+    Refine,
+    StripOptions,
+)
 from .plausibility import control_problems
+from .strip.chaining import StripModel
+from .strip.densify import form_strip_stepped
+
+if TYPE_CHECKING:
+    from .project.loader import Project
 
 __all__ = ["AccuracyStatistics", "StripResult", "project_options", "run_project", "triangulate"]
 
@@ -151,7 +162,7 @@ def triangulate(
     blunders: BlunderOptions | None = None,
     photo_step: int | str = 1,
     min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT,
-    refine: str = "none",
+    refine: Refine | str = Refine.NONE,
     gnss: Any = None,
     imu: Any = None,
     progress: Progress | None = None,
@@ -262,14 +273,18 @@ def triangulate(
         warnings=tuple(notes),
         timings=timings,
     )
-    if refine not in ("none", "bundle"):
-        raise ValueError(f"Expected refine 'none' or 'bundle', got {refine!r}")
-    if refine == "bundle":
+    if Refine.create(refine) is Refine.BUNDLE:
         from .bundle.refine import refine_bundle  # refine imports this module
 
         say("bundle refinement")
         t2 = time.perf_counter()
-        refined = refine_bundle(result, gnss=gnss, imu=imu, blunders=blunders)
+        refined = refine_bundle(
+            result,
+            gnss=gnss,
+            imu=imu,
+            blunders=blunders,
+            max_iterations=ground_options.max_iterations,
+        )
         timings["bundle"] = time.perf_counter() - t2
         result = dataclasses.replace(
             result,
@@ -279,54 +294,32 @@ def triangulate(
     return result
 
 
-def project_options(project) -> tuple[StripOptions, GroundOptions]:
+def project_options(project: Project) -> tuple[StripOptions, GroundOptions]:
     """The strip formation's and the ground stage's options of a loaded project."""
-    adj = project.adjustment
-    block = str(getattr(getattr(adj, "block", None), "value", "strips"))
-    strip_options = StripOptions(
-        relative_orientation=str(adj.relative_orientation.value),
-        intersection=str(adj.intersection.value),
-        scale_transfer=str(adj.scale_transfer.value),
-        max_iterations=int(adj.max_iterations),
-        allow_breaks=block == "models",
-    )
-    ground_options = GroundOptions(
-        route=str(adj.route.value),
-        polynomial=adj.polynomial if block == "strips" else None,
-        sections=adj.sections,
-        construction=block,
-    )
-    return strip_options, ground_options
+    return project.adjustment.strip_options(), project.adjustment.ground_options()
 
 
 def run_project(
-    project, *, progress: Progress | None = None, blunders: BlunderOptions | None = None
+    project: Project, *, progress: Progress | None = None, blunders: BlunderOptions | None = None
 ) -> StripResult:
-    """Adjust a loaded project (:func:`strip_aerotri.config.load_project`).
+    """Adjust a loaded project (:func:`strip_aerotri.project.loader.load_project`).
 
-    ``blunders`` overrides the project's own blunder options, if it has any.
-    The project's GNSS centres and IMU attitudes (``[gnss]``, ``[imu]``), if
-    any, are observations of the bundle refinement.
+    ``blunders`` overrides the project's own blunder options.  The project's
+    GNSS centres and IMU attitudes (``[gnss]``, ``[imu]``), if any, are
+    observations of the bundle refinement.
     """
-    if blunders is None:
-        blunders = getattr(project, "blunders", None)
     adj = project.adjustment
-    strip_options, ground_options = project_options(project)
-    lines = [
-        LineSpec(point_ids=tuple(spec.point_ids), weight=spec.weight, name=spec.name)
-        for spec in project.straight_lines
-    ]
     return triangulate(
         project.observations,
         project.control,
         project.crs,
-        lines=lines,
-        strip_options=strip_options,
-        ground_options=ground_options,
-        blunders=blunders,
-        photo_step=getattr(adj, "photo_step", 1),
-        min_base_to_height=getattr(adj, "min_base_to_height", DEFAULT_MIN_BASE_TO_HEIGHT),
-        refine=str(getattr(getattr(adj, "refine", None), "value", "none")),
+        lines=project.straight_lines,
+        strip_options=adj.strip_options(),
+        ground_options=adj.ground_options(),
+        blunders=project.blunders if blunders is None else blunders,
+        photo_step=adj.photo_step,
+        min_base_to_height=adj.min_base_to_height,
+        refine=adj.refine,
         gnss=project.gnss,
         imu=project.imu,
         progress=progress,

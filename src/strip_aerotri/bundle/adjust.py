@@ -34,6 +34,7 @@ import scipy.sparse.linalg as spla
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..observations import ImageObservations
+from ..options import DEFAULT_MAX_ITERATIONS
 
 __all__ = ["BundleResult", "bundle_adjust"]
 
@@ -807,7 +808,7 @@ def bundle_adjust(
     gnss_sigma: ArrayLike | None = None,
     imu_rotations: ArrayLike | None = None,
     imu_sigma: ArrayLike | None = None,
-    max_iterations: int = 20,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
     tolerance: float = 1e-10,
     compute_precision: bool = True,
 ) -> BundleResult:

@@ -41,13 +41,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
-from ..blunders import BlunderOptions, Rejection, robust_variance_factor
-from .adjust import BundleResult, bundle_adjust, observed_with_sigma
+from ..blunders import Rejection, robust_variance_factor
 from ..errors import GeometryError, StripAerotriWarning
 from ..geodesy import GroundCRS, LocalTangentFrame, enu_rotation
-from ..observations import ControlPoints, ImageObservations
-from ..pipeline import AccuracyStatistics, StripResult
 from ..geometry.rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
+from ..observations import ControlPoints, GnssCentres, ImageObservations, ImuAttitudes
+from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions
+from ..pipeline import AccuracyStatistics, StripResult
+from .adjust import BundleResult, bundle_adjust, observed_with_sigma
 
 __all__ = [
     "FrameRefinement",
@@ -72,91 +73,6 @@ _PASS_TOLERANCE_M = 1e-6
 _MAX_PASSES = 4
 #: Smallest value the photo-unknowns factor of the redundancy numbers may take.
 _MIN_PHOTO_FACTOR = 0.05
-
-
-# --------------------------------------------------------------------------- inputs
-
-
-@dataclass(frozen=True)
-class GnssCentres:
-    """Observed projection centres (GNSS, reduced to the projection centre).
-
-    Attributes
-    ----------
-    photo_ids : tuple of str, length G
-    xyz : ndarray, shape (G, 3)
-        X, Y, H in the control CRS (axis order as the control, H ellipsoidal
-        height in metres).
-    sigma_xy, sigma_z : ndarray, shape (G,)
-        Standard deviations in metres, horizontal and vertical.
-    """
-
-    photo_ids: tuple[str, ...]
-    xyz: FloatArray
-    sigma_xy: FloatArray
-    sigma_z: FloatArray
-
-    def __post_init__(self) -> None:
-        ids = tuple(str(p) for p in self.photo_ids)
-        g = len(ids)
-        xyz = np.asarray(self.xyz, dtype=np.float64)
-        if xyz.shape != (g, 3):
-            raise ValueError(f"Expected `xyz` to have shape {(g, 3)}, got {xyz.shape}")
-        sxy = np.broadcast_to(np.asarray(self.sigma_xy, dtype=np.float64), (g,)).copy()
-        sz = np.broadcast_to(np.asarray(self.sigma_z, dtype=np.float64), (g,)).copy()
-        if not (np.all(sxy > 0) and np.all(sz > 0)):
-            raise ValueError("Expected positive GNSS standard deviations `sigma_xy`, `sigma_z`")
-        object.__setattr__(self, "photo_ids", ids)
-        object.__setattr__(self, "xyz", xyz)
-        object.__setattr__(self, "sigma_xy", sxy)
-        object.__setattr__(self, "sigma_z", sz)
-
-
-@dataclass(frozen=True)
-class ImuAttitudes:
-    """Observed photo attitudes (IMU, boresight-corrected).
-
-    Attributes
-    ----------
-    photo_ids : tuple of str, length G
-    opk : ndarray, shape (G, 3)
-        omega, phi, kappa in radians, ``R = Rx(omega) Ry(phi) Rz(kappa)``
-        mapping image vectors to local east-north-up at the projection centre
-        (the convention of ``photos.csv``; X, Y, H axes for ``crs = "local"``).
-    sigma : ndarray, shape (G,)
-        Standard deviation of each of the three small rotations about the
-        photo's own axes, radians.
-
-    Use :meth:`from_degrees` for angles in degrees.
-    """
-
-    photo_ids: tuple[str, ...]
-    opk: FloatArray
-    sigma: FloatArray
-
-    def __post_init__(self) -> None:
-        ids = tuple(str(p) for p in self.photo_ids)
-        g = len(ids)
-        opk = np.asarray(self.opk, dtype=np.float64)
-        if opk.shape != (g, 3):
-            raise ValueError(f"Expected `opk` to have shape {(g, 3)}, got {opk.shape}")
-        sig = np.broadcast_to(np.asarray(self.sigma, dtype=np.float64), (g,)).copy()
-        if not np.all(sig > 0):
-            raise ValueError("Expected positive IMU standard deviations `sigma`")
-        object.__setattr__(self, "photo_ids", ids)
-        object.__setattr__(self, "opk", opk)
-        object.__setattr__(self, "sigma", sig)
-
-    @classmethod
-    def from_degrees(
-        cls, photo_ids: Sequence[str], opk_deg: ArrayLike, sigma_deg: ArrayLike
-    ) -> ImuAttitudes:
-        """Build from omega, phi, kappa and their sigma in degrees."""
-        return cls(
-            tuple(photo_ids),
-            np.radians(np.asarray(opk_deg, dtype=np.float64)),
-            np.radians(np.asarray(sigma_deg, dtype=np.float64)),
-        )
 
 
 # --------------------------------------------------------------------------- frame
@@ -744,7 +660,7 @@ def refine_frame(
     imu_rotations: ArrayLike | None = None,
     imu_sigma: ArrayLike | None = None,
     blunders: BlunderOptions | None = None,
-    max_iterations: int = 20,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
     compute_precision: bool = True,
     observation_used: ArrayLike | None = None,
     control_used: ArrayLike | None = None,
@@ -1389,7 +1305,7 @@ def refine_bundle(
     gnss: GnssCentres | None = None,
     imu: ImuAttitudes | None = None,
     blunders: BlunderOptions | None = None,
-    max_iterations: int = 20,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
     compute_precision: bool = True,
 ) -> RefinedResult:
     """Refine a strip-method result by a rigorous bundle adjustment.
@@ -1448,7 +1364,7 @@ def refine_bundle(
     --------
     >>> from strip_aerotri.simulate import simulate_strip
     >>> from strip_aerotri.pipeline import triangulate
-    >>> from strip_aerotri.ground import GroundOptions
+    >>> from strip_aerotri.options import GroundOptions
     >>> sim = simulate_strip(12, seed=1, crs="local")
     >>> strip = triangulate(sim.observations, sim.control, sim.crs,
     ...                     ground_options=GroundOptions(route="projected"))

@@ -141,17 +141,17 @@ def check_project(project, out: Path | None = None) -> CheckReport:
     -------
     CheckReport
     """
-    from ..strip.chaining import pair_rows
-    from ..geometry.deformation import n_terms
     from ..errors import StripAerotriError
-    from ..plausibility import control_problems
-    from ..strip.relative import MIN_POINTS_PER_PAIR
+    from ..geometry.deformation import n_terms
     from ..geometry.similarity import (
         COINCIDENT_RTOL,
         COLLINEAR_MAGNIFICATION,
         COLLINEAR_RTOL,
         cross_tilt,
     )
+    from ..plausibility import control_problems
+    from ..strip.chaining import pair_rows
+    from ..strip.relative import MIN_POINTS_PER_PAIR
     from .run import output_folder
 
     rep = CheckReport()
@@ -300,8 +300,8 @@ def check_project(project, out: Path | None = None) -> CheckReport:
     # Strip formation as the run does it (relative orientation of every pair,
     # photos in flight order, scale transfer), when the counts allow it.
     if not rep.problems:
-        from ..strip.densify import form_strip_stepped
         from ..pipeline import project_options
+        from ..strip.densify import form_strip_stepped
 
         try:
             form_strip_stepped(
@@ -418,8 +418,8 @@ def check(project_file: Path, out: Path | None) -> None:
     """
     import warnings
 
-    from ..project import loader as config
     from ..errors import StripAerotriWarning
+    from ..project import loader as config
 
     echo_progress(f"loading {project_file}")
     with warnings.catch_warnings(record=True) as caught:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import click
 
+from ..options import FlightDirection
 from .options import common_options, echo_result, echo_warning
 
 __all__ = ["import_group"]
@@ -82,7 +83,7 @@ def _shared(func):
         ),
         click.option(
             "--flight-direction",
-            type=click.Choice(["auto", "+x", "-x", "+y", "-y"]),
+            type=click.Choice(["auto", *(d.value for d in FlightDirection)]),
             default="auto",
             show_default=True,
             help="Image axis along the flight; auto decides it from the shift of the points "

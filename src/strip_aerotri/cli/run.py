@@ -172,8 +172,8 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
       stripaero -q run strip.toml            # no progress messages
     """
     from .. import pipeline
-    from ..project import loader as config
     from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+    from ..project import loader as config
     from ..report.files import ResultFolder
 
     started = time.perf_counter()

@@ -8,7 +8,7 @@ import click
 
 from .options import DOCS_EPILOG, common_options, echo_progress, echo_result
 
-__all__ = ["CAMERA_NAMES", "PRESET_NAMES", "simulate"]
+__all__ = ["CAMERA_NAMES", "CONTROL_LAYOUTS", "PRESET_NAMES", "simulate"]
 
 PRESET_NAMES = ("film", "drone", "corridor")
 """Names of :data:`strip_aerotri.simulate.PRESETS` (listed here so that --help
@@ -19,6 +19,9 @@ PROJECT_FILES = ("strip.toml", "image_points.csv", "control.csv")
 
 CAMERA_NAMES = ("film88", "film152", "film210", "ff35", "apsc16", "oneinch")
 """Names of :data:`strip_aerotri.simulate.CAMERAS` (listed here for --help)."""
+
+CONTROL_LAYOUTS = ("ends", "fig4", "every_k_models", "dense", "weak")
+"""The simulator's control layouts (listed here for --help)."""
 
 
 @click.command(epilog=DOCS_EPILOG, short_help="Write a simulated project to try the tool.")
@@ -126,7 +129,7 @@ CAMERA_NAMES = ("film88", "film152", "film210", "ff35", "apsc16", "oneinch")
 @click.option(
     "--control",
     "control_layout",
-    type=click.Choice(["ends", "fig4", "every_k_models", "dense", "weak"]),
+    type=click.Choice(CONTROL_LAYOUTS),
     default="ends",
     show_default=True,
     help="Control layout.",

@@ -54,9 +54,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._banded import BandedNormals
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import GeometryError, StripAerotriWarning
+from ..options import check_sections
+from ._banded import BandedNormals
 from .similarity import (
     RowSupport,
     _check_ids,
@@ -142,17 +143,6 @@ def polynomial_terms(x: ArrayLike, y: ArrayLike, kind: int) -> FloatArray:
     if k == 0:
         return np.zeros((*x_arr.shape, 0))
     return np.stack(columns[: _N_TERMS[k]], axis=-1)
-
-
-def check_sections(sections: object) -> int:
-    """``sections`` as an int, ValueError unless it is an integer >= 1."""
-    if (
-        isinstance(sections, bool)
-        or not isinstance(sections, int | np.integer)
-        or int(sections) < 1
-    ):
-        raise ValueError(f"Expected sections to be an integer >= 1, got {sections!r}")
-    return int(sections)
 
 
 def _bspline_nonzero(

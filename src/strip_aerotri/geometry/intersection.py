@@ -7,12 +7,12 @@ units of the given base.
 
 from __future__ import annotations
 
-from enum import Enum
 from typing import NamedTuple
 
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray
+from ..options import IntersectionMethod
 
 __all__ = [
     "Intersection",
@@ -21,13 +21,6 @@ __all__ = [
     "intersect_midpoint",
     "intersect_normal",
 ]
-
-
-class IntersectionMethod(str, Enum):
-    """Space intersection formula: J(12) midpoint or B(138) normal case."""
-
-    MIDPOINT = "midpoint"
-    NORMAL = "normal"
 
 
 class Intersection(NamedTuple):

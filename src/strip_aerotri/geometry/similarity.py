@@ -36,6 +36,7 @@ import numpy as np
 from .._rows import add_to_columns
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+from ..options import DEFAULT_MAX_ITERATIONS
 from .rotation import matrix_from_rotvec
 
 __all__ = [
@@ -684,7 +685,7 @@ def fit_similarity(
     sigma_xy: ArrayLike | None = None,
     sigma_z: ArrayLike | None = None,
     point_ids: Sequence[str] | None = None,
-    max_iterations: int = 30,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
     tolerance: float = 1e-12,
     start: SimilarityTransform | None = None,
     served: ArrayLike | None = None,

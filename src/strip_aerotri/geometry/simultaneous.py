@@ -40,6 +40,7 @@ import scipy.sparse.linalg as spl
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError
+from ..options import DEFAULT_MAX_ITERATIONS
 from .rotation import matrix_from_rotvec
 
 __all__ = [
@@ -490,7 +491,7 @@ def adjust_units(
     control_xyz: ArrayLike | None = None,
     control_sigma: ArrayLike | None = None,
     lines: Sequence[LineCondition] = (),
-    max_iterations: int = 20,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
     tolerance: float = 1e-10,
     statistics: bool = True,
 ) -> SimultaneousResult:

@@ -38,21 +38,9 @@ from itertools import pairwise
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..blunders import BlunderOptions, Rejection
-from ..strip.chaining import StripModel
+from ..blunders import Rejection
 from ..errors import GeometryError, StripAerotriWarning
 from ..geodesy import GroundCRS
-from .polynomials import (
-    GroundOptions,
-    GroundResult,
-    LineSpec,
-    _index_of,
-    _make_work,
-    adjust_to_ground,
-    control_detectability,
-    intersect_unmodelled,
-)
-from ..observations import ControlPoints
 from ..geometry.precision import centre_information, ray_information
 from ..geometry.rotation import opk_from_matrix
 from ..geometry.similarity import _validate_control_geometry
@@ -62,6 +50,18 @@ from ..geometry.simultaneous import (
     UnitObservations,
     UnitTransforms,
     adjust_units,
+)
+from ..observations import ControlPoints
+from ..options import BlunderOptions, GroundOptions
+from ..strip.chaining import StripModel
+from .polynomials import (
+    GroundResult,
+    LineSpec,
+    _index_of,
+    _make_work,
+    adjust_to_ground,
+    control_detectability,
+    intersect_unmodelled,
 )
 
 __all__ = ["ModelAdjustment", "adjust_models_to_ground"]
@@ -177,7 +177,12 @@ def adjust_models_to_ground(
             strip,
             control,
             crs,
-            options=GroundOptions(route=options.route, polynomial=0, sections=1),
+            options=GroundOptions(
+                route=options.route,
+                polynomial=0,
+                sections=1,
+                max_iterations=options.max_iterations,
+            ),
             blunders=BlunderOptions(action="off"),
         )
     route = start.route
@@ -263,6 +268,7 @@ def adjust_models_to_ground(
                 control_sigma=sigma[active],
                 lines=conditions,
                 statistics=final,
+                max_iterations=options.max_iterations,
             )
             if final:
                 break

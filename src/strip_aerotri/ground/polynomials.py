@@ -26,7 +26,6 @@ import warnings
 from bisect import bisect_left
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from enum import Enum
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -34,19 +33,16 @@ import numpy as np
 from .._rows import add_to_columns
 from .._stats import MEDIAN_SAMPLE, exact_median, sample_median
 from .._typing import FloatArray, IntArray
-from ..blunders import BlunderOptions, Rejection, robust_variance_factor
-from ..strip.chaining import StripModel
+from ..blunders import Rejection, robust_variance_factor
+from ..errors import GeometryError, StripAerotriWarning
+from ..geodesy import GroundCRS, LocalTangentFrame, enu_rotation, gaussian_mean_radius
 from ..geometry.deformation import (
     DeformationResult,
     KindSelection,
     StraightLine,
-    check_sections,
     fit_deformation,
     select_kind_auto,
 )
-from ..errors import GeometryError, StripAerotriWarning
-from ..geodesy import GroundCRS, LocalTangentFrame, enu_rotation, gaussian_mean_radius
-from ..observations import ControlPoints
 from ..geometry.rotation import matrix_from_rotvec, opk_from_matrix
 from ..geometry.similarity import (
     SimilarityResult,
@@ -54,6 +50,9 @@ from ..geometry.similarity import (
     fit_similarity,
     similarity_from_points,
 )
+from ..observations import ControlPoints, LineSpec
+from ..options import BlunderOptions, Construction, GroundOptions, Route
+from ..strip.chaining import StripModel
 
 __all__ = [
     "Construction",
@@ -83,93 +82,6 @@ _CERTAIN = 3.0
 _FRAME_PROBE_M = np.array(
     [[0.0, 0.0, 0.0], [1000.0, 0.0, 0.0], [0.0, 1000.0, 0.0], [0.0, 0.0, 1000.0]]
 )
-
-
-class Route(str, Enum):
-    """Way from the strip model to the control CRS (method.md §6.2)."""
-
-    GEOCENTRIC = "geocentric"
-    PROJECTED = "projected"
-
-
-@dataclass(frozen=True)
-class LineSpec:
-    """Points on one straight vertical plane along the strip, J(18)."""
-
-    point_ids: tuple[str, ...]
-    weight: float = 100.0
-    name: str = "line"
-
-
-class Construction(str, Enum):
-    """How the strip goes to the ground (the ``block`` key of the project).
-
-    ``MODELS``: every model its own similarity, all at once, tied on their
-    common points and projection centres (R4 §3, PAT-M; ground_models.py).
-    ``STRIPS``: the strip as one body, J's similarity and deformation
-    polynomials (J(16)-(18))."""
-
-    MODELS = "models"
-    STRIPS = "strips"
-
-
-@dataclass(frozen=True)
-class GroundOptions:
-    """Choices of the ground stage.
-
-    Attributes
-    ----------
-    route : {"geocentric", "projected"}, optional
-        Default: geocentric, projected when the CRS is "local".
-    polynomial : int 0..3 or "auto", optional
-        J(16) type of the deformation polynomials (0: similarity only) of
-        the construction ``"strips"``; 3 when not given.
-    sections : int >= 1
-        Sections of equal length along the strip over which the polynomials
-        become splines joined without steps (1: J(16)'s single polynomial;
-        see :mod:`strip_aerotri.deformation`).  A long strip bends beyond
-        one cubic (its error grows as a random walk along the chain); each
-        section needs control of every coordinate.
-    construction : {"models", "strips"}, optional
-        ``"models"``: every model transformed at once (the default);
-        ``"strips"``: the strip as one body with J's polynomials, the
-        default when ``polynomial`` or ``sections`` is given.
-    """
-
-    route: Route | None = None
-    polynomial: int | str | None = None
-    sections: int = 1
-    construction: Construction | None = None
-
-    def __post_init__(self) -> None:
-        if self.route is not None:
-            object.__setattr__(self, "route", Route(self.route))
-        construction = self.construction
-        if construction is None:
-            named = self.polynomial is not None or self.sections != 1
-            construction = Construction.STRIPS if named else Construction.MODELS
-        construction = Construction(construction)
-        object.__setattr__(self, "construction", construction)
-        if construction is Construction.MODELS and (
-            self.polynomial not in (None, 0) or self.sections != 1
-        ):
-            raise ValueError(
-                "Expected no polynomial and no sections with construction 'models' (every "
-                "model has its own similarity); use construction 'strips' for J's polynomials"
-            )
-        if self.polynomial is None:
-            object.__setattr__(self, "polynomial", 3)
-        poly = self.polynomial
-        if isinstance(poly, str):
-            if poly.lower() != "auto":
-                raise ValueError(f"Expected polynomial 0, 1, 2, 3 or 'auto', got {poly!r}")
-            object.__setattr__(self, "polynomial", "auto")
-        elif int(poly) not in (0, 1, 2, 3):
-            raise ValueError(f"Expected polynomial 0, 1, 2, 3 or 'auto', got {poly!r}")
-        sections = check_sections(self.sections)
-        if sections > 1 and poly == 0:
-            raise ValueError("Expected polynomial 1, 2, 3 or 'auto' with sections > 1, got 0")
-        object.__setattr__(self, "sections", sections)
 
 
 @dataclass(frozen=True)
@@ -700,6 +612,7 @@ def adjust_to_ground(
                 point_ids=act_ids,
                 start=None if last_fit is None else _carried(*last_fit, work),
                 served=served,
+                max_iterations=options.max_iterations,
             )
             last_fit = (sim.transform, work)
             axis = sim.transform.apply(np.vstack([first, last]))

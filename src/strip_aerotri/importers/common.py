@@ -1331,7 +1331,7 @@ def assemble(
         notes.append(
             f"{n_full} full control point(s): the adjustment of every model at once (the "
             "default) needs two in plan and three in height and tests them only with more; "
-            "J's polynomials (block = \"strips\") need more still (docs/ground.md)"
+            'J\'s polynomials (block = "strips") need more still (docs/ground.md)'
         )
 
     if gnss is not None:

@@ -25,34 +25,63 @@ import tomllib
 import warnings as _warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal, Self
+from typing import Any, Literal
 
 import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
-from ..blunders import STAGES, BlunderOptions
 from ..errors import ConfigError, ConvergenceError, GeometryError, StripAerotriWarning
 from ..interior import (
-    DEFAULT_DIFFERENCE_TOLERANCE,
-    DEFAULT_SCALE_TOLERANCE,
     BrownDistortion,
-    DistortionModel,
-    DistortionUnits,
     FiducialFit,
-    FiducialTransform,
-    FlightDirection,
-    ImageUnits,
     fit_fiducial_transforms,
     mm_from_pixel,
     reduce_image_coordinates,
 )
-from ..observations import ControlPoints, ControlType, ImageObservations
+from ..observations import (
+    ControlPoints,
+    ControlType,
+    GnssCentres,
+    ImageObservations,
+    ImuAttitudes,
+    LineSpec,
+)
+from ..options import (
+    DEFAULT_DIFFERENCE_TOLERANCE,
+    DEFAULT_GNSS_SIGMA_XY_M,
+    DEFAULT_GNSS_SIGMA_Z_M,
+    DEFAULT_IMAGE_SIGMA_MM,
+    DEFAULT_IMU_SIGMA_DEG,
+    DEFAULT_LINE_WEIGHT,
+    DEFAULT_MAX_ITERATIONS,
+    DEFAULT_MIN_BASE_TO_HEIGHT,
+    DEFAULT_PHOTO_STEP,
+    DEFAULT_POLYNOMIAL,
+    DEFAULT_SCALE_TOLERANCE,
+    DEFAULT_SECTIONS,
+    DEFAULT_SIGMA_H_M,
+    DEFAULT_SIGMA_XY_M,
+    STAGES,
+    AdjustmentOptions,
+    BlunderAction,
+    BlunderOptions,
+    Construction,
+    DistortionModel,
+    DistortionUnits,
+    FiducialTransform,
+    FlightDirection,
+    ImageOptions,
+    ImageUnits,
+    IntersectionMethod,
+    OptionEnum,
+    Refine,
+    RelativeOrientationMethod,
+    ReportOptions,
+    Route,
+    ScaleTransfer,
+)
 from ..plausibility import image_coordinate_problems
-
-if TYPE_CHECKING:  # refine pulls in the whole adjustment: imported when a table needs it
-    from ..bundle.refine import GnssCentres, ImuAttitudes
 
 __all__ = [
     "CONTROL_COLUMNS",
@@ -83,103 +112,11 @@ __all__ = [
 ]
 
 
-# --------------------------------------------------------------------------- enums
-
-
-class _OptionEnum(StrEnum):
-    """String option of the project file, matched case-insensitively."""
-
-    @classmethod
-    def create(cls, value: object) -> Self:
-        """Member for ``value`` (a member or a case-insensitive string).
-
-        Raises
-        ------
-        ValueError
-            If ``value`` names no member; the message lists the valid values.
-        """
-        if isinstance(value, cls):
-            return value
-        if isinstance(value, str):
-            member = cls._missing_(value)
-            if member is not None:
-                return member
-        raise ValueError(f"invalid value {value!r}; valid values: {cls.valid_values()}")
-
-    @classmethod
-    def _missing_(cls, value: object) -> Self | None:
-        if isinstance(value, str):
-            wanted = value.strip().lower()
-            for member in cls:
-                if member.value == wanted:
-                    return member
-        return None
-
-    @classmethod
-    def valid_values(cls) -> str:
-        """The valid values as ``"a", "b"`` for messages."""
-        return ", ".join(f'"{m.value}"' for m in cls)
-
-
-class Refine(_OptionEnum):
-    """Optional final step (``[adjustment] refine``)."""
-
-    NONE = "none"
-    BUNDLE = "bundle"
-
-
-class BlunderAction(_OptionEnum):
-    """What the gross-error tests do (``[blunders] action``)."""
-
-    REJECT = "reject"
-    REPORT = "report"
-    OFF = "off"
-
-
-class Route(_OptionEnum):
-    """How the strip reaches the ground system (method.md section 6.2)."""
-
-    GEOCENTRIC = "geocentric"
-    """Intermediate local-tangent system at the control centroid, B(142)-(152)."""
-    PROJECTED = "projected"
-    """Similarity directly to the map grid with the earth-curvature term B(153) (J)."""
-
-
-class RelativeOrientation(_OptionEnum):
-    """Parametrisation of the dependent relative orientation (method.md section 3)."""
-
-    DEPENDENT = "dependent"
-    """Base components b_y, b_z and Schut's a, b, c of the right photo (J(5)-(10))."""
-    BASE = "base"
-    """B's rotation-only elements alpha'1, chi'1, alpha'2, omega'2, chi'2 (B(125)-(135))."""
-
-
-class Block(_OptionEnum):
-    """How the strip goes to the ground (``[adjustment] block``, method.md §6A)."""
-
-    MODELS = "models"
-    """Every model its own similarity, all at once, tied on common points and
-    projection centres (R4 §3, PAT-M)."""
-    STRIPS = "strips"
-    """The strip as one body: J's similarity and deformation polynomials."""
-
-
-class Intersection(_OptionEnum):
-    """Model point formation (method.md section 4)."""
-
-    MIDPOINT = "midpoint"
-    """Middle of the shortest y-parallel vector between the rays (J(11)-(12))."""
-    NORMAL = "normal"
-    """Normal-case reduction to horizontal photos (B(137)-(138))."""
-
-
-class ScaleTransfer(_OptionEnum):
-    """Scaling of each new model to the previous one (method.md section 5)."""
-
-    Z = "z"
-    """Least squares on the Z components of the tie points (J(15))."""
-    DISTANCE = "distance"
-    """Ratio of distances from the common projection centre (B(139)-(140))."""
+# The loader's former names of three option enums.
+RelativeOrientation = RelativeOrientationMethod
+Intersection = IntersectionMethod
+Block = Construction
+StraightLineSpec = LineSpec
 
 
 # --------------------------------------------------------------------------- key list
@@ -255,7 +192,7 @@ class KeySpec:
             return self.default_text
         if isinstance(self.default, tuple):
             return "[" + ", ".join(repr(v) for v in self.default) + "]"
-        if isinstance(self.default, StrEnum):
+        if isinstance(self.default, OptionEnum):
             return f'"{self.default.value}"'
         return "none" if self.default is None else repr(self.default)
 
@@ -288,18 +225,6 @@ PROJECT_TABLES: tuple[TableSpec, ...] = (
 )
 _TABLES_BY_NAME = {t.name: t for t in PROJECT_TABLES}
 
-DEFAULT_IMAGE_SIGMA_MM = 0.005
-DEFAULT_SIGMA_XY_M = 0.02
-DEFAULT_SIGMA_H_M = 0.03
-DEFAULT_LINE_WEIGHT = 100.0
-DEFAULT_MAX_ITERATIONS = 50
-DEFAULT_POLYNOMIAL = 3
-DEFAULT_SECTIONS = 1
-DEFAULT_PHOTO_STEP = 1
-DEFAULT_MIN_BASE_TO_HEIGHT = 0.3  # densify.DEFAULT_MIN_BASE_TO_HEIGHT
-DEFAULT_GNSS_SIGMA_XY_M = 0.05
-DEFAULT_GNSS_SIGMA_Z_M = 0.08
-DEFAULT_IMU_SIGMA_DEG = 0.005
 
 # fmt: off
 PROJECT_KEYS: tuple[KeySpec, ...] = (
@@ -508,14 +433,14 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
     ),
     KeySpec(
         "adjustment", "relative_orientation", "choice", required=False,
-        default=RelativeOrientation.DEPENDENT, unit="",
+        default=RelativeOrientationMethod.DEPENDENT, unit="",
         description='"dependent" (b_y, b_z and Schut a, b, c; J) or "base" '
         "(B's five angles).",
         default_text='"dependent"',
     ),
     KeySpec(
         "adjustment", "intersection", "choice", required=False,
-        default=Intersection.MIDPOINT, unit="",
+        default=IntersectionMethod.MIDPOINT, unit="",
         description='"midpoint" (J(12)) or "normal" (B(138)).',
         default_text='"midpoint"',
     ),
@@ -673,13 +598,13 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
 )
 # fmt: on
 
-_ENUM_OF_KEY: dict[tuple[str, str], type[StrEnum]] = {
+_ENUM_OF_KEY: dict[tuple[str, str], type[OptionEnum]] = {
     ("blunders", "action"): BlunderAction,
     ("adjustment", "refine"): Refine,
     ("adjustment", "route"): Route,
-    ("adjustment", "block"): Block,
-    ("adjustment", "relative_orientation"): RelativeOrientation,
-    ("adjustment", "intersection"): Intersection,
+    ("adjustment", "block"): Construction,
+    ("adjustment", "relative_orientation"): RelativeOrientationMethod,
+    ("adjustment", "intersection"): IntersectionMethod,
     ("adjustment", "scale_transfer"): ScaleTransfer,
     ("images", "units"): ImageUnits,
     ("images", "flight_direction"): FlightDirection,
@@ -771,97 +696,6 @@ class Camera:
 
 
 @dataclass(frozen=True)
-class StraightLineSpec:
-    """Points on one straight vertical plane along the strip (J(18)).
-
-    Attributes
-    ----------
-    point_ids : tuple of str
-        Ids of the points, each observed and none a control point.
-    weight : float
-        Weight of the line equations relative to control of weight 1.
-    name : str
-        Name for reports.
-    """
-
-    point_ids: tuple[str, ...]
-    weight: float
-    name: str
-
-
-@dataclass(frozen=True)
-class AdjustmentOptions:
-    """Method variants chosen in ``[adjustment]`` (method.md sections 3-6).
-
-    Attributes
-    ----------
-    route : Route
-    polynomial : int (0..3) or ``"auto"``
-    sections : int
-        Sections along the strip of the deformation polynomials (1: J(16)).
-    block : Block
-        ``MODELS`` (every model at once) or ``STRIPS`` (J's polynomials);
-        the loader resolves the default (``STRIPS`` when the project names a
-        polynomial or sections).
-    relative_orientation : RelativeOrientation
-    intersection : Intersection
-    scale_transfer : ScaleTransfer
-    max_iterations : int
-    photo_step : int or ``"auto"``
-        Models on every k-th photo (``strip_aerotri.densify``); 1: every photo.
-    min_base_to_height : float
-        Target of ``photo_step = "auto"``.
-    """
-
-    route: Route = Route.GEOCENTRIC
-    polynomial: int | Literal["auto"] = DEFAULT_POLYNOMIAL
-    sections: int = DEFAULT_SECTIONS
-    relative_orientation: RelativeOrientation = RelativeOrientation.DEPENDENT
-    intersection: Intersection = Intersection.MIDPOINT
-    scale_transfer: ScaleTransfer = ScaleTransfer.Z
-    max_iterations: int = DEFAULT_MAX_ITERATIONS
-    photo_step: int | Literal["auto"] = DEFAULT_PHOTO_STEP
-    min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT
-    refine: Refine = Refine.NONE
-    block: Block = Block.MODELS
-
-
-@dataclass(frozen=True)
-class ImageOptions:
-    """How the measured image coordinates were given (``[images]``).
-
-    Attributes
-    ----------
-    units : ImageUnits
-        ``"mm"`` (x right, y up) or ``"pixel"`` (column, row; rows down).
-    pixel_size_mm : float or None
-    principal_point_px : ndarray, shape (2,), or None
-        Column and row of the origin for ``"pixel"``.
-    flight_direction : FlightDirection
-        The image axis along the flight; the observations are turned so that
-        x runs along it.
-    """
-
-    units: ImageUnits = ImageUnits.MM
-    pixel_size_mm: float | None = None
-    principal_point_px: FloatArray | None = None
-    flight_direction: FlightDirection = FlightDirection.PLUS_X
-
-
-@dataclass(frozen=True)
-class ReportOptions:
-    """Options of ``[report]``.
-
-    Attributes
-    ----------
-    map_scale : float or None
-        Map scale denominator (5000 for 1:5000) for tolerance verdicts.
-    """
-
-    map_scale: float | None = None
-
-
-@dataclass(frozen=True)
 class Project:
     """A validated project: everything a run needs, in library units.
 
@@ -881,7 +715,7 @@ class Project:
         Control and check points observed on at least one photo.
     crs : str
         ``[control] crs`` as given (``"local"`` in lower case).
-    straight_lines : tuple of StraightLineSpec
+    straight_lines : tuple of LineSpec
     adjustment : AdjustmentOptions
     output_directory : Path or None
         ``[output] directory`` joined to the project folder.
@@ -915,7 +749,7 @@ class Project:
     observations: ImageObservations
     control: ControlPoints
     crs: str
-    straight_lines: tuple[StraightLineSpec, ...]
+    straight_lines: tuple[LineSpec, ...]
     adjustment: AdjustmentOptions
     output_directory: Path | None
     warnings: tuple[str, ...]
@@ -1027,12 +861,12 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
     if kind == "choice":
         enum = _ENUM_OF_KEY[(spec.table, spec.key)]
         if isinstance(value, str):
-            wanted = value.strip().lower()
-            for member in enum:
-                if member.value == wanted:
-                    return member
-        valid = ", ".join(f'"{m.value}"' for m in enum)
-        raise ConfigError(f"{where}: expected one of {valid} (any case), got {_describe(value)}")
+            member = enum._missing_(value)
+            if member is not None:
+                return member
+        raise ConfigError(
+            f"{where}: expected one of {enum.valid_values()} (any case), got {_describe(value)}"
+        )
     if kind == "number":
         if not _is_number(value) or not math.isfinite(value):  # type: ignore[arg-type]
             raise ConfigError(f"{where}: expected a finite number, got {_describe(value)}")
@@ -1702,7 +1536,6 @@ def _load_gnss(
     notes: list[str],
 ) -> GnssCentres:
     """Read the GNSS centres CSV (``[gnss] file``)."""
-    from ..bundle.refine import GnssCentres
 
     table = _read_csv(path, GNSS_COLUMNS, "[gnss] file")
     if table.n_rows == 0:
@@ -1721,7 +1554,6 @@ def _load_imu(
     path: Path, photo_ids: tuple[str, ...], imu: dict[str, object], notes: list[str]
 ) -> ImuAttitudes:
     """Read the IMU attitudes CSV (``[imu] file``), degrees in the file, radians out."""
-    from ..bundle.refine import ImuAttitudes
 
     table = _read_csv(path, IMU_COLUMNS, "[imu] file")
     if table.n_rows == 0:
@@ -2020,7 +1852,7 @@ def load_project(path: str | Path) -> Project:
             )
         names_seen[line_name] = i
         straight_lines.append(
-            StraightLineSpec(points, float(raw["weight"]), line_name)  # type: ignore[arg-type]
+            LineSpec(points, float(raw["weight"]), line_name)  # type: ignore[arg-type]
         )
 
     polynomial: int | Literal["auto"] = adjustment["polynomial"]  # type: ignore[assignment]
@@ -2034,8 +1866,8 @@ def load_project(path: str | Path) -> Project:
     named = [key for key in ("polynomial", "sections") if key in raw_adjustment]
     block = adjustment["block"]
     if block is None:
-        block = Block.STRIPS if named else Block.MODELS
-    elif block is Block.MODELS and named:
+        block = Construction.STRIPS if named else Construction.MODELS
+    elif block is Construction.MODELS and named:
         raise ConfigError(
             f'{toml_path}: [adjustment] {named[0]}: applies to block = "strips" (J\'s '
             'polynomials); with block = "models" every model has its own similarity. Remove '
@@ -2105,7 +1937,7 @@ def _blunder_options(toml_path: Path, table: dict[str, object]) -> BlunderOption
         if table[stage] is not None
     }
     return BlunderOptions(
-        action=str(table["action"].value),  # type: ignore[union-attr]
+        action=BlunderAction.create(table["action"]),
         alpha=alpha,
         critical_values=critical,
         max_fraction=fraction,

@@ -20,10 +20,10 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from .files import format_photos_csv, format_points_csv
-from ..observations import ControlType
-from .tolerances import tolerance_verdicts
 from ..geometry.rotation import opk_from_matrix
+from ..observations import ControlType
+from .files import format_photos_csv, format_points_csv
+from .tolerances import tolerance_verdicts
 
 __all__ = [
     "REPORT_FORMAT",

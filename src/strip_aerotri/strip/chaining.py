@@ -16,73 +16,20 @@ import numpy as np
 
 from .._stats import sample_median
 from .._typing import ArrayLike, FloatArray, IntArray
-from ..blunders import BlunderOptions, Rejection, robust_variance_factor
+from ..blunders import Rejection, robust_variance_factor
 from ..errors import GeometryError
 from ..geometry.intersection import (
     Intersection,
-    IntersectionMethod,
     intersect_normal,
     midpoint_along_y_components,
 )
 from ..observations import ImageObservations
+from ..options import BlunderOptions, IntersectionMethod, StripOptions
 from ..plausibility import ray_direction_problems
-from .relative import RelativeOrientation, RelativeOrientationMethod, relative_orientation
-from .scaling import ScaleTransfer, scale_ratios
+from .relative import RelativeOrientation, relative_orientation
+from .scaling import scale_ratios
 
 __all__ = ["StripModel", "StripOptions", "form_strip"]
-
-
-@dataclass(frozen=True)
-class StripOptions:
-    """Choices of strip formation (each named after its source formula).
-
-    Attributes
-    ----------
-    relative_orientation : {"dependent", "base"}
-        J(5)-(10) or B(125)-(136).
-    intersection : {"midpoint", "normal"}
-        J(12) or B(138).
-    scale_transfer : {"z", "distance"}
-        J(15) or B(139)-(140).
-    first_rotation : array_like, shape (3, 3), optional
-        Image -> strip rotation of the first photo (identity: J).
-    first_position : array_like, shape (3,), optional
-        Projection centre of the first photo (origin: J).
-    first_base_length : float, optional
-        Length |b| of the first base (B's base length B, B(135)).  None (the
-        default) is J's choice: the first base's component along the first
-        photo's image x axis is 1 (``b_x = 1`` with ``R_1 = I``).
-    max_iterations, tolerance
-        Of the relative orientation.
-    allow_breaks : bool
-        A model that shares no tie point with the one before (no point on all
-        three photos) is an error (False, J's chain), or a *break* (True): its
-        scale cannot be transferred, it goes on with the same scale (equal
-        bases), and a ground stage that transforms every model on its own
-        (construction "models") takes the models after it from their own
-        control.
-    """
-
-    relative_orientation: RelativeOrientationMethod = RelativeOrientationMethod.DEPENDENT
-    intersection: IntersectionMethod = IntersectionMethod.MIDPOINT
-    scale_transfer: ScaleTransfer = ScaleTransfer.Z
-    first_rotation: FloatArray | None = None
-    first_position: FloatArray | None = None
-    first_base_length: float | None = None
-    max_iterations: int = 30
-    tolerance: float = 1e-11
-    allow_breaks: bool = False
-
-    def __post_init__(self) -> None:
-        object.__setattr__(
-            self, "relative_orientation", RelativeOrientationMethod(self.relative_orientation)
-        )
-        object.__setattr__(self, "intersection", IntersectionMethod(self.intersection))
-        object.__setattr__(self, "scale_transfer", ScaleTransfer(self.scale_transfer))
-        if self.first_base_length is not None and not (
-            np.isfinite(self.first_base_length) and self.first_base_length > 0
-        ):
-            raise ValueError(f"Expected first_base_length > 0, got {self.first_base_length!r}")
 
 
 @dataclass(frozen=True)

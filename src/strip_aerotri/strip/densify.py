@@ -33,12 +33,13 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
-from .chaining import StripModel, StripOptions, form_strip, pair_rows, tie_rows
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..geometry.intersection import intersect
-from ..observations import ImageObservations
-from .relative import relative_orientation
 from ..geometry.rotation import matrix_from_rotvec, skew
+from ..observations import ImageObservations
+from ..options import DEFAULT_MAX_ITERATIONS, DEFAULT_MIN_BASE_TO_HEIGHT, StripOptions
+from .chaining import StripModel, form_strip, pair_rows, tie_rows
+from .relative import relative_orientation
 
 __all__ = [
     "DEFAULT_MIN_BASE_TO_HEIGHT",
@@ -54,12 +55,6 @@ __all__ = [
     "resect",
 ]
 
-#: Default smallest base-to-height ratio of a model for ``photo_step = "auto"``.
-#: 0.3 is about the ratio of a normal-angle film camera at 60 % overlap
-#: (B/H = 0.4 · 230 mm / 210 mm ≈ 0.44) reduced by a third: below it the
-#: height error of a model point grows past ~3 times the plan error
-#: (σ_Z / σ_XY ≈ H / B).
-DEFAULT_MIN_BASE_TO_HEIGHT = 0.3
 _MIN_PAIR_POINTS = 8
 _MIN_TIE_POINTS = 3
 
@@ -316,7 +311,7 @@ def resect(
     rotations: ArrayLike,
     *,
     sigma: ArrayLike | float = 0.005,
-    max_iterations: int = 30,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
     tolerance: float = 1e-12,
     labels: tuple[str, ...] | None = None,
 ) -> Resection:
@@ -546,7 +541,7 @@ def complete_strip(
     strip: StripModel,
     *,
     all_rays: bool = True,
-    max_iterations: int = 30,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
 ) -> StripModel:
     """Orient the photos between the model photos and intersect their points.
 

@@ -28,7 +28,6 @@ image scale in micrometres.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import Enum
 from typing import NamedTuple
 
 import numpy as np
@@ -42,6 +41,7 @@ from ..geometry.rotation import (
     matrix_from_schut,
     schut_from_matrix,
 )
+from ..options import DEFAULT_MAX_ITERATIONS, RelativeOrientationMethod
 
 __all__ = [
     "MIN_POINTS_PER_PAIR",
@@ -95,13 +95,6 @@ _STALL_RTOL = 1e-6
 # number of order 1e10).
 _PIVOT_MIN = 1e-13
 _TRACE_MAX = 1e10
-
-
-class RelativeOrientationMethod(str, Enum):
-    """Formulation of the relative orientation (method.md §3 and §3.1)."""
-
-    DEPENDENT = "dependent"
-    BASE = "base"
 
 
 @dataclass(frozen=True)
@@ -760,7 +753,7 @@ def relative_orientation(
     rotation_first: ArrayLike | None = None,
     sigma_left: ArrayLike | float = 0.005,
     sigma_right: ArrayLike | float = 0.005,
-    max_iterations: int = 30,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
     tolerance: float = 1e-11,
     labels: list[str] | None = None,
     robust: bool = False,

@@ -8,20 +8,12 @@ The functions take the tie points of all models at once.
 
 from __future__ import annotations
 
-from enum import Enum
-
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray
+from ..options import ScaleTransfer
 
 __all__ = ["ScaleTransfer", "scale_ratios", "scale_ratios_distance", "scale_ratios_z"]
-
-
-class ScaleTransfer(str, Enum):
-    """How the scale passes from model to model: J(15) or B(139)-(140)."""
-
-    Z = "z"
-    DISTANCE = "distance"
 
 
 def _prepare(previous: ArrayLike, new: ArrayLike, model: ArrayLike):
