@@ -42,12 +42,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from strip_aerotri.blunders import BlunderOptions
+from strip_aerotri.bundle.refine import refine_bundle
 from strip_aerotri.errors import StripAerotriError
+from strip_aerotri.geometry.rotation import matrix_from_opk
 from strip_aerotri.ground.polynomials import GroundOptions
 from strip_aerotri.observations import ControlPoints, ControlType, ImageObservations
-from strip_aerotri.pipeline import AccuracyStatistics, triangulate
-from strip_aerotri.bundle.refine import refine_bundle
-from strip_aerotri.geometry.rotation import matrix_from_opk
+from strip_aerotri.pipeline import triangulate
+from strip_aerotri.results import AccuracyStatistics
 
 C_MM = 152.87
 SCALE = 8000.0  # 1:8000

@@ -50,11 +50,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from strip_aerotri.blunders import BlunderOptions
-from strip_aerotri.strip.chaining import StripOptions, form_strip, pair_rows
 from strip_aerotri.errors import StripAerotriError, StripAerotriWarning
 from strip_aerotri.ground.polynomials import GroundOptions
 from strip_aerotri.observations import ControlPoints, ControlType, ImageObservations
 from strip_aerotri.pipeline import triangulate
+from strip_aerotri.strip.chaining import StripOptions, form_strip, pair_rows
 
 C_MM = 152.0
 HALF_FORMAT_MM = 115.0

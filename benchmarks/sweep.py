@@ -45,10 +45,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from strip_aerotri.bundle.adjust import bundle_adjust
+from strip_aerotri.bundle.refine import refine_bundle, refine_frame
 from strip_aerotri.geodesy import GroundCRS
 from strip_aerotri.ground.polynomials import LineSpec
 from strip_aerotri.pipeline import triangulate
-from strip_aerotri.bundle.refine import refine_bundle, refine_frame
 from strip_aerotri.simulate import CAMERAS, SimulatedStrip, camera_preset, simulate_strip
 
 

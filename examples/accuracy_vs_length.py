@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from strip_aerotri.strip.chaining import StripOptions, form_strip
 from strip_aerotri.simulate import simulate_strip
+from strip_aerotri.strip.chaining import StripOptions, form_strip
 
 try:  # gross-error tests are off: the study is about random errors alone
     from strip_aerotri.blunders import BlunderOptions

@@ -10,8 +10,8 @@ import pytest
 
 import strip_aerotri as sa
 from strip_aerotri.ground.polynomials import GroundOptions, LineSpec
-from strip_aerotri.pipeline import AccuracyStatistics
 from strip_aerotri.project.loader import load_project
+from strip_aerotri.results import AccuracyStatistics
 
 
 @cache

@@ -14,19 +14,14 @@ import pytest
 
 from strip_aerotri.blunders import BlunderOptions
 from strip_aerotri.bundle.adjust import _collinearity
-from strip_aerotri.bundle.refine import (
-    GnssCentres,
-    ImuAttitudes,
-    RefinedResult,
-    refine_bundle,
-    refine_frame,
-)
+from strip_aerotri.bundle.refine import GnssCentres, ImuAttitudes, refine_bundle, refine_frame
 from strip_aerotri.errors import StripAerotriWarning
 from strip_aerotri.geodesy import GroundCRS, enu_rotation
 from strip_aerotri.geometry.rotation import opk_from_matrix
 from strip_aerotri.ground.polynomials import GroundOptions
 from strip_aerotri.observations import ControlPoints, ControlType
 from strip_aerotri.pipeline import triangulate
+from strip_aerotri.results import RefinedResult
 from strip_aerotri.simulate import simulate_strip
 
 

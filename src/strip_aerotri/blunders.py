@@ -36,8 +36,6 @@ over its four stages in each round.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ._stats import critical_value, sample_median
@@ -47,67 +45,9 @@ from .options import STAGES, BlunderOptions
 __all__ = [
     "STAGES",
     "BlunderOptions",
-    "Rejection",
     "critical_value",
     "robust_variance_factor",
 ]
-
-
-@dataclass(frozen=True)
-class Rejection:
-    """One observation that failed its test.
-
-    Attributes
-    ----------
-    stage : str
-        One of :data:`STAGES`.
-    point : str
-        The point id; ``""`` for a GNSS centre or an IMU attitude.
-    photos : tuple of str
-        The photos involved (a pair, the photos of a model pair, the photo
-        of a GNSS centre or IMU attitude, or none for ground control).
-    component : str
-        What was tested: ``"y-parallax"``, ``"X"``/``"Y"``/``"Z"`` of a tie
-        difference, ``"plan"``/``"height"`` of a control point, ``"line"``,
-        ``"x"``/``"y"`` of an image coordinate, ``"E"``/``"N"``/``"U"`` of a
-        GNSS centre (the component of the largest ``|w|``), ``"about x"``/
-        ``"about y"``/``"about z"`` of an IMU attitude (rotation about the
-        photo's image axis, unit ``"deg"``).
-    residual : float
-        The residual, in ``unit``.
-    unit : str
-    w : float
-        Test value.
-    critical : float
-    applied : bool
-        False when the run only reports (``action = "report"``).
-    effect : str
-        What the rejection did (e.g. sigma0 before and after).
-    """
-
-    stage: str
-    point: str
-    photos: tuple[str, ...]
-    component: str
-    residual: float
-    unit: str
-    w: float
-    critical: float
-    applied: bool
-    effect: str = ""
-
-    def describe(self) -> str:
-        if self.point:
-            where = f" point {self.point!r}"
-            where += f" on {'-'.join(self.photos)}" if self.photos else ""
-        else:  # GNSS centre, IMU attitude: an observation of the photo itself
-            where = f" photo {'-'.join(self.photos)}"
-        verb = "rejected" if self.applied else "would be rejected"
-        return (
-            f"{self.stage}:{where} {verb}: {self.component} residual "
-            f"{self.residual:.4g} {self.unit}, w = {self.w:.2f} > {self.critical:.2f}"
-            + (f" ({self.effect})" if self.effect else "")
-        )
 
 
 def robust_variance_factor(w: FloatArray) -> float:

@@ -11,16 +11,13 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ._typing import FloatArray
-from .blunders import Rejection
 from .errors import GeometryError
 from .geodesy import GroundCRS
-from .ground.polynomials import GroundResult, adjust_to_ground
+from .ground.polynomials import adjust_to_ground
 from .observations import ControlPoints, ImageObservations, LineSpec
 from .options import (
     DEFAULT_MIN_BASE_TO_HEIGHT,
@@ -31,7 +28,7 @@ from .options import (
     StripOptions,
 )
 from .plausibility import control_problems
-from .strip.chaining import StripModel
+from .results import AccuracyStatistics, StripResult
 from .strip.densify import form_strip_stepped
 
 if TYPE_CHECKING:
@@ -40,115 +37,6 @@ if TYPE_CHECKING:
 __all__ = ["AccuracyStatistics", "StripResult", "project_options", "run_project", "triangulate"]
 
 Progress = Callable[[str], None]
-
-
-@dataclass(frozen=True)
-class AccuracyStatistics:
-    """Discrepancies (given minus adjusted) at a set of points, metres.
-
-    ``rmse`` is (E, N, H); ``rmse_plan`` = sqrt(rmse_E² + rmse_N²);
-    ``mean_plan`` the mean plan discrepancy (the figure R4 §1.7.7 limits);
-    ``max_plan``, ``max_height`` the largest absolute ones; counts of points
-    with plan and with height discrepancies.
-    """
-
-    n_plan: int
-    n_height: int
-    rmse: FloatArray
-    rmse_plan: float
-    mean_plan: float
-    max_plan: float
-    max_height: float
-
-    @classmethod
-    def from_residuals(cls, residuals: FloatArray) -> AccuracyStatistics:
-        r = np.asarray(residuals, dtype=np.float64).reshape(-1, 3)
-        plan_ok = np.isfinite(r[:, 0]) & np.isfinite(r[:, 1])
-        h_ok = np.isfinite(r[:, 2])
-        with np.errstate(invalid="ignore"):
-            rmse = np.array(
-                [
-                    np.sqrt(np.mean(r[plan_ok, 0] ** 2)) if plan_ok.any() else np.nan,
-                    np.sqrt(np.mean(r[plan_ok, 1] ** 2)) if plan_ok.any() else np.nan,
-                    np.sqrt(np.mean(r[h_ok, 2] ** 2)) if h_ok.any() else np.nan,
-                ]
-            )
-        plan = np.hypot(r[plan_ok, 0], r[plan_ok, 1])
-        return cls(
-            n_plan=int(plan_ok.sum()),
-            n_height=int(h_ok.sum()),
-            rmse=rmse,
-            rmse_plan=float(np.hypot(rmse[0], rmse[1])),
-            mean_plan=float(plan.mean()) if plan.size else float("nan"),
-            max_plan=float(plan.max()) if plan.size else float("nan"),
-            max_height=float(np.abs(r[h_ok, 2]).max()) if h_ok.any() else float("nan"),
-        )
-
-
-@dataclass(frozen=True)
-class StripResult:
-    """Everything a run produced.
-
-    Attributes
-    ----------
-    strip : StripModel
-        The strip model in the strip system (per pair and per model figures).
-    ground : GroundResult
-        The strip on the ground (similarity, polynomials, points, photos).
-    control : ControlPoints
-    control_statistics, check_statistics : AccuracyStatistics
-        At the control actually used and at the check points.
-    warnings : tuple of str
-        Doubtful but valid findings (control not triangulated, ...).
-    timings : dict
-        Seconds per stage.
-    refined : RefinedResult or None
-        The bundle refinement (:mod:`strip_aerotri.refine`) when asked for;
-        then ``points``, ``photo_centres`` and ``photo_opk`` are its values.
-    """
-
-    strip: StripModel
-    ground: GroundResult
-    control: ControlPoints
-    control_statistics: AccuracyStatistics
-    check_statistics: AccuracyStatistics
-    warnings: tuple[str, ...] = ()
-    timings: dict[str, float] = field(default_factory=dict)
-    refined: Any = None
-
-    @property
-    def photo_ids(self) -> tuple[str, ...]:
-        return self.strip.photo_ids
-
-    @property
-    def rejections(self) -> tuple[Rejection, ...]:
-        """Every observation that failed a blunder test, stage by stage."""
-        return self.strip.rejections + self.ground.rejections
-
-    @property
-    def point_ids(self) -> tuple[str, ...]:
-        return self.strip.observations.point_ids
-
-    @property
-    def points(self) -> FloatArray:
-        """(P, 3) X, Y, H in the control CRS (NaN for points not triangulated);
-        the bundle refinement's when it was run."""
-        return self.ground.points if self.refined is None else self.refined.points
-
-    @property
-    def photo_centres(self) -> FloatArray:
-        """(M, 3) projection centres X, Y, Z in the control CRS."""
-        return self.ground.photo_centres if self.refined is None else self.refined.photo_centres
-
-    @property
-    def photo_opk(self) -> FloatArray:
-        """(M, 3) omega, phi, kappa in radians (image -> local east-north-up)."""
-        return self.ground.photo_opk if self.refined is None else self.refined.photo_opk
-
-    @property
-    def photo_opk_degrees(self) -> FloatArray:
-        """(M, 3) omega, phi, kappa in degrees (image -> local east-north-up)."""
-        return np.degrees(self.photo_opk)
 
 
 def triangulate(

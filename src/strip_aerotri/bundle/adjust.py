@@ -35,6 +35,7 @@ from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
+from ..results import BundleResult
 
 __all__ = ["BundleResult", "bundle_adjust"]
 
@@ -70,88 +71,6 @@ _PHOTO_PARAMETER_NAMES = (
     "rotation about y",
     "rotation about z",
 )
-
-
-@dataclass(frozen=True)
-class BundleResult:
-    """Result of :func:`bundle_adjust`.
-
-    Attributes
-    ----------
-    centres : ndarray, shape (M, 3)
-        Adjusted projection centres in metres (local frame).
-    rotations : ndarray, shape (M, 3, 3)
-        Adjusted rotation matrices, image -> local frame (``l = R @ l_image``).
-    points : ndarray, shape (P, 3)
-        Adjusted point coordinates in metres, in ``observations.point_ids``
-        order.
-    sigma0 : float
-        A posteriori standard deviation of unit weight,
-        ``sqrt(v.T P v / redundancy)`` (NaN when the redundancy is 0).  It is
-        close to 1 when the given standard deviations are right.
-    redundancy : int
-        Number of scalar observations minus number of unknowns.
-    iterations : int
-        Number of accepted Gauss-Newton / Levenberg-Marquardt steps.
-    converged : bool
-        False when ``max_iterations`` was reached first.
-    residuals_mm : ndarray, shape (K, 2)
-        Image residuals ``v = computed - observed`` in mm at the solution
-        (observed + v = adjusted).
-    control_residuals : ndarray, shape (P, 3)
-        ``adjusted - given`` ground coordinates of the control in metres, NaN
-        for components without control.
-    point_std : ndarray, shape (P, 3)
-        Standard deviations of the adjusted points in metres,
-        ``sigma0 * sqrt(diag(N^-1))`` (NaN when not computed).
-    centre_std : ndarray, shape (M, 3)
-        Standard deviations of the adjusted centres in metres.
-    rotation_std : ndarray, shape (M, 3)
-        Standard deviations of the small rotations about the image x, y, z
-        axes in radians.
-    history : ndarray, shape (iterations + 1,)
-        sigma0 at the initial values and after each accepted step.
-    n_observations : int
-        Number of scalar observations: ``2 K`` image coordinates plus the
-        control, GNSS and IMU components used.
-    gnss_residuals : ndarray, shape (M, 3)
-        ``S - S_gnss``: adjusted minus observed projection centre in metres
-        along the frame axes, NaN for components without a GNSS observation.
-    imu_residuals : ndarray, shape (M, 3)
-        ``log(R_imu.T @ R)`` in radians: the rotation vector about the
-        photo's own image x, y, z axes that takes the observed attitude to the
-        adjusted one (``R = R_imu @ exp([e]x)``; adjusted minus observed), NaN
-        for photos without an IMU observation.
-    gnss_residual_cofactor : ndarray, shape (M, 3, 3)
-        Cofactor matrix of the GNSS residuals, ``Q_vv = P^-1 - Q_SS`` in m^2
-        along the frame axes (``Q_SS`` the centre block of ``N^-1``); the
-        redundancy numbers are ``Q_vv[i, i] / sigma_i**2``.  NaN in the rows
-        and columns of components without GNSS, and everywhere when the
-        precision is not computed.
-    imu_residual_cofactor : ndarray, shape (M, 3, 3)
-        Cofactor matrix of the IMU residuals, ``P^-1 - J Q_dd J.T`` in rad^2
-        about the image axes (``J`` the inverse right Jacobian at the
-        solution, ``Q_dd`` the rotation block of ``N^-1``); NaN as above.
-    """
-
-    centres: FloatArray
-    rotations: FloatArray
-    points: FloatArray
-    sigma0: float
-    redundancy: int
-    iterations: int
-    converged: bool
-    residuals_mm: FloatArray
-    control_residuals: FloatArray
-    point_std: FloatArray
-    centre_std: FloatArray
-    rotation_std: FloatArray
-    history: FloatArray
-    n_observations: int
-    gnss_residuals: FloatArray
-    imu_residuals: FloatArray
-    gnss_residual_cofactor: FloatArray
-    imu_residual_cofactor: FloatArray
 
 
 # ----------------------------------------------------------------------------

@@ -32,13 +32,12 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from itertools import pairwise
 
 import numpy as np
 
-from .._typing import FloatArray, IntArray
-from ..blunders import Rejection
+from .._typing import FloatArray
 from ..errors import GeometryError, StripAerotriWarning
 from ..geodesy import GroundCRS
 from ..geometry.precision import centre_information, ray_information
@@ -46,16 +45,14 @@ from ..geometry.rotation import opk_from_matrix
 from ..geometry.similarity import _validate_control_geometry
 from ..geometry.simultaneous import (
     LineCondition,
-    SimultaneousResult,
     UnitObservations,
     UnitTransforms,
     adjust_units,
 )
 from ..observations import ControlPoints
 from ..options import BlunderOptions, GroundOptions
-from ..strip.chaining import StripModel
+from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .polynomials import (
-    GroundResult,
     LineSpec,
     _index_of,
     _make_work,
@@ -69,46 +66,6 @@ __all__ = ["ModelAdjustment", "adjust_models_to_ground"]
 _MAX_PASSES = 8
 _CHI2_3_MEDIAN = 2.365973884375338  # median of chi-square with 3 degrees of freedom
 _PASS_TOLERANCE_M = 1e-5
-
-
-@dataclass(frozen=True)
-class ModelAdjustment:
-    """The simultaneous transformation of the models of a strip.
-
-    Attributes
-    ----------
-    result : SimultaneousResult
-        Units are the models (unit m is model m); points ``0 .. P − 1`` are
-        the strip's points, ``P + j`` the projection centre of photo j.
-    model : ndarray of int, shape (n,)
-        Model of each determination (rows of the strip's ``model_points``
-        that took part; rejected ones left out).
-    point : ndarray of int, shape (n,)
-        Its point.
-    discrepancy : ndarray, shape (n, 3)
-        Its residual, model point minus adjusted point, metres along the
-        work frame (X along the strip, Y left, Z up): the "differences
-        between determinations" of R4 §2.2, after the adjustment.
-    model_rms : ndarray, shape (M, 3)
-        RMS of the discrepancies of each model's points, metres.
-    centre_discrepancy : ndarray, shape (M, 2, 3)
-        Left and right projection centre of each model minus its adjusted
-        position, metres.
-    rejected : tuple of (str, str)
-        (model label, point id) of determinations left out as gross errors.
-    """
-
-    result: SimultaneousResult
-    model: IntArray
-    point: IntArray
-    discrepancy: FloatArray
-    model_rms: FloatArray
-    centre_discrepancy: FloatArray
-    rejected: tuple[tuple[str, str], ...] = ()
-
-    @property
-    def sigma0(self) -> float:
-        return self.result.sigma0
 
 
 def _weights(strip: StripModel, start_transform, sigma_fallback: float):

@@ -10,13 +10,11 @@ position run along the strip.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from .._stats import sample_median
 from .._typing import ArrayLike, FloatArray, IntArray
-from ..blunders import Rejection, robust_variance_factor
+from ..blunders import robust_variance_factor
 from ..errors import GeometryError
 from ..geometry.intersection import (
     Intersection,
@@ -26,124 +24,11 @@ from ..geometry.intersection import (
 from ..observations import ImageObservations
 from ..options import BlunderOptions, IntersectionMethod, StripOptions
 from ..plausibility import ray_direction_problems
-from .relative import RelativeOrientation, relative_orientation
+from ..results import Rejection, RelativeOrientation, StripModel
+from .relative import relative_orientation
 from .scaling import scale_ratios
 
 __all__ = ["StripModel", "StripOptions", "form_strip"]
-
-
-@dataclass(frozen=True)
-class StripModel:
-    """One strip model in the strip system.
-
-    Photo arrays follow ``photo_index`` (the photos that form the models, in
-    strip order); model m is formed by photos m and m + 1 of it.  Arrays with
-    a leading ``n`` axis hold one row per determination of a point in a model
-    (the pair-points of the relative orientation, sorted by model).
-
-    Attributes
-    ----------
-    observations : ImageObservations
-    options : StripOptions
-    photo_index : ndarray of int, shape (n_photos,)
-        Index into ``observations.photo_ids``.
-    centres : ndarray, shape (n_photos, 3)
-        Projection centres, strip system.
-    rotations : ndarray, shape (n_photos, 3, 3)
-        Image -> strip rotations.
-    relative : RelativeOrientation
-    scale : ndarray, shape (n_models,)
-        λ of each model: its base is ``scale * relative.base``.
-    scale_ratio : ndarray, shape (n_models,)
-        λ_m / λ_(m-1) from the tie points (1 for the first model).
-    points : ndarray, shape (n_points, 3)
-        Mean of all determinations of each point of ``observations.point_ids``
-        (NaN for points in no model: seen on one photo only).
-    n_determinations : ndarray of int, shape (n_points,)
-        Number of models that determined each point.
-    model, model_point : ndarray of int, shape (n,)
-        Model and point index of each determination.
-    model_points : ndarray, shape (n, 3)
-        Each determination in the strip system.
-    model_parallax : ndarray, shape (n,)
-        Remaining y-parallax of the rays at the model point, strip units.
-    tie_model, tie_point : ndarray of int, shape (t,)
-        For each tie point of each model m >= 1: the model and the point.
-    tie_difference : ndarray, shape (t, 3)
-        Determination in model m minus determination in model m - 1, strip
-        units (J §3, R4 §2.2: the accuracy criterion of strip formation).
-    tie_count : ndarray of int, shape (n_models,)
-        Tie points used for the scale of each model (0 for the first).
-    tie_rms : ndarray, shape (n_models, 3)
-        RMS of the tie-point differences per model and coordinate (NaN for the
-        first model).
-    model_labels : tuple of str
-        "pair A-B" for each model.
-    rejections : tuple of Rejection
-        Observations that failed the blunder tests of the relative
-        orientation (y-parallaxes) and of the scale transfer (tie-point
-        differences), in the order found.
-    rejected_points : tuple of str
-        Points whose determinations in consecutive models disagree (a failed
-        tie test): left out of the strip model (NaN in ``points``).
-    model_photos : ndarray of int, optional
-        See :attr:`model_photo_positions`.
-    model_rows : ndarray of int, shape (n, 2), optional
-        The observations (rows of ``observations``) on the left and the
-        right photo behind each determination.
-    breaks : ndarray of int
-        Models that share no tie point with the one before
-        (``StripOptions.allow_breaks``): their scale is not transferred.
-    """
-
-    observations: ImageObservations
-    options: StripOptions
-    photo_index: IntArray
-    centres: FloatArray
-    rotations: FloatArray
-    relative: RelativeOrientation
-    scale: FloatArray
-    scale_ratio: FloatArray
-    points: FloatArray
-    n_determinations: IntArray
-    model: IntArray
-    model_point: IntArray
-    model_points: FloatArray
-    model_parallax: FloatArray
-    tie_model: IntArray
-    tie_point: IntArray
-    tie_difference: FloatArray
-    tie_count: IntArray
-    tie_rms: FloatArray
-    model_labels: tuple[str, ...] = field(default=())
-    rejections: tuple[Rejection, ...] = field(default=())
-    rejected_points: tuple[str, ...] = field(default=())
-    model_photos: IntArray | None = None
-    model_rows: IntArray | None = None
-    breaks: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
-
-    @property
-    def model_photo_positions(self) -> IntArray:
-        """Positions in the photo arrays of the photos that form the models:
-        model m is formed by photos ``model_photo_positions[m]`` and
-        ``[m + 1]`` (all photos unless the strip was completed from every
-        k-th photo, :func:`strip_aerotri.densify.complete_strip`)."""
-        if self.model_photos is None:
-            return np.arange(self.photo_index.shape[0], dtype=np.intp)
-        return self.model_photos
-
-    @property
-    def photo_ids(self) -> tuple[str, ...]:
-        return tuple(self.observations.photo_ids[i] for i in self.photo_index)
-
-    @property
-    def n_models(self) -> int:
-        return self.scale.shape[0]
-
-    @property
-    def triangulated(self) -> np.ndarray:
-        """Boolean mask (n_points,) of points determined in at least one model."""
-        return self.n_determinations > 0
 
 
 def pair_rows(

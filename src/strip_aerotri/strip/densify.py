@@ -38,7 +38,8 @@ from ..geometry.intersection import intersect
 from ..geometry.rotation import matrix_from_rotvec, skew
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, DEFAULT_MIN_BASE_TO_HEIGHT, StripOptions
-from .chaining import StripModel, form_strip, pair_rows, tie_rows
+from ..results import StripModel
+from .chaining import form_strip, pair_rows, tie_rows
 from .relative import relative_orientation
 
 __all__ = [

@@ -42,6 +42,7 @@ from ..geometry.rotation import (
     schut_from_matrix,
 )
 from ..options import DEFAULT_MAX_ITERATIONS, RelativeOrientationMethod
+from ..results import RelativeOrientation
 
 __all__ = [
     "MIN_POINTS_PER_PAIR",
@@ -95,83 +96,6 @@ _STALL_RTOL = 1e-6
 # number of order 1e10).
 _PIVOT_MIN = 1e-13
 _TRACE_MAX = 1e10
-
-
-@dataclass(frozen=True)
-class RelativeOrientation:
-    """Relative orientation of a chain of pairs.
-
-    Pair m is formed by photos m and m + 1 of the chain.  Arrays with a
-    leading ``n_pairs`` axis hold one row per pair; arrays with a leading
-    ``n`` axis hold one row per point measured on both photos of a pair (all
-    pairs concatenated, sorted by pair).
-
-    Attributes
-    ----------
-    method : RelativeOrientationMethod
-    base : ndarray, shape (n_pairs, 3)
-        Base vector in the strip system, normalised so that its component
-        along the left photo's image x axis is 1 (J(5)'s ``b_x = 1`` for
-        near-vertical photos of a strip along x; valid for any heading).
-    rotation_left, rotation_right : ndarray, shape (n_pairs, 3, 3)
-        Image -> strip rotations of the two photos; ``rotation_left[m + 1]``
-        equals ``rotation_right[m]``.
-    relative_rotation : ndarray, shape (n_pairs, 3, 3)
-        ``rotation_left.T @ rotation_right``: right image -> left image.
-    elements : ndarray, shape (n_pairs, 5)
-        The five elements of the formulation: ``(b_y, b_z, a, b, c)`` with
-        the base components along the left photo's image y and z axes and the
-        Schut parameters of the relative rotation for ``"dependent"``;
-        ``(alpha1, chi1, alpha2, omega2, chi2)`` in radians, the base-system
-        angles of B(125)-(135), for ``"base"``.
-    iterations : ndarray of int, shape (n_pairs,)
-        Gauss-Newton iterations until the pair's corrections fell below the
-        tolerance.
-    n_points : ndarray of int, shape (n_pairs,)
-    sigma0_um : ndarray, shape (n_pairs,)
-        A posteriori standard deviation of one image coordinate, from the
-        residual y-parallaxes, in µm at image scale (a y-parallax combines two
-        image coordinates, hence the factor 1/√2 against ``rms_parallax_um``).
-    rms_parallax_um, max_parallax_um : ndarray, shape (n_pairs,)
-        RMS and largest absolute residual y-parallax at image scale, µm.
-    pair : ndarray of int, shape (n,)
-        Pair index of each point row.
-    parallax_um : ndarray, shape (n,)
-        Residual y-parallax of each point at the left photo's image scale, µm.
-    history : ndarray
-        Largest absolute y-parallax (µm) among the pairs still iterating, at
-        each evaluation (the first ones on a subsample of large pairs); shows
-        the convergence rate.
-    redundancy_numbers : ndarray, shape (n,)
-        Diagonal of ``I − A (AᵀPA)⁻¹ AᵀP`` for each y-parallax (0..1; they
-        sum to n − 5 per pair): the share of a blunder that shows in its own
-        residual.
-    w_statistic : ndarray, shape (n,)
-        Baarda's w-test of each y-parallax with the a priori sigmas:
-        ``q / sqrt((sigma_left² + sigma_right²) · r)`` at image scale (NaN
-        where r ≈ 0).
-    """
-
-    method: RelativeOrientationMethod
-    base: FloatArray
-    rotation_left: FloatArray
-    rotation_right: FloatArray
-    relative_rotation: FloatArray
-    elements: FloatArray
-    iterations: IntArray
-    n_points: IntArray
-    sigma0_um: FloatArray
-    rms_parallax_um: FloatArray
-    max_parallax_um: FloatArray
-    pair: IntArray
-    parallax_um: FloatArray
-    history: FloatArray
-    redundancy_numbers: FloatArray | None = None
-    w_statistic: FloatArray | None = None
-
-    @property
-    def n_pairs(self) -> int:
-        return self.base.shape[0]
 
 
 def chain_rotations(first: ArrayLike, relative: ArrayLike) -> FloatArray:

@@ -1,0 +1,28 @@
+"""The result types of every stage, typed, importing no stage.
+
+Each stage returns one of these; the pipeline bundles them in a
+:class:`StripResult`.  They depend only on the layers below the stages
+(options, observations, geometry, geodesy), so any stage and the report can
+import them without importing each other.
+"""
+
+from .bundle import BundleResult, FrameRefinement, GnssResiduals, ImuResiduals, RefinedResult
+from .common import AccuracyStatistics, Rejection
+from .ground import GroundResult, ModelAdjustment
+from .run import StripResult
+from .strip import RelativeOrientation, StripModel
+
+__all__ = [
+    "AccuracyStatistics",
+    "BundleResult",
+    "FrameRefinement",
+    "GnssResiduals",
+    "GroundResult",
+    "ImuResiduals",
+    "ModelAdjustment",
+    "RefinedResult",
+    "Rejection",
+    "RelativeOrientation",
+    "StripModel",
+    "StripResult",
+]

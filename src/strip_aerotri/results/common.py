@@ -1,0 +1,111 @@
+"""Results every stage shares: blunder rejections and accuracy figures."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._typing import FloatArray
+
+__all__ = ["AccuracyStatistics", "Rejection"]
+
+
+@dataclass(frozen=True)
+class Rejection:
+    """One observation that failed its test.
+
+    Attributes
+    ----------
+    stage : str
+        One of :data:`STAGES`.
+    point : str
+        The point id; ``""`` for a GNSS centre or an IMU attitude.
+    photos : tuple of str
+        The photos involved (a pair, the photos of a model pair, the photo
+        of a GNSS centre or IMU attitude, or none for ground control).
+    component : str
+        What was tested: ``"y-parallax"``, ``"X"``/``"Y"``/``"Z"`` of a tie
+        difference, ``"plan"``/``"height"`` of a control point, ``"line"``,
+        ``"x"``/``"y"`` of an image coordinate, ``"E"``/``"N"``/``"U"`` of a
+        GNSS centre (the component of the largest ``|w|``), ``"about x"``/
+        ``"about y"``/``"about z"`` of an IMU attitude (rotation about the
+        photo's image axis, unit ``"deg"``).
+    residual : float
+        The residual, in ``unit``.
+    unit : str
+    w : float
+        Test value.
+    critical : float
+    applied : bool
+        False when the run only reports (``action = "report"``).
+    effect : str
+        What the rejection did (e.g. sigma0 before and after).
+    """
+
+    stage: str
+    point: str
+    photos: tuple[str, ...]
+    component: str
+    residual: float
+    unit: str
+    w: float
+    critical: float
+    applied: bool
+    effect: str = ""
+
+    def describe(self) -> str:
+        if self.point:
+            where = f" point {self.point!r}"
+            where += f" on {'-'.join(self.photos)}" if self.photos else ""
+        else:  # GNSS centre, IMU attitude: an observation of the photo itself
+            where = f" photo {'-'.join(self.photos)}"
+        verb = "rejected" if self.applied else "would be rejected"
+        return (
+            f"{self.stage}:{where} {verb}: {self.component} residual "
+            f"{self.residual:.4g} {self.unit}, w = {self.w:.2f} > {self.critical:.2f}"
+            + (f" ({self.effect})" if self.effect else "")
+        )
+
+
+@dataclass(frozen=True)
+class AccuracyStatistics:
+    """Discrepancies (given minus adjusted) at a set of points, metres.
+
+    ``rmse`` is (E, N, H); ``rmse_plan`` = sqrt(rmse_E² + rmse_N²);
+    ``mean_plan`` the mean plan discrepancy (the figure R4 §1.7.7 limits);
+    ``max_plan``, ``max_height`` the largest absolute ones; counts of points
+    with plan and with height discrepancies.
+    """
+
+    n_plan: int
+    n_height: int
+    rmse: FloatArray
+    rmse_plan: float
+    mean_plan: float
+    max_plan: float
+    max_height: float
+
+    @classmethod
+    def from_residuals(cls, residuals: FloatArray) -> AccuracyStatistics:
+        r = np.asarray(residuals, dtype=np.float64).reshape(-1, 3)
+        plan_ok = np.isfinite(r[:, 0]) & np.isfinite(r[:, 1])
+        h_ok = np.isfinite(r[:, 2])
+        with np.errstate(invalid="ignore"):
+            rmse = np.array(
+                [
+                    np.sqrt(np.mean(r[plan_ok, 0] ** 2)) if plan_ok.any() else np.nan,
+                    np.sqrt(np.mean(r[plan_ok, 1] ** 2)) if plan_ok.any() else np.nan,
+                    np.sqrt(np.mean(r[h_ok, 2] ** 2)) if h_ok.any() else np.nan,
+                ]
+            )
+        plan = np.hypot(r[plan_ok, 0], r[plan_ok, 1])
+        return cls(
+            n_plan=int(plan_ok.sum()),
+            n_height=int(h_ok.sum()),
+            rmse=rmse,
+            rmse_plan=float(np.hypot(rmse[0], rmse[1])),
+            mean_plan=float(plan.mean()) if plan.size else float("nan"),
+            max_plan=float(plan.max()) if plan.size else float("nan"),
+            max_height=float(np.abs(r[h_ok, 2]).max()) if h_ok.any() else float("nan"),
+        )
