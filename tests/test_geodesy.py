@@ -16,10 +16,10 @@ import pytest
 from pyproj import CRS, Proj, Transformer
 
 from strip_aerotri.errors import ConfigError, GeometryError
+from strip_aerotri.frames import LocalTangentFrame
 from strip_aerotri.geodesy import (
     MEAN_EARTH_RADIUS,
     GroundCRS,
-    LocalTangentFrame,
     azimuth_from_local_enu,
     earth_curvature_correction,
     enu_rotation,

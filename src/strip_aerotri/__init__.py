@@ -54,7 +54,7 @@ _EXPORTS: dict[str, str] = {
     "IntersectionMethod": "options",
     "KindSelection": "geometry.deformation",
     "LineSpec": "observations",
-    "LocalTangentFrame": "geodesy",
+    "LocalTangentFrame": "frames",
     "OutputError": "report.files",
     "PRESETS": "simulate",
     "Project": "project.loader",

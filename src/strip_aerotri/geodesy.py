@@ -25,14 +25,12 @@ See ``docs/geodesy.md`` for the two routes to the ground and the gotchas.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from pyproj import CRS, Proj, Transformer
 from pyproj.exceptions import CRSError, ProjError
 
-from strip_aerotri._rows import add_to_columns
 from strip_aerotri.errors import ConfigError, GeometryError
 
 if TYPE_CHECKING:
@@ -42,7 +40,6 @@ __all__ = [
     "MEAN_EARTH_RADIUS",
     "EllipsoidParameters",
     "GroundCRS",
-    "LocalTangentFrame",
     "azimuth_from_local_enu",
     "earth_curvature_correction",
     "enu_rotation",
@@ -601,219 +598,6 @@ def azimuth_from_local_enu(vector: ArrayLike) -> FloatArray:
     if np.any(np.hypot(east, north) == 0.0) or not np.all(np.isfinite(arr[..., :2])):
         raise ValueError("Expected `vector` to have a finite, non-zero horizontal component.")
     return np.mod(np.arctan2(east, north), 2.0 * np.pi)
-
-
-def _frame_rotation(latitude: float, longitude: float, azimuth: float) -> FloatArray:
-    """Rows X, Y, Z of the B(143) frame in ECEF ([fix] signs of b1 and a2)."""
-    east, north, up = enu_rotation(latitude, longitude)
-    ca, sa = math.cos(azimuth), math.sin(azimuth)
-    x_axis = north * ca + east * sa
-    y_axis = north * sa - east * ca
-    return np.stack([x_axis, y_axis, up])
-
-
-@dataclass(frozen=True, eq=False)
-class LocalTangentFrame:
-    """The intermediate local tangent system of the geocentric route, B(142)-(144), B(152).
-
-    Origin ``origin_ecef``; Z along the ellipsoid normal at (B0, L0); X
-    horizontal at azimuth A0 (clockwise from north); Y = Z × X, i.e. to the
-    left of X, like the photos' y.  With ``n``, ``e``, ``u`` the north, east,
-    up unit vectors at (B0, L0):
-
-    ``X = n cosA0 + e sinA0``, ``Y = n sinA0 − e cosA0``, ``Z = u``.
-
-    The rows of :attr:`rotation` are X, Y, Z in ECEF, i.e. the rows are
-    (a1, b1, c1), (a2, b2, c2), (a3, b3, c3) of B(143) with the [fix] of
-    method.md §6.2 (signs of b1 and a2), so ``local = (ecef − origin) @ rotation.T``
-    is B(144) and ``ecef = origin + local @ rotation`` is B(152).
-
-    Parameters
-    ----------
-    origin_ecef : array_like, shape (3,)
-        Geocentric origin in metres (need not lie on the ellipsoid: B(142)
-        puts it at the mean of the control's geocentric coordinates).
-    latitude, longitude : float
-        B0, L0 in radians: the normal that defines Z.
-    azimuth : float
-        A0 in radians, direction of the frame's X axis clockwise from north.
-
-    Attributes
-    ----------
-    rotation : ndarray, shape (3, 3)
-        ECEF → local rotation (rows X, Y, Z), computed; read-only.
-    """
-
-    origin_ecef: FloatArray
-    latitude: float
-    longitude: float
-    azimuth: float
-    rotation: FloatArray = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        origin = np.array(self.origin_ecef, dtype=np.float64)
-        if origin.shape != (3,) or not np.all(np.isfinite(origin)):
-            raise ValueError(
-                "Expected `origin_ecef` to be finite with shape (3,), "
-                f"got {np.shape(self.origin_ecef)}."
-            )
-        angles = {}
-        for name in ("latitude", "longitude", "azimuth"):
-            value = float(getattr(self, name))
-            if not math.isfinite(value):
-                raise ValueError(f"Expected `{name}` to be finite, got {value!r}.")
-            angles[name] = value
-        if abs(angles["latitude"]) > math.pi / 2:
-            raise ValueError(f"Expected |latitude| <= pi/2 rad, got {angles['latitude']!r}.")
-        origin.setflags(write=False)
-        rotation = _frame_rotation(angles["latitude"], angles["longitude"], angles["azimuth"])
-        rotation.setflags(write=False)
-        object.__setattr__(self, "origin_ecef", origin)
-        for name, value in angles.items():
-            object.__setattr__(self, name, value)
-        object.__setattr__(self, "rotation", rotation)
-
-    # ----------------------------------------------------------- constructors
-
-    @classmethod
-    def at(
-        cls,
-        latitude: float,
-        longitude: float,
-        height: float,
-        azimuth: float,
-        *,
-        crs: GroundCRS,
-        degrees: bool = False,
-    ) -> LocalTangentFrame:
-        """Frame with its origin at a geodetic point of the CRS's datum.
-
-        Parameters
-        ----------
-        latitude, longitude : float
-            Origin's geodetic latitude and longitude (radians unless ``degrees``).
-        height : float
-            Origin's ellipsoidal height in metres.
-        azimuth : float
-            A0, X axis clockwise from north (radians unless ``degrees``).
-        crs : GroundCRS
-            Supplies the datum (ellipsoid); the origin is converted by pyproj.
-        degrees : bool, optional
-            Angles in degrees.
-
-        Returns
-        -------
-        LocalTangentFrame
-        """
-        lat = float(_angle(latitude, "latitude", degrees))
-        lon = float(_angle(longitude, "longitude", degrees))
-        az = float(_angle(azimuth, "azimuth", degrees))
-        origin = GroundCRS.from_user_input(crs).geodetic2ecef([lat, lon, float(height)])
-        return cls(origin, lat, lon, az)
-
-    @classmethod
-    def from_ecef_centroid(
-        cls, ecef: ArrayLike, azimuth: float, *, crs: GroundCRS, degrees: bool = False
-    ) -> LocalTangentFrame:
-        """Frame at the centroid of geocentric points, B(142).
-
-        The origin is the mean of the geocentric coordinates; B0, L0 are the
-        geodetic latitude and longitude of that mean point (B(142) averages
-        the points' B and L instead; over a strip the two differ by far less
-        than the control's accuracy).
-
-        Parameters
-        ----------
-        ecef : array_like, shape (N, 3)
-            Geocentric coordinates (metres) of the points, all finite, N >= 1.
-        azimuth : float
-            A0 (radians unless ``degrees``).
-        crs : GroundCRS
-            Supplies the datum for B0, L0.
-        degrees : bool, optional
-            ``azimuth`` in degrees.
-
-        Returns
-        -------
-        LocalTangentFrame
-        """
-        arr = _as_rows(ecef, "ecef").reshape(-1, 3)
-        if arr.shape[0] == 0:
-            raise ValueError("Expected `ecef` to hold at least one point, got none.")
-        if not np.all(np.isfinite(arr)):
-            bad = int(np.count_nonzero(~np.all(np.isfinite(arr), axis=1)))
-            raise ValueError(f"Expected `ecef` to be finite, got {bad} row(s) with NaN or inf.")
-        origin = arr.mean(axis=0)
-        lat, lon, _ = GroundCRS.from_user_input(crs).ecef2geodetic(origin)
-        return cls(origin, float(lat), float(lon), float(_angle(azimuth, "azimuth", degrees)))
-
-    def with_azimuth(self, azimuth: float, *, degrees: bool = False) -> LocalTangentFrame:
-        """The same origin and normal with another X-axis azimuth."""
-        return LocalTangentFrame(
-            self.origin_ecef,
-            self.latitude,
-            self.longitude,
-            float(_angle(azimuth, "azimuth", degrees)),
-        )
-
-    # ----------------------------------------------------------- mappings
-
-    def ecef2local(self, ecef: ArrayLike) -> FloatArray:
-        """Geocentric → frame coordinates, B(144): ``(ecef − origin) @ rotation.T``.
-
-        Parameters
-        ----------
-        ecef : array_like, shape (..., 3)
-            Geocentric coordinates in metres.
-
-        Returns
-        -------
-        ndarray, shape (..., 3)
-            X (along A0), Y (left of X), Z (up along the origin's normal), metres.
-        """
-        arr = np.array(_as_rows(ecef, "ecef"))  # a copy: the origin is taken off in place
-        return add_to_columns(arr, -self.origin_ecef) @ self.rotation.T
-
-    def local2ecef(self, local: ArrayLike) -> FloatArray:
-        """Frame → geocentric coordinates, B(152): ``origin + local @ rotation``.
-
-        Parameters
-        ----------
-        local : array_like, shape (..., 3)
-            Frame coordinates in metres.
-
-        Returns
-        -------
-        ndarray, shape (..., 3)
-            Geocentric coordinates in metres.
-        """
-        arr = _as_rows(local, "local")
-        return add_to_columns(arr @ self.rotation, self.origin_ecef)
-
-    @property
-    def enu2local(self) -> FloatArray:
-        """Rotation (3, 3) from east, north, up at (B0, L0) to the frame: ``local = M @ enu``.
-
-        Rows are X = (sinA0, cosA0, 0), Y = (−cosA0, sinA0, 0), Z = (0, 0, 1).
-        """
-        ca, sa = math.cos(self.azimuth), math.sin(self.azimuth)
-        return np.array([[sa, ca, 0.0], [-ca, sa, 0.0], [0.0, 0.0, 1.0]])
-
-    def azimuth_of(self, direction: ArrayLike) -> FloatArray:
-        """Azimuth (rad, clockwise from north, [0, 2π)) of a direction given in the frame.
-
-        Parameters
-        ----------
-        direction : array_like, shape (..., 2) or (..., 3)
-            Frame components (X, Y[, Z]); Z is ignored.
-
-        Returns
-        -------
-        ndarray, shape (...)
-        """
-        arr = _as_rows(direction, "direction", (2, 3))
-        enu = arr[..., :2] @ self.enu2local[:2, :2]
-        return azimuth_from_local_enu(enu)
 
 
 # --------------------------------------------------------------------------- curvature

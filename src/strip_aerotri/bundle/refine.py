@@ -42,7 +42,7 @@ import numpy as np
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
 from ..errors import GeometryError, StripAerotriWarning
-from ..geodesy import GroundCRS, LocalTangentFrame, enu_rotation
+from ..frames import LocalTangentFrame, TangentWorkFrame, enu_residuals
 from ..geometry.rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
 from ..observations import ControlPoints, GnssCentres, ImageObservations, ImuAttitudes
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions
@@ -85,62 +85,15 @@ _MIN_PHOTO_FACTOR = 0.05
 # --------------------------------------------------------------------------- frame
 
 
-class _Frame:
-    """CRS <-> Cartesian adjustment frame (a local tangent frame, or the site system)."""
-
-    def __init__(self, crs: GroundCRS, frame: LocalTangentFrame | None, description: str):
-        self.crs = crs
-        self.frame = frame
-        self.description = description
-
-    @property
-    def curved(self) -> bool:
-        return self.frame is not None
-
-    def to_frame(self, xyh: FloatArray) -> FloatArray:
-        if self.frame is None:
-            return np.array(xyh, dtype=np.float64)
-        return self.frame.ecef2local(self.crs.to_ecef(xyh))
-
-    def from_frame(self, xyz: FloatArray) -> FloatArray:
-        if self.frame is None:
-            return np.array(xyz, dtype=np.float64)
-        return self.crs.from_ecef(self.frame.local2ecef(xyz))
-
-    def enu2frame(self, centres_xyh: FloatArray) -> FloatArray:
-        """Rotations (M, 3, 3) from local east-north-up at each centre to the frame."""
-        m = centres_xyh.shape[0]
-        if self.frame is None:
-            return np.broadcast_to(np.eye(3), (m, 3, 3)).copy()
-        llh = self.crs.to_geodetic(centres_xyh)
-        enu = enu_rotation(llh[:, 0], llh[:, 1])  # ECEF -> ENU
-        return self.frame.rotation @ np.swapaxes(enu, 1, 2)
-
-    def residuals(self, given_xyh: FloatArray, adjusted_xyh: FloatArray) -> FloatArray:
-        """Given minus adjusted along E, N, H in metres (rows with NaN give NaN).
-
-        Projected CRSs and ``"local"``: differences of the CRS coordinates
-        (grid metres).  Geographic CRSs: the ECEF difference rotated into east,
-        north, up at the adjusted point.
-        """
-        if self.crs.is_local or not self.crs.is_geographic:
-            return given_xyh - adjusted_xyh
-        ok = np.all(np.isfinite(given_xyh), axis=1) & np.all(np.isfinite(adjusted_xyh), axis=1)
-        out = np.full(given_xyh.shape, np.nan)
-        if ok.any():
-            d = self.crs.to_ecef(given_xyh[ok]) - self.crs.to_ecef(adjusted_xyh[ok])
-            llh = self.crs.to_geodetic(adjusted_xyh[ok])
-            out[ok] = np.einsum("nij,nj->ni", enu_rotation(llh[:, 0], llh[:, 1]), d)
-        return out
-
-
-def _frame_for(result: StripResult, control_rows: IntArray, point_index: IntArray) -> _Frame:
+def _frame_for(
+    result: StripResult, control_rows: IntArray, point_index: IntArray
+) -> TangentWorkFrame:
     ground = result.ground
     crs = ground.crs
     if ground.frame is not None:
-        return _Frame(crs, ground.frame, "local tangent frame of the geocentric route")
+        return TangentWorkFrame(crs, ground.frame, "local tangent frame of the geocentric route")
     if crs.is_local:
-        return _Frame(crs, None, 'the site system of crs = "local" (X, Y, H Cartesian)')
+        return TangentWorkFrame(crs, None, 'the site system of crs = "local" (X, Y, H Cartesian)')
     # Projected route with a real CRS: a tangent frame at the control centroid.
     pts = result.points[point_index[control_rows]]
     pts = pts[np.all(np.isfinite(pts), axis=1)]
@@ -148,7 +101,7 @@ def _frame_for(result: StripResult, control_rows: IntArray, point_index: IntArra
     frame0 = LocalTangentFrame.from_ecef_centroid(ecef, 0.0, crs=crs)
     ends = frame0.ecef2local(crs.to_ecef(result.photo_centres[[0, -1]]))
     azimuth = float(frame0.azimuth_of(ends[1] - ends[0]))
-    return _Frame(
+    return TangentWorkFrame(
         crs,
         frame0.with_azimuth(azimuth),
         "local tangent frame at the control centroid, X along the strip",
@@ -985,9 +938,9 @@ def refine_bundle(
     else:
         ok = np.all(np.isfinite(result.points), axis=1)
         points0 = np.full((p, 3), np.nan)
-        points0[ok] = frame.to_frame(result.points[ok])
-        centres0 = frame.to_frame(result.photo_centres)
-        rotations0 = frame.enu2frame(result.photo_centres) @ ground.photo_rotations_enu
+        points0[ok] = frame.to_work(result.points[ok])
+        centres0 = frame.to_work(result.photo_centres)
+        rotations0 = frame.work_from_enu(result.photo_centres) @ ground.photo_rotations_enu
 
     # Control rows -> per-point observations (check points never used).
     rows = np.flatnonzero(has_point)
@@ -1012,7 +965,7 @@ def refine_bundle(
         j = gnss_lookup = _photo_lookup(gnss.photo_ids, obs.photo_ids, "GNSS centres")
         ok = j >= 0
         gnss_xyz = np.full((m, 3), np.nan)
-        gnss_xyz[j[ok]] = frame.to_frame(gnss.xyz[ok])
+        gnss_xyz[j[ok]] = frame.to_work(gnss.xyz[ok])
         gnss_sig = np.full((m, 3), np.inf)
         gnss_sig[j[ok], 0] = gnss_sig[j[ok], 1] = gnss.sigma_xy[ok]
         gnss_sig[j[ok], 2] = gnss.sigma_z[ok]
@@ -1021,11 +974,11 @@ def refine_bundle(
         ok = j >= 0
         imu_rot = np.full((m, 3, 3), np.nan)
         centres_for = result.photo_centres[j[ok]]
-        imu_rot[j[ok]] = frame.enu2frame(centres_for) @ matrix_from_opk(imu.opk[ok])
+        imu_rot[j[ok]] = frame.work_from_enu(centres_for) @ matrix_from_opk(imu.opk[ok])
         imu_sig = np.full((m, 3), np.inf)
         imu_sig[j[ok]] = imu.sigma[ok, None]
     # GNSS test directions: east, north, up at the strip method's centres.
-    gnss_axes = None if gnss is None else frame.enu2frame(result.photo_centres)
+    gnss_axes = None if gnss is None else frame.work_from_enu(result.photo_centres)
     t_frame = time.perf_counter() - t_start
 
     # Passes: complete missing components from the adjusted points, in the frame.
@@ -1045,7 +998,7 @@ def refine_bundle(
         t0 = time.perf_counter()
         filled = np.where(np.isnan(given_crs), adjusted_crs[idx], given_crs)
         control_frame = np.full((p, 3), np.nan)
-        control_frame[idx] = frame.to_frame(filled)
+        control_frame[idx] = frame.to_work(filled)
         control_xyz = np.where(mask, control_frame, np.nan)
         t_frame += time.perf_counter() - t0
         if control_frame_prev is not None:
@@ -1087,7 +1040,7 @@ def refine_bundle(
         state = (fr.centres, fr.rotations, np.where(fr.point_used[:, None], fr.points, points0))
         t0 = time.perf_counter()
         adjusted_crs = np.full((p, 3), np.nan)
-        adjusted_crs[fr.point_used] = frame.from_frame(fr.points[fr.point_used])
+        adjusted_crs[fr.point_used] = frame.from_work(fr.points[fr.point_used])
         t_frame += time.perf_counter() - t0
         if not frame.curved:
             break
@@ -1098,8 +1051,8 @@ def refine_bundle(
         )
 
     t0 = time.perf_counter()
-    centres_crs = frame.from_frame(fr.centres)
-    enu2frame = frame.enu2frame(centres_crs)
+    centres_crs = frame.from_work(fr.centres)
+    enu2frame = frame.work_from_enu(centres_crs)
     rot_enu = np.swapaxes(enu2frame, 1, 2) @ fr.rotations
     opk = opk_from_matrix(rot_enu)
 
@@ -1119,7 +1072,7 @@ def refine_bundle(
     # Residuals at the control, given minus adjusted along E, N, H.
     adj_rows = adjusted_crs[idx]
     filled = np.where(np.isnan(given_crs), adj_rows, given_crs)
-    resid = frame.residuals(filled, adj_rows)
+    resid = enu_residuals(frame.crs, filled, adj_rows)
     used_xy_final = use_xy & fr.control_used[idx, 0] & fr.point_used[idx]
     used_h_final = use_h & fr.control_used[idx, 2] & fr.point_used[idx]
     keep_rows = fr.point_used[idx]

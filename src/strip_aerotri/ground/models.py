@@ -39,6 +39,7 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import GeometryError, StripAerotriWarning
+from ..frames import make_work_frame
 from ..geodesy import GroundCRS
 from ..geometry.precision import centre_information, ray_information
 from ..geometry.rotation import opk_from_matrix
@@ -55,7 +56,6 @@ from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .polynomials import (
     LineSpec,
     _index_of,
-    _make_work,
     adjust_to_ground,
     control_detectability,
     intersect_unmodelled,
@@ -152,7 +152,7 @@ def adjust_models_to_ground(
     use_z0 = control.uses_h[rows] & ~check
     guess = np.where(np.isnan(given), start.points[idx], given)
     active0 = use_xy0 | use_z0
-    work = _make_work(route, crs, guess[active0], start.azimuth)
+    work = make_work_frame(route, crs, guess[active0], start.azimuth)
     transform = start.similarity.transform
 
     n_points = obs.n_points

@@ -30,12 +30,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .._rows import add_to_columns
 from .._stats import MEDIAN_SAMPLE, exact_median, sample_median
 from .._typing import FloatArray, IntArray
 from ..blunders import robust_variance_factor
 from ..errors import GeometryError, StripAerotriWarning
-from ..geodesy import GroundCRS, LocalTangentFrame, enu_rotation, gaussian_mean_radius
+from ..frames import make_work_frame
+from ..geodesy import GroundCRS
 from ..geometry.deformation import (
     DeformationResult,
     KindSelection,
@@ -82,126 +82,6 @@ _CERTAIN = 3.0
 _FRAME_PROBE_M = np.array(
     [[0.0, 0.0, 0.0], [1000.0, 0.0, 0.0], [0.0, 1000.0, 0.0], [0.0, 0.0, 1000.0]]
 )
-
-
-# --------------------------------------------------------------------------- frames
-
-
-class _GeocentricWork:
-    """CRS <-> local tangent frame at the control centroid (B(142)-(144), B(152))."""
-
-    def __init__(self, crs: GroundCRS, control_xyh: FloatArray, azimuth: float):
-        ecef = crs.to_ecef(control_xyh)
-        self.crs = crs
-        self.frame = LocalTangentFrame.from_ecef_centroid(ecef, azimuth, crs=crs)
-        self.azimuth = azimuth
-
-    def to_work(self, xyh: FloatArray) -> FloatArray:
-        return self.frame.ecef2local(self.crs.to_ecef(xyh))
-
-    def from_work(self, xyz: FloatArray) -> FloatArray:
-        return self.crs.from_ecef(self.frame.local2ecef(xyz))
-
-    def enu_from_work(self, vectors: FloatArray) -> FloatArray:
-        """Rotate work-frame difference vectors (N, 3) to east, north, up at the origin."""
-        return vectors @ self.frame.enu2local  # local = M enu, so enu rows = local rows @ M
-
-    def rotations_to_enu(self, rot_work: FloatArray, centres_xyh: FloatArray) -> FloatArray:
-        llh = self.crs.to_geodetic(centres_xyh)
-        ecef_from_work = self.frame.rotation.T
-        return enu_rotation(llh[:, 0], llh[:, 1]) @ ecef_from_work @ rot_work
-
-
-class _ProjectedWork:
-    """Map grid rotated by the strip's grid azimuth, heights on the tangent plane
-    at the centre of the net (B(153)); no curvature for a local site system."""
-
-    def __init__(self, crs: GroundCRS, control_xyh: FloatArray, azimuth: float):
-        self.crs = crs
-        self.frame = None
-        self.azimuth = azimuth
-        self.centre = np.nanmean(control_xyh[:, :2], axis=0)
-        if crs.is_local:
-            self.radius = np.inf
-            self.grid_scale = 1.0
-        else:
-            centre = np.array([[*self.centre, 0.0]])
-            llh = crs.to_geodetic(centre)
-            self.radius = float(gaussian_mean_radius(llh[0, 0], crs))
-            # Grid distances are k times ground distances (UTM: 0.9996 on the
-            # central meridian); heights are not.  Reduce the grid to the ground
-            # with k at the centre of the net; its variation over the net is left
-            # to the polynomials (documented in docs/geodesy.md).
-            self.grid_scale = float(crs.scale_factor(centre)[0])
-        s, c = np.sin(azimuth), np.cos(azimuth)
-        # columns: work X and Y axes in grid (east, north); X at azimuth A0, Y to its left
-        self.grid_from_work = np.array([[s, -c, 0.0], [c, s, 0.0], [0.0, 0.0, 1.0]])
-
-    def to_work(self, xyh: FloatArray) -> FloatArray:
-        """Grid (E, N, H) -> tangent plane at the centre of the net.
-
-        The grid is taken as the surface of a sphere of radius R mapped
-        equidistantly about the centre; a point at distance D and height H is
-        then at ``(R + H) sin(D/R)`` from the centre's vertical and
-        ``(R + H) cos(D/R) − R`` above the tangent plane.  To second order the
-        height is B(153), ``Z = H − D²/(2R)``; the plan term ``D·H/R`` is the
-        same effect on elevated points (0.75 m at 4 km for a projection centre
-        1200 m up).
-        """
-        d_en = (xyh[:, :2] - self.centre) / self.grid_scale
-        if np.isinf(self.radius):
-            grid = np.column_stack([d_en, xyh[:, 2]])
-        else:
-            r = self.radius
-            dist = np.hypot(d_en[:, 0], d_en[:, 1])
-            radial = (r + xyh[:, 2]) * np.sin(dist / r)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                factor = np.where(dist > 0, radial / np.where(dist > 0, dist, 1.0), 1.0)
-            z = (r + xyh[:, 2]) * np.cos(dist / r) - r
-            grid = np.column_stack([d_en * factor[:, None], z])
-        return grid @ self.grid_from_work
-
-    def from_work(self, xyz: FloatArray) -> FloatArray:
-        grid = xyz @ self.grid_from_work.T
-        if not np.isinf(self.radius):
-            r = self.radius
-            radial = np.hypot(grid[:, 0], grid[:, 1])
-            r_up = r + grid[:, 2]
-            dist = r * np.arctan2(radial, r_up)
-            grid[:, 2] = np.hypot(radial, r_up) - r
-            with np.errstate(invalid="ignore", divide="ignore"):
-                factor = np.where(radial > 0, dist / np.where(radial > 0, radial, 1.0), 1.0)
-            factor *= self.grid_scale
-            grid[:, 0] *= factor
-            grid[:, 1] *= factor
-        add_to_columns(grid[:, :2], self.centre)
-        return grid
-
-    def enu_from_work(self, vectors: FloatArray) -> FloatArray:
-        return vectors @ self.grid_from_work.T
-
-    def rotations_to_enu(self, rot_work: FloatArray, centres_xyh: FloatArray) -> FloatArray:
-        rot_grid = self.grid_from_work @ rot_work
-        gamma = (
-            np.zeros(len(centres_xyh))
-            if self.crs.is_local
-            else self.crs.meridian_convergence(centres_xyh)
-        )
-        # Grid north lies at azimuth gamma from true north: R_enu = Rz(-gamma) R_grid.
-        rz = matrix_from_rotvec(np.column_stack([np.zeros((len(gamma), 2)), -gamma]))
-        # The vertical at the photo is tilted by D/R against the vertical at the
-        # centre of the net (the tangent plane of the flat model).
-        d_en = (centres_xyh[:, :2] - self.centre) / self.grid_scale
-        tilt = np.column_stack([d_en[:, 1], -d_en[:, 0], np.zeros(len(d_en))]) / self.radius
-        # tilt is built from grid offsets: apply it in the grid frame, then turn
-        # grid north to true north.
-        return rz @ matrix_from_rotvec(tilt) @ rot_grid
-
-
-def _make_work(route: Route, crs: GroundCRS, xyh: FloatArray, azimuth: float):
-    if route is Route.GEOCENTRIC:
-        return _GeocentricWork(crs, xyh, azimuth)
-    return _ProjectedWork(crs, xyh, azimuth)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -444,7 +324,7 @@ def adjust_to_ground(
     # estimate of the image scale (control spread in plan, work frame over
     # strip), the same in every fit: a fit repeated in a frame turned only in
     # azimuth is then the same fit turned, so the azimuth pass is not repeated.
-    target0 = _make_work(route, crs, guess[active], 0.0).to_work(guess)
+    target0 = make_work_frame(route, crs, guess[active], 0.0).to_work(guess)
     metres_per_mm = model_per_mm * _plan_scale(strip_xyz[use_xy], target0[use_xy])
     sigma_plan = exact_median(obs.sigma) * metres_per_mm
     sigma_height = sigma_plan * h_to_b
@@ -475,7 +355,7 @@ def adjust_to_ground(
         guess_ = guess.copy()
         azimuth = 0.0 if previous is None else previous.azimuth
         last_fit = None if previous is None else (previous.sim.transform, previous.work)
-        work = _make_work(route, crs, guess_[active], azimuth)
+        work = make_work_frame(route, crs, guess_[active], azimuth)
         converged, n_pass = False, 0
         roll = 0.0 if previous is None else previous.roll
         for n_pass in range(1, _MAX_PASSES + 1):
@@ -507,7 +387,7 @@ def adjust_to_ground(
                 # (the last pass fits the polynomials in the frame it has, and
                 # the passes are reported as not converged).
                 azimuth += step
-                work = _make_work(route, crs, guess_[active], azimuth)
+                work = make_work_frame(route, crs, guess_[active], azimuth)
                 continue
             fitted = sim
             for turns in range(_MAX_TURNS + 1):
@@ -567,7 +447,7 @@ def adjust_to_ground(
             if change < _PASS_TOLERANCE_M:
                 converged = along
                 break
-            work = _make_work(route, crs, guess_[active], azimuth)
+            work = make_work_frame(route, crs, guess_[active], azimuth)
         return _Solution(
             work,
             guess_,

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
-from ..geodesy import LocalTangentFrame
+from ..frames import LocalTangentFrame
 from .common import AccuracyStatistics, Rejection
 
 __all__ = [

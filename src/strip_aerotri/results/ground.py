@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..geodesy import GroundCRS, LocalTangentFrame
+from ..frames import LocalTangentFrame
+from ..geodesy import GroundCRS
 from ..geometry.deformation import DeformationResult, KindSelection
 from ..geometry.similarity import SimilarityResult
 from ..geometry.simultaneous import SimultaneousResult
