@@ -10,15 +10,11 @@ import pytest
 from scipy import stats
 from scipy.spatial.transform import Rotation
 
-from strip_aerotri.bundle.adjust import (
-    _collinearity,
-    _exp_so3,
-    _imu_residual,
-    _log_so3,
-    _right_jacobian_inv,
-    bundle_adjust,
-)
+from strip_aerotri.bundle.adjust import _imu_residual, _right_jacobian_inv, bundle_adjust
 from strip_aerotri.errors import GeometryError
+from strip_aerotri.geometry.collinearity import collinearity_jacobians as _collinearity
+from strip_aerotri.geometry.rotation import matrix_from_rotvec as _exp_so3
+from strip_aerotri.geometry.rotation import rotvec_from_matrix as _log_so3
 from strip_aerotri.observations import ImageObservations
 
 C_MM = 152.0  # wide-angle film camera (task statement)

@@ -19,10 +19,11 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from strip_aerotri.blunders import BlunderOptions
-from strip_aerotri.bundle.adjust import _collinearity, _right_jacobian_inv
+from strip_aerotri.bundle.adjust import _right_jacobian_inv
 from strip_aerotri.bundle.refine import GnssCentres, ImuAttitudes, refine_bundle
 from strip_aerotri.errors import StripAerotriWarning
 from strip_aerotri.geodesy import GroundCRS, enu_rotation
+from strip_aerotri.geometry.collinearity import collinearity_jacobians as _collinearity
 from strip_aerotri.ground.polynomials import GroundOptions
 from strip_aerotri.pipeline import triangulate
 from strip_aerotri.report.outputs import _html_tables, build_report

@@ -33,6 +33,8 @@ import scipy.sparse.linalg as spla
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+from ..geometry.collinearity import collinearity_jacobians, project
+from ..geometry.rotation import matrix_from_rotvec, rotvec_from_matrix, skew
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
 from ..results import BundleResult
@@ -78,43 +80,6 @@ _PHOTO_PARAMETER_NAMES = (
 # ----------------------------------------------------------------------------
 
 
-def _skew(v: FloatArray) -> FloatArray:
-    """Cross-product matrices ``[v]x`` with ``[v]x @ u = v x u``, shape (..., 3, 3)."""
-    out = np.zeros((*v.shape, 3))
-    out[..., 0, 1] = -v[..., 2]
-    out[..., 0, 2] = v[..., 1]
-    out[..., 1, 0] = v[..., 2]
-    out[..., 1, 2] = -v[..., 0]
-    out[..., 2, 0] = -v[..., 1]
-    out[..., 2, 1] = v[..., 0]
-    return out
-
-
-def _exp_so3(w: FloatArray) -> FloatArray:
-    """Rotation matrices ``exp([w]x)`` (Rodrigues) of rotation vectors (..., 3) in radians."""
-    theta = np.linalg.norm(w, axis=-1)
-    small = theta < 1e-6
-    t = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(t) / t)
-    b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(t)) / t**2)
-    k = _skew(w)
-    return np.eye(3) + a[..., None, None] * k + b[..., None, None] * (k @ k)
-
-
-def _log_so3(r: FloatArray) -> FloatArray:
-    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3); angles below pi."""
-    w = 0.5 * np.stack(
-        [r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]],
-        axis=-1,
-    )
-    s = np.linalg.norm(w, axis=-1)
-    c = 0.5 * (np.trace(r, axis1=-2, axis2=-1) - 1.0)
-    theta = np.arctan2(s, c)
-    small = s < 1e-8
-    factor = np.where(small, 1.0 + theta**2 / 6.0, theta / np.where(small, 1.0, s))
-    return factor[..., None] * w
-
-
 def _right_jacobian_inv(e: FloatArray) -> FloatArray:
     """Inverse right Jacobian of SO(3), ``log(exp(e) exp(d)) = e + Jr^-1(e) d + O(d^2)``."""
     theta = np.linalg.norm(e, axis=-1)
@@ -125,7 +90,7 @@ def _right_jacobian_inv(e: FloatArray) -> FloatArray:
         1.0 / 12.0 + theta**2 / 720.0,
         1.0 / t**2 - (1.0 + np.cos(t)) / (2.0 * t * np.sin(t)),
     )
-    k = _skew(e)
+    k = skew(e)
     return np.eye(3) + 0.5 * k + coef[..., None, None] * (k @ k)
 
 
@@ -134,81 +99,12 @@ def _right_jacobian_inv(e: FloatArray) -> FloatArray:
 # ----------------------------------------------------------------------------
 
 
-def _project(
-    centres: FloatArray,
-    rotations: FloatArray,
-    points: FloatArray,
-    photo: IntArray,
-    point: IntArray,
-    principal_distance: float,
-) -> tuple[FloatArray, FloatArray]:
-    """Image coordinates by the collinearity equations.
-
-    Parameters
-    ----------
-    centres : ndarray, shape (M, 3)
-        Projection centres, m.
-    rotations : ndarray, shape (M, 3, 3)
-        Image -> frame rotations.
-    points : ndarray, shape (P, 3)
-        Ground points, m.
-    photo, point : ndarray of int, shape (K,)
-        Photo and point index of each observation.
-    principal_distance : float
-        c in mm.
-
-    Returns
-    -------
-    xy : ndarray, shape (K, 2)
-        Computed image coordinates, mm.
-    v : ndarray, shape (K, 3)
-        ``R.T @ (X - S)``, m (``v_z < 0`` for a point in front of the photo).
-    """
-    v = np.einsum("kji,kj->ki", rotations[photo], points[point] - centres[photo])
-    xy = -principal_distance * v[:, :2] / v[:, 2:3]
-    return xy, v
-
-
-def _collinearity(
-    centres: FloatArray,
-    rotations: FloatArray,
-    points: FloatArray,
-    photo: IntArray,
-    point: IntArray,
-    principal_distance: float,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Collinearity equations and their Jacobians (arguments as :func:`_project`).
-
-    Returns
-    -------
-    xy, v : ndarray, shapes (K, 2), (K, 3)
-        As :func:`_project`.
-    jac_photo : ndarray, shape (K, 2, 6)
-        d(x, y) / d(dS, delta), mm per m and mm per rad, for the update
-        ``S <- S + dS``, ``R <- R @ exp([delta]x)``.
-    jac_point : ndarray, shape (K, 2, 3)
-        d(x, y) / dX, mm per m.
-    """
-    xy, v = _project(centres, rotations, points, photo, point, principal_distance)
-    vz = v[:, 2]
-    f = -principal_distance / vz
-    d_v = np.zeros((v.shape[0], 2, 3))
-    d_v[:, 0, 0] = f
-    d_v[:, 1, 1] = f
-    d_v[:, 0, 2] = -f * v[:, 0] / vz
-    d_v[:, 1, 2] = -f * v[:, 1] / vz
-    # dv/dX = R.T, dv/dS = -R.T, dv/d(delta) = [v]x  (R.T <- (I - [delta]x) R.T).
-    jac_point = np.einsum("kab,kcb->kac", d_v, rotations[photo])
-    jac_photo = np.concatenate([-jac_point, d_v @ _skew(v)], axis=2)
-    return xy, v, jac_photo, jac_point
-
-
 def _imu_residual(rotations: FloatArray, imu_rotations: FloatArray) -> FloatArray:
     """Attitude residuals ``e = log(R_imu.T @ R)``, shape (M, 3), radians.
 
     Their Jacobian with respect to ``delta`` is ``_right_jacobian_inv(e)``.
     """
-    return _log_so3(np.einsum("mji,mjk->mik", imu_rotations, rotations))
+    return rotvec_from_matrix(np.einsum("mji,mjk->mik", imu_rotations, rotations))
 
 
 # ----------------------------------------------------------------------------
@@ -453,7 +349,7 @@ class _Reduced:
 
 def _cost(prob: _Problem, state: _State) -> float:
     """Weighted sum of squared residuals; inf when a point lies behind a photo."""
-    xy, v = _project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
+    xy, v = project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
     if not np.all(v[:, 2] < 0.0) or not np.all(np.isfinite(xy)):
         return float("inf")
     e_img = (xy - prob.xy) / prob.sigma[:, None]
@@ -471,7 +367,7 @@ def _cost(prob: _Problem, state: _State) -> float:
 def _normals(prob: _Problem, state: _State) -> _Normals:
     """Linearise all observation equations at ``state`` and form the normal blocks."""
     m, p, k = prob.n_photos, prob.n_points, prob.photo.size
-    xy, _, jac_photo, jac_point = _collinearity(
+    xy, _, jac_photo, jac_point = collinearity_jacobians(
         state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c
     )
     res = xy - prob.xy
@@ -586,7 +482,7 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
 def _apply(state: _State, step: _Reduced) -> _State:
     return _State(
         centres=state.centres + step.d_photo[:, :3],
-        rotations=state.rotations @ _exp_so3(step.d_photo[:, 3:]),
+        rotations=state.rotations @ matrix_from_rotvec(step.d_photo[:, 3:]),
         points=state.points + step.d_point,
     )
 
@@ -612,7 +508,7 @@ def _free_motions(prob: _Problem, state: _State) -> list[str]:
         q = (xyz - x0) / size
         g = np.zeros((xyz.shape[0], 3, 7))
         g[:, :, :3] = np.eye(3)
-        g[:, :, 3:6] = -_skew(q)  # d(omega x q)/d(omega)
+        g[:, :, 3:6] = -skew(q)  # d(omega x q)/d(omega)
         g[:, :, 6] = q
         return g
 
@@ -909,7 +805,7 @@ def bundle_adjust(
             "the roll about the strip axis)"
         )
 
-    _, v0 = _project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
+    _, v0 = project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
     behind = ~(v0[:, 2] < 0.0)
     if np.any(behind):
         kk = int(np.flatnonzero(behind)[0])

@@ -43,6 +43,7 @@ from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
 from ..errors import GeometryError, StripAerotriWarning
 from ..frames import LocalTangentFrame, TangentWorkFrame, enu_residuals
+from ..geometry.collinearity import image_jacobian, image_vectors
 from ..geometry.rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
 from ..observations import ControlPoints, GnssCentres, ImageObservations, ImuAttitudes
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions
@@ -108,9 +109,6 @@ def _frame_for(
     )
 
 
-# --------------------------------------------------------------------------- results
-
-
 # --------------------------------------------------------------------------- tests
 
 
@@ -129,14 +127,7 @@ def _point_leverage(
     """
     photo, point = obs.photo, obs.point
     rot = rotations[photo]
-    v = np.einsum("kji,kj->ki", rot, points[point] - centres[photo])
-    vz = v[:, 2]
-    f = -obs.principal_distance / vz
-    d_v = np.zeros((v.shape[0], 2, 3))
-    d_v[:, 0, 0] = f
-    d_v[:, 1, 1] = f
-    d_v[:, 0, 2] = -f * v[:, 0] / vz
-    d_v[:, 1, 2] = -f * v[:, 1] / vz
+    d_v = image_jacobian(image_vectors(centres[photo], rot, points[point]), obs.principal_distance)
     b = np.einsum("kab,kcb->kac", d_v, rot) / np.asarray(obs.sigma)[:, None, None]
     p = points.shape[0]
     normal = np.zeros((p, 3, 3))

@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray
+from .collinearity import image_jacobian, image_vectors
 
 __all__ = ["centre_information", "ray_information"]
 
@@ -28,14 +29,8 @@ __all__ = ["centre_information", "ray_information"]
 def _image_jacobian(points, centres, rotations, principal_distance):
     """d(x, y)/d(frame coordinates of the point) of each ray, (n, 2, 3), and
     the image-system vectors v (n, 3)."""
-    v = np.einsum("nji,nj->ni", rotations, points - centres)  # Rᵀ (X − S)
-    jac = np.zeros((v.shape[0], 2, 3))
-    jac[:, 0, 0] = 1.0
-    jac[:, 0, 2] = -v[:, 0] / v[:, 2]
-    jac[:, 1, 1] = 1.0
-    jac[:, 1, 2] = -v[:, 1] / v[:, 2]
-    jac *= (-principal_distance / v[:, 2])[:, None, None]
-    return jac, v
+    v = image_vectors(centres, rotations, points)
+    return image_jacobian(v, principal_distance), v
 
 
 def ray_information(

@@ -37,7 +37,7 @@ from .._rows import add_to_columns
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..options import DEFAULT_MAX_ITERATIONS
-from .rotation import matrix_from_rotvec
+from .rotation import matrix_from_rotvec, skew
 
 __all__ = [
     "SimilarityResult",
@@ -254,19 +254,6 @@ def _quote(ids: Sequence[str], limit: int = 12) -> str:
     if len(quoted) > limit:
         quoted = [*quoted[:limit], "..."]
     return ", ".join(quoted)
-
-
-def _skew(u: FloatArray) -> FloatArray:
-    """Cross-product matrices ``[u]x`` of a stack of vectors, shape (..., 3, 3)."""
-    zero = np.zeros(u.shape[:-1])
-    return np.stack(
-        [
-            np.stack([zero, -u[..., 2], u[..., 1]], axis=-1),
-            np.stack([u[..., 2], zero, -u[..., 0]], axis=-1),
-            np.stack([-u[..., 1], u[..., 0], zero], axis=-1),
-        ],
-        axis=-2,
-    )
 
 
 #: Unknowns up to which the condition number is computed exactly (eigenvalues);
@@ -816,7 +803,7 @@ def fit_similarity(
         jac = np.zeros((n, 3, 7))
         jac[:, :, 0:3] = np.eye(3)
         jac[:, :, 3] = u
-        jac[:, :, 4:7] = -scale * _skew(u)
+        jac[:, :, 4:7] = -scale * skew(u)
         a = jac[obs]
         w = 1.0 / sigma[obs]
         return a * w[:, None], misclosure * w
@@ -903,7 +890,7 @@ def fit_similarity(
     rc = rotation @ c_src
     jac = np.eye(7)
     jac[0:3, 3] = -rc
-    jac[0:3, 4:7] = scale * _skew(rc)
+    jac[0:3, 4:7] = scale * skew(rc)
     covariance = var_factor * (jac @ q @ jac.T)
 
     return SimilarityResult(

@@ -41,7 +41,7 @@ import scipy.sparse.linalg as spl
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError
 from ..options import DEFAULT_MAX_ITERATIONS
-from .rotation import matrix_from_rotvec
+from .rotation import matrix_from_rotvec, skew
 
 __all__ = [
     "LineCondition",
@@ -226,15 +226,6 @@ def _rows_whitening(weight: FloatArray) -> FloatArray:
     return np.swapaxes(low, 1, 2)
 
 
-def _skew_rows(y: FloatArray) -> FloatArray:
-    """``−[y]×`` of rows y (n, 3): the derivative of ``ω × y`` by ω."""
-    out = np.zeros((y.shape[0], 3, 3))
-    out[:, 0, 1], out[:, 0, 2] = y[:, 2], -y[:, 1]
-    out[:, 1, 0], out[:, 1, 2] = -y[:, 2], y[:, 0]
-    out[:, 2, 0], out[:, 2, 1] = y[:, 1], -y[:, 0]
-    return out
-
-
 def _summation(index: IntArray, n_groups: int) -> sp.csr_matrix:
     """(n_groups, n) matrix of ones that sums rows into their groups."""
     n = index.shape[0]
@@ -393,7 +384,7 @@ def _normals(prob: _Problem, st: _State) -> _Normals:
     # ds / s; its point's is -I.
     a_u = np.zeros((n, 3, N_UNIT))
     a_u[:, 0, 0] = a_u[:, 1, 1] = a_u[:, 2, 2] = 1.0
-    a_u[:, :, 3:6] = _skew_rows(y)
+    a_u[:, :, 3:6] = -skew(y)  # d(ω × y)/dω
     a_u[:, :, 6] = y
     w = obs.weight
     wa = w @ a_u  # W A_u

@@ -34,6 +34,7 @@ import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+from ..geometry.collinearity import image_vectors
 from ..geometry.intersection import intersect
 from ..geometry.rotation import matrix_from_rotvec, skew
 from ..observations import ImageObservations
@@ -295,8 +296,8 @@ class Resection:
 
 
 def _collinearity(xy, points, photo, c, centres, rotations):
-    d = points - centres[photo]
-    v = np.einsum("kji,kj->ki", rotations[photo], d)  # R^T (X - S): image frame
+    """Image vectors v = Rᵀ (X − S), their v_z, and observed minus computed xy."""
+    v = image_vectors(centres[photo], rotations[photo], points)
     w = v[:, 2]
     computed = -c * v[:, :2] / w[:, None]
     return v, w, xy - computed
