@@ -841,7 +841,7 @@ def test_an_azimuth_that_never_settles_ends_the_passes_unconverged(monkeypatch):
     # 1 % of the azimuth's standard deviation, 8.3e-8): the last pass fits the polynomials in
     # the frame it has and the passes are reported as not converged (this
     # used to end the passes with no polynomial fitted at all).
-    from strip_aerotri.ground import polynomials as ground_module
+    from strip_aerotri.ground import passes as ground_module
 
     monkeypatch.setattr(ground_module, "_azimuth_step", lambda vector: 1e-6)
     with pytest.warns(StripAerotriWarning, match=r"passes did not settle in 8"):
@@ -856,7 +856,7 @@ def test_a_turn_below_the_precision_of_the_azimuth_settles_the_frame(monkeypatch
     # similarity's standard deviation of the azimuth (8.3e-6 rad here) is
     # noise: no further pass (the turns a long strip bent by its chain leaves,
     # halving from pass to pass, would otherwise use up the passes).
-    from strip_aerotri.ground import polynomials as ground_module
+    from strip_aerotri.ground import passes as ground_module
 
     real_step = ground_module._azimuth_step
     calls = []

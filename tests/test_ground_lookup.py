@@ -1,9 +1,9 @@
-"""The control lookup over the strip's point ids (ground._index_of)."""
+"""The control lookup over the strip's point ids (ground.common.index_of)."""
 
 import numpy as np
 import pytest
 
-from strip_aerotri.ground.polynomials import _index_of
+from strip_aerotri.ground.common import index_of as _index_of
 
 
 def reference(ids, names):

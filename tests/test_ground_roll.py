@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import strip_aerotri as sa
-import strip_aerotri.ground.polynomials as ground
+import strip_aerotri.ground.passes as ground
 from strip_aerotri.geometry.deformation import fit_deformation
 from strip_aerotri.geometry.similarity import SimilarityTransform
 from strip_aerotri.ground.polynomials import GroundOptions, adjust_to_ground

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from strip_aerotri.blunders import BlunderOptions
-from strip_aerotri.geometry.collinearity import collinearity_jacobians as _collinearity
 from strip_aerotri.bundle.refine import GnssCentres, ImuAttitudes, refine_bundle, refine_frame
 from strip_aerotri.errors import StripAerotriWarning
 from strip_aerotri.geodesy import GroundCRS, enu_rotation
+from strip_aerotri.geometry.collinearity import collinearity_jacobians as _collinearity
 from strip_aerotri.geometry.rotation import opk_from_matrix
 from strip_aerotri.ground.polynomials import GroundOptions
 from strip_aerotri.observations import ControlPoints, ControlType

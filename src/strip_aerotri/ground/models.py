@@ -50,16 +50,11 @@ from ..geometry.simultaneous import (
     UnitTransforms,
     adjust_units,
 )
-from ..observations import ControlPoints
+from ..observations import ControlPoints, LineSpec
 from ..options import BlunderOptions, GroundOptions
 from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
-from .polynomials import (
-    LineSpec,
-    _index_of,
-    adjust_to_ground,
-    control_detectability,
-    intersect_unmodelled,
-)
+from .common import control_detectability, index_of, intersect_unmodelled
+from .polynomials import adjust_to_ground
 
 __all__ = ["ModelAdjustment", "adjust_models_to_ground"]
 
@@ -146,7 +141,7 @@ def adjust_models_to_ground(
     rows = start.control_index
     check = start.is_check
     ids = tuple(control.point_ids[r] for r in rows)
-    idx = _index_of(obs.point_ids, ids)
+    idx = index_of(obs.point_ids, ids)
     given = control.xyz[rows]
     use_xy0 = control.uses_xy[rows] & ~check
     use_z0 = control.uses_h[rows] & ~check
@@ -162,7 +157,7 @@ def adjust_models_to_ground(
     n_photos = strip.centres.shape[0]
     info, c_left, c_right = _weights(strip, transform, float(np.median(obs.sigma)))
 
-    line_index = [_index_of(obs.point_ids, line.point_ids) for line in lines]
+    line_index = [index_of(obs.point_ids, line.point_ids) for line in lines]
     plan_sigma = float(
         np.hypot(np.median(control.sigma_xy[rows][active0]), start.expected_sigma_plan)
     )
