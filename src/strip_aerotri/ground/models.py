@@ -31,21 +31,23 @@ determinations of a point in a model by their 3-D residual (stage
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
-from dataclasses import replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 from itertools import pairwise
+from typing import NamedTuple
 
 import numpy as np
 
-from .._typing import FloatArray
+from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import GeometryError, StripAerotriWarning
-from ..frames import make_work_frame
+from ..frames import WorkFrame, make_work_frame
 from ..geodesy import GroundCRS
 from ..geometry.precision import centre_information, ray_information
 from ..geometry.rotation import opk_from_matrix
 from ..geometry.similarity import _validate_control_geometry
 from ..geometry.simultaneous import (
     LineCondition,
+    SimultaneousResult,
     UnitObservations,
     UnitTransforms,
     adjust_units,
@@ -93,6 +95,45 @@ def _weights(strip: StripModel, start_transform, sigma_fallback: float):
     return info, c_left, c_right
 
 
+@dataclass(frozen=True, eq=False)
+class _ModelsProblem:
+    """What every solution of the simultaneous transformation needs, fixed
+    for the stage.  Control arrays per usable control row (C); the rows of
+    the adjustment are the determinations of the points in the models (n_det
+    of them), then the left and the right projection centre of each model."""
+
+    strip: StripModel
+    start: GroundResult  # J's similarity: frame, start values, checks
+    work: WorkFrame
+    ids: tuple[str, ...]
+    idx: IntArray  # strip point of each control row
+    given: FloatArray  # (C, 3) as given, NaN where not
+    guess: FloatArray  # (C, 3) with the similarity's values where not given
+    use_xy: BoolArray
+    use_z: BoolArray
+    sigma: FloatArray  # (C, 3) the control's own sigmas
+    lines: tuple[LineSpec, ...]
+    line_index: list[IntArray]
+    plan_sigma: float  # control and photogrammetric plan error: the lines' unit
+    rows: UnitObservations  # every row of the adjustment
+    n_det: int
+    start_units: UnitTransforms
+    points0: FloatArray  # start values of the points and the centres
+    max_iterations: int
+
+    @property
+    def n_unknown_points(self) -> int:
+        return self.strip.observations.n_points + self.strip.centres.shape[0]
+
+
+class _ModelsSolution(NamedTuple):
+    result: SimultaneousResult
+    guess: FloatArray
+    converged: bool
+    n_pass: int
+    active: BoolArray
+
+
 def adjust_models_to_ground(
     strip: StripModel,
     control: ControlPoints,
@@ -104,7 +145,7 @@ def adjust_models_to_ground(
 ) -> GroundResult:
     """Transform every model of the strip at once onto the control.
 
-    Parameters and result as :func:`strip_aerotri.ground.adjust_to_ground`;
+    Parameters and result as :func:`strip_aerotri.ground.polynomials.adjust_to_ground`;
     the result's ``similarity`` is J's similarity of the whole strip (the
     start values), ``deformation`` is None and ``models`` holds the
     simultaneous transformation.
@@ -119,6 +160,30 @@ def adjust_models_to_ground(
     blunders = blunders or BlunderOptions()
     if not isinstance(crs, GroundCRS):
         crs = GroundCRS.from_user_input(crs)
+    problem = _prepare(strip, control, crs, tuple(lines), options)
+    sol, keep_rows, use_xy, use_z, line_keep, rejections, rejected_rows = _snoop(problem, blunders)
+    if not sol.converged:
+        warnings.warn(
+            f"ground stage: the passes did not settle in {sol.n_pass} (the estimated "
+            "coordinates of plan and height control still changed); the results are those "
+            "of the last pass",
+            StripAerotriWarning,
+            stacklevel=2,
+        )
+    return _products(
+        problem, sol, keep_rows, use_xy, use_z, line_keep, rejections, rejected_rows, blunders
+    )
+
+
+def _prepare(
+    strip: StripModel,
+    control: ControlPoints,
+    crs: GroundCRS,
+    lines: tuple[LineSpec, ...],
+    options: GroundOptions,
+) -> _ModelsProblem:
+    """J's similarity of the whole strip, then the rows and weights of the
+    simultaneous transformation and its start values."""
     obs = strip.observations
     # J's similarity of the whole strip: the work frame along the strip, the
     # start values, and the checks of the control's geometry (its own misfit
@@ -137,142 +202,166 @@ def adjust_models_to_ground(
             ),
             blunders=BlunderOptions(action="off"),
         )
-    route = start.route
     rows = start.control_index
     check = start.is_check
     ids = tuple(control.point_ids[r] for r in rows)
     idx = index_of(obs.point_ids, ids)
     given = control.xyz[rows]
-    use_xy0 = control.uses_xy[rows] & ~check
-    use_z0 = control.uses_h[rows] & ~check
+    use_xy = control.uses_xy[rows] & ~check
+    use_z = control.uses_h[rows] & ~check
     guess = np.where(np.isnan(given), start.points[idx], given)
-    active0 = use_xy0 | use_z0
-    work = make_work_frame(route, crs, guess[active0], start.azimuth)
+    active = use_xy | use_z
+    work = make_work_frame(start.route, crs, guess[active], start.azimuth)
     transform = start.similarity.transform
-
-    n_points = obs.n_points
-    pos = strip.model_photo_positions
-    n_models = strip.n_models
-    _check_breaks(strip, idx, use_xy0, use_z0, ids, work.to_work(guess))
-    n_photos = strip.centres.shape[0]
+    _check_breaks(strip, idx, use_xy, use_z, ids, work.to_work(guess))
     info, c_left, c_right = _weights(strip, transform, float(np.median(obs.sigma)))
 
-    line_index = [index_of(obs.point_ids, line.point_ids) for line in lines]
-    plan_sigma = float(
-        np.hypot(np.median(control.sigma_xy[rows][active0]), start.expected_sigma_plan)
+    pos = strip.model_photo_positions
+    n_models, n_points = strip.n_models, obs.n_points
+    model_ids = np.arange(n_models)
+    all_rows = UnitObservations(
+        np.concatenate([strip.model, model_ids, model_ids]),
+        np.concatenate([strip.model_point, n_points + pos[:-1], n_points + pos[1:]]),
+        np.vstack([strip.model_points, strip.centres[pos[:-1]], strip.centres[pos[1:]]]),
+        np.concatenate([info, c_left, c_right]),
     )
     sig_xy, sig_h = control.sigma_xy[rows], control.sigma_h[rows]
-    model_ids = np.arange(n_models)
-    units_all = np.concatenate([strip.model, model_ids, model_ids])
-    points_all = np.concatenate([strip.model_point, n_points + pos[:-1], n_points + pos[1:]])
-    xyz_all = np.vstack([strip.model_points, strip.centres[pos[:-1]], strip.centres[pos[1:]]])
-    weight_all = np.concatenate([info, c_left, c_right])
-    n_det = strip.model.shape[0]
-    start_units = UnitTransforms(
-        np.full(n_models, transform.scale),
-        np.broadcast_to(transform.rotation, (n_models, 3, 3)).copy(),
-        np.broadcast_to(transform.translation, (n_models, 3)).copy(),
-        np.zeros((n_models, 3)),
-    )
-    points0 = np.vstack(
-        [
-            np.where(np.isfinite(start.points_work), start.points_work, 0.0),
-            start.photo_centres_work,
-        ]
+    return _ModelsProblem(
+        strip=strip,
+        start=start,
+        work=work,
+        ids=ids,
+        idx=idx,
+        given=given,
+        guess=guess,
+        use_xy=use_xy,
+        use_z=use_z,
+        sigma=np.column_stack([sig_xy, sig_xy, sig_h]),
+        lines=lines,
+        line_index=[index_of(obs.point_ids, line.point_ids) for line in lines],
+        plan_sigma=float(np.hypot(np.median(sig_xy[active]), start.expected_sigma_plan)),
+        rows=all_rows,
+        n_det=strip.model.shape[0],
+        start_units=UnitTransforms(
+            np.full(n_models, transform.scale),
+            np.broadcast_to(transform.rotation, (n_models, 3, 3)).copy(),
+            np.broadcast_to(transform.translation, (n_models, 3)).copy(),
+            np.zeros((n_models, 3)),
+        ),
+        points0=np.vstack(
+            [
+                np.where(np.isfinite(start.points_work), start.points_work, 0.0),
+                start.photo_centres_work,
+            ]
+        ),
+        max_iterations=options.max_iterations,
     )
 
-    def solve(keep_rows, use_xy, use_z, line_keep, previous):
-        """The passes of the plan/height iteration for one set of observations."""
-        active = use_xy | use_z
-        unit_obs = UnitObservations(
-            units_all[keep_rows], points_all[keep_rows], xyz_all[keep_rows], weight_all[keep_rows]
-        )
-        conditions = [
-            LineCondition(point=li[keep], sigma=plan_sigma / np.sqrt(line.weight))
-            for line, li, keep in zip(lines, line_index, line_keep, strict=True)
-        ]
-        guess_ = guess.copy() if previous is None else previous[1]
-        starts = start_units if previous is None else previous[0].transforms
-        p0 = (
-            points0
-            if previous is None
-            else np.where(np.isfinite(previous[0].points), previous[0].points, points0)
-        )
-        res, converged, n_pass = None, False, 0
-        # Control given in full needs one pass; plan and height points get
-        # their missing coordinate from the adjustment, pass by pass, and the
-        # statistics (cofactors) are computed in the last one only.
-        guessed = bool(np.isnan(given[active]).any())
-        for n_pass in range(1, _MAX_PASSES + 2):
-            target = work.to_work(guess_)
-            target[~use_xy, :2] = np.nan
-            target[~use_z, 2] = np.nan
-            sigma = np.column_stack([sig_xy, sig_xy, sig_h])
-            final = not guessed or converged or n_pass == _MAX_PASSES + 1
-            res = adjust_units(
-                unit_obs,
-                n_models,
-                n_points + n_photos,
-                start=starts,
-                points0=p0,
-                control_point=idx[active],
-                control_xyz=target[active],
-                control_sigma=sigma[active],
-                lines=conditions,
-                statistics=final,
-                max_iterations=options.max_iterations,
-            )
-            if final:
-                break
-            adjusted = work.from_work(res.points[idx])
-            new_guess = given.copy()
-            new_guess[np.isnan(given)] = adjusted[np.isnan(given)]
-            change = float(np.nanmax(np.abs(new_guess - guess_), initial=0.0))
-            guess_ = new_guess
-            starts, p0 = res.transforms, np.where(np.isfinite(res.points), res.points, p0)
-            converged = change < _PASS_TOLERANCE_M
-        converged = converged or not guessed
-        return res, guess_, converged, min(n_pass, _MAX_PASSES), active
 
-    keep_rows = np.ones(units_all.shape[0], dtype=bool)
+def _solve(
+    p: _ModelsProblem,
+    keep_rows: BoolArray,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    line_keep: list[BoolArray],
+    previous: _ModelsSolution | None,
+) -> _ModelsSolution:
+    """The passes of the plan/height iteration for one set of observations.
+
+    Control given in full needs one pass; plan and height points get their
+    missing coordinate from the adjustment, pass by pass, and the statistics
+    (cofactors) are computed in the last one only."""
+    active = use_xy | use_z
+    r = p.rows
+    unit_obs = UnitObservations(
+        r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
+    )
+    conditions = [
+        LineCondition(point=li[keep], sigma=p.plan_sigma / np.sqrt(line.weight))
+        for line, li, keep in zip(p.lines, p.line_index, line_keep, strict=True)
+    ]
+    if previous is None:
+        guess, starts, points0 = p.guess.copy(), p.start_units, p.points0
+    else:
+        guess, starts = previous.guess, previous.result.transforms
+        points0 = np.where(np.isfinite(previous.result.points), previous.result.points, p.points0)
+    res, converged, n_pass = None, False, 0
+    guessed = bool(np.isnan(p.given[active]).any())
+    for n_pass in range(1, _MAX_PASSES + 2):
+        target = p.work.to_work(guess)
+        target[~use_xy, :2] = np.nan
+        target[~use_z, 2] = np.nan
+        final = not guessed or converged or n_pass == _MAX_PASSES + 1
+        res = adjust_units(
+            unit_obs,
+            p.strip.n_models,
+            p.n_unknown_points,
+            start=starts,
+            points0=points0,
+            control_point=p.idx[active],
+            control_xyz=target[active],
+            control_sigma=p.sigma[active],
+            lines=conditions,
+            statistics=final,
+            max_iterations=p.max_iterations,
+        )
+        if final:
+            break
+        adjusted = p.work.from_work(res.points[p.idx])
+        missing = np.isnan(p.given)
+        new_guess = p.given.copy()
+        new_guess[missing] = adjusted[missing]
+        change = float(np.nanmax(np.abs(new_guess - guess), initial=0.0))
+        guess = new_guess
+        starts = res.transforms
+        points0 = np.where(np.isfinite(res.points), res.points, points0)
+        converged = change < _PASS_TOLERANCE_M
+    assert res is not None
+    return _ModelsSolution(res, guess, converged or not guessed, min(n_pass, _MAX_PASSES), active)
+
+
+def _snoop(
+    p: _ModelsProblem, blunders: BlunderOptions
+) -> tuple[
+    _ModelsSolution,
+    BoolArray,
+    BoolArray,
+    BoolArray,
+    list[BoolArray],
+    tuple[Rejection, ...],
+    tuple[tuple[str, str], ...],
+]:
+    """The simultaneous transformation, then data snooping: the worst failing
+    observation out (control and line points first) and solve again, until
+    none fails.  A control point whose rejection would leave the control
+    unable to carry the strip is kept and flagged.
+
+    Returns the last solution, the rows, control coordinates and line points
+    used, the rejections (the flagged ones last) and the (model, point) of
+    each determination rejected."""
+    strip = p.strip
+    keep_rows = np.ones(p.rows.unit.shape[0], dtype=bool)
     # points whose determinations disagreed between consecutive models (the
     # strip's tie test) stay out, as they are out of the strip model
     if strip.rejected_points:
-        out = np.isin(np.asarray(obs.point_ids)[strip.model_point], list(strip.rejected_points))
-        keep_rows[:n_det] = ~out
-    use_xy, use_z = use_xy0.copy(), use_z0.copy()
-    line_keep = [np.ones(len(li), dtype=bool) for li in line_index]
+        names = np.asarray(strip.observations.point_ids)[strip.model_point]
+        keep_rows[: p.n_det] = ~np.isin(names, list(strip.rejected_points))
+    use_xy, use_z = p.use_xy.copy(), p.use_z.copy()
+    line_keep = [np.ones(len(li), dtype=bool) for li in p.line_index]
     rejections: list[Rejection] = []
-    kept_flags: list[Rejection] = []
+    flagged: list[Rejection] = []
     rejected_rows: list[tuple[str, str]] = []
     n_control_obs = int(2 * use_xy.sum() + use_z.sum())
     sol = None
     while True:
-        sol = solve(keep_rows, use_xy, use_z, line_keep, sol)
-        res = sol[0]
+        sol = _solve(p, keep_rows, use_xy, use_z, line_keep, sol)
         if not blunders.testing:
             break
-        found = _tests(
-            res,
-            sol,
-            ids,
-            idx,
-            use_xy,
-            use_z,
-            keep_rows,
-            n_det,
-            strip,
-            lines,
-            line_index,
-            line_keep,
-            plan_sigma,
-            blunders,
-        )
+        known = {(k.stage, k.point, k.component) for k in flagged}
         found = [
             f
-            for f in found
-            if (f[0].stage, f[0].point, f[0].component)
-            not in {(k.stage, k.point, k.component) for k in kept_flags}
+            for f in _tests(p, sol.result, use_xy, use_z, keep_rows, line_keep, blunders)
+            if (f[0].stage, f[0].point, f[0].component) not in known
         ]
         if not found:
             break
@@ -287,10 +376,11 @@ def adjust_models_to_ground(
         if worst.stage == "control":
             trial_xy, trial_z = use_xy.copy(), use_z.copy()
             apply(trial_xy, trial_z)
-            if not _feasible(strip, idx, work.to_work(sol[1]), trial_xy, trial_z, ids):
+            target = p.work.to_work(sol.guess)
+            if not _feasible(strip, p.idx, target, trial_xy, trial_z, p.ids):
                 # Rejection must never make the adjustment impossible: keep
                 # the point, flagged with its test value.
-                kept_flags.append(
+                flagged.append(
                     replace(
                         worst,
                         applied=False,
@@ -310,7 +400,7 @@ def adjust_models_to_ground(
             apply(keep_rows)
             label = worst.photos
             rejected_rows.append((label[0] if label else "", worst.point))
-            if (~keep_rows[:n_det]).sum() > blunders.max_fraction * n_det:
+            if (~keep_rows[: p.n_det]).sum() > blunders.max_fraction * p.n_det:
                 raise GeometryError(
                     f"models: more than {blunders.max_fraction:.0%} of the determinations "
                     "fail the blunder test; the image coordinates cannot be trusted"
@@ -318,41 +408,14 @@ def adjust_models_to_ground(
         else:
             apply(line_keep)
         rejections.append(worst)
-
-    res, guess, converged, n_pass, _ = sol
-    if not converged:
-        warnings.warn(
-            f"ground stage: the passes did not settle in {n_pass} (the estimated coordinates "
-            "of plan and height control still changed); the results are those of the last pass",
-            StripAerotriWarning,
-            stacklevel=2,
-        )
-    return _products(
-        strip,
-        start,
-        work,
-        res,
-        guess,
-        given,
-        idx,
-        rows,
-        check,
+    return (
+        sol,
+        keep_rows,
         use_xy,
         use_z,
-        ids,
-        lines,
-        line_index,
         line_keep,
-        keep_rows,
-        n_det,
-        n_pass,
-        converged,
-        tuple(rejections + kept_flags),
+        tuple(rejections + flagged),
         tuple(rejected_rows),
-        blunders,
-        np.column_stack([sig_xy, sig_xy, sig_h]),
-        use_xy0,
-        use_z0,
     )
 
 
@@ -398,33 +461,39 @@ def _feasible(strip, idx, target, use_xy, use_z, ids) -> bool:
     return True
 
 
+_Found = list[tuple[Rejection, Callable[..., None]]]
+
+
 def _tests(
-    res,
-    sol,
-    ids,
-    idx,
-    use_xy,
-    use_z,
-    keep_rows,
-    n_det,
-    strip,
-    lines,
-    line_index,
-    line_keep,
-    plan_sigma,
-    blunders,
-):
+    p: _ModelsProblem,
+    res: SimultaneousResult,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    keep_rows: BoolArray,
+    line_keep: list[BoolArray],
+    blunders: BlunderOptions,
+) -> _Found:
     """Every observation above its critical value, with the change that would
     reject it: (Rejection, apply) pairs."""
-    found = []
-    active = use_xy | use_z
+    return (
+        _control_tests(p, res, use_xy | use_z, blunders)
+        + _determination_tests(p, res, keep_rows, blunders)
+        + _line_tests(p, res, line_keep, blunders)
+    )
+
+
+def _control_tests(
+    p: _ModelsProblem, res: SimultaneousResult, active: BoolArray, blunders: BlunderOptions
+) -> _Found:
+    """Baarda's w of the control components, at their stated sigmas.
+
+    No variance factor: a control error spreads through the models into the
+    w of many other control points, and a factor from their median would
+    hide it (a 5 m error gives a factor of 90)."""
+    found: _Found = []
     act = np.flatnonzero(active)
-    # At their stated sigmas, no variance factor: a control error spreads
-    # through the models into the w of many other control points, and a
-    # factor from their median would hide it (a 5 m error gives a factor of 90).
     w = res.control_w  # (n_active, 3)
-    n_tests = int(np.isfinite(w).sum())
-    crit = blunders.critical("control", n_tests)
+    crit = blunders.critical("control", int(np.isfinite(w).sum()))
     plan_w = np.fmax(np.abs(w[:, 0]), np.abs(w[:, 1]))
     height_w = np.abs(w[:, 2])
     resid = res.control_residuals
@@ -443,101 +512,108 @@ def _tests(
             ),
             ("height", height_w[k], float(resid[k, 2]), float(estimate[k, 2])),
         ):
-            if np.isfinite(value) and value > crit:
+            if not (np.isfinite(value) and value > crit):
+                continue
 
-                def apply(xy, z, row=row, comp=comp):
-                    (z if comp == "height" else xy)[row] = False
+            def apply(xy: BoolArray, z: BoolArray, row: int = row, comp: str = comp) -> None:
+                (z if comp == "height" else xy)[row] = False
 
-                found.append(
-                    (
-                        Rejection(
-                            stage="control",
-                            point=ids[row],
-                            photos=(),
-                            component=comp,
-                            residual=r,
-                            unit="m",
-                            w=float(value),
-                            critical=crit,
-                            applied=blunders.rejecting,
-                            effect=f"estimated error {size:.3g} m; sigma0 {res.sigma0:.3g} before",
-                        ),
-                        apply,
-                    )
-                )
-    # Determinations: the 3-D residual against chi-square(3), as a "w" =
-    # sqrt(statistic) (row_statistic has mean 1 per row: times 3).  Data
-    # noisier than declared scale it down by the rows' median over
-    # chi-square(3)'s, never up (the statistic's redundancy share is an
-    # estimate, and its tail is heavier than its median says).
-    kept = np.flatnonzero(keep_rows[:n_det])
+            rejection = Rejection(
+                stage="control",
+                point=p.ids[row],
+                photos=(),
+                component=comp,
+                residual=r,
+                unit="m",
+                w=float(value),
+                critical=crit,
+                applied=blunders.rejecting,
+                effect=f"estimated error {size:.3g} m; sigma0 {res.sigma0:.3g} before",
+            )
+            found.append((rejection, apply))
+    return found
+
+
+def _determination_tests(
+    p: _ModelsProblem, res: SimultaneousResult, keep_rows: BoolArray, blunders: BlunderOptions
+) -> _Found:
+    """The 3-D residual of each determination against chi-square(3), as a
+    "w" = sqrt(statistic) (row_statistic has mean 1 per row: times 3); the
+    five largest above the critical value.
+
+    Data noisier than declared scale the statistic down by the rows' median
+    over chi-square(3)'s, never up (the statistic's redundancy share is an
+    estimate, and its tail is heavier than its median says)."""
+    strip = p.strip
+    found: _Found = []
+    kept = np.flatnonzero(keep_rows[: p.n_det])
     stat = 3.0 * res.row_statistic[: kept.size]
     finite = stat[np.isfinite(stat)]
     if finite.size:
         stat = stat / max(1.0, float(np.median(finite)) / _CHI2_3_MEDIAN)
-    n_rows = int(np.isfinite(stat).sum())
-    crit_m = blunders.critical("models", n_rows, dof=3)
+    crit = blunders.critical("models", int(np.isfinite(stat).sum()), dof=3)
     w_rows = np.sqrt(np.where(np.isfinite(stat), stat, 0.0))
-    worst = np.argsort(-w_rows)[:5]
-    for k in worst:
-        if not w_rows[k] > crit_m:
+    for k in np.argsort(-w_rows)[:5]:
+        if not w_rows[k] > crit:
             break
         det = int(kept[k])
         m = int(strip.model[det])
         label = strip.model_labels[m] if strip.model_labels else f"model {m}"
 
-        def apply(keep, det=det):
+        def apply(keep: BoolArray, det: int = det) -> None:
             keep[det] = False
 
-        found.append(
-            (
-                Rejection(
-                    stage="models",
-                    point=strip.observations.point_ids[strip.model_point[det]],
-                    photos=(label,),
-                    component="model point",
-                    residual=float(np.linalg.norm(res.residuals[k])),
-                    unit="m",
-                    w=float(w_rows[k]),
-                    critical=crit_m,
-                    applied=blunders.rejecting,
-                    effect="determination left out of the adjustment",
-                ),
-                apply,
-            )
+        rejection = Rejection(
+            stage="models",
+            point=strip.observations.point_ids[strip.model_point[det]],
+            photos=(label,),
+            component="model point",
+            residual=float(np.linalg.norm(res.residuals[k])),
+            unit="m",
+            w=float(w_rows[k]),
+            critical=crit,
+            applied=blunders.rejecting,
+            effect="determination left out of the adjustment",
         )
-    # line points: Baarda's w of the line equations
-    if lines:
-        n_line = int(sum(int(k.sum()) for k in line_keep))
-        crit_l = blunders.critical("straight_line", n_line)
-        for li_k, (line, keep, e, wl, rl) in enumerate(
-            zip(lines, line_keep, res.line_residuals, res.line_w, res.line_redundancy, strict=True)
-        ):
-            kept_pos = np.flatnonzero(keep)
-            for j in np.flatnonzero(np.abs(np.nan_to_num(wl)) > crit_l):
-                pos = int(kept_pos[j])
+        found.append((rejection, apply))
+    return found
 
-                def apply(keeps, li_k=li_k, pos=pos):
-                    keeps[li_k][pos] = False
 
-                found.append(
-                    (
-                        Rejection(
-                            stage="straight_line",
-                            point=str(line.point_ids[pos]),
-                            photos=(line.name,),
-                            component="line",
-                            residual=float(e[j]),
-                            unit="m",
-                            w=float(abs(wl[j])),
-                            critical=crit_l,
-                            applied=blunders.rejecting,
-                            effect=f"line {line.name!r}; estimated distance from the line "
-                            f"{abs(e[j] / rl[j]):.3g} m",
-                        ),
-                        apply,
-                    )
-                )
+def _line_tests(
+    p: _ModelsProblem,
+    res: SimultaneousResult,
+    line_keep: list[BoolArray],
+    blunders: BlunderOptions,
+) -> _Found:
+    """Baarda's w of the line equations of the line points still used."""
+    found: _Found = []
+    if not p.lines:
+        return found
+    crit = blunders.critical("straight_line", int(sum(int(k.sum()) for k in line_keep)))
+    for li_k, (line, keep, e, wl, rl) in enumerate(
+        zip(p.lines, line_keep, res.line_residuals, res.line_w, res.line_redundancy, strict=True)
+    ):
+        kept_pos = np.flatnonzero(keep)
+        for j in np.flatnonzero(np.abs(np.nan_to_num(wl)) > crit):
+            pos = int(kept_pos[j])
+
+            def apply(keeps: list[BoolArray], li_k: int = li_k, pos: int = pos) -> None:
+                keeps[li_k][pos] = False
+
+            rejection = Rejection(
+                stage="straight_line",
+                point=str(line.point_ids[pos]),
+                photos=(line.name,),
+                component="line",
+                residual=float(e[j]),
+                unit="m",
+                w=float(abs(wl[j])),
+                critical=crit,
+                applied=blunders.rejecting,
+                effect=f"line {line.name!r}; estimated distance from the line "
+                f"{abs(e[j] / rl[j]):.3g} m",
+            )
+            found.append((rejection, apply))
     return found
 
 
@@ -551,41 +627,86 @@ def _mean_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
 
 
 def _products(
-    strip,
-    start,
-    work,
-    res,
-    guess,
-    given,
-    idx,
-    rows,
-    check,
-    use_xy,
-    use_z,
-    ids,
-    lines,
-    line_index,
-    line_keep,
-    keep_rows,
-    n_det,
-    n_pass,
-    converged,
-    rejections,
-    rejected_rows,
-    blunders,
-    sigma,
-    given_xy,
-    given_z,
+    p: _ModelsProblem,
+    sol: _ModelsSolution,
+    keep_rows: BoolArray,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    line_keep: list[BoolArray],
+    rejections: tuple[Rejection, ...],
+    rejected_rows: tuple[tuple[str, str], ...],
+    blunders: BlunderOptions,
 ) -> GroundResult:
-    obs = strip.observations
-    n_points = obs.n_points
+    """Every point and photo through the models' transforms, to the CRS, with
+    the control's residuals and detectability and the models' discrepancies."""
+    strip, res, work = p.strip, sol.result, p.work
+    points_work, centres_work, rot_work = _photos_and_points(strip, res)
+    points_work = intersect_unmodelled(strip, points_work, centres_work, rot_work)
+    centres = work.from_work(centres_work)
+    rot_enu = work.rotations_to_enu(rot_work, centres)
+
+    given, check = p.given, p.start.is_check
+    given_work = work.to_work(np.where(np.isnan(given), sol.guess, given))
+    resid = work.enu_from_work(given_work - points_work[p.idx])
+    # rejected control keeps its (large) residual; used_xy / used_h say what was used
+    resid[~(p.use_xy | check), :2] = np.nan
+    resid[~(p.use_z | check), 2] = np.nan
+    resid[np.isnan(given)] = np.nan
+
+    line_resid = tuple(
+        points_work[li, 1] - (ab[0] + ab[1] * points_work[li, 0])
+        for li, ab in zip(p.line_index, res.line_parameters, strict=True)
+    )
+    active = use_xy | use_z
+    redundancy, mde = control_detectability(
+        res.control_redundancy, p.sigma[active], blunders, int(np.isfinite(res.control_w).sum())
+    )
+    n_rows = p.start.control_index.shape[0]
+    red_all = np.full((n_rows, 3), np.nan)
+    mde_all = np.full((n_rows, 3), np.nan)
+    red_all[active], mde_all[active] = redundancy, mde
+    return replace(
+        p.start,
+        points_work=points_work,
+        points=work.from_work(points_work),
+        photo_centres_work=centres_work,
+        photo_centres=centres,
+        photo_rotations_work=rot_work,
+        photo_rotations_enu=rot_enu,
+        photo_opk=opk_from_matrix(rot_enu),
+        control_residuals=resid,
+        line_names=tuple(line.name for line in p.lines),
+        line_point_index=tuple(p.line_index),
+        line_residuals=line_resid,
+        passes=sol.n_pass,
+        passes_converged=sol.converged,
+        used_xy=use_xy & ~check,
+        used_h=use_z & ~check,
+        line_used=tuple(k.copy() for k in line_keep),
+        rejections=rejections,
+        models=_model_adjustment(strip, res, keep_rows, p.n_det, rejected_rows),
+        control_redundancy=red_all,
+        control_mde=mde_all,
+    )
+
+
+def _photos_and_points(
+    strip: StripModel, res: SimultaneousResult
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Work-frame points (P, 3; NaN where not triangulated), projection
+    centres (M, 3) and image -> work rotations (M, 3, 3) of the adjustment.
+
+    A photo's attitude is the chordal mean of the (one or two) models'
+    transforms applied to its strip rotation; a photo between the model
+    photos (photo_step > 1) takes the transform of the model whose photos
+    enclose it, and a point seen only by such photos that of the model whose
+    centroid is nearest in plan."""
+    n_points = strip.observations.n_points
     pos = strip.model_photo_positions
     n_photos = strip.centres.shape[0]
     points_work = res.points[:n_points].copy()
     points_work[~strip.triangulated] = np.nan
     centres_work = res.points[n_points:].copy()
-    # A photo's attitude from the models it belongs to: the chordal mean of
-    # the (one or two) models' transforms applied to its strip rotation.
     t = res.transforms
     rot_work = np.full((n_photos, 3, 3), np.nan)
     left_of = np.full(n_photos, -1)
@@ -598,8 +719,6 @@ def _products(
     ra = t.apply_to_rotation(m_a[in_model], strip.rotations[in_model])
     rb = t.apply_to_rotation(m_b[in_model], strip.rotations[in_model])
     rot_work[in_model] = _mean_rotation(ra, rb)
-    # Photos between the model photos (photo_step > 1): the transform of the
-    # model whose photos enclose them.
     between = ~in_model
     if between.any():
         model_of = np.clip(
@@ -607,33 +726,23 @@ def _products(
         )
         rot_work[between] = t.apply_to_rotation(model_of, strip.rotations[between])
         centres_work[between] = t.apply(model_of, strip.centres[between])
-        # points no model determined (seen only by those photos): the
-        # transform of the model whose centroid is nearest in plan
         lonely = np.flatnonzero(strip.triangulated & ~np.isfinite(points_work).all(axis=1))
         if lonely.size:
             d = strip.points[lonely, None, :2] - t.centroid[None, :, :2]
             nearest = np.argmin(np.einsum("pmk,pmk->pm", d, d), axis=1)
             points_work[lonely] = t.apply(nearest, strip.points[lonely])
-    points_work = intersect_unmodelled(strip, points_work, centres_work, rot_work)
-    points = work.from_work(points_work)
-    centres = work.from_work(centres_work)
-    rot_enu = work.rotations_to_enu(rot_work, centres)
-    opk = opk_from_matrix(rot_enu)
+    return points_work, centres_work, rot_work
 
-    given_work = work.to_work(np.where(np.isnan(given), guess, given))
-    diff = work.enu_from_work(given_work - points_work[idx])
-    resid = diff.copy()
-    # rejected control keeps its (large) residual; used_xy / used_h say what was used
-    resid[~(given_xy | check), :2] = np.nan
-    resid[~(given_z | check), 2] = np.nan
-    resid[np.isnan(given)] = np.nan
 
-    line_resid = tuple(
-        points_work[li, 1] - (ab[0] + ab[1] * points_work[li, 0])
-        for li, ab in zip(line_index, res.line_parameters, strict=True)
-    )
-
-    # per-model discrepancies of the determinations and the centres
+def _model_adjustment(
+    strip: StripModel,
+    res: SimultaneousResult,
+    keep_rows: BoolArray,
+    n_det: int,
+    rejected_rows: tuple[tuple[str, str], ...],
+) -> ModelAdjustment:
+    """The discrepancies of the determinations and of the centres, with each
+    model's RMS of its determinations."""
     kept = np.flatnonzero(keep_rows[:n_det])
     disc = res.residuals[: kept.size]
     det_model = strip.model[kept]
@@ -651,15 +760,7 @@ def _products(
         )
     centre_rows = np.flatnonzero(keep_rows[n_det:]) + kept.size
     centre_disc = res.residuals[centre_rows].reshape(2, strip.n_models, 3).transpose(1, 0, 2)
-
-    active = use_xy | use_z
-    redundancy, mde = control_detectability(
-        res.control_redundancy, sigma[active], blunders, int(np.isfinite(res.control_w).sum())
-    )
-    red_all = np.full((rows.shape[0], 3), np.nan)
-    mde_all = np.full((rows.shape[0], 3), np.nan)
-    red_all[active], mde_all[active] = redundancy, mde
-    models = ModelAdjustment(
+    return ModelAdjustment(
         result=res,
         model=det_model,
         point=strip.model_point[kept],
@@ -667,27 +768,4 @@ def _products(
         model_rms=model_rms,
         centre_discrepancy=centre_disc,
         rejected=rejected_rows,
-    )
-    return replace(
-        start,
-        points_work=points_work,
-        points=points,
-        photo_centres_work=centres_work,
-        photo_centres=centres,
-        photo_rotations_work=rot_work,
-        photo_rotations_enu=rot_enu,
-        photo_opk=opk,
-        control_residuals=resid,
-        line_names=tuple(line.name for line in lines),
-        line_point_index=tuple(line_index),
-        line_residuals=line_resid,
-        passes=n_pass,
-        passes_converged=converged,
-        used_xy=use_xy & ~check,
-        used_h=use_z & ~check,
-        line_used=tuple(k.copy() for k in line_keep),
-        rejections=rejections,
-        models=models,
-        control_redundancy=red_all,
-        control_mde=mde_all,
     )

@@ -230,9 +230,7 @@ def _fit_with_roll(
     line_keep: list[BoolArray],
     polynomial: int | str,
     act_ids: list[str],
-) -> tuple[
-    SimilarityResult, DeformationResult | None, KindSelection | None, float, FloatArray
-]:
+) -> tuple[SimilarityResult, DeformationResult | None, KindSelection | None, float, FloatArray]:
     """The polynomials on the similarity turned by ``roll`` about the strip's
     axis, the roll updated until its effect on the relief is negligible.
 
