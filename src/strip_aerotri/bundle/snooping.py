@@ -1,0 +1,823 @@
+"""Bundle adjustment in a Cartesian frame with data snooping (method.md §7).
+
+:func:`refine_frame` solves the bundle (:func:`strip_aerotri.bundle.adjust.bundle_adjust`),
+tests every image coordinate, control component, GNSS centre and IMU
+attitude by Baarda's w, rejects the worst (or a few well-separated image
+rays) and solves again from the last solution, until nothing fails.  A round
+is: the adjustment (:func:`refine_frame`'s loop), the test values
+(:func:`_round_statistics`), the failures (:func:`_failures`), their
+records (:func:`_describe`) and the rejection itself (:meth:`_Sets.reject`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
+from ..blunders import robust_variance_factor
+from ..errors import GeometryError
+from ..geometry.collinearity import image_jacobian, image_vectors
+from ..observations import ImageObservations
+from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions
+from ..results import BundleResult, FrameRefinement, Rejection
+from .adjust import bundle_adjust, observed_with_sigma
+
+__all__ = ["CONTROL_STAGE", "GNSS_STAGE", "IMAGE_STAGE", "IMU_STAGE", "refine_frame"]
+
+#: Stage name of the image-coordinate tests in :class:`Rejection` records.
+IMAGE_STAGE = "bundle"
+#: Stage name of the control tests (shared with the ground stage's options).
+CONTROL_STAGE = "control"
+#: Stage names of the GNSS centre and IMU attitude tests.
+GNSS_STAGE = "gnss"
+IMU_STAGE = "imu"
+#: Smallest value the photo-unknowns factor of the redundancy numbers may take.
+_MIN_PHOTO_FACTOR = 0.05
+
+
+def refine_frame(
+    observations: ImageObservations,
+    centres0: ArrayLike,
+    rotations0: ArrayLike,
+    points0: ArrayLike,
+    *,
+    control_xyz: ArrayLike | None = None,
+    control_sigma: ArrayLike | None = None,
+    gnss_centres: ArrayLike | None = None,
+    gnss_sigma: ArrayLike | None = None,
+    imu_rotations: ArrayLike | None = None,
+    imu_sigma: ArrayLike | None = None,
+    blunders: BlunderOptions | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    compute_precision: bool = True,
+    observation_used: ArrayLike | None = None,
+    control_used: ArrayLike | None = None,
+    gnss_axes: ArrayLike | None = None,
+    gnss_used: ArrayLike | None = None,
+    imu_used: ArrayLike | None = None,
+) -> FrameRefinement:
+    """Bundle adjustment in a Cartesian frame with data snooping.
+
+    Parameters
+    ----------
+    observations : ImageObservations
+        K image observations (mm) of P points on M photos.
+    centres0 : array_like, shape (M, 3)
+        Initial projection centres, metres.
+    rotations0 : array_like, shape (M, 3, 3)
+        Initial rotations, image -> frame.
+    points0 : array_like, shape (P, 3)
+        Initial points, metres; rows with NaN are left out (no initial value).
+    control_xyz, control_sigma : array_like, shapes (P, 3), optional
+        Control coordinates in the frame, NaN where not given, and their
+        standard deviations (m).
+    gnss_centres, gnss_sigma : array_like, shapes (M, 3), optional
+        Observed centres in the frame (NaN where none) and sigmas (m).
+    imu_rotations : array_like, shape (M, 3, 3), optional
+        Observed rotations image -> frame (NaN matrices where none).
+    imu_sigma : float or array_like, shape (M, 3), optional
+        Their standard deviations, radians.
+    blunders : BlunderOptions, optional
+        ``action``, ``alpha``, critical values (stages ``"bundle"`` for the
+        image coordinates, ``"control"`` for the control, ``"gnss"`` and
+        ``"imu"`` for the GNSS centres and IMU attitudes), ``max_fraction``,
+        excluded points and observations.
+    max_iterations : int
+        Per adjustment.
+    compute_precision : bool
+        Standard deviations of points and photos (and exact control tests).
+    observation_used : array_like of bool, shape (K,), optional
+        Observations to start with (default all but the excluded ones).
+    control_used : array_like of bool, shape (P, 3), optional
+        Control components to start with (default all given).
+    gnss_axes : array_like, shape (M, 3, 3), optional
+        Directions along which the GNSS centres are tested, as the columns
+        of a rotation east-north-up -> frame at each centre (the components
+        are named ``"E"``, ``"N"``, ``"U"`` in the rejections); default the
+        frame axes.
+    gnss_used, imu_used : array_like of bool, shape (M,), optional
+        GNSS centres / IMU attitudes to start with (default all given).
+
+    Returns
+    -------
+    FrameRefinement
+
+    Raises
+    ------
+    GeometryError
+        As :func:`~strip_aerotri.bundle.bundle_adjust`, or more than
+        ``max_fraction`` of the image observations, of the control, of the
+        GNSS centres or of the IMU attitudes fail.
+
+    Notes
+    -----
+    Test values are Baarda's ``w = v / (sigma sqrt(r))`` with the a priori
+    sigma; the image tests are divided by the square root of their robust
+    variance factor (:func:`~strip_aerotri.blunders.robust_variance_factor`),
+    the control tests are not (the control's stated accuracy is what is
+    tested, and over a few dozen control components with small redundancy
+    numbers one blunder spreads to its neighbours and would inflate the
+    factor).
+
+    *Control*: ``r = 1 - q / sigma_c**2`` with the cofactor ``q`` of the
+    adjusted coordinate (exact; with ``compute_precision=False`` ``q`` is
+    approximated by the point's own 3 x 3 block, photos held fixed).
+
+    *Image coordinates*: exact redundancy numbers need the photo-by-photo
+    blocks of the inverse normal matrix for every observation; they are
+    approximated by ``r = (1 - h) rho``, where ``h`` is the exact leverage of
+    the coordinate on its own point with the photos held fixed and
+    ``rho = 1 - 6 M / sum(1 - h)`` spreads the photos' unknowns evenly over
+    the image coordinates (so that the numbers add up to the image share of
+    the redundancy).  On the 12-photo film strip the approximation is within
+    0.1 of the exact numbers (tests/test_refine.py).
+
+    *GNSS centres and IMU attitudes* (with ``compute_precision`` only): the
+    exact directional tests of :func:`_directional_tests` from the residual
+    cofactors of the bundle (``BundleResult.gnss_residual_cofactor``,
+    ``imu_residual_cofactor``), at the a priori sigmas, along ``gnss_axes``
+    for GNSS and about the image axes for IMU; critical values of stages
+    ``"gnss"`` and ``"imu"`` (Bonferroni over three components per used
+    photo).  A photo's test value is its largest ``|w|``.
+
+    Rejection: the largest ``|w| / critical`` over all four kinds is taken.
+    A control component is rejected alone (a plan point loses X and Y
+    together), a GNSS centre or an IMU attitude as a whole (its three
+    components).  Image
+    observations (both coordinates of a ray) are rejected several per round:
+    the failing ones, largest first, as long as their photos are more than
+    ``n`` photos apart, ``n`` the largest number of photos that see one point
+    (so no two rejections of a round share a point or a photo).  A point
+    left with one ray (and no full control) is dropped.  The adjustment is
+    then solved again from the last solution, until nothing fails.
+    """
+    blunders = blunders or BlunderOptions()
+    obs = observations
+    inp = _inputs(
+        obs,
+        centres0,
+        rotations0,
+        points0,
+        control_xyz,
+        control_sigma,
+        gnss_centres,
+        gnss_sigma,
+        imu_rotations,
+        imu_sigma,
+        gnss_axes,
+    )
+    sets = _Sets.start(inp, blunders, observation_used, control_used, gnss_used, imu_used)
+    rejections: list[Rejection] = []
+    rounds = iterations = 0
+    window = int(np.max(np.bincount(obs.point, minlength=inp.n_points), initial=1))
+    previous_effect: int | None = None
+    state = (inp.centres0, inp.rotations0, inp.points0)
+    while True:
+        pt_used = sets.used_points(inp)
+        sub, rows, pts = _compact(obs, sets.keep, pt_used)
+        res = bundle_adjust(
+            sub,
+            state[0],
+            state[1],
+            state[2][pts],
+            control_xyz=np.where(sets.ctrl_on[pts], inp.c_xyz[pts], np.nan),
+            control_sigma=np.where(sets.ctrl_on[pts], inp.c_sig[pts], np.inf),
+            gnss_centres=None
+            if inp.g_xyz is None
+            else np.where(sets.g_on[:, None], inp.g_xyz, np.nan),
+            gnss_sigma=None if inp.g_xyz is None else inp.g_sig,
+            imu_rotations=None
+            if inp.i_rot is None
+            else np.where(sets.i_on[:, None, None], inp.i_rot, np.nan),
+            imu_sigma=None if inp.i_rot is None else inp.i_sig,
+            max_iterations=max_iterations,
+            compute_precision=compute_precision,
+        )
+        rounds += 1
+        iterations += res.iterations
+        new_points = np.full((inp.n_points, 3), np.nan)
+        new_points[pts] = res.points
+        # keep initial values of dropped points for a possible later round
+        state = (res.centres, res.rotations, np.where(pt_used[:, None], new_points, inp.points0))
+        if previous_effect is not None:
+            rejections[previous_effect:] = [
+                dataclasses.replace(r, effect=f"{r.effect}, sigma0 {res.sigma0:.4g} after")
+                for r in rejections[previous_effect:]
+            ]
+        stats = _round_statistics(
+            inp, sets, res, new_points, pt_used, sub, rows, pts, compute_precision
+        )
+        result = FrameRefinement(
+            centres=res.centres,
+            rotations=res.rotations,
+            points=new_points,
+            point_used=pt_used,
+            observation_used=sets.keep & stats.tested,
+            control_used=sets.ctrl_on & pt_used[:, None],
+            observation_rejected=sets.obs_rejected.copy(),
+            control_rejected=sets.ctrl_rejected.copy(),
+            image_residuals_mm=stats.v_img,
+            image_w=stats.w_img,
+            image_redundancy=stats.r_img,
+            control_residuals=stats.ctrl_res,
+            control_w=stats.w_ctrl,
+            point_std=_expand(res.point_std, pts, inp.n_points),
+            centre_std=res.centre_std,
+            rotation_std=res.rotation_std,
+            sigma0=res.sigma0,
+            redundancy=res.redundancy,
+            iterations=iterations,
+            rounds=rounds,
+            converged=res.converged,
+            rejections=tuple(rejections),
+            bundle=res,
+            gnss_used=sets.g_on.copy(),
+            gnss_rejected=sets.g_rejected.copy(),
+            imu_used=sets.i_on.copy(),
+            imu_rejected=sets.i_rejected.copy(),
+        )
+        if not blunders.testing:
+            return result
+        failures = _failures(inp, sets, res, stats, blunders)
+        if not failures.found:
+            return result
+        worst = max(failures.found)
+        if not blunders.rejecting:
+            picks = [(f[1], f[2]) for f in sorted(failures.found, reverse=True)]
+        elif worst[1] == "image":
+            candidates = [(f[0], f[2]) for f in failures.found if f[1] == "image"]
+            picks = [("image", k) for k in _separated(candidates, obs.photo, window)]
+        else:
+            picks = [(worst[1], worst[2])]
+        new_rejections = _describe(obs, picks, failures, stats, res.sigma0, blunders)
+        if not blunders.rejecting:
+            return dataclasses.replace(result, rejections=tuple(rejections + new_rejections))
+        previous_effect = len(rejections)
+        rejections.extend(new_rejections)
+        sets.reject(picks)
+        sets.check_fractions(inp, blunders)
+
+
+class _Inputs(NamedTuple):
+    """The validated inputs of :func:`refine_frame` (frame units: m, rad)."""
+
+    obs: ImageObservations
+    n_photos: int
+    n_points: int
+    centres0: FloatArray
+    rotations0: FloatArray
+    points0: FloatArray
+    sigma_img: FloatArray  # (K,) mm
+    c_xyz: FloatArray  # (P, 3), NaN where not given
+    c_sig: FloatArray  # (P, 3), inf where not given
+    c_given: BoolArray  # (P, 3)
+    g_xyz: FloatArray | None
+    g_sig: FloatArray
+    g_given: BoolArray
+    g_axes: FloatArray
+    i_rot: FloatArray | None
+    i_sig: FloatArray
+    i_given: BoolArray
+
+
+def _inputs(
+    obs: ImageObservations,
+    centres0: ArrayLike,
+    rotations0: ArrayLike,
+    points0: ArrayLike,
+    control_xyz: ArrayLike | None,
+    control_sigma: ArrayLike | None,
+    gnss_centres: ArrayLike | None,
+    gnss_sigma: ArrayLike | None,
+    imu_rotations: ArrayLike | None,
+    imu_sigma: ArrayLike | None,
+    gnss_axes: ArrayLike | None,
+) -> _Inputs:
+    """Shapes checked, control, GNSS and IMU with their sigmas; ValueError naming
+    the argument otherwise."""
+    k_all, m, p = obs.photo.shape[0], len(obs.photo_ids), len(obs.point_ids)
+    centres = np.array(centres0, dtype=np.float64)
+    rotations = np.array(rotations0, dtype=np.float64)
+    points = np.array(points0, dtype=np.float64)
+    if points.shape != (p, 3):
+        raise ValueError(f"Expected `points0` to have shape {(p, 3)}, got {points.shape}")
+    if centres.shape != (m, 3) or rotations.shape != (m, 3, 3):
+        raise ValueError(
+            f"Expected `centres0` (M, 3) and `rotations0` (M, 3, 3) with M = {m}, got "
+            f"{centres.shape}, {rotations.shape}"
+        )
+    if control_xyz is None:
+        c_xyz, c_sig = np.full((p, 3), np.nan), np.full((p, 3), np.inf)
+    else:
+        c_xyz, c_sig = observed_with_sigma(
+            control_xyz, control_sigma, (p, 3), "control_xyz", "control_sigma"
+        )
+    c_given = np.isfinite(c_xyz) & np.isfinite(c_sig)
+    if np.any(c_sig[c_given] <= 0):
+        raise ValueError("Expected positive standard deviations for `control_xyz`")
+    g_xyz = i_rot = None
+    g_sig = i_sig = np.full((m, 3), np.inf)
+    g_given = np.zeros(m, bool)
+    i_given = np.zeros(m, bool)
+    if gnss_centres is not None:
+        g_xyz, g_sig = observed_with_sigma(
+            gnss_centres, gnss_sigma, (m, 3), "gnss_centres", "gnss_sigma"
+        )
+        g_given = np.any(np.isfinite(g_xyz) & np.isfinite(g_sig), axis=1)
+    if imu_rotations is not None:
+        i_rot, i_sig = observed_with_sigma(
+            imu_rotations, imu_sigma, (m, 3, 3), "imu_rotations", "imu_sigma"
+        )
+        i_given = np.all(np.isfinite(i_rot), axis=(1, 2)) & np.any(np.isfinite(i_sig), axis=1)
+    if gnss_axes is None:
+        g_axes = np.broadcast_to(np.eye(3), (m, 3, 3))
+    else:
+        g_axes = np.asarray(gnss_axes, dtype=np.float64)
+        if g_axes.shape != (m, 3, 3):
+            raise ValueError(f"Expected `gnss_axes` to have shape {(m, 3, 3)}, got {g_axes.shape}")
+    return _Inputs(
+        obs,
+        m,
+        p,
+        centres,
+        rotations,
+        points,
+        np.broadcast_to(np.asarray(obs.sigma, dtype=np.float64), (k_all,)),
+        c_xyz,
+        c_sig,
+        c_given,
+        g_xyz,
+        g_sig,
+        g_given,
+        g_axes,
+        i_rot,
+        i_sig,
+        i_given,
+    )
+
+
+@dataclass
+class _Sets:
+    """What is in use and what was rejected; changed by each round's rejections."""
+
+    keep: BoolArray  # (K,) image observations in use
+    rejected_before: BoolArray  # (K,) rejected by an earlier call's tests
+    obs_rejected: BoolArray  # (K,)
+    ctrl_on: BoolArray  # (P, 3)
+    ctrl_rejected: BoolArray  # (P, 3)
+    g_on: BoolArray  # (M,)
+    g_rejected: BoolArray
+    i_on: BoolArray
+    i_rejected: BoolArray
+    n_img_start: int
+    n_ctrl_start: int
+
+    @classmethod
+    def start(
+        cls,
+        inp: _Inputs,
+        blunders: BlunderOptions,
+        observation_used: ArrayLike | None,
+        control_used: ArrayLike | None,
+        gnss_used: ArrayLike | None,
+        imu_used: ArrayLike | None,
+    ) -> _Sets:
+        obs, m, p = inp.obs, inp.n_photos, inp.n_points
+        k_all = obs.photo.shape[0]
+        keep = (
+            np.ones(k_all, bool) if observation_used is None else np.array(observation_used, bool)
+        )
+        if keep.shape != (k_all,):
+            raise ValueError(f"Expected `observation_used` to have shape {(k_all,)}")
+        ctrl_on = (
+            inp.c_given.copy()
+            if control_used is None
+            else np.array(control_used, bool) & inp.c_given
+        )
+        excluded_points, excluded_obs = blunders.excluded(obs)
+        rejected_before = ~keep & ~excluded_obs
+        keep &= ~excluded_obs
+        ctrl_on[excluded_points] = False
+        g_on = inp.g_given & _photo_flags(gnss_used, m, "gnss_used")
+        i_on = inp.i_given & _photo_flags(imu_used, m, "imu_used")
+        return cls(
+            keep=keep,
+            rejected_before=rejected_before,
+            obs_rejected=np.zeros(k_all, bool),
+            ctrl_on=ctrl_on,
+            ctrl_rejected=np.zeros((p, 3), bool),
+            g_on=g_on,
+            g_rejected=inp.g_given & ~g_on,
+            i_on=i_on,
+            i_rejected=inp.i_given & ~i_on,
+            n_img_start=int(keep.sum()),
+            n_ctrl_start=int(ctrl_on.sum()),
+        )
+
+    def used_points(self, inp: _Inputs) -> BoolArray:
+        """Points with a start value and enough rays.
+
+        A point that lost a ray to a rejection keeps a check on the rest only
+        with three rays left: with two, the ray rejected may have been the
+        good one (a wrong ray pulls the point towards itself, and a good
+        neighbour can show the larger w) and nothing would show it."""
+        obs, p = inp.obs, inp.n_points
+        rays = np.bincount(obs.point[self.keep], minlength=p)
+        full = np.all(self.ctrl_on, axis=1)
+        lost = np.bincount(obs.point[self.obs_rejected | self.rejected_before], minlength=p) > 0
+        need = np.where(lost, 3, 2)
+        has_start = np.all(np.isfinite(inp.points0), axis=1)
+        return has_start & ((rays >= need) | ((rays >= need - 1) & full))
+
+    def reject(self, picks: list[tuple[str, int]]) -> None:
+        for kind, k in picks:
+            if kind == "image":
+                self.keep[k] = False
+                self.obs_rejected[k] = True
+            elif kind == "plan":
+                self.ctrl_on[k, :2] = False
+                self.ctrl_rejected[k, :2] = True
+            elif kind == "height":
+                self.ctrl_on[k, 2] = False
+                self.ctrl_rejected[k, 2] = True
+            elif kind == "gnss":
+                self.g_on[k] = False
+                self.g_rejected[k] = True
+            else:
+                self.i_on[k] = False
+                self.i_rejected[k] = True
+
+    def check_fractions(self, inp: _Inputs, blunders: BlunderOptions) -> None:
+        """GeometryError when a kind of observation lost more than
+        ``max_fraction`` to the tests: the rest cannot be trusted either."""
+        limit = blunders.max_fraction
+        n_img_rej = self.n_img_start - int(self.keep.sum())
+        if n_img_rej > limit * max(self.n_img_start, 1):
+            raise GeometryError(
+                f"bundle adjustment: more than {limit:.0%} of the image "
+                f"observations fail the blunder test ({n_img_rej} of {self.n_img_start}); the "
+                "observations cannot be trusted"
+            )
+        n_ctrl_rej = self.n_ctrl_start - int(self.ctrl_on.sum())
+        if n_ctrl_rej > limit * max(self.n_ctrl_start, 1):
+            raise GeometryError(
+                f"bundle adjustment: more than {limit:.0%} of the control "
+                "observations fail the blunder test; the control cannot be trusted"
+            )
+        for stage, what, given_k, rejected_k in (
+            (GNSS_STAGE, "GNSS centres", inp.g_given, self.g_rejected),
+            (IMU_STAGE, "IMU attitudes", inp.i_given, self.i_rejected),
+        ):
+            n_given_k = int(np.count_nonzero(given_k))
+            n_rej_k = int(np.count_nonzero(rejected_k))
+            if n_rej_k > limit * max(n_given_k, 1):
+                raise GeometryError(
+                    f"bundle adjustment, stage {stage!r}: more than {limit:.0%} "
+                    f"of the {what} fail the blunder test ({n_rej_k} of {n_given_k} photos); "
+                    f"the {what} cannot be trusted"
+                )
+
+
+class _RoundStatistics(NamedTuple):
+    tested: BoolArray  # (K,) observations of used points (rejected ones included)
+    v_img: FloatArray  # (K, 2) computed minus observed, mm
+    r_img: FloatArray  # (K, 2) redundancy numbers (approximate)
+    w_img: FloatArray  # (K, 2) w, scaled by the robust variance factor
+    ctrl_res: FloatArray  # (P, 3) adjusted minus given, m
+    w_ctrl: FloatArray  # (P, 3)
+
+
+def _round_statistics(
+    inp: _Inputs,
+    sets: _Sets,
+    res: BundleResult,
+    new_points: FloatArray,
+    pt_used: BoolArray,
+    sub: ImageObservations,
+    rows: IntArray,
+    pts: IntArray,
+    compute_precision: bool,
+) -> _RoundStatistics:
+    """Residuals, redundancy numbers and w of the image coordinates and the
+    control after one adjustment (see :func:`refine_frame`'s notes)."""
+    obs, m, p = inp.obs, inp.n_photos, inp.n_points
+    k_all = obs.photo.shape[0]
+    tested = pt_used[obs.point]
+    v_all = np.full((k_all, 2), np.nan)
+    rows_t = np.flatnonzero(tested)
+    vv = image_vectors(
+        res.centres[obs.photo[rows_t]],
+        res.rotations[obs.photo[rows_t]],
+        new_points[obs.point[rows_t]],
+    )
+    v_all[rows_t] = -obs.principal_distance * vv[:, :2] / vv[:, 2:3] - obs.xy[rows_t]
+
+    ctrl_on, c_sig, given = sets.ctrl_on, inp.c_sig, inp.c_given
+    weight_sub = np.where(ctrl_on[pts], 1.0 / np.where(ctrl_on[pts], c_sig[pts], 1.0) ** 2, 0)
+    h_sub, vinv_diag = _point_leverage(sub, res.centres, res.rotations, res.points, weight_sub)
+    free = float(np.sum(1.0 - h_sub))
+    rho = max(_MIN_PHOTO_FACTOR, 1.0 - 6.0 * m / free) if free > 0 else _MIN_PHOTO_FACTOR
+    r_img = np.full((k_all, 2), np.nan)
+    r_img[rows] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
+    w_img = np.full((k_all, 2), np.nan)
+    w_img[rows] = v_all[rows] / (inp.sigma_img[rows, None] * np.sqrt(r_img[rows]))
+    w_img /= np.sqrt(robust_variance_factor(w_img[rows].ravel()))
+
+    ctrl_res = np.full((p, 3), np.nan)
+    ctrl_res[given] = np.where(pt_used[:, None], new_points, np.nan)[given] - inp.c_xyz[given]
+    q = np.full((p, 3), np.nan)
+    if compute_precision and np.isfinite(res.sigma0) and res.sigma0 > 0:
+        q[pts] = (res.point_std / res.sigma0) ** 2
+    else:
+        q[pts] = vinv_diag
+    r_ctrl = np.where(ctrl_on, 1.0 - q / np.where(given, c_sig, 1.0) ** 2, np.nan)
+    r_ctrl = np.where(ctrl_on, np.clip(r_ctrl, 1e-12, 1.0), np.nan)
+    # Control is tested at its stated sigmas: with a few dozen control
+    # components and small redundancy numbers a single blunder spreads to its
+    # neighbours and would inflate a robust variance factor.
+    w_ctrl = np.where(ctrl_on, ctrl_res / (c_sig * np.sqrt(r_ctrl)), np.nan)
+    return _RoundStatistics(tested, v_all, r_img, w_img, ctrl_res, w_ctrl)
+
+
+class _Failures(NamedTuple):
+    #: (|w| / critical, kind, index) of every failing test; kind "image"
+    #: (observation index), "plan" / "height" (point index), "gnss" / "imu"
+    #: (photo index)
+    found: list[tuple[float, str, int]]
+    crit_img: float
+    crit_ctrl: float
+    plan_w: FloatArray
+    height_w: FloatArray
+    #: kind -> (stage, w (M, 3), residuals along the axes (M, 3), critical,
+    #: component names, unit, factor of the residual)
+    photo_stages: dict[str, tuple[str, FloatArray, FloatArray, float, tuple[str, ...], str, float]]
+
+
+def _failures(
+    inp: _Inputs,
+    sets: _Sets,
+    res: BundleResult,
+    stats: _RoundStatistics,
+    blunders: BlunderOptions,
+) -> _Failures:
+    """Every test above its critical value: image rays (the larger of |w_x|,
+    |w_y|), control in plan (the larger of X, Y) and height, GNSS centres
+    along ``gnss_axes`` and IMU attitudes about the image axes (a photo's
+    largest |w|)."""
+    used = sets.keep & stats.tested
+    crit_img = blunders.critical(IMAGE_STAGE, int(np.count_nonzero(used)) * 2)
+    ray_w = np.fmax(np.abs(stats.w_img[:, 0]), np.abs(stats.w_img[:, 1]))
+    ray_w = np.where(used, ray_w, np.nan)
+    ctrl_on, w_ctrl = sets.ctrl_on, stats.w_ctrl
+    crit_ctrl = blunders.critical(CONTROL_STAGE, int(np.count_nonzero(ctrl_on)))
+    plan_on = ctrl_on[:, 0] & ctrl_on[:, 1]
+    plan_w = np.where(plan_on, np.fmax(np.abs(w_ctrl[:, 0]), np.abs(w_ctrl[:, 1])), np.nan)
+    h_w = np.where(ctrl_on[:, 2], np.abs(w_ctrl[:, 2]), np.nan)
+    found = [
+        (float(ray_w[k]) / crit_img, "image", int(k)) for k in np.flatnonzero(ray_w > crit_img)
+    ]
+    found += [
+        (float(plan_w[i]) / crit_ctrl, "plan", int(i)) for i in np.flatnonzero(plan_w > crit_ctrl)
+    ]
+    found += [
+        (float(h_w[i]) / crit_ctrl, "height", int(i)) for i in np.flatnonzero(h_w > crit_ctrl)
+    ]
+    photo_stages = {
+        "gnss": (
+            GNSS_STAGE,
+            *_photo_tests(
+                -res.gnss_residuals, res.gnss_residual_cofactor, inp.g_sig, inp.g_axes, sets.g_on
+            ),
+            blunders.critical(GNSS_STAGE, 3 * int(np.count_nonzero(sets.g_on))),
+            ("E", "N", "U"),
+            "m",
+            1.0,
+        ),
+        "imu": (
+            IMU_STAGE,
+            *_photo_tests(
+                -res.imu_residuals, res.imu_residual_cofactor, inp.i_sig, np.eye(3), sets.i_on
+            ),
+            blunders.critical(IMU_STAGE, 3 * int(np.count_nonzero(sets.i_on))),
+            ("about x", "about y", "about z"),
+            "deg",
+            float(np.degrees(1.0)),
+        ),
+    }
+    for kind, (_, w_k, _, crit_k, *_) in photo_stages.items():
+        photo_w = np.max(np.where(np.isfinite(w_k), np.abs(w_k), -1.0), axis=1)
+        found += [
+            (float(photo_w[j]) / crit_k, kind, int(j)) for j in np.flatnonzero(photo_w > crit_k)
+        ]
+    return _Failures(found, crit_img, crit_ctrl, plan_w, h_w, photo_stages)  # type: ignore[arg-type]
+
+
+def _describe(
+    obs: ImageObservations,
+    picks: list[tuple[str, int]],
+    failures: _Failures,
+    stats: _RoundStatistics,
+    sigma0: float,
+    blunders: BlunderOptions,
+) -> list[Rejection]:
+    """The rejection records of the picked failures."""
+    effect = f"sigma0 {sigma0:.4g} before"
+    out: list[Rejection] = []
+    for kind, k in picks:
+        if kind in failures.photo_stages:
+            stage, w_k, v_k, crit_k, names, unit, factor = failures.photo_stages[kind]
+            comp = int(np.nanargmax(np.abs(w_k[k])))
+            out.append(
+                Rejection(
+                    stage=stage,
+                    point="",
+                    photos=(obs.photo_ids[k],),
+                    component=names[comp],
+                    residual=factor * float(v_k[k, comp]),
+                    unit=unit,
+                    w=float(abs(w_k[k, comp])),
+                    critical=crit_k,
+                    applied=blunders.rejecting,
+                    effect=f"bundle adjustment, {effect}",
+                )
+            )
+        elif kind == "image":
+            w_img = stats.w_img
+            comp = 0 if abs(w_img[k, 0]) >= abs(w_img[k, 1]) else 1
+            out.append(
+                Rejection(
+                    stage=IMAGE_STAGE,
+                    point=obs.point_ids[obs.point[k]],
+                    photos=(obs.photo_ids[obs.photo[k]],),
+                    component="xy"[comp],
+                    residual=float(stats.v_img[k, comp] * 1000.0),
+                    unit="µm",
+                    w=float(abs(w_img[k, comp])),
+                    critical=failures.crit_img,
+                    applied=blunders.rejecting,
+                    effect=effect,
+                )
+            )
+        else:
+            ctrl_res = stats.ctrl_res
+            if kind == "plan":
+                resid = float(np.hypot(ctrl_res[k, 0], ctrl_res[k, 1]))
+                wv = float(failures.plan_w[k])
+            else:
+                resid = float(-ctrl_res[k, 2])
+                wv = float(failures.height_w[k])
+            out.append(
+                Rejection(
+                    stage=CONTROL_STAGE,
+                    point=obs.point_ids[k],
+                    photos=(),
+                    component=kind,
+                    residual=resid,
+                    unit="m",
+                    w=wv,
+                    critical=failures.crit_ctrl,
+                    applied=blunders.rejecting,
+                    effect=f"bundle adjustment, {effect}",
+                )
+            )
+    return out
+
+
+def _point_leverage(
+    obs: ImageObservations,
+    centres: FloatArray,
+    rotations: FloatArray,
+    points: FloatArray,
+    control_weight: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """Leverage of each image coordinate on its own point, photos held fixed.
+
+    Returns ``h`` (K, 2), the diagonal of ``B V^-1 B.T`` per observation with
+    the whitened point Jacobian ``B`` and the point's normal block ``V``
+    (image rays plus control weights), and ``V^-1`` diagonals (P, 3).
+    """
+    photo, point = obs.photo, obs.point
+    rot = rotations[photo]
+    d_v = image_jacobian(image_vectors(centres[photo], rot, points[point]), obs.principal_distance)
+    b = np.einsum("kab,kcb->kac", d_v, rot) / np.asarray(obs.sigma)[:, None, None]
+    p = points.shape[0]
+    normal = np.zeros((p, 3, 3))
+    np.add.at(normal, point, np.swapaxes(b, 1, 2) @ b)
+    i3 = np.arange(3)
+    normal[:, i3, i3] += control_weight
+    v_inv = np.linalg.inv(normal)
+    h = np.einsum("kai,kij,kaj->ka", b, v_inv[point], b)
+    return h, np.diagonal(v_inv, axis1=1, axis2=2)
+
+
+def _compact(
+    obs: ImageObservations, keep_obs: BoolArray, point_used: BoolArray
+) -> tuple[ImageObservations, IntArray, IntArray]:
+    """Observations of the used points only, points renumbered.
+
+    Returns the sub-observations, the rows of ``obs`` they came from and the
+    original point index of each new point.
+    """
+    rows = np.flatnonzero(keep_obs & point_used[obs.point])
+    points = np.flatnonzero(point_used)
+    new_index = np.full(point_used.shape[0], -1, dtype=np.intp)
+    new_index[points] = np.arange(points.size)
+    sub = ImageObservations(
+        photo_ids=obs.photo_ids,
+        point_ids=tuple(obs.point_ids[i] for i in points),
+        photo=obs.photo[rows],
+        point=new_index[obs.point[rows]],
+        xy=obs.xy[rows],
+        sigma=np.broadcast_to(np.asarray(obs.sigma, dtype=np.float64), obs.photo.shape)[rows],
+        principal_distance=obs.principal_distance,
+    )
+    return sub, rows, points
+
+
+def _separated(candidates: list[tuple[float, int]], photo: IntArray, window: int) -> list[int]:
+    """Greedy pick of failing observations, largest first, pairwise more than
+    ``window`` photos apart (so that no two share a point)."""
+    chosen: list[int] = []
+    taken: list[int] = []
+    for _, k in sorted(candidates, reverse=True):
+        j = int(photo[k])
+        if all(abs(j - t) > window for t in taken):
+            chosen.append(k)
+            taken.append(j)
+    return chosen
+
+
+def _photo_flags(values: ArrayLike | None, m: int, name: str) -> BoolArray:
+    """Per-photo booleans (M,), all True when not given."""
+    if values is None:
+        return np.ones(m, bool)
+    flags = np.array(values, dtype=bool)
+    if flags.shape != (m,):
+        raise ValueError(f"Expected `{name}` to have shape {(m,)}, got {flags.shape}")
+    return flags
+
+
+def _photo_tests(
+    v: FloatArray, q_vv: FloatArray, sigma: FloatArray, axes: FloatArray, on: BoolArray
+) -> tuple[FloatArray, FloatArray]:
+    """w-tests and residuals along ``axes`` of the direct photo observations in use.
+
+    ``v`` (M, 3) observed minus adjusted in the frame, ``q_vv`` (M, 3, 3)
+    residual cofactors, ``sigma`` (M, 3), ``axes`` (M, 3, 3) or (3, 3)
+    (columns: test directions in the frame), ``on`` (M,) the photos whose
+    observation is in the adjustment.  Returns ``w`` and the residuals along
+    the axes, both (M, 3), NaN for photos not in use.
+    """
+    m = v.shape[0]
+    w = np.full((m, 3), np.nan)
+    v_axes = np.full((m, 3), np.nan)
+    rows = np.flatnonzero(on)
+    if rows.size:
+        a = np.broadcast_to(axes, (m, 3, 3))[rows]
+        # unobserved components (weight 0) carry NaN: they take no part
+        v_rows = np.nan_to_num(v[rows], nan=0.0)
+        q_rows = np.nan_to_num(q_vv[rows], nan=0.0)  # all NaN without precision: w NaN
+        _, w[rows] = _directional_tests(v_rows, q_rows, 1.0 / sigma[rows] ** 2, a)
+        v_axes[rows] = np.einsum("gia,gi->ga", a, v_rows)
+    return w, v_axes
+
+
+def _expand(values: FloatArray, index: IntArray, n: int) -> FloatArray:
+    out = np.full((n, *values.shape[1:]), np.nan)
+    out[index] = values
+    return out
+
+
+def _directional_tests(
+    v: FloatArray, q_vv: FloatArray, weight: FloatArray, axes: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Redundancy numbers and w-tests of direct observations along given axes.
+
+    Parameters
+    ----------
+    v : ndarray, shape (G, 3)
+        Observed minus adjusted, frame axes.
+    q_vv : ndarray, shape (G, 3, 3)
+        Cofactor matrices of the residuals, frame axes.
+    weight : ndarray, shape (G, 3)
+        Diagonal weights ``1 / sigma**2`` along the frame axes.
+    axes : ndarray, shape (G, 3, 3)
+        Columns: the test directions as unit vectors in the frame.
+
+    Returns
+    -------
+    redundancy, w : ndarray, shape (G, 3)
+        ``diag(Aᵀ Q_vv P A)`` and ``dᵀ P v / sqrt(dᵀ P Q_vv P d)`` per column
+        ``d`` of ``A``; w is NaN where the component has no redundancy.
+    """
+    pa = weight[:, :, None] * axes  # P A
+    redundancy = np.einsum("gia,gij,gja->ga", axes, q_vv, pa)
+    denominator = np.einsum("gia,gij,gja->ga", pa, q_vv, pa)
+    numerator = np.einsum("gia,gi->ga", pa, v)
+    ok = denominator > 1e-12 * np.einsum("gia,gia->ga", pa, axes)
+    w = np.where(ok, numerator / np.sqrt(np.where(ok, denominator, 1.0)), np.nan)
+    return redundancy, w
