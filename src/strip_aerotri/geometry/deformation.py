@@ -54,7 +54,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._typing import ArrayLike, FloatArray, IntArray
+from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import GeometryError, StripAerotriWarning
 from ..options import check_sections
 from ._banded import BandedNormals
@@ -759,13 +759,110 @@ def fit_deformation(
     sections, every section needs control (or line points, for Y) of every
     coordinate.
     """
+    data = _fit_inputs(
+        xyz, target, use_xy, use_z, kind, sigma_xy, sigma_z, lines, point_ids, sections
+    )
+    x_breaks = _check_coverage(data)
+    norm = _normalization(data)
+    design = _Design(data, norm, x_breaks)
+    fit = _Fit.empty(data.n, n_terms(max(data.kinds), data.n_sections))
+    normals_x = _fit_coordinate(data, design, fit, 0)
+    _fit_coordinate(data, design, fit, 2)
+    line_params, line_res, line_red, line_norm = _fit_y(data, design, norm, fit, normals_x)
+    kinds = data.kinds
+    exact = [
+        f"{a} (type {kinds[c]})"
+        for c, a in enumerate("XYZ")
+        if kinds[c] > 0 and fit.redundancy_xyz[c] == 0
+    ]
+    if exact:
+        warnings.warn(
+            f"deformation polynomial{data.in_sections}: {', '.join(exact)} "
+            f"{'has' if len(exact) == 1 else 'have'} as many control observations as terms "
+            "(no redundancy): the polynomial passes through that control exactly and an "
+            "error in it cannot be detected; add control or use a lower type",
+            StripAerotriWarning,
+            stacklevel=2,
+        )
+    redundancy = int(sum(fit.redundancy_xyz))
+    sigma0 = float(np.sqrt(fit.vtpv / redundancy)) if redundancy > 0 else float("nan")
+    fit.coefficients.setflags(write=False)  # DeformationResult caches their spline pieces
+    return DeformationResult(
+        kind=max(kinds),
+        kinds=kinds,
+        coefficients=fit.coefficients,
+        normalization=norm,
+        line_names=tuple(line.name for line in data.lines),
+        line_parameters=line_params,
+        residuals=fit.residuals,
+        line_residuals=line_res,
+        sigma0=sigma0,
+        redundancy=redundancy,
+        sigma0_xyz=fit.sigma0_xyz,
+        redundancy_xyz=(fit.redundancy_xyz[0], fit.redundancy_xyz[1], fit.redundancy_xyz[2]),
+        redundancy_numbers=fit.redundancy_numbers,
+        line_redundancy_numbers=line_red,
+        normalized_residuals=fit.normalized,
+        line_normalized_residuals=line_norm,
+        point_ids=data.ids,
+        breakpoints=design.breakpoints,
+    )
+
+
+class _FitInputs(NamedTuple):
+    """The validated arguments of :func:`fit_deformation`."""
+
+    pts: FloatArray
+    tgt: FloatArray
+    mask_xy: BoolArray
+    mask_z: BoolArray
+    sxy: FloatArray
+    sz: FloatArray
+    ids: tuple[str, ...]
+    kinds: tuple[int, int, int]
+    n_sections: int
+    lines: tuple[StraightLine, ...]
+
+    @property
+    def n(self) -> int:
+        return self.pts.shape[0]
+
+    @property
+    def used(self) -> BoolArray:
+        return self.mask_xy | self.mask_z
+
+    @property
+    def plan_ids(self) -> list[str]:
+        return [self.ids[i] for i in np.flatnonzero(self.mask_xy)]
+
+    @property
+    def height_ids(self) -> list[str]:
+        return [self.ids[i] for i in np.flatnonzero(self.mask_z)]
+
+    @property
+    def in_sections(self) -> str:
+        return f" in {self.n_sections} sections" if self.n_sections > 1 else ""
+
+
+def _fit_inputs(
+    xyz: ArrayLike,
+    target: ArrayLike,
+    use_xy: ArrayLike,
+    use_z: ArrayLike,
+    kind: int | Sequence[int],
+    sigma_xy: ArrayLike | None,
+    sigma_z: ArrayLike | None,
+    lines: Sequence[StraightLine],
+    point_ids: Sequence[str] | None,
+    sections: int,
+) -> _FitInputs:
+    """Shapes, types and finiteness of what is used (ValueError, TypeError or
+    GeometryError naming the points)."""
     pts = _check_points(xyz, "xyz")
     n = pts.shape[0]
     tgt = _check_points(target, "target", n)
     mask_xy = _check_mask(use_xy, n, "use_xy")
     mask_z = _check_mask(use_z, n, "use_z")
-    sxy = _check_sigma(sigma_xy, n, "sigma_xy")
-    sz = _check_sigma(sigma_z, n, "sigma_z")
     ids = _check_ids(point_ids, n)
     kinds = _kinds3(kind)
     n_sections = check_sections(sections)
@@ -777,7 +874,6 @@ def fit_deformation(
     for line in lines:
         if not isinstance(line, StraightLine):
             raise TypeError(f"Expected StraightLine objects in `lines`, got {type(line).__name__}")
-
     used = mask_xy | mask_z
     bad = (used & ~np.all(np.isfinite(pts[:, :2]), axis=1)) | (mask_z & ~np.isfinite(pts[:, 2]))
     bad |= mask_xy & ~np.all(np.isfinite(tgt[:, :2]), axis=1)
@@ -799,13 +895,33 @@ def fit_deformation(
                 f"straight line {line.name!r}: points with non-finite coordinates: "
                 f"{_quote([line.point_ids[i] for i in np.flatnonzero(bad_line)])}"
             )
+    return _FitInputs(
+        pts,
+        tgt,
+        mask_xy,
+        mask_z,
+        _check_sigma(sigma_xy, n, "sigma_xy"),
+        _check_sigma(sigma_z, n, "sigma_z"),
+        ids,
+        kinds,
+        n_sections,
+        lines,
+    )
 
-    plan_ids = [ids[i] for i in np.flatnonzero(mask_xy)]
-    height_ids = [ids[i] for i in np.flatnonzero(mask_z)]
-    n_plan = len(plan_ids)
-    n_height = len(height_ids)
+
+def _check_coverage(data: _FitInputs) -> FloatArray | None:
+    """Enough observations for every coordinate, at enough stations along the
+    strip and in every section (GeometryError naming the rule and the points).
+    Returns the section breakpoints in X (m), None for one polynomial."""
+    kinds, n_sections, lines, in_sections = (
+        data.kinds,
+        data.n_sections,
+        data.lines,
+        data.in_sections,
+    )
+    plan_ids, height_ids = data.plan_ids, data.height_ids
+    n_plan, n_height = len(plan_ids), len(height_ids)
     n_line_extra = sum(line.xyz.shape[0] - 2 for line in lines)
-    in_sections = f" in {n_sections} sections" if n_sections > 1 else ""
     for axis, count, label, names in (
         ("X", n_plan, "full or plan control points", plan_ids),
         ("Z", n_height, "height control points", height_ids),
@@ -830,7 +946,8 @@ def fit_deformation(
 
     # Stations along the strip: a polynomial of degree d in X needs control at
     # d + 1 distinct X positions, however many points stand at each.
-    all_x = np.concatenate([pts[used, 0]] + [line.xyz[:, 0] for line in lines])
+    pts, mask_xy, mask_z = data.pts, data.mask_xy, data.mask_z
+    all_x = np.concatenate([pts[data.used, 0]] + [line.xyz[:, 0] for line in lines])
     # Points closer in X than a tenth of the mean spacing of all data points
     # stand at one station (e.g. the two sides of the strip at one model).
     tol = 0.1 * max(float(np.ptp(all_x)), 1e-12) / max(all_x.size, 1)
@@ -863,10 +980,15 @@ def fit_deformation(
                     f"(X {x_breaks[j]:.1f} to {x_breaks[j + 1]:.1f} m) has no {label} for "
                     f"{axis}; use fewer sections or add control there"
                 )
+    return x_breaks
 
-    # Normalisation.
-    xy_data = [pts[used, :2]] + [line.xyz[:, :2] for line in lines]
-    xy_all = np.concatenate(xy_data, axis=0)
+
+def _normalization(data: _FitInputs) -> Normalization:
+    """Centre: the centroid of the plan coordinates of the used control and
+    line points; half-extent: half their range in X (in Y when X has none)."""
+    xy_all = np.concatenate(
+        [data.pts[data.used, :2]] + [line.xyz[:, :2] for line in data.lines], axis=0
+    )
     if xy_all.shape[0]:
         centre = xy_all.mean(axis=0)
         half = 0.5 * float(np.ptp(xy_all[:, 0]))
@@ -877,95 +999,135 @@ def fit_deformation(
         half = 1.0
     if half <= 0.0:
         half = 1.0
-    norm = Normalization(centre=centre, half_extent=half)
     centre.setflags(write=False)
+    return Normalization(centre=centre, half_extent=half)
 
-    kind_max = max(kinds)
-    nt = n_terms(kind_max, n_sections)
-    breakpoints = None
-    if n_sections > 1:
-        breakpoints = (x_breaks - centre[0]) / half
-        breakpoints.setflags(write=False)
 
-    def terms(u, v, k):
-        if breakpoints is None:
-            return polynomial_terms(u, v, k)
-        return section_terms(u, v, k, breakpoints)
+class _Design:
+    """Design rows of the polynomials at the control (dense for one
+    polynomial; the few nonzero terms per row for a spline over sections)."""
 
-    u_all, v_all = norm.apply(pts)
-    u_all = np.where(used, u_all, 0.0)
-    v_all = np.where(used, v_all, 0.0)
-    if breakpoints is None:
-        terms_all = polynomial_terms(u_all, v_all, kind_max)
-    else:  # a few nonzero terms of hundreds or thousands per row
-        support_all = _section_support(u_all, v_all, kind_max, breakpoints)
+    def __init__(self, data: _FitInputs, norm: Normalization, x_breaks: FloatArray | None):
+        self.kind_max = max(data.kinds)
+        self.breakpoints = None
+        if x_breaks is not None:
+            self.breakpoints = (x_breaks - norm.centre[0]) / norm.half_extent
+            self.breakpoints.setflags(write=False)
+        u_all, v_all = norm.apply(data.pts)
+        u_all = np.where(data.used, u_all, 0.0)
+        v_all = np.where(data.used, v_all, 0.0)
+        if self.breakpoints is None:
+            self.terms_all = polynomial_terms(u_all, v_all, self.kind_max)
+            self.band_order = None
+        else:  # a few nonzero terms of hundreds or thousands per row
+            self.support_all = _section_support(u_all, v_all, self.kind_max, self.breakpoints)
+            self.band_order = _band_order(self.kind_max, data.n_sections)
 
-    band_order = None if breakpoints is None else _band_order(kind_max, n_sections)
+    def terms(self, u: FloatArray, v: FloatArray, kind: int) -> FloatArray:
+        """Dense terms at normalised points (u, v)."""
+        if self.breakpoints is None:
+            return polynomial_terms(u, v, kind)
+        return section_terms(u, v, kind, self.breakpoints)
 
-    def design_rows(mask, k_c):
-        if breakpoints is None:
-            return terms_all[mask, :k_c]
-        return RowSupport(support_all.index[mask], support_all.value[mask], k_c)
+    def rows(self, mask: BoolArray, k_c: int) -> FloatArray | RowSupport:
+        """The first ``k_c`` terms at the control in ``mask``."""
+        if self.breakpoints is None:
+            return self.terms_all[mask, :k_c]
+        return RowSupport(self.support_all.index[mask], self.support_all.value[mask], k_c)
 
-    w_obs = np.where(
-        np.column_stack([mask_xy, mask_xy, mask_z]),
-        pts - np.where(np.column_stack([mask_xy, mask_xy, mask_z]), tgt, 0.0),
-        0.0,
-    )
 
-    coefficients = np.zeros((3, nt))
-    residuals = np.full((n, 3), np.nan)
-    red = np.full((n, 3), np.nan)
-    normalized = np.full((n, 3), np.nan)
-    sigma0_xyz = np.full(3, np.nan)
-    redundancy_xyz = [0, 0, 0]
-    vtpv_total = 0.0
+@dataclass
+class _Fit:
+    """The fit's results, coordinate by coordinate."""
 
-    # X and Z: control only.
-    normals_x = None
-    for c, mask, sig, names in ((0, mask_xy, sxy, plan_ids), (2, mask_z, sz, height_ids)):
-        k_c = n_terms(kinds[c], n_sections)
-        design = design_rows(mask, k_c)
-        x, v_fit, normals = _solve(
-            design,
-            w_obs[mask, c],
-            sig[mask],
-            what=f"polynomial type {kinds[c]} for {'XYZ'[c]}",
-            names=names,
-            order=band_order,
+    coefficients: FloatArray  # (3, n_terms)
+    residuals: FloatArray  # (N, 3) target minus corrected
+    redundancy_numbers: FloatArray  # (N, 3)
+    normalized: FloatArray  # (N, 3)
+    sigma0_xyz: FloatArray  # (3,)
+    redundancy_xyz: list[int]
+    vtpv: float
+
+    @classmethod
+    def empty(cls, n: int, nt: int) -> _Fit:
+        return cls(
+            np.zeros((3, nt)),
+            np.full((n, 3), np.nan),
+            np.full((n, 3), np.nan),
+            np.full((n, 3), np.nan),
+            np.full(3, np.nan),
+            [0, 0, 0],
+            0.0,
         )
-        r = normals.redundancy
-        if c == 0:
-            normals_x = normals
-        coefficients[c, :k_c] = x
-        # residual target - corrected = w_fit - w_obs = -(w_obs - A x)
-        residuals[mask, c] = -v_fit
-        red[mask, c] = r
-        normalized[mask, c] = _normalized(-v_fit, sig[mask], r)
-        redundancy_xyz[c] = int(v_fit.size - k_c)
-        vtpv = float(np.sum((v_fit / sig[mask]) ** 2))
-        vtpv_total += vtpv
-        if redundancy_xyz[c] > 0:
-            sigma0_xyz[c] = np.sqrt(vtpv / redundancy_xyz[c])
 
-    # Y: control plus straight lines.
-    k_y = n_terms(kinds[1], n_sections)
+    def add(self, c: int, vtpv: float, redundancy: int) -> None:
+        self.redundancy_xyz[c] = redundancy
+        self.vtpv += vtpv
+        if redundancy > 0:
+            self.sigma0_xyz[c] = np.sqrt(vtpv / redundancy)
+
+
+def _observed(data: _FitInputs) -> FloatArray:
+    """Observations w_obs = photogrammetric minus control, (N, 3), 0 where unused."""
+    observed = np.column_stack([data.mask_xy, data.mask_xy, data.mask_z])
+    return np.where(observed, data.pts - np.where(observed, data.tgt, 0.0), 0.0)
+
+
+def _fit_coordinate(data: _FitInputs, design: _Design, fit: _Fit, c: int) -> _Normals:
+    """X (c = 0) or Z (c = 2) from the control alone; returns the normals."""
+    mask, sig, names = (
+        (data.mask_xy, data.sxy, data.plan_ids)
+        if c == 0
+        else (data.mask_z, data.sz, data.height_ids)
+    )
+    k_c = n_terms(data.kinds[c], data.n_sections)
+    x, v_fit, normals = _solve(
+        design.rows(mask, k_c),
+        _observed(data)[mask, c],
+        sig[mask],
+        what=f"polynomial type {data.kinds[c]} for {'XYZ'[c]}",
+        names=names,
+        order=design.band_order,
+    )
+    r = normals.redundancy
+    fit.coefficients[c, :k_c] = x
+    # residual target - corrected = w_fit - w_obs = -(w_obs - A x)
+    fit.residuals[mask, c] = -v_fit
+    fit.redundancy_numbers[mask, c] = r
+    fit.normalized[mask, c] = _normalized(-v_fit, sig[mask], r)
+    fit.add(c, float(np.sum((v_fit / sig[mask]) ** 2)), int(v_fit.size - k_c))
+    return normals
+
+
+def _fit_y(
+    data: _FitInputs, design: _Design, norm: Normalization, fit: _Fit, normals_x: _Normals
+) -> tuple[FloatArray, tuple[FloatArray, ...], tuple[FloatArray, ...], tuple[FloatArray, ...]]:
+    """Y from the plan control and the straight lines (each line its own a, b).
+
+    Returns the lines' (a, b) in the frame (L, 2) and, line by line, the
+    residuals (corrected Y minus the line's Y), redundancy numbers and
+    normalised residuals."""
+    lines, kinds, mask_xy, sxy = data.lines, data.kinds, data.mask_xy, data.sxy
+    centre, half = norm.centre, norm.half_extent
+    n_plan = int(mask_xy.sum())
+    k_y = n_terms(kinds[1], data.n_sections)
     n_lines = len(lines)
     sigma_ref = float(np.median(sxy[mask_xy])) if n_plan else 1.0
-    plan_rows = design_rows(mask_xy, k_y)
+    plan_rows = design.rows(mask_xy, k_y)
     rows = [plan_rows]
     extra = [np.zeros((n_plan, 2 * n_lines))]
-    obs_y = [w_obs[mask_xy, 1]]
+    obs_y = [_observed(data)[mask_xy, 1]]
     sig_y = [sxy[mask_xy]]
     for k, line in enumerate(lines):
         u_l, v_l = norm.apply(line.xyz)
-        rows.append(terms(u_l, v_l, kinds[1])[:, :k_y])
+        rows.append(design.terms(u_l, v_l, kinds[1])[:, :k_y])
         block = np.zeros((u_l.shape[0], 2 * n_lines))
         block[:, 2 * k] = 1.0
         block[:, 2 * k + 1] = u_l
         extra.append(block)
         obs_y.append(line.xyz[:, 1] - centre[1])
         sig_y.append(np.full(u_l.shape[0], sigma_ref / np.sqrt(line.weight)))
+    design_y: FloatArray | RowSupport
     if lines:  # the lines' a, b couple all sections: a dense design
         if isinstance(plan_rows, RowSupport):
             rows[0] = _dense(plan_rows)
@@ -976,28 +1138,23 @@ def fit_deformation(
         design_y = plan_rows
     observed_y = np.concatenate(obs_y)
     sigma_y = np.concatenate(sig_y)
-    names_y = plan_ids + [p for line in lines for p in line.point_ids]
     x, v_fit, normals = _solve(
         design_y,
         observed_y,
         sigma_y,
         what=f"polynomial type {kinds[1]} for Y" + (" with straight lines" if lines else ""),
-        names=names_y,
+        names=data.plan_ids + [p for line in lines for p in line.point_ids],
         # Without lines Y has the design and weights of X: one inverse serves both.
         normals=normals_x if not lines and kinds[1] == kinds[0] else None,
-        order=None if lines else band_order,
+        order=None if lines else design.band_order,
     )
     r = normals.redundancy
-    coefficients[1, :k_y] = x[:k_y]
+    fit.coefficients[1, :k_y] = x[:k_y]
     alpha_beta = x[k_y:].reshape(n_lines, 2)
-    residuals[mask_xy, 1] = -v_fit[:n_plan]
-    red[mask_xy, 1] = r[:n_plan]
-    normalized[mask_xy, 1] = _normalized(-v_fit[:n_plan], sxy[mask_xy], r[:n_plan])
-    redundancy_xyz[1] = int(observed_y.size - k_y - 2 * n_lines)
-    vtpv = float(np.sum((v_fit / sigma_y) ** 2))
-    vtpv_total += vtpv
-    if redundancy_xyz[1] > 0:
-        sigma0_xyz[1] = np.sqrt(vtpv / redundancy_xyz[1])
+    fit.residuals[mask_xy, 1] = -v_fit[:n_plan]
+    fit.redundancy_numbers[mask_xy, 1] = r[:n_plan]
+    fit.normalized[mask_xy, 1] = _normalized(-v_fit[:n_plan], sxy[mask_xy], r[:n_plan])
+    fit.add(1, float(np.sum((v_fit / sigma_y) ** 2)), int(observed_y.size - k_y - 2 * n_lines))
 
     # Lines: residual = corrected Y - line Y = (Y - w_Y) - (a + bX) = v (observed - fitted).
     line_res: list[FloatArray] = []
@@ -1009,53 +1166,14 @@ def fit_deformation(
         m = line.xyz.shape[0]
         v_k = v_fit[start : start + m].copy()
         r_k = r[start : start + m].copy()
-        s_k = sigma_y[start : start + m]
         line_res.append(v_k)
         line_red.append(r_k)
-        line_norm.append(_normalized(v_k, s_k, r_k))
+        line_norm.append(_normalized(v_k, sigma_y[start : start + m], r_k))
         alpha, beta = alpha_beta[k]
         b = beta / half
-        a = alpha + centre[1] - b * centre[0]
-        line_params[k] = (a, b)
+        line_params[k] = (alpha + centre[1] - b * centre[0], b)
         start += m
-
-    exact = [
-        f"{a} (type {kinds[c]})"
-        for c, a in enumerate("XYZ")
-        if kinds[c] > 0 and redundancy_xyz[c] == 0
-    ]
-    if exact:
-        warnings.warn(
-            f"deformation polynomial{in_sections}: {', '.join(exact)} "
-            f"{'has' if len(exact) == 1 else 'have'} as many control observations as terms "
-            "(no redundancy): the polynomial passes through that control exactly and an "
-            "error in it cannot be detected; add control or use a lower type",
-            StripAerotriWarning,
-            stacklevel=2,
-        )
-    redundancy = int(sum(redundancy_xyz))
-    sigma0 = float(np.sqrt(vtpv_total / redundancy)) if redundancy > 0 else float("nan")
-    coefficients.setflags(write=False)  # DeformationResult caches their spline pieces
-    return DeformationResult(
-        kind=kind_max,
-        kinds=kinds,
-        coefficients=coefficients,
-        normalization=norm,
-        line_names=tuple(line.name for line in lines),
-        line_parameters=line_params,
-        residuals=residuals,
-        line_residuals=tuple(line_res),
-        sigma0=sigma0,
-        redundancy=redundancy,
-        sigma0_xyz=sigma0_xyz,
-        redundancy_xyz=(redundancy_xyz[0], redundancy_xyz[1], redundancy_xyz[2]),
-        redundancy_numbers=red,
-        line_redundancy_numbers=tuple(line_red),
-        normalized_residuals=normalized,
-        line_normalized_residuals=tuple(line_norm),
-        point_ids=ids,
-        breakpoints=breakpoints,
-    )
+    return line_params, tuple(line_res), tuple(line_red), tuple(line_norm)
 
 
 # --------------------------------------------------------------------------- automatic choice
