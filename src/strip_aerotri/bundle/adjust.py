@@ -25,7 +25,9 @@ sparse LU factorisation.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -750,6 +752,81 @@ def bundle_adjust(
     >>> bool(np.allclose(result.points, points, atol=1e-6)), result.redundancy
     (True, 1)
     """
+    centres, rotations, points = _checked_start(
+        observations, centres0, rotations0, points0, max_iterations, tolerance
+    )
+    m, p = centres.shape[0], points.shape[0]
+    prob = _make_problem(
+        observations,
+        centres,
+        rotations,
+        points,
+        control_xyz,
+        control_sigma,
+        gnss_centres,
+        gnss_sigma,
+        imu_rotations,
+        imu_sigma,
+    )
+    state = _State(centres.copy(), rotations.copy(), points.copy())
+    depth = _check_datum_and_sides(prob, state, observations)
+    redundancy = prob.n_observations - 6 * m - 3 * p
+
+    def sigma0_of(cost: float) -> float:
+        return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
+
+    normals = _normals(prob, state)
+    _check_points(prob, normals, observations.point_ids)
+    state, normals, history, iterations, converged = _iterate(
+        prob, state, normals, depth, int(max_iterations), tolerance, observations, sigma0_of
+    )
+    if not converged:
+        warnings.warn(
+            f"bundle adjustment did not converge in {max_iterations} iterations "
+            f"(sigma0 {history[-1]:.4g})",
+            StripAerotriWarning,
+            stacklevel=2,
+        )
+    sigma0 = sigma0_of(normals.cost)
+    if redundancy <= 0:
+        warnings.warn(
+            "bundle adjustment has no redundancy: sigma0 and precision are undefined",
+            StripAerotriWarning,
+            stacklevel=2,
+        )
+    precision = _precision_products(prob, state, normals, sigma0, compute_precision)
+    control_used = prob.control_weight > 0
+    return BundleResult(
+        centres=state.centres,
+        rotations=state.rotations,
+        points=state.points,
+        sigma0=sigma0,
+        redundancy=int(redundancy),
+        iterations=iterations,
+        converged=converged,
+        residuals_mm=normals.residuals_mm,
+        control_residuals=np.where(control_used, state.points - prob.control_xyz, np.nan),
+        point_std=precision.point_std,
+        centre_std=precision.centre_std,
+        rotation_std=precision.rotation_std,
+        history=np.asarray(history),
+        n_observations=prob.n_observations,
+        gnss_residuals=np.where(prob.gnss_weight > 0, state.centres - prob.gnss_xyz, np.nan),
+        imu_residuals=np.where(prob.imu_weight > 0, precision.imu_residuals, np.nan),
+        gnss_residual_cofactor=precision.gnss_cofactor,
+        imu_residual_cofactor=precision.imu_cofactor,
+    )
+
+
+def _checked_start(
+    observations: ImageObservations,
+    centres0: ArrayLike,
+    rotations0: ArrayLike,
+    points0: ArrayLike,
+    max_iterations: int,
+    tolerance: float,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The start values as arrays, their shapes and the settings checked."""
     if not isinstance(observations, ImageObservations):
         raise TypeError(
             f"Expected `observations` to be ImageObservations, got {type(observations).__name__}"
@@ -776,21 +853,15 @@ def bundle_adjust(
         raise ValueError(f"Expected `max_iterations` >= 1, got {max_iterations}")
     if not tolerance > 0.0:
         raise ValueError(f"Expected a positive `tolerance`, got {tolerance}")
+    return centres, rotations, points
 
-    prob = _make_problem(
-        observations,
-        centres,
-        rotations,
-        points,
-        control_xyz,
-        control_sigma,
-        gnss_centres,
-        gnss_sigma,
-        imu_rotations,
-        imu_sigma,
-    )
-    state = _State(centres.copy(), rotations.copy(), points.copy())
 
+def _check_datum_and_sides(
+    prob: _Problem, state: _State, observations: ImageObservations
+) -> float:
+    """GeometryError when the control, GNSS and IMU leave the datum free or a
+    point lies behind a photo at the start values; returns the median depth
+    of the points below their photos (the scale of the steps' test)."""
     free = _free_motions(prob, state)
     if free:
         counts = (
@@ -804,7 +875,6 @@ def bundle_adjust(
             "point, not all in one vertical plane (or GNSS centres plus control that fixes "
             "the roll about the strip axis)"
         )
-
     _, v0 = project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
     behind = ~(v0[:, 2] < 0.0)
     if np.any(behind):
@@ -813,22 +883,27 @@ def bundle_adjust(
             f"point '{observations.point_ids[prob.point[kk]]}' lies behind photo "
             f"'{observations.photo_ids[prob.photo[kk]]}' at the initial values"
         )
-    depth = float(np.median(-v0[:, 2])) if v0.size else 1.0
+    return float(np.median(-v0[:, 2])) if v0.size else 1.0
 
-    n_obs = prob.n_observations
-    redundancy = n_obs - 6 * m - 3 * p
 
-    def sigma0_of(cost: float) -> float:
-        return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
-
-    normals = _normals(prob, state)
-    _check_points(prob, normals, observations.point_ids)
+def _iterate(
+    prob: _Problem,
+    state: _State,
+    normals: _Normals,
+    depth: float,
+    max_iterations: int,
+    tolerance: float,
+    observations: ImageObservations,
+    sigma0_of: Callable[[float], float],
+) -> tuple[_State, _Normals, list[float], int, bool]:
+    """Gauss-Newton with Levenberg-Marquardt damping when a step does not
+    lower the cost.  Returns the last state and its normals, sigma0 after
+    each step, the number of steps and whether it converged."""
     history = [sigma0_of(normals.cost)]
     lam = 0.0
-    converged = False
     iterations = 0
     warned_weak = False
-    for _ in range(int(max_iterations)):
+    for _ in range(max_iterations):
         cost = normals.cost
         while True:
             step = _solve(prob, normals, lam)
@@ -847,7 +922,7 @@ def bundle_adjust(
                         f"nearly singular reduced normal matrix (relative pivot "
                         f"{step.min_pivot:.1e}); the solution is weakly determined",
                         StripAerotriWarning,
-                        stacklevel=2,
+                        stacklevel=3,
                     )
             max_step = max(
                 float(np.max(np.abs(step.d_photo[:, :3]), initial=0.0)) / depth,
@@ -880,28 +955,32 @@ def bundle_adjust(
         # A damped step may be small or gain little without being at the minimum:
         # only an undamped (Gauss-Newton) step can end the iteration.
         if lam == 0.0 and (max_step < tolerance or (cost - trial_cost) <= tolerance * cost):
-            converged = True
-            break
+            return state, normals, history, iterations, True
         lam = 0.0 if lam <= 1e-3 else lam / 10.0
-    if not converged:
-        warnings.warn(
-            f"bundle adjustment did not converge in {max_iterations} iterations "
-            f"(sigma0 {history[-1]:.4g})",
-            StripAerotriWarning,
-            stacklevel=2,
-        )
-    sigma0 = sigma0_of(normals.cost)
-    if redundancy <= 0:
-        warnings.warn(
-            "bundle adjustment has no redundancy: sigma0 and precision are undefined",
-            StripAerotriWarning,
-            stacklevel=2,
-        )
+    return state, normals, history, iterations, False
 
+
+class _Precision(NamedTuple):
+    point_std: FloatArray  # (P, 3) m
+    centre_std: FloatArray  # (M, 3) m
+    rotation_std: FloatArray  # (M, 3) rad
+    imu_residuals: FloatArray  # (M, 3) rad, log(R_imu.T R)
+    gnss_cofactor: FloatArray  # (M, 3, 3)
+    imu_cofactor: FloatArray  # (M, 3, 3)
+
+
+def _precision_products(
+    prob: _Problem,
+    state: _State,
+    normals: _Normals,
+    sigma0: float,
+    compute_precision: bool,
+) -> _Precision:
+    """Standard deviations of points and photos and the cofactors of the GNSS
+    and IMU residuals (NaN without ``compute_precision``)."""
+    m, p = prob.n_photos, prob.n_points
     nan_p, nan_m = np.full((p, 3), np.nan), np.full((m, 3), np.nan)
     point_std, centre_std, rotation_std = nan_p, nan_m, nan_m.copy()
-    gnss_used = prob.gnss_weight > 0
-    imu_used = prob.imu_weight > 0
     e_imu = _imu_residual(state.rotations, prob.imu_rot)
     gnss_cofactor = np.full((m, 3, 3), np.nan)
     imu_cofactor = np.full((m, 3, 3), np.nan)
@@ -914,32 +993,10 @@ def bundle_adjust(
         rotation_std = sigma0 * np.sqrt(q_photo[:, 3:])
         # Residual cofactors of the direct photo observations: exact from the
         # photo blocks of N^-1 already at hand (no further solves).
-        if gnss_used.any():
+        if (prob.gnss_weight > 0).any():
             gnss_cofactor = _residual_cofactor(prob.gnss_weight, q_blocks[:, :3, :3])
-        if imu_used.any():
+        if (prob.imu_weight > 0).any():
             j_imu = _right_jacobian_inv(e_imu)
             q_imu = j_imu @ q_blocks[:, 3:, 3:] @ np.swapaxes(j_imu, 1, 2)
             imu_cofactor = _residual_cofactor(prob.imu_weight, q_imu)
-
-    control_used = prob.control_weight > 0
-    control_residuals = np.where(control_used, state.points - prob.control_xyz, np.nan)
-    return BundleResult(
-        centres=state.centres,
-        rotations=state.rotations,
-        points=state.points,
-        sigma0=sigma0,
-        redundancy=int(redundancy),
-        iterations=iterations,
-        converged=converged,
-        residuals_mm=normals.residuals_mm,
-        control_residuals=control_residuals,
-        point_std=point_std,
-        centre_std=centre_std,
-        rotation_std=rotation_std,
-        history=np.asarray(history),
-        n_observations=n_obs,
-        gnss_residuals=np.where(gnss_used, state.centres - prob.gnss_xyz, np.nan),
-        imu_residuals=np.where(imu_used, e_imu, np.nan),
-        gnss_residual_cofactor=gnss_cofactor,
-        imu_residual_cofactor=imu_cofactor,
-    )
+    return _Precision(point_std, centre_std, rotation_std, e_imu, gnss_cofactor, imu_cofactor)
