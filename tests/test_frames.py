@@ -108,9 +108,12 @@ def test_projected_frame_heights_follow_b153():
 def test_enu_residuals_on_a_geographic_crs_are_metres():
     adjusted = np.array([[21.0, 50.0, 200.0]])
     # 1 m north along the meridian: latitude step of 1 / M radians
-    m_radius = np.linalg.norm(
-        GEOGRAPHIC.to_ecef([[21.0, 50.0 + 1e-5, 200.0]]) - GEOGRAPHIC.to_ecef(adjusted)
-    ) / 1e-5
+    m_radius = (
+        np.linalg.norm(
+            GEOGRAPHIC.to_ecef([[21.0, 50.0 + 1e-5, 200.0]]) - GEOGRAPHIC.to_ecef(adjusted)
+        )
+        / 1e-5
+    )
     one_metre_north = adjusted + np.array([[0.0, 1.0 / m_radius, 0.0]])
     resid = enu_residuals(GEOGRAPHIC, one_metre_north, adjusted)
     np.testing.assert_allclose(resid, [[0.0, 1.0, 0.0]], atol=1e-6)

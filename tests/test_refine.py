@@ -287,3 +287,21 @@ def test_gnss_for_unknown_photos_warns_and_bad_inputs_raise():
         ImuAttitudes.from_degrees(("1",), [[0.0, 0.0, 0.0]], -1.0)
     imu = ImuAttitudes.from_degrees(("1",), [[1.0, 2.0, 90.0]], 0.01)
     np.testing.assert_allclose(imu.opk, np.radians([[1.0, 2.0, 90.0]]))
+
+
+def test_tolerance_verdicts_judge_the_refined_points():
+    """With the refinement, the check-point criteria read its residuals."""
+    from strip_aerotri.report.tolerances import tolerance_verdicts
+
+    sim = simulate_strip(12, seed=1)
+    result = triangulate(sim.observations, sim.control, sim.crs, refine="bundle")
+    refined, ground = result.refined, result.ground
+    assert refined is not None
+    ref_plan = np.hypot(*refined.control_residuals[refined.is_check, :2].T)
+    ground_plan = np.hypot(*ground.control_residuals[ground.is_check, :2].T)
+    assert not np.allclose(ref_plan, ground_plan)  # the two stages differ here
+    verdicts = {c.name: c for c in tolerance_verdicts(result, 5000.0)}
+    assert verdicts["check_mean_plan"].value == pytest.approx(np.mean(ref_plan))
+    unrefined = dataclasses.replace(result, refined=None)
+    verdicts0 = {c.name: c for c in tolerance_verdicts(unrefined, 5000.0)}
+    assert verdicts0["check_mean_plan"].value == pytest.approx(np.mean(ground_plan))

@@ -53,10 +53,14 @@ Not implemented, with the reason:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._typing import ArrayLike
+
+if TYPE_CHECKING:
+    from ..results import StripResult
 
 __all__ = [
     "CHECK_PLAN_MM",
@@ -417,8 +421,13 @@ def residual_distribution(
     )
 
 
-def tolerance_verdicts(result, map_scale: float | None) -> tuple[Criterion, ...]:
-    """All implemented R4 §1.7.7 criteria for a :class:`~strip_aerotri.pipeline.StripResult`.
+def tolerance_verdicts(result: StripResult, map_scale: float | None) -> tuple[Criterion, ...]:
+    """All implemented R4 §1.7.7 criteria for a :class:`~strip_aerotri.results.StripResult`.
+
+    The check-point criteria judge the final points: those of the bundle
+    refinement when the run refined them (``result.refined``), else those
+    of the ground stage.  The y-parallax criteria judge the relative
+    orientation, which the refinement does not change.
 
     Parameters
     ----------
@@ -435,9 +444,9 @@ def tolerance_verdicts(result, map_scale: float | None) -> tuple[Criterion, ...]
         discrepancies dE and dN taken together (``check_en_*``, metres).
     """
     scale = _check_scale(map_scale)
-    ground = result.ground
-    resid = np.asarray(ground.control_residuals, dtype=np.float64).reshape(-1, 3)
-    check = np.asarray(ground.is_check, dtype=bool)
+    final = result.ground if result.refined is None else result.refined
+    resid = np.asarray(final.control_residuals, dtype=np.float64).reshape(-1, 3)
+    check = np.asarray(final.is_check, dtype=bool)
     check_plan = np.hypot(resid[check, 0], resid[check, 1])
     check_en = resid[check, :2].reshape(-1)
     parallax = np.asarray(result.strip.relative.parallax_um, dtype=np.float64)
