@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 import strip_aerotri as sa
-from strip_aerotri.project.loader import Project, load_project
+from strip_aerotri.project import Project, load_project
 
 REPO = Path(__file__).resolve().parents[1]
 DATA_DIR = REPO.parent / "shared" / "data" / "uav-block-fc300x"

@@ -14,17 +14,15 @@ import pytest
 
 from strip_aerotri.errors import ConfigError
 from strip_aerotri.observations import ControlType
-from strip_aerotri.project.loader import (
+from strip_aerotri.options import AdjustmentOptions, Route, ScaleTransfer
+from strip_aerotri.project import (
     CONTROL_COLUMNS,
     IMAGE_COLUMNS,
     PROJECT_KEYS,
     PROJECT_TABLES,
-    AdjustmentOptions,
     Block,
     Intersection,
     RelativeOrientation,
-    Route,
-    ScaleTransfer,
     check_output_directory,
     load_project,
 )

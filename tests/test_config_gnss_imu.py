@@ -25,7 +25,7 @@ from strip_aerotri.cli.main import cli
 from strip_aerotri.errors import ConfigError, StripAerotriWarning
 from strip_aerotri.geodesy import GroundCRS, enu_rotation
 from strip_aerotri.geometry.rotation import opk_from_matrix
-from strip_aerotri.project.loader import (
+from strip_aerotri.project import (
     GNSS_COLUMNS,
     IMU_COLUMNS,
     PROJECT_KEYS,

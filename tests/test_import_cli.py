@@ -14,7 +14,7 @@ import pytest
 from click.testing import CliRunner
 
 from strip_aerotri.cli.main import cli
-from strip_aerotri.project.loader import load_project
+from strip_aerotri.project import load_project
 
 SAMPLE = Path(__file__).resolve().parent / "data" / "import"
 CAMERA = ["--focal-mm", "8.8", "--pixel-um", "2.41", "--image-size", "4000", "3000"]

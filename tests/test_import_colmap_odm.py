@@ -25,7 +25,7 @@ from strip_aerotri.importers.colmap import (
 )
 from strip_aerotri.importers.common import ImportOptions, flight_matrix, write_project
 from strip_aerotri.importers.odm import PixelCamera, crs_from_odm, import_odm, read_gcp_list
-from strip_aerotri.project.loader import load_project
+from strip_aerotri.project import load_project
 
 SAMPLE = Path(__file__).resolve().parent / "data" / "import"
 PIXEL_MM = 0.00241  # make_import_fixtures.py

@@ -30,7 +30,7 @@ from strip_aerotri.importers.common import (
     toml_value,
     write_project,
 )
-from strip_aerotri.project.loader import load_project
+from strip_aerotri.project import load_project
 
 # --------------------------------------------------------------------------- a small strip
 

@@ -28,7 +28,7 @@ from strip_aerotri.importers.common import (
 from strip_aerotri.importers.metashape import import_metashape, read_markers_xml, read_opk_text
 from strip_aerotri.importers.odm import PixelCamera
 from strip_aerotri.importers.pix4d import import_pix4d, read_gcp_coordinates, read_marks
-from strip_aerotri.project.loader import load_project
+from strip_aerotri.project import load_project
 
 SAMPLE = Path(__file__).resolve().parent / "data" / "import"
 CAMERA = PixelCamera(8.8, 0.00241, (4000, 3000), (2010.5, 1490.25))  # make_import_fixtures.py

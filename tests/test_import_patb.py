@@ -16,7 +16,7 @@ import pytest
 from strip_aerotri.errors import ConfigError
 from strip_aerotri.importers.common import ImportOptions, flight_matrix, write_project
 from strip_aerotri.importers.patb import import_patb, read_con, read_im, read_ori
-from strip_aerotri.project.loader import load_project
+from strip_aerotri.project import load_project
 
 SAMPLE = Path(__file__).resolve().parent / "data" / "import"
 PATB = SAMPLE / "patb"

@@ -18,7 +18,7 @@ from strip_aerotri.interior import (
     reduce_image_coordinates,
     sensor_from_flight,
 )
-from strip_aerotri.project.loader import load_project
+from strip_aerotri.project import load_project
 
 RNG = np.random.default_rng(2345)
 

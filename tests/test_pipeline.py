@@ -10,7 +10,7 @@ import pytest
 
 import strip_aerotri as sa
 from strip_aerotri.ground.polynomials import GroundOptions, LineSpec
-from strip_aerotri.project.loader import load_project
+from strip_aerotri.project import load_project
 from strip_aerotri.results import AccuracyStatistics
 
 

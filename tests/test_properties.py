@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from strip_aerotri.errors import StripAerotriError
 from strip_aerotri.pipeline import triangulate
-from strip_aerotri.project.loader import load_project
+from strip_aerotri.project import load_project
 from strip_aerotri.simulate import simulate_strip
 from strip_aerotri.strip.relative import relative_orientation
 

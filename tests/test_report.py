@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from strip_aerotri.ground.polynomials import GroundOptions, LineSpec
 from strip_aerotri.pipeline import run_project, triangulate
-from strip_aerotri.project.loader import load_project
+from strip_aerotri.project import load_project
 from strip_aerotri.report.outputs import (
     build_html,
     build_outputs,

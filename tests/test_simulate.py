@@ -423,7 +423,7 @@ def test_corridor_line_points_lie_on_one_vertical_plane():
 # Project files
 
 
-def _read_csv(path):
+def read_csv(path):
     with path.open(newline="", encoding="utf-8") as fh:
         rows = [r for r in csv.reader(fh) if r and not r[0].startswith("#")]
     return rows[0], rows[1:]
@@ -460,7 +460,7 @@ def test_write_project_follows_formats_md(tmp_path, preset, crs, route):
     assert (len(lines) == 1) == (preset == "corridor")
 
     obs = strip.observations
-    header, rows = _read_csv(toml_path.parent / doc["images"]["file"])
+    header, rows = read_csv(toml_path.parent / doc["images"]["file"])
     assert header[:4] == ["photo", "point", "x", "y"]
     assert len(rows) == obs.photo.size
     six = re.compile(r"^-?\d+\.\d{6}$")
@@ -471,7 +471,7 @@ def test_write_project_follows_formats_md(tmp_path, preset, crs, route):
     np.testing.assert_allclose(xy, obs.xy, rtol=0, atol=5e-7)
 
     ctrl = strip.control
-    header, rows = _read_csv(toml_path.parent / doc["control"]["file"])
+    header, rows = read_csv(toml_path.parent / doc["control"]["file"])
     assert header[:5] == ["point", "X", "Y", "H", "type"]
     assert [r[0] for r in rows] == list(ctrl.point_ids)
     assert [r[4] for r in rows] == [k.value for k in ctrl.kind]

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from strip_aerotri.project.loader import load_project
+from strip_aerotri.project import load_project
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "uav-block-fc300x"

@@ -32,7 +32,7 @@ from .results import AccuracyStatistics, StripResult
 from .strip.densify import form_strip_stepped
 
 if TYPE_CHECKING:
-    from .project.loader import Project
+    from .project import Project
 
 __all__ = ["AccuracyStatistics", "StripResult", "project_options", "run_project", "triangulate"]
 
@@ -190,7 +190,7 @@ def project_options(project: Project) -> tuple[StripOptions, GroundOptions]:
 def run_project(
     project: Project, *, progress: Progress | None = None, blunders: BlunderOptions | None = None
 ) -> StripResult:
-    """Adjust a loaded project (:func:`strip_aerotri.project.loader.load_project`).
+    """Adjust a loaded project (:func:`strip_aerotri.project.load_project`).
 
     ``blunders`` overrides the project's own blunder options.  The project's
     GNSS centres and IMU attitudes (``[gnss]``, ``[imu]``), if any, are

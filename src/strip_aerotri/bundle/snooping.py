@@ -6,7 +6,7 @@ attitude by Baarda's w, rejects the worst (or a few well-separated image
 rays) and solves again from the last solution, until nothing fails.  A round
 is: the adjustment (:func:`refine_frame`'s loop), the test values
 (:func:`_round_statistics`), the failures (:func:`_failures`), their
-records (:func:`_describe`) and the rejection itself (:meth:`_Sets.reject`).
+records (:func:`describe`) and the rejection itself (:meth:`_Sets.reject`).
 """
 
 from __future__ import annotations
@@ -253,7 +253,7 @@ def refine_frame(
             picks = [("image", k) for k in _separated(candidates, obs.photo, window)]
         else:
             picks = [(worst[1], worst[2])]
-        new_rejections = _describe(obs, picks, failures, stats, res.sigma0, blunders)
+        new_rejections = describe(obs, picks, failures, stats, res.sigma0, blunders)
         if not blunders.rejecting:
             return dataclasses.replace(result, rejections=tuple(rejections + new_rejections))
         previous_effect = len(rejections)
@@ -616,7 +616,7 @@ def _failures(
     return _Failures(found, crit_img, crit_ctrl, plan_w, h_w, photo_stages)  # type: ignore[arg-type]
 
 
-def _describe(
+def describe(
     obs: ImageObservations,
     picks: list[tuple[str, int]],
     failures: _Failures,

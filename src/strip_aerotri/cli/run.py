@@ -38,7 +38,7 @@ def output_folder(project, out: Path | None) -> Path:
     OutputError
         The folder exists, is not empty and is not a previous result folder.
     """
-    from ..project.loader import check_output_directory
+    from ..project import check_output_directory
 
     if out is not None:
         target = check_output_directory(out, project, source="--out")

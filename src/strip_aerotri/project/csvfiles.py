@@ -1,0 +1,241 @@
+"""The strict CSV reader of the project's tables.
+
+UTF-8 (a BOM allowed), comma-separated, one header line, ``#`` comment lines
+and blank lines skipped while keeping every row's line number for errors;
+ids stay text (leading zeros kept).
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._typing import BoolArray, FloatArray, IntArray
+from ..errors import ConfigError
+from .schema import ColumnSpec, suggest
+
+
+def read_bytes(path: Path, what: str) -> bytes:
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: {what} not found") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: {what} is a folder, not a file") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
+
+
+def decode(path: Path, data: bytes) -> str:
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise ConfigError(
+            f"{path}:{line}: not valid UTF-8 (byte 0x{data[exc.start]:02x}); "
+            "save the file as UTF-8"
+        ) from None
+
+
+@dataclass
+class CsvTable:
+    """Columns of a CSV as stripped strings, with the file line of each row."""
+
+    path: Path
+    columns: dict[str, Sequence[str]]
+    line: IntArray
+    header_line: int
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.line.shape[0])
+
+    def where(self, row: int) -> str:
+        return f"{self.path}:{int(self.line[row])}"
+
+
+_SKIPPED_LINE = re.compile(r"\n[ \t\f\v]*(?:#[^\n]*)?(?=\n|\Z)")
+
+
+def _split_lines(text: str) -> tuple[list[str], IntArray]:
+    """Data lines of ``text`` (no comments, no blank lines) and their 1-based numbers."""
+    lines = text.split("\n")
+    skipped: list[int] = []
+    index, position = 0, 0
+    text = "\n" + text  # so that every line, the first too, starts after a newline
+    for match in _SKIPPED_LINE.finditer(text):
+        index += text.count("\n", position, match.start())
+        position = match.start()
+        skipped.append(index)
+    if not skipped:
+        return lines, np.arange(1, len(lines) + 1, dtype=np.intp)
+    kept: list[str] = []
+    start = 0
+    for i in skipped:
+        kept.extend(lines[start:i])
+        start = i + 1
+    kept.extend(lines[start:])
+    numbers = np.delete(np.arange(1, len(lines) + 1, dtype=np.intp), skipped)
+    return kept, numbers
+
+
+def _split_fields(path: Path, lines: list[str], numbers: IntArray) -> list[list[str]]:
+    """Fields of each line by the csv module (quotes allowed, one line per record)."""
+    reader = csv.reader(lines, strict=True)
+    try:
+        rows = list(reader)
+        failure = None if len(rows) == len(lines) else "a quoted field is not closed on its line"
+    except csv.Error as exc:
+        failure = str(exc)
+    if failure is None:
+        return rows
+    # a record may not span lines: the culprit is the first line with an odd number of quotes
+    odd = [i for i, item in enumerate(lines) if item.count('"') % 2]
+    index = odd[0] if odd else min(max(reader.line_num - 1, 0), len(lines) - 1)
+    raise ConfigError(f"{path}:{numbers[index]}: malformed CSV: {failure}")
+
+
+def read_csv(path: Path, columns: Sequence[ColumnSpec], named_by: str) -> CsvTable:
+    """Read a comma-separated file into string columns (cells not yet stripped).
+
+    Comment lines (first non-blank character ``#``) and blank lines are
+    skipped; UTF-8 with or without BOM; LF or CRLF line ends.  Header names
+    are matched case-insensitively against ``columns``; unknown columns are
+    an error.
+    """
+    data = read_bytes(path, f"file named by {named_by}")
+    text = decode(path, data)
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    kept, numbers = _split_lines(text)
+    if not kept:
+        raise ConfigError(f"{path}: no header line (the file is empty or all comments)")
+    header_line = int(numbers[0])
+    header = [name.strip() for name in _split_fields(path, kept[:1], numbers[:1])[0]]
+    canonical = {c.name.lower(): c.name for c in columns}
+    names: list[str] = []
+    for name in header:
+        if not name:
+            raise ConfigError(f"{path}:{header_line}: empty column name in the header")
+        if name.lower() not in canonical:
+            allowed = ", ".join(c.name for c in columns)
+            raise ConfigError(
+                f"{path}:{header_line}: unknown column '{name}'"
+                f"{suggest(name, [c.name for c in columns])}; allowed columns: {allowed}"
+            )
+        if canonical[name.lower()] in names:
+            raise ConfigError(f"{path}:{header_line}: column '{name}' appears twice")
+        names.append(canonical[name.lower()])
+    missing = [c.name for c in columns if c.required and c.name not in names]
+    if missing:
+        raise ConfigError(
+            f"{path}:{header_line}: missing required column(s) {', '.join(missing)} "
+            f"(header is: {','.join(header)})"
+        )
+    body = kept[1:]
+    line = numbers[1:]
+    n_col = len(names)
+    if '"' in text:
+        rows = _split_fields(path, body, line)
+        lengths = np.fromiter(map(len, rows), dtype=np.intp, count=len(rows))
+    else:  # fast path without quoting: one split of the whole body
+        rows = []
+        lengths = 1 + np.fromiter(
+            map(str.count, body, itertools.repeat(",")), dtype=np.intp, count=len(body)
+        )
+    bad = np.flatnonzero(lengths != n_col)
+    if bad.size:
+        row = int(bad[0])
+        hint = " (decimal commas? use a point)" if lengths[row] > n_col else ""
+        raise ConfigError(
+            f"{path}:{line[row]}: expected {n_col} fields ({','.join(names)}), "
+            f"got {lengths[row]}{hint}"
+        )
+    if rows:
+        cells: Sequence[Sequence[str]] = list(zip(*rows, strict=True))
+    elif body:
+        flat = ",".join(body).split(",")
+        cells = [flat[j::n_col] for j in range(n_col)]
+    else:
+        cells = [[] for _ in names]
+    return CsvTable(path, dict(zip(names, cells, strict=True)), line, header_line)
+
+
+def float_column(
+    table: CsvTable, name: str, *, allow_empty: bool = False, positive: bool = False
+) -> tuple[FloatArray, BoolArray]:
+    """Column ``name`` as float64 (NaN where empty) and the mask of empty cells.
+
+    Raises ConfigError naming the line and column of the first value that is
+    not a number, not finite, or (``positive``) not > 0, and of the first
+    empty cell unless ``allow_empty``.
+    """
+    strings = table.columns[name]
+    n = len(strings)
+    empty = np.zeros(n, dtype=bool)
+    try:  # fast path: float() accepts surrounding white space, not empty cells
+        values = np.asarray(strings, dtype=np.float64).reshape(n)
+    except ValueError:
+        stripped = [s.strip() for s in strings]
+        empty = np.fromiter((not s for s in stripped), dtype=bool, count=n)
+        if empty.any() and not allow_empty:
+            row = int(np.flatnonzero(empty)[0])
+            raise ConfigError(f"{table.where(row)}: column '{name}' is empty") from None
+        filled = [s or "nan" for s in stripped]
+        try:
+            values = np.asarray(filled, dtype=np.float64).reshape(n)
+        except ValueError:
+            row = next(i for i, s in enumerate(filled) if not _is_float(s))
+            raise ConfigError(
+                f"{table.where(row)}: column '{name}': expected a number, got '{stripped[row]}'"
+            ) from None
+    bad = ~np.isfinite(values) & ~empty
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise ConfigError(
+            f"{table.where(row)}: column '{name}': expected a finite number, "
+            f"got '{strings[row].strip()}'"
+        )
+    if positive:
+        bad = (values <= 0.0) & ~empty
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise ConfigError(
+                f"{table.where(row)}: column '{name}': expected a positive number, "
+                f"got '{strings[row].strip()}'"
+            )
+    return values, empty
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def id_column(table: CsvTable, name: str) -> np.ndarray:
+    """Column ``name`` as a str array with white space stripped; an empty id is an error."""
+    strings = table.columns[name]
+    arr = np.char.strip(np.asarray(strings, dtype=str).reshape(len(strings)))
+    empty = arr == ""
+    if empty.any():
+        row = int(np.flatnonzero(empty)[0])
+        raise ConfigError(f"{table.where(row)}: column '{name}': empty id")
+    return arr
+
+
+def optional_sigma(table: CsvTable, name: str, default: float) -> FloatArray:
+    """Positive column ``name`` with ``default`` where absent or empty."""
+    if name not in table.columns:
+        return np.full(table.n_rows, default)
+    values, empty = float_column(table, name, allow_empty=True, positive=True)
+    values[empty] = default
+    return values

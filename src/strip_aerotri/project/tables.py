@@ -1,0 +1,423 @@
+"""The project's CSV tables: image points (with fiducials and pixel
+units), control, GNSS centres and IMU attitudes, each read, checked and
+converted to library units.
+"""
+
+from __future__ import annotations
+
+import warnings as _warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+from ..errors import ConfigError, GeometryError, StripAerotriWarning
+from ..interior import (
+    FiducialFit,
+    fit_fiducial_transforms,
+    mm_from_pixel,
+)
+from ..observations import (
+    ControlType,
+    GnssCentres,
+    ImageObservations,
+    ImuAttitudes,
+)
+from ..options import (
+    FiducialTransform,
+    ImageOptions,
+    ImageUnits,
+    Route,
+)
+from ..plausibility import image_coordinate_problems
+from .csvfiles import CsvTable, float_column, id_column, optional_sigma, read_csv
+from .model import readonly
+from .schema import (
+    CONTROL_COLUMNS,
+    FIDUCIAL_COLUMNS,
+    GNSS_COLUMNS,
+    IMAGE_COLUMNS,
+    IMU_COLUMNS,
+    suggest,
+)
+
+
+def load_images(
+    path: Path,
+    photo_ids: tuple[str, ...],
+    principal_distance: float,
+    reduce: Callable[[FloatArray, IntArray], FloatArray],
+    default_sigma: float,
+) -> ImageObservations:
+    table = read_csv(path, IMAGE_COLUMNS, "[images] file")
+    photo = id_column(table, "photo")
+    point = id_column(table, "point")
+    x, _ = float_column(table, "x")
+    y, _ = float_column(table, "y")
+    if "sigma" in table.columns:
+        sigma, empty = float_column(table, "sigma", allow_empty=True, positive=True)
+        sigma[empty] = default_sigma
+    else:
+        sigma = np.full(table.n_rows, default_sigma)
+
+    photo_names, photo_first, photo_inverse = np.unique(
+        photo, return_index=True, return_inverse=True
+    )
+    order_of = {pid: i for i, pid in enumerate(photo_ids)}
+    name_index = np.array([order_of.get(str(n), -1) for n in photo_names], dtype=np.intp)
+    unknown = np.flatnonzero(name_index < 0)
+    if unknown.size:
+        row = int(photo_first[unknown].min())
+        raise ConfigError(
+            f"{table.where(row)}: photo '{photo[row]}' is not in [strip] photos "
+            f"of the project file"
+        )
+    present = set(name_index.tolist())
+    for i, pid in enumerate(photo_ids):
+        if i not in present:
+            raise ConfigError(
+                f"{path}: photo '{pid}' (listed in [strip] photos) has no observations"
+            )
+    photo_index = name_index[photo_inverse.reshape(-1)]
+    point_names, point_index = np.unique(point, return_inverse=True)
+    point_index = point_index.reshape(-1).astype(np.intp)
+
+    key = photo_index.astype(np.int64) * max(len(point_names), 1) + point_index
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    dup = np.flatnonzero(sorted_key[1:] == sorted_key[:-1])
+    if dup.size:
+        later = order[dup + 1]
+        d = int(np.argmin(table.line[later]))
+        first, second = int(order[dup[d]]), int(later[d])
+        raise ConfigError(
+            f"{table.where(second)}: duplicate observation of point '{point[second]}' on "
+            f"photo '{photo[second]}' (first at line {table.line[first]})"
+        )
+
+    xy = reduce(np.column_stack([x, y])[order], photo_index[order])
+    lines = table.line[order]
+    problems = image_coordinate_problems(
+        xy, principal_distance, where=lambda k: f"{path}:{int(lines[k])}", file=str(path)
+    )
+    if problems:
+        raise ConfigError(problems[0])
+    return ImageObservations(
+        photo_ids=photo_ids,
+        point_ids=tuple(point_names.tolist()),
+        photo=readonly(photo_index[order]),
+        point=readonly(point_index[order]),
+        xy=readonly(xy),
+        sigma=readonly(sigma[order]),
+        principal_distance=float(principal_distance),
+        source_line=readonly(table.line[order]),
+    )
+
+
+def read_image_options(toml_path: Path, images: dict[str, object]) -> ImageOptions:
+    """``[images]`` units, pixel keys and flight direction, checked together."""
+    units: ImageUnits = images["units"]  # type: ignore[assignment]
+    pixel_keys = ("pixel_size_mm", "principal_point_px")
+    if units is ImageUnits.PIXEL:
+        for key in pixel_keys:
+            if images[key] is None:
+                raise ConfigError(f'{toml_path}: [images] {key}: required with units = "pixel"')
+    else:
+        for key in pixel_keys:
+            if images[key] is not None:
+                raise ConfigError(
+                    f'{toml_path}: [images] {key}: only used with units = "pixel" (units is "mm")'
+                )
+    pp = images["principal_point_px"]
+    return ImageOptions(
+        units=units,
+        pixel_size_mm=None if images["pixel_size_mm"] is None else float(images["pixel_size_mm"]),  # type: ignore[arg-type]
+        principal_point_px=None if pp is None else readonly(np.asarray(pp, dtype=np.float64)),
+        flight_direction=images["flight_direction"],  # type: ignore[arg-type]
+    )
+
+
+def load_fiducials(
+    path: Path,
+    photo_ids: tuple[str, ...],
+    images: ImageOptions,
+    interior: dict[str, object],
+) -> tuple[FiducialFit, ...]:
+    """Read the fiducial CSV and fit each photo's comparator -> calibrated transformation."""
+    calibrated: dict[str, tuple[float, float]] = interior["calibrated"]  # type: ignore[assignment]
+    kind: FiducialTransform = interior["transform"]  # type: ignore[assignment]
+    table = read_csv(path, FIDUCIAL_COLUMNS, "[interior_orientation] fiducials_file")
+    photo = id_column(table, "photo")
+    mark = id_column(table, "mark")
+    x, _ = float_column(table, "x")
+    y, _ = float_column(table, "y")
+    order_of = {pid: i for i, pid in enumerate(photo_ids)}
+    photo_index = np.empty(table.n_rows, dtype=np.intp)
+    seen: dict[tuple[str, str], int] = {}
+    for row, (pid, mid) in enumerate(zip(photo.tolist(), mark.tolist(), strict=True)):
+        if pid not in order_of:
+            raise ConfigError(f"{table.where(row)}: photo '{pid}' is not in [strip] photos")
+        if mid not in calibrated:
+            raise ConfigError(
+                f"{table.where(row)}: mark '{mid}' is not in [interior_orientation] calibrated"
+                f"{suggest(mid, list(calibrated))}"
+            )
+        if (pid, mid) in seen:
+            raise ConfigError(
+                f"{table.where(row)}: mark '{mid}' of photo '{pid}' is listed twice "
+                f"(first at line {seen[(pid, mid)]})"
+            )
+        seen[(pid, mid)] = int(table.line[row])
+        photo_index[row] = order_of[pid]
+    need = 2 if kind is FiducialTransform.SIMILARITY else 3
+    counts = np.bincount(photo_index, minlength=len(photo_ids))
+    for i, pid in enumerate(photo_ids):
+        if counts[i] < need:
+            raise ConfigError(
+                f"{path}: photo '{pid}' has {counts[i]} fiducial mark(s); a {kind.value} "
+                f"transformation needs at least {need}"
+            )
+    measured = np.column_stack([x, y])
+    if images.units is ImageUnits.PIXEL:
+        measured = mm_from_pixel(measured, images.pixel_size_mm, images.principal_point_px)  # type: ignore[arg-type]
+    target = np.array([calibrated[m] for m in mark.tolist()], dtype=np.float64).reshape(-1, 2)
+    try:
+        return fit_fiducial_transforms(
+            photo_index,
+            measured,
+            target,
+            photo_ids,
+            kind,
+            marks=tuple(mark.tolist()),
+            scale_tolerance=float(interior["scale_tolerance"]),  # type: ignore[arg-type]
+            difference_tolerance=float(interior["difference_tolerance"]),  # type: ignore[arg-type]
+        )
+    except GeometryError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+
+
+def load_control(
+    path: Path, default_sigma_xy: float, default_sigma_h: float
+) -> tuple[CsvTable, np.ndarray, FloatArray, np.ndarray, FloatArray, FloatArray]:
+    """Parse and check control.csv; returns table, ids, xyz, kinds, sigma_xy, sigma_h."""
+    table = read_csv(path, CONTROL_COLUMNS, "[control] file")
+    if table.n_rows == 0:
+        raise ConfigError(f"{path}: no control points (only a header)")
+    ids = id_column(table, "point")
+    xyz = np.empty((table.n_rows, 3))
+    given = np.empty((table.n_rows, 3), dtype=bool)
+    for j, name in enumerate(("X", "Y", "H")):
+        values, empty = float_column(table, name, allow_empty=True)
+        xyz[:, j] = values
+        given[:, j] = ~empty
+
+    type_strings = np.char.lower(id_column(table, "type"))
+    valid = [t.value for t in ControlType]
+    type_names, type_first, type_inverse = np.unique(
+        type_strings.reshape(-1), return_index=True, return_inverse=True
+    )
+    bad_types = [i for i, t in enumerate(type_names) if t not in valid]
+    if bad_types:
+        row = int(min(type_first[i] for i in bad_types))
+        got = table.columns["type"][row].strip()
+        raise ConfigError(
+            f"{table.where(row)}: column 'type': unknown type '{got}'{suggest(got, valid)}; "
+            f"valid types: {', '.join(valid)}"
+        )
+    kind_codes = np.array([valid.index(t) for t in type_names], dtype=np.intp)[
+        type_inverse.reshape(-1)
+    ]
+    full, plan, height, check = (kind_codes == i for i in range(4))
+    gx, gy, gh = given.T
+    rules = (
+        (full & ~(gx & gy & gh), "a full point needs X, Y and H"),
+        (plan & ~(gx & gy), "a plan point needs X and Y"),
+        (plan & gh, "a plan point leaves H empty"),
+        (height & ~gh, "a height point needs H"),
+        (height & (gx | gy), "a height point leaves X and Y empty"),
+        (check & (gx != gy), "a check point gives both X and Y or neither"),
+        (check & ~gx & ~gh, "a check point needs X and Y, or H, or all three"),
+    )
+    found = [(int(np.flatnonzero(mask)[0]), text) for mask, text in rules if mask.any()]
+    if found:
+        row, text = min(found)
+        raise ConfigError(
+            f"{table.where(row)}: point '{ids[row]}' of type '{valid[kind_codes[row]]}': {text}"
+        )
+
+    _, first, inverse, counts = np.unique(
+        ids, return_index=True, return_inverse=True, return_counts=True
+    )
+    if (counts > 1).any():
+        inverse = inverse.reshape(-1)
+        is_repeat = (counts[inverse] > 1) & (np.arange(ids.shape[0]) != first[inverse])
+        row = int(np.flatnonzero(is_repeat)[0])
+        raise ConfigError(
+            f"{table.where(row)}: point '{ids[row]}' is listed twice "
+            f"(first at line {table.line[first[inverse[row]]]})"
+        )
+
+    sigmas = []
+    for name, default in (("sigma_xy", default_sigma_xy), ("sigma_h", default_sigma_h)):
+        if name in table.columns:
+            values, empty = float_column(table, name, allow_empty=True, positive=True)
+            values[empty] = default
+        else:
+            values = np.full(table.n_rows, default)
+        sigmas.append(values)
+    kinds = np.array([ControlType(v) for v in valid], dtype=object)[kind_codes]
+    return table, ids, xyz, kinds, sigmas[0], sigmas[1]
+
+
+def check_crs(
+    toml_name: Path, crs: str, route: Route | None, table: CsvTable, xyz: FloatArray
+) -> tuple[Route, list[str]]:
+    """Validate ``crs`` with pyproj, choose the route and check geographic ranges."""
+    warnings: list[str] = []
+    if crs == "local":
+        if route is Route.GEOCENTRIC:
+            raise ConfigError(
+                f'{toml_name}: [adjustment] route: "geocentric" needs a geodetic CRS; '
+                f'with crs = "local" only "projected" applies'
+            )
+        return Route.PROJECTED, warnings
+    import pyproj  # deferred: only loading a geodetic project needs it
+
+    try:
+        crs_obj = pyproj.CRS.from_user_input(crs)
+    except pyproj.exceptions.CRSError as exc:
+        detail = str(exc).split(": (", 1)[0]
+        raise ConfigError(
+            f"{toml_name}: [control] crs: not a CRS pyproj understands: '{crs}' ({detail})"
+        ) from None
+    if crs_obj.is_geocentric:
+        raise ConfigError(
+            f"{toml_name}: [control] crs: '{crs}' is geocentric; give a horizontal "
+            "(projected or geographic) CRS"
+        )
+    if crs_obj.is_vertical:
+        raise ConfigError(
+            f"{toml_name}: [control] crs: '{crs}' has a vertical component, but H must be "
+            "the ellipsoidal height; give the horizontal CRS only"
+        )
+    if not (crs_obj.is_projected or crs_obj.is_geographic):
+        raise ConfigError(
+            f"{toml_name}: [control] crs: '{crs}' is neither projected nor geographic"
+        )
+    chosen = Route.GEOCENTRIC if route is None else route
+    if crs_obj.is_geographic:
+        if chosen is Route.PROJECTED:
+            raise ConfigError(
+                f'{toml_name}: [adjustment] route: "projected" needs a projected CRS or '
+                f"\"local\"; '{crs}' is geographic (longitude, latitude)"
+            )
+        _check_geographic_ranges(crs, table, xyz)
+    else:
+        unit = crs_obj.axis_info[0].unit_name if crs_obj.axis_info else "metre"
+        if unit not in ("metre", "meter") and chosen is Route.PROJECTED:
+            warnings.append(
+                f"{toml_name}: [control] crs: '{crs}' has X, Y in {unit}, but H is in metres; "
+                "the projected route mixes the two"
+            )
+    return chosen, warnings
+
+
+def _check_geographic_ranges(crs: str, table: CsvTable, xyz: FloatArray) -> None:
+    """Longitude X and latitude Y in range (NaN cells pass), for a geographic ``crs``."""
+    lon, lat = xyz[:, 0], xyz[:, 1]
+    for bad, text in (
+        (np.abs(lat) > 90.0, "latitude Y outside -90..90 degrees"),
+        (np.abs(lon) > 360.0, "longitude X outside -360..360 degrees"),
+    ):
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise ConfigError(
+                f"{table.where(row)}: {text} (crs '{crs}' is geographic: X is the "
+                "longitude and Y the latitude, in degrees)"
+            )
+
+
+def _is_geographic(crs: str) -> bool:
+    """True for a geographic CRS (already validated by :func:`check_crs`)."""
+    if crs == "local":
+        return False
+    import pyproj
+
+    return bool(pyproj.CRS.from_user_input(crs).is_geographic)
+
+
+def _strip_rows(
+    table: CsvTable, photo: np.ndarray, photo_ids: tuple[str, ...], notes: list[str]
+) -> IntArray:
+    """Rows of ``table`` whose photo is in the strip, in strip order.
+
+    A photo listed twice is an error naming both lines.  Rows of photos that
+    are not in ``[strip] photos`` are left out with one warning naming the
+    first of them, appended to ``notes`` and emitted as
+    :class:`~strip_aerotri.errors.StripAerotriWarning` at the caller of
+    :func:`load_project`.
+    """
+    _, first, inverse, counts = np.unique(
+        photo, return_index=True, return_inverse=True, return_counts=True
+    )
+    if (counts > 1).any():
+        inverse = inverse.reshape(-1)
+        is_repeat = (counts[inverse] > 1) & (np.arange(photo.shape[0]) != first[inverse])
+        row = int(np.flatnonzero(is_repeat)[0])
+        raise ConfigError(
+            f"{table.where(row)}: photo '{photo[row]}' is listed twice "
+            f"(first at line {table.line[first[inverse[row]]]})"
+        )
+    order_of = {pid: i for i, pid in enumerate(photo_ids)}
+    index = np.array([order_of.get(pid, -1) for pid in photo.tolist()], dtype=np.intp)
+    unknown = np.flatnonzero(index < 0)
+    if unknown.size:
+        shown = ", ".join(f"'{photo[i]}'" for i in unknown[:5])
+        more = f" and {unknown.size - 5} more" if unknown.size > 5 else ""
+        text = (
+            f"{table.where(int(unknown[0]))}: {unknown.size} row(s) of photo(s) not in "
+            f"[strip] photos ignored: {shown}{more}"
+        )
+        notes.append(text)
+        # _strip_rows <- load_gnss / load_imu <- load_project <- caller
+        _warnings.warn(text, StripAerotriWarning, stacklevel=4)
+    known = np.flatnonzero(index >= 0)
+    return known[np.argsort(index[known], kind="stable")]
+
+
+def load_gnss(
+    path: Path,
+    photo_ids: tuple[str, ...],
+    gnss: dict[str, object],
+    crs: str,
+    notes: list[str],
+) -> GnssCentres:
+    """Read the GNSS centres CSV (``[gnss] file``)."""
+
+    table = read_csv(path, GNSS_COLUMNS, "[gnss] file")
+    if table.n_rows == 0:
+        raise ConfigError(f"{path}: no GNSS centres (only a header)")
+    photo = id_column(table, "photo")
+    xyz = np.column_stack([float_column(table, name)[0] for name in ("X", "Y", "Z")])
+    sigma_xy = optional_sigma(table, "sigma_xy", float(gnss["sigma_xy"]))  # type: ignore[arg-type]
+    sigma_z = optional_sigma(table, "sigma_z", float(gnss["sigma_z"]))  # type: ignore[arg-type]
+    if _is_geographic(crs):
+        _check_geographic_ranges(crs, table, xyz)
+    rows = _strip_rows(table, photo, photo_ids, notes)
+    return GnssCentres(tuple(photo[rows].tolist()), xyz[rows], sigma_xy[rows], sigma_z[rows])
+
+
+def load_imu(
+    path: Path, photo_ids: tuple[str, ...], imu: dict[str, object], notes: list[str]
+) -> ImuAttitudes:
+    """Read the IMU attitudes CSV (``[imu] file``), degrees in the file, radians out."""
+
+    table = read_csv(path, IMU_COLUMNS, "[imu] file")
+    if table.n_rows == 0:
+        raise ConfigError(f"{path}: no IMU attitudes (only a header)")
+    photo = id_column(table, "photo")
+    opk = np.column_stack([float_column(table, n)[0] for n in ("omega", "phi", "kappa")])
+    sigma = optional_sigma(table, "sigma_deg", float(imu["sigma_deg"]))  # type: ignore[arg-type]
+    rows = _strip_rows(table, photo, photo_ids, notes)
+    return ImuAttitudes.from_degrees(tuple(photo[rows].tolist()), opk[rows], sigma[rows])
