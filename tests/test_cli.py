@@ -776,7 +776,7 @@ def test_check_sizes_a_photo_footprint_from_its_control():
     """The check's stand-in for the strip's points served: a photo's ground
     radius from its plan control's spread over their image spread, times its
     farthest image point; the preset's scale times that point in truth."""
-    from strip_aerotri.cli.check import _footprint_radius
+    from strip_aerotri.project.check import _footprint_radius
 
     sim = sa.simulate_strip(12, seed=2)
     obs, ctrl = sim.observations, sim.control

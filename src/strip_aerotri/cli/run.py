@@ -18,64 +18,7 @@ from .options import (
     project_arg,
 )
 
-__all__ = ["output_folder", "run"]
-
-DEFAULT_OUTPUT = "out"
-"""Result folder (inside the project folder) when neither --out nor [output] directory is given."""
-
-
-def output_folder(project, out: Path | None) -> Path:
-    """The result folder of a run and its checks against the project's inputs.
-
-    ``--out`` (relative to the current folder) wins over ``[output] directory``
-    (relative to the project folder); without either the result goes to
-    ``out`` beside ``strip.toml``.
-
-    Raises
-    ------
-    ConfigError
-        The folder is the project folder, holds an input file or is a file.
-    OutputError
-        The folder exists, is not empty and is not a previous result folder.
-    """
-    from ..project import check_output_directory
-
-    if out is not None:
-        target = check_output_directory(out, project, source="--out")
-    elif project.output_directory is not None:
-        target = project.output_directory
-    else:
-        target = check_output_directory(
-            project.path.parent / DEFAULT_OUTPUT, project, source="default output folder"
-        )
-    _check_replaceable(target, project.input_files)
-    return target
-
-
-def _check_replaceable(target: Path, inputs) -> None:
-    """Refuse early (before adjusting) what :class:`~strip_aerotri.io.ResultFolder` refuses."""
-    from ..report.files import RESULT_MARKER, OutputError
-
-    if target.is_symlink():
-        raise OutputError(f"output folder '{target}' is a symbolic link; give the real folder")
-    if not target.exists():
-        return
-    if not target.is_dir():
-        raise OutputError(f"output folder '{target}' is a file, not a folder")
-    if not (target / RESULT_MARKER).is_file() and any(target.iterdir()):
-        raise OutputError(
-            f"output folder '{target}' is not empty and is not a stripaero result folder "
-            f"(no {RESULT_MARKER} file); refusing to replace it: choose another --out or "
-            "empty it"
-        )
-    resolved = target.resolve()
-    for item in inputs:
-        item_path = Path(item).resolve()
-        if item_path == resolved or resolved in item_path.parents:
-            raise OutputError(
-                f"output folder '{target}' contains the input file '{item}'; refusing to "
-                "replace it"
-            )
+__all__ = ["run"]
 
 
 def _fmt_m(value: float) -> str:
@@ -173,14 +116,14 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     """
     from .. import pipeline
     from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
-    from ..project import loader as config
+    from ..project import load_project, output_folder
     from ..report.files import ResultFolder
 
     started = time.perf_counter()
     echo_progress(f"loading {project_file}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", StripAerotriWarning)
-        project = config.load_project(project_file)
+        project = load_project(project_file)
         target = output_folder(project, out)
         echo_progress(
             f"project '{project.name}': {len(project.photo_ids)} photos, "

@@ -56,6 +56,7 @@ import numpy as np
 
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import GeometryError, StripAerotriWarning
+from ..observations import LineSpec
 from ..options import check_sections
 from ._banded import BandedNormals
 from .similarity import (
@@ -81,6 +82,7 @@ __all__ = [
     "check_sections",
     "fit_deformation",
     "n_terms",
+    "polynomial_count_problems",
     "polynomial_terms",
     "section_terms",
     "select_kind_auto",
@@ -909,6 +911,49 @@ def _fit_inputs(
     )
 
 
+def polynomial_count_problems(
+    kinds: tuple[int, int, int],
+    n_sections: int,
+    plan_ids: Sequence[str],
+    height_ids: Sequence[str],
+    lines: Sequence[StraightLine | LineSpec] = (),
+) -> list[str]:
+    """J(16)'s counting rule, one line per coordinate short of observations.
+
+    A coordinate needs at least as many observations as its polynomial has
+    terms (:func:`n_terms` of its type, per section): X the full or plan
+    points, Z the full or height points, Y the plan points plus every line
+    point beyond two per straight line.  :func:`fit_deformation` raises the
+    first line; ``stripaero check`` lists them all.
+    """
+    in_sections = f" in {n_sections} sections" if n_sections > 1 else ""
+    n_plan, n_height = len(plan_ids), len(height_ids)
+    problems = []
+    for axis, count, label, names in (
+        ("X", n_plan, "full or plan control points", plan_ids),
+        ("Z", n_height, "height control points", height_ids),
+    ):
+        need = n_terms(kinds["XYZ".index(axis)], n_sections)
+        if count < need:
+            problems.append(
+                f"polynomial type {kinds['XYZ'.index(axis)]}{in_sections} needs at least "
+                f"{need} {label} "
+                f"for {axis}, got {count}" + (f" ({_quote(names)})" if names else "")
+            )
+    n_line_extra = sum(len(line.point_ids) - 2 for line in lines)
+    need_y = n_terms(kinds[1], n_sections)
+    if n_plan + n_line_extra < need_y:
+        line_text = ", ".join(f"{ln.name!r}: {len(ln.point_ids)}" for ln in lines)
+        problems.append(
+            f"polynomial type {kinds[1]}{in_sections} needs at least {need_y} observations for Y "
+            "(full or plan control points, plus line points beyond two per straight line), got "
+            f"{n_plan + n_line_extra}: {n_plan} control"
+            + (f" ({_quote(plan_ids)})" if plan_ids else "")
+            + (f" and {n_line_extra} from lines ({line_text})" if lines else "")
+        )
+    return problems
+
+
 def _check_coverage(data: _FitInputs) -> FloatArray | None:
     """Enough observations for every coordinate, at enough stations along the
     strip and in every section (GeometryError naming the rule and the points).
@@ -920,29 +965,9 @@ def _check_coverage(data: _FitInputs) -> FloatArray | None:
         data.in_sections,
     )
     plan_ids, height_ids = data.plan_ids, data.height_ids
-    n_plan, n_height = len(plan_ids), len(height_ids)
-    n_line_extra = sum(line.xyz.shape[0] - 2 for line in lines)
-    for axis, count, label, names in (
-        ("X", n_plan, "full or plan control points", plan_ids),
-        ("Z", n_height, "height control points", height_ids),
-    ):
-        need = n_terms(kinds["XYZ".index(axis)], n_sections)
-        if count < need:
-            raise GeometryError(
-                f"polynomial type {kinds['XYZ'.index(axis)]}{in_sections} needs at least "
-                f"{need} {label} "
-                f"for {axis}, got {count}" + (f" ({_quote(names)})" if names else "")
-            )
-    need_y = n_terms(kinds[1], n_sections)
-    if n_plan + n_line_extra < need_y:
-        line_text = ", ".join(f"{ln.name!r}: {ln.xyz.shape[0]}" for ln in lines)
-        raise GeometryError(
-            f"polynomial type {kinds[1]}{in_sections} needs at least {need_y} observations for Y "
-            "(full or plan control points, plus line points beyond two per straight line), got "
-            f"{n_plan + n_line_extra}: {n_plan} control"
-            + (f" ({_quote(plan_ids)})" if plan_ids else "")
-            + (f" and {n_line_extra} from lines ({line_text})" if lines else "")
-        )
+    problems = polynomial_count_problems(kinds, n_sections, plan_ids, height_ids, lines)
+    if problems:
+        raise GeometryError(problems[0])
 
     # Stations along the strip: a polynomial of degree d in X needs control at
     # d + 1 distinct X positions, however many points stand at each.

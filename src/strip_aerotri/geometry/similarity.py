@@ -42,6 +42,7 @@ from .rotation import matrix_from_rotvec, skew
 __all__ = [
     "SimilarityResult",
     "SimilarityTransform",
+    "control_count_problems",
     "fit_similarity",
     "similarity_from_points",
 ]
@@ -530,16 +531,9 @@ def _validate_control_geometry(
     height = np.flatnonzero(use_z)
     plan_ids = [ids[i] for i in plan]
     height_ids = [ids[i] for i in height]
-    if plan.size < 2:
-        raise GeometryError(
-            "similarity transformation needs at least two full or plan control points, "
-            f"got {plan.size}" + (f": {_quote(plan_ids)}" if plan.size else "")
-        )
-    if height.size < 3:
-        raise GeometryError(
-            "similarity transformation needs at least three full or height control points, "
-            f"got {height.size}" + (f": {_quote(height_ids)}" if height.size else "")
-        )
+    problems = control_count_problems(plan_ids, height_ids)
+    if problems:
+        raise GeometryError(problems[0])
     extent_src = float(np.max(np.ptp(src[used], axis=0)))
     ranges_tgt = [np.ptp(tgt[plan, 0]), np.ptp(tgt[plan, 1]), np.ptp(tgt[height, 2])]
     extent_tgt = float(max(ranges_tgt))
@@ -661,6 +655,27 @@ def _start_values(
         ]
     )
     return scale, rotation, translation
+
+
+def control_count_problems(plan_ids: Sequence[str], height_ids: Sequence[str]) -> list[str]:
+    """J's counting rule for the similarity (J(14)), one line per shortfall.
+
+    At least two full or plan points (``plan_ids``) and three full or height
+    points (``height_ids``); :func:`fit_similarity` raises the first line,
+    ``stripaero check`` lists them all.
+    """
+    problems = []
+    if len(plan_ids) < 2:
+        problems.append(
+            "similarity transformation needs at least two full or plan control points, "
+            f"got {len(plan_ids)}" + (f": {_quote(plan_ids)}" if plan_ids else "")
+        )
+    if len(height_ids) < 3:
+        problems.append(
+            "similarity transformation needs at least three full or height control points, "
+            f"got {len(height_ids)}" + (f": {_quote(height_ids)}" if height_ids else "")
+        )
+    return problems
 
 
 def fit_similarity(

@@ -12,13 +12,17 @@ metres, radians.
 - :mod:`.csvfiles`: the strict CSV reader (line numbers, comments, ids as text);
 - :mod:`.tables`: the image, fiducial, control, GNSS and IMU tables;
 - :mod:`.model`: :class:`Camera` and :class:`Project`;
-- :mod:`.loader`: :func:`load_project` and the output folder's rules.
+- :mod:`.loader`: :func:`load_project`;
+- :mod:`.output`: the output folder's rules;
+- :mod:`.check`: :func:`check_project`, the checks of ``stripaero check``.
 """
 
 from ..observations import LineSpec
 from ..options import Construction, IntersectionMethod, RelativeOrientationMethod
-from .loader import check_output_directory, load_project
+from .check import CheckReport, check_project
+from .loader import load_project
 from .model import Camera, Project
+from .output import DEFAULT_OUTPUT, check_output_directory, output_folder
 from .schema import (
     CONTROL_COLUMNS,
     FIDUCIAL_COLUMNS,
@@ -34,6 +38,7 @@ from .schema import (
 
 __all__ = [
     "CONTROL_COLUMNS",
+    "DEFAULT_OUTPUT",
     "FIDUCIAL_COLUMNS",
     "GNSS_COLUMNS",
     "IMAGE_COLUMNS",
@@ -42,6 +47,7 @@ __all__ = [
     "PROJECT_TABLES",
     "Block",
     "Camera",
+    "CheckReport",
     "ColumnSpec",
     "Intersection",
     "KeySpec",
@@ -50,7 +56,9 @@ __all__ = [
     "StraightLineSpec",
     "TableSpec",
     "check_output_directory",
+    "check_project",
     "load_project",
+    "output_folder",
 ]
 
 # Former names of three option enums and of the line specification.

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 import tomllib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
@@ -42,6 +42,7 @@ from ..options import (
 )
 from .csvfiles import decode, read_bytes
 from .model import Camera, Project, readonly
+from .output import check_output
 from .schema import (
     PROJECT_KEYS,
     PROJECT_TABLES,
@@ -60,7 +61,7 @@ from .tables import (
     read_image_options,
 )
 
-__all__ = ["check_output_directory", "load_project"]
+__all__ = ["load_project"]
 
 
 # --------------------------------------------------------------------------- results
@@ -111,57 +112,6 @@ def _needs_bundle(toml_path: Path, name: str, what: str, refine: Refine) -> None
 
 
 # --------------------------------------------------------------------------- output
-
-
-def _is_within(path: Path, folder: Path) -> bool:
-    return path == folder or folder in path.parents
-
-
-def check_output_directory(
-    directory: str | Path, project: Project, *, source: str = "--out"
-) -> Path:
-    """Check that results may be written to ``directory``.
-
-    Parameters
-    ----------
-    directory : str or Path
-        The result folder (relative paths are relative to the current folder,
-        as for a command-line option).
-    project : Project
-        The loaded project, whose input files are protected.
-    source : str
-        Where the folder came from, for messages (e.g. ``"--out"``).
-
-    Returns
-    -------
-    Path
-        ``directory`` as a Path.
-
-    Raises
-    ------
-    ConfigError
-        If the folder is the project folder, contains an input file, or is a file.
-    """
-    return _check_output(Path(directory), project.input_files, source)
-
-
-def _check_output(directory: Path, inputs: Sequence[Path], source: str) -> Path:
-    target = directory.resolve()
-    if target.exists() and not target.is_dir():
-        raise ConfigError(f"{source}: output folder '{directory}' is a file")
-    project_dir = inputs[0].resolve().parent
-    if target == project_dir:
-        raise ConfigError(
-            f"{source}: output folder '{directory}' is the project folder; "
-            'choose a folder of its own (e.g. "out")'
-        )
-    for item in inputs:
-        if _is_within(item.resolve(), target):
-            raise ConfigError(
-                f"{source}: output folder '{directory}' contains the input file '{item}'; "
-                "results replace the whole folder"
-            )
-    return directory
 
 
 # --------------------------------------------------------------------------- project
@@ -238,7 +188,7 @@ def load_project(path: str | Path) -> Project:
     output_directory = None
     if output["directory"] is not None:
         inputs = (toml_path, images_file, control_file, fiducials_file, gnss_file, imu_file)
-        output_directory = _check_output(
+        output_directory = check_output(
             folder / str(output["directory"]),
             tuple(f for f in inputs if f is not None),
             f"{toml_path}: [output] directory",

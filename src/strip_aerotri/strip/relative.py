@@ -27,6 +27,7 @@ image scale in micrometres.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -52,6 +53,7 @@ __all__ = [
     "chain_rotations",
     "essential_start",
     "homography_start",
+    "pair_count_problems",
     "relative_orientation",
     "similarity_start",
 ]
@@ -136,16 +138,25 @@ def _segment_starts(pair: IntArray, n_pairs: int) -> IntArray:
     return np.searchsorted(pair, np.arange(n_pairs)).astype(np.intp)
 
 
+def pair_count_problems(counts: IntArray, labels: Sequence[str] | None = None) -> list[str]:
+    """The pairs with too few common points for a relative orientation, one line each.
+
+    ``counts[m]``: points measured on both photos of pair m; ``labels``: the
+    pairs' names (default "pair m").  The rule of :func:`relative_orientation`
+    (at least :data:`MIN_POINTS_PER_PAIR`), listed for ``stripaero check``.
+    """
+    return [
+        f"{labels[m] if labels else f'pair {m}'}: {counts[m]} point(s) measured on both "
+        f"photos; relative orientation needs at least {MIN_POINTS_PER_PAIR}"
+        for m in np.flatnonzero(np.asarray(counts) < MIN_POINTS_PER_PAIR)
+    ]
+
+
 def _check_pairs(pair: IntArray, n_pairs: int, labels: list[str] | None) -> IntArray:
     counts = np.bincount(pair, minlength=n_pairs)
-    few = np.flatnonzero(counts < MIN_POINTS_PER_PAIR)
-    if few.size:
-        m = int(few[0])
-        name = labels[m] if labels else f"pair {m}"
-        raise GeometryError(
-            f"{name}: {counts[m]} point(s) measured on both photos; relative orientation "
-            f"needs at least {MIN_POINTS_PER_PAIR}"
-        )
+    problems = pair_count_problems(counts, labels)
+    if problems:
+        raise GeometryError(problems[0])
     return counts
 
 

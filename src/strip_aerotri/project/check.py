@@ -1,0 +1,369 @@
+"""Check a loaded project without adjusting it: :func:`check_project`.
+
+Loading (files, columns, ids, options) stops at the first problem, as
+:func:`strip_aerotri.project.load_project` does.  The geometric checks that
+follow list every problem, each by the rule of the stage that applies it
+(one rule, one place):
+
+* each consecutive pair has at least five points measured on both photos
+  (:func:`strip_aerotri.strip.relative.pair_count_problems`, J(5)-(10));
+* each model after the first shares at least one tie point with the previous
+  model (a point measured on all three photos; scale transfer, J(15));
+* enough control for the similarity
+  (:func:`strip_aerotri.geometry.similarity.control_count_problems`, J(14)),
+  the plan points not coinciding and the height points not all in one
+  vertical plane;
+* enough control for the chosen deformation polynomial
+  (:func:`strip_aerotri.geometry.deformation.polynomial_count_problems`, J(16));
+* control not mirrored against the photos
+  (:func:`strip_aerotri.plausibility.control_problems`);
+* every straight-line point is measured on both photos of a pair (J(18));
+* the output folder may be written.
+
+When the counts allow it, the strip is then formed as the run forms it
+(relative orientation of every pair, the photos' order, scale transfer), so
+that a pair that cannot be oriented or photos listed against the flight are
+found here too; the ground stage is not run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .model import Project
+
+__all__ = ["CheckReport", "check_project"]
+
+
+@dataclass
+class CheckReport:
+    """Findings of :func:`check_project`.
+
+    Attributes
+    ----------
+    problems : list of str
+        Rules broken (each one line naming the file and the pair, model or points).
+    warnings : list of str
+        Valid but doubtful findings.
+    summary : list of str
+        Lines describing the project.
+    details : list of str
+        Per-pair figures (shown with ``-v``).
+    """
+
+    problems: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    summary: list[str] = field(default_factory=list)
+    details: list[str] = field(default_factory=list)
+
+
+def _quote(ids, limit: int = 8) -> str:
+    ids = list(ids)
+    text = ", ".join(f"'{i}'" for i in ids[:limit])
+    return text + (f" and {len(ids) - limit} more" if len(ids) > limit else "")
+
+
+def _plan_metres(xy: np.ndarray, geographic: bool) -> np.ndarray:
+    """Plan coordinates scaled to comparable units (degrees of longitude shrunk by cos φ)."""
+    if not geographic or xy.shape[0] == 0:
+        return xy
+    lat = np.deg2rad(np.mean(xy[:, 1]))
+    return np.column_stack([xy[:, 0] * np.cos(lat), xy[:, 1]])
+
+
+#: The check's estimate of how far the strip reaches (control and check points
+#: widened by a photo's footprint) exceeds the run's by up to this factor: the
+#: check refuses height control in nearly one plane only when it is magnified
+#: more than this times COLLINEAR_MAGNIFICATION, and warns between 1 and this
+#: times.
+_CHECK_MARGIN = 3.0
+
+
+def _footprint_radius(obs, control_point, has_plan, control_xy) -> float | None:
+    """Median ground radius of a photo's footprint, in the unit of `control_xy`.
+
+    A photo's scale is the spread of the plan control measured on it over the
+    spread of their image coordinates (two or more such points; tilt and
+    relief ignored), its radius that scale times the farthest image point
+    measured on it.  `control_point`: each control row's point index in `obs`
+    (-1 if absent); `control_xy`: plan coordinates of the rows `has_plan`.
+    None when no photo shows two plan control points apart.
+    """
+    xy_rows = np.full((has_plan.size, 2), np.nan)
+    xy_rows[has_plan] = control_xy - control_xy.mean(axis=0)  # small numbers to square
+    which = np.full(obs.n_points, -1, dtype=np.intp)
+    rows = np.flatnonzero((control_point >= 0) & has_plan)
+    which[control_point[rows]] = rows
+    k = which[obs.point]
+    on = k >= 0
+    photo = obs.photo[on]
+
+    def spread(xy):  # sum of squared distances from each photo's centroid
+        n = np.bincount(photo, minlength=obs.n_photos)
+        sums = [np.bincount(photo, xy[:, c], minlength=obs.n_photos) for c in (0, 1)]
+        squares = np.bincount(photo, np.einsum("ij,ij->i", xy, xy), minlength=obs.n_photos)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return n, squares - (sums[0] ** 2 + sums[1] ** 2) / n
+
+    n, image = spread(obs.xy[on])
+    _, ground = spread(xy_rows[k[on]])
+    ok = (n >= 2) & (image > 1e-6 * np.maximum(n, 1)) & (ground > 0.0)  # apart by > 1 µm
+    if not ok.any():
+        return None
+    farthest = np.zeros(obs.n_photos)
+    np.maximum.at(farthest, obs.photo, np.hypot(obs.xy[:, 0], obs.xy[:, 1]))
+    return float(np.median(np.sqrt(ground[ok] / image[ok]) * farthest[ok]))
+
+
+def check_project(project: Project, out: Path | None = None) -> CheckReport:
+    """Check the geometry of a loaded project without adjusting it.
+
+    Parameters
+    ----------
+    project : Project
+        A project from :func:`~strip_aerotri.project.load_project`.
+    out : Path, optional
+        The ``--out`` folder a run would use.
+
+    Returns
+    -------
+    CheckReport
+    """
+    from ..errors import StripAerotriError
+    from ..geometry.deformation import n_terms, polynomial_count_problems
+    from ..geometry.similarity import (
+        COINCIDENT_RTOL,
+        COLLINEAR_MAGNIFICATION,
+        COLLINEAR_RTOL,
+        control_count_problems,
+        cross_tilt,
+    )
+    from ..plausibility import control_problems
+    from ..strip.chaining import pair_rows
+    from ..strip.relative import pair_count_problems
+    from .output import output_folder
+
+    rep = CheckReport()
+    obs = project.observations
+    images = project.images_file
+    control_file = project.control_file
+    all_ids = obs.photo_ids
+    n_photos = obs.n_photos
+    # Models on every k-th photo with [adjustment] photo_step = k (densify); "auto"
+    # chooses k from a first relative orientation, so it is checked as k = 1.
+    step = getattr(project.adjustment, "photo_step", 1)
+    step = step if isinstance(step, int) and step > 1 else 1
+    if step > 1:
+        from ..strip.densify import model_photo_index
+
+        seq = model_photo_index(n_photos, step)
+    else:
+        seq = np.arange(n_photos, dtype=np.intp)
+    ids = [all_ids[i] for i in seq]
+    n_models = len(seq) - 1
+    labels = [f"pair {ids[m]}-{ids[m + 1]}" for m in range(n_models)]
+
+    # Pairs: points on both photos (same rows as strip formation).
+    model, point, _, _ = pair_rows(obs, seq)
+    counts = np.bincount(model, minlength=n_models)
+    rep.problems += [f"{images}: {p}" for p in pair_count_problems(counts, labels)]
+
+    # Control not mirrored against the photos: the run's own check
+    # (strip_aerotri.plausibility).
+    rep.problems += control_problems(obs, project.control, project.crs, str(control_file))
+
+    # Tie points: a point determined in model m and in model m - 1.
+    n_pts = max(obs.n_points, 1)
+    key_now = model.astype(np.int64) * n_pts + point
+    key_prev = (model.astype(np.int64) + 1) * n_pts + point
+    _, i_now, _ = np.intersect1d(key_now, key_prev, assume_unique=True, return_indices=True)
+    ties = np.bincount(model[i_now], minlength=n_models)
+    rep.problems += [
+        f"{images}: {labels[m]} shares no tie point with {labels[m - 1]} (no point is "
+        f"measured on all three photos {ids[m - 1]}, {ids[m]}, {ids[m + 1]}): the scale "
+        "cannot be transferred"
+        for m in np.flatnonzero(ties[1:] == 0) + 1
+    ]
+    rep.details += [
+        f"{labels[m]}: {int(counts[m])} common points, "
+        + ("first model" if m == 0 else f"{ties[m]} tie points with the previous model")
+        for m in range(n_models)
+    ]
+
+    triangulable = np.zeros(obs.n_points, dtype=bool)
+    if step == 1:
+        triangulable[point] = True
+    else:  # the other photos are resected and every point intersected from all its rays
+        triangulable = np.bincount(obs.point, minlength=obs.n_points) >= 2
+
+    # Control.
+    ctrl = project.control
+    lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
+    row_point = np.array([lookup.get(p, -1) for p in ctrl.point_ids], dtype=np.intp)
+    ok = np.zeros(len(ctrl.point_ids), dtype=bool)
+    ok[row_point >= 0] = triangulable[row_point[row_point >= 0]]
+    lost = [p for p, good in zip(ctrl.point_ids, ok, strict=True) if not good]
+    if lost:
+        rep.warnings.append(
+            f"{control_file}: {len(lost)} control or check point(s) not measured on both photos "
+            f"of any pair cannot be triangulated and will be left out: {_quote(lost)}"
+        )
+    uses_xy = ctrl.uses_xy & ok
+    uses_h = ctrl.uses_h & ok
+    plan_ids = [ctrl.point_ids[i] for i in np.flatnonzero(uses_xy)]
+    height_ids = [ctrl.point_ids[i] for i in np.flatnonzero(uses_h)]
+    n_plan, n_height = len(plan_ids), len(height_ids)
+    geographic = False
+    if not project.is_local:
+        import pyproj
+
+        geographic = pyproj.CRS.from_user_input(project.crs).is_geographic
+
+    count_problems = control_count_problems(plan_ids, height_ids)
+    rep.problems += [f"{control_file}: the {p}" for p in count_problems]
+    if n_plan >= 2:
+        xy = _plan_metres(ctrl.xyz[uses_xy, :2], geographic)
+        spread = float(np.max(np.ptp(xy, axis=0)))
+        every = _plan_metres(ctrl.xyz[:, :2][np.isfinite(ctrl.xyz[:, :2]).all(axis=1)], geographic)
+        extent = float(np.max(np.ptp(every, axis=0)))
+        if spread == 0.0 or spread <= COINCIDENT_RTOL * extent:
+            rep.problems.append(
+                f"{control_file}: the plan control points coincide (scale and azimuth are "
+                f"undetermined): {_quote(plan_ids)}"
+            )
+    if n_height >= 3:
+        hxy = ctrl.xyz[uses_h, :2]
+        if np.isfinite(hxy).all():
+            plan_all = np.isfinite(ctrl.xyz[:, :2]).all(axis=1)
+            known_xy = _plan_metres(ctrl.xyz[plan_all, :2], geographic)
+            hxy = _plan_metres(hxy, geographic)
+            ratio, _ = cross_tilt(hxy)
+            if ratio < COLLINEAR_RTOL:
+                # The run judges by the strip's points (similarity.cross_tilt);
+                # here they are the control and check points widened by one
+                # photo's footprint, which overstates r up to about 2.5 times.
+                radius = _footprint_radius(obs, row_point, plan_all, known_xy)
+                _, magnified = cross_tilt(hxy, known_xy, radius or 0.0)
+                text = (
+                    f"{control_file}: the height control points all lie in one vertical plane "
+                    f"(collinear in plan, singular value ratio {ratio:.1e}"
+                )
+                if radius is None:
+                    if magnified > COLLINEAR_MAGNIFICATION:
+                        rep.problems.append(
+                            f"{text}); the tilt across it is undetermined: {_quote(height_ids)}"
+                        )
+                    else:
+                        rep.warnings.append(
+                            f"{text}); no photo shows two plan control points to size the strip, "
+                            "so whether the tilt across it is determined is decided by the run: "
+                            f"{_quote(height_ids)}"
+                        )
+                elif magnified > _CHECK_MARGIN * COLLINEAR_MAGNIFICATION:
+                    rep.problems.append(
+                        f"{text}; an error of their heights reaches the strip's edge about "
+                        f"{magnified:.0f} times magnified); the tilt across it is undetermined: "
+                        f"{_quote(height_ids)}"
+                    )
+                elif magnified > COLLINEAR_MAGNIFICATION:
+                    rep.warnings.append(
+                        f"{text}; an error of their heights may reach the strip's edge up to "
+                        f"{magnified:.0f} times magnified); the run refuses the tilt above "
+                        f"{COLLINEAR_MAGNIFICATION:.0f}: {_quote(height_ids)}"
+                    )
+
+    # Strip formation as the run does it (relative orientation of every pair,
+    # photos in flight order, scale transfer), when the counts allow it.
+    if not rep.problems:
+        from ..pipeline import project_options
+        from ..strip.densify import form_strip_stepped
+
+        try:
+            form_strip_stepped(
+                obs,
+                project_options(project)[0],
+                photo_step=getattr(project.adjustment, "photo_step", 1),
+                min_base_to_height=getattr(project.adjustment, "min_base_to_height", 0.3),
+                blunders=project.blunders,
+            )
+        except StripAerotriError as exc:
+            rep.problems.append(f"{images}: {exc}")
+
+    # Straight lines.
+    for i, line in enumerate(project.straight_lines, start=1):
+        missing = [p for p in line.point_ids if not triangulable[lookup[p]]]
+        if missing:
+            rep.problems.append(
+                f"{project.path}: [[straight_line]] #{i} ('{line.name}'): point(s) "
+                f"{_quote(missing)} are not measured on both photos of any pair"
+            )
+
+    # Polynomial (J's construction only; with block = "models" every model has
+    # its own similarity).
+    kind = project.adjustment.polynomial
+    sections = project.adjustment.sections
+    in_sections = f" in {sections} sections" if sections > 1 else ""
+    strips = str(getattr(getattr(project.adjustment, "block", None), "value", "strips"))
+    if strips == "strips" and kind != "auto" and n_plan >= 2 and n_height >= 3:
+        where = (
+            f" ([adjustment] polynomial{' and sections' if sections > 1 else ''} in "
+            f"{project.path})"
+        )
+        rep.problems += [
+            f"{control_file}: {p}{where}"
+            for p in polynomial_count_problems(
+                (int(kind),) * 3, sections, plan_ids, height_ids, project.straight_lines
+            )
+        ]
+
+    # Output folder.
+    try:
+        target = output_folder(project, out)
+    except StripAerotriError as exc:
+        rep.problems.append(str(exc))
+        target = None
+
+    kinds = [k.value for k in ctrl.kind]
+    by_kind = ", ".join(f"{kinds.count(k)} {k}" for k in ("full", "plan", "height", "check"))
+    tie_text = (
+        f"; tie points per model {int(ties[1:].min())}..{int(ties[1:].max())}"
+        if n_models > 1
+        else ""
+    )
+    poly = (
+        f"auto{in_sections}"
+        if kind == "auto"
+        else f"{kind}{in_sections} (needs {n_terms(int(kind), sections)} per coordinate)"
+    )
+    rep.summary += [
+        f"project '{project.name}': {project.path}",
+        f"photos: {n_photos} ({all_ids[0]} ... {all_ids[-1]}), {n_models} pairs"
+        + (f" (models on every {step}th photo)" if step > 1 else ""),
+        f"image points: {obs.n_points} on {len(obs.photo)} observations, "
+        f"{int(triangulable.sum())} measured on a pair",
+        f"pairs: {int(counts.min())}..{int(counts.max())} common points{tie_text}",
+        f"control: {by_kind}; usable {n_plan} plan, {n_height} height",
+        f"straight lines: {len(project.straight_lines)}",
+    ]
+    for what, observed, source in (
+        ("GNSS centres", project.gnss, project.gnss_file),
+        ("IMU attitudes", project.imu, project.imu_file),
+    ):
+        if observed is not None:
+            rep.summary.append(
+                f"{what}: {len(observed.photo_ids)} of {n_photos} photos ({source})"
+            )
+    construction = (
+        f"polynomial {poly}" if strips == "strips" else "every model at once (block = models)"
+    )
+    rep.summary += [
+        f"crs: {project.crs}; route {project.adjustment.route.value}; {construction}",
+    ]
+    if target is not None:
+        rep.summary.append(f"output folder: {target}")
+    return rep
