@@ -26,7 +26,8 @@ from strip_aerotri.geodesy import GroundCRS, enu_rotation
 from strip_aerotri.geometry.collinearity import collinearity_jacobians as _collinearity
 from strip_aerotri.ground.polynomials import GroundOptions
 from strip_aerotri.pipeline import triangulate
-from strip_aerotri.report.outputs import _html_tables, build_report
+from strip_aerotri.report.html import _html_tables
+from strip_aerotri.report.record import build_report
 from strip_aerotri.simulate import simulate_strip
 
 SIGMA_GNSS = 0.05  # m, both components

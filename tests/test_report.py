@@ -320,10 +320,10 @@ def test_html_self_contained_with_figures(utm):
 
 
 def test_html_escapes_project_text(monkeypatch, utm):
-    import strip_aerotri.report.outputs as rep
+    import strip_aerotri.report.html as rep
 
     _, result, _ = utm
-    for name in ("_figure_layout", "_figure_residuals", "_figure_parallax", "_figure_ties"):
+    for name in ("figure_layout", "figure_residuals", "figure_parallax", "figure_ties"):
         monkeypatch.setattr(rep, name, lambda *args: None)
     report = build_report(result)
     report["project"]["name"] = "<b>Strip & co</b>"
@@ -350,7 +350,7 @@ def test_report_enums_are_plain_strings(utm):
 
 
 def test_long_strip_drawn_along_its_axis(monkeypatch, utm):
-    import strip_aerotri.report.outputs as rep
+    import strip_aerotri.report.figures as rep
 
     _, result, _ = utm
     calls = []
@@ -361,7 +361,7 @@ def test_long_strip_drawn_along_its_axis(monkeypatch, utm):
         return original(*args)
 
     monkeypatch.setattr(rep, "_figure_residuals_along", spy)
-    plan = rep._Plan(result)
+    plan = rep.Plan(result)
     ok = np.isfinite(result.points).all(axis=1)
     plan.decide_long(np.vstack([plan.xy(plan.centres), plan.xy(result.points[ok])]))
     assert plan.long is False  # 7 photos of a corridor: drawn to scale

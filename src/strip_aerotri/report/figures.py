@@ -1,0 +1,475 @@
+"""The figures of the HTML report (matplotlib, PNG as base64): the strip's
+layout, the control residuals in plan and along the strip, the residual
+y-parallaxes and the tie points per model.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .values import control_rows
+
+_MAX_PLOT_POINTS = 20000
+
+
+LONG_STRIP_RATIO = 8.0
+"""A strip longer than this times its width is drawn along its axis, not to scale."""
+
+
+_ROLE_STYLE = {
+    # role: (label, marker, colour, size, zorder)
+    "tie": ("tie points", ".", "#9a9a9a", 4, 2),
+    "model": ("points in one model", ".", "#c8c8c8", 4, 2),
+    "line": ("straight-line points", "x", "#e67e00", 22, 4),
+    "check": ("check points", "s", "#8e44ad", 40, 6),
+    "control-full": ("full control", "^", "#c0392b", 60, 7),
+    "control-plan": ("plan control", ">", "#2471a3", 55, 7),
+    "control-height": ("height control", "o", "#1e8449", 45, 7),
+}
+
+
+def _png(fig) -> str:
+    import io as _bio
+
+    buffer = _bio.BytesIO()
+    # Fixed margins (rc "figure.subplot.*" in build_html) and fast PNG
+    # compression: a layout engine or bbox_inches="tight" would draw every
+    # figure twice, and they dominate the time of a run on large strips.
+    fig.savefig(buffer, format="png", dpi=96, pil_kwargs={"compress_level": 1})
+    import base64
+
+    return base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+class Plan:
+    """Plan coordinates for plotting: metres east and north (grid or local).
+
+    Projected and local CRSs are plotted in their own X, Y; a geographic CRS
+    in metres on a plane tangent at the strip's centre (display only).
+    Directions from local east-north-up are turned into grid directions by the
+    meridian convergence.
+    """
+
+    def __init__(self, result):
+        crs = result.ground.crs
+        self.crs = crs
+        centres = np.asarray(result.photo_centres, dtype=np.float64)
+        self.geographic = crs.is_geographic
+        if self.geographic:
+            ok = np.isfinite(centres).all(axis=1)
+            self.lon0, self.lat0 = np.mean(centres[ok, :2], axis=0)
+            ell = crs.ellipsoid
+            self.radius = float(ell.semi_major_metre)
+            self.unit = "m from the strip centre"
+        else:
+            self.unit = "m"
+        self.centres = centres
+        cxy = self.xy(centres)
+        good = np.isfinite(cxy).all(axis=1)
+        self.axis_start = cxy[good][0] if good.any() else np.zeros(2)
+        self.axis_end = cxy[good][-1] if good.any() else np.array([1.0, 0.0])
+        self.long = False
+
+    def decide_long(self, xy: np.ndarray) -> None:
+        """Use strip axes (not to scale) when the strip is much longer than wide."""
+        sa = self.strip_axes(xy[np.isfinite(xy).all(axis=1)])
+        if sa.size:
+            length = float(np.ptp(sa[:, 0]))
+            width = float(np.ptp(sa[:, 1]))
+            self.long = length > LONG_STRIP_RATIO * max(width, 1e-9)
+
+    def xy(self, xyh: np.ndarray) -> np.ndarray:
+        xyh = np.asarray(xyh, dtype=np.float64)
+        if not self.geographic:
+            return xyh[:, :2]
+        k = np.pi / 180.0 * self.radius
+        return np.column_stack(
+            [
+                (xyh[:, 0] - self.lon0) * k * np.cos(np.radians(self.lat0)),
+                (xyh[:, 1] - self.lat0) * k,
+            ]
+        )
+
+    def strip_axes(self, xy: np.ndarray) -> np.ndarray:
+        """(N, 2) plan xy -> (along, across): metres from the first photo along the
+        line to the last one, and to its left."""
+        d = self.axis_end - self.axis_start
+        u = d / (np.hypot(d[0], d[1]) or 1.0)
+        rel = np.asarray(xy, dtype=np.float64) - self.axis_start
+        return np.stack([rel @ u, rel @ np.array([-u[1], u[0]])], axis=-1)
+
+    def vectors_to_strip(self, de: np.ndarray, dn: np.ndarray) -> np.ndarray:
+        """Plan vectors (grid east, north) -> (along, across) components."""
+        d = self.axis_end - self.axis_start
+        u = d / (np.hypot(d[0], d[1]) or 1.0)
+        return np.stack([de * u[0] + dn * u[1], -de * u[1] + dn * u[0]], axis=-1)
+
+    def convergence(self, xyh: np.ndarray) -> np.ndarray:
+        if self.crs.is_local or self.geographic:
+            return np.zeros(len(xyh))
+        try:
+            return np.asarray(self.crs.meridian_convergence(xyh), dtype=np.float64)
+        except Exception:  # display only: fall back to true north
+            return np.zeros(len(xyh))
+
+
+def _footprints(result, plan: Plan) -> np.ndarray | None:
+    """(M, 4, 2) plan corners of each photo's footprint at the mean point height."""
+    obs = result.strip.observations
+    xy = np.asarray(obs.xy, dtype=np.float64)
+    if xy.size == 0:
+        return None
+    half = np.max(np.abs(xy), axis=0)
+    c = float(obs.principal_distance)
+    corners = np.array(
+        [
+            [half[0], half[1], -c],
+            [-half[0], half[1], -c],
+            [-half[0], -half[1], -c],
+            [half[0], -half[1], -c],
+        ]
+    )
+    rot = np.asarray(result.ground.photo_rotations_enu, dtype=np.float64)
+    rays = np.einsum("mij,kj->mki", rot, corners)  # (M, 4, 3) east, north, up
+    centres = np.asarray(result.photo_centres, dtype=np.float64)
+    points = np.asarray(result.points, dtype=np.float64)
+    # mean height of the points seen on each photo (median of all where none)
+    position = np.full(obs.n_photos, -1, dtype=np.intp)
+    position[np.asarray(result.strip.photo_index)] = np.arange(len(centres))
+    row_photo = position[np.asarray(obs.photo)]
+    row_h = points[np.asarray(obs.point), 2]
+    use = (row_photo >= 0) & np.isfinite(row_h)
+    total = np.bincount(row_photo[use], weights=row_h[use], minlength=len(centres))
+    count = np.bincount(row_photo[use], minlength=len(centres))
+    fallback = float(np.nanmedian(points[:, 2])) if np.isfinite(points[:, 2]).any() else 0.0
+    h = np.where(count > 0, total / np.maximum(count, 1), fallback)
+    depth = centres[:, 2] - h
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -depth[:, None] / rays[:, :, 2]
+    en = rays[:, :, :2] * t[:, :, None]
+    gamma = plan.convergence(centres)
+    cg, sg = np.cos(gamma)[:, None], np.sin(gamma)[:, None]
+    # true azimuth alpha -> grid azimuth alpha - gamma: turn counter-clockwise by gamma
+    e = cg * en[:, :, 0] - sg * en[:, :, 1]
+    n = sg * en[:, :, 0] + cg * en[:, :, 1]
+    grid = np.stack([e, n], axis=-1)
+    # the grid scale factor (about 1) is ignored: display only
+    out = plan.xy(centres)[:, None, :] + grid
+    bad = ~np.isfinite(out).all(axis=(1, 2)) | (t <= 0).any(axis=1)
+    return out[~bad]
+
+
+def _decimate(index: np.ndarray, limit: int) -> np.ndarray:
+    if index.size <= limit:
+        return index
+    return index[np.linspace(0, index.size - 1, limit).astype(np.intp)]
+
+
+def figure_layout(result, plan: Plan, roles: np.ndarray) -> str:
+    from matplotlib.collections import PolyCollection
+    from matplotlib.figure import Figure
+
+    points = np.asarray(result.points, dtype=np.float64)
+    ok = np.isfinite(points).all(axis=1)
+    pxy = np.full((len(points), 2), np.nan)
+    pxy[ok] = plan.xy(points[ok])
+    cxy = plan.xy(plan.centres)
+    feet = _footprints(result, plan)
+    if plan.long:
+        pxy = plan.strip_axes(pxy)
+        cxy = plan.strip_axes(cxy)
+        if feet is not None and len(feet):
+            feet = plan.strip_axes(feet.reshape(-1, 2)).reshape(feet.shape)
+    fig = Figure(figsize=(10, 4.5 if plan.long else 6.5))
+    ax = fig.subplots()
+    if feet is not None and len(feet):
+        step = max(1, len(feet) // 400)
+        ax.add_collection(
+            PolyCollection(
+                feet[::step],
+                facecolors="#5dade2",
+                edgecolors="#2e86c1",
+                alpha=0.08,
+                linewidths=0.6,
+                zorder=1,
+                label="photo footprints",
+            )
+        )
+    ax.plot(cxy[:, 0], cxy[:, 1], "-", color="#2e86c1", lw=0.8, zorder=3)
+    ax.plot(
+        cxy[:, 0], cxy[:, 1], "o", ms=3.5, color="#1b4f72", zorder=3, label="projection centres"
+    )
+    ax.annotate(
+        result.photo_ids[0],
+        cxy[0],
+        textcoords="offset points",
+        xytext=(4, 4),
+        fontsize=8,
+        color="#1b4f72",
+    )
+    ax.annotate(
+        result.photo_ids[-1],
+        cxy[-1],
+        textcoords="offset points",
+        xytext=(4, 4),
+        fontsize=8,
+        color="#1b4f72",
+    )
+    for role, (label, marker, colour, size, z) in _ROLE_STYLE.items():
+        sel = np.flatnonzero(ok & (roles == role))
+        if sel.size == 0:
+            continue
+        sel = _decimate(sel, _MAX_PLOT_POINTS)
+        crowded = sel.size > 400 and marker not in (".", "x")
+        ax.scatter(
+            pxy[sel, 0],
+            pxy[sel, 1],
+            s=size / 4 if crowded else size,
+            marker=marker,
+            c=colour,
+            zorder=z,
+            label=f"{label} ({int(np.count_nonzero(ok & (roles == role)))})",
+            linewidths=1.0 if marker == "x" else 0.4,
+            **({} if marker in (".", "x") or crowded else {"edgecolors": "black"}),
+        )
+    ax.autoscale_view()
+    _plan_axes(ax, plan)
+    if plan.long:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    else:
+        ax.legend(loc="best", fontsize=8, framealpha=0.85)
+    ax.set_title(
+        "Strip layout along the strip axis (not to scale)" if plan.long else "Strip layout"
+    )
+    return _png(fig)
+
+
+def _plan_axes(ax, plan: Plan) -> None:
+    if plan.long:
+        ax.set_xlabel(f"along the strip from the first photo [{plan.unit}]")
+        ax.set_ylabel("across the strip, left positive [m]")
+    else:
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel(f"X (east) [{plan.unit}]")
+        ax.set_ylabel(f"Y (north) [{plan.unit}]")
+    ax.ticklabel_format(useOffset=False, style="plain")
+    ax.grid(True, lw=0.3, alpha=0.5)
+
+
+def _nice(value: float) -> float:
+    """1, 2 or 5 times a power of ten, not above ``value``."""
+    if not (np.isfinite(value) and value > 0):
+        return 1.0
+    exp = np.floor(np.log10(value))
+    base = value / 10**exp
+    step = 5.0 if base >= 5 else 2.0 if base >= 2 else 1.0
+    return float(step * 10**exp)
+
+
+def figure_residuals(result, plan: Plan) -> str | None:
+    from matplotlib.colors import TwoSlopeNorm
+    from matplotlib.figure import Figure
+
+    idx, resid = control_rows(result)
+    if idx.size == 0:
+        return None
+    is_check = np.asarray(result.ground.is_check, dtype=bool)
+    pxy = plan.xy(np.asarray(result.points, dtype=np.float64)[idx])
+    cxy = plan.xy(plan.centres)
+    # residuals are along east/north; turn them to the grid like the footprints
+    gamma = plan.convergence(np.asarray(result.points, dtype=np.float64)[idx])
+    de = np.cos(gamma) * resid[:, 0] - np.sin(gamma) * resid[:, 1]
+    dn = np.sin(gamma) * resid[:, 0] + np.cos(gamma) * resid[:, 1]
+    plan_len = np.hypot(de, dn)
+    if plan.long:
+        return _figure_residuals_along(result, plan, idx, resid, pxy, de, dn, is_check)
+    fig = Figure(figsize=(10, 6.5))
+    ax = fig.subplots()
+    ax.plot(
+        cxy[:, 0], cxy[:, 1], "-", color="#aab7b8", lw=1.0, zorder=1, label="projection centres"
+    )
+    extent = float(np.nanmax(np.ptp(np.vstack([cxy, pxy]), axis=0))) or 1.0
+    largest = float(np.nanmax(plan_len)) if np.isfinite(plan_len).any() else 0.0
+    key = _nice(largest) if largest > 0 else 0.1
+    # arrow of the largest residual: 8 % of the extent
+    scale = (largest if largest > 0 else key) / (0.08 * extent)
+    has_plan = np.isfinite(plan_len)
+    for sel, colour, label in ((~is_check, "#c0392b", "control"), (is_check, "#8e44ad", "check")):
+        sel = sel & has_plan
+        if sel.any():
+            q = ax.quiver(
+                pxy[sel, 0],
+                pxy[sel, 1],
+                de[sel],
+                dn[sel],
+                angles="xy",
+                scale_units="xy",
+                scale=scale,
+                color=colour,
+                width=0.0025,
+                zorder=4,
+                label=f"plan residual, {label}",
+            )
+    if has_plan.any():
+        ax.quiverkey(
+            q, 0.85, 0.04, key, f"{key:g} m", labelpos="E", coordinates="axes", color="black"
+        )
+    dh = resid[:, 2]
+    has_h = np.isfinite(dh)
+    if has_h.any():
+        lim = float(np.nanmax(np.abs(dh))) or 1.0
+        norm = TwoSlopeNorm(vcenter=0.0, vmin=-lim, vmax=lim)
+        for sel, marker in ((~is_check, "^"), (is_check, "s")):
+            sel = sel & has_h
+            if sel.any():
+                sc = ax.scatter(
+                    pxy[sel, 0],
+                    pxy[sel, 1],
+                    c=dh[sel],
+                    cmap="RdBu_r",
+                    norm=norm,
+                    marker=marker,
+                    s=70,
+                    edgecolors="black",
+                    linewidths=0.5,
+                    zorder=5,
+                )
+        bar = fig.colorbar(sc, ax=ax, shrink=0.8, pad=0.02)
+        bar.set_label("height residual dH [m] (given − adjusted)")
+    no_h = ~has_h
+    if no_h.any():
+        ax.scatter(
+            pxy[no_h, 0],
+            pxy[no_h, 1],
+            facecolors="white",
+            edgecolors="black",
+            marker="o",
+            s=30,
+            zorder=5,
+            label="no height residual",
+        )
+    names = np.asarray(result.point_ids, dtype=object)[idx]
+    if idx.size <= 60:
+        for (x, y), name in zip(pxy, names, strict=True):
+            ax.annotate(
+                str(name),
+                (x, y),
+                textcoords="offset points",
+                xytext=(5, -10),
+                fontsize=7,
+                color="#333333",
+            )
+    _plan_axes(ax, plan)
+    ax.legend(loc="upper left", fontsize=8, framealpha=0.85)
+    ax.set_title("Residuals at control (▲) and check (■) points: arrows plan, colour height")
+    return _png(fig)
+
+
+def _figure_residuals_along(result, plan, idx, resid, pxy, de, dn, is_check) -> str:
+    """Residual components against the distance along a long strip (three panels)."""
+    from matplotlib.figure import Figure
+
+    along = plan.strip_axes(pxy)[:, 0]
+    comp = plan.vectors_to_strip(de, dn)
+    fig = Figure(figsize=(10, 7.5))
+    axes = fig.subplots(3, 1, sharex=True)
+    few = len(idx) <= 300
+    panels = (
+        (comp[:, 0], "along-strip residual [m]"),
+        (comp[:, 1], "across-strip residual [m]"),
+        (resid[:, 2], "height residual dH [m]"),
+    )
+    for ax, (values, label) in zip(axes, panels, strict=True):
+        for sel, marker, colour, name in (
+            (~is_check, "^", "#c0392b", "control"),
+            (is_check, "s", "#8e44ad", "check"),
+        ):
+            sel = sel & np.isfinite(values)
+            if sel.any():
+                ax.scatter(
+                    along[sel],
+                    values[sel],
+                    marker=marker,
+                    c=colour,
+                    s=28 if few else 6,
+                    label=name,
+                    linewidths=0.3 if few else 0.0,
+                    **({"edgecolors": "black"} if few else {}),
+                )
+        ax.axhline(0.0, color="black", lw=0.6)
+        ax.set_ylabel(label)
+        ax.grid(True, lw=0.3, alpha=0.5)
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[-1].set_xlabel(f"along the strip from the first photo [{plan.unit}]")
+    axes[0].set_title("Residuals (given − adjusted) at control and check points along the strip")
+    return _png(fig)
+
+
+def _bars_or_lines(ax, x, values, labels, colours, width=0.4):
+    many = len(x) > 120
+    for k, (v, label, colour) in enumerate(zip(values, labels, colours, strict=True)):
+        if many:
+            ax.plot(x, v, "-", lw=0.9, color=colour, label=label)
+        else:
+            offset = (k - (len(values) - 1) / 2) * width
+            ax.bar(x + offset, v, width=width, color=colour, label=label)
+
+
+def figure_parallax(result) -> str:
+    from matplotlib.figure import Figure
+
+    rel = result.strip.relative
+    x = np.arange(rel.n_pairs)
+    fig = Figure(figsize=(11, 3.8))
+    (ax, hx) = fig.subplots(1, 2, gridspec_kw={"width_ratios": [2.3, 1]})
+    _bars_or_lines(
+        ax,
+        x,
+        [np.asarray(rel.sigma0_um), np.asarray(rel.max_parallax_um)],
+        ["σ0 (one image coordinate)", "max |y-parallax|"],
+        ["#2e86c1", "#e67e22"],
+    )
+    ax.set_xlabel("pair (left photo's position in the strip)")
+    ax.set_ylabel("µm at image scale")
+    ax.set_title("Relative orientation: residual y-parallax per pair")
+    ax.grid(True, axis="y", lw=0.3)
+    ax.legend(fontsize=8)
+    q = np.asarray(rel.parallax_um, dtype=np.float64)
+    q = q[np.isfinite(q)]
+    if q.size:
+        rms = float(np.sqrt(np.mean(q**2)))
+        hx.hist(q, bins=min(60, max(10, q.size // 20)), color="#5d6d7e")
+        for sign in (-1, 1):
+            hx.axvline(sign * 3 * rms, color="#c0392b", lw=1.0, ls="--")
+        hx.set_title(f"All {q.size} y-parallaxes; ±3 RMS dashed", fontsize=10)
+        hx.set_xlabel("µm")
+    return _png(fig)
+
+
+def figure_ties(result, models: list[dict[str, Any]]) -> str | None:
+    from matplotlib.figure import Figure
+
+    if len(models) < 2:
+        return None
+    x = np.array([m["index"] for m in models], dtype=np.float64)
+    rms = np.array(
+        [[np.nan if v is None else v for v in m["tie_rms_m"]] for m in models], dtype=np.float64
+    )
+    plan = np.hypot(rms[:, 0], rms[:, 1])
+    fig = Figure(figsize=(11, 3.6))
+    ax = fig.subplots()
+    _bars_or_lines(
+        ax,
+        x[1:],
+        [plan[1:], np.abs(rms[1:, 2])],
+        ["plan (X, Y)", "height (Z)"],
+        ["#16a085", "#8e44ad"],
+    )
+    ax.set_xlabel("model (left photo's position in the strip)")
+    ax.set_ylabel("RMS difference [m]")
+    ax.set_title("Differences between the two determinations of tie points, per model")
+    ax.grid(True, axis="y", lw=0.3)
+    ax.legend(fontsize=8)
+    return _png(fig)

@@ -1,0 +1,740 @@
+"""``report.html``: one self-contained page (tables, verdicts, figures) built
+from ``report.json``'s content and the figures.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from .figures import Plan, figure_layout, figure_parallax, figure_residuals, figure_ties
+from .values import point_roles
+
+_CSS = """
+body{font-family:-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;color:#1c2833;
+max-width:1150px;margin:24px auto;padding:0 18px;line-height:1.4}
+h1{font-size:1.7em;margin-bottom:0.1em}h2{border-bottom:2px solid #d5d8dc;padding-bottom:3px;
+margin-top:1.6em;font-size:1.3em}h3{font-size:1.05em;margin-bottom:0.3em}
+.sub{color:#5d6d7e;margin-top:0}
+table{border-collapse:collapse;margin:0.4em 0 1em 0;font-size:0.88em}
+th,td{border:1px solid #d5d8dc;padding:3px 8px;text-align:right;white-space:nowrap}
+th{background:#eaf2f8;text-align:center}td.l,th.l{text-align:left}
+tr:nth-child(even) td{background:#fbfcfc}
+.pass{color:#196f3d;font-weight:bold}.fail{color:#b03a2e;font-weight:bold}
+.na{color:#7f8c8d}.verdict{font-size:1.15em;padding:6px 10px;display:inline-block;
+border-radius:4px;margin:0.3em 0}
+.verdict.pass{background:#d5f5e3}.verdict.fail{background:#fadbd8}.verdict.na{background:#eaeded}
+figure{margin:0.6em 0 1.2em 0}figure img{max-width:100%;height:auto;border:1px solid #eaeded}
+figcaption{color:#5d6d7e;font-size:0.88em}
+.scroll{max-height:420px;overflow-y:auto;display:inline-block;border:1px solid #eaeded}
+.scroll table{margin:0}
+ul.warn li{color:#7e5109}
+footer{margin-top:2em;color:#7f8c8d;font-size:0.8em}
+"""
+
+
+def _esc(value: Any) -> str:
+    import html
+
+    return html.escape(str(value), quote=True)
+
+
+def _fmt(value: Any, digits: int = 3) -> str:
+    if value is None:
+        return "–"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        if not math.isfinite(float(value)):
+            return "–"
+        return f"{float(value):.{digits}f}"
+    return _esc(value)
+
+
+def _table(
+    header: list[str],
+    rows: list[list[Any]],
+    *,
+    left: int = 1,
+    left_columns: tuple[int, ...] = (),
+    scroll: bool = False,
+    digits: list[int] | int = 3,
+) -> str:
+    if not rows:
+        return "<p class='na'>none</p>"
+    if isinstance(digits, int):
+        digits = [digits] * len(header)
+    head = "".join(
+        ("<th class='l'>" if i < left else "<th>") + f"{_esc(h)}</th>"
+        for i, h in enumerate(header)
+    )
+    body = []
+    for row in rows:
+        cells = []
+        for i, v in enumerate(row):
+            text = v[0] if isinstance(v, tuple) else _fmt(v, digits[i])
+            cls = " class='l'" if i < left or i in left_columns else ""
+            cells.append(f"<td{cls}>{text}</td>")
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    html_table = f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+    return f"<div class='scroll'>{html_table}</div>" if scroll and len(rows) > 25 else html_table
+
+
+def _verdict_cell(passed: bool | None) -> tuple[str]:
+    if passed is None:
+        return ("<span class='na'>not judged</span>",)
+    return ("<span class='pass'>PASS</span>",) if passed else ("<span class='fail'>FAIL</span>",)
+
+
+def _figure(b64: str | None, caption: str, alt: str) -> str:
+    if b64 is None:
+        return f"<p class='na'>{_esc(caption)}: nothing to show.</p>"
+    return (
+        f"<figure><img alt='{_esc(alt)}' src='data:image/png;base64,{b64}'>"
+        f"<figcaption>{_esc(caption)}</figcaption></figure>"
+    )
+
+
+def build_html(result, report: Mapping[str, Any]) -> str:
+    """Text of ``report.html``: one self-contained page (inline PNG figures, no scripts).
+
+    Parameters
+    ----------
+    result : StripResult
+    report : mapping
+        :func:`build_report` of the same result.
+    """
+    import matplotlib
+
+    style = {
+        "font.size": 9,
+        "axes.titlesize": 11,
+        "figure.subplot.left": 0.07,
+        "figure.subplot.right": 0.97,
+        "figure.subplot.bottom": 0.11,
+        "figure.subplot.top": 0.91,
+        "figure.subplot.hspace": 0.3,
+        "figure.subplot.wspace": 0.18,
+    }
+    with matplotlib.rc_context(style):
+        plan = Plan(result)
+        points = np.asarray(result.points, dtype=np.float64)
+        finite = np.isfinite(points).all(axis=1)
+        plan.decide_long(np.vstack([plan.xy(plan.centres), plan.xy(points[finite])]))
+        roles = point_roles(result)
+        fig_layout = figure_layout(result, plan, roles)
+        fig_resid = figure_residuals(result, plan)
+        fig_par = figure_parallax(result)
+        fig_ties = figure_ties(result, report["models"])
+    return _html_page(report, fig_layout, fig_resid, fig_par, fig_ties)
+
+
+def _stat_rows(report: Mapping[str, Any]) -> list[list[Any]]:
+    rows = []
+    for key, label in (("control", "control (used)"), ("check", "check (not used)")):
+        st = report[key]["statistics"]
+        rows.append(
+            [
+                label,
+                st["n_plan"],
+                st["n_height"],
+                st["rmse_e_m"],
+                st["rmse_n_m"],
+                st["rmse_h_m"],
+                st["rmse_plan_m"],
+                st["mean_plan_m"],
+                st["max_plan_m"],
+                st["max_height_m"],
+            ]
+        )
+    return rows
+
+
+def _html_page(report, fig_layout, fig_resid, fig_par, fig_ties) -> str:
+    proj = report["project"]
+    inp = report["inputs"]
+    tol = report["tolerances"]
+    name = proj["name"] or "Strip aerotriangulation"
+    ctrl = inp["control"]
+    overall = tol["passed"]
+    overall_cls = "na" if overall is None else "pass" if overall else "fail"
+    overall_text = (
+        "not judged"
+        if overall is None
+        else "all judged criteria pass"
+        if overall
+        else "at least one criterion fails"
+    )
+    chk = report["check"]["statistics"]
+    pairs = report["pairs"]
+    sig = [p["sigma0_um"] for p in pairs if p["sigma0_um"] is not None]
+    mx = [p["max_parallax_um"] for p in pairs if p["max_parallax_um"] is not None]
+    opt = report["options"]
+    summary = [
+        ["CRS", (_esc(f"{proj['crs_name']}"),)],
+        ["route to the ground", (_esc(report["ground"]["route"]),)],
+        ["photos", inp["n_photos"]],
+        [
+            "points triangulated / measured",
+            (f"{inp['n_points_triangulated']} / {inp['n_points']}",),
+        ],
+        ["image observations", inp["n_observations"]],
+        [
+            "control full / plan / height / check (given)",
+            (f"{ctrl['full']} / {ctrl['plan']} / {ctrl['height']} / {ctrl['check']}",),
+        ],
+        [
+            "control / check points compared",
+            (f"{len(report['control']['points'])} / {len(report['check']['points'])}",),
+        ],
+        [
+            "polynomial (requested → used)",
+            (f"{_esc(opt['polynomial'])} → {report['polynomial']['kind']}",),
+        ],
+        ["image scale [m per mm]", report["ground"]["image_scale_m_per_mm"]],
+        ["y-parallax σ0, median of pairs [µm]", float(np.median(sig)) if sig else None],
+        ["largest y-parallax [µm]", float(np.max(mx)) if mx else None],
+        [
+            "check RMSE E / N / H [m]",
+            (" / ".join(_fmt(chk[k]) for k in ("rmse_e_m", "rmse_n_m", "rmse_h_m")),),
+        ],
+        [
+            "check RMSE plan / mean plan [m]",
+            (f"{_fmt(chk['rmse_plan_m'])} / {_fmt(chk['mean_plan_m'])}",),
+        ],
+        [
+            "map scale for the verdicts",
+            ("–" if tol["map_scale"] is None else f"1:{tol['map_scale']:g}",),
+        ],
+        ["R4 §1.7.7 verdict", (f"<span class='{overall_cls}'>{_esc(overall_text)}</span>",)],
+    ]
+    parts = [
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>",
+        f"<title>{_esc(name)} – strip aerotriangulation report</title>",
+        f"<style>{_CSS}</style></head><body>",
+        f"<h1>{_esc(name)}</h1>",
+        "<p class='sub'>Analytical strip aerotriangulation by partially dependent models"
+        f" · strip_aerotri {_esc(report['software']['version'])}"
+        f" · {_esc(report['created_utc'])}</p>",
+        f"<div class='verdict {overall_cls}'>Tolerances (R4 §1.7.7): {_esc(overall_text)}</div>",
+        "<h2>Summary</h2>",
+        _table(["item", "value"], summary, left=1),
+        "<h3>Accuracy at control and check points (given − adjusted, metres)</h3>",
+        _table(
+            [
+                "set",
+                "n plan",
+                "n height",
+                "RMSE E",
+                "RMSE N",
+                "RMSE H",
+                "RMSE plan",
+                "mean plan",
+                "max plan",
+                "max |dH|",
+            ],
+            _stat_rows(report),
+            digits=3,
+        ),
+        "<h2>Figures</h2>",
+        _figure(
+            fig_layout,
+            "Figure 1. Strip layout: projection centres, photo footprints at "
+            "the mean height of its points, all points by role.",
+            "strip layout",
+        ),
+        _figure(
+            fig_resid,
+            "Figure 2. Residuals (given − adjusted) at control and check "
+            "points: plan as arrows (scale in the key), height as colour.",
+            "residual vectors",
+        ),
+        _figure(
+            fig_par,
+            "Figure 3. Residual y-parallax of the relative orientation per pair "
+            "(left) and of all points (right), µm at image scale.",
+            "y-parallax",
+        ),
+        _figure(
+            fig_ties,
+            "Figure 4. RMS of the differences between the two determinations of "
+            "the tie points of each model and the previous one, in metres.",
+            "tie-point differences",
+        ),
+        "<h2>Tolerance verdicts (R4 §1.7.7)</h2>",
+        _table(
+            ["criterion", "source", "n", "value", "limit", "unit", "verdict", "explanation"],
+            [
+                [
+                    c["name"],
+                    c["source"],
+                    c["n"],
+                    c["value"],
+                    c["limit"],
+                    c["unit"],
+                    _verdict_cell(c["passed"]),
+                    (f"<span style='white-space:normal'>{_esc(c['explanation'])}</span>",),
+                ]
+                for c in tol["criteria"]
+            ],
+            left=2,
+            left_columns=(7,),
+            digits=[0, 0, 0, 4, 4, 0, 0, 0],
+        ),
+    ]
+    parts += _html_tables(report)
+    parts.append(
+        "<footer>Residuals and discrepancies are given minus adjusted, along local east, "
+        "north and up. photos.csv angles: R = Rx(ω)·Ry(φ)·Rz(κ) maps image vectors to local "
+        "east-north-up. See docs/outputs.md for every figure of this report.</footer>"
+        "</body></html>"
+    )
+    return "\n".join(parts)
+
+
+def _plan_of(values, pick):
+    """One plan figure from [E, N, H] values (``pick`` of the two), or None."""
+    if not values:
+        return None
+    plan = [v for v in values[:2] if v is not None]
+    return pick(plan) if plan else None
+
+
+def _html_tables(report: Mapping[str, Any]) -> list[str]:
+    out = ["<h2>Relative orientation per pair</h2>"]
+    ro = report["relative_orientation"]
+    names = ro["element_names"]
+    units = ro["element_units"]
+    el_head = [f"{n} [{u}]" if u else n for n, u in zip(names, units, strict=True)]
+    out.append(
+        _table(
+            [
+                "pair",
+                "left",
+                "right",
+                "points",
+                "iterations",
+                "σ0 [µm]",
+                "RMS q [µm]",
+                "max q [µm]",
+                *el_head,
+            ],
+            [
+                [
+                    p["index"],
+                    p["left"],
+                    p["right"],
+                    p["n_points"],
+                    p["iterations"],
+                    p["sigma0_um"],
+                    p["rms_parallax_um"],
+                    p["max_parallax_um"],
+                    *[p["elements"][n] for n in names],
+                ]
+                for p in report["pairs"]
+            ],
+            left=0,
+            scroll=True,
+            digits=[0, 0, 0, 0, 0, 2, 2, 2, 6, 6, 6, 6, 6],
+        )
+    )
+    out.append("<h2>Models</h2>")
+    out.append(
+        _table(
+            [
+                "model",
+                "left",
+                "right",
+                "points",
+                "scale λ",
+                "λ ratio",
+                "tie points",
+                "tie RMS X [m]",
+                "tie RMS Y [m]",
+                "tie RMS Z [m]",
+            ],
+            [
+                [
+                    m["index"],
+                    m["left"],
+                    m["right"],
+                    m["n_points"],
+                    m["scale"],
+                    m["scale_ratio"],
+                    m["tie_points"],
+                    *m["tie_rms_m"],
+                ]
+                for m in report["models"]
+            ],
+            left=0,
+            scroll=True,
+            digits=[0, 0, 0, 0, 5, 5, 0, 3, 3, 3],
+        )
+    )
+    sim = report["similarity"]
+    out.append("<h2>Similarity transformation (strip system → work frame)</h2>")
+    out.append(
+        _table(
+            [
+                "scale",
+                "ω [°]",
+                "φ [°]",
+                "κ [°]",
+                "tX [m]",
+                "tY [m]",
+                "tZ [m]",
+                "σ0",
+                "redundancy",
+                "iterations",
+            ],
+            [
+                [
+                    sim["scale"],
+                    *sim["rotation_opk_deg"],
+                    *sim["translation_m"],
+                    sim["sigma0"],
+                    sim["redundancy"],
+                    sim["iterations"],
+                ]
+            ],
+            left=0,
+            digits=[4, 5, 5, 5, 3, 3, 3, 3, 0, 0],
+        )
+    )
+    out.append("<h2>Control residuals (given − adjusted, m)</h2>")
+    out.append(
+        "<p>r: redundancy number of the component (the share of an error in it that shows "
+        "in its residual); MDE: the smallest error the blunder test finds with 80 % "
+        "probability (Baarda), m. <em>undetectable</em>: the component has no redundancy "
+        "and an error in it cannot be found by any test; only more control can show it.</p>"
+    )
+
+    def mde_cell(p, k):
+        if p.get("detectable", [None] * 3)[k] is False:
+            return ("<em>undetectable</em>",)
+        return p.get("mde_m", [None] * 3)[k]
+
+    out.append(
+        _table(
+            ["point", "type", "dE", "dN", "dH", "plan", "r plan", "r H", "MDE plan", "MDE H"],
+            [
+                [
+                    p["point"],
+                    p["type"],
+                    p["dE_m"],
+                    p["dN_m"],
+                    p["dH_m"],
+                    p["plan_m"],
+                    _plan_of(p.get("redundancy"), min),
+                    (p.get("redundancy") or [None] * 3)[2],
+                    mde_cell(p, 0)
+                    if p.get("detectable", [None] * 3)[0] is False
+                    else _plan_of(p.get("mde_m"), max),
+                    mde_cell(p, 2),
+                ]
+                for p in report["control"]["points"]
+            ],
+            left=2,
+            scroll=True,
+            digits=[0, 0, 3, 3, 3, 3, 3, 3, 2, 2],
+        )
+    )
+    out.append("<h2>Check-point discrepancies (given − adjusted, m)</h2>")
+    out.append(
+        _table(
+            ["point", "type", "dE", "dN", "dH", "plan"],
+            [
+                [p["point"], p["type"], p["dE_m"], p["dN_m"], p["dH_m"], p["plan_m"]]
+                for p in report["check"]["points"]
+            ],
+            left=2,
+            scroll=True,
+        )
+    )
+    adj = report.get("model_adjustment")
+    if adj:
+        out.append("<h2>Every model at once (block = models, R4 §3)</h2>")
+        out.append(
+            f"<p>Each model transformed by its own 3D similarity onto the control and onto "
+            f"the other models on their common points and projection centres: σ0 = "
+            f"{_fmt(adj['sigma0'])}, redundancy {adj['redundancy']}, {adj['iterations']} "
+            f"iteration(s). The discrepancies are each model's determination of a point "
+            f"minus the adjusted point (R4 §2.2's differences between determinations), "
+            f"along the strip (X), across it (Y) and in height (Z); RMS over all "
+            f"{'X, Y, Z'}: {', '.join(_fmt(v) for v in adj['discrepancy_rms_m'])} m.</p>"
+        )
+        out.append(
+            _table(
+                ["model", "pair", "scale", "RMS X [m]", "RMS Y [m]", "RMS Z [m]"],
+                [
+                    [m["index"], m["label"], m["scale"], *m["discrepancy_rms_m"]]
+                    for m in adj["models"]
+                ],
+                left=2,
+                scroll=True,
+                digits=[0, 0, 6, 3, 3, 3],
+            )
+        )
+    poly = report["polynomial"]
+    out.append("<h2>Deformation polynomials (J(16))</h2>")
+    if adj:
+        out.append(
+            "<p class='na'>Not used: every model has its own similarity (block = models); "
+            'J\'s polynomials are block = "strips".</p>'
+        )
+    elif poly.get("coefficients_m"):
+        terms = poly["terms"]
+        sections = int(poly.get("sections", 1))
+        spline_text = ""
+        if sections > 1:
+            breaks = ", ".join(_fmt(x, 1) for x in poly["breakpoints_x_m"])
+            spline_text = (
+                f" In {sections} sections along the strip (breakpoints at X = {breaks} m of the "
+                "work frame): each polynomial is f(u) + v g(u) with f a spline of the type's "
+                "degree and g piecewise linear, joined without steps; f0… and Y·g0… are their "
+                "B-spline coefficients."
+            )
+        out.append(
+            f"<p>Type {poly['kind']} (X, Y, Z types {poly['kinds_xyz']}); normalised "
+            f"variables u = (X − X0)/h, v = (Y − Y0)/h with h = "
+            f"{_fmt(poly['normalization']['half_extent_m'], 1)} m; σ0 = "
+            f"{_fmt(poly['sigma0'])}, redundancy {poly['redundancy']}. Coefficients in metres."
+            f"{spline_text}</p>"
+        )
+        out.append(
+            _table(
+                ["coordinate", *terms],
+                [[axis, *poly["coefficients_m"][axis]] for axis in "XYZ"],
+                left=1,
+                digits=4,
+                scroll=sections > 1,
+            )
+        )
+    else:
+        out.append("<p class='na'>Similarity only (type 0).</p>")
+    if poly.get("auto"):
+        out.append("<h3>Automatic choice of the type</h3>")
+        out.append(
+            _table(
+                [
+                    "type",
+                    "feasible",
+                    "σ0",
+                    "redundancy",
+                    "RMS X [m]",
+                    "RMS Y [m]",
+                    "RMS Z [m]",
+                    "accepted",
+                    "note",
+                ],
+                [
+                    [
+                        r["kind"],
+                        r["feasible"],
+                        r["sigma0"],
+                        r["redundancy"],
+                        *r["rms_xyz_m"],
+                        r["passed"],
+                        r["reason"],
+                    ]
+                    for r in poly["auto"]["table"]
+                ],
+                left=1,
+                digits=[0, 0, 3, 0, 3, 3, 3, 0, 0],
+            )
+        )
+    if report["straight_lines"]:
+        out.append("<h2>Straight lines (J(18))</h2>")
+        out.append(
+            _table(
+                ["line", "weight", "points", "a [m]", "b", "RMS [m]", "max |dY| [m]"],
+                [
+                    [
+                        ln["name"],
+                        ln["weight"],
+                        ln["n_points"],
+                        ln["a_m"],
+                        ln["b"],
+                        ln["rms_m"],
+                        ln["max_abs_m"],
+                    ]
+                    for ln in report["straight_lines"]
+                ],
+                left=1,
+                digits=[0, 1, 0, 3, 6, 3, 3],
+            )
+        )
+    out += _html_gnss_imu(report)
+    out.append("<h2>Gross errors (data snooping, method.md §7)</h2>")
+    out.append(
+        _table(
+            [
+                "stage",
+                "point",
+                "photos / line",
+                "tested",
+                "residual",
+                "unit",
+                "w",
+                "critical",
+                "rejected",
+                "effect",
+            ],
+            [
+                [
+                    r["stage"],
+                    r["point"],
+                    "-".join(r["photos"]),
+                    r["component"],
+                    r["residual"],
+                    r["unit"],
+                    r["w"],
+                    r["critical"],
+                    "yes"
+                    if r["applied"]
+                    else (
+                        "no (kept)" if str(r["effect"]).startswith("kept") else "no (report only)"
+                    ),
+                    r["effect"],
+                ]
+                for r in report.get("rejections", [])
+            ],
+            left=4,
+            left_columns=(5, 8, 9),
+            digits=[0, 0, 0, 0, 4, 0, 2, 2, 0, 0],
+        )
+    )
+    out.append("<h2>Warnings</h2>")
+    if report["warnings"]:
+        out.append(
+            "<ul class='warn'>"
+            + "".join(f"<li>{_esc(w)}</li>" for w in report["warnings"])
+            + "</ul>"
+        )
+    else:
+        out.append("<p class='na'>none</p>")
+    out.append("<h2>Options and timings</h2>")
+    out.append(
+        _table(["option", "value"], [[k, (_esc(v),)] for k, v in report["options"].items()])
+    )
+    out.append(
+        _table(["stage", "seconds"], [[k, v] for k, v in report["timings_s"].items()], digits=3)
+    )
+    return out
+
+
+def _html_gnss_imu(report: Mapping[str, Any]) -> list[str]:
+    """Section on the GNSS centres and IMU attitudes of the bundle refinement (or nothing)."""
+    bundle = report.get("bundle") or {}
+    gnss, imu = bundle.get("gnss"), bundle.get("imu")
+    if gnss is None and imu is None:
+        return []
+    out = [
+        "<h2>Bundle refinement: GNSS centres and IMU attitudes</h2>",
+        "<p>Residuals are observed − adjusted: GNSS projection centres in metres along "
+        "local east, north, up at the adjusted centre; IMU attitudes in degrees as the "
+        "small rotation about the photo's image axes x (along the flight), y (to its "
+        "left), z (up). r: redundancy numbers; w: Baarda's test at the a-priori σ, "
+        "critical value by Bonferroni over the components. A failing centre or attitude "
+        "is rejected as a whole by the bundle's data snooping (stages gnss, imu: see "
+        "the warnings); rejected ones stay listed with their residuals.</p>",
+    ]
+
+    def largest(sec: Mapping[str, Any]) -> tuple[str]:
+        if sec["max_abs_w"] is None:
+            return ("– (precision not computed)",)
+        return (f"{sec['max_abs_w']:.2f} (photo {_esc(sec['max_abs_w_photo'])})",)
+
+    def counts(sec: Mapping[str, Any]) -> tuple[str]:
+        text = f"{sec['n_used']} / {sec['n_given']}"
+        if sec["n_unmatched"]:
+            text += f" ({sec['n_unmatched']} not in the strip: " + ", ".join(
+                _esc(p) for p in sec["unmatched_photos"][:10]
+            )
+            text += " …)" if sec["n_unmatched"] > 10 else ")"
+        return (text,)
+
+    rows: list[list[Any]] = []
+    if gnss is not None:
+        rows += [
+            ["GNSS centres used / given", counts(gnss)],
+            [
+                "GNSS σ a-priori plan / height [m] (median)",
+                (f"{_fmt(gnss['sigma_xy_m'])} / {_fmt(gnss['sigma_z_m'])}",),
+            ],
+            [
+                "GNSS RMS E / N / U [m]",
+                (" / ".join(_fmt(gnss[k]) for k in ("rms_e_m", "rms_n_m", "rms_u_m")),),
+            ],
+            [
+                "GNSS largest plan / |U| [m]",
+                (f"{_fmt(gnss['max_plan_m'])} / {_fmt(gnss['max_u_m'])}",),
+            ],
+            [
+                "GNSS largest |w| / critical",
+                (f"{largest(gnss)[0]} / {_fmt(gnss['critical_w'], 2)}",),
+            ],
+            ["GNSS centres failing the test", gnss["n_failed"]],
+        ]
+    if imu is not None:
+        rows += [
+            ["IMU attitudes used / given", counts(imu)],
+            ["IMU σ a-priori [°] (median)", (_fmt(imu["sigma_deg"], 4),)],
+            ["IMU RMS x / y / z [°]", (" / ".join(_fmt(v, 4) for v in imu["rms_deg"]),)],
+            [
+                "IMU largest |x| / |y| / |z| [°]",
+                (" / ".join(_fmt(v, 4) for v in imu["max_abs_deg"]),),
+            ],
+            ["IMU largest |w| / critical", (f"{largest(imu)[0]} / {_fmt(imu['critical_w'], 2)}",)],
+            ["IMU attitudes failing the test", imu["n_failed"]],
+        ]
+    out.append(_table(["item", "value"], rows, left=1))
+
+    def failed_cell(value: bool | None, rejected: bool = False) -> tuple[str]:
+        if rejected:
+            return ("<span class='fail'>rejected</span>",)
+        if value is None:
+            return ("<span class='na'>–</span>",)
+        return ("<span class='fail'>FAIL</span>",) if value else ("<span class='pass'>ok</span>",)
+
+    if gnss is not None and gnss["photos"]:
+        out.append("<h3>GNSS centres (observed − adjusted, m)</h3>")
+        out.append(
+            _table(
+                ["photo", "dE", "dN", "dU", "plan", "σ plan", "σ height", "r E", "r N", "r U",
+                 "w E", "w N", "w U", "test"],
+                [
+                    [ph["photo"], ph["dE_m"], ph["dN_m"], ph["dU_m"], ph["plan_m"],
+                     ph["sigma_xy_m"], ph["sigma_z_m"], *ph["redundancy"], *ph["w"],
+                     failed_cell(ph["failed"], ph.get("rejected", False))]
+                    for ph in gnss["photos"]
+                ],
+                left=1,
+                scroll=True,
+                digits=[0, 3, 3, 3, 3, 3, 3, 2, 2, 2, 2, 2, 2, 0],
+            )
+        )  # fmt: skip
+    if imu is not None and imu["photos"]:
+        out.append("<h3>IMU attitudes (observed − adjusted, degrees)</h3>")
+        out.append(
+            _table(
+                ["photo", "about x", "about y", "about z", "dω", "dφ", "dκ", "σ", "r x", "r y",
+                 "r z", "w x", "w y", "w z", "test"],
+                [
+                    [ph["photo"], ph["rx_deg"], ph["ry_deg"], ph["rz_deg"], ph["d_omega_deg"],
+                     ph["d_phi_deg"], ph["d_kappa_deg"], ph["sigma_deg"], *ph["redundancy"],
+                     *ph["w"], failed_cell(ph["failed"], ph.get("rejected", False))]
+                    for ph in imu["photos"]
+                ],
+                left=1,
+                scroll=True,
+                digits=[0, 4, 4, 4, 4, 4, 4, 4, 2, 2, 2, 2, 2, 2, 0],
+            )
+        )  # fmt: skip
+    return out
