@@ -10,15 +10,17 @@ and the exterior orientation of every photo (docs/method.md):
 >>> bool(result.check_statistics.rmse_plan < 0.2)
 True
 
-The public names are imported on first use (PEP 562), so that the command
-line starts without loading scipy and pyproj.
+Every public name is imported here.  scipy, pyproj and matplotlib are
+imported inside the functions that need them, so that ``import
+strip_aerotri`` (and the command line's start) loads numpy only.
 """
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
-
+from ._version import __version__
+from .blunders import critical_value
+from .bundle.adjust import bundle_adjust
+from .bundle.refine import refine_bundle
 from .errors import (
     ConfigError,
     ConvergenceError,
@@ -26,125 +28,104 @@ from .errors import (
     StripAerotriError,
     StripAerotriWarning,
 )
-
-__version__ = "0.1.0"
-
-# public name -> module that defines it
-_EXPORTS: dict[str, str] = {
-    "ImuAttitudes": "observations",
-    "GnssCentres": "observations",
-    "GnssResiduals": "results",
-    "ImuResiduals": "results",
-    "RefinedResult": "results",
-    "refine_bundle": "bundle.refine",
-    "AccuracyStatistics": "results",
-    "BlunderOptions": "options",
-    "BrownDistortion": "interior",
-    "BundleResult": "results",
-    "ControlPoints": "observations",
-    "ControlType": "observations",
-    "Criterion": "report.tolerances",
-    "DeformationResult": "geometry.deformation",
-    "FiducialFit": "interior",
-    "FlightDirection": "options",
-    "GroundCRS": "geodesy",
-    "GroundOptions": "options",
-    "GroundResult": "results",
-    "ImageObservations": "observations",
-    "IntersectionMethod": "options",
-    "KindSelection": "geometry.deformation",
-    "LineSpec": "observations",
-    "LocalTangentFrame": "frames",
-    "OutputError": "report.files",
-    "PRESETS": "simulate",
-    "Project": "project",
-    "Rejection": "results",
-    "RelativeOrientation": "results",
-    "RelativeOrientationMethod": "options",
-    "ResultFolder": "report.files",
-    "Route": "options",
-    "ScaleTransfer": "options",
-    "SimilarityResult": "geometry.similarity",
-    "SimilarityTransform": "geometry.similarity",
-    "SimulatedStrip": "simulate",
-    "SimulationTruth": "simulate",
-    "StraightLine": "geometry.deformation",
-    "StripModel": "results",
-    "StripOptions": "options",
-    "StripPreset": "simulate",
-    "StripResult": "results",
-    "adjust_to_ground": "ground.polynomials",
-    "azimuth_from_local_enu": "geodesy",
-    "build_outputs": "report.outputs",
-    "build_report": "report.outputs",
-    "bundle_adjust": "bundle.adjust",
-    "cardan_from_matrix": "geometry.rotation",
-    "cardan_from_opk": "geometry.rotation",
-    "cardan_from_schut": "geometry.rotation",
-    "chain_rotations": "strip.relative",
-    "check_matrix": "geometry.rotation",
-    "choose_photo_step": "strip.densify",
-    "complete_strip": "strip.densify",
-    "correct_distortion": "interior",
-    "critical_value": "blunders",
-    "earth_curvature_correction": "geodesy",
-    "enu_rotation": "geodesy",
-    "essential_start": "strip.relative",
-    "fit_deformation": "geometry.deformation",
-    "fit_fiducial_transform": "interior",
-    "fit_similarity": "geometry.similarity",
-    "flight_from_sensor": "interior",
-    "form_strip": "strip.chaining",
-    "form_strip_stepped": "strip.densify",
-    "gaussian_mean_radius": "geodesy",
-    "intersect": "geometry.intersection",
-    "intersect_midpoint": "geometry.intersection",
-    "intersect_normal": "geometry.intersection",
-    "intersect_rays": "strip.densify",
-    "load_project": "project",
-    "matrix_from_cardan": "geometry.rotation",
-    "matrix_from_opk": "geometry.rotation",
-    "matrix_from_rotvec": "geometry.rotation",
-    "matrix_from_schut": "geometry.rotation",
-    "mm_from_pixel": "interior",
-    "model_photo_index": "strip.densify",
-    "opk_from_cardan": "geometry.rotation",
-    "opk_from_matrix": "geometry.rotation",
-    "opk_from_schut": "geometry.rotation",
-    "polynomial_terms": "geometry.deformation",
-    "reduce_image_coordinates": "interior",
-    "relative_orientation": "strip.relative",
-    "resect": "strip.densify",
-    "rotvec_from_matrix": "geometry.rotation",
-    "run_project": "pipeline",
-    "scale_ratios": "strip.scaling",
-    "scale_ratios_distance": "strip.scaling",
-    "scale_ratios_z": "strip.scaling",
-    "schut_from_cardan": "geometry.rotation",
-    "schut_from_matrix": "geometry.rotation",
-    "schut_from_opk": "geometry.rotation",
-    "select_kind_auto": "geometry.deformation",
-    "similarity_from_points": "geometry.similarity",
-    "simulate_strip": "simulate",
-    "skew": "geometry.rotation",
-    "tolerance_verdicts": "report.tolerances",
-    "triangulate": "pipeline",
-    "write_result_folder": "report.files",
-}
-
-
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'strip_aerotri' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(__all__)
-
+from .frames import LocalTangentFrame
+from .geodesy import (
+    GroundCRS,
+    azimuth_from_local_enu,
+    earth_curvature_correction,
+    enu_rotation,
+    gaussian_mean_radius,
+)
+from .geometry.deformation import (
+    DeformationResult,
+    KindSelection,
+    StraightLine,
+    fit_deformation,
+    polynomial_terms,
+    select_kind_auto,
+)
+from .geometry.intersection import intersect, intersect_midpoint, intersect_normal
+from .geometry.rotation import (
+    cardan_from_matrix,
+    cardan_from_opk,
+    cardan_from_schut,
+    check_matrix,
+    matrix_from_cardan,
+    matrix_from_opk,
+    matrix_from_rotvec,
+    matrix_from_schut,
+    opk_from_cardan,
+    opk_from_matrix,
+    opk_from_schut,
+    rotvec_from_matrix,
+    schut_from_cardan,
+    schut_from_matrix,
+    schut_from_opk,
+    skew,
+)
+from .geometry.similarity import (
+    SimilarityResult,
+    SimilarityTransform,
+    fit_similarity,
+    similarity_from_points,
+)
+from .ground.polynomials import adjust_to_ground
+from .interior import (
+    BrownDistortion,
+    FiducialFit,
+    correct_distortion,
+    fit_fiducial_transform,
+    flight_from_sensor,
+    mm_from_pixel,
+    reduce_image_coordinates,
+)
+from .observations import (
+    ControlPoints,
+    ControlType,
+    GnssCentres,
+    ImageObservations,
+    ImuAttitudes,
+    LineSpec,
+)
+from .options import (
+    BlunderOptions,
+    FlightDirection,
+    GroundOptions,
+    IntersectionMethod,
+    RelativeOrientationMethod,
+    Route,
+    ScaleTransfer,
+    StripOptions,
+)
+from .pipeline import run_project, triangulate
+from .project import Project, load_project
+from .report.files import OutputError, ResultFolder, write_result_folder
+from .report.outputs import build_outputs, build_report
+from .report.tolerances import Criterion, tolerance_verdicts
+from .results import (
+    AccuracyStatistics,
+    BundleResult,
+    GnssResiduals,
+    GroundResult,
+    ImuResiduals,
+    RefinedResult,
+    Rejection,
+    RelativeOrientation,
+    StripModel,
+    StripResult,
+)
+from .simulate import PRESETS, SimulatedStrip, SimulationTruth, StripPreset, simulate_strip
+from .strip.chaining import form_strip
+from .strip.densify import (
+    choose_photo_step,
+    complete_strip,
+    form_strip_stepped,
+    intersect_rays,
+    model_photo_index,
+    resect,
+)
+from .strip.relative import chain_rotations, essential_start, relative_orientation
+from .strip.scaling import scale_ratios, scale_ratios_distance, scale_ratios_z
 
 __all__ = [
     "PRESETS",

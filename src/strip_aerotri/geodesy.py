@@ -28,12 +28,12 @@ import math
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
-from pyproj import CRS, Proj, Transformer
-from pyproj.exceptions import CRSError, ProjError
 
 from strip_aerotri.errors import ConfigError, GeometryError
 
 if TYPE_CHECKING:
+    from pyproj import CRS, Transformer
+
     from strip_aerotri._typing import ArrayLike, FloatArray
 
 __all__ = [
@@ -114,6 +114,8 @@ def _geocentric_of(geodetic: CRS) -> CRS:
     ETRS89), so the CRS is built from the PROJJSON of the geodetic CRS with its
     ellipsoidal coordinate system replaced by the geocentric X, Y, Z axes.
     """
+    from pyproj import CRS
+
     description = geodetic.to_json_dict()
     for key in ("id", "ids", "usage", "usages", "scope", "area", "bbox", "remarks"):
         description.pop(key, None)
@@ -125,6 +127,8 @@ def _geocentric_of(geodetic: CRS) -> CRS:
 
 def _run(transformer: Transformer, columns: tuple[FloatArray, ...], what: str) -> FloatArray:
     """Apply ``transformer`` to column vectors; return the results stacked as columns."""
+    from pyproj.exceptions import ProjError
+
     try:
         out = transformer.transform(*columns, errcheck=True)
     except ProjError as exc:
@@ -208,6 +212,9 @@ class GroundCRS:
         >>> GroundCRS.from_user_input("Local").is_local
         True
         """
+        from pyproj import CRS
+        from pyproj.exceptions import CRSError
+
         if isinstance(text, GroundCRS):
             return text
         if isinstance(text, str) and text.strip().lower() in _LOCAL_NAMES:
@@ -275,6 +282,8 @@ class GroundCRS:
         return self._base
 
     def _transformer(self, key: str) -> Transformer:
+        from pyproj import CRS, Proj, Transformer
+
         cached = self._cache.get(key)
         if cached is not None:
             return cached
@@ -354,6 +363,8 @@ class GroundCRS:
         return self._inverse("geocentric", arr, "convert from ECEF")
 
     def _inverse(self, key: str, arr: FloatArray, what: str) -> FloatArray:
+        from pyproj.exceptions import ProjError
+
         transformer = self._transformer(key)
         try:
             out = transformer.transform(
@@ -458,6 +469,8 @@ class GroundCRS:
         ndarray, shape (..., 2)
             Longitude, latitude in degrees.
         """
+        from pyproj.exceptions import ProjError
+
         arr = _as_rows(xyh, "xyh", (2, 3))
         transformer = self._transformer("wgs84")
         lonlat = _run(transformer, (arr[..., 0], arr[..., 1]), "convert to WGS 84")

@@ -75,14 +75,15 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from pyproj import CRS, Transformer
-from scipy.spatial.transform import Rotation
 
 from ._typing import ArrayLike, FloatArray, IntArray
 from .observations import ControlPoints, ControlType, ImageObservations
+
+if TYPE_CHECKING:
+    from pyproj import CRS, Transformer
 
 __all__ = [
     "CAMERAS",
@@ -506,6 +507,8 @@ class SimulatedStrip:
         ValueError
             For a bad ``polynomial`` or ``route``.
         """
+        from pyproj import CRS
+
         if polynomial is not None and (
             isinstance(polynomial, bool) or polynomial not in _POLYNOMIALS
         ):
@@ -645,6 +648,8 @@ class _Geodesy:
 
     @classmethod
     def build(cls, crs_text: str, centre_lonlat: tuple[float, float] | None, h0: float):
+        from pyproj import CRS, Transformer
+
         if crs_text == _LOCAL:
             crs = None
             ellipsoid = _WGS84
@@ -860,6 +865,8 @@ def _visible_pairs(
 
 def _matrix_from_opk(opk: FloatArray) -> FloatArray:
     """Rx(omega) Ry(phi) Rz(kappa), radians, (..., 3) -> (..., 3, 3)."""
+    from scipy.spatial.transform import Rotation
+
     return Rotation.from_euler("XYZ", opk.reshape(-1, 3)).as_matrix().reshape(*opk.shape, 3)
 
 

@@ -27,11 +27,9 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
@@ -40,6 +38,10 @@ from ..geometry.rotation import matrix_from_rotvec, rotvec_from_matrix, skew
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
 from ..results import BundleResult
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
 
 __all__ = ["BundleResult", "bundle_adjust"]
 
@@ -153,6 +155,8 @@ class _Problem:
 
 
 def _incidence(index: IntArray, n: int) -> sp.csr_matrix:
+    import scipy.sparse as sp
+
     k = index.size
     return sp.csr_matrix((np.ones(k), (index, np.arange(k))), shape=(n, k))
 
@@ -429,6 +433,9 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
     ``lam`` is the Levenberg-Marquardt factor: the diagonals of U and V are
     multiplied by ``1 + lam``.
     """
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
     m = prob.n_photos
     u, v = normals.u, normals.v
     if lam > 0.0:

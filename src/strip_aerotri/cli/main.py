@@ -13,7 +13,7 @@ import traceback
 
 import click
 
-from .. import __version__
+from .._version import __version__
 from .check import check
 from .importer import import_group
 from .options import DOCS_EPILOG, Settings, common_options, echo_error, settings

@@ -33,15 +33,17 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spl
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError
 from ..options import DEFAULT_MAX_ITERATIONS
 from .rotation import matrix_from_rotvec, skew
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 __all__ = [
     "LineCondition",
@@ -228,6 +230,8 @@ def _rows_whitening(weight: FloatArray) -> FloatArray:
 
 def _summation(index: IntArray, n_groups: int) -> sp.csr_matrix:
     """(n_groups, n) matrix of ones that sums rows into their groups."""
+    import scipy.sparse as sp
+
     n = index.shape[0]
     return sp.csr_matrix((np.ones(n), (index, np.arange(n))), shape=(n_groups, n))
 
@@ -252,6 +256,8 @@ class _Problem:
         control_sigma: FloatArray,
         lines: Sequence[LineCondition],
     ):
+        import scipy.sparse as sp
+
         self.obs = obs
         self.n_units = n_units
         self.n_points = n_points
@@ -307,6 +313,8 @@ class _Problem:
 
     def zp_matrix(self, blocks: FloatArray) -> sp.csr_matrix:
         """Sparse (n_reduced, 3P) matrix from per-row (n_r, 7, 3) blocks."""
+        import scipy.sparse as sp
+
         return sp.csr_matrix(
             (blocks.ravel()[self.zp_order], self.zp_indices, self.zp_indptr),
             shape=(self.n_reduced, 3 * self.n_points),
@@ -377,6 +385,8 @@ class _Normals:
 
 
 def _normals(prob: _Problem, st: _State) -> _Normals:
+    import scipy.sparse as sp
+
     obs = prob.obs
     n = obs.unit.shape[0]
     y, v = _predict(prob, st)
@@ -449,6 +459,9 @@ def _normals(prob: _Problem, st: _State) -> _Normals:
 def _factor(s_matrix: sp.csc_matrix):
     """SuperLU factors of the reduced matrix, Jacobi-scaled; raises
     GeometryError when it is singular (units not tied to the control)."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spl
+
     d = s_matrix.diagonal()
     if np.any(~(d > 0)):
         raise GeometryError(
@@ -703,6 +716,8 @@ def _line_cofactors(prob, st, normals, lu, scale, k, xyz) -> FloatArray:
     reduced unknowns (``−1, −X`` at the line's ``a, b``), and
     ``u = N_zp V⁻¹ d_p``: ``q_ee = d_pᵀ V⁻¹ d_p + (u − d_z)ᵀ S⁻¹ (u − d_z)``.
     """
+    import scipy.sparse as sp
+
     line = prob.lines[k]
     points = line.point
     m = points.shape[0]

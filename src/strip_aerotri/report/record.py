@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..geometry.rotation import opk_from_matrix
 from ..observations import ControlType
 from .tolerances import tolerance_verdicts
