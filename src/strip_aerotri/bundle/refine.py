@@ -35,6 +35,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -283,50 +284,193 @@ def refine_bundle(
     t_start = time.perf_counter()
     obs = result.strip.observations
     control = result.control if control is None else control
-    m, p = obs.n_photos, obs.n_points
-    ground = result.ground
-
     point_lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
     row_point = np.array([point_lookup.get(pid, -1) for pid in control.point_ids], dtype=np.intp)
     seen = row_point >= 0
     has_point = np.zeros(len(control.point_ids), bool)
     has_point[seen] = np.all(np.isfinite(result.points[row_point[seen]]), axis=1)
     frame = _frame_for(result, np.flatnonzero(has_point), row_point)
+    start = _start_values(result, frame)
+    rows = np.flatnonzero(has_point)
+    ctrl = _control_rows(control, rows, row_point[rows], obs.n_points)
+    aux = _gnss_imu_in_frame(result, frame, gnss, imu)
+    t_frame = time.perf_counter() - t_start
 
-    # Initial values in the frame.
+    passes = _passes(
+        result,
+        frame,
+        start,
+        ctrl,
+        aux,
+        blunders=blunders,
+        max_iterations=max_iterations,
+        compute_precision=compute_precision,
+    )
+    fr, adjusted_crs, rejections, notes = (
+        passes.last,
+        passes.adjusted_crs,
+        passes.rejections,
+        passes.notes,
+    )
+    t_frame += passes.t_frame
+
+    t0 = time.perf_counter()
+    centres_crs = frame.from_work(fr.centres)
+    enu2frame = frame.work_from_enu(centres_crs)
+    rot_enu = np.swapaxes(enu2frame, 1, 2) @ fr.rotations
+    opk = opk_from_matrix(rot_enu)
+
+    # What the GNSS centres and IMU attitudes did (rejected ones included).
+    rejections.extend(passes.reported)
+    options = blunders or BlunderOptions()
+    gnss_out = imu_out = None
+    if aux.gnss_xyz is not None and aux.gnss_sig is not None and gnss is not None:
+        gnss_out = _gnss_residuals(
+            gnss,
+            aux.gnss_lookup,
+            aux.gnss_xyz,
+            aux.gnss_sig,
+            fr,
+            enu2frame,
+            obs.photo_ids,
+            options,
+        )
+    if aux.imu_rot is not None and aux.imu_sig is not None and imu is not None:
+        imu_out = _imu_residuals(
+            imu, aux.imu_lookup, aux.imu_rot, aux.imu_sig, fr, opk, obs.photo_ids, options
+        )
+    res = _control_residuals(frame, ctrl, fr, adjusted_crs)
+    t_frame += time.perf_counter() - t0
+    keep_rows, check = res.keep_rows, ctrl.check
+    if np.any(~keep_rows & ~check):
+        dropped = [control.point_ids[r] for r in ctrl.rows[~keep_rows & ~check]]
+        notes.append(f"control point(s) {', '.join(map(repr, dropped[:5]))} left out")
+    notes += [r.describe() for r in rejections]
+    return RefinedResult(
+        photo_ids=obs.photo_ids,
+        point_ids=obs.point_ids,
+        points=adjusted_crs,
+        photo_centres=centres_crs,
+        photo_opk=opk,
+        frame=frame.frame,
+        frame_description=frame.description,
+        points_frame=fr.points,
+        photo_centres_frame=fr.centres,
+        photo_rotations_frame=fr.rotations,
+        sigma0=fr.sigma0,
+        redundancy=fr.redundancy,
+        iterations=passes.iterations,
+        converged=fr.converged,
+        image_residuals_um=fr.image_residuals_mm * 1000.0,
+        image_used=fr.observation_used,
+        control_index=ctrl.rows[keep_rows],
+        control_residuals=res.resid[keep_rows],
+        is_check=check[keep_rows],
+        used_xy=res.used_xy[keep_rows],
+        used_h=res.used_h[keep_rows],
+        control_statistics=AccuracyStatistics.from_residuals(res.used_resid[keep_rows & ~check]),
+        check_statistics=AccuracyStatistics.from_residuals(res.resid[keep_rows & check]),
+        point_std=fr.point_std,
+        centre_std=fr.centre_std,
+        rejections=tuple(rejections),
+        warnings=tuple(notes),
+        timings={
+            "frame": t_frame,
+            "bundle": passes.t_bundle,
+            "total": time.perf_counter() - t_start,
+        },
+        n_observations=fr.bundle.n_observations,
+        gnss=gnss_out,
+        imu=imu_out,
+    )
+
+
+class _Start(NamedTuple):
+    """Initial values in the frame: centres (M, 3), rotations image -> frame (M, 3, 3),
+    points (P, 3; NaN where the strip method gave none)."""
+
+    centres: FloatArray
+    rotations: FloatArray
+    points: FloatArray
+
+
+def _start_values(result: StripResult, frame: TangentWorkFrame) -> _Start:
+    """The strip method's photos and points in the refinement's frame."""
+    ground = result.ground
     if ground.frame is not None or frame.frame is None:
         if ground.frame is not None:
-            points0 = np.array(ground.points_work)
-            centres0 = np.array(ground.photo_centres_work)
-            rotations0 = np.array(ground.photo_rotations_work)
-        else:
-            points0 = np.array(result.points)
-            centres0 = np.array(result.photo_centres)
-            rotations0 = np.array(ground.photo_rotations_enu)
-    else:
-        ok = np.all(np.isfinite(result.points), axis=1)
-        points0 = np.full((p, 3), np.nan)
-        points0[ok] = frame.to_work(result.points[ok])
-        centres0 = frame.to_work(result.photo_centres)
-        rotations0 = frame.work_from_enu(result.photo_centres) @ ground.photo_rotations_enu
+            return _Start(
+                np.array(ground.photo_centres_work),
+                np.array(ground.photo_rotations_work),
+                np.array(ground.points_work),
+            )
+        return _Start(
+            np.array(result.photo_centres),
+            np.array(ground.photo_rotations_enu),
+            np.array(result.points),
+        )
+    ok = np.all(np.isfinite(result.points), axis=1)
+    points0 = np.full((result.strip.observations.n_points, 3), np.nan)
+    points0[ok] = frame.to_work(result.points[ok])
+    centres0 = frame.to_work(result.photo_centres)
+    rotations0 = frame.work_from_enu(result.photo_centres) @ ground.photo_rotations_enu
+    return _Start(centres0, rotations0, points0)
 
-    # Control rows -> per-point observations (check points never used).
-    rows = np.flatnonzero(has_point)
-    idx = row_point[rows]
+
+class _ControlRows(NamedTuple):
+    """The control rows whose point the strip method determined, as per-point arrays.
+
+    ``rows`` index the control, ``idx`` the points; ``sig`` and ``mask``
+    (P, 3) give each point's control sigmas (inf: not observed) and the
+    components observed; check points are never used."""
+
+    rows: IntArray
+    idx: IntArray
+    use_xy: BoolArray
+    use_h: BoolArray
+    check: BoolArray
+    given_crs: FloatArray
+    sig: FloatArray
+    mask: BoolArray
+
+
+def _control_rows(control: ControlPoints, rows: IntArray, idx: IntArray, p: int) -> _ControlRows:
     if np.unique(idx).size != idx.size:
         raise ValueError("a point occurs twice in the control")
     use_xy = control.uses_xy[rows]
     use_h = control.uses_h[rows]
-    check = control.is_check[rows]
-    given_crs = control.xyz[rows]
     sig = np.full((p, 3), np.inf)
     sig[idx, 0] = sig[idx, 1] = np.where(use_xy, control.sigma_xy[rows], np.inf)
     sig[idx, 2] = np.where(use_h, control.sigma_h[rows], np.inf)
     mask = np.zeros((p, 3), bool)
     mask[idx, 0] = mask[idx, 1] = use_xy
     mask[idx, 2] = use_h
+    return _ControlRows(
+        rows, idx, use_xy, use_h, control.is_check[rows], control.xyz[rows], sig, mask
+    )
 
-    # GNSS and IMU in the frame.
+
+class _Auxiliary(NamedTuple):
+    """GNSS centres and IMU attitudes in the frame, one row per photo of the strip
+    (NaN / inf sigma where a photo has none); the lookups map their rows to photos."""
+
+    gnss_xyz: FloatArray | None
+    gnss_sig: FloatArray | None
+    gnss_lookup: IntArray
+    gnss_axes: FloatArray | None
+    imu_rot: FloatArray | None
+    imu_sig: FloatArray | None
+    imu_lookup: IntArray
+
+
+def _gnss_imu_in_frame(
+    result: StripResult,
+    frame: TangentWorkFrame,
+    gnss: GnssCentres | None,
+    imu: ImuAttitudes | None,
+) -> _Auxiliary:
+    obs = result.strip.observations
+    m = obs.n_photos
     gnss_xyz = gnss_sig = imu_rot = imu_sig = None
     gnss_lookup = imu_lookup = np.zeros(0, dtype=np.intp)
     if gnss is not None:
@@ -347,12 +491,45 @@ def refine_bundle(
         imu_sig[j[ok]] = imu.sigma[ok, None]
     # GNSS test directions: east, north, up at the strip method's centres.
     gnss_axes = None if gnss is None else frame.work_from_enu(result.photo_centres)
-    t_frame = time.perf_counter() - t_start
+    return _Auxiliary(gnss_xyz, gnss_sig, gnss_lookup, gnss_axes, imu_rot, imu_sig, imu_lookup)
 
-    # Passes: complete missing components from the adjusted points, in the frame.
-    t_bundle = 0.0
+
+class _Passes(NamedTuple):
+    last: FrameRefinement
+    adjusted_crs: FloatArray
+    rejections: list[Rejection]
+    reported: tuple[Rejection, ...]
+    iterations: int
+    notes: list[str]
+    t_frame: float
+    t_bundle: float
+
+
+def _passes(
+    result: StripResult,
+    frame: TangentWorkFrame,
+    start: _Start,
+    ctrl: _ControlRows,
+    aux: _Auxiliary,
+    *,
+    blunders: BlunderOptions | None,
+    max_iterations: int,
+    compute_precision: bool,
+) -> _Passes:
+    """Bundle adjustments in the frame until the control settles.
+
+    A plan-only or height-only control point has its missing components
+    taken from its adjusted position; in a curved frame those change the
+    given components' frame coordinates, so the adjustment is repeated
+    (at most :data:`_MAX_PASSES` times) until they move less than
+    :data:`_PASS_TOLERANCE_M`.  Rejections of a pass stay rejected.
+    """
+    obs = result.strip.observations
+    p = obs.n_points
+    idx, given_crs = ctrl.idx, ctrl.given_crs
+    t_frame = t_bundle = 0.0
     adjusted_crs = np.array(result.points)
-    state = (centres0, rotations0, points0)
+    state = (start.centres, start.rotations, start.points)
     obs_used: BoolArray | None = None
     ctrl_used: BoolArray | None = None
     gnss_used: BoolArray | None = None
@@ -367,7 +544,7 @@ def refine_bundle(
         filled = np.where(np.isnan(given_crs), adjusted_crs[idx], given_crs)
         control_frame = np.full((p, 3), np.nan)
         control_frame[idx] = frame.to_work(filled)
-        control_xyz = np.where(mask, control_frame, np.nan)
+        control_xyz = np.where(ctrl.mask, control_frame, np.nan)
         t_frame += time.perf_counter() - t0
         if control_frame_prev is not None:
             change = float(np.nanmax(np.abs(control_xyz - control_frame_prev), initial=0.0))
@@ -381,17 +558,17 @@ def refine_bundle(
             state[1],
             state[2],
             control_xyz=control_xyz,
-            control_sigma=sig,
-            gnss_centres=gnss_xyz,
-            gnss_sigma=gnss_sig,
-            imu_rotations=imu_rot,
-            imu_sigma=imu_sig,
+            control_sigma=ctrl.sig,
+            gnss_centres=aux.gnss_xyz,
+            gnss_sigma=aux.gnss_sig,
+            imu_rotations=aux.imu_rot,
+            imu_sigma=aux.imu_sig,
             blunders=blunders,
             max_iterations=max_iterations,
             compute_precision=compute_precision,
             observation_used=obs_used,
             control_used=ctrl_used,
-            gnss_axes=gnss_axes,
+            gnss_axes=aux.gnss_axes,
             gnss_used=gnss_used,
             imu_used=imu_used,
         )
@@ -405,7 +582,11 @@ def refine_bundle(
         ctrl_used = ~fr.control_rejected
         gnss_used = ~fr.gnss_rejected
         imu_used = ~fr.imu_rejected
-        state = (fr.centres, fr.rotations, np.where(fr.point_used[:, None], fr.points, points0))
+        state = (
+            fr.centres,
+            fr.rotations,
+            np.where(fr.point_used[:, None], fr.points, start.points),
+        )
         t0 = time.perf_counter()
         adjusted_crs = np.full((p, 3), np.nan)
         adjusted_crs[fr.point_used] = frame.from_work(fr.points[fr.point_used])
@@ -417,75 +598,33 @@ def refine_bundle(
             f"plan/height control passes did not settle below {_PASS_TOLERANCE_M * 1e6:.0f} µm "
             f"in {_MAX_PASSES} passes"
         )
+    return _Passes(fr, adjusted_crs, rejections, reported, iterations, notes, t_frame, t_bundle)
 
-    t0 = time.perf_counter()
-    centres_crs = frame.from_work(fr.centres)
-    enu2frame = frame.work_from_enu(centres_crs)
-    rot_enu = np.swapaxes(enu2frame, 1, 2) @ fr.rotations
-    opk = opk_from_matrix(rot_enu)
 
-    # What the GNSS centres and IMU attitudes did (rejected ones included).
-    rejections.extend(reported)
-    options = blunders or BlunderOptions()
-    gnss_out = imu_out = None
-    if gnss_xyz is not None and gnss_sig is not None and gnss is not None:
-        gnss_out = _gnss_residuals(
-            gnss, gnss_lookup, gnss_xyz, gnss_sig, fr, enu2frame, obs.photo_ids, options
-        )
-    if imu_rot is not None and imu_sig is not None and imu is not None:
-        imu_out = _imu_residuals(
-            imu, imu_lookup, imu_rot, imu_sig, fr, opk, obs.photo_ids, options
-        )
+class _ControlResiduals(NamedTuple):
+    resid: FloatArray
+    used_resid: FloatArray
+    used_xy: BoolArray
+    used_h: BoolArray
+    keep_rows: BoolArray
 
-    # Residuals at the control, given minus adjusted along E, N, H.
+
+def _control_residuals(
+    frame: TangentWorkFrame, ctrl: _ControlRows, fr: FrameRefinement, adjusted_crs: FloatArray
+) -> _ControlResiduals:
+    """Given minus adjusted along E, N, H at the control rows (NaN for components
+    not given or not used; check points compared in full), and those of the
+    control used in the end."""
+    idx, given_crs, check = ctrl.idx, ctrl.given_crs, ctrl.check
     adj_rows = adjusted_crs[idx]
     filled = np.where(np.isnan(given_crs), adj_rows, given_crs)
     resid = enu_residuals(frame.crs, filled, adj_rows)
-    used_xy_final = use_xy & fr.control_used[idx, 0] & fr.point_used[idx]
-    used_h_final = use_h & fr.control_used[idx, 2] & fr.point_used[idx]
-    keep_rows = fr.point_used[idx]
-    resid[~(use_xy | check), :2] = np.nan
-    resid[~(use_h | check), 2] = np.nan
+    used_xy = ctrl.use_xy & fr.control_used[idx, 0] & fr.point_used[idx]
+    used_h = ctrl.use_h & fr.control_used[idx, 2] & fr.point_used[idx]
+    resid[~(ctrl.use_xy | check), :2] = np.nan
+    resid[~(ctrl.use_h | check), 2] = np.nan
     resid[np.isnan(given_crs)] = np.nan
-    t_frame += time.perf_counter() - t0
-    ctrl_stat_resid = resid.copy()
-    ctrl_stat_resid[~used_xy_final, :2] = np.nan
-    ctrl_stat_resid[~used_h_final, 2] = np.nan
-    out_rows = rows[keep_rows]
-    if np.any(~keep_rows & ~check):
-        dropped = [control.point_ids[r] for r in rows[~keep_rows & ~check]]
-        notes.append(f"control point(s) {', '.join(map(repr, dropped[:5]))} left out")
-    notes += [r.describe() for r in rejections]
-    return RefinedResult(
-        photo_ids=obs.photo_ids,
-        point_ids=obs.point_ids,
-        points=adjusted_crs,
-        photo_centres=centres_crs,
-        photo_opk=opk,
-        frame=frame.frame,
-        frame_description=frame.description,
-        points_frame=fr.points,
-        photo_centres_frame=fr.centres,
-        photo_rotations_frame=fr.rotations,
-        sigma0=fr.sigma0,
-        redundancy=fr.redundancy,
-        iterations=iterations,
-        converged=fr.converged,
-        image_residuals_um=fr.image_residuals_mm * 1000.0,
-        image_used=fr.observation_used,
-        control_index=out_rows,
-        control_residuals=resid[keep_rows],
-        is_check=check[keep_rows],
-        used_xy=used_xy_final[keep_rows],
-        used_h=used_h_final[keep_rows],
-        control_statistics=AccuracyStatistics.from_residuals(ctrl_stat_resid[keep_rows & ~check]),
-        check_statistics=AccuracyStatistics.from_residuals(resid[keep_rows & check]),
-        point_std=fr.point_std,
-        centre_std=fr.centre_std,
-        rejections=tuple(rejections),
-        warnings=tuple(notes),
-        timings={"frame": t_frame, "bundle": t_bundle, "total": time.perf_counter() - t_start},
-        n_observations=fr.bundle.n_observations,
-        gnss=gnss_out,
-        imu=imu_out,
-    )
+    used_resid = resid.copy()
+    used_resid[~used_xy, :2] = np.nan
+    used_resid[~used_h, 2] = np.nan
+    return _ControlResiduals(resid, used_resid, used_xy, used_h, fr.point_used[idx])
