@@ -307,6 +307,20 @@ def _plan_of(values, pick):
 
 
 def _html_tables(report: Mapping[str, Any]) -> list[str]:
+    out: list[str] = []
+    out += _relative_section(report)
+    out += _models_section(report)
+    out += _similarity_section(report)
+    out += _control_section(report)
+    out += _ground_section(report)
+    out += _lines_section(report)
+    out += _html_gnss_imu(report)
+    out += _snooping_section(report)
+    out += _closing_section(report)
+    return out
+
+
+def _relative_section(report: Mapping[str, Any]) -> list[str]:
     out = ["<h2>Relative orientation per pair</h2>"]
     ro = report["relative_orientation"]
     names = ro["element_names"]
@@ -344,6 +358,11 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
             digits=[0, 0, 0, 0, 0, 2, 2, 2, 6, 6, 6, 6, 6],
         )
     )
+    return out
+
+
+def _models_section(report: Mapping[str, Any]) -> list[str]:
+    out: list[str] = []
     out.append("<h2>Models</h2>")
     out.append(
         _table(
@@ -377,6 +396,11 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
             digits=[0, 0, 0, 0, 5, 5, 0, 3, 3, 3],
         )
     )
+    return out
+
+
+def _similarity_section(report: Mapping[str, Any]) -> list[str]:
+    out: list[str] = []
     sim = report["similarity"]
     out.append("<h2>Similarity transformation (strip system → work frame)</h2>")
     out.append(
@@ -407,6 +431,11 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
             digits=[4, 5, 5, 5, 3, 3, 3, 3, 0, 0],
         )
     )
+    return out
+
+
+def _control_section(report: Mapping[str, Any]) -> list[str]:
+    out: list[str] = []
     out.append("<h2>Control residuals (given − adjusted, m)</h2>")
     out.append(
         "<p>r: redundancy number of the component (the share of an error in it that shows "
@@ -457,6 +486,11 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
             scroll=True,
         )
     )
+    return out
+
+
+def _ground_section(report: Mapping[str, Any]) -> list[str]:
+    out: list[str] = []
     adj = report.get("model_adjustment")
     if adj:
         out.append("<h2>Every model at once (block = models, R4 §3)</h2>")
@@ -549,6 +583,11 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
                 digits=[0, 0, 3, 0, 3, 3, 3, 0, 0],
             )
         )
+    return out
+
+
+def _lines_section(report: Mapping[str, Any]) -> list[str]:
+    out: list[str] = []
     if report["straight_lines"]:
         out.append("<h2>Straight lines (J(18))</h2>")
         out.append(
@@ -570,7 +609,11 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
                 digits=[0, 1, 0, 3, 6, 3, 3],
             )
         )
-    out += _html_gnss_imu(report)
+    return out
+
+
+def _snooping_section(report: Mapping[str, Any]) -> list[str]:
+    out: list[str] = []
     out.append("<h2>Gross errors (data snooping, method.md §7)</h2>")
     out.append(
         _table(
@@ -610,6 +653,11 @@ def _html_tables(report: Mapping[str, Any]) -> list[str]:
             digits=[0, 0, 0, 0, 4, 0, 2, 2, 0, 0],
         )
     )
+    return out
+
+
+def _closing_section(report: Mapping[str, Any]) -> list[str]:
+    out: list[str] = []
     out.append("<h2>Warnings</h2>")
     if report["warnings"]:
         out.append(
