@@ -10,6 +10,8 @@ position run along the strip.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .._stats import sample_median
@@ -153,6 +155,74 @@ def form_strip(
     labels = [f"pair {ids[seq[m]]}-{ids[seq[m + 1]]}" for m in range(n_models)]
 
     blunders = blunders or BlunderOptions()
+    rejections: list[Rejection] = []
+    pairs = _orient_pairs(observations, options, blunders, seq, labels, rejections)
+    rel, model, point = pairs.rel, pairs.model, pairs.point
+    unit = _form_models(observations, options, pairs, n_models, labels)
+    ties = _transfer_scale(observations, options, blunders, pairs, unit, seq, labels, rejections)
+    centres, rotations, scale = _chain(options, rel, ties.ratio)
+    model_points, model_parallax, points, counts = _strip_points(
+        observations, model, point, unit, centres, scale, ties.rejected_point_index
+    )
+    i_now, i_prev, tie_model, tie_count = ties.i_now, ties.i_prev, ties.tie_model, ties.tie_count
+    tie_difference, tie_rms = _tie_differences(model_points, i_now, i_prev, tie_model, tie_count)
+    row_l, row_r, ratio = pairs.row_l, pairs.row_r, ties.ratio
+    rejected_point_index, missing = ties.rejected_point_index, ties.missing
+
+    return StripModel(
+        observations=observations,
+        options=options,
+        photo_index=seq,
+        centres=centres,
+        rotations=rotations,
+        relative=rel,
+        scale=scale,
+        scale_ratio=ratio,
+        points=points,
+        n_determinations=counts.astype(np.intp),
+        model=model,
+        model_point=point,
+        model_points=model_points,
+        model_parallax=model_parallax,
+        tie_model=tie_model,
+        tie_point=point[i_now],
+        tie_difference=tie_difference,
+        tie_count=tie_count,
+        tie_rms=tie_rms,
+        model_labels=tuple(labels),
+        rejections=tuple(rejections),
+        rejected_points=tuple(observations.point_ids[i] for i in rejected_point_index),
+        model_rows=np.column_stack([row_l, row_r]),
+        breaks=missing.astype(np.intp),
+    )
+
+
+class _Pairs(NamedTuple):
+    """The oriented pairs: the relative orientation, and per point row of a
+    pair its model, point and observation rows and its image vectors as
+    contiguous components (3, n)."""
+
+    rel: RelativeOrientation
+    model: IntArray
+    point: IntArray
+    row_l: IntArray
+    row_r: IntArray
+    left_t: FloatArray
+    right_t: FloatArray
+
+
+def _orient_pairs(
+    observations: ImageObservations,
+    options: StripOptions,
+    blunders: BlunderOptions,
+    seq: IntArray,
+    labels: list[str],
+    rejections: list[Rejection],
+) -> _Pairs:
+    """Relative orientation of every pair, with data snooping of the y-parallaxes
+    (rejections appended to ``rejections``)."""
+    n_models = seq.shape[0] - 1
+    ids = observations.photo_ids
     model, point, row_l, row_r = pair_rows(observations, seq)
     keep = _excluded_rows(observations, blunders, row_l, row_r)
     model, point, row_l, row_r = model[keep], point[keep], row_l[keep], row_r[keep]
@@ -162,7 +232,6 @@ def form_strip(
     left_t = _image_components(observations, row_l)
     right_t = _image_components(observations, row_r)
     left, right = left_t.T, right_t.T
-    rejections: list[Rejection] = []
     n_rows = model.shape[0]
     rel = None
     while True:
@@ -220,13 +289,27 @@ def form_strip(
                 "the image coordinates or point ids cannot be trusted"
             )
 
+    return _Pairs(rel, model, point, row_l, row_r, left_t, right_t)
+
+
+def _form_models(
+    observations: ImageObservations,
+    options: StripOptions,
+    pairs: _Pairs,
+    n_models: int,
+    labels: list[str],
+) -> Intersection:
+    """Every model with the unit base (b_x = 1), relative to its left centre;
+    refuses a pair whose rays meet behind the photos."""
+    rel, model = pairs.rel, pairs.model
+    left_t, right_t = pairs.left_t, pairs.right_t
+    left, right = left_t.T, right_t.T
     wrong_way = ray_direction_problems(
         rel.rotation_left, rel.rotation_right, rel.base, left, right, model, labels
     )
     if wrong_way:
         raise GeometryError(wrong_way[0])
 
-    # Model formation with the unit base (b_x = 1), relative to the left centre.
     if IntersectionMethod(options.intersection) is IntersectionMethod.MIDPOINT:
         unit = _intersect_in_left_frames(rel, model, left_t, right_t)
     else:
@@ -238,6 +321,39 @@ def form_strip(
             observations.principal_distance,
         )
 
+    return unit
+
+
+class _Ties(NamedTuple):
+    """Scale transfer: the ratio of each model's scale to the previous one's
+    (1 for the first and across breaks), the tie rows kept (``i_now`` in
+    model m, ``i_prev`` in model m - 1), their models and counts, the models
+    with no tie (breaks) and the points rejected as tie-point blunders."""
+
+    ratio: FloatArray
+    i_now: IntArray
+    i_prev: IntArray
+    tie_model: IntArray
+    tie_count: IntArray
+    missing: IntArray
+    rejected_point_index: IntArray
+
+
+def _transfer_scale(
+    observations: ImageObservations,
+    options: StripOptions,
+    blunders: BlunderOptions,
+    pairs: _Pairs,
+    unit: Intersection,
+    seq: IntArray,
+    labels: list[str],
+    rejections: list[Rejection],
+) -> _Ties:
+    """Scale ratios from the tie points, with data snooping of the tie points."""
+    rel, model, point = pairs.rel, pairs.model, pairs.point
+    row_l, row_r = pairs.row_l, pairs.row_r
+    n_models = seq.shape[0] - 1
+    ids = observations.photo_ids
     # Tie points: determined in model m and in model m - 1.
     i_now, i_prev = tie_rows(row_l, row_r, observations.photo.shape[0])
     tie_ok = np.ones(i_now.shape[0], dtype=bool)
@@ -304,6 +420,14 @@ def form_strip(
         m = int(bad[0])
         raise GeometryError(f"{labels[m]}: the tie points give no valid scale (ratio {ratio[m]})")
     ratio[0] = 1.0
+    return _Ties(ratio, i_now, i_prev, tie_model, tie_count, missing, rejected_point_index)
+
+
+def _chain(
+    options: StripOptions, rel: RelativeOrientation, ratio: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Projection centres (M, 3), rotations image -> strip (M, 3, 3) and the
+    scale of every model, chained from the first photo."""
     first_scale = (
         1.0
         if options.first_base_length is None
@@ -320,6 +444,21 @@ def form_strip(
     centres = np.vstack([first_position, first_position + np.cumsum(steps, axis=0)])
     rotations = np.concatenate([rel.rotation_left[:1], rel.rotation_right], axis=0)
 
+    return centres, rotations, scale
+
+
+def _strip_points(
+    observations: ImageObservations,
+    model: IntArray,
+    point: IntArray,
+    unit: Intersection,
+    centres: FloatArray,
+    scale: FloatArray,
+    rejected_point_index: IntArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, IntArray]:
+    """Every model's points in the strip system, and each point's mean over the
+    models that determine it (tie-point blunders left out): ``model_points``,
+    ``model_parallax``, ``points`` (NaN where none), ``counts``."""
     # Column by column: an (n, 1) factor broadcast over (n, 3) rows runs
     # numpy's inner loop over three elements.
     model_scale = np.take(scale, model)
@@ -340,6 +479,19 @@ def form_strip(
             points[:, k] = sums / counts
     points[counts == 0] = np.nan
 
+    return model_points, model_parallax, points, counts
+
+
+def _tie_differences(
+    model_points: FloatArray,
+    i_now: IntArray,
+    i_prev: IntArray,
+    tie_model: IntArray,
+    tie_count: IntArray,
+) -> tuple[FloatArray, FloatArray]:
+    """The tie points' double determinations: model m minus model m - 1 (n, 3),
+    and their RMS per model and axis (NaN for a model with no tie)."""
+    n_models = tie_count.shape[0]
     tie_difference = np.take(model_points, i_now, axis=0) - np.take(model_points, i_prev, axis=0)
     sq = np.stack(
         [np.bincount(tie_model, tie_difference[:, k] ** 2, minlength=n_models) for k in range(3)],
@@ -349,32 +501,7 @@ def form_strip(
         tie_rms = np.sqrt(sq / tie_count[:, None])
     tie_rms[tie_count == 0] = np.nan
 
-    return StripModel(
-        observations=observations,
-        options=options,
-        photo_index=seq,
-        centres=centres,
-        rotations=rotations,
-        relative=rel,
-        scale=scale,
-        scale_ratio=ratio,
-        points=points,
-        n_determinations=counts.astype(np.intp),
-        model=model,
-        model_point=point,
-        model_points=model_points,
-        model_parallax=model_parallax,
-        tie_model=tie_model,
-        tie_point=point[i_now],
-        tie_difference=tie_difference,
-        tie_count=tie_count,
-        tie_rms=tie_rms,
-        model_labels=tuple(labels),
-        rejections=tuple(rejections),
-        rejected_points=tuple(observations.point_ids[i] for i in rejected_point_index),
-        model_rows=np.column_stack([row_l, row_r]),
-        breaks=missing.astype(np.intp),
-    )
+    return tie_difference, tie_rms
 
 
 _CHUNK_ROWS = 1 << 15  # rows per chunk (rotations, intersection): temporaries stay in cache
