@@ -18,9 +18,9 @@ import pytest
 from click.testing import CliRunner
 
 import strip_aerotri as sa
-from strip_aerotri import pipeline
 from strip_aerotri.cli.main import cli
 from strip_aerotri.cli.simulate import CAMERA_NAMES, CONTROL_LAYOUTS, PRESET_NAMES
+from strip_aerotri.project import run as project_run
 from strip_aerotri.report.files import RESULT_MARKER
 
 # --------------------------------------------------------------------------- fixtures
@@ -647,7 +647,7 @@ def test_unexpected_error_is_one_line(project, monkeypatch):
     def boom(*args, **kwargs):
         raise RuntimeError("boom\nsecond line")
 
-    monkeypatch.setattr(pipeline, "run_project", boom)
+    monkeypatch.setattr(project_run, "run_project", boom)
     result = invoke("-q", "run", project)
     line = assert_one_error_line(result, ("RuntimeError", "boom", "--debug"))
     assert "second line" in line

@@ -14,8 +14,8 @@ from pyproj import Transformer
 from scipy.spatial.transform import Rotation
 
 from strip_aerotri.ground.polynomials import GroundOptions, LineSpec
-from strip_aerotri.pipeline import run_project, triangulate
-from strip_aerotri.project import load_project
+from strip_aerotri.pipeline import triangulate
+from strip_aerotri.project import load_project, run_project
 from strip_aerotri.report.outputs import (
     build_html,
     build_outputs,

@@ -97,8 +97,8 @@ from .options import (
     ScaleTransfer,
     StripOptions,
 )
-from .pipeline import run_project, triangulate
-from .project import Project, load_project
+from .pipeline import triangulate
+from .project import Project, load_project, run_project
 from .report.files import OutputError, ResultFolder, write_result_folder
 from .report.outputs import build_outputs, build_report
 from .report.tolerances import Criterion, tolerance_verdicts

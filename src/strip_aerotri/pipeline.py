@@ -1,9 +1,10 @@
-"""One call from a project (or from arrays) to the adjusted strip.
+"""One call from the observations to the adjusted strip.
 
-:func:`triangulate` chains strip formation (:mod:`chaining`) and the ground
-stage (:mod:`ground`); :func:`run_project` does the same for a loaded
-:class:`~strip_aerotri.config.Project`.  The result carries every stage's
-figures and the check-point statistics of method.md §7-8.
+:func:`triangulate` chains strip formation (:mod:`strip`), the ground stage
+(:mod:`ground`) and, if asked, the bundle refinement (:mod:`bundle`);
+:func:`strip_aerotri.project.run_project` calls it with a loaded project's
+observations and options.  The result carries every stage's figures and
+the check-point statistics of method.md §7-8.  No stage imports this module.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -31,10 +32,7 @@ from .plausibility import control_problems
 from .results import AccuracyStatistics, StripResult
 from .strip.densify import form_strip_stepped
 
-if TYPE_CHECKING:
-    from .project import Project
-
-__all__ = ["AccuracyStatistics", "StripResult", "project_options", "run_project", "triangulate"]
+__all__ = ["AccuracyStatistics", "Progress", "StripResult", "triangulate"]
 
 Progress = Callable[[str], None]
 
@@ -180,37 +178,3 @@ def triangulate(
             warnings=result.warnings + tuple(refined.warnings),
         )
     return result
-
-
-def project_options(project: Project) -> tuple[StripOptions, GroundOptions]:
-    """The strip formation's and the ground stage's options of a loaded project."""
-    return project.adjustment.strip_options(), project.adjustment.ground_options()
-
-
-def run_project(
-    project: Project, *, progress: Progress | None = None, blunders: BlunderOptions | None = None
-) -> StripResult:
-    """Adjust a loaded project (:func:`strip_aerotri.project.load_project`).
-
-    ``blunders`` overrides the project's own blunder options.  The project's
-    GNSS centres and IMU attitudes (``[gnss]``, ``[imu]``), if any, are
-    observations of the bundle refinement.
-    """
-    adj = project.adjustment
-    return triangulate(
-        project.observations,
-        project.control,
-        project.crs,
-        lines=project.straight_lines,
-        strip_options=adj.strip_options(),
-        ground_options=adj.ground_options(),
-        blunders=project.blunders if blunders is None else blunders,
-        photo_step=adj.photo_step,
-        min_base_to_height=adj.min_base_to_height,
-        refine=adj.refine,
-        gnss=project.gnss,
-        imu=project.imu,
-        progress=progress,
-        warnings=project.warnings,
-        control_name=str(project.control_file),
-    )

@@ -114,9 +114,9 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
       stripaero run strip.toml --out results/2024-05 --map-scale 5000
       stripaero -q run strip.toml            # no progress messages
     """
-    from .. import pipeline
     from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
     from ..project import load_project, output_folder
+    from ..project import run as project_run
     from ..report.files import ResultFolder
 
     started = time.perf_counter()
@@ -131,7 +131,7 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
             f"control and check points, crs {project.crs}"
         )
         try:
-            result = pipeline.run_project(project, progress=echo_progress)
+            result = project_run.run_project(project, progress=echo_progress)
         except (GeometryError, ConvergenceError) as exc:
             raise type(exc)(f"{project.path}: {exc}") from exc
         echo_progress("writing the report")

@@ -14,7 +14,8 @@ metres, radians.
 - :mod:`.model`: :class:`Camera` and :class:`Project`;
 - :mod:`.loader`: :func:`load_project`;
 - :mod:`.output`: the output folder's rules;
-- :mod:`.check`: :func:`check_project`, the checks of ``stripaero check``.
+- :mod:`.check`: :func:`check_project`, the checks of ``stripaero check``;
+- :mod:`.run`: :func:`run_project`, the pipeline on a loaded project.
 """
 
 from ..observations import LineSpec
@@ -23,6 +24,7 @@ from .check import CheckReport, check_project
 from .loader import load_project
 from .model import Camera, Project
 from .output import DEFAULT_OUTPUT, check_output_directory, output_folder
+from .run import project_options, run_project
 from .schema import (
     CONTROL_COLUMNS,
     FIDUCIAL_COLUMNS,
@@ -59,6 +61,8 @@ __all__ = [
     "check_project",
     "load_project",
     "output_folder",
+    "project_options",
+    "run_project",
 ]
 
 # Former names of three option enums and of the line specification.

@@ -280,8 +280,8 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
     # Strip formation as the run does it (relative orientation of every pair,
     # photos in flight order, scale transfer), when the counts allow it.
     if not rep.problems:
-        from ..pipeline import project_options
         from ..strip.densify import form_strip_stepped
+        from .run import project_options
 
         try:
             form_strip_stepped(
