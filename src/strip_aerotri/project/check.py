@@ -30,9 +30,23 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+
+from ..errors import StripAerotriError
+from ..geometry.deformation import n_terms, polynomial_count_problems
+from ..geometry.similarity import (
+    COINCIDENT_RTOL,
+    COLLINEAR_MAGNIFICATION,
+    COLLINEAR_RTOL,
+    control_count_problems,
+    cross_tilt,
+)
+from ..plausibility import control_problems
+from ..strip.chaining import pair_rows
+from ..strip.relative import pair_count_problems
+from .output import output_folder
 
 if TYPE_CHECKING:
     from .model import Project
@@ -134,24 +148,40 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
     -------
     CheckReport
     """
-    from ..errors import StripAerotriError
-    from ..geometry.deformation import n_terms, polynomial_count_problems
-    from ..geometry.similarity import (
-        COINCIDENT_RTOL,
-        COLLINEAR_MAGNIFICATION,
-        COLLINEAR_RTOL,
-        control_count_problems,
-        cross_tilt,
-    )
-    from ..plausibility import control_problems
-    from ..strip.chaining import pair_rows
-    from ..strip.relative import pair_count_problems
-    from .output import output_folder
-
     rep = CheckReport()
+    facts = _check_pairs(rep, project)
+    # Control not mirrored against the photos: the run's own check
+    # (strip_aerotri.plausibility).
+    rep.problems += control_problems(
+        project.observations, project.control, project.crs, str(project.control_file)
+    )
+    plan_ids, height_ids = _check_control(rep, project, facts.triangulable)
+    _check_formation(rep, project)
+    _check_lines(rep, project, facts.triangulable)
+    _check_polynomial(rep, project, plan_ids, height_ids)
+    # Output folder.
+    try:
+        target = output_folder(project, out)
+    except StripAerotriError as exc:
+        rep.problems.append(str(exc))
+        target = None
+
+    _summarize(rep, project, facts, plan_ids, height_ids, target)
+    return rep
+
+
+class _PairFacts(NamedTuple):
+    step: int
+    n_models: int
+    counts: np.ndarray
+    ties: np.ndarray
+    triangulable: np.ndarray
+
+
+def _check_pairs(rep: CheckReport, project: Project) -> _PairFacts:
+    """Pairs (points on both photos, as strip formation takes them) and tie points."""
     obs = project.observations
     images = project.images_file
-    control_file = project.control_file
     all_ids = obs.photo_ids
     n_photos = obs.n_photos
     # Models on every k-th photo with [adjustment] photo_step = k (densify); "auto"
@@ -172,10 +202,6 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
     model, point, _, _ = pair_rows(obs, seq)
     counts = np.bincount(model, minlength=n_models)
     rep.problems += [f"{images}: {p}" for p in pair_count_problems(counts, labels)]
-
-    # Control not mirrored against the photos: the run's own check
-    # (strip_aerotri.plausibility).
-    rep.problems += control_problems(obs, project.control, project.crs, str(control_file))
 
     # Tie points: a point determined in model m and in model m - 1.
     n_pts = max(obs.n_points, 1)
@@ -200,7 +226,16 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
         triangulable[point] = True
     else:  # the other photos are resected and every point intersected from all its rays
         triangulable = np.bincount(obs.point, minlength=obs.n_points) >= 2
+    return _PairFacts(step, n_models, counts, ties, triangulable)
 
+
+def _check_control(
+    rep: CheckReport, project: Project, triangulable: np.ndarray
+) -> tuple[list[str], list[str]]:
+    """Enough control for the similarity, not degenerate; returns the ids of the
+    usable plan and height control."""
+    obs = project.observations
+    control_file = project.control_file
     # Control.
     ctrl = project.control
     lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
@@ -276,7 +311,13 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
                         f"{magnified:.0f} times magnified); the run refuses the tilt above "
                         f"{COLLINEAR_MAGNIFICATION:.0f}: {_quote(height_ids)}"
                     )
+    return plan_ids, height_ids
 
+
+def _check_formation(rep: CheckReport, project: Project) -> None:
+    """The strip formed as the run forms it, when the counts allow it."""
+    images = project.images_file
+    obs = project.observations
     # Strip formation as the run does it (relative orientation of every pair,
     # photos in flight order, scale transfer), when the counts allow it.
     if not rep.problems:
@@ -294,6 +335,9 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
         except StripAerotriError as exc:
             rep.problems.append(f"{images}: {exc}")
 
+
+def _check_lines(rep: CheckReport, project: Project, triangulable: np.ndarray) -> None:
+    lookup = {pid: i for i, pid in enumerate(project.observations.point_ids)}
     # Straight lines.
     for i, line in enumerate(project.straight_lines, start=1):
         missing = [p for p in line.point_ids if not triangulable[lookup[p]]]
@@ -303,11 +347,16 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
                 f"{_quote(missing)} are not measured on both photos of any pair"
             )
 
+
+def _check_polynomial(
+    rep: CheckReport, project: Project, plan_ids: list[str], height_ids: list[str]
+) -> None:
+    control_file = project.control_file
+    n_plan, n_height = len(plan_ids), len(height_ids)
     # Polynomial (J's construction only; with block = "models" every model has
     # its own similarity).
     kind = project.adjustment.polynomial
     sections = project.adjustment.sections
-    in_sections = f" in {sections} sections" if sections > 1 else ""
     strips = str(getattr(getattr(project.adjustment, "block", None), "value", "strips"))
     if strips == "strips" and kind != "auto" and n_plan >= 2 and n_height >= 3:
         where = (
@@ -321,13 +370,25 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
             )
         ]
 
-    # Output folder.
-    try:
-        target = output_folder(project, out)
-    except StripAerotriError as exc:
-        rep.problems.append(str(exc))
-        target = None
 
+def _summarize(
+    rep: CheckReport,
+    project: Project,
+    facts: _PairFacts,
+    plan_ids: list[str],
+    height_ids: list[str],
+    target: Path | None,
+) -> None:
+    obs = project.observations
+    ctrl = project.control
+    all_ids, n_photos = obs.photo_ids, obs.n_photos
+    step, n_models, counts, ties = facts.step, facts.n_models, facts.counts, facts.ties
+    triangulable = facts.triangulable
+    n_plan, n_height = len(plan_ids), len(height_ids)
+    kind = project.adjustment.polynomial
+    sections = project.adjustment.sections
+    in_sections = f" in {sections} sections" if sections > 1 else ""
+    strips = str(getattr(getattr(project.adjustment, "block", None), "value", "strips"))
     kinds = [k.value for k in ctrl.kind]
     by_kind = ", ".join(f"{kinds.count(k)} {k}" for k in ("full", "plan", "height", "check"))
     tie_text = (
@@ -366,4 +427,3 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
     ]
     if target is not None:
         rep.summary.append(f"output folder: {target}")
-    return rep

@@ -40,7 +40,7 @@ from ..options import (
     ReportOptions,
     Route,
 )
-from .csvfiles import decode, read_bytes
+from .csvfiles import CsvTable, decode, read_bytes
 from .model import Camera, Project, readonly
 from .output import check_output
 from .schema import (
@@ -168,15 +168,8 @@ def load_project(path: str | Path) -> Project:
         for i, content in enumerate(doc.get("straight_line", []), start=1)
     ]
 
-    photo_ids: tuple[str, ...] = strip["photos"]  # type: ignore[assignment]
-    if len(photo_ids) < 2:
-        raise ConfigError(
-            f"{toml_path}: [strip] photos: a strip needs at least two photos, got {len(photo_ids)}"
-        )
-    name = strip["name"] if strip["name"] is not None else folder.resolve().name
-    crs = str(control["crs"])
-    if crs.lower() == "local":
-        crs = "local"
+    photo_ids, name = _strip_photos(toml_path, strip)
+    crs = "local" if str(control["crs"]).lower() == "local" else str(control["crs"])
 
     principal_point: tuple[float, float] = camera["principal_point_mm"]  # type: ignore[assignment]
     principal_distance = float(camera["principal_distance_mm"])  # type: ignore[arg-type]
@@ -185,19 +178,21 @@ def load_project(path: str | Path) -> Project:
     gnss_file = None if gnss_table is None else folder / str(gnss_table["file"])
     imu_file = None if imu_table is None else folder / str(imu_table["file"])
     fiducials_file = None if interior is None else folder / str(interior["fiducials_file"])
-    output_directory = None
-    if output["directory"] is not None:
-        inputs = (toml_path, images_file, control_file, fiducials_file, gnss_file, imu_file)
-        output_directory = check_output(
+    inputs = (toml_path, images_file, control_file, fiducials_file, gnss_file, imu_file)
+    output_directory = (
+        None
+        if output["directory"] is None
+        else check_output(
             folder / str(output["directory"]),
             tuple(f for f in inputs if f is not None),
             f"{toml_path}: [output] directory",
         )
+    )
 
     image_options = read_image_options(toml_path, images)
-    distortion = None
-    if distortion_table is not None:
-        distortion = BrownDistortion(**distortion_table)  # type: ignore[arg-type]
+    distortion = (
+        None if distortion_table is None else BrownDistortion(**distortion_table)  # type: ignore[arg-type]
+    )
     fiducials: tuple[FiducialFit, ...] = ()
     warnings: list[str] = []
     if interior is not None and fiducials_file is not None:
@@ -231,21 +226,8 @@ def load_project(path: str | Path) -> Project:
     )  # type: ignore[arg-type]
     imu = None if imu_file is None else load_imu(imu_file, photo_ids, imu_table, warnings)  # type: ignore[arg-type]
 
-    observed = set(observations.point_ids)
-    is_observed = np.fromiter((i in observed for i in ids.tolist()), bool, count=ids.shape[0])
-    for row in np.flatnonzero(~is_observed):
-        warnings.append(
-            f"{table_c.where(int(row))}: control point '{ids[row]}' ({kinds[row].value}) is "
-            "not observed on any photo; left out"
-        )
-    keep = np.flatnonzero(is_observed)
-    control_points = ControlPoints(
-        point_ids=tuple(ids[keep].tolist()),
-        xyz=readonly(xyz[keep]),
-        kind=tuple(kinds[keep].tolist()),
-        sigma_xy=readonly(sigma_xy[keep]),
-        sigma_h=readonly(sigma_h[keep]),
-        source_line=readonly(table_c.line[keep]),
+    control_points = _observed_control(
+        table_c, ids, xyz, kinds, sigma_xy, sigma_h, observations, warnings
     )
     warnings += _single_ray_warnings(images_file, observations)
     straight_lines = _straight_lines(
@@ -278,6 +260,48 @@ def load_project(path: str | Path) -> Project:
         gnss_file=gnss_file,
         imu_file=imu_file,
     )
+
+
+def _observed_control(
+    table: CsvTable,
+    ids: np.ndarray,
+    xyz: FloatArray,
+    kinds: np.ndarray,
+    sigma_xy: FloatArray,
+    sigma_h: FloatArray,
+    observations: ImageObservations,
+    warnings: list[str],
+) -> ControlPoints:
+    """The control rows whose point some photo observes; a warning naming each
+    row left out (formats.md: a warning, not an error)."""
+    observed = set(observations.point_ids)
+    is_observed = np.fromiter((i in observed for i in ids.tolist()), bool, count=ids.shape[0])
+    warnings.extend(
+        f"{table.where(int(row))}: control point '{ids[row]}' ({kinds[row].value}) is "
+        "not observed on any photo; left out"
+        for row in np.flatnonzero(~is_observed)
+    )
+    keep = np.flatnonzero(is_observed)
+    control_points = ControlPoints(
+        point_ids=tuple(ids[keep].tolist()),
+        xyz=readonly(xyz[keep]),
+        kind=tuple(kinds[keep].tolist()),
+        sigma_xy=readonly(sigma_xy[keep]),
+        sigma_h=readonly(sigma_h[keep]),
+        source_line=readonly(table.line[keep]),
+    )
+    return control_points
+
+
+def _strip_photos(toml_path: Path, strip: dict[str, object]) -> tuple[tuple[str, ...], str]:
+    """The strip's photo ids (at least two) and its name (default: the project folder's)."""
+    photo_ids: tuple[str, ...] = strip["photos"]  # type: ignore[assignment]
+    if len(photo_ids) < 2:
+        raise ConfigError(
+            f"{toml_path}: [strip] photos: a strip needs at least two photos, got {len(photo_ids)}"
+        )
+    name = strip["name"] if strip["name"] is not None else toml_path.parent.resolve().name
+    return photo_ids, str(name)
 
 
 def _check_structure(toml_path: Path, doc: dict[str, Any]) -> None:
