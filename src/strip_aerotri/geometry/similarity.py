@@ -27,7 +27,7 @@ units.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -678,6 +678,73 @@ def control_count_problems(plan_ids: Sequence[str], height_ids: Sequence[str]) -
     return problems
 
 
+def _gauss_newton(
+    linearise: Callable[[float, FloatArray, FloatArray], tuple[FloatArray, FloatArray]],
+    scale: float,
+    rotation: FloatArray,
+    shift: FloatArray,
+    extent: float,
+    used_ids: list[str],
+    max_iterations: int,
+    tolerance: float,
+) -> tuple[float, FloatArray, FloatArray, int]:
+    """Gauss-Newton steps of the similarity until the update is negligible.
+
+    ``linearise(scale, rotation, shift)`` gives the weighted design matrix and
+    misclosures; ``extent`` (target units) makes the translation's update
+    relative.  Returns the scale, rotation, shift and the iterations taken.
+    """
+    iterations = 0
+    previous = np.inf
+    converged = False
+    for iterations in range(1, max_iterations + 1):
+        a_w, l_w = linearise(scale, rotation, shift)
+        q, cond = _normal_inverse(a_w)
+        if not np.isfinite(cond) or cond > SINGULAR_COND:
+            raise GeometryError(
+                "similarity transformation: the normal matrix is singular (condition "
+                f"{cond:.1e}); the control does not determine the 7 parameters: "
+                f"{_quote(used_ids)}"
+            )
+        dx = q @ (a_w.T @ l_w)
+        shift = shift + dx[0:3]
+        scale = scale + dx[3]
+        if scale <= 0.0:
+            raise ConvergenceError(
+                "similarity transformation: the scale became non-positive during iteration "
+                f"{iterations}"
+            )
+        rotation = matrix_from_rotvec(dx[4:7]) @ rotation
+        step = max(
+            float(np.max(np.abs(dx[0:3]))) / max(extent, np.finfo(float).tiny),
+            abs(float(dx[3])) / scale,
+            float(np.max(np.abs(dx[4:7]))),
+        )
+        # Or, when the iteration converges only linearly (a step less than a
+        # hundredth of the one before: a long strip model bent by its chain
+        # leaves large residuals), negligible against its own standard
+        # deviation (σ0 from the residuals after the step): such steps cease
+        # to matter long before they reach the tolerance (bench_bundle's
+        # 1000-photo strip: 4 iterations instead of 10, steps falling by a
+        # factor 18 each).  Quadratic convergence goes on to the tolerance.
+        redundancy = l_w.shape[0] - dx.shape[0]
+        negligible = False
+        if redundancy > 0 and step > 0.01 * previous:
+            resid = l_w - a_w @ dx
+            sigma_dx = np.sqrt(float(resid @ resid) / redundancy * np.diag(q))
+            negligible = bool(np.all(np.abs(dx) < _NEGLIGIBLE_FRACTION * sigma_dx))
+        if step < tolerance or (step < 1e-9 and step >= previous) or negligible:
+            converged = True
+            break
+        previous = step
+    if not converged:
+        raise ConvergenceError(
+            f"similarity transformation did not converge in {max_iterations} iterations "
+            f"(last relative update {step:.1e})"
+        )
+    return scale, rotation, shift, iterations
+
+
 def fit_similarity(
     source: ArrayLike,
     target: ArrayLike,
@@ -823,54 +890,16 @@ def fit_similarity(
         w = 1.0 / sigma[obs]
         return a * w[:, None], misclosure * w
 
-    iterations = 0
-    previous = np.inf
-    converged = False
-    for iterations in range(1, int(max_iterations) + 1):
-        a_w, l_w = linearise(scale, rotation, shift)
-        q, cond = _normal_inverse(a_w)
-        if not np.isfinite(cond) or cond > SINGULAR_COND:
-            raise GeometryError(
-                "similarity transformation: the normal matrix is singular (condition "
-                f"{cond:.1e}); the control does not determine the 7 parameters: "
-                f"{_quote([ids[i] for i in np.flatnonzero(used)])}"
-            )
-        dx = q @ (a_w.T @ l_w)
-        shift = shift + dx[0:3]
-        scale = scale + dx[3]
-        if scale <= 0.0:
-            raise ConvergenceError(
-                "similarity transformation: the scale became non-positive during iteration "
-                f"{iterations}"
-            )
-        rotation = matrix_from_rotvec(dx[4:7]) @ rotation
-        step = max(
-            float(np.max(np.abs(dx[0:3]))) / max(extent, np.finfo(float).tiny),
-            abs(float(dx[3])) / scale,
-            float(np.max(np.abs(dx[4:7]))),
-        )
-        # Or, when the iteration converges only linearly (a step less than a
-        # hundredth of the one before: a long strip model bent by its chain
-        # leaves large residuals), negligible against its own standard
-        # deviation (σ0 from the residuals after the step): such steps cease
-        # to matter long before they reach the tolerance (bench_bundle's
-        # 1000-photo strip: 4 iterations instead of 10, steps falling by a
-        # factor 18 each).  Quadratic convergence goes on to the tolerance.
-        redundancy = l_w.shape[0] - dx.shape[0]
-        negligible = False
-        if redundancy > 0 and step > 0.01 * previous:
-            resid = l_w - a_w @ dx
-            sigma_dx = np.sqrt(float(resid @ resid) / redundancy * np.diag(q))
-            negligible = bool(np.all(np.abs(dx) < _NEGLIGIBLE_FRACTION * sigma_dx))
-        if step < tolerance or (step < 1e-9 and step >= previous) or negligible:
-            converged = True
-            break
-        previous = step
-    if not converged:
-        raise ConvergenceError(
-            f"similarity transformation did not converge in {max_iterations} iterations "
-            f"(last relative update {step:.1e})"
-        )
+    scale, rotation, shift, iterations = _gauss_newton(
+        linearise,
+        scale,
+        rotation,
+        shift,
+        extent,
+        [ids[i] for i in np.flatnonzero(used)],
+        int(max_iterations),
+        tolerance,
+    )
     # Re-orthonormalise (accumulated products of rotations).
     u_svd, _, vt_svd = np.linalg.svd(rotation)
     rotation = u_svd @ vt_svd

@@ -1181,6 +1181,10 @@ def assemble(
 ) -> ImportedProject:
     """Decide strips, photo order, flight direction and control types; keep what they use.
 
+    Length: every importer's decisions in the order they depend on each
+    other (ids, strips, order, direction, control types, what is kept), each
+    one a call or a few lines, written once for all formats.
+
     Parameters
     ----------
     source : str

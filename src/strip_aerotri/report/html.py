@@ -156,6 +156,11 @@ def _stat_rows(report: Mapping[str, Any]) -> list[list[Any]]:
 
 
 def _html_page(report, fig_layout, fig_resid, fig_par, fig_ties) -> str:
+    """The page: head, summary, verdicts, figures, then the tables.
+
+    Length: a template read top to bottom as the page reads; its parts are
+    strings in page order, and cutting it would scatter that order.
+    """
     proj = report["project"]
     inp = report["inputs"]
     tol = report["tolerances"]

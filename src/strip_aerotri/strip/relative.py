@@ -696,6 +696,12 @@ def relative_orientation(
 ) -> RelativeOrientation:
     """Orient a chain of pairs by the y-parallax equation.
 
+    Length: the orientation strategy in one place (the first start, the
+    retries from the other starts, the robust recovery of pairs that do not
+    converge and the robust re-solution of suspect pairs), each a few lines
+    over one shared state; the numerical work is in :func:`_iterate` and the
+    state classes.
+
     Parameters
     ----------
     left, right : array_like, shape (n, 3)
