@@ -27,7 +27,7 @@ when the models are transformed at once: a 3-D test, chi-square with three
 degrees of freedom),
 ``control`` (control deviations after the similarity and polynomial fit, and
 in the bundle refinement), ``straight_line`` (line points), and in the bundle
-refinement (:mod:`strip_aerotri.refine`) ``bundle`` (image coordinates),
+refinement (:mod:`strip_aerotri.bundle.refine`) ``bundle`` (image coordinates),
 ``gnss`` (GNSS projection centres, tested along east, north, up, rejected as
 a whole) and ``imu`` (IMU attitudes, tested about the image axes, rejected as
 a whole).  The bundle refinement takes the single largest ``|w| / critical``

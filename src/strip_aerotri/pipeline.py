@@ -75,11 +75,11 @@ def triangulate(
     photo_step : int or "auto"
         Form the models from every k-th photo and orient the others by
         resection (drone strips with 80-95 % overlap); "auto" chooses the
-        smallest k reaching ``min_base_to_height`` (:mod:`strip_aerotri.densify`).
+        smallest k reaching ``min_base_to_height`` (:mod:`strip_aerotri.strip.densify`).
     min_base_to_height : float
     refine : {"none", "bundle"}
         "bundle": a rigorous bundle adjustment from the strip solution
-        (:func:`strip_aerotri.refine.refine_bundle`).
+        (:func:`strip_aerotri.bundle.refine.refine_bundle`).
     gnss, imu : GnssCentres, ImuAttitudes, optional
         Observed projection centres and attitudes for the bundle refinement.
     progress : callable, optional

@@ -64,7 +64,7 @@ def intersect_midpoint(
         photo, in the strip system.
     across : array_like, shape (3,) or (n, 3), optional
         Unit direction j of the y-parallax: the strip y axis ``(0, 1, 0)``
-        by default (J); :func:`~strip_aerotri.chaining.form_strip` passes the
+        by default (J); :func:`~strip_aerotri.strip.chaining.form_strip` passes the
         left photo's image y axis, the direction of its relative orientation.
 
     Returns

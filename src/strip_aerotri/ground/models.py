@@ -10,14 +10,14 @@ which J's polynomials can follow only as far as a cubic bends, are taken out
 model by model, with the weight the tie points give them.
 
 Every determination of a point in a model is weighted by its information
-from its two rays (:func:`strip_aerotri.precision.ray_information`, photos
+from its two rays (:func:`strip_aerotri.geometry.precision.ray_information`, photos
 held fixed: a model point is weak along the rays, above all in height at a
 short base), every projection centre by its information from a space
-resection on the model's points (:func:`strip_aerotri.precision.centre_information`).
+resection on the model's points (:func:`strip_aerotri.geometry.precision.centre_information`).
 The control enters with its own sigmas, straight lines (J(18)) as
 conditions on the adjusted points.  The solution is
-:func:`strip_aerotri.simultaneous.adjust_units` in the ground stage's work
-frame (docs/ground.md); J's similarity (:func:`strip_aerotri.ground.adjust_to_ground`
+:func:`strip_aerotri.geometry.simultaneous.adjust_units` in the ground stage's work
+frame (docs/ground.md); J's similarity (:func:`strip_aerotri.ground.polynomials.adjust_to_ground`
 with polynomial 0) gives the frame, the start values and the checks of the
 control's geometry.
 

@@ -298,7 +298,7 @@ def build_report(
     result : StripResult
         The run's result (:func:`strip_aerotri.pipeline.triangulate`).
     project : Project, optional
-        The loaded project (:func:`strip_aerotri.config.load_project`): name,
+        The loaded project (:func:`strip_aerotri.project.load_project`): name,
         files, options and its ``[report] map_scale``.
     map_scale : float, optional
         Map scale denominator S for the tolerance verdicts; overrides the

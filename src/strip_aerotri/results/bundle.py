@@ -425,7 +425,7 @@ class ImuResiduals(_PhotoTests):
 class RefinedResult:
     """A strip-method result refined by bundle adjustment.
 
-    Layout as :class:`~strip_aerotri.pipeline.StripResult`: points and photos
+    Layout as :class:`~strip_aerotri.results.StripResult`: points and photos
     in the control CRS, in ``point_ids`` / ``photo_ids`` order.
 
     Attributes

@@ -34,7 +34,7 @@ class StripResult:
     timings : dict
         Seconds per stage.
     refined : RefinedResult or None
-        The bundle refinement (:mod:`strip_aerotri.refine`) when asked for;
+        The bundle refinement (:mod:`strip_aerotri.bundle.refine`) when asked for;
         then ``points``, ``photo_centres`` and ``photo_opk`` are its values.
     """
 

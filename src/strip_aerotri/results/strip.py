@@ -186,7 +186,7 @@ class StripModel:
         """Positions in the photo arrays of the photos that form the models:
         model m is formed by photos ``model_photo_positions[m]`` and
         ``[m + 1]`` (all photos unless the strip was completed from every
-        k-th photo, :func:`strip_aerotri.densify.complete_strip`)."""
+        k-th photo, :func:`strip_aerotri.strip.densify.complete_strip`)."""
         if self.model_photos is None:
             return np.arange(self.photo_index.shape[0], dtype=np.intp)
         return self.model_photos
