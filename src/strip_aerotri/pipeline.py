@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -46,7 +46,7 @@ def triangulate(
     strip_options: StripOptions | None = None,
     ground_options: GroundOptions | None = None,
     blunders: BlunderOptions | None = None,
-    photo_step: int | str = 1,
+    photo_step: int | Literal["auto"] = 1,
     min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT,
     refine: Refine | str = Refine.NONE,
     gnss: Any = None,

@@ -28,6 +28,7 @@ found here too; the ground stage is not run.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
@@ -49,6 +50,8 @@ from ..strip.relative import pair_count_problems
 from .output import output_folder
 
 if TYPE_CHECKING:
+    from .._typing import BoolArray, FloatArray, IntArray
+    from ..observations import ImageObservations
     from .model import Project
 
 __all__ = ["CheckReport", "check_project"]
@@ -76,7 +79,7 @@ class CheckReport:
     details: list[str] = field(default_factory=list)
 
 
-def _quote(ids, limit: int = 8) -> str:
+def _quote(ids: Iterable[str], limit: int = 8) -> str:
     ids = list(ids)
     text = ", ".join(f"'{i}'" for i in ids[:limit])
     return text + (f" and {len(ids) - limit} more" if len(ids) > limit else "")
@@ -98,7 +101,12 @@ def _plan_metres(xy: np.ndarray, geographic: bool) -> np.ndarray:
 _CHECK_MARGIN = 3.0
 
 
-def _footprint_radius(obs, control_point, has_plan, control_xy) -> float | None:
+def _footprint_radius(
+    obs: ImageObservations,
+    control_point: IntArray,
+    has_plan: BoolArray,
+    control_xy: FloatArray,
+) -> float | None:
     """Median ground radius of a photo's footprint, in the unit of `control_xy`.
 
     A photo's scale is the spread of the plan control measured on it over the
@@ -117,7 +125,8 @@ def _footprint_radius(obs, control_point, has_plan, control_xy) -> float | None:
     on = k >= 0
     photo = obs.photo[on]
 
-    def spread(xy):  # sum of squared distances from each photo's centroid
+    def spread(xy: FloatArray) -> tuple[IntArray, FloatArray]:
+        # sum of squared distances from each photo's centroid
         n = np.bincount(photo, minlength=obs.n_photos)
         sums = [np.bincount(photo, xy[:, c], minlength=obs.n_photos) for c in (0, 1)]
         squares = np.bincount(photo, np.einsum("ij,ij->i", xy, xy), minlength=obs.n_photos)
@@ -274,7 +283,7 @@ def _check_control(
     if n_height >= 3:
         hxy = ctrl.xyz[uses_h, :2]
         if np.isfinite(hxy).all():
-            plan_all = np.isfinite(ctrl.xyz[:, :2]).all(axis=1)
+            plan_all = np.asarray(np.isfinite(ctrl.xyz[:, :2]).all(axis=1), dtype=bool)
             known_xy = _plan_metres(ctrl.xyz[plan_all, :2], geographic)
             hxy = _plan_metres(hxy, geographic)
             ratio, _ = cross_tilt(hxy)
@@ -283,7 +292,8 @@ def _check_control(
                 # here they are the control and check points widened by one
                 # photo's footprint, which overstates r up to about 2.5 times.
                 radius = _footprint_radius(obs, row_point, plan_all, known_xy)
-                _, magnified = cross_tilt(hxy, known_xy, radius or 0.0)
+                _, tilt_magnified = cross_tilt(hxy, known_xy, radius or 0.0)
+                magnified = np.inf if tilt_magnified is None else tilt_magnified
                 text = (
                     f"{control_file}: the height control points all lie in one vertical plane "
                     f"(collinear in plan, singular value ratio {ratio:.1e}"

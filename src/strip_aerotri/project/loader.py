@@ -159,10 +159,12 @@ def load_project(path: str | Path) -> Project:
     blunders = _blunder_options(toml_path, table("blunders"))
     distortion_table, interior = optional("distortion"), optional("interior_orientation")
     gnss_table, imu_table = optional("gnss"), optional("imu")
-    if gnss_table is not None:
-        _needs_bundle(toml_path, "gnss", "GNSS centres", adjustment["refine"])  # type: ignore[arg-type]
-    if imu_table is not None:
-        _needs_bundle(toml_path, "imu", "IMU attitudes", adjustment["refine"])  # type: ignore[arg-type]
+    for key, what, given in (
+        ("gnss", "GNSS centres", gnss_table),
+        ("imu", "IMU attitudes", imu_table),
+    ):
+        if given is not None:
+            _needs_bundle(toml_path, key, what, adjustment["refine"])  # type: ignore[arg-type]
     lines_raw = [
         check_table(str(toml_path), "straight_line", content, f"[[straight_line]] #{i}")
         for i, content in enumerate(doc.get("straight_line", []), start=1)
@@ -175,29 +177,20 @@ def load_project(path: str | Path) -> Project:
     principal_distance = float(camera["principal_distance_mm"])  # type: ignore[arg-type]
     images_file = folder / str(images["file"])
     control_file = folder / str(control["file"])
-    gnss_file = None if gnss_table is None else folder / str(gnss_table["file"])
-    imu_file = None if imu_table is None else folder / str(imu_table["file"])
+    gnss_file, imu_file = (
+        None if t is None else folder / str(t["file"]) for t in (gnss_table, imu_table)
+    )
     fiducials_file = None if interior is None else folder / str(interior["fiducials_file"])
     inputs = (toml_path, images_file, control_file, fiducials_file, gnss_file, imu_file)
-    output_directory = (
-        None
-        if output["directory"] is None
-        else check_output(
-            folder / str(output["directory"]),
-            tuple(f for f in inputs if f is not None),
-            f"{toml_path}: [output] directory",
-        )
-    )
+    output_directory = None
+    if output["directory"] is not None:
+        where = f"{toml_path}: [output] directory"
+        kept = tuple(f for f in inputs if f is not None)
+        output_directory = check_output(folder / str(output["directory"]), kept, where)
 
-    image_options = read_image_options(toml_path, images)
-    distortion = (
-        None if distortion_table is None else BrownDistortion(**distortion_table)  # type: ignore[arg-type]
+    image_options, distortion, fiducials, warnings = _interior(
+        toml_path, images, distortion_table, interior, fiducials_file, photo_ids
     )
-    fiducials: tuple[FiducialFit, ...] = ()
-    warnings: list[str] = []
-    if interior is not None and fiducials_file is not None:
-        fiducials = load_fiducials(fiducials_file, photo_ids, image_options, interior)
-        warnings += [f"{fiducials_file}: {fit.message()}" for fit in fiducials if not fit.passed]
     reduce = _image_reduction(
         toml_path, principal_distance, principal_point, image_options, fiducials, distortion
     )
@@ -222,9 +215,15 @@ def load_project(path: str | Path) -> Project:
     )
     warnings += crs_warnings
     gnss = (
-        None if gnss_file is None else load_gnss(gnss_file, photo_ids, gnss_table, crs, warnings)
-    )  # type: ignore[arg-type]
-    imu = None if imu_file is None else load_imu(imu_file, photo_ids, imu_table, warnings)  # type: ignore[arg-type]
+        None
+        if gnss_table is None
+        else load_gnss(folder / str(gnss_table["file"]), photo_ids, gnss_table, crs, warnings)
+    )
+    imu = (
+        None
+        if imu_table is None
+        else load_imu(folder / str(imu_table["file"]), photo_ids, imu_table, warnings)
+    )
 
     control_points = _observed_control(
         table_c, ids, xyz, kinds, sigma_xy, sigma_h, observations, warnings
@@ -291,6 +290,26 @@ def _observed_control(
         source_line=readonly(table.line[keep]),
     )
     return control_points
+
+
+def _interior(
+    toml_path: Path,
+    images: dict[str, object],
+    distortion_table: dict[str, object] | None,
+    interior: dict[str, object] | None,
+    fiducials_file: Path | None,
+    photo_ids: tuple[str, ...],
+) -> tuple[ImageOptions, BrownDistortion | None, tuple[FiducialFit, ...], list[str]]:
+    """The image options, the distortion, the fiducial fits and their warnings."""
+    image_options = read_image_options(toml_path, images)
+    distortion = (
+        None if distortion_table is None else BrownDistortion(**distortion_table)  # type: ignore[arg-type]
+    )
+    fiducials: tuple[FiducialFit, ...] = ()
+    if interior is not None and fiducials_file is not None:
+        fiducials = load_fiducials(fiducials_file, photo_ids, image_options, interior)
+    warnings = [f"{fiducials_file}: {fit.message()}" for fit in fiducials if not fit.passed]
+    return image_options, distortion, fiducials, warnings
 
 
 def _strip_photos(toml_path: Path, strip: dict[str, object]) -> tuple[tuple[str, ...], str]:
@@ -477,7 +496,8 @@ def _blunder_options(toml_path: Path, table: dict[str, object]) -> BlunderOption
     if fraction > 1.0:
         raise ConfigError(f"{where} max_fraction: expected at most 1, got {fraction!r}")
     pairs = []
-    for item in table["exclude_observations"]:  # type: ignore[union-attr]
+    excluded: list[object] = table["exclude_observations"]  # type: ignore[assignment]
+    for item in excluded:
         photo, sep, point = str(item).partition("/")
         if not sep or not photo or not point:
             raise ConfigError(

@@ -5,11 +5,19 @@ y-parallaxes and the tie points per model.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .values import control_rows
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from .._typing import BoolArray, FloatArray, IntArray
+    from ..results import StripResult
 
 _MAX_PLOT_POINTS = 20000
 
@@ -30,7 +38,7 @@ _ROLE_STYLE = {
 }
 
 
-def _png(fig) -> str:
+def _png(fig: Figure) -> str:
     import io as _bio
 
     buffer = _bio.BytesIO()
@@ -52,7 +60,7 @@ class Plan:
     meridian convergence.
     """
 
-    def __init__(self, result):
+    def __init__(self, result: StripResult) -> None:
         crs = result.ground.crs
         self.crs = crs
         centres = np.asarray(result.photo_centres, dtype=np.float64)
@@ -61,6 +69,7 @@ class Plan:
             ok = np.isfinite(centres).all(axis=1)
             self.lon0, self.lat0 = np.mean(centres[ok, :2], axis=0)
             ell = crs.ellipsoid
+            assert ell is not None  # a geographic CRS has one
             self.radius = float(ell.semi_major_metre)
             self.unit = "m from the strip centre"
         else:
@@ -115,7 +124,7 @@ class Plan:
             return np.zeros(len(xyh))
 
 
-def _footprints(result, plan: Plan) -> np.ndarray | None:
+def _footprints(result: StripResult, plan: Plan) -> np.ndarray | None:
     """(M, 4, 2) plan corners of each photo's footprint at the mean point height."""
     obs = result.strip.observations
     xy = np.asarray(obs.xy, dtype=np.float64)
@@ -158,7 +167,8 @@ def _footprints(result, plan: Plan) -> np.ndarray | None:
     # the grid scale factor (about 1) is ignored: display only
     out = plan.xy(centres)[:, None, :] + grid
     bad = ~np.isfinite(out).all(axis=(1, 2)) | (t <= 0).any(axis=1)
-    return out[~bad]
+    footprints: FloatArray = out[~bad]
+    return footprints
 
 
 def _decimate(index: np.ndarray, limit: int) -> np.ndarray:
@@ -167,7 +177,7 @@ def _decimate(index: np.ndarray, limit: int) -> np.ndarray:
     return index[np.linspace(0, index.size - 1, limit).astype(np.intp)]
 
 
-def figure_layout(result, plan: Plan, roles: np.ndarray) -> str:
+def figure_layout(result: StripResult, plan: Plan, roles: np.ndarray) -> str:
     from matplotlib.collections import PolyCollection
     from matplotlib.figure import Figure
 
@@ -188,7 +198,7 @@ def figure_layout(result, plan: Plan, roles: np.ndarray) -> str:
         step = max(1, len(feet) // 400)
         ax.add_collection(
             PolyCollection(
-                feet[::step],
+                list(feet[::step]),
                 facecolors="#5dade2",
                 edgecolors="#2e86c1",
                 alpha=0.08,
@@ -232,7 +242,7 @@ def figure_layout(result, plan: Plan, roles: np.ndarray) -> str:
             zorder=z,
             label=f"{label} ({int(np.count_nonzero(ok & (roles == role)))})",
             linewidths=1.0 if marker == "x" else 0.4,
-            **({} if marker in (".", "x") or crowded else {"edgecolors": "black"}),
+            edgecolors=None if marker in (".", "x") or crowded else "black",
         )
     ax.autoscale_view()
     _plan_axes(ax, plan)
@@ -246,7 +256,7 @@ def figure_layout(result, plan: Plan, roles: np.ndarray) -> str:
     return _png(fig)
 
 
-def _plan_axes(ax, plan: Plan) -> None:
+def _plan_axes(ax: Axes, plan: Plan) -> None:
     if plan.long:
         ax.set_xlabel(f"along the strip from the first photo [{plan.unit}]")
         ax.set_ylabel("across the strip, left positive [m]")
@@ -268,7 +278,7 @@ def _nice(value: float) -> float:
     return float(step * 10**exp)
 
 
-def figure_residuals(result, plan: Plan) -> str | None:
+def figure_residuals(result: StripResult, plan: Plan) -> str | None:
     from matplotlib.colors import TwoSlopeNorm
     from matplotlib.figure import Figure
 
@@ -367,7 +377,16 @@ def figure_residuals(result, plan: Plan) -> str | None:
     return _png(fig)
 
 
-def _figure_residuals_along(result, plan, idx, resid, pxy, de, dn, is_check) -> str:
+def _figure_residuals_along(
+    result: StripResult,
+    plan: Plan,
+    idx: IntArray,
+    resid: FloatArray,
+    pxy: FloatArray,
+    de: FloatArray,
+    dn: FloatArray,
+    is_check: BoolArray,
+) -> str:
     """Residual components against the distance along a long strip (three panels)."""
     from matplotlib.figure import Figure
 
@@ -407,7 +426,14 @@ def _figure_residuals_along(result, plan, idx, resid, pxy, de, dn, is_check) -> 
     return _png(fig)
 
 
-def _bars_or_lines(ax, x, values, labels, colours, width=0.4):
+def _bars_or_lines(
+    ax: Axes,
+    x: FloatArray | IntArray,
+    values: Sequence[FloatArray],
+    labels: Sequence[str],
+    colours: Sequence[str],
+    width: float = 0.4,
+) -> None:
     many = len(x) > 120
     for k, (v, label, colour) in enumerate(zip(values, labels, colours, strict=True)):
         if many:
@@ -417,7 +443,7 @@ def _bars_or_lines(ax, x, values, labels, colours, width=0.4):
             ax.bar(x + offset, v, width=width, color=colour, label=label)
 
 
-def figure_parallax(result) -> str:
+def figure_parallax(result: StripResult) -> str:
     from matplotlib.figure import Figure
 
     rel = result.strip.relative
@@ -448,7 +474,7 @@ def figure_parallax(result) -> str:
     return _png(fig)
 
 
-def figure_ties(result, models: list[dict[str, Any]]) -> str | None:
+def figure_ties(result: StripResult, models: list[dict[str, Any]]) -> str | None:
     from matplotlib.figure import Figure
 
     if len(models) < 2:

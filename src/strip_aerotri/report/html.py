@@ -5,13 +5,16 @@ from ``report.json``'s content and the figures.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .figures import Plan, figure_layout, figure_parallax, figure_residuals, figure_ties
 from .values import point_roles
+
+if TYPE_CHECKING:
+    from ..results import StripResult
 
 _CSS = """
 body{font-family:-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;color:#1c2833;
@@ -100,7 +103,7 @@ def _figure(b64: str | None, caption: str, alt: str) -> str:
     )
 
 
-def build_html(result, report: Mapping[str, Any]) -> str:
+def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     """Text of ``report.html``: one self-contained page (inline PNG figures, no scripts).
 
     Parameters
@@ -111,7 +114,7 @@ def build_html(result, report: Mapping[str, Any]) -> str:
     """
     import matplotlib
 
-    style = {
+    style: dict[str, Any] = {
         "font.size": 9,
         "axes.titlesize": 11,
         "figure.subplot.left": 0.07,
@@ -121,7 +124,7 @@ def build_html(result, report: Mapping[str, Any]) -> str:
         "figure.subplot.hspace": 0.3,
         "figure.subplot.wspace": 0.18,
     }
-    with matplotlib.rc_context(style):
+    with matplotlib.rc_context(style):  # type: ignore[arg-type]  # typed as literal keys
         plan = Plan(result)
         points = np.asarray(result.points, dtype=np.float64)
         finite = np.isfinite(points).all(axis=1)
@@ -155,7 +158,13 @@ def _stat_rows(report: Mapping[str, Any]) -> list[list[Any]]:
     return rows
 
 
-def _html_page(report, fig_layout, fig_resid, fig_par, fig_ties) -> str:
+def _html_page(
+    report: Mapping[str, Any],
+    fig_layout: str | None,
+    fig_resid: str | None,
+    fig_par: str | None,
+    fig_ties: str | None,
+) -> str:
     """The page: head, summary, verdicts, figures, then the tables.
 
     Length: a template read top to bottom as the page reads; its parts are
@@ -303,7 +312,9 @@ def _html_page(report, fig_layout, fig_resid, fig_par, fig_ties) -> str:
     return "\n".join(parts)
 
 
-def _plan_of(values, pick):
+def _plan_of(
+    values: Sequence[float | None] | None, pick: Callable[[list[float]], float]
+) -> float | None:
     """One plan figure from [E, N, H] values (``pick`` of the two), or None."""
     if not values:
         return None
@@ -449,7 +460,7 @@ def _control_section(report: Mapping[str, Any]) -> list[str]:
         "and an error in it cannot be found by any test; only more control can show it.</p>"
     )
 
-    def mde_cell(p, k):
+    def mde_cell(p: Mapping[str, Any], k: int) -> Any:
         if p.get("detectable", [None] * 3)[k] is False:
             return ("<em>undetectable</em>",)
         return p.get("mde_m", [None] * 3)[k]

@@ -11,11 +11,16 @@ described in ``docs/outputs.md``.
 from __future__ import annotations
 
 import json
+from typing import TYPE_CHECKING
 
 from .html import build_html
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, build_report
 from .tables import photos_csv, points_csv, points_geojson
 from .values import point_roles
+
+if TYPE_CHECKING:
+    from ..project import Project
+    from ..results import StripResult
 
 __all__ = [
     "REPORT_FORMAT",
@@ -27,7 +32,11 @@ __all__ = [
 
 
 def build_outputs(
-    result, *, project=None, map_scale: float | None = None, html: bool = True
+    result: StripResult,
+    *,
+    project: Project | None = None,
+    map_scale: float | None = None,
+    html: bool = True,
 ) -> dict[str, bytes]:
     """Every file of a result folder, name -> content (UTF-8 bytes).
 

@@ -7,15 +7,19 @@ from __future__ import annotations
 
 import datetime as _dt
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .._version import __version__
 from ..geometry.rotation import opk_from_matrix
 from ..observations import ControlType
+from ..results import StripResult
 from .tolerances import tolerance_verdicts
 from .values import clean, control_rows, json_float, statistics
+
+if TYPE_CHECKING:
+    from ..project import Project
 
 REPORT_FORMAT = "stripaero-report"
 
@@ -29,7 +33,7 @@ def _element_names(method: str) -> tuple[list[str], list[str]]:
     return ["b_y", "b_z", "a", "b", "c"], ["strip", "strip", "", "", ""]
 
 
-def _pairs(result) -> list[dict[str, Any]]:
+def _pairs(result: StripResult) -> list[dict[str, Any]]:
     strip = result.strip
     rel = strip.relative
     method = str(getattr(rel.method, "value", rel.method))
@@ -54,7 +58,7 @@ def _pairs(result) -> list[dict[str, Any]]:
     ]
 
 
-def _models(result) -> list[dict[str, Any]]:
+def _models(result: StripResult) -> list[dict[str, Any]]:
     strip = result.strip
     scale = float(result.ground.similarity.transform.scale)
     n_pts = np.bincount(np.asarray(strip.model), minlength=strip.n_models)
@@ -81,7 +85,7 @@ def _models(result) -> list[dict[str, Any]]:
     return out
 
 
-def _similarity(result) -> dict[str, Any]:
+def _similarity(result: StripResult) -> dict[str, Any]:
     sim = result.ground.similarity
     tr = sim.transform
     rotation = np.asarray(tr.rotation, dtype=np.float64)
@@ -106,7 +110,7 @@ def _similarity(result) -> dict[str, Any]:
     }
 
 
-def _polynomial(result, requested: Any) -> dict[str, Any]:
+def _polynomial(result: StripResult, requested: Any) -> dict[str, Any]:
     ground = result.ground
     deformation = ground.deformation
     out: dict[str, Any] = {"requested": requested, "kind": int(ground.polynomial_kind)}
@@ -156,7 +160,7 @@ def _polynomial(result, requested: Any) -> dict[str, Any]:
     return out
 
 
-def _lines(result, weights: Mapping[str, float]) -> list[dict[str, Any]]:
+def _lines(result: StripResult, weights: Mapping[str, float]) -> list[dict[str, Any]]:
     ground = result.ground
     deformation = ground.deformation
     params = None
@@ -189,7 +193,7 @@ def _lines(result, weights: Mapping[str, float]) -> list[dict[str, Any]]:
     return out
 
 
-def _control_points(result, check: bool) -> list[dict[str, Any]]:
+def _control_points(result: StripResult, check: bool) -> list[dict[str, Any]]:
     ground = result.ground
     idx, resid = control_rows(result)
     is_check = np.asarray(ground.is_check, dtype=bool)
@@ -233,7 +237,7 @@ def _control_points(result, check: bool) -> list[dict[str, Any]]:
     return out
 
 
-def _model_adjustment(result) -> dict[str, Any] | None:
+def _model_adjustment(result: StripResult) -> dict[str, Any] | None:
     """The simultaneous transformation of the models (block = "models")."""
     models = getattr(result.ground, "models", None)
     if models is None:
@@ -266,7 +270,7 @@ def _model_adjustment(result) -> dict[str, Any] | None:
     }
 
 
-def _options(result, project) -> dict[str, Any]:
+def _options(result: StripResult, project: Project | None) -> dict[str, Any]:
     strip_opt = result.strip.options
     construction = getattr(result.ground, "construction", None)
     opts: dict[str, Any] = {
@@ -289,7 +293,11 @@ def _options(result, project) -> dict[str, Any]:
 
 
 def build_report(
-    result, *, project=None, map_scale: float | None = None, notes: Sequence[str] = ()
+    result: StripResult,
+    *,
+    project: Project | None = None,
+    map_scale: float | None = None,
+    notes: Sequence[str] = (),
 ) -> dict[str, Any]:
     """Content of ``report.json`` (plain JSON types; NaN written as None).
 
@@ -426,10 +434,11 @@ def build_report(
             }
         },
     }
-    return clean(report)
+    cleaned: dict[str, Any] = clean(report)
+    return cleaned
 
 
-def _bundle(result: Any) -> dict[str, Any] | None:
+def _bundle(result: StripResult) -> dict[str, Any] | None:
     """The bundle refinement's figures, when it was run (docs/bundle.md)."""
     refined = getattr(result, "refined", None)
     if refined is None:
@@ -499,8 +508,9 @@ def _counts(out: Any) -> dict[str, Any]:
 
 def _photo_failed(out: Any) -> list[bool | None]:
     """Per photo: some component failed its test; None where none was tested."""
-    tested = np.isfinite(np.asarray(out.w, dtype=np.float64)).any(axis=1)
-    return [bool(f) if t else None for f, t in zip(np.asarray(out.failed), tested, strict=True)]
+    tested = np.asarray(np.isfinite(np.asarray(out.w, dtype=np.float64)).any(axis=1), dtype=bool)
+    failed = np.asarray(out.failed, dtype=bool)
+    return [bool(f) if t else None for f, t in zip(failed, tested, strict=True)]
 
 
 def _bundle_gnss(out: Any) -> dict[str, Any] | None:

@@ -6,11 +6,12 @@ import json
 
 import numpy as np
 
+from ..results import StripResult
 from .files import format_photos_csv, format_points_csv
 from .values import image_counts, point_roles, residual_columns
 
 
-def points_csv(result) -> str:
+def points_csv(result: StripResult) -> str:
     """Text of ``points.csv`` (triangulated points only; see docs/outputs.md)."""
     points = np.asarray(result.points, dtype=np.float64)
     ok = np.isfinite(points).all(axis=1)
@@ -32,7 +33,7 @@ def points_csv(result) -> str:
     )
 
 
-def photos_csv(result) -> str:
+def photos_csv(result: StripResult) -> str:
     """Text of ``photos.csv`` (see docs/outputs.md)."""
     _, n_img = image_counts(result)
     ids = np.asarray(result.photo_ids, dtype=str)
@@ -53,7 +54,7 @@ GEOJSON_DECIMALS = 8
 """Decimals of longitude and latitude in points.geojson (1e-8 degree is about 1 mm)."""
 
 
-def points_geojson(result) -> str | None:
+def points_geojson(result: StripResult) -> str | None:
     """Text of ``points.geojson``: RFC 7946 FeatureCollection in WGS 84 lon/lat.
 
     One Point feature per triangulated point, converted with

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..observations import ControlType
+from ..results import AccuracyStatistics, StripResult
 
 _ROLE_OF_KIND = {
     ControlType.FULL: "control-full",
@@ -48,7 +49,7 @@ def json_float(value: Any) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def statistics(stats) -> dict[str, Any]:
+def statistics(stats: AccuracyStatistics) -> dict[str, Any]:
     rmse = np.asarray(stats.rmse, dtype=np.float64)
     return {
         "n_plan": int(stats.n_plan),
@@ -63,7 +64,7 @@ def statistics(stats) -> dict[str, Any]:
     }
 
 
-def point_roles(result) -> np.ndarray:
+def point_roles(result: StripResult) -> np.ndarray:
     """Role of every point of ``result.point_ids`` (array of str, shape (P,)).
 
     ``control-full``, ``control-plan``, ``control-height``, ``check`` (from
@@ -88,7 +89,7 @@ def point_roles(result) -> np.ndarray:
     return roles.astype(str)
 
 
-def control_rows(result) -> tuple[np.ndarray, np.ndarray]:
+def control_rows(result: StripResult) -> tuple[np.ndarray, np.ndarray]:
     """Point index (C,) of each row of ``ground.control_residuals`` and the residuals (C, 3)."""
     ground = result.ground
     lookup = {pid: i for i, pid in enumerate(result.point_ids)}
@@ -97,7 +98,7 @@ def control_rows(result) -> tuple[np.ndarray, np.ndarray]:
     return idx, np.asarray(ground.control_residuals, dtype=np.float64).reshape(-1, 3)
 
 
-def residual_columns(result) -> np.ndarray:
+def residual_columns(result: StripResult) -> np.ndarray:
     """(P, 3) given − adjusted E, N, H at control and check points, NaN elsewhere."""
     out = np.full((len(result.point_ids), 3), np.nan)
     idx, resid = control_rows(result)
@@ -105,7 +106,7 @@ def residual_columns(result) -> np.ndarray:
     return out
 
 
-def image_counts(result) -> tuple[np.ndarray, np.ndarray]:
+def image_counts(result: StripResult) -> tuple[np.ndarray, np.ndarray]:
     obs = result.strip.observations
     per_point = np.bincount(np.asarray(obs.point), minlength=obs.n_points)
     per_photo_all = np.bincount(np.asarray(obs.photo), minlength=obs.n_photos)
