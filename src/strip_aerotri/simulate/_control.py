@@ -33,17 +33,43 @@ def _control(
     n_check: int | None,
 ) -> ControlPoints:
     """Pick control and check points among the seen Gruber-zone points."""
-    gy = np.asarray(pre.gruber_y_mm, dtype=np.float64)
+    gruber = np.flatnonzero(kind == _GRUBER)
+    roles = _strip_roles(
+        _zone_points(gruber, nadir, row, rank), pre.gruber_y_mm, m, layout, every, {}
+    )
+    last = m - 1
+    check = [int(p) for p in gruber if int(p) not in roles and 0 < nadir[p] < last]
+    return _control_points(
+        rng, geo, pre, point_ids, points_local, points_crs, roles, check, n_check
+    )
+
+
+def _zone_points(
+    points: IntArray, nadir: IntArray, row: IntArray, rank: IntArray
+) -> dict[tuple[int, int], int]:
+    """The first seen point (lowest rank) of each zone (nadir, row) among ``points``."""
+    zone_point: dict[tuple[int, int], int] = {}
+    for p in points[np.lexsort((rank[points], row[points], nadir[points]))]:
+        zone_point.setdefault((int(nadir[p]), int(row[p])), int(p))
+    return zone_point
+
+
+def _strip_roles(
+    zone_point: dict[tuple[int, int], int],
+    gruber_y_mm: tuple[float, ...],
+    m: int,
+    layout: str,
+    every: int,
+    roles: dict[int, ControlType],
+) -> dict[int, ControlType]:
+    """Add the roles of a strip layout (module notes of ``strip``) to ``roles``.
+
+    ``zone_point`` maps (nadir, Gruber row) to a point; a point that already
+    has a role keeps it. Returns ``roles``.
+    """
+    gy = np.asarray(gruber_y_mm, dtype=np.float64)
     sides = sorted({int(np.argmax(gy)), int(np.argmin(gy))}) if gy.size else []
     axis_row = int(np.argmin(np.abs(gy))) if gy.size else -1
-
-    # First seen point (lowest rank) of each Gruber zone.
-    zone_point: dict[tuple[int, int], int] = {}
-    gruber = np.flatnonzero(kind == _GRUBER)
-    for p in gruber[np.lexsort((rank[gruber], row[gruber], nadir[gruber]))]:
-        zone_point.setdefault((int(nadir[p]), int(row[p])), int(p))
-
-    roles: dict[int, ControlType] = {}
 
     def assign(nadirs: list[int], rows: list[int], role: ControlType) -> None:
         for i in nadirs:
@@ -71,8 +97,27 @@ def _control(
         assign([i for i in range(3, last, 3) if i not in full], sides, ControlType.HEIGHT)
         quarter = sorted({round(last / 4), round(3 * last / 4)} - {0, last})
         assign(quarter, [axis_row] if axis_row >= 0 else [], ControlType.PLAN)
+    return roles
 
-    check = [int(p) for p in gruber if int(p) not in roles and 0 < nadir[p] < last]
+
+def _control_points(
+    rng: np.random.Generator,
+    geo: _Geodesy,
+    pre: StripPreset,
+    point_ids: tuple[str, ...],
+    points_local: FloatArray,
+    points_crs: FloatArray,
+    roles: dict[int, ControlType],
+    check: list[int],
+    n_check: int | None,
+) -> ControlPoints:
+    """Control with ``roles`` and check points among ``check`` (all, or
+    ``n_check`` of them at random), sorted by point id.
+
+    Control is the truth plus N(0, ``control_noise_m``) per coordinate in
+    the local frame; check points carry the exact truth.
+    """
+    roles = dict(roles)
     if n_check is not None and int(n_check) < len(check):
         check = sorted(rng.choice(check, size=int(n_check), replace=False).tolist())
     for p in check:
