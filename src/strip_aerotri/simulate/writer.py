@@ -209,8 +209,8 @@ def write_control(path: str | Path, control: ControlPoints, crs: str) -> None:
 
 
 def _comment(text: str) -> str:
-    """One line of a TOML comment."""
-    return " ".join(str(text).split())
+    """One line of a TOML comment (no control characters)."""
+    return " ".join("".join(ch if ch.isprintable() else " " for ch in str(text)).split())
 
 
 def _toml_str(text: str) -> str:
