@@ -342,6 +342,14 @@ def test_corner_control_is_four_corners_and_heights_across_the_middle():
     assert np.abs(height[:, 0]).max() < 0.5 * block.preset.base_m
 
 
+def test_without_gruber_rows_the_outer_side_overlaps_carry_the_corners():
+    block = _block(control="corners", gruber_y_mm=())
+    assert sum(k is ControlType.FULL for k in block.control.kind) == 4
+    assert set(block.control.point_ids) <= set(block.common_points(0, 1)) | set(
+        block.common_points(1, 2)
+    )
+
+
 @pytest.mark.parametrize("layout", ["ends", "fig4", "every_k_models", "dense", "weak"])
 def test_a_strip_layout_gives_every_strip_its_own_control(layout):
     n, m = 3, 9

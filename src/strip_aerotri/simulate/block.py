@@ -50,6 +50,9 @@ and the middle of each side overlap):
   the block at the middle station (outer lanes and side overlaps): about the
   least a block can be oriented with.
 
+Without Gruber rows (``gruber_y_mm=()``) the outer lanes are the first and
+the last side overlap.
+
 Strip layouts (``"ends"``, ``"every_k_models"``, ``"dense"``, ``"fig4"``,
 ``"weak"``) give each strip the control it would have alone (:mod:`.strip`).
 Every other Gruber or side-overlap point that is seen, except those of the
@@ -769,14 +772,14 @@ def _block_roles(
 
         gy = np.asarray(pre.gruber_y_mm, dtype=np.float64)
         n_rows = gy.size
-        outer = []
+        sides = [lay.n * n_rows + s for s in range(lay.n - 1)]
+        outer = [sides[0], sides[-1]]  # without Gruber rows: the outer side overlaps
         if n_rows:
             # Plan position of each Gruber row across the block: image y is to
             # the left of each strip's own flight.
             sign = np.where(lay.reversed, 1.0, -1.0)
             cross = lay.offsets[:, None] + sign[:, None] * gy[None, :] * pre.scale_m_per_mm
             outer = [int(np.argmin(cross[0])), (lay.n - 1) * n_rows + int(np.argmax(cross[-1]))]
-        sides = [lay.n * n_rows + s for s in range(lay.n - 1)]
         if layout == "perimeter":
             assign(sorted({*range(0, lay.m, every), last}), outer, ControlType.FULL)
             assign([0, last], sides, ControlType.FULL)
