@@ -114,7 +114,16 @@ from .results import (
     StripModel,
     StripResult,
 )
-from .simulate import PRESETS, SimulatedStrip, SimulationTruth, StripPreset, simulate_strip
+from .simulate import (
+    PRESETS,
+    BlockStrip,
+    SimulatedBlock,
+    SimulatedStrip,
+    SimulationTruth,
+    StripPreset,
+    simulate_block,
+    simulate_strip,
+)
 from .strip.chaining import form_strip
 from .strip.densify import (
     choose_photo_step,
@@ -130,6 +139,7 @@ from .strip.scaling import scale_ratios, scale_ratios_distance, scale_ratios_z
 __all__ = [
     "PRESETS",
     "AccuracyStatistics",
+    "BlockStrip",
     "BlunderOptions",
     "BrownDistortion",
     "BundleResult",
@@ -165,6 +175,7 @@ __all__ = [
     "ScaleTransfer",
     "SimilarityResult",
     "SimilarityTransform",
+    "SimulatedBlock",
     "SimulatedStrip",
     "SimulationTruth",
     "StraightLine",
@@ -228,6 +239,7 @@ __all__ = [
     "schut_from_opk",
     "select_kind_auto",
     "similarity_from_points",
+    "simulate_block",
     "simulate_strip",
     "skew",
     "tolerance_verdicts",

@@ -1,4 +1,4 @@
-"""``stripaero simulate``: write a ready project of a simulated strip."""
+"""``stripaero simulate``: write a ready project of a simulated strip or block."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import click
 
 from .options import DOCS_EPILOG, common_options, echo_progress, echo_result
 
-__all__ = ["CAMERA_NAMES", "CONTROL_LAYOUTS", "PRESET_NAMES", "simulate"]
+__all__ = ["BLOCK_CONTROL_LAYOUTS", "CAMERA_NAMES", "CONTROL_LAYOUTS", "PRESET_NAMES", "simulate"]
 
 PRESET_NAMES = ("film", "drone", "corridor")
 """Names of :data:`strip_aerotri.simulate.PRESETS` (listed here so that --help
@@ -22,6 +22,11 @@ CAMERA_NAMES = ("film88", "film152", "film210", "ff35", "apsc16", "oneinch")
 
 CONTROL_LAYOUTS = ("ends", "fig4", "every_k_models", "dense", "weak")
 """The simulator's control layouts (listed here for --help)."""
+
+BLOCK_CONTROL_LAYOUTS = ("perimeter", "corners")
+"""The control layouts of blocks only (a block takes the strip layouts too)."""
+
+FLIGHTS = ("serpentine", "same")
 
 
 @click.command(epilog=DOCS_EPILOG, short_help="Write a simulated project to try the tool.")
@@ -102,7 +107,28 @@ CONTROL_LAYOUTS = ("ends", "fig4", "every_k_models", "dense", "weak")
     type=click.IntRange(min=3),
     default=12,
     show_default=True,
-    help="Number of photos.",
+    help="Number of photos (of each strip of a block).",
+)
+@click.option(
+    "--strips",
+    type=click.IntRange(min=1),
+    default=1,
+    show_default=True,
+    help="Number of parallel strips: 2 or more write a block ([[strips]] tables).",
+)
+@click.option(
+    "--side-overlap",
+    type=click.FloatRange(20.0, 60.0),
+    default=None,
+    metavar="PCT",
+    help="With --strips: side overlap of adjacent strips in percent (default 30).",
+)
+@click.option(
+    "--flight",
+    type=click.Choice(FLIGHTS),
+    default=None,
+    help="With --strips: every other strip flown the other way (serpentine, the "
+    "default) or all strips in the same direction.",
 )
 @click.option(
     "--crs",
@@ -129,10 +155,10 @@ CONTROL_LAYOUTS = ("ends", "fig4", "every_k_models", "dense", "weak")
 @click.option(
     "--control",
     "control_layout",
-    type=click.Choice(CONTROL_LAYOUTS),
-    default="ends",
-    show_default=True,
-    help="Control layout.",
+    type=click.Choice(CONTROL_LAYOUTS + BLOCK_CONTROL_LAYOUTS),
+    default=None,
+    help="Control layout (default: ends for a strip, perimeter for a block; perimeter "
+    "and corners are for blocks, the others give each strip its own control).",
 )
 @click.option(
     "--polynomial",
@@ -161,15 +187,18 @@ def simulate(
     control_blunders: int,
     out: Path,
     photos: int,
+    strips: int,
+    side_overlap: float | None,
+    flight: str | None,
     crs: str,
     heading: float,
     seed: int,
     noise_um: float | None,
-    control_layout: str,
+    control_layout: str | None,
     polynomial: str | None,
     force: bool,
 ) -> None:
-    """Write a project of a simulated strip of PRESET to the folder --out.
+    """Write a project of a simulated strip or block of PRESET to the folder --out.
 
     PRESET is "film" (1:8000 wide-angle film, 60 % overlap), "drone" (1-inch
     sensor at 120 m, 80 % overlap) or "corridor" (film with a straight road
@@ -181,12 +210,20 @@ def simulate(
     height points between, R4's strip layout). The folder then holds
     strip.toml, image_points.csv and control.csv, ready for `stripaero run`.
 
+    With --strips N (2 or more) the project is a block of N parallel strips
+    of --photos photos each, --side-overlap percent apart, flown --flight
+    serpentine or same; the points of each side overlap are observed on the
+    photos of both strips, and the default control runs around the block's
+    perimeter ("perimeter"; "corners": four corners and heights across the
+    middle).
+
     \b
     Examples:
       stripaero simulate film --out demo
       stripaero simulate corridor --out road --photos 20 --crs EPSG:2180 --seed 3
       stripaero simulate --camera ff35 --overlap 80 --height-m 150 --tilt-deg 2.5 \\
           --kappa-deg 3 --noise-um 5 --photos 60 --control fig4 --out drone
+      stripaero simulate drone --strips 4 --photos 15 --side-overlap 40 --out block
       stripaero run demo/strip.toml
     """
     existing = [name for name in PROJECT_FILES if (out / name).exists()]
@@ -202,9 +239,9 @@ def simulate(
         raise OutputError(f"--out: '{out}' is a file, not a folder")
 
     from ..errors import ConfigError
-    from ..simulate import camera_preset, simulate_strip
+    from ..simulate import camera_preset, simulate_block, simulate_strip
 
-    flight = {
+    camera_flight = {
         "--overlap": overlap,
         "--height-m": height_m,
         "--tilt-deg": tilt_deg,
@@ -213,11 +250,34 @@ def simulate(
     }
     if (preset is None) == (camera is None):
         raise click.UsageError("give either PRESET or --camera")
-    if camera is None and any(v is not None for v in flight.values()):
-        given = next(k for k, v in flight.items() if v is not None)
+    if camera is None and any(v is not None for v in camera_flight.values()):
+        given = next(k for k, v in camera_flight.items() if v is not None)
         raise click.UsageError(f"{given} describes the flight of --camera, not of a preset")
+    block = strips >= 2
+    if not block:
+        for given, value in (("--side-overlap", side_overlap), ("--flight", flight)):
+            if value is not None:
+                raise click.UsageError(f"{given} describes a block: give --strips 2 or more")
+        if control_layout in BLOCK_CONTROL_LAYOUTS:
+            raise click.UsageError(
+                f"--control {control_layout} is for a block: give --strips 2 or more"
+            )
+    elif line or (preset is not None and preset.lower() == "corridor" and line is None):
+        raise click.UsageError(
+            "a block has no straight road: --line and the corridor preset are for one "
+            "strip (--no-line turns the corridor's road off)"
+        )
+    layout = control_layout or ("perimeter" if block else "ends")
     what = preset.lower() if preset is not None else f"{camera} ({long_side})"
-    echo_progress(f"simulating a {what} strip of {photos} photos (seed {seed})")
+    if block:
+        side = 30.0 if side_overlap is None else side_overlap
+        pattern = flight or "serpentine"
+        echo_progress(
+            f"simulating a {what} block of {strips} strips x {photos} photos, {side:g} % side "
+            f"overlap, {pattern} flight (seed {seed})"
+        )
+    else:
+        echo_progress(f"simulating a {what} strip of {photos} photos (seed {seed})")
     try:
         if camera is not None:
             film = camera.lower().startswith("film")
@@ -235,18 +295,30 @@ def simulate(
             )
         else:
             chosen = preset.lower()
-        sim = simulate_strip(
-            photos,
-            preset=chosen,
-            crs=crs if crs.lower() != "local" else "local",
-            heading_deg=heading,
-            seed=seed,
-            image_noise_mm=None if noise_um is None or camera is not None else noise_um / 1000.0,
-            control=control_layout,
-            line=line if camera is None else None,
-            image_blunders=image_blunders,
-            control_blunders=control_blunders,
-        )
+        common = {
+            "preset": chosen,
+            "crs": crs if crs.lower() != "local" else "local",
+            "heading_deg": heading,
+            "seed": seed,
+            "image_noise_mm": (
+                None if noise_um is None or camera is not None else noise_um / 1000.0
+            ),
+            "control": layout,
+            "image_blunders": image_blunders,
+            "control_blunders": control_blunders,
+        }
+        if block:
+            extra = {"line": False} if camera is None and line is False else {}
+            sim = simulate_block(
+                strips,
+                photos,
+                side_overlap=side / 100.0,
+                flight=pattern,
+                **common,
+                **extra,
+            )
+        else:
+            sim = simulate_strip(photos, line=line if camera is None else None, **common)
     except ValueError as exc:
         raise ConfigError(f"simulate {what}: {exc}") from exc
     poly: int | str | None = (
@@ -255,9 +327,16 @@ def simulate(
     toml_path = sim.write_project(out, polynomial=poly)
     obs = sim.observations
     kinds = [k.value for k in sim.control.kind]
-    echo_result(
-        f"wrote {toml_path}: {obs.n_photos} photos, {obs.n_points} points, "
-        f"{len(kinds) - kinds.count('check')} control and {kinds.count('check')} check points"
-        + (f", {len(sim.lines)} straight line(s)" if sim.lines else "")
-    )
+    counts = f"{len(kinds) - kinds.count('check')} control and {kinds.count('check')} check points"
+    if block:
+        shared = min(len(sim.common_points(s, s + 1)) for s in range(strips - 1))
+        echo_result(
+            f"wrote {toml_path}: {strips} strips, {obs.n_photos} photos, {obs.n_points} points "
+            f"(at least {shared} common to each pair of adjacent strips), {counts}"
+        )
+    else:
+        echo_result(
+            f"wrote {toml_path}: {obs.n_photos} photos, {obs.n_points} points, {counts}"
+            + (f", {len(sim.lines)} straight line(s)" if sim.lines else "")
+        )
     echo_result(f"run it with: stripaero run {toml_path}")

@@ -1,0 +1,161 @@
+"""The package's shape, as docs/architecture.md draws it.
+
+Each folder or top-level module sits on one layer of the processing chain and
+imports only from its own layer or below (at module level, and inside
+functions too); no module imports another in a cycle; and no function is
+longer than :data:`MAX_CODE_LINES` lines of code unless its docstring says
+why (a paragraph starting with ``Length:``).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).parents[1] / "src" / "strip_aerotri"
+
+#: The layers of docs/architecture.md, lowest first.
+LAYERS: dict[str, int] = {
+    **dict.fromkeys(
+        [
+            "_typing",
+            "_stats",
+            "_rows",
+            "_version",
+            "errors",
+            "options",
+            "observations",
+            "blunders",
+        ],
+        0,
+    ),
+    **dict.fromkeys(["geometry", "geodesy", "frames", "interior", "plausibility"], 1),
+    "simulate": 1,
+    "results": 2,
+    "strip": 3,
+    "ground": 4,
+    "bundle": 5,
+    "pipeline": 6,
+    **dict.fromkeys(["project", "report", "importers"], 7),
+    "cli": 8,
+    "__init__": 9,
+}
+
+MAX_CODE_LINES = 120
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = path
+    return out
+
+
+def _part(module: str) -> str:
+    """The folder or top-level module of a module ("__init__" for the package)."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def _imports(module: str, path: Path, modules: dict[str, Path]) -> tuple[set[str], set[str]]:
+    """Modules of the package imported at module level (not under TYPE_CHECKING)
+    and anywhere at all."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    package = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
+
+    def targets(node: ast.AST) -> set[str]:
+        found = set()
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[: len(package) - (node.level - 1)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target.split(".")[0] == "strip_aerotri":
+                for alias in node.names:
+                    candidate = f"{target}.{alias.name}"
+                    found.add(candidate if candidate in modules else target)
+        elif isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.split(".")[0] == "strip_aerotri"}
+        return found
+
+    top: set[str] = set()
+    for node in tree.body:
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            continue
+        top |= targets(node)
+    anywhere = set().union(*(targets(node) for node in ast.walk(tree)))
+    return top, anywhere
+
+
+def test_every_part_has_a_layer():
+    assert sorted({_part(m) for m in _modules()} - set(LAYERS)) == []
+
+
+def test_no_module_imports_a_higher_layer():
+    modules = _modules()
+    upward = [
+        f"{module} -> {target}"
+        for module, path in modules.items()
+        for target in _imports(module, path, modules)[1]
+        if target in modules and LAYERS[_part(target)] > LAYERS[_part(module)]
+    ]
+    assert upward == []
+
+
+def test_no_import_cycle():
+    modules = _modules()
+    edges = {m: _imports(m, p, modules)[0] & set(modules) - {m} for m, p in modules.items()}
+    state: dict[str, int] = {}  # 1 on the current path, 2 done
+    cycles = []
+
+    def visit(module: str, path: list[str]) -> None:
+        state[module] = 1
+        for target in sorted(edges[module]):
+            if state.get(target) == 1:
+                cycles.append(" -> ".join([*path[path.index(target) :], target]))
+            elif target not in state:
+                visit(target, [*path, target])
+        state[module] = 2
+
+    for module in sorted(modules):
+        if module not in state:
+            visit(module, [module])
+    assert cycles == []
+
+
+def _long_functions() -> list[str]:
+    found = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            doc = ast.get_docstring(node) or ""
+            first = node.body[0]
+            has_doc = isinstance(first, ast.Expr) and isinstance(
+                getattr(first, "value", None), ast.Constant
+            )
+            start = first.end_lineno + 1 if has_doc else first.lineno
+            code_lines = node.end_lineno - start + 1
+            if code_lines > MAX_CODE_LINES and "Length:" not in doc:
+                where = path.relative_to(PACKAGE)
+                found.append(f"{where}:{node.lineno} {node.name}: {code_lines} lines")
+    return found
+
+
+def test_no_long_function_without_a_reason():
+    assert _long_functions() == []
+
+
+@pytest.mark.parametrize("text", ["def f():\n" + "    x = 1\n" * (MAX_CODE_LINES + 1)])
+def test_the_length_rule_can_fail(tmp_path, monkeypatch, text):
+    (tmp_path / "strip_aerotri").mkdir()
+    (tmp_path / "strip_aerotri" / "long.py").write_text(text)
+    monkeypatch.setattr(__import__(__name__), "PACKAGE", tmp_path / "strip_aerotri")
+    assert [line.split()[1] for line in _long_functions()] == ["f:"]
