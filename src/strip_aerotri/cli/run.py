@@ -5,7 +5,9 @@ from __future__ import annotations
 import math
 import time
 import warnings
+from collections.abc import Collection, Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -18,13 +20,17 @@ from .options import (
     project_arg,
 )
 
+if TYPE_CHECKING:  # the numerical modules are imported when the command runs
+    from ..project.loader import Project
+    from ..results import StripResult
+
 __all__ = ["output_folder", "run"]
 
 DEFAULT_OUTPUT = "out"
 """Result folder (inside the project folder) when neither --out nor [output] directory is given."""
 
 
-def output_folder(project, out: Path | None) -> Path:
+def output_folder(project: Project, out: Path | None) -> Path:
     """The result folder of a run and its checks against the project's inputs.
 
     ``--out`` (relative to the current folder) wins over ``[output] directory``
@@ -52,7 +58,7 @@ def output_folder(project, out: Path | None) -> Path:
     return target
 
 
-def _check_replaceable(target: Path, inputs) -> None:
+def _check_replaceable(target: Path, inputs: Iterable[Path]) -> None:
     """Refuse early (before adjusting) what :class:`~strip_aerotri.io.ResultFolder` refuses."""
     from ..report.files import RESULT_MARKER, OutputError
 
@@ -104,7 +110,7 @@ def _tolerance_verdict(report_json: bytes | None) -> str | None:
     return head + f"all {len(judged)} judged criteria met" + tail
 
 
-def _echo_details(result) -> None:
+def _echo_details(result: StripResult) -> None:
     """Per-pair and per-model figures on stderr with ``-v``."""
     strip = result.strip
     rel = strip.relative
@@ -124,7 +130,7 @@ def _echo_details(result) -> None:
         echo_progress(f"{stage}: {seconds:.2f} s", level=1)
 
 
-def _report_name(names) -> str | None:
+def _report_name(names: Collection[str]) -> str | None:
     """The human-readable report among the output file names."""
     for preferred in ("report.html", "report.md"):
         if preferred in names:

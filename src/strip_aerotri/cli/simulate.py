@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from .options import DOCS_EPILOG, common_options, echo_progress, echo_result
+
+if TYPE_CHECKING:  # the simulator is imported when the command runs
+    from ..simulate import StripPreset
 
 __all__ = ["CAMERA_NAMES", "CONTROL_LAYOUTS", "PRESET_NAMES", "simulate"]
 
@@ -218,6 +222,7 @@ def simulate(
         raise click.UsageError(f"{given} describes the flight of --camera, not of a preset")
     what = preset.lower() if preset is not None else f"{camera} ({long_side})"
     echo_progress(f"simulating a {what} strip of {photos} photos (seed {seed})")
+    chosen: StripPreset | str
     try:
         if camera is not None:
             film = camera.lower().startswith("film")
@@ -234,6 +239,7 @@ def simulate(
                 line=bool(line),
             )
         else:
+            assert preset is not None  # PRESET or --camera, checked above
             chosen = preset.lower()
         sim = simulate_strip(
             photos,
