@@ -8,6 +8,7 @@ import numpy.typing as npt
 ArrayLike = npt.ArrayLike
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
+Int8Array = npt.NDArray[np.int8]
 BoolArray = npt.NDArray[np.bool_]
 
-__all__ = ["ArrayLike", "BoolArray", "FloatArray", "IntArray"]
+__all__ = ["ArrayLike", "BoolArray", "FloatArray", "Int8Array", "IntArray"]

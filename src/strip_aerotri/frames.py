@@ -397,7 +397,7 @@ class ProjectedWorkFrame(WorkFrame):
             self.grid_scale = float(crs.scale_factor(centre)[0])
         s, c = np.sin(azimuth), np.cos(azimuth)
         # columns: work X and Y axes in grid (east, north); X at azimuth A0, Y to its left
-        self.grid_from_work = np.array([[s, -c, 0.0], [c, s, 0.0], [0.0, 0.0, 1.0]])
+        self.grid_from_work: FloatArray = np.array([[s, -c, 0.0], [c, s, 0.0], [0.0, 0.0, 1.0]])
 
     def to_work(self, xyh: FloatArray) -> FloatArray:
         """Grid (E, N, H) -> tangent plane at the centre of the net.
@@ -412,7 +412,7 @@ class ProjectedWorkFrame(WorkFrame):
         """
         d_en = (xyh[:, :2] - self.centre) / self.grid_scale
         if np.isinf(self.radius):
-            grid = np.column_stack([d_en, xyh[:, 2]])
+            grid: FloatArray = np.column_stack([d_en, xyh[:, 2]])
         else:
             r = self.radius
             dist = np.hypot(d_en[:, 0], d_en[:, 1])

@@ -25,14 +25,14 @@ See ``docs/geodesy.md`` for the two routes to the ground and the gotchas.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple, overload
 
 import numpy as np
 
 from strip_aerotri.errors import ConfigError, GeometryError
 
 if TYPE_CHECKING:
-    from pyproj import CRS, Transformer
+    from pyproj import CRS, Proj, Transformer
 
     from strip_aerotri._typing import ArrayLike, FloatArray
 
@@ -130,7 +130,9 @@ def _run(transformer: Transformer, columns: tuple[FloatArray, ...], what: str) -
     from pyproj.exceptions import ProjError
 
     try:
-        out = transformer.transform(*columns, errcheck=True)
+        # the stubs overload transform() on two, three or four coordinate
+        # arrays; an unpacked tuple of unknown length matches none of them
+        out = transformer.transform(*columns, errcheck=True)  # type: ignore[call-overload]
     except ProjError as exc:
         raise GeometryError(f"pyproj could not {what}: {exc}") from exc
     return np.stack([np.asarray(o, dtype=np.float64) for o in out], axis=-1)
@@ -258,6 +260,7 @@ class GroundCRS:
         if self._base is None:
             return None
         ell = self._base.ellipsoid
+        assert ell is not None  # a projected or geographic CRS has one (__init__)
         return EllipsoidParameters(float(ell.semi_major_metre), float(ell.inverse_flattening))
 
     @property
@@ -281,15 +284,23 @@ class GroundCRS:
             )
         return self._base
 
+    @overload
+    def _transformer(self, key: Literal["proj"]) -> Proj: ...
+
+    @overload
+    def _transformer(self, key: str) -> Transformer: ...
+
     def _transformer(self, key: str) -> Transformer:
         from pyproj import CRS, Proj, Transformer
 
-        cached = self._cache.get(key)
+        cached: Transformer | None = self._cache.get(key)
         if cached is not None:
             return cached
         base = self._require_geodesy()
         crs3d = base.to_3d()
-        geodetic3d = crs3d.geodetic_crs.to_3d()
+        geodetic = crs3d.geodetic_crs
+        assert geodetic is not None  # projected or geographic (__init__)
+        geodetic3d = geodetic.to_3d()
         if key in ("geocentric", "geodetic2ecef"):
             geocentric = self._cache.get("_geocentric_crs")
             if geocentric is None:
@@ -314,7 +325,9 @@ class GroundCRS:
         """Radians per unit of the geodetic CRS's angular axes (1 degree for most)."""
         factor = self._cache.get("_angle_unit")
         if factor is None:
-            axis = self._require_geodesy().geodetic_crs.axis_info[0]
+            geodetic = self._require_geodesy().geodetic_crs
+            assert geodetic is not None  # projected or geographic (__init__)
+            axis = geodetic.axis_info[0]
             factor = float(axis.unit_conversion_factor)
             self._cache["_angle_unit"] = factor
         return factor
@@ -367,7 +380,8 @@ class GroundCRS:
 
         transformer = self._transformer(key)
         try:
-            out = transformer.transform(
+            # two or three unpacked columns: see _run
+            out = transformer.transform(  # type: ignore[call-overload]
                 *np.moveaxis(arr, -1, 0), direction="INVERSE", errcheck=True
             )
         except ProjError as exc:

@@ -117,7 +117,7 @@ def mm_from_pixel(
 # --------------------------------------------------------------------------- flight axes
 
 # Rows: image (x', y') of the method as combinations of sensor (x, y).
-_FLIGHT_MATRICES = {
+_FLIGHT_MATRICES: dict[FlightDirection, FloatArray] = {
     FlightDirection.PLUS_X: np.array([[1.0, 0.0], [0.0, 1.0]]),
     FlightDirection.MINUS_X: np.array([[-1.0, 0.0], [0.0, -1.0]]),
     FlightDirection.PLUS_Y: np.array([[0.0, 1.0], [-1.0, 0.0]]),
@@ -561,7 +561,8 @@ def apply_fiducial_transforms(
     arr = _as_xy(xy)
     index: IntArray = np.asarray(photo, dtype=np.intp).reshape(-1)
     params = np.stack([f.parameters for f in fits])[index]  # (K, 2, 3)
-    return params[:, :, 0] + np.einsum("kij,kj->ki", params[:, :, 1:], arr)
+    corrected: FloatArray = params[:, :, 0] + np.einsum("kij,kj->ki", params[:, :, 1:], arr)
+    return corrected
 
 
 def reduce_image_coordinates(

@@ -15,7 +15,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
+from ._typing import ArrayLike, BoolArray, FloatArray, Int8Array, IntArray
 from .options import DEFAULT_LINE_WEIGHT
 
 __all__ = [
@@ -195,7 +195,7 @@ class ControlPoints:
     source_line: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
 
     @cached_property
-    def _kind_code(self) -> np.ndarray:
+    def _kind_code(self) -> Int8Array:
         """``kind`` as small integers (the position in ControlType), read-only:
         the masks below are array comparisons, not a Python pass per point."""
         try:
@@ -210,17 +210,24 @@ class ControlPoints:
     def uses_xy(self) -> BoolArray:
         """True where X and Y enter the adjustment (full and plan points)."""
         code = self._kind_code
-        return (code == _KIND_CODE[ControlType.FULL]) | (code == _KIND_CODE[ControlType.PLAN])
+        mask: BoolArray = (code == _KIND_CODE[ControlType.FULL]) | (
+            code == _KIND_CODE[ControlType.PLAN]
+        )
+        return mask
 
     @property
     def uses_h(self) -> BoolArray:
         """True where H enters the adjustment (full and height points)."""
         code = self._kind_code
-        return (code == _KIND_CODE[ControlType.FULL]) | (code == _KIND_CODE[ControlType.HEIGHT])
+        mask: BoolArray = (code == _KIND_CODE[ControlType.FULL]) | (
+            code == _KIND_CODE[ControlType.HEIGHT]
+        )
+        return mask
 
     @property
     def is_check(self) -> BoolArray:
-        return self._kind_code == _KIND_CODE[ControlType.CHECK]
+        mask: BoolArray = self._kind_code == _KIND_CODE[ControlType.CHECK]
+        return mask
 
 
 @dataclass(frozen=True)

@@ -203,7 +203,7 @@ def observed_with_sigma(
 
 
 def _weights(
-    values: FloatArray | None,
+    values: ArrayLike | None,
     sigma: ArrayLike | None,
     shape: tuple[int, ...],
     name: str,
@@ -444,7 +444,8 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
         v = v.copy()
         u[:, i6, i6] *= 1.0 + lam
         v[:, i3, i3] *= 1.0 + lam
-    v_inv = np.linalg.inv(v)
+    # float64 in, float64 out (the stubs say floating)
+    v_inv: FloatArray = np.linalg.inv(v)  # type: ignore[assignment]
     y = normals.w @ v_inv[prob.point]
     pair_blocks = y[prob.pair_k1] @ np.swapaxes(normals.w[prob.pair_k2], 1, 2)
     entries = np.concatenate([u.ravel(), -pair_blocks.ravel()])
@@ -533,7 +534,8 @@ def _free_motions(prob: _Problem, state: _State) -> list[str]:
     if g.shape[0] == 0:
         return list(_MOTION_NAMES)
     r_factor = np.zeros((7, 7))
-    r_part = np.linalg.qr(g, mode="r")  # same singular values, at most 7 x 7
+    # same singular values, at most 7 x 7; mode "r" gives R alone (the stubs say QRResult)
+    r_part: FloatArray = np.linalg.qr(g, mode="r")  # type: ignore[assignment]
     r_factor[: r_part.shape[0]] = r_part
     _, sv, vt = np.linalg.svd(r_factor)
     rank = int(np.count_nonzero(sv > _DATUM_RANK_TOL * sv[0]))

@@ -431,7 +431,8 @@ class _Sets:
         lost = np.bincount(obs.point[self.obs_rejected | self.rejected_before], minlength=p) > 0
         need = np.where(lost, 3, 2)
         has_start = np.all(np.isfinite(inp.points0), axis=1)
-        return has_start & ((rays >= need) | ((rays >= need - 1) & full))
+        used: BoolArray = has_start & ((rays >= need) | ((rays >= need - 1) & full))
+        return used
 
     def reject(self, picks: list[tuple[str, int]]) -> None:
         for kind, k in picks:

@@ -10,11 +10,16 @@ one line on stderr and exit code 1 at the group's boundary (``cli/main.py``).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import click
 
 from ..options import FlightDirection
-from .options import common_options, echo_result, echo_warning
+from .options import F, common_options, echo_result, echo_warning
+
+if TYPE_CHECKING:  # the formats are imported when a command runs (a fast --help)
+    from ..importers.common import ImportedProject, ImportOptions
+    from ..importers.odm import PixelCamera
 
 __all__ = ["import_group"]
 
@@ -48,7 +53,7 @@ def _int_list(
     return numbers
 
 
-def _shared(func):
+def _shared(func: F) -> F:
     """The options of every format."""
     decorators = [
         click.option(
@@ -116,7 +121,7 @@ def _shared(func):
     return func
 
 
-def _camera_options(func):
+def _camera_options(func: F) -> F:
     """Focal length, pixel size, image size and principal point of a digital camera."""
     decorators = [
         click.option(
@@ -174,7 +179,7 @@ def _read_photo_order(path: Path | None) -> tuple[tuple[str, ...], ...] | None:
     return tuple(strips)
 
 
-def _options(kw: dict):
+def _options(kw: dict[str, Any]) -> ImportOptions:
     from ..importers.common import ImportOptions
 
     direction = kw.pop("flight_direction")
@@ -190,7 +195,15 @@ def _options(kw: dict):
     )
 
 
-def _camera(kw: dict, required: bool):
+@overload
+def _camera(kw: dict[str, Any], required: Literal[True]) -> PixelCamera: ...
+
+
+@overload
+def _camera(kw: dict[str, Any], required: bool) -> PixelCamera | None: ...
+
+
+def _camera(kw: dict[str, Any], required: bool) -> PixelCamera | None:
     from ..importers.odm import PixelCamera
 
     values = [
@@ -202,7 +215,9 @@ def _camera(kw: dict, required: bool):
     return PixelCamera.from_options(*values)
 
 
-def _pixel_size_mm(kw: dict, width: int | None = None) -> float | None:
+def _pixel_size_mm(kw: dict[str, Any], width: int | None = None) -> float | None:
+    pixel_um: float | None
+    sensor: float | None
     pixel_um, sensor = kw.pop("pixel_um", None), kw.pop("sensor_width_mm", None)
     if pixel_um is not None and sensor is not None:
         from ..errors import ConfigError
@@ -219,7 +234,7 @@ def _pixel_size_mm(kw: dict, width: int | None = None) -> float | None:
     return None
 
 
-def _write(project, out: Path, force: bool) -> None:
+def _write(project: ImportedProject, out: Path, force: bool) -> None:
     from ..importers.common import write_project
 
     path = write_project(project, out, force=force)
@@ -275,7 +290,7 @@ def uav_fc300x(
     duplicate_tol_mm: float,
     out: Path,
     force: bool,
-    **kw,
+    **kw: Any,  # the options of _shared and _camera_options, as click parsed them
 ) -> None:
     """The FC300X UAV block: image point files, GCP_UTM.txt and cal.cal in DATA_DIR.
 
@@ -321,7 +336,7 @@ def odm(
     pose_crs: str | None,
     out: Path,
     force: bool,
-    **kw,
+    **kw: Any,  # the options of _shared and _camera_options, as click parsed them
 ) -> None:
     """OpenDroneMap / WebODM gcp_list.txt (GCPs and their pixel positions).
 
@@ -408,7 +423,7 @@ def colmap(
     max_error_px: float | None,
     out: Path,
     force: bool,
-    **kw,
+    **kw: Any,  # the options of _shared and _camera_options, as click parsed them
 ) -> None:
     """COLMAP text model (cameras.txt, images.txt, points3D.txt) in MODEL_DIR, with GCPs.
 
@@ -484,7 +499,7 @@ def patb(
     ori_file: Path | None,
     out: Path,
     force: bool,
-    **kw,
+    **kw: Any,  # the options of _shared and _camera_options, as click parsed them
 ) -> None:
     """PATB image coordinates (IM_FILE) and control points (CON_FILE).
 
@@ -528,7 +543,7 @@ def metashape(
     no_attitudes: bool,
     out: Path,
     force: bool,
-    **kw,
+    **kw: Any,  # the options of _shared and _camera_options, as click parsed them
 ) -> None:
     """Agisoft Metashape markers XML (MARKERS_FILE), optionally with its OPK camera text.
 
@@ -581,7 +596,7 @@ def pix4d(
     no_attitudes: bool,
     out: Path,
     force: bool,
-    **kw,
+    **kw: Any,  # the options of _shared and _camera_options, as click parsed them
 ) -> None:
     """Pix4D marks (MARKS_FILE) and GCP coordinates (GCP_FILE), optionally external parameters.
 

@@ -10,6 +10,7 @@ boundary; ``--debug`` adds the Python traceback.
 from __future__ import annotations
 
 import traceback
+from typing import Any
 
 import click
 
@@ -27,11 +28,17 @@ class StripaeroGroup(click.Group):
     """A click group that gives each invocation fresh :class:`Settings` and
     turns exceptions into one line on stderr and exit code 1."""
 
-    def make_context(self, info_name, args, parent=None, **extra):
+    def make_context(
+        self,
+        info_name: str | None,
+        args: list[str],
+        parent: click.Context | None = None,
+        **extra: Any,
+    ) -> click.Context:
         extra.setdefault("obj", Settings())
         return super().make_context(info_name, args, parent=parent, **extra)
 
-    def invoke(self, ctx: click.Context):
+    def invoke(self, ctx: click.Context) -> Any:  # what the command returns, as in click
         try:
             return super().invoke(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):

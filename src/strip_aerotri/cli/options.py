@@ -10,8 +10,10 @@ invocation.  Nothing here imports the numerical modules, so ``stripaero
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, TypeVar
 
 import click
 
@@ -31,6 +33,9 @@ __all__ = [
 ]
 
 PROG = "stripaero"
+
+#: The function a click decorator takes and returns.
+F = TypeVar("F", bound=Callable[..., Any])
 
 DOCS_EPILOG = (
     "Documentation: docs/cli.md (commands), docs/project-file.md (strip.toml and CSVs), "
@@ -76,7 +81,7 @@ def settings(ctx: click.Context | None = None) -> Settings:
     return found
 
 
-def _add_count(name: str):
+def _add_count(name: str) -> Callable[[click.Context, click.Parameter, int], None]:
     def callback(ctx: click.Context, param: click.Parameter, value: int) -> None:
         if value:
             obj = settings(ctx)
@@ -116,7 +121,7 @@ debug_opt = click.option(
 )
 
 
-def common_options(func):
+def common_options(func: F) -> F:
     """Apply ``-v``, ``-q`` and ``--debug`` to a command."""
     return verbose_opt(quiet_opt(debug_opt(func)))
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 import math
 import time
 import warnings
+from collections.abc import Collection
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -17,6 +19,9 @@ from .options import (
     echo_warning,
     project_arg,
 )
+
+if TYPE_CHECKING:  # the numerical modules are imported when the command runs
+    from ..results import StripResult
 
 __all__ = ["run"]
 
@@ -47,7 +52,7 @@ def _tolerance_verdict(report_json: bytes | None) -> str | None:
     return head + f"all {len(judged)} judged criteria met" + tail
 
 
-def _echo_details(result) -> None:
+def _echo_details(result: StripResult) -> None:
     """Per-pair and per-model figures on stderr with ``-v``."""
     strip = result.strip
     rel = strip.relative
@@ -67,7 +72,7 @@ def _echo_details(result) -> None:
         echo_progress(f"{stage}: {seconds:.2f} s", level=1)
 
 
-def _report_name(names) -> str | None:
+def _report_name(names: Collection[str]) -> str | None:
     """The human-readable report among the output file names."""
     for preferred in ("report.html", "report.md"):
         if preferred in names:

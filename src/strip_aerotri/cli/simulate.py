@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from .options import DOCS_EPILOG, common_options, echo_progress, echo_result
+
+if TYPE_CHECKING:  # the simulator is imported when the command runs
+    from ..simulate import StripPreset
 
 __all__ = ["BLOCK_CONTROL_LAYOUTS", "CAMERA_NAMES", "CONTROL_LAYOUTS", "PRESET_NAMES", "simulate"]
 
@@ -278,6 +282,7 @@ def simulate(
         )
     else:
         echo_progress(f"simulating a {what} strip of {photos} photos (seed {seed})")
+    chosen: StripPreset | str
     try:
         if camera is not None:
             film = camera.lower().startswith("film")
@@ -294,6 +299,7 @@ def simulate(
                 line=bool(line),
             )
         else:
+            assert preset is not None  # PRESET or --camera, checked above
             chosen = preset.lower()
         common = {
             "preset": chosen,

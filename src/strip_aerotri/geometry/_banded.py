@@ -20,9 +20,11 @@ inverse when that is larger.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
-from .._typing import FloatArray, IntArray
+from .._typing import BoolArray, FloatArray, IntArray
 
 #: Unknowns per block (at least the band; a power of two).
 BLOCK = 64
@@ -83,9 +85,10 @@ class BandedNormals:
         np.clip(slots, 0, size - 1, out=slots)  # padding paired afar: its product is 0
         product = value[:, :, None] * value[:, None, :]
         product *= lower
-        blocks = np.bincount(slots.reshape(-1), product.reshape(-1), minlength=size).reshape(
-            n_blocks, 2, BLOCK, BLOCK
-        )
+        # with weights bincount gives float64 (the stubs say intp throughout)
+        blocks: FloatArray = np.bincount(  # type: ignore[assignment]
+            slots.reshape(-1), product.reshape(-1), minlength=size
+        ).reshape(n_blocks, 2, BLOCK, BLOCK)
         diagonal = blocks[:, 0].copy()
         below = blocks[:, 1].copy()  # below[J] = N[block J + 1, block J]; the last is 0
         diag = np.diagonal(diagonal, axis1=1, axis2=2).reshape(-1).copy()
@@ -119,6 +122,7 @@ class BandedNormals:
     def _solve_padded(self, rhs: FloatArray) -> FloatArray:
         """Solve with the equilibrated matrix, rhs (k_padded,) by position."""
         inv, below = self._inverse_diagonal, self._factor_below
+        assert inv is not None  # only a definite matrix is solved (cond is inf otherwise)
         n_blocks = inv.shape[0]
         b = rhs.reshape(n_blocks, BLOCK)
         y = np.empty_like(b)
@@ -145,6 +149,7 @@ class BandedNormals:
         """Blocks of the equilibrated matrix's inverse on the diagonal and
         below it (Takahashi's recursion, :func:`_block_takahashi`)."""
         if self._selected is None:
+            assert self._inverse_diagonal is not None  # as _solve_padded
             self._selected = _block_takahashi(self._inverse_diagonal, self._factor_below)
         return self._selected
 
@@ -157,10 +162,11 @@ class BandedNormals:
         # padding has value 0: any slot it gets is multiplied by 0
         slots, _ = _slots(p[:, :, None], p[:, None, :])
         np.clip(slots, 0, z.size - 1, out=slots)
-        return np.einsum("nij,ni,nj->n", np.take(z, slots), w, w)
+        forms: FloatArray = np.einsum("nij,ni,nj->n", np.take(z, slots), w, w)
+        return forms
 
 
-def _slots(p_a: IntArray, p_b: IntArray) -> tuple[IntArray, np.ndarray]:
+def _slots(p_a: IntArray, p_b: IntArray) -> tuple[IntArray, BoolArray]:
     """Flat index, in blocks (n_blocks, 2, BLOCK, BLOCK) of the diagonal and of
     the one below it, of the entry (p_a, p_b) of a symmetric matrix (taken
     from the lower triangle of blocks: the pair is swapped when p_a's block
@@ -229,14 +235,16 @@ def _block_takahashi(
     return z_diagonal, z_below
 
 
-def _inverse_norm_1(solve, k: int, k_padded: int | None = None) -> float:
+def _inverse_norm_1(
+    solve: Callable[[FloatArray], FloatArray], k: int, k_padded: int | None = None
+) -> float:
     """Estimate of ``‖A⁻¹‖₁`` for a symmetric A from solves (Hager 1984, with
     Higham's 1988 alternating vector as a safeguard); a lower bound, as a rule
     within a factor 3 of the true value.  `solve` takes vectors of
     `k_padded` entries (default k), of which the first k are A's."""
     n = k if k_padded is None else k_padded
 
-    def solve_k(x):
+    def solve_k(x: FloatArray) -> FloatArray:
         padded = np.zeros(n)
         padded[:k] = x
         return solve(padded)[:k]

@@ -21,7 +21,8 @@ __all__ = ["collinearity_jacobians", "image_jacobian", "image_vectors", "project
 def image_vectors(centres: FloatArray, rotations: FloatArray, points: FloatArray) -> FloatArray:
     """``v = Rᵀ (X − S)`` of rays, each with its own photo: shapes (K, 3),
     (K, 3, 3), (K, 3) -> (K, 3)."""
-    return np.einsum("kji,kj->ki", rotations, points - centres)
+    vectors: FloatArray = np.einsum("kji,kj->ki", rotations, points - centres)
+    return vectors
 
 
 def project(

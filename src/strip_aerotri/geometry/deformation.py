@@ -520,12 +520,14 @@ class DeformationResult:
         if self.breakpoints is None:
             return np.zeros(0)
         norm = self.normalization
-        return norm.centre[0] + norm.half_extent * self.breakpoints
+        x: FloatArray = norm.centre[0] + norm.half_extent * self.breakpoints
+        return x
 
     @cached_property
     def _pieces(self) -> tuple[FloatArray, FloatArray]:
         # the spline's pieces in the power basis, set up once for every
-        # evaluation (the coefficients are read-only)
+        # evaluation (the coefficients are read-only); only over sections
+        assert self.breakpoints is not None  # evaluate() asks only then
         return _spline_pieces(self.kind, self.breakpoints, self.coefficients)
 
     def evaluate(self, xyz: ArrayLike) -> FloatArray:
@@ -624,11 +626,11 @@ def _solve(
     `design`: dense, or the nonzero entries of its rows (a spline over
     sections: a few of hundreds or thousands of columns, `order` its
     unknowns along the strip, :func:`_band_order`)."""
-    sparse = isinstance(design, RowSupport)
-    n_columns = design.n_columns if sparse else design.shape[1]
+    n_columns: int = design.n_columns if isinstance(design, RowSupport) else design.shape[1]
     if n_columns == 0:
         return np.zeros(0), observed.copy(), _Normals(np.asarray, 1.0, np.ones(len(observed)))
-    if sparse:
+    a_w: FloatArray | RowSupport
+    if isinstance(design, RowSupport):
         a_w = RowSupport(design.index, design.value / sigma[:, None], n_columns)
     else:
         a_w = design / sigma[:, None]
@@ -649,14 +651,19 @@ def _solve(
             stacklevel=3,
         )
     rhs = observed / sigma
-    if sparse:
-        normal_rhs = np.bincount(
+    # a_w is sparse exactly when the design is
+    normal_rhs: FloatArray
+    if isinstance(a_w, RowSupport):
+        # with weights bincount gives float64 (the stubs say intp throughout)
+        normal_rhs = np.bincount(  # type: ignore[assignment]
             a_w.index.ravel(), (a_w.value * rhs[:, None]).ravel(), minlength=n_columns
         )
-        x = normals.solve(normal_rhs)
+    else:
+        normal_rhs = a_w.T @ rhs
+    x = normals.solve(normal_rhs)
+    if isinstance(design, RowSupport):
         v = observed - np.einsum("nw,nw->n", design.value, x[design.index])
     else:
-        x = normals.solve(a_w.T @ rhs)
         v = observed - design @ x
     return x, v, normals
 
@@ -669,7 +676,8 @@ def _kinds3(kind: int | Sequence[int]) -> tuple[int, int, int]:
         raise ValueError(
             f"Expected polynomial `kind` to be 0, 1, 2, 3 or three of them, got {kind!r}"
         )
-    seq = tuple(kind)
+    # a bool kind (an int to the checker) gets here and tuple() raises TypeError
+    seq = tuple(kind)  # type: ignore[arg-type]
     if len(seq) != 3:
         raise ValueError(f"Expected `kind` to be an int or three ints (X, Y, Z), got {kind!r}")
     kx, ky, kz = (_check_kind(k) for k in seq)
@@ -827,7 +835,8 @@ class _FitInputs(NamedTuple):
 
     @property
     def n(self) -> int:
-        return self.pts.shape[0]
+        n: int = self.pts.shape[0]
+        return n
 
     @property
     def used(self) -> BoolArray:
@@ -1157,7 +1166,9 @@ def _fit_y(
         if isinstance(plan_rows, RowSupport):
             rows[0] = _dense(plan_rows)
         design_y = np.concatenate(
-            [np.concatenate(rows, axis=0), np.concatenate(extra, axis=0)], axis=1
+            # every entry of rows is dense now (the plan rows just above)
+            [np.concatenate(rows, axis=0), np.concatenate(extra, axis=0)],  # type: ignore[arg-type]
+            axis=1,
         )
     else:  # the plan control's rows alone, sparse over sections
         design_y = plan_rows

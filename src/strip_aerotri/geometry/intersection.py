@@ -7,12 +7,16 @@ units of the given base.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Sequence
+from typing import NamedTuple, TypeAlias
 
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray
 from ..options import IntersectionMethod
+
+#: Three component arrays x, y, z: the rows of a (3, n) array, or a sequence.
+Components: TypeAlias = FloatArray | Sequence[FloatArray]
 
 __all__ = [
     "Intersection",
@@ -37,7 +41,9 @@ class Intersection(NamedTuple):
     parallax: FloatArray
 
 
-def _rows(base: ArrayLike, left: ArrayLike, right: ArrayLike):
+def _rows(
+    base: ArrayLike, left: ArrayLike, right: ArrayLike
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     left = np.asarray(left, dtype=np.float64)
     right = np.asarray(right, dtype=np.float64)
     if left.ndim != 2 or left.shape[1] != 3 or right.shape != left.shape:
@@ -106,7 +112,9 @@ def _midpoint_along_y(b: FloatArray, l: FloatArray, p: FloatArray) -> Intersecti
     return Intersection(points, parallax)
 
 
-def midpoint_along_y_components(b, l, p):
+def midpoint_along_y_components(
+    b: Components, l: Components, p: Components
+) -> tuple[tuple[FloatArray, FloatArray, FloatArray], FloatArray]:
     """J(12) with ``j = (0, 1, 0)`` written out: ``D = (l × p)_y``,
     ``k_l = (b × p)_y / D``, ``q' = b·(l × p) / D``.
 

@@ -20,13 +20,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._typing import ArrayLike, FloatArray
+from .._typing import ArrayLike, FloatArray, IntArray
 from .collinearity import image_jacobian, image_vectors
 
 __all__ = ["centre_information", "ray_information"]
 
 
-def _image_jacobian(points, centres, rotations, principal_distance):
+def _image_jacobian(
+    points: FloatArray, centres: FloatArray, rotations: FloatArray, principal_distance: float
+) -> tuple[FloatArray, FloatArray]:
     """d(x, y)/d(frame coordinates of the point) of each ray, (n, 2, 3), and
     the image-system vectors v (n, 3)."""
     v = image_vectors(centres, rotations, points)
@@ -68,10 +70,19 @@ def ray_information(
     )
     jac = jac @ np.swapaxes(rotations, 1, 2)
     sigma = np.broadcast_to(np.asarray(sigma_mm, dtype=np.float64), points.shape[:1])
-    return np.swapaxes(jac, 1, 2) @ jac / (sigma**2)[:, None, None]
+    information: FloatArray = np.swapaxes(jac, 1, 2) @ jac / (sigma**2)[:, None, None]
+    return information
 
 
-def _resection_normals(points, centres, rotations, principal_distance, sigma_mm, group, n_groups):
+def _resection_normals(
+    points: ArrayLike,
+    centres: ArrayLike,
+    rotations: ArrayLike,
+    principal_distance: float,
+    sigma_mm: ArrayLike,
+    group: ArrayLike,
+    n_groups: int,
+) -> tuple[FloatArray, IntArray]:
     """6 x 6 normal matrices (centre, attitude about the image axes) of space
     resections on fixed points, one per group, and the rays per group."""
     points = np.asarray(points, dtype=np.float64)
@@ -94,7 +105,7 @@ def _resection_normals(points, centres, rotations, principal_distance, sigma_mm,
     return normal, np.bincount(group, minlength=n_groups)
 
 
-def _resection_covariance(normal, counts):
+def _resection_covariance(normal: FloatArray, counts: IntArray) -> FloatArray:
     """Inverse 6 x 6 normal matrices, NaN where fewer than three rays or
     ill-conditioned."""
     out = np.full(normal.shape, np.nan)

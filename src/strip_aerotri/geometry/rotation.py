@@ -524,7 +524,8 @@ def _schut_from_matrix(m: FloatArray) -> FloatArray:
             "at 180 deg. Use Schut parameters for near-identity (relative) rotations only, "
             "and angles or rotation vectors for absolute orientations."
         )
-    return vee / (1.0 + trace)[..., np.newaxis]
+    schut: FloatArray = vee / (1.0 + trace)[..., np.newaxis]
+    return schut
 
 
 def schut_from_matrix(matrix: ArrayLike) -> FloatArray:
@@ -607,7 +608,8 @@ def matrix_from_rotvec(rotvec: ArrayLike) -> FloatArray:
     k = skew(v)
     first = np.sinc(t / np.pi)  # sin(t)/t
     second = 0.5 * np.sinc(t / (2.0 * np.pi)) ** 2  # (1 - cos t)/t^2
-    return np.eye(3) + first[..., None, None] * k + second[..., None, None] * (k @ k)
+    matrix: FloatArray = np.eye(3) + first[..., None, None] * k + second[..., None, None] * (k @ k)
+    return matrix
 
 
 def _quaternion_from_matrix(m: FloatArray) -> FloatArray:
@@ -659,7 +661,8 @@ def _quaternion_from_matrix(m: FloatArray) -> FloatArray:
     pivot = np.argmax(np.stack([r00, r11, r22, trace], axis=-1), axis=-1)
     q = np.take_along_axis(cand, pivot[..., None, None], axis=-2)[..., 0, :]
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return np.where(q[..., 3:] < 0, -q, q)
+    quaternion: FloatArray = np.where(q[..., 3:] < 0, -q, q)
+    return quaternion
 
 
 def rotvec_from_matrix(matrix: ArrayLike) -> FloatArray:

@@ -44,6 +44,7 @@ from .rotation import matrix_from_rotvec, skew
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
+    import scipy.sparse.linalg as spl
 
 __all__ = [
     "LineCondition",
@@ -100,13 +101,15 @@ class UnitTransforms:
         """Rows ``xyz`` (n, 3) of units ``unit`` (n,) in the work frame."""
         unit = np.asarray(unit, dtype=np.intp)
         d = np.asarray(xyz, dtype=np.float64) - self.centroid[unit]
-        rotated = np.einsum("nij,nj->ni", self.rotation[unit], d)
-        return self.translation[unit] + self.scale[unit, None] * rotated
+        rotated: FloatArray = np.einsum("nij,nj->ni", self.rotation[unit], d)
+        placed: FloatArray = self.translation[unit] + self.scale[unit, None] * rotated
+        return placed
 
     def apply_to_rotation(self, unit: ArrayLike, rotations: ArrayLike) -> FloatArray:
         """Image -> unit rotations (n, 3, 3) turned into image -> work frame."""
         unit = np.asarray(unit, dtype=np.intp)
-        return self.rotation[unit] @ np.asarray(rotations, dtype=np.float64)
+        turned: FloatArray = self.rotation[unit] @ np.asarray(rotations, dtype=np.float64)
+        return turned
 
 
 @dataclass(frozen=True)
@@ -278,7 +281,7 @@ class _Problem:
         )
         self.offset = obs.xyz - self.centroid[obs.unit]
         self.observed = np.bincount(obs.point, minlength=n_points) > 0
-        self.line_rows = [line.point.shape[0] for line in self.lines]
+        self.line_rows: list[int] = [line.point.shape[0] for line in self.lines]
         line_point = (
             np.concatenate([line.point for line in self.lines]) if self.lines else np.zeros(0, int)
         )
@@ -323,7 +326,8 @@ class _Problem:
     @property
     def n_observations(self) -> int:
         n_line = sum(self.line_rows)
-        return 3 * self.obs.unit.shape[0] + int(self.control_given.sum()) + n_line
+        n_rows: int = self.obs.unit.shape[0]
+        return 3 * n_rows + int(self.control_given.sum()) + n_line
 
     @property
     def n_unknowns(self) -> int:
@@ -331,7 +335,14 @@ class _Problem:
 
 
 class _State:
-    def __init__(self, scale, rotation, translation, points, line_ab):
+    def __init__(
+        self,
+        scale: FloatArray,
+        rotation: FloatArray,
+        translation: FloatArray,
+        points: FloatArray,
+        line_ab: FloatArray,
+    ) -> None:
         self.scale = scale
         self.rotation = rotation
         self.translation = translation
@@ -348,7 +359,7 @@ def _predict(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
     return y, v
 
 
-def _line_terms(prob: _Problem, st: _State, k: int):
+def _line_terms(prob: _Problem, st: _State, k: int) -> tuple[FloatArray, FloatArray, float]:
     line = prob.lines[k]
     xyz = st.points[line.point]
     a, b = st.line_ab[k]
@@ -375,7 +386,15 @@ class _Normals:
     ``V⁻¹`` (P, 3, 3; 0 for unobserved points), ``reduce = N_zp V⁻¹``
     (sparse), the per-row ``N_zp`` blocks (n_r, 7, 3) and ``g_p`` (P, 3)."""
 
-    def __init__(self, s_matrix, rhs, v_inv, reduce, n_zp_rows, g_p):
+    def __init__(
+        self,
+        s_matrix: sp.csc_matrix,
+        rhs: FloatArray,
+        v_inv: FloatArray,
+        reduce: sp.csr_matrix,
+        n_zp_rows: FloatArray,
+        g_p: FloatArray,
+    ) -> None:
         self.s_matrix = s_matrix
         self.rhs = rhs
         self.v_inv = v_inv
@@ -456,7 +475,7 @@ def _normals(prob: _Problem, st: _State) -> _Normals:
     return _Normals(s_matrix, rhs, v_inv, reduce, n_bp_r, g_p)
 
 
-def _factor(s_matrix: sp.csc_matrix):
+def _factor(s_matrix: sp.csc_matrix) -> tuple[spl.SuperLU, FloatArray]:
     """SuperLU factors of the reduced matrix, Jacobi-scaled; raises
     GeometryError when it is singular (units not tied to the control)."""
     import scipy.sparse as sp
@@ -480,8 +499,9 @@ def _factor(s_matrix: sp.csc_matrix):
     return lu, scale
 
 
-def _solve_reduced(lu, scale, rhs):
-    return scale * lu.solve(scale * rhs)
+def _solve_reduced(lu: spl.SuperLU, scale: FloatArray, rhs: FloatArray) -> FloatArray:
+    solution: FloatArray = scale * lu.solve(scale * rhs)
+    return solution
 
 
 def adjust_units(
@@ -609,6 +629,7 @@ def adjust_units(
     if not converged:
         normals = _normals(prob, st)
         lu, scale = _factor(normals.s_matrix)
+    assert normals is not None  # set in the loop, or just above
     # Converged: the normal equations of the last step serve the statistics
     # (the state moved by less than the tolerance since).
     return _result(prob, st, normals, lu, scale, cost, iterations, converged, statistics)
@@ -618,7 +639,8 @@ def _back_substitute(prob: _Problem, normals: _Normals, dz: FloatArray) -> Float
     """Point corrections ``V⁻¹ (g_p − N_pz dz)`` (P, 3)."""
     dz_rows = dz.reshape(-1, N_UNIT)[prob.row_block]  # (n_r, 7)
     coupled = prob.to_point @ np.einsum("rki,rk->ri", normals.n_zp_rows, dz_rows)
-    return np.einsum("pij,pj->pi", normals.v_inv, normals.g_p - coupled)
+    corrections: FloatArray = np.einsum("pij,pj->pi", normals.v_inv, normals.g_p - coupled)
+    return corrections
 
 
 def _step(prob: _Problem, st: _State, dz: FloatArray, dp: FloatArray, step: float) -> _State:
@@ -637,7 +659,15 @@ def _step(prob: _Problem, st: _State, dz: FloatArray, dp: FloatArray, step: floa
 
 
 def _result(
-    prob, st, normals, lu, scale, cost, iterations, converged, statistics=True
+    prob: _Problem,
+    st: _State,
+    normals: _Normals,
+    lu: spl.SuperLU,
+    scale: FloatArray,
+    cost: float,
+    iterations: int,
+    converged: bool,
+    statistics: bool = True,
 ) -> SimultaneousResult:
     obs = prob.obs
     _, v = _predict(prob, st)
@@ -709,7 +739,15 @@ def _result(
     )
 
 
-def _line_cofactors(prob, st, normals, lu, scale, k, xyz) -> FloatArray:
+def _line_cofactors(
+    prob: _Problem,
+    st: _State,
+    normals: _Normals,
+    lu: spl.SuperLU,
+    scale: FloatArray,
+    k: int,
+    xyz: FloatArray,
+) -> FloatArray:
     """Cofactors of the adjusted ``e = Y − a − b X`` of line k's points (m,).
 
     With ``d_p = (−b, 1, 0)`` the derivative by the point and ``d_z`` by the
@@ -733,13 +771,16 @@ def _line_cofactors(prob, st, normals, lu, scale, k, xyz) -> FloatArray:
     u[col0] += 1.0  # − d_z: d_z = −1 at a
     u[col0 + 1] += xyz[:, 0]  # and −X at b
     x = scale[:, None] * lu.solve(scale[:, None] * u)
-    return np.einsum("mi,mi->m", d_p, vd) + np.einsum("zm,zm->m", u, x)
+    cofactors: FloatArray = np.einsum("mi,mi->m", d_p, vd) + np.einsum("zm,zm->m", u, x)
+    return cofactors
 
 
 _COFACTOR_CHUNK = 256  # points per block of right-hand sides (memory: 3 x 256 x n_reduced)
 
 
-def point_cofactors(normals: _Normals, lu, scale: FloatArray, points: IntArray) -> FloatArray:
+def point_cofactors(
+    normals: _Normals, lu: spl.SuperLU, scale: FloatArray, points: IntArray
+) -> FloatArray:
     """Cofactor blocks (C, 3, 3) of adjusted points at the solution:
     ``Q_pp = V⁻¹ + V⁻¹ N_pz S⁻¹ N_zp V⁻¹``, solved in chunks of points."""
     n_c = points.shape[0]

@@ -75,7 +75,7 @@ def index_of(ids: Sequence[str], names: Sequence[str]) -> IntArray:
     if missed:
         wanted = frozenset(names[k] for k in missed)
         hits = np.flatnonzero(np.fromiter(map(wanted.__contains__, ids), bool, n))
-        found = {ids[i]: int(i) for i in hits}
+        found = {ids[int(i)]: int(i) for i in hits}
         out[missed] = [found.get(names[k], -1) for k in missed]
     return out
 
@@ -218,7 +218,8 @@ def line_residuals(xyz: FloatArray) -> FloatArray:
     """Y residuals of points about their own best straight line Y = a + b X."""
     design = np.column_stack([np.ones(len(xyz)), xyz[:, 0]])
     coef, *_ = np.linalg.lstsq(design, xyz[:, 1], rcond=None)
-    return xyz[:, 1] - design @ coef
+    residuals: FloatArray = xyz[:, 1] - design @ coef
+    return residuals
 
 
 def intersect_unmodelled(
@@ -242,7 +243,8 @@ def intersect_unmodelled(
     ndarray, shape (P, 3)
     """
     obs = strip.observations
-    missing = ~np.isfinite(points_work).all(axis=1)
+    # with an axis, all() of a 2-D array is an array (the stubs add np.bool)
+    missing: BoolArray = ~np.isfinite(points_work).all(axis=1)  # type: ignore[assignment]
     if strip.rejected_points:
         # a point whose determinations failed the tie test stays out
         missing &= ~np.isin(np.asarray(obs.point_ids), list(strip.rejected_points))

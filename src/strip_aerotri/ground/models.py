@@ -44,7 +44,7 @@ from ..frames import WorkFrame, make_work_frame
 from ..geodesy import GroundCRS
 from ..geometry.precision import centre_information, ray_information
 from ..geometry.rotation import opk_from_matrix
-from ..geometry.similarity import _validate_control_geometry
+from ..geometry.similarity import SimilarityTransform, _validate_control_geometry
 from ..geometry.simultaneous import (
     LineCondition,
     SimultaneousResult,
@@ -53,7 +53,7 @@ from ..geometry.simultaneous import (
     adjust_units,
 )
 from ..observations import ControlPoints, LineSpec
-from ..options import BlunderOptions, GroundOptions
+from ..options import BlunderAction, BlunderOptions, GroundOptions
 from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .common import control_detectability, index_of, intersect_unmodelled
 from .polynomials import adjust_to_ground
@@ -65,7 +65,9 @@ _CHI2_3_MEDIAN = 2.365973884375338  # median of chi-square with 3 degrees of fre
 _PASS_TOLERANCE_M = 1e-5
 
 
-def _weights(strip: StripModel, start_transform, sigma_fallback: float):
+def _weights(
+    strip: StripModel, start_transform: SimilarityTransform, sigma_fallback: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Work-frame information matrices of the determinations (n, 3, 3) and of
     the left and right centre of each model (M, 3, 3) each."""
     obs = strip.observations
@@ -123,7 +125,8 @@ class _ModelsProblem:
 
     @property
     def n_unknown_points(self) -> int:
-        return self.strip.observations.n_points + self.strip.centres.shape[0]
+        n_centres: int = self.strip.centres.shape[0]
+        return self.strip.observations.n_points + n_centres
 
 
 class _ModelsSolution(NamedTuple):
@@ -200,7 +203,7 @@ def _prepare(
                 sections=1,
                 max_iterations=options.max_iterations,
             ),
-            blunders=BlunderOptions(action="off"),
+            blunders=BlunderOptions(action=BlunderAction.OFF),
         )
     rows = start.control_index
     check = start.is_check
@@ -419,7 +422,14 @@ def _snoop(
     )
 
 
-def _check_breaks(strip, idx, use_xy, use_z, ids, target) -> None:
+def _check_breaks(
+    strip: StripModel,
+    idx: IntArray,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    ids: tuple[str, ...],
+    target: FloatArray,
+) -> None:
     """Each run of models between breaks (a model sharing no tie point with
     the one before: its scale was not transferred) must carry itself on its
     own control, J's rules for a similarity (two plan and three height
@@ -450,7 +460,14 @@ def _check_breaks(strip, idx, use_xy, use_z, ids, target) -> None:
         )
 
 
-def _feasible(strip, idx, target, use_xy, use_z, ids) -> bool:
+def _feasible(
+    strip: StripModel,
+    idx: IntArray,
+    target: FloatArray,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    ids: tuple[str, ...],
+) -> bool:
     """True when the control left satisfies J's rules for the similarity."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StripAerotriWarning)
@@ -623,7 +640,8 @@ def _mean_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
     u, _, vt = np.linalg.svd(0.5 * (a + b))
     d = np.sign(np.linalg.det(u @ vt))
     u[:, :, 2] *= d[:, None]
-    return u @ vt
+    mean: FloatArray = u @ vt
+    return mean
 
 
 def _products(

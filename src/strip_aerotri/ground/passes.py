@@ -16,7 +16,7 @@ matters (:func:`_fit_with_roll`).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 
@@ -135,7 +135,7 @@ def solve_passes(
     use_z: BoolArray,
     line_keep: list[BoolArray],
     previous: Solution | None,
-    polynomial: int | str,
+    polynomial: int | Literal["auto"],
 ) -> Solution:
     """Similarity and polynomial with the plan/height iteration (passes).
 
@@ -228,7 +228,7 @@ def _fit_with_roll(
     use_xy: BoolArray,
     use_z: BoolArray,
     line_keep: list[BoolArray],
-    polynomial: int | str,
+    polynomial: int | Literal["auto"],
     act_ids: list[str],
 ) -> tuple[SimilarityResult, DeformationResult | None, KindSelection | None, float, FloatArray]:
     """The polynomials on the similarity turned by ``roll`` about the strip's
@@ -302,7 +302,9 @@ def _plan_scale(model_xyz: FloatArray, work_xyz: FloatArray) -> float:
     return float(np.sqrt(spread_work / spread_model))
 
 
-def _carried(sim: SimilarityTransform, work_from, work_to) -> SimilarityTransform | None:
+def _carried(
+    sim: SimilarityTransform, work_from: WorkFrame, work_to: WorkFrame
+) -> SimilarityTransform | None:
     """A strip -> work similarity carried from one work frame to another (the
     map between the frames from four probe points); None if it cannot be."""
     if work_to is work_from:
@@ -340,7 +342,18 @@ def _azimuth_step(vector_work: FloatArray) -> float:
     return -float(np.arctan2(vector_work[1], vector_work[0]))
 
 
-def _fit_polynomial(kind, sections, xyz, target, use_xy, use_z, exp_xy, exp_z, lines, ids):
+def _fit_polynomial(
+    kind: int | Literal["auto"],
+    sections: int,
+    xyz: FloatArray,
+    target: FloatArray,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    exp_xy: FloatArray,
+    exp_z: FloatArray,
+    lines: list[StraightLine],
+    ids: list[str],
+) -> tuple[DeformationResult | None, KindSelection | None]:
     if kind == "auto":
         selection = select_kind_auto(
             xyz,

@@ -25,6 +25,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import replace
+from typing import Literal
 
 import numpy as np
 
@@ -226,6 +227,7 @@ def _snoop(
     kept: list[Rejection] = []
     n_control_obs = int(2 * use_xy.sum() + use_z.sum())
     polynomial = options.polynomial
+    assert polynomial is not None  # GroundOptions puts the default for None
     sol = solve_passes(problem, use_xy, use_z, line_keep, None, polynomial)
     while blunders.testing:
         flagged = {(k.point, k.component) for k in kept}
@@ -386,7 +388,7 @@ def _products(
     )
 
 
-def _lower_kinds(kind: int | str) -> list[int | str]:
+def _lower_kinds(kind: int | Literal["auto"]) -> list[int | Literal["auto"]]:
     """The polynomial type asked for, then every lower type down to the
     similarity alone ("auto" chooses by itself)."""
     if kind == "auto":

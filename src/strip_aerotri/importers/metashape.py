@@ -107,9 +107,9 @@ def read_opk_text(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str |
     crs = None
     for line in text.splitlines():
         if line.lstrip().startswith("#"):
-            m = _EPSG.search(line)
-            if m:
-                crs = f"EPSG:{m.group(1)}"
+            match = _EPSG.search(line)
+            if match:
+                crs = f"EPSG:{match.group(1)}"
     delimiter = "\t" if "\t" in text else ("," if "," in text.split("\n", 5)[-1] else None)
     rows = split_rows(path, text, delimiter=delimiter)
     rows.require_fields(7, "label X Y Z omega phi kappa")
@@ -172,8 +172,10 @@ class MarkersXml:
             self.notes.append(f"{path.name}: {len(chunks)} chunks, the first one read")
         chunk = chunks[0]
         cams = {c.get("id"): c.get("label") for c in chunk.iter("camera") if c.get("label")}
-        markers = {}
+        # marker id -> label; looked up by the optional marker_id of a location
+        markers: dict[str | None, str] = {}
         refs = []
+        label: str | None  # a marker's label; below, the label a location refers to
         for m in self._find_all(chunk, "markers", "marker"):
             mid, label = m.get("id"), (m.get("label") or "").strip()
             if mid is None or not label:
@@ -184,7 +186,9 @@ class MarkersXml:
                 refs.append(
                     (label, ref.get("x"), ref.get("y"), ref.get("z"), ref.get("enabled", "true"))
                 )
-        photos, points, xy = [], [], []
+        photos: list[str] = []
+        points: list[str] = []
+        xy: list[tuple[str | None, str | None]] = []
         for frame_markers in chunk.iter("frame"):
             for m in frame_markers.iter("marker"):
                 label = markers.get(m.get("marker_id"))
@@ -203,7 +207,12 @@ class MarkersXml:
         self.images = ImageTable(
             photo_id(photos),
             np.asarray(points, str),
-            line_floats([v for pair in xy for v in pair], where, "x y").reshape(-1, 2),
+            # line_floats reports a missing (None) value as not a number
+            line_floats(
+                [v for pair in xy for v in pair],  # type: ignore[misc]
+                where,
+                "x y",
+            ).reshape(-1, 2),
         )
         if not refs:
             raise ConfigError(f"{path}: no marker has a <reference> (ground coordinates)")
@@ -215,7 +224,9 @@ class MarkersXml:
             )
         labels = np.asarray([r[0] for r in refs], str)
         values = line_floats(
-            [v for r in refs for v in r[1:4]], f"{path}: marker reference", "x y z"
+            [v for r in refs for v in r[1:4]],  # type: ignore[misc]  # as the locations' x y
+            f"{path}: marker reference",
+            "x y z",
         ).reshape(-1, 3)
         kind = np.where([r[4].lower() in ("true", "1") for r in refs], "full", "check")
         self.control = ControlTable(labels, values, kind, typed=True)
@@ -335,6 +346,7 @@ def import_metashape(
         frame, cam, distortion = camera.frame(), Camera(camera.focal_mm), None
         notes.append("camera as given on the command line; no distortion")
     elif xml.camera is not None:
+        assert xml.frame is not None  # _sensor gives the camera and its frame together
         frame, cam, distortion = xml.frame, xml.camera, xml.distortion
     else:
         raise ConfigError(

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._typing import IntArray
 from ..errors import ConfigError
 from .common import (
     Camera,
@@ -91,7 +92,9 @@ def read_im(path: Path, units: str = "mm") -> ImageTable:
         raise ConfigError(f"{path}: no point record (expected photo, point x y ..., -99)")
     pts = rows.take(point_rows)
     xy = np.column_stack([to_floats(pts.column(1), pts, "x"), to_floats(pts.column(2), pts, "y")])
-    limit = np.flatnonzero(np.abs(xy).max(axis=1) > _MAX_MM) if units == "mm" else []
+    limit: IntArray | list[int] = (
+        np.flatnonzero(np.abs(xy).max(axis=1) > _MAX_MM) if units == "mm" else []
+    )
     if len(limit):
         k = int(limit[0])
         raise ConfigError(

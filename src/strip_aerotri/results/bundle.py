@@ -191,14 +191,16 @@ def _rms(values: FloatArray) -> FloatArray:
     """Root mean square over the rows (NaN for no rows)."""
     if values.shape[0] == 0:
         return np.full(values.shape[1:], np.nan)
-    return np.sqrt(np.mean(values**2, axis=0))
+    rms: FloatArray = np.sqrt(np.mean(values**2, axis=0))
+    return rms
 
 
 def _max_abs(values: FloatArray) -> FloatArray:
     """Largest absolute value over the rows (NaN for no rows)."""
     if values.shape[0] == 0:
         return np.full(values.shape[1:], np.nan)
-    return np.max(np.abs(values), axis=0)
+    largest: FloatArray = np.max(np.abs(values), axis=0)
+    return largest
 
 
 class _PhotoTests:
@@ -239,7 +241,8 @@ class _PhotoTests:
     @property
     def failed(self) -> BoolArray:
         """(G,) some component's ``|w|`` exceeds ``critical`` (NaN w never fails)."""
-        return np.any(np.abs(self.w) > self.critical, axis=1)
+        failed: BoolArray = np.any(np.abs(self.w) > self.critical, axis=1)
+        return failed
 
     @property
     def _used_residuals(self) -> FloatArray:

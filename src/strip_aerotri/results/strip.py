@@ -88,7 +88,8 @@ class RelativeOrientation:
 
     @property
     def n_pairs(self) -> int:
-        return self.base.shape[0]
+        n: int = self.base.shape[0]
+        return n
 
 
 @dataclass(frozen=True)
@@ -197,7 +198,8 @@ class StripModel:
 
     @property
     def n_models(self) -> int:
-        return self.scale.shape[0]
+        n: int = self.scale.shape[0]
+        return n
 
     @property
     def triangulated(self) -> np.ndarray:

@@ -38,7 +38,12 @@ from ..geometry.collinearity import image_vectors
 from ..geometry.intersection import intersect
 from ..geometry.rotation import matrix_from_rotvec, skew
 from ..observations import ImageObservations
-from ..options import DEFAULT_MAX_ITERATIONS, DEFAULT_MIN_BASE_TO_HEIGHT, StripOptions
+from ..options import (
+    DEFAULT_MAX_ITERATIONS,
+    DEFAULT_MIN_BASE_TO_HEIGHT,
+    BlunderOptions,
+    StripOptions,
+)
 from ..results import StripModel
 from .chaining import form_strip, pair_rows, tie_rows
 from .relative import relative_orientation
@@ -295,7 +300,14 @@ class Resection:
     residuals: FloatArray
 
 
-def _collinearity(xy, points, photo, c, centres, rotations):
+def _collinearity(
+    xy: FloatArray,
+    points: FloatArray,
+    photo: IntArray,
+    c: float,
+    centres: FloatArray,
+    rotations: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Image vectors v = Rᵀ (X − S), their v_z, and observed minus computed xy."""
     v = image_vectors(centres[photo], rotations[photo], points)
     w = v[:, 2]
@@ -460,7 +472,9 @@ class RayIntersection(NamedTuple):
     rms_distance: FloatArray
 
 
-def _solve_rays(c, d, idx, n_points, w):
+def _solve_rays(
+    c: FloatArray, d: FloatArray, idx: IntArray, n_points: int, w: FloatArray
+) -> tuple[FloatArray, IntArray]:
     proj = np.eye(3) - d[:, :, None] * d[:, None, :]  # I - d d^T
     normal = np.zeros((n_points, 3, 3))
     rhs = np.zeros((n_points, 3))
@@ -656,7 +670,7 @@ def form_strip_stepped(
     photo_step: int | Literal["auto"] = 1,
     min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT,
     all_rays: bool = True,
-    blunders=None,
+    blunders: BlunderOptions | None = None,
 ) -> StripModel:
     """Form the strip on every k-th photo and complete it (module notes).
 

@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._typing import ArrayLike, FloatArray
+from .._typing import ArrayLike, FloatArray, IntArray
 from ..options import ScaleTransfer
 
 __all__ = ["ScaleTransfer", "scale_ratios", "scale_ratios_distance", "scale_ratios_z"]
 
 
-def _prepare(previous: ArrayLike, new: ArrayLike, model: ArrayLike):
+def _prepare(
+    previous: ArrayLike, new: ArrayLike, model: ArrayLike
+) -> tuple[FloatArray, FloatArray, IntArray]:
     previous = np.asarray(previous, dtype=np.float64)
     new = np.asarray(new, dtype=np.float64)
     model = np.asarray(model, dtype=np.intp)
@@ -60,7 +62,8 @@ def scale_ratios_z(
     num = np.bincount(model, u * previous[:, 2], minlength=n_models)
     den = np.bincount(model, u * u, minlength=n_models)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
+        ratio: FloatArray = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
+        return ratio
 
 
 def scale_ratios_distance(
@@ -77,7 +80,8 @@ def scale_ratios_distance(
     total = np.bincount(model, ratio, minlength=n_models)
     count = np.bincount(model, minlength=n_models)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+        mean: FloatArray = np.where(count > 0, total / np.maximum(count, 1), np.nan)
+        return mean
 
 
 def scale_ratios(
