@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from .options import DOCS_EPILOG, common_options, echo_progress, echo_result
 
 if TYPE_CHECKING:  # the simulator is imported when the command runs
-    from ..simulate import StripPreset
+    from ..simulate import SimulatedStrip, StripPreset
 
 __all__ = ["BLOCK_CONTROL_LAYOUTS", "CAMERA_NAMES", "CONTROL_LAYOUTS", "PRESET_NAMES", "simulate"]
 
@@ -243,7 +243,7 @@ def simulate(
         raise OutputError(f"--out: '{out}' is a file, not a folder")
 
     from ..errors import ConfigError
-    from ..simulate import camera_preset, simulate_block, simulate_strip
+    from ..simulate import SimulatedBlock, camera_preset, simulate_block, simulate_strip
 
     camera_flight = {
         "--overlap": overlap,
@@ -301,7 +301,7 @@ def simulate(
         else:
             assert preset is not None  # PRESET or --camera, checked above
             chosen = preset.lower()
-        common = {
+        common: dict[str, Any] = {
             "preset": chosen,
             "crs": crs if crs.lower() != "local" else "local",
             "heading_deg": heading,
@@ -313,8 +313,9 @@ def simulate(
             "image_blunders": image_blunders,
             "control_blunders": control_blunders,
         }
+        sim: SimulatedStrip | SimulatedBlock
         if block:
-            extra = {"line": False} if camera is None and line is False else {}
+            extra: dict[str, Any] = {"line": False} if camera is None and line is False else {}
             sim = simulate_block(
                 strips,
                 photos,
@@ -334,7 +335,7 @@ def simulate(
     obs = sim.observations
     kinds = [k.value for k in sim.control.kind]
     counts = f"{len(kinds) - kinds.count('check')} control and {kinds.count('check')} check points"
-    if block:
+    if isinstance(sim, SimulatedBlock):
         shared = min(len(sim.common_points(s, s + 1)) for s in range(strips - 1))
         echo_result(
             f"wrote {toml_path}: {strips} strips, {obs.n_photos} photos, {obs.n_points} points "

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..observations import ControlPoints, ControlType
+from ..observations import ControlPoints, ControlType, ImageObservations
 from ._geodesy import _Geodesy
 from ._scene import _GRUBER
 from .cameras import StripPreset
@@ -152,7 +152,16 @@ def _control_points(
     )
 
 
-def _blunders(rng, observations, control, pre, n_image, size_mm, n_control, size_m):
+def _blunders(
+    rng: np.random.Generator,
+    observations: ImageObservations,
+    control: ControlPoints,
+    pre: StripPreset,
+    n_image: int,
+    size_mm: float | None,
+    n_control: int,
+    size_m: tuple[float, float],
+) -> tuple[ImageObservations, ControlPoints, tuple[int, ...], tuple[int, ...]]:
     """Gross errors added to the observations and the control (module notes);
     returns both and the rows changed."""
     obs = observations

@@ -74,7 +74,9 @@ class _Geodesy:
     frame: LocalFrame
 
     @classmethod
-    def build(cls, crs_text: str, centre_lonlat: tuple[float, float] | None, h0: float):
+    def build(
+        cls, crs_text: str, centre_lonlat: tuple[float, float] | None, h0: float
+    ) -> _Geodesy:
         from pyproj import CRS, Transformer
 
         if crs_text == _LOCAL:
@@ -95,6 +97,7 @@ class _Geodesy:
                     f"got {crs_text!r}"
                 )
             ell = crs.ellipsoid
+            assert ell is not None  # a horizontal CRS has one
             ellipsoid = (float(ell.semi_major_metre), float(ell.inverse_flattening))
             geodetic2crs = Transformer.from_crs(crs.geodetic_crs, crs, always_xy=True)
             centre = _area_centre(crs) if centre_lonlat is None else centre_lonlat

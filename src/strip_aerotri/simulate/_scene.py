@@ -31,7 +31,7 @@ class _Terrain:
     weight: FloatArray  # (K,), sum 1
 
     @classmethod
-    def random(cls, rng: np.random.Generator, preset: StripPreset, n_waves: int = 6):
+    def random(cls, rng: np.random.Generator, preset: StripPreset, n_waves: int = 6) -> _Terrain:
         direction = rng.uniform(0.0, 2.0 * np.pi, n_waves)
         wavelength = preset.relief_wavelength_m * rng.uniform(0.5, 1.5, n_waves)
         k = 2.0 * np.pi / wavelength
@@ -42,7 +42,10 @@ class _Terrain:
 
     def height(self, plan: FloatArray) -> FloatArray:
         """Ellipsoidal height (N,) at plan (east, north) (N, 2), metres."""
-        return self.mean + self.amplitude * (np.cos(plan @ self.wave.T + self.phase) @ self.weight)
+        heights: FloatArray = self.mean + self.amplitude * (
+            np.cos(plan @ self.wave.T + self.phase) @ self.weight
+        )
+        return heights
 
 
 def _projection_reach(
@@ -149,7 +152,10 @@ def _matrix_from_opk(opk: FloatArray) -> FloatArray:
     """Rx(omega) Ry(phi) Rz(kappa), radians, (..., 3) -> (..., 3, 3)."""
     from scipy.spatial.transform import Rotation
 
-    return Rotation.from_euler("XYZ", opk.reshape(-1, 3)).as_matrix().reshape(*opk.shape, 3)
+    matrices: FloatArray = (
+        Rotation.from_euler("XYZ", opk.reshape(-1, 3)).as_matrix().reshape(*opk.shape, 3)
+    )
+    return matrices
 
 
 def _rz(angle: float) -> FloatArray:
@@ -241,7 +247,7 @@ def _road_points(
     )
     steps = ((np.arange(k) + 0.5) / k) * pre.base_m
     s = (along[:-1, None] + steps[None, :]).ravel()
-    enu = offset + s[:, None] * direction
+    enu: FloatArray = offset + s[:, None] * direction
     for _ in range(5):  # dh/dU ~ 1: converges to far below a micrometre
         enh = geo.local2plan(enu)
         enu[:, 2] += terrain.height(enh[:, :2]) - enh[:, 2]

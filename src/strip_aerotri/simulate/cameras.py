@@ -13,7 +13,7 @@ import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 __all__ = ["CAMERAS", "PRESETS", "Camera", "StripPreset", "camera_preset"]
 
@@ -249,7 +249,8 @@ def camera_preset(
     scale = height / c  # m per mm
     base = (1.0 - forward_overlap) * fmt[0] * scale
     relief = 0.05 * height if relief_m is None else float(relief_m)
-    noise = (5.0 if film else 0.7 * cam.pixel_size_um) if noise_um is None else float(noise_um)
+    pixel_um = cam.pixel_size_um
+    noise = (5.0 if pixel_um is None else 0.7 * pixel_um) if noise_um is None else float(noise_um)
     gy = 0.33 * fmt[1]
     return StripPreset(
         name=f"{camera if isinstance(camera, str) else 'camera'}-{long_side}",
@@ -276,7 +277,7 @@ def camera_preset(
     )
 
 
-def _resolve_preset(preset: str | StripPreset, overrides: dict) -> StripPreset:
+def _resolve_preset(preset: str | StripPreset, overrides: dict[str, Any]) -> StripPreset:
     if isinstance(preset, StripPreset):
         base = preset
     elif isinstance(preset, str) and preset in PRESETS:

@@ -357,7 +357,7 @@ def simulate_strip(
     left = np.array([-math.cos(heading), math.sin(heading)])
     scale = pre.scale_m_per_mm
     base = pre.base_m
-    along = (np.arange(m) - 0.5 * (m - 1)) * base  # planned nadirs, metres
+    along = np.asarray((np.arange(m) - 0.5 * (m - 1)) * base, dtype=np.float64)  # nadirs, m
 
     # Photo centres and rotations.
     w, hw = pre.position_wander_m, pre.height_wander_m

@@ -231,5 +231,5 @@ def _toml_str(text: str) -> str:
     return '"' + "".join(out) + '"'
 
 
-def _toml_list(items: tuple[str, ...]) -> str:
+def _toml_list(items: Sequence[str]) -> str:
     return "[" + ", ".join(_toml_str(s) for s in items) + "]"
