@@ -403,3 +403,22 @@ def test_report_of_the_models_construction_and_control_detectability():
         ground_options=GroundOptions(polynomial=3),
     )
     assert build_report(j)["model_adjustment"] is None
+
+
+def test_pairs_and_models_named_by_their_photos_with_a_photo_step():
+    """With photo_step = 2 the models are formed by every second photo; the
+    report names each pair by its two photos and states the step."""
+    sim = simulate_strip(13, seed=3, preset="drone")
+    result = triangulate(sim.observations, sim.control, sim.crs, photo_step=2)
+    report = build_report(result)
+    labels = result.strip.model_labels
+    assert len(labels) == 6
+    for entry in (*report["pairs"], *report["models"]):
+        assert labels[entry["index"]] == f"pair {entry['left']}-{entry['right']}"
+    ids = sim.observations.photo_ids
+    assert (report["pairs"][1]["left"], report["pairs"][1]["right"]) == (ids[2], ids[4])
+    assert report["options"]["photo_step"] == 2
+    assert (
+        build_report(triangulate(sim.observations, sim.control, sim.crs))["options"]["photo_step"]
+        == 1
+    )

@@ -33,6 +33,15 @@ def _element_names(method: str) -> tuple[list[str], list[str]]:
     return ["b_y", "b_z", "a", "b", "c"], ["strip", "strip", "", "", ""]
 
 
+def _model_photos(result: StripResult) -> tuple[list[str], list[str]]:
+    """The left and the right photo of every pair (model): consecutive photos,
+    or every k-th one when the strip was formed with a photo step k."""
+    strip = result.strip
+    ids = strip.photo_ids
+    pos = strip.model_photo_positions
+    return [ids[i] for i in pos[:-1]], [ids[i] for i in pos[1:]]
+
+
 def _pairs(result: StripResult) -> list[dict[str, Any]]:
     strip = result.strip
     rel = strip.relative
@@ -41,12 +50,12 @@ def _pairs(result: StripResult) -> list[dict[str, Any]]:
     elements = np.asarray(rel.elements, dtype=np.float64)
     if method == "base":
         elements = np.degrees(elements)
-    ids = result.photo_ids
+    left, right = _model_photos(result)
     return [
         {
             "index": m,
-            "left": ids[m],
-            "right": ids[m + 1],
+            "left": left[m],
+            "right": right[m],
             "n_points": int(rel.n_points[m]),
             "iterations": int(rel.iterations[m]),
             "sigma0_um": json_float(rel.sigma0_um[m]),
@@ -63,7 +72,7 @@ def _models(result: StripResult) -> list[dict[str, Any]]:
     scale = float(result.ground.similarity.transform.scale)
     n_pts = np.bincount(np.asarray(strip.model), minlength=strip.n_models)
     tie_rms = np.asarray(strip.tie_rms, dtype=np.float64).reshape(-1, 3)
-    ids = result.photo_ids
+    left, right = _model_photos(result)
     out = []
     for m in range(strip.n_models):
         rms = tie_rms[m]
@@ -71,8 +80,8 @@ def _models(result: StripResult) -> list[dict[str, Any]]:
         out.append(
             {
                 "index": m,
-                "left": ids[m],
-                "right": ids[m + 1],
+                "left": left[m],
+                "right": right[m],
                 "n_points": int(n_pts[m]),
                 "scale": json_float(strip.scale[m]),
                 "scale_ratio": json_float(strip.scale_ratio[m]),
@@ -270,6 +279,13 @@ def _model_adjustment(result: StripResult) -> dict[str, Any] | None:
     }
 
 
+def _photo_step(result: StripResult) -> int:
+    """The step k of the photos that formed the models (1: every photo)."""
+    pos = result.strip.model_photo_positions
+    steps = np.unique(np.diff(pos))
+    return int(steps[0]) if steps.size == 1 else int(np.max(steps, initial=1))
+
+
 def _options(result: StripResult, project: Project | None) -> dict[str, Any]:
     strip_opt = result.strip.options
     construction = getattr(result.ground, "construction", None)
@@ -280,6 +296,7 @@ def _options(result: StripResult, project: Project | None) -> dict[str, Any]:
         "intersection": strip_opt.intersection,
         "scale_transfer": strip_opt.scale_transfer,
         "max_iterations": int(strip_opt.max_iterations),
+        "photo_step": _photo_step(result),
         "polynomial": int(result.ground.polynomial_kind)
         if result.ground.kind_selection is None
         else "auto",
