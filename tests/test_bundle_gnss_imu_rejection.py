@@ -44,7 +44,7 @@ def setup():
     rng = np.random.default_rng(7)
     xyz = sim.truth.photo_centres_crs + rng.normal(0.0, SIGMA_GNSS, (m, 3))
     # true omega, phi, kappa, image -> site axes ("local")
-    opk = Rotation.from_matrix(sim.truth.photo_rotations_local).as_euler("XYZ")
+    opk = Rotation.from_matrix(np.array(sim.truth.photo_rotations_local)).as_euler("XYZ")
     opk = opk + rng.normal(0.0, np.radians(SIGMA_IMU_DEG), (m, 3))
     return sim, result, xyz, opk
 
@@ -92,7 +92,7 @@ def test_clean_data_reject_nothing(setup, clean) -> None:
     # other noise draws of GNSS and IMU: no false alarm either
     sim = setup[0]
     m = sim.observations.n_photos
-    truth_opk = Rotation.from_matrix(sim.truth.photo_rotations_local).as_euler("XYZ")
+    truth_opk = Rotation.from_matrix(np.array(sim.truth.photo_rotations_local)).as_euler("XYZ")
     for seed in range(3):
         rng = np.random.default_rng(100 + seed)
         xyz = sim.truth.photo_centres_crs + rng.normal(0.0, SIGMA_GNSS, (m, 3))

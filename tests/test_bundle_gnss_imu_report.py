@@ -64,7 +64,7 @@ def strip(crs: str):
 
 def true_opk(sim) -> np.ndarray:
     """True omega, phi, kappa (rad), image -> site axes ("local" only)."""
-    return Rotation.from_matrix(sim.truth.photo_rotations_local).as_euler("XYZ")
+    return Rotation.from_matrix(np.array(sim.truth.photo_rotations_local)).as_euler("XYZ")
 
 
 def observations(sim, seed: int = 7):

@@ -149,7 +149,7 @@ def test_photos_csv_contract_and_angle_convention(utm):
     # scipy's intrinsic "XYZ" is that product (independent oracle).  The simulation's
     # truth is image -> ENU at the strip centre; the verticals differ by D/R < 0.05 deg.
     r_csv = Rotation.from_euler("XYZ", opk, degrees=True)
-    r_true = Rotation.from_matrix(sim.truth.photo_rotations_local)
+    r_true = Rotation.from_matrix(np.array(sim.truth.photo_rotations_local))
     angle = np.degrees((r_csv * r_true.inv()).magnitude())
     assert np.max(angle) < 0.2
 
