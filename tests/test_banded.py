@@ -27,14 +27,14 @@ def test_solve_redundancy_and_condition_equal_the_dense_path(n_sections):
     a = _spline_rows(n_sections, 8 * n_sections)
     support = row_support(a)
     order = deformation._band_order(3, n_sections)
-    banded = BandedNormals.from_rows(support.index, support.value, support.n_columns, order)
+    banded = BandedNormals.from_rows(support.columns, support.value, support.n_columns, order)
     assert banded is not None
     q, cond = _normal_inverse(a, support)
     b = np.random.default_rng(1).normal(size=a.shape[1])
     x = q @ b
     np.testing.assert_allclose(banded.solve(b), x, rtol=0, atol=1e-10 * np.abs(x).max())
     np.testing.assert_allclose(
-        1.0 - banded.quadratic_forms(support.index, support.value),
+        1.0 - banded.quadratic_forms(support.columns, support.value),
         _redundancy_numbers(a, q, support),
         rtol=0,
         atol=1e-10,
@@ -69,11 +69,11 @@ def test_singular_normals_are_refused_by_their_condition():
     a[:, 5] = 0.0  # an unknown no row observes: zero diagonal
     support = row_support(a)
     order = deformation._band_order(3, 200)
-    assert BandedNormals.from_rows(support.index, support.value, a.shape[1], order).cond == np.inf
+    assert BandedNormals.from_rows(support.columns, support.value, a.shape[1], order).cond == np.inf
     b = _spline_rows(200, 1600)
     b[:, 7] = b[:, 6]  # two unknowns that only move together
     support = row_support(b)
-    banded = BandedNormals.from_rows(support.index, support.value, b.shape[1], order)
+    banded = BandedNormals.from_rows(support.columns, support.value, b.shape[1], order)
     assert banded.cond > deformation.SINGULAR_COND
     with pytest.raises(GeometryError, match="the design is singular"):
         deformation._solve(
@@ -88,7 +88,7 @@ def test_a_wide_band_is_declined():
     a[:, 0] = 1.0
     a[np.arange(3 * k), 1 + np.arange(3 * k) % (k - 1)] = 2.0
     support = row_support(a)
-    assert BandedNormals.from_rows(support.index, support.value, k, np.arange(k)) is None
+    assert BandedNormals.from_rows(support.columns, support.value, k, np.arange(k)) is None
 
 
 def test_inverse_norm_estimate_is_a_close_lower_bound():

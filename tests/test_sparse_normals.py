@@ -30,9 +30,9 @@ def test_sparse_normals_equal_the_dense_products(rows, sections):
     assert support is not None
     # at most 4 cubic B-splines and 2 linear ones per row (fewer on a breakpoint),
     # and the support gives the matrix back
-    assert support.index.shape == (rows, 6)
+    assert support.columns.shape == (rows, 6)
     rebuilt = np.zeros_like(a)
-    np.add.at(rebuilt, (np.arange(rows)[:, None], support.index), support.value)
+    np.add.at(rebuilt, (np.arange(rows)[:, None], support.columns), support.value)
     np.testing.assert_array_equal(rebuilt, a)
     dense = a.T @ a
     np.testing.assert_allclose(_gram(a, support), dense, rtol=1e-13, atol=1e-13 * dense.max())
@@ -54,5 +54,5 @@ def test_dense_or_narrow_designs_keep_the_dense_products():
     sparse = np.zeros((300, 100))
     sparse[np.arange(300), rng.integers(0, 100, 300)] = 1.0
     support = row_support(sparse)
-    assert support is not None and support.index.shape == (300, 1)
+    assert support is not None and support.columns.shape == (300, 1)
     np.testing.assert_array_equal(_gram(sparse, support), sparse.T @ sparse)

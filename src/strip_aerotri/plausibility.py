@@ -23,12 +23,16 @@ messages (``stripaero check`` lists them all; a run stops at the first):
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ._typing import ArrayLike, FloatArray, IntArray
-from .observations import ImageObservations
+from .observations import ControlPoints, ImageObservations
+
+if TYPE_CHECKING:
+    from .geodesy import GroundCRS
 
 __all__ = [
     "MAX_IMAGE_RADIUS_MM",
@@ -54,7 +58,7 @@ _MIRROR_RATIO = 0.1
 def image_coordinate_problems(
     xy_mm: ArrayLike,
     principal_distance: float,
-    where=None,
+    where: Callable[[int], str] | None = None,
     file: str = "image coordinates",
 ) -> list[str]:
     """Image coordinates no camera can produce.
@@ -170,7 +174,7 @@ def ray_direction_problems(
             'against the flight, set [images] flight_direction = "-x"'
         ]
     return [
-        f"{labels[m]}: the rays of {share[m]:.0%} of its points meet behind the photos (a "
+        f"{labels[int(m)]}: the rays of {share[m]:.0%} of its points meet behind the photos (a "
         "negative x-parallax, while the strip's other pairs have a positive one): are these "
         "two photos in flight order in [strip] photos?"
         for m in np.flatnonzero(wrong)
@@ -262,7 +266,10 @@ def control_handedness_problems(
 
 
 def control_problems(
-    observations: ImageObservations, control, crs, file: str = "control"
+    observations: ImageObservations,
+    control: ControlPoints,
+    crs: str | GroundCRS,
+    file: str = "control",
 ) -> list[str]:
     """:func:`control_handedness_problems` for a project's control.
 

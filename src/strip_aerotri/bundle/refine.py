@@ -127,7 +127,7 @@ def _gnss_residuals(
     redundancy, w = _directional_tests(v_frame, q_vv, weight, axes)
     rejected = fr.gnss_rejected[index] if fr.gnss_rejected.size else np.zeros(index.size, bool)
     return GnssResiduals(
-        photo_ids=tuple(strip_ids[j] for j in index),
+        photo_ids=tuple(strip_ids[int(j)] for j in index),
         photo_index=index,
         n_given=len(gnss.photo_ids),
         unmatched=tuple(pid for pid, j in zip(gnss.photo_ids, lookup, strict=True) if j < 0),
@@ -173,7 +173,7 @@ def _imu_residuals(
     redundancy, w = _directional_tests(v, q_vv, weight, axes)
     rejected = fr.imu_rejected[index] if fr.imu_rejected.size else np.zeros(index.size, bool)
     return ImuResiduals(
-        photo_ids=tuple(strip_ids[j] for j in index),
+        photo_ids=tuple(strip_ids[int(j)] for j in index),
         photo_index=index,
         n_given=len(imu.photo_ids),
         unmatched=tuple(pid for pid, j in zip(imu.photo_ids, lookup, strict=True) if j < 0),

@@ -590,12 +590,12 @@ def _normals(a_w: FloatArray | RowSupport, order: IntArray | None = None) -> _No
     strip_aerotri._banded), else the dense inverse."""
     support = a_w if isinstance(a_w, RowSupport) else row_support(a_w)
     if support is not None and order is not None and support.n_columns >= _BANDED_MIN_UNKNOWNS:
-        banded = BandedNormals.from_rows(support.index, support.value, support.n_columns, order)
+        banded = BandedNormals.from_rows(support.columns, support.value, support.n_columns, order)
         if banded is not None:
             cond = banded.cond
             if not np.isfinite(cond):
-                return _Normals(banded.solve, cond, np.full(len(support.index), np.nan))
-            h = banded.quadratic_forms(support.index, support.value)
+                return _Normals(banded.solve, cond, np.full(len(support.columns), np.nan))
+            h = banded.quadratic_forms(support.columns, support.value)
             return _Normals(banded.solve, cond, np.clip(1.0 - h, 0.0, 1.0))
     if isinstance(a_w, RowSupport):
         a_w = _dense(a_w)
@@ -606,8 +606,8 @@ def _normals(a_w: FloatArray | RowSupport, order: IntArray | None = None) -> _No
 def _dense(rows: RowSupport) -> FloatArray:
     """The (n, k) matrix of rows given by their nonzero entries, each column
     at most once in a row (no padding, as :func:`_section_support`)."""
-    out = np.zeros((rows.index.shape[0], rows.n_columns))
-    np.put_along_axis(out, rows.index, rows.value, axis=1)
+    out = np.zeros((rows.columns.shape[0], rows.n_columns))
+    np.put_along_axis(out, rows.columns, rows.value, axis=1)
     return out
 
 
@@ -631,7 +631,7 @@ def _solve(
         return np.zeros(0), observed.copy(), _Normals(np.asarray, 1.0, np.ones(len(observed)))
     a_w: FloatArray | RowSupport
     if isinstance(design, RowSupport):
-        a_w = RowSupport(design.index, design.value / sigma[:, None], n_columns)
+        a_w = RowSupport(design.columns, design.value / sigma[:, None], n_columns)
     else:
         a_w = design / sigma[:, None]
     if normals is None:
@@ -656,13 +656,13 @@ def _solve(
     if isinstance(a_w, RowSupport):
         # with weights bincount gives float64 (the stubs say intp throughout)
         normal_rhs = np.bincount(  # type: ignore[assignment]
-            a_w.index.ravel(), (a_w.value * rhs[:, None]).ravel(), minlength=n_columns
+            a_w.columns.ravel(), (a_w.value * rhs[:, None]).ravel(), minlength=n_columns
         )
     else:
         normal_rhs = a_w.T @ rhs
     x = normals.solve(normal_rhs)
     if isinstance(design, RowSupport):
-        v = observed - np.einsum("nw,nw->n", design.value, x[design.index])
+        v = observed - np.einsum("nw,nw->n", design.value, x[design.columns])
     else:
         v = observed - design @ x
     return x, v, normals
@@ -1067,7 +1067,7 @@ class _Design:
         """The first ``k_c`` terms at the control in ``mask``."""
         if self.breakpoints is None:
             return self.terms_all[mask, :k_c]
-        return RowSupport(self.support_all.index[mask], self.support_all.value[mask], k_c)
+        return RowSupport(self.support_all.columns[mask], self.support_all.value[mask], k_c)
 
 
 @dataclass

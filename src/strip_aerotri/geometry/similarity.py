@@ -182,7 +182,8 @@ class SimilarityTransform:
             raise ValueError(
                 f"Expected `rotation` to have shape (..., 3, 3), got {rotation.shape}"
             )
-        return np.matmul(self.rotation, rotation)
+        turned: FloatArray = np.matmul(self.rotation, rotation)
+        return turned
 
     def inverse(self) -> SimilarityTransform:
         """The inverse transformation (target -> source)."""
@@ -269,10 +270,10 @@ _SPARSE_MIN_COLUMNS = 64
 
 class RowSupport(NamedTuple):
     """The nonzero entries of each row of an (n, k) matrix, padded to the
-    longest row: ``index`` (n, w) their columns, ``value`` (n, w) their
+    longest row: ``columns`` (n, w) their columns, ``value`` (n, w) their
     values (0 in the padding, whose column is 0)."""
 
-    index: IntArray
+    columns: IntArray
     value: FloatArray
     n_columns: int
 
@@ -304,9 +305,10 @@ def _gram(a: FloatArray, support: RowSupport | None) -> FloatArray:
     if support is None:
         return a.T @ a
     k = support.n_columns
-    pairs = (support.index[:, :, None] * k + support.index[:, None, :]).reshape(-1)
+    pairs = (support.columns[:, :, None] * k + support.columns[:, None, :]).reshape(-1)
     products = (support.value[:, :, None] * support.value[:, None, :]).reshape(-1)
-    return np.bincount(pairs, products, minlength=k * k).reshape(k, k)
+    gram: FloatArray = np.bincount(pairs, products, minlength=k * k).reshape(k, k)  # type: ignore[assignment]  # float with weights
+    return gram
 
 
 def _normal_inverse(
@@ -359,9 +361,10 @@ def _redundancy_numbers(
     if support is None:
         h = np.einsum("ij,ij->i", a_white @ q, a_white)  # a three-operand einsum is O(n k²) slow
     else:  # aᵢᵀ Q aᵢ over the row's nonzero entries only
-        q_at = np.take(q, support.index[:, :, None] * q.shape[1] + support.index[:, None, :])
+        q_at = np.take(q, support.columns[:, :, None] * q.shape[1] + support.columns[:, None, :])
         h = np.einsum("nij,ni,nj->n", q_at, support.value, support.value)
-    return np.clip(1.0 - h, 0.0, 1.0)
+    numbers: FloatArray = np.clip(1.0 - h, 0.0, 1.0)
+    return numbers
 
 
 def _normalized(v: FloatArray, sigma: FloatArray, r: FloatArray) -> FloatArray:

@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._stats import sample_median
-from .._typing import ArrayLike, FloatArray, IntArray
+from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
 from ..errors import GeometryError
 from ..geometry.intersection import (
@@ -267,7 +267,7 @@ def _orient_pairs(
                     component="y-parallax",
                     residual=float(rel.parallax_um[row]),
                     unit="µm",
-                    w=float(rel.w_statistic[row] / np.sqrt(_factor(rel))),
+                    w=float(_w_statistic(rel)[row] / np.sqrt(_factor(rel))),
                     critical=blunders.critical("relative_orientation", n_rows),
                     applied=blunders.rejecting,
                     effect=f"left out of the pair (pair sigma0 {rel.sigma0_um[m]:.2f} µm)",
@@ -442,9 +442,8 @@ def _chain(
     )
     steps = scale[:, None] * rel.base
     centres = np.vstack([first_position, first_position + np.cumsum(steps, axis=0)])
-    rotations = np.concatenate([rel.rotation_left[:1], rel.rotation_right], axis=0)
-
-    return centres, rotations, scale
+    rotations: FloatArray = np.concatenate([rel.rotation_left[:1], rel.rotation_right], axis=0)
+    return np.asarray(centres, dtype=np.float64), rotations, np.asarray(scale, dtype=np.float64)
 
 
 def _strip_points(
@@ -570,20 +569,29 @@ def _rotate_rows(matrices: FloatArray, index: IntArray, vectors: FloatArray) -> 
     return out
 
 
-def _excluded_rows(observations, blunders, row_l, row_r) -> np.ndarray:
+def _excluded_rows(
+    observations: ImageObservations, blunders: BlunderOptions, row_l: IntArray, row_r: IntArray
+) -> BoolArray:
     """Mask of pair rows kept after the user's exclusions (points, observations)."""
     _, drop_obs = blunders.excluded(observations)
-    return ~(drop_obs[row_l] | drop_obs[row_r])
+    kept: BoolArray = ~(drop_obs[row_l] | drop_obs[row_r])
+    return kept
+
+
+def _w_statistic(rel: RelativeOrientation) -> FloatArray:
+    """The y-parallaxes' w-tests (relative_orientation always computes them)."""
+    assert rel.w_statistic is not None
+    return rel.w_statistic
 
 
 def _factor(rel: RelativeOrientation) -> float:
-    return robust_variance_factor(rel.w_statistic)
+    return robust_variance_factor(_w_statistic(rel))
 
 
-def _worst_parallaxes(rel: RelativeOrientation, blunders: BlunderOptions) -> np.ndarray:
+def _worst_parallaxes(rel: RelativeOrientation, blunders: BlunderOptions) -> IntArray:
     """Rows to reject: per pair the largest |w| above the critical value (all
     failing rows when only reporting)."""
-    w = np.abs(rel.w_statistic) / np.sqrt(_factor(rel))
+    w = np.abs(_w_statistic(rel)) / np.sqrt(_factor(rel))
     crit = blunders.critical("relative_orientation", int(np.isfinite(w).sum()))
     failing = np.isfinite(w) & (w > crit)
     if not failing.any():
@@ -594,13 +602,20 @@ def _worst_parallaxes(rel: RelativeOrientation, blunders: BlunderOptions) -> np.
     order = np.lexsort((np.where(failing, w, -1.0), rel.pair))
     last = np.r_[rel.pair[order][1:] != rel.pair[order][:-1], True]
     pick = order[last]
-    return pick[failing[pick]]
+    worst: IntArray = pick[failing[pick]]
+    return worst
 
 
 _TIE_DTYPE = [("index", np.intp), ("component", np.intp), ("w", float), ("residual", float)]
 
 
-def _worst_ties(previous, new_pts, tie_model, ratio, blunders):
+def _worst_ties(
+    previous: FloatArray,
+    new_pts: FloatArray,
+    tie_model: IntArray,
+    ratio: FloatArray,
+    blunders: BlunderOptions,
+) -> tuple[np.ndarray, float]:
     """Tie points whose two height determinations disagree beyond the critical value.
 
     As J tested after each scaling, the Z differences of the tie points are
