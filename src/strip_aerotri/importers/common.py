@@ -81,6 +81,7 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 StrArray = NDArray[np.str_]
+BoolArray = NDArray[np.bool_]
 
 FLIGHT_DIRECTIONS = ("+x", "-x", "+y", "-y")
 DEFAULT_TURN_DEG = 45.0
@@ -280,7 +281,7 @@ def photo_id(names: Iterable[str]) -> StrArray:
 _DIGITS = re.compile(r"(\d+)")
 
 
-def natural_key(name: str) -> tuple:
+def natural_key(name: str) -> tuple[tuple[int, int, str], ...]:
     """Sort key that orders ``"B1_2"`` before ``"B1_10"`` (digit runs as numbers)."""
     parts = _DIGITS.split(str(name))
     return tuple((0, int(p), p) if p.isdigit() else (1, 0, p.lower()) for p in parts if p)
@@ -332,7 +333,7 @@ class ImageTable:
     def __len__(self) -> int:
         return int(self.photo.shape[0])
 
-    def take(self, index: NDArray) -> ImageTable:
+    def take(self, index: IntArray | BoolArray) -> ImageTable:
         """The observations at ``index`` (integer or boolean)."""
         sigma = None if self.sigma_mm is None else self.sigma_mm[index]
         return ImageTable(self.photo[index], self.point[index], self.xy[index], sigma)
@@ -493,7 +494,7 @@ class ControlTable:
     def __len__(self) -> int:
         return int(self.point.shape[0])
 
-    def take(self, index: NDArray) -> ControlTable:
+    def take(self, index: IntArray | BoolArray) -> ControlTable:
         def part(a: FloatArray | None) -> FloatArray | None:
             return None if a is None else a[index]
 
@@ -524,7 +525,7 @@ class PhotoPositions:
         object.__setattr__(self, "photo", photo)
         object.__setattr__(self, "xyz", xyz)
 
-    def take(self, index: NDArray) -> PhotoPositions:
+    def take(self, index: IntArray | BoolArray) -> PhotoPositions:
         def part(a: FloatArray | None) -> FloatArray | None:
             return None if a is None else a[index]
 
@@ -553,7 +554,7 @@ class PhotoAttitudes:
         object.__setattr__(self, "photo", photo)
         object.__setattr__(self, "matrix", matrix)
 
-    def take(self, index: NDArray) -> PhotoAttitudes:
+    def take(self, index: IntArray | BoolArray) -> PhotoAttitudes:
         return PhotoAttitudes(self.photo[index], self.matrix[index])
 
 
@@ -659,6 +660,7 @@ class ImportedProject:
 
     def summary(self) -> str:
         """One line of counts."""
+        assert self.control.kind is not None  # filled in by ControlTable
         kinds, counts = np.unique(self.control.kind, return_counts=True)
         parts = ", ".join(f"{int(n)} {k}" for k, n in zip(kinds, counts, strict=True))
         extra = ""
@@ -714,7 +716,8 @@ def opk_deg_from_matrix(matrix: FloatArray) -> FloatArray:
     phi = np.arcsin(np.clip(r[..., 0, 2], -1.0, 1.0))
     omega = np.arctan2(-r[..., 1, 2], r[..., 2, 2])
     kappa = np.arctan2(-r[..., 0, 1], r[..., 0, 0])
-    return np.rad2deg(np.stack([omega, phi, kappa], axis=-1))
+    degrees: FloatArray = np.rad2deg(np.stack([omega, phi, kappa], axis=-1))
+    return degrees
 
 
 def flight_matrix(direction: str) -> FloatArray:
@@ -917,7 +920,8 @@ def _strip_motion(
             shifts.append(np.median(sensor[ib[kb]] - sensor[ia[ka]], axis=0))
     if not shifts:
         return None
-    return -np.mean(shifts, axis=0)
+    mean: FloatArray = -np.mean(shifts, axis=0)
+    return mean
 
 
 def decide_flight_direction(
@@ -1106,6 +1110,7 @@ def split_control(
     both = set(control_ids or ()) & set(check_ids or ())
     if both:
         raise ConfigError(f"--control and --check both name {', '.join(sorted(both))}")
+    assert control.kind is not None  # filled in by ControlTable
     kind = control.kind.copy()
     keep = np.ones(len(control), dtype=bool)
     if control_ids is not None or check_ids is not None:
@@ -1508,7 +1513,7 @@ def _join(columns: Sequence[StrArray]) -> list[str]:
     out = np.asarray(columns[0], dtype=str)
     for col in columns[1:]:
         out = np.char.add(np.char.add(out, ","), np.asarray(col, dtype=str))
-    return out.tolist()
+    return [str(v) for v in out]
 
 
 def _table(header: str, columns: Sequence[StrArray]) -> str:
