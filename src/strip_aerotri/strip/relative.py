@@ -27,14 +27,14 @@ image scale in micrometres.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .._stats import exact_median, sample_median
-from .._typing import ArrayLike, FloatArray, IntArray
+from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError
 from ..geometry.rotation import (
     cardan_from_matrix,
@@ -44,6 +44,10 @@ from ..geometry.rotation import (
 )
 from ..options import DEFAULT_MAX_ITERATIONS, RelativeOrientationMethod
 from ..results import RelativeOrientation
+
+# An image vector's components over a block: x, y (nb, width) and z, which is
+# one float where it is one constant (-c) for all rows.
+_Components = tuple[FloatArray, FloatArray, FloatArray | float]
 
 __all__ = [
     "MIN_POINTS_PER_PAIR",
@@ -146,7 +150,7 @@ def pair_count_problems(counts: IntArray, labels: Sequence[str] | None = None) -
     (at least :data:`MIN_POINTS_PER_PAIR`), listed for ``stripaero check``.
     """
     return [
-        f"{labels[m] if labels else f'pair {m}'}: {counts[m]} point(s) measured on both "
+        f"{labels[int(m)] if labels else f'pair {m}'}: {counts[m]} point(s) measured on both "
         f"photos; relative orientation needs at least {MIN_POINTS_PER_PAIR}"
         for m in np.flatnonzero(np.asarray(counts) < MIN_POINTS_PER_PAIR)
     ]
@@ -160,7 +164,13 @@ def _check_pairs(pair: IntArray, n_pairs: int, labels: list[str] | None) -> IntA
     return counts
 
 
-def _check_not_collinear(left, pair, starts, counts, labels) -> None:
+def _check_not_collinear(
+    left: FloatArray,
+    pair: IntArray,
+    starts: IntArray,
+    counts: IntArray,
+    labels: list[str] | None,
+) -> None:
     """Refuse pairs whose points lie nearly on one line in the left image.
 
     Scale-free: the smaller singular value of the pair's centred normalised
@@ -213,13 +223,15 @@ class _Block:
     counts: IntArray  # (nb,) valid cells per pair
     # image vectors on the left and the right photo (mm): components x, y, z,
     # each (nb, width), z a float where it is one constant (-c) for all rows
-    left: tuple
-    right: tuple
+    left: _Components
+    right: _Components
     design: FloatArray = field(init=False, repr=False)  # (nb, 6, width) work buffer
     # (weights, sqrt w of the cells) for the last weights array, see root_weight
-    _root: tuple = field(init=False, repr=False, compare=False, default=(None, None))
+    _root: tuple[FloatArray | None, FloatArray | None] = field(
+        init=False, repr=False, compare=False, default=(None, None)
+    )
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         # Reused by every evaluation of the block: fresh 48 bytes per row per
         # evaluation would cost page faults comparable to the arithmetic.
         object.__setattr__(self, "design", np.empty((self.rows.shape[0], 6, self.rows.shape[1])))
@@ -229,9 +241,12 @@ class _Block:
         weights ``weight``; kept for the last weights array passed (the
         weights are replaced, never changed in place, when rows lose theirs)."""
         if self._root[0] is not weight:
-            root = np.sqrt(np.take(weight, self.rows) * self.valid)
+            root: FloatArray = np.sqrt(np.take(weight, self.rows) * self.valid)
             object.__setattr__(self, "_root", (weight, root))
-        return self._root[1]
+            return root
+        cached = self._root[1]
+        assert cached is not None
+        return cached
 
 
 class _Blocks:
@@ -247,8 +262,15 @@ class _Blocks:
     """
 
     def __init__(
-        self, left_t, right_t, starts, counts, pairs, stride=None, constant_z=(None, None)
-    ):
+        self,
+        left_t: FloatArray,
+        right_t: FloatArray,
+        starts: IntArray,
+        counts: IntArray,
+        pairs: IntArray,
+        stride: IntArray | None = None,
+        constant_z: tuple[float | None, float | None] = (None, None),
+    ) -> None:
         # left_t, right_t: image vectors as contiguous (3, n) arrays, which
         # np.take gathers from 5x faster than fancy indexing of an (n, 3) view;
         # a z component that is one constant (-c, `constant_z`) is not gathered
@@ -292,19 +314,22 @@ def _constant_or_none(values: FloatArray) -> float | None:
     return None
 
 
-def _gather_components(vectors_t: FloatArray, z: float | None, rows: IntArray) -> tuple:
+def _gather_components(vectors_t: FloatArray, z: float | None, rows: IntArray) -> _Components:
     """Components (x, y, z) of the rows (nb, width) of (3, n) vectors; z as
     the float ``z`` where given (one constant for all rows)."""
     if z is None:
-        return tuple(np.take(vectors_t, rows, axis=1))
-    return (*np.take(vectors_t[:2], rows, axis=1), z)
+        x, y, z_rows = np.take(vectors_t, rows, axis=1)
+        return x, y, z_rows
+    x, y = np.take(vectors_t[:2], rows, axis=1)
+    return x, y, z
 
 
 def _robust_scale(abs_q: FloatArray, block: _Block) -> FloatArray:
     """1.4826 × the median |q| of each pair of a block (upper median), (nb, 1)."""
     ranked = np.sort(np.where(block.valid, abs_q, np.inf), axis=1)
     median = ranked[np.arange(ranked.shape[0]), block.counts // 2]
-    return np.maximum(1.4826 * median, 1e-6)[:, None]
+    scale: FloatArray = np.maximum(1.4826 * median, 1e-6)[:, None]
+    return scale
 
 
 class _Evaluation:
@@ -353,10 +378,15 @@ class _Record:
             self.redundancy[rows] = np.clip(1.0 - leverage[valid], 0.0, 1.0)
         self.stored |= pairs
 
-    def snapshot(self) -> tuple[FloatArray, FloatArray, np.ndarray]:
+    def snapshot(self) -> tuple[FloatArray, FloatArray, BoolArray]:
         return self.parallax_um.copy(), self.redundancy.copy(), self.stored.copy()
 
-    def restore(self, pairs: np.ndarray, pair: IntArray, snapshot) -> None:
+    def restore(
+        self,
+        pairs: BoolArray,
+        pair: IntArray,
+        snapshot: tuple[FloatArray, FloatArray, BoolArray],
+    ) -> None:
         """Rows of the pairs in mask ``pairs`` (``pair``: pair of each row) back
         to ``snapshot``."""
         rows = pairs[pair]
@@ -378,7 +408,9 @@ class _Record:
         return out
 
 
-def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) -> _Evaluation:
+def _evaluate(
+    state: _State, blocks: _Blocks, weight: FloatArray, robust: bool = False
+) -> _Evaluation:
     """Design rows and y-parallaxes at the current state, reduced to per-pair
     normal equations ``N x = g`` of the weighted Gauss-Newton step.
 
@@ -410,7 +442,7 @@ def _evaluate(state, blocks: _Blocks, weight: FloatArray, robust: bool = False) 
 
 
 def _chord(
-    state, ev: _Evaluation, weight: FloatArray, n_inv: FloatArray
+    state: _State, ev: _Evaluation, weight: FloatArray, n_inv: FloatArray
 ) -> tuple[_Evaluation, FloatArray]:
     """The y-parallaxes at the current state with the design rows of the
     previous evaluation ``ev`` (its blocks, rows scaled by sqrt(w)) and its
@@ -444,10 +476,11 @@ def _negligible_limit(ev: _Evaluation, n_inv: FloatArray, tolerance: float) -> F
     fall back on the tolerance."""
     sigma0_sq = ev.sum_wqq / np.maximum(ev.n_rows - MIN_POINTS_PER_PAIR, 1)
     with np.errstate(invalid="ignore"):
-        return np.maximum(
+        limit: FloatArray = np.maximum(
             tolerance,
             _PRECISION_FRACTION * np.sqrt(sigma0_sq[:, None] * np.einsum("mii->mi", n_inv)),
         )
+    return limit
 
 
 def _solve_normals(
@@ -464,12 +497,14 @@ def _solve_normals(
     above 1e10, which bounds its condition number within a factor k.
     """
     k = normal.shape[-1]
-    finite = np.isfinite(normal).all(axis=(1, 2)) & np.isfinite(gradient).all(axis=1)
+    finite = np.asarray(
+        np.isfinite(normal).all(axis=(1, 2)) & np.isfinite(gradient).all(axis=1), dtype=bool
+    )
     diag = np.einsum("mii->mi", normal)
     scale = 1.0 / np.sqrt(np.where(finite[:, None] & (diag > 1e-300), diag, 1.0))
     a = (normal * scale[:, :, None] * scale[:, None, :]).transpose(1, 2, 0)  # (k, k, m)
     ok = finite.copy()
-    low: list[list] = [[None] * k for _ in range(k)]  # L, entries (m,)
+    low: list[list[Any]] = [[None] * k for _ in range(k)]  # L, entries (m,)
     for j in range(k):
         d = a[j, j].copy()
         for t in range(j):
@@ -483,7 +518,7 @@ def _solve_normals(
             for t in range(j):
                 s -= low[i][t] * low[j][t]
             low[i][j] = s * inv_pivot
-    inv_low: list[list] = [[None] * k for _ in range(k)]  # L⁻¹ by forward substitution
+    inv_low: list[list[Any]] = [[None] * k for _ in range(k)]  # L⁻¹ by forward substitution
     for j in range(k):
         inv_low[j][j] = 1.0 / low[j][j]
         for i in range(j + 1, k):
@@ -520,19 +555,19 @@ def _solve_damped(normal: FloatArray, gradient: FloatArray, damping: FloatArray)
 
 
 def _iterate(
-    state,
-    blocks_of,
-    weight,
-    max_iterations,
-    tolerance,
-    active,
-    history,
+    state: _State,
+    blocks_of: Callable[[BoolArray, IntArray | None], _Blocks],
+    weight: FloatArray,
+    max_iterations: int,
+    tolerance: float,
+    active: BoolArray,
+    history: list[float],
     *,
-    robust=False,
-    stride=None,
-    record=None,
-    apply_last=False,
-):
+    robust: bool = False,
+    stride: IntArray | None = None,
+    record: _Record | None = None,
+    apply_last: bool = False,
+) -> tuple[BoolArray, IntArray, BoolArray]:
     """Safeguarded Gauss-Newton steps for the active pairs until their
     corrections are negligible.
 
@@ -594,6 +629,7 @@ def _iterate(
             small = todo & near & lower & (np.abs(corr) < limit).all(axis=1)
             iterations[small] = it - 1
             if small.any():
+                assert record is not None  # the chord check serves the recorded solution
                 record.store(ev, small, n_inv)
             done |= small
             todo &= ~small
@@ -781,6 +817,7 @@ def relative_orientation(
     sigma_ref2 = exact_median(var) / 2.0
     weight = 2.0 * sigma_ref2 / var
 
+    state: _State
     if method is RelativeOrientationMethod.DEPENDENT:
         state = _DependentState(n_pairs, first)
     else:
@@ -798,7 +835,7 @@ def relative_orientation(
 
     constant_z = (_constant_or_none(left_t[2]), _constant_or_none(right_t[2]))
 
-    def blocks_of(mask, stride=None):
+    def blocks_of(mask: BoolArray, stride: IntArray | None = None) -> _Blocks:
         return _Blocks(left_t, right_t, starts, counts, np.flatnonzero(mask), stride, constant_z)
 
     everything = np.ones(n_pairs, dtype=bool)
@@ -829,6 +866,7 @@ def relative_orientation(
             apply_last=True,
         )
         if not ok.all():
+            assert first_start is not None  # set above: no start was given
             state.restart(~ok, first_start[0][~ok], first_start[1][~ok])
     converged, iterations, always_singular = _iterate(
         state, blocks_of, weight, max_iterations, tolerance, everything, history, record=record
@@ -959,13 +997,17 @@ def relative_orientation(
     )
 
 
-def _similarity_start(left, right, pair, n_pairs, starts) -> tuple[FloatArray, FloatArray]:
+def _similarity_start(
+    left: FloatArray, right: FloatArray, pair: IntArray, n_pairs: int, starts: IntArray
+) -> tuple[FloatArray, FloatArray]:
     """The rotation and base direction of :func:`similarity_start`."""
     start = similarity_start(left, right, pair, n_pairs, starts)
     return start.relative, start.base
 
 
-def _vertical_start(left, right, pair, n_pairs, starts) -> tuple[FloatArray, FloatArray]:
+def _vertical_start(
+    left: FloatArray, right: FloatArray, pair: IntArray, n_pairs: int, starts: IntArray
+) -> tuple[FloatArray, FloatArray]:
     """J's near-vertical start: ``Q = I`` and the base along image x."""
     return np.broadcast_to(np.eye(3), (n_pairs, 3, 3)), np.tile(_EX, (n_pairs, 1))
 
@@ -1064,7 +1106,8 @@ def _pair_medians(values: FloatArray, pair: IntArray, starts: IntArray) -> Float
     order = np.lexsort((values, pair))
     ranked = values[order]
     counts = np.diff(np.append(starts, values.shape[0]))
-    return 0.5 * (ranked[starts + (counts - 1) // 2] + ranked[starts + counts // 2])
+    medians: FloatArray = 0.5 * (ranked[starts + (counts - 1) // 2] + ranked[starts + counts // 2])
+    return medians
 
 
 def homography_start(
@@ -1132,7 +1175,7 @@ def homography_start(
     spread = np.sqrt(np.maximum(l1 - l3, 1e-300))[:, None]
     wa = np.sqrt(1.0 - l3)[:, None]
     wb = np.sqrt(l1 - 1.0)[:, None]
-    candidates = []
+    candidates: list[tuple[FloatArray, FloatArray, FloatArray]] = []
     for sign in (1.0, -1.0):
         u = (wa * v1 + sign * wb * v3) / spread
         n = np.cross(v2, u)
@@ -1172,7 +1215,15 @@ def homography_start(
 
 
 def _raise_not_oriented(
-    failed, singular, left, right, pair, starts, counts, labels, max_iterations
+    failed: BoolArray,
+    singular: BoolArray,
+    left: FloatArray,
+    right: FloatArray,
+    pair: IntArray,
+    starts: IntArray,
+    counts: IntArray,
+    labels: list[str] | None,
+    max_iterations: int,
 ) -> None:
     """Say why the pairs in ``failed`` could not be oriented (first one named).
 
@@ -1208,7 +1259,7 @@ def _raise_not_oriented(
     )
 
 
-def _gross_rows(state, blocks: _Blocks, n_rows: int) -> np.ndarray:
+def _gross_rows(state: _State, blocks: _Blocks, n_rows: int) -> BoolArray:
     """Rows (flat mask) whose y-parallax exceeds 5 robust sigmas (1.4826 MAD) of their pair."""
     gross = np.zeros(n_rows, dtype=bool)
     for block in blocks.items:
@@ -1219,7 +1270,9 @@ def _gross_rows(state, blocks: _Blocks, n_rows: int) -> np.ndarray:
     return gross
 
 
-def _suspect_pairs(record: _Record, pair: IntArray, var: FloatArray, counts: IntArray):
+def _suspect_pairs(
+    record: _Record, pair: IntArray, var: FloatArray, counts: IntArray
+) -> BoolArray:
     """Pairs whose least-squares y-parallaxes suggest gross errors.
 
     The y-parallaxes are standardised by their a priori sigmas.  A pair is
@@ -1315,10 +1368,12 @@ def essential_start(
 class _Snapshot:
     """Copies of a state's unknowns (per-pair arrays), for steps taken back."""
 
-    def __init__(self, state):
-        self.arrays = {name: getattr(state, name).copy() for name in state.UNKNOWNS}
+    def __init__(self, state: _StateBase) -> None:
+        self.arrays: dict[str, FloatArray] = {
+            name: getattr(state, name).copy() for name in state.UNKNOWNS
+        }
 
-    def save(self, mask: np.ndarray, state) -> None:
+    def save(self, mask: BoolArray, state: _StateBase) -> None:
         """Copy the unknowns of the pairs in ``mask`` from ``state``."""
         if mask.any():
             for name, values in self.arrays.items():
@@ -1333,7 +1388,7 @@ class _StateBase:
     def snapshot(self) -> _Snapshot:
         return _Snapshot(self)
 
-    def restore(self, mask: np.ndarray, snapshot: _Snapshot) -> None:
+    def restore(self, mask: BoolArray, snapshot: _Snapshot) -> None:
         """Unknowns of the pairs in ``mask`` back to those of ``snapshot``."""
         if mask.any():
             for name, values in snapshot.arrays.items():
@@ -1346,11 +1401,14 @@ class _StateBase:
         """Recompute what derives from the unknowns (nothing by default)."""
 
 
-def _rotate(matrices: FloatArray, x: FloatArray, y: FloatArray, z: FloatArray):
+def _rotate(
+    matrices: FloatArray, x: FloatArray, y: FloatArray, z: FloatArray | float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Rows of ``matrices`` (nb, 3, 3) applied to the block's vectors (x, y, z),
     each (nb, width): the components of ``R @ v`` as three (nb, width) arrays."""
     r = matrices[:, :, :, None]
-    return tuple(r[:, i, 0] * x + r[:, i, 1] * y + r[:, i, 2] * z for i in range(3))
+    c0, c1, c2 = (r[:, i, 0] * x + r[:, i, 1] * y + r[:, i, 2] * z for i in range(3))
+    return c0, c1, c2
 
 
 class _DependentState(_StateBase):
@@ -1372,7 +1430,7 @@ class _DependentState(_StateBase):
 
     UNKNOWNS = ("relative", "beta")
 
-    def __init__(self, n_pairs, first):
+    def __init__(self, n_pairs: int, first: FloatArray) -> None:
         self.n_pairs = n_pairs
         self.first = first
         self.relative = np.broadcast_to(np.eye(3), (n_pairs, 3, 3)).copy()
@@ -1401,7 +1459,8 @@ class _DependentState(_StateBase):
         m[:, 4] = (b2 * pl - lz * pu) * inv_d
         m[:, 5] = q
         # At the left photo's image scale: q / k_l with k_l = j·(b × p) / D (J(12)).
-        return num / (b2 * p0 - p2)
+        q_img: FloatArray = num / (b2 * p0 - p2)
+        return q_img
 
     def residuals(self, pairs: IntArray, block: _Block) -> tuple[FloatArray, FloatArray]:
         """The y-parallaxes of ``terms`` without the design rows: q (model
@@ -1414,29 +1473,30 @@ class _DependentState(_StateBase):
         num = (ly * p2 - lz * p1) + b1 * c1 + b2 * (lx * p1 - ly * p0)
         return num * inv_d, num / (b2 * p0 - p2)
 
-    def set_start(self, elements):
+    def set_start(self, elements: FloatArray) -> None:
         self.beta = elements[:, :2].copy()
         self.relative = matrix_from_schut(elements[:, 2:])
 
-    def restart(self, mask, relative, base_dir):
+    def restart(self, mask: BoolArray, relative: FloatArray, base_dir: FloatArray) -> None:
         self.relative[mask] = relative
         self.beta[mask] = base_dir[:, 1:] / base_dir[:, :1]
 
-    def update(self, corr):
+    def update(self, corr: FloatArray) -> None:
         self.relative = matrix_from_schut(_SCHUT_FACTOR * corr[:, 2:]) @ self.relative
         self.beta = self.beta + corr[:, :2]
 
-    def base_strip(self, r_left):
+    def base_strip(self, r_left: FloatArray) -> FloatArray:
         """Base vectors in the strip system, given the left rotations of the chain."""
         beta = np.column_stack([np.ones(self.n_pairs), self.beta])
-        return np.einsum("mij,mj->mi", r_left, beta)
+        base: FloatArray = np.einsum("mij,mj->mi", r_left, beta)
+        return base
 
-    def rotations(self):
+    def rotations(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         chain = chain_rotations(self.first, self.relative)
         # separate arrays: rotation_left and rotation_right are not views of each other
         return chain[:-1].copy(), chain[1:].copy(), self.relative.copy()
 
-    def elements(self):
+    def elements(self) -> FloatArray:
         return np.column_stack([self.beta, schut_from_matrix(self.relative)])
 
 
@@ -1448,20 +1508,20 @@ class _BaseState(_StateBase):
 
     UNKNOWNS = ("angles_left", "r_right_base")
 
-    def __init__(self, n_pairs, first):
+    def __init__(self, n_pairs: int, first: FloatArray) -> None:
         self.n_pairs = n_pairs
         self.first = first
         self.angles_left = np.zeros((n_pairs, 2))  # alpha'1, chi'1
         self.r_right_base = np.broadcast_to(np.eye(3), (n_pairs, 3, 3)).copy()
         self._refresh()
 
-    def _left_base(self):
+    def _left_base(self) -> FloatArray:
         a = np.zeros((self.angles_left.shape[0], 3))
         a[:, 0] = self.angles_left[:, 0]
         a[:, 2] = self.angles_left[:, 1]
         return matrix_from_cardan(a)
 
-    def _refresh(self):
+    def _refresh(self) -> None:
         self.l_base = self._left_base()
 
     def terms(self, pairs: IntArray, block: _Block, m: FloatArray) -> FloatArray:
@@ -1498,7 +1558,7 @@ class _BaseState(_StateBase):
         q_img = self.terms(pairs, block, m)
         return m[:, 5], q_img
 
-    def restart(self, mask, relative, base_dir):
+    def restart(self, mask: BoolArray, relative: FloatArray, base_dir: FloatArray) -> None:
         # Base system: x' along the base, z' in the principal plane of the left
         # photo (B §125), so the left photo needs no omega'.
         x = base_dir / np.linalg.norm(base_dir, axis=1, keepdims=True)
@@ -1511,29 +1571,33 @@ class _BaseState(_StateBase):
         self.r_right_base[mask] = self._left_base()[mask] @ relative
         self._refresh()
 
-    def set_start(self, elements):
+    def set_start(self, elements: FloatArray) -> None:
         self.angles_left = elements[:, :2].copy()
         self.r_right_base = matrix_from_cardan(elements[:, 2:])
         self._refresh()
 
-    def update(self, corr):
+    def update(self, corr: FloatArray) -> None:
         self.angles_left = self.angles_left + corr[:, :2]
         self.r_right_base = matrix_from_schut(_SCHUT_FACTOR * corr[:, 2:]) @ self.r_right_base
         self._refresh()
 
-    def rotations(self):
+    def rotations(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         relative = np.swapaxes(self.l_base, 1, 2) @ self.r_right_base
         chain = chain_rotations(self.first, relative)
         return chain[:-1].copy(), chain[1:].copy(), relative
 
-    def base_strip(self, r_left):
+    def base_strip(self, r_left: FloatArray) -> FloatArray:
         """Base vectors in the strip system, given the left rotations of the chain."""
         # A_tau_nu = R_left A'^T; its first column is the base direction, B(130).
         a_tau_nu = r_left @ np.swapaxes(self.l_base, 1, 2)
         b = a_tau_nu[:, :, 0]
         along = np.einsum("mi,mi->m", b, r_left[:, :, 0])  # component along image x
-        return b / along[:, None]
+        base: FloatArray = b / along[:, None]
+        return base
 
-    def elements(self):
+    def elements(self) -> FloatArray:
         right = cardan_from_matrix(self.r_right_base)
         return np.column_stack([self.angles_left, right])
+
+
+_State = _DependentState | _BaseState
