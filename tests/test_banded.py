@@ -69,7 +69,9 @@ def test_singular_normals_are_refused_by_their_condition():
     a[:, 5] = 0.0  # an unknown no row observes: zero diagonal
     support = row_support(a)
     order = deformation._band_order(3, 200)
-    assert BandedNormals.from_rows(support.columns, support.value, a.shape[1], order).cond == np.inf
+    assert (
+        BandedNormals.from_rows(support.columns, support.value, a.shape[1], order).cond == np.inf
+    )
     b = _spline_rows(200, 1600)
     b[:, 7] = b[:, 6]  # two unknowns that only move together
     support = row_support(b)

@@ -55,6 +55,7 @@ __all__ = [
     "ImageOptions",
     "ImageUnits",
     "IntersectionMethod",
+    "ModelFormation",
     "OptionEnum",
     "Refine",
     "RelativeOrientationMethod",
@@ -177,6 +178,19 @@ class ScaleTransfer(OptionEnum):
     """Least squares on the Z components of the tie points (J(15))."""
     DISTANCE = "distance"
     """Ratio of distances from the common projection centre (B(139)-(140))."""
+
+
+class ModelFormation(OptionEnum):
+    """How a strip is formed from its pairs (``[adjustment] models``)."""
+
+    DEPENDENT = "dependent"
+    """J's chain: each pair oriented to the previous photo, scale transferred
+    on the tie points (partially dependent models)."""
+    INDEPENDENT = "independent"
+    """R4 2.2: each pair oriented on its own (B's base system, both photos
+    rotate), its model joined to the strip by a 3D similarity on its tie
+    points and the shared projection centre; doubly determined points
+    compared and averaged."""
 
 
 class Route(OptionEnum):
@@ -319,6 +333,10 @@ class StripOptions:
         photo's image x axis is 1 (``b_x = 1`` with ``R_1 = I``).
     max_iterations, tolerance
         Of the relative orientation.
+    models : ModelFormation
+        J's chain of dependent models (default) or independent models joined
+        by 3D similarities (R4 2.2; the relative orientation is then B's
+        base-system formulation whatever ``relative_orientation`` says).
     allow_breaks : bool
         A model that shares no tie point with the one before (no point on all
         three photos) is an error (False, J's chain), or a *break* (True): its
@@ -337,6 +355,7 @@ class StripOptions:
     max_iterations: int = DEFAULT_MAX_ITERATIONS
     tolerance: float = DEFAULT_RO_TOLERANCE
     allow_breaks: bool = False
+    models: ModelFormation = ModelFormation.DEPENDENT
 
     def __post_init__(self) -> None:
         object.__setattr__(
@@ -344,6 +363,7 @@ class StripOptions:
             "relative_orientation",
             RelativeOrientationMethod.create(self.relative_orientation),
         )
+        object.__setattr__(self, "models", ModelFormation.create(self.models))
         object.__setattr__(self, "intersection", IntersectionMethod.create(self.intersection))
         object.__setattr__(self, "scale_transfer", ScaleTransfer.create(self.scale_transfer))
         object.__setattr__(self, "max_iterations", _check_iterations(self.max_iterations))
@@ -531,6 +551,8 @@ class AdjustmentOptions:
     min_base_to_height : float
         Target of ``photo_step = "auto"``.
     refine : Refine
+    models : ModelFormation
+        Dependent (J) or independent models (R4 2.2).
     """
 
     route: Route = Route.GEOCENTRIC
@@ -544,6 +566,7 @@ class AdjustmentOptions:
     min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT
     refine: Refine = Refine.NONE
     block: Construction = Construction.MODELS
+    models: ModelFormation = ModelFormation.DEPENDENT
 
     def strip_options(self) -> StripOptions:
         """The options of strip formation."""
@@ -555,6 +578,7 @@ class AdjustmentOptions:
             # every model transformed on its own takes a model without tie
             # points to the one before from its own control
             allow_breaks=self.block is Construction.MODELS,
+            models=self.models,
         )
 
     def ground_options(self) -> GroundOptions:

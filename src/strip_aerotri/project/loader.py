@@ -36,6 +36,7 @@ from ..options import (
     BlunderOptions,
     Construction,
     ImageOptions,
+    ModelFormation,
     Refine,
     ReportOptions,
     Route,
@@ -461,6 +462,16 @@ def _adjustment_options(
             f"{toml_path}: [adjustment] sections: {sections} sections need a polynomial type "
             '1, 2, 3 or "auto", got polynomial = 0'
         )
+    if (
+        adjustment["models"] is ModelFormation.INDEPENDENT
+        and raw_adjustment.get("relative_orientation") == "dependent"
+    ):
+        raise ConfigError(
+            f'{toml_path}: [adjustment] relative_orientation: "dependent" orients each pair '
+            "to the previous photo, which independent models do not; with models = "
+            '"independent" every pair is oriented on its own in B\'s base system: remove '
+            'relative_orientation or set models = "dependent"'
+        )
     named = [key for key in ("polynomial", "sections") if key in raw_adjustment]
     block = adjustment["block"]
     if block is None:
@@ -483,6 +494,7 @@ def _adjustment_options(
         min_base_to_height=float(adjustment["min_base_to_height"]),  # type: ignore[arg-type]
         refine=adjustment["refine"],  # type: ignore[arg-type]
         block=block,  # type: ignore[arg-type]
+        models=adjustment["models"],  # type: ignore[arg-type]
     )
 
 

@@ -40,6 +40,7 @@ from ..options import (
     FlightDirection,
     ImageUnits,
     IntersectionMethod,
+    ModelFormation,
     OptionEnum,
     Refine,
     RelativeOrientationMethod,
@@ -360,6 +361,15 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         default_text='"models"; "strips" when polynomial or sections is given',
     ),
     KeySpec(
+        "adjustment", "models", "choice", required=False,
+        default=ModelFormation.DEPENDENT, unit="",
+        description='How the strip is formed: "dependent" (J: chained pairs with scale '
+        'transfer) or "independent" (R4 2.2: each pair its own model in B\'s base system, '
+        "joined to the strip by a 3D similarity on its tie points and the common projection "
+        "centre; the doubly determined points compared and averaged).",
+        default_text='"dependent"',
+    ),
+    KeySpec(
         "adjustment", "relative_orientation", "choice", required=False,
         default=RelativeOrientationMethod.DEPENDENT, unit="",
         description='"dependent" (b_y, b_z and Schut a, b, c; J) or "base" '
@@ -531,6 +541,7 @@ _ENUM_OF_KEY: dict[tuple[str, str], type[OptionEnum]] = {
     ("adjustment", "refine"): Refine,
     ("adjustment", "route"): Route,
     ("adjustment", "block"): Construction,
+    ("adjustment", "models"): ModelFormation,
     ("adjustment", "relative_orientation"): RelativeOrientationMethod,
     ("adjustment", "intersection"): IntersectionMethod,
     ("adjustment", "scale_transfer"): ScaleTransfer,

@@ -292,6 +292,7 @@ def _options(result: StripResult, project: Project | None) -> dict[str, Any]:
     opts: dict[str, Any] = {
         "route": result.ground.route,
         "block": str(getattr(construction, "value", "strips")),
+        "models": strip_opt.models,
         "relative_orientation": strip_opt.relative_orientation,
         "intersection": strip_opt.intersection,
         "scale_transfer": strip_opt.scale_transfer,

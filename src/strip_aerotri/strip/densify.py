@@ -42,10 +42,12 @@ from ..options import (
     DEFAULT_MAX_ITERATIONS,
     DEFAULT_MIN_BASE_TO_HEIGHT,
     BlunderOptions,
+    ModelFormation,
     StripOptions,
 )
 from ..results import StripModel
 from .chaining import form_strip, pair_rows, tie_rows
+from .independent import form_strip_independent
 from .relative import relative_orientation
 
 __all__ = [
@@ -679,7 +681,8 @@ def form_strip_stepped(
     observations : ImageObservations
     options : StripOptions, optional
     photo_step : int or "auto"
-        k (1: the classical strip on every photo, ``form_strip`` unchanged) or
+        k (1: the classical strip on every photo, ``form_strip`` unchanged, or
+        ``form_strip_independent`` with ``options.models = "independent"``) or
         ``"auto"`` (:func:`choose_photo_step` with ``min_base_to_height``).
     min_base_to_height : float
     all_rays : bool
@@ -698,8 +701,10 @@ def form_strip_stepped(
         raise ValueError(f'Expected `photo_step` a positive integer or "auto", got {photo_step!r}')
     if k < 1:
         raise ValueError(f"Expected `photo_step` >= 1, got {photo_step!r}")
+    independent = options is not None and options.models is ModelFormation.INDEPENDENT
+    form = form_strip_independent if independent else form_strip
     if k == 1:
-        return form_strip(observations, options, blunders=blunders)
+        return form(observations, options, blunders=blunders)
     seq = model_photo_index(observations.n_photos, k)
-    strip = form_strip(observations, options, photo_index=seq, blunders=blunders)
+    strip = form(observations, options, photo_index=seq, blunders=blunders)
     return complete_strip(strip, all_rays=all_rays)
