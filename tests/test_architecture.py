@@ -37,10 +37,11 @@ LAYERS: dict[str, int] = {
     "strip": 3,
     "ground": 4,
     "bundle": 5,
-    "pipeline": 6,
-    **dict.fromkeys(["project", "report", "importers"], 7),
-    "cli": 8,
-    "__init__": 9,
+    "block": 6,
+    "pipeline": 7,
+    **dict.fromkeys(["project", "report", "importers"], 8),
+    "cli": 9,
+    "__init__": 10,
 }
 
 MAX_CODE_LINES = 120

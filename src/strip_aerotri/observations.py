@@ -25,6 +25,7 @@ __all__ = [
     "ImageObservations",
     "ImuAttitudes",
     "LineSpec",
+    "StripSpec",
 ]
 
 
@@ -228,6 +229,20 @@ class ControlPoints:
     def is_check(self) -> BoolArray:
         mask: BoolArray = self._kind_code == _KIND_CODE[ControlType.CHECK]
         return mask
+
+
+@dataclass(frozen=True)
+class StripSpec:
+    """One strip of a block: its name and its photos in flight order.
+
+    Attributes
+    ----------
+    name : str
+    photo_ids : tuple of str
+    """
+
+    name: str
+    photo_ids: tuple[str, ...]
 
 
 @dataclass(frozen=True)

@@ -19,20 +19,22 @@ import numpy as np
 from .errors import GeometryError
 from .geodesy import GroundCRS
 from .ground.polynomials import adjust_to_ground
-from .observations import ControlPoints, ImageObservations, LineSpec
+from .observations import ControlPoints, ImageObservations, LineSpec, StripSpec
 from .options import (
+    DEFAULT_MAX_ITERATIONS,
     DEFAULT_MIN_BASE_TO_HEIGHT,
     BlunderOptions,
     Construction,
     GroundOptions,
     Refine,
+    Route,
     StripOptions,
 )
 from .plausibility import control_problems
-from .results import AccuracyStatistics, StripResult
+from .results import AccuracyStatistics, BlockResult, StripResult
 from .strip.densify import form_strip_stepped
 
-__all__ = ["AccuracyStatistics", "Progress", "StripResult", "triangulate"]
+__all__ = ["AccuracyStatistics", "Progress", "StripResult", "triangulate", "triangulate_block"]
 
 Progress = Callable[[str], None]
 
@@ -177,4 +179,43 @@ def triangulate(
             refined=refined,
             warnings=result.warnings + tuple(refined.warnings),
         )
+    return result
+
+
+def triangulate_block(
+    observations: ImageObservations,
+    control: ControlPoints,
+    crs: GroundCRS | str,
+    strips: Sequence[StripSpec],
+    *,
+    strip_options: StripOptions | None = None,
+    construction: Construction | str = Construction.MODELS,
+    route: Route | str | None = None,
+    blunders: BlunderOptions | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    progress: Progress | None = None,
+    warnings: Sequence[str] = (),
+) -> BlockResult:
+    """Form every strip of a block and transform them all at once
+    (:func:`strip_aerotri.block.strips.adjust_block`)."""
+    from .block.strips import adjust_block
+
+    if progress is not None:
+        progress(
+            f"forming {len(strips)} strips and transforming the block "
+            f"({Construction.create(construction).value})"
+        )
+    result = adjust_block(
+        observations,
+        control,
+        crs,
+        strips,
+        strip_options=strip_options,
+        construction=construction,
+        route=route,
+        blunders=blunders,
+        max_iterations=max_iterations,
+    )
+    if warnings:
+        result = dataclasses.replace(result, warnings=tuple(warnings) + result.warnings)
     return result

@@ -21,7 +21,7 @@ from .options import (
 )
 
 if TYPE_CHECKING:  # the numerical modules are imported when the command runs
-    from ..results import StripResult
+    from ..results import BlockResult, StripResult
 
 __all__ = ["run"]
 
@@ -123,6 +123,7 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     from ..project import load_project, output_folder
     from ..project import run as project_run
     from ..report.files import ResultFolder
+    from ..results import BlockResult
 
     started = time.perf_counter()
     echo_progress(f"loading {project_file}")
@@ -140,10 +141,15 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         except (GeometryError, ConvergenceError) as exc:
             raise type(exc)(f"{project.path}: {exc}") from exc
         echo_progress("writing the report")
-        from ..report import outputs as report
-
         scale = map_scale if map_scale is not None else project.report.map_scale
-        files = report.build_outputs(result, project=project, map_scale=scale)
+        if isinstance(result, BlockResult):
+            from ..report.block import build_block_outputs
+
+            files = build_block_outputs(result, project=project, map_scale=scale)
+        else:
+            from ..report import outputs as report
+
+            files = report.build_outputs(result, project=project, map_scale=scale)
 
     # Warnings only once the run has succeeded: a failed run prints its one error line.
     shown: set[str] = set()
@@ -157,6 +163,9 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         for name, data in files.items():
             folder.write_bytes(name, data if isinstance(data, bytes) else str(data).encode())
 
+    if isinstance(result, BlockResult):
+        _echo_block(result, project.name, files, target)
+        return
     _echo_details(result)
     elapsed = time.perf_counter() - started
     n_done = int(result.strip.triangulated.sum())
@@ -186,3 +195,35 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         echo_result(f"report: {target / report_name}")
     echo_result(f"results: {target}")
     echo_progress(f"done in {elapsed:.1f} s", level=1)
+
+
+def _echo_block(result: BlockResult, name: str, files: dict[str, bytes], target: Path) -> None:
+    """The summary of a block's run."""
+    import numpy as np
+
+    n_done = int(np.isfinite(result.points).all(axis=1).sum())
+    echo_result(
+        f"block '{name}': {len(result.specs)} strips, {len(result.photo_ids)} photos, "
+        f"{n_done} points"
+    )
+    control, check = result.control_statistics, result.check_statistics
+    echo_result(
+        f"control: {control.n_plan} plan, {control.n_height} height; "
+        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}"
+    )
+    if check.n_plan or check.n_height:
+        echo_result(
+            f"check points: {check.n_plan} plan, {check.n_height} height; "
+            f"RMSE plan {_fmt_m(check.rmse_plan)}, height {_fmt_m(float(check.rmse[2]))}"
+        )
+    else:
+        echo_result("check points: none")
+    worst = max(result.joins, key=lambda j: j.mean_plan_m, default=None)
+    if worst is not None:
+        a, b = (result.specs[i].name for i in worst.strips)
+        echo_result(
+            f"common points of the strips: largest mean discrepancy {_fmt_m(worst.mean_plan_m)} "
+            f"plan, {_fmt_m(worst.mean_height_m)} height (strips {a} / {b})"
+        )
+    echo_result(f"report: {target / 'report.html'}")
+    echo_result(f"results: {target}")

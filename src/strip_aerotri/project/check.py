@@ -28,6 +28,7 @@ found here too; the ground stage is not run.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -158,6 +159,8 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
     CheckReport
     """
     rep = CheckReport()
+    if project.is_block:
+        return _check_block(rep, project, out)
     facts = _check_pairs(rep, project)
     # Control not mirrored against the photos: the run's own check
     # (strip_aerotri.plausibility).
@@ -176,6 +179,52 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
         target = None
 
     _summarize(rep, project, facts, plan_ids, height_ids, target)
+    return rep
+
+
+def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckReport:
+    """A block: every strip's pairs, tie points and formation as a strip of its
+    own (problems prefixed with the strip's name); the control over the whole
+    block (a strip may lean on its neighbours)."""
+    from ..block.strips import strip_observations
+
+    triangulable = np.zeros(project.observations.n_points, dtype=bool)
+    for spec in project.strips:
+        sub = dataclasses.replace(
+            project,
+            observations=strip_observations(project.observations, spec.photo_ids),
+            photo_ids=spec.photo_ids,
+            strips=(),
+        )
+        own = CheckReport()
+        facts = _check_pairs(own, sub)
+        if not own.problems:
+            _check_formation(own, sub)
+        triangulable |= facts.triangulable
+        rep.problems += [f"strip '{spec.name}': {p}" for p in own.problems]
+        rep.details += [f"strip '{spec.name}': {d}" for d in own.details]
+    rep.problems += control_problems(
+        project.observations, project.control, project.crs, str(project.control_file)
+    )
+    plan_ids, height_ids = _check_control(rep, project, triangulable)
+    _check_lines(rep, project, triangulable)
+    try:
+        target = output_folder(project, out)
+    except StripAerotriError as exc:
+        rep.problems.append(str(exc))
+        target = None
+    rep.summary += [
+        f"project '{project.name}': {project.path}",
+        f"block: {len(project.strips)} strips, {len(project.photo_ids)} photos "
+        f"({', '.join(f'{s.name}: {len(s.photo_ids)}' for s in project.strips)})",
+        f"image points: {project.observations.n_points}, {int(triangulable.sum())} measured "
+        "on a pair",
+        f"control: usable {len(plan_ids)} plan, {len(height_ids)} height",
+        f"crs: {project.crs}; route {project.adjustment.route.value}; "
+        f"block = {project.adjustment.block.value}",
+    ]
+    if target is not None:
+        rep.summary.append(f"output folder: {target}")
     return rep
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 import tomllib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -28,6 +28,7 @@ from ..observations import (
     ControlType,
     ImageObservations,
     LineSpec,
+    StripSpec,
 )
 from ..options import (
     STAGES,
@@ -154,7 +155,7 @@ def load_project(path: str | Path) -> Project:
     def optional(name: str) -> dict[str, object] | None:
         return table(name) if name in doc else None
 
-    strip, camera, images = table("strip"), table("camera"), table("images")
+    camera, images = table("camera"), table("images")
     control, adjustment = table("control"), table("adjustment")
     output, report = table("output"), table("report")
     blunders = _blunder_options(toml_path, table("blunders"))
@@ -171,7 +172,7 @@ def load_project(path: str | Path) -> Project:
         for i, content in enumerate(doc.get("straight_line", []), start=1)
     ]
 
-    photo_ids, name = _strip_photos(toml_path, strip)
+    strips, photo_ids, name = _photos(toml_path, doc)
     crs = "local" if str(control["crs"]).lower() == "local" else str(control["crs"])
 
     principal_point: tuple[float, float] = camera["principal_point_mm"]  # type: ignore[assignment]
@@ -233,7 +234,9 @@ def load_project(path: str | Path) -> Project:
     straight_lines = _straight_lines(
         toml_path, lines_raw, observations, control_points, images_file, control_file
     )
-    options = _adjustment_options(toml_path, adjustment, doc.get("adjustment", {}), route)
+    options = _adjustment_options(
+        toml_path, adjustment, doc.get("adjustment", {}), route, block=bool(strips)
+    )
     map_scale = report["map_scale"]
     return Project(
         path=toml_path,
@@ -259,6 +262,7 @@ def load_project(path: str | Path) -> Project:
         imu=imu,
         gnss_file=gnss_file,
         imu_file=imu_file,
+        strips=strips,
     )
 
 
@@ -313,6 +317,54 @@ def _interior(
     return image_options, distortion, fiducials, warnings
 
 
+def _photos(
+    toml_path: Path, doc: dict[str, Any]
+) -> tuple[tuple[StripSpec, ...], tuple[str, ...], str]:
+    """The strips of a block (none for one strip), every photo id in order and
+    the project's name."""
+    if "strips" not in doc:
+        table = check_table(str(toml_path), "strip", doc["strip"], "[strip]")
+        photo_ids, name = _strip_photos(toml_path, table)
+        return (), photo_ids, name
+    tables = [
+        check_table(str(toml_path), "strips", content, f"[[strips]] #{i}")
+        for i, content in enumerate(doc["strips"], start=1)
+    ]
+    strips = _block_strips(toml_path, tables)
+    return strips, tuple(p for s in strips for p in s.photo_ids), toml_path.parent.resolve().name
+
+
+def _block_strips(toml_path: Path, tables: list[dict[str, object]]) -> tuple[StripSpec, ...]:
+    """The ``[[strips]]`` of a block: at least two, each of two or more photos,
+    a photo in one strip only, names unique."""
+    strips: list[StripSpec] = []
+    owner: dict[str, str] = {}
+    for i, table in enumerate(tables, start=1):
+        where = f"{toml_path}: [[strips]] #{i}"
+        name = str(table["name"]) if table["name"] is not None else str(i)
+        photos: tuple[str, ...] = table["photos"]  # type: ignore[assignment]
+        if len(photos) < 2:
+            raise ConfigError(
+                f"{where} photos: a strip needs at least two photos, got {len(photos)}"
+            )
+        if any(s.name == name for s in strips):
+            raise ConfigError(f"{where} name: '{name}' is already the name of another strip")
+        for photo in photos:
+            if photo in owner:
+                raise ConfigError(
+                    f"{where} photos: photo '{photo}' is in strip '{owner[photo]}' and in strip "
+                    f"'{name}'; a photo belongs to one strip only"
+                )
+            owner[photo] = name
+        strips.append(StripSpec(name, photos))
+    if len(strips) < 2:
+        raise ConfigError(
+            f"{toml_path}: [[strips]]: a block needs at least two strips, got {len(strips)}; "
+            "write one strip as [strip]"
+        )
+    return tuple(strips)
+
+
 def _strip_photos(toml_path: Path, strip: dict[str, object]) -> tuple[tuple[str, ...], str]:
     """The strip's photo ids (at least two) and its name (default: the project folder's)."""
     photo_ids: tuple[str, ...] = strip["photos"]  # type: ignore[assignment]
@@ -355,6 +407,15 @@ def _check_structure(toml_path: Path, doc: dict[str, Any]) -> None:
     for spec in PROJECT_TABLES:
         if spec.required and spec.name not in doc:
             raise ConfigError(f"{toml_path}: missing required table [{spec.name}]")
+    if "strip" in doc and "strips" in doc:
+        raise ConfigError(
+            f"{toml_path}: both [strip] and [[strips]]: a project is one strip ([strip]) or a "
+            "block of strips ([[strips]], one table per strip), not both"
+        )
+    if "strip" not in doc and "strips" not in doc:
+        raise ConfigError(
+            f"{toml_path}: missing required table [strip] (or [[strips]] tables for a block)"
+        )
 
 
 def _image_reduction(
@@ -448,13 +509,32 @@ def _straight_lines(
     return tuple(straight_lines)
 
 
+def _check_block_options(
+    toml_path: Path, adjustment: dict[str, object], named: Sequence[str]
+) -> None:
+    """The ``[adjustment]`` keys a block of strips can take today."""
+    if named:
+        raise ConfigError(
+            f"{toml_path}: [adjustment] {named[0]}: a block's strips and models are "
+            "transformed by 3D similarities, without deformation polynomials; remove it"
+        )
+    if adjustment["photo_step"] != 1:
+        raise ConfigError(
+            f"{toml_path}: [adjustment] photo_step: a block forms its models on every photo; "
+            "remove it"
+        )
+
+
 def _adjustment_options(
     toml_path: Path,
     adjustment: dict[str, object],
     raw_adjustment: dict[str, object],
     route: Route,
+    *,
+    block: bool = False,
 ) -> AdjustmentOptions:
-    """``[adjustment]`` as options, with the rules that tie its keys together."""
+    """``[adjustment]`` as options, with the rules that tie its keys together
+    (``block``: a project of ``[[strips]]``)."""
     polynomial: int | Literal["auto"] = adjustment["polynomial"]  # type: ignore[assignment]
     sections = int(adjustment["sections"])  # type: ignore[call-overload]
     if sections > 1 and polynomial == 0:
@@ -472,11 +552,16 @@ def _adjustment_options(
             '"independent" every pair is oriented on its own in B\'s base system: remove '
             'relative_orientation or set models = "dependent"'
         )
-    named = [key for key in ("polynomial", "sections") if key in raw_adjustment]
-    block = adjustment["block"]
-    if block is None:
-        block = Construction.STRIPS if named else Construction.MODELS
-    elif block is Construction.MODELS and named:
+    named: list[str] = [key for key in ("polynomial", "sections") if key in raw_adjustment]
+    chosen = adjustment["block"]
+    construction: Construction
+    if isinstance(chosen, Construction):
+        construction = chosen
+    else:  # the default: every model at once, J's polynomials when named
+        construction = Construction.STRIPS if named and not block else Construction.MODELS
+    if block:
+        _check_block_options(toml_path, adjustment, named)
+    if not block and construction is Construction.MODELS and named:
         raise ConfigError(
             f'{toml_path}: [adjustment] {named[0]}: applies to block = "strips" (J\'s '
             'polynomials); with block = "models" every model has its own similarity. Remove '
@@ -493,7 +578,7 @@ def _adjustment_options(
         photo_step=adjustment["photo_step"],  # type: ignore[arg-type]
         min_base_to_height=float(adjustment["min_base_to_height"]),  # type: ignore[arg-type]
         refine=adjustment["refine"],  # type: ignore[arg-type]
-        block=block,  # type: ignore[arg-type]
+        block=construction,
         models=adjustment["models"],  # type: ignore[arg-type]
     )
 

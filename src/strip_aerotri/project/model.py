@@ -20,6 +20,7 @@ from ..observations import (
     ImageObservations,
     ImuAttitudes,
     LineSpec,
+    StripSpec,
 )
 from ..options import (
     AdjustmentOptions,
@@ -94,6 +95,9 @@ class Project:
     imu : ImuAttitudes or None
         ``[imu]``: observed attitudes in radians (None without the table).
     gnss_file, imu_file : Path or None
+    strips : tuple of StripSpec
+        The strips of a block (``[[strips]]``), empty for one ``[strip]``;
+        ``photo_ids`` is then their photos, strip after strip.
         Their CSVs, joined to the project folder.
     """
 
@@ -120,6 +124,12 @@ class Project:
     imu: ImuAttitudes | None = None
     gnss_file: Path | None = None
     imu_file: Path | None = None
+    strips: tuple[StripSpec, ...] = ()
+
+    @property
+    def is_block(self) -> bool:
+        """True for a block of two or more ``[[strips]]``."""
+        return len(self.strips) >= 2
 
     @property
     def input_files(self) -> tuple[Path, ...]:

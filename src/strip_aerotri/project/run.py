@@ -4,8 +4,8 @@ project's own observations and options."""
 from __future__ import annotations
 
 from ..options import BlunderOptions, GroundOptions, StripOptions
-from ..pipeline import Progress, triangulate
-from ..results import StripResult
+from ..pipeline import Progress, triangulate, triangulate_block
+from ..results import BlockResult, StripResult
 from .model import Project
 
 __all__ = ["project_options", "run_project"]
@@ -18,7 +18,7 @@ def project_options(project: Project) -> tuple[StripOptions, GroundOptions]:
 
 def run_project(
     project: Project, *, progress: Progress | None = None, blunders: BlunderOptions | None = None
-) -> StripResult:
+) -> StripResult | BlockResult:
     """Adjust a loaded project (:func:`strip_aerotri.project.load_project`).
 
     ``blunders`` overrides the project's own blunder options.  The project's
@@ -26,6 +26,20 @@ def run_project(
     observations of the bundle refinement.
     """
     adj = project.adjustment
+    if project.is_block:
+        return triangulate_block(
+            project.observations,
+            project.control,
+            project.crs,
+            project.strips,
+            strip_options=adj.strip_options(),
+            construction=adj.block,
+            route=adj.route,
+            blunders=project.blunders if blunders is None else blunders,
+            max_iterations=adj.max_iterations,
+            progress=progress,
+            warnings=project.warnings,
+        )
     return triangulate(
         project.observations,
         project.control,

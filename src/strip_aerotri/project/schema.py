@@ -132,7 +132,10 @@ class KeySpec:
 
 
 PROJECT_TABLES: tuple[TableSpec, ...] = (
-    TableSpec("strip", True, False, "the strip: its name and photos in flight order"),
+    TableSpec("strip", False, False, "the strip: its name and photos in flight order"),
+    TableSpec(
+        "strips", False, True, "a block: one table per strip, its name and photos in flight order"
+    ),
     TableSpec("camera", True, False, "interior orientation"),
     TableSpec("images", True, False, "measured image coordinates"),
     TableSpec("distortion", False, False, "lens distortion, Brown's polynomials"),
@@ -166,6 +169,16 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         "strip", "photos", "list of ids", required=True, default=None, unit="",
         description="Photo ids (strings) in strip (flight) order; at least two, no "
         "duplicates; every photo must have observations.",
+    ),
+    KeySpec(
+        "strips", "name", "string", required=False, default=None, unit="",
+        description="Name of the strip of a block, used in reports.",
+        default_text='"1", "2", ... in file order',
+    ),
+    KeySpec(
+        "strips", "photos", "list of ids", required=True, default=None, unit="",
+        description="Photo ids of the strip in its flight order; at least two; a photo in "
+        "one strip only.",
     ),
     KeySpec(
         "camera", "principal_distance_mm", "positive number", required=True, default=None,

@@ -6,6 +6,7 @@ Each stage returns one of these; the pipeline bundles them in a
 import them without importing each other.
 """
 
+from .block import BlockResult, StripJoin
 from .bundle import BundleResult, FrameRefinement, GnssResiduals, ImuResiduals, RefinedResult
 from .common import AccuracyStatistics, Rejection
 from .ground import GroundResult, ModelAdjustment
@@ -14,6 +15,7 @@ from .strip import RelativeOrientation, StripModel
 
 __all__ = [
     "AccuracyStatistics",
+    "BlockResult",
     "BundleResult",
     "FrameRefinement",
     "GnssResiduals",
@@ -23,6 +25,7 @@ __all__ = [
     "RefinedResult",
     "Rejection",
     "RelativeOrientation",
+    "StripJoin",
     "StripModel",
     "StripResult",
 ]

@@ -1,0 +1,675 @@
+"""A block by independent strips (R4 3, ``block = "strips"``).
+
+Every strip is formed as a strip of its own (dependent or independent
+models, :mod:`strip_aerotri.strip`), in its own strip system.  Then all
+strips are transformed at once, each by its own 3D similarity, onto the
+control and onto each other on the points they share in their side overlap
+(:func:`strip_aerotri.geometry.simultaneous.adjust_units`, the strips as its
+units), in one least-squares adjustment in the ground stage's work frame.  A
+strip with too little control of its own is carried by its neighbours: that
+is what a block is for (R4: its field control can be sparser than a
+strip's).
+
+Each strip's points (and projection centres) enter with the precision the
+strip shows: the RMS of its tie points' double determinations in plan and in
+height, times the strip's scale.  Control enters with its own sigmas and is
+tested by Baarda's w (the worst failing component rejected at a time, never
+one the control cannot spare).  The strips' discrepancies on their common
+points (R4 1.7.7.3 and 1.7.7.7) are the block's accuracy criteria.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._typing import BoolArray, FloatArray, IntArray
+from ..errors import GeometryError, StripAerotriWarning
+from ..frames import WorkFrame, make_work_frame
+from ..geodesy import GroundCRS
+from ..geometry.rotation import opk_from_matrix
+from ..geometry.similarity import similarity_from_points
+from ..geometry.simultaneous import (
+    SimultaneousResult,
+    UnitObservations,
+    UnitTransforms,
+    adjust_units,
+)
+from ..ground.models import _weights as _model_weights
+from ..ground.polynomials import adjust_to_ground
+from ..observations import ControlPoints, ImageObservations, StripSpec
+from ..options import (
+    BlunderAction,
+    BlunderOptions,
+    Construction,
+    GroundOptions,
+    Route,
+    StripOptions,
+)
+from ..results import AccuracyStatistics, BlockResult, Rejection, StripJoin, StripModel
+from ..strip.densify import form_strip_stepped
+
+__all__ = ["adjust_block", "strip_observations"]
+
+#: Common points a strip needs with the placed strips when its own control
+#: cannot place it (a 3D similarity needs three).
+MIN_COMMON_POINTS = 3
+
+_MAX_PASSES = 6
+_NO_TESTS = BlunderOptions(action=BlunderAction.OFF)
+_PASS_TOLERANCE_M = 1e-5
+
+
+def strip_observations(
+    observations: ImageObservations, photo_ids: Sequence[str]
+) -> ImageObservations:
+    """The observations of one strip's photos (in that strip's order), with the
+    block's point ids kept so that a point index means one point block-wide."""
+    lookup = {pid: i for i, pid in enumerate(observations.photo_ids)}
+    index = np.array([lookup[p] for p in photo_ids], dtype=np.intp)
+    position = np.full(len(observations.photo_ids), -1, dtype=np.intp)
+    position[index] = np.arange(index.size)
+    rows = np.flatnonzero(position[observations.photo] >= 0)
+    photo = position[observations.photo[rows]]
+    order = np.lexsort((observations.point[rows], photo))
+    rows = rows[order]
+    return ImageObservations(
+        photo_ids=tuple(photo_ids),
+        point_ids=observations.point_ids,
+        photo=photo[order],
+        point=observations.point[rows],
+        xy=observations.xy[rows],
+        sigma=observations.sigma[rows],
+        principal_distance=observations.principal_distance,
+        source_line=(
+            observations.source_line[rows]
+            if observations.source_line.shape[0] == observations.photo.shape[0]
+            else np.zeros(0, dtype=np.intp)
+        ),
+    )
+
+
+def adjust_block(
+    observations: ImageObservations,
+    control: ControlPoints,
+    crs: GroundCRS | str,
+    strips: Sequence[StripSpec],
+    *,
+    strip_options: StripOptions | None = None,
+    construction: Construction | str = Construction.STRIPS,
+    route: Route | str | None = None,
+    blunders: BlunderOptions | None = None,
+    max_iterations: int = 50,
+) -> BlockResult:
+    """Form every strip, then transform all strips at once to the control.
+
+    Parameters
+    ----------
+    observations : ImageObservations
+        Every photo of the block (a point id is one point block-wide).
+    control : ControlPoints
+        In ``crs``; check points are compared, never used.
+    crs : GroundCRS or str
+    strips : sequence of StripSpec
+        At least two; a photo in one strip only.
+    strip_options : StripOptions, optional
+        How each strip is formed.
+    construction : Construction
+        ``"strips"`` (R4 3: every strip its own 3D similarity) or
+        ``"models"`` (every model of every strip its own, PAT-M).
+    route : Route, optional
+        The work frame (default geocentric, projected for ``"local"``).
+    blunders : BlunderOptions, optional
+
+    Raises
+    ------
+    GeometryError
+        A strip that shares fewer than three points with the rest of the
+        block and has too little control of its own; too little control for
+        the block; a strip that cannot be formed.
+    """
+    t0 = time.perf_counter()
+    if not isinstance(crs, GroundCRS):
+        crs = GroundCRS.from_user_input(crs)
+    blunders = blunders or BlunderOptions()
+    route = (
+        Route.create(route)
+        if route is not None
+        else (Route.PROJECTED if crs.is_local else Route.GEOCENTRIC)
+    )
+    formed = tuple(_form(observations, spec, strip_options, blunders) for spec in strips)
+    t_strips = time.perf_counter() - t0
+    problem = _prepare(
+        observations,
+        control,
+        crs,
+        tuple(strips),
+        formed,
+        route,
+        Construction.create(construction),
+        max_iterations,
+    )
+    solution, used_xy, used_z, rejections = _snoop(problem, blunders)
+    result = _products(problem, solution, used_xy, used_z, rejections)
+    return _with_timings(
+        result, {"strips": t_strips, "block": time.perf_counter() - t0 - t_strips}
+    )
+
+
+def _form(
+    observations: ImageObservations,
+    spec: StripSpec,
+    options: StripOptions | None,
+    blunders: BlunderOptions,
+) -> StripModel:
+    sub = strip_observations(observations, spec.photo_ids)
+    try:
+        return form_strip_stepped(sub, options, blunders=blunders)
+    except GeometryError as exc:
+        raise GeometryError(f"strip '{spec.name}': {exc}") from None
+
+
+@dataclass
+class _Problem:
+    """What every solution of the block's transformation needs."""
+
+    observations: ImageObservations
+    control: ControlPoints
+    crs: GroundCRS
+    specs: tuple[StripSpec, ...]
+    strips: tuple[StripModel, ...]
+    work: WorkFrame
+    photo_strip: IntArray  # (M,)
+    photo_in_strip: IntArray  # (M,) position of each photo in its strip
+    photo_units: IntArray  # (M, 2) the units whose transforms carry each photo's attitude
+    unit_strip: IntArray  # (U,) the strip of each unit
+    rows: UnitObservations  # points, then centres (point index n_points + photo)
+    start: UnitTransforms
+    points0: FloatArray
+    control_rows: IntArray  # control rows the block determined
+    idx: IntArray  # their points
+    given: FloatArray
+    sigma: FloatArray  # (C, 3)
+    use_xy: BoolArray
+    use_z: BoolArray
+    check: BoolArray
+    max_iterations: int
+
+
+def _prepare(
+    observations: ImageObservations,
+    control: ControlPoints,
+    crs: GroundCRS,
+    specs: tuple[StripSpec, ...],
+    strips: tuple[StripModel, ...],
+    route: Route,
+    construction: Construction,
+    max_iterations: int,
+) -> _Problem:
+    """Start values (each strip to the ground), the work frame, and the rows."""
+    n_points = observations.n_points
+    lookup = {pid: i for i, pid in enumerate(observations.point_ids)}
+    point_of = np.array([lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
+    determined = np.zeros(n_points, dtype=bool)
+    for strip in strips:
+        determined |= np.isfinite(strip.points).all(axis=1)
+    rows = np.flatnonzero((point_of >= 0) & determined[np.maximum(point_of, 0)])
+    idx = point_of[rows]
+    given = control.xyz[rows]
+    check = control.is_check[rows]
+    use_xy = control.uses_xy[rows] & ~check
+    use_z = control.uses_h[rows] & ~check
+    placed_crs, azimuth = _start_in_crs(observations, control, crs, specs, strips)
+    active = use_xy | use_z
+    guess = np.where(np.isnan(given), placed_crs[idx], given)
+    work = make_work_frame(route, crs, guess[active], azimuth)
+    start_work = work.to_work(np.where(np.isfinite(placed_crs), placed_crs, 0.0))
+    units = _units(observations, strips, start_work, construction)
+    sig_xy, sig_h = control.sigma_xy[rows], control.sigma_h[rows]
+    return _Problem(
+        observations=observations,
+        control=control,
+        crs=crs,
+        specs=specs,
+        strips=strips,
+        work=work,
+        photo_strip=units.photo_strip,
+        photo_in_strip=units.photo_in_strip,
+        photo_units=units.photo_units,
+        unit_strip=units.unit_strip,
+        rows=units.rows,
+        start=units.start,
+        points0=np.vstack([start_work, units.centres0]),
+        control_rows=rows,
+        idx=idx,
+        given=given,
+        sigma=np.column_stack([sig_xy, sig_xy, sig_h]),
+        use_xy=use_xy,
+        use_z=use_z,
+        check=check,
+        max_iterations=max_iterations,
+    )
+
+
+def _start_in_crs(
+    observations: ImageObservations,
+    control: ControlPoints,
+    crs: GroundCRS,
+    specs: tuple[StripSpec, ...],
+    strips: tuple[StripModel, ...],
+) -> tuple[FloatArray, float]:
+    """Every point in the CRS from the strips placed so far, and the azimuth of
+    the first placed strip's work frame.
+
+    A strip whose own control carries J's similarity is placed by it; the
+    others, in turn, by a similarity on the points they share with the strips
+    placed (the strip sharing most first).  A strip placed neither way is an
+    error naming it.
+    """
+    n_points = observations.n_points
+    placed = np.full((n_points, 3), np.nan)
+    done = np.zeros(len(strips), dtype=bool)
+    azimuth = None
+    start_options = GroundOptions(polynomial=0, construction=Construction.STRIPS)
+    for k, strip in enumerate(strips):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", StripAerotriWarning)
+                ground = adjust_to_ground(
+                    strip,
+                    control,
+                    crs,
+                    options=start_options,
+                    blunders=_NO_TESTS,
+                )
+        except GeometryError:
+            continue
+        fill = np.isnan(placed).any(axis=1) & np.isfinite(ground.points).all(axis=1)
+        placed[fill] = ground.points[fill]
+        done[k] = True
+        azimuth = ground.azimuth if azimuth is None else azimuth
+    if azimuth is None:
+        raise GeometryError(
+            "block: no strip has the control for its own similarity (two plan and three "
+            "height points, not in one vertical plane): the block cannot be placed"
+        )
+    while not done.all():
+        shared: list[tuple[int, int, BoolArray]] = []
+        for j in np.flatnonzero(~done):
+            ok = np.isfinite(strips[j].points).all(axis=1) & np.isfinite(placed).all(axis=1)
+            shared.append((int(ok.sum()), int(j), np.asarray(ok, dtype=bool)))
+        count, k, ok = max(shared)
+        if count < MIN_COMMON_POINTS:
+            names = ", ".join(f"'{specs[j].name}'" for j in np.flatnonzero(~done))
+            raise GeometryError(
+                f"block: strip {names} shares {count} point(s) with the rest of the block and "
+                "has too little control of its own (a similarity needs two plan and three "
+                f"height control points, or {MIN_COMMON_POINTS} points common with a "
+                "neighbouring strip): measure common points in the side overlap or add control"
+            )
+        local = _local_frame(crs, placed[ok])
+        fit = similarity_from_points(strips[k].points[ok], local.to_local(placed[ok]))
+        here = np.isfinite(strips[k].points).all(axis=1) & np.isnan(placed).any(axis=1)
+        placed[here] = local.from_local(fit.apply(strips[k].points[here]))
+        done[k] = True
+    return placed, float(azimuth)
+
+
+@dataclass(frozen=True)
+class _LocalFrame:
+    """A Cartesian frame for closed-form similarities: ECEF minus an origin,
+    or the CRS coordinates themselves for ``"local"`` (metres either way)."""
+
+    crs: GroundCRS
+    origin: FloatArray
+
+    def to_local(self, xyh: FloatArray) -> FloatArray:
+        if self.crs.is_local:
+            return xyh - self.origin
+        ecef: FloatArray = self.crs.to_ecef(xyh) - self.origin
+        return ecef
+
+    def from_local(self, xyz: FloatArray) -> FloatArray:
+        if self.crs.is_local:
+            return xyz + self.origin
+        back: FloatArray = self.crs.from_ecef(xyz + self.origin)
+        return back
+
+
+def _local_frame(crs: GroundCRS, xyh: FloatArray) -> _LocalFrame:
+    origin = xyh.mean(axis=0) if crs.is_local else crs.to_ecef(xyh).mean(axis=0)
+    return _LocalFrame(crs, origin)
+
+
+@dataclass
+class _Units:
+    """The units of the transformation and how photos and strips map to them."""
+
+    rows: UnitObservations
+    start: UnitTransforms
+    unit_strip: IntArray
+    photo_strip: IntArray
+    photo_in_strip: IntArray
+    photo_units: IntArray
+    centres0: FloatArray
+
+
+def _units(
+    observations: ImageObservations,
+    strips: tuple[StripModel, ...],
+    start_work: FloatArray,
+    construction: Construction,
+) -> _Units:
+    """The rows of every unit: a strip's points and centres weighted by the
+    strip's own precision (``"strips"``), or each model's determinations and
+    its two centres weighted by their rays (``"models"``, as the ground stage
+    weights one strip's models)."""
+    n_points = observations.n_points
+    photo_index = {pid: i for i, pid in enumerate(observations.photo_ids)}
+    photo_strip = np.zeros(observations.n_photos, dtype=np.intp)
+    photo_in_strip = np.zeros(observations.n_photos, dtype=np.intp)
+    photo_units = np.zeros((observations.n_photos, 2), dtype=np.intp)
+    centres0 = np.zeros((observations.n_photos, 3))
+    units, points, xyz, weights, unit_strip = [], [], [], [], []
+    scale, rotation, translation = [], [], []
+    n_units = 0
+    for k, strip in enumerate(strips):
+        ok = np.isfinite(strip.points).all(axis=1)
+        fit = similarity_from_points(strip.points[ok], start_work[ok])
+        photos = np.array([photo_index[p] for p in strip.photo_ids], dtype=np.intp)
+        photo_strip[photos] = k
+        photo_in_strip[photos] = np.arange(photos.size)
+        centres0[photos] = fit.apply(strip.centres)
+        if construction is Construction.STRIPS:
+            sigma_plan, sigma_height = _strip_sigmas(strip, fit.scale)
+            w = np.diag([sigma_plan**-2, sigma_plan**-2, sigma_height**-2])
+            pts = np.flatnonzero(ok)
+            units.append(np.full(pts.size + photos.size, n_units, dtype=np.intp))
+            points.append(np.concatenate([pts, n_points + photos]))
+            xyz.append(np.vstack([strip.points[pts], strip.centres]))
+            weights.append(np.broadcast_to(w, (pts.size + photos.size, 3, 3)))
+            photo_units[photos] = n_units
+            n_here = 1
+        else:
+            info, c_left, c_right = _model_weights(
+                strip, fit, float(np.median(strip.observations.sigma))
+            )
+            pos = strip.model_photo_positions
+            model = np.arange(strip.n_models)
+            units.append(n_units + np.concatenate([strip.model, model, model]))
+            points.append(
+                np.concatenate(
+                    [strip.model_point, n_points + photos[pos[:-1]], n_points + photos[pos[1:]]]
+                )
+            )
+            xyz.append(
+                np.vstack([strip.model_points, strip.centres[pos[:-1]], strip.centres[pos[1:]]])
+            )
+            weights.append(np.concatenate([info, c_left, c_right]))
+            # a photo's attitude: the mean of the models it belongs to
+            as_left = np.searchsorted(pos[:-1], np.arange(photos.size), side="right") - 1
+            photo_units[photos, 0] = n_units + np.clip(as_left, 0, strip.n_models - 1)
+            photo_units[photos, 1] = n_units + np.clip(
+                as_left - (np.isin(np.arange(photos.size), pos[1:])), 0, strip.n_models - 1
+            )
+            n_here = strip.n_models
+        unit_strip.append(np.full(n_here, k, dtype=np.intp))
+        scale.append(np.full(n_here, fit.scale))
+        rotation.append(np.broadcast_to(fit.rotation, (n_here, 3, 3)))
+        translation.append(np.broadcast_to(fit.translation, (n_here, 3)))
+        n_units += n_here
+    rows = UnitObservations(
+        np.concatenate(units), np.concatenate(points), np.vstack(xyz), np.concatenate(weights)
+    )
+    start = UnitTransforms(
+        np.concatenate(scale),
+        np.concatenate(rotation).copy(),
+        np.concatenate(translation).copy(),
+        np.zeros((n_units, 3)),
+    )
+    return _Units(
+        rows, start, np.concatenate(unit_strip), photo_strip, photo_in_strip, photo_units, centres0
+    )
+
+
+def _strip_sigmas(strip: StripModel, scale: float) -> tuple[float, float]:
+    """A strip point's standard deviation in plan and in height, metres: the
+    RMS of its tie points' double determinations over √2 (each difference
+    holds two determinations), times the strip's scale."""
+    tie = np.asarray(strip.tie_difference, dtype=np.float64).reshape(-1, 3)
+    if tie.shape[0] < 3:
+        raise GeometryError(
+            f"block: a strip of {strip.n_models} model(s) with {tie.shape[0]} tie point(s) "
+            "gives no precision of its points; a strip of a block needs tie points"
+        )
+    plan = float(np.sqrt(np.mean(tie[:, 0] ** 2 + tie[:, 1] ** 2) / 2.0 / 2.0))
+    height = float(np.sqrt(np.mean(tie[:, 2] ** 2) / 2.0))
+    return max(plan * scale, 1e-6), max(height * scale, 1e-6)
+
+
+@dataclass
+class _Solution:
+    result: SimultaneousResult
+    guess: FloatArray
+
+
+def _solve(
+    p: _Problem, use_xy: BoolArray, use_z: BoolArray, previous: _Solution | None
+) -> _Solution:
+    """The transformation, with passes for control given in plan or height only
+    (their other coordinates from the adjusted point, as the ground stage)."""
+    active = use_xy | use_z
+    guess = (
+        np.where(np.isnan(p.given), p.work.from_work(p.points0[p.idx]), p.given)
+        if previous is None
+        else previous.guess
+    )
+    starts, points0 = (
+        (p.start, p.points0)
+        if previous is None
+        else (
+            previous.result.transforms,
+            np.where(np.isfinite(previous.result.points), previous.result.points, p.points0),
+        )
+    )
+    guessed = bool(np.isnan(p.given[active]).any())
+    n_total = p.observations.n_points + p.observations.n_photos
+    result = None
+    for n_pass in range(1, _MAX_PASSES + 1):
+        target = p.work.to_work(guess)
+        target[~use_xy, :2] = np.nan
+        target[~use_z, 2] = np.nan
+        result = adjust_units(
+            p.rows,
+            p.unit_strip.shape[0],
+            n_total,
+            start=starts,
+            points0=points0,
+            control_point=p.idx[active],
+            control_xyz=target[active],
+            control_sigma=p.sigma[active],
+            max_iterations=p.max_iterations,
+        )
+        if not guessed or n_pass == _MAX_PASSES:
+            break
+        adjusted = p.work.from_work(result.points[p.idx])
+        new_guess = np.where(np.isnan(p.given), adjusted, p.given)
+        change = float(np.nanmax(np.abs(new_guess - guess), initial=0.0))
+        guess = new_guess
+        starts = result.transforms
+        points0 = np.where(np.isfinite(result.points), result.points, points0)
+        if change < _PASS_TOLERANCE_M:
+            break
+    assert result is not None
+    return _Solution(result, guess)
+
+
+def _snoop(
+    p: _Problem, blunders: BlunderOptions
+) -> tuple[_Solution, BoolArray, BoolArray, tuple[Rejection, ...]]:
+    """Baarda's w of the control: the worst failing component rejected at a
+    time (its point keeps the other components), never one that would leave
+    the block without two plan and three height points."""
+    use_xy, use_z = p.use_xy.copy(), p.use_z.copy()
+    rejections: list[Rejection] = []
+    sol = _solve(p, use_xy, use_z, None)
+    ids = p.control.point_ids
+    while blunders.testing:
+        active = use_xy | use_z
+        w = np.full((p.idx.shape[0], 3), np.nan)
+        w[active] = sol.result.control_w
+        w[~use_xy, :2] = np.nan
+        w[~use_z, 2] = np.nan
+        n_tests = int(np.isfinite(w).sum())
+        critical = blunders.critical("control", max(n_tests, 1))
+        score = np.where(np.isfinite(w), np.abs(w), -np.inf)
+        row, comp = np.unravel_index(int(np.argmax(score)), score.shape)
+        if not score[row, comp] > critical:
+            break
+        plan = comp < 2
+        spare = (use_xy.sum() > 2) if plan else (use_z.sum() > 3)
+        rejections.append(
+            Rejection(
+                stage="control",
+                point=ids[p.control_rows[row]],
+                photos=(),
+                component="XY" if plan else "H",
+                residual=float(
+                    np.hypot(*sol.result.control_residuals[active.cumsum()[row] - 1, :2])
+                    if plan
+                    else sol.result.control_residuals[active.cumsum()[row] - 1, 2]
+                ),
+                unit="m",
+                w=float(w[row, comp]),
+                critical=critical,
+                applied=blunders.rejecting and bool(spare),
+                effect=(
+                    "left out of the block's transformation"
+                    if spare
+                    else "kept: the block cannot spare it (flagged)"
+                ),
+            )
+        )
+        if not (blunders.rejecting and spare):
+            break
+        if plan:
+            use_xy[row] = False
+        else:
+            use_z[row] = False
+        sol = _solve(p, use_xy, use_z, sol)
+    return sol, use_xy, use_z, tuple(rejections)
+
+
+def _products(
+    p: _Problem,
+    sol: _Solution,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    rejections: tuple[Rejection, ...],
+) -> BlockResult:
+    """Points and photos to the CRS, the control's residuals and the joins."""
+    res, work = sol.result, p.work
+    n_points = p.observations.n_points
+    points_work = res.points[:n_points]
+    centres_work = res.points[n_points:]
+    t = res.transforms
+    rot_work = np.empty((p.observations.n_photos, 3, 3))
+    for k, strip in enumerate(p.strips):
+        photos = np.flatnonzero(p.photo_strip == k)
+        r_strip = strip.rotations[p.photo_in_strip[photos]]
+        ra = t.apply_to_rotation(p.photo_units[photos, 0], r_strip)
+        rb = t.apply_to_rotation(p.photo_units[photos, 1], r_strip)
+        rot_work[photos] = _mean_rotation(ra, rb)
+    centres = work.from_work(centres_work)
+    rot_enu = work.rotations_to_enu(rot_work, centres)
+    given_work = work.to_work(np.where(np.isnan(p.given), sol.guess, p.given))
+    resid = work.enu_from_work(given_work - points_work[p.idx])
+    resid[~(use_xy | p.check), :2] = np.nan
+    resid[~(use_z | p.check), 2] = np.nan
+    resid[np.isnan(p.given)] = np.nan
+    used = resid.copy()
+    used[~use_xy, :2] = np.nan
+    used[~use_z, 2] = np.nan
+    return BlockResult(
+        specs=p.specs,
+        strips=p.strips,
+        observations=p.observations,
+        photo_strip=p.photo_strip,
+        scale=np.array([float(np.mean(t.scale[p.unit_strip == k])) for k in range(len(p.strips))]),
+        points=work.from_work(points_work),
+        photo_centres=centres,
+        photo_opk=opk_from_matrix(rot_enu),
+        control=p.control,
+        control_index=p.control_rows,
+        control_residuals=resid,
+        is_check=p.check,
+        used_xy=use_xy,
+        used_h=use_z,
+        control_statistics=AccuracyStatistics.from_residuals(used[~p.check]),
+        check_statistics=AccuracyStatistics.from_residuals(resid[p.check]),
+        joins=_joins(p, t),
+        sigma0=float(res.sigma0),
+        redundancy=int(res.redundancy),
+        iterations=int(res.iterations),
+        rejections=rejections,
+        warnings=tuple(r.describe() for r in rejections),
+    )
+
+
+def _joins(p: _Problem, t: UnitTransforms) -> tuple[StripJoin, ...]:
+    """Every pair of strips on the points both determine: each strip's
+    determination (the mean of its units' transformed rows) compared along
+    east, north and up."""
+    n_points = p.observations.n_points
+    r = p.rows
+    is_point = r.point < n_points
+    placed = t.apply(r.unit[is_point], r.xyz[is_point])
+    strip_of_row = p.unit_strip[r.unit[is_point]]
+    n_strips = len(p.strips)
+    key = strip_of_row * n_points + r.point[is_point]
+    counts = np.bincount(key, minlength=n_strips * n_points).reshape(n_strips, n_points)
+    sums = np.stack(
+        [np.bincount(key, placed[:, c], minlength=n_strips * n_points) for c in range(3)],
+        axis=-1,
+    ).reshape(n_strips, n_points, 3)
+    out = []
+    for i in range(n_strips):
+        for j in range(i + 1, n_strips):
+            both = np.flatnonzero((counts[i] > 0) & (counts[j] > 0))
+            if both.size == 0:
+                continue
+            a = sums[i, both] / counts[i, both, None]
+            b = sums[j, both] / counts[j, both, None]
+            d = p.work.enu_from_work(a - b)
+            plan = np.hypot(d[:, 0], d[:, 1])
+            height = np.abs(d[:, 2])
+            out.append(
+                StripJoin(
+                    (i, j),
+                    int(both.size),
+                    float(plan.mean()),
+                    float(plan.max()),
+                    float(height.mean()),
+                    float(height.max()),
+                )
+            )
+    return tuple(out)
+
+
+def _mean_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The rotation nearest to the mean of two rotations, per row."""
+    u, _, vt = np.linalg.svd(a + b)
+    d = np.sign(np.linalg.det(u @ vt))
+    u[:, :, 2] *= d[:, None]
+    mean: FloatArray = u @ vt
+    return mean
+
+
+def _with_timings(result: BlockResult, timings: dict[str, float]) -> BlockResult:
+    from dataclasses import replace
+
+    return replace(result, timings={**timings, "total": sum(timings.values())})

@@ -1,0 +1,219 @@
+"""The result folder of a block of strips: the tables, ``report.json`` and
+``report.html`` (docs/outputs.md, "A block of strips")."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import html
+import json
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .._version import __version__
+from ..observations import ControlType
+from .files import format_photos_csv, format_points_csv
+from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION
+from .values import clean, json_float, statistics
+
+if TYPE_CHECKING:
+    from ..project import Project
+    from ..results import BlockResult
+
+__all__ = ["JOIN_PLAN_MM", "build_block_outputs", "build_block_report"]
+
+JOIN_PLAN_MM = 0.5
+"""Mean plan discrepancy of the common points of two strips, mm at the map
+scale (R4 1.7.7.3)."""
+
+_ROLE = {
+    ControlType.FULL: "control-full",
+    ControlType.PLAN: "control-plan",
+    ControlType.HEIGHT: "control-height",
+    ControlType.CHECK: "check",
+}
+
+
+def _roles_and_strips(result: BlockResult) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's role (control kind, ``common`` to two or more strips,
+    ``strip`` in one) and the number of strips that determine it."""
+    n_strips = np.zeros(result.observations.n_points, dtype=np.int64)
+    for strip in result.strips:
+        n_strips += np.isfinite(strip.points).all(axis=1)
+    roles = np.where(n_strips >= 2, "common", "strip").astype(object)
+    lookup = {pid: i for i, pid in enumerate(result.point_ids)}
+    for pid, kind in zip(result.control.point_ids, result.control.kind, strict=True):
+        i = lookup.get(pid)
+        if i is not None:
+            roles[i] = _ROLE[ControlType(kind)]
+    return roles.astype(str), n_strips
+
+
+def _residuals(result: BlockResult) -> np.ndarray:
+    """dE, dN, dH (given − adjusted) per point, NaN where none."""
+    out = np.full((result.observations.n_points, 3), np.nan)
+    lookup = {pid: i for i, pid in enumerate(result.point_ids)}
+    for row, resid in zip(result.control_index, result.control_residuals, strict=True):
+        out[lookup[result.control.point_ids[row]]] = resid
+    return out
+
+
+def build_block_report(
+    result: BlockResult, *, project: Project | None = None, map_scale: float | None = None
+) -> dict[str, Any]:
+    """Content of a block's ``report.json`` (plain JSON types, NaN as None)."""
+    limit = None if map_scale is None else JOIN_PLAN_MM * 1e-3 * map_scale
+    joins = [
+        {
+            "strips": [result.specs[i].name, result.specs[j].name],
+            "n_points": join.n_points,
+            "mean_plan_m": json_float(join.mean_plan_m),
+            "max_plan_m": json_float(join.max_plan_m),
+            "mean_height_m": json_float(join.mean_height_m),
+            "max_height_m": json_float(join.max_height_m),
+            "plan_limit_m": limit,
+            "passed": None if limit is None else bool(join.mean_plan_m <= limit),
+        }
+        for join in result.joins
+        for i, j in [join.strips]
+    ]
+    report = {
+        "format": REPORT_FORMAT,
+        "format_version": REPORT_FORMAT_VERSION,
+        "software": {"name": "strip_aerotri", "version": __version__},
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "project": {
+            "name": None if project is None else project.name,
+            "file": None if project is None else str(project.path),
+            "crs": None if project is None else project.crs,
+        },
+        "block": {
+            "construction": None if project is None else project.adjustment.block.value,
+            "strips": [
+                {
+                    "name": spec.name,
+                    "photos": list(spec.photo_ids),
+                    "n_models": strip.n_models,
+                    "scale": json_float(scale),
+                    "rejections": [r.describe() for r in strip.rejections],
+                }
+                for spec, strip, scale in zip(
+                    result.specs, result.strips, result.scale, strict=True
+                )
+            ],
+            "sigma0": json_float(result.sigma0),
+            "redundancy": result.redundancy,
+            "iterations": result.iterations,
+            "joins": joins,
+            "join_criterion": f"mean plan discrepancy <= {JOIN_PLAN_MM} mm at the map scale "
+            "(R4 1.7.7.3)",
+        },
+        "control": {"statistics": statistics(result.control_statistics)},
+        "check": {"statistics": statistics(result.check_statistics)},
+        "rejections": [r.describe() for r in result.rejections],
+        "warnings": list(result.warnings),
+        "timings_s": dict(result.timings),
+    }
+    cleaned: dict[str, Any] = clean(report)
+    return cleaned
+
+
+def build_block_outputs(
+    result: BlockResult, *, project: Project | None = None, map_scale: float | None = None
+) -> dict[str, bytes]:
+    """Every file of a block's result folder, name -> UTF-8 bytes."""
+    geographic = result.control is not None and bool(
+        project is not None and not project.is_local and _geographic(project.crs)
+    )
+    points = np.asarray(result.points, dtype=np.float64)
+    ok = np.isfinite(points).all(axis=1)
+    roles, n_strips = _roles_and_strips(result)
+    resid = _residuals(result)
+    ids = np.asarray(result.point_ids, dtype=str)
+    points_text = format_points_csv(
+        ids[ok],
+        points[ok],
+        extra={
+            "role": roles[ok],
+            "n_strips": n_strips[ok],
+            "dE": resid[ok, 0],
+            "dN": resid[ok, 1],
+            "dH": resid[ok, 2],
+        },
+        geographic=geographic,
+    )
+    strip_names = np.array([result.specs[k].name for k in result.photo_strip], dtype=str)
+    photos_text = format_photos_csv(
+        np.asarray(result.photo_ids, dtype=str),
+        result.photo_centres,
+        result.photo_opk,
+        extra={"strip": strip_names},
+        geographic=geographic,
+    )
+    report = build_block_report(result, project=project, map_scale=map_scale)
+    return {
+        "points.csv": points_text.encode("utf-8"),
+        "photos.csv": photos_text.encode("utf-8"),
+        "report.json": (json.dumps(report, indent=2, allow_nan=False) + "\n").encode("utf-8"),
+        "report.html": _html(report).encode("utf-8"),
+    }
+
+
+def _geographic(crs: str) -> bool:
+    import pyproj
+
+    return bool(pyproj.CRS.from_user_input(crs).is_geographic)
+
+
+def _html(report: dict[str, Any]) -> str:
+    """A one-page summary: the block, the check points, the joins of the strips."""
+
+    def cell(value: Any) -> str:
+        if isinstance(value, float):
+            return f"{value:.3f}"
+        return html.escape("" if value is None else str(value))
+
+    block = report["block"]
+    check = report["check"]["statistics"]
+    control = report["control"]["statistics"]
+    name = report["project"]["name"] or "Block"
+    rows = "".join(
+        f"<tr><td>{cell(s['name'])}</td><td>{len(s['photos'])}</td><td>{s['n_models']}</td>"
+        f"<td>{cell(s['scale'])}</td></tr>"
+        for s in block["strips"]
+    )
+    joins = "".join(
+        f"<tr><td>{cell(' / '.join(j['strips']))}</td><td>{j['n_points']}</td>"
+        f"<td>{cell(j['mean_plan_m'])}</td><td>{cell(j['max_plan_m'])}</td>"
+        f"<td>{cell(j['mean_height_m'])}</td><td>{cell(j['max_height_m'])}</td>"
+        f"<td>{'not judged' if j['passed'] is None else 'pass' if j['passed'] else 'FAIL'}"
+        "</td></tr>"
+        for j in block["joins"]
+    )
+    warnings = "".join(f"<li>{cell(w)}</li>" for w in report["warnings"]) or "<li>none</li>"
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{cell(name)}: block report</title>
+<style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}
+table{{border-collapse:collapse}}td,th{{border:1px solid #999;padding:.2em .5em;
+text-align:right}}td:first-child{{text-align:left}}</style></head><body>
+<h1>{cell(name)}: aerotriangulation of a block of {len(block["strips"])} strips</h1>
+<p>Construction: {cell(block["construction"])} (every unit its own 3D similarity, all at once
+onto the control and onto each other); sigma0 {cell(block["sigma0"])}, redundancy
+{block["redundancy"]}.</p>
+<h2>Accuracy</h2>
+<table><tr><th></th><th>points plan / height</th><th>RMSE plan (m)</th>
+<th>RMSE height (m)</th></tr>
+<tr><td>check points</td><td>{check["n_plan"]} / {check["n_height"]}</td>
+<td>{cell(check["rmse_plan_m"])}</td><td>{cell(check["rmse_h_m"])}</td></tr>
+<tr><td>control used</td><td>{control["n_plan"]} / {control["n_height"]}</td>
+<td>{cell(control["rmse_plan_m"])}</td><td>{cell(control["rmse_h_m"])}</td></tr></table>
+<h2>Strips</h2>
+<table><tr><th>strip</th><th>photos</th><th>models</th><th>scale (m / strip unit)</th></tr>
+{rows}</table>
+<h2>Common points of the strips (R4 1.7.7.3, 1.7.7.7)</h2>
+<p>{cell(block["join_criterion"])}</p>
+<table><tr><th>strips</th><th>points</th><th>mean plan (m)</th><th>max plan (m)</th>
+<th>mean height (m)</th><th>max height (m)</th><th>verdict</th></tr>{joins}</table>
+<h2>Warnings</h2><ul>{warnings}</ul>
+</body></html>
+"""

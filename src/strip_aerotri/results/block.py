@@ -1,0 +1,117 @@
+"""The result of a block of strips."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .._typing import BoolArray, FloatArray, IntArray
+from ..observations import ControlPoints, ImageObservations, StripSpec
+from .common import AccuracyStatistics, Rejection
+from .strip import StripModel
+
+__all__ = ["BlockResult", "StripJoin"]
+
+
+@dataclass(frozen=True)
+class StripJoin:
+    """Two strips of a block on the points they share (R4 1.7.7.3, 1.7.7.7).
+
+    The points are transformed to the ground by each strip's own similarity
+    and compared: the differences show how well the strips fit together.
+
+    Attributes
+    ----------
+    strips : (int, int)
+        The two strips, indices into ``BlockResult.strips``.
+    n_points : int
+        Points determined in both.
+    mean_plan_m, max_plan_m : float
+        Mean and largest plan discrepancy, metres.
+    mean_height_m, max_height_m : float
+        Mean and largest absolute height discrepancy, metres.
+    """
+
+    strips: tuple[int, int]
+    n_points: int
+    mean_plan_m: float
+    max_plan_m: float
+    mean_height_m: float
+    max_height_m: float
+
+
+@dataclass(frozen=True)
+class BlockResult:
+    """A block of strips transformed at once onto the control.
+
+    Points and photos are in the control CRS (X, Y as given, H ellipsoidal)
+    in ``observations.point_ids`` / ``observations.photo_ids`` order; each
+    strip keeps its own strip model.
+
+    Attributes
+    ----------
+    specs : tuple of StripSpec
+        The strips as the project names them.
+    strips : tuple of StripModel
+        Each strip formed on its own (its own strip system).
+    observations : ImageObservations
+        Every photo of the block.
+    photo_strip : ndarray of int, shape (M,)
+        The strip of each photo.
+    scale : ndarray, shape (S,)
+        Each strip's similarity scale (metres per strip unit).
+    points : ndarray, shape (P, 3)
+        X, Y, H in the control CRS (NaN where no strip triangulated the point).
+    photo_centres : ndarray, shape (M, 3)
+    photo_opk : ndarray, shape (M, 3)
+        omega, phi, kappa in radians of ``R = Rx Ry Rz``, image -> local
+        east-north-up at the centre (image -> X, Y, H for ``"local"``).
+    control : ControlPoints
+    control_index : ndarray of int, shape (C,)
+        Rows of ``control`` whose point the block determined.
+    control_residuals : ndarray, shape (C, 3)
+        Given minus adjusted, E, N, H metres (NaN for components not given
+        or, except at check points, not used).
+    is_check, used_xy, used_h : ndarray of bool, shape (C,)
+    control_statistics, check_statistics : AccuracyStatistics
+    joins : tuple of StripJoin
+        Every pair of strips that share points.
+    sigma0 : float
+        A posteriori sigma of unit weight of the transformation.
+    redundancy, iterations : int
+    rejections : tuple of Rejection
+    warnings : tuple of str
+    timings : dict
+        Seconds per stage.
+    """
+
+    specs: tuple[StripSpec, ...]
+    strips: tuple[StripModel, ...]
+    observations: ImageObservations
+    photo_strip: IntArray
+    scale: FloatArray
+    points: FloatArray
+    photo_centres: FloatArray
+    photo_opk: FloatArray
+    control: ControlPoints
+    control_index: IntArray
+    control_residuals: FloatArray
+    is_check: BoolArray
+    used_xy: BoolArray
+    used_h: BoolArray
+    control_statistics: AccuracyStatistics
+    check_statistics: AccuracyStatistics
+    joins: tuple[StripJoin, ...]
+    sigma0: float
+    redundancy: int
+    iterations: int
+    rejections: tuple[Rejection, ...] = ()
+    warnings: tuple[str, ...] = ()
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def photo_ids(self) -> tuple[str, ...]:
+        return self.observations.photo_ids
+
+    @property
+    def point_ids(self) -> tuple[str, ...]:
+        return self.observations.point_ids

@@ -1,0 +1,183 @@
+"""Blocks of strips (block/strips.py, R4 3): every strip formed on its own,
+then all transformed at once onto the control and onto each other.
+
+Reference figures are measured on blocks from :func:`simulate_block` against
+the simulator's truth and against the same strips adjusted one by one with
+the same control.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from strip_aerotri.block.strips import adjust_block, strip_observations
+from strip_aerotri.errors import GeometryError, StripAerotriWarning
+from strip_aerotri.observations import ControlPoints, StripSpec
+from strip_aerotri.pipeline import triangulate
+from strip_aerotri.simulate import simulate_block
+
+
+def specs(sim) -> list[StripSpec]:
+    return [StripSpec(s.name, s.photo_ids) for s in sim.strips]
+
+
+def separate_plan_rmse(sim) -> list[float]:
+    out = []
+    for s in sim.strips:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", StripAerotriWarning)
+            sub = strip_observations(sim.observations, s.photo_ids)
+            out.append(triangulate(sub, sim.control, sim.crs).check_statistics.rmse_plan)
+    return out
+
+
+@pytest.fixture(scope="module")
+def film():
+    return simulate_block(3, 8, preset="film", seed=1)
+
+
+@pytest.fixture(scope="module")
+def drone():
+    return simulate_block(4, 15, preset="drone", side_overlap=0.4, seed=1)
+
+
+@pytest.mark.parametrize("name", ["film", "drone"])
+def test_block_by_models_beats_the_strips_alone(name, request):
+    """The block's check points against the truth: better than the same
+    strips adjusted one by one on the same control (their median), and with
+    sigma0 near 1 (the weights of the models' rays are right)."""
+    sim = request.getfixturevalue(name)
+    result = adjust_block(
+        sim.observations, sim.control, sim.crs, specs(sim), construction="models"
+    )
+    check = result.check_statistics
+    assert check.n_plan > 50
+    assert check.rmse_plan < np.median(separate_plan_rmse(sim))
+    assert 0.7 < result.sigma0 < 1.5
+    assert len(result.joins) == len(sim.strips) - 1 + 0  # adjacent strips only share points
+    assert all(j.n_points >= 3 for j in result.joins)
+
+
+def test_block_by_strips_runs_and_reports_the_joins(film):
+    """Every strip by one similarity (R4 3): weaker than every model, but a
+    block; the joins of adjacent strips are reported."""
+    by_strips = adjust_block(
+        film.observations, film.control, film.crs, specs(film), construction="strips"
+    )
+    by_models = adjust_block(
+        film.observations, film.control, film.crs, specs(film), construction="models"
+    )
+    assert by_strips.check_statistics.rmse_plan < 0.2
+    assert by_models.check_statistics.rmse_plan <= by_strips.check_statistics.rmse_plan
+    assert [j.strips for j in by_strips.joins] == [(0, 1), (1, 2)]
+    # the photos carry their strip; every photo has a position and an attitude
+    assert np.isfinite(by_strips.photo_centres).all() and np.isfinite(by_strips.photo_opk).all()
+    assert by_strips.photo_strip.tolist() == [0] * 8 + [1] * 8 + [2] * 8
+
+
+def _without_control_of(sim, strip_index: int) -> ControlPoints:
+    """The control minus every control point the given strip observes alone."""
+    obs = sim.observations
+    seen = np.zeros((len(sim.strips), obs.n_points), dtype=bool)
+    for k, s in enumerate(sim.strips):
+        photos = [obs.photo_ids.index(p) for p in s.photo_ids]
+        seen[k, np.unique(obs.point[np.isin(obs.photo, photos)])] = True
+    only = seen[strip_index] & ~np.delete(seen, strip_index, axis=0).any(axis=0)
+    lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
+    c = sim.control
+    keep = np.array(
+        [
+            not only[lookup[p]] or kind.value == "check"
+            for p, kind in zip(c.point_ids, c.kind, strict=True)
+        ]
+    )
+    return dataclasses.replace(
+        c,
+        point_ids=tuple(np.array(c.point_ids)[keep]),
+        xyz=c.xyz[keep],
+        kind=tuple(np.array(c.kind, dtype=object)[keep]),
+        sigma_xy=c.sigma_xy[keep],
+        sigma_h=c.sigma_h[keep],
+        source_line=c.source_line[keep] if c.source_line.size else c.source_line,
+    )
+
+
+def test_a_strip_without_control_is_carried_by_its_neighbours(film):
+    control = _without_control_of(film, 1)
+    result = adjust_block(film.observations, control, film.crs, specs(film), construction="models")
+    full = adjust_block(
+        film.observations, film.control, film.crs, specs(film), construction="models"
+    )
+    assert result.check_statistics.rmse_plan < 2.0 * full.check_statistics.rmse_plan + 0.02
+
+
+def test_an_isolated_strip_without_control_is_named(film):
+    obs = film.observations
+    third = [obs.photo_ids.index(p) for p in film.strips[2].photo_ids]
+    second = [obs.photo_ids.index(p) for p in film.strips[1].photo_ids]
+    shared = np.intersect1d(
+        obs.point[np.isin(obs.photo, third)], obs.point[np.isin(obs.photo, second)]
+    )
+    keep = ~(np.isin(obs.photo, third) & np.isin(obs.point, shared))
+    isolated = dataclasses.replace(
+        obs,
+        photo=obs.photo[keep],
+        point=obs.point[keep],
+        xy=obs.xy[keep],
+        sigma=obs.sigma[keep],
+        source_line=obs.source_line[keep] if obs.source_line.size else obs.source_line,
+    )
+    control = _without_control_of(film, 2)
+    with pytest.raises(GeometryError, match=r"strip 'S3' shares 0 point\(s\) with the rest"):
+        adjust_block(isolated, control, film.crs, specs(film))
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    code = "import sys; from strip_aerotri.cli.main import cli; sys.exit(cli())"
+    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True)
+
+
+def test_cli_end_to_end(tmp_path: Path, film):
+    toml = film.write_project(tmp_path / "p", block="models")
+    run = run_cli("run", str(toml))
+    assert run.returncode == 0, run.stderr
+    out = toml.parent / "out"
+    header = (out / "photos.csv").read_text().splitlines()[0].split(",")
+    assert header[:7] == ["photo", "X", "Y", "Z", "omega", "phi", "kappa"] and "strip" in header
+    report = json.loads((out / "report.json").read_text())
+    assert [s["name"] for s in report["block"]["strips"]] == ["S1", "S2", "S3"]
+    assert len(report["block"]["joins"]) == 2
+    assert report["check"]["statistics"]["n_plan"] > 50
+    assert "block" in (out / "report.html").read_text()
+    check = run_cli("check", str(toml))
+    assert check.returncode == 0 and "OK" in check.stdout
+
+
+@pytest.mark.parametrize(
+    ("edit", "named"),
+    [
+        (lambda t: '[strip]\nphotos = ["S1_01", "S1_02"]\n' + t, ("[strip]", "[[strips]]")),
+        (
+            lambda t: t.replace('photos = ["S2_01"', 'photos = ["S1_01", "S2_01"', 1),
+            ("'S1_01'", "S1", "S2"),
+        ),
+        (lambda t: t.replace('name = "S2"', 'name = "S1"', 1), ("'S1'", "name")),
+    ],
+    ids=["mixed", "photo in two strips", "two names"],
+)
+def test_cli_bad_blocks_are_one_line(tmp_path: Path, film, edit, named):
+    toml = film.write_project(tmp_path / "p")
+    toml.write_text(edit(toml.read_text()))
+    run = run_cli("run", str(toml))
+    assert run.returncode == 1
+    lines = run.stderr.strip().splitlines()
+    assert lines[-1].startswith("stripaero: error:") and all(n in lines[-1] for n in named)
+    assert not (toml.parent / "out").exists()
