@@ -492,7 +492,7 @@ def test_the_block_project_files_follow_the_format(tmp_path, flight):
         for entry in entries if isinstance(entries, list) else [entries]:
             assert set(entry) <= keys, table
     assert set(doc) <= set(BLOCK_TOML_KEYS)
-    assert doc["adjustment"] == {"block": "strips"}
+    assert doc["adjustment"] == {"block": "models"}
     assert doc["camera"]["principal_distance_mm"] == block.preset.principal_distance_mm
     assert doc["control"] == {"file": "control.csv", "crs": "EPSG:32634"}
     assert doc["images"] == {"file": "image_points.csv"}
@@ -603,7 +603,7 @@ def test_cli_writes_a_block(tmp_path):
         4, 10, preset="drone", side_overlap=0.4, flight="same", seed=2
     ).strip_photo_ids
     assert [tuple(s["photos"]) for s in doc["strips"]] == list(expected)
-    assert doc["adjustment"]["block"] == "strips"
+    assert doc["adjustment"]["block"] == "models"
     _, control = _read_csv(folder / "control.csv")
     assert Counter(r["type"] for r in control)["height"] > 0  # perimeter by default
 

@@ -193,6 +193,7 @@ def triangulate_block(
     route: Route | str | None = None,
     blunders: BlunderOptions | None = None,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    refine: Refine | str = Refine.NONE,
     progress: Progress | None = None,
     warnings: Sequence[str] = (),
 ) -> BlockResult:
@@ -215,6 +216,7 @@ def triangulate_block(
         route=route,
         blunders=blunders,
         max_iterations=max_iterations,
+        refine=Refine.create(refine) is Refine.BUNDLE,
     )
     if warnings:
         result = dataclasses.replace(result, warnings=tuple(warnings) + result.warnings)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,6 +60,7 @@ __all__ = ["adjust_block", "strip_observations"]
 MIN_COMMON_POINTS = 3
 
 _MAX_PASSES = 6
+_CHI2_3_MEDIAN = 2.365973884375338  # median of chi-square with 3 degrees of freedom
 _NO_TESTS = BlunderOptions(action=BlunderAction.OFF)
 _PASS_TOLERANCE_M = 1e-5
 
@@ -100,10 +101,11 @@ def adjust_block(
     strips: Sequence[StripSpec],
     *,
     strip_options: StripOptions | None = None,
-    construction: Construction | str = Construction.STRIPS,
+    construction: Construction | str = Construction.MODELS,
     route: Route | str | None = None,
     blunders: BlunderOptions | None = None,
     max_iterations: int = 50,
+    refine: bool = False,
 ) -> BlockResult:
     """Form every strip, then transform all strips at once to the control.
 
@@ -120,10 +122,15 @@ def adjust_block(
         How each strip is formed.
     construction : Construction
         ``"strips"`` (R4 3: every strip its own 3D similarity) or
-        ``"models"`` (every model of every strip its own, PAT-M).
+        ``"models"`` (every model of every strip its own, PAT-M; the default).
     route : Route, optional
         The work frame (default geocentric, projected for ``"local"``).
     blunders : BlunderOptions, optional
+    refine : bool
+        Refine the block's solution by a rigorous bundle adjustment of every
+        photo and point in the work frame (control as weighted observations,
+        with data snooping); the joins stay those of the block's
+        transformation.
 
     Raises
     ------
@@ -153,11 +160,14 @@ def adjust_block(
         Construction.create(construction),
         max_iterations,
     )
-    solution, used_xy, used_z, rejections = _snoop(problem, blunders)
-    result = _products(problem, solution, used_xy, used_z, rejections)
-    return _with_timings(
-        result, {"strips": t_strips, "block": time.perf_counter() - t0 - t_strips}
-    )
+    solution, used_xy, used_z, keep_rows, rejections = _snoop(problem, blunders)
+    result = _products(problem, solution, used_xy, used_z, keep_rows, rejections)
+    timings = {"strips": t_strips, "block": time.perf_counter() - t0 - t_strips}
+    if refine:
+        t1 = time.perf_counter()
+        result = _refine(problem, solution, used_xy, used_z, result, blunders, max_iterations)
+        timings["bundle"] = time.perf_counter() - t1
+    return _with_timings(result, timings)
 
 
 def _form(
@@ -458,7 +468,11 @@ class _Solution:
 
 
 def _solve(
-    p: _Problem, use_xy: BoolArray, use_z: BoolArray, previous: _Solution | None
+    p: _Problem,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    previous: _Solution | None,
+    keep_rows: BoolArray | None = None,
 ) -> _Solution:
     """The transformation, with passes for control given in plan or height only
     (their other coordinates from the adjusted point, as the ground stage)."""
@@ -478,13 +492,21 @@ def _solve(
     )
     guessed = bool(np.isnan(p.given[active]).any())
     n_total = p.observations.n_points + p.observations.n_photos
+    r = p.rows
+    rows = (
+        r
+        if keep_rows is None
+        else UnitObservations(
+            r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
+        )
+    )
     result = None
     for n_pass in range(1, _MAX_PASSES + 1):
         target = p.work.to_work(guess)
         target[~use_xy, :2] = np.nan
         target[~use_z, 2] = np.nan
         result = adjust_units(
-            p.rows,
+            rows,
             p.unit_strip.shape[0],
             n_total,
             start=starts,
@@ -510,72 +532,147 @@ def _solve(
 
 def _snoop(
     p: _Problem, blunders: BlunderOptions
-) -> tuple[_Solution, BoolArray, BoolArray, tuple[Rejection, ...]]:
-    """Baarda's w of the control: the worst failing component rejected at a
-    time (its point keeps the other components), never one that would leave
-    the block without two plan and three height points."""
+) -> tuple[_Solution, BoolArray, BoolArray, BoolArray, tuple[Rejection, ...]]:
+    """Data snooping, one rejection at a time until nothing fails: the control
+    by Baarda's w (never a component the block cannot spare: kept and
+    flagged), then the determinations of the points in their units by their
+    3-D residuals against chi-square(3), as the ground stage tests a strip's
+    models."""
     use_xy, use_z = p.use_xy.copy(), p.use_z.copy()
+    keep_rows = np.ones(p.rows.unit.shape[0], dtype=bool)
+    n_det = int((p.rows.point < p.observations.n_points).sum())
     rejections: list[Rejection] = []
-    sol = _solve(p, use_xy, use_z, None)
-    ids = p.control.point_ids
+    flagged: set[tuple[int, int]] = set()
+    sol = _solve(p, use_xy, use_z, None, keep_rows)
     while blunders.testing:
-        active = use_xy | use_z
-        w = np.full((p.idx.shape[0], 3), np.nan)
-        w[active] = sol.result.control_w
-        w[~use_xy, :2] = np.nan
-        w[~use_z, 2] = np.nan
-        n_tests = int(np.isfinite(w).sum())
-        critical = blunders.critical("control", max(n_tests, 1))
-        score = np.where(np.isfinite(w), np.abs(w), -np.inf)
-        row, comp = np.unravel_index(int(np.argmax(score)), score.shape)
-        if not score[row, comp] > critical:
+        found = _control_test(p, sol, use_xy, use_z, blunders, flagged)
+        if found is None:
+            found = _determination_test(p, sol, keep_rows, blunders)
+        if found is None:
             break
-        plan = comp < 2
-        spare = (use_xy.sum() > 2) if plan else (use_z.sum() > 3)
-        rejections.append(
-            Rejection(
-                stage="control",
-                point=ids[p.control_rows[row]],
-                photos=(),
-                component="XY" if plan else "H",
-                residual=float(
-                    np.hypot(*sol.result.control_residuals[active.cumsum()[row] - 1, :2])
-                    if plan
-                    else sol.result.control_residuals[active.cumsum()[row] - 1, 2]
-                ),
-                unit="m",
-                w=float(w[row, comp]),
-                critical=critical,
-                applied=blunders.rejecting and bool(spare),
-                effect=(
-                    "left out of the block's transformation"
-                    if spare
-                    else "kept: the block cannot spare it (flagged)"
-                ),
+        rejection, apply = found
+        rejections.append(rejection)
+        if not (blunders.rejecting and rejection.applied):
+            if not blunders.rejecting:
+                break
+            continue
+        apply(use_xy, use_z, keep_rows)
+        if (~keep_rows).sum() > blunders.max_fraction * n_det:
+            raise GeometryError(
+                f"block: more than {blunders.max_fraction:.0%} of the points' determinations "
+                "fail the blunder test; the image coordinates or point ids cannot be trusted"
             )
-        )
-        if not (blunders.rejecting and spare):
-            break
-        if plan:
-            use_xy[row] = False
-        else:
-            use_z[row] = False
-        sol = _solve(p, use_xy, use_z, sol)
-    return sol, use_xy, use_z, tuple(rejections)
+        sol = _solve(p, use_xy, use_z, sol, keep_rows)
+    return sol, use_xy, use_z, keep_rows, tuple(rejections)
 
 
-def _products(
+_Apply = Callable[[BoolArray, BoolArray, BoolArray], None]
+
+
+def _control_test(
     p: _Problem,
     sol: _Solution,
     use_xy: BoolArray,
     use_z: BoolArray,
-    rejections: tuple[Rejection, ...],
-) -> BlockResult:
-    """Points and photos to the CRS, the control's residuals and the joins."""
-    res, work = sol.result, p.work
+    blunders: BlunderOptions,
+    flagged: set[tuple[int, int]],
+) -> tuple[Rejection, _Apply] | None:
+    """The control component with the largest |w| beyond the critical value."""
+    active = use_xy | use_z
+    w = np.full((p.idx.shape[0], 3), np.nan)
+    w[active] = sol.result.control_w
+    w[~use_xy, :2] = np.nan
+    w[~use_z, 2] = np.nan
+    n_tests = int(np.isfinite(w).sum())
+    critical = blunders.critical("control", max(n_tests, 1))
+    score = np.where(np.isfinite(w), np.abs(w), -np.inf)
+    for row, comp in flagged:
+        score[row, comp] = -np.inf
+    row, comp = (int(v) for v in np.unravel_index(int(np.argmax(score)), score.shape))
+    if not score[row, comp] > critical:
+        return None
+    plan = comp < 2
+    spare = bool(use_xy.sum() > 2) if plan else bool(use_z.sum() > 3)
+    if not spare:
+        flagged.add((row, comp))
+    resid = sol.result.control_residuals[int(active[: row + 1].sum()) - 1]
+
+    def apply(xy: BoolArray, z: BoolArray, keep: BoolArray) -> None:
+        if plan:
+            xy[row] = False
+        else:
+            z[row] = False
+
+    return (
+        Rejection(
+            stage="control",
+            point=p.control.point_ids[p.control_rows[row]],
+            photos=(),
+            component="XY" if plan else "H",
+            residual=float(np.hypot(resid[0], resid[1]) if plan else resid[2]),
+            unit="m",
+            w=float(w[row, comp]),
+            critical=critical,
+            applied=blunders.rejecting and spare,
+            effect=(
+                "left out of the block's transformation"
+                if spare
+                else "kept: the block cannot spare it (flagged); check this point"
+            ),
+        ),
+        apply,
+    )
+
+
+def _determination_test(
+    p: _Problem, sol: _Solution, keep_rows: BoolArray, blunders: BlunderOptions
+) -> tuple[Rejection, _Apply] | None:
+    """The point determination whose 3-D residual fails chi-square(3) most
+    (``row_statistic`` times 3, scaled down by its median over chi-square(3)'s
+    when the data are noisier than declared, never up)."""
     n_points = p.observations.n_points
-    points_work = res.points[:n_points]
-    centres_work = res.points[n_points:]
+    kept = np.flatnonzero(keep_rows)
+    stat = 3.0 * sol.result.row_statistic
+    stat = np.where((p.rows.point[kept] < n_points) & np.isfinite(stat), stat, np.nan)
+    finite = stat[np.isfinite(stat)]
+    if finite.size == 0:
+        return None
+    stat = stat / max(1.0, float(np.median(finite)) / _CHI2_3_MEDIAN)
+    critical = blunders.critical("models", int(finite.size), dof=3)
+    w = np.sqrt(np.where(np.isfinite(stat), stat, 0.0))
+    k = int(np.argmax(w))
+    if not w[k] > critical:
+        return None
+    row = int(kept[k])
+    unit = int(p.rows.unit[row])
+    strip = p.specs[int(p.unit_strip[unit])].name
+
+    def apply(xy: BoolArray, z: BoolArray, keep: BoolArray, row: int = row) -> None:
+        keep[row] = False
+
+    return (
+        Rejection(
+            stage="models",
+            point=p.observations.point_ids[int(p.rows.point[row])],
+            photos=(f"strip {strip}",),
+            component="point",
+            residual=float(np.linalg.norm(sol.result.residuals[k])),
+            unit="m",
+            w=float(w[k]),
+            critical=critical,
+            applied=blunders.rejecting,
+            effect="determination left out of the block's transformation",
+        ),
+        apply,
+    )
+
+
+def _in_work_frame(p: _Problem, sol: _Solution) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Points (P, 3), projection centres (M, 3) and image -> work rotations
+    (M, 3, 3) of the block's solution; a photo's attitude is the mean of its
+    units' transforms of its strip rotation."""
+    res = sol.result
+    n_points = p.observations.n_points
     t = res.transforms
     rot_work = np.empty((p.observations.n_photos, 3, 3))
     for k, strip in enumerate(p.strips):
@@ -584,6 +681,88 @@ def _products(
         ra = t.apply_to_rotation(p.photo_units[photos, 0], r_strip)
         rb = t.apply_to_rotation(p.photo_units[photos, 1], r_strip)
         rot_work[photos] = _mean_rotation(ra, rb)
+    return res.points[:n_points], res.points[n_points:], rot_work
+
+
+def _refine(
+    p: _Problem,
+    sol: _Solution,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    block: BlockResult,
+    blunders: BlunderOptions,
+    max_iterations: int,
+) -> BlockResult:
+    """The bundle adjustment of the whole block from its solution, in the work
+    frame (plan-only and height-only control keep the block's value of their
+    other coordinate)."""
+    from dataclasses import replace
+
+    from ..bundle.snooping import refine_frame
+
+    points0, centres0, rot0 = _in_work_frame(p, sol)
+    n_points = p.observations.n_points
+    target = p.work.to_work(sol.guess)
+    control_xyz = np.full((n_points, 3), np.nan)
+    control_sigma = np.full((n_points, 3), np.inf)
+    use = np.column_stack([use_xy, use_xy, use_z])
+    control_xyz[p.idx] = np.where(use, target, np.nan)
+    control_sigma[p.idx] = np.where(use, p.sigma, np.inf)
+    fr = refine_frame(
+        p.observations,
+        centres0,
+        rot0,
+        points0,
+        control_xyz=control_xyz,
+        control_sigma=control_sigma,
+        blunders=blunders,
+        max_iterations=max_iterations,
+        compute_precision=False,
+    )
+    work = p.work
+    points_work = np.where(fr.point_used[:, None], fr.points, np.nan)
+    centres = work.from_work(fr.centres)
+    rot_enu = work.rotations_to_enu(fr.rotations, centres)
+    given_work = work.to_work(np.where(np.isnan(p.given), sol.guess, p.given))
+    resid = work.enu_from_work(given_work - points_work[p.idx])
+    used_xy = use_xy & fr.control_used[p.idx, 0]
+    used_z = use_z & fr.control_used[p.idx, 2]
+    resid[~(use_xy | p.check), :2] = np.nan
+    resid[~(use_z | p.check), 2] = np.nan
+    resid[np.isnan(p.given)] = np.nan
+    used = resid.copy()
+    used[~used_xy, :2] = np.nan
+    used[~used_z, 2] = np.nan
+    notes = tuple(r.describe() for r in fr.rejections)
+    return replace(
+        block,
+        points=work.from_work(points_work),
+        photo_centres=centres,
+        photo_opk=opk_from_matrix(rot_enu),
+        control_residuals=resid,
+        used_xy=used_xy,
+        used_h=used_z,
+        control_statistics=AccuracyStatistics.from_residuals(used[~p.check]),
+        check_statistics=AccuracyStatistics.from_residuals(resid[p.check]),
+        rejections=block.rejections + tuple(fr.rejections),
+        warnings=block.warnings + notes,
+        refined=True,
+        refined_sigma0=float(fr.bundle.sigma0),
+    )
+
+
+def _products(
+    p: _Problem,
+    sol: _Solution,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    keep_rows: BoolArray,
+    rejections: tuple[Rejection, ...],
+) -> BlockResult:
+    """Points and photos to the CRS, the control's residuals and the joins."""
+    res, work = sol.result, p.work
+    points_work, centres_work, rot_work = _in_work_frame(p, sol)
+    t = res.transforms
     centres = work.from_work(centres_work)
     rot_enu = work.rotations_to_enu(rot_work, centres)
     given_work = work.to_work(np.where(np.isnan(p.given), sol.guess, p.given))
@@ -611,7 +790,7 @@ def _products(
         used_h=use_z,
         control_statistics=AccuracyStatistics.from_residuals(used[~p.check]),
         check_statistics=AccuracyStatistics.from_residuals(resid[p.check]),
-        joins=_joins(p, t),
+        joins=_joins(p, t, keep_rows),
         sigma0=float(res.sigma0),
         redundancy=int(res.redundancy),
         iterations=int(res.iterations),
@@ -620,13 +799,13 @@ def _products(
     )
 
 
-def _joins(p: _Problem, t: UnitTransforms) -> tuple[StripJoin, ...]:
+def _joins(p: _Problem, t: UnitTransforms, keep_rows: BoolArray) -> tuple[StripJoin, ...]:
     """Every pair of strips on the points both determine: each strip's
     determination (the mean of its units' transformed rows) compared along
     east, north and up."""
     n_points = p.observations.n_points
     r = p.rows
-    is_point = r.point < n_points
+    is_point = (r.point < n_points) & keep_rows
     placed = t.apply(r.unit[is_point], r.xyz[is_point])
     strip_of_row = p.unit_strip[r.unit[is_point]]
     n_strips = len(p.strips)

@@ -37,6 +37,7 @@ def run_project(
             route=adj.route,
             blunders=project.blunders if blunders is None else blunders,
             max_iterations=adj.max_iterations,
+            refine=adj.refine,
             progress=progress,
             warnings=project.warnings,
         )

@@ -102,6 +102,8 @@ def build_block_report(
                 )
             ],
             "sigma0": json_float(result.sigma0),
+            "refined": result.refined,
+            "refined_sigma0": json_float(result.refined_sigma0),
             "redundancy": result.redundancy,
             "iterations": result.iterations,
             "joins": joins,

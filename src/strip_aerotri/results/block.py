@@ -82,6 +82,12 @@ class BlockResult:
     warnings : tuple of str
     timings : dict
         Seconds per stage.
+    refined : bool
+        The points, photos and control residuals are those of the bundle
+        refinement of the whole block (``refine = "bundle"``); the joins
+        stay the block transformation's.
+    refined_sigma0 : float
+        A posteriori sigma of unit weight of the refinement (NaN without).
     """
 
     specs: tuple[StripSpec, ...]
@@ -107,6 +113,8 @@ class BlockResult:
     rejections: tuple[Rejection, ...] = ()
     warnings: tuple[str, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
+    refined: bool = False
+    refined_sigma0: float = float("nan")
 
     @property
     def photo_ids(self) -> tuple[str, ...]:

@@ -194,7 +194,7 @@ class SimulatedBlock:
         self,
         directory: str | Path,
         *,
-        block: str = "strips",
+        block: str = "models",
         models: str | None = None,
         polynomial: int | str | None = None,
         route: str | None = None,

@@ -113,7 +113,7 @@ def write_block_project(
     crs: str,
     *,
     name: str,
-    block: str = "strips",
+    block: str = "models",
     models: str | None = None,
     polynomial: int | str | None = None,
     route: str | None = None,
