@@ -43,9 +43,27 @@ class StripaeroGroup(click.Group):
             return super().invoke(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
+        except BrokenPipeError:
+            # the reader of stdout went away (``stripaero run ... | head``): the
+            # work is done, nothing more can be shown; no traceback at exit
+            _silence_stdout()
+            ctx.exit(0)
         except Exception as exc:  # the boundary: every other error becomes exit code 1
             report_exception(exc, settings(ctx).debug)
             ctx.exit(1)
+
+
+def _silence_stdout() -> None:
+    """Point stdout at the null device, so that Python's flush at exit raises no
+    second BrokenPipeError (the Python docs' recipe, signal module)."""
+    import os
+    import sys
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # no real stdout (e.g. a test runner's buffer)
+        pass
 
 
 def report_exception(exc: BaseException, debug: bool) -> None:

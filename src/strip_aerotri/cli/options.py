@@ -153,9 +153,22 @@ def echo_warning(message: object) -> None:
 
 
 def echo_progress(message: object, *, level: int = 0) -> None:
-    """A progress message on stderr, shown when the verbosity is at least ``level``."""
-    if settings().level >= level:
+    """A progress message on stderr, shown when the verbosity is at least ``level``:
+    at level 0 only when stderr is a terminal, so that a script or a CI log
+    reading stderr sees a failing run's one error line alone (``-v`` shows
+    the progress anywhere)."""
+    shown = settings().level >= (level if _stderr_is_terminal() else max(level, 1))
+    if shown:
         click.echo(f"{PROG}: {one_line(message)}", err=True)
+
+
+def _stderr_is_terminal() -> bool:
+    import sys
+
+    try:
+        return bool(sys.stderr.isatty())
+    except (AttributeError, ValueError):  # a closed or replaced stream
+        return False
 
 
 def echo_result(message: str = "") -> None:

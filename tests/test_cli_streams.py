@@ -1,0 +1,46 @@
+"""The command line's streams as scripts see them (subprocesses, no terminal)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from strip_aerotri.simulate import simulate_strip
+
+CLI = "import sys; from strip_aerotri.cli.main import cli; sys.exit(cli())"
+
+
+def test_output_piped_into_a_reader_that_stops_is_no_error(tmp_path: Path):
+    """``stripaero run ... | head -1``: no BrokenPipeError, no traceback, exit 0.
+
+    The reader is gone before the first line (its end of the pipe closed), so
+    every write fails: the case is certain, not a race with a real ``head``."""
+    toml = simulate_strip(8, seed=1).write_project(tmp_path / "p")
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        run = subprocess.run(
+            [sys.executable, "-c", CLI, "run", str(toml)],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=120,
+        )
+    finally:
+        os.close(write_end)
+    assert run.returncode == 0, run.stderr
+    assert "Traceback" not in run.stderr and "BrokenPipe" not in run.stderr
+    assert (toml.parent / "out" / "report.json").is_file()
+
+
+def test_a_failing_run_writes_one_line_to_stderr(tmp_path: Path):
+    """stderr not a terminal: exactly the one error line (no progress lines)."""
+    bad = tmp_path / "strip.toml"
+    bad.write_text("x\n")
+    run = subprocess.run(
+        [sys.executable, "-c", CLI, "run", str(bad)], capture_output=True, text=True
+    )
+    assert run.returncode == 1
+    assert run.stderr.count("\n") == 1 and run.stderr.startswith("stripaero: error: ")
