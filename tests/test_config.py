@@ -741,3 +741,19 @@ def test_block_models_with_a_polynomial_is_an_error(minimal: Path) -> None:
     append("strip.toml", '\n[adjustment]\nblock = "models"\npolynomial = 3\n')(minimal)
     with pytest.raises(ConfigError, match=r"\[adjustment\] polynomial: applies to block"):
         load_project(minimal / "strip.toml")
+
+
+def test_semicolon_csv_gets_a_hint(minimal: Path) -> None:
+    path = minimal / "image_points.csv"
+    path.write_text(path.read_text().replace(",", ";"))
+    with pytest.raises(ConfigError, match=r"image_points\.csv:1: .*separated by ';'.*decimal"):
+        load_project(minimal / "strip.toml")
+
+
+@pytest.mark.parametrize(
+    ("n", "text"), [(2, "2nd"), (3, "3rd"), (4, "4th"), (11, "11th"), (12, "12th"), (21, "21st")]
+)
+def test_english_ordinals(n: int, text: str) -> None:
+    from strip_aerotri.project.check import _ordinal
+
+    assert _ordinal(n) == text

@@ -463,7 +463,7 @@ def _summarize(
     rep.summary += [
         f"project '{project.name}': {project.path}",
         f"photos: {n_photos} ({all_ids[0]} ... {all_ids[-1]}), {n_models} pairs"
-        + (f" (models on every {step}th photo)" if step > 1 else ""),
+        + (f" (models on every {_ordinal(step)} photo)" if step > 1 else ""),
         f"image points: {obs.n_points} on {len(obs.photo)} observations, "
         f"{int(triangulable.sum())} measured on a pair",
         f"pairs: {int(counts.min())}..{int(counts.max())} common points{tie_text}",
@@ -486,3 +486,9 @@ def _summarize(
     ]
     if target is not None:
         rep.summary.append(f"output folder: {target}")
+
+
+def _ordinal(n: int) -> str:
+    """English ordinal: 2nd, 3rd, 4th, 11th, 21st."""
+    suffix = "th" if 10 <= n % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
+    return f"{n}{suffix}"

@@ -118,6 +118,12 @@ def read_csv(path: Path, columns: Sequence[ColumnSpec], named_by: str) -> CsvTab
         raise ConfigError(f"{path}: no header line (the file is empty or all comments)")
     header_line = int(numbers[0])
     header = [name.strip() for name in _split_fields(path, kept[:1], numbers[:1])[0]]
+    if len(header) == 1 and ";" in header[0]:
+        raise ConfigError(
+            f"{path}:{header_line}: the header '{header[0]}' is separated by ';': the file must "
+            "be comma-separated (a spreadsheet set to a decimal comma writes ';'; save it as "
+            "CSV with ',' between columns and '.' as the decimal mark)"
+        )
     canonical = {c.name.lower(): c.name for c in columns}
     names: list[str] = []
     for name in header:
