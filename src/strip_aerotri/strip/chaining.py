@@ -109,6 +109,22 @@ def tie_rows(
     return i_now, np.take(previous_row, i_now)
 
 
+def model_sequence(
+    observations: ImageObservations, photo_index: ArrayLike | None
+) -> tuple[IntArray, list[str]]:
+    """The photos that form the models, in strip order (all by default), and
+    the name of each pair ("pair <left>-<right>")."""
+    seq = (
+        np.arange(observations.n_photos, dtype=np.intp)
+        if photo_index is None
+        else np.asarray(photo_index, dtype=np.intp)
+    )
+    if seq.shape[0] < 2:
+        raise GeometryError(f"a strip needs at least two photos, got {seq.shape[0]}")
+    ids = observations.photo_ids
+    return seq, [f"pair {ids[seq[m]]}-{ids[seq[m + 1]]}" for m in range(seq.shape[0] - 1)]
+
+
 def form_strip(
     observations: ImageObservations,
     options: StripOptions | None = None,
@@ -143,17 +159,8 @@ def form_strip(
         A relative orientation that does not converge.
     """
     options = options or StripOptions()
-    seq = (
-        np.arange(observations.n_photos, dtype=np.intp)
-        if photo_index is None
-        else np.asarray(photo_index, dtype=np.intp)
-    )
-    if seq.shape[0] < 2:
-        raise GeometryError(f"a strip needs at least two photos, got {seq.shape[0]}")
+    seq, labels = model_sequence(observations, photo_index)
     n_models = seq.shape[0] - 1
-    ids = observations.photo_ids
-    labels = [f"pair {ids[seq[m]]}-{ids[seq[m + 1]]}" for m in range(n_models)]
-
     blunders = blunders or BlunderOptions()
     rejections: list[Rejection] = []
     pairs = _orient_pairs(observations, options, blunders, seq, labels, rejections)
@@ -165,7 +172,7 @@ def form_strip(
         observations, model, point, unit, centres, scale, ties.rejected_point_index
     )
     i_now, i_prev, tie_model, tie_count = ties.i_now, ties.i_prev, ties.tie_model, ties.tie_count
-    tie_difference, tie_rms = _tie_differences(model_points, i_now, i_prev, tie_model, tie_count)
+    tie_difference, tie_rms = tie_differences(model_points, i_now, i_prev, tie_model, tie_count)
     row_l, row_r, ratio = pairs.row_l, pairs.row_r, ties.ratio
     rejected_point_index, missing = ties.rejected_point_index, ties.missing
 
@@ -481,7 +488,7 @@ def _strip_points(
     return model_points, model_parallax, points, counts
 
 
-def _tie_differences(
+def tie_differences(
     model_points: FloatArray,
     i_now: IntArray,
     i_prev: IntArray,

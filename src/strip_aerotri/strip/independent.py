@@ -38,7 +38,7 @@ from ..geometry.similarity import SimilarityTransform, similarity_from_points
 from ..observations import ImageObservations
 from ..options import BlunderOptions, RelativeOrientationMethod, StripOptions
 from ..results import Rejection, RelativeOrientation, StripModel
-from .chaining import _orient_pairs, _Pairs, tie_rows
+from .chaining import _orient_pairs, _Pairs, model_sequence, tie_differences, tie_rows
 
 __all__ = ["form_strip_independent"]
 
@@ -73,16 +73,7 @@ def form_strip_independent(
         options or StripOptions(), relative_orientation=RelativeOrientationMethod.BASE
     )
     blunders = blunders or BlunderOptions()
-    seq = (
-        np.arange(observations.n_photos, dtype=np.intp)
-        if photo_index is None
-        else np.asarray(photo_index, dtype=np.intp)
-    )
-    if seq.shape[0] < 2:
-        raise GeometryError(f"a strip needs at least two photos, got {seq.shape[0]}")
-    n_models = seq.shape[0] - 1
-    ids = observations.photo_ids
-    labels = [f"pair {ids[seq[m]]}-{ids[seq[m + 1]]}" for m in range(n_models)]
+    seq, labels = model_sequence(observations, photo_index)
     rejections: list[Rejection] = []
     pairs = _orient_pairs(observations, options, blunders, seq, labels, rejections)
     left_base, right_base = _base_rotations(pairs.rel)
@@ -357,14 +348,7 @@ def _strip_model(
     i_now, i_prev = i_now[joins.tie_ok], i_prev[joins.tie_ok]
     tie_model = model[i_now]
     tie_count = np.bincount(tie_model, minlength=n_models).astype(np.intp)
-    tie_difference = model_points[i_now] - model_points[i_prev]
-    sq = np.stack(
-        [np.bincount(tie_model, tie_difference[:, k] ** 2, minlength=n_models) for k in range(3)],
-        axis=1,
-    )
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tie_rms = np.sqrt(sq / tie_count[:, None])
-    tie_rms[tie_count == 0] = np.nan
+    tie_difference, tie_rms = tie_differences(model_points, i_now, i_prev, tie_model, tie_count)
     ratio = np.ones(n_models)
     ratio[1:] = scale[1:] / scale[:-1]
     return StripModel(
