@@ -39,7 +39,7 @@ from ..geometry.simultaneous import (
     UnitTransforms,
     adjust_units,
 )
-from ..ground.models import _weights as _model_weights
+from ..ground.models import model_weights
 from ..ground.polynomials import adjust_to_ground
 from ..observations import ControlPoints, ImageObservations, StripSpec
 from ..options import (
@@ -405,7 +405,7 @@ def _units(
             photo_units[photos] = n_units
             n_here = 1
         else:
-            info, c_left, c_right = _model_weights(
+            info, c_left, c_right = model_weights(
                 strip, fit, float(np.median(strip.observations.sigma))
             )
             pos = strip.model_photo_positions

@@ -58,14 +58,14 @@ from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .common import control_detectability, index_of, intersect_unmodelled
 from .polynomials import adjust_to_ground
 
-__all__ = ["ModelAdjustment", "adjust_models_to_ground"]
+__all__ = ["ModelAdjustment", "adjust_models_to_ground", "model_weights"]
 
 _MAX_PASSES = 8
 _CHI2_3_MEDIAN = 2.365973884375338  # median of chi-square with 3 degrees of freedom
 _PASS_TOLERANCE_M = 1e-5
 
 
-def _weights(
+def model_weights(
     strip: StripModel, start_transform: SimilarityTransform, sigma_fallback: float
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Work-frame information matrices of the determinations (n, 3, 3) and of
@@ -217,7 +217,7 @@ def _prepare(
     work = make_work_frame(start.route, crs, guess[active], start.azimuth)
     transform = start.similarity.transform
     _check_breaks(strip, idx, use_xy, use_z, ids, work.to_work(guess))
-    info, c_left, c_right = _weights(strip, transform, float(np.median(obs.sigma)))
+    info, c_left, c_right = model_weights(strip, transform, float(np.median(obs.sigma)))
 
     pos = strip.model_photo_positions
     n_models, n_points = strip.n_models, obs.n_points
