@@ -171,7 +171,8 @@ def test_cli_end_to_end(tmp_path: Path, film):
     assert [s["name"] for s in report["block"]["strips"]] == ["S1", "S2", "S3"]
     assert len(report["block"]["joins"]) == 2
     assert report["check"]["statistics"]["n_plan"] > 50
-    assert "block" in (out / "report.html").read_text()
+    page = (out / "report.html").read_text()
+    assert "block" in page and page.count("<img") == 1  # the block figure
     check = run_cli("check", str(toml))
     assert check.returncode == 0 and "OK" in check.stdout
 

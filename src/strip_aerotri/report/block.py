@@ -153,11 +153,12 @@ def build_block_outputs(
         geographic=geographic,
     )
     report = build_block_report(result, project=project, map_scale=map_scale)
+    figure = block_figure(result, geographic=geographic)
     return {
         "points.csv": points_text.encode("utf-8"),
         "photos.csv": photos_text.encode("utf-8"),
         "report.json": (json.dumps(report, indent=2, allow_nan=False) + "\n").encode("utf-8"),
-        "report.html": _html(report).encode("utf-8"),
+        "report.html": _html(report, figure).encode("utf-8"),
     }
 
 
@@ -167,7 +168,79 @@ def _geographic(crs: str) -> bool:
     return bool(pyproj.CRS.from_user_input(crs).is_geographic)
 
 
-def _html(report: dict[str, Any]) -> str:
+def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None:
+    """The block in plan as a PNG (base64): photo centres coloured by strip,
+    control and check points, and the check points' plan residuals as
+    arrows (scaled so that the largest is a tenth of the block's extent, the
+    scale written in the legend)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure
+
+    from .figures import _png
+
+    centres = np.asarray(result.photo_centres, dtype=np.float64)
+    if not np.isfinite(centres).all():
+        return None
+    origin = centres[:, :2].mean(axis=0)
+    if geographic:  # degrees to metres about the centre, for a figure only
+        lat = np.radians(origin[1])
+        factor = np.array([111_320.0 * np.cos(lat), 110_540.0])
+    else:
+        factor = np.ones(2)
+
+    def plan(xyh: np.ndarray) -> np.ndarray:
+        out: np.ndarray = (xyh[:, :2] - origin) * factor
+        return out
+
+    fig = Figure(figsize=(9, 7), layout="constrained")
+    ax = fig.subplots()
+    for k, spec in enumerate(result.specs):
+        xy = plan(centres[result.photo_strip == k])
+        ax.plot(xy[:, 0], xy[:, 1], "o-", ms=3, lw=0.8, label=f"strip {spec.name} photos")
+    lookup = {pid: i for i, pid in enumerate(result.point_ids)}
+    rows = np.asarray(result.control_index)
+    index = np.array([lookup[result.control.point_ids[r]] for r in rows], dtype=np.intp)
+    points = np.asarray(result.points, dtype=np.float64)[index]
+    ok = np.isfinite(points).all(axis=1)
+    check = np.asarray(result.is_check) & ok
+    control = ~np.asarray(result.is_check) & ok
+    xy = plan(points)
+    ax.scatter(
+        xy[control, 0], xy[control, 1], marker="^", s=50, c="#c0392b", label="control", zorder=4
+    )
+    ax.scatter(
+        xy[check, 0], xy[check, 1], marker="s", s=25, c="#8e44ad", label="check points", zorder=4
+    )
+    resid = np.asarray(result.control_residuals, dtype=np.float64)[:, :2]
+    vec = check & np.isfinite(resid).all(axis=1)
+    if vec.any():
+        extent = float(np.ptp(plan(centres), axis=0).max()) or 1.0
+        largest = float(np.hypot(*resid[vec].T).max()) or 1.0
+        scale = 0.1 * extent / largest
+        ax.quiver(
+            xy[vec, 0],
+            xy[vec, 1],
+            resid[vec, 0] * scale,
+            resid[vec, 1] * scale,
+            angles="xy",
+            scale_units="xy",
+            scale=1.0,
+            width=0.003,
+            color="#1f618d",
+            zorder=5,
+            label=f"check residual x {scale:.0f}",
+        )
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("east from the block centre (m)")
+    ax.set_ylabel("north from the block centre (m)")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    return _png(fig)
+
+
+def _html(report: dict[str, Any], figure: str | None = None) -> str:
     """A one-page summary: the block, the check points, the joins of the strips."""
 
     def cell(value: Any) -> str:
@@ -193,6 +266,12 @@ def _html(report: dict[str, Any]) -> str:
         for j in block["joins"]
     )
     warnings = "".join(f"<li>{cell(w)}</li>" for w in report["warnings"]) or "<li>none</li>"
+    figure_html = (
+        ""
+        if figure is None
+        else '<h2>The block</h2><img alt="photo centres by strip, control, check points '
+        f'and their plan residuals" src="data:image/png;base64,{figure}" style="max-width:100%">'
+    )
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{cell(name)}: block report</title>
 <style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}
@@ -209,6 +288,7 @@ onto the control and onto each other); sigma0 {cell(block["sigma0"])}, redundanc
 <td>{cell(check["rmse_plan_m"])}</td><td>{cell(check["rmse_h_m"])}</td></tr>
 <tr><td>control used</td><td>{control["n_plan"]} / {control["n_height"]}</td>
 <td>{cell(control["rmse_plan_m"])}</td><td>{cell(control["rmse_h_m"])}</td></tr></table>
+{figure_html}
 <h2>Strips</h2>
 <table><tr><th>strip</th><th>photos</th><th>models</th><th>scale (m / strip unit)</th></tr>
 {rows}</table>
