@@ -19,7 +19,14 @@ import numpy as np
 from .errors import GeometryError
 from .geodesy import GroundCRS
 from .ground.polynomials import adjust_to_ground
-from .observations import ControlPoints, ImageObservations, LineSpec, StripSpec
+from .observations import (
+    ControlPoints,
+    GnssCentres,
+    ImageObservations,
+    ImuAttitudes,
+    LineSpec,
+    StripSpec,
+)
 from .options import (
     DEFAULT_MAX_ITERATIONS,
     DEFAULT_MIN_BASE_TO_HEIGHT,
@@ -194,6 +201,8 @@ def triangulate_block(
     blunders: BlunderOptions | None = None,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     refine: Refine | str = Refine.NONE,
+    gnss: GnssCentres | None = None,
+    imu: ImuAttitudes | None = None,
     progress: Progress | None = None,
     warnings: Sequence[str] = (),
 ) -> BlockResult:
@@ -217,6 +226,8 @@ def triangulate_block(
         blunders=blunders,
         max_iterations=max_iterations,
         refine=Refine.create(refine) is Refine.BUNDLE,
+        gnss=gnss,
+        imu=imu,
     )
     if warnings:
         result = dataclasses.replace(result, warnings=tuple(warnings) + result.warnings)

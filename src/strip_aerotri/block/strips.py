@@ -41,7 +41,13 @@ from ..geometry.simultaneous import (
 )
 from ..ground.models import model_weights
 from ..ground.polynomials import adjust_to_ground
-from ..observations import ControlPoints, ImageObservations, StripSpec
+from ..observations import (
+    ControlPoints,
+    GnssCentres,
+    ImageObservations,
+    ImuAttitudes,
+    StripSpec,
+)
 from ..options import (
     BlunderAction,
     BlunderOptions,
@@ -106,6 +112,8 @@ def adjust_block(
     blunders: BlunderOptions | None = None,
     max_iterations: int = 50,
     refine: bool = False,
+    gnss: GnssCentres | None = None,
+    imu: ImuAttitudes | None = None,
 ) -> BlockResult:
     """Form every strip, then transform all strips at once to the control.
 
@@ -131,6 +139,9 @@ def adjust_block(
         photo and point in the work frame (control as weighted observations,
         with data snooping); the joins stay those of the block's
         transformation.
+    gnss, imu : GnssCentres, ImuAttitudes, optional
+        Observed projection centres and attitudes of the refinement (with
+        ``refine`` only).
 
     Raises
     ------
@@ -165,7 +176,9 @@ def adjust_block(
     timings = {"strips": t_strips, "block": time.perf_counter() - t0 - t_strips}
     if refine:
         t1 = time.perf_counter()
-        result = _refine(problem, solution, used_xy, used_z, result, blunders, max_iterations)
+        result = _refine(
+            problem, solution, used_xy, used_z, result, blunders, max_iterations, gnss, imu
+        )
         timings["bundle"] = time.perf_counter() - t1
     return _with_timings(result, timings)
 
@@ -692,12 +705,15 @@ def _refine(
     block: BlockResult,
     blunders: BlunderOptions,
     max_iterations: int,
+    gnss: GnssCentres | None = None,
+    imu: ImuAttitudes | None = None,
 ) -> BlockResult:
     """The bundle adjustment of the whole block from its solution, in the work
     frame (plan-only and height-only control keep the block's value of their
     other coordinate)."""
     from dataclasses import replace
 
+    from ..bundle.refine import gnss_imu_in_frame
     from ..bundle.snooping import refine_frame
 
     points0, centres0, rot0 = _in_work_frame(p, sol)
@@ -708,6 +724,7 @@ def _refine(
     use = np.column_stack([use_xy, use_xy, use_z])
     control_xyz[p.idx] = np.where(use, target, np.nan)
     control_sigma[p.idx] = np.where(use, p.sigma, np.inf)
+    aux = gnss_imu_in_frame(p.observations.photo_ids, block.photo_centres, p.work, gnss, imu)
     fr = refine_frame(
         p.observations,
         centres0,
@@ -715,6 +732,11 @@ def _refine(
         points0,
         control_xyz=control_xyz,
         control_sigma=control_sigma,
+        gnss_centres=aux.gnss_xyz,
+        gnss_sigma=aux.gnss_sig,
+        imu_rotations=aux.imu_rot,
+        imu_sigma=aux.imu_sig,
+        gnss_axes=aux.gnss_axes,
         blunders=blunders,
         max_iterations=max_iterations,
         compute_precision=False,

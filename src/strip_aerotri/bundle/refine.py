@@ -41,7 +41,7 @@ import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import StripAerotriWarning
-from ..frames import LocalTangentFrame, TangentWorkFrame, enu_residuals
+from ..frames import LocalTangentFrame, TangentWorkFrame, WorkFrame, enu_residuals
 from ..geometry.rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
 from ..observations import ControlPoints, GnssCentres, ImuAttitudes
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions
@@ -293,7 +293,7 @@ def refine_bundle(
     start = _start_values(result, frame)
     rows = np.flatnonzero(has_point)
     ctrl = _control_rows(control, rows, row_point[rows], obs.n_points)
-    aux = _gnss_imu_in_frame(result, frame, gnss, imu)
+    aux = gnss_imu_in_frame(obs.photo_ids, result.photo_centres, frame, gnss, imu)
     t_frame = time.perf_counter() - t_start
 
     passes = _passes(
@@ -463,18 +463,22 @@ class _Auxiliary(NamedTuple):
     imu_lookup: IntArray
 
 
-def _gnss_imu_in_frame(
-    result: StripResult,
-    frame: TangentWorkFrame,
+def gnss_imu_in_frame(
+    photo_ids: Sequence[str],
+    photo_centres: FloatArray,
+    frame: WorkFrame,
     gnss: GnssCentres | None,
     imu: ImuAttitudes | None,
 ) -> _Auxiliary:
-    obs = result.strip.observations
-    m = obs.n_photos
+    """GNSS centres and IMU attitudes in a work frame, one row per photo of
+    ``photo_ids`` (NaN / inf sigma where a photo has none); the attitudes
+    turned through east-north-up at the photos' centres ``photo_centres``
+    (CRS, the current solution's)."""
+    m = len(photo_ids)
     gnss_xyz = gnss_sig = imu_rot = imu_sig = None
     gnss_lookup = imu_lookup = np.zeros(0, dtype=np.intp)
     if gnss is not None:
-        j = gnss_lookup = _photo_lookup(gnss.photo_ids, obs.photo_ids, "GNSS centres")
+        j = gnss_lookup = _photo_lookup(gnss.photo_ids, photo_ids, "GNSS centres")
         ok = j >= 0
         gnss_xyz = np.full((m, 3), np.nan)
         gnss_xyz[j[ok]] = frame.to_work(gnss.xyz[ok])
@@ -482,15 +486,15 @@ def _gnss_imu_in_frame(
         gnss_sig[j[ok], 0] = gnss_sig[j[ok], 1] = gnss.sigma_xy[ok]
         gnss_sig[j[ok], 2] = gnss.sigma_z[ok]
     if imu is not None:
-        j = imu_lookup = _photo_lookup(imu.photo_ids, obs.photo_ids, "IMU attitudes")
+        j = imu_lookup = _photo_lookup(imu.photo_ids, photo_ids, "IMU attitudes")
         ok = j >= 0
         imu_rot = np.full((m, 3, 3), np.nan)
-        centres_for = result.photo_centres[j[ok]]
+        centres_for = photo_centres[j[ok]]
         imu_rot[j[ok]] = frame.work_from_enu(centres_for) @ matrix_from_opk(imu.opk[ok])
         imu_sig = np.full((m, 3), np.inf)
         imu_sig[j[ok]] = imu.sigma[ok, None]
     # GNSS test directions: east, north, up at the strip method's centres.
-    gnss_axes = None if gnss is None else frame.work_from_enu(result.photo_centres)
+    gnss_axes = None if gnss is None else frame.work_from_enu(photo_centres)
     return _Auxiliary(gnss_xyz, gnss_sig, gnss_lookup, gnss_axes, imu_rot, imu_sig, imu_lookup)
 
 

@@ -412,12 +412,6 @@ def _check_structure(toml_path: Path, doc: dict[str, Any]) -> None:
             f"{toml_path}: both [strip] and [[strips]]: a project is one strip ([strip]) or a "
             "block of strips ([[strips]], one table per strip), not both"
         )
-    if "strips" in doc and ("gnss" in doc or "imu" in doc):
-        raise ConfigError(
-            f"{toml_path}: [{'gnss' if 'gnss' in doc else 'imu'}]: GNSS centres and IMU "
-            "attitudes are observations of a strip's bundle refinement; a block's refinement "
-            "does not take them yet"
-        )
     if "strip" not in doc and "strips" not in doc:
         raise ConfigError(
             f"{toml_path}: missing required table [strip] (or [[strips]] tables for a block)"

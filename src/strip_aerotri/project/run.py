@@ -38,6 +38,8 @@ def run_project(
             blunders=project.blunders if blunders is None else blunders,
             max_iterations=adj.max_iterations,
             refine=adj.refine,
+            gnss=project.gnss,
+            imu=project.imu,
             progress=progress,
             warnings=project.warnings,
         )
