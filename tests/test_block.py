@@ -186,8 +186,12 @@ def test_cli_end_to_end(tmp_path: Path, film):
             ("'S1_01'", "S1", "S2"),
         ),
         (lambda t: t.replace('name = "S2"', 'name = "S1"', 1), ("'S1'", "name")),
+        (
+            lambda t: t + '\n[[straight_line]]\npoints = ["P00001", "P00002", "P00003"]\n',
+            ("[[straight_line]]", "block"),
+        ),
     ],
-    ids=["mixed", "photo in two strips", "two names"],
+    ids=["mixed", "photo in two strips", "two names", "straight line"],
 )
 def test_cli_bad_blocks_are_one_line(tmp_path: Path, film, edit, named):
     toml = film.write_project(tmp_path / "p")

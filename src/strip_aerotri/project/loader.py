@@ -412,6 +412,11 @@ def _check_structure(toml_path: Path, doc: dict[str, Any]) -> None:
             f"{toml_path}: both [strip] and [[strips]]: a project is one strip ([strip]) or a "
             "block of strips ([[strips]], one table per strip), not both"
         )
+    if "strips" in doc and "straight_line" in doc:
+        raise ConfigError(
+            f"{toml_path}: [[straight_line]]: the straight-line condition is not used in a block "
+            "of strips yet; remove it (or adjust the strip with the line on its own)"
+        )
     if "strip" not in doc and "strips" not in doc:
         raise ConfigError(
             f"{toml_path}: missing required table [strip] (or [[strips]] tables for a block)"
