@@ -14,6 +14,7 @@ import subprocess
 import sys
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -290,9 +291,9 @@ def test_control_blunders_in_a_block_are_found():
     tests reject exactly the two planted control points, and the check
     points stay near the clean block's (measured 0.040 / 0.076 against
     0.040 / 0.062 m)."""
-    kw = dict(n_strips=3, n_photos_per_strip=10, preset="film", side_overlap=0.2, seed=8)
-    sim = simulate_block(**kw, image_blunders=5, control_blunders=2)
-    clean = simulate_block(**kw)
+    kw: dict[str, Any] = {"preset": "film", "side_overlap": 0.2, "seed": 8}
+    sim = simulate_block(3, 10, **kw, image_blunders=5, control_blunders=2)
+    clean = simulate_block(3, 10, **kw)
     result = adjust_block(sim.observations, sim.control, sim.crs, specs(sim))
     planted = sorted(sim.control.point_ids[i] for i in sim.truth.blunder_control)
     assert sorted(r.point for r in result.rejections if r.stage == "control") == planted
