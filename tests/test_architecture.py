@@ -39,7 +39,7 @@ LAYERS: dict[str, int] = {
     "bundle": 5,
     "block": 6,
     "pipeline": 7,
-    **dict.fromkeys(["project", "report", "importers"], 8),
+    **dict.fromkeys(["project", "report", "importers", "export"], 8),
     "cli": 9,
     "__init__": 10,
 }

@@ -16,6 +16,7 @@ import click
 
 from .._version import __version__
 from .check import check
+from .export import export
 from .importer import import_group
 from .options import DOCS_EPILOG, Settings, common_options, echo_error, settings
 from .run import run
@@ -108,3 +109,4 @@ cli.add_command(run)
 cli.add_command(check)
 cli.add_command(simulate)
 cli.add_command(import_group)
+cli.add_command(export)
