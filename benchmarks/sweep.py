@@ -48,6 +48,7 @@ from strip_aerotri.bundle.adjust import bundle_adjust
 from strip_aerotri.bundle.refine import refine_bundle, refine_frame
 from strip_aerotri.geodesy import GroundCRS
 from strip_aerotri.ground.polynomials import LineSpec
+from strip_aerotri.options import StripOptions
 from strip_aerotri.pipeline import triangulate
 from strip_aerotri.simulate import CAMERAS, SimulatedStrip, camera_preset, simulate_strip
 
@@ -344,7 +345,7 @@ class Outcome:
         return tuple(s / r for s, r in zip(self.refined, self.reference, strict=True))
 
 
-def run_case(case: Case, *, refine: bool = True) -> Outcome:
+def run_case(case: Case, *, refine: bool = True, models: str = "dependent") -> Outcome:
     """Strip method, its bundle refinement and the reference on one case."""
     out = Outcome(case)
     sim = simulate(case)
@@ -359,7 +360,13 @@ def run_case(case: Case, *, refine: bool = True) -> Outcome:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            result = triangulate(sim.observations, sim.control, sim.crs, lines=lines)
+            result = triangulate(
+                sim.observations,
+                sim.control,
+                sim.crs,
+                lines=lines,
+                strip_options=StripOptions(models=models),
+            )
             out.seconds = time.perf_counter() - t0
             out.strip = (result.check_statistics.rmse_plan, float(result.check_statistics.rmse[2]))
             if refine:
@@ -440,6 +447,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--family", action="append", help="only these families")
     parser.add_argument("--no-refine", action="store_true", help="skip the bundle refinement")
     parser.add_argument(
+        "--models",
+        choices=["dependent", "independent"],
+        default="dependent",
+        help="how the strips are formed ([adjustment] models)",
+    )
+    parser.add_argument(
         "--offset", type=int, default=0, help="shift every seed (another draw of the envelope)"
     )
     parser.add_argument(
@@ -464,7 +477,7 @@ def main(argv: list[str] | None = None) -> int:
             if args.verbose:
                 print(f"    invalid draw {case.label}: {why}")
             continue
-        out = run_case(case, refine=not args.no_refine)
+        out = run_case(case, refine=not args.no_refine, models=args.models)
         outcomes.append(out)
         status = _f(out.ratio) if out.ok else "FAILED"
         print(
