@@ -422,3 +422,13 @@ def test_pairs_and_models_named_by_their_photos_with_a_photo_step():
         build_report(triangulate(sim.observations, sim.control, sim.crs))["options"]["photo_step"]
         == 1
     )
+
+
+def test_printed_tables_are_complete(utm):
+    """On paper (or PDF) a scrolled table would show its first screenful only:
+    the print style lifts the scroll box, keeps header rows and figures whole."""
+    page = utm[2]["report.html"].decode("utf-8")
+    css = page[page.index("<style>") : page.index("</style>")]
+    printed = css[css.index("@media print") :]
+    assert ".scroll{max-height:none;overflow:visible" in printed
+    assert "break-inside:avoid" in printed

@@ -36,6 +36,9 @@ figcaption{color:#5d6d7e;font-size:0.88em}
 .scroll table{margin:0}
 ul.warn li{color:#7e5109}
 footer{margin-top:2em;color:#7f8c8d;font-size:0.8em}
+@media print{body{max-width:none;margin:0}.scroll{max-height:none;overflow:visible;
+display:block;border:none}thead{display:table-header-group}tr,figure{break-inside:avoid}
+h2{break-after:avoid}}
 """
 
 
