@@ -845,3 +845,14 @@ def test_simulate_a_camera_and_flight_runs(tmp_path):
 def test_simulate_preset_or_camera(tmp_path, args, message):
     result = invoke("simulate", *args, "--out", tmp_path / "x")
     assert result.exit_code == 2 and message in result.output
+
+
+def test_run_very_verbose_shows_more_than_verbose(project):
+    """-vv adds every control and check point's residual to -v's figures."""
+    verbose = invoke("-v", "run", project).stderr.splitlines()
+    very = invoke("-vv", "run", project).stderr.splitlines()
+    timings = {ln for ln in verbose if ln.endswith(" s")}  # seconds differ between runs
+    assert set(verbose) - timings <= set(very)
+    residuals = [ln for ln in very if "dE, dN, dH" in ln]
+    assert len(residuals) > len([ln for ln in verbose if "dE, dN, dH" in ln]) == 0
+    assert any(ln.startswith("stripaero: check ") for ln in residuals)

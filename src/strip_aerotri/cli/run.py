@@ -53,7 +53,9 @@ def _tolerance_verdict(report_json: bytes | None) -> str | None:
 
 
 def _echo_details(result: StripResult) -> None:
-    """Per-pair and per-model figures on stderr with ``-v``."""
+    """Per-pair and per-model figures and the timings on stderr with ``-v``;
+    with ``-vv`` also every control and check point's residual and every
+    rejection."""
     strip = result.strip
     rel = strip.relative
     for m, label in enumerate(strip.model_labels):
@@ -70,6 +72,16 @@ def _echo_details(result: StripResult) -> None:
         )
     for stage, seconds in result.timings.items():
         echo_progress(f"{stage}: {seconds:.2f} s", level=1)
+    # -vv: every control and check point's residual, and every rejection
+    ground = result.refined if result.refined is not None else result.ground
+    for row, resid, check in zip(
+        ground.control_index, ground.control_residuals, ground.is_check, strict=True
+    ):
+        what = "check" if check else "control"
+        values = ", ".join("-" if v != v else f"{v:+.3f}" for v in resid)
+        echo_progress(f"{what} {result.control.point_ids[row]}: dE, dN, dH {values} m", level=2)
+    for rejection in result.rejections:
+        echo_progress(rejection.describe(), level=2)
 
 
 def _report_name(names: Collection[str]) -> str | None:
