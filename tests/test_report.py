@@ -432,3 +432,18 @@ def test_printed_tables_are_complete(utm):
     printed = css[css.index("@media print") :]
     assert ".scroll{max-height:none;overflow:visible" in printed
     assert "break-inside:avoid" in printed
+
+
+def test_the_page_opens_with_the_result_in_plain_words(utm):
+    """The first paragraph says what a client needs: photos, points, control,
+    the check points' RMSE in metres and the verdict, without jargon."""
+    _, result, files = utm
+    page = files["report.html"].decode("utf-8")
+    plain = page[page.index("<p class='plain'>") :]
+    plain = plain[: plain.index("</p>")]
+    check = result.check_statistics
+    assert f"{len(result.photo_ids)} photos were oriented" in plain
+    assert f"{check.rmse_plan:.3f} m in plan" in plain
+    assert f"{check.rmse[2]:.3f} m in height" in plain
+    assert "y-parallax" not in plain and "σ0" not in plain
+    assert page.index("class='plain'") < page.index("<h2>Summary</h2>")

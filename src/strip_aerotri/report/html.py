@@ -161,6 +161,32 @@ def _stat_rows(report: Mapping[str, Any]) -> list[list[Any]]:
     return rows
 
 
+def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
+    """The result in two sentences for a reader who is not a photogrammetrist."""
+    inp, chk = report["inputs"], report["check"]["statistics"]
+    ctrl = inp["control"]
+    used = report["control"]["statistics"]
+    scale = report["tolerances"]["map_scale"]
+    text = (
+        f"{inp['n_photos']} photos were oriented and {inp['n_points_triangulated']} points "
+        f"measured on them were given ground coordinates, fitted to "
+        f"{used['n_plan']} control points in plan and {used['n_height']} in height "
+        f"({report['project']['crs_name']}). "
+    )
+    if chk["n_plan"] or chk["n_height"]:
+        text += (
+            f"At {ctrl['check']} independent check points, which the adjustment did not "
+            f"use, the computed positions differ from the surveyed ones by "
+            f"{_fmt(chk['rmse_plan_m'])} m in plan and {_fmt(chk['rmse_h_m'])} m in height "
+            "(root mean square). "
+        )
+    else:
+        text += "There were no independent check points, so the accuracy is not proven. "
+    if scale is not None:
+        text += f"Against the tolerances for a map at 1:{scale:g}: {verdict}."
+    return f"<p class='plain'>{_esc(text)}</p>"
+
+
 def _html_page(
     report: Mapping[str, Any],
     fig_layout: str | None,
@@ -210,8 +236,13 @@ def _html_page(
             (f"{len(report['control']['points'])} / {len(report['check']['points'])}",),
         ],
         [
-            "polynomial (requested → used)",
-            (f"{_esc(opt['polynomial'])} → {report['polynomial']['kind']}",),
+            "construction",
+            (
+                "every model its own similarity, all at once"
+                if opt.get("block") == "models"
+                else f"J's similarity and polynomial (requested {_esc(opt['polynomial'])}, "
+                f"used {report['polynomial']['kind']})",
+            ),
         ],
         ["image scale [m per mm]", report["ground"]["image_scale_m_per_mm"]],
         ["y-parallax σ0, median of pairs [µm]", float(np.median(sig)) if sig else None],
@@ -240,6 +271,7 @@ def _html_page(
         f" · strip_aerotri {_esc(report['software']['version'])}"
         f" · {_esc(report['created_utc'])}</p>",
         f"<div class='verdict {overall_cls}'>Tolerances (R4 §1.7.7): {_esc(overall_text)}</div>",
+        _plain_summary(report, overall_text),
         "<h2>Summary</h2>",
         _table(["item", "value"], summary, left=1),
         "<h3>Accuracy at control and check points (given − adjusted, metres)</h3>",
