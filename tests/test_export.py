@@ -65,3 +65,78 @@ def test_cli_writes_the_file_next_to_the_results(tmp_path):
     assert lines[0] == "imageName X Y Z Omega Phi Kappa" and len(lines) == 9
     missing = runner.invoke(cli, ["export", "cameras", str(toml), "--from", str(tmp_path / "x")])
     assert missing.exit_code == 1 and "run the project first" in missing.stderr
+
+
+def _pixel_project(tmp_path):
+    """A simulated strip whose image coordinates are written as pixel column
+    and row (1-inch camera geometry: 2.41 µm pixels, principal point at
+    (2736, 1824))."""
+    import csv
+
+    toml = simulate_strip(8, seed=4, preset="drone").write_project(tmp_path / "p")
+    folder = toml.parent
+    rows = list(csv.DictReader((folder / "image_points.csv").open()))
+    pixel, cx, cy = 0.00241, 2736.0, 1824.0
+    with (folder / "image_points.csv").open("w", newline="") as fh:
+        out = csv.writer(fh)
+        out.writerow(["photo", "point", "x", "y"])
+        for r in rows:
+            out.writerow(
+                [
+                    r["photo"],
+                    r["point"],
+                    f"{cx + float(r['x']) / pixel:.4f}",
+                    f"{cy - float(r['y']) / pixel:.4f}",
+                ]
+            )
+    text = toml.read_text().replace(
+        "[images]\n",
+        f'[images]\nunits = "pixel"\npixel_size_mm = {pixel}\nprincipal_point_px = [{cx}, {cy}]\n',
+    )
+    toml.write_text(text.replace("sigma_mm", "# sigma_mm"))
+    return toml
+
+
+def test_odm_gcp_list_round_trip(tmp_path):
+    """A project measured in pixels, run and exported: read back by the ODM
+    importer's reader, every observation of a control or check point has its
+    measured pixel column and row on its image, and the point its adjusted
+    coordinates."""
+    import csv
+
+    from strip_aerotri.importers.odm import read_gcp_list
+
+    toml = _pixel_project(tmp_path)
+    runner = CliRunner()
+    run = runner.invoke(cli, ["-q", "run", str(toml)])
+    assert run.exit_code == 0, run.output
+    done = runner.invoke(cli, ["export", "odm", str(toml), "--image-ext", ".JPG"])
+    assert done.exit_code == 0, done.output
+    exported = read_gcp_list(toml.parent / "out" / "gcp_list.txt")
+    assert exported.crs == "EPSG:32634"
+    measured = {
+        (r["photo"] + ".JPG", r["point"]): (float(r["x"]), float(r["y"]))
+        for r in csv.DictReader((toml.parent / "image_points.csv").open())
+    }
+    images = exported.images
+    pairs = list(zip(images.photo, images.point, images.xy, strict=True))
+    assert len(pairs) > 20
+    for photo, point, xy in pairs:
+        assert tuple(xy) == pytest.approx(measured[(str(photo) + ".JPG", str(point))], abs=1e-3)
+    rows = {r["point"]: r for r in csv.DictReader((toml.parent / "out" / "points.csv").open())}
+    assert {rows[str(p)]["role"] for p in exported.control.point} <= {
+        "control-full",
+        "control-plan",
+        "control-height",
+        "check",
+    }
+    for name, xyz in zip(exported.control.point, exported.control.xyz, strict=True):
+        assert xyz == pytest.approx([float(rows[str(name)][c]) for c in "XYH"], abs=1e-4)
+
+
+def test_odm_export_refuses_a_project_measured_in_millimetres(tmp_path):
+    toml = simulate_strip(6, seed=1).write_project(tmp_path / "p")
+    runner = CliRunner()
+    assert runner.invoke(cli, ["-q", "run", str(toml)]).exit_code == 0
+    refused = runner.invoke(cli, ["export", "odm", str(toml)])
+    assert refused.exit_code == 1 and "pixel measurements" in refused.stderr

@@ -74,3 +74,106 @@ def cameras(project_file: Path, results: Path | None, out: Path | None) -> None:
     partial.write_text(text, encoding="utf-8")
     os.replace(partial, target)  # whole or not at all
     echo_result(f"wrote {target}: {len(ids)} photos")
+
+
+_ROLES = {
+    "control": ("control-full", "control-plan", "control-height"),
+    "check": ("check",),
+    "marked": ("control-full", "control-plan", "control-height", "check"),
+    "all": None,
+}
+
+
+@export.command("odm", epilog=DOCS_EPILOG)
+@project_arg
+@click.option(
+    "--from",
+    "results",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="The run's result folder (default: the project's).",
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="File to write (default: gcp_list.txt in the result folder).",
+)
+@click.option(
+    "--points",
+    type=click.Choice(list(_ROLES)),
+    default="marked",
+    show_default=True,
+    help="Which points: the control, the check points, both (marked) or every triangulated point.",
+)
+@click.option(
+    "--image-ext",
+    default="",
+    help="Appended to the photo ids to give the image file names (e.g. .JPG).",
+)
+@common_options
+def odm(
+    project_file: Path, results: Path | None, out: Path | None, points: str, image_ext: str
+) -> None:
+    """Points with their pixel measurements as OpenDroneMap's gcp_list.txt.
+
+    Reads STRIP_TOML (its CRS and its image file, which must be measured in
+    pixels) and the points.csv of its result folder, and writes a line per
+    observation of each chosen point: its adjusted coordinates, its pixel
+    column and row, the image and the point (docs/export.md).
+
+    \b
+    Examples:
+      stripaero export odm strip.toml --image-ext .JPG
+      stripaero export odm strip.toml --points all -o gcp_list.txt
+    """
+    import csv
+    import os
+
+    import numpy as np
+
+    from ..errors import ConfigError
+    from ..export import gcp_list_text
+    from ..options import ImageUnits
+    from ..project import IMAGE_COLUMNS, load_project
+    from ..project.csvfiles import float_column, read_csv
+
+    project = load_project(project_file)
+    if project.images.units is not ImageUnits.PIXEL:
+        raise ConfigError(
+            f"{project.path}: [images] units: gcp_list.txt needs the pixel measurements, "
+            "and this project's image coordinates are in millimetres"
+        )
+    folder = results or project.output_directory or project.path.parent / "out"
+    table = folder / "points.csv"
+    if not table.is_file():
+        raise ConfigError(f"{table}: not found; run the project first (stripaero run)")
+    wanted = _ROLES[points]
+    with table.open(encoding="utf-8", newline="") as fh:
+        rows = [
+            r
+            for r in csv.DictReader(line for line in fh if not line.startswith("#"))
+            if wanted is None or r.get("role") in wanted
+        ]
+    geo_of = {r["point"]: [float(r[c]) for c in ("X", "Y", "H")] for r in rows}
+    raw = read_csv(project.images_file, IMAGE_COLUMNS, "[images] file")
+    column, _ = float_column(raw, "x")
+    row_px, _ = float_column(raw, "y")
+    line_to_row = {int(line): k for k, line in enumerate(raw.line)}
+    obs = project.observations
+    keep = [k for k in range(obs.photo.size) if obs.point_ids[int(obs.point[k])] in geo_of]
+    source = [line_to_row[int(obs.source_line[k])] for k in keep]
+    names = [obs.point_ids[int(obs.point[k])] for k in keep]
+    text = gcp_list_text(
+        project.crs,
+        np.array([geo_of[n] for n in names]).reshape(-1, 3),
+        np.column_stack([column[source], row_px[source]]),
+        [obs.photo_ids[int(obs.photo[k])] + image_ext for k in keep],
+        names,
+    )
+    target = out or folder / "gcp_list.txt"
+    partial = target.with_name(f".{target.name}.partial")
+    partial.write_text(text, encoding="utf-8")
+    os.replace(partial, target)  # whole or not at all
+    echo_result(f"wrote {target}: {len(geo_of)} points, {len(keep)} observations")
