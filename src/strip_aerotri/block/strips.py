@@ -221,6 +221,7 @@ class _Problem:
     use_z: BoolArray
     check: BoolArray
     max_iterations: int
+    construction: Construction = Construction.MODELS
 
 
 def _prepare(
@@ -275,6 +276,7 @@ def _prepare(
         use_z=use_z,
         check=check,
         max_iterations=max_iterations,
+        construction=construction,
     )
 
 
@@ -554,9 +556,11 @@ def _snoop(
     use_xy, use_z = p.use_xy.copy(), p.use_z.copy()
     keep_rows = np.ones(p.rows.unit.shape[0], dtype=bool)
     n_det = int((p.rows.point < p.observations.n_points).sum())
+    n_control = int(2 * use_xy.sum() + use_z.sum())
     rejections: list[Rejection] = []
     flagged: set[tuple[int, int]] = set()
     sol = _solve(p, use_xy, use_z, None, keep_rows)
+    sigma0 = float(sol.result.sigma0)
     while blunders.testing:
         found = _control_test(p, sol, use_xy, use_z, blunders, flagged)
         if found is None:
@@ -570,6 +574,8 @@ def _snoop(
                 break
             continue
         apply(use_xy, use_z, keep_rows)
+        if n_control - int(2 * use_xy.sum() + use_z.sum()) > blunders.max_fraction * n_control:
+            raise GeometryError(_too_much_control_fails(p, blunders, sigma0))
         if (~keep_rows).sum() > blunders.max_fraction * n_det:
             raise GeometryError(
                 f"block: more than {blunders.max_fraction:.0%} of the points' determinations "
@@ -577,6 +583,25 @@ def _snoop(
             )
         sol = _solve(p, use_xy, use_z, sol, keep_rows)
     return sol, use_xy, use_z, keep_rows, tuple(rejections)
+
+
+def _too_much_control_fails(p: _Problem, blunders: BlunderOptions, sigma0: float) -> str:
+    """The message of a block whose control fails the tests beyond
+    ``max_fraction`` (as the ground stage of one strip stops).  With one
+    similarity per strip the usual cause is the strips' own bending, which a
+    similarity cannot follow (long strips of dependent models drift in scale
+    and azimuth): the good control then fails by the dozen."""
+    head = (
+        f"block: more than {blunders.max_fraction:.0%} of the control observations fail the "
+        f"blunder test (sigma0 {sigma0:.3g} before the tests)"
+    )
+    if p.construction is Construction.STRIPS:
+        return (
+            f"{head}: one similarity per strip cannot follow the strips' bending, or the "
+            'control has errors; use block = "models" (every model its own similarity), '
+            "and check the control"
+        )
+    return f"{head}; the control cannot be trusted"
 
 
 _Apply = Callable[[BoolArray, BoolArray, BoolArray], None]

@@ -24,7 +24,7 @@ __all__ = ["JOIN_PLAN_MM", "build_block_outputs", "build_block_report"]
 
 JOIN_PLAN_MM = 0.5
 """Mean plan discrepancy of the common points of two strips, mm at the map
-scale (R4 1.7.7.3)."""
+scale (R4 1.7.7.7)."""
 
 _ROLE = {
     ControlType.FULL: "control-full",
@@ -108,7 +108,7 @@ def build_block_report(
             "iterations": result.iterations,
             "joins": joins,
             "join_criterion": f"mean plan discrepancy <= {JOIN_PLAN_MM} mm at the map scale "
-            "(R4 1.7.7.3)",
+            "(R4 1.7.7.7)",
         },
         "control": {"statistics": statistics(result.control_statistics)},
         "check": {"statistics": statistics(result.check_statistics)},
