@@ -80,6 +80,11 @@ DEFAULT_SIGMA_H_M = 0.03
 DEFAULT_LINE_WEIGHT = 100.0
 #: J(16)'s polynomial type of the construction "strips".
 DEFAULT_POLYNOMIAL = 3
+#: The type of every strip's own polynomial in a block of independent strips
+#: (``block = "strips"``): type 2 came closest to the bundle on simulated
+#: film and drone blocks, type 3 over-fits strips of 8-15 photos
+#: (docs/block.md).
+DEFAULT_BLOCK_POLYNOMIAL = 2
 DEFAULT_SECTIONS = 1
 DEFAULT_PHOTO_STEP = 1
 #: Smallest base-to-height ratio of a model for ``photo_step = "auto"``

@@ -205,6 +205,7 @@ def triangulate_block(
     imu: ImuAttitudes | None = None,
     progress: Progress | None = None,
     warnings: Sequence[str] = (),
+    polynomial: int = 0,
 ) -> BlockResult:
     """Form every strip of a block and transform them all at once
     (:func:`strip_aerotri.block.strips.adjust_block`)."""
@@ -228,6 +229,7 @@ def triangulate_block(
         refine=Refine.create(refine) is Refine.BUNDLE,
         gnss=gnss,
         imu=imu,
+        polynomial=polynomial,
     )
     if warnings:
         result = dataclasses.replace(result, warnings=tuple(warnings) + result.warnings)

@@ -36,6 +36,7 @@ from ..geometry.similarity import similarity_from_points
 from ..geometry.simultaneous import (
     SimultaneousResult,
     UnitObservations,
+    UnitPolynomial,
     UnitTransforms,
     adjust_units,
 )
@@ -114,6 +115,7 @@ def adjust_block(
     refine: bool = False,
     gnss: GnssCentres | None = None,
     imu: ImuAttitudes | None = None,
+    polynomial: int = 0,
 ) -> BlockResult:
     """Form every strip, then transform all strips at once to the control.
 
@@ -142,6 +144,11 @@ def adjust_block(
     gnss, imu : GnssCentres, ImuAttitudes, optional
         Observed projection centres and attitudes of the refinement (with
         ``refine`` only).
+    polynomial : int
+        With ``"strips"``: J(16)'s type (1, 2, 3) of every strip's own
+        deformation polynomial, adjusted with its similarity
+        (:class:`~strip_aerotri.geometry.simultaneous.UnitPolynomial`); 0
+        for similarities only.
 
     Raises
     ------
@@ -170,6 +177,7 @@ def adjust_block(
         route,
         Construction.create(construction),
         max_iterations,
+        polynomial,
     )
     solution, used_xy, used_z, keep_rows, rejections = _snoop(problem, blunders)
     result = _products(problem, solution, used_xy, used_z, keep_rows, rejections)
@@ -222,6 +230,7 @@ class _Problem:
     check: BoolArray
     max_iterations: int
     construction: Construction = Construction.MODELS
+    polynomial: UnitPolynomial | None = None  # the strips' deformation ("strips")
 
 
 def _prepare(
@@ -233,8 +242,11 @@ def _prepare(
     route: Route,
     construction: Construction,
     max_iterations: int,
+    polynomial: int = 0,
 ) -> _Problem:
-    """Start values (each strip to the ground), the work frame, and the rows."""
+    """Start values (each strip to the ground), the work frame, and the rows
+    (``polynomial``: J(16)'s type of every strip's own deformation with
+    ``"strips"``, 0 for none)."""
     n_points = observations.n_points
     lookup = {pid: i for i, pid in enumerate(observations.point_ids)}
     point_of = np.array([lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
@@ -254,6 +266,11 @@ def _prepare(
     start_work = work.to_work(np.where(np.isfinite(placed_crs), placed_crs, 0.0))
     units = _units(observations, strips, start_work, construction)
     sig_xy, sig_h = control.sigma_xy[rows], control.sigma_h[rows]
+    deformation = (
+        UnitPolynomial.fit(units.rows.unit, units.rows.xyz, units.unit_strip.shape[0], polynomial)
+        if polynomial and construction is Construction.STRIPS
+        else None
+    )
     return _Problem(
         observations=observations,
         control=control,
@@ -277,6 +294,7 @@ def _prepare(
         check=check,
         max_iterations=max_iterations,
         construction=construction,
+        polynomial=deformation,
     )
 
 
@@ -530,6 +548,7 @@ def _solve(
             control_xyz=target[active],
             control_sigma=p.sigma[active],
             max_iterations=p.max_iterations,
+            polynomial=p.polynomial,
         )
         if not guessed or n_pass == _MAX_PASSES:
             break
@@ -716,8 +735,9 @@ def _in_work_frame(p: _Problem, sol: _Solution) -> tuple[FloatArray, FloatArray,
     for k, strip in enumerate(p.strips):
         photos = np.flatnonzero(p.photo_strip == k)
         r_strip = strip.rotations[p.photo_in_strip[photos]]
-        ra = t.apply_to_rotation(p.photo_units[photos, 0], r_strip)
-        rb = t.apply_to_rotation(p.photo_units[photos, 1], r_strip)
+        at = strip.centres[p.photo_in_strip[photos]]  # unit coordinates ("strips")
+        ra = t.apply_to_rotation(p.photo_units[photos, 0], r_strip, at)
+        rb = t.apply_to_rotation(p.photo_units[photos, 1], r_strip, at)
         rot_work[photos] = _mean_rotation(ra, rb)
     return res.points[:n_points], res.points[n_points:], rot_work
 
@@ -837,8 +857,13 @@ def _products(
         used_h=use_z,
         control_statistics=AccuracyStatistics.from_residuals(used[~p.check]),
         check_statistics=AccuracyStatistics.from_residuals(resid[p.check]),
-        joins=_joins(p, t, keep_rows),
+        joins=_with_transfer(
+            _joins(p, t, keep_rows),
+            _joins(p, _free_block(p, sol, use_xy | use_z, keep_rows), keep_rows),
+            _photo_scale_m_per_mm(p, points_work, centres_work),
+        ),
         sigma0=float(res.sigma0),
+        polynomial=0 if p.polynomial is None else p.polynomial.degree,
         redundancy=int(res.redundancy),
         iterations=int(res.iterations),
         rejections=rejections,
@@ -883,6 +908,72 @@ def _joins(p: _Problem, t: UnitTransforms, keep_rows: BoolArray) -> tuple[StripJ
                     float(height.max()),
                 )
             )
+    return tuple(out)
+
+
+#: Standard deviation of the control coordinates that only hold the datum of
+#: the free block, as a fraction of the control's extent: far above any
+#: discrepancy they could force (a pull of (σ_row / σ)² ≈ 1e-3 or less), yet
+#: firm enough to hold the scale (with a sigma of a kilometre the block
+#: shrinks towards a point, where its rows' noise costs nothing).
+_FREE_DATUM_SIGMA = 1e-3
+
+
+def _free_block(
+    p: _Problem, sol: _Solution, active: BoolArray, keep_rows: BoolArray
+) -> UnitTransforms:
+    """The units transformed onto each other only: the block's solution
+    again with its control held at the adjusted points, loosely, so that it
+    fixes the datum and forces nothing (R4's "free block" of the transfer
+    criterion)."""
+    res = sol.result
+    r = p.rows
+    rows = UnitObservations(
+        r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
+    )
+    idx = np.unique(p.idx[active])
+    extent = float(np.max(np.ptp(res.points[idx], axis=0), initial=0.0))
+    free = adjust_units(
+        rows,
+        p.unit_strip.shape[0],
+        p.observations.n_points + p.observations.n_photos,
+        start=res.transforms,
+        points0=np.where(np.isfinite(res.points), res.points, p.points0),
+        control_point=idx,
+        control_xyz=res.points[idx],
+        control_sigma=max(_FREE_DATUM_SIGMA * extent, 1e-3),
+        max_iterations=p.max_iterations,
+        statistics=False,
+        polynomial=p.polynomial,
+    )
+    return free.transforms
+
+
+def _photo_scale_m_per_mm(p: _Problem, points: FloatArray, centres: FloatArray) -> float:
+    """Metres on the ground per millimetre in the image: the median height
+    of the projection centres above the median point over the principal
+    distance (work frame heights; a block is flown at one height)."""
+    up = p.work.enu_from_work(centres - np.nanmedian(points, axis=0))[:, 2]
+    return float(np.nanmedian(up)) / p.observations.principal_distance
+
+
+def _with_transfer(
+    joins: tuple[StripJoin, ...], free: tuple[StripJoin, ...], m_per_mm: float
+) -> tuple[StripJoin, ...]:
+    """The joins with the free block's plan discrepancies at the photo scale."""
+    from dataclasses import replace
+
+    um = 1e3 / m_per_mm if m_per_mm > 0 else float("nan")
+    by_pair = {f.strips: f for f in free}
+    out = []
+    for join in joins:
+        f = by_pair.get(join.strips)
+        if f is None:
+            out.append(join)
+            continue
+        out.append(
+            replace(join, mean_transfer_um=f.mean_plan_m * um, max_transfer_um=f.max_plan_m * um)
+        )
     return tuple(out)
 
 

@@ -50,6 +50,7 @@ __all__ = [
     "LineCondition",
     "SimultaneousResult",
     "UnitObservations",
+    "UnitPolynomial",
     "UnitTransforms",
     "adjust_units",
     "baarda_delta",
@@ -78,6 +79,102 @@ def baarda_delta(critical: float) -> float:
 
 
 @dataclass(frozen=True)
+class UnitPolynomial:
+    """A deformation polynomial of every unit, in the unit's own system.
+
+    A unit coordinate ``x`` is corrected to ``x + B(x) a`` before the
+    unit's similarity (``a`` the unit's coefficients, dimensionless).  With
+    ``u, v`` the coordinates along and across the unit's principal axis in
+    plan, divided by its half length ``L`` (about −1 … 1), the terms are
+    those of J(16)'s types that a similarity does not already hold, each
+    times ``L`` along the unit's along, across and vertical axes:
+
+    * type 1: ``uv`` in each axis (the twist of a strip, its varying shear);
+    * type 2: and ``u²`` (change of scale along the strip, bending in plan
+      and in height);
+    * type 3: and ``u³``.
+
+    A weak prior ``a = 0 ± prior_sigma`` on every coefficient keeps a unit
+    that its points cannot bend (one side overlap only, no control on the
+    other side) determined without pulling a determined one.
+
+    Attributes
+    ----------
+    degree : int
+        1, 2 or 3.
+    origin : ndarray, shape (U, 3)
+        Unit coordinates of ``u = v = 0``.
+    axes : ndarray, shape (U, 3, 3)
+        Columns: along, across (plan) and vertical axes of each unit, unit
+        system.
+    half_length : ndarray, shape (U,)
+        ``L`` in unit coordinates.
+    prior_sigma : float
+        Standard deviation of the coefficients' prior (dimensionless: a
+        fraction of ``L`` at the ends of the unit).
+    """
+
+    degree: int
+    origin: FloatArray
+    axes: FloatArray
+    half_length: FloatArray
+    prior_sigma: float = 0.01
+
+    @classmethod
+    def fit(cls, unit: IntArray, xyz: FloatArray, n_units: int, degree: int) -> UnitPolynomial:
+        """The origin, axes and half length of every unit from its rows."""
+        if degree not in (1, 2, 3):
+            raise ValueError(f"Expected polynomial degree 1, 2 or 3, got {degree!r}")
+        origin = np.zeros((n_units, 3))
+        axes = np.zeros((n_units, 3, 3))
+        half = np.ones(n_units)
+        for k in range(n_units):  # per unit: a strip of a block, a handful
+            here = xyz[unit == k]
+            origin[k] = here.mean(axis=0)
+            d = here[:, :2] - origin[k, :2]
+            _, _, vt = np.linalg.svd(d, full_matrices=False)
+            along = vt[0]
+            axes[k, :2, 0] = along
+            axes[k, :2, 1] = (-along[1], along[0])
+            axes[k, 2, 2] = 1.0
+            half[k] = max(float(np.max(np.abs(d @ along))), 1e-12)
+        return cls(degree, origin, axes, half)
+
+    @property
+    def n_terms(self) -> int:
+        return 3 * self.degree
+
+    def basis(self, unit: IntArray, xyz: FloatArray) -> FloatArray:
+        """``B(x)`` of rows ``xyz`` (n, 3) of units ``unit``: (n, 3, n_terms)."""
+        axes = self.axes[unit]
+        half = self.half_length[unit]
+        local = np.einsum("nji,nj->ni", axes, xyz - self.origin[unit]) / half[:, None]
+        u, v = local[:, 0], local[:, 1]
+        monomials = [u * v, u**2, u**3][: self.degree]
+        out = np.empty((unit.shape[0], 3, self.n_terms))
+        for j, m in enumerate(monomials):
+            out[:, :, 3 * j : 3 * j + 3] = axes * (half * m)[:, None, None]
+        return out
+
+    def jacobian(self, unit: IntArray, xyz: FloatArray, coefficients: FloatArray) -> FloatArray:
+        """``∂(B(x) a)/∂x`` at rows ``xyz``: (n, 3, 3)."""
+        axes = self.axes[unit]
+        half = self.half_length[unit]
+        local = np.einsum("nji,nj->ni", axes, xyz - self.origin[unit]) / half[:, None]
+        u, v = local[:, 0], local[:, 1]
+        a = coefficients[unit].reshape(-1, self.degree, 3)  # (n, term, axis)
+        # d(monomial)/d(u, v), times L, over L for u = (...)/L: per unit length
+        du = [v, 2 * u, 3 * u**2][: self.degree]
+        dv = [u, 0 * u, 0 * u][: self.degree]
+        grad_uv = np.zeros((unit.shape[0], 3, 3))  # d(correction, local axes)/d(local)
+        for j in range(self.degree):
+            grad_uv[:, :, 0] += a[:, j, :] * du[j][:, None]
+            grad_uv[:, :, 1] += a[:, j, :] * dv[j][:, None]
+        jac: FloatArray = axes @ grad_uv @ np.swapaxes(axes, 1, 2)
+        return jac
+
+
+@dataclass(frozen=True)
 class UnitTransforms:
     """Similarities of the units: ``X = translation + scale R (x − centroid)``.
 
@@ -90,25 +187,48 @@ class UnitTransforms:
         Work-frame position of each unit's centroid (metres).
     centroid : ndarray, shape (U, 3)
         The fixed reference point of each unit, unit coordinates.
+    polynomial : UnitPolynomial or None
+        The units' deformation (``x`` is ``x + B(x) a`` before the
+        similarity); None: similarities only.
+    coefficients : ndarray, shape (U, n_terms) or None
+        ``a`` of every unit, with ``polynomial``.
     """
 
     scale: FloatArray
     rotation: FloatArray
     translation: FloatArray
     centroid: FloatArray
+    polynomial: UnitPolynomial | None = None
+    coefficients: FloatArray | None = None
 
     def apply(self, unit: ArrayLike, xyz: ArrayLike) -> FloatArray:
         """Rows ``xyz`` (n, 3) of units ``unit`` (n,) in the work frame."""
         unit = np.asarray(unit, dtype=np.intp)
-        d = np.asarray(xyz, dtype=np.float64) - self.centroid[unit]
+        xyz = np.asarray(xyz, dtype=np.float64)
+        d = xyz - self.centroid[unit]
+        if self.polynomial is not None and self.coefficients is not None:
+            basis = self.polynomial.basis(unit, xyz)
+            d = d + np.einsum("nik,nk->ni", basis, self.coefficients[unit])
         rotated: FloatArray = np.einsum("nij,nj->ni", self.rotation[unit], d)
         placed: FloatArray = self.translation[unit] + self.scale[unit, None] * rotated
         return placed
 
-    def apply_to_rotation(self, unit: ArrayLike, rotations: ArrayLike) -> FloatArray:
-        """Image -> unit rotations (n, 3, 3) turned into image -> work frame."""
+    def apply_to_rotation(
+        self, unit: ArrayLike, rotations: ArrayLike, at: ArrayLike | None = None
+    ) -> FloatArray:
+        """Image -> unit rotations (n, 3, 3) turned into image -> work frame;
+        with a polynomial, the rotation of its deformation at the unit
+        coordinates ``at`` (n, 3) is applied first (the nearest rotation to
+        ``I + ∂(B a)/∂x``)."""
         unit = np.asarray(unit, dtype=np.intp)
-        turned: FloatArray = self.rotation[unit] @ np.asarray(rotations, dtype=np.float64)
+        rotations = np.asarray(rotations, dtype=np.float64)
+        if self.polynomial is not None and self.coefficients is not None and at is not None:
+            jac = self.polynomial.jacobian(
+                unit, np.asarray(at, dtype=np.float64), self.coefficients
+            )
+            u_, _, vt = np.linalg.svd(np.eye(3) + jac)
+            rotations = (u_ @ vt) @ rotations
+        turned: FloatArray = self.rotation[unit] @ rotations
         return turned
 
 
@@ -258,10 +378,14 @@ class _Problem:
         control_xyz: FloatArray,
         control_sigma: FloatArray,
         lines: Sequence[LineCondition],
+        polynomial: UnitPolynomial | None = None,
     ):
         import scipy.sparse as sp
 
         self.obs = obs
+        self.polynomial = polynomial
+        self.n_extra = 0 if polynomial is None else polynomial.n_terms
+        self.width = N_UNIT + self.n_extra  # reduced unknowns of a block
         self.n_units = n_units
         self.n_points = n_points
         self.whiten = _rows_whitening(obs.weight)
@@ -272,7 +396,7 @@ class _Problem:
         self.lines = list(lines)
         self.n_lines = len(self.lines)
         self.n_blocks = n_units + self.n_lines
-        self.n_reduced = N_UNIT * self.n_blocks
+        self.n_reduced = self.width * self.n_blocks
         counts = np.bincount(obs.unit, minlength=n_units).astype(np.float64)
         if np.any(counts == 0):
             raise GeometryError(f"unit {int(np.flatnonzero(counts == 0)[0])} has no points")
@@ -280,6 +404,7 @@ class _Problem:
             [np.bincount(obs.unit, obs.xyz[:, k], minlength=n_units) / counts for k in range(3)]
         )
         self.offset = obs.xyz - self.centroid[obs.unit]
+        self.basis = None if polynomial is None else polynomial.basis(obs.unit, obs.xyz)
         self.observed = np.bincount(obs.point, minlength=n_points) > 0
         self.line_rows: list[int] = [line.point.shape[0] for line in self.lines]
         line_point = (
@@ -290,32 +415,33 @@ class _Problem:
         self.row_point = np.concatenate([obs.point, line_point]).astype(np.intp)
         self.to_block = _summation(self.row_block, self.n_blocks)
         self.to_point = _summation(self.row_point, n_points)
-        # N_zp's CSR structure: each coupled row contributes a 7 x 3 block at
-        # (its block, its point); data are given in that (row, 7, 3) order.
+        # N_zp's CSR structure: each coupled row contributes a width x 3 block
+        # at (its block, its point); data are given in that (row, width, 3) order.
         n_r = self.row_block.shape[0]
-        rows = (N_UNIT * self.row_block[:, None, None] + np.arange(N_UNIT)[None, :, None]).repeat(
+        width = self.width
+        rows = (width * self.row_block[:, None, None] + np.arange(width)[None, :, None]).repeat(
             3, axis=2
         )
         cols = (3 * self.row_point[:, None, None] + np.arange(3)[None, None, :]).repeat(
-            N_UNIT, axis=1
+            width, axis=1
         )
         order = sp.csr_matrix(
-            (np.arange(1, n_r * 3 * N_UNIT + 1, dtype=np.float64), (rows.ravel(), cols.ravel())),
+            (np.arange(1, n_r * 3 * width + 1, dtype=np.float64), (rows.ravel(), cols.ravel())),
             shape=(self.n_reduced, 3 * n_points),
         )
         order.sort_indices()
-        if order.nnz != n_r * 3 * N_UNIT:  # a point twice in one unit or line
+        if order.nnz != n_r * 3 * width:  # a point twice in one unit or line
             raise ValueError("Expected each point at most once in a unit and in a line")
         self.zp_order = order.data.astype(np.intp) - 1
         self.zp_indices = order.indices
         self.zp_indptr = order.indptr
         # the reduced unknowns fixed at 0: the five unused slots of a line block
-        fixed = np.zeros((self.n_blocks, N_UNIT), dtype=bool)
+        fixed = np.zeros((self.n_blocks, width), dtype=bool)
         fixed[n_units:, 2:] = True
         self.fixed = fixed
 
     def zp_matrix(self, blocks: FloatArray) -> sp.csr_matrix:
-        """Sparse (n_reduced, 3P) matrix from per-row (n_r, 7, 3) blocks."""
+        """Sparse (n_reduced, 3P) matrix from per-row (n_r, width, 3) blocks."""
         import scipy.sparse as sp
 
         return sp.csr_matrix(
@@ -327,11 +453,13 @@ class _Problem:
     def n_observations(self) -> int:
         n_line = sum(self.line_rows)
         n_rows: int = self.obs.unit.shape[0]
-        return 3 * n_rows + int(self.control_given.sum()) + n_line
+        n_prior = self.n_extra * self.n_units  # the coefficients' priors
+        return 3 * n_rows + int(self.control_given.sum()) + n_line + n_prior
 
     @property
     def n_unknowns(self) -> int:
-        return N_UNIT * self.n_units + 2 * self.n_lines + 3 * int(self.observed.sum())
+        n_blocks = self.width * self.n_units
+        return n_blocks + 2 * self.n_lines + 3 * int(self.observed.sum())
 
 
 class _State:
@@ -342,19 +470,24 @@ class _State:
         translation: FloatArray,
         points: FloatArray,
         line_ab: FloatArray,
+        coefficients: FloatArray,
     ) -> None:
         self.scale = scale
         self.rotation = rotation
         self.translation = translation
         self.points = points
         self.line_ab = line_ab
+        self.coefficients = coefficients
 
 
 def _predict(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
     """Rows in the work frame relative to their unit's translation
     (``s R (x − c)``, n × 3) and their residuals ``T_u(x) − X_p``."""
     u = prob.obs.unit
-    y = st.scale[u, None] * np.einsum("nij,nj->ni", st.rotation[u], prob.offset)
+    offset = prob.offset
+    if prob.basis is not None:
+        offset = offset + np.einsum("nik,nk->ni", prob.basis, st.coefficients[u])
+    y = st.scale[u, None] * np.einsum("nij,nj->ni", st.rotation[u], offset)
     v = st.translation[u] + y - st.points[prob.obs.point]
     return y, v
 
@@ -374,6 +507,8 @@ def _cost(prob: _Problem, st: _State) -> float:
     c = st.points[prob.control_point] - prob.control_xyz
     g = prob.control_given
     total += float(np.sum((c[g] / prob.control_sigma[g]) ** 2))
+    if prob.polynomial is not None:
+        total += float(np.sum((st.coefficients / prob.polynomial.prior_sigma) ** 2))
     for k in range(prob.n_lines):
         _, e, w = _line_terms(prob, st, k)
         total += float(w * np.sum(e**2))
@@ -410,11 +545,15 @@ def _normals(prob: _Problem, st: _State) -> _Normals:
     n = obs.unit.shape[0]
     y, v = _predict(prob, st)
     # Design of a row in its unit's 7 parameters: dt, dω (R <- exp(ω) R),
-    # ds / s; its point's is -I.
-    a_u = np.zeros((n, 3, N_UNIT))
+    # ds / s, then its polynomial's coefficients (s R B); its point's is -I.
+    width = prob.width
+    a_u = np.zeros((n, 3, width))
     a_u[:, 0, 0] = a_u[:, 1, 1] = a_u[:, 2, 2] = 1.0
     a_u[:, :, 3:6] = -skew(y)  # d(ω × y)/dω
     a_u[:, :, 6] = y
+    if prob.basis is not None:
+        u = obs.unit
+        a_u[:, :, N_UNIT:] = st.scale[u, None, None] * (st.rotation[u] @ prob.basis)
     w = obs.weight
     wa = w @ a_u  # W A_u
     n_bb = [np.swapaxes(a_u, 1, 2) @ wa]  # (n, 7, 7)
@@ -429,7 +568,7 @@ def _normals(prob: _Problem, st: _State) -> _Normals:
         m = xyz.shape[0]
         d_p = np.zeros((m, 3))
         d_p[:, 0], d_p[:, 1] = -b, 1.0
-        d_l = np.zeros((m, N_UNIT))
+        d_l = np.zeros((m, width))
         d_l[:, 0], d_l[:, 1] = -1.0, -xyz[:, 0]
         n_bb.append(wl * d_l[:, :, None] * d_l[:, None, :])
         n_bp.append(wl * d_l[:, :, None] * d_p[:, None, :])
@@ -438,10 +577,15 @@ def _normals(prob: _Problem, st: _State) -> _Normals:
         g_pr.append(-wl * d_p * e[:, None])
     n_bb_r, n_bp_r = np.concatenate(n_bb), np.concatenate(n_bp)
     n_pp_r, g_b_r, g_p_r = np.concatenate(n_pp), np.concatenate(g_b), np.concatenate(g_pr)
-    blocks = (prob.to_block @ n_bb_r.reshape(-1, N_UNIT * N_UNIT)).reshape(-1, N_UNIT, N_UNIT)
+    blocks = (prob.to_block @ n_bb_r.reshape(-1, width * width)).reshape(-1, width, width)
     fixed = prob.fixed
-    blocks[:, np.arange(N_UNIT), np.arange(N_UNIT)] += fixed  # unused line slots
+    blocks[:, np.arange(width), np.arange(width)] += fixed  # unused line slots
     g_z = prob.to_block @ g_b_r
+    if prob.polynomial is not None:  # the coefficients' priors a = 0
+        prior_w = 1.0 / prob.polynomial.prior_sigma**2
+        extra = np.arange(N_UNIT, width)
+        blocks[: prob.n_units, extra, extra] += prior_w
+        g_z[: prob.n_units, N_UNIT:] -= prior_w * st.coefficients
     v_blocks = (prob.to_point @ n_pp_r.reshape(-1, 9)).reshape(-1, 3, 3)
     g_p = prob.to_point @ g_p_r
     # control
@@ -518,6 +662,7 @@ def adjust_units(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     tolerance: float = 1e-10,
     statistics: bool = True,
+    polynomial: UnitPolynomial | None = None,
 ) -> SimultaneousResult:
     """Transform all units at once to the control and to each other.
 
@@ -549,6 +694,10 @@ def adjust_units(
         Compute the cofactors of the control points and lines (their
         redundancy numbers and w); without them (False) those fields are
         NaN, at a fraction of the cost (start values, intermediate passes).
+    polynomial : UnitPolynomial, optional
+        A deformation polynomial of every unit, adjusted with its
+        similarity (the block of independent strips, R4 3); the start's
+        coefficients are used when it has them, else zeros.
 
     Returns
     -------
@@ -577,18 +726,28 @@ def adjust_units(
     given = np.isfinite(control_xyz)
     if np.any(given & ~(control_sigma > 0)):
         raise ValueError("Expected control_sigma > 0 for every given control component")
-    prob = _Problem(obs, n_units, n_points, control_point, control_xyz, control_sigma, lines)
-    # The start's similarity re-expressed about each unit's own centroid.
+    prob = _Problem(
+        obs, n_units, n_points, control_point, control_xyz, control_sigma, lines, polynomial
+    )
+    # The start's similarity re-expressed about each unit's own centroid
+    # (its deformation, if any, kept as it is).
     s0 = np.asarray(start.scale, dtype=np.float64).copy()
     r0 = np.asarray(start.rotation, dtype=np.float64).copy()
-    t0 = start.apply(np.arange(n_units), prob.centroid)
+    coefficients = np.zeros((n_units, prob.n_extra))
+    if polynomial is None:
+        t0 = start.apply(np.arange(n_units), prob.centroid)
+    else:
+        shift = np.einsum("uij,uj->ui", r0, prob.centroid - start.centroid)
+        t0 = start.translation + s0[:, None] * shift
+        if start.coefficients is not None and start.coefficients.shape == coefficients.shape:
+            coefficients = np.array(start.coefficients, dtype=np.float64)
     points = np.array(points0, dtype=np.float64, copy=True)
     line_ab = np.zeros((prob.n_lines, 2))
     for k, line in enumerate(prob.lines):
         xyz = points[line.point]
         design = np.column_stack([np.ones(len(xyz)), xyz[:, 0]])
         line_ab[k] = np.linalg.lstsq(design, xyz[:, 1], rcond=None)[0]
-    st = _State(s0, r0, t0, points, line_ab)
+    st = _State(s0, r0, t0, points, line_ab, coefficients)
     extent = (
         float(np.nanmax(np.ptp(points[prob.observed], axis=0))) if prob.observed.any() else 1.0
     )
@@ -615,7 +774,7 @@ def adjust_units(
                 "the simultaneous transformation of the units diverges: no step lowers the "
                 "sum of squares (start values too far off)"
             )
-        du = dz[: N_UNIT * n_units].reshape(n_units, N_UNIT) * step
+        du = dz[: prob.width * n_units].reshape(n_units, prob.width) * step
         largest = max(
             float(np.max(np.abs(du[:, :3]), initial=0.0)) / extent,
             float(np.max(np.abs(du[:, 3:]), initial=0.0)),
@@ -637,16 +796,16 @@ def adjust_units(
 
 def _back_substitute(prob: _Problem, normals: _Normals, dz: FloatArray) -> FloatArray:
     """Point corrections ``V⁻¹ (g_p − N_pz dz)`` (P, 3)."""
-    dz_rows = dz.reshape(-1, N_UNIT)[prob.row_block]  # (n_r, 7)
+    dz_rows = dz.reshape(-1, prob.width)[prob.row_block]  # (n_r, width)
     coupled = prob.to_point @ np.einsum("rki,rk->ri", normals.n_zp_rows, dz_rows)
     corrections: FloatArray = np.einsum("pij,pj->pi", normals.v_inv, normals.g_p - coupled)
     return corrections
 
 
 def _step(prob: _Problem, st: _State, dz: FloatArray, dp: FloatArray, step: float) -> _State:
-    n_u = prob.n_units
-    du = dz[: N_UNIT * n_u].reshape(n_u, N_UNIT) * step
-    dl = dz[N_UNIT * n_u :].reshape(-1, N_UNIT)[:, :2] * step
+    n_u, width = prob.n_units, prob.width
+    du = dz[: width * n_u].reshape(n_u, width) * step
+    dl = dz[width * n_u :].reshape(-1, width)[:, :2] * step
     rotation = matrix_from_rotvec(du[:, 3:6]) @ st.rotation
     points = st.points + step * dp
     return _State(
@@ -655,6 +814,7 @@ def _step(prob: _Problem, st: _State, dz: FloatArray, dp: FloatArray, step: floa
         st.translation + du[:, :3],
         points,
         st.line_ab + dl,
+        st.coefficients + du[:, N_UNIT:],
     )
 
 
@@ -695,7 +855,7 @@ def _result(
     wv = np.einsum("nij,nj->ni", lt, v)
     h = lt @ normals.v_inv[obs.point] @ np.swapaxes(lt, 1, 2)
     free = 3.0 - np.einsum("nii->n", h)
-    share = max(1.0 - N_UNIT * prob.n_units / max(float(free.sum()), 1e-300), 0.0)
+    share = max(1.0 - prob.width * prob.n_units / max(float(free.sum()), 1e-300), 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         stat = np.einsum("ni,ni->n", wv, wv) / (free * share)
     # a row alone on its point (a point of one model) cannot be tested
@@ -716,7 +876,14 @@ def _result(
         line_resid.append(e)
         line_w.append(wl)
         line_r.append(r_line)
-    transforms = UnitTransforms(st.scale, st.rotation, st.translation, prob.centroid)
+    transforms = UnitTransforms(
+        st.scale,
+        st.rotation,
+        st.translation,
+        prob.centroid,
+        prob.polynomial,
+        None if prob.polynomial is None else st.coefficients.copy(),
+    )
     points = st.points.copy()
     points[~prob.observed] = np.nan
     return SimultaneousResult(
@@ -767,7 +934,7 @@ def _line_cofactors(
         (d_p.ravel(), (cols, np.repeat(np.arange(m), 3))), shape=(3 * prob.n_points, m)
     )
     u = (normals.reduce @ sel).toarray()  # N_zp V⁻¹ d_p: (nz, m)
-    col0 = N_UNIT * (prob.n_units + k)
+    col0 = prob.width * (prob.n_units + k)
     u[col0] += 1.0  # − d_z: d_z = −1 at a
     u[col0 + 1] += xyz[:, 0]  # and −X at b
     x = scale[:, None] * lu.solve(scale[:, None] * u)

@@ -31,6 +31,7 @@ from ..observations import (
     StripSpec,
 )
 from ..options import (
+    DEFAULT_BLOCK_POLYNOMIAL,
     STAGES,
     AdjustmentOptions,
     BlunderAction,
@@ -514,20 +515,41 @@ def _straight_lines(
     return tuple(straight_lines)
 
 
-def _check_block_options(
-    toml_path: Path, adjustment: dict[str, object], named: Sequence[str]
-) -> None:
-    """The ``[adjustment]`` keys a block of strips can take today."""
-    if named:
+def _block_polynomial(
+    toml_path: Path,
+    adjustment: dict[str, object],
+    named: Sequence[str],
+    construction: Construction,
+) -> int:
+    """The ``[adjustment]`` keys a block of strips can take, and the type of
+    every strip's own polynomial (0 with ``block = "models"``)."""
+    if "sections" in named:
         raise ConfigError(
-            f"{toml_path}: [adjustment] {named[0]}: a block's strips and models are "
-            "transformed by 3D similarities, without deformation polynomials; remove it"
+            f"{toml_path}: [adjustment] sections: a block's strips have one polynomial each "
+            '(block = "strips"), not sections; remove it'
+        )
+    if construction is Construction.MODELS and named:
+        raise ConfigError(
+            f'{toml_path}: [adjustment] polynomial: applies to block = "strips" (every '
+            'strip its own polynomial); with block = "models" every model has its own '
+            'similarity. Remove polynomial or set block = "strips"'
+        )
+    polynomial: object = adjustment["polynomial"] if named else DEFAULT_BLOCK_POLYNOMIAL
+    if construction is Construction.MODELS:
+        polynomial = 0
+    if polynomial == "auto":
+        raise ConfigError(
+            f'{toml_path}: [adjustment] polynomial: "auto" chooses a type from one strip\'s '
+            "control; a block's strips share theirs: give 0, 1, 2 or 3 (default "
+            f"{DEFAULT_BLOCK_POLYNOMIAL})"
         )
     if adjustment["photo_step"] != 1:
         raise ConfigError(
             f"{toml_path}: [adjustment] photo_step: a block forms its models on every photo; "
             "remove it"
         )
+    assert isinstance(polynomial, int)  # the schema allows 0..3 or "auto"
+    return polynomial
 
 
 def _adjustment_options(
@@ -565,7 +587,7 @@ def _adjustment_options(
     else:  # the default: every model at once, J's polynomials when named
         construction = Construction.STRIPS if named and not block else Construction.MODELS
     if block:
-        _check_block_options(toml_path, adjustment, named)
+        polynomial = _block_polynomial(toml_path, adjustment, named, construction)
     if not block and construction is Construction.MODELS and named:
         raise ConfigError(
             f'{toml_path}: [adjustment] {named[0]}: applies to block = "strips" (J\'s '

@@ -3,7 +3,7 @@ project's own observations and options."""
 
 from __future__ import annotations
 
-from ..options import BlunderOptions, GroundOptions, StripOptions
+from ..options import BlunderOptions, Construction, GroundOptions, StripOptions
 from ..pipeline import Progress, triangulate, triangulate_block
 from ..results import BlockResult, StripResult
 from .model import Project
@@ -42,6 +42,7 @@ def run_project(
             imu=project.imu,
             progress=progress,
             warnings=project.warnings,
+            polynomial=int(adj.polynomial) if adj.block is Construction.STRIPS else 0,
         )
     return triangulate(
         project.observations,

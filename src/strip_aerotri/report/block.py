@@ -20,9 +20,13 @@ if TYPE_CHECKING:
     from ..project import Project
     from ..results import BlockResult
 
-__all__ = ["JOIN_PLAN_MM", "build_block_outputs", "build_block_report"]
+__all__ = ["JOIN_PLAN_MM", "TRANSFER_UM", "build_block_outputs", "build_block_report"]
 
 JOIN_PLAN_MM = 0.5
+#: R4 1.7.7.3: mean transfer error of the common points from strip to strip
+#: in the free block, micrometres in the image, with digital identification
+#: of the points (60 um with other identification).
+TRANSFER_UM = 40.0
 """Mean plan discrepancy of the common points of two strips, mm at the map
 scale (R4 1.7.7.7)."""
 
@@ -73,6 +77,14 @@ def build_block_report(
             "max_height_m": json_float(join.max_height_m),
             "plan_limit_m": limit,
             "passed": None if limit is None else bool(join.mean_plan_m <= limit),
+            "mean_transfer_um": json_float(join.mean_transfer_um),
+            "max_transfer_um": json_float(join.max_transfer_um),
+            "transfer_limit_um": TRANSFER_UM,
+            "transfer_passed": (
+                None
+                if not np.isfinite(join.mean_transfer_um)
+                else bool(join.mean_transfer_um <= TRANSFER_UM)
+            ),
         }
         for join in result.joins
         for i, j in [join.strips]
@@ -89,6 +101,7 @@ def build_block_report(
         },
         "block": {
             "construction": None if project is None else project.adjustment.block.value,
+            "polynomial": result.polynomial,
             "strips": [
                 {
                     "name": spec.name,
@@ -109,6 +122,8 @@ def build_block_report(
             "joins": joins,
             "join_criterion": f"mean plan discrepancy <= {JOIN_PLAN_MM} mm at the map scale "
             "(R4 1.7.7.7)",
+            "transfer_criterion": f"mean transfer error <= {TRANSFER_UM:.0f} um in the image, "
+            "free block, digital identification (R4 1.7.7.3)",
         },
         "control": {"statistics": statistics(result.control_statistics)},
         "check": {"statistics": statistics(result.check_statistics)},
@@ -240,12 +255,16 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
     return _png(fig)
 
 
+def _verdict(passed: bool | None) -> str:
+    return "not judged" if passed is None else "pass" if passed else "FAIL"
+
+
 def _html(report: dict[str, Any], figure: str | None = None) -> str:
     """A one-page summary: the block, the check points, the joins of the strips."""
 
-    def cell(value: Any) -> str:
+    def cell(value: Any, decimals: int = 3) -> str:
         if isinstance(value, float):
-            return f"{value:.3f}"
+            return f"{value:.{decimals}f}"
         return html.escape("" if value is None else str(value))
 
     block = report["block"]
@@ -261,9 +280,15 @@ def _html(report: dict[str, Any], figure: str | None = None) -> str:
         f"<tr><td>{cell(' / '.join(j['strips']))}</td><td>{j['n_points']}</td>"
         f"<td>{cell(j['mean_plan_m'])}</td><td>{cell(j['max_plan_m'])}</td>"
         f"<td>{cell(j['mean_height_m'])}</td><td>{cell(j['max_height_m'])}</td>"
-        f"<td>{'not judged' if j['passed'] is None else 'pass' if j['passed'] else 'FAIL'}"
-        "</td></tr>"
+        f"<td>{_verdict(j['passed'])}</td>"
+        f"<td>{cell(j['mean_transfer_um'], 1)}</td><td>{cell(j['max_transfer_um'], 1)}</td>"
+        f"<td>{_verdict(j['transfer_passed'])}</td></tr>"
         for j in block["joins"]
+    )
+    deformation = (
+        f"; every strip with its own polynomial of type {block['polynomial']}"
+        if block.get("polynomial")
+        else ""
     )
     warnings = "".join(f"<li>{cell(w)}</li>" for w in report["warnings"]) or "<li>none</li>"
     figure_html = (
@@ -279,7 +304,7 @@ table{{border-collapse:collapse}}td,th{{border:1px solid #999;padding:.2em .5em;
 text-align:right}}td:first-child{{text-align:left}}</style></head><body>
 <h1>{cell(name)}: aerotriangulation of a block of {len(block["strips"])} strips</h1>
 <p>Construction: {cell(block["construction"])} (every unit its own 3D similarity, all at once
-onto the control and onto each other); sigma0 {cell(block["sigma0"])}, redundancy
+onto the control and onto each other{deformation}); sigma0 {cell(block["sigma0"])}, redundancy
 {block["redundancy"]}.</p>
 <h2>Accuracy</h2>
 <table><tr><th></th><th>points plan / height</th><th>RMSE plan (m)</th>
@@ -293,9 +318,11 @@ onto the control and onto each other); sigma0 {cell(block["sigma0"])}, redundanc
 <table><tr><th>strip</th><th>photos</th><th>models</th><th>scale (m / strip unit)</th></tr>
 {rows}</table>
 <h2>Common points of the strips (R4 1.7.7.3, 1.7.7.7)</h2>
-<p>{cell(block["join_criterion"])}</p>
+<p>{cell(block["join_criterion"])}; {cell(block["transfer_criterion"])}: the same
+points in the block transformed onto itself only, the control holding the datum.</p>
 <table><tr><th>strips</th><th>points</th><th>mean plan (m)</th><th>max plan (m)</th>
-<th>mean height (m)</th><th>max height (m)</th><th>verdict</th></tr>{joins}</table>
+<th>mean height (m)</th><th>max height (m)</th><th>verdict</th>
+<th>mean transfer (um)</th><th>max transfer (um)</th><th>verdict</th></tr>{joins}</table>
 <h2>Warnings</h2><ul>{warnings}</ul>
 </body></html>
 """
