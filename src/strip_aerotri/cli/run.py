@@ -237,5 +237,16 @@ def _echo_block(result: BlockResult, name: str, files: dict[str, bytes], target:
             f"common points of the strips: largest mean discrepancy {_fmt_m(worst.mean_plan_m)} "
             f"plan, {_fmt_m(worst.mean_height_m)} height (strips {a} / {b})"
         )
+    transfer = [j for j in result.joins if math.isfinite(j.mean_transfer_um)]
+    if transfer:
+        from ..report.block import TRANSFER_UM
+
+        worst = max(transfer, key=lambda j: j.mean_transfer_um)
+        a, b = (result.specs[i].name for i in worst.strips)
+        verdict = "within" if worst.mean_transfer_um <= TRANSFER_UM else "above"
+        echo_result(
+            f"transfer errors of the free block: largest mean {worst.mean_transfer_um:.0f} um "
+            f"(strips {a} / {b}), {verdict} R4's {TRANSFER_UM:.0f} um"
+        )
     echo_result(f"report: {target / 'report.html'}")
     echo_result(f"results: {target}")
