@@ -240,3 +240,45 @@ def geojson(project_file: Path, results: Path | None, out: Path | None) -> None:
     target = out or folder / "results.geojson"
     _write_whole(target, text)
     echo_result(f"wrote {target}: {len(points.ids)} points, {len(photos.ids)} photo centres")
+
+
+@export.command("gpkg", epilog=DOCS_EPILOG)
+@project_arg
+@click.option(
+    "--from",
+    "results",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help=_FROM_HELP,
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="File to write (default: results.gpkg in the result folder).",
+)
+@common_options
+def gpkg(project_file: Path, results: Path | None, out: Path | None) -> None:
+    """Points and photo centres as a GeoPackage in the project's CRS.
+
+    Reads STRIP_TOML (for the CRS) and the points.csv and photos.csv of its
+    result folder, and writes two layers, points and photo_centres, with
+    every column of the tables as fields (docs/export.md). crs = "local"
+    writes the site coordinates without a CRS. Needs pyogrio:
+    pip install 'strip_aerotri[gpkg]'.
+
+    \b
+    Examples:
+      stripaero export gpkg strip.toml
+      stripaero export gpkg strip.toml --from out-2024 -o strip.gpkg
+    """
+    from ..export import read_results, write_gpkg
+    from ..project import load_project
+
+    project = load_project(project_file)
+    folder = _result_folder(project, results)
+    points, photos = read_results(folder)
+    target = out or folder / "results.gpkg"
+    write_gpkg(target, points, photos, project.crs, strip=project.name)
+    echo_result(f"wrote {target}: {len(points.ids)} points, {len(photos.ids)} photo centres")

@@ -15,6 +15,7 @@
 
 from .cameras import camera_rotations_grid, cameras_opk_text
 from .geojson import results_geojson
+from .gpkg import write_gpkg
 from .odm import crs_line, gcp_list_text
 from .tables import ResultTable, read_results
 
@@ -26,4 +27,5 @@ __all__ = [
     "gcp_list_text",
     "read_results",
     "results_geojson",
+    "write_gpkg",
 ]
