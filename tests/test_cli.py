@@ -735,7 +735,7 @@ def test_help(command):
     result = invoke(*command, "--help")
     assert result.exit_code == 0, result.output
     assert "Examples:" in result.output
-    assert "docs/cli.md" in result.output
+    assert "stripaero docs" in result.output
 
 
 @pytest.mark.parametrize(

@@ -25,6 +25,11 @@ class ConvergenceError(StripAerotriError, RuntimeError):
     """An iterative solution did not converge."""
 
 
+class MissingExtraError(StripAerotriError, ImportError):
+    """An optional feature needs a package that is not installed; the message
+    names the extra to install (``pip install 'strip_aerotri[gpkg]'``)."""
+
+
 class StripAerotriWarning(UserWarning):
     """A result that is valid but weak or degenerate (gimbal lock, near-singular normals)."""
 
@@ -33,6 +38,7 @@ __all__ = [
     "ConfigError",
     "ConvergenceError",
     "GeometryError",
+    "MissingExtraError",
     "StripAerotriError",
     "StripAerotriWarning",
 ]

@@ -3,12 +3,38 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from .options import DOCS_EPILOG, common_options, echo_result, project_arg
 
+if TYPE_CHECKING:
+    from ..project import Project
+
 __all__ = ["export"]
+
+
+def _result_folder(project: Project, results: Path | None) -> Path:
+    """The run's result folder: ``--from``, else where ``stripaero run`` wrote it."""
+    from ..project import DEFAULT_OUTPUT
+
+    return results or project.output_directory or project.path.parent / DEFAULT_OUTPUT
+
+
+def _write_whole(target: Path, data: str | bytes) -> None:
+    """Write ``target`` whole or not at all (a partial file renamed into place)."""
+    import os
+
+    partial = target.with_name(f".{target.name}.partial")
+    if isinstance(data, str):
+        partial.write_text(data, encoding="utf-8")
+    else:
+        partial.write_bytes(data)
+    os.replace(partial, target)
+
+
+_FROM_HELP = "The run's result folder (default: the project's, as stripaero run chose it)."
 
 
 @click.group(epilog=DOCS_EPILOG, short_help="Write files for other programs from a run.")
@@ -23,7 +49,7 @@ def export() -> None:
     "results",
     type=click.Path(file_okay=False, path_type=Path),
     default=None,
-    help="The run's result folder (default: the project's, as stripaero run chose it).",
+    help=_FROM_HELP,
 )
 @click.option(
     "-o",
@@ -47,7 +73,6 @@ def cameras(project_file: Path, results: Path | None, out: Path | None) -> None:
       stripaero export cameras strip.toml --from out-2024 -o cameras.txt
     """
     import csv
-    import os
 
     import numpy as np
 
@@ -56,7 +81,7 @@ def cameras(project_file: Path, results: Path | None, out: Path | None) -> None:
     from ..project import load_project
 
     project = load_project(project_file)
-    folder = results or project.output_directory or project.path.parent / "out"
+    folder = _result_folder(project, results)
     table = folder / "photos.csv"
     if not table.is_file():
         raise ConfigError(f"{table}: not found; run the project first (stripaero run)")
@@ -70,9 +95,7 @@ def cameras(project_file: Path, results: Path | None, out: Path | None) -> None:
         raise ConfigError(f"{table}: not a photos.csv of stripaero run ({exc})") from None
     text = cameras_opk_text(ids, centres, opk, project.crs, project.images.flight_direction)
     target = out or folder / "cameras_opk.txt"
-    partial = target.with_name(f".{target.name}.partial")
-    partial.write_text(text, encoding="utf-8")
-    os.replace(partial, target)  # whole or not at all
+    _write_whole(target, text)
     echo_result(f"wrote {target}: {len(ids)} photos")
 
 
@@ -91,7 +114,7 @@ _ROLES = {
     "results",
     type=click.Path(file_okay=False, path_type=Path),
     default=None,
-    help="The run's result folder (default: the project's).",
+    help=_FROM_HELP,
 )
 @click.option(
     "-o",
@@ -129,7 +152,6 @@ def odm(
       stripaero export odm strip.toml --points all -o gcp_list.txt
     """
     import csv
-    import os
 
     import numpy as np
 
@@ -145,7 +167,7 @@ def odm(
             f"{project.path}: [images] units: gcp_list.txt needs the pixel measurements, "
             "and this project's image coordinates are in millimetres"
         )
-    folder = results or project.output_directory or project.path.parent / "out"
+    folder = _result_folder(project, results)
     table = folder / "points.csv"
     if not table.is_file():
         raise ConfigError(f"{table}: not found; run the project first (stripaero run)")
@@ -173,7 +195,90 @@ def odm(
         names,
     )
     target = out or folder / "gcp_list.txt"
-    partial = target.with_name(f".{target.name}.partial")
-    partial.write_text(text, encoding="utf-8")
-    os.replace(partial, target)  # whole or not at all
+    _write_whole(target, text)
     echo_result(f"wrote {target}: {len(geo_of)} points, {len(keep)} observations")
+
+
+@export.command("geojson", epilog=DOCS_EPILOG)
+@project_arg
+@click.option(
+    "--from",
+    "results",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help=_FROM_HELP,
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="File to write (default: results.geojson in the result folder).",
+)
+@common_options
+def geojson(project_file: Path, results: Path | None, out: Path | None) -> None:
+    """Points and photo centres as GeoJSON (WGS 84 longitude, latitude).
+
+    Reads STRIP_TOML (for the CRS) and the points.csv and photos.csv of its
+    result folder, and writes one RFC 7946 FeatureCollection: a feature per
+    point (role, residuals, counts: every column of points.csv) and per photo
+    centre (strip, omega, phi, kappa in degrees as in photos.csv)
+    (docs/export.md). crs = "local" has no geodesy to WGS 84 and is refused.
+
+    \b
+    Examples:
+      stripaero export geojson strip.toml
+      stripaero export geojson strip.toml --from out-2024 -o strip.geojson
+    """
+    from ..export import read_results, results_geojson
+    from ..project import load_project
+
+    project = load_project(project_file)
+    folder = _result_folder(project, results)
+    points, photos = read_results(folder)
+    text = results_geojson(points, photos, project.crs, strip=project.name)
+    target = out or folder / "results.geojson"
+    _write_whole(target, text)
+    echo_result(f"wrote {target}: {len(points.ids)} points, {len(photos.ids)} photo centres")
+
+
+@export.command("gpkg", epilog=DOCS_EPILOG)
+@project_arg
+@click.option(
+    "--from",
+    "results",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help=_FROM_HELP,
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="File to write (default: results.gpkg in the result folder).",
+)
+@common_options
+def gpkg(project_file: Path, results: Path | None, out: Path | None) -> None:
+    """Points and photo centres as a GeoPackage in the project's CRS.
+
+    Reads STRIP_TOML (for the CRS) and the points.csv and photos.csv of its
+    result folder, and writes two layers, points and photo_centres, with
+    every column of the tables as fields (docs/export.md). crs = "local"
+    writes the site coordinates without a CRS. Needs pyogrio:
+    pip install 'strip_aerotri[gpkg]'.
+
+    \b
+    Examples:
+      stripaero export gpkg strip.toml
+      stripaero export gpkg strip.toml --from out-2024 -o strip.gpkg
+    """
+    from ..export import read_results, write_gpkg
+    from ..project import load_project
+
+    project = load_project(project_file)
+    folder = _result_folder(project, results)
+    points, photos = read_results(folder)
+    target = out or folder / "results.gpkg"
+    write_gpkg(target, points, photos, project.crs, strip=project.name)
+    echo_result(f"wrote {target}: {len(points.ids)} points, {len(photos.ids)} photo centres")

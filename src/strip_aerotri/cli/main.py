@@ -16,6 +16,7 @@ import click
 
 from .._version import __version__
 from .check import check
+from .docs import docs
 from .export import export
 from .importer import import_group
 from .options import DOCS_EPILOG, Settings, common_options, echo_error, settings
@@ -102,6 +103,7 @@ def cli() -> None:
       stripaero simulate film --out demo        # a ready project to try
       stripaero check demo/strip.toml           # validate without adjusting
       stripaero run demo/strip.toml             # adjust; results in demo/out
+      stripaero docs                            # the documentation pages
     """
 
 
@@ -110,3 +112,4 @@ cli.add_command(check)
 cli.add_command(simulate)
 cli.add_command(import_group)
 cli.add_command(export)
+cli.add_command(docs)

@@ -38,8 +38,12 @@ PROG = "stripaero"
 F = TypeVar("F", bound=Callable[..., Any])
 
 DOCS_EPILOG = (
-    "Documentation: docs/cli.md (commands), docs/project-file.md (strip.toml and CSVs), "
-    "docs/outputs.md (results), docs/troubleshooting.md (error messages)."
+    "\b\n"
+    "Documentation, installed with the package (stripaero docs lists every page):\n"
+    "  stripaero docs cli              the commands and their options\n"
+    "  stripaero docs project-file     strip.toml and the CSV files\n"
+    "  stripaero docs outputs          the result folder\n"
+    "  stripaero docs troubleshooting  the error messages"
 )
 
 

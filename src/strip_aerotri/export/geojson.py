@@ -1,0 +1,121 @@
+"""The points and the photo centres of a run as one GeoJSON file (docs/export.md).
+
+An RFC 7946 ``FeatureCollection`` in WGS 84 longitude, latitude (degrees, 8
+decimals), converted by pyproj's best operation from the project's CRS
+(:meth:`~strip_aerotri.geodesy.GroundCRS.to_wgs84_lonlat`: a datum shift
+may be applied, with that operation's accuracy: for display, never to be fed
+back).  One ``Point`` feature per row of ``points.csv``, then one per row of
+``photos.csv``; the properties are every column of the row (numbers as
+numbers, an empty cell as ``null``) and ``feature`` (``"point"`` or
+``"photo_centre"``).  Heights stay in the properties (``H``, ``Z``:
+ellipsoidal heights on the project CRS's datum, not WGS 84 heights), so the
+geometry is two-dimensional.  ``crs = "local"`` has no geodesy to WGS 84 and
+is refused.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..geodesy import GroundCRS
+from .tables import ResultTable, Value
+
+__all__ = ["ANGLES", "GEOJSON_DECIMALS", "results_geojson"]
+
+GEOJSON_DECIMALS = 8
+"""Decimals of longitude and latitude (1e-8 degree is about 1 mm), as in points.geojson."""
+
+ANGLES = (
+    "omega, phi, kappa in degrees as in photos.csv: R = Rx(omega) Ry(phi) Rz(kappa) maps "
+    "image vectors (x along the flight, y to its left, z up) to local east-north-up at the "
+    "projection centre (true north); docs/outputs.md"
+)
+"""The convention of the photo centres' angles, stated in the file."""
+
+
+def _features(
+    table: ResultTable, lonlat: np.ndarray, kind: str, extra: dict[str, Value]
+) -> list[dict[str, Any]]:
+    out = []
+    for k, pid in enumerate(table.ids):
+        lon, lat = (float(v) for v in lonlat[k])
+        geometry = (
+            {"type": "Point", "coordinates": [lon, lat]}
+            if math.isfinite(lon) and math.isfinite(lat)
+            else None
+        )
+        properties: dict[str, Value] = {"feature": kind, **extra, **table.row(k)}
+        out.append(
+            {
+                "type": "Feature",
+                "id": f"{kind}/{pid}",
+                "geometry": geometry,
+                "properties": properties,
+            }
+        )
+    return out
+
+
+def results_geojson(
+    points: ResultTable, photos: ResultTable, crs: str, *, strip: str | None = None
+) -> str:
+    """The file's text: the points and the photo centres of a run.
+
+    Parameters
+    ----------
+    points, photos : ResultTable
+        ``points.csv`` and ``photos.csv`` of the run (:func:`.tables.read_results`).
+    crs : str
+        The project's ``[control] crs``.
+    strip : str, optional
+        The strip's name, given to photo centres as ``strip`` when
+        ``photos.csv`` has no ``strip`` column (a single strip).
+
+    Raises
+    ------
+    ConfigError
+        ``crs = "local"``: a local site system has no geodesy to WGS 84.
+    """
+    ground = GroundCRS.from_user_input(crs)
+    if ground.is_local:
+        raise ConfigError(
+            'crs = "local": a local site system has no geodesy to WGS 84, which GeoJSON '
+            "requires (RFC 7946); export a project in a projected or geographic CRS, or use "
+            "stripaero export gpkg (site coordinates without a CRS)"
+        )
+    lonlat = {
+        name: np.round(ground.to_wgs84_lonlat(table.xyz[:, :2]), GEOJSON_DECIMALS)
+        if len(table.ids)
+        else np.zeros((0, 2))
+        for name, table in (("points", points), ("photos", photos))
+    }
+    photo_extra: dict[str, Value] = {}
+    if "strip" not in photos.columns and strip is not None:
+        photo_extra["strip"] = strip
+    head = {
+        "type": "FeatureCollection",
+        "stripaero": {
+            "crs": crs,
+            "crs_name": ground.name,
+            "coordinates": "WGS 84 longitude, latitude in degrees (pyproj's best operation "
+            "from the project's CRS: for display)",
+            "heights": "H of points and Z of photo centres: ellipsoidal heights in metres "
+            "on the project CRS's datum, not WGS 84 heights",
+            "X_Y": "X, Y of the properties: as in points.csv and photos.csv, in the project's CRS",
+            "angles": ANGLES,
+        },
+    }
+    features = _features(points, lonlat["points"], "point", {}) + _features(
+        photos, lonlat["photos"], "photo_centre", photo_extra
+    )
+    lines = [_dumps(f) for f in features]  # one feature a line
+    return _dumps(head)[:-1] + ',"features":[\n' + ",\n".join(lines) + "\n]}\n"
+
+
+def _dumps(value: Any) -> str:
+    return json.dumps(value, ensure_ascii=False, allow_nan=False, separators=(",", ":"))
