@@ -305,3 +305,42 @@ def test_tolerance_verdicts_judge_the_refined_points():
     unrefined = dataclasses.replace(result, refined=None)
     verdicts0 = {c.name: c for c in tolerance_verdicts(unrefined, 5000.0)}
     assert verdicts0["check_mean_plan"].value == pytest.approx(np.mean(ground_plan))
+
+
+def test_points_csv_residuals_are_those_of_the_refined_points(tmp_path):
+    """With ``refine = "bundle"`` points.csv holds the refined X, Y, H and
+    its dE, dN, dH are given minus *those* coordinates (they were the strip
+    method's, which did not match the file's own coordinates)."""
+    import csv
+    import subprocess
+    import sys
+
+    sim = simulate_strip(12, seed=3)
+    toml = sim.write_project(tmp_path / "p")
+    toml.write_text(
+        toml.read_text().replace("[adjustment]\n", '[adjustment]\nrefine = "bundle"\n')
+    )
+    code = "import sys; from strip_aerotri.cli.main import cli; sys.exit(cli())"
+    run = subprocess.run(
+        [sys.executable, "-c", code, "run", str(toml)], capture_output=True, text=True
+    )
+    assert run.returncode == 0, run.stderr
+    given = {
+        pid: xyz
+        for pid, xyz, kind in zip(
+            sim.control.point_ids, sim.control.xyz, sim.control.kind, strict=True
+        )
+        if kind is ControlType.CHECK
+    }
+    with open(toml.parent / "out" / "points.csv", newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["point"] in given]
+    assert len(rows) > 10
+    for r in rows:
+        adjusted = np.array([float(r["X"]), float(r["Y"]), float(r["H"])])
+        resid = np.array([float(r["dE"]), float(r["dN"]), float(r["dH"])])
+        # projected CRS: dE, dN along the grid within the meridian convergence
+        assert (
+            np.hypot(*(given[r["point"]] - adjusted - resid)[:2])
+            < 0.002 * np.hypot(*resid[:2]) + 1e-4
+        )
+        assert abs((given[r["point"]] - adjusted - resid)[2]) < 1e-4

@@ -99,9 +99,18 @@ def control_rows(result: StripResult) -> tuple[np.ndarray, np.ndarray]:
 
 
 def residual_columns(result: StripResult) -> np.ndarray:
-    """(P, 3) given − adjusted E, N, H at control and check points, NaN elsewhere."""
+    """(P, 3) given − adjusted E, N, H at control and check points, NaN
+    elsewhere: of the points delivered (``result.points``), i.e. of the
+    bundle refinement when it ran."""
     out = np.full((len(result.point_ids), 3), np.nan)
-    idx, resid = control_rows(result)
+    refined = result.refined
+    if refined is None:
+        idx, resid = control_rows(result)
+    else:
+        lookup = {pid: i for i, pid in enumerate(result.point_ids)}
+        rows = np.asarray(refined.control_index, dtype=np.intp)
+        idx = np.array([lookup[result.control.point_ids[r]] for r in rows], dtype=np.intp)
+        resid = np.asarray(refined.control_residuals, dtype=np.float64).reshape(-1, 3)
     out[idx] = resid
     return out
 
