@@ -13,7 +13,7 @@ import pytest
 from strip_aerotri.blunders import BlunderOptions, critical_value, robust_variance_factor
 from strip_aerotri.errors import GeometryError, StripAerotriWarning
 from strip_aerotri.ground.polynomials import GroundOptions, LineSpec
-from strip_aerotri.observations import ImageObservations
+from strip_aerotri.observations import ControlType, ImageObservations
 from strip_aerotri.pipeline import triangulate
 from strip_aerotri.simulate import simulate_strip
 
@@ -367,3 +367,33 @@ def test_undetectable_control_errors_are_said_to_be_so():
 
     points = build_report(res)["control"]["points"]
     assert all(p["detectable"][0] is False and p["mde_m"][0] is None for p in points)
+
+
+def test_a_tie_blunder_on_a_check_point_seen_on_many_photos_drops_two_models_not_the_point():
+    """An x error on one photo of a check point seen on five or more photos
+    (drone strip, 80 % overlap) spoils it in the two models of that photo;
+    the tie test leaves out those two determinations and the point keeps
+    the others: it stays a compared check point, near its clean position
+    (it used to vanish from the strip and from the check statistics)."""
+    sim = simulate_strip(20, preset="drone", seed=2, crs="EPSG:2180")
+    obs = sim.observations
+    counts = np.bincount(obs.point, minlength=obs.n_points)
+    checks = [
+        obs.point_ids.index(p)
+        for p, kind in zip(sim.control.point_ids, sim.control.kind, strict=True)
+        if kind is ControlType.CHECK and p in obs.point_ids
+    ]
+    target = max(checks, key=lambda i: counts[i])
+    assert counts[target] >= 5
+    rows = np.flatnonzero(obs.point == target)
+    row = rows[len(rows) // 2]  # a photo in the middle of its run
+    xy = obs.xy.copy()
+    xy[row, 0] += 0.05  # 50 um in x: a height error in the two models of that photo
+    clean = triangulate(obs, sim.control, sim.crs)
+    bad = triangulate(dataclasses.replace(obs, xy=xy), sim.control, sim.crs)
+    name = obs.point_ids[target]
+    assert any(r.stage == "tie_points" and r.point == name for r in bad.rejections)
+    assert name not in bad.strip.rejected_points
+    assert np.isfinite(bad.points[target]).all()
+    assert bad.check_statistics.n_plan == clean.check_statistics.n_plan
+    assert np.linalg.norm(bad.points[target] - clean.points[target]) < 0.05

@@ -141,9 +141,15 @@ def triangulate(
     timings["ground"] = time.perf_counter() - t1
     notes = list(warnings)
     notes += [r.describe() for r in strip.rejections + ground.rejections]
+    failed_ties = set(strip.rejected_points)
     notes += [
-        f"control point {p!r} is not triangulated (seen on fewer than two photos of a model): "
-        "left out"
+        f"control point {p!r} is not triangulated ("
+        + (
+            "every determination of it failed the tie-point test, see the tie_points rejections"
+            if p in failed_ties
+            else "seen on fewer than two photos of a model"
+        )
+        + "): left out"
         for p in ground.left_out
     ]
     not_seen = np.flatnonzero(~np.isfinite(ground.points).all(axis=1))

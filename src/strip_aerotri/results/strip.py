@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._typing import FloatArray, IntArray
+from .._typing import BoolArray, FloatArray, IntArray
 from ..observations import ImageObservations
 from ..options import RelativeOrientationMethod, StripOptions
 from .common import Rejection
@@ -144,8 +144,12 @@ class StripModel:
         orientation (y-parallaxes) and of the scale transfer (tie-point
         differences), in the order found.
     rejected_points : tuple of str
-        Points whose determinations in consecutive models disagree (a failed
-        tie test): left out of the strip model (NaN in ``points``).
+        Points all of whose determinations failed the tie test (consecutive
+        models disagree): left out of the strip model (NaN in ``points``).
+    rejected_determinations : ndarray of bool, shape (n,), optional
+        The determinations (rows of ``model_points``) the tie test left
+        out: both models of every failed tie.  None: the rows of
+        ``rejected_points``.
     model_photos : ndarray of int, optional
         See :attr:`model_photo_positions`.
     model_rows : ndarray of int, shape (n, 2), optional
@@ -178,6 +182,7 @@ class StripModel:
     model_labels: tuple[str, ...] = field(default=())
     rejections: tuple[Rejection, ...] = field(default=())
     rejected_points: tuple[str, ...] = field(default=())
+    rejected_determinations: BoolArray | None = None
     model_photos: IntArray | None = None
     model_rows: IntArray | None = None
     breaks: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))

@@ -169,7 +169,7 @@ def form_strip(
     ties = _transfer_scale(observations, options, blunders, pairs, unit, seq, labels, rejections)
     centres, rotations, scale = _chain(options, rel, ties.ratio)
     model_points, model_parallax, points, counts = _strip_points(
-        observations, model, point, unit, centres, scale, ties.rejected_point_index
+        observations, model, point, unit, centres, scale, ties.rejected_rows
     )
     i_now, i_prev, tie_model, tie_count = ties.i_now, ties.i_prev, ties.tie_model, ties.tie_count
     tie_difference, tie_rms = tie_differences(model_points, i_now, i_prev, tie_model, tie_count)
@@ -199,6 +199,7 @@ def form_strip(
         model_labels=tuple(labels),
         rejections=tuple(rejections),
         rejected_points=tuple(observations.point_ids[i] for i in rejected_point_index),
+        rejected_determinations=ties.rejected_rows,
         model_rows=np.column_stack([row_l, row_r]),
         breaks=missing.astype(np.intp),
     )
@@ -335,7 +336,8 @@ class _Ties(NamedTuple):
     """Scale transfer: the ratio of each model's scale to the previous one's
     (1 for the first and across breaks), the tie rows kept (``i_now`` in
     model m, ``i_prev`` in model m - 1), their models and counts, the models
-    with no tie (breaks) and the points rejected as tie-point blunders."""
+    with no tie (breaks), the points all of whose determinations the tie
+    test rejected and the determinations it rejected (rows)."""
 
     ratio: FloatArray
     i_now: IntArray
@@ -344,6 +346,7 @@ class _Ties(NamedTuple):
     tie_count: IntArray
     missing: IntArray
     rejected_point_index: IntArray
+    rejected_rows: BoolArray
 
 
 def _transfer_scale(
@@ -395,7 +398,11 @@ def _transfer_scale(
                     w=float(w),
                     critical=float(crit),
                     applied=blunders.rejecting,
-                    effect="point left out of the scale transfer and the strip model",
+                    effect=(
+                        "tie left out of the scale transfer; the point's determinations in "
+                        "the models of the photo its failed ties share left out of the strip "
+                        "model"
+                    ),
                 )
             )
         if not blunders.rejecting:
@@ -406,7 +413,9 @@ def _transfer_scale(
                 f"scale transfer: more than {blunders.max_fraction:.0%} of the tie points fail "
                 "the blunder test; the strip cannot be formed reliably"
             )
-    rejected_point_index = np.unique(point[i_now[~tie_ok]])
+    rejected_rows, rejected_point_index = rejected_determinations(
+        point, model, i_now, i_prev, tie_ok, observations.n_points
+    )
     i_now, i_prev = i_now[tie_ok], i_prev[tie_ok]
     tie_model = model[i_now]
     tie_count = np.bincount(tie_model, minlength=n_models).astype(np.intp)
@@ -427,7 +436,53 @@ def _transfer_scale(
         m = int(bad[0])
         raise GeometryError(f"{labels[m]}: the tie points give no valid scale (ratio {ratio[m]})")
     ratio[0] = 1.0
-    return _Ties(ratio, i_now, i_prev, tie_model, tie_count, missing, rejected_point_index)
+    return _Ties(
+        ratio, i_now, i_prev, tie_model, tie_count, missing, rejected_point_index, rejected_rows
+    )
+
+
+def rejected_determinations(
+    point: IntArray,
+    model: IntArray,
+    i_now: IntArray,
+    i_prev: IntArray,
+    tie_ok: BoolArray,
+    n_points: int,
+) -> tuple[BoolArray, IntArray]:
+    """The determinations (rows of the models' points) that failed tie tests
+    leave out, and the points left with none.
+
+    A blunder in one image coordinate spoils the point in the two models
+    that share that photo.  The tie at model m compares models m − 1 and m,
+    photos m − 1, m, m + 1 (model m is photos m and m + 1); when a point's
+    failed ties have photos in common, those photos are the suspects and
+    only the point's determinations in the models holding them are left
+    out (a check point seen on six photos with an error on the middle one
+    keeps three of its five); otherwise both models of every failed tie.
+    """
+    rows = np.zeros(point.shape[0], dtype=bool)
+    failed = ~tie_ok
+    if not failed.any():
+        return rows, np.zeros(0, dtype=np.intp)
+    f_point = point[i_now[failed]]
+    f_model = model[i_now[failed]]
+    for p in np.unique(f_point):  # the points with failed ties: a handful
+        ties = f_model[f_point == p]
+        suspects = set(range(ties[0] - 1, ties[0] + 2))
+        for m in ties[1:]:
+            suspects &= set(range(m - 1, m + 2))
+        mine = np.flatnonzero(point == p)
+        if suspects:
+            low, high = min(suspects), max(suspects)
+            # model m holds photos m and m + 1
+            rows[mine[(model[mine] + 1 >= low) & (model[mine] <= high)]] = True
+        else:
+            both = f_point == p
+            rows[i_now[failed][both]] = True
+            rows[i_prev[failed][both]] = True
+    kept = np.bincount(point[~rows], minlength=n_points)
+    touched = np.unique(point[rows])
+    return rows, touched[kept[touched] == 0].astype(np.intp)
 
 
 def _chain(
@@ -460,11 +515,12 @@ def _strip_points(
     unit: Intersection,
     centres: FloatArray,
     scale: FloatArray,
-    rejected_point_index: IntArray,
+    rejected_rows: BoolArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray, IntArray]:
     """Every model's points in the strip system, and each point's mean over the
-    models that determine it (tie-point blunders left out): ``model_points``,
-    ``model_parallax``, ``points`` (NaN where none), ``counts``."""
+    models that determine it (determinations the tie test rejected left
+    out): ``model_points``, ``model_parallax``, ``points`` (NaN where none),
+    ``counts``."""
     # Column by column: an (n, 1) factor broadcast over (n, 3) rows runs
     # numpy's inner loop over three elements.
     model_scale = np.take(scale, model)
@@ -472,8 +528,8 @@ def _strip_points(
     for k in range(3):
         model_points[:, k] = np.take(centres[:, k], model) + model_scale * unit.points[:, k]
     model_parallax = model_scale * unit.parallax
-    if rejected_point_index.size:
-        usable = ~np.isin(point, rejected_point_index)
+    if rejected_rows.any():
+        usable = ~rejected_rows
         usable_point, usable_xyz = point[usable], np.compress(usable, model_points, axis=0)
     else:
         usable_point, usable_xyz = point, model_points

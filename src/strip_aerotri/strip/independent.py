@@ -38,7 +38,14 @@ from ..geometry.similarity import SimilarityTransform, similarity_from_points
 from ..observations import ImageObservations
 from ..options import BlunderOptions, RelativeOrientationMethod, StripOptions
 from ..results import Rejection, RelativeOrientation, StripModel
-from .chaining import _orient_pairs, _Pairs, model_sequence, tie_differences, tie_rows
+from .chaining import (
+    _orient_pairs,
+    _Pairs,
+    model_sequence,
+    rejected_determinations,
+    tie_differences,
+    tie_rows,
+)
 
 __all__ = ["form_strip_independent"]
 
@@ -323,8 +330,10 @@ def _strip_model(
         "nij,nj->ni", rot[model], unit.points
     )
     i_now, i_prev = tie_rows(pairs.row_l, pairs.row_r, observations.photo.shape[0])
-    rejected = np.unique(point[i_now[~joins.tie_ok]])
-    usable = ~np.isin(point, rejected)
+    rejected_rows, rejected = rejected_determinations(
+        point, model, i_now, i_prev, joins.tie_ok, observations.n_points
+    )
+    usable = ~rejected_rows
     counts = np.bincount(point[usable], minlength=observations.n_points)
     points = np.full((observations.n_points, 3), np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -374,6 +383,7 @@ def _strip_model(
         model_labels=tuple(labels),
         rejections=tuple(rejections),
         rejected_points=tuple(observations.point_ids[i] for i in rejected),
+        rejected_determinations=rejected_rows,
         model_rows=np.column_stack([pairs.row_l, pairs.row_r]),
         breaks=np.zeros(0, dtype=np.intp),
     )
