@@ -93,10 +93,12 @@ def report_exception(exc: BaseException, debug: bool) -> None:
 def cli() -> None:
     """Strip aerotriangulation by partially dependent models.
 
-    Reads a project (strip.toml with image_points.csv and control.csv), forms
-    the strip model by dependent relative orientation, scale transfer and
-    chaining, fits it to the ground control (similarity and deformation
-    polynomials) and writes points.csv, photos.csv, report.json and a report.
+    Reads a project (strip.toml with image_points.csv and control.csv; one
+    strip or a block of strips), forms each strip by dependent relative
+    orientation, scale transfer and chaining, transforms it onto the ground
+    control (by default every model its own similarity, all at once; or the
+    whole strip with deformation polynomials) and writes points.csv,
+    photos.csv, report.json and report.html.
 
     \b
     Examples:
