@@ -110,7 +110,18 @@ def test_image_blunder_in_x_shows_in_the_tie_heights():
     res = triangulate(dataclasses.replace(obs, xy=xy), sim.control, sim.crs)
     point = obs.point_ids[obs.point[row]]
     assert point in res.strip.rejected_points
-    assert any(r.stage == "tie_points" and r.point == point for r in res.rejections)
+    ties = [r for r in res.rejections if r.stage == "tie_points" and r.point == point]
+    assert ties
+    # told in ground metres: an x error dx on one photo moves the point's
+    # height in a model of that photo by (H / B) dx (H / c), once or twice
+    # (the photo in both models of the tie) in the difference of the two
+    t = sim.truth
+    base = float(np.median(np.linalg.norm(np.diff(t.photo_centres_local, axis=0), axis=1)))
+    dz = t.flying_height_m / base * 0.15 * t.flying_height_m / obs.principal_distance
+    assert all(r.unit == "m" and 0.7 * dz < abs(r.residual) < 2.6 * dz for r in ties), (
+        [r.describe() for r in ties],
+        dz,
+    )
 
 
 def test_swapped_point_ids_on_one_photo_are_found():

@@ -18,6 +18,7 @@ import numpy as np
 
 from .errors import GeometryError
 from .geodesy import GroundCRS
+from .ground.common import image_scale
 from .ground.polynomials import adjust_to_ground
 from .observations import (
     ControlPoints,
@@ -139,6 +140,9 @@ def triangulate(
             strip, control, crs, lines=lines, options=ground_options, blunders=blunders
         )
     timings["ground"] = time.perf_counter() - t1
+    # the tie test's residuals, in model base lengths until now, in metres
+    model_per_mm, _ = image_scale(strip)
+    strip = strip.with_rejections_in_metres(ground.image_scale / model_per_mm)
     notes = list(warnings)
     notes += [r.describe() for r in strip.rejections + ground.rejections]
     failed_ties = set(strip.rejected_points)

@@ -842,7 +842,10 @@ def _products(
     used[~use_z, 2] = np.nan
     return BlockResult(
         specs=p.specs,
-        strips=p.strips,
+        strips=tuple(  # the tie test's residuals in metres
+            strip.with_rejections_in_metres(float(np.mean(t.scale[p.unit_strip == k])))
+            for k, strip in enumerate(p.strips)
+        ),
         observations=p.observations,
         photo_strip=p.photo_strip,
         scale=np.array([float(np.mean(t.scale[p.unit_strip == k])) for k in range(len(p.strips))]),

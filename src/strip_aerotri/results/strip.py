@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -10,6 +10,10 @@ from .._typing import BoolArray, FloatArray, IntArray
 from ..observations import ImageObservations
 from ..options import RelativeOrientationMethod, StripOptions
 from .common import Rejection
+
+#: The unit of residuals measured in a model before the strip reaches the
+#: ground: the model's own base length.
+BASE_UNITS = "base units"
 
 __all__ = ["RelativeOrientation", "StripModel"]
 
@@ -186,6 +190,23 @@ class StripModel:
     model_photos: IntArray | None = None
     model_rows: IntArray | None = None
     breaks: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+
+    def with_rejections_in_metres(self, metres_per_unit: float) -> StripModel:
+        """The strip with its tie-point rejections told in ground metres: a
+        residual in the units of its model's base (the strip system's units
+        times the model's scale) times ``metres_per_unit``, the metres per
+        unit of the strip system once the strip is on the ground."""
+        if not np.isfinite(metres_per_unit) or metres_per_unit <= 0:
+            return self
+        model_of = {label: k for k, label in enumerate(self.model_labels)}
+        out = []
+        for r in self.rejections:
+            k = model_of.get(f"pair {r.photos[1]}-{r.photos[2]}") if len(r.photos) == 3 else None
+            if r.unit == BASE_UNITS and k is not None:
+                metres = r.residual * float(self.scale[k]) * metres_per_unit
+                r = replace(r, residual=metres, unit="m")
+            out.append(r)
+        return replace(self, rejections=tuple(out))
 
     @property
     def model_photo_positions(self) -> IntArray:

@@ -27,6 +27,7 @@ from ..observations import ImageObservations
 from ..options import BlunderOptions, IntersectionMethod, StripOptions
 from ..plausibility import ray_direction_problems
 from ..results import Rejection, RelativeOrientation, StripModel
+from ..results.strip import BASE_UNITS
 from .relative import relative_orientation
 from .scaling import scale_ratios
 
@@ -394,7 +395,7 @@ def _transfer_scale(
                     photos=(ids[seq[m - 1]], ids[seq[m]], ids[seq[m + 1]]),
                     component=comp,
                     residual=float(resid),
-                    unit="base units",
+                    unit=BASE_UNITS,
                     w=float(w),
                     critical=float(crit),
                     applied=blunders.rejecting,
