@@ -178,7 +178,7 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
     matplotlib.use("Agg", force=False)
     from matplotlib.figure import Figure
 
-    from .figures import _png
+    from .figures import _nice, _png
 
     centres = np.asarray(result.photo_centres, dtype=np.float64)
     if not np.isfinite(centres).all():
@@ -219,18 +219,22 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
         extent = float(np.ptp(plan(centres), axis=0).max()) or 1.0
         largest = float(np.hypot(*resid[vec].T).max()) or 1.0
         scale = 0.1 * extent / largest
-        ax.quiver(
+        arrows = ax.quiver(
             xy[vec, 0],
             xy[vec, 1],
-            resid[vec, 0] * scale,
-            resid[vec, 1] * scale,
+            resid[vec, 0],
+            resid[vec, 1],
             angles="xy",
             scale_units="xy",
-            scale=1.0,
+            scale=1.0 / scale,
             width=0.003,
             color="#1f618d",
-            zorder=5,
+            zorder=5,  # above the point markers (4)
             label=f"check residual x {scale:.0f}",
+        )
+        key = _nice(largest)
+        ax.quiverkey(
+            arrows, 0.86, 0.04, key, f"{key:g} m", labelpos="E", coordinates="axes", color="black"
         )
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("east from the block centre (m)")

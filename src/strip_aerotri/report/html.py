@@ -36,9 +36,10 @@ figcaption{color:#5d6d7e;font-size:0.88em}
 .scroll table{margin:0}
 ul.warn li{color:#7e5109}
 footer{margin-top:2em;color:#7f8c8d;font-size:0.8em}
-@media print{body{max-width:none;margin:0}.scroll{max-height:none;overflow:visible;
+@media print{body{max-width:none;margin:0;padding:0}.scroll{max-height:none;overflow:visible;
 display:block;border:none}thead{display:table-header-group}tr,figure{break-inside:avoid}
-h2{break-after:avoid}}
+h2,h3{break-after:avoid}table{font-size:7.5pt}th,td{padding:1px 4px}th{white-space:normal}
+figure img{border:none}}
 """
 
 
@@ -120,12 +121,10 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     style: dict[str, Any] = {
         "font.size": 9,
         "axes.titlesize": 11,
-        "figure.subplot.left": 0.07,
-        "figure.subplot.right": 0.97,
-        "figure.subplot.bottom": 0.11,
-        "figure.subplot.top": 0.91,
-        "figure.subplot.hspace": 0.3,
-        "figure.subplot.wspace": 0.18,
+        # every figure laid out by matplotlib's constrained layout: labels,
+        # legends beside the axes and colour bars inside the canvas at any
+        # strip length (tests/test_report_figures.py)
+        "figure.constrained_layout.use": True,
     }
     with matplotlib.rc_context(style):  # type: ignore[arg-type]  # typed as literal keys
         plan = Plan(result)
