@@ -136,7 +136,7 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
         fig_resid = figure_residuals(result, plan)
         fig_par = figure_parallax(result)
         fig_ties = figure_ties(result, report["models"])
-    return _html_page(report, fig_layout, fig_resid, fig_par, fig_ties)
+    return _html_page(report, fig_layout, fig_resid, fig_par, fig_ties, long_strip=plan.long)
 
 
 def _stat_rows(report: Mapping[str, Any]) -> list[list[Any]]:
@@ -192,6 +192,8 @@ def _html_page(
     fig_resid: str | None,
     fig_par: str | None,
     fig_ties: str | None,
+    *,
+    long_strip: bool = False,
 ) -> str:
     """The page: head, summary, verdicts, figures, then the tables.
 
@@ -299,8 +301,12 @@ def _html_page(
         ),
         _figure(
             fig_resid,
-            "Figure 2. Residuals (given − adjusted) at control and check "
-            "points: plan as arrows (scale in the key), height as colour.",
+            "Figure 2. Residuals (given − adjusted) at control and check points "
+            + (
+                "against the distance along the strip: along, across and height."
+                if long_strip
+                else "in plan: plan as arrows (scale in the key), height as colour."
+            ),
             "residual vectors",
         ),
         _figure(
