@@ -324,6 +324,9 @@ def figure_residuals(result: StripResult, plan: Plan) -> str | None:
                 label=f"plan residual, {label}",
             )
     if has_plan.any():
+        # the arrows' tips inside the axes: quiver does not widen the limits
+        tips = pxy[has_plan] + np.column_stack([de, dn])[has_plan] / scale
+        ax.update_datalim(tips)
         ax.quiverkey(
             q, 0.85, 0.04, key, f"{key:g} m", labelpos="E", coordinates="axes", color="black"
         )
