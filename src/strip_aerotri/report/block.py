@@ -13,6 +13,7 @@ import numpy as np
 from .._version import __version__
 from ..observations import ControlType
 from .files import format_photos_csv, format_points_csv
+from .html import _CSS
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION
 from .values import clean, json_float, statistics
 
@@ -193,7 +194,7 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
     matplotlib.use("Agg", force=False)
     from matplotlib.figure import Figure
 
-    from .figures import _png
+    from .figures import _nice, _png
 
     centres = np.asarray(result.photo_centres, dtype=np.float64)
     if not np.isfinite(centres).all():
@@ -209,7 +210,7 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
         out: np.ndarray = (xyh[:, :2] - origin) * factor
         return out
 
-    fig = Figure(figsize=(9, 7), layout="constrained")
+    fig = Figure(figsize=(10.5, 6.5), layout="constrained")
     ax = fig.subplots()
     for k, spec in enumerate(result.specs):
         xy = plan(centres[result.photo_strip == k])
@@ -234,24 +235,33 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
         extent = float(np.ptp(plan(centres), axis=0).max()) or 1.0
         largest = float(np.hypot(*resid[vec].T).max()) or 1.0
         scale = 0.1 * extent / largest
-        ax.quiver(
+        arrows = ax.quiver(
             xy[vec, 0],
             xy[vec, 1],
-            resid[vec, 0] * scale,
-            resid[vec, 1] * scale,
+            resid[vec, 0],
+            resid[vec, 1],
             angles="xy",
             scale_units="xy",
-            scale=1.0,
+            scale=1.0 / scale,
             width=0.003,
             color="#1f618d",
-            zorder=5,
-            label=f"check residual x {scale:.0f}",
+            zorder=5,  # above the point markers (4)
+            label=f"check point plan residual (x {scale:.0f})",
         )
+        key = _nice(largest)
+        ax.quiverkey(
+            arrows, 0.86, 0.04, key, f"{key:g} m", labelpos="E", coordinates="axes", color="black"
+        )
+        # the arrows' tips inside the axes: quiver does not widen the limits
+        tips = xy[vec] + resid[vec] * scale
+        ax.update_datalim(tips)
+        ax.autoscale_view()
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("east from the block centre (m)")
     ax.set_ylabel("north from the block centre (m)")
     ax.grid(alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
+    # beside the axes, not over the points (constrained layout makes room)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
     return _png(fig)
 
 
@@ -294,14 +304,15 @@ def _html(report: dict[str, Any], figure: str | None = None) -> str:
     figure_html = (
         ""
         if figure is None
-        else '<h2>The block</h2><img alt="photo centres by strip, control, check points '
-        f'and their plan residuals" src="data:image/png;base64,{figure}" style="max-width:100%">'
+        else '<h2>The block</h2><figure><img alt="photo centres by strip, control, check '
+        f'points and their plan residuals" src="data:image/png;base64,{figure}">'
+        "<figcaption>Photo centres by strip, control and check points; the check points' "
+        "plan residuals (given − adjusted) as arrows, their scale in the key.</figcaption>"
+        "</figure>"
     )
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{cell(name)}: block report</title>
-<style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}
-table{{border-collapse:collapse}}td,th{{border:1px solid #999;padding:.2em .5em;
-text-align:right}}td:first-child{{text-align:left}}</style></head><body>
+<style>{_CSS}td:first-child{{text-align:left}}</style></head><body>
 <h1>{cell(name)}: aerotriangulation of a block of {len(block["strips"])} strips</h1>
 <p>Construction: {cell(block["construction"])} (every unit its own 3D similarity, all at once
 onto the control and onto each other{deformation}); sigma0 {cell(block["sigma0"])}, redundancy

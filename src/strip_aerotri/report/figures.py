@@ -42,9 +42,10 @@ def _png(fig: Figure) -> str:
     import io as _bio
 
     buffer = _bio.BytesIO()
-    # Fixed margins (rc "figure.subplot.*" in build_html) and fast PNG
-    # compression: a layout engine or bbox_inches="tight" would draw every
-    # figure twice, and they dominate the time of a run on large strips.
+    # Constrained layout (rc in build_html; layout="constrained" for the
+    # block) keeps every label inside the canvas; bbox_inches="tight" would
+    # change the figure's size and draw it twice.  Fast PNG compression: the
+    # figures dominate the time of a run on large strips.
     fig.savefig(buffer, format="png", dpi=96, pil_kwargs={"compress_level": 1})
     import base64
 
@@ -319,10 +320,13 @@ def figure_residuals(result: StripResult, plan: Plan) -> str | None:
                 scale=scale,
                 color=colour,
                 width=0.0025,
-                zorder=4,
+                zorder=6,  # above the point markers (5)
                 label=f"plan residual, {label}",
             )
     if has_plan.any():
+        # the arrows' tips inside the axes: quiver does not widen the limits
+        tips = pxy[has_plan] + np.column_stack([de, dn])[has_plan] / scale
+        ax.update_datalim(tips)
         ax.quiverkey(
             q, 0.85, 0.04, key, f"{key:g} m", labelpos="E", coordinates="axes", color="black"
         )

@@ -36,9 +36,10 @@ figcaption{color:#5d6d7e;font-size:0.88em}
 .scroll table{margin:0}
 ul.warn li{color:#7e5109}
 footer{margin-top:2em;color:#7f8c8d;font-size:0.8em}
-@media print{body{max-width:none;margin:0}.scroll{max-height:none;overflow:visible;
+@media print{body{max-width:none;margin:0;padding:0}.scroll{max-height:none;overflow:visible;
 display:block;border:none}thead{display:table-header-group}tr,figure{break-inside:avoid}
-h2{break-after:avoid}}
+h2,h3{break-after:avoid}table{font-size:7.5pt}th,td{padding:1px 4px}th{white-space:normal}
+figure img{border:none}}
 """
 
 
@@ -120,12 +121,10 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     style: dict[str, Any] = {
         "font.size": 9,
         "axes.titlesize": 11,
-        "figure.subplot.left": 0.07,
-        "figure.subplot.right": 0.97,
-        "figure.subplot.bottom": 0.11,
-        "figure.subplot.top": 0.91,
-        "figure.subplot.hspace": 0.3,
-        "figure.subplot.wspace": 0.18,
+        # every figure laid out by matplotlib's constrained layout: labels,
+        # legends beside the axes and colour bars inside the canvas at any
+        # strip length (tests/test_report_figures.py)
+        "figure.constrained_layout.use": True,
     }
     with matplotlib.rc_context(style):  # type: ignore[arg-type]  # typed as literal keys
         plan = Plan(result)
@@ -137,7 +136,7 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
         fig_resid = figure_residuals(result, plan)
         fig_par = figure_parallax(result)
         fig_ties = figure_ties(result, report["models"])
-    return _html_page(report, fig_layout, fig_resid, fig_par, fig_ties)
+    return _html_page(report, fig_layout, fig_resid, fig_par, fig_ties, long_strip=plan.long)
 
 
 def _stat_rows(report: Mapping[str, Any]) -> list[list[Any]]:
@@ -193,6 +192,8 @@ def _html_page(
     fig_resid: str | None,
     fig_par: str | None,
     fig_ties: str | None,
+    *,
+    long_strip: bool = False,
 ) -> str:
     """The page: head, summary, verdicts, figures, then the tables.
 
@@ -300,8 +301,12 @@ def _html_page(
         ),
         _figure(
             fig_resid,
-            "Figure 2. Residuals (given − adjusted) at control and check "
-            "points: plan as arrows (scale in the key), height as colour.",
+            "Figure 2. Residuals (given − adjusted) at control and check points "
+            + (
+                "against the distance along the strip: along, across and height."
+                if long_strip
+                else "in plan: plan as arrows (scale in the key), height as colour."
+            ),
             "residual vectors",
         ),
         _figure(

@@ -1,0 +1,158 @@
+"""The figures of report.html (report/figures.py, report/block.py): nothing
+drawn outside the canvas (titles, labels, legends, colour bars, keys) at any
+strip length, residual arrows above the point markers, a scale arrow in the
+plan figures of residuals.
+
+The figures are caught as they are turned into PNG (``figures._png``) and
+drawn again at the report's 96 dpi to measure every artist.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pytest
+
+from strip_aerotri.errors import StripAerotriWarning
+from strip_aerotri.report import figures
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+
+def outside_canvas(fig: Figure, tolerance_px: float = 1.0) -> list[str]:
+    """The artists of ``fig`` that reach beyond its canvas, drawn at 96 dpi.
+
+    Every axes with its ticks, labels, title and legend, every colour bar,
+    every text and legend of the figure: their extents (clipped where the
+    artist is clipped) must lie inside the figure's box.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig)
+    fig.set_dpi(96)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+    box = fig.bbox
+    found = []
+    artists = [*fig.texts, *fig.legends]
+    for ax in fig.axes:
+        artists += [ax, *ax.get_default_bbox_extra_artists()]
+    for artist in artists:
+        if not artist.get_visible():
+            continue
+        extent = artist.get_tightbbox(renderer)
+        if extent is None or extent.width == 0 or extent.height == 0:
+            continue
+        if (
+            extent.x0 < box.x0 - tolerance_px
+            or extent.y0 < box.y0 - tolerance_px
+            or extent.x1 > box.x1 + tolerance_px
+            or extent.y1 > box.y1 + tolerance_px
+        ):
+            label = getattr(artist, "get_label", lambda: "")() or ""
+            found.append(
+                f"{type(artist).__name__} {label!r}: {np.round(extent.extents)} "
+                f"outside {np.round(box.extents)}"
+            )
+    return found
+
+
+@pytest.fixture
+def caught(monkeypatch) -> list[Figure]:
+    """Every figure the report makes, in order."""
+    made: list[Figure] = []
+    real = figures._png
+
+    def catch(fig: Figure) -> str:
+        made.append(fig)
+        return real(fig)
+
+    monkeypatch.setattr(figures, "_png", catch)
+    return made
+
+
+def _strip_result(n_photos: int, **kwargs):
+    from strip_aerotri.pipeline import triangulate
+    from strip_aerotri.simulate import simulate_strip
+
+    sim = simulate_strip(n_photos, **kwargs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        return triangulate(sim.observations, sim.control, sim.crs)
+
+
+STRIPS = {
+    "3 photos": (3, {"seed": 2}),
+    "8 photos, geographic": (8, {"seed": 1, "crs": "EPSG:4326"}),
+    "14 photos": (14, {"seed": 1, "control": "every_k_models", "control_every": 2}),
+    "45 photos": (45, {"seed": 3, "control": "every_k_models", "control_every": 3}),
+    "corridor, 30 photos": (30, {"preset": "corridor", "seed": 1}),
+}
+
+
+@pytest.mark.parametrize("case", list(STRIPS), ids=list(STRIPS))
+def test_strip_figures_are_inside_their_canvas(caught, case):
+    from strip_aerotri.report.html import build_html
+    from strip_aerotri.report.record import build_report
+
+    n, kwargs = STRIPS[case]
+    result = _strip_result(n, **kwargs)
+    build_html(result, build_report(result))
+    assert len(caught) >= 3
+    for k, fig in enumerate(caught, start=1):
+        assert outside_canvas(fig) == [], f"figure {k}"
+
+
+@pytest.mark.parametrize(("n_strips", "n_photos"), [(2, 4), (3, 8), (4, 15)])
+def test_block_figure_is_inside_its_canvas(caught, n_strips, n_photos):
+    from strip_aerotri.block.strips import adjust_block
+    from strip_aerotri.observations import StripSpec
+    from strip_aerotri.report.block import block_figure
+    from strip_aerotri.simulate import simulate_block
+
+    sim = simulate_block(n_strips, n_photos, preset="film", seed=1)
+    specs = [StripSpec(s.name, s.photo_ids) for s in sim.strips]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        result = adjust_block(sim.observations, sim.control, sim.crs, specs)
+    assert block_figure(result) is not None
+    (fig,) = caught
+    assert outside_canvas(fig) == []
+    ax = fig.axes[0]
+    (arrows,) = [c for c in ax.collections if type(c).__name__ == "Quiver"]
+    markers = [c for c in ax.collections if type(c).__name__ == "PathCollection"]
+    assert all(arrows.get_zorder() > m.get_zorder() for m in markers)
+    assert any(type(a).__name__ == "QuiverKey" for a in ax.get_children())
+
+
+def test_residual_arrows_are_above_the_markers_with_a_scale_arrow(caught):
+    from strip_aerotri.report.html import build_html
+    from strip_aerotri.report.record import build_report
+
+    result = _strip_result(14, seed=1, control="every_k_models", control_every=2)
+    build_html(result, build_report(result))
+    fig = caught[1]  # figure 2: residuals in plan
+    ax = fig.axes[0]
+    arrows = [c for c in ax.collections if type(c).__name__ == "Quiver"]
+    markers = [c for c in ax.collections if type(c).__name__ == "PathCollection"]
+    assert arrows and markers
+    assert min(a.get_zorder() for a in arrows) > max(m.get_zorder() for m in markers)
+    assert any(type(a).__name__ == "QuiverKey" for a in ax.get_children())
+
+
+def test_a_clipped_figure_is_found():
+    """The check finds a legend put beside the axes of a figure with fixed
+    margins (the strip layout's legend before it had a layout engine)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 4.5))
+    fig.subplots_adjust(left=0.07, right=0.97)
+    ax = fig.subplots()
+    ax.plot([0, 1], [0, 1], label="projection centres")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    assert any("Legend" in problem for problem in outside_canvas(fig))
+    fig.set_layout_engine("constrained")
+    assert outside_canvas(fig) == []
