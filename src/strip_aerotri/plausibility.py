@@ -29,7 +29,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ._typing import ArrayLike, FloatArray, IntArray
+from .errors import GeometryError, PhotoOrderError
+from .interior import corrected_flight_direction
 from .observations import ControlPoints, ImageObservations
+from .options import FlightDirection
 
 if TYPE_CHECKING:
     from .geodesy import GroundCRS
@@ -37,7 +40,9 @@ if TYPE_CHECKING:
 __all__ = [
     "MAX_IMAGE_RADIUS_MM",
     "control_handedness_problems",
+    "flight_axis_message",
     "image_coordinate_problems",
+    "photo_order_message",
     "ray_direction_problems",
 ]
 
@@ -93,11 +98,15 @@ def image_coordinate_problems(
         share = outside.size / xy.shape[0]
         if share > 0.5:
             cause = (
-                f"{share:.0%} of the points are; the coordinates are not in millimetres "
-                '(micrometres? pixels? then [images] units = "pixel" with pixel_size_mm)'
+                f"{outside.size} of the {xy.shape[0]} points ({share:.0%}) lie that far out, so "
+                "the coordinates are not in millimetres (micrometres? pixels? then [images] "
+                'units = "pixel" with pixel_size_mm)'
             )
         else:
-            cause = f"{outside.size} point(s) are: a typing error in the coordinates?"
+            cause = (
+                f"{outside.size} of the {xy.shape[0]} points lie that far out: a typing error "
+                "in the coordinates?"
+            )
         problems.append(
             f"{at}: image point ({xy[k, 0]:.6g}, {xy[k, 1]:.6g}) mm lies {radius[k]:.4g} mm "
             f"from the principal point, beyond any film or sensor format with c = {c:g} mm "
@@ -121,6 +130,8 @@ def ray_direction_problems(
     right: ArrayLike,
     pair: ArrayLike,
     labels: Sequence[str],
+    *,
+    strict: bool = False,
 ) -> list[str]:
     """Pairs whose rays meet behind the photos, after relative orientation.
 
@@ -143,10 +154,19 @@ def ray_direction_problems(
     pair : array_like of int, shape (n,)
     labels : sequence of str
         Names of the pairs.
+    strict : bool
+        Raise the first problem instead of returning it.
 
     Returns
     -------
     list of str
+
+    Raises
+    ------
+    PhotoOrderError
+        With ``strict``, when most pairs' rays meet behind the photos.
+    GeometryError
+        With ``strict``, when a few pairs' do.
     """
     rot_l = np.asarray(rotation_left, dtype=np.float64)
     rot_r = np.asarray(rotation_right, dtype=np.float64)
@@ -167,18 +187,98 @@ def ray_direction_problems(
     if not wrong.any():
         return []
     if wrong.sum() > n_pairs / 2:
-        return [
-            f"the photos appear to be listed against the flight direction: the rays of "
-            f"{int(wrong.sum())} of {n_pairs} pairs meet behind the photos (a consistent "
-            "negative x-parallax); list [strip] photos in flight order, or, if image x points "
-            'against the flight, set [images] flight_direction = "-x"'
-        ]
-    return [
+        message = photo_order_message(int(wrong.sum()), n_pairs)
+        if strict:
+            raise PhotoOrderError(message, n_wrong=int(wrong.sum()), n_pairs=n_pairs)
+        return [message]
+    problems = [
         f"{labels[int(m)]}: the rays of {share[m]:.0%} of its points meet behind the photos (a "
         "negative x-parallax, while the strip's other pairs have a positive one): are these "
-        "two photos in flight order in [strip] photos?"
+        "two photos in flight order in the strip's photos ([strip] photos, or its [[strips]] "
+        "entry in a block)?"
         for m in np.flatnonzero(wrong)
     ]
+    if strict:
+        raise GeometryError(problems[0])
+    return problems
+
+
+def photo_order_message(
+    n_wrong: int,
+    n_pairs: int,
+    *,
+    flight_direction: FlightDirection | str = FlightDirection.PLUS_X,
+    strip: str | None = None,
+) -> str:
+    """The message for a strip whose photos are listed against the flight.
+
+    Parameters
+    ----------
+    n_wrong, n_pairs : int
+        Pairs whose rays meet behind the photos, and all pairs.
+    flight_direction : {"+x", "-x", "+y", "-y"}
+        The project's ``[images] flight_direction``: the hint names its
+        opposite.
+    strip : str, optional
+        The strip of a block: the hint names its ``[[strips]]`` entry and
+        leaves the flight direction (common to every strip) alone.
+    """
+    head = (
+        "the photos appear to be listed against the flight direction: the rays of "
+        f"{n_wrong} of {n_pairs} pairs meet behind the photos (a consistent negative "
+        "x-parallax); "
+    )
+    current = FlightDirection(flight_direction)
+    if strip is not None:
+        return head + (
+            f"list [[strips]] '{strip}' photos in flight order (reverse that strip's list "
+            f'only: [images] flight_direction = "{current.value}" holds for every strip of '
+            "the block, and its strips may be flown in opposite directions)"
+        )
+    opposite = corrected_flight_direction(current, "-x")
+    return head + (
+        f"list [strip] photos in flight order, or, if image {current.value} points against "
+        f'the flight, set [images] flight_direction = "{opposite.value}"'
+    )
+
+
+def flight_axis_message(
+    pair: str,
+    along: str,
+    *,
+    flight_direction: FlightDirection | str = FlightDirection.PLUS_X,
+) -> str:
+    """The message for a pair whose base runs across the image x axis.
+
+    Parameters
+    ----------
+    pair : str
+        The pair's name.
+    along : {"+y", "-y", "-x", ""}
+        The axis of the image coordinates (after ``flight_direction``) that
+        the photos move along; "" when the points do not tell.
+    flight_direction : {"+x", "-x", "+y", "-y"}
+        The project's ``[images] flight_direction``.
+    """
+    current = FlightDirection(flight_direction)
+    head = f"{pair}: the base runs across the image x axis"
+    if not along:
+        return head + (
+            "; image x must point along the flight: set [images] flight_direction to the "
+            "sensor axis the photos move along"
+        )
+    right = corrected_flight_direction(current, along)
+    back = ("-" if along[0] == "+" else "+") + along[1]
+    turned = (
+        ""
+        if current is FlightDirection.PLUS_X
+        else f' (x, y as turned by [images] flight_direction = "{current.value}")'
+    )
+    return head + (
+        f": the photos move along image {along}{turned}, the pair's points shift along "
+        f"{back} from the left photo to the right one; image x must point along the flight: "
+        f'set [images] flight_direction = "{right.value}"'
+    )
 
 
 def _plan_fit_residual(image_xy: FloatArray, ground_xy: FloatArray) -> float:

@@ -151,6 +151,8 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         try:
             result = project_run.run_project(project, progress=echo_progress)
         except (GeometryError, ConvergenceError) as exc:
+            if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
+                raise  # the message names its file already
             raise type(exc)(f"{project.path}: {exc}") from exc
         echo_progress("writing the report")
         scale = map_scale if map_scale is not None else project.report.map_scale
