@@ -242,3 +242,73 @@ def test_pixels_taken_for_millimetres_reads_as_a_sentence(strip_project):
     assert "are;" not in line, line
     assert f"{n} of the {n} points (100%) lie that far out" in line, line
     assert 'units = "pixel"' in line, line
+
+
+# --------------------------------------------------------------------------- F5
+
+
+def to_degrees(folder: Path, crs: str) -> None:
+    """Replace control X, Y by WGS 84 longitude, latitude, leaving crs as it is."""
+    from pyproj import Transformer
+
+    to_lonlat = Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
+    rows = read_rows(folder / "control.csv")
+    x, y = rows[0].index("X"), rows[0].index("Y")
+    for row in rows[1:]:
+        if row[x] and row[y]:
+            lon, lat = to_lonlat.transform(float(row[x]), float(row[y]))
+            row[x], row[y] = f"{lon:.8f}", f"{lat:.8f}"
+    write_rows(folder / "control.csv", rows)
+
+
+def test_control_in_degrees_under_a_projected_crs(strip_project):
+    to_degrees(strip_project, "EPSG:32634")
+    lines = [one_error(invoke(c, strip_project / "strip.toml")) for c in ("check", "run")]
+    for line in lines:
+        assert f"{strip_project / 'control.csv'}: point '" in line, line
+        assert "look like degrees (longitude, latitude)" in line, line
+        assert "crs = EPSG:32634 is projected, in metres" in line, line
+        assert "similarity" not in line, line
+    assert lines[0] == lines[1]
+
+
+def test_control_in_degrees_in_a_block(block_project):
+    to_degrees(block_project, "EPSG:32634")
+    for command in ("check", "run"):
+        line = one_error(invoke(command, block_project / "strip.toml"))
+        assert "look like degrees (longitude, latitude)" in line, line
+
+
+def test_film_example_in_degrees_names_the_area_of_use(tmp_path):
+    example = Path(__file__).parents[1] / "examples" / "film-strip"
+    folder = tmp_path / "film"
+    folder.mkdir()
+    for name in ("strip.toml", "image_points.csv", "control.csv"):
+        (folder / name).write_bytes((example / name).read_bytes())
+    to_degrees(folder, "EPSG:2180")
+    line = one_error(invoke("check", folder / "strip.toml"))
+    assert "crs = EPSG:2180 is projected" in line, line
+    assert "outside its area of use (Poland" in line, line
+
+
+def test_degree_check_leaves_metres_and_degrees_alone(strip_files):
+    from strip_aerotri.observations import ControlPoints, ControlType
+    from strip_aerotri.plausibility import control_degree_problems
+
+    def control(xy):
+        n = len(xy)
+        xyz = np.column_stack([np.asarray(xy, dtype=float), np.full(n, 100.0)])
+        return ControlPoints(
+            point_ids=tuple(f"G{i}" for i in range(n)),
+            xyz=xyz,
+            kind=(ControlType.FULL,) * n,
+            sigma_xy=np.full(n, 0.02),
+            sigma_h=np.full(n, 0.02),
+        )
+
+    degrees = [[18.94, 51.99], [18.95, 51.98], [18.96, 52.0]]
+    assert control_degree_problems(control(degrees), "EPSG:4326") == []
+    assert control_degree_problems(control(degrees), "local") == []
+    metres = [[495953.7, 458839.4], [496288.7, 457665.0], [496975.7, 457835.9]]
+    assert control_degree_problems(control(metres), "EPSG:2180") == []
+    assert len(control_degree_problems(control(degrees), "EPSG:2180")) == 1

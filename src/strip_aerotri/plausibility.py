@@ -18,7 +18,12 @@ messages (``stripaero check`` lists them all; a run stops at the first):
   similarity from the image to the control fits far better with a
   reflection than without.  A near-vertical photo maps its image (x along
   the flight, y to the left, right-handed with z up) onto east-north-up by
-  a rotation, never by a reflection.
+  a rotation, never by a reflection;
+* :func:`control_degree_problems` — control given in degrees (longitude,
+  latitude) under a projected CRS: every plan coordinate within ±180, ±90,
+  spanning less than a few units (a few metres: no strip's control), and
+  either the degrees fall inside the CRS's area of use or the numbers, taken
+  as metres, fall outside it.
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._typing import ArrayLike, FloatArray, IntArray
+from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from .errors import GeometryError, PhotoOrderError
 from .interior import corrected_flight_direction
 from .observations import ControlPoints, ImageObservations
@@ -39,6 +44,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MAX_IMAGE_RADIUS_MM",
+    "control_degree_problems",
     "control_handedness_problems",
     "flight_axis_message",
     "image_coordinate_problems",
@@ -371,7 +377,8 @@ def control_problems(
     crs: str | GroundCRS,
     file: str = "control",
 ) -> list[str]:
-    """:func:`control_handedness_problems` for a project's control.
+    """:func:`control_degree_problems`, then :func:`control_handedness_problems`,
+    for a project's control.
 
     Every control and check point with plan coordinates takes part (check
     points are measured like control and tell the handedness as well).
@@ -379,9 +386,89 @@ def control_problems(
     from .geodesy import GroundCRS
 
     crs = crs if isinstance(crs, GroundCRS) else GroundCRS.from_user_input(crs)
+    degrees = control_degree_problems(control, crs, file=file)
+    if degrees:
+        return degrees
     lookup = {pid: i for i, pid in enumerate(observations.point_ids)}
     point = np.array([lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
     xy = np.asarray(control.xyz, dtype=np.float64)[:, :2]
     return control_handedness_problems(
         observations, point, xy, geographic=crs.is_geographic, file=file
     )
+
+
+#: Plan control spanning less than this in a projected CRS's unit (metres)
+#: cannot be the control of a photo strip; in degrees it is up to ~500 km.
+_DEGREE_SPAN = 5.0
+#: Margin around a CRS's area of use, degrees.
+_AREA_MARGIN_DEG = 1.0
+
+
+def _inside(lonlat: FloatArray, bounds: tuple[float, float, float, float]) -> BoolArray:
+    west, south, east, north = bounds
+    m = _AREA_MARGIN_DEG
+    lon, lat = lonlat[:, 0], lonlat[:, 1]
+    in_lon = (
+        (lon >= west - m) & (lon <= east + m)
+        if west <= east
+        else (lon >= west - m) | (lon <= east + m)
+    )  # an area across the antimeridian
+    return np.asarray(in_lon & (lat >= south - m) & (lat <= north + m), dtype=bool)
+
+
+def control_degree_problems(
+    control: ControlPoints, crs: str | GroundCRS, file: str = "control"
+) -> list[str]:
+    """Control in degrees (longitude, latitude) under a projected CRS.
+
+    Parameters
+    ----------
+    control : ControlPoints
+    crs : str or GroundCRS
+        ``[control] crs``; nothing is found for "local" or a geographic CRS.
+    file : str
+        The control file, for the message.
+
+    Returns
+    -------
+    list of str
+        One message when the plan coordinates look like degrees.
+    """
+    from .geodesy import GroundCRS
+
+    crs = crs if isinstance(crs, GroundCRS) else GroundCRS.from_user_input(crs)
+    if crs.crs is None or crs.is_geographic:
+        return []
+    xy = np.asarray(control.xyz, dtype=np.float64)[:, :2]
+    rows = np.flatnonzero(np.isfinite(xy).all(axis=1))
+    if rows.size == 0:
+        return []
+    xy = xy[rows]
+    span = float(np.max(np.ptp(xy, axis=0)))
+    if not ((np.abs(xy[:, 0]) <= 180.0).all() and (np.abs(xy[:, 1]) <= 90.0).all()):
+        return []
+    if span >= _DEGREE_SPAN:
+        return []
+    area = crs.crs.area_of_use
+    where = ""
+    if area is not None:
+        bounds = (area.west, area.south, area.east, area.north)
+        degrees_inside = bool(_inside(xy, bounds).all())
+        try:
+            lonlat = crs.to_wgs84_lonlat(xy)
+            metres_inside = bool(np.isfinite(lonlat).all() and _inside(lonlat, bounds).all())
+        except GeometryError:  # pyproj cannot place them at all
+            metres_inside = False
+        if metres_inside and not degrees_inside:
+            return []  # small metres near the CRS's origin, inside its area
+        if not metres_inside:
+            where = f" and lies outside its area of use ({area.name.rstrip('.')})"
+    k = 0
+    given = crs.text or crs.name
+    return [
+        f"{file}: point '{control.point_ids[int(rows[k])]}': coordinates {xy[k, 0]:.8g}, "
+        f"{xy[k, 1]:.8g} look like degrees (longitude, latitude) but crs = {given} is "
+        f"projected, in metres: as metres the plan control spans {span:.3g} m{where}; give "
+        f"X, Y as {given} eastings and northings, or set [control] crs to the geographic "
+        'CRS of the degrees (e.g. "EPSG:4326", WGS 84 longitude and latitude)'
+    ]

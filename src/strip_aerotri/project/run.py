@@ -85,6 +85,7 @@ def _run(
             progress=progress,
             warnings=project.warnings,
             polynomial=int(adj.polynomial) if adj.block is Construction.STRIPS else 0,
+            control_name=str(project.control_file),
         )
     return triangulate(
         project.observations,
