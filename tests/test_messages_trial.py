@@ -312,3 +312,53 @@ def test_degree_check_leaves_metres_and_degrees_alone(strip_files):
     metres = [[495953.7, 458839.4], [496288.7, 457665.0], [496975.7, 457835.9]]
     assert control_degree_problems(control(metres), "EPSG:2180") == []
     assert len(control_degree_problems(control(degrees), "EPSG:2180")) == 1
+
+
+# --------------------------------------------------------------------------- F12
+
+
+@pytest.fixture(scope="module")
+def blunder_files(tmp_path_factory) -> dict[str, bytes]:
+    """A film strip with 8 gross errors among its image coordinates."""
+    folder = tmp_path_factory.mktemp("blunders")
+    sa.simulate_strip(8, preset="film", crs="EPSG:32634", seed=4, image_blunders=8).write_project(
+        folder
+    )
+    return {p.name: p.read_bytes() for p in folder.iterdir()}
+
+
+def test_rejections_are_summed_up_per_stage_by_default(tmp_path, blunder_files):
+    folder = _copy(blunder_files, tmp_path / "b")
+    result = invoke("run", folder / "strip.toml")
+    assert result.exit_code == 0, result.output
+    warnings = [ln for ln in result.stderr.splitlines() if ln.startswith("stripaero: warning: ")]
+    report = json_rejections(folder / "out" / "report.json")
+    parallaxes = [r for r in report if r["stage"] == "relative_orientation"]
+    assert len(parallaxes) >= 2
+    summary = [ln for ln in warnings if ln.startswith("stripaero: warning: relative_orientation")]
+    assert summary == [
+        f"stripaero: warning: relative_orientation: {len(parallaxes)} y-parallaxes rejected as "
+        "blunders (listed in report.json; -v lists them here)"  # report.html: not built here
+    ]
+    # every other warning as it was: a stage with one rejection, points left out
+    assert any("is not triangulated" in ln for ln in warnings), warnings
+    assert len(warnings) < 8, result.stderr
+
+    verbose = invoke("-v", "run", folder / "strip.toml")
+    assert verbose.exit_code == 0, verbose.output
+    listed = [
+        ln
+        for ln in verbose.stderr.splitlines()
+        if ln.startswith("stripaero: warning: relative_orientation: point ")
+    ]
+    assert len(listed) == len(parallaxes)
+    assert "-v lists them here" not in verbose.stderr
+
+
+def json_rejections(path: Path) -> list[dict[str, object]]:
+    import json
+
+    rejections: list[dict[str, object]] = json.loads(path.read_text(encoding="utf-8"))[
+        "rejections"
+    ]
+    return rejections
