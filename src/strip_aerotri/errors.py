@@ -21,6 +21,47 @@ class GeometryError(StripAerotriError, ValueError):
     """Too few or degenerate points for a step (pair, model, control, polynomial)."""
 
 
+class PhotoOrderError(GeometryError):
+    """A strip's photos are listed against the flight: the rays of most of its
+    pairs meet behind the photos.
+
+    Attributes
+    ----------
+    n_wrong, n_pairs : int
+        Pairs whose rays meet behind the photos, and all pairs of the strip.
+    strip : str or None
+        The strip of a block, when known.
+    """
+
+    def __init__(
+        self, message: str, *, n_wrong: int = 0, n_pairs: int = 0, strip: str | None = None
+    ) -> None:
+        super().__init__(message)
+        self.n_wrong, self.n_pairs, self.strip = n_wrong, n_pairs, strip
+
+
+class FlightAxisError(GeometryError):
+    """Image x does not point along the flight: the photos of a pair move
+    along another image axis.
+
+    Attributes
+    ----------
+    pair : str
+        The pair that shows it.
+    along : str
+        The axis of the image coordinates as given to the orientation that
+        the flight runs along (``"+y"``, ``"-y"``, ``"-x"``), or "" when unknown.
+    strip : str or None
+        The strip of a block, when known.
+    """
+
+    def __init__(
+        self, message: str, *, pair: str = "", along: str = "", strip: str | None = None
+    ) -> None:
+        super().__init__(message)
+        self.pair, self.along, self.strip = pair, along, strip
+
+
 class ConvergenceError(StripAerotriError, RuntimeError):
     """An iterative solution did not converge."""
 
@@ -37,8 +78,10 @@ class StripAerotriWarning(UserWarning):
 __all__ = [
     "ConfigError",
     "ConvergenceError",
+    "FlightAxisError",
     "GeometryError",
     "MissingExtraError",
+    "PhotoOrderError",
     "StripAerotriError",
     "StripAerotriWarning",
 ]

@@ -52,6 +52,7 @@ __all__ = [
     "ImageUnits",
     "apply_fiducial_transforms",
     "correct_distortion",
+    "corrected_flight_direction",
     "distortion_shift",
     "fit_fiducial_transform",
     "fit_fiducial_transforms",
@@ -158,6 +159,40 @@ def sensor_from_flight(xy: ArrayLike, flight_direction: FlightDirection | str) -
     arr = _as_xy(xy)
     matrix = _FLIGHT_MATRICES[FlightDirection(flight_direction)]
     return arr @ matrix
+
+
+def corrected_flight_direction(
+    flight_direction: FlightDirection | str, along: str
+) -> FlightDirection:
+    """The flight direction to set when the photos move along another axis.
+
+    Parameters
+    ----------
+    flight_direction : {"+x", "-x", "+y", "-y"}
+        The flight direction the image coordinates were turned with.
+    along : {"+x", "-x", "+y", "-y"}
+        The axis of the turned coordinates (the method's x, y) that the
+        photos actually move along.
+
+    Returns
+    -------
+    FlightDirection
+        The sensor axis that points along the flight.
+
+    Examples
+    --------
+    >>> corrected_flight_direction("+y", "-x").value
+    '-y'
+    >>> corrected_flight_direction("+x", "+y").value
+    '+y'
+    """
+    unit = {"+x": (1.0, 0.0), "-x": (-1.0, 0.0), "+y": (0.0, 1.0), "-y": (0.0, -1.0)}
+    if along not in unit:
+        raise ValueError(f"Expected `along` in {tuple(unit)}, got {along!r}")
+    sx, sy = sensor_from_flight([unit[along]], flight_direction)[0]
+    axis = "x" if abs(sx) > abs(sy) else "y"
+    sign = "+" if (sx if axis == "x" else sy) > 0 else "-"
+    return FlightDirection(sign + axis)
 
 
 # --------------------------------------------------------------------------- distortion

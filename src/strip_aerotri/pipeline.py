@@ -38,7 +38,7 @@ from .options import (
     Route,
     StripOptions,
 )
-from .plausibility import control_problems
+from .plausibility import control_degree_problems, control_problems
 from .results import AccuracyStatistics, BlockResult, StripResult
 from .strip.densify import form_strip_stepped
 
@@ -216,11 +216,17 @@ def triangulate_block(
     progress: Progress | None = None,
     warnings: Sequence[str] = (),
     polynomial: int = 0,
+    control_name: str = "control",
 ) -> BlockResult:
     """Form every strip of a block and transform them all at once
-    (:func:`strip_aerotri.block.strips.adjust_block`)."""
+    (:func:`strip_aerotri.block.strips.adjust_block`); control given in
+    degrees under a projected CRS stops it first
+    (:func:`strip_aerotri.plausibility.control_degree_problems`)."""
     from .block.strips import adjust_block
 
+    degrees = control_degree_problems(control, crs, file=control_name)
+    if degrees:
+        raise GeometryError(degrees[0])
     if progress is not None:
         progress(
             f"forming {len(strips)} strips and transforming the block "

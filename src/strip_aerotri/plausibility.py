@@ -18,7 +18,12 @@ messages (``stripaero check`` lists them all; a run stops at the first):
   similarity from the image to the control fits far better with a
   reflection than without.  A near-vertical photo maps its image (x along
   the flight, y to the left, right-handed with z up) onto east-north-up by
-  a rotation, never by a reflection.
+  a rotation, never by a reflection;
+* :func:`control_degree_problems` — control given in degrees (longitude,
+  latitude) under a projected CRS: every plan coordinate within ±180, ±90,
+  spanning less than a few units (a few metres: no strip's control), and
+  either the degrees fall inside the CRS's area of use or the numbers, taken
+  as metres, fall outside it.
 """
 
 from __future__ import annotations
@@ -28,16 +33,22 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._typing import ArrayLike, FloatArray, IntArray
+from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
+from .errors import GeometryError, PhotoOrderError
+from .interior import corrected_flight_direction
 from .observations import ControlPoints, ImageObservations
+from .options import FlightDirection
 
 if TYPE_CHECKING:
     from .geodesy import GroundCRS
 
 __all__ = [
     "MAX_IMAGE_RADIUS_MM",
+    "control_degree_problems",
     "control_handedness_problems",
+    "flight_axis_message",
     "image_coordinate_problems",
+    "photo_order_message",
     "ray_direction_problems",
 ]
 
@@ -93,11 +104,15 @@ def image_coordinate_problems(
         share = outside.size / xy.shape[0]
         if share > 0.5:
             cause = (
-                f"{share:.0%} of the points are; the coordinates are not in millimetres "
-                '(micrometres? pixels? then [images] units = "pixel" with pixel_size_mm)'
+                f"{outside.size} of the {xy.shape[0]} points ({share:.0%}) lie that far out, so "
+                "the coordinates are not in millimetres (micrometres? pixels? then [images] "
+                'units = "pixel" with pixel_size_mm)'
             )
         else:
-            cause = f"{outside.size} point(s) are: a typing error in the coordinates?"
+            cause = (
+                f"{outside.size} of the {xy.shape[0]} points lie that far out: a typing error "
+                "in the coordinates?"
+            )
         problems.append(
             f"{at}: image point ({xy[k, 0]:.6g}, {xy[k, 1]:.6g}) mm lies {radius[k]:.4g} mm "
             f"from the principal point, beyond any film or sensor format with c = {c:g} mm "
@@ -121,6 +136,8 @@ def ray_direction_problems(
     right: ArrayLike,
     pair: ArrayLike,
     labels: Sequence[str],
+    *,
+    strict: bool = False,
 ) -> list[str]:
     """Pairs whose rays meet behind the photos, after relative orientation.
 
@@ -143,10 +160,19 @@ def ray_direction_problems(
     pair : array_like of int, shape (n,)
     labels : sequence of str
         Names of the pairs.
+    strict : bool
+        Raise the first problem instead of returning it.
 
     Returns
     -------
     list of str
+
+    Raises
+    ------
+    PhotoOrderError
+        With ``strict``, when most pairs' rays meet behind the photos.
+    GeometryError
+        With ``strict``, when a few pairs' do.
     """
     rot_l = np.asarray(rotation_left, dtype=np.float64)
     rot_r = np.asarray(rotation_right, dtype=np.float64)
@@ -167,18 +193,98 @@ def ray_direction_problems(
     if not wrong.any():
         return []
     if wrong.sum() > n_pairs / 2:
-        return [
-            f"the photos appear to be listed against the flight direction: the rays of "
-            f"{int(wrong.sum())} of {n_pairs} pairs meet behind the photos (a consistent "
-            "negative x-parallax); list [strip] photos in flight order, or, if image x points "
-            'against the flight, set [images] flight_direction = "-x"'
-        ]
-    return [
+        message = photo_order_message(int(wrong.sum()), n_pairs)
+        if strict:
+            raise PhotoOrderError(message, n_wrong=int(wrong.sum()), n_pairs=n_pairs)
+        return [message]
+    problems = [
         f"{labels[int(m)]}: the rays of {share[m]:.0%} of its points meet behind the photos (a "
         "negative x-parallax, while the strip's other pairs have a positive one): are these "
-        "two photos in flight order in [strip] photos?"
+        "two photos in flight order in the strip's photos ([strip] photos, or its [[strips]] "
+        "entry in a block)?"
         for m in np.flatnonzero(wrong)
     ]
+    if strict:
+        raise GeometryError(problems[0])
+    return problems
+
+
+def photo_order_message(
+    n_wrong: int,
+    n_pairs: int,
+    *,
+    flight_direction: FlightDirection | str = FlightDirection.PLUS_X,
+    strip: str | None = None,
+) -> str:
+    """The message for a strip whose photos are listed against the flight.
+
+    Parameters
+    ----------
+    n_wrong, n_pairs : int
+        Pairs whose rays meet behind the photos, and all pairs.
+    flight_direction : {"+x", "-x", "+y", "-y"}
+        The project's ``[images] flight_direction``: the hint names its
+        opposite.
+    strip : str, optional
+        The strip of a block: the hint names its ``[[strips]]`` entry and
+        leaves the flight direction (common to every strip) alone.
+    """
+    head = (
+        "the photos appear to be listed against the flight direction: the rays of "
+        f"{n_wrong} of {n_pairs} pairs meet behind the photos (a consistent negative "
+        "x-parallax); "
+    )
+    current = FlightDirection(flight_direction)
+    if strip is not None:
+        return head + (
+            f"list [[strips]] '{strip}' photos in flight order (reverse that strip's list "
+            f'only: [images] flight_direction = "{current.value}" holds for every strip of '
+            "the block, and its strips may be flown in opposite directions)"
+        )
+    opposite = corrected_flight_direction(current, "-x")
+    return head + (
+        f"list [strip] photos in flight order, or, if image {current.value} points against "
+        f'the flight, set [images] flight_direction = "{opposite.value}"'
+    )
+
+
+def flight_axis_message(
+    pair: str,
+    along: str,
+    *,
+    flight_direction: FlightDirection | str = FlightDirection.PLUS_X,
+) -> str:
+    """The message for a pair whose base runs across the image x axis.
+
+    Parameters
+    ----------
+    pair : str
+        The pair's name.
+    along : {"+y", "-y", "-x", ""}
+        The axis of the image coordinates (after ``flight_direction``) that
+        the photos move along; "" when the points do not tell.
+    flight_direction : {"+x", "-x", "+y", "-y"}
+        The project's ``[images] flight_direction``.
+    """
+    current = FlightDirection(flight_direction)
+    head = f"{pair}: the base runs across the image x axis"
+    if not along:
+        return head + (
+            "; image x must point along the flight: set [images] flight_direction to the "
+            "sensor axis the photos move along"
+        )
+    right = corrected_flight_direction(current, along)
+    back = ("-" if along[0] == "+" else "+") + along[1]
+    turned = (
+        ""
+        if current is FlightDirection.PLUS_X
+        else f' (x, y as turned by [images] flight_direction = "{current.value}")'
+    )
+    return head + (
+        f": the photos move along image {along}{turned}, the pair's points shift along "
+        f"{back} from the left photo to the right one; image x must point along the flight: "
+        f'set [images] flight_direction = "{right.value}"'
+    )
 
 
 def _plan_fit_residual(image_xy: FloatArray, ground_xy: FloatArray) -> float:
@@ -271,7 +377,8 @@ def control_problems(
     crs: str | GroundCRS,
     file: str = "control",
 ) -> list[str]:
-    """:func:`control_handedness_problems` for a project's control.
+    """:func:`control_degree_problems`, then :func:`control_handedness_problems`,
+    for a project's control.
 
     Every control and check point with plan coordinates takes part (check
     points are measured like control and tell the handedness as well).
@@ -279,9 +386,89 @@ def control_problems(
     from .geodesy import GroundCRS
 
     crs = crs if isinstance(crs, GroundCRS) else GroundCRS.from_user_input(crs)
+    degrees = control_degree_problems(control, crs, file=file)
+    if degrees:
+        return degrees
     lookup = {pid: i for i, pid in enumerate(observations.point_ids)}
     point = np.array([lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
     xy = np.asarray(control.xyz, dtype=np.float64)[:, :2]
     return control_handedness_problems(
         observations, point, xy, geographic=crs.is_geographic, file=file
     )
+
+
+#: Plan control spanning less than this in a projected CRS's unit (metres)
+#: cannot be the control of a photo strip; in degrees it is up to ~500 km.
+_DEGREE_SPAN = 5.0
+#: Margin around a CRS's area of use, degrees.
+_AREA_MARGIN_DEG = 1.0
+
+
+def _inside(lonlat: FloatArray, bounds: tuple[float, float, float, float]) -> BoolArray:
+    west, south, east, north = bounds
+    m = _AREA_MARGIN_DEG
+    lon, lat = lonlat[:, 0], lonlat[:, 1]
+    in_lon = (
+        (lon >= west - m) & (lon <= east + m)
+        if west <= east
+        else (lon >= west - m) | (lon <= east + m)
+    )  # an area across the antimeridian
+    return np.asarray(in_lon & (lat >= south - m) & (lat <= north + m), dtype=bool)
+
+
+def control_degree_problems(
+    control: ControlPoints, crs: str | GroundCRS, file: str = "control"
+) -> list[str]:
+    """Control in degrees (longitude, latitude) under a projected CRS.
+
+    Parameters
+    ----------
+    control : ControlPoints
+    crs : str or GroundCRS
+        ``[control] crs``; nothing is found for "local" or a geographic CRS.
+    file : str
+        The control file, for the message.
+
+    Returns
+    -------
+    list of str
+        One message when the plan coordinates look like degrees.
+    """
+    from .geodesy import GroundCRS
+
+    crs = crs if isinstance(crs, GroundCRS) else GroundCRS.from_user_input(crs)
+    if crs.crs is None or crs.is_geographic:
+        return []
+    xy = np.asarray(control.xyz, dtype=np.float64)[:, :2]
+    rows = np.flatnonzero(np.isfinite(xy).all(axis=1))
+    if rows.size == 0:
+        return []
+    xy = xy[rows]
+    span = float(np.max(np.ptp(xy, axis=0)))
+    if not ((np.abs(xy[:, 0]) <= 180.0).all() and (np.abs(xy[:, 1]) <= 90.0).all()):
+        return []
+    if span >= _DEGREE_SPAN:
+        return []
+    area = crs.crs.area_of_use
+    where = ""
+    if area is not None:
+        bounds = (area.west, area.south, area.east, area.north)
+        degrees_inside = bool(_inside(xy, bounds).all())
+        try:
+            lonlat = crs.to_wgs84_lonlat(xy)
+            metres_inside = bool(np.isfinite(lonlat).all() and _inside(lonlat, bounds).all())
+        except GeometryError:  # pyproj cannot place them at all
+            metres_inside = False
+        if metres_inside and not degrees_inside:
+            return []  # small metres near the CRS's origin, inside its area
+        if not metres_inside:
+            where = f" and lies outside its area of use ({area.name.rstrip('.')})"
+    k = 0
+    given = crs.text or crs.name
+    return [
+        f"{file}: point '{control.point_ids[int(rows[k])]}': coordinates {xy[k, 0]:.8g}, "
+        f"{xy[k, 1]:.8g} look like degrees (longitude, latitude) but crs = {given} is "
+        f"projected, in metres: as metres the plan control spans {span:.3g} m{where}; give "
+        f"X, Y as {given} eastings and northings, or set [control] crs to the geographic "
+        'CRS of the degrees (e.g. "EPSG:4326", WGS 84 longitude and latitude)'
+    ]

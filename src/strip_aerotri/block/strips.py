@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
-from ..errors import GeometryError, StripAerotriWarning
+from ..errors import FlightAxisError, GeometryError, PhotoOrderError, StripAerotriWarning
 from ..frames import WorkFrame, make_work_frame
 from ..geodesy import GroundCRS
 from ..geometry.rotation import opk_from_matrix
@@ -200,6 +200,17 @@ def _form(
     sub = strip_observations(observations, spec.photo_ids)
     try:
         return form_strip_stepped(sub, options, blunders=blunders)
+    except PhotoOrderError as exc:
+        raise PhotoOrderError(
+            f"strip '{spec.name}': {exc}",
+            n_wrong=exc.n_wrong,
+            n_pairs=exc.n_pairs,
+            strip=spec.name,
+        ) from None
+    except FlightAxisError as exc:
+        raise FlightAxisError(
+            f"strip '{spec.name}': {exc}", pair=exc.pair, along=exc.along, strip=spec.name
+        ) from None
     except GeometryError as exc:
         raise GeometryError(f"strip '{spec.name}': {exc}") from None
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -21,7 +21,7 @@ from .options import (
 )
 
 if TYPE_CHECKING:  # the numerical modules are imported when the command runs
-    from ..results import BlockResult, StripResult
+    from ..results import BlockResult, Rejection, StripResult
 
 __all__ = ["run"]
 
@@ -54,8 +54,8 @@ def _tolerance_verdict(report_json: bytes | None) -> str | None:
 
 def _echo_details(result: StripResult) -> None:
     """Per-pair and per-model figures and the timings on stderr with ``-v``;
-    with ``-vv`` also every control and check point's residual and every
-    rejection."""
+    with ``-vv`` also every control and check point's residual (``-v`` lists
+    every rejection among the warnings)."""
     strip = result.strip
     rel = strip.relative
     for m, label in enumerate(strip.model_labels):
@@ -80,8 +80,66 @@ def _echo_details(result: StripResult) -> None:
         what = "check" if check else "control"
         values = ", ".join("-" if v != v else f"{v:+.3f}" for v in resid)
         echo_progress(f"{what} {result.control.point_ids[row]}: dE, dN, dH {values} m", level=2)
-    for rejection in result.rejections:
-        echo_progress(rejection.describe(), level=2)
+
+
+#: What each stage's blunder test rejects, for the summary line.
+_REJECTED_WHAT = {
+    "relative_orientation": "y-parallaxes",
+    "tie_points": "tie-point determinations",
+    "models": "model point determinations",
+    "control": "control coordinates",
+    "straight_line": "straight-line conditions",
+}
+
+
+def _rejections(result: StripResult | BlockResult) -> tuple[Rejection, ...]:
+    """Every rejection of a run, the bundle refinement's included."""
+    refined = getattr(result, "refined", None)
+    more = tuple(getattr(refined, "rejections", ()))
+    return tuple(result.rejections) + more
+
+
+def _warning_lines(
+    texts: list[str], rejections: Sequence[Rejection], files: Collection[str]
+) -> list[str]:
+    """The warnings to print: with ``-v`` all of them; by default each stage's
+    blunder rejections (two or more) summed up in one line, at the place of
+    its first, and every other warning as it is."""
+    from .options import settings
+
+    described = {r.describe(): r for r in rejections}
+    if settings().level >= 1 or not any(t in described for t in texts):
+        return texts
+    by_stage: dict[str, list[Rejection]] = {}
+    lines: list[str | tuple[str]] = []
+    for text in texts:
+        rejection = described.get(text)
+        if rejection is None:
+            lines.append(text)
+            continue
+        if rejection.stage not in by_stage:
+            lines.append((rejection.stage,))
+        by_stage.setdefault(rejection.stage, []).append(rejection)
+    names = dict.fromkeys(n for n in ("report.json", _report_name(files)) if n and n in files)
+    listed = " / ".join(names)
+    where = f"listed in {listed}; " if listed else ""
+    out = []
+    for line in lines:
+        if isinstance(line, str):
+            out.append(line)
+            continue
+        group = by_stage[line[0]]
+        if len(group) == 1:
+            out.append(group[0].describe())
+            continue
+        what = _REJECTED_WHAT.get(line[0], "observations")
+        applied = sum(r.applied for r in group)
+        counts = [f"{applied} {what} rejected as blunders"] if applied else []
+        if applied < len(group):
+            kept = len(group) - applied
+            counts.append(f'{kept} {what} fail the blunder test, kept (action = "report")')
+        out.append(f"{line[0]}: {'; '.join(counts)} ({where}-v lists them here)")
+    return out
 
 
 def _report_name(names: Collection[str]) -> str | None:
@@ -151,6 +209,8 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         try:
             result = project_run.run_project(project, progress=echo_progress)
         except (GeometryError, ConvergenceError) as exc:
+            if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
+                raise  # the message names its file already
             raise type(exc)(f"{project.path}: {exc}") from exc
         echo_progress("writing the report")
         scale = map_scale if map_scale is not None else project.report.map_scale
@@ -164,11 +224,9 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
             files = report.build_outputs(result, project=project, map_scale=scale)
 
     # Warnings only once the run has succeeded: a failed run prints its one error line.
-    shown: set[str] = set()
-    for text in (*project.warnings, *result.warnings, *(str(w.message) for w in caught)):
-        if text not in shown:
-            shown.add(text)
-            echo_warning(text)
+    texts = dict.fromkeys((*project.warnings, *result.warnings, *(str(w.message) for w in caught)))
+    for text in _warning_lines(list(texts), _rejections(result), files):
+        echo_warning(text)
 
     echo_progress(f"writing {len(files)} files to {target}")
     with ResultFolder(target, protect=project.input_files) as folder:

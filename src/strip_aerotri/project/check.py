@@ -199,7 +199,7 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
         own = CheckReport()
         facts = _check_pairs(own, sub)
         if not own.problems:
-            _check_formation(own, sub)
+            _check_formation(own, sub, spec.name)
         triangulable |= facts.triangulable
         rep.problems += [f"strip '{spec.name}': {p}" for p in own.problems]
         rep.details += [f"strip '{spec.name}': {d}" for d in own.details]
@@ -373,15 +373,17 @@ def _check_control(
     return plan_ids, height_ids
 
 
-def _check_formation(rep: CheckReport, project: Project) -> None:
-    """The strip formed as the run forms it, when the counts allow it."""
+def _check_formation(rep: CheckReport, project: Project, strip: str | None = None) -> None:
+    """The strip formed as the run forms it, when the counts allow it
+    (``strip``: the strip of a block that ``project`` stands for)."""
     images = project.images_file
     obs = project.observations
     # Strip formation as the run does it (relative orientation of every pair,
     # photos in flight order, scale transfer), when the counts allow it.
     if not rep.problems:
+        from ..errors import FlightAxisError, PhotoOrderError
         from ..strip.densify import form_strip_stepped
-        from .run import project_options
+        from .run import explain, project_options
 
         try:
             form_strip_stepped(
@@ -391,8 +393,21 @@ def _check_formation(rep: CheckReport, project: Project) -> None:
                 min_base_to_height=getattr(project.adjustment, "min_base_to_height", 0.3),
                 blunders=project.blunders,
             )
+        except PhotoOrderError as exc:
+            # the order is the project file's ([strip] or [[strips]] photos)
+            rep.problems.append(f"{project.path}: {_strip_free(explain(project, exc, strip))}")
+        except FlightAxisError as exc:
+            rep.problems.append(f"{images}: {_strip_free(explain(project, exc, strip))}")
         except StripAerotriError as exc:
             rep.problems.append(f"{images}: {exc}")
+
+
+def _strip_free(exc: Exception) -> str:
+    """The message without its "strip 'name': " prefix (a block's check adds it)."""
+    strip = getattr(exc, "strip", None)
+    text = str(exc)
+    prefix = f"strip '{strip}': "
+    return text[len(prefix) :] if strip is not None and text.startswith(prefix) else text
 
 
 def _check_lines(rep: CheckReport, project: Project, triangulable: np.ndarray) -> None:

@@ -197,12 +197,9 @@ def load_project(path: str | Path) -> Project:
     reduce = _image_reduction(
         toml_path, principal_distance, principal_point, image_options, fiducials, distortion
     )
+    sigma_mm = float(images["sigma_mm"])  # type: ignore[arg-type]
     observations = load_images(
-        images_file,
-        photo_ids,
-        principal_distance,
-        reduce,
-        float(images["sigma_mm"]),  # type: ignore[arg-type]
+        images_file, photo_ids, principal_distance, reduce, sigma_mm, block=bool(strips)
     )
     table_c, ids, xyz, kinds, sigma_xy, sigma_h = load_control(
         control_file,

@@ -3,12 +3,45 @@ project's own observations and options."""
 
 from __future__ import annotations
 
+from ..errors import FlightAxisError, GeometryError, PhotoOrderError
 from ..options import BlunderOptions, Construction, GroundOptions, StripOptions
 from ..pipeline import Progress, triangulate, triangulate_block
+from ..plausibility import flight_axis_message, photo_order_message
 from ..results import BlockResult, StripResult
 from .model import Project
 
-__all__ = ["project_options", "run_project"]
+__all__ = ["explain", "project_options", "run_project"]
+
+
+def explain(project: Project, exc: GeometryError, strip: str | None = None) -> GeometryError:
+    """``exc`` with the hint that fits the project: the opposite of its own
+    ``[images] flight_direction``, a block's ``[[strips]]`` entry.
+
+    ``strip`` names the strip of a block when ``exc`` does not; other errors
+    are returned as they are.
+    """
+    direction = project.images.flight_direction
+    if isinstance(exc, PhotoOrderError):
+        strip = exc.strip or strip
+        message = photo_order_message(
+            exc.n_wrong, exc.n_pairs, flight_direction=direction, strip=strip
+        )
+        return PhotoOrderError(
+            message if strip is None else f"strip '{strip}': {message}",
+            n_wrong=exc.n_wrong,
+            n_pairs=exc.n_pairs,
+            strip=strip,
+        )
+    if isinstance(exc, FlightAxisError):
+        strip = exc.strip or strip
+        message = flight_axis_message(exc.pair, exc.along, flight_direction=direction)
+        return FlightAxisError(
+            message if strip is None else f"strip '{strip}': {message}",
+            pair=exc.pair,
+            along=exc.along,
+            strip=strip,
+        )
+    return exc
 
 
 def project_options(project: Project) -> tuple[StripOptions, GroundOptions]:
@@ -25,6 +58,15 @@ def run_project(
     GNSS centres and IMU attitudes (``[gnss]``, ``[imu]``), if any, are
     observations of the bundle refinement.
     """
+    try:
+        return _run(project, progress, blunders)
+    except (PhotoOrderError, FlightAxisError) as exc:
+        raise explain(project, exc) from exc
+
+
+def _run(
+    project: Project, progress: Progress | None, blunders: BlunderOptions | None
+) -> StripResult | BlockResult:
     adj = project.adjustment
     if project.is_block:
         return triangulate_block(
@@ -43,6 +85,7 @@ def run_project(
             progress=progress,
             warnings=project.warnings,
             polynomial=int(adj.polynomial) if adj.block is Construction.STRIPS else 0,
+            control_name=str(project.control_file),
         )
     return triangulate(
         project.observations,

@@ -49,7 +49,12 @@ def load_images(
     principal_distance: float,
     reduce: Callable[[FloatArray, IntArray], FloatArray],
     default_sigma: float,
+    *,
+    block: bool = False,
 ) -> ImageObservations:
+    """The image observations of the project's photos (``block``: the photos
+    are listed in ``[[strips]]``, not ``[strip]``)."""
+    photos_key = "[[strips]] photos" if block else "[strip] photos"
     table = read_csv(path, IMAGE_COLUMNS, "[images] file")
     photo = id_column(table, "photo")
     point = id_column(table, "point")
@@ -70,14 +75,14 @@ def load_images(
     if unknown.size:
         row = int(photo_first[unknown].min())
         raise ConfigError(
-            f"{table.where(row)}: photo '{photo[row]}' is not in [strip] photos "
-            f"of the project file"
+            f"{table.where(row)}: photo '{photo[row]}' is not in "
+            f"{'any ' if block else ''}{photos_key} of the project file"
         )
     present = set(name_index.tolist())
     for i, pid in enumerate(photo_ids):
         if i not in present:
             raise ConfigError(
-                f"{path}: photo '{pid}' (listed in [strip] photos) has no observations"
+                f"{path}: photo '{pid}' (listed in {photos_key}) has no observations"
             )
     photo_index = name_index[photo_inverse.reshape(-1)]
     point_names, point_index = np.unique(point, return_inverse=True)

@@ -313,11 +313,9 @@ def _form_models(
     rel, model = pairs.rel, pairs.model
     left_t, right_t = pairs.left_t, pairs.right_t
     left, right = left_t.T, right_t.T
-    wrong_way = ray_direction_problems(
-        rel.rotation_left, rel.rotation_right, rel.base, left, right, model, labels
+    ray_direction_problems(
+        rel.rotation_left, rel.rotation_right, rel.base, left, right, model, labels, strict=True
     )
-    if wrong_way:
-        raise GeometryError(wrong_way[0])
 
     if IntersectionMethod(options.intersection) is IntersectionMethod.MIDPOINT:
         unit = _intersect_in_left_frames(rel, model, left_t, right_t)

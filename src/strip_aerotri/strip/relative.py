@@ -29,13 +29,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, NoReturn
 
 import numpy as np
 
 from .._stats import exact_median, sample_median
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
-from ..errors import ConvergenceError, GeometryError
+from ..errors import ConvergenceError, FlightAxisError, GeometryError
 from ..geometry.rotation import (
     cardan_from_matrix,
     matrix_from_cardan,
@@ -43,6 +43,7 @@ from ..geometry.rotation import (
     schut_from_matrix,
 )
 from ..options import DEFAULT_MAX_ITERATIONS, RelativeOrientationMethod
+from ..plausibility import flight_axis_message
 from ..results import RelativeOrientation
 
 # An image vector's components over a block: x, y (nb, width) and z, which is
@@ -206,6 +207,24 @@ def _check_not_collinear(
 
 def _name(labels: list[str] | None, m: int) -> str:
     return labels[m] if labels else f"pair {m}"
+
+
+def _raise_across(
+    m: int, left: FloatArray, right: FloatArray, pair: IntArray, labels: list[str] | None
+) -> NoReturn:
+    """Pair m's base runs across image x: name the image axis the photos move
+    along (against the mean shift of the pair's points from the left photo to
+    the right one, which the y-parallax equation cannot tell: b and -b are
+    coplanar alike)."""
+    rows = pair == m
+    shift = np.mean(left[rows, :2] - right[rows, :2], axis=0) if rows.any() else np.zeros(2)
+    k = int(np.argmax(np.abs(shift)))
+    strong = np.isfinite(shift).all() and abs(shift[k]) > 2.0 * abs(shift[1 - k])
+    along = ("+" if shift[k] > 0 else "-") + "xy"[k] if strong else ""
+    name = _name(labels, m)
+    raise FlightAxisError(
+        flight_axis_message(name, "" if along == "+x" else along), pair=name, along=along
+    )
 
 
 @dataclass(frozen=True)
@@ -960,12 +979,7 @@ def relative_orientation(
     cos_along = 1.0 / np.linalg.norm(base, axis=1)
     weak = np.flatnonzero(~np.isfinite(cos_along) | (cos_along < 0.2))
     if weak.size:
-        m = int(weak[0])
-        raise GeometryError(
-            f"{_name(labels, m)}: the base runs across the image x axis (b = "
-            f"{np.array2string(base[m], precision=3)}); image x must point "
-            "along the flight (turn the image axes)"
-        )
+        _raise_across(int(weak[0]), left, right, pair, labels)
 
     parallax_um, redundancy = record.parallax_um, record.redundancy
     dof = np.maximum(counts - MIN_POINTS_PER_PAIR, 1)
