@@ -344,3 +344,33 @@ def test_points_csv_residuals_are_those_of_the_refined_points(tmp_path):
             < 0.002 * np.hypot(*resid[:2]) + 1e-4
         )
         assert abs((given[r["point"]] - adjusted - resid)[2]) < 1e-4
+
+
+def test_the_report_page_leads_with_the_refined_accuracy(tmp_path):
+    """With ``refine = "bundle"`` the page's plain summary gives the check
+    points of the refinement (the coordinates delivered), names the strip
+    method's beside them, and the accuracy table has both."""
+    import json
+    import subprocess
+    import sys
+
+    sim = simulate_strip(12, seed=3)
+    toml = sim.write_project(tmp_path / "p")
+    toml.write_text(
+        toml.read_text().replace("[adjustment]\n", '[adjustment]\nrefine = "bundle"\n')
+    )
+    code = "import sys; from strip_aerotri.cli.main import cli; sys.exit(cli())"
+    run = subprocess.run(
+        [sys.executable, "-c", code, "run", str(toml)], capture_output=True, text=True
+    )
+    assert run.returncode == 0, run.stderr
+    out = toml.parent / "out"
+    report = json.loads((out / "report.json").read_text())
+    refined = report["bundle"]["check"]["rmse_plan_m"]
+    strip = report["check"]["statistics"]["rmse_plan_m"]
+    assert abs(refined - strip) > 5e-4  # the two differ at the page's 3 decimals
+    page = (out / "report.html").read_text()
+    plain = page[page.index("class='plain'") :].split("</p>")[0]
+    assert f"{refined:.3f} m in plan" in plain and "after the rigorous bundle" in plain
+    assert f"strip method alone: {strip:.3f} m" in plain
+    assert "bundle refinement (delivered): check" in page

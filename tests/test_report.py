@@ -7,6 +7,7 @@ import csv
 import io
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -447,3 +448,37 @@ def test_the_page_opens_with_the_result_in_plain_words(utm):
     assert f"{check.rmse[2]:.3f} m in height" in plain
     assert "y-parallax" not in plain and "σ0" not in plain
     assert page.index("class='plain'") < page.index("<h2>Summary</h2>")
+
+
+def test_plain_summary_counts_the_check_points_compared(tmp_path):
+    """A check point seen on one photo only is given but not compared: the
+    page says "At n of the n + 1" instead of counting it."""
+    import shutil
+    import subprocess
+    import sys
+
+    src = Path(__file__).resolve().parents[1] / "examples" / "film-strip"
+    project = tmp_path / "film"
+    shutil.copytree(src, project, ignore=shutil.ignore_patterns("out"))
+    control = project / "control.csv"
+    header = control.read_text().splitlines()[0].split(",")
+    row = {"point": "NOWHERE", "X": "500000", "Y": "4650000", "H": "300", "type": "check"}
+    control.write_text(
+        control.read_text().rstrip("\n") + "\n" + ",".join(row.get(c, "") for c in header) + "\n"
+    )
+    images = project / "image_points.csv"  # seen on one photo only: not triangulated
+    first = images.read_text().splitlines()[1].split(",")[0]
+    images.write_text(images.read_text().rstrip("\n") + f"\n{first},NOWHERE,10.0,20.0,0.005\n")
+    code = "import sys; from strip_aerotri.cli.main import cli; sys.exit(cli())"
+    run = subprocess.run(
+        [sys.executable, "-c", code, "run", str(project / "strip.toml")],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    report = json.loads((project / "out" / "report.json").read_text())
+    given = report["inputs"]["control"]["check"]
+    compared = report["check"]["statistics"]["n_plan"]
+    assert compared == given - 1
+    page = (project / "out" / "report.html").read_text()
+    assert f"At {compared} of the {given} independent check points" in page

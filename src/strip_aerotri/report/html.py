@@ -140,9 +140,20 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
 
 
 def _stat_rows(report: Mapping[str, Any]) -> list[list[Any]]:
+    """The accuracy rows: control and check points of the strip method and,
+    after a bundle refinement, of the refinement (the coordinates delivered)."""
     rows = []
-    for key, label in (("control", "control (used)"), ("check", "check (not used)")):
-        st = report[key]["statistics"]
+    sets: list[tuple[str, Mapping[str, Any]]] = [
+        ("control (used)", report["control"]["statistics"]),
+        ("check (not used)", report["check"]["statistics"]),
+    ]
+    bundle = report.get("bundle")
+    if bundle is not None:
+        sets = [(f"strip method: {label}", st) for label, st in sets] + [
+            ("bundle refinement (delivered): control", bundle["control"]),
+            ("bundle refinement (delivered): check", bundle["check"]),
+        ]
+    for label, st in sets:
         rows.append(
             [
                 label,
@@ -172,12 +183,30 @@ def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
         f"{used['n_plan']} control points in plan and {used['n_height']} in height "
         f"({report['project']['crs_name']}). "
     )
-    if chk["n_plan"] or chk["n_height"]:
+    bundle = report.get("bundle")
+    if bundle is not None:  # the delivered coordinates are the refinement's
+        chk = bundle["check"]
+    compared = max(chk["n_plan"], chk["n_height"])
+    if compared:
+        given = ctrl["check"]
+        at = (
+            f"At {compared} independent check points"
+            if compared >= given
+            else f"At {compared} of the {given} independent check points (the other "
+            f"{given - compared} could not be triangulated or compared)"
+        )
         text += (
-            f"At {ctrl['check']} independent check points, which the adjustment did not "
-            f"use, the computed positions differ from the surveyed ones by "
-            f"{_fmt(chk['rmse_plan_m'])} m in plan and {_fmt(chk['rmse_h_m'])} m in height "
-            "(root mean square). "
+            f"{at}, which the adjustment did not use, the computed positions differ from "
+            f"the surveyed ones by {_fmt(chk['rmse_plan_m'])} m in plan and "
+            f"{_fmt(chk['rmse_h_m'])} m in height (root mean square"
+            + (
+                ", after the rigorous bundle refinement; the strip method alone: "
+                f"{_fmt(bundle['strip_method_check']['rmse_plan_m'])} m and "
+                f"{_fmt(bundle['strip_method_check']['rmse_h_m'])} m"
+                if bundle is not None
+                else ""
+            )
+            + "). "
         )
     else:
         text += "There were no independent check points, so the accuracy is not proven. "
@@ -272,6 +301,10 @@ def _html_page(
         f" · strip_aerotri {_esc(report['software']['version'])}"
         f" · {_esc(report['created_utc'])}</p>",
         f"<div class='verdict {overall_cls}'>Tolerances (R4 §1.7.7): {_esc(overall_text)}</div>",
+        "<p class='sub'>R4: the production rules of analytical phototriangulation whose "
+        "tolerances this report applies (§1.7.7: control and check points at the map "
+        "scale, relative orientation, model junctions); J: Janiszewski's strip "
+        "method (similarity and deformation polynomials J(16)).</p>",
         _plain_summary(report, overall_text),
         "<h2>Summary</h2>",
         _table(["item", "value"], summary, left=1),
