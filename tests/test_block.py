@@ -289,6 +289,19 @@ def test_gnss_centres_in_the_block_refinement():
     )
     assert with_gnss.check_statistics.rmse_plan < 0.8 * without.check_statistics.rmse_plan
     assert 0.8 < with_gnss.refined_sigma0 < 1.25
+    # the centres' residuals are reported: every photo used, about their sigmas
+    out = with_gnss.gnss
+    assert without.gnss is None and out is not None
+    assert out.n_used == len(truth) and not np.asarray(out.rejected).any()
+    # residuals below the noise put in (3 cm per plan axis, 5 cm up), not zero
+    assert 0.3 * 0.042 < out.rms_plan < 0.042 and 0.3 * 0.05 < out.rms[2] < 0.05
+    from strip_aerotri.report.block import build_block_report
+
+    report = build_block_report(with_gnss)
+    assert report["bundle"]["gnss"]["n_used"] == len(truth)
+    assert len(report["bundle"]["gnss"]["photos"]) == len(truth)
+    assert build_block_report(without)["bundle"]["gnss"] is None
+    assert len(report["check"]["points"]) == with_gnss.check_statistics.n_plan
 
 
 def test_control_blunders_in_a_block_are_found():

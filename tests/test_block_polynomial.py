@@ -225,4 +225,4 @@ def test_block_of_strips_reports_its_polynomial_and_transfer_errors(tmp_path: Pa
         assert join["transfer_passed"] is (join["mean_transfer_um"] <= 40.0)
         assert 0 < join["mean_transfer_um"] <= join["max_transfer_um"]
     page = (toml.parent / "out" / "report.html").read_text()
-    assert "mean transfer (um)" in page and "polynomial of type 2" in page
+    assert "mean transfer [um]" in page and "polynomial of type 2" in page

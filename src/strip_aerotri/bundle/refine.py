@@ -63,6 +63,8 @@ __all__ = [
     "ImuAttitudes",
     "ImuResiduals",
     "RefinedResult",
+    "gnss_residuals",
+    "imu_residuals",
     "refine_bundle",
     "refine_frame",
 ]
@@ -101,7 +103,7 @@ def _frame_for(
 # --------------------------------------------------------------------------- GNSS / IMU
 
 
-def _gnss_residuals(
+def gnss_residuals(
     gnss: GnssCentres,
     lookup: IntArray,
     observed_frame: FloatArray,
@@ -141,7 +143,7 @@ def _gnss_residuals(
     )
 
 
-def _imu_residuals(
+def imu_residuals(
     imu: ImuAttitudes,
     lookup: IntArray,
     observed_frame: FloatArray,
@@ -156,7 +158,7 @@ def _imu_residuals(
     ``lookup`` (given rows -> strip photo or -1), ``observed_frame``
     (M, 3, 3) and ``sigma`` (M, 3) as passed to the bundle;
     ``opk_adjusted`` (M, 3) the adjusted omega, phi, kappa (image -> ENU).
-    Rejected attitudes as in :func:`_gnss_residuals`.
+    Rejected attitudes as in :func:`gnss_residuals`.
     """
     m = observed_frame.shape[0]
     index = np.flatnonzero(np.all(np.isfinite(observed_frame), axis=(1, 2)))
@@ -325,7 +327,7 @@ def refine_bundle(
     options = blunders or BlunderOptions()
     gnss_out = imu_out = None
     if aux.gnss_xyz is not None and aux.gnss_sig is not None and gnss is not None:
-        gnss_out = _gnss_residuals(
+        gnss_out = gnss_residuals(
             gnss,
             aux.gnss_lookup,
             aux.gnss_xyz,
@@ -336,7 +338,7 @@ def refine_bundle(
             options,
         )
     if aux.imu_rot is not None and aux.imu_sig is not None and imu is not None:
-        imu_out = _imu_residuals(
+        imu_out = imu_residuals(
             imu, aux.imu_lookup, aux.imu_rot, aux.imu_sig, fr, opk, obs.photo_ids, options
         )
     res = _control_residuals(frame, ctrl, fr, adjusted_crs)

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import datetime as _dt
-import html
 import json
 from typing import TYPE_CHECKING, Any
 
@@ -12,9 +11,9 @@ import numpy as np
 
 from .._version import __version__
 from ..observations import ControlType
+from .block_page import block_html
 from .files import format_photos_csv, format_points_csv
-from .html import _CSS
-from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION
+from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, _bundle_gnss, _bundle_imu
 from .values import clean, json_float, statistics
 
 if TYPE_CHECKING:
@@ -90,11 +89,13 @@ def build_block_report(
         for join in result.joins
         for i, j in [join.strips]
     ]
+    created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     report = {
         "format": REPORT_FORMAT,
         "format_version": REPORT_FORMAT_VERSION,
         "software": {"name": "strip_aerotri", "version": __version__},
-        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "created": created,
+        "created_utc": created,  # the key of a strip's report.json
         "project": {
             "name": None if project is None else project.name,
             "file": None if project is None else str(project.path),
@@ -126,14 +127,48 @@ def build_block_report(
             "transfer_criterion": f"mean transfer error <= {TRANSFER_UM:.0f} um in the image, "
             "free block, digital identification (R4 1.7.7.3)",
         },
-        "control": {"statistics": statistics(result.control_statistics)},
-        "check": {"statistics": statistics(result.check_statistics)},
+        "control": {
+            "statistics": statistics(result.control_statistics),
+            "points": _control_points(result, check=False),
+        },
+        "check": {
+            "statistics": statistics(result.check_statistics),
+            "points": _control_points(result, check=True),
+        },
+        "bundle": (
+            {"gnss": _bundle_gnss(result.gnss), "imu": _bundle_imu(result.imu)}
+            if result.refined
+            else None
+        ),
         "rejections": [r.describe() for r in result.rejections],
         "warnings": list(result.warnings),
         "timings_s": dict(result.timings),
     }
     cleaned: dict[str, Any] = clean(report)
     return cleaned
+
+
+def _control_points(result: BlockResult, *, check: bool) -> list[dict[str, Any]]:
+    """The control (or check) points the block determined: type and residuals
+    (given − adjusted, E, N, H metres; null where not given or not used)."""
+    out = []
+    for row, resid, is_check in zip(
+        result.control_index, result.control_residuals, result.is_check, strict=True
+    ):
+        if bool(is_check) != check:
+            continue
+        kind = result.control.kind[row]
+        out.append(
+            {
+                "point": result.control.point_ids[row],
+                "type": str(getattr(kind, "value", kind)),
+                "dE_m": json_float(resid[0]),
+                "dN_m": json_float(resid[1]),
+                "dH_m": json_float(resid[2]),
+                "plan_m": json_float(np.hypot(resid[0], resid[1])),
+            }
+        )
+    return out
 
 
 def build_block_outputs(
@@ -174,7 +209,7 @@ def build_block_outputs(
         "points.csv": points_text.encode("utf-8"),
         "photos.csv": photos_text.encode("utf-8"),
         "report.json": (json.dumps(report, indent=2, allow_nan=False) + "\n").encode("utf-8"),
-        "report.html": _html(report, figure).encode("utf-8"),
+        "report.html": block_html(report, figure).encode("utf-8"),
     }
 
 
@@ -263,77 +298,3 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
     # beside the axes, not over the points (constrained layout makes room)
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
     return _png(fig)
-
-
-def _verdict(passed: bool | None) -> str:
-    return "not judged" if passed is None else "pass" if passed else "FAIL"
-
-
-def _html(report: dict[str, Any], figure: str | None = None) -> str:
-    """A one-page summary: the block, the check points, the joins of the strips."""
-
-    def cell(value: Any, decimals: int = 3) -> str:
-        if isinstance(value, float):
-            return f"{value:.{decimals}f}"
-        return html.escape("" if value is None else str(value))
-
-    block = report["block"]
-    check = report["check"]["statistics"]
-    control = report["control"]["statistics"]
-    name = report["project"]["name"] or "Block"
-    rows = "".join(
-        f"<tr><td>{cell(s['name'])}</td><td>{len(s['photos'])}</td><td>{s['n_models']}</td>"
-        f"<td>{cell(s['scale'])}</td></tr>"
-        for s in block["strips"]
-    )
-    joins = "".join(
-        f"<tr><td>{cell(' / '.join(j['strips']))}</td><td>{j['n_points']}</td>"
-        f"<td>{cell(j['mean_plan_m'])}</td><td>{cell(j['max_plan_m'])}</td>"
-        f"<td>{cell(j['mean_height_m'])}</td><td>{cell(j['max_height_m'])}</td>"
-        f"<td>{_verdict(j['passed'])}</td>"
-        f"<td>{cell(j['mean_transfer_um'], 1)}</td><td>{cell(j['max_transfer_um'], 1)}</td>"
-        f"<td>{_verdict(j['transfer_passed'])}</td></tr>"
-        for j in block["joins"]
-    )
-    deformation = (
-        f"; every strip with its own polynomial of type {block['polynomial']}"
-        if block.get("polynomial")
-        else ""
-    )
-    warnings = "".join(f"<li>{cell(w)}</li>" for w in report["warnings"]) or "<li>none</li>"
-    figure_html = (
-        ""
-        if figure is None
-        else '<h2>The block</h2><figure><img alt="photo centres by strip, control, check '
-        f'points and their plan residuals" src="data:image/png;base64,{figure}">'
-        "<figcaption>Photo centres by strip, control and check points; the check points' "
-        "plan residuals (given − adjusted) as arrows, their scale in the key.</figcaption>"
-        "</figure>"
-    )
-    return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>{cell(name)}: block report</title>
-<style>{_CSS}td:first-child{{text-align:left}}</style></head><body>
-<h1>{cell(name)}: aerotriangulation of a block of {len(block["strips"])} strips</h1>
-<p>Construction: {cell(block["construction"])} (every unit its own 3D similarity, all at once
-onto the control and onto each other{deformation}); sigma0 {cell(block["sigma0"])}, redundancy
-{block["redundancy"]}.</p>
-<h2>Accuracy</h2>
-<table><tr><th></th><th>points plan / height</th><th>RMSE plan (m)</th>
-<th>RMSE height (m)</th></tr>
-<tr><td>check points</td><td>{check["n_plan"]} / {check["n_height"]}</td>
-<td>{cell(check["rmse_plan_m"])}</td><td>{cell(check["rmse_h_m"])}</td></tr>
-<tr><td>control used</td><td>{control["n_plan"]} / {control["n_height"]}</td>
-<td>{cell(control["rmse_plan_m"])}</td><td>{cell(control["rmse_h_m"])}</td></tr></table>
-{figure_html}
-<h2>Strips</h2>
-<table><tr><th>strip</th><th>photos</th><th>models</th><th>scale (m / strip unit)</th></tr>
-{rows}</table>
-<h2>Common points of the strips (R4 1.7.7.3, 1.7.7.7)</h2>
-<p>{cell(block["join_criterion"])}; {cell(block["transfer_criterion"])}: the same
-points in the block transformed onto itself only, the control holding the datum.</p>
-<table><tr><th>strips</th><th>points</th><th>mean plan (m)</th><th>max plan (m)</th>
-<th>mean height (m)</th><th>max height (m)</th><th>verdict</th>
-<th>mean transfer (um)</th><th>max transfer (um)</th><th>verdict</th></tr>{joins}</table>
-<h2>Warnings</h2><ul>{warnings}</ul>
-</body></html>
-"""

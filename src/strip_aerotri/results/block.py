@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..observations import ControlPoints, ImageObservations, StripSpec
+from .bundle import GnssResiduals, ImuResiduals
 from .common import AccuracyStatistics, Rejection
 from .strip import StripModel
 
@@ -97,6 +98,9 @@ class BlockResult:
         stay the block transformation's.
     refined_sigma0 : float
         A posteriori sigma of unit weight of the refinement (NaN without).
+    gnss, imu : GnssResiduals, ImuResiduals or None
+        The refinement's GNSS centres and IMU attitudes: residuals and tests
+        (None without them).
     polynomial : int
         J(16)'s type of every strip's own deformation polynomial (block of
         independent strips), 0 for none.
@@ -128,6 +132,8 @@ class BlockResult:
     refined: bool = False
     refined_sigma0: float = float("nan")
     polynomial: int = 0
+    gnss: GnssResiduals | None = None
+    imu: ImuResiduals | None = None
 
     @property
     def photo_ids(self) -> tuple[str, ...]:

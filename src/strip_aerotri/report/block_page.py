@@ -1,0 +1,261 @@
+"""``report.html`` of a block of strips, from its ``report.json`` content.
+
+The page reads as the strip report does: the result in plain words first
+(photos, control, the check points' accuracy, how well the strips fit
+together), then the accuracy, the block in plan, the strips, their joins
+with R4's two criteria, the bundle refinement with its GNSS and IMU
+observations, every control and check point, and the rejections.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from .html import _CSS, _esc, _figure, _fmt, _table, _verdict_cell
+
+__all__ = ["block_html"]
+
+
+def _stat_row(label: str, st: Mapping[str, Any]) -> list[Any]:
+    return [
+        label,
+        st["n_plan"],
+        st["n_height"],
+        st["rmse_e_m"],
+        st["rmse_n_m"],
+        st["rmse_h_m"],
+        st["rmse_plan_m"],
+        st["max_plan_m"],
+        st["max_height_m"],
+    ]
+
+
+_STAT_HEADER = [
+    "set",
+    "n plan",
+    "n height",
+    "RMSE E",
+    "RMSE N",
+    "RMSE H",
+    "RMSE plan",
+    "max plan",
+    "max |dH|",
+]
+
+
+def _plain(report: Mapping[str, Any]) -> str:
+    """The result in a few sentences for a reader who is not a photogrammetrist."""
+    block = report["block"]
+    check, control = report["check"]["statistics"], report["control"]["statistics"]
+    n_photos = sum(len(s["photos"]) for s in block["strips"])
+    text = (
+        f"{n_photos} photos in {len(block['strips'])} parallel strips were oriented as one "
+        f"block and the points measured on them given ground coordinates, fitted to "
+        f"{control['n_plan']} control points in plan and {control['n_height']} in height"
+        + (f" ({report['project']['crs']})" if report["project"].get("crs") else "")
+        + ". "
+    )
+    compared = max(check["n_plan"], check["n_height"])
+    if compared:
+        text += (
+            f"At {compared} independent check points, which the adjustment did not use, "
+            f"the computed positions differ from the surveyed ones by "
+            f"{_fmt(check['rmse_plan_m'])} m in plan and {_fmt(check['rmse_h_m'])} m in "
+            "height (root mean square"
+            + (
+                ", after the rigorous bundle refinement of the whole block"
+                if block["refined"]
+                else ""
+            )
+            + "). "
+        )
+    else:
+        text += "There were no independent check points, so the accuracy is not proven. "
+    joins = block["joins"]
+    if joins:
+        means = [j["mean_plan_m"] for j in joins if j["mean_plan_m"] is not None]
+        transfer = [j["mean_transfer_um"] for j in joins if j["mean_transfer_um"] is not None]
+        if means:
+            text += (
+                f"On the points two strips share, the strips agree to {_fmt(min(means))}-"
+                f"{_fmt(max(means))} m in plan on average"
+            )
+            if transfer:
+                failing = sum(1 for j in joins if j["transfer_passed"] is False)
+                text += (
+                    f"; their transfer errors in the image are {max(transfer):.0f} um at most "
+                    f"on average ({failing} of {len(joins)} pairs of strips above R4's "
+                    f"{joins[0]['transfer_limit_um']:.0f} um)"
+                )
+            text += ". "
+    return f"<p class='plain'>{_esc(text)}</p>"
+
+
+def _joins(report: Mapping[str, Any]) -> str:
+    block = report["block"]
+    rows = [
+        [
+            " / ".join(j["strips"]),
+            j["n_points"],
+            j["mean_plan_m"],
+            j["max_plan_m"],
+            j["mean_height_m"],
+            j["max_height_m"],
+            _verdict_cell(j["passed"]),
+            j["mean_transfer_um"],
+            j["max_transfer_um"],
+            _verdict_cell(j["transfer_passed"]),
+        ]
+        for j in block["joins"]
+    ]
+    header = [
+        "strips",
+        "points",
+        "mean plan [m]",
+        "max plan [m]",
+        "mean |dH| [m]",
+        "max |dH| [m]",
+        "R4 1.7.7.7",
+        "mean transfer [um]",
+        "max transfer [um]",
+        "R4 1.7.7.3",
+    ]
+    digits = [0, 0, 3, 3, 3, 3, 0, 1, 1, 0]
+    return (
+        "<h2>How well the strips fit together (R4 1.7.7.3, 1.7.7.7)</h2>"
+        f"<p>{_esc(block['join_criterion'])}; {_esc(block['transfer_criterion'])}. "
+        "A point two strips share is placed by each strip; the table compares the two "
+        "places, on the ground in the adjusted block and, as transfer errors in the image, "
+        "in the free block (the block transformed onto itself only, the control holding "
+        "the datum). A largest discrepancy far above the mean is usually one weak tie "
+        "point (seen at the image edge by few photos); the blunder tests leave out the "
+        "determinations that fail.</p>" + _table(header, rows, left=1, digits=digits)
+    )
+
+
+def _points(report: Mapping[str, Any], key: str, title: str) -> str:
+    rows = [
+        [p["point"], p["type"], p["dE_m"], p["dN_m"], p["dH_m"], p["plan_m"]]
+        for p in report[key].get("points", [])
+    ]
+    header = ["point", "type", "dE [m]", "dN [m]", "dH [m]", "plan [m]"]
+    return f"<h3>{_esc(title)}</h3>" + _table(header, rows, left=2, digits=3)
+
+
+def _bundle(report: Mapping[str, Any]) -> str:
+    block = report["block"]
+    if not block["refined"]:
+        return ""
+    bundle = report.get("bundle") or {}
+    out = [
+        "<h2>Bundle refinement of the whole block (R4 4)</h2>",
+        "<p>Every photo and point of the block adjusted by the collinearity equations, "
+        f"started from the block's solution: sigma0 {_fmt(block['refined_sigma0'])} "
+        f"(the block's transformation: {_fmt(block['sigma0'])}). The accuracy above, the "
+        "coordinates of points.csv and photos.csv are the refinement's; the joins are "
+        "those of the block's transformation.</p>",
+    ]
+    gnss, imu = bundle.get("gnss"), bundle.get("imu")
+    if gnss is not None:
+        out.append(
+            "<h3>GNSS projection centres (observed − adjusted, east / north / up)</h3>"
+            + _table(
+                ["photos used", "rejected", "RMS E", "RMS N", "RMS up", "max plan", "max |up|"],
+                [
+                    [
+                        gnss["n_used"],
+                        gnss["n_rejected"],
+                        gnss["rms_e_m"],
+                        gnss["rms_n_m"],
+                        gnss["rms_u_m"],
+                        gnss["max_plan_m"],
+                        gnss["max_u_m"],
+                    ]
+                ],
+                left=0,
+                digits=[0, 0, 3, 3, 3, 3, 3],
+            )
+        )
+    if imu is not None:
+        rms = imu["rms_opk_deg"]
+        out.append(
+            "<h3>IMU attitudes (observed − adjusted, degrees)</h3>"
+            + _table(
+                ["photos used", "rejected", "RMS omega", "RMS phi", "RMS kappa"],
+                [[imu["n_used"], imu["n_rejected"], rms[0], rms[1], rms[2]]],
+                left=0,
+                digits=[0, 0, 4, 4, 4],
+            )
+        )
+    return "".join(out)
+
+
+def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
+    """The page of a block's ``report.json`` content and its figure (PNG, base64)."""
+    block = report["block"]
+    project = report["project"]
+    name = project["name"] or "Block"
+    deformation = (
+        f"; every strip with its own polynomial of type {block['polynomial']}"
+        if block.get("polynomial")
+        else ""
+    )
+    strips = [
+        [s["name"], len(s["photos"]), s["n_models"], s["scale"], len(s["rejections"])]
+        for s in block["strips"]
+    ]
+    rejections = [r for s in block["strips"] for r in s["rejections"]] + list(report["rejections"])
+    others = [w for w in report["warnings"] if w not in set(rejections)]
+    stats = [
+        _stat_row("control (used)", report["control"]["statistics"]),
+        _stat_row("check (not used)", report["check"]["statistics"]),
+    ]
+    parts = [
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>",
+        f"<title>{_esc(name)}: block report</title>",
+        f"<style>{_CSS}</style></head><body>",
+        f"<h1>{_esc(name)}: aerotriangulation of a block of {len(block['strips'])} strips</h1>",
+        f"<p class='sub'>strip_aerotri {_esc(report['software']['version'])}"
+        f" · {_esc(report.get('created_utc') or report.get('created'))}"
+        + (f" · {_esc(project['crs'])}" if project.get("crs") else "")
+        + "</p>",
+        _plain(report),
+        "<p class='sub'>R4: the production rules of analytical phototriangulation whose "
+        "tolerances this report applies; a <em>model</em> is the 3D model of one pair of "
+        "overlapping photos, a <em>strip</em> one flight line of photos.</p>",
+        f"<p>Construction: {_esc(block['construction'])} (every "
+        f"{'strip' if block['construction'] == 'strips' else 'model'} its own 3D "
+        f"similarity, all at once onto the control and onto each other{_esc(deformation)});"
+        f" sigma0 {_fmt(block['sigma0'])}, redundancy {block['redundancy']}.</p>",
+        "<h2>Accuracy at control and check points (given − adjusted, metres)</h2>",
+        _table(_STAT_HEADER, stats, digits=3),
+        _figure(
+            figure,
+            "The block in plan: photo centres by strip, control and check points; the check "
+            "points' plan residuals (given − adjusted) as arrows, their scale in the key.",
+            "photo centres by strip, control, check points and their plan residuals",
+        ),
+        "<h2>Strips</h2>",
+        _table(
+            ["strip", "photos", "models", "scale [m per strip unit]", "rejections"],
+            strips,
+            digits=[0, 0, 0, 3, 0],
+        ),
+        _joins(report),
+        _bundle(report),
+        "<h2>Control and check points</h2>",
+        _points(report, "control", "Control points (residuals of the components used)"),
+        _points(report, "check", "Check points (not used in the adjustment)"),
+        "<h2>Observations rejected as blunders</h2>",
+        "<ul>" + "".join(f"<li>{_esc(r)}</li>" for r in rejections) + "</ul>"
+        if rejections
+        else "<p class='na'>none</p>",
+        "<h2>Warnings</h2>",
+        "<ul>" + "".join(f"<li>{_esc(w)}</li>" for w in others) + "</ul>"
+        if others
+        else "<p class='na'>none</p>",
+        "</body></html>",
+    ]
+    return "\n".join(parts) + "\n"
