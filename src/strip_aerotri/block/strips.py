@@ -549,28 +549,44 @@ def _solve(
         target = p.work.to_work(guess)
         target[~use_xy, :2] = np.nan
         target[~use_z, 2] = np.nan
-        result = adjust_units(
-            rows,
-            p.unit_strip.shape[0],
-            n_total,
-            start=starts,
-            points0=points0,
-            control_point=p.idx[active],
-            control_xyz=target[active],
-            control_sigma=p.sigma[active],
-            max_iterations=p.max_iterations,
-            polynomial=p.polynomial,
-        )
-        if not guessed or n_pass == _MAX_PASSES:
+
+        def solve(
+            start: UnitTransforms,
+            points0: FloatArray,
+            statistics: bool,
+            target: FloatArray = target,
+        ) -> SimultaneousResult:
+            return adjust_units(
+                rows,
+                p.unit_strip.shape[0],
+                n_total,
+                start=start,
+                points0=points0,
+                control_point=p.idx[active],
+                control_xyz=target[active],
+                control_sigma=p.sigma[active],
+                max_iterations=p.max_iterations,
+                polynomial=p.polynomial,
+                statistics=statistics,
+            )
+
+        # the control's cofactors (the costly part of a large block) only for
+        # the pass that is the last
+        last = not guessed or n_pass == _MAX_PASSES
+        result = solve(starts, points0, statistics=last)
+        if last:
             break
         adjusted = p.work.from_work(result.points[p.idx])
         new_guess = np.where(np.isnan(p.given), adjusted, p.given)
         change = float(np.nanmax(np.abs(new_guess - guess), initial=0.0))
+        if change < _PASS_TOLERANCE_M:  # converged: once more from it, with the statistics
+            filled = np.where(np.isfinite(result.points), result.points, points0)
+            result = solve(result.transforms, filled, statistics=True)
+            guess = new_guess
+            break
         guess = new_guess
         starts = result.transforms
         points0 = np.where(np.isfinite(result.points), result.points, points0)
-        if change < _PASS_TOLERANCE_M:
-            break
     assert result is not None
     return _Solution(result, guess)
 
