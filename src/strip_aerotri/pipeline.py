@@ -215,7 +215,7 @@ def triangulate_block(
     imu: ImuAttitudes | None = None,
     progress: Progress | None = None,
     warnings: Sequence[str] = (),
-    polynomial: int = 0,
+    polynomial: int | None = None,
     control_name: str = "control",
 ) -> BlockResult:
     """Form every strip of a block and transform them all at once

@@ -23,7 +23,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -50,6 +50,7 @@ from ..observations import (
     StripSpec,
 )
 from ..options import (
+    DEFAULT_BLOCK_POLYNOMIAL,
     BlunderAction,
     BlunderOptions,
     Construction,
@@ -115,7 +116,7 @@ def adjust_block(
     refine: bool = False,
     gnss: GnssCentres | None = None,
     imu: ImuAttitudes | None = None,
-    polynomial: int = 0,
+    polynomial: int | None = None,
 ) -> BlockResult:
     """Form every strip, then transform all strips at once to the control.
 
@@ -144,11 +145,13 @@ def adjust_block(
     gnss, imu : GnssCentres, ImuAttitudes, optional
         Observed projection centres and attitudes of the refinement (with
         ``refine`` only).
-    polynomial : int
+    polynomial : int, optional
         With ``"strips"``: J(16)'s type (1, 2, 3) of every strip's own
         deformation polynomial, adjusted with its similarity
         (:class:`~strip_aerotri.geometry.simultaneous.UnitPolynomial`); 0
-        for similarities only.
+        for similarities only; default
+        :data:`~strip_aerotri.options.DEFAULT_BLOCK_POLYNOMIAL` (2).  Not
+        used with ``"models"``.
 
     Raises
     ------
@@ -177,10 +180,13 @@ def adjust_block(
         route,
         Construction.create(construction),
         max_iterations,
-        polynomial,
+        DEFAULT_BLOCK_POLYNOMIAL if polynomial is None else polynomial,
     )
+    problem, dropped = _determined_terms(problem)
     solution, used_xy, used_z, keep_rows, rejections = _snoop(problem, blunders)
     result = _products(problem, solution, used_xy, used_z, keep_rows, rejections)
+    if dropped:
+        result = replace(result, warnings=tuple(dropped) + result.warnings)
     timings = {"strips": t_strips, "block": time.perf_counter() - t0 - t_strips}
     if refine:
         t1 = time.perf_counter()
@@ -511,15 +517,61 @@ class _Solution:
     guess: FloatArray
 
 
+#: A strip's polynomial term whose effect the block determines worse than
+#: this many times a point of the strip is held at 0: it would add more
+#: noise than the bending it removes (control at the block's corners only
+#: leaves the bending of all strips together undetermined: a film block
+#: missed its check points by 3.4 m).
+_TERM_NOISE_RATIO = 2.0
+_AXES = ("along", "across", "up")
+_MONOMIALS = ("uv", "u²", "u³")
+
+
+def _determined_terms(p: _Problem) -> tuple[_Problem, list[str]]:
+    """The problem with every strip polynomial term that the control and the
+    common points do not determine held at 0, and a warning per strip
+    naming them."""
+    if p.polynomial is None:
+        return p, []
+    res = _solve(p, p.use_xy, p.use_z, None, statistics=False).result
+    if res.coefficient_variance is None:
+        return p, []
+    poly = p.polynomial
+    n_units = p.unit_strip.shape[0]
+    # a strip point's sigma along its axes, from its rows' weights (m)
+    first = np.array([np.flatnonzero(p.rows.unit == u)[0] for u in range(n_units)])
+    sigma = 1.0 / np.sqrt(np.einsum("nii->ni", p.rows.weight[first]))
+    effect = (
+        res.transforms.scale[:, None]
+        * poly.half_length[:, None]
+        * np.sqrt(np.maximum(res.coefficient_variance, 0.0))
+    )  # the term's standard deviation at the strip's end, metres
+    weak = effect > _TERM_NOISE_RATIO * np.tile(sigma, poly.degree)
+    if not weak.any():
+        return p, []
+    notes = []
+    for u in np.flatnonzero(weak.any(axis=1)):
+        terms = ", ".join(f"{_MONOMIALS[j // 3]} {_AXES[j % 3]}" for j in np.flatnonzero(weak[u]))
+        notes.append(
+            f"strip '{p.specs[int(p.unit_strip[u])].name}': polynomial term(s) {terms} left "
+            "out: the control and the common points do not determine them (more control "
+            "along the block's edges would)"
+        )
+    return replace(p, polynomial=poly.without(weak)), notes
+
+
 def _solve(
     p: _Problem,
     use_xy: BoolArray,
     use_z: BoolArray,
     previous: _Solution | None,
     keep_rows: BoolArray | None = None,
+    *,
+    statistics: bool = True,
 ) -> _Solution:
     """The transformation, with passes for control given in plan or height only
-    (their other coordinates from the adjusted point, as the ground stage)."""
+    (their other coordinates from the adjusted point, as the ground stage);
+    ``statistics``: the control's tests (cofactors) at the end."""
     active = use_xy | use_z
     guess = (
         np.where(np.isnan(p.given), p.work.from_work(p.points0[p.idx]), p.given)
@@ -573,15 +625,16 @@ def _solve(
         # the control's cofactors (the costly part of a large block) only for
         # the pass that is the last
         last = not guessed or n_pass == _MAX_PASSES
-        result = solve(starts, points0, statistics=last)
+        result = solve(starts, points0, statistics=last and statistics)
         if last:
             break
         adjusted = p.work.from_work(result.points[p.idx])
         new_guess = np.where(np.isnan(p.given), adjusted, p.given)
         change = float(np.nanmax(np.abs(new_guess - guess), initial=0.0))
         if change < _PASS_TOLERANCE_M:  # converged: once more from it, with the statistics
-            filled = np.where(np.isfinite(result.points), result.points, points0)
-            result = solve(result.transforms, filled, statistics=True)
+            if statistics:
+                filled = np.where(np.isfinite(result.points), result.points, points0)
+                result = solve(result.transforms, filled, statistics=True)
             guess = new_guess
             break
         guess = new_guess
@@ -783,7 +836,6 @@ def _refine(
     """The bundle adjustment of the whole block from its solution, in the work
     frame (plan-only and height-only control keep the block's value of their
     other coordinate)."""
-    from dataclasses import replace
 
     from ..bundle.refine import gnss_imu_in_frame, gnss_residuals, imu_residuals
     from ..bundle.snooping import refine_frame
@@ -1013,7 +1065,6 @@ def _with_transfer(
     joins: tuple[StripJoin, ...], free: tuple[StripJoin, ...], m_per_mm: float
 ) -> tuple[StripJoin, ...]:
     """The joins with the free block's plan discrepancies at the photo scale."""
-    from dataclasses import replace
 
     um = 1e3 / m_per_mm if m_per_mm > 0 else float("nan")
     by_pair = {f.strips: f for f in free}
@@ -1039,6 +1090,5 @@ def _mean_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
 
 
 def _with_timings(result: BlockResult, timings: dict[str, float]) -> BlockResult:
-    from dataclasses import replace
 
     return replace(result, timings={**timings, "total": sum(timings.values())})

@@ -67,6 +67,8 @@ _Z_BETA = 0.8416212335729143  # standard normal quantile of 0.8: power 80 %
 #: 8.8 m", on a drone strip with four full points).  Its minimal detectable
 #: error (σ δ0 / √r, more than 150 σ) is reported instead.
 _MIN_TESTED_REDUNDANCY = 1e-3
+#: Standard deviation of the prior that holds a polynomial term at 0.
+_FIXED_SIGMA = 1e-9
 
 
 def baarda_delta(critical: float) -> float:
@@ -112,6 +114,9 @@ class UnitPolynomial:
     prior_sigma : float
         Standard deviation of the coefficients' prior (dimensionless: a
         fraction of ``L`` at the ends of the unit).
+    fixed : ndarray of bool, shape (U, n_terms), optional
+        Terms held at 0 (a prior of 1e-9): those the data do not determine
+        (:meth:`without`).
     """
 
     degree: int
@@ -119,6 +124,21 @@ class UnitPolynomial:
     axes: FloatArray
     half_length: FloatArray
     prior_sigma: float = 0.01
+    fixed: BoolArray | None = None
+
+    def prior_weights(self) -> FloatArray:
+        """``1 / σ²`` of every coefficient's prior, (U, n_terms)."""
+        w = np.full((self.origin.shape[0], self.n_terms), 1.0 / self.prior_sigma**2)
+        if self.fixed is not None:
+            w[self.fixed] = 1.0 / _FIXED_SIGMA**2
+        return w
+
+    def without(self, terms: BoolArray) -> UnitPolynomial:
+        """The same polynomial with ``terms`` (U, n_terms) held at 0 too."""
+        fixed = terms if self.fixed is None else self.fixed | terms
+        return UnitPolynomial(
+            self.degree, self.origin, self.axes, self.half_length, self.prior_sigma, fixed
+        )
 
     @classmethod
     def fit(cls, unit: IntArray, xyz: FloatArray, n_units: int, degree: int) -> UnitPolynomial:
@@ -323,6 +343,10 @@ class SimultaneousResult:
     redundancy : int
     iterations : int
     converged : bool
+    coefficient_variance : ndarray, shape (U, n_terms), optional
+        With a polynomial: the cofactor (variance at σ0 = 1) of every
+        coefficient, its prior included; near the prior's variance, the
+        data say little of that term.
     """
 
     transforms: UnitTransforms
@@ -341,6 +365,7 @@ class SimultaneousResult:
     redundancy: int
     iterations: int
     converged: bool
+    coefficient_variance: FloatArray | None = None
 
 
 def _rows_whitening(weight: FloatArray) -> FloatArray:
@@ -406,6 +431,9 @@ class _Problem:
         )
         self.offset = obs.xyz - self.centroid[obs.unit]
         self.basis = None if polynomial is None else polynomial.basis(obs.unit, obs.xyz)
+        self.prior_weights = (
+            np.zeros((n_units, 0)) if polynomial is None else polynomial.prior_weights()
+        )
         self.observed = np.bincount(obs.point, minlength=n_points) > 0
         self.line_rows: list[int] = [line.point.shape[0] for line in self.lines]
         line_point = (
@@ -509,7 +537,7 @@ def _cost(prob: _Problem, st: _State) -> float:
     g = prob.control_given
     total += float(np.sum((c[g] / prob.control_sigma[g]) ** 2))
     if prob.polynomial is not None:
-        total += float(np.sum((st.coefficients / prob.polynomial.prior_sigma) ** 2))
+        total += float(np.sum(prob.prior_weights * st.coefficients**2))
     for k in range(prob.n_lines):
         _, e, w = _line_terms(prob, st, k)
         total += float(w * np.sum(e**2))
@@ -583,7 +611,7 @@ def _normals(prob: _Problem, st: _State) -> _Normals:
     blocks[:, np.arange(width), np.arange(width)] += fixed  # unused line slots
     g_z = prob.to_block @ g_b_r
     if prob.polynomial is not None:  # the coefficients' priors a = 0
-        prior_w = 1.0 / prob.polynomial.prior_sigma**2
+        prior_w = prob.prior_weights
         extra = np.arange(N_UNIT, width)
         blocks[: prob.n_units, extra, extra] += prior_w
         g_z[: prob.n_units, N_UNIT:] -= prior_w * st.coefficients
@@ -877,6 +905,15 @@ def _result(
         line_resid.append(e)
         line_w.append(wl)
         line_r.append(r_line)
+    coefficient_variance = None
+    if prob.polynomial is not None:  # a handful of columns: every unit's terms
+        cols = (
+            prob.width * np.arange(prob.n_units)[:, None] + np.arange(N_UNIT, prob.width)
+        ).ravel()
+        unit_vectors = np.zeros((scale.shape[0], cols.shape[0]))
+        unit_vectors[cols, np.arange(cols.shape[0])] = 1.0
+        x = scale[:, None] * lu.solve(scale[:, None] * unit_vectors)
+        coefficient_variance = x[cols, np.arange(cols.shape[0])].reshape(prob.n_units, -1)
     transforms = UnitTransforms(
         st.scale,
         st.rotation,
@@ -904,6 +941,7 @@ def _result(
         redundancy=int(redundancy),
         iterations=int(iterations),
         converged=bool(converged),
+        coefficient_variance=coefficient_variance,
     )
 
 
