@@ -55,7 +55,7 @@ def test_analytic_jacobian_matches_finite_differences(film):
     np.testing.assert_allclose(analytic, numeric, atol=1e-6 * np.abs(analytic).max())
 
 
-def test_scipy_peer_reaches_the_ceres_accuracy_of_the_strip(film):
+def test_scipy_peer_improves_on_the_strip_start(film):
     # The bundle from the strip method's start lowers the check-point RMSE
     # (film-12, seed 1: strip 0.080 / 0.210 m, bundle 0.079 / 0.160 m,
     # the same as Ceres in bench_peers.py --quick).
