@@ -62,15 +62,21 @@ def rot(omega: float, phi: float, kappa: float) -> np.ndarray:
     return rx @ ry @ rz
 
 
-def scene():
+def scene(n_grid: int = 6):
+    """The flight over an n_grid x n_grid grid of points (6: the test samples;
+    a denser grid gives samples a run can adjust, examples/import-samples)."""
     rng = np.random.default_rng(2345)
-    # ground points on a grid with relief; the first 8 are the GCPs
-    gx, gy = np.meshgrid(np.linspace(-30.0, 70.0, 6), np.linspace(-15.0, 75.0, 6))
+    # ground points on a grid with relief; 8 of them (16 on a dense grid) are GCPs
+    gx, gy = np.meshgrid(np.linspace(-30.0, 70.0, n_grid), np.linspace(-15.0, 75.0, n_grid))
     xy = np.column_stack([gx.ravel(), gy.ravel()]) + rng.normal(0.0, 3.0, (gx.size, 2))
     ground = np.column_stack(
         [E0 + xy[:, 0], N0 + xy[:, 1], 100.0 + rng.uniform(-3.0, 3.0, gx.size)]
     )
-    gcp_rows = np.array([0, 5, 14, 15, 20, 21, 30, 35])
+    if n_grid == 6:
+        gcp_rows = np.array([0, 5, 14, 15, 20, 21, 30, 35])
+    else:  # a 4 x 4 sub-grid, corners included
+        at = np.round(np.linspace(0, n_grid - 1, 4)).astype(int)
+        gcp_rows = (at[:, None] * n_grid + at[None, :]).ravel()
     names = [f"T{k + 1:03d}" for k in range(ground.shape[0])]
     for n, k in enumerate(gcp_rows):
         names[k] = f"GCP{n + 1}"
@@ -155,8 +161,12 @@ def quaternion(r: np.ndarray) -> np.ndarray:
     )
 
 
-def main() -> None:
-    ground, names, centres, angles, photos = scene()
+def main(out: Path = HERE, n_grid: int = 6, noise_px: float = 0.0) -> None:
+    """Write every format's sample into ``out`` (and the truth); ``noise_px``:
+    Gaussian noise of every image measurement, pixels (0: exact projections,
+    whose only errors are the files' rounding)."""
+    out.mkdir(parents=True, exist_ok=True)
+    ground, names, centres, angles, photos = scene(n_grid)
     rots = [rot(*a) for a in angles]
     gcp = [k for k, n in enumerate(names) if n.startswith("GCP")]
     obs = []  # (photo index, point index, ideal xy mm)
@@ -166,8 +176,10 @@ def main() -> None:
     pi = np.array([o[0] for o in obs])
     pk = np.array([o[1] for o in obs])
     ideal = np.array([o[2] for o in obs])
+    if noise_px:
+        ideal = ideal + np.random.default_rng(6789).normal(0.0, noise_px * PIXEL_MM, ideal.shape)
 
-    truth = HERE / "truth"
+    truth = out / "truth"
     truth.mkdir(exist_ok=True)
     (truth / "points.csv").write_text(
         "point,X,Y,H\n"
@@ -193,7 +205,7 @@ def main() -> None:
     is_gcp = np.isin(pk, gcp)
 
     # The FC300X layout: photos B<strip>_<n>, numeric ids, mm from the image centre
-    fc = HERE / "fc300x"
+    fc = out / "fc300x"
     fc.mkdir(exist_ok=True)
     fc_name = {i: f"B1_{i + 1}" for i in range(5)} | {6 + i: f"B2_{i + 1}" for i in range(5)}
     cpx = calcam_pixels(ideal)
@@ -244,7 +256,7 @@ def main() -> None:
     )
 
     # OpenDroneMap gcp_list.txt (pixels distorted as the COLMAP camera: the same photos)
-    odm = HERE / "odm"
+    odm = out / "odm"
     odm.mkdir(exist_ok=True)
     px = opencv_pixels(ideal)
     lines = [CRS]
@@ -254,7 +266,7 @@ def main() -> None:
     (odm / "gcp_list.txt").write_text("\n".join(lines) + "\n")
 
     # COLMAP text model, geo-registered in the UTM grid (tie points: the non-GCP points)
-    col = HERE / "colmap"
+    col = out / "colmap"
     col.mkdir(exist_ok=True)
     f = FOCAL_MM / PIXEL_MM
     (col / "cameras.txt").write_text(
@@ -297,7 +309,7 @@ def main() -> None:
     (col / "points3D.txt").write_text("\n".join(lines) + "\n")
 
     # PATB: .im (mm, ideal, reduced to the principal point), .con, .ori
-    patb = HERE / "patb"
+    patb = out / "patb"
     patb.mkdir(exist_ok=True)
     lines = []
     for i in range(len(photos)):
@@ -319,7 +331,7 @@ def main() -> None:
     (patb / "block.ori").write_text("\n".join(lines) + "\n")
 
     # Metashape: markers XML (GCPs; GCP8 disabled: a check point) and OPK text
-    ms = HERE / "metashape"
+    ms = out / "metashape"
     ms.mkdir(exist_ok=True)
     mpx = metashape_pixels(ideal)
     cams = "\n".join(
@@ -404,7 +416,7 @@ def main() -> None:
     (ms / "cameras_opk.txt").write_text("\n".join(lines) + "\n")
 
     # Pix4D: marks (ideal pixels, accuracy 0.5 px), GCPs (easting, northing), external parameters
-    p4 = HERE / "pix4d"
+    p4 = out / "pix4d"
     p4.mkdir(exist_ok=True)
     ipx = to_pixel(ideal)
     lines = [
@@ -425,4 +437,10 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    import sys
+
+    # ``--dense DIR``: the runnable samples of examples/import-samples
+    if len(sys.argv) == 3 and sys.argv[1] == "--dense":
+        main(Path(sys.argv[2]), n_grid=14, noise_px=0.3)
+    else:
+        main()
