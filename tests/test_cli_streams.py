@@ -44,3 +44,33 @@ def test_a_failing_run_writes_one_line_to_stderr(tmp_path: Path):
     )
     assert run.returncode == 1
     assert run.stderr.count("\n") == 1 and run.stderr.startswith("stripaero: error: ")
+
+
+def test_quiet_hides_warnings_and_keeps_the_summary(tmp_path: Path):
+    """``-q``: the summary on stdout and nothing on stderr, the warning kept in
+    report.json; without it the warning is on stderr; ``-qq``: nothing."""
+    import json
+
+    toml = simulate_strip(8, seed=1).write_project(tmp_path / "p")
+    control = toml.parent / "control.csv"
+    header = control.read_text().splitlines()[0].split(",")
+    row = {"point": "NOWHERE", "X": "500000", "Y": "4650000", "H": "300", "type": "check"}
+    control.write_text(control.read_text() + ",".join(row.get(c, "") for c in header) + "\n")
+
+    def run(*flags: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-c", CLI, *flags, "run", str(toml)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+
+    loud = run()
+    assert loud.returncode == 0 and "NOWHERE" in loud.stderr
+    quiet = run("-q")
+    assert quiet.returncode == 0 and quiet.stderr == ""
+    assert "check points:" in quiet.stdout
+    report = json.loads((toml.parent / "out" / "report.json").read_text())
+    assert any("NOWHERE" in w for w in report["warnings"])
+    silent = run("-qq")
+    assert silent.returncode == 0 and silent.stderr == "" and silent.stdout == ""

@@ -114,7 +114,8 @@ quiet_opt = click.option(
     count=True,
     expose_value=False,
     callback=_add_count("quiet"),
-    help="No progress messages; -qq also hides warnings and the summary.",
+    help="No progress messages and no warnings (they stay in the report); -qq also "
+    "hides the summary: errors only.",
 )
 debug_opt = click.option(
     "--debug",
@@ -151,8 +152,9 @@ def echo_error(message: object) -> None:
 
 
 def echo_warning(message: object) -> None:
-    """``stripaero: warning: <message>`` on stderr unless ``-qq``."""
-    if settings().level >= -1:
+    """``stripaero: warning: <message>`` on stderr unless ``-q`` (the
+    warnings stay in report.json and report.html)."""
+    if settings().level >= 0:
         click.echo(f"{PROG}: warning: {one_line(message)}", err=True)
 
 
