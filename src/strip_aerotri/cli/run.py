@@ -187,7 +187,7 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     Examples:
       stripaero run examples/film-strip/strip.toml
       stripaero run strip.toml --out results/2024-05 --map-scale 5000
-      stripaero -q run strip.toml            # no progress messages
+      stripaero -q run strip.toml            # the summary only (no warnings)
     """
     from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
     from ..project import load_project, output_folder
