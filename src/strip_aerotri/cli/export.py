@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
@@ -13,6 +14,8 @@ if TYPE_CHECKING:
     from ..project import Project
 
 __all__ = ["export"]
+
+F = TypeVar("F", bound=Callable[..., Any])
 
 
 def _result_folder(project: Project, results: Path | None) -> Path:
@@ -35,6 +38,24 @@ def _write_whole(target: Path, data: str | bytes) -> None:
 
 
 _FROM_HELP = "The run's result folder (default: the project's, as stripaero run chose it)."
+from_option = click.option(
+    "--from",
+    "results",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help=_FROM_HELP,
+)
+
+
+def out_option(default_name: str) -> Callable[[F], F]:
+    """``-o/--out FILE``, by default ``default_name`` in the result folder."""
+    return click.option(
+        "-o",
+        "--out",
+        type=click.Path(dir_okay=False, path_type=Path),
+        default=None,
+        help=f"File to write (default: {default_name} in the result folder).",
+    )
 
 
 @click.group(epilog=DOCS_EPILOG, short_help="Write files for other programs from a run.")
@@ -44,20 +65,8 @@ def export() -> None:
 
 @export.command("cameras", epilog=DOCS_EPILOG)
 @project_arg
-@click.option(
-    "--from",
-    "results",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help=_FROM_HELP,
-)
-@click.option(
-    "-o",
-    "--out",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="File to write (default: cameras_opk.txt in the result folder).",
-)
+@from_option
+@out_option("cameras_opk.txt")
 @common_options
 def cameras(project_file: Path, results: Path | None, out: Path | None) -> None:
     """Photo centres and omega, phi, kappa for Pix4D and Metashape.
@@ -109,20 +118,8 @@ _ROLES = {
 
 @export.command("odm", epilog=DOCS_EPILOG)
 @project_arg
-@click.option(
-    "--from",
-    "results",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help=_FROM_HELP,
-)
-@click.option(
-    "-o",
-    "--out",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="File to write (default: gcp_list.txt in the result folder).",
-)
+@from_option
+@out_option("gcp_list.txt")
 @click.option(
     "--points",
     type=click.Choice(list(_ROLES)),
@@ -201,20 +198,8 @@ def odm(
 
 @export.command("geojson", epilog=DOCS_EPILOG)
 @project_arg
-@click.option(
-    "--from",
-    "results",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help=_FROM_HELP,
-)
-@click.option(
-    "-o",
-    "--out",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="File to write (default: results.geojson in the result folder).",
-)
+@from_option
+@out_option("results.geojson")
 @common_options
 def geojson(project_file: Path, results: Path | None, out: Path | None) -> None:
     """Points and photo centres as GeoJSON (WGS 84 longitude, latitude).
@@ -244,20 +229,8 @@ def geojson(project_file: Path, results: Path | None, out: Path | None) -> None:
 
 @export.command("gpkg", epilog=DOCS_EPILOG)
 @project_arg
-@click.option(
-    "--from",
-    "results",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help=_FROM_HELP,
-)
-@click.option(
-    "-o",
-    "--out",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="File to write (default: results.gpkg in the result folder).",
-)
+@from_option
+@out_option("results.gpkg")
 @common_options
 def gpkg(project_file: Path, results: Path | None, out: Path | None) -> None:
     """Points and photo centres as a GeoPackage in the project's CRS.

@@ -12,36 +12,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from .html import _CSS, _esc, _figure, _fmt, _table, _verdict_cell
+from .html import _CSS, STAT_HEADER, _esc, _figure, _fmt, _table, _verdict_cell, stat_row
 
 __all__ = ["block_html"]
-
-
-def _stat_row(label: str, st: Mapping[str, Any]) -> list[Any]:
-    return [
-        label,
-        st["n_plan"],
-        st["n_height"],
-        st["rmse_e_m"],
-        st["rmse_n_m"],
-        st["rmse_h_m"],
-        st["rmse_plan_m"],
-        st["max_plan_m"],
-        st["max_height_m"],
-    ]
-
-
-_STAT_HEADER = [
-    "set",
-    "n plan",
-    "n height",
-    "RMSE E",
-    "RMSE N",
-    "RMSE H",
-    "RMSE plan",
-    "max plan",
-    "max |dH|",
-]
 
 
 def _plain(report: Mapping[str, Any]) -> str:
@@ -208,8 +181,8 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
     rejections = [r for s in block["strips"] for r in s["rejections"]] + list(report["rejections"])
     others = [w for w in report["warnings"] if w not in set(rejections)]
     stats = [
-        _stat_row("control (used)", report["control"]["statistics"]),
-        _stat_row("check (not used)", report["check"]["statistics"]),
+        stat_row("control (used)", report["control"]["statistics"]),
+        stat_row("check (not used)", report["check"]["statistics"]),
     ]
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
@@ -230,7 +203,7 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
         f"similarity, all at once onto the control and onto each other{_esc(deformation)});"
         f" sigma0 {_fmt(block['sigma0'])}, redundancy {block['redundancy']}.</p>",
         "<h2>Accuracy at control and check points (given − adjusted, metres)</h2>",
-        _table(_STAT_HEADER, stats, digits=3),
+        _table(STAT_HEADER, stats, digits=3),
         _figure(
             figure,
             "The block in plan: photo centres by strip, control and check points; the check "

@@ -139,10 +139,30 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     return _html_page(report, fig_layout, fig_resid, fig_par, fig_ties, long_strip=plan.long)
 
 
+#: The columns of an accuracy row (:func:`stat_row`).
+STAT_HEADER = [
+    "set",
+    "n plan",
+    "n height",
+    "RMSE E",
+    "RMSE N",
+    "RMSE H",
+    "RMSE plan",
+    "mean plan",
+    "max plan",
+    "max |dH|",
+]
+
+
+def stat_row(label: str, st: Mapping[str, Any]) -> list[Any]:
+    """One accuracy row of ``statistics`` (report.json) under ``label``."""
+    keys = ("n_plan", "n_height", "rmse_e_m", "rmse_n_m", "rmse_h_m", "rmse_plan_m")
+    return [label, *(st[k] for k in keys), st["mean_plan_m"], st["max_plan_m"], st["max_height_m"]]
+
+
 def _stat_rows(report: Mapping[str, Any]) -> list[list[Any]]:
     """The accuracy rows: control and check points of the strip method and,
     after a bundle refinement, of the refinement (the coordinates delivered)."""
-    rows = []
     sets: list[tuple[str, Mapping[str, Any]]] = [
         ("control (used)", report["control"]["statistics"]),
         ("check (not used)", report["check"]["statistics"]),
@@ -153,22 +173,7 @@ def _stat_rows(report: Mapping[str, Any]) -> list[list[Any]]:
             ("bundle refinement (delivered): control", bundle["control"]),
             ("bundle refinement (delivered): check", bundle["check"]),
         ]
-    for label, st in sets:
-        rows.append(
-            [
-                label,
-                st["n_plan"],
-                st["n_height"],
-                st["rmse_e_m"],
-                st["rmse_n_m"],
-                st["rmse_h_m"],
-                st["rmse_plan_m"],
-                st["mean_plan_m"],
-                st["max_plan_m"],
-                st["max_height_m"],
-            ]
-        )
-    return rows
+    return [stat_row(label, st) for label, st in sets]
 
 
 def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
@@ -310,18 +315,7 @@ def _html_page(
         _table(["item", "value"], summary, left=1),
         "<h3>Accuracy at control and check points (given − adjusted, metres)</h3>",
         _table(
-            [
-                "set",
-                "n plan",
-                "n height",
-                "RMSE E",
-                "RMSE N",
-                "RMSE H",
-                "RMSE plan",
-                "mean plan",
-                "max plan",
-                "max |dH|",
-            ],
+            STAT_HEADER,
             _stat_rows(report),
             digits=3,
         ),
