@@ -224,6 +224,8 @@ def test_block_of_strips_reports_its_polynomial_and_transfer_errors(tmp_path: Pa
     report = json.loads((toml.parent / "out" / "report.json").read_text())
     block = report["block"]
     assert block["construction"] == "strips" and block["polynomial"] == 2  # the default
+    assert report["options"]["block"] == "strips" and report["options"]["polynomial"] == 2
+    assert report["inputs"]["n_strips"] == 3 and report["inputs"]["n_photos"] == 24
     for join in block["joins"]:
         assert join["transfer_limit_um"] == 40.0
         assert join["transfer_passed"] is (join["mean_transfer_um"] <= 40.0)

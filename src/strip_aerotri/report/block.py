@@ -101,6 +101,8 @@ def build_block_report(
             "file": None if project is None else str(project.path),
             "crs": None if project is None else project.crs,
         },
+        "inputs": _inputs(result),
+        "options": _options(result, project),
         "block": {
             "construction": None if project is None else project.adjustment.block.value,
             "polynomial": result.polynomial,
@@ -146,6 +148,39 @@ def build_block_report(
     }
     cleaned: dict[str, Any] = clean(report)
     return cleaned
+
+
+def _inputs(result: BlockResult) -> dict[str, Any]:
+    """What the block was given, as a strip's ``inputs`` (docs/outputs.md)."""
+    obs = result.observations
+    kinds = [str(getattr(k, "value", k)) for k in result.control.kind]
+    return {
+        "n_strips": len(result.specs),
+        "n_photos": len(result.photo_ids),
+        "n_points": len(result.point_ids),
+        "n_points_triangulated": int(np.isfinite(result.points).all(axis=1).sum()),
+        "n_observations": len(obs.photo),
+        "principal_distance_mm": json_float(obs.principal_distance),
+        "control": {k.value: kinds.count(k.value) for k in ControlType},
+    }
+
+
+def _options(result: BlockResult, project: Project | None) -> dict[str, Any] | None:
+    """The method's choices, as a strip's ``options`` (null without a project)."""
+    if project is None:
+        return None
+    adj = project.adjustment
+    return {
+        "route": None if adj.route is None else adj.route.value,
+        "block": adj.block.value,
+        "models": adj.models.value,
+        "relative_orientation": adj.relative_orientation.value,
+        "intersection": adj.intersection.value,
+        "scale_transfer": adj.scale_transfer.value,
+        "max_iterations": int(adj.max_iterations),
+        "polynomial": result.polynomial if adj.block.value == "strips" else None,
+        "refine": adj.refine.value,
+    }
 
 
 def _control_points(result: BlockResult, *, check: bool) -> list[dict[str, Any]]:
