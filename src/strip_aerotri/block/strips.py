@@ -248,6 +248,7 @@ class _Problem:
     max_iterations: int
     construction: Construction = Construction.MODELS
     polynomial: UnitPolynomial | None = None  # the strips' deformation ("strips")
+    tie_rejected: BoolArray | None = None  # rows the strips' tie tests left out
 
 
 def _prepare(
@@ -312,6 +313,7 @@ def _prepare(
         max_iterations=max_iterations,
         construction=construction,
         polynomial=deformation,
+        tie_rejected=units.tie_rejected,
     )
 
 
@@ -416,6 +418,7 @@ class _Units:
     photo_in_strip: IntArray
     photo_units: IntArray
     centres0: FloatArray
+    tie_rejected: BoolArray  # rows the strips' tie tests left out
 
 
 def _units(
@@ -434,7 +437,7 @@ def _units(
     photo_in_strip = np.zeros(observations.n_photos, dtype=np.intp)
     photo_units = np.zeros((observations.n_photos, 2), dtype=np.intp)
     centres0 = np.zeros((observations.n_photos, 3))
-    units, points, xyz, weights, unit_strip = [], [], [], [], []
+    units, points, xyz, weights, unit_strip, rejected = [], [], [], [], [], []
     scale, rotation, translation = [], [], []
     n_units = 0
     for k, strip in enumerate(strips):
@@ -452,6 +455,7 @@ def _units(
             points.append(np.concatenate([pts, n_points + photos]))
             xyz.append(np.vstack([strip.points[pts], strip.centres]))
             weights.append(np.broadcast_to(w, (pts.size + photos.size, 3, 3)))
+            rejected.append(np.zeros(pts.size + photos.size, dtype=bool))
             photo_units[photos] = n_units
             n_here = 1
         else:
@@ -470,6 +474,14 @@ def _units(
                 np.vstack([strip.model_points, strip.centres[pos[:-1]], strip.centres[pos[1:]]])
             )
             weights.append(np.concatenate([info, c_left, c_right]))
+            # the determinations the strip's tie test left out stay out, as
+            # in one strip's ground stage (the centres are not tested there)
+            tie_out = (
+                np.zeros(strip.model.shape[0], dtype=bool)
+                if strip.rejected_determinations is None
+                else strip.rejected_determinations
+            )
+            rejected.append(np.concatenate([tie_out, np.zeros(2 * strip.n_models, dtype=bool)]))
             # a photo's attitude: the mean of the models it belongs to
             as_left = np.searchsorted(pos[:-1], np.arange(photos.size), side="right") - 1
             photo_units[photos, 0] = n_units + np.clip(as_left, 0, strip.n_models - 1)
@@ -492,7 +504,14 @@ def _units(
         np.zeros((n_units, 3)),
     )
     return _Units(
-        rows, start, np.concatenate(unit_strip), photo_strip, photo_in_strip, photo_units, centres0
+        rows,
+        start,
+        np.concatenate(unit_strip),
+        photo_strip,
+        photo_in_strip,
+        photo_units,
+        centres0,
+        np.concatenate(rejected),
     )
 
 
@@ -653,7 +672,9 @@ def _snoop(
     3-D residuals against chi-square(3), as the ground stage tests a strip's
     models."""
     use_xy, use_z = p.use_xy.copy(), p.use_z.copy()
-    keep_rows = np.ones(p.rows.unit.shape[0], dtype=bool)
+    keep_rows = (
+        np.ones(p.rows.unit.shape[0], dtype=bool) if p.tie_rejected is None else ~p.tie_rejected
+    )
     n_det = int((p.rows.point < p.observations.n_points).sum())
     n_control = int(2 * use_xy.sum() + use_z.sum())
     rejections: list[Rejection] = []
