@@ -334,3 +334,23 @@ def test_long_strips_by_one_similarity_stop_instead_of_rejecting_good_control():
         adjust_block(
             sim.observations, sim.control, sim.crs, specs(sim), construction="strips", polynomial=0
         )
+
+
+@pytest.mark.skipif(not (UAV / "GCP_UTM.txt").is_file(), reason=f"FC300X data not found in {UAV}")
+def test_real_uav_block_of_strips_weighs_its_points_by_their_rays(tmp_path: Path):
+    """``block = "strips"`` on the real FC300X block: its control cannot
+    determine the strips' polynomial terms (all left out, a warning per
+    strip), and the strips' points weighted by their rays put the check
+    points at 0.030 / 0.025 m (0.125 / 0.045 m with one sigma per strip)."""
+    from strip_aerotri.importers.common import write_project
+    from strip_aerotri.importers.uav_fc300x import import_uav_fc300x
+    from strip_aerotri.project import load_project, run_project
+
+    toml = write_project(import_uav_fc300x(UAV), tmp_path / "block")
+    toml.write_text(toml.read_text() + '\n[adjustment]\nblock = "strips"\n')
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        result = run_project(load_project(toml))
+    assert sum("polynomial term(s)" in w for w in result.warnings) == 3
+    assert result.check_statistics.rmse_plan < 0.04
+    assert result.check_statistics.rmse[2] < 0.035
