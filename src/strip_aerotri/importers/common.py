@@ -1028,7 +1028,10 @@ def _default_full(
     """GCPs nearest the start, the middle and the end of one strip, one per side.
 
     Candidates are the ``full`` points seen on at least 3 photos of the strip
-    (2, then 1, when fewer than 6 qualify).  Their ground X, Y are projected on
+    (2 when fewer than 6 qualify), two of them consecutive: a point the strip
+    cannot triangulate is never chosen as control (the samples' strips of
+    five photos chose GCPs seen on one photo, half their control lost).
+    Their ground X, Y are projected on
     their principal axis, oriented with the photo order; at each of the three
     places the nearest candidate on each side of the axis is chosen.
     """
@@ -1043,8 +1046,12 @@ def _default_full(
         (position[p] for p in images.photo[rows]), dtype=np.float64, count=int(rows.sum())
     )
     mean_index = np.bincount(inverse, weights=index) / counts
-    for need in (3, 2, 1):
-        keep = counts >= need
+    # on two consecutive photos of the strip: a pair of it triangulates the point
+    seen = np.zeros((pts.size, len(photos) + 1), dtype=bool)
+    seen[inverse, index.astype(np.intp)] = True
+    paired = (seen[:, :-1] & seen[:, 1:]).any(axis=1)
+    for need in (3, 2):
+        keep = (counts >= need) & paired
         if keep.sum() >= 3 * per_place:
             break
     pts, mean_index = pts[keep], mean_index[keep]
@@ -1139,7 +1146,8 @@ def split_control(
         listed = ", ".join(sorted(chosen, key=natural_key))
         notes.append(
             f"full control: {listed} (per strip the GCPs nearest its start, middle and end, "
-            "one on each side of the strip axis, among those seen on 3 or more photos); "
+            "one on each side of the strip axis, among those seen on 3 or more photos, "
+            "2 when fewer qualify, two of them consecutive); "
             "every other GCP is a check point (change with --control / --check)"
         )
     table = control.take(np.flatnonzero(keep))

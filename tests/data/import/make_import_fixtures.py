@@ -66,7 +66,7 @@ def scene(n_grid: int = 6):
     """The flight over an n_grid x n_grid grid of points (6: the test samples;
     a denser grid gives samples a run can adjust, examples/import-samples)."""
     rng = np.random.default_rng(2345)
-    # ground points on a grid with relief; 8 of them (16 on a dense grid) are GCPs
+    # ground points on a grid with relief; 8 of them (36 on a dense grid) are GCPs
     gx, gy = np.meshgrid(np.linspace(-30.0, 70.0, n_grid), np.linspace(-15.0, 75.0, n_grid))
     xy = np.column_stack([gx.ravel(), gy.ravel()]) + rng.normal(0.0, 3.0, (gx.size, 2))
     ground = np.column_stack(
@@ -74,8 +74,8 @@ def scene(n_grid: int = 6):
     )
     if n_grid == 6:
         gcp_rows = np.array([0, 5, 14, 15, 20, 21, 30, 35])
-    else:  # a 4 x 4 sub-grid, corners included
-        at = np.round(np.linspace(0, n_grid - 1, 4)).astype(int)
+    else:  # a 6 x 6 sub-grid, corners included: control and check points
+        at = np.round(np.linspace(0, n_grid - 1, 6)).astype(int)
         gcp_rows = (at[:, None] * n_grid + at[None, :]).ravel()
     names = [f"T{k + 1:03d}" for k in range(ground.shape[0])]
     for n, k in enumerate(gcp_rows):
