@@ -185,8 +185,9 @@ def adjust_block(
     problem, dropped = _determined_terms(problem)
     solution, used_xy, used_z, keep_rows, rejections = _snoop(problem, blunders)
     result = _products(problem, solution, used_xy, used_z, keep_rows, rejections)
-    if dropped:
-        result = replace(result, warnings=tuple(dropped) + result.warnings)
+    result = replace(
+        result, warnings=_formation_notes(problem, result) + tuple(dropped) + result.warnings
+    )
     timings = {"strips": t_strips, "block": time.perf_counter() - t0 - t_strips}
     if refine:
         t1 = time.perf_counter()
@@ -583,6 +584,28 @@ def _strip_sigmas(strip: StripModel, scale: float) -> tuple[float, float]:
 class _Solution:
     result: SimultaneousResult
     guess: FloatArray
+
+
+def _formation_notes(p: _Problem, result: BlockResult) -> tuple[str, ...]:
+    """The warnings of forming the strips, as one strip's run gives them: every
+    rejection of its blunder tests (tie residuals in metres), and the control
+    points the block does not determine (seen on fewer than two photos of a
+    model, or every determination of them rejected)."""
+    notes = [r.describe() for strip in result.strips for r in strip.rejections]
+    determined = {int(r) for r in p.control_rows}
+    observed = set(p.observations.point_ids)
+    failed = {pid for strip in p.strips for pid in strip.rejected_points}
+    for row, pid in enumerate(p.control.point_ids):
+        if row in determined or pid not in observed:
+            continue
+        why = (
+            "every determination of it failed the tie-point test"
+            if pid in failed
+            else "seen on fewer than two photos of a model"
+        )
+        kind = "check point" if p.control.is_check[row] else "control point"
+        notes.append(f"{kind} {pid!r} is not triangulated ({why}): left out")
+    return tuple(notes)
 
 
 #: A strip's polynomial term whose effect the block determines worse than

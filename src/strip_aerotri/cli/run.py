@@ -96,7 +96,9 @@ def _rejections(result: StripResult | BlockResult) -> tuple[Rejection, ...]:
     """Every rejection of a run, the bundle refinement's included."""
     refined = getattr(result, "refined", None)
     more = tuple(getattr(refined, "rejections", ()))
-    return tuple(result.rejections) + more
+    # a block's strips: the rejections of forming each (a strip's are in its own)
+    formed = tuple(r for strip in getattr(result, "strips", ()) for r in strip.rejections)
+    return formed + tuple(result.rejections) + more
 
 
 def _warning_lines(

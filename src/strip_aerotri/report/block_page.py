@@ -164,6 +164,33 @@ def _bundle(report: Mapping[str, Any]) -> str:
     return "".join(out)
 
 
+_STAGES = {
+    "relative_orientation": "y-parallaxes of the relative orientations",
+    "tie_points": "tie-point determinations (the scale transfer's test)",
+    "models": "point determinations in the block's transformation",
+    "control": "control coordinates",
+    "bundle": "image observations of the bundle refinement",
+}
+
+
+def _rejections(rejections: list[str]) -> str:
+    """How many each test rejected, then every one (a stage's name leads
+    each description)."""
+    if not rejections:
+        return "<p class='na'>none</p>"
+    counts: dict[str, int] = {}
+    for text in rejections:
+        stage = text.split(":", 1)[0]
+        counts[stage] = counts.get(stage, 0) + 1
+    summary = _table(
+        ["test", "rejected"],
+        [[_STAGES.get(stage, stage), n] for stage, n in counts.items()],
+        digits=0,
+    )
+    items = "".join(f"<li>{_esc(r)}</li>" for r in rejections)
+    return f"{summary}<ul class='small'>{items}</ul>"
+
+
 def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
     """The page of a block's ``report.json`` content and its figure (PNG, base64)."""
     block = report["block"]
@@ -222,9 +249,7 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
         _points(report, "control", "Control points (residuals of the components used)"),
         _points(report, "check", "Check points (not used in the adjustment)"),
         "<h2>Observations rejected as blunders</h2>",
-        "<ul>" + "".join(f"<li>{_esc(r)}</li>" for r in rejections) + "</ul>"
-        if rejections
-        else "<p class='na'>none</p>",
+        _rejections(rejections),
         "<h2>Warnings</h2>",
         "<ul>" + "".join(f"<li>{_esc(w)}</li>" for w in others) + "</ul>"
         if others
