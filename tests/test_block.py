@@ -301,6 +301,10 @@ def test_gnss_centres_in_the_block_refinement():
     assert report["bundle"]["gnss"]["n_used"] == len(truth)
     assert len(report["bundle"]["gnss"]["photos"]) == len(truth)
     assert build_block_report(without)["bundle"]["gnss"] is None
+    # the block's own solution beside the refinement's, for comparison
+    own = report["bundle"]["block_check"]
+    assert own["n_plan"] == report["check"]["statistics"]["n_plan"]
+    assert own["rmse_plan_m"] != report["check"]["statistics"]["rmse_plan_m"]
     assert len(report["check"]["points"]) == with_gnss.check_statistics.n_plan
 
 

@@ -586,6 +586,17 @@ class _Solution:
     guess: FloatArray
 
 
+def _terms_kept(p: _Problem) -> tuple[int, ...]:
+    """The polynomial terms each strip kept (a unit is a strip with "strips")."""
+    poly = p.polynomial
+    if poly is None:
+        return ()
+    fixed = np.zeros((p.unit_strip.shape[0], poly.n_terms), dtype=bool)
+    if poly.fixed is not None:
+        fixed = poly.fixed
+    return tuple(int(n) for n in poly.n_terms - fixed.sum(axis=1))
+
+
 def _formation_notes(p: _Problem, result: BlockResult) -> tuple[str, ...]:
     """The warnings of forming the strips, as one strip's run gives them: every
     rejection of its blunder tests (tie residuals in metres), and the control
@@ -1005,6 +1016,7 @@ def _refine(
         warnings=block.warnings + notes,
         refined=True,
         refined_sigma0=float(fr.bundle.sigma0),
+        block_check_statistics=block.check_statistics,
         gnss=gnss_out,
         imu=imu_out,
     )
@@ -1059,6 +1071,7 @@ def _products(
         ),
         sigma0=float(res.sigma0),
         polynomial=0 if p.polynomial is None else p.polynomial.degree,
+        polynomial_terms=_terms_kept(p),
         redundancy=int(res.redundancy),
         iterations=int(res.iterations),
         rejections=rejections,

@@ -305,8 +305,8 @@ def _echo_block(result: BlockResult, name: str, files: dict[str, bytes], target:
         a, b = (result.specs[i].name for i in worst.strips)
         verdict = "within" if worst.mean_transfer_um <= TRANSFER_UM else "above"
         echo_result(
-            f"transfer errors of the free block: largest mean {worst.mean_transfer_um:.0f} um "
-            f"(strips {a} / {b}), {verdict} R4's {TRANSFER_UM:.0f} um"
+            f"transfer errors of the free block: largest mean {worst.mean_transfer_um:.0f} µm "
+            f"(strips {a} / {b}), {verdict} R4's {TRANSFER_UM:.0f} µm"
         )
     echo_result(f"report: {target / 'report.html'}")
     echo_result(f"results: {target}")

@@ -113,9 +113,12 @@ def build_block_report(
                     "n_models": strip.n_models,
                     "scale": json_float(scale),
                     "rejections": [r.describe() for r in strip.rejections],
+                    "polynomial_terms": (
+                        result.polynomial_terms[k] if result.polynomial_terms else None
+                    ),
                 }
-                for spec, strip, scale in zip(
-                    result.specs, result.strips, result.scale, strict=True
+                for k, (spec, strip, scale) in enumerate(
+                    zip(result.specs, result.strips, result.scale, strict=True)
                 )
             ],
             "sigma0": json_float(result.sigma0),
@@ -138,7 +141,14 @@ def build_block_report(
             "points": _control_points(result, check=True),
         },
         "bundle": (
-            {"gnss": _bundle_gnss(result.gnss), "imu": _bundle_imu(result.imu)}
+            {
+                "sigma0": json_float(result.refined_sigma0),
+                "block_check": None
+                if result.block_check_statistics is None
+                else statistics(result.block_check_statistics),
+                "gnss": _bundle_gnss(result.gnss),
+                "imu": _bundle_imu(result.imu),
+            }
             if result.refined
             else None
         ),

@@ -50,19 +50,28 @@ def _plain(report: Mapping[str, Any]) -> str:
         means = [j["mean_plan_m"] for j in joins if j["mean_plan_m"] is not None]
         transfer = [j["mean_transfer_um"] for j in joins if j["mean_transfer_um"] is not None]
         if means:
+            spread = (
+                _fmt(means[0]) if len(means) == 1 else f"{_fmt(min(means))}-{_fmt(max(means))}"
+            )
             text += (
-                f"On the points two strips share, the strips agree to {_fmt(min(means))}-"
-                f"{_fmt(max(means))} m in plan on average"
+                f"On the points two strips share, the strips agree to {spread} m in plan "
+                "on average"
             )
             if transfer:
                 failing = sum(1 for j in joins if j["transfer_passed"] is False)
+                pairs = "pair" if len(joins) == 1 else "pairs"
                 text += (
-                    f"; their transfer errors in the image are {max(transfer):.0f} um at most "
-                    f"on average ({failing} of {len(joins)} pairs of strips above R4's "
-                    f"{joins[0]['transfer_limit_um']:.0f} um)"
+                    f"; their transfer errors in the image are {max(transfer):.0f} µm at most "
+                    f"on average ({failing} of {len(joins)} {pairs} of strips above R4's "
+                    f"{joins[0]['transfer_limit_um']:.0f} µm)"
                 )
             text += ". "
     return f"<p class='plain'>{_esc(text)}</p>"
+
+
+def _readable(criterion: str) -> str:
+    """report.json's plain-ASCII criterion with the signs a reader expects."""
+    return criterion.replace("<=", "≤").replace(" um ", " µm ")
 
 
 def _joins(report: Mapping[str, Any]) -> str:
@@ -90,14 +99,15 @@ def _joins(report: Mapping[str, Any]) -> str:
         "mean |dH| [m]",
         "max |dH| [m]",
         "R4 1.7.7.7",
-        "mean transfer [um]",
-        "max transfer [um]",
+        "mean transfer [µm]",
+        "max transfer [µm]",
         "R4 1.7.7.3",
     ]
     digits = [0, 0, 3, 3, 3, 3, 0, 1, 1, 0]
     return (
         "<h2>How well the strips fit together (R4 1.7.7.3, 1.7.7.7)</h2>"
-        f"<p>{_esc(block['join_criterion'])}; {_esc(block['transfer_criterion'])}. "
+        f"<p>{_esc(_readable(block['join_criterion']))}; "
+        f"{_esc(_readable(block['transfer_criterion']))}. "
         "A point two strips share is placed by each strip; the table compares the two "
         "places, on the ground in the adjusted block and, as transfer errors in the image, "
         "in the free block (the block transformed onto itself only, the control holding "
@@ -129,6 +139,14 @@ def _bundle(report: Mapping[str, Any]) -> str:
         "coordinates of points.csv and photos.csv are the refinement's; the joins are "
         "those of the block's transformation.</p>",
     ]
+    own = bundle.get("block_check")
+    if own is not None:
+        out.append(
+            f"<p>The block's own solution at the same check points: "
+            f"{_fmt(own['rmse_plan_m'])} m in plan, {_fmt(own['rmse_h_m'])} m in height "
+            f"(the refinement: {_fmt(report['check']['statistics']['rmse_plan_m'])} m and "
+            f"{_fmt(report['check']['statistics']['rmse_h_m'])} m).</p>"
+        )
     gnss, imu = bundle.get("gnss"), bundle.get("imu")
     if gnss is not None:
         out.append(
@@ -196,11 +214,18 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
     block = report["block"]
     project = report["project"]
     name = project["name"] or "Block"
-    deformation = (
-        f"; every strip with its own polynomial of type {block['polynomial']}"
-        if block.get("polynomial")
-        else ""
-    )
+    deformation = ""
+    if block.get("polynomial"):
+        n_terms = 3 * int(block["polynomial"])
+        kept = ", ".join(
+            f"{s['name']} {s['polynomial_terms']} of {n_terms}"
+            for s in block["strips"]
+            if s.get("polynomial_terms") is not None
+        )
+        deformation = (
+            f"; every strip with its own polynomial of type {block['polynomial']}, "
+            f"terms kept: {kept}"
+        )
     strips = [
         [s["name"], len(s["photos"]), s["n_models"], s["scale"], len(s["rejections"])]
         for s in block["strips"]

@@ -104,6 +104,12 @@ class BlockResult:
     polynomial : int
         J(16)'s type of every strip's own deformation polynomial (block of
         independent strips), 0 for none.
+    polynomial_terms : tuple of int
+        The polynomial terms each strip kept (those the control and the
+        common points determine); empty without a polynomial.
+    block_check_statistics : AccuracyStatistics or None
+        After a bundle refinement: the check points of the block's own
+        transformation, for comparison (None without a refinement).
     """
 
     specs: tuple[StripSpec, ...]
@@ -132,6 +138,8 @@ class BlockResult:
     refined: bool = False
     refined_sigma0: float = float("nan")
     polynomial: int = 0
+    polynomial_terms: tuple[int, ...] = ()
+    block_check_statistics: AccuracyStatistics | None = None
     gnss: GnssResiduals | None = None
     imu: ImuResiduals | None = None
 
