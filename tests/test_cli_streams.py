@@ -74,3 +74,26 @@ def test_quiet_hides_warnings_and_keeps_the_summary(tmp_path: Path):
     assert any("NOWHERE" in w for w in report["warnings"])
     silent = run("-qq")
     assert silent.returncode == 0 and silent.stderr == "" and silent.stdout == ""
+
+
+def test_verbose_levels_of_a_block(tmp_path: Path):
+    """A block's run: ``-v`` names every strip and every join, ``-vv`` adds
+    every control and check point's residual."""
+    from strip_aerotri.simulate import simulate_block
+
+    toml = simulate_block(2, 6, preset="film", seed=3).write_project(tmp_path / "b")
+
+    def run(*flags: str) -> str:
+        done = subprocess.run(
+            [sys.executable, "-c", CLI, *flags, "run", str(toml)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert done.returncode == 0, done.stderr
+        return done.stderr
+
+    once, twice = run("-v"), run("-vv")
+    assert "strip S1:" in once and "strips S1 / S2:" in once
+    assert "dE, dN, dH" not in once
+    assert "check " in twice and "dE, dN, dH" in twice

@@ -236,6 +236,7 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
             folder.write_bytes(name, data if isinstance(data, bytes) else str(data).encode())
 
     if isinstance(result, BlockResult):
+        _echo_block_details(result)
         _echo_block(result, project.name, files, target)
         return
     _echo_details(result)
@@ -267,6 +268,37 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         echo_result(f"report: {target / report_name}")
     echo_result(f"results: {target}")
     echo_progress(f"done in {elapsed:.1f} s", level=1)
+
+
+def _echo_block_details(result: BlockResult) -> None:
+    """With ``-v`` every strip's models and tie points, the joins and the
+    timings; with ``-vv`` also every control and check point's residual."""
+    import numpy as np
+
+    for spec, strip in zip(result.specs, result.strips, strict=True):
+        rel = strip.relative
+        echo_progress(
+            f"strip {spec.name}: {strip.n_models} models, y-parallax sigma0 "
+            f"{float(np.median(rel.sigma0_um)):.1f} µm (median of its pairs), "
+            f"{len(strip.rejections)} rejections",
+            level=1,
+        )
+    for join in result.joins:
+        a, b = (result.specs[i].name for i in join.strips)
+        echo_progress(
+            f"strips {a} / {b}: {join.n_points} common points, mean plan "
+            f"{join.mean_plan_m:.3f} m, largest {join.max_plan_m:.3f} m, transfer "
+            f"{join.mean_transfer_um:.0f} µm",
+            level=1,
+        )
+    for stage, seconds in result.timings.items():
+        echo_progress(f"{stage}: {seconds:.2f} s", level=1)
+    for row, resid, check in zip(
+        result.control_index, result.control_residuals, result.is_check, strict=True
+    ):
+        what = "check" if check else "control"
+        values = ", ".join("-" if v != v else f"{v:+.3f}" for v in resid)
+        echo_progress(f"{what} {result.control.point_ids[row]}: dE, dN, dH {values} m", level=2)
 
 
 def _echo_block(result: BlockResult, name: str, files: dict[str, bytes], target: Path) -> None:
