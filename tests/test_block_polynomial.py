@@ -229,12 +229,17 @@ def test_block_of_strips_reports_its_polynomial_and_transfer_errors(tmp_path: Pa
     assert report["options"]["block"] == "strips" and report["options"]["polynomial"] == 2
     assert report["inputs"]["n_strips"] == 3 and report["inputs"]["n_photos"] == 24
     assert all(0 <= s["polynomial_terms"] <= 6 for s in block["strips"])
+    # R4's check-point criterion at the map scale, as a strip's report has it
+    first = report["tolerances"]["criteria"][0]
+    assert first["name"] == "check_mean_plan" and first["limit"] == 0.3e-3 * 5000
+    assert first["passed"] is (first["value"] <= first["limit"])
     for join in block["joins"]:
         assert join["transfer_limit_um"] == 40.0
         assert join["transfer_passed"] is (join["mean_transfer_um"] <= 40.0)
         assert 0 < join["mean_transfer_um"] <= join["max_transfer_um"]
     page = (toml.parent / "out" / "report.html").read_text()
     assert "mean transfer [µm]" in page and "polynomial of type 2" in page
+    assert "Tolerances (R4 §1.7.7):" in page and "check_mean_plan" in page
 
 
 def test_terms_the_control_cannot_determine_are_left_out():

@@ -152,12 +152,38 @@ def build_block_report(
             if result.refined
             else None
         ),
+        "tolerances": _tolerances(result, map_scale),
         "rejections": [r.describe() for r in result.rejections],
         "warnings": list(result.warnings),
         "timings_s": dict(result.timings),
     }
     cleaned: dict[str, Any] = clean(report)
     return cleaned
+
+
+def _tolerances(result: BlockResult, map_scale: float | None) -> dict[str, Any]:
+    """R4 §1.7.7's check-point criteria for the block, as a strip's (the
+    mean plan discrepancy at the map scale, and the distribution of dE, dN);
+    the joins carry the criteria of the common points."""
+    from .tolerances import check_mean_plan, residual_distribution
+
+    resid = np.asarray(result.control_residuals, dtype=np.float64).reshape(-1, 3)
+    check = np.asarray(result.is_check, dtype=bool)
+    criteria = (
+        check_mean_plan(np.hypot(resid[check, 0], resid[check, 1]), map_scale),
+        *residual_distribution(
+            resid[check, :2].reshape(-1),
+            prefix="check_en",
+            what="check-point discrepancies dE, dN",
+            unit="m",
+        ),
+    )
+    judged = [c.passed for c in criteria if c.passed is not None]
+    return {
+        "map_scale": map_scale,
+        "criteria": [c.as_dict() for c in criteria],
+        "passed": None if not judged else all(judged),
+    }
 
 
 def _inputs(result: BlockResult) -> dict[str, Any]:

@@ -12,7 +12,17 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from .html import _CSS, STAT_HEADER, _esc, _figure, _fmt, _table, _verdict_cell, stat_row
+from .html import (
+    _CSS,
+    STAT_HEADER,
+    _esc,
+    _figure,
+    _fmt,
+    _table,
+    _verdict_cell,
+    criteria_table,
+    stat_row,
+)
 
 __all__ = ["block_html"]
 
@@ -67,6 +77,21 @@ def _plain(report: Mapping[str, Any]) -> str:
                 )
             text += ". "
     return f"<p class='plain'>{_esc(text)}</p>"
+
+
+def _verdict_banner(report: Mapping[str, Any]) -> str:
+    """R4's verdict at the check points and on the joins, first on the page."""
+    verdicts = [report["tolerances"]["passed"]]
+    verdicts += [j["passed"] for j in report["block"]["joins"]]
+    verdicts += [j["transfer_passed"] for j in report["block"]["joins"]]
+    judged = [v for v in verdicts if v is not None]
+    if not judged:
+        cls, text = "na", "not judged (give the map scale: [report] map_scale or --map-scale)"
+    elif all(judged):
+        cls, text = "pass", "all judged criteria pass"
+    else:
+        cls, text = "fail", "at least one criterion fails"
+    return f"<div class='verdict {cls}'>Tolerances (R4 §1.7.7): {_esc(text)}</div>"
 
 
 def _readable(criterion: str) -> str:
@@ -246,6 +271,7 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
         f" · {_esc(report.get('created_utc') or report.get('created'))}"
         + (f" · {_esc(project['crs'])}" if project.get("crs") else "")
         + "</p>",
+        _verdict_banner(report),
         _plain(report),
         "<p class='sub'>R4: the production rules of analytical phototriangulation whose "
         "tolerances this report applies; a <em>model</em> is the 3D model of one pair of "
@@ -269,6 +295,8 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
             digits=[0, 0, 0, 3, 0],
         ),
         _joins(report),
+        "<h2>Tolerance verdicts at the check points (R4 §1.7.7)</h2>",
+        criteria_table(report["tolerances"]["criteria"]),
         _bundle(report),
         "<h2>Control and check points</h2>",
         _points(report, "control", "Control points (residuals of the components used)"),

@@ -176,6 +176,29 @@ def _stat_rows(report: Mapping[str, Any]) -> list[list[Any]]:
     return [stat_row(label, st) for label, st in sets]
 
 
+def criteria_table(criteria: list[Mapping[str, Any]]) -> str:
+    """The R4 criteria of report.json's ``tolerances`` as a table."""
+    return _table(
+        ["criterion", "source", "n", "value", "limit", "unit", "verdict", "explanation"],
+        [
+            [
+                c["name"],
+                c["source"],
+                c["n"],
+                c["value"],
+                c["limit"],
+                c["unit"],
+                _verdict_cell(c["passed"]),
+                (f"<span style='white-space:normal'>{_esc(c['explanation'])}</span>",),
+            ]
+            for c in criteria
+        ],
+        left=2,
+        left_columns=(7,),
+        digits=[0, 0, 0, 4, 4, 0, 0, 0],
+    )
+
+
 def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
     """The result in two sentences for a reader who is not a photogrammetrist."""
     inp, chk = report["inputs"], report["check"]["statistics"]
@@ -349,25 +372,7 @@ def _html_page(
             "tie-point differences",
         ),
         "<h2>Tolerance verdicts (R4 §1.7.7)</h2>",
-        _table(
-            ["criterion", "source", "n", "value", "limit", "unit", "verdict", "explanation"],
-            [
-                [
-                    c["name"],
-                    c["source"],
-                    c["n"],
-                    c["value"],
-                    c["limit"],
-                    c["unit"],
-                    _verdict_cell(c["passed"]),
-                    (f"<span style='white-space:normal'>{_esc(c['explanation'])}</span>",),
-                ]
-                for c in tol["criteria"]
-            ],
-            left=2,
-            left_columns=(7,),
-            digits=[0, 0, 0, 4, 4, 0, 0, 0],
-        ),
+        criteria_table(tol["criteria"]),
     ]
     parts += _html_tables(report)
     parts.append(
