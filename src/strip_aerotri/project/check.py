@@ -189,6 +189,7 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
     from ..block.strips import strip_observations
 
     triangulable = np.zeros(project.observations.n_points, dtype=bool)
+    per_strip: list[str] = []
     for spec in project.strips:
         sub = dataclasses.replace(
             project,
@@ -201,6 +202,16 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
         if not own.problems:
             _check_formation(own, sub, spec.name)
         triangulable |= facts.triangulable
+        if facts.n_models:
+            ties = (
+                f", tie points per model {int(facts.ties[1:].min())}..{int(facts.ties[1:].max())}"
+                if facts.n_models > 1
+                else ""
+            )
+            per_strip.append(
+                f"strip '{spec.name}': {len(spec.photo_ids)} photos, {facts.n_models} pairs, "
+                f"{int(facts.counts.min())}..{int(facts.counts.max())} common points{ties}"
+            )
         rep.problems += [f"strip '{spec.name}': {p}" for p in own.problems]
         rep.details += [f"strip '{spec.name}': {d}" for d in own.details]
     rep.problems += control_problems(
@@ -213,13 +224,16 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
     except StripAerotriError as exc:
         rep.problems.append(str(exc))
         target = None
+    kinds = [k.value for k in project.control.kind]
+    by_kind = ", ".join(f"{kinds.count(k)} {k}" for k in ("full", "plan", "height", "check"))
     rep.summary += [
         f"project '{project.name}': {project.path}",
         f"block: {len(project.strips)} strips, {len(project.photo_ids)} photos "
         f"({', '.join(f'{s.name}: {len(s.photo_ids)}' for s in project.strips)})",
-        f"image points: {project.observations.n_points}, {int(triangulable.sum())} measured "
-        "on a pair",
-        f"control: usable {len(plan_ids)} plan, {len(height_ids)} height",
+        *per_strip,
+        f"image points: {project.observations.n_points} on {len(project.observations.photo)} "
+        f"observations, {int(triangulable.sum())} measured on a pair",
+        f"control: {by_kind}; usable {len(plan_ids)} plan, {len(height_ids)} height",
         f"crs: {project.crs}; route {project.adjustment.route.value}; "
         f"block = {project.adjustment.block.value}",
     ]
