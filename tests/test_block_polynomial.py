@@ -229,6 +229,10 @@ def test_block_of_strips_reports_its_polynomial_and_transfer_errors(tmp_path: Pa
     assert report["options"]["block"] == "strips" and report["options"]["polynomial"] == 2
     assert report["inputs"]["n_strips"] == 3 and report["inputs"]["n_photos"] == 24
     assert all(0 <= s["polynomial_terms"] <= 6 for s in block["strips"])
+    # the strips' own determinations meet the control less closely than the
+    # adjusted points, which the control holds
+    fit, held = report["control"]["fit_statistics"], report["control"]["statistics"]
+    assert fit["n_plan"] == held["n_plan"] and fit["rmse_plan_m"] > held["rmse_plan_m"]
     # R4's check-point criterion at the map scale, as a strip's report has it
     first = report["tolerances"]["criteria"][0]
     assert first["name"] == "check_mean_plan" and first["limit"] == 0.3e-3 * 5000

@@ -586,6 +586,24 @@ class _Solution:
     guess: FloatArray
 
 
+def _unit_means(p: _Problem, t: UnitTransforms, keep_rows: BoolArray) -> FloatArray:
+    """Every point's mean over the units' determinations of it, work frame
+    (P, 3; NaN for points no kept row determines)."""
+    n_points = p.observations.n_points
+    r = p.rows
+    rows = (r.point < n_points) & keep_rows
+    placed = t.apply(r.unit[rows], r.xyz[rows])
+    counts = np.bincount(r.point[rows], minlength=n_points).astype(np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means: FloatArray = np.column_stack(
+            [
+                np.bincount(r.point[rows], placed[:, c], minlength=n_points) / counts
+                for c in range(3)
+            ]
+        )
+    return means
+
+
 def _terms_kept(p: _Problem) -> tuple[int, ...]:
     """The polynomial terms each strip kept (a unit is a strip with "strips")."""
     poly = p.polynomial
@@ -1044,6 +1062,11 @@ def _products(
     used = resid.copy()
     used[~use_xy, :2] = np.nan
     used[~use_z, 2] = np.nan
+    # how well the units themselves meet the control: given minus the mean of
+    # their determinations of the point (the adjusted point also leans on the
+    # control, the more the less the units weigh)
+    own = work.enu_from_work(given_work - _unit_means(p, t, keep_rows)[p.idx])
+    own[np.isnan(used)] = np.nan
     return BlockResult(
         specs=p.specs,
         strips=tuple(  # the tie test's residuals in metres
@@ -1064,6 +1087,7 @@ def _products(
         used_h=use_z,
         control_statistics=AccuracyStatistics.from_residuals(used[~p.check]),
         check_statistics=AccuracyStatistics.from_residuals(resid[p.check]),
+        control_fit_statistics=AccuracyStatistics.from_residuals(own[~p.check]),
         joins=_with_transfer(
             _joins(p, t, keep_rows),
             _joins(p, _free_block(p, sol, use_xy | use_z, keep_rows), keep_rows),

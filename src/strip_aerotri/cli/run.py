@@ -237,7 +237,7 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
 
     if isinstance(result, BlockResult):
         _echo_block_details(result)
-        _echo_block(result, project.name, files, target)
+        _echo_block(result, project.name, files, target, project.adjustment.block.value)
         return
     _echo_details(result)
     elapsed = time.perf_counter() - started
@@ -301,7 +301,13 @@ def _echo_block_details(result: BlockResult) -> None:
         echo_progress(f"{what} {result.control.point_ids[row]}: dE, dN, dH {values} m", level=2)
 
 
-def _echo_block(result: BlockResult, name: str, files: dict[str, bytes], target: Path) -> None:
+def _echo_block(
+    result: BlockResult,
+    name: str,
+    files: dict[str, bytes],
+    target: Path,
+    construction: str = "model",
+) -> None:
     """The summary of a block's run."""
     import numpy as np
 
@@ -311,9 +317,16 @@ def _echo_block(result: BlockResult, name: str, files: dict[str, bytes], target:
         f"{n_done} points"
     )
     control, check = result.control_statistics, result.check_statistics
+    fit = result.control_fit_statistics
+    own = (
+        ""
+        if fit is None or result.refined
+        else f" (the {construction.rstrip('s')}s' own determinations: {_fmt_m(fit.rmse_plan)}, "
+        f"{_fmt_m(float(fit.rmse[2]))})"
+    )
     echo_result(
         f"control: {control.n_plan} plan, {control.n_height} height; "
-        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}"
+        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}{own}"
     )
     if check.n_plan or check.n_height:
         echo_result(

@@ -134,6 +134,9 @@ def build_block_report(
         },
         "control": {
             "statistics": statistics(result.control_statistics),
+            "fit_statistics": None
+            if result.control_fit_statistics is None
+            else statistics(result.control_fit_statistics),
             "points": _control_points(result, check=False),
         },
         "check": {

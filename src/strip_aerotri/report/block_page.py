@@ -257,10 +257,11 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
     ]
     rejections = [r for s in block["strips"] for r in s["rejections"]] + list(report["rejections"])
     others = [w for w in report["warnings"] if w not in set(rejections)]
-    stats = [
-        stat_row("control (used)", report["control"]["statistics"]),
-        stat_row("check (not used)", report["check"]["statistics"]),
-    ]
+    stats = [stat_row("control (used)", report["control"]["statistics"])]
+    if report["control"].get("fit_statistics") is not None:
+        label = f"control: the {block['construction'] or 'unit'}s' own determinations"
+        stats.append(stat_row(label, report["control"]["fit_statistics"]))
+    stats.append(stat_row("check (not used)", report["check"]["statistics"]))
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
         "<meta name='viewport' content='width=device-width, initial-scale=1'>",

@@ -104,6 +104,11 @@ class BlockResult:
     polynomial : int
         J(16)'s type of every strip's own deformation polynomial (block of
         independent strips), 0 for none.
+    control_fit_statistics : AccuracyStatistics or None
+        Given minus the mean of the units' own determinations at the control
+        used: how well the strips (or models) themselves meet the control,
+        where ``control_statistics`` compares with the adjusted points,
+        which lean on the control too.
     polynomial_terms : tuple of int
         The polynomial terms each strip kept (those the control and the
         common points determine); empty without a polynomial.
@@ -139,6 +144,7 @@ class BlockResult:
     refined_sigma0: float = float("nan")
     polynomial: int = 0
     polynomial_terms: tuple[int, ...] = ()
+    control_fit_statistics: AccuracyStatistics | None = None
     block_check_statistics: AccuracyStatistics | None = None
     gnss: GnssResiduals | None = None
     imu: ImuResiduals | None = None
