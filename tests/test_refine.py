@@ -307,16 +307,15 @@ def test_tolerance_verdicts_judge_the_refined_points():
     assert verdicts0["check_mean_plan"].value == pytest.approx(np.mean(ground_plan))
 
 
-def test_points_csv_residuals_are_those_of_the_refined_points(tmp_path):
-    """With ``refine = "bundle"`` points.csv holds the refined X, Y, H and
-    its dE, dN, dH are given minus *those* coordinates (they were the strip
-    method's, which did not match the file's own coordinates)."""
-    import csv
+@pytest.fixture(scope="module")
+def refined_run(tmp_path_factory):
+    """A 12-photo film strip run by ``stripaero run`` with ``refine = "bundle"``:
+    the simulation and the project file."""
     import subprocess
     import sys
 
     sim = simulate_strip(12, seed=3)
-    toml = sim.write_project(tmp_path / "p")
+    toml = sim.write_project(tmp_path_factory.mktemp("refined") / "p")
     toml.write_text(
         toml.read_text().replace("[adjustment]\n", '[adjustment]\nrefine = "bundle"\n')
     )
@@ -325,6 +324,16 @@ def test_points_csv_residuals_are_those_of_the_refined_points(tmp_path):
         [sys.executable, "-c", code, "run", str(toml)], capture_output=True, text=True
     )
     assert run.returncode == 0, run.stderr
+    return sim, toml
+
+
+def test_points_csv_residuals_are_those_of_the_refined_points(refined_run):
+    """With ``refine = "bundle"`` points.csv holds the refined X, Y, H and
+    its dE, dN, dH are given minus *those* coordinates (they were the strip
+    method's, which did not match the file's own coordinates)."""
+    import csv
+
+    sim, toml = refined_run
     given = {
         pid: xyz
         for pid, xyz, kind in zip(
@@ -346,24 +355,13 @@ def test_points_csv_residuals_are_those_of_the_refined_points(tmp_path):
         assert abs((given[r["point"]] - adjusted - resid)[2]) < 1e-4
 
 
-def test_the_report_page_leads_with_the_refined_accuracy(tmp_path):
+def test_the_report_page_leads_with_the_refined_accuracy(refined_run):
     """With ``refine = "bundle"`` the page's plain summary gives the check
     points of the refinement (the coordinates delivered), names the strip
     method's beside them, and the accuracy table has both."""
     import json
-    import subprocess
-    import sys
 
-    sim = simulate_strip(12, seed=3)
-    toml = sim.write_project(tmp_path / "p")
-    toml.write_text(
-        toml.read_text().replace("[adjustment]\n", '[adjustment]\nrefine = "bundle"\n')
-    )
-    code = "import sys; from strip_aerotri.cli.main import cli; sys.exit(cli())"
-    run = subprocess.run(
-        [sys.executable, "-c", code, "run", str(toml)], capture_output=True, text=True
-    )
-    assert run.returncode == 0, run.stderr
+    _, toml = refined_run
     out = toml.parent / "out"
     report = json.loads((out / "report.json").read_text())
     refined = report["bundle"]["check"]["rmse_plan_m"]

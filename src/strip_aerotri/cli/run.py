@@ -21,6 +21,7 @@ from .options import (
 )
 
 if TYPE_CHECKING:  # the numerical modules are imported when the command runs
+    from .._typing import ArrayLike
     from ..results import BlockResult, Rejection, StripResult
 
 __all__ = ["run"]
@@ -70,16 +71,36 @@ def _echo_details(result: StripResult) -> None:
             f"{int(rel.iterations[m])} iterations{tie}",
             level=1,
         )
-    for stage, seconds in result.timings.items():
-        echo_progress(f"{stage}: {seconds:.2f} s", level=1)
     # -vv: every control and check point's residual, and every rejection
     ground = result.refined if result.refined is not None else result.ground
+    _echo_timings_and_residuals(
+        result.timings,
+        result.control.point_ids,
+        ground.control_index,
+        ground.control_residuals,
+        ground.is_check,
+    )
+
+
+def _echo_timings_and_residuals(
+    timings: dict[str, float],
+    ids: Sequence[str],
+    rows: ArrayLike,
+    residuals: ArrayLike,
+    is_check: ArrayLike,
+) -> None:
+    """The stages' times with ``-v``; every control and check point's
+    residual (given − adjusted, metres) with ``-vv``."""
+    for stage, seconds in timings.items():
+        echo_progress(f"{stage}: {seconds:.2f} s", level=1)
+    import numpy as np
+
     for row, resid, check in zip(
-        ground.control_index, ground.control_residuals, ground.is_check, strict=True
+        np.asarray(rows), np.asarray(residuals), np.asarray(is_check), strict=True
     ):
         what = "check" if check else "control"
         values = ", ".join("-" if v != v else f"{v:+.3f}" for v in resid)
-        echo_progress(f"{what} {result.control.point_ids[row]}: dE, dN, dH {values} m", level=2)
+        echo_progress(f"{what} {ids[row]}: dE, dN, dH {values} m", level=2)
 
 
 #: What each stage's blunder test rejects, for the summary line.
@@ -291,14 +312,13 @@ def _echo_block_details(result: BlockResult) -> None:
             f"{join.mean_transfer_um:.0f} µm",
             level=1,
         )
-    for stage, seconds in result.timings.items():
-        echo_progress(f"{stage}: {seconds:.2f} s", level=1)
-    for row, resid, check in zip(
-        result.control_index, result.control_residuals, result.is_check, strict=True
-    ):
-        what = "check" if check else "control"
-        values = ", ".join("-" if v != v else f"{v:+.3f}" for v in resid)
-        echo_progress(f"{what} {result.control.point_ids[row]}: dE, dN, dH {values} m", level=2)
+    _echo_timings_and_residuals(
+        result.timings,
+        result.control.point_ids,
+        result.control_index,
+        result.control_residuals,
+        result.is_check,
+    )
 
 
 def _echo_block(
