@@ -263,3 +263,25 @@ def test_terms_the_control_cannot_determine_are_left_out():
     notes = [w for w in result.warnings if "polynomial term(s)" in w]
     assert len(notes) == 3 and all("u² across" in n for n in notes)
     assert result.check_statistics.rmse_plan < 3.0 * bundle.check_statistics.rmse_plan
+
+
+def test_simulated_block_with_a_polynomial_runs_as_a_block_of_strips(tmp_path: Path):
+    """``stripaero simulate --strips N --polynomial P`` writes block = "strips"
+    (a polynomial of block = "models" is refused by run); "auto" is refused
+    for a block at once; the run prints R4's tolerance line at the map scale."""
+    from click.testing import CliRunner
+
+    from strip_aerotri.cli.main import cli
+
+    runner = CliRunner()
+    out = tmp_path / "b"
+    args = ["simulate", "drone", "--strips", "2", "--photos", "6", "--out", str(out)]
+    made = runner.invoke(cli, [*args, "--polynomial", "2"])
+    assert made.exit_code == 0, made.output
+    text = (out / "strip.toml").read_text()
+    assert 'block = "strips"' in text and "polynomial = 2" in text
+    ran = runner.invoke(cli, ["run", str(out / "strip.toml"), "--map-scale", "1000"])
+    assert ran.exit_code == 0, ran.output
+    assert "tolerances for 1:1000:" in ran.stdout
+    auto = runner.invoke(cli, [*args, "--polynomial", "auto", "--force"])
+    assert auto.exit_code == 2 and "auto" in auto.output

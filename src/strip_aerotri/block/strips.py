@@ -618,19 +618,22 @@ def _terms_kept(p: _Problem) -> tuple[int, ...]:
 def _formation_notes(p: _Problem, result: BlockResult) -> tuple[str, ...]:
     """The warnings of forming the strips, as one strip's run gives them: every
     rejection of its blunder tests (tie residuals in metres), and the control
-    points the block does not determine (seen on fewer than two photos of a
-    model, or every determination of them rejected)."""
+    points on two photos or more that the block does not determine (not on
+    both photos of a pair, or every determination of them rejected)."""
     notes = [r.describe() for strip in result.strips for r in strip.rejections]
     determined = {int(r) for r in p.control_rows}
-    observed = set(p.observations.point_ids)
+    obs = p.observations
+    # points on one photo only: the loader has said so, once for all of them
+    n_photos = np.bincount(obs.point, minlength=obs.n_points)
+    on_pairs = {pid for pid, n in zip(obs.point_ids, n_photos, strict=True) if n >= 2}
     failed = {pid for strip in p.strips for pid in strip.rejected_points}
     for row, pid in enumerate(p.control.point_ids):
-        if row in determined or pid not in observed:
+        if row in determined or pid not in on_pairs:
             continue
         why = (
             "every determination of it failed the tie-point test"
             if pid in failed
-            else "seen on fewer than two photos of a model"
+            else "not measured on both photos of any pair"
         )
         kind = "check point" if p.control.is_check[row] else "control point"
         notes.append(f"{kind} {pid!r} is not triangulated ({why}): left out")

@@ -373,5 +373,8 @@ def _echo_block(
             f"transfer errors of the free block: largest mean {worst.mean_transfer_um:.0f} µm "
             f"(strips {a} / {b}), {verdict} R4's {TRANSFER_UM:.0f} µm"
         )
+    tolerance = _tolerance_verdict(files.get("report.json"))
+    if tolerance is not None:
+        echo_result(tolerance)
     echo_result(f"report: {target / 'report.html'}")
     echo_result(f"results: {target}")

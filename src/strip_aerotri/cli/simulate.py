@@ -10,7 +10,7 @@ import click
 from .options import DOCS_EPILOG, common_options, echo_progress, echo_result
 
 if TYPE_CHECKING:  # the simulator is imported when the command runs
-    from ..simulate import SimulatedStrip, StripPreset
+    from ..simulate import SimulatedBlock, SimulatedStrip, StripPreset
 
 __all__ = ["BLOCK_CONTROL_LAYOUTS", "CAMERA_NAMES", "CONTROL_LAYOUTS", "PRESET_NAMES", "simulate"]
 
@@ -168,8 +168,9 @@ FLIGHTS = ("serpentine", "same")
     "--polynomial",
     type=click.Choice(["0", "1", "2", "3", "auto"]),
     default=None,
-    help="[adjustment] polynomial written to strip.toml (J's construction); without it "
-    "every model is transformed at once (the default).",
+    help="[adjustment] polynomial written to strip.toml (J's construction; with --strips "
+    'every strip\'s own, block = "strips", 0-3); without it every model is transformed at '
+    "once (the default).",
 )
 @click.option(
     "--force",
@@ -328,10 +329,7 @@ def simulate(
             sim = simulate_strip(photos, line=line if camera is None else None, **common)
     except ValueError as exc:
         raise ConfigError(f"simulate {what}: {exc}") from exc
-    poly: int | str | None = (
-        None if polynomial is None else polynomial if polynomial == "auto" else int(polynomial)
-    )
-    toml_path = sim.write_project(out, polynomial=poly)
+    toml_path = _write(sim, out, polynomial)
     obs = sim.observations
     kinds = [k.value for k in sim.control.kind]
     counts = f"{len(kinds) - kinds.count('check')} control and {kinds.count('check')} check points"
@@ -347,3 +345,23 @@ def simulate(
             + (f", {len(sim.lines)} straight line(s)" if sim.lines else "")
         )
     echo_result(f"run it with: stripaero run {toml_path}")
+
+
+def _write(sim: SimulatedStrip | SimulatedBlock, out: Path, polynomial: str | None) -> Path:
+    """The project files; a block's polynomials are every strip's own
+    (``block = "strips"``), and "auto" is for one strip."""
+    from ..simulate import SimulatedBlock
+
+    poly: int | str | None = (
+        None if polynomial is None else polynomial if polynomial == "auto" else int(polynomial)
+    )
+    if isinstance(sim, SimulatedBlock):
+        if poly == "auto":
+            raise click.BadParameter(
+                "\"auto\" chooses a type from one strip's control, not a block's: give 0-3",
+                param_hint="--polynomial",
+            )
+        return sim.write_project(
+            out, polynomial=poly, block="models" if poly is None else "strips"
+        )
+    return sim.write_project(out, polynomial=poly)

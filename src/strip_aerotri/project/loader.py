@@ -522,8 +522,8 @@ def _block_polynomial(
     every strip's own polynomial (0 with ``block = "models"``)."""
     if "sections" in named:
         raise ConfigError(
-            f"{toml_path}: [adjustment] sections: a block's strips have one polynomial each "
-            '(block = "strips"), not sections; remove it'
+            f"{toml_path}: [adjustment] sections: a block has no sections (with block = "
+            '"strips" every strip has one polynomial); remove it'
         )
     if construction is Construction.MODELS and named:
         raise ConfigError(
@@ -537,8 +537,8 @@ def _block_polynomial(
     if polynomial == "auto":
         raise ConfigError(
             f'{toml_path}: [adjustment] polynomial: "auto" chooses a type from one strip\'s '
-            "control; a block's strips share theirs: give 0, 1, 2 or 3 (default "
-            f"{DEFAULT_BLOCK_POLYNOMIAL})"
+            "own control, and in a block the strips share the control: give 0, 1, 2 or 3 "
+            f"(default {DEFAULT_BLOCK_POLYNOMIAL})"
         )
     if adjustment["photo_step"] != 1:
         raise ConfigError(

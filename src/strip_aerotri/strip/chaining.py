@@ -279,7 +279,7 @@ def _orient_pairs(
                     w=float(_w_statistic(rel)[row] / np.sqrt(_factor(rel))),
                     critical=blunders.critical("relative_orientation", n_rows),
                     applied=blunders.rejecting,
-                    effect=f"left out of the pair (pair sigma0 {rel.sigma0_um[m]:.2f} µm)",
+                    effect=f"left out of the pair; its sigma0 {rel.sigma0_um[m]:.2f} µm",
                 )
             )
         if not blunders.rejecting:
