@@ -465,20 +465,22 @@ def rejected_determinations(
         return rows, np.zeros(0, dtype=np.intp)
     f_point = point[i_now[failed]]
     f_model = model[i_now[failed]]
-    for p in np.unique(f_point):  # the points with failed ties: a handful
-        ties = f_model[f_point == p]
-        suspects = set(range(ties[0] - 1, ties[0] + 2))
-        for m in ties[1:]:
-            suspects &= set(range(m - 1, m + 2))
-        mine = np.flatnonzero(point == p)
-        if suspects:
-            low, high = min(suspects), max(suspects)
-            # model m holds photos m and m + 1
-            rows[mine[(model[mine] + 1 >= low) & (model[mine] <= high)]] = True
-        else:
-            both = f_point == p
-            rows[i_now[failed][both]] = True
-            rows[i_prev[failed][both]] = True
+    # the photos common to all of a point's failed ties: m - 1 .. m + 1 of the
+    # latest tie to those of the earliest
+    low = np.full(n_points, np.iinfo(np.intp).min, dtype=np.intp)
+    high = np.full(n_points, np.iinfo(np.intp).max, dtype=np.intp)
+    np.maximum.at(low, f_point, f_model - 1)
+    np.minimum.at(high, f_point, f_model + 1)
+    has_failed = np.zeros(n_points, dtype=bool)
+    has_failed[f_point] = True
+    shared = has_failed & (low <= high)
+    # with a suspect photo: the point's models holding one (model m: photos m, m + 1)
+    mine = shared[point]
+    rows[mine] = (model[mine] + 1 >= low[point[mine]]) & (model[mine] <= high[point[mine]])
+    # without one: both models of every failed tie
+    apart = ~shared[f_point]
+    rows[i_now[failed][apart]] = True
+    rows[i_prev[failed][apart]] = True
     kept = np.bincount(point[~rows], minlength=n_points)
     touched = np.unique(point[rows])
     return rows, touched[kept[touched] == 0].astype(np.intp)
