@@ -441,11 +441,7 @@ def _strip_point_weights(
     height error fell by a fifth to a quarter; on the real FC300X block from
     0.125 / 0.045 to 0.030 / 0.025 m)."""
     info, _, _ = model_weights(strip, fit, float(np.median(strip.observations.sigma)))
-    keep = (
-        np.ones(strip.model.shape[0], dtype=bool)
-        if strip.rejected_determinations is None
-        else ~strip.rejected_determinations
-    )
+    keep = strip.kept_determinations
     n = strip.points.shape[0]
     total = np.zeros((n, 3, 3))
     np.add.at(total, strip.model_point[keep], info[keep])
@@ -524,12 +520,11 @@ def _units(
             weights.append(np.concatenate([info, c_left, c_right]))
             # the determinations the strip's tie test left out stay out, as
             # in one strip's ground stage (the centres are not tested there)
-            tie_out = (
-                np.zeros(strip.model.shape[0], dtype=bool)
-                if strip.rejected_determinations is None
-                else strip.rejected_determinations
+            rejected.append(
+                np.concatenate(
+                    [~strip.kept_determinations, np.zeros(2 * strip.n_models, dtype=bool)]
+                )
             )
-            rejected.append(np.concatenate([tie_out, np.zeros(2 * strip.n_models, dtype=bool)]))
             unit_sigma += [[np.nan] * 3] * strip.n_models
             # a photo's attitude: the mean of the models it belongs to
             as_left = np.searchsorted(pos[:-1], np.arange(photos.size), side="right") - 1
@@ -586,21 +581,31 @@ class _Solution:
     guess: FloatArray
 
 
+def _strip_sums(
+    p: _Problem, t: UnitTransforms, keep_rows: BoolArray
+) -> tuple[FloatArray, IntArray]:
+    """Per strip and point, the sum of its units' transformed determinations
+    (S, P, 3, work frame) and their count (S, P)."""
+    n_points = p.observations.n_points
+    r = p.rows
+    is_point = (r.point < n_points) & keep_rows
+    placed = t.apply(r.unit[is_point], r.xyz[is_point])
+    n_strips = len(p.strips)
+    key = p.unit_strip[r.unit[is_point]] * n_points + r.point[is_point]
+    counts = np.bincount(key, minlength=n_strips * n_points).reshape(n_strips, n_points)
+    sums: FloatArray = np.stack(
+        [np.bincount(key, placed[:, c], minlength=n_strips * n_points) for c in range(3)],
+        axis=-1,
+    ).reshape(n_strips, n_points, 3)  # type: ignore[assignment]  # weighted: float64
+    return sums, counts
+
+
 def _unit_means(p: _Problem, t: UnitTransforms, keep_rows: BoolArray) -> FloatArray:
     """Every point's mean over the units' determinations of it, work frame
     (P, 3; NaN for points no kept row determines)."""
-    n_points = p.observations.n_points
-    r = p.rows
-    rows = (r.point < n_points) & keep_rows
-    placed = t.apply(r.unit[rows], r.xyz[rows])
-    counts = np.bincount(r.point[rows], minlength=n_points).astype(np.float64)
+    sums, counts = _strip_sums(p, t, keep_rows)
     with np.errstate(invalid="ignore", divide="ignore"):
-        means: FloatArray = np.column_stack(
-            [
-                np.bincount(r.point[rows], placed[:, c], minlength=n_points) / counts
-                for c in range(3)
-            ]
-        )
+        means: FloatArray = sums.sum(axis=0) / counts.sum(axis=0)[:, None]
     return means
 
 
@@ -609,10 +614,12 @@ def _terms_kept(p: _Problem) -> tuple[int, ...]:
     poly = p.polynomial
     if poly is None:
         return ()
-    fixed = np.zeros((p.unit_strip.shape[0], poly.n_terms), dtype=bool)
-    if poly.fixed is not None:
-        fixed = poly.fixed
-    return tuple(int(n) for n in poly.n_terms - fixed.sum(axis=1))
+    n_fixed = (
+        np.zeros(p.unit_strip.shape[0], dtype=np.intp)
+        if poly.fixed is None
+        else poly.fixed.sum(axis=1)
+    )
+    return tuple(int(poly.n_terms - n) for n in n_fixed)
 
 
 def _formation_notes(p: _Problem, result: BlockResult) -> tuple[str, ...]:
@@ -959,7 +966,6 @@ def _refine(
     """The bundle adjustment of the whole block from its solution, in the work
     frame (plan-only and height-only control keep the block's value of their
     other coordinate)."""
-
     from ..bundle.refine import gnss_imu_in_frame, gnss_residuals, imu_residuals
     from ..bundle.snooping import refine_frame
 
@@ -1110,18 +1116,8 @@ def _joins(p: _Problem, t: UnitTransforms, keep_rows: BoolArray) -> tuple[StripJ
     """Every pair of strips on the points both determine: each strip's
     determination (the mean of its units' transformed rows) compared along
     east, north and up."""
-    n_points = p.observations.n_points
-    r = p.rows
-    is_point = (r.point < n_points) & keep_rows
-    placed = t.apply(r.unit[is_point], r.xyz[is_point])
-    strip_of_row = p.unit_strip[r.unit[is_point]]
+    sums, counts = _strip_sums(p, t, keep_rows)
     n_strips = len(p.strips)
-    key = strip_of_row * n_points + r.point[is_point]
-    counts = np.bincount(key, minlength=n_strips * n_points).reshape(n_strips, n_points)
-    sums = np.stack(
-        [np.bincount(key, placed[:, c], minlength=n_strips * n_points) for c in range(3)],
-        axis=-1,
-    ).reshape(n_strips, n_points, 3)
     out = []
     for i in range(n_strips):
         for j in range(i + 1, n_strips):
@@ -1196,7 +1192,6 @@ def _with_transfer(
     joins: tuple[StripJoin, ...], free: tuple[StripJoin, ...], m_per_mm: float
 ) -> tuple[StripJoin, ...]:
     """The joins with the free block's plan discrepancies at the photo scale."""
-
     um = 1e3 / m_per_mm if m_per_mm > 0 else float("nan")
     by_pair = {f.strips: f for f in free}
     out = []
@@ -1221,5 +1216,4 @@ def _mean_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
 
 
 def _with_timings(result: BlockResult, timings: dict[str, float]) -> BlockResult:
-
     return replace(result, timings={**timings, "total": sum(timings.values())})

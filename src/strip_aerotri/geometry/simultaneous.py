@@ -164,12 +164,17 @@ class UnitPolynomial:
     def n_terms(self) -> int:
         return 3 * self.degree
 
+    def _uv(self, unit: IntArray, xyz: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``u, v``: rows ``xyz`` along and across their unit over its half length."""
+        local = np.einsum("nji,nj->ni", self.axes[unit], xyz - self.origin[unit])
+        local /= self.half_length[unit, None]
+        return local[:, 0], local[:, 1]
+
     def basis(self, unit: IntArray, xyz: FloatArray) -> FloatArray:
         """``B(x)`` of rows ``xyz`` (n, 3) of units ``unit``: (n, 3, n_terms)."""
         axes = self.axes[unit]
         half = self.half_length[unit]
-        local = np.einsum("nji,nj->ni", axes, xyz - self.origin[unit]) / half[:, None]
-        u, v = local[:, 0], local[:, 1]
+        u, v = self._uv(unit, xyz)
         monomials = [u * v, u**2, u**3][: self.degree]
         out = np.empty((unit.shape[0], 3, self.n_terms))
         for j, m in enumerate(monomials):
@@ -179,17 +184,15 @@ class UnitPolynomial:
     def jacobian(self, unit: IntArray, xyz: FloatArray, coefficients: FloatArray) -> FloatArray:
         """``∂(B(x) a)/∂x`` at rows ``xyz``: (n, 3, 3)."""
         axes = self.axes[unit]
-        half = self.half_length[unit]
-        local = np.einsum("nji,nj->ni", axes, xyz - self.origin[unit]) / half[:, None]
-        u, v = local[:, 0], local[:, 1]
+        u, v = self._uv(unit, xyz)
         a = coefficients[unit].reshape(-1, self.degree, 3)  # (n, term, axis)
-        # d(monomial)/d(u, v), times L, over L for u = (...)/L: per unit length
+        # d(monomial)/d(u, v), times L, over L for u = (...)/L: per unit length;
+        # only uv depends on v
         du = [v, 2 * u, 3 * u**2][: self.degree]
-        dv = [u, 0 * u, 0 * u][: self.degree]
         grad_uv = np.zeros((unit.shape[0], 3, 3))  # d(correction, local axes)/d(local)
         for j in range(self.degree):
             grad_uv[:, :, 0] += a[:, j, :] * du[j][:, None]
-            grad_uv[:, :, 1] += a[:, j, :] * dv[j][:, None]
+        grad_uv[:, :, 1] = a[:, 0, :] * u[:, None]
         jac: FloatArray = axes @ grad_uv @ np.swapaxes(axes, 1, 2)
         return jac
 

@@ -346,11 +346,7 @@ def _snoop(
     keep_rows = np.ones(p.rows.unit.shape[0], dtype=bool)
     # points whose determinations disagreed between consecutive models (the
     # strip's tie test) stay out, as they are out of the strip model
-    if strip.rejected_determinations is not None:
-        keep_rows[: p.n_det] = ~strip.rejected_determinations
-    elif strip.rejected_points:
-        names = np.asarray(strip.observations.point_ids)[strip.model_point]
-        keep_rows[: p.n_det] = ~np.isin(names, list(strip.rejected_points))
+    keep_rows[: p.n_det] = strip.kept_determinations
     use_xy, use_z = p.use_xy.copy(), p.use_z.copy()
     line_keep = [np.ones(len(li), dtype=bool) for li in p.line_index]
     rejections: list[Rejection] = []

@@ -209,6 +209,17 @@ class StripModel:
         return replace(self, rejections=tuple(out))
 
     @property
+    def kept_determinations(self) -> BoolArray:
+        """(n,) the determinations (rows of ``model_points``) the tie test
+        kept: all but ``rejected_determinations``, or, without them, all but
+        those of ``rejected_points``."""
+        if self.rejected_determinations is not None:
+            kept: BoolArray = ~self.rejected_determinations
+            return kept
+        names = np.asarray(self.observations.point_ids)[self.model_point]
+        return ~np.isin(names, list(self.rejected_points))
+
+    @property
     def model_photo_positions(self) -> IntArray:
         """Positions in the photo arrays of the photos that form the models:
         model m is formed by photos ``model_photo_positions[m]`` and
