@@ -966,7 +966,7 @@ def _refine(
     """The bundle adjustment of the whole block from its solution, in the work
     frame (plan-only and height-only control keep the block's value of their
     other coordinate)."""
-    from ..bundle.refine import gnss_imu_in_frame, gnss_residuals, imu_residuals
+    from ..bundle.refine import gnss_imu_in_frame, gnss_imu_outcomes
     from ..bundle.snooping import refine_frame
 
     points0, centres0, rot0 = _in_work_frame(p, sol)
@@ -999,25 +999,16 @@ def _refine(
     centres = work.from_work(fr.centres)
     rot_enu = work.rotations_to_enu(fr.rotations, centres)
     # what the GNSS centres and IMU attitudes did, as for one strip
-    options = blunders or BlunderOptions()
-    ids = p.observations.photo_ids
-    gnss_out = imu_out = None
-    if aux.gnss_xyz is not None and aux.gnss_sig is not None and gnss is not None:
-        enu2frame = work.work_from_enu(centres)
-        gnss_out = gnss_residuals(
-            gnss, aux.gnss_lookup, aux.gnss_xyz, aux.gnss_sig, fr, enu2frame, ids, options
-        )
-    if aux.imu_rot is not None and aux.imu_sig is not None and imu is not None:
-        imu_out = imu_residuals(
-            imu,
-            aux.imu_lookup,
-            aux.imu_rot,
-            aux.imu_sig,
-            fr,
-            opk_from_matrix(rot_enu),
-            ids,
-            options,
-        )
+    gnss_out, imu_out = gnss_imu_outcomes(
+        aux,
+        gnss,
+        imu,
+        fr,
+        work.work_from_enu(centres),
+        opk_from_matrix(rot_enu),
+        p.observations.photo_ids,
+        blunders or BlunderOptions(),
+    )
     given_work = work.to_work(np.where(np.isnan(p.given), sol.guess, p.given))
     resid = work.enu_from_work(given_work - points_work[p.idx])
     used_xy = use_xy & fr.control_used[p.idx, 0]

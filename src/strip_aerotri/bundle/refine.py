@@ -63,6 +63,7 @@ __all__ = [
     "ImuAttitudes",
     "ImuResiduals",
     "RefinedResult",
+    "gnss_imu_outcomes",
     "gnss_residuals",
     "imu_residuals",
     "refine_bundle",
@@ -101,6 +102,31 @@ def _frame_for(
 
 
 # --------------------------------------------------------------------------- GNSS / IMU
+
+
+def gnss_imu_outcomes(
+    aux: _Auxiliary,
+    gnss: GnssCentres | None,
+    imu: ImuAttitudes | None,
+    fr: FrameRefinement,
+    enu2frame: FloatArray,
+    opk_adjusted: FloatArray,
+    photo_ids: Sequence[str],
+    options: BlunderOptions,
+) -> tuple[GnssResiduals | None, ImuResiduals | None]:
+    """What the GNSS centres and the IMU attitudes of a refinement did
+    (:func:`gnss_residuals`, :func:`imu_residuals`), None for those it did
+    not have; ``aux`` from :func:`gnss_imu_in_frame`."""
+    gnss_out = imu_out = None
+    if aux.gnss_xyz is not None and aux.gnss_sig is not None and gnss is not None:
+        gnss_out = gnss_residuals(
+            gnss, aux.gnss_lookup, aux.gnss_xyz, aux.gnss_sig, fr, enu2frame, photo_ids, options
+        )
+    if aux.imu_rot is not None and aux.imu_sig is not None and imu is not None:
+        imu_out = imu_residuals(
+            imu, aux.imu_lookup, aux.imu_rot, aux.imu_sig, fr, opk_adjusted, photo_ids, options
+        )
+    return gnss_out, imu_out
 
 
 def gnss_residuals(
@@ -324,23 +350,9 @@ def refine_bundle(
 
     # What the GNSS centres and IMU attitudes did (rejected ones included).
     rejections.extend(passes.reported)
-    options = blunders or BlunderOptions()
-    gnss_out = imu_out = None
-    if aux.gnss_xyz is not None and aux.gnss_sig is not None and gnss is not None:
-        gnss_out = gnss_residuals(
-            gnss,
-            aux.gnss_lookup,
-            aux.gnss_xyz,
-            aux.gnss_sig,
-            fr,
-            enu2frame,
-            obs.photo_ids,
-            options,
-        )
-    if aux.imu_rot is not None and aux.imu_sig is not None and imu is not None:
-        imu_out = imu_residuals(
-            imu, aux.imu_lookup, aux.imu_rot, aux.imu_sig, fr, opk, obs.photo_ids, options
-        )
+    gnss_out, imu_out = gnss_imu_outcomes(
+        aux, gnss, imu, fr, enu2frame, opk, obs.photo_ids, blunders or BlunderOptions()
+    )
     res = _control_residuals(frame, ctrl, fr, adjusted_crs)
     t_frame += time.perf_counter() - t0
     keep_rows, check = res.keep_rows, ctrl.check

@@ -11,6 +11,7 @@ import click
 from .options import DOCS_EPILOG, common_options, echo_result, project_arg
 
 if TYPE_CHECKING:
+    from ..export.tables import ResultTable
     from ..project import Project
 
 __all__ = ["export"]
@@ -23,6 +24,20 @@ def _result_folder(project: Project, results: Path | None) -> Path:
     from ..project import DEFAULT_OUTPUT
 
     return results or project.output_directory or project.path.parent / DEFAULT_OUTPUT
+
+
+def _tables(
+    project_file: Path, results: Path | None
+) -> tuple[Project, Path, ResultTable, ResultTable]:
+    """The project, its result folder and the points and photos tables read
+    from it (:func:`strip_aerotri.export.read_results`)."""
+    from ..export import read_results
+    from ..project import load_project
+
+    project = load_project(project_file)
+    folder = _result_folder(project, results)
+    points, photos = read_results(folder)
+    return project, folder, points, photos
 
 
 def _write_whole(target: Path, data: str | bytes) -> None:
@@ -215,12 +230,9 @@ def geojson(project_file: Path, results: Path | None, out: Path | None) -> None:
       stripaero export geojson strip.toml
       stripaero export geojson strip.toml --from out-2024 -o strip.geojson
     """
-    from ..export import read_results, results_geojson
-    from ..project import load_project
+    from ..export import results_geojson
 
-    project = load_project(project_file)
-    folder = _result_folder(project, results)
-    points, photos = read_results(folder)
+    project, folder, points, photos = _tables(project_file, results)
     text = results_geojson(points, photos, project.crs, strip=project.name)
     target = out or folder / "results.geojson"
     _write_whole(target, text)
@@ -246,12 +258,9 @@ def gpkg(project_file: Path, results: Path | None, out: Path | None) -> None:
       stripaero export gpkg strip.toml
       stripaero export gpkg strip.toml --from out-2024 -o strip.gpkg
     """
-    from ..export import read_results, write_gpkg
-    from ..project import load_project
+    from ..export import write_gpkg
 
-    project = load_project(project_file)
-    folder = _result_folder(project, results)
-    points, photos = read_results(folder)
+    project, folder, points, photos = _tables(project_file, results)
     target = out or folder / "results.gpkg"
     write_gpkg(target, points, photos, project.crs, strip=project.name)
     echo_result(f"wrote {target}: {len(points.ids)} points, {len(photos.ids)} photo centres")
