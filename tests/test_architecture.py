@@ -24,6 +24,7 @@ LAYERS: dict[str, int] = {
             "_stats",
             "_rows",
             "_version",
+            "_threads",
             "errors",
             "options",
             "observations",

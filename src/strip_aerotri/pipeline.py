@@ -16,6 +16,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from ._threads import limit_blas_threads
 from .errors import GeometryError
 from .geodesy import GroundCRS
 from .ground.common import image_scale
@@ -47,6 +48,7 @@ __all__ = ["AccuracyStatistics", "Progress", "StripResult", "triangulate", "tria
 Progress = Callable[[str], None]
 
 
+@limit_blas_threads
 def triangulate(
     observations: ImageObservations,
     control: ControlPoints,
@@ -199,6 +201,7 @@ def triangulate(
     return result
 
 
+@limit_blas_threads
 def triangulate_block(
     observations: ImageObservations,
     control: ControlPoints,

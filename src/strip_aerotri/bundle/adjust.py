@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from .._threads import limit_blas_threads
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..geometry.collinearity import collinearity_jacobians, project
@@ -622,6 +623,7 @@ def _residual_cofactor(weight: FloatArray, q_hat: FloatArray) -> FloatArray:
 # ----------------------------------------------------------------------------
 
 
+@limit_blas_threads
 def bundle_adjust(
     observations: ImageObservations,
     centres0: ArrayLike,

@@ -39,6 +39,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._threads import limit_blas_threads
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import StripAerotriWarning
 from ..frames import LocalTangentFrame, TangentWorkFrame, WorkFrame, enu_residuals
@@ -233,6 +234,7 @@ def _photo_lookup(ids: Sequence[str], strip_ids: Sequence[str], what: str) -> In
     return index
 
 
+@limit_blas_threads
 def refine_bundle(
     result: StripResult,
     *,

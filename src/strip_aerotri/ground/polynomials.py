@@ -30,6 +30,7 @@ from typing import Literal
 import numpy as np
 
 from .._stats import exact_median
+from .._threads import limit_blas_threads
 from .._typing import BoolArray, FloatArray
 from ..blunders import robust_variance_factor
 from ..errors import GeometryError, StripAerotriWarning
@@ -75,6 +76,7 @@ _SERVED_SAMPLE = 8192  # strip points for the similarity's test of the cross til
 _CERTAIN = 3.0
 
 
+@limit_blas_threads
 def adjust_to_ground(
     strip: StripModel,
     control: ControlPoints,

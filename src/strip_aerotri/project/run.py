@@ -3,6 +3,7 @@ project's own observations and options."""
 
 from __future__ import annotations
 
+from .._threads import limit_blas_threads
 from ..errors import FlightAxisError, GeometryError, PhotoOrderError
 from ..options import BlunderOptions, Construction, GroundOptions, StripOptions
 from ..pipeline import Progress, triangulate, triangulate_block
@@ -49,6 +50,7 @@ def project_options(project: Project) -> tuple[StripOptions, GroundOptions]:
     return project.adjustment.strip_options(), project.adjustment.ground_options()
 
 
+@limit_blas_threads
 def run_project(
     project: Project, *, progress: Progress | None = None, blunders: BlunderOptions | None = None
 ) -> StripResult | BlockResult:

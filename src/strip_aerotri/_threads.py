@@ -1,0 +1,100 @@
+"""BLAS threads during the adjustments: one by default.
+
+The adjustments do their algebra on many small matrices (3 x 3 to 7 x 7
+blocks, one per point, model or photo) and on sparse or banded systems
+whose dense pieces are small.  There, a multithreaded BLAS (OpenBLAS starts
+one thread per core) spends more time waking and synchronising its threads
+than it saves, and loses badly when other processes share the cores: a
+1000-photo strip took 7.8-15 s with OpenBLAS's default threads on two cores
+and 3.0 s with one thread (its point cofactors 7.2 s against 0.18 s).  So
+every library entry point that adjusts (:func:`strip_aerotri.triangulate`,
+``triangulate_block``, :func:`strip_aerotri.run_project`, the bundle
+adjustment and refinement, J's ground stage) runs under
+:func:`blas_threads`, which limits the BLAS libraries numpy and scipy load
+(through threadpoolctl) to one thread and restores the caller's setting on
+return.  A run is then never slower with two cores than with one; many
+projects at once run as many processes (docs/scaling.md).
+
+The environment variable ``STRIPAERO_BLAS_THREADS`` changes the limit: a
+positive integer N lets BLAS use N threads during the adjustments, and
+``auto`` leaves BLAS its own setting (``OPENBLAS_NUM_THREADS`` and the
+like, or one thread per core).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import os
+from collections.abc import Callable, Iterator
+from typing import ParamSpec, TypeVar
+
+from .errors import ConfigError
+
+__all__ = ["BLAS_THREADS_VARIABLE", "blas_thread_limit", "blas_threads", "limit_blas_threads"]
+
+BLAS_THREADS_VARIABLE = "STRIPAERO_BLAS_THREADS"
+"""Environment variable: BLAS threads during the adjustments (default 1; ``auto``: no limit)."""
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def blas_thread_limit() -> int | None:
+    """The number of BLAS threads of the adjustments: 1 unless
+    ``STRIPAERO_BLAS_THREADS`` says otherwise; None for ``auto`` (no limit).
+
+    Raises
+    ------
+    ConfigError
+        When the variable is neither a positive integer nor ``auto``.
+    """
+    text = os.environ.get(BLAS_THREADS_VARIABLE, "").strip()
+    if not text:
+        return 1
+    if text.lower() == "auto":
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise ConfigError(
+            f"environment variable {BLAS_THREADS_VARIABLE}={text!r}: expected a positive "
+            "number of BLAS threads or 'auto' (unset it for the default, one thread)"
+        )
+    return value
+
+
+@contextlib.contextmanager
+def blas_threads(limit: int | None | str = "env") -> Iterator[None]:
+    """Limit the BLAS threads of numpy's and scipy's libraries inside the block.
+
+    Parameters
+    ----------
+    limit : int, None or "env"
+        Threads allowed; None leaves BLAS as it is; "env" (the default) reads
+        :func:`blas_thread_limit`.  The previous limits are restored on exit.
+    """
+    n = blas_thread_limit() if limit == "env" else limit
+    if n is None:
+        yield
+        return
+    # scipy brings its own BLAS, loaded by scipy.linalg: load it first, or the
+    # limit would miss it (threadpoolctl limits the libraries loaded so far).
+    import scipy.linalg  # noqa: F401
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=int(n), user_api="blas"):
+        yield
+
+
+def limit_blas_threads(function: Callable[_P, _R]) -> Callable[_P, _R]:
+    """Decorator: run ``function`` under :func:`blas_threads` (the default limit)."""
+
+    @functools.wraps(function)
+    def limited(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        with blas_threads():
+            return function(*args, **kwargs)
+
+    return limited

@@ -1,0 +1,121 @@
+"""BLAS threads during the adjustments (``strip_aerotri._threads``).
+
+The limit is checked where it matters: inside a stage of a real run, in a
+fresh process (threadpoolctl's view of the BLAS libraries numpy and scipy
+loaded), not by timing.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from strip_aerotri._threads import BLAS_THREADS_VARIABLE, blas_thread_limit
+from strip_aerotri.errors import ConfigError
+
+#: Runs a strip (library call, project run, refinement) and a block in a fresh
+#: process; every stage named below records the BLAS threads it runs with.
+_PROBE = textwrap.dedent(
+    """
+    import json, sys, warnings
+    import scipy.linalg  # both BLAS libraries loaded before the first reading
+    from threadpoolctl import threadpool_info
+
+    import strip_aerotri as sa
+    import strip_aerotri.block.strips as block_strips
+    import strip_aerotri.bundle.refine as refine
+    import strip_aerotri.ground.models as ground_models
+    from strip_aerotri.observations import StripSpec
+    from strip_aerotri.pipeline import triangulate_block
+
+    seen, phase = {}, [""]
+
+    def blas():
+        return sorted({d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"})
+
+    def probe(module, name):
+        original = getattr(module, name)
+
+        def recorded(*args, **kwargs):
+            seen.setdefault(f"{phase[0]}: {name}", blas())
+            return original(*args, **kwargs)
+
+        setattr(module, name, recorded)
+
+    probe(ground_models, "adjust_models_to_ground")
+    probe(refine, "refine_frame")
+    probe(block_strips, "adjust_block")
+    before = blas()
+    warnings.simplefilter("ignore")
+    strip = sa.simulate_strip(8, preset="drone", seed=2)
+    phase[0] = "triangulate"
+    sa.triangulate(strip.observations, strip.control, strip.crs, refine="bundle")
+    project = sa.load_project(strip.write_project(sys.argv[1]))
+    phase[0] = "run_project"
+    sa.run_project(project)
+    block = sa.simulate_block(2, 6, preset="film", seed=3)
+    specs = [StripSpec(s.name, s.photo_ids) for s in block.strips]
+    phase[0] = "triangulate_block"
+    triangulate_block(block.observations, block.control, block.crs, specs)
+    print(json.dumps({"before": before, "after": blas(), "seen": seen}))
+    """
+)
+
+
+def _probe(tmp_path: Path, **env: str) -> dict[str, object]:
+    environ = {k: v for k, v in os.environ.items() if k != BLAS_THREADS_VARIABLE}
+    # two threads before the run, whatever the machine, so that a limit shows
+    environ.update(OPENBLAS_NUM_THREADS="2", OMP_NUM_THREADS="2", **env)
+    done = subprocess.run(
+        [sys.executable, "-c", _PROBE, str(tmp_path / "p")],
+        capture_output=True,
+        text=True,
+        env=environ,
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    out: dict[str, object] = json.loads(done.stdout.strip().splitlines()[-1])
+    return out
+
+
+def test_one_blas_thread_inside_every_stage_of_a_run(tmp_path: Path) -> None:
+    out = _probe(tmp_path)
+    assert out["before"] == [2]
+    assert out["seen"] == {
+        "triangulate: adjust_models_to_ground": [1],
+        "triangulate: refine_frame": [1],  # the bundle refinement
+        "run_project: adjust_models_to_ground": [1],
+        "triangulate_block: adjust_block": [1],
+    }
+    assert out["after"] == [2]  # the caller's setting is restored
+
+
+def test_the_variable_sets_or_lifts_the_limit(tmp_path: Path) -> None:
+    three = _probe(tmp_path, **{BLAS_THREADS_VARIABLE: "3"})
+    assert set(map(tuple, three["seen"].values())) == {(3,)}  # type: ignore[attr-defined]
+    auto = _probe(tmp_path, **{BLAS_THREADS_VARIABLE: "auto"})
+    assert set(map(tuple, auto["seen"].values())) == {(2,)}  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize(("text", "expected"), [("", 1), ("1", 1), (" 4 ", 4), ("AUTO", None)])
+def test_limit_read_from_the_environment(
+    monkeypatch: pytest.MonkeyPatch, text: str, expected: int | None
+) -> None:
+    monkeypatch.setenv(BLAS_THREADS_VARIABLE, text)
+    assert blas_thread_limit() == expected
+
+
+@pytest.mark.parametrize("text", ["0", "-2", "two", "1.5"])
+def test_a_bad_limit_is_one_line_naming_the_variable(
+    monkeypatch: pytest.MonkeyPatch, text: str
+) -> None:
+    monkeypatch.setenv(BLAS_THREADS_VARIABLE, text)
+    with pytest.raises(ConfigError, match=f"^environment variable {BLAS_THREADS_VARIABLE}="):
+        blas_thread_limit()
