@@ -1,0 +1,256 @@
+"""Time and memory of ``stripaero run`` at scale: long strips, wide blocks, cost against photos.
+
+Usage::
+
+    python benchmarks/bench_scale.py                    # every case and the curve (long)
+    python benchmarks/bench_scale.py --quick            # small cases: a few seconds
+    python benchmarks/bench_scale.py --cases strip-1000 strip-1000-bundle --threads 1
+    python benchmarks/bench_scale.py --curve-only --curve 100 300 1000 3000 10000
+
+Every case is a project written by the package's simulator (drone preset:
+1-inch camera at 120 m, 80 % forward overlap, about 100 image points per
+photo) and run by the installed ``stripaero -q run`` in a fresh child
+process, report included.  For each run the table gives the size (photos,
+observations), the wall time, the child's peak memory (``ru_maxrss`` of
+``os.wait4``), the stages' own timings from ``report.json`` and the ratio to
+the case's floor (time / floor; memory / floor).
+
+The cases:
+
+* ``strip-1000``, ``strip-1000-bundle``: a 1000-photo strip, default and
+  ``refine = "bundle"`` (floors 1.5 s and 2.5 s);
+* ``block-10x300``, ``block-10x300-bundle``: ten strips of 300 photos
+  (floors 10 s / 1 GB and 15 s / 1.5 GB);
+* ``block-20x500``: twenty strips of 500 photos, about a million
+  observations (floor 60 s / 4 GB);
+* the curve: strips of ``--curve`` photos (default 100 to 10 000), with the
+  least-squares slope of log(time) against log(photos) (floor 1.1).
+
+``--quick`` runs a 30-photo strip with its refinement, a 2 x 10 block and
+a curve of 15 and 30 photos, with one BLAS thread: it shows that the script
+works (tests/test_bench_scale.py), not the floors.
+
+``--threads`` runs every case with the package's BLAS limit (``1``: one
+thread, the default of the adjustments), with BLAS's own threads (``auto``:
+``STRIPAERO_BLAS_THREADS=auto``, OpenBLAS's one thread per core) or both
+(``both``, the default), and prints their ratio.  The load average is
+printed before and after: the machine's other work moves single timings.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+#: ``extra_points_per_photo`` for about 100 image points per photo (measured:
+#: strips 102 per photo, blocks of ten strips 104).
+STRIP_EXTRA_POINTS = 18
+BLOCK_EXTRA_POINTS = 9
+
+#: (seconds, GB) of each case's floor; None where there is none.
+FLOORS: dict[str, tuple[float | None, float | None]] = {
+    "strip-1000": (1.5, None),
+    "strip-1000-bundle": (2.5, None),
+    "block-10x300": (10.0, 1.0),
+    "block-10x300-bundle": (15.0, 1.5),
+    "block-20x500": (60.0, 4.0),
+}
+SLOPE_FLOOR = 1.1
+CASES = tuple(FLOORS)
+QUICK_CASES = ("strip-30-bundle", "block-2x10")
+CURVE = (100, 300, 1000, 3000, 10000)
+QUICK_CURVE = (15, 30)
+
+
+def parse_case(name: str) -> tuple[int, int, bool]:
+    """``strip-M[-bundle]`` or ``block-SxM[-bundle]`` -> (strips, photos per strip, refine)."""
+    parts = name.split("-")
+    refine = parts[-1] == "bundle"
+    if refine:
+        parts = parts[:-1]
+    try:
+        if parts[0] == "strip" and len(parts) == 2:
+            return 1, int(parts[1]), refine
+        if parts[0] == "block" and len(parts) == 2:
+            strips, photos = parts[1].split("x")
+            return int(strips), int(photos), refine
+    except ValueError:
+        pass
+    raise ValueError(f"Expected a case strip-M, block-SxM (optionally -bundle), got {name!r}")
+
+
+def write_case(
+    folder: Path, strips: int, photos: int, *, refine: bool = False, seed: int = 1
+) -> Path:
+    """Write the simulated project of a case into ``folder``; its ``strip.toml``."""
+    from strip_aerotri import simulate_block, simulate_strip
+
+    folder.mkdir(parents=True, exist_ok=True)
+    if strips == 1:
+        sim = simulate_strip(
+            photos, preset="drone", seed=seed, extra_points_per_photo=STRIP_EXTRA_POINTS
+        )
+        toml = sim.write_project(folder)
+    else:
+        block = simulate_block(
+            strips, photos, preset="drone", seed=seed, extra_points_per_photo=BLOCK_EXTRA_POINTS
+        )
+        toml = block.write_project(folder)
+    if refine:
+        text = toml.read_text(encoding="utf-8")
+        toml.write_text(text.replace("[adjustment]\n", '[adjustment]\nrefine = "bundle"\n', 1))
+    return toml
+
+
+@dataclass
+class Run:
+    """One ``stripaero run`` in a child process."""
+
+    wall_s: float
+    peak_mb: float
+    exit_code: int
+    stages: dict[str, float] = field(default_factory=dict)
+
+
+def run_once(exe: str, toml: Path, out: Path, threads: str) -> Run:
+    """Run the project once; wall time, peak memory of the child, report.json's timings."""
+    env = dict(os.environ)
+    env.pop("STRIPAERO_BLAS_THREADS", None)
+    if threads != "1":
+        env["STRIPAERO_BLAS_THREADS"] = threads
+    shutil.rmtree(out, ignore_errors=True)
+    with tempfile.TemporaryFile() as errors:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(
+            [exe, "-q", "run", str(toml), "--out", str(out)],
+            stdout=subprocess.DEVNULL,
+            stderr=errors,
+            env=env,
+        )
+        _, status, usage = os.wait4(proc.pid, 0)  # this child's own resource usage
+        wall = time.perf_counter() - t0
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        errors.seek(0)
+        stderr = errors.read().decode(errors="replace")
+    if proc.returncode not in (0, 3):  # 3: the run met the data but failed a tolerance
+        sys.exit(f"stripaero run {toml} failed ({proc.returncode}): {stderr.strip()}")
+    stages: dict[str, float] = {}
+    report = out / "report.json"
+    if report.exists():
+        stages = json.loads(report.read_text(encoding="utf-8")).get("timings_s", {}) or {}
+    return Run(wall, usage.ru_maxrss / 1024.0, proc.returncode, stages)
+
+
+def observations(toml: Path) -> int:
+    """Rows of the project's image points (its observations)."""
+    with (toml.parent / "image_points.csv").open(encoding="utf-8") as fh:
+        return sum(1 for _ in fh) - 1
+
+
+def _fmt_floor(value: float, floor: float | None) -> str:
+    return f"{value / floor:5.2f}" if floor else "    -"
+
+
+def measure(
+    exe: str, name: str, tmp: Path, threads: list[str], repeat: int
+) -> dict[str, object]:
+    """Write and run one case; a row per thread setting (the median of ``repeat`` runs)."""
+    strips, photos, refine = parse_case(name)
+    toml = write_case(tmp / name, strips, photos, refine=refine)
+    n_obs = observations(toml)
+    floor_s, floor_gb = FLOORS.get(name, (None, None))
+    rows: dict[str, object] = {"case": name, "photos": strips * photos, "observations": n_obs}
+    for t in threads:
+        runs = [run_once(exe, toml, tmp / name / f"out-{t}", t) for _ in range(repeat)]
+        wall = statistics.median(r.wall_s for r in runs)
+        peak = max(r.peak_mb for r in runs)
+        stages = runs[-1].stages
+        rows[t] = {"wall_s": wall, "peak_mb": peak, "stages": stages}
+        stage_text = ", ".join(f"{k} {v:.2f}" for k, v in stages.items())
+        print(
+            f"{name:20s} {strips * photos:7d} {n_obs:9d}  {t:>4s}  {wall:8.2f} "
+            f"{peak:8.0f}  {_fmt_floor(wall, floor_s)} "
+            f"{_fmt_floor(peak / 1024.0, floor_gb)}   {stage_text}",
+            flush=True,
+        )
+    if "1" in rows and "auto" in rows:
+        one, auto = rows["1"], rows["auto"]
+        assert isinstance(one, dict) and isinstance(auto, dict)
+        print(f"{'':20s} BLAS's own threads / one thread: {auto['wall_s'] / one['wall_s']:.2f}")
+    return rows
+
+
+def slope(photos: list[int], seconds: list[float]) -> float:
+    """Least-squares slope of log(seconds) against log(photos)."""
+    x = [math.log(p) for p in photos]
+    y = [math.log(s) for s in seconds]
+    mx, my = statistics.fmean(x), statistics.fmean(y)
+    return sum((a - mx) * (b - my) for a, b in zip(x, y, strict=True)) / sum(
+        (a - mx) ** 2 for a in x
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="small cases, short curve")
+    parser.add_argument("--cases", nargs="*", help="case names (strip-M, block-SxM, -bundle)")
+    parser.add_argument("--curve", type=int, nargs="*", help="photos of the strips of the curve")
+    parser.add_argument("--curve-only", action="store_true")
+    parser.add_argument("--no-curve", action="store_true")
+    parser.add_argument(
+        "--threads",
+        choices=("1", "auto", "both"),
+        default=None,
+        help="BLAS threads of the runs (default: both; with --quick: 1)",
+    )
+    parser.add_argument("--repeat", type=int, default=1, help="runs per case (median)")
+    parser.add_argument("--json", type=Path, help="also write the results to this file")
+    args = parser.parse_args(argv)
+    exe = shutil.which("stripaero")
+    if exe is None:
+        sys.exit("stripaero is not installed (pip install .)")
+    cases = args.cases if args.cases is not None else QUICK_CASES if args.quick else CASES
+    curve = args.curve if args.curve is not None else QUICK_CURVE if args.quick else CURVE
+    setting = args.threads or ("1" if args.quick else "both")
+    threads = ["1", "auto"] if setting == "both" else [setting]
+    print(f"load average at start: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    print(
+        f"{'case':20s} {'photos':>7s} {'obs':>9s}  {'BLAS':>4s}  {'wall s':>8s} "
+        f"{'peak MB':>8s}  {'t/flr':>5s} {'m/flr':>5s}   stages (report.json timings_s)"
+    )
+    results: dict[str, object] = {"cases": [], "curve": {}}
+    started = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
+        if not args.curve_only:
+            results["cases"] = [measure(exe, c, tmp, threads, args.repeat) for c in cases]
+        if not args.no_curve and len(curve) >= 2:
+            rows = [measure(exe, f"strip-{m}", tmp, threads, args.repeat) for m in curve]
+            for t in threads:
+                secs = [float(r[t]["wall_s"]) for r in rows]  # type: ignore[index]
+                s = slope(list(curve), secs)
+                results["curve"][t] = {"photos": list(curve), "wall_s": secs, "slope": s}  # type: ignore[index]
+                print(
+                    f"slope log(time) / log(photos), BLAS {t}: {s:.2f} over "
+                    f"{curve[0]}-{curve[-1]} photos (floor {SLOPE_FLOOR})"
+                )
+    print(
+        f"load average at end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}; "
+        f"{time.perf_counter() - started:.0f} s in all"
+    )
+    if args.json is not None:
+        args.json.write_text(json.dumps(results, indent=1) + "\n", encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main()

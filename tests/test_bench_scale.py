@@ -1,0 +1,56 @@
+"""benchmarks/bench_scale.py: its quick mode runs and prints every column
+(no timing is asserted: the floors are read from the full run)."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCH = Path(__file__).parents[1] / "benchmarks"
+sys.path.insert(0, str(BENCH))
+from bench_scale import parse_case, slope  # noqa: E402
+
+
+def test_quick_mode_prints_sizes_times_memory_and_the_slope(tmp_path: Path) -> None:
+    env = dict(os.environ)
+    # the installed stripaero of this interpreter's environment
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
+    done = subprocess.run(
+        [sys.executable, str(BENCH / "bench_scale.py"), "--quick", "--json", "r.json"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env=env,
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    out = done.stdout
+    assert out.startswith("load average at start: ")
+    row = re.compile(r"^(\S+)\s+(\d+)\s+(\d+)\s+1\s+([\d.]+)\s+(\d+)\s", re.M)
+    rows = {m[1]: m.groups() for m in row.finditer(out)}
+    assert set(rows) == {"strip-30-bundle", "block-2x10", "strip-15", "strip-30"}
+    assert rows["block-2x10"][1] == "20"
+    for _, photos, obs, wall, peak in rows.values():
+        assert int(obs) > 50 * int(photos)  # about 100 image points per photo
+        assert float(wall) > 0 and int(peak) > 30  # a real child's time and memory (MB)
+    assert "bundle " in out  # report.json's stage timings of the refinement
+    assert re.search(r"slope log\(time\) / log\(photos\), BLAS 1: -?[\d.]+ over 15-30", out)
+    assert (tmp_path / "r.json").exists()
+
+
+def test_case_names() -> None:
+    assert parse_case("strip-1000") == (1, 1000, False)
+    assert parse_case("block-10x300-bundle") == (10, 300, True)
+    with pytest.raises(ValueError, match="strip-M"):
+        parse_case("stripe-10")
+
+
+def test_slope_of_a_power_law() -> None:
+    photos = [100, 300, 1000, 3000]
+    assert slope(photos, [2e-3 * p**1.07 for p in photos]) == pytest.approx(1.07)
