@@ -38,10 +38,21 @@ def _drain(stream: object, lines: list[str]) -> None:
         lines.append(line.rstrip())
 
 
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def interrupt_at(cmd: list[str], delay: float) -> tuple[float | None, int, str]:
     """Run ``cmd``, send SIGINT after ``delay`` s; (seconds from the signal to
     the exit or None when it had ended first, exit code, last progress line)."""
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        # as from a terminal: a shell's background job would inherit SIGINT ignored
+        preexec_fn=_default_sigint,
+    )
     lines: list[str] = []
     reader = threading.Thread(target=_drain, args=(proc.stderr, lines), daemon=True)
     reader.start()

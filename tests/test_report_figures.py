@@ -156,3 +156,26 @@ def test_a_clipped_figure_is_found():
     assert any("Legend" in problem for problem in outside_canvas(fig))
     fig.set_layout_engine("constrained")
     assert outside_canvas(fig) == []
+
+
+def test_the_figures_artists_do_not_grow_with_the_strip(caught):
+    """Every figure draws its points, pairs and models as collections (one
+    artist per series), not one artist per point, bar or pair: the count of
+    artists stays bounded from 20 to 260 photos (ticks and the names of at
+    most 60 control points aside)."""
+    from strip_aerotri.report.html import build_html
+    from strip_aerotri.report.record import build_report
+
+    counts = {}
+    for n in (20, 60, 260):
+        caught.clear()
+        result = _strip_result(n, preset="drone", seed=1)
+        build_html(result, build_report(result))
+        counts[n] = [len(fig.findobj()) for fig in caught]
+    for n, per_figure in counts.items():
+        assert len(per_figure) == 4, n
+        assert max(per_figure) <= 400, (n, per_figure)
+    # the per-pair and per-model figures (bars up to 120 pairs, lines beyond)
+    for k in (2, 3):
+        sizes = [per_figure[k] for per_figure in counts.values()]
+        assert max(sizes) - min(sizes) <= 30, (k, counts)

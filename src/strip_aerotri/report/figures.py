@@ -438,13 +438,33 @@ def _bars_or_lines(
     colours: Sequence[str],
     width: float = 0.4,
 ) -> None:
+    """Grouped bars (one collection per series) up to 120 positions, lines beyond."""
+    from matplotlib.collections import PolyCollection
+
     many = len(x) > 120
     for k, (v, label, colour) in enumerate(zip(values, labels, colours, strict=True)):
         if many:
             ax.plot(x, v, "-", lw=0.9, color=colour, label=label)
-        else:
-            offset = (k - (len(values) - 1) / 2) * width
-            ax.bar(x + offset, v, width=width, color=colour, label=label)
+            continue
+        # the bars of ax.bar, drawn as one artist: corners (n, 4, 2)
+        left = np.asarray(x, dtype=np.float64) + (k - (len(values) - 1) / 2) * width - width / 2
+        top = np.nan_to_num(np.asarray(v, dtype=np.float64))
+        corners = np.stack(
+            [
+                np.column_stack([left, np.zeros_like(top)]),
+                np.column_stack([left, top]),
+                np.column_stack([left + width, top]),
+                np.column_stack([left + width, np.zeros_like(top)]),
+            ],
+            axis=1,
+        )
+        bars = PolyCollection(
+            list(corners), facecolors=colour, edgecolors="none", linewidths=0, label=label
+        )
+        bars.sticky_edges.y.append(0.0)  # as ax.bar: no margin below the bars' foot
+        ax.add_collection(bars)
+    if not many:
+        ax.autoscale_view()
 
 
 def figure_parallax(result: StripResult) -> str:
@@ -470,7 +490,8 @@ def figure_parallax(result: StripResult) -> str:
     q = q[np.isfinite(q)]
     if q.size:
         rms = float(np.sqrt(np.mean(q**2)))
-        hx.hist(q, bins=min(60, max(10, q.size // 20)), color="#5d6d7e")
+        counts, edges = np.histogram(q, bins=min(60, max(10, q.size // 20)))
+        hx.stairs(counts, edges, fill=True, color="#5d6d7e")  # one artist, as hist's bars
         for sign in (-1, 1):
             hx.axvline(sign * 3 * rms, color="#c0392b", lw=1.0, ls="--")
         hx.set_title(f"All {q.size} y-parallaxes; ±3 RMS dashed", fontsize=10)
