@@ -25,13 +25,19 @@ Each is solved on the same image observations and control by:
 * **strip** - the strip method, the library call without file I/O
   (:func:`strip_aerotri.triangulate` / :func:`strip_aerotri.triangulate_block`);
 * **cli** - ``stripaero run`` in a subprocess, report included;
-* **strip+bundle** - the strip method with ``refine = "bundle"``;
+* **strip+bundle** - the strip method with ``refine = "bundle"``, and the
+  refinement alone (``timings_s.bundle`` of its result: the bundle with its
+  blunder tests and cofactors, from the strip method's start);
 * **ceres/strip**, **ceres/gnss** - Ceres through pycolmap's bundle adjuster,
   started from the strip method's result or from GNSS-like centres (the
   truth plus 3 cm, near-vertical attitudes along the heading with 2 degrees
   of noise, points intersected from those), the full control points held
   constant at their given coordinates, the intrinsics fixed; the solve
   alone is timed;
+* **ceres tuned/strip**, **ceres tuned/gnss** - the same with the settings
+  a user who knows Ceres would choose: world coordinates centred on the
+  photo centres, ``function_tolerance`` 1e-10 and an initial trust region
+  radius of 1e8 (pycolmap's defaults: 0 and 1e4);
 * **scipy/strip**, **scipy/gnss** - :func:`scipy.optimize.least_squares`
   (``method="trf"``, ``tr_solver="lsmr"``, ``x_scale="jac"``, the
   scipy-cookbook's large-scale bundle adjustment) with an analytic sparse
@@ -156,14 +162,31 @@ def peer_problem(sim, points: np.ndarray) -> PeerProblem:
     return PeerProblem(keep=keep, fixed=fixed & keep, start=start)
 
 
-def ceres(sim, centres: np.ndarray, rotations: np.ndarray, points: np.ndarray):
+#: Ceres "tuned": the settings a user who knows Ceres would set for aerial
+#: blocks, beside pycolmap's defaults (function_tolerance 0, initial trust
+#: region radius 1e4, world coordinates as given).
+CERES_TUNED = {"function_tolerance": 1e-10, "initial_trust_region_radius": 1e8}
+
+
+def ceres(
+    sim, centres: np.ndarray, rotations: np.ndarray, points: np.ndarray, tuned: bool = False
+):
     """pycolmap's Ceres bundle adjuster from the given start; returns the
-    adjusted points (site system) and the seconds of the solve alone."""
+    adjusted points (site system) and the seconds of the solve alone.
+
+    ``tuned``: world coordinates centred on the photo centres' mean (large
+    map coordinates cost Ceres digits and steps) and :data:`CERES_TUNED`.
+    """
     import pycolmap
 
     pycolmap.logging.minloglevel = 3
     obs = sim.observations
     problem = peer_problem(sim, points)
+    origin = np.zeros(3)
+    if tuned:
+        origin = np.nanmean(np.asarray(centres, dtype=np.float64), axis=0)
+        centres = centres - origin
+        problem = PeerProblem(problem.keep, problem.fixed, problem.start - origin)
     flip = np.diag([1.0, -1.0, -1.0])  # COLMAP's camera looks along +z, image y down
     rec = pycolmap.Reconstruction()
     half = max(10.0, 1.1 * float(np.abs(obs.xy).max()))  # keeps image coordinates positive
@@ -208,13 +231,16 @@ def ceres(sim, centres: np.ndarray, rotations: np.ndarray, points: np.ndarray):
     options.refine_principal_point = False
     options.refine_extra_params = False
     options.print_summary = False
+    if tuned:
+        for key, value in CERES_TUNED.items():
+            setattr(options.ceres.solver_options, key, value)
     adjuster = pycolmap.create_default_bundle_adjuster(options, config, rec)
     t0 = time.perf_counter()
     adjuster.solve()
     seconds = time.perf_counter() - t0
     out = np.full((obs.n_points, 3), np.nan)
     for i in np.flatnonzero(ids >= 0):
-        out[i] = rec.points3D[int(ids[i])].xyz
+        out[i] = rec.points3D[int(ids[i])].xyz + origin
     return out, seconds
 
 
@@ -458,9 +484,16 @@ def strip_method(sim, refine: str = "none"):
 
             specs = [StripSpec(s.name, s.photo_ids) for s in sim.strips]
             res = triangulate_block(sim.observations, sim.control, sim.crs, specs, refine=refine)
-            return res.points, res.photo_centres, matrix_from_opk(res.photo_opk)
-        res = triangulate(sim.observations, sim.control, sim.crs, refine=refine)
-        return res.points, res.photo_centres, matrix_from_opk(res.photo_opk)
+        else:
+            res = triangulate(sim.observations, sim.control, sim.crs, refine=refine)
+    timings = getattr(res, "timings", None) or {}
+    if "bundle" in timings:
+        BUNDLE_S.append(float(timings["bundle"]))
+    return res.points, res.photo_centres, matrix_from_opk(res.photo_opk)
+
+
+#: report.json's ``timings_s.bundle`` of every refined library call, in order.
+BUNDLE_S: list[float] = []
 
 
 def run_cli(sim, repeat: int) -> float:
@@ -504,8 +537,12 @@ def run_case(name: str, repeat: int, seed: int, scipy_max_obs: dict | None = Non
     strip, t = timed(lambda: strip_method(sim), repeat)
     MEASURED[name, "strip"] = t
     rows.append(Row("strip", t, *check_rmse(strip[0], sim)))
+    BUNDLE_S.clear()
     refined, t = timed(lambda: strip_method(sim, "bundle"), repeat)
     rows.append(Row("strip+bundle", t, *check_rmse(refined[0], sim)))
+    if BUNDLE_S:  # the refinement alone, its blunder tests and cofactors included
+        bundle_s = STAT[SUMMARY[0]](BUNDLE_S)
+        rows.append(Row("bundle (timings_s.bundle)", bundle_s, *check_rmse(refined[0], sim)))
     rows.append(Row("cli (report included)", run_cli(sim, repeat), rows[0].plan, rows[0].height))
     starts = {
         "strip": (strip[1], strip[2], strip[0]),
@@ -516,10 +553,13 @@ def run_case(name: str, repeat: int, seed: int, scipy_max_obs: dict | None = Non
     except ImportError:
         print("pycolmap not importable: the Ceres rows are left out")
     else:
-        for key, start in starts.items():
-            out, t = repeat_solve(lambda start=start: ceres(sim, *start), repeat)
-            rows.append(Row(f"ceres/{key} (solve only)", t, *check_rmse(out[0], sim)))
-            MEASURED[name, f"ceres/{key}"] = t
+        for tuned, label in ((False, "ceres"), (True, "ceres tuned")):
+            for key, start in starts.items():
+                out, t = repeat_solve(
+                    lambda start=start, tuned=tuned: ceres(sim, *start, tuned=tuned), repeat
+                )
+                rows.append(Row(f"{label}/{key} (solve only)", t, *check_rmse(out[0], sim)))
+                MEASURED[name, f"{label}/{key}"] = t
     n_obs = sim.observations.photo.size
     for key, start in starts.items():
         if n_obs > scipy_max_obs[key]:
@@ -557,15 +597,15 @@ def print_case(name: str, sim, rows: list[Row]) -> None:
         f"({obs.photo.size / obs.n_photos:.0f} per photo), {obs.n_points} points; "
         f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
     )
-    print(f"{'solver':26s} {'time s':>8s} {'plan m':>8s} {'height m':>8s} {'t / fastest':>12s}")
+    print(f"{'solver':31s} {'time s':>8s} {'plan m':>8s} {'height m':>8s} {'t / fastest':>12s}")
     for r in rows:
         if not math.isfinite(r.plan):
-            print(f"{r.solver:26s} {'-':>8s} {'-':>8s} {'-':>8s} {'-':>12s}  {r.note}")
+            print(f"{r.solver:31s} {'-':>8s} {'-':>8s} {'-':>8s} {'-':>12s}  {r.note}")
             continue
         mark = "" if equal(r) else " *"
         note = f"  {r.note}" if r.note else ""
         print(
-            f"{r.solver:26s} {r.seconds:8.3f} {r.plan:8.3f} {r.height:8.3f} "
+            f"{r.solver:31s} {r.seconds:8.3f} {r.plan:8.3f} {r.height:8.3f} "
             f"{r.seconds / fastest:12.1f}{mark:2s}{note}"
         )
     print("(* not within 5 % of the best accuracy in plan and height)")

@@ -66,3 +66,20 @@ def test_scipy_peer_improves_on_the_strip_start(film):
     strip_plan, strip_height = bench_peers.check_rmse(points, sim)
     assert plan <= strip_plan * 1.01
     assert height < strip_height
+
+
+def test_tuned_ceres_reaches_the_default_ceres_solution(film):
+    """The tuned Ceres peer (centred world coordinates, function_tolerance
+    1e-10, initial trust radius 1e8) solves the same problem: the same
+    points as pycolmap's defaults, back in the site system."""
+    pytest.importorskip("pycolmap")
+    sim, (points, centres, rotations) = film
+    default, _ = bench_peers.ceres(sim, centres, rotations, points)
+    tuned, seconds = bench_peers.ceres(sim, centres, rotations, points, tuned=True)
+    assert seconds > 0
+    ok = np.isfinite(default).all(axis=1)
+    assert ok.sum() > 100
+    np.testing.assert_array_equal(np.isfinite(tuned).all(axis=1), ok)
+    np.testing.assert_allclose(tuned[ok], default[ok], atol=1e-3)  # metres
+    # and it moved from the start: a bundle, not the start given back
+    assert np.abs(tuned[ok] - points[ok]).max() > 1e-3
