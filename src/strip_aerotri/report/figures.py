@@ -20,6 +20,8 @@ if TYPE_CHECKING:
     from ..results import StripResult
 
 _MAX_PLOT_POINTS = 20000
+_RASTERIZE_ABOVE = 1000
+"""Scatters of more points are rasterised in a vector export of a figure."""
 
 
 LONG_STRIP_RATIO = 8.0
@@ -244,6 +246,8 @@ def figure_layout(result: StripResult, plan: Plan, roles: np.ndarray) -> str:
             label=f"{label} ({int(np.count_nonzero(ok & (roles == role)))})",
             linewidths=1.0 if marker == "x" else 0.4,
             edgecolors=None if marker in (".", "x") or crowded else "black",
+            # thousands of markers: one image in a vector export (the PNG is raster anyway)
+            rasterized=sel.size > _RASTERIZE_ABOVE,
         )
     ax.autoscale_view()
     _plan_axes(ax, plan)
@@ -417,6 +421,7 @@ def _figure_residuals_along(
                     marker=marker,
                     c=colour,
                     s=28 if few else 6,
+                    rasterized=int(sel.sum()) > _RASTERIZE_ABOVE,
                     label=name,
                     linewidths=0.3 if few else 0.0,
                     **({"edgecolors": "black"} if few else {}),
