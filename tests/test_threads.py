@@ -119,3 +119,61 @@ def test_a_bad_limit_is_one_line_naming_the_variable(
     monkeypatch.setenv(BLAS_THREADS_VARIABLE, text)
     with pytest.raises(ConfigError, match=f"^environment variable {BLAS_THREADS_VARIABLE}="):
         blas_thread_limit()
+
+
+def test_interruptible_returns_and_raises_as_the_call() -> None:
+    import numpy as np
+
+    from strip_aerotri._threads import interruptible
+
+    a = np.array([[4.0, 2.0], [2.0, 3.0]])
+    np.testing.assert_allclose(interruptible(np.linalg.cholesky, a), np.linalg.cholesky(a))
+    assert interruptible(divmod, 7, 2) == (3, 1)
+    with pytest.raises(np.linalg.LinAlgError):
+        interruptible(np.linalg.cholesky, -a)
+
+
+#: A main thread waiting on a long call into compiled code that releases the
+#: interpreter (a matrix product, as LAPACK's calls do): SIGINT must act while
+#: the call still runs, not when it returns.  The worker says "computing" as
+#: it starts the product.
+_WAIT = textwrap.dedent(
+    """
+    import sys, threading
+    import numpy as np
+    from strip_aerotri._threads import interruptible
+
+    a = np.random.default_rng(1).standard_normal((1500, 1500))
+
+    def product():
+        print("computing", flush=True)
+        for _ in range(20):  # seconds of BLAS calls
+            a @ a
+
+    try:
+        interruptible(product)
+    except KeyboardInterrupt:
+        busy = any(t.name == "strip_aerotri-compute" for t in threading.enumerate())
+        print("interrupted while computing" if busy else "interrupted after", flush=True)
+        sys.exit(130)
+    """
+)
+
+
+def test_ctrl_c_acts_during_a_long_compiled_call() -> None:
+    import signal
+
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _WAIT],
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "OPENBLAS_NUM_THREADS": "1"},
+        # as from a terminal: SIGINT not inherited as ignored
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    assert proc.stdout is not None
+    assert proc.stdout.readline().strip() == "computing"
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 130
+    assert out.strip() == "interrupted while computing"
