@@ -177,3 +177,25 @@ def test_ctrl_c_acts_during_a_long_compiled_call() -> None:
     out, _ = proc.communicate(timeout=120)
     assert proc.returncode == 130
     assert out.strip() == "interrupted while computing"
+
+
+def test_a_bad_limit_stops_stripaero_run_in_one_line(tmp_path: Path) -> None:
+    from strip_aerotri import simulate_strip
+
+    toml = simulate_strip(4, seed=1).write_project(tmp_path / "p")
+    environ = {**os.environ, BLAS_THREADS_VARIABLE: "lots"}
+    code = "import sys; from strip_aerotri.cli.main import cli; sys.exit(cli())"
+    done = subprocess.run(
+        [sys.executable, "-c", code, "run", str(toml)],
+        capture_output=True,
+        text=True,
+        env=environ,
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 1
+    assert done.stderr.strip() == (
+        f"stripaero: error: environment variable {BLAS_THREADS_VARIABLE}='lots': expected a "
+        "positive number of BLAS threads or 'auto' (unset it for the default, one thread)"
+    )
+    assert not (toml.parent / "out").exists()
