@@ -54,3 +54,23 @@ def test_case_names() -> None:
 def test_slope_of_a_power_law() -> None:
     photos = [100, 300, 1000, 3000]
     assert slope(photos, [2e-3 * p**1.07 for p in photos]) == pytest.approx(1.07)
+
+
+def test_band_benchmark_quick_mode_and_its_bandwidth_rule() -> None:
+    from bench_band import half_band, time_band
+
+    # a strip: the overlap window on either side; a block numbered across
+    # its strips: the window times the strips (docs/scaling.md)
+    assert half_band(1) == 6 * 5 - 1
+    assert half_band(20) == 6 * (4 * 20 + 20 + 1) - 1
+    factor, solve, mb = time_band(600, 29, repeat=1)
+    assert factor > 0 and solve > 0 and mb == 30 * 600 * 8 / 1e6
+    done = subprocess.run(
+        [sys.executable, str(BENCH / "bench_band.py"), "--quick", "--repeat", "1"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert re.search(r"^\s+20 x 500\s+10000\s+60000\s+605 factor\s+[\d.]+ s", done.stdout, re.M)
