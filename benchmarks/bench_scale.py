@@ -30,6 +30,10 @@ The cases:
 a curve of 15 and 30 photos, with one BLAS thread: it shows that the script
 works (tests/test_bench_scale.py), not the floors.
 
+``--project CASE=STRIP_TOML`` runs a project from elsewhere (another
+simulator, real data) as the case CASE, with that case's floors, instead of
+the package's simulation; given alone, only those cases run.
+
 ``--threads`` runs every case with the package's BLAS limit (``1``: one
 thread, the default of the adjustments), with BLAS's own threads (``auto``:
 ``STRIPAERO_BLAS_THREADS=auto``, OpenBLAS's one thread per core) or both
@@ -151,10 +155,16 @@ def run_once(exe: str, toml: Path, out: Path, threads: str) -> Run:
     return Run(wall, usage.ru_maxrss / 1024.0, proc.returncode, stages)
 
 
-def observations(toml: Path) -> int:
-    """Rows of the project's image points (its observations)."""
-    with (toml.parent / "image_points.csv").open(encoding="utf-8") as fh:
-        return sum(1 for _ in fh) - 1
+def project_size(toml: Path) -> tuple[int, int]:
+    """(photos, image observations) of a project, as the package reads it."""
+    import warnings
+
+    from strip_aerotri import StripAerotriWarning, load_project
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        project = load_project(toml)
+    return len(project.photo_ids), int(project.observations.photo.size)
 
 
 def _fmt_floor(value: float, floor: float | None) -> str:
@@ -162,14 +172,23 @@ def _fmt_floor(value: float, floor: float | None) -> str:
 
 
 def measure(
-    exe: str, name: str, tmp: Path, threads: list[str], repeat: int
+    exe: str,
+    name: str,
+    tmp: Path,
+    threads: list[str],
+    repeat: int,
+    project: Path | None = None,
 ) -> dict[str, object]:
-    """Write and run one case; a row per thread setting (the median of ``repeat`` runs)."""
-    strips, photos, refine = parse_case(name)
-    toml = write_case(tmp / name, strips, photos, refine=refine)
-    n_obs = observations(toml)
+    """Write (or take ``project``) and run one case; a row per thread setting
+    (the median of ``repeat`` runs)."""
+    if project is None:
+        strips, photos, refine = parse_case(name)
+        toml = write_case(tmp / name, strips, photos, refine=refine)
+    else:
+        toml = project.resolve()
+    n_photos, n_obs = project_size(toml)
     floor_s, floor_gb = FLOORS.get(name, (None, None))
-    rows: dict[str, object] = {"case": name, "photos": strips * photos, "observations": n_obs}
+    rows: dict[str, object] = {"case": name, "photos": n_photos, "observations": n_obs}
     for t in threads:
         runs = [run_once(exe, toml, tmp / name / f"out-{t}", t) for _ in range(repeat)]
         wall = statistics.median(r.wall_s for r in runs)
@@ -178,7 +197,7 @@ def measure(
         rows[t] = {"wall_s": wall, "peak_mb": peak, "stages": stages}
         stage_text = ", ".join(f"{k} {v:.2f}" for k, v in stages.items())
         print(
-            f"{name:20s} {strips * photos:7d} {n_obs:9d}  {t:>4s}  {wall:8.2f} "
+            f"{name:20s} {n_photos:7d} {n_obs:9d}  {t:>4s}  {wall:8.2f} "
             f"{peak:8.0f}  {_fmt_floor(wall, floor_s)} "
             f"{_fmt_floor(peak / 1024.0, floor_gb)}   {stage_text}",
             flush=True,
@@ -215,11 +234,27 @@ def main(argv: list[str] | None = None) -> None:
     )
     parser.add_argument("--repeat", type=int, default=1, help="runs per case (median)")
     parser.add_argument("--json", type=Path, help="also write the results to this file")
+    parser.add_argument(
+        "--project",
+        action="append",
+        default=[],
+        metavar="CASE=STRIP_TOML",
+        help="run this project (from any source) as the case CASE instead of simulating it; "
+        "repeatable (e.g. strip-1000=data/strip/strip.toml)",
+    )
     args = parser.parse_args(argv)
     exe = shutil.which("stripaero")
     if exe is None:
         sys.exit("stripaero is not installed (pip install .)")
+    given: dict[str, Path] = {}
+    for item in args.project:
+        case, sep, path = item.partition("=")
+        if not sep or not Path(path).is_file():
+            sys.exit(f"--project {item}: expected CASE=STRIP_TOML naming an existing file")
+        given[case] = Path(path)
     cases = args.cases if args.cases is not None else QUICK_CASES if args.quick else CASES
+    if given and args.cases is None:
+        cases = list(given)
     curve = args.curve if args.curve is not None else QUICK_CURVE if args.quick else CURVE
     setting = args.threads or ("1" if args.quick else "both")
     threads = ["1", "auto"] if setting == "both" else [setting]
@@ -233,7 +268,9 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
         if not args.curve_only:
-            results["cases"] = [measure(exe, c, tmp, threads, args.repeat) for c in cases]
+            results["cases"] = [
+                measure(exe, c, tmp, threads, args.repeat, given.get(c)) for c in cases
+            ]
         if not args.no_curve and len(curve) >= 2:
             rows = [measure(exe, f"strip-{m}", tmp, threads, args.repeat) for m in curve]
             for t in threads:

@@ -74,3 +74,40 @@ def test_band_benchmark_quick_mode_and_its_bandwidth_rule() -> None:
     )
     assert done.returncode == 0, done.stderr
     assert re.search(r"^\s+20 x 500\s+10000\s+60000\s+605 factor\s+[\d.]+ s", done.stdout, re.M)
+
+
+def test_a_project_from_elsewhere_runs_as_a_case(tmp_path: Path) -> None:
+    from strip_aerotri import simulate_strip
+
+    toml = simulate_strip(6, preset="film", seed=2).write_project(tmp_path / "elsewhere")
+    env = dict(os.environ)
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
+    done = subprocess.run(
+        [
+            sys.executable,
+            str(BENCH / "bench_scale.py"),
+            "--project",
+            f"strip-1000={toml}",
+            "--threads",
+            "1",
+            "--no-curve",
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    # the project's own size, the case's floor ratio (1.5 s), no output in its folder
+    assert re.search(r"^strip-1000\s+6\s+\d+\s+1\s+[\d.]+\s+\d+\s+[\d.]+\s", done.stdout, re.M)
+    assert not (toml.parent / "out").exists()
+    bad = subprocess.run(
+        [sys.executable, str(BENCH / "bench_scale.py"), "--project", "strip-1000"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+        check=False,
+    )
+    assert bad.returncode == 1 and "expected CASE=STRIP_TOML" in bad.stderr
