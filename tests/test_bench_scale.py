@@ -16,19 +16,23 @@ sys.path.insert(0, str(BENCH))
 from bench_scale import parse_case, slope  # noqa: E402
 
 
-def test_quick_mode_prints_sizes_times_memory_and_the_slope(tmp_path: Path) -> None:
+def _bench(script: str, *args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """Run a benchmark script with this interpreter's installed ``stripaero`` first on PATH."""
     env = dict(os.environ)
-    # the installed stripaero of this interpreter's environment
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
-    done = subprocess.run(
-        [sys.executable, str(BENCH / "bench_scale.py"), "--quick", "--json", "r.json"],
+    return subprocess.run(
+        [sys.executable, str(BENCH / script), *args],
         capture_output=True,
         text=True,
-        cwd=tmp_path,
+        cwd=cwd,
         env=env,
         timeout=300,
         check=False,
     )
+
+
+def test_quick_mode_prints_sizes_times_memory_and_the_slope(tmp_path: Path) -> None:
+    done = _bench("bench_scale.py", "--quick", "--json", "r.json", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     out = done.stdout
     assert out.startswith("load average at start: ")
@@ -65,13 +69,7 @@ def test_band_benchmark_quick_mode_and_its_bandwidth_rule() -> None:
     assert half_band(20) == 6 * (4 * 20 + 20 + 1) - 1
     factor, solve, mb = time_band(600, 29, repeat=1)
     assert factor > 0 and solve > 0 and mb == 30 * 600 * 8 / 1e6
-    done = subprocess.run(
-        [sys.executable, str(BENCH / "bench_band.py"), "--quick", "--repeat", "1"],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
+    done = _bench("bench_band.py", "--quick", "--repeat", "1")
     assert done.returncode == 0, done.stderr
     assert re.search(r"^\s+20 x 500\s+10000\s+60000\s+605 factor\s+[\d.]+ s", done.stdout, re.M)
 
@@ -80,34 +78,10 @@ def test_a_project_from_elsewhere_runs_as_a_case(tmp_path: Path) -> None:
     from strip_aerotri import simulate_strip
 
     toml = simulate_strip(6, preset="film", seed=2).write_project(tmp_path / "elsewhere")
-    env = dict(os.environ)
-    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
-    done = subprocess.run(
-        [
-            sys.executable,
-            str(BENCH / "bench_scale.py"),
-            "--project",
-            f"strip-1000={toml}",
-            "--threads",
-            "1",
-            "--no-curve",
-        ],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=300,
-        check=False,
-    )
+    done = _bench("bench_scale.py", "--project", f"strip-1000={toml}", "--threads", "1", "--no-curve")
     assert done.returncode == 0, done.stderr
     # the project's own size, the case's floor ratio (1.5 s), no output in its folder
     assert re.search(r"^strip-1000\s+6\s+\d+\s+1\s+[\d.]+\s+\d+\s+[\d.]+\s", done.stdout, re.M)
     assert not (toml.parent / "out").exists()
-    bad = subprocess.run(
-        [sys.executable, str(BENCH / "bench_scale.py"), "--project", "strip-1000"],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=300,
-        check=False,
-    )
+    bad = _bench("bench_scale.py", "--project", "strip-1000")
     assert bad.returncode == 1 and "expected CASE=STRIP_TOML" in bad.stderr
