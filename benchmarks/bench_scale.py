@@ -263,7 +263,8 @@ def main(argv: list[str] | None = None) -> None:
         f"{'case':20s} {'photos':>7s} {'obs':>9s}  {'BLAS':>4s}  {'wall s':>8s} "
         f"{'peak MB':>8s}  {'t/flr':>5s} {'m/flr':>5s}   stages (report.json timings_s)"
     )
-    results: dict[str, object] = {"cases": [], "curve": {}}
+    curves: dict[str, object] = {}
+    results: dict[str, object] = {"cases": [], "curve": curves}
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
@@ -276,7 +277,7 @@ def main(argv: list[str] | None = None) -> None:
             for t in threads:
                 secs = [float(r[t]["wall_s"]) for r in rows]  # type: ignore[index]
                 s = slope(list(curve), secs)
-                results["curve"][t] = {"photos": list(curve), "wall_s": secs, "slope": s}  # type: ignore[index]
+                curves[t] = {"photos": list(curve), "wall_s": secs, "slope": s}
                 print(
                     f"slope log(time) / log(photos), BLAS {t}: {s:.2f} over "
                     f"{curve[0]}-{curve[-1]} photos (floor {SLOPE_FLOOR})"

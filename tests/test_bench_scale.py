@@ -78,7 +78,8 @@ def test_a_project_from_elsewhere_runs_as_a_case(tmp_path: Path) -> None:
     from strip_aerotri import simulate_strip
 
     toml = simulate_strip(6, preset="film", seed=2).write_project(tmp_path / "elsewhere")
-    done = _bench("bench_scale.py", "--project", f"strip-1000={toml}", "--threads", "1", "--no-curve")
+    case = f"strip-1000={toml}"
+    done = _bench("bench_scale.py", "--project", case, "--threads", "1", "--no-curve")
     assert done.returncode == 0, done.stderr
     # the project's own size, the case's floor ratio (1.5 s), no output in its folder
     assert re.search(r"^strip-1000\s+6\s+\d+\s+1\s+[\d.]+\s+\d+\s+[\d.]+\s", done.stdout, re.M)
