@@ -199,3 +199,36 @@ def test_a_bad_limit_stops_stripaero_run_in_one_line(tmp_path: Path) -> None:
         "positive number of BLAS threads or 'auto' (unset it for the default, one thread)"
     )
     assert not (toml.parent / "out").exists()
+
+
+def test_the_callers_limit_comes_back_after_an_error_and_after_nesting(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import scipy.linalg  # noqa: F401  (both BLAS libraries loaded)
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from strip_aerotri._threads import blas_threads, limit_blas_threads
+
+    def blas() -> set[int]:
+        return {d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"}
+
+    monkeypatch.delenv(BLAS_THREADS_VARIABLE, raising=False)
+    if not blas():
+        pytest.skip("no BLAS library that threadpoolctl knows")
+
+    @limit_blas_threads
+    def fails() -> None:
+        assert blas() == {1}
+        raise ConfigError("a stage's error")
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        with pytest.raises(ConfigError, match="a stage's error"):
+            fails()
+        assert blas() == {2}
+        with blas_threads(3):
+            with blas_threads():
+                assert blas() == {1}
+            assert blas() == {3}
+            with blas_threads(None):
+                assert blas() == {3}
+        assert blas() == {2}
