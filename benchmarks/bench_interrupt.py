@@ -13,7 +13,8 @@ starts the run again for every moment of ``--at`` (seconds after the start),
 sends SIGINT there and measures the time until the process has exited: the
 time a user waits after pressing Ctrl-C.  The stage the run was in is the
 last progress line it printed.  The exit code is shown as it is (the
-command's own handling of Ctrl-C decides it).
+command's own handling of Ctrl-C decides it).  Last, the same wait for an
+idle process with the run's imports: the interpreter's own share.
 """
 
 from __future__ import annotations
@@ -74,6 +75,35 @@ def interrupt_at(cmd: list[str], delay: float) -> tuple[float | None, int, str]:
     return waited, proc.returncode, stage
 
 
+#: A process with the run's imports, idle in Python: its exit after SIGINT is
+#: the interpreter's own share of every wait below.
+_IDLE = (
+    "import time, numpy, scipy.sparse.linalg, strip_aerotri.cli.main\n"
+    "print('ready', flush=True)\n"
+    "time.sleep(600)"
+)
+
+
+def idle_exit(repeat: int = 3) -> list[float]:
+    """Seconds from SIGINT to the exit of an idle process with the same imports."""
+    waits = []
+    for _ in range(repeat):
+        proc = subprocess.Popen(
+            [sys.executable, "-c", _IDLE],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+            preexec_fn=_default_sigint,
+        )
+        assert proc.stdout is not None
+        proc.stdout.readline()
+        sent = time.perf_counter()
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=60)
+        waits.append(time.perf_counter() - sent)
+    return waits
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--photos", type=int, default=1000, help="photos (of each strip)")
@@ -106,6 +136,8 @@ def main(argv: list[str] | None = None) -> None:
             worst = max(worst, waited)
             print(f"  SIGINT at {delay:6.2f} s: exit {code} after {waited:.2f} s  [{stage}]")
         print(f"longest wait after Ctrl-C: {worst:.2f} s; load {os.getloadavg()}")
+        idle = ", ".join(f"{w:.2f}" for w in idle_exit())
+        print(f"an idle process with the same imports exits {idle} s after SIGINT")
 
 
 if __name__ == "__main__":

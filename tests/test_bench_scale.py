@@ -86,3 +86,16 @@ def test_a_project_from_elsewhere_runs_as_a_case(tmp_path: Path) -> None:
     assert not (toml.parent / "out").exists()
     bad = _bench("bench_scale.py", "--project", "strip-1000")
     assert bad.returncode == 1 and "expected CASE=STRIP_TOML" in bad.stderr
+
+
+def test_interrupt_benchmark_sends_sigint_and_times_the_exit() -> None:
+    from bench_interrupt import idle_exit, interrupt_at
+
+    code = "import sys, time\nprint('working', file=sys.stderr, flush=True)\ntime.sleep(60)"
+    waited, exit_code, stage = interrupt_at([sys.executable, "-c", code], 1.0)
+    assert waited is not None and waited < 30  # SIGINT reached a 60 s sleep
+    assert exit_code == -2  # Python's uncaught KeyboardInterrupt ends by SIGINT
+    assert stage == "working"  # the last progress line before the signal
+    finished, exit_code, _ = interrupt_at([sys.executable, "-c", "pass"], 20.0)
+    assert finished is None and exit_code == 0
+    assert len(idle_exit(repeat=1)) == 1
