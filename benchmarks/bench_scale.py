@@ -34,6 +34,10 @@ works (tests/test_bench_scale.py), not the floors.
 simulator, real data) as the case CASE, with that case's floors, instead of
 the package's simulation; given alone, only those cases run.
 
+``--timeout S`` stops a run after S seconds (default 1800) and shows it
+without a result; a run that fails is shown with its error line; the
+others go on.
+
 ``--threads`` runs every case with the package's BLAS limit (``1``: one
 thread, the default of the adjustments), with BLAS's own threads (``auto``:
 ``STRIPAERO_BLAS_THREADS=auto``, OpenBLAS's one thread per core) or both
@@ -52,6 +56,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -124,15 +129,18 @@ class Run:
     peak_mb: float
     exit_code: int
     stages: dict[str, float] = field(default_factory=dict)
+    failed: str = ""  # why the run gave no result (its error, or the timeout)
 
 
-def run_once(exe: str, toml: Path, out: Path, threads: str) -> Run:
-    """Run the project once; wall time, peak memory of the child, report.json's timings."""
+def run_once(exe: str, toml: Path, out: Path, threads: str, timeout: float = 1800.0) -> Run:
+    """Run the project once; wall time, peak memory of the child, report.json's
+    timings; a run still going after ``timeout`` seconds is killed."""
     env = dict(os.environ)
     env.pop("STRIPAERO_BLAS_THREADS", None)
     if threads != "1":
         env["STRIPAERO_BLAS_THREADS"] = threads
     shutil.rmtree(out, ignore_errors=True)
+    killed: list[bool] = []
     with tempfile.TemporaryFile() as errors:
         t0 = time.perf_counter()
         proc = subprocess.Popen(
@@ -141,18 +149,25 @@ def run_once(exe: str, toml: Path, out: Path, threads: str) -> Run:
             stderr=errors,
             env=env,
         )
+        timer = threading.Timer(timeout, lambda: (killed.append(True), proc.kill()))
+        timer.start()
         _, status, usage = os.wait4(proc.pid, 0)  # this child's own resource usage
+        timer.cancel()
         wall = time.perf_counter() - t0
         proc.returncode = os.waitstatus_to_exitcode(status)
         errors.seek(0)
-        stderr = errors.read().decode(errors="replace")
+        stderr = errors.read().decode(errors="replace").strip()
+    peak = usage.ru_maxrss / 1024.0
+    if killed:
+        return Run(wall, peak, proc.returncode, failed=f"stopped after {timeout:g} s")
     if proc.returncode not in (0, 3):  # 3: the run met the data but failed a tolerance
-        sys.exit(f"stripaero run {toml} failed ({proc.returncode}): {stderr.strip()}")
+        line = stderr.splitlines()[-1] if stderr else ""
+        return Run(wall, peak, proc.returncode, failed=f"exit {proc.returncode}: {line}")
     stages: dict[str, float] = {}
     report = out / "report.json"
     if report.exists():
         stages = json.loads(report.read_text(encoding="utf-8")).get("timings_s", {}) or {}
-    return Run(wall, usage.ru_maxrss / 1024.0, proc.returncode, stages)
+    return Run(wall, peak, proc.returncode, stages)
 
 
 def project_size(toml: Path) -> tuple[int, int]:
@@ -178,6 +193,7 @@ def measure(
     threads: list[str],
     repeat: int,
     project: Path | None = None,
+    timeout: float = 1800.0,
 ) -> dict[str, object]:
     """Write (or take ``project``) and run one case; a row per thread setting
     (the median of ``repeat`` runs)."""
@@ -190,7 +206,12 @@ def measure(
     floor_s, floor_gb = FLOORS.get(name, (None, None))
     rows: dict[str, object] = {"case": name, "photos": n_photos, "observations": n_obs}
     for t in threads:
-        runs = [run_once(exe, toml, tmp / name / f"out-{t}", t) for _ in range(repeat)]
+        runs = [run_once(exe, toml, tmp / name / f"out-{t}", t, timeout) for _ in range(repeat)]
+        if any(r.failed for r in runs):
+            failed = next(r.failed for r in runs if r.failed)
+            rows[t] = {"failed": failed}
+            print(f"{name:20s} {n_photos:7d} {n_obs:9d}  {t:>4s}  no result: {failed}")
+            continue
         wall = statistics.median(r.wall_s for r in runs)
         peak = max(r.peak_mb for r in runs)
         stages = runs[-1].stages
@@ -202,9 +223,8 @@ def measure(
             f"{_fmt_floor(peak / 1024.0, floor_gb)}   {stage_text}",
             flush=True,
         )
-    if "1" in rows and "auto" in rows:
-        one, auto = rows["1"], rows["auto"]
-        assert isinstance(one, dict) and isinstance(auto, dict)
+    one, auto = rows.get("1"), rows.get("auto")
+    if isinstance(one, dict) and isinstance(auto, dict) and "wall_s" in one and "wall_s" in auto:
         print(f"{'':20s} BLAS's own threads / one thread: {auto['wall_s'] / one['wall_s']:.2f}")
     return rows
 
@@ -234,6 +254,12 @@ def main(argv: list[str] | None = None) -> None:
     )
     parser.add_argument("--repeat", type=int, default=1, help="runs per case (median)")
     parser.add_argument("--json", type=Path, help="also write the results to this file")
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=1800.0,
+        help="seconds after which a run is stopped and shown without a result (default 1800)",
+    )
     parser.add_argument(
         "--project",
         action="append",
@@ -270,12 +296,20 @@ def main(argv: list[str] | None = None) -> None:
         tmp = Path(tmp_name)
         if not args.curve_only:
             results["cases"] = [
-                measure(exe, c, tmp, threads, args.repeat, given.get(c)) for c in cases
+                measure(exe, c, tmp, threads, args.repeat, given.get(c), args.timeout)
+                for c in cases
             ]
         if not args.no_curve and len(curve) >= 2:
-            rows = [measure(exe, f"strip-{m}", tmp, threads, args.repeat) for m in curve]
+            rows = [
+                measure(exe, f"strip-{m}", tmp, threads, args.repeat, timeout=args.timeout)
+                for m in curve
+            ]
             for t in threads:
-                secs = [float(r[t]["wall_s"]) for r in rows]  # type: ignore[index]
+                runs = [r[t] for r in rows]
+                if not all(isinstance(r, dict) and "wall_s" in r for r in runs):
+                    print(f"slope, BLAS {t}: not computed (a run gave no result)")
+                    continue
+                secs = [float(r["wall_s"]) for r in runs]
                 s = slope(list(curve), secs)
                 curves[t] = {"photos": list(curve), "wall_s": secs, "slope": s}
                 print(

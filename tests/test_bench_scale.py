@@ -99,3 +99,14 @@ def test_interrupt_benchmark_sends_sigint_and_times_the_exit() -> None:
     finished, exit_code, _ = interrupt_at([sys.executable, "-c", "pass"], 20.0)
     assert finished is None and exit_code == 0
     assert len(idle_exit(repeat=1)) == 1
+
+
+def test_a_run_past_the_timeout_is_shown_without_a_result(tmp_path: Path) -> None:
+    done = _bench(
+        "bench_scale.py", "--cases", "strip-12", "--curve", "6", "12", "--timeout", "0.01",
+        cwd=tmp_path,
+    )
+    assert done.returncode == 0, done.stderr
+    stopped = r"^strip-12\s+12\s+\d+\s+1\s+no result: stopped after 0.01 s$"
+    assert re.search(stopped, done.stdout, re.M)
+    assert "slope, BLAS 1: not computed (a run gave no result)" in done.stdout
