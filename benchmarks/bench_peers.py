@@ -626,21 +626,28 @@ def cost_curve(
     """Time of the strip method, Ceres and scipy (from the strip's start)
     over ``names``, and the log-log slopes against ``x_of(sim)``."""
     print(f"\ncost against {label}")
-    print(f"{'case':14s} {'x':>7s} {'obs':>8s} {'strip s':>9s} {'ceres s':>9s} {'scipy s':>9s}")
-    xs, times = [], {"strip": [], "ceres": [], "scipy": []}
+    print(
+        f"{'case':14s} {'x':>7s} {'obs':>8s} {'strip s':>9s} {'ceres s':>9s} "
+        f"{'tuned s':>9s} {'scipy s':>9s}"
+    )
+    xs, times = [], {"strip": [], "ceres": [], "ceres tuned": [], "scipy": []}
     for name in names:
         sim = simulate_case(name, seed)
         runs = 1 if (name, "strip") in MEASURED else repeat  # only the start is needed then
         strip, t = timed(lambda sim=sim: strip_method(sim), runs)
         times["strip"].append(MEASURED.get((name, "strip"), t))
         start = (strip[1], strip[2], strip[0])
-        t = MEASURED.get((name, "ceres/strip"))
-        if t is None:
-            try:
-                _, t = repeat_solve(lambda sim=sim, start=start: ceres(sim, *start), repeat)
-            except ImportError:
-                t = math.nan
-        times["ceres"].append(t)
+        for key, tuned in (("ceres", False), ("ceres tuned", True)):
+            t = MEASURED.get((name, f"{key}/strip"))
+            if t is None:
+                try:
+                    _, t = repeat_solve(
+                        lambda sim=sim, start=start, tuned=tuned: ceres(sim, *start, tuned=tuned),
+                        repeat,
+                    )
+                except ImportError:
+                    t = math.nan
+            times[key].append(t)
         t = MEASURED.get((name, "scipy/strip"))
         if t is None:
             t = math.nan
@@ -650,7 +657,8 @@ def cost_curve(
         xs.append(x_of(sim))
         print(
             f"{name:14s} {xs[-1]:7.0f} {sim.observations.photo.size:8d} "
-            f"{times['strip'][-1]:9.3f} {times['ceres'][-1]:9.3f} {times['scipy'][-1]:9.3f}"
+            f"{times['strip'][-1]:9.3f} {times['ceres'][-1]:9.3f} "
+            f"{times['ceres tuned'][-1]:9.3f} {times['scipy'][-1]:9.3f}"
             f"   load {os.getloadavg()[0]:.1f}"
         )
         sys.stdout.flush()
