@@ -1460,9 +1460,12 @@ def project_toml(project: ImportedProject) -> str:
         lines.append(f"principal_point_mm = {toml_value(list(p.camera.principal_point_mm))}")
     f = p.frame
     lines += ["", "[images]", 'file = "image_points.csv"']
-    if f.units == "pixel":
+    if f.units == "pixel" or (f.pixel_size_mm is not None and f.principal_point_px is not None):
+        if f.units == "pixel":
+            lines.append('units = "pixel"')
+        else:
+            lines.append("# where the mm origin lies in the pixels (for export odm)")
         lines += [
-            'units = "pixel"',
             f"pixel_size_mm = {toml_value(float(f.pixel_size_mm))}",  # type: ignore[arg-type]
             f"principal_point_px = {toml_value([float(v) for v in f.principal_point_px])}",  # type: ignore[union-attr]
         ]

@@ -210,8 +210,9 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
     ),
     KeySpec(
         "images", "pixel_size_mm", "positive number", required=False, default=None, unit="mm",
-        description='Side of a square pixel; required with units = "pixel", refused '
-        "otherwise.",
+        description='Side of a square pixel; required with units = "pixel". With units = '
+        '"mm" (an extension) it may be given together with principal_point_px: they then '
+        "only tell the exports that need pixels (export odm) how to convert.",
         contract=False,
         default_text="none",
     ),
@@ -220,7 +221,7 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         unit="px",
         description="Column c0 and row r0 of the origin of the image coordinates (principal "
         'point or image centre): x = (col - c0) s, y = -(row - r0) s. Required with units = '
-        '"pixel", refused otherwise.',
+        '"pixel"; with units = "mm" only together with pixel_size_mm (see there).',
         contract=False,
         default_text="none",
     ),

@@ -22,7 +22,9 @@ from .html import (
     _verdict_cell,
     criteria_table,
     stat_row,
+    verdict_banner,
 )
+from .verdict import overall_verdict
 
 __all__ = ["block_html"]
 
@@ -76,22 +78,14 @@ def _plain(report: Mapping[str, Any]) -> str:
                     f"{joins[0]['transfer_limit_um']:.0f} µm)"
                 )
             text += ". "
+    verdict = overall_verdict(report["tolerances"], joins)
+    text += f"Against the tolerances of the production rules: {verdict.text}."
     return f"<p class='plain'>{_esc(text)}</p>"
 
 
 def _verdict_banner(report: Mapping[str, Any]) -> str:
     """R4's verdict at the check points and on the joins, first on the page."""
-    verdicts = [report["tolerances"]["passed"]]
-    verdicts += [j["passed"] for j in report["block"]["joins"]]
-    verdicts += [j["transfer_passed"] for j in report["block"]["joins"]]
-    judged = [v for v in verdicts if v is not None]
-    if not judged:
-        cls, text = "na", "not judged (give the map scale: [report] map_scale or --map-scale)"
-    elif all(judged):
-        cls, text = "pass", "all judged criteria pass"
-    else:
-        cls, text = "fail", "at least one criterion fails"
-    return f"<div class='verdict {cls}'>Tolerances (R4 §1.7.7): {_esc(text)}</div>"
+    return verdict_banner(overall_verdict(report["tolerances"], report["block"]["joins"]))
 
 
 def _readable(criterion: str) -> str:

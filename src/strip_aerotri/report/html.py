@@ -12,6 +12,7 @@ import numpy as np
 
 from .figures import Plan, figure_layout, figure_parallax, figure_residuals, figure_ties
 from .values import point_roles
+from .verdict import Verdict, overall_verdict
 
 if TYPE_CHECKING:
     from ..results import StripResult
@@ -204,7 +205,6 @@ def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
     inp, chk = report["inputs"], report["check"]["statistics"]
     ctrl = inp["control"]
     used = report["control"]["statistics"]
-    scale = report["tolerances"]["map_scale"]
     text = (
         f"{inp['n_photos']} photos were oriented and {inp['n_points_triangulated']} points "
         f"measured on them were given ground coordinates, fitted to "
@@ -238,9 +238,19 @@ def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
         )
     else:
         text += "There were no independent check points, so the accuracy is not proven. "
-    if scale is not None:
-        text += f"Against the tolerances for a map at 1:{scale:g}: {verdict}."
+    text += f"Against the tolerances of the production rules: {verdict}."
     return f"<p class='plain'>{_esc(text)}</p>"
+
+
+_VERDICT_WORD = {"pass": "met", "fail": "not met", "na": "not fully judged"}
+
+
+def verdict_banner(verdict: Verdict) -> str:
+    """The verdict first on the page, in the words of the plain summary and the CLI."""
+    return (
+        f"<div class='verdict {verdict.status}'>Tolerances of the production rules (R4 "
+        f"§1.7.7): {_esc(verdict.text)}</div>"
+    )
 
 
 def _html_page(
@@ -262,15 +272,8 @@ def _html_page(
     tol = report["tolerances"]
     name = proj["name"] or "Strip aerotriangulation"
     ctrl = inp["control"]
-    overall = tol["passed"]
-    overall_cls = "na" if overall is None else "pass" if overall else "fail"
-    overall_text = (
-        "not judged"
-        if overall is None
-        else "all judged criteria pass"
-        if overall
-        else "at least one criterion fails"
-    )
+    verdict = overall_verdict(tol)
+    overall_cls, overall_text = verdict.status, verdict.text
     chk = report["check"]["statistics"]
     pairs = report["pairs"]
     sig = [p["sigma0_um"] for p in pairs if p["sigma0_um"] is not None]
@@ -317,7 +320,10 @@ def _html_page(
             "map scale for the verdicts",
             ("–" if tol["map_scale"] is None else f"1:{tol['map_scale']:g}",),
         ],
-        ["R4 §1.7.7 verdict", (f"<span class='{overall_cls}'>{_esc(overall_text)}</span>",)],
+        [
+            "tolerance verdict",
+            (f"<span class='{overall_cls}'>{_esc(_VERDICT_WORD[overall_cls])}</span>",),
+        ],
     ]
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
@@ -328,7 +334,7 @@ def _html_page(
         "<p class='sub'>Analytical strip aerotriangulation by partially dependent models"
         f" · strip_aerotri {_esc(report['software']['version'])}"
         f" · {_esc(report['created_utc'])}</p>",
-        f"<div class='verdict {overall_cls}'>Tolerances (R4 §1.7.7): {_esc(overall_text)}</div>",
+        verdict_banner(verdict),
         "<p class='sub'>R4: the production rules of analytical phototriangulation whose "
         "tolerances this report applies (§1.7.7: control and check points at the map "
         "scale, relative orientation, model junctions); J: Janiszewski's strip "

@@ -17,6 +17,7 @@ from ..observations import ControlType
 from ..results import StripResult
 from .tolerances import tolerance_verdicts
 from .values import clean, control_rows, json_float, statistics
+from .verdict import with_verdict
 
 if TYPE_CHECKING:
     from ..project import Project
@@ -422,11 +423,13 @@ def build_report(
             "statistics": statistics(result.check_statistics),
             "points": _control_points(result, check=True),
         },
-        "tolerances": {
-            "map_scale": None if map_scale is None else float(map_scale),
-            "passed": None if not judged else all(judged),
-            "criteria": [c.as_dict() for c in criteria],
-        },
+        "tolerances": with_verdict(
+            {
+                "map_scale": None if map_scale is None else float(map_scale),
+                "passed": None if not judged else all(judged),
+                "criteria": [c.as_dict() for c in criteria],
+            }
+        ),
         "bundle": _bundle(result),
         "rejections": [
             {

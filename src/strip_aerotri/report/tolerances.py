@@ -63,11 +63,13 @@ if TYPE_CHECKING:
     from ..results import StripResult
 
 __all__ = [
+    "CHANCE_LEVEL",
     "CHECK_PLAN_MM",
     "LIMIT_FACTOR",
     "LIMIT_SHARE",
     "MIN_DISTRIBUTION_SIZE",
     "Criterion",
+    "chance_beyond",
     "check_interval_decrease",
     "check_largest_vs_mean",
     "check_limit_share",
@@ -88,6 +90,10 @@ LIMIT_SHARE = 0.01
 
 MIN_DISTRIBUTION_SIZE = 10
 """Fewer residuals than this are not judged for their distribution."""
+
+CHANCE_LEVEL = 0.01
+"""A count beyond the limit above :data:`LIMIT_SHARE` fails only when normally
+distributed errors give so many with a probability below this."""
 
 
 @dataclass(frozen=True)
@@ -112,6 +118,9 @@ class Criterion:
         Paragraph of R4 the criterion comes from.
     n : int
         Number of values the figure is computed from.
+    chance : float or None
+        For a count of values beyond a limit: the probability that normally
+        distributed errors give at least as many (None where not applicable).
     """
 
     name: str
@@ -122,6 +131,7 @@ class Criterion:
     unit: str = ""
     source: str = "R4 §1.7.7"
     n: int = 0
+    chance: float | None = None
 
     def as_dict(self) -> dict[str, object]:
         """Plain-JSON form (floats, str, bool or None)."""
@@ -134,6 +144,7 @@ class Criterion:
             "n": int(self.n),
             "source": self.source,
             "explanation": self.explanation,
+            "chance": _num(self.chance),
         }
 
 
@@ -334,7 +345,24 @@ def check_limit_share(
     limit_value = factor * m
     count = int(np.count_nonzero(v > limit_value))
     percent = 100.0 * count / v.size
-    passed = bool(count <= share * v.size)
+    # three mean absolute values are 3·sqrt(2/π) = 2.39 standard deviations
+    sigmas = factor if mean == "rms" else factor * float(np.sqrt(2.0 / np.pi))
+    chance = chance_beyond(count, v.size, sigmas)
+    literal = count <= share * v.size
+    passed = bool(literal or chance >= CHANCE_LEVEL)
+    if literal:
+        verdict = f"at most {100.0 * share:g} % allowed"
+    else:
+        verdict = (
+            f"R4 allows {100.0 * share:g} %; normally distributed errors give {count} or more "
+            f"of {v.size} beyond {factor:g} × {_mean_text(mean)} with a probability of "
+            f"{100.0 * chance:.2g} %, "
+            + (
+                "so this is not evidence against them"
+                if passed
+                else f"below {100.0 * CHANCE_LEVEL:g} %: not a chance result"
+            )
+        )
     return Criterion(
         name,
         percent,
@@ -342,11 +370,30 @@ def check_limit_share(
         passed,
         f"{count} of {v.size} {what} ({percent:.2f} %) beyond {factor:g} × "
         f"{_mean_text(mean)} = {limit_value:.3g} {unit} (largest {float(v.max()):.3g} {unit}); "
-        f"at most {100.0 * share:g} % allowed",
+        + verdict,
         "%",
         "R4 §1.7.7.8",
         v.size,
+        chance,
     )
+
+
+def chance_beyond(count: int, n: int, factor: float = LIMIT_FACTOR) -> float:
+    """Probability that at least ``count`` of ``n`` normally distributed errors
+    lie beyond ``factor`` standard deviations (binomial tail, each with
+    probability 2 Φ(−factor), 0.27 % for three).
+
+    >>> round(chance_beyond(1, 40), 3)
+    0.102
+    >>> chance_beyond(0, 40)
+    1.0
+    """
+    from scipy.stats import binom, norm
+
+    if count <= 0:
+        return 1.0
+    p = 2.0 * float(norm.sf(factor))
+    return float(binom.sf(count - 1, n, p))
 
 
 def check_interval_decrease(
