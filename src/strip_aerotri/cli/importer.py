@@ -23,7 +23,9 @@ if TYPE_CHECKING:  # the formats are imported when a command runs (a fast --help
 
 __all__ = ["import_group"]
 
-IMPORT_EPILOG = "Documentation: docs/import.md (every format, its options and what is decided)."
+IMPORT_EPILOG = (
+    "Documentation: stripaero docs import (every format, its options and what is decided)."
+)
 
 
 def _id_list(

@@ -1447,7 +1447,7 @@ def project_toml(project: ImportedProject) -> str:
         lines += ["[strip]", f"name = {toml_string(p.name)}"]
         lines.append(f"photos = {_toml_id_list(p.strips[0].photos)}")
     else:
-        lines.append(f"# {p.name}: a block of {len(p.strips)} strips")
+        lines += ["[project]", f"name = {toml_string(p.name)}", ""]
         for strip in p.strips:
             lines += ["[[strips]]", f"name = {toml_string(strip.name)}"]
             lines.append(f"photos = {_toml_id_list(strip.photos)}")

@@ -132,6 +132,7 @@ class KeySpec:
 
 
 PROJECT_TABLES: tuple[TableSpec, ...] = (
+    TableSpec("project", False, False, "the project's name, for the report's title"),
     TableSpec("strip", False, False, "the strip: its name and photos in flight order"),
     TableSpec(
         "strips", False, True, "a block: one table per strip, its name and photos in flight order"
@@ -160,6 +161,13 @@ TABLES_BY_NAME = {t.name: t for t in PROJECT_TABLES}
 
 # fmt: off
 PROJECT_KEYS: tuple[KeySpec, ...] = (
+    KeySpec(
+        "project", "name", "string", required=False, default=None, unit="",
+        description="Name of the project (the client's job), the title of the report and "
+        "of the run's summary; overrides [strip] name there.",
+        contract=False,
+        default_text="[strip] name; for a block the name of the folder holding strip.toml",
+    ),
     KeySpec(
         "strip", "name", "string", required=False, default=None, unit="",
         description="Name of the strip, used in reports.",

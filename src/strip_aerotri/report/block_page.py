@@ -117,10 +117,10 @@ def _joins(report: Mapping[str, Any]) -> str:
         "max plan [m]",
         "mean |dH| [m]",
         "max |dH| [m]",
-        "R4 1.7.7.7",
+        "agree within 0.5 mm at map scale (R4 1.7.7.7)",
         "mean transfer [µm]",
         "max transfer [µm]",
-        "R4 1.7.7.3",
+        "transfer within 40 µm (R4 1.7.7.3)",
     ]
     digits = [0, 0, 3, 3, 3, 3, 0, 1, 1, 0]
     return (
@@ -253,7 +253,9 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
     others = [w for w in report["warnings"] if w not in set(rejections)]
     stats = [stat_row("control (used)", report["control"]["statistics"])]
     if report["control"].get("fit_statistics") is not None:
-        label = f"control: the {block['construction'] or 'unit'}s' own determinations"
+        units = str(block["construction"] or "units")
+        units = units if units.endswith("s") else f"{units}s"
+        label = f"control: the {units}' own determinations"
         stats.append(stat_row(label, report["control"]["fit_statistics"]))
     stats.append(stat_row("check (not used)", report["check"]["statistics"]))
     parts = [
@@ -268,8 +270,9 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
         + "</p>",
         _verdict_banner(report),
         _plain(report),
-        "<p class='sub'>R4: the production rules of analytical phototriangulation whose "
-        "tolerances this report applies; a <em>model</em> is the 3D model of one pair of "
+        "<p class='sub'>The tolerances are those of the Russian production rules for "
+        "analytical phototriangulation (called R4 below); a <em>model</em> is the 3D model "
+        "of one pair of "
         "overlapping photos, a <em>strip</em> one flight line of photos.</p>",
         f"<p>Construction: {_esc(block['construction'])} (every "
         f"{'strip' if block['construction'] == 'strips' else 'model'} its own 3D "

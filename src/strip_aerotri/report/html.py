@@ -12,7 +12,7 @@ import numpy as np
 
 from .figures import Plan, figure_layout, figure_parallax, figure_residuals, figure_ties
 from .values import point_roles
-from .verdict import Verdict, overall_verdict
+from .verdict import Verdict, criterion_label, overall_verdict
 
 if TYPE_CHECKING:
     from ..results import StripResult
@@ -37,6 +37,7 @@ figcaption{color:#5d6d7e;font-size:0.88em}
 .scroll table{margin:0}
 ul.warn li{color:#7e5109}
 footer{margin-top:2em;color:#7f8c8d;font-size:0.8em}
+@page{size:A4;margin:14mm 12mm}
 @media print{body{max-width:none;margin:0;padding:0}.scroll{max-height:none;overflow:visible;
 display:block;border:none}thead{display:table-header-group}tr,figure{break-inside:avoid}
 h2,h3{break-after:avoid}table{font-size:7.5pt}th,td{padding:1px 4px}th{white-space:normal}
@@ -183,7 +184,10 @@ def criteria_table(criteria: list[Mapping[str, Any]]) -> str:
         ["criterion", "source", "n", "value", "limit", "unit", "verdict", "explanation"],
         [
             [
-                c["name"],
+                (
+                    f"<span style='white-space:normal'>"
+                    f"{_esc(c.get('label') or criterion_label(c['name']))}</span>",
+                ),
                 c["source"],
                 c["n"],
                 c["value"],
@@ -301,7 +305,8 @@ def _html_page(
             (
                 "every model its own similarity, all at once"
                 if opt.get("block") == "models"
-                else f"J's similarity and polynomial (requested {_esc(opt['polynomial'])}, "
+                else f"one transformation of the whole strip and polynomials (Janiszewski; "
+                f"requested {_esc(opt['polynomial'])}, "
                 f"used {report['polynomial']['kind']})",
             ),
         ],
@@ -335,10 +340,11 @@ def _html_page(
         f" · strip_aerotri {_esc(report['software']['version'])}"
         f" · {_esc(report['created_utc'])}</p>",
         verdict_banner(verdict),
-        "<p class='sub'>R4: the production rules of analytical phototriangulation whose "
-        "tolerances this report applies (§1.7.7: control and check points at the map "
-        "scale, relative orientation, model junctions); J: Janiszewski's strip "
-        "method (similarity and deformation polynomials J(16)).</p>",
+        "<p class='sub'>The tolerances are those of the Russian production rules for "
+        "analytical phototriangulation (called R4 below; §1.7.7: the check points at the "
+        "map scale, the relative orientation, the joins of the models). The strip is "
+        "computed by Janiszewski's method (called J below): one transformation of the whole "
+        "strip, optionally bent by polynomials (his formula 16).</p>",
         _plain_summary(report, overall_text),
         "<h2>Summary</h2>",
         _table(["item", "value"], summary, left=1),
@@ -367,14 +373,15 @@ def _html_page(
         ),
         _figure(
             fig_par,
-            "Figure 3. Residual y-parallax of the relative orientation per pair "
-            "(left) and of all points (right), µm at image scale.",
+            "Figure 3. Residual y-parallax of the relative orientation per pair of photos, "
+            "named by its left photo (left), and of all points (right), µm at image scale.",
             "y-parallax",
         ),
         _figure(
             fig_ties,
             "Figure 4. RMS of the differences between the two determinations of "
-            "the tie points of each model and the previous one, in metres.",
+            "the tie points of each model (named by its left photo) and the previous one, "
+            "in metres.",
             "tie-point differences",
         ),
         "<h2>Tolerance verdicts (R4 §1.7.7)</h2>",
@@ -384,7 +391,8 @@ def _html_page(
     parts.append(
         "<footer>Residuals and discrepancies are given minus adjusted, along local east, "
         "north and up. photos.csv angles: R = Rx(ω)·Ry(φ)·Rz(κ) maps image vectors to local "
-        "east-north-up. See docs/outputs.md for every figure of this report.</footer>"
+        "east-north-up. Every figure of this report is described in the documentation "
+        "installed with the program (stripaero docs outputs).</footer>"
         "</body></html>"
     )
     return "\n".join(parts)
@@ -452,6 +460,14 @@ def _relative_section(report: Mapping[str, Any]) -> list[str]:
             digits=[0, 0, 0, 0, 0, 2, 2, 2, 6, 6, 6, 6, 6],
         )
     )
+    if "b_y" in names:
+        out.append(
+            "<p class='sub'>q: the residual y-parallax, the vertical mismatch of a point "
+            "between the two photos. b_y, b_z: the base from the left to the right photo, "
+            "across and up, in units of its length along the strip; a, b, c: the turn of the "
+            "right photo against the left (the rotation axis times tan(angle/2), about "
+            "x, y, z).</p>"
+        )
     return out
 
 
