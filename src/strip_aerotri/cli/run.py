@@ -227,7 +227,12 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
             result, files = _adjust_and_report(project, map_scale)
             # Warnings only once the run has succeeded: a failed run prints its one
             # error line.
-            texts = (*project.warnings, *result.warnings, *(str(w.message) for w in caught))
+            texts = (
+                *project.warnings,
+                *result.warnings,
+                *(str(w.message) for w in caught),
+                *_report_warnings(files.get("report.json")),
+            )
             for text in _warning_lines(list(dict.fromkeys(texts)), _rejections(result), files):
                 echo_warning(text)
             echo_progress(f"writing {len(files)} files to {target}")
@@ -271,6 +276,17 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         echo_result(f"report: {target / report_name}")
     echo_result(f"results: {target}")
     echo_progress(f"done in {elapsed:.1f} s", level=1)
+
+
+def _report_warnings(report_json: bytes | None) -> list[str]:
+    """The warnings report.json adds to the run's (the plan drift at the map scale)."""
+    import json
+
+    try:
+        listed = json.loads(report_json or b"{}").get("warnings") or []
+    except ValueError:
+        return []
+    return [str(w) for w in listed]
 
 
 def _adjust_and_report(

@@ -15,7 +15,7 @@ from .._version import __version__
 from ..geometry.rotation import opk_from_matrix
 from ..observations import ControlType
 from ..results import StripResult
-from .tolerances import tolerance_verdicts
+from .tolerances import plan_drift_warning, tolerance_verdicts
 from .values import clean, control_rows, json_float, statistics
 from .verdict import with_verdict
 
@@ -349,6 +349,7 @@ def build_report(
     if project is not None:
         weights = {spec.name: float(spec.weight) for spec in project.straight_lines}
     criteria = tolerance_verdicts(result, map_scale)
+    drift = [w for w in (plan_drift_warning(result, map_scale),) if w is not None]
     judged = [c.passed for c in criteria if c.passed is not None]
     frame = ground.frame
     report: dict[str, Any] = {
@@ -446,7 +447,7 @@ def build_report(
             }
             for r in getattr(result, "rejections", ())
         ],
-        "warnings": [*result.warnings, *notes],
+        "warnings": [*result.warnings, *notes, *drift],
         "timings_s": dict(result.timings),
         "outputs": {
             "points.geojson": {

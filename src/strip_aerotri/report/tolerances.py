@@ -75,6 +75,7 @@ __all__ = [
     "check_limit_share",
     "check_mean_plan",
     "mean_error",
+    "plan_drift_warning",
     "residual_distribution",
     "tolerance_verdicts",
 ]
@@ -505,4 +506,45 @@ def tolerance_verdicts(result: StripResult, map_scale: float | None) -> tuple[Cr
         *residual_distribution(
             check_en, prefix="check_en", what="check-point discrepancies dE, dN", unit="m"
         ),
+    )
+
+
+def plan_drift_warning(result: StripResult, map_scale: float | None) -> str | None:
+    """A warning when the plan position of the strip, held only by its plan
+    control, is far weaker between the control than the map scale needs.
+
+    The simultaneous transformation of the models gives, for one point per
+    model (the one most models share), its a priori plan standard deviation
+    from the geometry and the weights (metres at σ0 = 1). When the largest
+    exceeds R4's mean plan discrepancy at check points (0.3 mm at 1:S), the
+    check points between the control cannot be expected to meet it: a strip
+    with plan control only at its ends drifts between them. None without a
+    map scale, for J's polynomials (no such precision), or after a bundle
+    refinement (which judges its own points).
+    """
+    scale = _check_scale(map_scale)
+    models = result.ground.models
+    if scale is None or models is None or result.refined is not None:
+        return None
+    probe, sigma = models.result.probe_points, models.result.probe_plan_sigma
+    if probe is None or sigma is None:
+        return None
+    n_points = result.strip.observations.n_points
+    valid = (probe >= 0) & (probe < n_points) & np.isfinite(sigma)
+    if not valid.any():
+        return None
+    limit = CHECK_PLAN_MM * 1e-3 * scale
+    model = int(np.flatnonzero(valid)[np.argmax(sigma[valid])])
+    worst = float(sigma[model])
+    if worst <= limit:
+        return None
+    labels = result.strip.model_labels
+    where = labels[model] if model < len(labels) else f"model {model + 1}"
+    point = result.strip.observations.point_ids[int(probe[model])]
+    return (
+        f"plan precision between the plan control: point {point!r} ({where}) is held to "
+        f"{worst:.2f} m in plan (standard deviation from the strip's geometry), while a map at "
+        f"1:{scale:g} needs check points within {limit:.2f} m on average (R4 §1.7.7.4): the "
+        "strip drifts between its plan control; add plan control points between them, or "
+        'observe the photo centres by GNSS ([gnss] with [adjustment] refine = "bundle")'
     )
