@@ -62,9 +62,8 @@ def _plain(report: Mapping[str, Any]) -> str:
         means = [j["mean_plan_m"] for j in joins if j["mean_plan_m"] is not None]
         transfer = [j["mean_transfer_um"] for j in joins if j["mean_transfer_um"] is not None]
         if means:
-            spread = (
-                _fmt(means[0]) if len(means) == 1 else f"{_fmt(min(means))}-{_fmt(max(means))}"
-            )
+            low, high = _fmt(min(means)), _fmt(max(means))
+            spread = low if low == high else f"{low}-{high}"
             text += (
                 f"On the points two strips share, the strips agree to {spread} m in plan "
                 "on average"
