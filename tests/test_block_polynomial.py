@@ -282,6 +282,6 @@ def test_simulated_block_with_a_polynomial_runs_as_a_block_of_strips(tmp_path: P
     assert 'block = "strips"' in text and "polynomial = 2" in text
     ran = runner.invoke(cli, ["run", str(out / "strip.toml"), "--map-scale", "1000"])
     assert ran.exit_code == 0, ran.output
-    assert "tolerances for 1:1000:" in ran.stdout
+    assert "tolerances (R4 §1.7.7): " in ran.stdout and "at 1:1000" in ran.stdout
     auto = runner.invoke(cli, [*args, "--polynomial", "auto", "--force"])
     assert auto.exit_code == 2 and "auto" in auto.output

@@ -43,6 +43,13 @@ def project(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return simulate_strip(14, seed=3).write_project(tmp_path_factory.mktemp("p") / "p")
 
 
+@pytest.fixture(scope="module")
+def slow_project(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A project whose run lasts seconds: time for a second run (or a Ctrl-C)
+    to arrive while the first one holds its folder, even on a busy machine."""
+    return simulate_strip(40, seed=3).write_project(tmp_path_factory.mktemp("slow") / "p")
+
+
 def _fresh(project: Path, tmp_path: Path) -> Path:
     """A copy of the project with no result folder yet."""
     folder = tmp_path / "proj"
@@ -142,7 +149,7 @@ def test_ctrl_c_exits_130_with_one_line_naming_the_previous_result(project: Path
     """SIGINT while adjusting: exit 130, one line on stderr saying the folder
     holds the previous result, which is byte for byte what it was; the lock
     is released. Today: exit 1 and "\\nAborted!"."""
-    toml = _fresh(project, tmp_path)
+    toml = _fresh(slow_project, tmp_path)
     assert _cli("run", str(toml)).returncode == 0
     out = toml.parent / "out"
     before = {p.name: p.read_bytes() for p in out.iterdir()}
@@ -178,11 +185,11 @@ def test_ctrl_c_after_the_new_result_is_in_place_says_so(
     assert (toml.parent / "out" / "report.json").is_file()
 
 
-def test_a_second_run_into_a_folder_being_written_is_refused(project: Path, tmp_path: Path):
+def test_a_second_run_into_a_folder_being_written_is_refused(slow_project: Path, tmp_path: Path):
     """Two runs into one folder at once: one succeeds, the other is refused in
     one line naming the lock file; the lock is gone afterwards. Today both
     report success and the last one wins."""
-    toml = _fresh(project, tmp_path)
+    toml = _fresh(slow_project, tmp_path)
     out = toml.parent / "out"
     first = _start("run", str(toml))
     _wait_for(lock_path(out), first)

@@ -99,8 +99,9 @@ def overall_verdict(
             missing = f"no check points, so the accuracy at 1:{scale:g} was not judged"
     else:
         missing = ""
+    at = "" if scale is None else f" at 1:{scale:g}"
     if failed:
-        head = f"{len(failed)} of {len(failed) + met} judged criteria not met: " + "; ".join(
+        head = f"{len(failed)} of {len(failed) + met} judged criteria not met{at}: " + "; ".join(
             failed
         )
         return Verdict("fail", head + (f"; {missing}" if missing else ""))
@@ -113,7 +114,6 @@ def overall_verdict(
         return Verdict("na", f"{missing}; {judged}")
     if not met:
         return Verdict("na", "nothing could be judged")
-    at = "" if scale is None else f" at 1:{scale:g}"
     return Verdict("pass", f"all {met} criteria met{at}")
 
 
