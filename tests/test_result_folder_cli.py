@@ -145,7 +145,9 @@ def _wait_for(path: Path, proc: subprocess.Popen[str], timeout: float = 120.0) -
         time.sleep(0.005)
 
 
-def test_ctrl_c_exits_130_with_one_line_naming_the_previous_result(project: Path, tmp_path: Path):
+def test_ctrl_c_exits_130_with_one_line_naming_the_previous_result(
+    slow_project: Path, tmp_path: Path
+):
     """SIGINT while adjusting: exit 130, one line on stderr saying the folder
     holds the previous result, which is byte for byte what it was; the lock
     is released. Today: exit 1 and "\\nAborted!"."""

@@ -346,16 +346,19 @@ def check_limit_share(
     limit_value = factor * m
     count = int(np.count_nonzero(v > limit_value))
     percent = 100.0 * count / v.size
-    # three mean absolute values are 3·sqrt(2/π) = 2.39 standard deviations
+    # the share beyond the limit that errors within the rule may have: that of
+    # normal errors (2 Φ(−3) = 0.27 % beyond three RMS), at most R4's share
+    # (three mean absolute values are only 2.39 σ: 1.67 % of normal errors)
     sigmas = factor if mean == "rms" else factor * float(np.sqrt(2.0 / np.pi))
-    chance = chance_beyond(count, v.size, sigmas)
+    chance = chance_beyond(count, v.size, sigmas, at_most=share)
     literal = count <= share * v.size
     passed = bool(literal or chance >= CHANCE_LEVEL)
     if literal:
         verdict = f"at most {100.0 * share:g} % allowed"
     else:
         verdict = (
-            f"R4 allows {100.0 * share:g} %; normally distributed errors give {count} or more "
+            f"R4 allows {100.0 * share:g} %; normally distributed errors within it give {count} "
+            "or more "
             f"of {v.size} beyond {factor:g} × {_mean_text(mean)} with a probability of "
             f"{100.0 * chance:.2g} %, "
             + (
@@ -379,10 +382,12 @@ def check_limit_share(
     )
 
 
-def chance_beyond(count: int, n: int, factor: float = LIMIT_FACTOR) -> float:
+def chance_beyond(
+    count: int, n: int, factor: float = LIMIT_FACTOR, *, at_most: float = 1.0
+) -> float:
     """Probability that at least ``count`` of ``n`` normally distributed errors
     lie beyond ``factor`` standard deviations (binomial tail, each with
-    probability 2 Φ(−factor), 0.27 % for three).
+    probability 2 Φ(−factor), 0.27 % for three, or ``at_most`` if smaller).
 
     >>> round(chance_beyond(1, 40), 3)
     0.102
@@ -393,7 +398,7 @@ def chance_beyond(count: int, n: int, factor: float = LIMIT_FACTOR) -> float:
 
     if count <= 0:
         return 1.0
-    p = 2.0 * float(norm.sf(factor))
+    p = min(2.0 * float(norm.sf(factor)), float(at_most))
     return float(binom.sf(count - 1, n, p))
 
 
