@@ -343,9 +343,10 @@ def _html_page(
         verdict_banner(verdict),
         "<p class='sub'>The tolerances are those of the Russian production rules for "
         "analytical phototriangulation (called R4 below; §1.7.7: the check points at the "
-        "map scale, the relative orientation, the joins of the models). The strip is "
-        "computed by Janiszewski's method (called J below): one transformation of the whole "
-        "strip, optionally bent by polynomials (his formula 16).</p>",
+        "map scale, the relative orientation, the joins of the models). J below is "
+        "Janiszewski's description of the strip method, whose formulas the report cites "
+        "(his transformation of the whole strip bent by polynomials is formula 16; the "
+        "construction used is in the summary).</p>",
         _plain_summary(report, overall_text),
         "<h2>Summary</h2>",
         _table(["item", "value"], summary, left=1),

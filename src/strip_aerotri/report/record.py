@@ -280,6 +280,19 @@ def _model_adjustment(result: StripResult) -> dict[str, Any] | None:
     }
 
 
+def _tolerances(result: StripResult, map_scale: float | None) -> dict[str, Any]:
+    """report.json's ``tolerances``: the criteria, their verdicts and the words."""
+    criteria = tolerance_verdicts(result, map_scale)
+    judged = [c.passed for c in criteria if c.passed is not None]
+    return with_verdict(
+        {
+            "map_scale": None if map_scale is None else float(map_scale),
+            "passed": None if not judged else all(judged),
+            "criteria": [c.as_dict() for c in criteria],
+        }
+    )
+
+
 def build_report(
     result: StripResult,
     *,
@@ -317,9 +330,7 @@ def build_report(
     weights: dict[str, float] = {}
     if project is not None:
         weights = {spec.name: float(spec.weight) for spec in project.straight_lines}
-    criteria = tolerance_verdicts(result, map_scale)
     drift = [w for w in (plan_drift_warning(result, map_scale),) if w is not None]
-    judged = [c.passed for c in criteria if c.passed is not None]
     frame = ground.frame
     options = options_record(result.options)
     if options is None:
@@ -396,13 +407,7 @@ def build_report(
             "statistics": statistics(result.check_statistics),
             "points": _control_points(result, check=True),
         },
-        "tolerances": with_verdict(
-            {
-                "map_scale": None if map_scale is None else float(map_scale),
-                "passed": None if not judged else all(judged),
-                "criteria": [c.as_dict() for c in criteria],
-            }
-        ),
+        "tolerances": _tolerances(result, map_scale),
         "bundle": _bundle(result),
         "rejections": [
             {
