@@ -230,7 +230,9 @@ def test_blunder_rules(kwargs, key):
 
 def test_blunder_pairs_from_text_or_tuples():
     assert BlunderOptions(exclude_observations=("a/b",)).exclude_observations == (("a", "b"),)
-    assert BlunderOptions(exclude_observations=(("a", "b"),)).exclude_observations == (("a", "b"),)
+    assert BlunderOptions(exclude_observations=(("a", "b"),)).exclude_observations == (
+        ("a", "b"),
+    )
 
 
 # --------------------------------------------------------------------------- results

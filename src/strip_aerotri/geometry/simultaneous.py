@@ -351,9 +351,10 @@ class SimultaneousResult:
         coefficient, its prior included; near the prior's variance, the
         data say little of that term.
     probe_points : ndarray of int, shape (U,), optional
-        One point per unit (the one the most units share; -1 for a unit with
-        none), whose plan precision :attr:`probe_plan_sigma` gives: how well
-        the adjustment holds the plan position along the block of units.
+        One point of each of at most 24 units evenly along the block (the
+        point the most units share; -1 for the other units), whose plan
+        precision :attr:`probe_plan_sigma` gives: how well the adjustment
+        holds the plan position along the block of units.
     probe_plan_sigma : ndarray, shape (U,), optional
         A priori plan standard deviation ``sqrt(q_xx + q_yy)`` of the probe
         points (metres at σ0 = 1; NaN for -1). None without statistics.
@@ -962,17 +963,29 @@ def _result(
     )
 
 
+_PROBES = 24
+"""Units whose plan precision :func:`_probe_plan_sigma` computes, at most."""
+
+
 def _probe_plan_sigma(
     prob: _Problem, normals: _Normals, lu: spl.SuperLU, scale: FloatArray
 ) -> tuple[IntArray, FloatArray]:
-    """Per unit the point most units share (ties first) and its a priori plan
-    standard deviation (two solves per unit)."""
+    """For at most :data:`_PROBES` units evenly along the block, the point most
+    units share (ties first) and its a priori plan standard deviation (two
+    solves each); -1 and NaN for the other units."""
     obs = prob.obs
     shared = np.bincount(obs.point, minlength=prob.n_points)
     order = np.lexsort((-shared[obs.point], obs.unit))
     units, first = np.unique(obs.unit[order], return_index=True)
     probe = np.full(prob.n_units, -1, dtype=np.intp)
     probe[units] = obs.point[order[first]]
+    # at most _PROBES units evenly along the block: the precision varies slowly
+    # from unit to unit, and every probe costs two solves
+    sampled = np.zeros(prob.n_units, dtype=bool)
+    sampled[np.round(np.linspace(0, prob.n_units - 1, min(prob.n_units, _PROBES))).astype(int)] = (
+        True
+    )
+    probe[~sampled] = -1
     sigma = np.full(prob.n_units, np.nan)
     has = probe >= 0
     if has.any():
