@@ -437,8 +437,8 @@ class FormedNormals:
     def unit_blocks(self) -> FloatArray:
         """The units' d x d normal blocks U (n, d, d), undamped, before the
         points are eliminated."""
-        pat = self.structure.pattern
-        return self._normals.band[pat.position, 0]
+        blocks: FloatArray = self._normals.band[self.structure.pattern.position, 0]
+        return blocks
 
     def solve(self, damping: float = 0.0) -> NormalSolution:
         """The step with Levenberg-Marquardt `damping` (diagonals of the unit,
