@@ -518,12 +518,16 @@ def _round_statistics(
 
     ctrl_on, c_sig, given = sets.ctrl_on, inp.c_sig, inp.c_given
     weight_sub = np.where(ctrl_on[pts], 1.0 / np.where(ctrl_on[pts], c_sig[pts], 1.0) ** 2, 0)
-    h_sub, vinv_diag = _point_leverage(sub, res.centres, res.rotations, res.points, weight_sub)
     r_img = np.full((k_all, 2), np.nan)
     exact = res.image_redundancy
-    if exact.shape == (rows.size, 2) and np.all(np.isfinite(exact)):
+    precise = compute_precision and np.isfinite(res.sigma0) and res.sigma0 > 0
+    if precise and exact.shape == (rows.size, 2) and np.all(np.isfinite(exact)):
         r_img[rows] = np.clip(exact, 1e-12, 1.0)
+        vinv_diag = np.full((pts.size, 3), np.nan)  # not needed: the cofactors are exact
     else:
+        h_sub, vinv_diag = _point_leverage(
+            sub, res.centres, res.rotations, res.points, weight_sub
+        )
         free = float(np.sum(1.0 - h_sub))
         rho = max(_MIN_PHOTO_FACTOR, 1.0 - 6.0 * m / free) if free > 0 else _MIN_PHOTO_FACTOR
         r_img[rows] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
@@ -534,7 +538,7 @@ def _round_statistics(
     ctrl_res = np.full((p, 3), np.nan)
     ctrl_res[given] = np.where(pt_used[:, None], new_points, np.nan)[given] - inp.c_xyz[given]
     q = np.full((p, 3), np.nan)
-    if compute_precision and np.isfinite(res.sigma0) and res.sigma0 > 0:
+    if precise:
         q[pts] = (res.point_std / res.sigma0) ** 2
     else:
         q[pts] = vinv_diag
