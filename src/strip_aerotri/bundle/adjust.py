@@ -152,6 +152,17 @@ class _Problem:
         )
 
 
+def _along_axis_order(centres: FloatArray) -> IntArray:
+    """The photos by their place along the main axis of their centres' plan:
+    along a strip the strip's order, in a block across the strips (the
+    classical numbering), so that the reduced normal matrix is narrow."""
+    xy = centres[:, :2] - centres[:, :2].mean(axis=0)
+    if xy.shape[0] < 2:
+        return np.arange(xy.shape[0], dtype=np.intp)
+    _, _, vt = np.linalg.svd(xy, full_matrices=False)
+    return np.argsort(xy @ vt[0], kind="stable").astype(np.intp)
+
+
 def observed_with_sigma(
     values: ArrayLike,
     sigma: ArrayLike | None,
@@ -253,6 +264,7 @@ def _make_problem(
         p,
         photo,
         point,
+        candidates=[_along_axis_order(centres)],
         unit_names=tuple(obs.photo_ids),
         point_names=tuple(obs.point_ids),
         parameter_names=_PHOTO_PARAMETER_NAMES,

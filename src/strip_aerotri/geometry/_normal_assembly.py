@@ -41,6 +41,20 @@ def _sum_into(index: IntArray, values: FloatArray, n: int) -> FloatArray:
     return out.reshape(n, *shape)
 
 
+def _add_blocks(
+    blocks: FloatArray, index: IntArray, values: FloatArray,
+    compressed: tuple[IntArray, IntArray] | None = None,
+) -> None:
+    """``blocks[index[i]] += values[i]`` in place (blocks (N, d, d), values
+    (m, d, d)), summed over the distinct indices only (the band is large, the
+    blocks touched may be few); `compressed` the precomputed
+    ``np.unique(index, return_inverse=True)``."""
+    if index.size == 0:
+        return
+    uniq, inverse = compressed if compressed is not None else np.unique(index, return_inverse=True)
+    blocks[uniq] += _sum_into(inverse, values, uniq.size)
+
+
 def assemble(
     st: NormalStructure,
     unit_point_rows: Sequence[UnitPointRows],
@@ -74,7 +88,7 @@ def assemble(
     fast = _fast_unit_point(st, unit_point_rows, whitened)
     if fast is not None:
         u_blocks, w, v, g_unit, g_point, unit_border, point_border, border, g_border, cost = fast
-        band += _sum_into(diag_block, u_blocks, n * w1).reshape(-1)
+        band.reshape(n * w1, d, d)[diag_block] += u_blocks  # one block per unit
     offset = 0
     for rows, (au, ap, f, ab) in zip(unit_point_rows, whitened):
         if fast is not None:
@@ -88,7 +102,7 @@ def assemble(
         ):
             pair = pat.pair_of(unit, point)
         offset += g
-        band += _sum_into(diag_block[unit], np.einsum("gra,grb->gab", au, au), n * w1).reshape(-1)
+        _add_blocks(band.reshape(n * w1, d, d), diag_block[unit], np.einsum("gra,grb->gab", au, au))
         w += _sum_into(pair, np.einsum("gra,grb->gab", au, ap), n_pairs)
         v += _sum_into(point, np.einsum("gra,grb->gab", ap, ap), p)
         g_unit += _sum_into(unit, np.einsum("gra,gr->ga", au, f), n)
@@ -108,9 +122,9 @@ def assemble(
         ua, ub = units[:, ia.ravel()], units[:, ib.ravel()]  # (g, q*q)
         idx, upper = pat.block_index(ua, ub)
         keep = ~upper
-        band += _sum_into(
-            idx[keep], blocks.reshape(units.shape[0], q * q, d, d)[keep], n * w1
-        ).reshape(-1)
+        _add_blocks(
+            band.reshape(n * w1, d, d), idx[keep], blocks.reshape(units.shape[0], q * q, d, d)[keep]
+        )
         g_unit += _sum_into(units.reshape(-1), np.einsum("grai,gr->gai", a, f).reshape(-1, d), n)
         cost += float(np.sum(f * f))
         if k:
@@ -281,6 +295,8 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     y = normals.w @ v_inv[pat.pair_point]  # (n_pairs, d, 3)
     flat = band.reshape(-1).copy()
     dd = d * d
+    scatter_idx: list[IntArray] = []
+    scatter_val: list[FloatArray] = []
     for c in pat.chunks:
         q, n_g, groups = c.q, c.size, c.groups
         span = slice(c.pair_start, c.pair_start + groups * n_g * q)
@@ -289,8 +305,13 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
         wc = _by_group(normals.w[span], groups, n_g, q, d)
         sums = yc @ np.swapaxes(wc, 1, 2)  # (G, qd, qd)
         blocks = sums.reshape(-1, q, d, q, d).transpose(0, 1, 3, 2, 4)[:, c.lower_a, c.lower_b]
-        idx = (c.scatter[:, :, None] * dd + np.arange(dd)).reshape(-1)
-        flat -= np.bincount(idx, blocks.reshape(-1), minlength=flat.size)
+        scatter_idx.append(c.scatter)
+        scatter_val.append(blocks.reshape(-1, dd))
+    if scatter_idx:
+        _add_blocks(
+            flat.reshape(n * w1, d, d), pat.schur_blocks[0], -np.concatenate(scatter_val).reshape(-1, d, d),
+            pat.schur_blocks,
+        )
     s_band = flat.reshape(n, w1, d, d)
     b_point = -normals.g_point
     rhs_unit = -normals.g_unit - _sum_into(

@@ -265,8 +265,11 @@ class NormalStructure:
     order : "auto", "given", "rcm" or array of int (n,)
         The units' order along the band: as numbered ("given", units
         numbered along the strip), reverse Cuthill-McKee of the units' graph
-        ("rcm"), whichever of the two is narrower ("auto"), or the unit at
-        each place.
+        ("rcm"), the narrowest of these two and the `candidates` ("auto"),
+        or the unit at each place.
+    candidates : sequence of array of int (n,), optional
+        More orders for "auto" to consider, e.g. the photos by their
+        position along a block (which numbers them across the strips).
     unit_names, point_names : sequence of str, optional
         For the messages (default "unit 3", "point 7").
     parameter_names : sequence of str, optional
@@ -283,6 +286,7 @@ class NormalStructure:
         *,
         n_border: int = 0,
         order: Literal["auto", "given", "rcm"] | ArrayLike = "auto",
+        candidates: Sequence[ArrayLike] = (),
         unit_names: Sequence[str] | None = None,
         point_names: Sequence[str] | None = None,
         parameter_names: Sequence[str] | None = None,
@@ -311,7 +315,7 @@ class NormalStructure:
         for s in sets:
             if s.ndim != 2 or (s.size and (s.min() < 0 or s.max() >= n_units)):
                 raise ValueError("Expected `units` of shape (g, q) with indices of units")
-        self._order = self._choose_order(order, row_unit, row_point, sets)
+        self._order = self._choose_order(order, row_unit, row_point, sets, candidates)
         self.pattern: Pattern = build_pattern(
             n_units, unit_size, n_points, row_unit, row_point, sets, self._order
         )
@@ -322,6 +326,7 @@ class NormalStructure:
         row_unit: IntArray,
         row_point: IntArray,
         sets: list[IntArray],
+        candidates: Sequence[ArrayLike] = (),
     ) -> IntArray:
         n = self.n_units
         if isinstance(order, str):
@@ -335,15 +340,20 @@ class NormalStructure:
             rcm = unit_graph_order(n, point_pairs, sets)
             if order == "rcm":
                 return rcm
+            options = [given, rcm, *(self._permutation(c, "candidates") for c in candidates)]
             widths = []
-            for o in (given, rcm):
+            for o in options:
                 pos = np.empty(n, np.intp)
                 pos[o] = np.arange(n)
                 widths.append(bandwidth(pos, point_pairs, sets))
-            return rcm if widths[1] < widths[0] else given
+            return options[int(np.argmin(widths))]  # the first of the narrowest
+        return self._permutation(order, "order")
+
+    def _permutation(self, order: ArrayLike, name: str) -> IntArray:
+        n = self.n_units
         arr = np.asarray(order, dtype=np.intp)
         if arr.shape != (n,) or not np.array_equal(np.sort(arr), np.arange(n)):
-            raise ValueError(f"Expected `order` to be a permutation of the {n} units")
+            raise ValueError(f"Expected `{name}` to hold permutations of the {n} units")
         return arr
 
     @property
