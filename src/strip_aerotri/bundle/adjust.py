@@ -591,11 +591,13 @@ def bundle_adjust(
     ``v = R.T (X - S)``.
 
     Each iteration forms the normal blocks ``U`` (6 x 6 per photo), ``V`` (3 x 3
-    per point) and ``W`` (6 x 3 per observation) as whole arrays, reduces to
-    the photos, ``S = U - W V^-1 W.T``, which is assembled in COO form from
-    one 6 x 6 block per pair of observations of the same point, scaled to
-    unit diagonal and factorised by a sparse LU (SuperLU, symmetric mode,
-    minimum-degree ordering); the points follow by back-substitution.
+    per point) and ``W`` (6 x 3 per observation) as whole arrays and reduces
+    to the photos, ``S = U - W V^-1 W.T``, with the structured engine
+    :mod:`strip_aerotri.geometry.normals` (method.md 6B): the photos along the
+    strip (in a block along the main axis of the centres, or by reverse
+    Cuthill-McKee where narrower), ``S`` a block band scaled to unit diagonal
+    and factorised by LAPACK's banded Cholesky; the points follow by
+    back-substitution.
     Levenberg-Marquardt damping (diagonals times ``1 + lambda``) is used only
     when a Gauss-Newton step fails to reduce the objective.
 
@@ -604,14 +606,12 @@ def bundle_adjust(
     IMU observations; a pivot of the scaled reduced matrix below 1e-11
     likewise means a singular system.
 
-    Precision: ``Q = N^-1`` at the solution (undamped).  Photo blocks of
-    ``S^-1`` are found by solving with the LU factors for the 6 unit vectors
-    of every photo (``6 M`` solves in chunks, each O(nnz(LU)), i.e.
-    O(M^2 * bandwidth) in total for a strip: about 0.1 s for M = 200 and 7 s
-    for M = 1000 photos on a small machine), keeping only the blocks of photo
-    pairs that share a point; the 3 x 3 point blocks follow from
-    ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1`` as one batched product over the
-    pairs of observations.  Standard deviations are
+    Precision: ``Q = N^-1`` at the solution (undamped), on its pattern only:
+    the band of ``S^-1`` by Takahashi's recursion on the banded factor, the
+    3 x 3 point blocks ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1`` and every image
+    coordinate's redundancy number ``1 - (A Q A.T P)_ii``
+    (``BundleResult.image_redundancy``), about the cost of one more
+    iteration.  Standard deviations are
     ``sigma0 * sqrt(diag(Q))``.  The cofactors of the GNSS and IMU residuals
     follow from the photos' own 6 x 6 blocks of ``Q`` at no further cost:
     ``Q_vv = P^-1 - A Q A.T`` with ``A`` the identity (GNSS) or ``Jr^-1``
