@@ -383,11 +383,9 @@ def _normals(prob: _Problem, state: _State) -> _Normals:
 
 def _check_points(prob: _Problem, normals: _Normals, point_ids: tuple[str, ...]) -> None:
     """Raise GeometryError for points whose 3 x 3 normal block is (near) singular."""
-    ev = np.linalg.eigvalsh(normals.formed.point_blocks)
-    bad = ~(ev[:, 0] > _POINT_RANK_TOL * ev[:, 2])
-    if np.any(bad):
+    idx = normals.formed.undetermined_points(_POINT_RANK_TOL)
+    if idx.size:
         n_rays = np.bincount(prob.point, minlength=prob.n_points)
-        idx = np.flatnonzero(bad)
         listed = ", ".join(f"'{point_ids[i]}' ({n_rays[i]} photo(s))" for i in idx[:5])
         more = f" and {idx.size - 5} more" if idx.size > 5 else ""
         raise GeometryError(

@@ -249,33 +249,42 @@ def _damped(normals: _Normals, damping: float) -> tuple[FloatArray, FloatArray, 
     return band, v, border
 
 
+def undetermined_points(v: FloatArray, tol: float) -> tuple[IntArray, FloatArray | None]:
+    """Points whose 3 x 3 block has ``λmin <= tol λmax`` and ``V⁻¹`` (None when
+    a block is exactly singular).  ``λmin / λmax >= 1 / (trace V⁻¹ trace V)``:
+    eigenvalues are computed only for the blocks below that bound."""
+    v_inv: FloatArray | None
+    try:
+        with np.errstate(all="ignore"):
+            inv: FloatArray = np.linalg.inv(v)  # type: ignore[assignment]
+        bound = 1.0 / (np.trace(inv, axis1=1, axis2=2) * np.trace(v, axis1=1, axis2=2))
+        near = np.flatnonzero(~(bound > tol))
+        v_inv = inv
+    except np.linalg.LinAlgError:  # an exactly singular block
+        v_inv = None
+        near = np.arange(v.shape[0])
+    if near.size == 0:
+        return near, v_inv
+    ev = np.linalg.eigvalsh(v[near])
+    return near[~(ev[:, 0] > tol * ev[:, 2])], v_inv
+
+
 def _point_inverse(st: NormalStructure, v: FloatArray) -> FloatArray:
     """V⁻¹ of every point; SingularNormalsError naming the first undetermined one."""
     from .normals import POINT_RANK_TOL, SingularNormalsError
 
     if v.shape[0] == 0:
         return v.copy()
-    try:
-        with np.errstate(all="ignore"):
-            v_inv: FloatArray = np.linalg.inv(v)  # type: ignore[assignment]
-        # λmin / λmax >= 1 / (trace V⁻¹ trace V): only points below the bound
-        # are looked at closely (eigenvalues)
-        bound = 1.0 / (np.trace(v_inv, axis1=1, axis2=2) * np.trace(v, axis1=1, axis2=2))
-        near = np.flatnonzero(~(bound > POINT_RANK_TOL))
-    except np.linalg.LinAlgError:  # an exactly singular block
-        near = np.arange(v.shape[0])
-    if near.size:
-        ev = np.linalg.eigvalsh(v[near])
-        bad = near[~(ev[:, 0] > POINT_RANK_TOL * ev[:, 2])]
-        if bad.size:
-            i = int(bad[0])
-            raise SingularNormalsError(
-                f"{bad.size} point(s) not determined, the first {st.point_name(i)}: "
-                "its 3 x 3 normal block is singular (a point needs rays from two units, or "
-                "control that fixes it)",
-                "point",
-                i,
-            )
+    bad, v_inv = undetermined_points(v, POINT_RANK_TOL)
+    if bad.size or v_inv is None:
+        i = int(bad[0]) if bad.size else 0
+        raise SingularNormalsError(
+            f"{bad.size} point(s) not determined, the first {st.point_name(i)}: "
+            "its 3 x 3 normal block is singular (a point needs rays from two units, or "
+            "control that fixes it)",
+            "point",
+            i,
+        )
     return v_inv
 
 

@@ -337,15 +337,25 @@ class NormalStructure:
                 return given
             pairs = np.unique(row_point * n + row_unit)
             point_pairs = (pairs // n, pairs % n)
-            rcm = unit_graph_order(n, point_pairs, sets)
             if order == "rcm":
-                return rcm
-            options = [given, rcm, *(self._permutation(c, "candidates") for c in candidates)]
-            widths = []
-            for o in options:
+                return unit_graph_order(n, point_pairs, sets)
+
+            def width(o: IntArray) -> int:
                 pos = np.empty(n, np.intp)
                 pos[o] = np.arange(n)
-                widths.append(bandwidth(pos, point_pairs, sets))
+                return bandwidth(pos, point_pairs, sets)
+
+            options = [given, *(self._permutation(c, "candidates") for c in candidates)]
+            widths = [width(o) for o in options]
+            # no order is narrower than the most units of one point or row, less one
+            least = max(
+                int(np.max(np.bincount(point_pairs[0]), initial=1)) - 1,
+                *(s.shape[1] - 1 for s in sets if s.size),
+                0,
+            )
+            if min(widths) > least:
+                options.insert(1, unit_graph_order(n, point_pairs, sets))
+                widths.insert(1, width(options[1]))
             return options[int(np.argmin(widths))]  # the first of the narrowest
         return self._permutation(order, "order")
 
@@ -442,6 +452,14 @@ class FormedNormals:
     def point_blocks(self) -> FloatArray:
         """The points' 3 x 3 normal blocks V (p, 3, 3), undamped."""
         return self._normals.v
+
+    def undetermined_points(self, tol: float = POINT_RANK_TOL) -> IntArray:
+        """Points whose 3 x 3 normal block (undamped) has ``λmin <= tol λmax``."""
+        from ._normal_assembly import undetermined_points
+
+        return undetermined_points(self._normals.v, tol)[0] if self._normals.v.size else (
+            np.zeros(0, np.intp)
+        )
 
     @property
     def unit_blocks(self) -> FloatArray:
