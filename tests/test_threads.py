@@ -232,3 +232,48 @@ def test_the_callers_limit_comes_back_after_an_error_and_after_nesting(
             with blas_threads(None):
                 assert blas() == {3}
         assert blas() == {2}
+
+
+def _wide_band(n: int, w: int, d: int, positive: bool = True):  # type: ignore[no-untyped-def]
+    """A random block band (n, w+1, d, d) of a diagonally dominant symmetric
+    matrix (positive definite, or not: one entry beside the diagonal in the
+    middle ten times the diagonal)."""
+    import numpy as np
+
+    from strip_aerotri.geometry._blockband import lapack_to_band
+
+    rng = np.random.default_rng(3)
+    ab = rng.uniform(-1.0, 1.0, size=((w + 1) * d, n * d))
+    ab[0] = 2.0 * (w + 1) * d
+    if not positive:
+        ab[1, n * d // 2] = 10.0 * ab[0, n * d // 2]
+    return lapack_to_band(ab, n, d)
+
+
+def test_a_wide_band_is_factored_through_interruptible(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The banded Cholesky of a wide block (seconds at 20 x 500) runs through
+    _threads.interruptible, with the same factor as a direct call, and its
+    failure still names the row."""
+    import numpy as np
+
+    import strip_aerotri.geometry._blockband as blockband
+    from strip_aerotri._threads import interruptible
+
+    calls: list[str] = []
+
+    def recorded(function, *args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(function.__name__)
+        return interruptible(function, *args, **kwargs)
+
+    monkeypatch.setattr(blockband, "interruptible", recorded)
+    band = _wide_band(3000, 9, 6)  # N b^2 = 18 000 x 60^2: above the threshold
+    through = blockband.factor_band(band)
+    assert calls == ["cholesky_banded"]
+    monkeypatch.setattr(blockband, "_LONG_FACTOR", float("inf"))
+    direct = blockband.factor_band(band)
+    assert calls == ["cholesky_banded"]  # a direct call this time
+    np.testing.assert_array_equal(through.factor, direct.factor)
+    monkeypatch.setattr(blockband, "_LONG_FACTOR", 0.0)
+    with pytest.raises(blockband.NotPositiveDefinite):
+        blockband.factor_band(_wide_band(50, 2, 6, positive=False))
+    assert calls == ["cholesky_banded", "cholesky_banded"]

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._threads import interruptible
 from .._typing import FloatArray, IntArray
 
 __all__ = ["BandFactor", "band_to_lapack", "factor_band", "selected_inverse"]
@@ -93,6 +94,12 @@ class BandFactor:
         return s * x
 
 
+#: N b² (flops of the factor, about 0.4 ns each) above which the factor runs
+#: through _threads.interruptible: from about 20 ms on, so that Ctrl-C does not
+#: wait for the seconds a wide block's factor takes (docs/scaling.md).
+_LONG_FACTOR = 5e7
+
+
 class NotPositiveDefinite(Exception):
     """The band is not positive definite; ``index`` the scalar row (band order)
     at which the factorisation stopped, or the first non-positive diagonal."""
@@ -117,7 +124,10 @@ def factor_band(band: FloatArray) -> BandFactor:
     for i in range(ab.shape[0]):  # row i of ab holds S[j + i, j]
         ab[i, : n * d - i] *= scale[i:] * scale[: n * d - i]
     try:
-        factor = cholesky_banded(ab, lower=True, check_finite=False)
+        if ab.size * ab.shape[0] > _LONG_FACTOR:  # seconds on a wide block: Ctrl-C acts
+            factor = interruptible(cholesky_banded, ab, lower=True, check_finite=False)
+        else:
+            factor = cholesky_banded(ab, lower=True, check_finite=False)
     except LinAlgError as exc:
         found = re.search(r"(\d+)", str(exc))
         raise NotPositiveDefinite(int(found.group(1)) - 1 if found else 0) from exc
