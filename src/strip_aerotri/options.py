@@ -87,6 +87,11 @@ DEFAULT_POLYNOMIAL = 3
 DEFAULT_BLOCK_POLYNOMIAL = 2
 DEFAULT_SECTIONS = 1
 DEFAULT_PHOTO_STEP = 1
+#: The Brown/Fraser parameters ``[adjustment] self_calibration`` may list
+#: (method.md 6C), in their fixed order.
+SELF_CALIBRATION_PARAMETERS = ("c", "x0", "y0", "k1", "k2", "k3", "p1", "p2", "b1", "b2")
+#: The named choices of ``[adjustment] self_calibration``.
+SELF_CALIBRATION_CHOICES = ("none", "auto", "ebner12")
 #: Smallest base-to-height ratio of a model for ``photo_step = "auto"``
 #: (method.md §5.1).  0.3 is about the ratio of a normal-angle film camera at
 #: 60 % overlap (B/H = 0.4 · 230 mm / 210 mm ≈ 0.44) reduced by a third:
@@ -558,6 +563,10 @@ class AdjustmentOptions:
     refine : Refine
     models : ModelFormation
         Dependent (J) or independent models (R4 2.2).
+    self_calibration : str or tuple of str
+        ``"none"``, ``"auto"``, ``"ebner12"`` or the Brown/Fraser parameters
+        to estimate (:data:`SELF_CALIBRATION_PARAMETERS`); with ``refine =
+        "bundle"`` only.
     """
 
     route: Route = Route.GEOCENTRIC
@@ -572,6 +581,7 @@ class AdjustmentOptions:
     refine: Refine = Refine.NONE
     block: Construction = Construction.MODELS
     models: ModelFormation = ModelFormation.DEPENDENT
+    self_calibration: str | tuple[str, ...] = "none"
 
     def strip_options(self) -> StripOptions:
         """The options of strip formation."""

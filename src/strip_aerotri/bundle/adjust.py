@@ -24,20 +24,23 @@ sparse LU factorisation.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+from ..geometry.camera_model import CameraModel
 from ..geometry.collinearity import collinearity_jacobians, project
 from ..geometry.rotation import matrix_from_rotvec, rotvec_from_matrix, skew
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
-from ..results import BundleResult
+from ..results import BundleResult, CameraEstimate
+from .border import BorderNormals, BorderStep, border_normals, border_precision, solve_border
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
@@ -143,6 +146,11 @@ class _Problem:
     indices: IntArray
     indptr: IntArray
     entry_col: IntArray  # column of each CSC entry
+    camera: CameraModel | None = None  # self-calibration: the border's parameters
+
+    @property
+    def n_camera(self) -> int:
+        return 0 if self.camera is None else len(self.camera.estimated)
 
     @property
     def n_observations(self) -> int:
@@ -326,6 +334,7 @@ class _State:
     centres: FloatArray
     rotations: FloatArray
     points: FloatArray
+    camera: FloatArray = field(default_factory=lambda: np.zeros(0))  # (k,) increments
 
 
 @dataclass(frozen=True)
@@ -338,7 +347,8 @@ class _Normals:
     b_photo: FloatArray  # (M, 6)
     b_point: FloatArray  # (P, 3)
     cost: float
-    residuals_mm: FloatArray  # (K, 2), computed - observed
+    residuals_mm: FloatArray  # (K, 2), computed - observed (corrected by the camera)
+    border: BorderNormals | None = None
 
 
 @dataclass(frozen=True)
@@ -351,6 +361,7 @@ class _Reduced:
     y: FloatArray  # (K, 6, 3), W_k V_p^-1
     min_pivot: float
     min_pivot_index: int
+    border: BorderStep | None = None
 
 
 def _cost(prob: _Problem, state: _State) -> float:
@@ -358,7 +369,7 @@ def _cost(prob: _Problem, state: _State) -> float:
     xy, v = project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
     if not np.all(v[:, 2] < 0.0) or not np.all(np.isfinite(xy)):
         return float("inf")
-    e_img = (xy - prob.xy) / prob.sigma[:, None]
+    e_img = (xy - _observed(prob, state)) / prob.sigma[:, None]
     e_ctrl = state.points - prob.control_xyz
     e_gnss = state.centres - prob.gnss_xyz
     e_imu = _imu_residual(state.rotations, prob.imu_rot)
@@ -370,13 +381,21 @@ def _cost(prob: _Problem, state: _State) -> float:
     )
 
 
+def _observed(prob: _Problem, state: _State) -> FloatArray:
+    """The image observations corrected by the camera's parameters (mm)."""
+    if prob.camera is None:
+        return prob.xy
+    out: FloatArray = prob.xy + prob.camera.correction(prob.xy, state.camera)
+    return out
+
+
 def _normals(prob: _Problem, state: _State) -> _Normals:
     """Linearise all observation equations at ``state`` and form the normal blocks."""
     m, p, k = prob.n_photos, prob.n_points, prob.photo.size
     xy, _, jac_photo, jac_point = collinearity_jacobians(
         state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c
     )
-    res = xy - prob.xy
+    res = xy - _observed(prob, state)
     inv_s = 1.0 / prob.sigma
     r = res * inv_s[:, None]
     a = jac_photo * inv_s[:, None, None]
@@ -409,7 +428,12 @@ def _normals(prob: _Problem, state: _State) -> _Normals:
         + np.sum(prob.gnss_weight * e_gnss**2)
         + np.sum(prob.imu_weight * e_imu**2)
     )
-    return _Normals(u, v, w, b_photo, b_point, cost, res)
+    border = None
+    if prob.camera is not None:
+        border = border_normals(
+            prob.camera, prob.xy, state.camera, a_t, b_t, r, inv_s, prob.photo_sum, prob.point_sum
+        )
+    return _Normals(u, v, w, b_photo, b_point, cost, res, border)
 
 
 def _check_points(prob: _Problem, normals: _Normals, point_ids: tuple[str, ...]) -> None:
@@ -479,14 +503,38 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
         ) from exc
     pivots = np.abs(lu.U.diagonal())[lu.perm_c]
     j = int(np.argmin(pivots))
-    d_photo = (scale * lu.solve(scale * rhs.ravel())).reshape(m, 6)
+    border_step = None
+    if normals.border is None or prob.camera is None:
+        d_photo = (scale * lu.solve(scale * rhs.ravel())).reshape(m, 6)
+    else:
+
+        def solve_s(b: FloatArray) -> FloatArray:
+            d = scale if b.ndim == 1 else scale[:, None]
+            out: FloatArray = d * lu.solve(d * b)
+            return out
+
+        border_step = solve_border(
+            normals.border,
+            solve_s,
+            y,
+            v_inv,
+            prob.point,
+            prob.photo_sum,
+            rhs,
+            normals.b_point,
+            lam,
+            prob.camera.estimated,
+        )
+        d_photo = border_step.d_photo
     t = (
         normals.b_point
         - prob.point_sum
         @ (np.swapaxes(normals.w, 1, 2) @ d_photo[prob.photo][:, :, None])[:, :, 0]
     )
+    if border_step is not None and normals.border is not None:
+        t = t - normals.border.t_point @ border_step.d_camera
     d_point = (v_inv @ t[:, :, None])[:, :, 0]
-    return _Reduced(d_photo, d_point, lu, scale, v_inv, y, float(pivots[j]), j)
+    return _Reduced(d_photo, d_point, lu, scale, v_inv, y, float(pivots[j]), j, border_step)
 
 
 def _apply(state: _State, step: _Reduced) -> _State:
@@ -494,6 +542,7 @@ def _apply(state: _State, step: _Reduced) -> _State:
         centres=state.centres + step.d_photo[:, :3],
         rotations=state.rotations @ matrix_from_rotvec(step.d_photo[:, 3:]),
         points=state.points + step.d_point,
+        camera=state.camera if step.border is None else state.camera + step.border.d_camera,
     )
 
 
@@ -637,6 +686,8 @@ def bundle_adjust(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     tolerance: float = 1e-10,
     compute_precision: bool = True,
+    camera: CameraModel | None = None,
+    camera0: ArrayLike | None = None,
 ) -> BundleResult:
     """Least-squares bundle adjustment of a strip by the collinearity equations.
 
@@ -676,6 +727,12 @@ def bundle_adjust(
         metres relative to the mean point depth below the photos).
     compute_precision : bool
         Compute ``point_std``, ``centre_std`` and ``rotation_std`` (else NaN).
+    camera : CameraModel, optional
+        Self-calibration: the camera parameters estimated with the block, a
+        dense border of the normal equations (:mod:`strip_aerotri.bundle.border`);
+        the image coordinates are then corrected by ``Δ(x_obs; θ)``.
+    camera0 : array_like, shape (k,), optional
+        Start values of the camera parameters (default 0: the start camera).
 
     Returns
     -------
@@ -777,9 +834,14 @@ def bundle_adjust(
         imu_rotations,
         imu_sigma,
     )
-    state = _State(centres.copy(), rotations.copy(), points.copy())
+    if camera is not None:
+        prob = dataclasses.replace(prob, camera=camera)
+    start_camera = np.zeros(prob.n_camera) if camera0 is None else np.asarray(camera0, float)
+    if start_camera.shape != (prob.n_camera,):
+        raise ValueError(f"Expected `camera0` of shape ({prob.n_camera},), got {start_camera.shape}")
+    state = _State(centres.copy(), rotations.copy(), points.copy(), start_camera.copy())
     depth = _check_datum_and_sides(prob, state, observations)
-    redundancy = prob.n_observations - 6 * m - 3 * p
+    redundancy = prob.n_observations - 6 * m - 3 * p - prob.n_camera
 
     def sigma0_of(cost: float) -> float:
         return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
@@ -824,6 +886,7 @@ def bundle_adjust(
         imu_residuals=np.where(prob.imu_weight > 0, precision.imu_residuals, np.nan),
         gnss_residual_cofactor=precision.gnss_cofactor,
         imu_residual_cofactor=precision.imu_cofactor,
+        camera=precision.camera,
     )
 
 
@@ -976,6 +1039,7 @@ class _Precision(NamedTuple):
     imu_residuals: FloatArray  # (M, 3) rad, log(R_imu.T R)
     gnss_cofactor: FloatArray  # (M, 3, 3)
     imu_cofactor: FloatArray  # (M, 3, 3)
+    camera: CameraEstimate | None
 
 
 def _precision_products(
@@ -993,9 +1057,28 @@ def _precision_products(
     e_imu = _imu_residual(state.rotations, prob.imu_rot)
     gnss_cofactor = np.full((m, 3, 3), np.nan)
     imu_cofactor = np.full((m, 3, 3), np.nan)
+    camera = None
+    if prob.camera is not None:
+        final = _solve(prob, normals, 0.0)
+        if final.border is not None:
+            camera = CameraEstimate(
+                model=prob.camera,
+                values=state.camera,
+                cofactor=final.border.c_inv,
+                sigma0=sigma0,
+                information=final.border.g_diag,
+                conditional_information=final.border.c_diag,
+            )
     if compute_precision:
         final = _solve(prob, normals, 0.0)
         q_blocks, q_point = _precision(prob, final)
+        if final.border is not None and normals.border is not None:
+            add_photo, add_point = border_precision(
+                final.border, final.v_inv, normals.border.t_point, normals.w, prob.photo,
+                prob.point_sum,
+            )
+            q_blocks = q_blocks + add_photo
+            q_point = q_point + add_point
         q_photo = np.diagonal(q_blocks, axis1=1, axis2=2)
         point_std = sigma0 * np.sqrt(q_point)
         centre_std = sigma0 * np.sqrt(q_photo[:, :3])
@@ -1008,4 +1091,6 @@ def _precision_products(
             j_imu = _right_jacobian_inv(e_imu)
             q_imu = j_imu @ q_blocks[:, 3:, 3:] @ np.swapaxes(j_imu, 1, 2)
             imu_cofactor = _residual_cofactor(prob.imu_weight, q_imu)
-    return _Precision(point_std, centre_std, rotation_std, e_imu, gnss_cofactor, imu_cofactor)
+    return _Precision(
+        point_std, centre_std, rotation_std, e_imu, gnss_cofactor, imu_cofactor, camera
+    )

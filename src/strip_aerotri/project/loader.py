@@ -604,7 +604,20 @@ def _adjustment_options(
         refine=adjustment["refine"],  # type: ignore[arg-type]
         block=construction,
         models=adjustment["models"],  # type: ignore[arg-type]
+        self_calibration=_self_calibration(toml_path, adjustment),
     )
+
+
+def _self_calibration(toml_path: Path, adjustment: dict[str, object]) -> str | tuple[str, ...]:
+    """``[adjustment] self_calibration``, which needs ``refine = "bundle"``."""
+    chosen: str | tuple[str, ...] = adjustment["self_calibration"]  # type: ignore[assignment]
+    if chosen != "none" and adjustment["refine"] is not Refine.BUNDLE:
+        raise ConfigError(
+            f"{toml_path}: [adjustment] self_calibration: the camera is calibrated in the "
+            'bundle refinement only; add refine = "bundle" to [adjustment], or remove '
+            "self_calibration"
+        )
+    return chosen
 
 
 def _blunder_options(toml_path: Path, table: dict[str, object]) -> BlunderOptions:

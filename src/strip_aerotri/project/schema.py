@@ -32,6 +32,8 @@ from ..options import (
     DEFAULT_SECTIONS,
     DEFAULT_SIGMA_H_M,
     DEFAULT_SIGMA_XY_M,
+    SELF_CALIBRATION_CHOICES,
+    SELF_CALIBRATION_PARAMETERS,
     BlunderAction,
     Construction,
     DistortionModel,
@@ -423,6 +425,17 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False,
     ),
     KeySpec(
+        "adjustment", "self_calibration", "self calibration", required=False, default="none",
+        unit="",
+        description='With refine = "bundle" only: "none"; "auto" (the parameters the data '
+        "determine and that are significant, chosen by t values and correlations); a list "
+        'from ["c", "x0", "y0", "k1", "k2", "k3", "p1", "p2", "b1", "b2"] (Brown/Fraser, '
+        'estimated as given); or "ebner12" (film: Ebner\'s 12 parameters). One camera '
+        "shared by all photos, starting from [camera] and [distortion]; the adjusted camera "
+        "is written to camera.toml.",
+        default_text='"none"',
+    ),
+    KeySpec(
         "adjustment", "min_base_to_height", "positive number", required=False,
         default=DEFAULT_MIN_BASE_TO_HEIGHT, unit="",
         description='Smallest base-to-height ratio of a model for photo_step = "auto".',
@@ -723,6 +736,8 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
         raise ConfigError(
             f'{where}: expected a positive integer or "auto", got {describe(value)}'
         )
+    if kind == "self calibration":
+        return _self_calibration(value, where)
     if kind == "mark table":
         if not isinstance(value, dict) or len(value) < 2:
             raise ConfigError(
@@ -749,6 +764,28 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
             return value
         raise ConfigError(f'{where}: expected 0, 1, 2, 3 or "auto", got {describe(value)}')
     raise AssertionError(f"unhandled kind {kind!r}")  # pragma: no cover
+
+
+def _self_calibration(value: object, where: str) -> str | tuple[str, ...]:
+    """``[adjustment] self_calibration``: a named choice or a list of parameters."""
+    if isinstance(value, str) and value.strip().lower() in SELF_CALIBRATION_CHOICES:
+        return value.strip().lower()
+    if isinstance(value, list) and value and all(isinstance(v, str) for v in value):
+        names = [str(v).strip().lower() for v in value]
+        unknown = [n for n in names if n not in SELF_CALIBRATION_PARAMETERS]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if not unknown and not twice:
+            return tuple(n for n in SELF_CALIBRATION_PARAMETERS if n in names)
+        if twice:
+            raise ConfigError(f"{where}: {twice[0]!r} is listed twice")
+        raise ConfigError(
+            f"{where}: unknown parameter {unknown[0]!r}; expected names from "
+            f"{list(SELF_CALIBRATION_PARAMETERS)}"
+        )
+    raise ConfigError(
+        f'{where}: expected "none", "auto", "ebner12" or a non-empty list from '
+        f"{list(SELF_CALIBRATION_PARAMETERS)}, got {describe(value)}"
+    )
 
 
 def check_table(
