@@ -26,6 +26,8 @@ if TYPE_CHECKING:
     from .observations import ImageObservations
 
 __all__ = [
+    "SELF_CALIBRATION_CHOICES",
+    "SELF_CALIBRATION_PARAMETERS",
     "DEFAULT_ALPHA",
     "DEFAULT_DIFFERENCE_TOLERANCE",
     "DEFAULT_GNSS_SIGMA_XY_M",
@@ -58,6 +60,7 @@ __all__ = [
     "ModelFormation",
     "OptionEnum",
     "Refine",
+    "SelfCalibration",
     "RelativeOrientationMethod",
     "ReportOptions",
     "Route",
@@ -537,6 +540,39 @@ class BlunderOptions:
 
 
 @dataclass(frozen=True)
+class SelfCalibration:
+    """How the bundle calibrates the camera (``[adjustment] self_calibration``).
+
+    Attributes
+    ----------
+    choice : str or tuple of str
+        ``"auto"``, ``"ebner12"`` or Brown/Fraser names
+        (:data:`strip_aerotri.options.SELF_CALIBRATION_PARAMETERS`).
+    flight_direction : FlightDirection
+        The sensor axis along the flight (``[images] flight_direction``): the
+        corrections are defined in the sensor axes.
+    """
+
+    choice: str | tuple[str, ...]
+    flight_direction: FlightDirection = FlightDirection.PLUS_X
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "flight_direction", FlightDirection(self.flight_direction))
+        if isinstance(self.choice, str):
+            if self.choice not in ("auto", "ebner12"):
+                raise ValueError(f'Expected "auto", "ebner12" or names, got {self.choice!r}')
+        elif not self.choice or any(n not in SELF_CALIBRATION_PARAMETERS for n in self.choice):
+            raise ValueError(
+                f"Expected names from {SELF_CALIBRATION_PARAMETERS}, got {self.choice!r}"
+            )
+
+    @property
+    def family(self) -> str:
+        """``"ebner"`` for ebner12, else ``"brown"``."""
+        return "ebner" if self.choice == "ebner12" else "brown"
+
+
+@dataclass(frozen=True)
 class AdjustmentOptions:
     """Method variants chosen in ``[adjustment]`` (method.md §3-6).
 
@@ -582,6 +618,12 @@ class AdjustmentOptions:
     block: Construction = Construction.MODELS
     models: ModelFormation = ModelFormation.DEPENDENT
     self_calibration: str | tuple[str, ...] = "none"
+
+    def calibration(self, flight_direction: FlightDirection | str) -> SelfCalibration | None:
+        """The self-calibration asked for (None for "none")."""
+        if self.self_calibration == "none":
+            return None
+        return SelfCalibration(self.self_calibration, FlightDirection(flight_direction))
 
     def strip_options(self) -> StripOptions:
         """The options of strip formation."""

@@ -45,7 +45,7 @@ from ..errors import StripAerotriWarning
 from ..frames import LocalTangentFrame, TangentWorkFrame, WorkFrame, enu_residuals
 from ..geometry.rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
 from ..observations import ControlPoints, GnssCentres, ImuAttitudes
-from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions
+from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import (
     AccuracyStatistics,
     FrameRefinement,
@@ -55,7 +55,7 @@ from ..results import (
     Rejection,
     StripResult,
 )
-from .selfcal import SelfCalibration, final_outcome
+from .selfcal import final_outcome
 from .snooping import GNSS_STAGE, IMU_STAGE, _directional_tests, refine_frame
 
 __all__ = [

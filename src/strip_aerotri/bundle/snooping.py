@@ -22,11 +22,11 @@ from ..blunders import robust_variance_factor
 from ..errors import GeometryError
 from ..geometry.collinearity import image_jacobian, image_vectors
 from ..observations import ImageObservations
-from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions
+from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..geometry.camera_model import CameraModel
 from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
 from .adjust import bundle_adjust, observed_with_sigma
-from .selfcal import SelfCalibration, ebner_base_mm, final_outcome, start_model
+from .selfcal import ebner_base_mm, final_outcome, start_model
 
 __all__ = ["CONTROL_STAGE", "GNSS_STAGE", "IMAGE_STAGE", "IMU_STAGE", "refine_frame"]
 
@@ -540,7 +540,9 @@ class _Sets:
         if n_ctrl_rej > limit * max(self.n_ctrl_start, 1):
             raise GeometryError(
                 f"bundle adjustment: more than {limit:.0%} of the control "
-                "observations fail the blunder test; the control cannot be trusted"
+                "observations fail the blunder test; the control cannot be trusted, or "
+                "uncorrected camera errors bend the block (when many points fail together, "
+                'add [adjustment] self_calibration = "auto")'
             )
         for stage, what, given_k, rejected_k in (
             (GNSS_STAGE, "GNSS centres", inp.g_given, self.g_rejected),

@@ -68,6 +68,7 @@ def _run(
     project: Project, progress: Progress | None, blunders: BlunderOptions | None
 ) -> StripResult | BlockResult:
     adj = project.adjustment
+    calibration = adj.calibration(project.images.flight_direction)
     if project.is_block:
         return triangulate_block(
             project.observations,
@@ -86,6 +87,7 @@ def _run(
             warnings=project.warnings,
             polynomial=int(adj.polynomial) if adj.block is Construction.STRIPS else 0,
             control_name=str(project.control_file),
+            self_calibration=calibration,
         )
     return triangulate(
         project.observations,
@@ -103,4 +105,5 @@ def _run(
         progress=progress,
         warnings=project.warnings,
         control_name=str(project.control_file),
+        self_calibration=calibration,
     )
