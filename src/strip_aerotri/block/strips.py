@@ -836,11 +836,12 @@ def _snoop(
 
 
 def _keep_systematic(p: _Problem, first: _Solution, blunders: BlunderOptions) -> bool:
-    """True (and a warning) when the first solution's control fails in a smooth
-    pattern (:mod:`strip_aerotri.ground.systematic`): camera errors, not blunders."""
+    """True (and a warning) when the first solution's control fails at many
+    points alike (:mod:`strip_aerotri.ground.systematic`): camera errors, not
+    blunders."""
     import warnings
 
-    from ..ground.systematic import explained_share, systematic_message, systematic_pattern
+    from ..ground.systematic import systematic_message, systematic_pattern
 
     active = p.use_xy | p.use_z
     w = np.full((p.idx.shape[0], 3), np.nan)
@@ -848,15 +849,10 @@ def _keep_systematic(p: _Problem, first: _Solution, blunders: BlunderOptions) ->
     w[~p.use_xy, :2] = np.nan
     w[~p.use_z, 2] = np.nan
     critical = blunders.critical("control", max(int(np.isfinite(w).sum()), 1))
-    plan = p.work.to_work(first.guess)[:, :2]
-    rows = np.flatnonzero(active)
-    if not systematic_pattern(plan[rows], w[rows], critical):
+    if not systematic_pattern(w[active], critical):
         return False
-    failing = int(np.count_nonzero(np.any(np.nan_to_num(np.abs(w[rows])) > critical, axis=1)))
     warnings.warn(
-        systematic_message("block", failing, rows.size, explained_share(plan[rows], w[rows])),
-        StripAerotriWarning,
-        stacklevel=4,
+        systematic_message("block", w[active], critical), StripAerotriWarning, stacklevel=4
     )
     return True
 

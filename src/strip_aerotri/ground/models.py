@@ -436,24 +436,19 @@ def _snoop(
 def _keep_systematic(
     p: _ModelsProblem, first: _ModelsSolution, blunders: BlunderOptions
 ) -> bool:
-    """True (and a warning) when the first solution's control fails in a smooth
-    pattern (:mod:`strip_aerotri.ground.systematic`): camera errors, not blunders."""
-    from .systematic import explained_share, systematic_message, systematic_pattern
+    """True (and a warning) when the first solution's control fails at many
+    points alike (:mod:`strip_aerotri.ground.systematic`): camera errors, not
+    blunders."""
+    from .systematic import systematic_message, systematic_pattern
 
     rows = np.flatnonzero(p.use_xy | p.use_z)
     w = np.array(first.result.control_w, dtype=np.float64)
     w[~p.use_xy[rows], :2] = np.nan
     w[~p.use_z[rows], 2] = np.nan
     critical = blunders.critical("control", max(int(np.isfinite(w).sum()), 1))
-    plan = p.work.to_work(first.guess)[rows, :2]
-    if not systematic_pattern(plan, w, critical):
+    if not systematic_pattern(w, critical):
         return False
-    failing = int(np.count_nonzero(np.any(np.nan_to_num(np.abs(w)) > critical, axis=1)))
-    warnings.warn(
-        systematic_message("control", failing, rows.size, explained_share(plan, w)),
-        StripAerotriWarning,
-        stacklevel=4,
-    )
+    warnings.warn(systematic_message("control", w, critical), StripAerotriWarning, stacklevel=4)
     return True
 
 
