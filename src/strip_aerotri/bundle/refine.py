@@ -367,6 +367,8 @@ def refine_bundle(
         dropped = [control.point_ids[r] for r in ctrl.rows[~keep_rows & ~check]]
         notes.append(f"control point(s) {', '.join(map(repr, dropped[:5]))} left out")
     notes += [r.describe() for r in rejections]
+    if fr.self_calibration is not None:
+        notes += list(fr.self_calibration.notes)
     return RefinedResult(
         photo_ids=obs.photo_ids,
         point_ids=obs.point_ids,
@@ -607,7 +609,10 @@ def _passes(
             chosen = chosen or fr.self_calibration
             fr = dataclasses.replace(
                 fr,
-                self_calibration=final_outcome(self_calibration, chosen, fr.bundle.camera),
+                self_calibration=dataclasses.replace(
+                    final_outcome(self_calibration, chosen, fr.bundle.camera),
+                    cells=fr.self_calibration.cells,
+                ),
             )
             kept = chosen.kept
             spec = (

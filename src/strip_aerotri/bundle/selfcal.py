@@ -35,7 +35,13 @@ from ..geometry.camera_model import (
     CameraModel,
 )
 from ..options import FlightDirection, SelfCalibration
-from ..results import BundleResult, CameraEstimate, ParameterOutcome, SelfCalibrationOutcome
+from ..results import (
+    BundleResult,
+    CameraEstimate,
+    ParameterOutcome,
+    ResidualCells,
+    SelfCalibrationOutcome,
+)
 from .border import CameraUndetermined
 
 __all__ = [
@@ -46,6 +52,7 @@ __all__ = [
     "camera_model",
     "ebner_base_mm",
     "final_outcome",
+    "residual_cells",
     "start_model",
 ]
 
@@ -283,3 +290,35 @@ def final_outcome(
         p.name: (p.value, p.std, p.t, p.orientation_correlation) for p in chosen.parameters
     }
     return _outcome(spec, cam, held, last, chosen.sigma0_without, chosen.notes)
+
+
+def residual_cells(
+    cam: CameraEstimate, xy: FloatArray, residuals_mm: FloatArray, n_cells: int = 8
+) -> ResidualCells | None:
+    """Image residuals (K, 2; flight axes, mm) at the observations ``xy`` (K, 2)
+    averaged in ``n_cells`` x ``n_cells`` cells over the format, in the sensor
+    axes and µm, with the camera's correction (``after``) and with it added
+    back (``before``)."""
+    good = np.all(np.isfinite(residuals_mm), axis=1) & np.all(np.isfinite(xy), axis=1)
+    if not good.any():
+        return None
+    turn = cam.model.flight_matrix
+    xy_s = xy[good] @ turn  # rows f = M s: s = f M
+    after = residuals_mm[good] @ turn
+    before = after + cam.model.correction(xy[good], cam.values) @ turn
+    lo, hi = xy_s.min(axis=0), xy_s.max(axis=0)
+    x_edges = np.linspace(lo[0], hi[0], n_cells + 1)
+    y_edges = np.linspace(lo[1], hi[1], n_cells + 1)
+    ix = np.clip(np.searchsorted(x_edges, xy_s[:, 0], side="right") - 1, 0, n_cells - 1)
+    iy = np.clip(np.searchsorted(y_edges, xy_s[:, 1], side="right") - 1, 0, n_cells - 1)
+    cell = iy * n_cells + ix
+    count = np.bincount(cell, minlength=n_cells * n_cells)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means = [
+            np.stack(
+                [np.bincount(cell, v[:, j], n_cells * n_cells) / count for j in range(2)], axis=-1
+            ).reshape(n_cells, n_cells, 2)
+            * 1000.0
+            for v in (after, before)
+        ]
+    return ResidualCells(x_edges, y_edges, means[0], means[1], count.reshape(n_cells, n_cells))

@@ -26,7 +26,7 @@ from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..geometry.camera_model import CameraModel
 from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
 from .adjust import bundle_adjust, observed_with_sigma
-from .selfcal import ebner_base_mm, final_outcome, start_model
+from .selfcal import ebner_base_mm, final_outcome, residual_cells, start_model
 
 __all__ = ["CONTROL_STAGE", "GNSS_STAGE", "IMAGE_STAGE", "IMU_STAGE", "refine_frame"]
 
@@ -250,7 +250,9 @@ def refine_frame(
             gnss_rejected=sets.g_rejected.copy(),
             imu_used=sets.i_on.copy(),
             imu_rejected=sets.i_rejected.copy(),
-            self_calibration=camera.outcome(res),
+            self_calibration=camera.outcome(
+                res, obs.xy, np.where(sets.keep[:, None], stats.v_img, np.nan)
+            ),
         )
         if not blunders.testing:
             return result
@@ -331,8 +333,16 @@ class _Camera:
             return self
         return dataclasses.replace(self, values=res.camera.values)
 
-    def outcome(self, res: BundleResult) -> SelfCalibrationOutcome | None:
-        return None if self.spec is None else final_outcome(self.spec, self.chosen, res.camera)
+    def outcome(
+        self, res: BundleResult, xy: FloatArray, residuals_mm: FloatArray
+    ) -> SelfCalibrationOutcome | None:
+        """What was estimated, kept and held, with the residuals over the format."""
+        if self.spec is None:
+            return None
+        out = final_outcome(self.spec, self.chosen, res.camera)
+        if res.camera is None:
+            return out
+        return dataclasses.replace(out, cells=residual_cells(res.camera, xy, residuals_mm))
 
 
 class _Inputs(NamedTuple):

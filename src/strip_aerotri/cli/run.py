@@ -160,7 +160,13 @@ def _warning_lines(
         counts = [f"{applied} {what} rejected as blunders"] if applied else []
         if applied < len(group):
             kept = len(group) - applied
-            counts.append(f'{kept} {what} fail the blunder test, kept (action = "report")')
+            effects = {r.effect for r in group if not r.applied}
+            why = (
+                effects.pop().removeprefix("kept: ")
+                if len(effects) == 1 and next(iter(effects)).startswith("kept: ")
+                else 'action = "report"'
+            )
+            counts.append(f"{kept} {what} fail the blunder test, kept ({why})")
         out.append(f"{line[0]}: {'; '.join(counts)} ({where}-v lists them here)")
     return out
 

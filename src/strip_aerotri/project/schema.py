@@ -259,6 +259,14 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False,
     ),
     KeySpec(
+        "distortion", "b1", "number", required=False, default=0.0, unit="",
+        description="Affinity: b1 x added to x (Fraser 1997).", contract=False,
+    ),
+    KeySpec(
+        "distortion", "b2", "number", required=False, default=0.0, unit="",
+        description="Shear: b2 y added to x (Fraser 1997).", contract=False,
+    ),
+    KeySpec(
         "distortion", "units", "choice", required=False, default=DistortionUnits.MM, unit="",
         description='"mm": r in millimetres; "normalized": r divided by the principal '
         "distance (OpenCV, Agisoft).",

@@ -15,6 +15,7 @@ from .bundle import (
     ImuResiduals,
     ParameterOutcome,
     RefinedResult,
+    ResidualCells,
     SelfCalibrationOutcome,
 )
 from .common import AccuracyStatistics, Rejection
@@ -34,6 +35,7 @@ __all__ = [
     "ModelAdjustment",
     "ParameterOutcome",
     "RefinedResult",
+    "ResidualCells",
     "SelfCalibrationOutcome",
     "Rejection",
     "RelativeOrientation",

@@ -19,6 +19,7 @@ __all__ = [
     "ImuResiduals",
     "ParameterOutcome",
     "RefinedResult",
+    "ResidualCells",
     "SelfCalibrationOutcome",
 ]
 
@@ -108,6 +109,30 @@ class ParameterOutcome:
 
 
 @dataclass(frozen=True)
+class ResidualCells:
+    """Image residuals averaged in cells over the format (sensor axes, x right, y up).
+
+    Attributes
+    ----------
+    x_edges, y_edges : ndarray
+        Cell edges in mm.
+    after : ndarray, shape (ny, nx, 2)
+        Mean residual (computed minus corrected observed) per cell, µm, with
+        the self-calibration; NaN in empty cells.
+    before : ndarray, shape (ny, nx, 2)
+        The same with the camera's correction added back: what the
+        orientation would have to absorb without it.
+    count : ndarray of int, shape (ny, nx)
+    """
+
+    x_edges: FloatArray
+    y_edges: FloatArray
+    after: FloatArray
+    before: FloatArray
+    count: IntArray
+
+
+@dataclass(frozen=True)
 class SelfCalibrationOutcome:
     """What a self-calibration estimated, kept and held, and why.
 
@@ -128,6 +153,9 @@ class SelfCalibrationOutcome:
         computed, i.e. for an explicit list).
     notes : tuple of str
         Warnings: the held parameters with their reasons, a fallback.
+    cells : ResidualCells or None
+        The image residuals averaged over the format, with and without the
+        camera's correction.
     """
 
     choice: str | tuple[str, ...]
@@ -137,6 +165,7 @@ class SelfCalibrationOutcome:
     estimate: CameraEstimate | None
     sigma0_without: float
     notes: tuple[str, ...]
+    cells: ResidualCells | None = None
 
     @property
     def kept(self) -> tuple[str, ...]:
