@@ -288,3 +288,56 @@ def test_camera_errors_are_not_blunders_in_the_default_construction() -> None:
     assert auto.refined is not None and auto.refined.self_calibration is not None
     assert "k1" in auto.refined.self_calibration.kept
     assert auto.refined.check_statistics.rmse[2] < 0.5 * strip.check_statistics.rmse[2]
+
+
+# ---------------------------------------------------------------- outputs
+
+
+def test_camera_toml_calibrates_the_next_project(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """The adjusted camera is written to camera.toml and report.json; a
+    project with those tables runs the strip method on the calibrated camera:
+    the control no longer fails alike and the height errors shrink."""
+    import json
+    import re
+
+    from strip_aerotri.errors import StripAerotriWarning
+    from strip_aerotri.options import GroundOptions
+    from strip_aerotri.pipeline import triangulate
+    from strip_aerotri.project import load_project
+    from strip_aerotri.project.run import run_project
+    from strip_aerotri.report.outputs import build_outputs
+    from strip_aerotri.simulate import simulate_strip
+    from strip_aerotri.simulate.writer import write_strip_project
+
+    sim = simulate_strip(12, seed=1, crs="local", systematic_k1=3e-8, film_shrink_y=1 + 60e-6)
+    toml = write_strip_project(tmp_path / "a", sim.observations, sim.control, sim.crs, name="a")
+    plain = toml.read_text()
+    with_adjustment = re.sub(
+        r"\[adjustment\]\n", '[adjustment]\nrefine = "bundle"\nself_calibration = "auto"\n', plain
+    )
+    assert with_adjustment != plain
+    toml.write_text(with_adjustment)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        project = load_project(toml)
+        files = build_outputs(run_project(project), project=project, html=False)
+    record = json.loads(files["report.json"])["bundle"]["self_calibration"]
+    assert record["kept"] == ["k1"] and record["camera"]["distortion_fit_rms_um"] < 1e-3
+    k1 = next(p for p in record["parameters"] if p["name"] == "k1")
+    assert abs(k1["estimate"] + 3e-8) < 3 * k1["sd"]  # the simulated 30 µm at 100 mm
+    camera = files["camera.toml"].decode()
+    # the next project: the same data with camera.toml's tables, the strip method
+    nxt = tmp_path / "b" / "strip.toml"
+    nxt.parent.mkdir()
+    for name in ("image_points.csv", "control.csv"):
+        (nxt.parent / name).write_bytes((toml.parent / name).read_bytes())
+    nxt.write_text(re.sub(r"\[camera\]\n[^\[]*", "", plain) + "\n" + camera)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", StripAerotriWarning)
+        calibrated = run_project(load_project(nxt))
+    assert not any("alike" in str(w.message) for w in caught)
+    with pytest.warns(StripAerotriWarning, match="alike"):  # the same data, uncalibrated
+        before = triangulate(
+            sim.observations, sim.control, sim.crs, ground_options=GroundOptions(route="projected")
+        )
+    assert calibrated.check_statistics.rmse[2] < 0.6 * before.check_statistics.rmse[2]
