@@ -42,7 +42,7 @@ from ..results import (
     ResidualCells,
     SelfCalibrationOutcome,
 )
-from .border import CameraUndetermined
+from .adjust import CameraUndetermined
 
 __all__ = [
     "MAX_CORRELATION",
