@@ -341,3 +341,53 @@ def test_camera_toml_calibrates_the_next_project(tmp_path) -> None:  # type: ign
             sim.observations, sim.control, sim.crs, ground_options=GroundOptions(route="projected")
         )
     assert calibrated.check_statistics.rmse[2] < 0.6 * before.check_statistics.rmse[2]
+
+
+# ---------------------------------------------------------------- simulator
+
+
+def test_simulator_camera_errors_are_the_corrections_needed() -> None:
+    """Off by default (the same observations bit for bit); on, the measured
+    coordinates m satisfy m + Δ(m) = the error-free measurement."""
+    from strip_aerotri.simulate import simulate_strip
+
+    plain = simulate_strip(8, seed=3, crs="local")
+    none = simulate_strip(8, seed=3, crs="local", camera_errors={})
+    assert np.array_equal(plain.observations.xy, none.observations.xy)
+    errors = {"k1": -3e-8, "p1": 2e-6, "b1": 6e-5, "b2": -2e-5}
+    bent = simulate_strip(8, seed=3, crs="local", camera_errors=errors)
+    pa, pb = plain.observations, bent.observations
+    key_a = {(pa.photo_ids[f], pa.point_ids[q]): k for k, (f, q) in enumerate(zip(pa.photo, pa.point))}
+    pairs = np.array(
+        [
+            (key_a[(pb.photo_ids[f], pb.point_ids[q])], k)
+            for k, (f, q) in enumerate(zip(pb.photo, pb.point))
+            if (pb.photo_ids[f], pb.point_ids[q]) in key_a
+        ]
+    )
+    assert pairs.shape[0] > 0.95 * pa.photo.size
+    values = np.array([errors.get(n, 0.0) for n in BROWN_PARAMETERS])
+    m = pb.xy[pairs[:, 1]]
+    back = m + brown_correction(m, values, pb.principal_distance)
+    assert np.max(np.abs(m - pa.xy[pairs[:, 0]])) > 0.01  # the errors are there (> 10 µm)
+    # and exactly these: the noise is added after the errors, so Δ is evaluated
+    # at m + noise instead of m (|dΔ/dxy| ~1e-3 times 5 µm of noise)
+    assert np.max(np.abs(back - pa.xy[pairs[:, 0]])) < 1e-4
+    with pytest.raises(ValueError, match="Unknown camera error"):
+        simulate_strip(8, seed=3, crs="local", camera_errors={"k4": 1.0})
+
+
+def test_simulate_command_writes_camera_errors(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from click.testing import CliRunner
+
+    from strip_aerotri.cli.main import cli as main
+
+    runner = CliRunner()
+    ok = runner.invoke(
+        main, ["simulate", "film", "--out", str(tmp_path / "a"), "--camera-error", "k1=-3e-8"]
+    )
+    assert ok.exit_code == 0, ok.output
+    bad = runner.invoke(
+        main, ["simulate", "film", "--out", str(tmp_path / "b"), "--camera-error", "k9=1"]
+    )
+    assert bad.exit_code == 2 and "--camera-error" in bad.output

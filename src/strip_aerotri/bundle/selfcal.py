@@ -7,10 +7,12 @@ determine or that are not significant, one decision per adjustment, until the
 set is stable:
 
 1. every parameter whose multiple correlation with the photos' orientation and
-   the points exceeds :data:`MAX_ORIENTATION_CORRELATION` (0.999: c with the flying
-   height over flat ground, x0 and y0 with the centres unless GNSS centres or
-   oblique photos separate them; the correlation does not depend on the other
-   camera parameters, so all such are held at once);
+   the points exceeds :data:`INTERIOR_CORRELATION` (0.999) for c, x0, y0 (c
+   with the flying height over flat ground, x0 and y0 with the centres unless
+   GNSS centres or oblique photos separate them: a confusion the geometry
+   makes exact) or :data:`MAX_ORIENTATION_CORRELATION` (0.9999) for the
+   others; the correlation does not depend on the other camera parameters,
+   so all such are held at once;
 2. of the most correlated pair of parameters above :data:`MAX_CORRELATION`,
    the one with the smaller t value;
 3. the parameter with the smallest t value, if below :data:`T_CRITICAL`.
@@ -46,6 +48,7 @@ from .adjust import CameraUndetermined
 
 __all__ = [
     "MAX_CORRELATION",
+    "INTERIOR_CORRELATION",
     "MAX_ORIENTATION_CORRELATION",
     "T_CRITICAL",
     "SelfCalibration",
@@ -61,13 +64,17 @@ T_CRITICAL = 3.0
 #: Correlation between two camera parameters above which "auto" holds one.
 MAX_CORRELATION = 0.9
 #: Multiple correlation with the orientation and points above which "auto"
-#: holds a parameter whatever its t value: the data leave it less than 0.2 %
-#: of its information (a variance inflation of 500).  A multiple correlation
-#: with thousands of unknowns is high for every parameter of a strip (0.93-0.997
-#: for lens and affinity terms of simulated drone blocks that the data do
-#: determine, at t of 8-30), so the pairwise bound of 0.9 does not apply to
-#: it; below this bound the t test decides.
-MAX_ORIENTATION_CORRELATION = 0.999
+#: holds a lens or affinity parameter whatever its t value (a variance
+#: inflation of 5000).  A multiple correlation with thousands of unknowns is
+#: high for every parameter of a strip (0.93-0.9998 for lens and affinity
+#: terms that the data do determine, at t of 6-30: simulated drone blocks, the
+#: real FC300X block), so the pairwise bound of 0.9 does not apply to it;
+#: below this bound the t test decides.
+MAX_ORIENTATION_CORRELATION = 0.9999
+#: The same bound for c, x0 and y0, whose confusion with the flying height and
+#: the centres the geometry makes exact on flat ground (0.9999-1.0000 on every
+#: block here, where a t of 5.7 for c was spurious: the simulated c was exact).
+INTERIOR_CORRELATION = 0.999
 #: False-alarm probability of the F test of the chosen set against none.
 ALPHA_SET = 0.001
 
@@ -169,7 +176,13 @@ def _auto(
 def _next_to_hold(cam: CameraEstimate) -> list[tuple[str, str]]:
     """The parameters to hold after one adjustment, with reasons (empty: stable)."""
     r_eo = cam.orientation_correlation
-    over = np.flatnonzero(r_eo > MAX_ORIENTATION_CORRELATION)
+    bound = np.array(
+        [
+            INTERIOR_CORRELATION if n in _ABSORBED_BY else MAX_ORIENTATION_CORRELATION
+            for n in cam.names
+        ]
+    )
+    over = np.flatnonzero(r_eo > bound)
     if over.size:
         return [
             (
