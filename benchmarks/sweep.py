@@ -403,7 +403,9 @@ class Outcome:
         return tuple(s / r for s, r in zip(self.selfcal, self.true_camera, strict=True))
 
 
-def run_case(case: Case, *, refine: bool = True, models: str = "dependent") -> Outcome:
+def run_case(
+    case: Case, *, refine: bool = True, models: str = "dependent", auto: bool = False
+) -> Outcome:
     """Strip method, its bundle refinement and the reference on one case."""
     out = Outcome(case)
     sim = simulate(case)
@@ -440,10 +442,13 @@ def run_case(case: Case, *, refine: bool = True, models: str = "dependent") -> O
                 except GeometryError:  # its control tests may stop on camera errors
                     if errors is None:
                         raise
-            if errors is not None:
-                out.true_camera = reference_bundle(sim, camera=errors)
-                auto = refine_bundle(result, self_calibration=SelfCalibration("auto"))
-                out.selfcal = (auto.check_statistics.rmse_plan, auto.check_statistics.rmse[2])
+            if errors is not None or auto:
+                out.true_camera = (
+                    out.refined if errors is None else reference_bundle(sim, camera=errors)
+                )
+                calibrated = refine_bundle(result, self_calibration=SelfCalibration("auto"))
+                stats = calibrated.check_statistics
+                out.selfcal = (stats.rmse_plan, stats.rmse[2])
         out.ok = True
     except Exception as exc:  # every failure is a result of the sweep
         out.error = f"{type(exc).__name__}: {exc}"
@@ -498,6 +503,14 @@ def summarise(outcomes: list[Outcome]) -> None:
         f"{'family':14s} {'cases':>5s} {'ok':>4s}  strip/bundle plan, height: median  max"
         "   refined/bundle: median  max"
     )
+    clean = [o for o in outcomes if o.ok and not o.case.camera_error_um and o.selfcal[0] > 0]
+    if clean:
+        r = np.array([o.selfcal_ratio for o in clean])
+        print(
+            f"without camera errors, refined with self_calibration = \"auto\" / without: "
+            f"median {np.median(r[:, 0]):.3f} {np.median(r[:, 1]):.3f}, largest "
+            f"{r[:, 0].max():.3f} {r[:, 1].max():.3f} over {len(clean)} cases"
+        )
     cams = [o for o in outcomes if o.ok and o.case.camera_error_um]
     if cams:
         r = np.array([o.selfcal_ratio for o in cams])
@@ -511,13 +524,15 @@ def summarise(outcomes: list[Outcome]) -> None:
         ok = [o for o in sel if o.ok]
         r = np.array([o.ratio for o in ok]) if ok else np.full((1, 2), np.nan)
         rr = np.array([o.refined_ratio for o in ok]) if ok else np.full((1, 2), np.nan)
-        print(
-            f"{fam:14s} {len(sel):5d} {len(ok):4d}  "
-            f"{np.median(r[:, 0]):5.2f} {np.median(r[:, 1]):5.2f}  "
-            f"{np.max(r[:, 0]):5.2f} {np.max(r[:, 1]):5.2f}      "
-            f"{np.median(rr[:, 0]):5.2f} {np.median(rr[:, 1]):5.2f}  "
-            f"{np.max(rr[:, 0]):5.2f} {np.max(rr[:, 1]):5.2f}"
-        )
+        with warnings.catch_warnings():  # a family may have no reference (camera errors)
+            warnings.simplefilter("ignore", RuntimeWarning)
+            print(
+                f"{fam:14s} {len(sel):5d} {len(ok):4d}  "
+                f"{np.nanmedian(r[:, 0]):5.2f} {np.nanmedian(r[:, 1]):5.2f}  "
+                f"{np.nanmax(r[:, 0]):5.2f} {np.nanmax(r[:, 1]):5.2f}      "
+                f"{np.nanmedian(rr[:, 0]):5.2f} {np.nanmedian(rr[:, 1]):5.2f}  "
+                f"{np.nanmax(rr[:, 0]):5.2f} {np.nanmax(rr[:, 1]):5.2f}"
+            )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -538,6 +553,11 @@ def main(argv: list[str] | None = None) -> int:
         "--scale", type=int, default=1, help="this many times the cases per family"
     )
     parser.add_argument(
+        "--auto",
+        action="store_true",
+        help='also refine every case with self_calibration = "auto" (against without)',
+    )
+    parser.add_argument(
         "-v", "--verbose", action="store_true", help="print invalid draws and tracebacks"
     )
     args = parser.parse_args(argv)
@@ -556,7 +576,7 @@ def main(argv: list[str] | None = None) -> int:
             if args.verbose:
                 print(f"    invalid draw {case.label}: {why}")
             continue
-        out = run_case(case, refine=not args.no_refine, models=args.models)
+        out = run_case(case, refine=not args.no_refine, models=args.models, auto=args.auto)
         outcomes.append(out)
         status = _f(out.ratio) if out.ok else "FAILED"
         print(
@@ -565,7 +585,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         if not out.ok:
             print(f"      {out.error[:200]}")
-        elif case.camera_error_um:
+        elif case.camera_error_um or args.auto:
             print(
                 f"      self_calibration auto {_f(out.selfcal)}, bundle given the true camera "
                 f"{_f(out.true_camera)}, ratio {_f(out.selfcal_ratio)}"

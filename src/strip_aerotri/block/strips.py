@@ -42,6 +42,7 @@ from ..geometry.simultaneous import (
 )
 from ..ground.models import model_weights
 from ..ground.polynomials import adjust_to_ground
+from ..ground.systematic import kept_control, systematic_message, systematic_pattern
 from ..observations import (
     ControlPoints,
     GnssCentres,
@@ -820,12 +821,7 @@ def _snoop(
                 raise GeometryError(_too_much_control_fails(p, blunders, sigma0))
             # a smooth pattern: the camera, not the control; keep it all
             use_xy, use_z, control_kept = p.use_xy.copy(), p.use_z.copy(), True
-            rejections = [
-                replace(r, applied=False, effect="kept: the control fails in a smooth pattern")
-                if r.stage == "control"
-                else r
-                for r in rejections
-            ]
+            rejections = kept_control(rejections)
         if (~keep_rows).sum() > blunders.max_fraction * n_det:
             raise GeometryError(
                 f"block: more than {blunders.max_fraction:.0%} of the points' determinations "
@@ -840,8 +836,6 @@ def _keep_systematic(p: _Problem, first: _Solution, blunders: BlunderOptions) ->
     points alike (:mod:`strip_aerotri.ground.systematic`): camera errors, not
     blunders."""
     import warnings
-
-    from ..ground.systematic import systematic_message, systematic_pattern
 
     active = p.use_xy | p.use_z
     w = np.full((p.idx.shape[0], 3), np.nan)

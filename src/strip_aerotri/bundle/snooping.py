@@ -187,25 +187,16 @@ def refine_frame(
     while True:
         pt_used = sets.used_points(inp)
         sub, rows, pts = _compact(obs, sets.keep, pt_used)
-        res = bundle_adjust(
+        res = _adjust(
+            inp,
+            sets,
             sub,
-            state[0],
-            state[1],
-            state[2][pts],
-            camera=camera.model,
-            camera0=camera.values,
-            control_xyz=np.where(sets.ctrl_on[pts], inp.c_xyz[pts], np.nan),
-            control_sigma=np.where(sets.ctrl_on[pts], inp.c_sig[pts], np.inf),
-            gnss_centres=None
-            if inp.g_xyz is None
-            else np.where(sets.g_on[:, None], inp.g_xyz, np.nan),
-            gnss_sigma=None if inp.g_xyz is None else inp.g_sig,
-            imu_rotations=None
-            if inp.i_rot is None
-            else np.where(sets.i_on[:, None, None], inp.i_rot, np.nan),
-            imu_sigma=None if inp.i_rot is None else inp.i_sig,
+            pts,
+            state,
             max_iterations=max_iterations,
             compute_precision=compute_precision,
+            camera=camera.model,
+            camera0=camera.values,
         )
         rounds += 1
         iterations += res.iterations
@@ -275,6 +266,41 @@ def refine_frame(
         sets.check_fractions(inp, blunders)
 
 
+def _adjust(
+    inp: _Inputs,
+    sets: _Sets,
+    sub: ImageObservations,
+    pts: IntArray,
+    state: tuple[FloatArray, FloatArray, FloatArray],
+    *,
+    max_iterations: int,
+    compute_precision: bool,
+    camera: CameraModel | None,
+    camera0: FloatArray | None,
+) -> BundleResult:
+    """One bundle adjustment of the observations, control, GNSS and IMU in use."""
+    return bundle_adjust(
+        sub,
+        state[0],
+        state[1],
+        state[2][pts],
+        camera=camera,
+        camera0=camera0,
+        control_xyz=np.where(sets.ctrl_on[pts], inp.c_xyz[pts], np.nan),
+        control_sigma=np.where(sets.ctrl_on[pts], inp.c_sig[pts], np.inf),
+        gnss_centres=None
+        if inp.g_xyz is None
+        else np.where(sets.g_on[:, None], inp.g_xyz, np.nan),
+        gnss_sigma=None if inp.g_xyz is None else inp.g_sig,
+        imu_rotations=None
+        if inp.i_rot is None
+        else np.where(sets.i_on[:, None, None], inp.i_rot, np.nan),
+        imu_sigma=None if inp.i_rot is None else inp.i_sig,
+        max_iterations=max_iterations,
+        compute_precision=compute_precision,
+    )
+
+
 @dataclass(frozen=True)
 class _Camera:
     """The self-calibration of a refinement: its model, current values and choice."""
@@ -300,22 +326,15 @@ class _Camera:
         sub, _, pts = _compact(obs, sets.keep, pt_used)
         c_mm = float(obs.principal_distance)
 
+        start_state = (inp.centres0, inp.rotations0, inp.points0)
+
         def adjust(model: CameraModel | None, start: FloatArray | None) -> BundleResult:
-            return bundle_adjust(
+            return _adjust(
+                inp,
+                sets,
                 sub,
-                inp.centres0,
-                inp.rotations0,
-                inp.points0[pts],
-                control_xyz=np.where(sets.ctrl_on[pts], inp.c_xyz[pts], np.nan),
-                control_sigma=np.where(sets.ctrl_on[pts], inp.c_sig[pts], np.inf),
-                gnss_centres=None
-                if inp.g_xyz is None
-                else np.where(sets.g_on[:, None], inp.g_xyz, np.nan),
-                gnss_sigma=None if inp.g_xyz is None else inp.g_sig,
-                imu_rotations=None
-                if inp.i_rot is None
-                else np.where(sets.i_on[:, None, None], inp.i_rot, np.nan),
-                imu_sigma=None if inp.i_rot is None else inp.i_sig,
+                pts,
+                start_state,
                 max_iterations=max_iterations,
                 compute_precision=False,
                 camera=model,

@@ -57,6 +57,7 @@ from ..options import BlunderAction, BlunderOptions, GroundOptions
 from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .common import control_detectability, index_of, intersect_unmodelled
 from .polynomials import adjust_to_ground
+from .systematic import kept_control, systematic_message, systematic_pattern
 
 __all__ = ["ModelAdjustment", "adjust_models_to_ground", "model_weights"]
 
@@ -403,12 +404,7 @@ def _snoop(
                     )
                 # a smooth pattern: the camera, not the control; keep it all
                 use_xy, use_z, control_kept = p.use_xy.copy(), p.use_z.copy(), True
-                rejections = [
-                    replace(r, applied=False, effect="kept: the control fails in a smooth pattern")
-                    if r.stage == "control"
-                    else r
-                    for r in rejections
-                ]
+                rejections = kept_control(rejections)
                 continue
         elif worst.stage == "models":
             apply(keep_rows)
@@ -439,8 +435,6 @@ def _keep_systematic(
     """True (and a warning) when the first solution's control fails at many
     points alike (:mod:`strip_aerotri.ground.systematic`): camera errors, not
     blunders."""
-    from .systematic import systematic_message, systematic_pattern
-
     rows = np.flatnonzero(p.use_xy | p.use_z)
     w = np.array(first.result.control_w, dtype=np.float64)
     w[~p.use_xy[rows], :2] = np.nan

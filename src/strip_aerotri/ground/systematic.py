@@ -20,15 +20,21 @@ a pattern that changes sign from model to model.)
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import replace
+
 import numpy as np
 
 from .._typing import FloatArray
+from ..results import Rejection
 
 __all__ = [
+    "KEPT_EFFECT",
     "MAX_DOMINANCE",
     "MIN_CONTROL_POINTS",
     "MIN_FAILING_POINTS",
     "MIN_FAILING_SHARE",
+    "kept_control",
     "systematic_message",
     "systematic_pattern",
 ]
@@ -69,3 +75,15 @@ def systematic_message(stage: str, w: FloatArray, critical: float) -> str:
         '[adjustment] refine = "bundle" and self_calibration = "auto", or follow the '
         'bending with block = "strips" and a polynomial'
     )
+
+
+#: The effect written on a control rejection undone by :func:`kept_control`.
+KEPT_EFFECT = "kept: the control fails at many points alike"
+
+
+def kept_control(rejections: Sequence[Rejection]) -> list[Rejection]:
+    """The rejections with those of the control turned into kept ones."""
+    return [
+        replace(r, applied=False, effect=KEPT_EFFECT) if r.stage == "control" else r
+        for r in rejections
+    ]
