@@ -586,8 +586,9 @@ def main(argv: list[str] | None = None) -> int:
         if not out.ok:
             print(f"      {out.error[:200]}")
         elif case.camera_error_um or args.auto:
+            against = "bundle given the true camera" if case.camera_error_um else "without"
             print(
-                f"      self_calibration auto {_f(out.selfcal)}, bundle given the true camera "
+                f"      self_calibration auto {_f(out.selfcal)}, {against} "
                 f"{_f(out.true_camera)}, ratio {_f(out.selfcal_ratio)}"
             )
     summarise(outcomes)

@@ -187,8 +187,8 @@ def _next_to_hold(cam: CameraEstimate) -> list[tuple[str, str]]:
         return [
             (
                 cam.names[i],
-                f"correlation {r_eo[i]:.3f} with the exterior orientation"
-                + (f" ({_ABSORBED_BY[cam.names[i]]})" if cam.names[i] in _ABSORBED_BY else ""),
+                f"correlation {r_eo[i]:.4f} with the exterior orientation"
+                + (f": {_ABSORBED_BY[cam.names[i]]}" if cam.names[i] in _ABSORBED_BY else ""),
             )
             for i in over
         ]
