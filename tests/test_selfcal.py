@@ -391,3 +391,37 @@ def test_simulate_command_writes_camera_errors(tmp_path) -> None:  # type: ignor
         main, ["simulate", "film", "--out", str(tmp_path / "b"), "--camera-error", "k9=1"]
     )
     assert bad.exit_code == 2 and "--camera-error" in bad.output
+
+
+def test_gnss_centres_separate_c_from_the_flying_height() -> None:
+    """c is held over flat ground without GNSS (correlation 1 with the
+    heights of the photos), and estimated with GNSS centres, within 3 sd of
+    the simulated error."""
+    from strip_aerotri.observations import GnssCentres
+
+    errors = {"c": 0.05, "k1": -6e-5}
+    sim = simulate_block(3, 8, preset="drone", seed=2, crs="local", camera_errors=errors)
+    specs = [StripSpec(s.name, s.photo_ids) for s in sim.strips]
+    m = sim.truth.photo_centres_crs.shape[0]
+    noise = np.random.default_rng(1).normal(0, 0.02, (m, 3))
+    gnss = GnssCentres(
+        tuple(sim.observations.photo_ids),
+        sim.truth.photo_centres_crs + noise,
+        np.full(m, 0.02),
+        np.full(m, 0.02),
+    )
+    outcomes = {}
+    for label, g in (("none", None), ("gnss", gnss)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = triangulate_block(
+                sim.observations, sim.control, sim.crs, specs, route="projected",
+                refine="bundle", gnss=g, self_calibration=SelfCalibration("auto"),
+            )
+        assert res.self_calibration is not None
+        outcomes[label] = {p.name: p for p in res.self_calibration.parameters}
+    held = outcomes["none"]["c"]
+    assert not held.kept and "flying height" in held.reason
+    c = outcomes["gnss"]["c"]
+    assert c.kept and c.orientation_correlation < 0.999
+    assert abs(c.value - errors["c"]) < 3 * c.std
