@@ -18,12 +18,14 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..options import (
+    DEFAULT_ALPHA,
     DEFAULT_DIFFERENCE_TOLERANCE,
     DEFAULT_GNSS_SIGMA_XY_M,
     DEFAULT_GNSS_SIGMA_Z_M,
     DEFAULT_IMAGE_SIGMA_MM,
     DEFAULT_IMU_SIGMA_DEG,
     DEFAULT_LINE_WEIGHT,
+    DEFAULT_MAX_FRACTION,
     DEFAULT_MAX_ITERATIONS,
     DEFAULT_MIN_BASE_TO_HEIGHT,
     DEFAULT_PHOTO_STEP,
@@ -32,8 +34,6 @@ from ..options import (
     DEFAULT_SECTIONS,
     DEFAULT_SIGMA_H_M,
     DEFAULT_SIGMA_XY_M,
-    SELF_CALIBRATION_CHOICES,
-    SELF_CALIBRATION_PARAMETERS,
     BlunderAction,
     Construction,
     DistortionModel,
@@ -43,11 +43,14 @@ from ..options import (
     ImageUnits,
     IntersectionMethod,
     ModelFormation,
+    RULES,
     OptionEnum,
+    OptionError,
     Refine,
     RelativeOrientationMethod,
     Route,
     ScaleTransfer,
+    describe,
 )
 
 
@@ -469,7 +472,7 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False,
     ),
     KeySpec(
-        "blunders", "alpha", "positive number", required=False, default=0.001, unit="",
+        "blunders", "alpha", "positive number", required=False, default=DEFAULT_ALPHA, unit="",
         description="Family-wise false-alarm probability per stage (Bonferroni over the "
         "stage's tests), below 1.",
         contract=False,
@@ -518,7 +521,8 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False, default_text="from alpha",
     ),
     KeySpec(
-        "blunders", "max_fraction", "positive number", required=False, default=0.2, unit="",
+        "blunders", "max_fraction", "positive number", required=False,
+        default=DEFAULT_MAX_FRACTION, unit="",
         description="Stop with an error when a stage would reject more than this fraction "
         "of its observations (at most 1).",
         contract=False,
@@ -648,21 +652,6 @@ IMU_COLUMNS: tuple[ColumnSpec, ...] = (
 )
 
 
-def describe(value: object) -> str:
-    """A TOML value as written, for messages."""
-    if isinstance(value, bool):
-        return f"the boolean {str(value).lower()}"
-    if isinstance(value, str):
-        return f'the string "{value}"'
-    if isinstance(value, int | float):
-        return f"the number {value!r}"
-    if isinstance(value, list):
-        return "a list"
-    if isinstance(value, dict):
-        return "a table"
-    return f"a {type(value).__name__}"
-
-
 def suggest(word: str, candidates: Sequence[str]) -> str:
     """`` (did you mean 'x'?)`` or empty."""
     lower = {c.lower(): c for c in candidates}
@@ -677,7 +666,14 @@ def _is_number(value: object) -> bool:
 
 
 def _parse_value(spec: KeySpec, value: object, where: str) -> object:
-    """Convert one TOML value after checking it against ``spec.kind``."""
+    """Convert one TOML value after checking it against its option's rule
+    (:data:`strip_aerotri.options.RULES`) or ``spec.kind``."""
+    rule = RULES.get((spec.table, spec.key))
+    if rule is not None:
+        try:
+            return rule(value)
+        except OptionError as exc:
+            raise ConfigError(f"{where}: {exc.rule}") from None
     kind = spec.kind
     if kind in ("string", "path"):
         if not isinstance(value, str) or not value.strip():
@@ -736,16 +732,6 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
         if not _is_number(value) or not math.isfinite(value):  # type: ignore[arg-type]
             raise ConfigError(f"{where}: expected a finite number, got {describe(value)}")
         return float(value)  # type: ignore[arg-type]
-    if kind == "photo step":
-        if isinstance(value, str) and value.strip().lower() == "auto":
-            return "auto"
-        if isinstance(value, int) and not isinstance(value, bool) and value >= 1:
-            return value
-        raise ConfigError(
-            f'{where}: expected a positive integer or "auto", got {describe(value)}'
-        )
-    if kind == "self calibration":
-        return _self_calibration(value, where)
     if kind == "mark table":
         if not isinstance(value, dict) or len(value) < 2:
             raise ConfigError(
@@ -765,35 +751,7 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
                 )
             marks[str(mark).strip()] = (float(xy[0]), float(xy[1]))
         return marks
-    if kind == "polynomial":
-        if isinstance(value, str) and value.strip().lower() == "auto":
-            return "auto"
-        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 3:
-            return value
-        raise ConfigError(f'{where}: expected 0, 1, 2, 3 or "auto", got {describe(value)}')
     raise AssertionError(f"unhandled kind {kind!r}")  # pragma: no cover
-
-
-def _self_calibration(value: object, where: str) -> str | tuple[str, ...]:
-    """``[adjustment] self_calibration``: a named choice or a list of parameters."""
-    if isinstance(value, str) and value.strip().lower() in SELF_CALIBRATION_CHOICES:
-        return value.strip().lower()
-    if isinstance(value, list) and value and all(isinstance(v, str) for v in value):
-        names = [str(v).strip().lower() for v in value]
-        unknown = [n for n in names if n not in SELF_CALIBRATION_PARAMETERS]
-        twice = sorted({n for n in names if names.count(n) > 1})
-        if not unknown and not twice:
-            return tuple(n for n in SELF_CALIBRATION_PARAMETERS if n in names)
-        if twice:
-            raise ConfigError(f"{where}: {twice[0]!r} is listed twice")
-        raise ConfigError(
-            f"{where}: unknown parameter {unknown[0]!r}; expected names from "
-            f"{list(SELF_CALIBRATION_PARAMETERS)}"
-        )
-    raise ConfigError(
-        f'{where}: expected "none", "auto", "ebner12" or a non-empty list from '
-        f"{list(SELF_CALIBRATION_PARAMETERS)}, got {describe(value)}"
-    )
 
 
 def check_table(

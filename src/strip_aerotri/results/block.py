@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..observations import ControlPoints, ImageObservations, StripSpec
+from ..options import AdjustmentOptions
 from .bundle import GnssResiduals, ImuResiduals, SelfCalibrationOutcome
 from .common import AccuracyStatistics, Rejection
 from .strip import StripModel
@@ -117,6 +118,9 @@ class BlockResult:
     block_check_statistics : AccuracyStatistics or None
         After a bundle refinement: the check points of the block's own
         transformation, for comparison (None without a refinement).
+    options : AdjustmentOptions or None
+        The options the block ran with
+        (:func:`strip_aerotri.pipeline.triangulate_block` sets them).
     """
 
     specs: tuple[StripSpec, ...]
@@ -151,6 +155,7 @@ class BlockResult:
     gnss: GnssResiduals | None = None
     imu: ImuResiduals | None = None
     self_calibration: SelfCalibrationOutcome | None = None
+    options: AdjustmentOptions | None = None
 
     @property
     def photo_ids(self) -> tuple[str, ...]:
