@@ -70,8 +70,9 @@ def systematic_message(stage: str, w: FloatArray, critical: float) -> str:
     return (
         f"{stage}: {failing.size} of {w.shape[0]} control points fail the blunder test alike "
         f"(|w| {failing.min():.1f} to {failing.max():.1f}, critical {critical:.2f}): "
-        "uncorrected camera errors (lens distortion, film or sensor affinity) are likely "
-        "rather than bad control, so the control is kept; calibrate the camera with "
+        "uncorrected camera errors (lens distortion, film or sensor affinity), or image "
+        "coordinates noisier than their sigma, are likely rather than bad control, so the "
+        "control is kept; calibrate the camera with "
         '[adjustment] refine = "bundle" and self_calibration = "auto", or follow the '
         'bending with block = "strips" and a polynomial'
     )
