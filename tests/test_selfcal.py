@@ -425,3 +425,25 @@ def test_gnss_centres_separate_c_from_the_flying_height() -> None:
     c = outcomes["gnss"]["c"]
     assert c.kept and c.orientation_correlation < 0.999
     assert abs(c.value - errors["c"]) < 3 * c.std
+
+
+def test_ebner12_finds_a_film_affinity() -> None:
+    """A film affinity b1 (Δx = b1 x) is Ebner's e1 (x, -y) times b1/2 plus a
+    scale that the flying height takes: e1 = b1/2 within 3 sd, the eleven
+    others zero within 3 sd."""
+    from strip_aerotri.options import GroundOptions
+    from strip_aerotri.pipeline import triangulate
+    from strip_aerotri.simulate import simulate_strip
+
+    b1 = 1.2e-4
+    sim = simulate_strip(12, seed=1, crs="local", camera_errors={"b1": b1}, control="dense")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = triangulate(
+            sim.observations, sim.control, sim.crs, ground_options=GroundOptions(route="projected"),
+            refine="bundle", self_calibration=SelfCalibration("ebner12"),
+        )
+    assert res.refined is not None and res.refined.self_calibration is not None
+    for p in res.refined.self_calibration.parameters:
+        truth = b1 / 2 if p.name == "e1" else 0.0
+        assert p.kept and abs(p.value - truth) < 3 * p.std, p
