@@ -326,20 +326,25 @@ class _Camera:
         sub, _, pts = _compact(obs, sets.keep, pt_used)
         c_mm = float(obs.principal_distance)
 
-        start_state = (inp.centres0, inp.rotations0, inp.points0)
+        # each trial starts from the last one's photos and points (a few steps less)
+        last = [(inp.centres0, inp.rotations0, inp.points0.copy())]
 
         def adjust(model: CameraModel | None, start: FloatArray | None) -> BundleResult:
-            return _adjust(
+            res = _adjust(
                 inp,
                 sets,
                 sub,
                 pts,
-                start_state,
+                last[0],
                 max_iterations=max_iterations,
                 compute_precision=False,
                 camera=model,
                 camera0=start,
             )
+            points = last[0][2].copy()
+            points[pts] = res.points
+            last[0] = (res.centres, res.rotations, points)
+            return res
 
         base = ebner_base_mm(inp.centres0, inp.points0[pts], c_mm)
         model, values, chosen = start_model(spec, adjust, c_mm, base)
