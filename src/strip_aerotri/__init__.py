@@ -49,6 +49,7 @@ from .geometry.intersection import intersect, intersect_midpoint, intersect_norm
 from .geometry.normals import (
     BorderRows,
     Cofactors,
+    FormedNormals,
     NormalSolution,
     NormalStructure,
     PointRows,
@@ -171,6 +172,7 @@ __all__ = [
     "DeformationResult",
     "FiducialFit",
     "FlightDirection",
+    "FormedNormals",
     "GeometryError",
     "GnssCentres",
     "GnssResiduals",

@@ -47,22 +47,30 @@ of the caller (the engine is unit-free; a whitened residual is
 dimensionless).
 
 :class:`NormalStructure` is built once per problem from the index arrays
-(which units each point is tied to and which units the unit rows link):
-it fixes the units' order and the band.  Its :meth:`NormalStructure.solve`
-takes the rows at the current unknowns (same ``unit``/``point``/``units``
-arrays) and an optional Levenberg-Marquardt ``damping`` (diagonals of the
-unit, point and border blocks times ``1 + damping``) and returns a
-:class:`NormalSolution`: ``unit_step`` (n, d), ``point_step`` (p, 3),
-``border_step`` (k,), ``cost`` (``Σ‖T f‖²``), ``predicted_cost``
+(which units each point is tied to and which units the unit rows link;
+:meth:`NormalStructure.from_indices` takes the arrays themselves): it fixes
+the units' order (``order="auto"``: as numbered, reverse Cuthill-McKee or
+the caller's ``candidates``, whichever is narrowest) and the band
+(``width``, ``order``).  :meth:`NormalStructure.form` forms the normal
+blocks of the rows at the current unknowns (same ``unit``/``point``/
+``units`` arrays) as a :class:`FormedNormals` (``cost`` ``Σ‖T f‖²``,
+``point_blocks``, ``unit_blocks``, :meth:`FormedNormals.undetermined_points`),
+whose :meth:`FormedNormals.solve` takes an optional Levenberg-Marquardt
+``damping`` (diagonals of the unit, point and border blocks times
+``1 + damping``; :meth:`NormalStructure.solve` is form and solve in one)
+and returns a :class:`NormalSolution`: ``unit_step`` (n, d),
+``point_step`` (p, 3), ``border_step`` (k,), ``cost``, ``predicted_cost``
 (``Σ‖T (f + A δ)‖²``), ``min_pivot`` (smallest relative pivot of the
-equilibrated reduced matrix) and :meth:`NormalSolution.cofactors`, a
-:class:`Cofactors` (undamped solutions only) with ``unit`` (n, d, d),
-``point`` (p, 3, 3), ``border`` (k, k), ``unit_border`` (n, d, k),
-``point_border`` (p, 3, k), :meth:`Cofactors.unit_blocks` (any unit pair
-within the band), :meth:`Cofactors.unit_point` (any coupled pair) and
+equilibrated reduced matrix, ``min_pivot_unit``, ``min_pivot_parameter``)
+and :meth:`NormalSolution.cofactors`, a :class:`Cofactors` (undamped
+solutions only) with ``unit`` (n, d, d), ``point`` (p, 3, 3), ``border``
+(k, k), ``unit_border`` (n, d, k), ``point_border`` (p, 3, k),
+:meth:`Cofactors.unit_blocks` (any unit pair within the band),
+:meth:`Cofactors.unit_point` (any coupled pair) and
 :meth:`Cofactors.redundancy` (the redundancy numbers (g, r) of any rows of
 the four kinds).  A singular system raises :class:`SingularNormalsError`
-naming the unit, point or border parameter.
+(a :class:`~strip_aerotri.errors.GeometryError`) naming the unit, point or
+border parameter.
 
 Cost: forming O(G r d²) plus O(Σ_points (q d)²) for the Schur products,
 factorising O(n d³ w²) with w the half-bandwidth in units (about the overlap
@@ -265,8 +273,11 @@ class NormalStructure:
     order : "auto", "given", "rcm" or array of int (n,)
         The units' order along the band: as numbered ("given", units
         numbered along the strip), reverse Cuthill-McKee of the units' graph
-        ("rcm"), whichever of the two is narrower ("auto"), or the unit at
-        each place.
+        ("rcm"), the narrowest of these two and the `candidates` ("auto"),
+        or the unit at each place.
+    candidates : sequence of array of int (n,), optional
+        More orders for "auto" to consider, e.g. the photos by their
+        position along a block (which numbers them across the strips).
     unit_names, point_names : sequence of str, optional
         For the messages (default "unit 3", "point 7").
     parameter_names : sequence of str, optional
@@ -283,6 +294,7 @@ class NormalStructure:
         *,
         n_border: int = 0,
         order: Literal["auto", "given", "rcm"] | ArrayLike = "auto",
+        candidates: Sequence[ArrayLike] = (),
         unit_names: Sequence[str] | None = None,
         point_names: Sequence[str] | None = None,
         parameter_names: Sequence[str] | None = None,
@@ -311,7 +323,7 @@ class NormalStructure:
         for s in sets:
             if s.ndim != 2 or (s.size and (s.min() < 0 or s.max() >= n_units)):
                 raise ValueError("Expected `units` of shape (g, q) with indices of units")
-        self._order = self._choose_order(order, row_unit, row_point, sets)
+        self._order = self._choose_order(order, row_unit, row_point, sets, candidates)
         self.pattern: Pattern = build_pattern(
             n_units, unit_size, n_points, row_unit, row_point, sets, self._order
         )
@@ -322,6 +334,7 @@ class NormalStructure:
         row_unit: IntArray,
         row_point: IntArray,
         sets: list[IntArray],
+        candidates: Sequence[ArrayLike] = (),
     ) -> IntArray:
         n = self.n_units
         if isinstance(order, str):
@@ -332,18 +345,33 @@ class NormalStructure:
                 return given
             pairs = np.unique(row_point * n + row_unit)
             point_pairs = (pairs // n, pairs % n)
-            rcm = unit_graph_order(n, point_pairs, sets)
             if order == "rcm":
-                return rcm
-            widths = []
-            for o in (given, rcm):
+                return unit_graph_order(n, point_pairs, sets)
+
+            def width(o: IntArray) -> int:
                 pos = np.empty(n, np.intp)
                 pos[o] = np.arange(n)
-                widths.append(bandwidth(pos, point_pairs, sets))
-            return rcm if widths[1] < widths[0] else given
+                return bandwidth(pos, point_pairs, sets)
+
+            options = [given, *(self._permutation(c, "candidates") for c in candidates)]
+            widths = [width(o) for o in options]
+            # no order is narrower than the most units of one point or row, less one
+            least = max(
+                int(np.max(np.bincount(point_pairs[0]), initial=1)) - 1,
+                *(s.shape[1] - 1 for s in sets if s.size),
+                0,
+            )
+            if min(widths) > least:
+                options.insert(1, unit_graph_order(n, point_pairs, sets))
+                widths.insert(1, width(options[1]))
+            return options[int(np.argmin(widths))]  # the first of the narrowest
+        return self._permutation(order, "order")
+
+    def _permutation(self, order: ArrayLike, name: str) -> IntArray:
+        n = self.n_units
         arr = np.asarray(order, dtype=np.intp)
         if arr.shape != (n,) or not np.array_equal(np.sort(arr), np.arange(n)):
-            raise ValueError(f"Expected `order` to be a permutation of the {n} units")
+            raise ValueError(f"Expected `{name}` to hold permutations of the {n} units")
         return arr
 
     @property
@@ -432,6 +460,14 @@ class FormedNormals:
     def point_blocks(self) -> FloatArray:
         """The points' 3 x 3 normal blocks V (p, 3, 3), undamped."""
         return self._normals.v
+
+    def undetermined_points(self, tol: float = POINT_RANK_TOL) -> IntArray:
+        """Points whose 3 x 3 normal block (undamped) has ``λmin <= tol λmax``."""
+        from ._normal_assembly import undetermined_points
+
+        return undetermined_points(self._normals.v, tol)[0] if self._normals.v.size else (
+            np.zeros(0, np.intp)
+        )
 
     @property
     def unit_blocks(self) -> FloatArray:
