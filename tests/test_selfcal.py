@@ -447,3 +447,20 @@ def test_ebner12_finds_a_film_affinity() -> None:
     for p in res.refined.self_calibration.parameters:
         truth = b1 / 2 if p.name == "e1" else 0.0
         assert p.kept and abs(p.value - truth) < 3 * p.std, p
+
+
+def test_a_block_writes_its_camera() -> None:
+    """A block's outputs carry the self-calibration as a strip's do."""
+    import json
+
+    from strip_aerotri.report.block import build_block_outputs
+
+    sim, specs = _drone_block(_DRONE_ERRORS)
+    res = _run(sim, specs, "auto")
+    files = build_block_outputs(res)
+    record = json.loads(files["report.json"])["bundle"]["self_calibration"]
+    assert set(record["kept"]) == set(_DRONE_ERRORS)
+    assert {p["name"] for p in record["parameters"]} == set(BROWN_PARAMETERS)
+    assert "[distortion]" in files["camera.toml"].decode()
+    page = files["report.html"].decode()
+    assert "Self-calibration of the camera" in page and page.count("data:image/png") >= 3
