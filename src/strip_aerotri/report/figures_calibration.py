@@ -53,7 +53,7 @@ def figure_distortion(outcome: SelfCalibrationOutcome) -> str | None:
     grid = np.column_stack([gx.ravel(), gy.ravel()])
     d_um = distortion_field(outcome, grid) * 1000.0
     largest = float(np.max(np.hypot(d_um[:, 0], d_um[:, 1]), initial=0.0))
-    fig = Figure(figsize=(9.0, 3.8))
+    fig = Figure(figsize=(9.0, 3.8), layout="constrained")
     ax1, ax2 = fig.subplots(1, 2)
     step = float(hi[0] - lo[0]) / 14.0
     _quiver(ax1, grid[:, 0], grid[:, 1], d_um, max(largest, 1e-9) / (0.9 * step))
@@ -86,7 +86,7 @@ def figure_cells(cells: ResidualCells) -> str | None:
     )
     step = float(xc[1] - xc[0]) if xc.size > 1 else 1.0
     scale = max(largest, 1e-9) / (0.9 * step)
-    fig = Figure(figsize=(9.0, 3.8))
+    fig = Figure(figsize=(9.0, 3.8), layout="constrained")
     for ax, field, title in zip(
         fig.subplots(1, 2),
         (cells.before, cells.after),
