@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .._stats import leading_failures
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import FlightAxisError, GeometryError, PhotoOrderError, StripAerotriWarning
 from ..frames import WorkFrame, make_work_frame
@@ -775,11 +776,12 @@ def _solve(
 def _snoop(
     p: _Problem, blunders: BlunderOptions
 ) -> tuple[_Solution, BoolArray, BoolArray, BoolArray, tuple[Rejection, ...]]:
-    """Data snooping, one rejection at a time until nothing fails: the control
-    by Baarda's w (never a component the block cannot spare: kept and
+    """Data snooping until nothing fails: the control by Baarda's w, one
+    component at a time (never one the block cannot spare: kept and
     flagged), then the determinations of the points in their units by their
     3-D residuals against chi-square(3), as the ground stage tests a strip's
-    models."""
+    models: every failing determination that is the largest of its point
+    and of its unit, all in one round."""
     use_xy, use_z = p.use_xy.copy(), p.use_z.copy()
     keep_rows = (
         np.ones(p.rows.unit.shape[0], dtype=bool) if p.tie_rejected is None else ~p.tie_rejected
@@ -791,18 +793,21 @@ def _snoop(
     sol = _solve(p, use_xy, use_z, None, keep_rows)
     sigma0 = float(sol.result.sigma0)
     while blunders.testing:
-        found = _control_test(p, sol, use_xy, use_z, blunders, flagged)
-        if found is None:
-            found = _determination_test(p, sol, keep_rows, blunders)
-        if found is None:
+        control = _control_test(p, sol, use_xy, use_z, blunders, flagged)
+        found = (
+            [control]
+            if control is not None
+            else _determination_test(p, sol, keep_rows, blunders)
+        )
+        if not found:
             break
-        rejection, apply = found
-        rejections.append(rejection)
-        if not (blunders.rejecting and rejection.applied):
+        rejections.extend(rejection for rejection, _ in found)
+        if not (blunders.rejecting and found[0][0].applied):
             if not blunders.rejecting:
                 break
             continue
-        apply(use_xy, use_z, keep_rows)
+        for _, apply in found:
+            apply(use_xy, use_z, keep_rows)
         if n_control - int(2 * use_xy.sum() + use_z.sum()) > blunders.max_fraction * n_control:
             raise GeometryError(_too_much_control_fails(p, blunders, sigma0))
         if (~keep_rows).sum() > blunders.max_fraction * n_det:
@@ -893,32 +898,34 @@ def _control_test(
 
 def _determination_test(
     p: _Problem, sol: _Solution, keep_rows: BoolArray, blunders: BlunderOptions
-) -> tuple[Rejection, _Apply] | None:
-    """The point determination whose 3-D residual fails chi-square(3) most
+) -> list[tuple[Rejection, _Apply]]:
+    """The point determinations whose 3-D residuals fail chi-square(3)
     (``row_statistic`` times 3, scaled down by its median over chi-square(3)'s
-    when the data are noisier than declared, never up)."""
+    when the data are noisier than declared, never up): rejecting, every one
+    that is the largest of its point and of its unit (:func:`leading_failures`),
+    largest first; only reporting, the largest."""
     n_points = p.observations.n_points
     kept = np.flatnonzero(keep_rows)
     stat = 3.0 * sol.result.row_statistic
     stat = np.where((p.rows.point[kept] < n_points) & np.isfinite(stat), stat, np.nan)
     finite = stat[np.isfinite(stat)]
     if finite.size == 0:
-        return None
+        return []
     stat = stat / max(1.0, float(np.median(finite)) / _CHI2_3_MEDIAN)
     critical = blunders.critical("models", int(finite.size), dof=3)
     w = np.sqrt(np.where(np.isfinite(stat), stat, 0.0))
-    k = int(np.argmax(w))
-    if not w[k] > critical:
-        return None
-    row = int(kept[k])
-    unit = int(p.rows.unit[row])
-    strip = p.specs[int(p.unit_strip[unit])].name
+    chosen = leading_failures(w, critical, p.rows.point[kept], p.rows.unit[kept])
+    if not blunders.rejecting:
+        chosen = chosen[:1]
+    found: list[tuple[Rejection, _Apply]] = []
+    for k in chosen:
+        row = int(kept[k])
+        strip = p.specs[int(p.unit_strip[int(p.rows.unit[row])])].name
 
-    def apply(xy: BoolArray, z: BoolArray, keep: BoolArray, row: int = row) -> None:
-        keep[row] = False
+        def apply(xy: BoolArray, z: BoolArray, keep: BoolArray, row: int = row) -> None:
+            keep[row] = False
 
-    return (
-        Rejection(
+        rejection = Rejection(
             stage="models",
             point=p.observations.point_ids[int(p.rows.point[row])],
             photos=(f"strip {strip}",),
@@ -929,9 +936,9 @@ def _determination_test(
             critical=critical,
             applied=blunders.rejecting,
             effect="determination left out of the block's transformation",
-        ),
-        apply,
-    )
+        )
+        found.append((rejection, apply))
+    return found
 
 
 def _in_work_frame(p: _Problem, sol: _Solution) -> tuple[FloatArray, FloatArray, FloatArray]:

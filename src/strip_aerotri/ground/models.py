@@ -38,6 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._stats import leading_failures
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import GeometryError, StripAerotriWarning
 from ..frames import WorkFrame, make_work_frame
@@ -334,10 +335,12 @@ def _snoop(
     tuple[Rejection, ...],
     tuple[tuple[str, str], ...],
 ]:
-    """The simultaneous transformation, then data snooping: the worst failing
-    observation out (control and line points first) and solve again, until
-    none fails.  A control point whose rejection would leave the control
-    unable to carry the strip is kept and flagged.
+    """The simultaneous transformation, then data snooping until nothing
+    fails: the worst failing control component or line point out (they come
+    first: their errors show in their points' determinations too), else
+    every failing determination that is the largest of its point and of its
+    model, all in one round; solve again.  A control point whose rejection
+    would leave the control unable to carry the strip is kept and flagged.
 
     Returns the last solution, the rows, control coordinates and line points
     used, the rejections (the flagged ones last) and the (model, point) of
@@ -398,14 +401,18 @@ def _snoop(
                     "observations fail the blunder test; the control cannot be trusted"
                 )
         elif worst.stage == "models":
-            apply(keep_rows)
-            label = worst.photos
-            rejected_rows.append((label[0] if label else "", worst.point))
+            # every determination that leads its point and its model, at once
+            for rejection, reject in found:
+                reject(keep_rows)
+                label = rejection.photos
+                rejected_rows.append((label[0] if label else "", rejection.point))
+                rejections.append(rejection)
             if (~keep_rows[: p.n_det]).sum() > blunders.max_fraction * p.n_det:
                 raise GeometryError(
                     f"models: more than {blunders.max_fraction:.0%} of the determinations "
                     "fail the blunder test; the image coordinates cannot be trusted"
                 )
+            continue
         else:
             apply(line_keep)
         rejections.append(worst)
@@ -553,8 +560,10 @@ def _determination_tests(
     p: _ModelsProblem, res: SimultaneousResult, keep_rows: BoolArray, blunders: BlunderOptions
 ) -> _Found:
     """The 3-D residual of each determination against chi-square(3), as a
-    "w" = sqrt(statistic) (row_statistic has mean 1 per row: times 3); the
-    five largest above the critical value.
+    "w" = sqrt(statistic) (row_statistic has mean 1 per row: times 3).
+    Rejecting: every failing determination that is the largest of its point
+    and of its model (they go out together, :func:`leading_failures`);
+    flagging only: the five largest above the critical value.
 
     Data noisier than declared scale the statistic down by the rows' median
     over chi-square(3)'s, never up (the statistic's redundancy share is an
@@ -568,9 +577,12 @@ def _determination_tests(
         stat = stat / max(1.0, float(np.median(finite)) / _CHI2_3_MEDIAN)
     crit = blunders.critical("models", int(np.isfinite(stat).sum()), dof=3)
     w_rows = np.sqrt(np.where(np.isfinite(stat), stat, 0.0))
-    for k in np.argsort(-w_rows)[:5]:
-        if not w_rows[k] > crit:
-            break
+    if blunders.rejecting:
+        chosen = leading_failures(w_rows, crit, strip.model_point[kept], strip.model[kept])
+    else:
+        chosen = np.argsort(-w_rows)[:5]
+        chosen = chosen[w_rows[chosen] > crit]
+    for k in chosen:
         det = int(kept[k])
         m = int(strip.model[det])
         label = strip.model_labels[m] if strip.model_labels else f"model {m}"
