@@ -1,0 +1,160 @@
+"""A symmetric block-banded matrix: LAPACK's banded Cholesky and the band of its inverse.
+
+The matrix has ``n`` diagonal blocks of size ``d`` and nonzero blocks only
+within ``w`` blocks of the diagonal.  It is held as its lower block band
+``band[J, o] = S[J + o, J]`` (shape (n, w + 1, d, d), blocks beyond the last
+row are zero), converted to LAPACK's lower band storage (``ab[i - j, j] =
+S[i, j]``, ``u = (w + 1) d - 1`` sub-diagonals) for
+:func:`scipy.linalg.cholesky_banded`, equilibrated to unit diagonal first.
+
+:func:`selected_inverse` gives the same block band of ``Z = S⁻¹`` by
+Takahashi's recursion (Takahashi, Fagan & Chin 1973; Erisman & Tinney 1975)
+from the last block column backwards:
+
+    Z_>J,J = -Z_>J,>J L_>J,J L_JJ⁻¹
+    Z_JJ   = L_JJ⁻ᵀ (L_JJ⁻¹ - L_>J,Jᵀ Z_>J,J)
+
+where ``>J`` are the ``w`` block rows below J: each step needs only the part
+of Z within the band, kept in a dense window of (w + 1) blocks that slides up
+the diagonal.  A loop over the n block columns (sequential by nature), each
+step a few products of a (w d) x (w d) window with a (w d) x d panel.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+
+__all__ = ["BandFactor", "band_to_lapack", "factor_band", "selected_inverse"]
+
+
+def _lapack_index(n: int, w: int, d: int) -> tuple[IntArray, IntArray]:
+    """Flat indices into ``band`` (n, w+1, d, d) and into LAPACK's ab ((w+1)d, n d)
+    of every entry of the lower band (the diagonal blocks' lower triangles and
+    the whole blocks below them)."""
+    j, o, a, b = np.meshgrid(
+        np.arange(n), np.arange(w + 1), np.arange(d), np.arange(d), indexing="ij"
+    )
+    keep = ((o > 0) | (a >= b)) & (j + o < n)
+    row = o * d + a - b  # (J + o) d + a - (J d + b)
+    col = j * d + b
+    src = np.flatnonzero(keep.reshape(-1))
+    dst = (row * (n * d) + col).reshape(-1)[src]
+    return src.astype(np.intp), dst.astype(np.intp)
+
+
+def band_to_lapack(band: FloatArray) -> FloatArray:
+    """LAPACK lower band storage ((w+1) d, n d) of a block band (n, w+1, d, d)."""
+    n, w1, d, _ = band.shape
+    src, dst = _lapack_index(n, w1 - 1, d)
+    ab = np.zeros(w1 * d * n * d)
+    ab[dst] = band.reshape(-1)[src]
+    return ab.reshape(w1 * d, n * d)
+
+
+def lapack_to_band(ab: FloatArray, n: int, d: int) -> FloatArray:
+    """The inverse of :func:`band_to_lapack` (upper triangles of diagonal blocks 0)."""
+    w1 = ab.shape[0] // d
+    src, dst = _lapack_index(n, w1 - 1, d)
+    band = np.zeros(n * w1 * d * d)
+    band[src] = ab.reshape(-1)[dst]
+    return band.reshape(n, w1, d, d)
+
+
+@dataclass(frozen=True)
+class BandFactor:
+    """``D S D = L Lᵀ`` of an equilibrated block band.
+
+    ``factor`` LAPACK's lower band storage of L, ``scale`` the diagonal of D
+    (n d,), ``min_pivot`` the smallest ``L_ii²`` (the relative pivot of the
+    equilibrated matrix, whose diagonal is 1) and ``min_pivot_index`` its
+    scalar index in the band's order."""
+
+    factor: FloatArray
+    scale: FloatArray
+    n: int
+    d: int
+    min_pivot: float
+    min_pivot_index: int
+
+    def solve(self, rhs: FloatArray) -> FloatArray:
+        """``S⁻¹ rhs`` for rhs (n d,) or (n d, k), in the band's order."""
+        from scipy.linalg import cho_solve_banded
+
+        s = self.scale if rhs.ndim == 1 else self.scale[:, None]
+        x: FloatArray = cho_solve_banded((self.factor, True), s * rhs, check_finite=False)
+        return s * x
+
+
+class NotPositiveDefinite(Exception):
+    """The band is not positive definite; ``index`` the scalar row (band order)
+    at which the factorisation stopped, or the first non-positive diagonal."""
+
+    def __init__(self, index: int):
+        super().__init__(f"not positive definite at row {index}")
+        self.index = index
+
+
+def factor_band(band: FloatArray) -> BandFactor:
+    """Equilibrate and factor a block band (n, w+1, d, d); NotPositiveDefinite
+    when a diagonal entry is not positive or LAPACK's factorisation stops."""
+    from scipy.linalg import LinAlgError, cholesky_banded
+
+    n, _, d, _ = band.shape
+    ab = band_to_lapack(band)
+    diag = ab[0].copy()
+    bad = ~(diag > 0.0)
+    if np.any(bad):
+        raise NotPositiveDefinite(int(np.flatnonzero(bad)[0]))
+    scale = 1.0 / np.sqrt(diag)
+    for i in range(ab.shape[0]):  # row i of ab holds S[j + i, j]
+        ab[i, : n * d - i] *= scale[i:] * scale[: n * d - i]
+    try:
+        factor = cholesky_banded(ab, lower=True, check_finite=False)
+    except LinAlgError as exc:
+        found = re.search(r"(\d+)", str(exc))
+        raise NotPositiveDefinite(int(found.group(1)) - 1 if found else 0) from exc
+    pivots = factor[0] ** 2
+    j = int(np.argmin(pivots))
+    return BandFactor(factor, scale, n, d, float(pivots[j]), j)
+
+
+def selected_inverse(bf: BandFactor) -> FloatArray:
+    """The block band of ``S⁻¹`` (n, w+1, d, d), ``[J, o] = (S⁻¹)[J + o, J]``,
+    by Takahashi's recursion on the factor (see the module docstring)."""
+    n, d = bf.n, bf.d
+    w1 = bf.factor.shape[0] // d
+    w = w1 - 1
+    lf = lapack_to_band(bf.factor, n, d)  # L's blocks: [J, o] = L[J + o, J]
+    lf[:, 0] = np.tril(lf[:, 0])
+    l_inv = np.linalg.inv(lf[:, 0])  # (n, d, d) lower
+    # panel[J]: L[J+1 .. J+w, J] stacked (w d, d); zero beyond the last row
+    panel = lf[:, 1:].reshape(n, w * d, d)
+    z = np.zeros((n, w1, d, d))
+    wd = w * d
+    # Z over blocks J+1 .. J+1+w before step J, over J .. J+w after it; the
+    # two buffers alternate (zero beyond the last block)
+    window = np.zeros((w1 * d, w1 * d))
+    spare = np.zeros_like(window)
+    for j in range(n - 1, -1, -1):
+        below = window[:wd, :wd]  # Z over blocks J+1 .. J+w
+        col = -(below @ panel[j]) @ l_inv[j]
+        diag = l_inv[j].T @ (l_inv[j] - panel[j].T @ col)
+        diag = 0.5 * (diag + diag.T)
+        z[j, 0] = diag
+        z[j, 1:] = col.reshape(w, d, d)
+        spare[d:, d:] = below
+        spare[:d, :d] = diag
+        spare[d:, :d] = col
+        spare[:d, d:] = col.T
+        window, spare = spare, window
+    # undo the equilibration: S⁻¹ = D Z̃ D
+    s = bf.scale.reshape(n, d)
+    rows = np.arange(n)[:, None] + np.arange(w1)[None, :]
+    s_rows = np.where((rows < n)[:, :, None], s[np.minimum(rows, n - 1)], 0.0)
+    z *= s_rows[:, :, :, None] * s[:, None, None, :]
+    return z

@@ -1,0 +1,226 @@
+"""The fixed pattern of a structured normal system (method.md 6B): which units
+each point is tied to, the units' order along the band, and the index arrays
+that scatter the Schur complement's blocks into the band and gather the band
+of the inverse back per point.
+
+Built once per problem (the pattern does not change between iterations) by
+:class:`strip_aerotri.geometry.normals.NormalStructure`.
+
+Pairs (unit, point) are the distinct couplings ``W_ip``; they are held sorted
+by point, and within a point by the unit's position along the band, with the
+points themselves grouped by their number q of units and, within that, by
+their unit set (the *signature*): points with the same units are summed into
+the band together.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._typing import BoolArray, IntArray
+
+#: Largest number of float64 entries of one chunk of per-point products.
+CHUNK_ENTRIES = 2_000_000
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """A run of points with the same q, processed at once.
+
+    ``points`` (c,) point indices, ``pairs`` (c, q) pair indices (sorted by
+    position within each point), ``starts`` (g,) the first point (relative
+    to the chunk) of each run of equal signature, ``scatter`` (g, q(q+1)/2)
+    the block index ``J (w + 1) + o`` in the band of each lower pair
+    (a >= b) of a signature, ``gather`` (c, q, q) the block index of every
+    pair (a, b) of a point's units and ``upper`` (q, q) where that block is
+    the transpose of the stored one (a < b)."""
+
+    q: int
+    points: IntArray
+    pairs: IntArray
+    pair_start: int
+    starts: IntArray
+    scatter: IntArray
+    gather: IntArray
+    upper: BoolArray
+    lower_a: IntArray
+    lower_b: IntArray
+
+
+@dataclass(frozen=True)
+class Pattern:
+    n_units: int
+    unit_size: int
+    n_points: int
+    position: IntArray  # (n,) place of each unit along the band
+    order: IntArray  # (n,) unit at each place
+    width: int  # half-bandwidth in units
+    pair_unit: IntArray  # (n_pairs,)
+    pair_point: IntArray  # (n_pairs,)
+    row_pair: IntArray  # (G,) pair of each unit-point row
+    chunks: tuple[Chunk, ...]
+    pair_keys: IntArray  # sorted keys point * n + position of the pairs
+    pair_by_key: IntArray  # the pair of each sorted key
+
+    def pair_of(self, unit: IntArray, point: IntArray) -> IntArray:
+        """Pair index of (unit, point) couplings; ValueError if not in the pattern."""
+        key = point * self.n_units + self.position[unit]
+        at = np.searchsorted(self.pair_keys, key)
+        at = np.minimum(at, max(self.pair_keys.size - 1, 0))
+        if key.size and (self.pair_keys.size == 0 or np.any(self.pair_keys[at] != key)):
+            raise ValueError("rows tie a unit to a point that the pattern does not couple")
+        return self.pair_by_key[at]
+
+    def block_index(self, unit_a: IntArray, unit_b: IntArray) -> tuple[IntArray, BoolArray]:
+        """Band block index and 'transposed' flag of the blocks (a, b) of units."""
+        pa, pb = self.position[unit_a], self.position[unit_b]
+        upper = pa < pb
+        lo, hi = np.minimum(pa, pb), np.maximum(pa, pb)
+        off = hi - lo
+        if np.any(off > self.width):
+            raise ValueError("units outside the band of the pattern")
+        return lo * (self.width + 1) + off, upper
+
+
+def bandwidth(position: IntArray, point_pairs: tuple[IntArray, IntArray],
+              unit_sets: list[IntArray]) -> int:
+    """Half-bandwidth (in units) of the reduced matrix for the units' positions."""
+    pair_point, pair_unit = point_pairs
+    width = 0
+    if pair_point.size:
+        p = position[pair_unit]
+        n_points = int(pair_point.max()) + 1
+        hi = np.full(n_points, -1)
+        lo = np.full(n_points, np.iinfo(np.intp).max)
+        np.maximum.at(hi, pair_point, p)
+        np.minimum.at(lo, pair_point, p)
+        seen = hi >= 0
+        width = int(np.max(hi[seen] - lo[seen], initial=0))
+    for units in unit_sets:
+        if units.size:
+            p = position[units]
+            width = max(width, int(np.max(p.max(axis=1) - p.min(axis=1), initial=0)))
+    return width
+
+
+def unit_graph_order(n_units: int, point_pairs: tuple[IntArray, IntArray],
+                     unit_sets: list[IntArray]) -> IntArray:
+    """Reverse Cuthill-McKee order of the units' graph (two units linked when
+    they share a point or a unit row)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    pair_point, pair_unit = point_pairs
+    rows, cols = [], []
+    if pair_point.size:
+        # consecutive units of each point (sorted by point): a path links them
+        same = pair_point[1:] == pair_point[:-1]
+        rows.append(pair_unit[:-1][same])
+        cols.append(pair_unit[1:][same])
+        # and every unit of a point to its first: a star keeps the point's clique connected
+        first = np.r_[True, ~same]
+        head = pair_unit[np.flatnonzero(first)][np.cumsum(first) - 1]
+        rows.append(head)
+        cols.append(pair_unit)
+    for units in unit_sets:
+        for a in range(1, units.shape[1] if units.ndim == 2 else 0):
+            rows.append(units[:, 0])
+            cols.append(units[:, a])
+    r = np.concatenate(rows) if rows else np.zeros(0, np.intp)
+    c = np.concatenate(cols) if cols else np.zeros(0, np.intp)
+    graph = sp.csr_matrix((np.ones(r.size), (r, c)), shape=(n_units, n_units))
+    graph = (graph + graph.T).tocsr()
+    order: IntArray = np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), np.intp)
+    return order
+
+
+def build_pattern(
+    n_units: int,
+    unit_size: int,
+    n_points: int,
+    row_unit: IntArray,
+    row_point: IntArray,
+    unit_sets: list[IntArray],
+    order: IntArray,
+) -> Pattern:
+    """The pattern for unit-point rows (G,) and unit rows (each (g, q) units),
+    with the units placed along the band in `order` (unit at each place)."""
+    n = n_units
+    position = np.empty(n, dtype=np.intp)
+    position[order] = np.arange(n)
+    key = row_point * n + position[row_unit]
+    upair, row_pair = np.unique(key, return_inverse=True)
+    pp = upair // n
+    pu = order[upair % n]
+    width = bandwidth(position, (pp, pu), unit_sets)
+    q_of = np.bincount(pp, minlength=n_points)
+    first = np.concatenate([[0], np.cumsum(q_of)[:-1]])
+    # points by q, then by signature (their units' positions), then by index
+    seen = np.flatnonzero(q_of > 0)
+    chunks: list[Chunk] = []
+    new_pairs: list[IntArray] = []
+    for q in np.unique(q_of[seen]):
+        pts = seen[q_of[seen] == q]
+        pairs = first[pts][:, None] + np.arange(q)[None, :]
+        sig = position[pu[pairs]]  # (c, q) ascending
+        srt = np.lexsort((pts, *sig.T[::-1]))
+        pts, pairs, sig = pts[srt], pairs[srt], sig[srt]
+        new_pairs.append(pairs.reshape(-1))
+        chunks.extend(_chunks(int(q), unit_size, width, pts, pairs, sig))
+    # renumber the pairs in the chunks' order, so a chunk's pairs are contiguous
+    old = np.concatenate(new_pairs) if new_pairs else np.zeros(0, np.intp)
+    renum = np.empty_like(old)
+    renum[old] = np.arange(old.size)
+    chunks = [
+        Chunk(c.q, c.points, renum[c.pairs], int(renum[c.pairs[0, 0]]), c.starts, c.scatter,
+              c.gather, c.upper, c.lower_a, c.lower_b)
+        for c in chunks
+    ]
+    pair_key = pp[old] * n + position[pu[old]]
+    key_order = np.argsort(pair_key)
+    return Pattern(
+        n_units=n,
+        unit_size=unit_size,
+        n_points=n_points,
+        position=position,
+        order=np.asarray(order, dtype=np.intp),
+        width=width,
+        pair_unit=pu[old],
+        pair_point=pp[old],
+        row_pair=renum[row_pair],
+        chunks=tuple(chunks),
+        pair_keys=pair_key[key_order],
+        pair_by_key=key_order.astype(np.intp),
+    )
+
+
+def _chunks(q: int, d: int, width: int, pts: IntArray, pairs: IntArray,
+            sig: IntArray) -> list[Chunk]:
+    """The points of one q in chunks of bounded size, with their index arrays."""
+    per_point = (q * d) ** 2
+    size = max(1, CHUNK_ENTRIES // per_point)
+    w1 = width + 1
+    a_idx, b_idx = np.tril_indices(q)  # a >= b: positions ascending, so pos_a >= pos_b
+    aa, bb = np.meshgrid(np.arange(q), np.arange(q), indexing="ij")
+    upper = aa < bb
+    lo = np.minimum(aa, bb)
+    hi = np.maximum(aa, bb)
+    new_sig = np.r_[True, np.any(sig[1:] != sig[:-1], axis=1)]
+    out = []
+    for c0 in range(0, pts.size, size):
+        c1 = min(pts.size, c0 + size)
+        s = sig[c0:c1]
+        starts = np.flatnonzero(new_sig[c0:c1])
+        if starts.size == 0 or starts[0] != 0:
+            starts = np.r_[0, starts]
+        gs = s[starts]
+        scatter = gs[:, b_idx] * w1 + (gs[:, a_idx] - gs[:, b_idx])
+        gather = s[:, lo] * w1 + (s[:, hi] - s[:, lo])
+        out.append(
+            Chunk(q, pts[c0:c1], pairs[c0:c1], 0, starts.astype(np.intp),
+                  scatter.astype(np.intp), gather.astype(np.intp), upper,
+                  a_idx.astype(np.intp), b_idx.astype(np.intp))
+        )
+    return out
