@@ -86,6 +86,7 @@ from ._normal_pattern import Pattern, bandwidth, build_pattern, unit_graph_order
 __all__ = [
     "BorderRows",
     "Cofactors",
+    "FormedNormals",
     "NormalSolution",
     "NormalStructure",
     "PointRows",
@@ -369,6 +370,20 @@ class NormalStructure:
 
     # ------------------------------------------------------------------ solve
 
+    def form(
+        self,
+        unit_point_rows: Sequence[UnitPointRows],
+        unit_rows: Sequence[UnitRows] = (),
+        point_rows: Sequence[PointRows] = (),
+        border_rows: Sequence[BorderRows] = (),
+    ) -> FormedNormals:
+        """The normal blocks of the rows at the current unknowns, to be solved
+        with one or more dampings (:meth:`FormedNormals.solve`)."""
+        from ._normal_assembly import assemble
+
+        return FormedNormals(self, assemble(self, unit_point_rows, unit_rows, point_rows,
+                                            border_rows))
+
     def solve(
         self,
         unit_point_rows: Sequence[UnitPointRows],
@@ -380,11 +395,60 @@ class NormalStructure:
     ) -> NormalSolution:
         """Form, reduce, factor and solve the normal equations of the rows at
         the current unknowns (see the module docstring)."""
-        from ._normal_assembly import assemble, reduce_points
+        return self.form(unit_point_rows, unit_rows, point_rows, border_rows).solve(damping)
 
-        normals = assemble(self, unit_point_rows, unit_rows, point_rows, border_rows)
-        reduced = reduce_points(self, normals, damping)
-        return NormalSolution._from(self, normals, reduced, damping)
+    @classmethod
+    def from_indices(
+        cls,
+        n_units: int,
+        unit_size: int,
+        n_points: int,
+        unit: ArrayLike,
+        point: ArrayLike,
+        unit_sets: Sequence[ArrayLike] = (),
+        **options: object,
+    ) -> NormalStructure:
+        """As the constructor, from the unit-point rows' ``unit`` and ``point``
+        (G,) and the unit rows' ``units`` (each (g, q)) instead of the rows;
+        `options` are the constructor's keywords."""
+        ui = np.asarray(unit, dtype=np.intp)
+        pi = np.asarray(point, dtype=np.intp)
+        empty = np.zeros((ui.size, 0, 0))
+        rows = [UnitPointRows(ui, pi, empty, empty, empty)]
+        sets = [UnitRows(np.asarray(u, dtype=np.intp), empty, empty) for u in unit_sets]
+        return cls(n_units, unit_size, n_points, rows, sets, **options)  # type: ignore[arg-type]
+
+
+class FormedNormals:
+    """The normal blocks of one linearisation (:meth:`NormalStructure.form`);
+    ``cost`` is ``Σ‖T f‖²``."""
+
+    def __init__(self, structure: NormalStructure, normals: _Normals):
+        self.structure = structure
+        self._normals = normals
+        self.cost = normals.cost
+
+    @property
+    def point_blocks(self) -> FloatArray:
+        """The points' 3 x 3 normal blocks V (p, 3, 3), undamped."""
+        return self._normals.v
+
+    @property
+    def unit_blocks(self) -> FloatArray:
+        """The units' d x d normal blocks U (n, d, d), undamped, before the
+        points are eliminated."""
+        blocks: FloatArray = self._normals.band[self.structure.pattern.position, 0]
+        return blocks
+
+    def solve(self, damping: float = 0.0) -> NormalSolution:
+        """The step with Levenberg-Marquardt `damping` (diagonals of the unit,
+        point and border blocks times ``1 + damping``)."""
+        from ._normal_assembly import reduce_points
+
+        if not damping >= 0.0:
+            raise ValueError(f"Expected a non-negative `damping`, got {damping}")
+        reduced = reduce_points(self.structure, self._normals, damping)
+        return NormalSolution._from(self.structure, self._normals, reduced, damping)
 
 
 @dataclass
