@@ -404,7 +404,7 @@ class _Problem:
         polynomial: UnitPolynomial | None = None,
         order: Literal["auto", "given", "rcm"] | IntArray = "auto",
     ):
-        from .normals import NormalStructure, UnitPointRows, UnitRows
+        from .normals import NormalStructure
 
         self.obs = obs
         self.polynomial = polynomial
@@ -439,18 +439,16 @@ class _Problem:
         self.line_used = [self.observed[line.point] for line in self.lines]
         self.unit_index = np.arange(n_units, dtype=np.intp)[:, None]
         self.point_jacobian = -self.whiten  # Lᵀ ∂v/∂X_p, ∂v/∂X_p = -I
-        try:
-            self.structure = NormalStructure(
-                n_units,
-                self.width,
-                self.points_used.size,
-                [UnitPointRows(obs.unit, self.engine_point[obs.point], *_NO_ARRAYS)],
-                [UnitRows(self.unit_index, *_NO_ARRAYS[:2])] if self.n_extra else [],
-                n_border=2 * self.n_lines,
-                order=order,
-            )
-        except ValueError as exc:
-            raise ValueError(f"Expected valid unit and point indices: {exc}") from exc
+        self.structure = NormalStructure.from_indices(
+            n_units,
+            self.width,
+            self.points_used.size,
+            obs.unit,
+            self.engine_point[obs.point],
+            [self.unit_index] if self.n_extra else [],
+            n_border=2 * self.n_lines,
+            order=order,
+        )
 
     @property
     def n_observations(self) -> int:
@@ -464,9 +462,6 @@ class _Problem:
         n_blocks = self.width * self.n_units
         return n_blocks + 2 * self.n_lines + 3 * int(self.observed.sum())
 
-
-#: Placeholders for the arrays a NormalStructure does not read.
-_NO_ARRAYS = (np.zeros((0, 0, 0)), np.zeros((0, 0, 0)), np.zeros((0, 0)))
 
 
 class _State:

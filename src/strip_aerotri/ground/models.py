@@ -308,6 +308,7 @@ def _solve(
             lines=conditions,
             statistics=final,
             max_iterations=p.max_iterations,
+            order="given",  # the models are numbered along the strip
         )
         if final:
             break
