@@ -24,6 +24,7 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 
@@ -252,6 +253,7 @@ class _Problem:
     polynomial: UnitPolynomial | None = None  # the strips' deformation ("strips")
     tie_rejected: BoolArray | None = None  # rows the strips' tie tests left out
     unit_sigma: FloatArray | None = None  # (U, 3) a strip point's sigma ("strips")
+    unit_order: IntArray | None = None  # the units along the normal equations' band
 
 
 def _prepare(
@@ -318,7 +320,24 @@ def _prepare(
         polynomial=deformation,
         tie_rejected=units.tie_rejected,
         unit_sigma=units.unit_sigma,
+        unit_order=_across_strips(units.rows, units.start, units.unit_strip.shape[0]),
     )
+
+
+def _across_strips(rows: UnitObservations, start: UnitTransforms, n_units: int) -> IntArray:
+    """The units in the order of their centres along the flight (the work
+    frame's X), the classical numbering across the strips: the reduced
+    normal equations then couple a unit only with those of about one overlap
+    window in every strip (method.md 6B; a 10 x 100-photo drone block by
+    models: a half-band of 53 models, against 111 by reverse Cuthill-McKee
+    and 197 strip after strip)."""
+    counts = np.bincount(rows.unit, minlength=n_units).astype(np.float64)
+    centre = np.column_stack(
+        [np.bincount(rows.unit, rows.xyz[:, k], minlength=n_units) / counts for k in range(3)]
+    )
+    along = start.apply(np.arange(n_units), centre)[:, 0]
+    order: IntArray = np.argsort(along, kind="stable").astype(np.intp)
+    return order
 
 
 def _start_in_crs(
@@ -749,6 +768,7 @@ def _solve(
                 max_iterations=p.max_iterations,
                 polynomial=p.polynomial,
                 statistics=statistics,
+                order=_band_order(p),
             )
 
         # the control's cofactors (the costly part of a large block) only for
@@ -1174,8 +1194,14 @@ def _free_block(
         max_iterations=p.max_iterations,
         statistics=False,
         polynomial=p.polynomial,
+        order=_band_order(p),
     )
     return free.transforms
+
+
+def _band_order(p: _Problem) -> Literal["auto"] | IntArray:
+    """The units' order for :func:`adjust_units` (across the strips)."""
+    return "auto" if p.unit_order is None else p.unit_order
 
 
 def _photo_scale_m_per_mm(p: _Problem, points: FloatArray, centres: FloatArray) -> float:
