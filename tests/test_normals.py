@@ -370,3 +370,42 @@ def test_bad_shapes_are_refused() -> None:
         st.solve([bad, prob.upr[1]])
     with pytest.raises(ValueError, match="order"):
         _structure(prob, "nested")
+
+
+def test_rows_in_another_order_than_the_structure_give_the_same_solution() -> None:
+    """The structure's own rows take the fast path (unit blocks by stacked
+    products); rows in another order or split otherwise take the general
+    one (sums by index): both equal the dense solution."""
+    prob = make_problem(k=2)
+    a, f, _ = dense(prob)
+    expected = np.linalg.solve(a.T @ a, -a.T @ f)
+    st = _structure(prob)
+    rows = prob.upr[0]
+    flip = np.arange(rows.unit.size)[::-1]
+    flipped = UnitPointRows(
+        rows.unit[flip], rows.point[flip], rows.unit_jacobian[flip], rows.point_jacobian[flip],
+        rows.residual[flip], rows.weight[flip], rows.border_jacobian[flip],  # type: ignore[index]
+    )
+    for upr in (prob.upr, [flipped, prob.upr[1]], [prob.upr[1], prob.upr[0]]):
+        sol = st.solve(upr, prob.ur, prob.pr, prob.br)
+        got = np.concatenate(
+            [sol.unit_step.ravel(), sol.point_step.ravel(), sol.border_step.ravel()]
+        )
+        assert np.linalg.norm(got - expected) <= 1e-10 * np.linalg.norm(expected)
+
+
+def test_predicted_cost_and_from_indices() -> None:
+    prob = make_problem()
+    a, f, _ = dense(prob)
+    unit = np.concatenate([r.unit for r in prob.upr])
+    point = np.concatenate([r.point for r in prob.upr])
+    st = NormalStructure.from_indices(
+        prob.n, prob.d, prob.p, unit, point, [u.units for u in prob.ur]
+    )
+    assert st.width == _structure(prob).width
+    formed = st.form(prob.upr, prob.ur, prob.pr)
+    sol = formed.solve()
+    step = np.concatenate([sol.unit_step.ravel(), sol.point_step.ravel()])
+    assert sol.predicted_cost == pytest.approx(float(np.sum((f + a @ step) ** 2)), rel=1e-9)
+    # the least-squares step: the predicted cost is the minimum of the linear problem
+    assert sol.predicted_cost <= formed.solve(damping=0.1).predicted_cost

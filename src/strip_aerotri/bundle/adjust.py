@@ -692,6 +692,7 @@ def bundle_adjust(
         imu_residuals=np.where(prob.imu_weight > 0, precision.imu_residuals, np.nan),
         gnss_residual_cofactor=precision.gnss_cofactor,
         imu_residual_cofactor=precision.imu_cofactor,
+        image_redundancy=precision.image_redundancy,
     )
 
 
@@ -844,6 +845,7 @@ class _Precision(NamedTuple):
     imu_residuals: FloatArray  # (M, 3) rad, log(R_imu.T R)
     gnss_cofactor: FloatArray  # (M, 3, 3)
     imu_cofactor: FloatArray  # (M, 3, 3)
+    image_redundancy: FloatArray  # (K, 2)
 
 
 def _precision_products(
@@ -861,10 +863,12 @@ def _precision_products(
     e_imu = _imu_residual(state.rotations, prob.imu_rot)
     gnss_cofactor = np.full((m, 3, 3), np.nan)
     imu_cofactor = np.full((m, 3, 3), np.nan)
+    image_redundancy = np.full((prob.photo.size, 2), np.nan)
     if compute_precision:
         cof = _solve(prob, normals, 0.0).solution.cofactors()
         q_blocks = cof.unit
         q_point = np.diagonal(cof.point, axis1=1, axis2=2)
+        image_redundancy = cof.redundancy(normals.image)
         q_photo = np.diagonal(q_blocks, axis1=1, axis2=2)
         point_std = sigma0 * np.sqrt(q_point)
         centre_std = sigma0 * np.sqrt(q_photo[:, :3])
@@ -877,4 +881,6 @@ def _precision_products(
             j_imu = _right_jacobian_inv(e_imu)
             q_imu = j_imu @ q_blocks[:, 3:, 3:] @ np.swapaxes(j_imu, 1, 2)
             imu_cofactor = _residual_cofactor(prob.imu_weight, q_imu)
-    return _Precision(point_std, centre_std, rotation_std, e_imu, gnss_cofactor, imu_cofactor)
+    return _Precision(
+        point_std, centre_std, rotation_std, e_imu, gnss_cofactor, imu_cofactor, image_redundancy
+    )

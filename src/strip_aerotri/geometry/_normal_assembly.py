@@ -70,9 +70,15 @@ def assemble(
     g_border = np.zeros(k)
     cost = 0.0
     diag_block = pat.position * w1  # band block of each unit's diagonal
+    whitened = [rows.whitened(k, d) for rows in unit_point_rows]
+    fast = _fast_unit_point(st, unit_point_rows, whitened)
+    if fast is not None:
+        u_blocks, w, v, g_unit, g_point, unit_border, point_border, border, g_border, cost = fast
+        band += _sum_into(diag_block, u_blocks, n * w1).reshape(-1)
     offset = 0
-    for rows in unit_point_rows:
-        au, ap, f, ab = rows.whitened(k, d)
+    for rows, (au, ap, f, ab) in zip(unit_point_rows, whitened):
+        if fast is not None:
+            break
         unit = np.asarray(rows.unit, np.intp)
         point = np.asarray(rows.point, np.intp)
         g = unit.size
@@ -133,6 +139,70 @@ def assemble(
     )
 
 
+def _by_group(blocks: FloatArray, groups: int, n_g: int, q: int, d: int) -> FloatArray:
+    """Pair blocks (G n_g q, d, c) of a chunk as (G, q d, c n_g): per group,
+    the blocks of its points side by side, a row per unit parameter."""
+    c = blocks.shape[-1]
+    out: FloatArray = (
+        blocks.reshape(groups, n_g, q, d, c).transpose(0, 2, 3, 1, 4).reshape(groups, q * d, n_g * c)
+    )
+    return out
+
+
+def _by_point(blocks: FloatArray, groups: int, n_g: int, q: int, d: int) -> FloatArray:
+    """The inverse of :func:`_by_group`: (G, q d, c n_g) -> (G n_g q, d, c)."""
+    c = blocks.shape[-1] // n_g
+    out: FloatArray = (
+        blocks.reshape(groups, q, d, n_g, c).transpose(0, 3, 1, 2, 4).reshape(-1, d, c)
+    )
+    return out
+
+
+_Blocks = tuple[
+    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray,
+    FloatArray, FloatArray, float,
+]
+
+
+def _fast_unit_point(
+    st: NormalStructure,
+    unit_point_rows: Sequence[UnitPointRows],
+    whitened: list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]],
+) -> _Blocks | None:
+    """The unit-point rows' blocks when they are the structure's own rows with
+    one row group per (unit, point) pair and the same r (the common case):
+    U (and U_b) per unit as one product of its rows stacked (zero-padded to
+    the most rows of a unit), W per pair, V per point.  None otherwise."""
+    pat = st.pattern
+    if pat.pair_row is None or not whitened or len({a[0].shape[1] for a in whitened}) != 1:
+        return None
+    unit = np.concatenate([np.asarray(r.unit, np.intp) for r in unit_point_rows])
+    point = np.concatenate([np.asarray(r.point, np.intp) for r in unit_point_rows])
+    if not (np.array_equal(unit, pat.row_unit) and np.array_equal(point, pat.row_point)):
+        return None
+    n, d, p, k = st.n_units, st.unit_size, st.n_points, st.n_border
+    au, ap, f, ab = (np.concatenate([a[i] for a in whitened]) for i in range(4))
+    g, r = f.shape
+    padded = np.zeros((n, pat.rows_per_unit, r, d + k))
+    padded[unit, pat.unit_slot, :, :d] = au
+    if k:
+        padded[unit, pat.unit_slot, :, d:] = ab
+    stacked = padded.reshape(n, -1, d + k)
+    uu = np.swapaxes(stacked, 1, 2) @ stacked  # (n, d + k, d + k)
+    rows = pat.pair_row
+    w = np.swapaxes(au[rows], 1, 2) @ ap[rows]  # (n_pairs, d, 3)
+    apb = np.concatenate([ap, ab], axis=2) if k else ap
+    vv = _sum_into(point, np.swapaxes(ap, 1, 2) @ apb, p)  # (p, 3, 3 + k)
+    g_unit = _sum_into(unit, np.einsum("gra,gr->ga", au, f), n)
+    g_point = _sum_into(point, np.einsum("gra,gr->ga", ap, f), p)
+    border = uu[:, d:, d:].sum(axis=0)
+    g_border = np.einsum("gra,gr->a", ab, f) if k else np.zeros(0)
+    return (
+        uu[:, :d, :d], w, vv[:, :, :3].copy(), g_unit, g_point, uu[:, :d, d:].copy(),
+        vv[:, :, 3:].copy(), border, g_border, float(np.sum(f * f)),
+    )
+
+
 @dataclass
 class Reduced:
     """The reduced system's factor and what the step and the cofactors need."""
@@ -141,7 +211,6 @@ class Reduced:
     unit_step: FloatArray
     point_step: FloatArray
     border_step: FloatArray
-    predicted_cost: float
     v_inv: FloatArray  # (p, 3, 3), undamped when damping == 0
     y: FloatArray  # (n_pairs, d, 3) W V⁻¹
     y_border: FloatArray  # (p, k, 3) Vbᵀ V⁻¹
@@ -172,18 +241,27 @@ def _point_inverse(st: NormalStructure, v: FloatArray) -> FloatArray:
 
     if v.shape[0] == 0:
         return v.copy()
-    ev = np.linalg.eigvalsh(v)
-    bad = ~(ev[:, 0] > POINT_RANK_TOL * ev[:, 2])
-    if np.any(bad):
-        i = int(np.flatnonzero(bad)[0])
-        raise SingularNormalsError(
-            f"{np.count_nonzero(bad)} point(s) not determined, the first {st.point_name(i)}: "
-            "its 3 x 3 normal block is singular (a point needs rays from two units, or "
-            "control that fixes it)",
-            "point",
-            i,
-        )
-    v_inv: FloatArray = np.linalg.inv(v)  # type: ignore[assignment]
+    try:
+        with np.errstate(all="ignore"):
+            v_inv: FloatArray = np.linalg.inv(v)  # type: ignore[assignment]
+        # λmin / λmax >= 1 / (trace V⁻¹ trace V): only points below the bound
+        # are looked at closely (eigenvalues)
+        bound = 1.0 / (np.trace(v_inv, axis1=1, axis2=2) * np.trace(v, axis1=1, axis2=2))
+        near = np.flatnonzero(~(bound > POINT_RANK_TOL))
+    except np.linalg.LinAlgError:  # an exactly singular block
+        near = np.arange(v.shape[0])
+    if near.size:
+        ev = np.linalg.eigvalsh(v[near])
+        bad = near[~(ev[:, 0] > POINT_RANK_TOL * ev[:, 2])]
+        if bad.size:
+            i = int(bad[0])
+            raise SingularNormalsError(
+                f"{bad.size} point(s) not determined, the first {st.point_name(i)}: "
+                "its 3 x 3 normal block is singular (a point needs rays from two units, or "
+                "control that fixes it)",
+                "point",
+                i,
+            )
     return v_inv
 
 
@@ -204,12 +282,12 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     flat = band.reshape(-1).copy()
     dd = d * d
     for c in pat.chunks:
-        q = c.q
-        m = c.points.size
-        yc = y[c.pair_start : c.pair_start + m * q].reshape(m, q * d, 3)
-        wc = normals.w[c.pair_start : c.pair_start + m * q].reshape(m, q * d, 3)
-        outer = yc @ np.swapaxes(wc, 1, 2)  # (m, qd, qd)
-        sums = np.add.reduceat(outer, c.starts, axis=0)
+        q, n_g, groups = c.q, c.size, c.groups
+        span = slice(c.pair_start, c.pair_start + groups * n_g * q)
+        # per group: [Y of its points side by side] (qd, 3 n_g) times the same of W
+        yc = _by_group(y[span], groups, n_g, q, d)
+        wc = _by_group(normals.w[span], groups, n_g, q, d)
+        sums = yc @ np.swapaxes(wc, 1, 2)  # (G, qd, qd)
         blocks = sums.reshape(-1, q, d, q, d).transpose(0, 1, 3, 2, 4)[:, c.lower_a, c.lower_b]
         idx = (c.scatter[:, :, None] * dd + np.arange(dd)).reshape(-1)
         flat -= np.bincount(idx, blocks.reshape(-1), minlength=flat.size)
@@ -263,9 +341,8 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     if k:
         t_p -= normals.point_border @ border_step
     point_step = np.einsum("pij,pj->pi", v_inv, t_p)
-    predicted = _predicted_cost(normals, unit_step, point_step, border_step, st)
     return Reduced(
-        factor, unit_step, point_step, border_step, predicted, v_inv, y, y_border, x, t_inv,
+        factor, unit_step, point_step, border_step, v_inv, y, y_border, x, t_inv,
         border_min_pivot, normals,
     )
 
@@ -297,9 +374,9 @@ def _border_inverse(st: NormalStructure, t: FloatArray) -> tuple[FloatArray, flo
     return 0.5 * (inv + inv.T), piv
 
 
-def _predicted_cost(normals: _Normals, du: FloatArray, dp: FloatArray, db: FloatArray,
-                    st: NormalStructure) -> float:
+def predicted_cost(st: NormalStructure, red: Reduced) -> float:
     """``‖T (f + A δ)‖² = cost + 2 gᵀ δ + δᵀ N δ`` with the undamped N."""
+    normals, du, dp, db = red.normals, red.unit_step, red.point_step, red.border_step
     pat = st.pattern
     order = pat.order
     n, d = du.shape
@@ -350,25 +427,32 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     point_border = np.zeros((p, 3, k))
     zflat = z.reshape(-1, d, d)
     for c in pat.chunks:
-        q, m = c.q, c.points.size
-        span = slice(c.pair_start, c.pair_start + m * q)
-        blocks = zflat[c.gather]  # (m, q, q, d, d)
+        q, n_g, groups = c.q, c.size, c.groups
+        qd = q * d
+        span = slice(c.pair_start, c.pair_start + groups * n_g * q)
+        blocks = zflat[c.gather]  # (G, q, q, d, d): the same for all points of a group
         blocks = np.where(c.upper[None, :, :, None, None], np.swapaxes(blocks, -1, -2), blocks)
-        q_rr = blocks.transpose(0, 1, 3, 2, 4).reshape(m, q * d, q * d)
-        y_r = y[span].reshape(m, q * d, 3)
+        q_rr = blocks.transpose(0, 1, 3, 2, 4).reshape(groups, qd, qd)
+        y_r = _by_group(y[span], groups, n_g, q, d)  # (G, qd, 3 n_g)
         if k:
-            ub = q_ub[pat.position[pat.pair_unit[span]]].reshape(m, q * d, k)
+            units = pat.pair_unit[span].reshape(groups, n_g, q)[:, 0]  # (G, q)
+            ub = q_ub[pat.position[units]].reshape(groups, qd, k)
             top = np.concatenate([q_rr, ub], axis=2)
             bottom = np.concatenate(
-                [np.swapaxes(ub, 1, 2), np.broadcast_to(q_bb, (m, k, k))], axis=2
+                [np.swapaxes(ub, 1, 2), np.broadcast_to(q_bb, (groups, k, k))], axis=2
             )
             q_rr = np.concatenate([top, bottom], axis=1)
-            y_r = np.concatenate([y_r, y_border[c.points]], axis=1)
-        t = q_rr @ y_r  # (m, qd + k, 3)
-        point[c.points] += np.swapaxes(y_r, 1, 2) @ t
-        pair[span] = -t[:, : q * d].reshape(m * q, d, 3)
+            yb = y_border[c.points].reshape(groups, n_g, k, 3).transpose(0, 2, 1, 3)
+            y_r = np.concatenate([y_r, yb.reshape(groups, k, n_g * 3)], axis=1)
+        t = q_rr @ y_r  # (G, qd + k, 3 n_g)
+        # Q_pp = V⁻¹ + Yᵀ Q_RR Y per point: the 3 x 3 diagonal blocks of y_rᵀ t
+        yt = np.einsum("gmpi,gmpj->gpij", y_r.reshape(groups, -1, n_g, 3),
+                       t.reshape(groups, -1, n_g, 3))
+        point[c.points] += yt.reshape(-1, 3, 3)
+        pair[span] = -_by_point(t[:, :qd], groups, n_g, q, d)
         if k:
-            point_border[c.points] = -np.swapaxes(t[:, q * d :], 1, 2)
+            tb = t[:, qd:].reshape(groups, k, n_g, 3).transpose(0, 2, 3, 1)  # (G, n_g, 3, k)
+            point_border[c.points] = -tb.reshape(-1, 3, k)
     if k:
         alone = np.bincount(pat.pair_point, minlength=p) == 0
         t = q_bb @ y_border[alone]  # (a, k, 3)
@@ -407,19 +491,19 @@ def leverage(cof: Cofactors, rows: Rows) -> FloatArray:
         au, ap, _, ab = rows.whitened(k, st.unit_size)
         unit = np.asarray(rows.unit, np.intp)
         point = np.asarray(rows.point, np.intp)
-        g = unit.size
         q_up = cof.unit_point(unit, point)
-        q_ub = cof.unit_border[unit]
-        q_pb = cof.point_border[point]
-        q_bb = np.broadcast_to(cof.border, (g, k, k))
-        c = _joint(
-            [
-                [cof.unit[unit], q_up, q_ub],
-                [np.swapaxes(q_up, 1, 2), cof.point[point], q_pb],
-                [np.swapaxes(q_ub, 1, 2), np.swapaxes(q_pb, 1, 2), q_bb],
-            ]
-        )
-        return _quadratic(np.concatenate([au, ap, ab], axis=2), c)
+
+        def form(a: FloatArray, q: FloatArray, b: FloatArray) -> FloatArray:
+            out: FloatArray = np.sum((a @ q) * b, axis=2)
+            return out
+
+        h = form(au, cof.unit[unit], au) + 2.0 * form(au, q_up, ap)
+        h += form(ap, cof.point[point], ap)
+        if k:
+            h += 2.0 * form(au, cof.unit_border[unit], ab)
+            h += 2.0 * form(ap, cof.point_border[point], ab)
+            h += np.sum((ab @ cof.border) * ab, axis=2)
+        return h
     if isinstance(rows, UnitRows):
         a, _, ab = rows.whitened(k, st.unit_size)
         units = np.asarray(rows.units, np.intp)

@@ -27,26 +27,30 @@ CHUNK_ENTRIES = 2_000_000
 
 @dataclass(frozen=True)
 class Chunk:
-    """A run of points with the same q, processed at once.
+    """Groups of points with the same q units each and the same number of
+    points per group (``size``), processed at once.
 
-    ``points`` (c,) point indices, ``pairs`` (c, q) pair indices (sorted by
-    position within each point), ``starts`` (g,) the first point (relative
-    to the chunk) of each run of equal signature, ``scatter`` (g, q(q+1)/2)
-    the block index ``J (w + 1) + o`` in the band of each lower pair
-    (a >= b) of a signature, ``gather`` (c, q, q) the block index of every
-    pair (a, b) of a point's units and ``upper`` (q, q) where that block is
-    the transpose of the stored one (a < b)."""
+    The points of one group share their units (their *signature*); ``points``
+    (G * size,) lists them group by group, and their pairs are the contiguous
+    ``pair_start .. pair_start + G * size * q`` (per point, its q units by
+    position).  ``scatter`` (G, q(q+1)/2) is the band block index
+    ``J (w + 1) + o`` of each lower pair (a >= b) of a group's units,
+    ``gather`` (G, q, q) that of every pair (a, b) and ``upper`` (q, q) where
+    that block is the transpose of the stored one (a < b)."""
 
     q: int
+    size: int
     points: IntArray
-    pairs: IntArray
     pair_start: int
-    starts: IntArray
     scatter: IntArray
     gather: IntArray
     upper: BoolArray
     lower_a: IntArray
     lower_b: IntArray
+
+    @property
+    def groups(self) -> int:
+        return self.points.size // self.size
 
 
 @dataclass(frozen=True)
@@ -62,6 +66,11 @@ class Pattern:
     row_pair: IntArray  # (G,) pair of each unit-point row
     chunks: tuple[Chunk, ...]
     pair_keys: IntArray  # sorted keys point * n + position of the pairs
+    row_unit: IntArray  # (G,) the unit-point rows' units, as given
+    row_point: IntArray  # (G,) and points
+    unit_slot: IntArray  # (G,) place of each row among its unit's rows
+    rows_per_unit: int  # the most rows of one unit
+    pair_row: IntArray | None  # (n_pairs,) the row of each pair when there is one each
     pair_by_key: IntArray  # the pair of each sorted key
 
     def pair_of(self, unit: IntArray, point: IntArray) -> IntArray:
@@ -157,7 +166,8 @@ def build_pattern(
     width = bandwidth(position, (pp, pu), unit_sets)
     q_of = np.bincount(pp, minlength=n_points)
     first = np.concatenate([[0], np.cumsum(q_of)[:-1]])
-    # points by q, then by signature (their units' positions), then by index
+    # points by q, then by signature (their units' positions), then by index;
+    # the groups of equal signature then by their size
     seen = np.flatnonzero(q_of > 0)
     chunks: list[Chunk] = []
     new_pairs: list[IntArray] = []
@@ -167,19 +177,36 @@ def build_pattern(
         sig = position[pu[pairs]]  # (c, q) ascending
         srt = np.lexsort((pts, *sig.T[::-1]))
         pts, pairs, sig = pts[srt], pairs[srt], sig[srt]
-        new_pairs.append(pairs.reshape(-1))
-        chunks.extend(_chunks(int(q), unit_size, width, pts, pairs, sig))
+        new_group = np.r_[True, np.any(sig[1:] != sig[:-1], axis=1)]
+        group = np.cumsum(new_group) - 1
+        size = np.bincount(group)[group]  # points in each point's group
+        srt = np.argsort(size, kind="stable")
+        pts, pairs, sig, size = pts[srt], pairs[srt], sig[srt], size[srt]
+        for n_g in np.unique(size):
+            sel = size == n_g
+            new_pairs.append(pairs[sel].reshape(-1))
+            chunks.extend(_chunks(int(q), int(n_g), unit_size, width, pts[sel], pairs[sel],
+                                  sig[sel]))
     # renumber the pairs in the chunks' order, so a chunk's pairs are contiguous
     old = np.concatenate(new_pairs) if new_pairs else np.zeros(0, np.intp)
     renum = np.empty_like(old)
     renum[old] = np.arange(old.size)
     chunks = [
-        Chunk(c.q, c.points, renum[c.pairs], int(renum[c.pairs[0, 0]]), c.starts, c.scatter,
-              c.gather, c.upper, c.lower_a, c.lower_b)
+        Chunk(c.q, c.size, c.points, int(renum[c.pair_start]), c.scatter, c.gather, c.upper,
+              c.lower_a, c.lower_b)
         for c in chunks
     ]
     pair_key = pp[old] * n + position[pu[old]]
     key_order = np.argsort(pair_key)
+    by_unit = np.argsort(row_unit, kind="stable")
+    counts = np.bincount(row_unit, minlength=n)
+    unit_slot = np.empty(row_unit.size, dtype=np.intp)
+    unit_slot[by_unit] = np.arange(row_unit.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    new_row_pair = renum[row_pair]
+    pair_row: IntArray | None = None
+    if row_pair.size == old.size:  # one row per pair
+        pair_row = np.empty(old.size, dtype=np.intp)
+        pair_row[new_row_pair] = np.arange(old.size)
     return Pattern(
         n_units=n,
         unit_size=unit_size,
@@ -189,37 +216,41 @@ def build_pattern(
         width=width,
         pair_unit=pu[old],
         pair_point=pp[old],
-        row_pair=renum[row_pair],
+        row_pair=new_row_pair,
         chunks=tuple(chunks),
         pair_keys=pair_key[key_order],
         pair_by_key=key_order.astype(np.intp),
+        row_unit=row_unit,
+        row_point=row_point,
+        unit_slot=unit_slot,
+        rows_per_unit=int(counts.max(initial=0)),
+        pair_row=pair_row,
     )
 
 
-def _chunks(q: int, d: int, width: int, pts: IntArray, pairs: IntArray,
+def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray,
             sig: IntArray) -> list[Chunk]:
-    """The points of one q in chunks of bounded size, with their index arrays."""
-    per_point = (q * d) ** 2
-    size = max(1, CHUNK_ENTRIES // per_point)
+    """Groups of n_g points with the same q units (consecutive runs of n_g in
+    `pts`), in chunks of bounded size, with their index arrays; a chunk's
+    ``pair_start`` is the old index of its first pair (renumbered by the caller)."""
+    per_group = (q * d) ** 2 + n_g * q * d * 3
+    groups = pts.size // n_g
+    size = max(1, CHUNK_ENTRIES // per_group)
     w1 = width + 1
     a_idx, b_idx = np.tril_indices(q)  # a >= b: positions ascending, so pos_a >= pos_b
     aa, bb = np.meshgrid(np.arange(q), np.arange(q), indexing="ij")
     upper = aa < bb
     lo = np.minimum(aa, bb)
     hi = np.maximum(aa, bb)
-    new_sig = np.r_[True, np.any(sig[1:] != sig[:-1], axis=1)]
+    gs_all = sig[::n_g]  # (groups, q)
     out = []
-    for c0 in range(0, pts.size, size):
-        c1 = min(pts.size, c0 + size)
-        s = sig[c0:c1]
-        starts = np.flatnonzero(new_sig[c0:c1])
-        if starts.size == 0 or starts[0] != 0:
-            starts = np.r_[0, starts]
-        gs = s[starts]
+    for g0 in range(0, groups, size):
+        g1 = min(groups, g0 + size)
+        gs = gs_all[g0:g1]
         scatter = gs[:, b_idx] * w1 + (gs[:, a_idx] - gs[:, b_idx])
-        gather = s[:, lo] * w1 + (s[:, hi] - s[:, lo])
+        gather = gs[:, lo] * w1 + (gs[:, hi] - gs[:, lo])
         out.append(
-            Chunk(q, pts[c0:c1], pairs[c0:c1], 0, starts.astype(np.intp),
+            Chunk(q, n_g, pts[g0 * n_g : g1 * n_g], int(pairs[g0 * n_g, 0]),
                   scatter.astype(np.intp), gather.astype(np.intp), upper,
                   a_idx.astype(np.intp), b_idx.astype(np.intp))
         )

@@ -459,7 +459,6 @@ class NormalSolution:
     point_step: FloatArray  # (p, 3)
     border_step: FloatArray  # (k,)
     cost: float
-    predicted_cost: float
     min_pivot: float
     min_pivot_unit: int
     min_pivot_parameter: int
@@ -481,7 +480,6 @@ class NormalSolution:
             point_step=reduced.point_step,
             border_step=reduced.border_step,
             cost=normals.cost,
-            predicted_cost=reduced.predicted_cost,
             min_pivot=min(reduced.factor.min_pivot, reduced.border_min_pivot),
             min_pivot_unit=int(structure.order[j // d]),
             min_pivot_parameter=j % d,
@@ -489,6 +487,14 @@ class NormalSolution:
             _structure=structure,
             _state=reduced,
         )
+
+    @property
+    def predicted_cost(self) -> float:
+        """``Σ‖T (f + A δ)‖²`` of the step with the undamped normal matrix."""
+        from ._normal_assembly import Reduced, predicted_cost
+
+        assert isinstance(self._state, Reduced)
+        return predicted_cost(self._structure, self._state)
 
     def cofactors(self) -> Cofactors:
         """The selected inverse of the normal matrix (undamped solutions only)."""
