@@ -780,10 +780,9 @@ def _solve(
         adjusted = p.work.from_work(result.points[p.idx])
         new_guess = np.where(np.isnan(p.given), adjusted, p.given)
         change = float(np.nanmax(np.abs(new_guess - guess), initial=0.0))
-        if change < _PASS_TOLERANCE_M:  # converged: once more from it, with the statistics
+        if change < _PASS_TOLERANCE_M:  # converged: its statistics, from its last step
             if statistics:
-                filled = np.where(np.isfinite(result.points), result.points, points0)
-                result = solve(result.transforms, filled, statistics=True)
+                result = result.with_statistics()
             guess = new_guess
             break
         guess = new_guess

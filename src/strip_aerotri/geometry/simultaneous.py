@@ -34,8 +34,9 @@ independent models", Photogrammetric Engineering 36; R4 §2.2-§3.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -352,6 +353,9 @@ class SimultaneousResult:
         With a polynomial: the cofactor (variance at σ0 = 1) of every
         coefficient, its prior included; near the prior's variance, the
         data say little of that term.
+    statistics_later : callable, optional
+        Without the statistics (``statistics=False``): what computes them
+        (:meth:`with_statistics`).
     """
 
     transforms: UnitTransforms
@@ -371,6 +375,15 @@ class SimultaneousResult:
     iterations: int
     converged: bool
     coefficient_variance: FloatArray | None = None
+    statistics_later: Callable[[], SimultaneousResult] | None = field(
+        default=None, repr=False, compare=False
+    )
+
+    def with_statistics(self) -> SimultaneousResult:
+        """This result with the statistics of the control and lines, from the
+        factor of its last step (a result of ``statistics=False``; the
+        adjustment is not solved again)."""
+        return self if self.statistics_later is None else self.statistics_later()
 
 
 def _rows_whitening(weight: FloatArray) -> FloatArray:
@@ -763,7 +776,11 @@ def adjust_units(
     assert sol is not None  # set in the loop, or just above
     # Converged: the normal equations of the last step serve the statistics
     # (the state moved by less than the tolerance since).
-    return _result(prob, st, sol, cost, iterations, converged, statistics)
+    result = _result(prob, st, sol, cost, iterations, converged, statistics)
+    if statistics:
+        return result
+    later = partial(_result, prob, st, sol, cost, iterations, converged, True)
+    return replace(result, statistics_later=later)
 
 
 def _step(
