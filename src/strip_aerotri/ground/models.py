@@ -274,7 +274,8 @@ def _solve(
 
     Control given in full needs one pass; plan and height points get their
     missing coordinate from the adjustment, pass by pass, and the statistics
-    (cofactors) are computed in the last one only."""
+    (cofactors) are computed in the last one only (from the factor of its
+    last step, once the coordinates have settled)."""
     active = use_xy | use_z
     r = p.rows
     unit_obs = UnitObservations(
@@ -321,6 +322,9 @@ def _solve(
         starts = res.transforms
         points0 = np.where(np.isfinite(res.points), res.points, points0)
         converged = change < _PASS_TOLERANCE_M
+        if converged:  # its statistics from its last step: no pass again
+            res = res.with_statistics()
+            break
     assert res is not None
     return _ModelsSolution(res, guess, converged or not guessed, min(n_pass, _MAX_PASSES), active)
 
