@@ -16,6 +16,7 @@ import warnings
 import numpy as np
 import pytest
 
+import strip_aerotri.block.snooping as block_snooping
 import strip_aerotri.block.strips as block_strips
 from strip_aerotri._stats import leading_failures
 from strip_aerotri.errors import StripAerotriWarning
@@ -55,20 +56,20 @@ def _planting(n_errors: int, size: float, control: set[str], planted: set[tuple[
 def _block(monkeypatch, sim, construction: str, one_at_a_time: bool, n_errors: int):
     solves: list[int] = []
     planted: set[tuple[str, str]] = set()
-    solve = block_strips._solve
+    solve = block_snooping._solve
 
     def counted(*args, **kwargs):
         solves.append(1)
         return solve(*args, **kwargs)
 
     with monkeypatch.context() as m:
-        m.setattr(block_strips, "_solve", counted)
+        m.setattr(block_snooping, "_solve", counted)
         m.setattr(
             block_strips, "_form", _planting(n_errors, 0.05, set(sim.control.point_ids), planted)
         )
         if one_at_a_time:
             m.setattr(
-                block_strips, "leading_failures", lambda *args: leading_failures(*args)[:1]
+                block_snooping, "leading_failures", lambda *args: leading_failures(*args)[:1]
             )
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", StripAerotriWarning)
