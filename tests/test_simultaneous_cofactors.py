@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from strip_aerotri.errors import GeometryError
 from strip_aerotri.geometry.rotation import matrix_from_rotvec
 from strip_aerotri.geometry.simultaneous import (
     LineCondition,
@@ -180,3 +181,58 @@ def _fitted_start(obs, truth):
         np.array([f.translation for f in fits]),
         np.zeros((N_UNITS, 3)),
     )
+
+
+def _adjust(obs, truth, n_points, **kwargs):
+    control_point = np.array([0, 2, 14, 18, 30, 32])
+    control_xyz = truth[control_point] + 0.01
+    control_xyz[2, 2] = np.nan
+    control_sigma = np.array([[0.03, 0.03, 0.05]] * 6)
+    return adjust_units(
+        obs, N_UNITS, n_points, start=_fitted_start(obs, truth), points0=truth,
+        control_point=control_point, control_xyz=control_xyz, control_sigma=control_sigma,
+        lines=[LineCondition(point=np.array([5, 9, 12, 16, 21, 25]), sigma=0.5)], **kwargs,
+    )
+
+
+def test_the_units_order_changes_the_cost_not_the_solution():
+    obs, truth, n_points = _problem(4)
+    given = _adjust(obs, truth, n_points, order="given")
+    shuffled = np.random.default_rng(1).permutation(N_UNITS)
+    for order in ("rcm", "auto", shuffled):
+        other = _adjust(obs, truth, n_points, order=order)
+        np.testing.assert_allclose(other.points, given.points, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(
+            other.control_redundancy, given.control_redundancy, rtol=0, atol=1e-10
+        )
+        np.testing.assert_allclose(other.line_w[0], given.line_w[0], rtol=1e-8)
+
+
+def test_statistics_later_equal_statistics_at_once():
+    obs, truth, n_points = _problem(5)
+    poly = UnitPolynomial.fit(obs.unit, obs.xyz, N_UNITS, 1)
+    now = _adjust(obs, truth, n_points, polynomial=poly)
+    without = _adjust(obs, truth, n_points, polynomial=poly, statistics=False)
+    assert np.isnan(without.control_w).all() and np.isnan(without.line_w[0]).all()
+    later = without.with_statistics()
+    for name in ("control_cofactor", "control_redundancy", "control_w", "row_statistic"):
+        np.testing.assert_array_equal(getattr(later, name), getattr(now, name))
+    np.testing.assert_array_equal(later.line_redundancy[0], now.line_redundancy[0])
+    np.testing.assert_array_equal(later.coefficient_variance, now.coefficient_variance)
+    assert now.with_statistics() is now
+
+
+def test_a_unit_not_tied_to_the_others_is_named():
+    obs, truth, n_points = _problem(6)
+    # unit 5 keeps two of the points it shares with unit 4 (all its others
+    # are its own, no control on them): it can turn about their line
+    last = obs.unit == N_UNITS - 1
+    shared = np.isin(obs.point, obs.point[obs.unit == N_UNITS - 2])
+    keep = ~(last & shared) | np.isin(obs.point, [25, 26])
+    rows = UnitObservations(obs.unit[keep], obs.point[keep], obs.xyz[keep], obs.weight[keep])
+    with pytest.raises(GeometryError, match="unit 5 shares too few points"):
+        adjust_units(
+            rows, N_UNITS, n_points, start=_fitted_start(rows, truth), points0=truth,
+            control_point=np.array([0, 2, 14]), control_xyz=truth[[0, 2, 14]],
+            control_sigma=0.03,
+        )
