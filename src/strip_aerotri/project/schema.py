@@ -18,12 +18,14 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..options import (
+    DEFAULT_ALPHA,
     DEFAULT_DIFFERENCE_TOLERANCE,
     DEFAULT_GNSS_SIGMA_XY_M,
     DEFAULT_GNSS_SIGMA_Z_M,
     DEFAULT_IMAGE_SIGMA_MM,
     DEFAULT_IMU_SIGMA_DEG,
     DEFAULT_LINE_WEIGHT,
+    DEFAULT_MAX_FRACTION,
     DEFAULT_MAX_ITERATIONS,
     DEFAULT_MIN_BASE_TO_HEIGHT,
     DEFAULT_PHOTO_STEP,
@@ -41,11 +43,14 @@ from ..options import (
     ImageUnits,
     IntersectionMethod,
     ModelFormation,
+    RULES,
     OptionEnum,
+    OptionError,
     Refine,
     RelativeOrientationMethod,
     Route,
     ScaleTransfer,
+    describe,
 )
 
 
@@ -448,7 +453,7 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False,
     ),
     KeySpec(
-        "blunders", "alpha", "positive number", required=False, default=0.001, unit="",
+        "blunders", "alpha", "positive number", required=False, default=DEFAULT_ALPHA, unit="",
         description="Family-wise false-alarm probability per stage (Bonferroni over the "
         "stage's tests), below 1.",
         contract=False,
@@ -497,7 +502,8 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False, default_text="from alpha",
     ),
     KeySpec(
-        "blunders", "max_fraction", "positive number", required=False, default=0.2, unit="",
+        "blunders", "max_fraction", "positive number", required=False,
+        default=DEFAULT_MAX_FRACTION, unit="",
         description="Stop with an error when a stage would reject more than this fraction "
         "of its observations (at most 1).",
         contract=False,
@@ -627,21 +633,6 @@ IMU_COLUMNS: tuple[ColumnSpec, ...] = (
 )
 
 
-def describe(value: object) -> str:
-    """A TOML value as written, for messages."""
-    if isinstance(value, bool):
-        return f"the boolean {str(value).lower()}"
-    if isinstance(value, str):
-        return f'the string "{value}"'
-    if isinstance(value, int | float):
-        return f"the number {value!r}"
-    if isinstance(value, list):
-        return "a list"
-    if isinstance(value, dict):
-        return "a table"
-    return f"a {type(value).__name__}"
-
-
 def suggest(word: str, candidates: Sequence[str]) -> str:
     """`` (did you mean 'x'?)`` or empty."""
     lower = {c.lower(): c for c in candidates}
@@ -656,7 +647,14 @@ def _is_number(value: object) -> bool:
 
 
 def _parse_value(spec: KeySpec, value: object, where: str) -> object:
-    """Convert one TOML value after checking it against ``spec.kind``."""
+    """Convert one TOML value after checking it against its option's rule
+    (:data:`strip_aerotri.options.RULES`) or ``spec.kind``."""
+    rule = RULES.get((spec.table, spec.key))
+    if rule is not None:
+        try:
+            return rule(value)
+        except OptionError as exc:
+            raise ConfigError(f"{where}: {exc.rule}") from None
     kind = spec.kind
     if kind in ("string", "path"):
         if not isinstance(value, str) or not value.strip():
@@ -715,14 +713,6 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
         if not _is_number(value) or not math.isfinite(value):  # type: ignore[arg-type]
             raise ConfigError(f"{where}: expected a finite number, got {describe(value)}")
         return float(value)  # type: ignore[arg-type]
-    if kind == "photo step":
-        if isinstance(value, str) and value.strip().lower() == "auto":
-            return "auto"
-        if isinstance(value, int) and not isinstance(value, bool) and value >= 1:
-            return value
-        raise ConfigError(
-            f'{where}: expected a positive integer or "auto", got {describe(value)}'
-        )
     if kind == "mark table":
         if not isinstance(value, dict) or len(value) < 2:
             raise ConfigError(
@@ -742,12 +732,6 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
                 )
             marks[str(mark).strip()] = (float(xy[0]), float(xy[1]))
         return marks
-    if kind == "polynomial":
-        if isinstance(value, str) and value.strip().lower() == "auto":
-            return "auto"
-        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 3:
-            return value
-        raise ConfigError(f'{where}: expected 0, 1, 2, 3 or "auto", got {describe(value)}')
     raise AssertionError(f"unhandled kind {kind!r}")  # pragma: no cover
 
 
