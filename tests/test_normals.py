@@ -409,3 +409,57 @@ def test_predicted_cost_and_from_indices() -> None:
     assert sol.predicted_cost == pytest.approx(float(np.sum((f + a @ step) ** 2)), rel=1e-9)
     # the least-squares step: the predicted cost is the minimum of the linear problem
     assert sol.predicted_cost <= formed.solve(damping=0.1).predicted_cost
+
+
+def test_a_condition_between_distant_units_widens_the_band() -> None:
+    """A unit row linking the first and the last unit couples them: the band
+    (in the given order) spans the whole strip and the solution stays exact."""
+    prob = make_problem(unit_rows=False, n=10)
+    rng = np.random.default_rng(7)
+    link = UnitRows(
+        np.array([[0, prob.n - 1]]), rng.normal(size=(1, 3, 2, prob.d)), rng.normal(size=(1, 3))
+    )
+    prob.ur.append(link)
+    assert _structure(prob, "given").width == prob.n - 1
+    a, f, sizes = dense(prob)
+    _, sol = _solve(prob, "given")
+    expected = np.linalg.solve(a.T @ a, -a.T @ f)
+    got = np.concatenate([sol.unit_step.ravel(), sol.point_step.ravel()])
+    assert np.linalg.norm(got - expected) <= 1e-10 * np.linalg.norm(expected)
+    r = sol.cofactors().redundancy(link)
+    q = np.linalg.inv(a.T @ a)
+    start = sum(g * r for g, r in sizes[: len(prob.upr) + len(prob.ur) - 1])  # the link's rows
+    rows = a[start : start + 3]
+    np.testing.assert_allclose(r[0], 1.0 - np.einsum("ij,jk,ik->i", rows, q, rows), atol=1e-10)
+
+
+def test_zero_weight_rows_leave_the_adjustment() -> None:
+    """Weight 0 drops a row (a rejected observation): the same solution as
+    without it, and its redundancy number is 1."""
+    prob = make_problem()
+    rows = prob.upr[0]
+    weight = np.array(rows.weight)
+    weight[3] = 0.0
+    zeroed = UnitPointRows(rows.unit, rows.point, rows.unit_jacobian, rows.point_jacobian,
+                           rows.residual, weight)
+    keep = np.arange(rows.unit.size) != 3
+    dropped = UnitPointRows(rows.unit[keep], rows.point[keep], rows.unit_jacobian[keep],
+                            rows.point_jacobian[keep], rows.residual[keep], weight[keep])
+    st = _structure(prob)
+    a_sol = st.solve([zeroed, prob.upr[1]], prob.ur, prob.pr)
+    b_sol = st.solve([dropped, prob.upr[1]], prob.ur, prob.pr)
+    np.testing.assert_allclose(a_sol.unit_step, b_sol.unit_step, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(a_sol.cofactors().redundancy(zeroed)[3], 1.0, atol=1e-12)
+
+
+def test_singular_border_is_named() -> None:
+    """A border parameter no row depends on is reported, not a LinAlgError."""
+    prob = make_problem(k=2)
+    for rows in [*prob.upr, *prob.ur, *prob.pr]:
+        if rows.border_jacobian is not None:
+            rows.border_jacobian[:, :, 1] = 0.0
+    prob.br.clear()
+    st = _structure(prob)
+    with pytest.raises(SingularNormalsError, match="border parameter 1") as info:
+        st.solve(prob.upr, prob.ur, prob.pr)
+    assert info.value.kind == "border" and info.value.index == 1

@@ -152,6 +152,17 @@ class _Problem:
         )
 
 
+def _along_axis_order(centres: FloatArray) -> IntArray:
+    """The photos by their place along the main axis of their centres' plan:
+    along a strip the strip's order, in a block across the strips (the
+    classical numbering), so that the reduced normal matrix is narrow."""
+    xy = centres[:, :2] - centres[:, :2].mean(axis=0)
+    if xy.shape[0] < 2:
+        return np.arange(xy.shape[0], dtype=np.intp)
+    _, _, vt = np.linalg.svd(xy, full_matrices=False)
+    return np.argsort(xy @ vt[0], kind="stable").astype(np.intp)
+
+
 def observed_with_sigma(
     values: ArrayLike,
     sigma: ArrayLike | None,
@@ -253,6 +264,7 @@ def _make_problem(
         p,
         photo,
         point,
+        candidates=[_along_axis_order(centres)],
         unit_names=tuple(obs.photo_ids),
         point_names=tuple(obs.point_ids),
         parameter_names=_PHOTO_PARAMETER_NAMES,
@@ -371,11 +383,9 @@ def _normals(prob: _Problem, state: _State) -> _Normals:
 
 def _check_points(prob: _Problem, normals: _Normals, point_ids: tuple[str, ...]) -> None:
     """Raise GeometryError for points whose 3 x 3 normal block is (near) singular."""
-    ev = np.linalg.eigvalsh(normals.formed.point_blocks)
-    bad = ~(ev[:, 0] > _POINT_RANK_TOL * ev[:, 2])
-    if np.any(bad):
+    idx = normals.formed.undetermined_points(_POINT_RANK_TOL)
+    if idx.size:
         n_rays = np.bincount(prob.point, minlength=prob.n_points)
-        idx = np.flatnonzero(bad)
         listed = ", ".join(f"'{point_ids[i]}' ({n_rays[i]} photo(s))" for i in idx[:5])
         more = f" and {idx.size - 5} more" if idx.size > 5 else ""
         raise GeometryError(
@@ -579,11 +589,13 @@ def bundle_adjust(
     ``v = R.T (X - S)``.
 
     Each iteration forms the normal blocks ``U`` (6 x 6 per photo), ``V`` (3 x 3
-    per point) and ``W`` (6 x 3 per observation) as whole arrays, reduces to
-    the photos, ``S = U - W V^-1 W.T``, which is assembled in COO form from
-    one 6 x 6 block per pair of observations of the same point, scaled to
-    unit diagonal and factorised by a sparse LU (SuperLU, symmetric mode,
-    minimum-degree ordering); the points follow by back-substitution.
+    per point) and ``W`` (6 x 3 per observation) as whole arrays and reduces
+    to the photos, ``S = U - W V^-1 W.T``, with the structured engine
+    :mod:`strip_aerotri.geometry.normals` (method.md 6B): the photos along the
+    strip (in a block along the main axis of the centres, or by reverse
+    Cuthill-McKee where narrower), ``S`` a block band scaled to unit diagonal
+    and factorised by LAPACK's banded Cholesky; the points follow by
+    back-substitution.
     Levenberg-Marquardt damping (diagonals times ``1 + lambda``) is used only
     when a Gauss-Newton step fails to reduce the objective.
 
@@ -592,14 +604,12 @@ def bundle_adjust(
     IMU observations; a pivot of the scaled reduced matrix below 1e-11
     likewise means a singular system.
 
-    Precision: ``Q = N^-1`` at the solution (undamped).  Photo blocks of
-    ``S^-1`` are found by solving with the LU factors for the 6 unit vectors
-    of every photo (``6 M`` solves in chunks, each O(nnz(LU)), i.e.
-    O(M^2 * bandwidth) in total for a strip: about 0.1 s for M = 200 and 7 s
-    for M = 1000 photos on a small machine), keeping only the blocks of photo
-    pairs that share a point; the 3 x 3 point blocks follow from
-    ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1`` as one batched product over the
-    pairs of observations.  Standard deviations are
+    Precision: ``Q = N^-1`` at the solution (undamped), on its pattern only:
+    the band of ``S^-1`` by Takahashi's recursion on the banded factor, the
+    3 x 3 point blocks ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1`` and every image
+    coordinate's redundancy number ``1 - (A Q A.T P)_ii``
+    (``BundleResult.image_redundancy``), about the cost of one more
+    iteration.  Standard deviations are
     ``sigma0 * sqrt(diag(Q))``.  The cofactors of the GNSS and IMU residuals
     follow from the photos' own 6 x 6 blocks of ``Q`` at no further cost:
     ``Q_vv = P^-1 - A Q A.T`` with ``A`` the identity (GNSS) or ``Jr^-1``

@@ -32,37 +32,40 @@ from .._typing import FloatArray, IntArray
 __all__ = ["BandFactor", "band_to_lapack", "factor_band", "selected_inverse"]
 
 
-def _lapack_index(n: int, w: int, d: int) -> tuple[IntArray, IntArray]:
-    """Flat indices into ``band`` (n, w+1, d, d) and into LAPACK's ab ((w+1)d, n d)
-    of every entry of the lower band (the diagonal blocks' lower triangles and
-    the whole blocks below them)."""
-    j, o, a, b = np.meshgrid(
-        np.arange(n), np.arange(w + 1), np.arange(d), np.arange(d), indexing="ij"
-    )
-    keep = ((o > 0) | (a >= b)) & (j + o < n)
-    row = o * d + a - b  # (J + o) d + a - (J d + b)
-    col = j * d + b
-    src = np.flatnonzero(keep.reshape(-1))
-    dst = (row * (n * d) + col).reshape(-1)[src]
-    return src.astype(np.intp), dst.astype(np.intp)
+def _band_entries(w1: int, d: int) -> list[tuple[int, int, int, int]]:
+    """(o, a, b, row) of every entry of the lower block band kept in LAPACK's
+    storage: block offset o, entry (a, b) of the block, row ``o d + a - b``
+    of ab (the diagonal blocks' lower triangles and the blocks below)."""
+    return [
+        (o, a, b, o * d + a - b)
+        for o in range(w1)
+        for a in range(d)
+        for b in range(d)
+        if o > 0 or a >= b
+    ]
 
 
 def band_to_lapack(band: FloatArray) -> FloatArray:
-    """LAPACK lower band storage ((w+1) d, n d) of a block band (n, w+1, d, d)."""
+    """LAPACK lower band storage ((w+1) d, n d) of a block band (n, w+1, d, d);
+    a copy per entry of a block (strided over the n blocks)."""
     n, w1, d, _ = band.shape
-    src, dst = _lapack_index(n, w1 - 1, d)
-    ab = np.zeros(w1 * d * n * d)
-    ab[dst] = band.reshape(-1)[src]
+    ab = np.zeros((w1 * d, n, d))  # column J d + b as (J, b)
+    for o, a, b, row in _band_entries(w1, d):
+        ab[row, :, b] = band[:, o, a, b]
     return ab.reshape(w1 * d, n * d)
 
 
 def lapack_to_band(ab: FloatArray, n: int, d: int) -> FloatArray:
     """The inverse of :func:`band_to_lapack` (upper triangles of diagonal blocks 0)."""
     w1 = ab.shape[0] // d
-    src, dst = _lapack_index(n, w1 - 1, d)
-    band = np.zeros(n * w1 * d * d)
-    band[src] = ab.reshape(-1)[dst]
-    return band.reshape(n, w1, d, d)
+    view = ab.reshape(w1 * d, n, d)
+    band = np.zeros((n, w1, d, d))
+    for o, a, b, row in _band_entries(w1, d):
+        band[:, o, a, b] = view[row, :, b]
+    # entries past the last row (J + o >= n) are not the matrix's
+    for o in range(1, w1):
+        band[max(n - o, 0) :, o] = 0.0
+    return band
 
 
 @dataclass(frozen=True)

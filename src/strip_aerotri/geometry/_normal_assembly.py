@@ -41,6 +41,20 @@ def _sum_into(index: IntArray, values: FloatArray, n: int) -> FloatArray:
     return out.reshape(n, *shape)
 
 
+def _add_blocks(
+    blocks: FloatArray, index: IntArray, values: FloatArray,
+    compressed: tuple[IntArray, IntArray] | None = None,
+) -> None:
+    """``blocks[index[i]] += values[i]`` in place (blocks (N, d, d), values
+    (m, d, d)), summed over the distinct indices only (the band is large, the
+    blocks touched may be few); `compressed` the precomputed
+    ``np.unique(index, return_inverse=True)``."""
+    if index.size == 0:
+        return
+    uniq, inverse = compressed if compressed is not None else np.unique(index, return_inverse=True)
+    blocks[uniq] += _sum_into(inverse, values, uniq.size)
+
+
 def assemble(
     st: NormalStructure,
     unit_point_rows: Sequence[UnitPointRows],
@@ -74,7 +88,7 @@ def assemble(
     fast = _fast_unit_point(st, unit_point_rows, whitened)
     if fast is not None:
         u_blocks, w, v, g_unit, g_point, unit_border, point_border, border, g_border, cost = fast
-        band += _sum_into(diag_block, u_blocks, n * w1).reshape(-1)
+        band.reshape(n * w1, d, d)[diag_block] += u_blocks  # one block per unit
     offset = 0
     for rows, (au, ap, f, ab) in zip(unit_point_rows, whitened):
         if fast is not None:
@@ -88,7 +102,7 @@ def assemble(
         ):
             pair = pat.pair_of(unit, point)
         offset += g
-        band += _sum_into(diag_block[unit], np.einsum("gra,grb->gab", au, au), n * w1).reshape(-1)
+        _add_blocks(band.reshape(n * w1, d, d), diag_block[unit], np.einsum("gra,grb->gab", au, au))
         w += _sum_into(pair, np.einsum("gra,grb->gab", au, ap), n_pairs)
         v += _sum_into(point, np.einsum("gra,grb->gab", ap, ap), p)
         g_unit += _sum_into(unit, np.einsum("gra,gr->ga", au, f), n)
@@ -108,9 +122,9 @@ def assemble(
         ua, ub = units[:, ia.ravel()], units[:, ib.ravel()]  # (g, q*q)
         idx, upper = pat.block_index(ua, ub)
         keep = ~upper
-        band += _sum_into(
-            idx[keep], blocks.reshape(units.shape[0], q * q, d, d)[keep], n * w1
-        ).reshape(-1)
+        _add_blocks(
+            band.reshape(n * w1, d, d), idx[keep], blocks.reshape(units.shape[0], q * q, d, d)[keep]
+        )
         g_unit += _sum_into(units.reshape(-1), np.einsum("grai,gr->gai", a, f).reshape(-1, d), n)
         cost += float(np.sum(f * f))
         if k:
@@ -235,33 +249,42 @@ def _damped(normals: _Normals, damping: float) -> tuple[FloatArray, FloatArray, 
     return band, v, border
 
 
+def undetermined_points(v: FloatArray, tol: float) -> tuple[IntArray, FloatArray | None]:
+    """Points whose 3 x 3 block has ``λmin <= tol λmax`` and ``V⁻¹`` (None when
+    a block is exactly singular).  ``λmin / λmax >= 1 / (trace V⁻¹ trace V)``:
+    eigenvalues are computed only for the blocks below that bound."""
+    v_inv: FloatArray | None
+    try:
+        with np.errstate(all="ignore"):
+            inv: FloatArray = np.linalg.inv(v)  # type: ignore[assignment]
+        bound = 1.0 / (np.trace(inv, axis1=1, axis2=2) * np.trace(v, axis1=1, axis2=2))
+        near = np.flatnonzero(~(bound > tol))
+        v_inv = inv
+    except np.linalg.LinAlgError:  # an exactly singular block
+        v_inv = None
+        near = np.arange(v.shape[0])
+    if near.size == 0:
+        return near, v_inv
+    ev = np.linalg.eigvalsh(v[near])
+    return near[~(ev[:, 0] > tol * ev[:, 2])], v_inv
+
+
 def _point_inverse(st: NormalStructure, v: FloatArray) -> FloatArray:
     """V⁻¹ of every point; SingularNormalsError naming the first undetermined one."""
     from .normals import POINT_RANK_TOL, SingularNormalsError
 
     if v.shape[0] == 0:
         return v.copy()
-    try:
-        with np.errstate(all="ignore"):
-            v_inv: FloatArray = np.linalg.inv(v)  # type: ignore[assignment]
-        # λmin / λmax >= 1 / (trace V⁻¹ trace V): only points below the bound
-        # are looked at closely (eigenvalues)
-        bound = 1.0 / (np.trace(v_inv, axis1=1, axis2=2) * np.trace(v, axis1=1, axis2=2))
-        near = np.flatnonzero(~(bound > POINT_RANK_TOL))
-    except np.linalg.LinAlgError:  # an exactly singular block
-        near = np.arange(v.shape[0])
-    if near.size:
-        ev = np.linalg.eigvalsh(v[near])
-        bad = near[~(ev[:, 0] > POINT_RANK_TOL * ev[:, 2])]
-        if bad.size:
-            i = int(bad[0])
-            raise SingularNormalsError(
-                f"{bad.size} point(s) not determined, the first {st.point_name(i)}: "
-                "its 3 x 3 normal block is singular (a point needs rays from two units, or "
-                "control that fixes it)",
-                "point",
-                i,
-            )
+    bad, v_inv = undetermined_points(v, POINT_RANK_TOL)
+    if bad.size or v_inv is None:
+        i = int(bad[0]) if bad.size else 0
+        raise SingularNormalsError(
+            f"{bad.size} point(s) not determined, the first {st.point_name(i)}: "
+            "its 3 x 3 normal block is singular (a point needs rays from two units, or "
+            "control that fixes it)",
+            "point",
+            i,
+        )
     return v_inv
 
 
@@ -281,6 +304,8 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     y = normals.w @ v_inv[pat.pair_point]  # (n_pairs, d, 3)
     flat = band.reshape(-1).copy()
     dd = d * d
+    scatter_idx: list[IntArray] = []
+    scatter_val: list[FloatArray] = []
     for c in pat.chunks:
         q, n_g, groups = c.q, c.size, c.groups
         span = slice(c.pair_start, c.pair_start + groups * n_g * q)
@@ -289,8 +314,13 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
         wc = _by_group(normals.w[span], groups, n_g, q, d)
         sums = yc @ np.swapaxes(wc, 1, 2)  # (G, qd, qd)
         blocks = sums.reshape(-1, q, d, q, d).transpose(0, 1, 3, 2, 4)[:, c.lower_a, c.lower_b]
-        idx = (c.scatter[:, :, None] * dd + np.arange(dd)).reshape(-1)
-        flat -= np.bincount(idx, blocks.reshape(-1), minlength=flat.size)
+        scatter_idx.append(c.scatter)
+        scatter_val.append(blocks.reshape(-1, dd))
+    if scatter_idx:
+        _add_blocks(
+            flat.reshape(n * w1, d, d), pat.schur_blocks[0], -np.concatenate(scatter_val).reshape(-1, d, d),
+            pat.schur_blocks,
+        )
     s_band = flat.reshape(n, w1, d, d)
     b_point = -normals.g_point
     rhs_unit = -normals.g_unit - _sum_into(

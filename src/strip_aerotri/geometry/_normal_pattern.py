@@ -71,6 +71,9 @@ class Pattern:
     unit_slot: IntArray  # (G,) place of each row among its unit's rows
     rows_per_unit: int  # the most rows of one unit
     pair_row: IntArray | None  # (n_pairs,) the row of each pair when there is one each
+    #: the distinct band blocks the chunks' Schur products add into, and the
+    #: place of each product among them (np.unique of the chunks' scatter)
+    schur_blocks: tuple[IntArray, IntArray]
     pair_by_key: IntArray  # the pair of each sorted key
 
     def pair_of(self, unit: IntArray, point: IntArray) -> IntArray:
@@ -116,27 +119,29 @@ def bandwidth(position: IntArray, point_pairs: tuple[IntArray, IntArray],
 
 def unit_graph_order(n_units: int, point_pairs: tuple[IntArray, IntArray],
                      unit_sets: list[IntArray]) -> IntArray:
-    """Reverse Cuthill-McKee order of the units' graph (two units linked when
-    they share a point or a unit row)."""
+    """Reverse Cuthill-McKee order of the units' graph: two units linked when
+    they share a point or a unit row (every pair of a point's units: the
+    graph of the reduced matrix itself).  ``point_pairs`` (point, unit) sorted
+    by point."""
     import scipy.sparse as sp
     from scipy.sparse.csgraph import reverse_cuthill_mckee
 
     pair_point, pair_unit = point_pairs
     rows, cols = [], []
     if pair_point.size:
-        # consecutive units of each point (sorted by point): a path links them
-        same = pair_point[1:] == pair_point[:-1]
-        rows.append(pair_unit[:-1][same])
-        cols.append(pair_unit[1:][same])
-        # and every unit of a point to its first: a star keeps the point's clique connected
-        first = np.r_[True, ~same]
-        head = pair_unit[np.flatnonzero(first)][np.cumsum(first) - 1]
-        rows.append(head)
-        cols.append(pair_unit)
+        q_of = np.bincount(pair_point)
+        first = np.concatenate([[0], np.cumsum(q_of)[:-1]])
+        for q in np.unique(q_of[q_of > 1]):
+            units = pair_unit[first[q_of == q][:, None] + np.arange(q)]  # (c, q)
+            units = np.unique(units, axis=0)  # points with the same units: one clique
+            ia, ib = np.triu_indices(int(q), 1)
+            rows.append(units[:, ia].reshape(-1))
+            cols.append(units[:, ib].reshape(-1))
     for units in unit_sets:
-        for a in range(1, units.shape[1] if units.ndim == 2 else 0):
-            rows.append(units[:, 0])
-            cols.append(units[:, a])
+        if units.ndim == 2 and units.shape[1] > 1:
+            ia, ib = np.triu_indices(units.shape[1], 1)
+            rows.append(units[:, ia].reshape(-1))
+            cols.append(units[:, ib].reshape(-1))
     r = np.concatenate(rows) if rows else np.zeros(0, np.intp)
     c = np.concatenate(cols) if cols else np.zeros(0, np.intp)
     graph = sp.csr_matrix((np.ones(r.size), (r, c)), shape=(n_units, n_units))
@@ -225,7 +230,14 @@ def build_pattern(
         unit_slot=unit_slot,
         rows_per_unit=int(counts.max(initial=0)),
         pair_row=pair_row,
+        schur_blocks=_compressed([c.scatter.reshape(-1) for c in chunks]),
     )
+
+
+def _compressed(index: list[IntArray]) -> tuple[IntArray, IntArray]:
+    flat = np.concatenate(index) if index else np.zeros(0, np.intp)
+    uniq, inverse = np.unique(flat, return_inverse=True)
+    return uniq.astype(np.intp), inverse.astype(np.intp).reshape(-1)
 
 
 def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray,

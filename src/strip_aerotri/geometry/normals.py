@@ -265,8 +265,11 @@ class NormalStructure:
     order : "auto", "given", "rcm" or array of int (n,)
         The units' order along the band: as numbered ("given", units
         numbered along the strip), reverse Cuthill-McKee of the units' graph
-        ("rcm"), whichever of the two is narrower ("auto"), or the unit at
-        each place.
+        ("rcm"), the narrowest of these two and the `candidates` ("auto"),
+        or the unit at each place.
+    candidates : sequence of array of int (n,), optional
+        More orders for "auto" to consider, e.g. the photos by their
+        position along a block (which numbers them across the strips).
     unit_names, point_names : sequence of str, optional
         For the messages (default "unit 3", "point 7").
     parameter_names : sequence of str, optional
@@ -283,6 +286,7 @@ class NormalStructure:
         *,
         n_border: int = 0,
         order: Literal["auto", "given", "rcm"] | ArrayLike = "auto",
+        candidates: Sequence[ArrayLike] = (),
         unit_names: Sequence[str] | None = None,
         point_names: Sequence[str] | None = None,
         parameter_names: Sequence[str] | None = None,
@@ -311,7 +315,7 @@ class NormalStructure:
         for s in sets:
             if s.ndim != 2 or (s.size and (s.min() < 0 or s.max() >= n_units)):
                 raise ValueError("Expected `units` of shape (g, q) with indices of units")
-        self._order = self._choose_order(order, row_unit, row_point, sets)
+        self._order = self._choose_order(order, row_unit, row_point, sets, candidates)
         self.pattern: Pattern = build_pattern(
             n_units, unit_size, n_points, row_unit, row_point, sets, self._order
         )
@@ -322,6 +326,7 @@ class NormalStructure:
         row_unit: IntArray,
         row_point: IntArray,
         sets: list[IntArray],
+        candidates: Sequence[ArrayLike] = (),
     ) -> IntArray:
         n = self.n_units
         if isinstance(order, str):
@@ -332,18 +337,33 @@ class NormalStructure:
                 return given
             pairs = np.unique(row_point * n + row_unit)
             point_pairs = (pairs // n, pairs % n)
-            rcm = unit_graph_order(n, point_pairs, sets)
             if order == "rcm":
-                return rcm
-            widths = []
-            for o in (given, rcm):
+                return unit_graph_order(n, point_pairs, sets)
+
+            def width(o: IntArray) -> int:
                 pos = np.empty(n, np.intp)
                 pos[o] = np.arange(n)
-                widths.append(bandwidth(pos, point_pairs, sets))
-            return rcm if widths[1] < widths[0] else given
+                return bandwidth(pos, point_pairs, sets)
+
+            options = [given, *(self._permutation(c, "candidates") for c in candidates)]
+            widths = [width(o) for o in options]
+            # no order is narrower than the most units of one point or row, less one
+            least = max(
+                int(np.max(np.bincount(point_pairs[0]), initial=1)) - 1,
+                *(s.shape[1] - 1 for s in sets if s.size),
+                0,
+            )
+            if min(widths) > least:
+                options.insert(1, unit_graph_order(n, point_pairs, sets))
+                widths.insert(1, width(options[1]))
+            return options[int(np.argmin(widths))]  # the first of the narrowest
+        return self._permutation(order, "order")
+
+    def _permutation(self, order: ArrayLike, name: str) -> IntArray:
+        n = self.n_units
         arr = np.asarray(order, dtype=np.intp)
         if arr.shape != (n,) or not np.array_equal(np.sort(arr), np.arange(n)):
-            raise ValueError(f"Expected `order` to be a permutation of the {n} units")
+            raise ValueError(f"Expected `{name}` to hold permutations of the {n} units")
         return arr
 
     @property
@@ -432,6 +452,14 @@ class FormedNormals:
     def point_blocks(self) -> FloatArray:
         """The points' 3 x 3 normal blocks V (p, 3, 3), undamped."""
         return self._normals.v
+
+    def undetermined_points(self, tol: float = POINT_RANK_TOL) -> IntArray:
+        """Points whose 3 x 3 normal block (undamped) has ``λmin <= tol λmax``."""
+        from ._normal_assembly import undetermined_points
+
+        return undetermined_points(self._normals.v, tol)[0] if self._normals.v.size else (
+            np.zeros(0, np.intp)
+        )
 
     @property
     def unit_blocks(self) -> FloatArray:
