@@ -37,7 +37,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 
@@ -612,14 +612,22 @@ def _line_rows(prob: _Problem, st: _State, k: int) -> Any:
     )
 
 
-def _solve(prob: _Problem, st: _State) -> NormalSolution:
-    """The step of one Gauss-Newton iteration at ``st`` (the engine's
-    solution: unit, point and border steps, and the cofactors)."""
+class _Step(NamedTuple):
+    """The engine's solution of one linearisation (unit, point and border
+    steps, the cofactors) and its points' 3 x 3 normal blocks ``V``."""
+
+    solution: NormalSolution
+    point_normals: FloatArray
+
+
+def _solve(prob: _Problem, st: _State) -> _Step:
+    """The step of one Gauss-Newton iteration at ``st``."""
     from .normals import SingularNormalsError
 
     unit_point, unit_rows, point_rows = _engine_rows(prob, st)
     try:
-        return prob.structure.solve(unit_point, unit_rows, point_rows)
+        formed = prob.structure.form(unit_point, unit_rows, point_rows)
+        return _Step(formed.solve(), formed.point_blocks)
     except SingularNormalsError as exc:
         what = (
             f"unit {exc.index} shares too few points with the others and the control"
@@ -747,10 +755,10 @@ def adjust_units(
     for iterations in range(1, max_iterations + 1):  # noqa: B007 (reported after the loop)
         sol = _solve(prob, st)
         dp = np.zeros((n_points, 3))
-        dp[prob.points_used] = sol.point_step
+        dp[prob.points_used] = sol.solution.point_step
         step = 1.0
         for _ in range(30):
-            trial = _step(prob, st, sol, dp, step)
+            trial = _step(prob, st, sol.solution, dp, step)
             trial_cost = _cost(prob, trial)
             if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
                 break
@@ -760,7 +768,7 @@ def adjust_units(
                 "the simultaneous transformation of the units diverges: no step lowers the "
                 "sum of squares (start values too far off)"
             )
-        du = sol.unit_step * step
+        du = sol.solution.unit_step * step
         largest = max(
             float(np.max(np.abs(du[:, :3]), initial=0.0)) / extent,
             float(np.max(np.abs(du[:, 3:]), initial=0.0)),
@@ -800,35 +808,10 @@ def _step(
     )
 
 
-def _point_inverse(prob: _Problem, st: _State) -> FloatArray:
-    """``V⁻¹`` of every point (P, 3, 3; 0 for points no row observes): its
-    rows' weights, its given control components' and its line equations'."""
-    obs = prob.obs
-    v_blocks = _point_sums(obs.point, obs.weight, prob.n_points)
-    cp, given, sig = prob.control_point, prob.control_given, prob.control_sigma
-    cw = np.where(given, 1.0 / np.where(given, sig, 1.0) ** 2, 0.0)
-    v_blocks[:, [0, 1, 2], [0, 1, 2]] += _point_sums(cp, cw, prob.n_points)
-    for k, line in enumerate(prob.lines):
-        d_p = np.array([-st.line_ab[k, 1], 1.0, 0.0])
-        v_blocks[line.point] += np.outer(d_p, d_p) / line.sigma**2
-    v_inv = np.zeros_like(v_blocks)
-    v_inv[prob.observed] = np.linalg.inv(v_blocks[prob.observed])
-    return v_inv
-
-
-def _point_sums(index: IntArray, values: FloatArray, n: int) -> FloatArray:
-    """``out[index[i]] += values[i]`` for values (m, ...) -> (n, ...)."""
-    flat = values.reshape(values.shape[0], -1)
-    out: FloatArray = np.stack(
-        [np.bincount(index, flat[:, j], minlength=n) for j in range(flat.shape[1])], axis=1
-    ).astype(np.float64)
-    return out.reshape((n,) + values.shape[1:])
-
-
 def _result(
     prob: _Problem,
     st: _State,
-    sol: NormalSolution,
+    sol: _Step,
     cost: float,
     iterations: int,
     converged: bool,
@@ -840,7 +823,7 @@ def _result(
     _, v = _predict(prob, st)
     redundancy = prob.n_observations - prob.n_unknowns
     sigma0 = float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
-    cof = sol.cofactors() if statistics or prob.polynomial is not None else None
+    cof = sol.solution.cofactors() if statistics or prob.polynomial is not None else None
 
     # Cofactors of the control points (the selected inverse's point blocks):
     # the diagonal of the given components, which the tests need.
@@ -865,7 +848,8 @@ def _result(
     # fixed, h = W^(1/2) V⁻¹ W^(1/2); the units' 7 U parameters spread evenly.
     lt = prob.whiten
     wv = np.einsum("nij,nj->ni", lt, v)
-    h = lt @ _point_inverse(prob, st)[obs.point] @ np.swapaxes(lt, 1, 2)
+    v_inv = np.linalg.inv(sol.point_normals)  # V⁻¹ of the points the rows observe
+    h = lt @ v_inv[prob.engine_point[obs.point]] @ np.swapaxes(lt, 1, 2)
     free = 3.0 - np.einsum("nii->n", h)
     share = max(1.0 - prob.width * prob.n_units / max(float(free.sum()), 1e-300), 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
