@@ -683,7 +683,9 @@ def adjust_units(
     statistics : bool
         Compute the cofactors of the control points and lines (their
         redundancy numbers and w); without them (False) those fields are
-        NaN, at a fraction of the cost (start values, intermediate passes).
+        NaN, at a fraction of the cost (start values, intermediate passes),
+        and :meth:`SimultaneousResult.with_statistics` computes them later
+        from the factor of the last step.
     polynomial : UnitPolynomial, optional
         A deformation polynomial of every unit, adjusted with its
         similarity (the block of independent strips, R4 3); the start's
@@ -724,25 +726,8 @@ def adjust_units(
     prob = _Problem(
         obs, n_units, n_points, control_point, control_xyz, control_sigma, lines, polynomial, order
     )
-    # The start's similarity re-expressed about each unit's own centroid
-    # (its deformation, if any, kept as it is).
-    s0 = np.asarray(start.scale, dtype=np.float64).copy()
-    r0 = np.asarray(start.rotation, dtype=np.float64).copy()
-    coefficients = np.zeros((n_units, prob.n_extra))
-    if polynomial is None:
-        t0 = start.apply(np.arange(n_units), prob.centroid)
-    else:
-        shift = np.einsum("uij,uj->ui", r0, prob.centroid - start.centroid)
-        t0 = start.translation + s0[:, None] * shift
-        if start.coefficients is not None and start.coefficients.shape == coefficients.shape:
-            coefficients = np.array(start.coefficients, dtype=np.float64)
-    points = np.array(points0, dtype=np.float64, copy=True)
-    line_ab = np.zeros((prob.n_lines, 2))
-    for k, line in enumerate(prob.lines):
-        xyz = points[line.point]
-        design = np.column_stack([np.ones(len(xyz)), xyz[:, 0]])
-        line_ab[k] = np.linalg.lstsq(design, xyz[:, 1], rcond=None)[0]
-    st = _State(s0, r0, t0, points, line_ab, coefficients)
+    st = _start_state(prob, start, points0)
+    points = st.points
     extent = (
         float(np.nanmax(np.ptp(points[prob.observed], axis=0))) if prob.observed.any() else 1.0
     )
@@ -789,6 +774,30 @@ def adjust_units(
         return result
     later = partial(_result, prob, st, sol, cost, iterations, converged, True)
     return replace(result, statistics_later=later)
+
+
+def _start_state(prob: _Problem, start: UnitTransforms, points0: ArrayLike) -> _State:
+    """The start: its similarities re-expressed about each unit's own
+    centroid (the deformation, if any, kept as it is), the points, and each
+    line's ``a, b`` fitted to its points."""
+    n_units = prob.n_units
+    s0 = np.asarray(start.scale, dtype=np.float64).copy()
+    r0 = np.asarray(start.rotation, dtype=np.float64).copy()
+    coefficients = np.zeros((n_units, prob.n_extra))
+    if prob.polynomial is None:
+        t0 = start.apply(np.arange(n_units), prob.centroid)
+    else:
+        shift = np.einsum("uij,uj->ui", r0, prob.centroid - start.centroid)
+        t0 = start.translation + s0[:, None] * shift
+        if start.coefficients is not None and start.coefficients.shape == coefficients.shape:
+            coefficients = np.array(start.coefficients, dtype=np.float64)
+    points = np.array(points0, dtype=np.float64, copy=True)
+    line_ab = np.zeros((prob.n_lines, 2))
+    for k, line in enumerate(prob.lines):
+        xyz = points[line.point]
+        design = np.column_stack([np.ones(len(xyz)), xyz[:, 0]])
+        line_ab[k] = np.linalg.lstsq(design, xyz[:, 1], rcond=None)[0]
+    return _State(s0, r0, t0, points, line_ab, coefficients)
 
 
 def _step(
