@@ -629,11 +629,12 @@ def _solve(prob: _Problem, st: _State) -> _Step:
         formed = prob.structure.form(unit_point, unit_rows, point_rows)
         return _Step(formed.solve(), formed.point_blocks)
     except SingularNormalsError as exc:
-        what = (
-            f"unit {exc.index} shares too few points with the others and the control"
-            if exc.kind == "unit"
-            else "a point or a line is not determined by its rows"
-        )
+        if exc.kind == "unit":
+            what = f"unit {exc.index} shares too few points with the others and the control"
+        elif exc.kind == "point":
+            what = f"point {int(prob.points_used[exc.index])} is not fixed by its rows"
+        else:  # the border: a line's a, b
+            what = f"line {exc.index // 2} is not fixed by its points"
         raise GeometryError(f"the units are not determined: {what}") from exc
 
 
