@@ -463,3 +463,45 @@ def test_singular_border_is_named() -> None:
     with pytest.raises(SingularNormalsError, match="border parameter 1") as info:
         st.solve(prob.upr, prob.ur, prob.pr)
     assert info.value.kind == "border" and info.value.index == 1
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_random_shapes_equal_the_dense_solution(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Random sizes, block shapes, borders and weights; the pattern's chunks
+    made small (every chunk a few groups) so that the split paths run."""
+    from strip_aerotri.geometry import _normal_pattern
+
+    rng = np.random.default_rng(100 + seed)
+    if seed % 2:
+        monkeypatch.setattr(_normal_pattern, "CHUNK_ENTRIES", int(rng.integers(1, 3000)))
+    strips = int(rng.integers(1, 4))
+    prob = make_problem(
+        seed,
+        n=strips * int(rng.integers(4, 9)),
+        d=int(rng.integers(1, 9)),
+        strips=strips,
+        window=int(rng.integers(2, 6)),
+        k=int(rng.integers(0, 4)),
+        full_weights=bool(rng.integers(0, 2)),
+        shuffle_units=bool(rng.integers(0, 2)),
+        per_window=int(rng.integers(4, 9)),
+    )
+    a, f, _ = dense(prob)
+    n_mat = a.T @ a
+    if np.linalg.cond(n_mat) > 1e10:
+        pytest.skip("this draw is not well determined")
+    expected = np.linalg.solve(n_mat, -a.T @ f)
+    q = np.linalg.inv(n_mat)
+    st, sol = _solve(prob)
+    got = np.concatenate([sol.unit_step.ravel(), sol.point_step.ravel(), sol.border_step.ravel()])
+    assert np.linalg.norm(got - expected) <= 1e-9 * np.linalg.norm(expected)
+    cof = sol.cofactors()
+    o = prob.n * prob.d
+    scale = np.abs(q).max()
+    point_q = np.stack(
+        [q[o + 3 * j : o + 3 * j + 3, o + 3 * j : o + 3 * j + 3] for j in range(prob.p)]
+    )
+    np.testing.assert_allclose(cof.point, point_q, atol=1e-9 * scale)
+    all_rows = [*prob.upr, *prob.ur, *prob.pr, *prob.br]
+    r = np.concatenate([cof.redundancy(rows).ravel() for rows in all_rows])
+    np.testing.assert_allclose(r, 1.0 - np.einsum("ij,jk,ik->i", a, q, a), atol=1e-9)

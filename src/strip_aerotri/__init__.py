@@ -48,6 +48,7 @@ from .geometry.intersection import intersect, intersect_midpoint, intersect_norm
 from .geometry.normals import (
     BorderRows,
     Cofactors,
+    FormedNormals,
     NormalSolution,
     NormalStructure,
     PointRows,
@@ -163,6 +164,7 @@ __all__ = [
     "DeformationResult",
     "FiducialFit",
     "FlightDirection",
+    "FormedNormals",
     "GeometryError",
     "GnssCentres",
     "GnssResiduals",

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
@@ -26,6 +26,9 @@ if TYPE_CHECKING:
         UnitRows,
         _Normals,
     )
+
+
+_A = TypeVar("_A", FloatArray, IntArray)
 
 
 def _sum_into(index: IntArray, values: FloatArray, n: int) -> FloatArray:
@@ -178,6 +181,11 @@ _Blocks = tuple[
 ]
 
 
+def _joined(arrays: list[_A]) -> _A:
+    """One array of the groups' rows (no copy for one group)."""
+    return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
+
+
 def _fast_unit_point(
     st: NormalStructure,
     unit_point_rows: Sequence[UnitPointRows],
@@ -190,12 +198,12 @@ def _fast_unit_point(
     pat = st.pattern
     if pat.pair_row is None or not whitened or len({a[0].shape[1] for a in whitened}) != 1:
         return None
-    unit = np.concatenate([np.asarray(r.unit, np.intp) for r in unit_point_rows])
-    point = np.concatenate([np.asarray(r.point, np.intp) for r in unit_point_rows])
+    unit = _joined([np.asarray(r.unit, np.intp) for r in unit_point_rows])
+    point = _joined([np.asarray(r.point, np.intp) for r in unit_point_rows])
     if not (np.array_equal(unit, pat.row_unit) and np.array_equal(point, pat.row_point)):
         return None
     n, d, p, k = st.n_units, st.unit_size, st.n_points, st.n_border
-    au, ap, f, ab = (np.concatenate([a[i] for a in whitened]) for i in range(4))
+    au, ap, f, ab = (_joined([a[i] for a in whitened]) for i in range(4))
     g, r = f.shape
     padded = np.zeros((n, pat.rows_per_unit, r, d + k))
     padded[unit, pat.unit_slot, :, :d] = au
@@ -204,11 +212,17 @@ def _fast_unit_point(
     stacked = padded.reshape(n, -1, d + k)
     uu = np.swapaxes(stacked, 1, 2) @ stacked  # (n, d + k, d + k)
     rows = pat.pair_row
-    w = np.swapaxes(au[rows], 1, 2) @ ap[rows]  # (n_pairs, d, 3)
-    apb = np.concatenate([ap, ab], axis=2) if k else ap
-    vv = _sum_into(point, np.swapaxes(ap, 1, 2) @ apb, p)  # (p, 3, 3 + k)
+    ap_pairs = ap[rows]
+    w = np.swapaxes(au[rows], 1, 2) @ ap_pairs  # (n_pairs, d, 3)
+    # V, V_b and the points' gradients: the pairs of a point are contiguous
+    apb = np.concatenate([ap_pairs, ab[rows]], axis=2) if k else ap_pairs
+    starts, seen = pat.point_runs
+    vv = np.zeros((p, 3, 3 + k))
+    g_point = np.zeros((p, 3))
+    if starts.size:
+        vv[seen] = np.add.reduceat(np.swapaxes(ap_pairs, 1, 2) @ apb, starts, axis=0)
+        g_point[seen] = np.add.reduceat(np.einsum("gra,gr->ga", ap_pairs, f[rows]), starts, axis=0)
     g_unit = _sum_into(unit, np.einsum("gra,gr->ga", au, f), n)
-    g_point = _sum_into(point, np.einsum("gra,gr->ga", ap, f), p)
     border = uu[:, d:, d:].sum(axis=0)
     g_border = np.einsum("gra,gr->a", ab, f) if k else np.zeros(0)
     return (

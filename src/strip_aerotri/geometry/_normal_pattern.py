@@ -74,6 +74,8 @@ class Pattern:
     #: the distinct band blocks the chunks' Schur products add into, and the
     #: place of each product among them (np.unique of the chunks' scatter)
     schur_blocks: tuple[IntArray, IntArray]
+    #: the first pair of each point's run of pairs, and those points
+    point_runs: tuple[IntArray, IntArray]
     pair_by_key: IntArray  # the pair of each sorted key
 
     def pair_of(self, unit: IntArray, point: IntArray) -> IntArray:
@@ -231,7 +233,16 @@ def build_pattern(
         rows_per_unit=int(counts.max(initial=0)),
         pair_row=pair_row,
         schur_blocks=_compressed([c.scatter.reshape(-1) for c in chunks]),
+        point_runs=_runs(pp[old]),
     )
+
+
+def _runs(pair_point: IntArray) -> tuple[IntArray, IntArray]:
+    """Starts of the runs of equal points in the pairs' order, and their points."""
+    if pair_point.size == 0:
+        return np.zeros(0, np.intp), np.zeros(0, np.intp)
+    starts = np.flatnonzero(np.r_[True, pair_point[1:] != pair_point[:-1]]).astype(np.intp)
+    return starts, pair_point[starts].astype(np.intp)
 
 
 def _compressed(index: list[IntArray]) -> tuple[IntArray, IntArray]:

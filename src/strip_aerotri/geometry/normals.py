@@ -47,22 +47,30 @@ of the caller (the engine is unit-free; a whitened residual is
 dimensionless).
 
 :class:`NormalStructure` is built once per problem from the index arrays
-(which units each point is tied to and which units the unit rows link):
-it fixes the units' order and the band.  Its :meth:`NormalStructure.solve`
-takes the rows at the current unknowns (same ``unit``/``point``/``units``
-arrays) and an optional Levenberg-Marquardt ``damping`` (diagonals of the
-unit, point and border blocks times ``1 + damping``) and returns a
-:class:`NormalSolution`: ``unit_step`` (n, d), ``point_step`` (p, 3),
-``border_step`` (k,), ``cost`` (``Σ‖T f‖²``), ``predicted_cost``
+(which units each point is tied to and which units the unit rows link;
+:meth:`NormalStructure.from_indices` takes the arrays themselves): it fixes
+the units' order (``order="auto"``: as numbered, reverse Cuthill-McKee or
+the caller's ``candidates``, whichever is narrowest) and the band
+(``width``, ``order``).  :meth:`NormalStructure.form` forms the normal
+blocks of the rows at the current unknowns (same ``unit``/``point``/
+``units`` arrays) as a :class:`FormedNormals` (``cost`` ``Σ‖T f‖²``,
+``point_blocks``, ``unit_blocks``, :meth:`FormedNormals.undetermined_points`),
+whose :meth:`FormedNormals.solve` takes an optional Levenberg-Marquardt
+``damping`` (diagonals of the unit, point and border blocks times
+``1 + damping``; :meth:`NormalStructure.solve` is form and solve in one)
+and returns a :class:`NormalSolution`: ``unit_step`` (n, d),
+``point_step`` (p, 3), ``border_step`` (k,), ``cost``, ``predicted_cost``
 (``Σ‖T (f + A δ)‖²``), ``min_pivot`` (smallest relative pivot of the
-equilibrated reduced matrix) and :meth:`NormalSolution.cofactors`, a
-:class:`Cofactors` (undamped solutions only) with ``unit`` (n, d, d),
-``point`` (p, 3, 3), ``border`` (k, k), ``unit_border`` (n, d, k),
-``point_border`` (p, 3, k), :meth:`Cofactors.unit_blocks` (any unit pair
-within the band), :meth:`Cofactors.unit_point` (any coupled pair) and
+equilibrated reduced matrix, ``min_pivot_unit``, ``min_pivot_parameter``)
+and :meth:`NormalSolution.cofactors`, a :class:`Cofactors` (undamped
+solutions only) with ``unit`` (n, d, d), ``point`` (p, 3, 3), ``border``
+(k, k), ``unit_border`` (n, d, k), ``point_border`` (p, 3, k),
+:meth:`Cofactors.unit_blocks` (any unit pair within the band),
+:meth:`Cofactors.unit_point` (any coupled pair) and
 :meth:`Cofactors.redundancy` (the redundancy numbers (g, r) of any rows of
 the four kinds).  A singular system raises :class:`SingularNormalsError`
-naming the unit, point or border parameter.
+(a :class:`~strip_aerotri.errors.GeometryError`) naming the unit, point or
+border parameter.
 
 Cost: forming O(G r d²) plus O(Σ_points (q d)²) for the Schur products,
 factorising O(n d³ w²) with w the half-bandwidth in units (about the overlap
