@@ -157,6 +157,7 @@ def _solve(
         guess = new_guess
         starts = result.transforms
         points0 = np.where(np.isfinite(result.points), result.points, points0)
+        result = None  # its factor (held for its statistics) goes before the next pass
     assert result is not None
     return _Solution(result, guess)
 

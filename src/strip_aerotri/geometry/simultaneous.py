@@ -739,6 +739,7 @@ def adjust_units(
     iterations = 0
     sol = None
     for iterations in range(1, max_iterations + 1):  # noqa: B007 (reported after the loop)
+        sol = None  # the last step's factor goes before the next is formed
         sol = _solve(prob, st)
         dp = np.zeros((n_points, 3))
         dp[prob.points_used] = sol.solution.point_step
@@ -766,6 +767,7 @@ def adjust_units(
             converged = True
             break
     if not converged:
+        sol = None
         sol = _solve(prob, st)
     assert sol is not None  # set in the loop, or just above
     # Converged: the normal equations of the last step serve the statistics

@@ -324,6 +324,7 @@ def _solve(
         if converged:  # its statistics from its last step: no pass again
             res = res.with_statistics()
             break
+        res = None  # its factor (held for its statistics) goes before the next pass
     assert res is not None
     return _ModelsSolution(res, guess, converged or not guessed, min(n_pass, _MAX_PASSES), active)
 
