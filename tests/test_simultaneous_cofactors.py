@@ -162,6 +162,13 @@ def test_cofactors_and_redundancy_equal_the_dense_inverse(degree):
     if poly is not None:
         cols = width * np.arange(N_UNITS)[:, None] + np.arange(7, width)
         np.testing.assert_allclose(res.coefficient_variance, q[cols, cols], rtol=1e-6)
+    # the plan precision of the probe points
+    has = res.probe_points >= 0
+    assert has.any()
+    cols = width * N_UNITS + 3 * res.probe_points[has]
+    np.testing.assert_allclose(
+        res.probe_plan_sigma[has], np.sqrt(q[cols, cols] + q[cols + 1, cols + 1]), rtol=1e-6
+    )
     # the reference itself: its redundancy numbers sum to the redundancy
     r_all = 1 - np.einsum("ij,jk,ki->i", jac, q, jac.T @ p)
     assert r_all.sum() == pytest.approx(res.redundancy, abs=1e-6)

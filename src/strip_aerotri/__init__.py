@@ -112,7 +112,8 @@ from .pipeline import triangulate
 from .project import Project, load_project, run_project
 from .report.files import OutputError, ResultFolder, write_result_folder
 from .report.outputs import build_outputs, build_report
-from .report.tolerances import Criterion, tolerance_verdicts
+from .report.tolerances import Criterion, chance_beyond, tolerance_verdicts
+from .report.verdict import Verdict, overall_verdict
 from .results import (
     AccuracyStatistics,
     BundleResult,
@@ -205,6 +206,7 @@ __all__ = [
     "StripResult",
     "UnitPointRows",
     "UnitRows",
+    "Verdict",
     "__version__",
     "adjust_to_ground",
     "azimuth_from_local_enu",
@@ -215,6 +217,7 @@ __all__ = [
     "cardan_from_opk",
     "cardan_from_schut",
     "chain_rotations",
+    "chance_beyond",
     "check_matrix",
     "choose_photo_step",
     "complete_strip",
@@ -244,6 +247,7 @@ __all__ = [
     "opk_from_cardan",
     "opk_from_matrix",
     "opk_from_schut",
+    "overall_verdict",
     "polynomial_terms",
     "reduce_image_coordinates",
     "refine_bundle",
