@@ -139,22 +139,29 @@ def selected_inverse(bf: BandFactor) -> FloatArray:
     panel = lf[:, 1:].reshape(n, w * d, d)
     z = np.zeros((n, w1, d, d))
     wd = w * d
-    # Z over blocks J+1 .. J+1+w before step J, over J .. J+w after it; the
-    # two buffers alternate (zero beyond the last block)
-    window = np.zeros((w1 * d, w1 * d))
-    spare = np.zeros_like(window)
+    # The part of Z within the band near block J, in a buffer that the
+    # recursion walks up the diagonal of: buf[top:top + wd, top:top + wd] is
+    # Z over blocks J+1 .. J+w at step J (zero beyond the last block); each
+    # step writes block row and column J just above and left of it.  When the
+    # walk reaches the buffer's corner the window is copied back down (once
+    # every w + 1 steps), so a step copies O(w d²), not the (w d)² window.
+    home = w1 * d
+    buf = np.zeros((home + wd, home + wd))
+    top = home
     for j in range(n - 1, -1, -1):
-        below = window[:wd, :wd]  # Z over blocks J+1 .. J+w
+        if top == 0:
+            buf[home : home + wd, home : home + wd] = buf[:wd, :wd]
+            top = home
+        below = buf[top : top + wd, top : top + wd]  # Z over blocks J+1 .. J+w
         col = -(below @ panel[j]) @ l_inv[j]
         diag = l_inv[j].T @ (l_inv[j] - panel[j].T @ col)
         diag = 0.5 * (diag + diag.T)
         z[j, 0] = diag
         z[j, 1:] = col.reshape(w, d, d)
-        spare[d:, d:] = below
-        spare[:d, :d] = diag
-        spare[d:, :d] = col
-        spare[:d, d:] = col.T
-        window, spare = spare, window
+        top -= d
+        buf[top : top + d, top : top + d] = diag
+        buf[top + d : top + d + wd, top : top + d] = col
+        buf[top : top + d, top + d : top + d + wd] = col.T
     # undo the equilibration: S⁻¹ = D Z̃ D
     s = bf.scale.reshape(n, d)
     rows = np.arange(n)[:, None] + np.arange(w1)[None, :]

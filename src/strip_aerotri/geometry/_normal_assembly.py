@@ -318,8 +318,7 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     y = normals.w @ v_inv[pat.pair_point]  # (n_pairs, d, 3)
     flat = band.reshape(-1).copy()
     dd = d * d
-    scatter_idx: list[IntArray] = []
-    scatter_val: list[FloatArray] = []
+    flat_blocks = flat.reshape(n * w1, dd)
     for c in pat.chunks:
         q, n_g, groups = c.q, c.size, c.groups
         span = slice(c.pair_start, c.pair_start + groups * n_g * q)
@@ -328,12 +327,10 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
         wc = _by_group(normals.w[span], groups, n_g, q, d)
         sums = yc @ np.swapaxes(wc, 1, 2)  # (G, qd, qd)
         blocks = sums.reshape(-1, q, d, q, d).transpose(0, 1, 3, 2, 4)[:, c.lower_a, c.lower_b]
-        scatter_idx.append(c.scatter)
-        scatter_val.append(blocks.reshape(-1, dd))
-    if scatter_idx:
-        _add_blocks(
-            flat.reshape(n * w1, d, d), pat.schur_blocks[0], -np.concatenate(scatter_val).reshape(-1, d, d),
-            pat.schur_blocks,
+        # summed over the distinct blocks of the chunk (several groups add
+        # into one block of the band)
+        flat_blocks[c.scatter_unique] -= _sum_into(
+            c.scatter_inverse, blocks.reshape(-1, dd), c.scatter_unique.size
         )
     s_band = flat.reshape(n, w1, d, d)
     b_point = -normals.g_point

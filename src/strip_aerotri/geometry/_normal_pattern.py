@@ -47,6 +47,10 @@ class Chunk:
     upper: BoolArray
     lower_a: IntArray
     lower_b: IntArray
+    #: the distinct band blocks of ``scatter`` and the place of each entry
+    #: of ``scatter`` (flattened) among them
+    scatter_unique: IntArray
+    scatter_inverse: IntArray
 
     @property
     def groups(self) -> int:
@@ -71,9 +75,6 @@ class Pattern:
     unit_slot: IntArray  # (G,) place of each row among its unit's rows
     rows_per_unit: int  # the most rows of one unit
     pair_row: IntArray | None  # (n_pairs,) the row of each pair when there is one each
-    #: the distinct band blocks the chunks' Schur products add into, and the
-    #: place of each product among them (np.unique of the chunks' scatter)
-    schur_blocks: tuple[IntArray, IntArray]
     #: the first pair of each point's run of pairs, and those points
     point_runs: tuple[IntArray, IntArray]
     pair_by_key: IntArray  # the pair of each sorted key
@@ -200,7 +201,7 @@ def build_pattern(
     renum[old] = np.arange(old.size)
     chunks = [
         Chunk(c.q, c.size, c.points, int(renum[c.pair_start]), c.scatter, c.gather, c.upper,
-              c.lower_a, c.lower_b)
+              c.lower_a, c.lower_b, c.scatter_unique, c.scatter_inverse)
         for c in chunks
     ]
     pair_key = pp[old] * n + position[pu[old]]
@@ -232,7 +233,6 @@ def build_pattern(
         unit_slot=unit_slot,
         rows_per_unit=int(counts.max(initial=0)),
         pair_row=pair_row,
-        schur_blocks=_compressed([c.scatter.reshape(-1) for c in chunks]),
         point_runs=_runs(pp[old]),
     )
 
@@ -272,9 +272,10 @@ def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray
         gs = gs_all[g0:g1]
         scatter = gs[:, b_idx] * w1 + (gs[:, a_idx] - gs[:, b_idx])
         gather = gs[:, lo] * w1 + (gs[:, hi] - gs[:, lo])
+        uniq, inverse = _compressed([scatter.reshape(-1)])
         out.append(
             Chunk(q, n_g, pts[g0 * n_g : g1 * n_g], int(pairs[g0 * n_g, 0]),
                   scatter.astype(np.intp), gather.astype(np.intp), upper,
-                  a_idx.astype(np.intp), b_idx.astype(np.intp))
+                  a_idx.astype(np.intp), b_idx.astype(np.intp), uniq, inverse)
         )
     return out
