@@ -10,6 +10,7 @@ boundary; ``--debug`` adds the Python traceback.
 from __future__ import annotations
 
 import traceback
+import warnings
 from typing import Any
 
 import click
@@ -42,7 +43,12 @@ class StripaeroGroup(click.Group):
 
     def invoke(self, ctx: click.Context) -> Any:  # what the command returns, as in click
         try:
-            return super().invoke(ctx)
+            with warnings.catch_warnings():
+                # numpy's floating-point warnings (overflow, invalid value) are
+                # no message for the user: input that makes them is refused in
+                # words, and a failure must print its one error line alone
+                warnings.simplefilter("ignore", RuntimeWarning)
+                return super().invoke(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
         except BrokenPipeError:

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from .._text import MAX_ECHO, clean, shorten
 from ..errors import ConfigError
 from ..options import (
     DEFAULT_DIFFERENCE_TOLERANCE,
@@ -98,6 +99,10 @@ class KeySpec:
         backward-compatible extensions of this package.
     default_text : str
         The default as written in docs and ``stripaero check``.
+    bounds : tuple of float, optional
+        For a number, its least and largest sane value (inclusive): beyond
+        them it is a typing error or would break the arithmetic (a weight of
+        1/sigma² that overflows, a probability that rounds to zero).
     """
 
     table: str
@@ -109,6 +114,7 @@ class KeySpec:
     description: str
     contract: bool = True
     default_text: str = ""
+    bounds: tuple[float, float] | None = None
 
     @property
     def default_display(self) -> str:
@@ -157,6 +163,27 @@ PROJECT_TABLES: tuple[TableSpec, ...] = (
 
 TABLES_BY_NAME = {t.name: t for t in PROJECT_TABLES}
 
+#: Sane ranges of numbers of the project (inclusive), shared by a key and the
+#: column that overrides it row by row.  Image sigma: a nanometre to a
+#: centimetre, far around the micrometres of film and sensors.
+IMAGE_SIGMA_BOUNDS_MM = (1e-6, 10.0)
+#: Ground sigma (control, GNSS centres): a micrometre to a thousand kilometres.
+GROUND_SIGMA_BOUNDS_M = (1e-6, 1e6)
+#: Attitude sigma (IMU): 1e-7 degrees (a micro-radian is 6e-5) to a half turn.
+ANGLE_SIGMA_BOUNDS_DEG = (1e-7, 180.0)
+#: Family-wise false-alarm probability: below 1e-12 the Bonferroni level of
+#: a large stage underflows to 0 (no critical value); at most 1 (< 1 is checked
+#: by the loader).
+ALPHA_BOUNDS = (1e-12, 1.0)
+#: Longest id (photo, point, mark) in characters; ids are kept as arrays of
+#: fixed-width strings, whose size is rows x the longest id.
+MAX_ID_LENGTH = 128
+#: Longest name (of a strip, a line) in characters, as drawn in figures.
+MAX_NAME_LENGTH = 200
+#: Longest other string value (a CRS may be given as WKT) and path.
+MAX_STRING_LENGTH = 65536
+MAX_PATH_LENGTH = 4096
+
 
 # fmt: off
 PROJECT_KEYS: tuple[KeySpec, ...] = (
@@ -201,6 +228,7 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         description="Standard deviation of an image coordinate, for rows without a sigma "
         "value.",
         contract=False,
+        bounds=IMAGE_SIGMA_BOUNDS_MM,
     ),
     KeySpec(
         "images", "units", "choice", required=False, default=ImageUnits.MM, unit="",
@@ -321,12 +349,14 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         description="Standard deviation of control X and Y, for rows without a sigma_xy "
         "value.",
         contract=False,
+        bounds=GROUND_SIGMA_BOUNDS_M,
     ),
     KeySpec(
         "control", "sigma_h_m", "positive number", required=False,
         default=DEFAULT_SIGMA_H_M, unit="m",
         description="Standard deviation of control H, for rows without a sigma_h value.",
         contract=False,
+        bounds=GROUND_SIGMA_BOUNDS_M,
     ),
     KeySpec(
         "straight_line", "points", "list of ids", required=True, default=None, unit="",
@@ -452,6 +482,7 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         description="Family-wise false-alarm probability per stage (Bonferroni over the "
         "stage's tests), below 1.",
         contract=False,
+        bounds=ALPHA_BOUNDS,
     ),
     KeySpec(
         "blunders", "relative_orientation", "positive number", required=False, default=None,
@@ -525,12 +556,14 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         description="Standard deviation of a centre's X and Y, for rows without a sigma_xy "
         "value.",
         contract=False,
+        bounds=GROUND_SIGMA_BOUNDS_M,
     ),
     KeySpec(
         "gnss", "sigma_z", "positive number", required=False,
         default=DEFAULT_GNSS_SIGMA_Z_M, unit="m",
         description="Standard deviation of a centre's Z, for rows without a sigma_z value.",
         contract=False,
+        bounds=GROUND_SIGMA_BOUNDS_M,
     ),
     KeySpec(
         "imu", "file", "path", required=True, default=None, unit="",
@@ -545,6 +578,7 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         description="Standard deviation of each attitude angle, for rows without a "
         "sigma_deg value.",
         contract=False,
+        bounds=ANGLE_SIGMA_BOUNDS_DEG,
     ),
 )
 
@@ -574,6 +608,7 @@ class ColumnSpec:
     required: bool
     unit: str
     description: str
+    bounds: tuple[float, float] | None = None
 
 
 IMAGE_COLUMNS: tuple[ColumnSpec, ...] = (
@@ -581,7 +616,13 @@ IMAGE_COLUMNS: tuple[ColumnSpec, ...] = (
     ColumnSpec("point", True, "", "point id; the same id is the same ground point on every photo"),
     ColumnSpec("x", True, "mm", "image x, along the flight"),
     ColumnSpec("y", True, "mm", "image y, to the left of the flight"),
-    ColumnSpec("sigma", False, "mm", "standard deviation of x and y; empty: [images] sigma_mm"),
+    ColumnSpec(
+        "sigma",
+        False,
+        "mm",
+        "standard deviation of x and y; empty: [images] sigma_mm",
+        IMAGE_SIGMA_BOUNDS_MM,
+    ),
 )
 
 
@@ -600,9 +641,19 @@ CONTROL_COLUMNS: tuple[ColumnSpec, ...] = (
     ColumnSpec("H", True, "m", "ellipsoidal height; empty for plan"),
     ColumnSpec("type", True, "", "full, plan, height or check"),
     ColumnSpec(
-        "sigma_xy", False, "m", "standard deviation of X and Y; empty: [control] sigma_xy_m"
+        "sigma_xy",
+        False,
+        "m",
+        "standard deviation of X and Y; empty: [control] sigma_xy_m",
+        GROUND_SIGMA_BOUNDS_M,
     ),
-    ColumnSpec("sigma_h", False, "m", "standard deviation of H; empty: [control] sigma_h_m"),
+    ColumnSpec(
+        "sigma_h",
+        False,
+        "m",
+        "standard deviation of H; empty: [control] sigma_h_m",
+        GROUND_SIGMA_BOUNDS_M,
+    ),
 )
 
 
@@ -611,8 +662,16 @@ GNSS_COLUMNS: tuple[ColumnSpec, ...] = (
     ColumnSpec("X", True, "CRS unit", "projection centre easting (or longitude in degrees)"),
     ColumnSpec("Y", True, "CRS unit", "projection centre northing (or latitude in degrees)"),
     ColumnSpec("Z", True, "m", "projection centre ellipsoidal height"),
-    ColumnSpec("sigma_xy", False, "m", "standard deviation of X and Y; empty: [gnss] sigma_xy"),
-    ColumnSpec("sigma_z", False, "m", "standard deviation of Z; empty: [gnss] sigma_z"),
+    ColumnSpec(
+        "sigma_xy",
+        False,
+        "m",
+        "standard deviation of X and Y; empty: [gnss] sigma_xy",
+        GROUND_SIGMA_BOUNDS_M,
+    ),
+    ColumnSpec(
+        "sigma_z", False, "m", "standard deviation of Z; empty: [gnss] sigma_z", GROUND_SIGMA_BOUNDS_M
+    ),
 )
 
 
@@ -622,7 +681,11 @@ IMU_COLUMNS: tuple[ColumnSpec, ...] = (
     ColumnSpec("phi", True, "deg", "phi of image -> local east-north-up (photos.csv)"),
     ColumnSpec("kappa", True, "deg", "kappa of image -> local east-north-up (photos.csv)"),
     ColumnSpec(
-        "sigma_deg", False, "deg", "standard deviation of each angle; empty: [imu] sigma_deg"
+        "sigma_deg",
+        False,
+        "deg",
+        "standard deviation of each angle; empty: [imu] sigma_deg",
+        ANGLE_SIGMA_BOUNDS_DEG,
     ),
 )
 
@@ -632,9 +695,9 @@ def describe(value: object) -> str:
     if isinstance(value, bool):
         return f"the boolean {str(value).lower()}"
     if isinstance(value, str):
-        return f'the string "{value}"'
+        return f'the string "{shorten(value)}"'
     if isinstance(value, int | float):
-        return f"the number {value!r}"
+        return f"the number {shorten(repr(value))}"
     if isinstance(value, list):
         return "a list"
     if isinstance(value, dict):
@@ -644,6 +707,8 @@ def describe(value: object) -> str:
 
 def suggest(word: str, candidates: Sequence[str]) -> str:
     """`` (did you mean 'x'?)`` or empty."""
+    if len(word) > 2 * MAX_ECHO:  # no key is that long, and difflib would take its time
+        return ""
     lower = {c.lower(): c for c in candidates}
     if word.lower() in lower:
         return f" (did you mean '{lower[word.lower()]}'?)"
@@ -661,6 +726,8 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
     if kind in ("string", "path"):
         if not isinstance(value, str) or not value.strip():
             raise ConfigError(f"{where}: expected a non-empty string, got {describe(value)}")
+        what = "a path" if kind == "path" else "a name" if spec.key == "name" else "text"
+        _check_text(value, where, _max_length(spec), what)
         return value.strip() if kind == "string" else value
     if kind == "positive number":
         if not _is_number(value):
@@ -668,7 +735,7 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
         number = float(value)  # type: ignore[arg-type]
         if not math.isfinite(number) or number <= 0.0:
             raise ConfigError(f"{where}: expected a positive finite number, got {value!r}")
-        return number
+        return check_bounds(number, spec.bounds, where, spec.unit)
     if kind == "positive integer":
         if not isinstance(value, int) or isinstance(value, bool) or value < 1:
             raise ConfigError(f"{where}: expected a positive integer, got {describe(value)}")
@@ -680,7 +747,8 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
             or not all(_is_number(v) and math.isfinite(v) for v in value)
         ):
             raise ConfigError(
-                f"{where}: expected a list of two finite numbers like [0.0, 0.0], got {value!r}"
+                f"{where}: expected a list of two finite numbers like [0.0, 0.0], got "
+                f"{shorten(repr(value))}"
             )
         return (float(value[0]), float(value[1]))
     if kind == "list of ids":
@@ -695,11 +763,12 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
                 raise ConfigError(f"{where}: ids must be strings, got {describe(item)}{hint}")
             if not item.strip():
                 raise ConfigError(f"{where}: ids must not be empty")
+            _check_text(item, where, MAX_ID_LENGTH, "an id")
         ids = [item.strip() for item in value]
         seen: set[str] = set()
         for item in ids:
             if item in seen:
-                raise ConfigError(f"{where}: id '{item}' is listed twice")
+                raise ConfigError(f"{where}: id '{shorten(item)}' is listed twice")
             seen.add(item)
         return tuple(ids)
     if kind == "choice":
@@ -737,8 +806,8 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
                 or not all(_is_number(v) and math.isfinite(v) for v in xy)
             ):
                 raise ConfigError(
-                    f"{where}: mark '{mark}': expected a list of two finite numbers (x, y in "
-                    f"mm), got {xy!r}"
+                    f"{where}: mark '{shorten(mark)}': expected a list of two finite numbers "
+                    f"(x, y in mm), got {shorten(repr(xy))}"
                 )
             marks[str(mark).strip()] = (float(xy[0]), float(xy[1]))
         return marks
@@ -751,6 +820,41 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
     raise AssertionError(f"unhandled kind {kind!r}")  # pragma: no cover
 
 
+def _max_length(spec: KeySpec) -> int:
+    if spec.kind == "path":
+        return MAX_PATH_LENGTH
+    return MAX_NAME_LENGTH if spec.key == "name" else MAX_STRING_LENGTH
+
+
+def _check_text(value: str, where: str, limit: int, what: str) -> None:
+    """Refuse a string longer than ``limit`` characters or holding control
+    characters (a NUL byte, an escape sequence): no name, id or path has them."""
+    if len(value) > limit:
+        raise ConfigError(
+            f"{where}: {what} of {len(value)} characters ({shorten(value, 40)}); at most "
+            f"{limit} are allowed"
+        )
+    if clean(value) != value or "\n" in value or "\r" in value:
+        raise ConfigError(
+            f"{where}: {what} holding a control character (a NUL byte or a terminal escape "
+            f"sequence): {shorten(value, 40)!r} as read without them; retype it"
+        )
+
+
+def check_bounds(
+    number: float, bounds: tuple[float, float] | None, where: str, unit: str = ""
+) -> float:
+    """``number`` when it lies within ``bounds`` (inclusive), else a ConfigError
+    naming ``where``, the sane range and the value."""
+    if bounds is not None and not bounds[0] <= number <= bounds[1]:
+        unit = f" {unit}" if unit else ""
+        raise ConfigError(
+            f"{where}: expected a number from {bounds[0]:g} to {bounds[1]:g}{unit}, got "
+            f"{number:g}{unit} (beyond any sane value: a typing error?)"
+        )
+    return number
+
+
 def check_table(
     toml_name: str, table: str, content: dict[str, Any], label: str
 ) -> dict[str, object]:
@@ -761,7 +865,7 @@ def check_table(
             elsewhere = [s.qualified for s in PROJECT_KEYS if s.key == key and s.table != table]
             hint = f" (it belongs in {elsewhere[0]})" if elsewhere else suggest(key, list(specs))
             raise ConfigError(
-                f"{toml_name}: unknown key '{key}' in {label}{hint}; "
+                f"{toml_name}: unknown key '{shorten(key)}' in {label}{hint}; "
                 f"valid keys: {', '.join(specs)}"
             )
     out: dict[str, object] = {}
