@@ -16,8 +16,9 @@ __all__ = ["MAX_ECHO", "MAX_LINE", "clean", "shorten"]
 
 #: Characters of one echoed value (an id, a cell, a name) in a message.
 MAX_ECHO = 60
-#: Characters of one message line; a longer one loses its middle.
-MAX_LINE = 440
+#: Characters of one message (its line stays under 500 with the
+#: ``stripaero: error:`` prefix); a longer one loses its middle.
+MAX_LINE = 480
 
 # ECMA-48: CSI sequences (ESC [ ... final byte), other two-byte escapes, and
 # the C0/C1 controls with DEL; tab and line breaks are kept (one_line joins lines)

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ._text import shorten
 from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from .errors import GeometryError, PhotoOrderError
 from .interior import corrected_flight_direction
@@ -462,7 +463,7 @@ def control_degree_problems(
         if metres_inside and not degrees_inside:
             return []  # small metres near the CRS's origin, inside its area
         if not metres_inside:
-            where = f" and lies outside its area of use ({area.name.rstrip('.')})"
+            where = f" and lies outside its area of use ({shorten(area.name.rstrip('.'), 30)})"
     k = 0
     given = crs.text or crs.name
     return [
