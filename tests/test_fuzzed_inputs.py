@@ -38,7 +38,7 @@ def one_error(result, *pieces: str) -> str:
     assert len(lines) == 1, result.stderr[:2000]
     (line,) = lines
     assert line.startswith("stripaero: error: "), line
-    assert "unexpected" not in line, line
+    assert not line.startswith("stripaero: error: unexpected "), line
     assert len(line) < MAX_LINE_CHARS, len(line)
     for piece in pieces:
         assert piece in line, (piece, line)
@@ -105,7 +105,8 @@ def one_error_of(proc: subprocess.CompletedProcess[str], *pieces: str) -> str:
     assert proc.returncode == 1, (proc.returncode, proc.stderr[-2000:])
     lines = proc.stderr.splitlines()
     assert len(lines) == 1, proc.stderr[:2000]
-    assert lines[0].startswith("stripaero: error: ") and "unexpected" not in lines[0], lines[0]
+    assert lines[0].startswith("stripaero: error: "), lines[0]
+    assert not lines[0].startswith("stripaero: error: unexpected "), lines[0]
     assert len(lines[0]) < MAX_LINE_CHARS
     for piece in pieces:
         assert piece in lines[0], (piece, lines[0])

@@ -187,6 +187,12 @@ def read_csv(path: Path, columns: Sequence[ColumnSpec], named_by: str) -> CsvTab
     for name in header:
         if not name:
             raise ConfigError(f"{path}:{header_line}: empty column name in the header")
+        if clean(name) != name:
+            raise ConfigError(
+                f"{path}:{header_line}: column name '{shorten(name)}' (as read without them) "
+                "holds a control character (a NUL byte or a terminal escape sequence); retype "
+                "the header"
+            )
         if name.lower() not in canonical:
             allowed = ", ".join(c.name for c in columns)
             raise ConfigError(
