@@ -29,8 +29,6 @@ import os
 import random
 import re
 import shutil
-import subprocess
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -38,6 +36,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from _cli_process import cli_subprocess
 from strip_aerotri.cli.main import cli
 
 N_CASES = int(os.environ.get("STRIPAERO_FUZZ_CASES", "90"))
@@ -109,21 +108,21 @@ def toml_table(rng: random.Random, folder: Path) -> None:
         [
             "[blunders]\nalpha = " + rng.choice(["5e-324", "0.5", "1", "0.01", "1e-12"]),
             "[blunders]\naction = " + rng.choice(['"report"', '"off"', '"x"']),
-            "[adjustment]\nrefine = \"bundle\"",
+            '[adjustment]\nrefine = "bundle"',
             "[adjustment]\npolynomial = " + rng.choice(["0", "1", "2", "3", '"auto"', "4"]),
             "[adjustment]\nphoto_step = " + rng.choice(['"auto"', "2", "3", "0"]),
-            "[adjustment]\nmodels = \"independent\"",
+            '[adjustment]\nmodels = "independent"',
             "[adjustment]\nblock = " + rng.choice(['"strips"', '"models"']),
             "[report]\nmap_scale = " + rng.choice(["500", "1e308", "5e-324", "-1"]),
             "[distortion]\nk1 = " + rng.choice(["1e-5", "1e308", "-1e10"]),
-            "[[straight_line]]\npoints = [\"P0001\", \"P0002\", \"P0003\"]",
-            "[gnss]\nfile = \"control.csv\"",
+            '[[straight_line]]\npoints = ["P0001", "P0002", "P0003"]',
+            '[gnss]\nfile = "control.csv"',
             "[output]\ndirectory = " + rng.choice(['"."', '"out"', '".."', '"control.csv"']),
         ]
     )
     path = folder / "strip.toml"
     text = _text(path)
-    header, _, body = table.partition("\n")
+    header = table.partition("\n")[0]
     if header.startswith("[[") or header not in text:
         text = text + "\n" + table + "\n"
     else:  # into the table the project has already
@@ -206,7 +205,9 @@ def csv_columns(rng: random.Random, folder: Path) -> None:
     kind = rng.randrange(3)
     if kind == 0 and len(header) > 1:
         j = rng.randrange(len(header))
-        rows = [",".join(c for k, c in enumerate(r.split(",")) if k != j) if r else r for r in rows]
+        rows = [
+            ",".join(c for k, c in enumerate(r.split(",")) if k != j) if r else r for r in rows
+        ]
     elif kind == 1 and len(header) > 1:
         a, b = rng.sample(range(len(header)), 2)
         header[a], header[b] = header[b], header[a]
@@ -269,7 +270,9 @@ def bytes_level(rng: random.Random, folder: Path) -> None:
         data = data[: rng.randrange(len(data) + 1)]
     elif kind == 1:
         at = rng.randrange(len(data) + 1)
-        data = data[:at] + bytes(rng.randrange(256) for _ in range(rng.randrange(1, 9))) + data[at:]
+        data = (
+            data[:at] + bytes(rng.randrange(256) for _ in range(rng.randrange(1, 9))) + data[at:]
+        )
     elif kind == 2:
         data = b"\xef\xbb\xbf" + data
     elif kind == 3:
@@ -320,7 +323,9 @@ MUTATIONS: tuple[Mutation, ...] = (
 
 def _snapshot(folder: Path) -> dict[str, bytes]:
     return {
-        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+        str(p.relative_to(folder)): p.read_bytes()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
     }
 
 
@@ -410,19 +415,6 @@ def test_fuzzed_project(case, projects, tmp_path, request):
 # --------------------------------------------------------------------------- in a subprocess
 
 
-def _subprocess(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    code = "from strip_aerotri.cli.main import cli; cli()"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-    return subprocess.run(
-        [sys.executable, "-c", code, *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=MAX_SECONDS,
-        env=env,
-        check=False,
-    )
-
-
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes and devices are POSIX")
 @pytest.mark.parametrize(
     ("name", "kind"),
@@ -438,7 +430,7 @@ def test_fuzzed_file_kinds_in_a_subprocess(projects, tmp_path, name, kind):
     else:
         (folder / name).symlink_to("/dev/zero")
     for command in ("check", "run"):
-        proc = _subprocess(command, folder / "strip.toml")
+        proc = cli_subprocess(command, folder / "strip.toml", timeout=MAX_SECONDS)
         assert proc.returncode == 1, proc.stderr[-2000:]
         (line,) = proc.stderr.splitlines()
         assert line.startswith("stripaero: error: ") and "not a regular file" in line, line

@@ -13,13 +13,13 @@ import csv
 import io
 import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
+from _cli_process import cli_subprocess
 from strip_aerotri._text import MAX_ECHO, clean, shorten
 from strip_aerotri.cli.main import cli
 
@@ -85,20 +85,6 @@ def set_cell(path: Path, row: int, column: str, value: str) -> None:
     buffer = io.StringIO()
     csv.writer(buffer, lineterminator="\n").writerows(rows)
     path.write_text(buffer.getvalue(), encoding="utf-8")
-
-
-def cli_subprocess(*args: str | Path, timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
-    """``stripaero ARGS`` in a fresh interpreter (with this one's sys.path)."""
-    code = "from strip_aerotri.cli.main import cli; cli()"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-    return subprocess.run(
-        [sys.executable, "-c", code, *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        env=env,
-        check=False,
-    )
 
 
 def one_error_of(proc: subprocess.CompletedProcess[str], *pieces: str) -> str:
@@ -333,7 +319,11 @@ def test_alpha_beyond_its_range(film, line, key):
 
 @pytest.mark.parametrize("value", ["1e-320", "1.2e29", "11.0", "1e-7"])
 def test_image_sigma_beyond_its_range_in_strip_toml(film, value):
-    edit(film / "strip.toml", 'file = "image_points.csv"', f'file = "image_points.csv"\nsigma_mm = {value}')
+    edit(
+        film / "strip.toml",
+        'file = "image_points.csv"',
+        f'file = "image_points.csv"\nsigma_mm = {value}',
+    )
     both_fail(film, "[images] sigma_mm", "expected a number from 1e-06 to 10 mm")
 
 
@@ -349,7 +339,11 @@ def test_control_sigma_beyond_its_range(film):
 
 
 def test_a_sane_sigma_still_runs(film):
-    edit(film / "strip.toml", 'file = "image_points.csv"', 'file = "image_points.csv"\nsigma_mm = 0.004')
+    edit(
+        film / "strip.toml",
+        'file = "image_points.csv"',
+        'file = "image_points.csv"\nsigma_mm = 0.004',
+    )
     result = invoke("check", film / "strip.toml")
     assert result.exit_code == 0, result.output
 

@@ -16,11 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .._text import clean, shorten
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import ConfigError
-from .._text import clean, shorten
 from .schema import MAX_ID_LENGTH, ColumnSpec, check_bounds, suggest
-
 
 #: Largest CSV file read (bytes): far above any strip or block's tables (a
 #: 10 x 100 drone block's image points are about 8 MB), far below what would
@@ -81,7 +80,9 @@ def read_bytes(path: Path, what: str, limit: int = MAX_CSV_BYTES) -> bytes:
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
     if len(data) > limit:
-        raise ConfigError(f"{path}: {what} is larger than the {_size(limit)} a project's file may have")
+        raise ConfigError(
+            f"{path}: {what} is larger than the {_size(limit)} a project's file may have"
+        )
     return data
 
 
@@ -178,9 +179,9 @@ def read_csv(path: Path, columns: Sequence[ColumnSpec], named_by: str) -> CsvTab
     header = [name.strip() for name in _split_fields(path, kept[:1], numbers[:1])[0]]
     if len(header) == 1 and ";" in header[0]:
         raise ConfigError(
-            f"{path}:{header_line}: the header '{shorten(header[0])}' is separated by ';': the file must "
-            "be comma-separated (a spreadsheet set to a decimal comma writes ';'; save it as "
-            "CSV with ',' between columns and '.' as the decimal mark)"
+            f"{path}:{header_line}: the header '{shorten(header[0])}' is separated by ';': the "
+            "file must be comma-separated (a spreadsheet set to a decimal comma writes ';'; "
+            "save it as CSV with ',' between columns and '.' as the decimal mark)"
         )
     canonical = {c.name.lower(): c.name for c in columns}
     names: list[str] = []
@@ -288,7 +289,9 @@ def float_column(
         bad = ((values < low) | (values > high)) & ~empty
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
-            check_bounds(float(values[row]), spec.bounds, f"{table.where(row)}: column '{name}'", spec.unit)
+            check_bounds(
+                float(values[row]), spec.bounds, f"{table.where(row)}: column '{name}'", spec.unit
+            )
     return values, empty
 
 

@@ -670,7 +670,11 @@ GNSS_COLUMNS: tuple[ColumnSpec, ...] = (
         GROUND_SIGMA_BOUNDS_M,
     ),
     ColumnSpec(
-        "sigma_z", False, "m", "standard deviation of Z; empty: [gnss] sigma_z", GROUND_SIGMA_BOUNDS_M
+        "sigma_z",
+        False,
+        "m",
+        "standard deviation of Z; empty: [gnss] sigma_z",
+        GROUND_SIGMA_BOUNDS_M,
     ),
 )
 

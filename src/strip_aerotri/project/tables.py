@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import warnings as _warnings
 from collections.abc import Callable
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -389,7 +389,10 @@ def check_plausible_extent(crs: Any, table: CsvTable, xyz: FloatArray) -> None:
         geographic = crs is not None and crs.is_geographic
         if not geographic:
             rules.append(
-                (np.abs(xy).max(axis=1) > MAX_ABS_PROJECTED, f"X or Y beyond {MAX_ABS_PROJECTED:g}")
+                (
+                    np.abs(xy).max(axis=1) > MAX_ABS_PROJECTED,
+                    f"X or Y beyond {MAX_ABS_PROJECTED:g}",
+                )
             )
             plan = np.isfinite(xy).all(axis=1)
             if plan.sum() >= 3:
@@ -464,7 +467,9 @@ def _within_area(lonlat: FloatArray, area: Any) -> BoolArray:
     west, east = area.west - m, area.east + m
     with np.errstate(invalid="ignore"):
         in_lon = (
-            (lon >= west) & (lon <= east) if area.west <= area.east else (lon >= west) | (lon <= east)
+            (lon >= west) & (lon <= east)
+            if area.west <= area.east
+            else (lon >= west) | (lon <= east)
         )  # an area across the antimeridian
         inside = in_lon & (lat >= area.south - m) & (lat <= area.north + m)
     return np.asarray(inside, dtype=bool)

@@ -324,7 +324,9 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
     ax = fig.subplots()
     for k, spec in enumerate(result.specs):
         xy = plan(centres[result.photo_strip == k])
-        ax.plot(xy[:, 0], xy[:, 1], "o-", ms=3, lw=0.8, label=f"strip {shorten(spec.name, 40)} photos")
+        ax.plot(
+            xy[:, 0], xy[:, 1], "o-", ms=3, lw=0.8, label=f"strip {shorten(spec.name, 40)} photos"
+        )
     lookup = {pid: i for i, pid in enumerate(result.point_ids)}
     rows = np.asarray(result.control_index)
     index = np.array([lookup[result.control.point_ids[r]] for r in rows], dtype=np.intp)
