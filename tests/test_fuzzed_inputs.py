@@ -376,3 +376,16 @@ def test_shorten():
     assert shorten("x" * 1000, 30) == "xxxxxx…(989 characters)…xxxxx"
     assert clean("a\x1b[1;31mb\x1b]c\x00d\x7fe\tf\ng") == "abcde\tf\ng"
     assert shorten("\x1b[31m" + "y" * 500, 20).startswith("y")
+
+
+def test_the_option_rules_hold_the_ranges_for_the_library_too():
+    """The loader's ranges are the option rules of options.py (one place)."""
+    from strip_aerotri.options import RULES, BlunderOptions, OptionError
+
+    with pytest.raises(OptionError, match="alpha: expected a number from 1e-12 to 1"):
+        BlunderOptions(alpha=5e-324)
+    with pytest.raises(OptionError, match="sigma_mm: expected a number from 1e-06 to 10 mm"):
+        RULES[("images", "sigma_mm")](1.2e29)
+    with pytest.raises(OptionError, match="sigma_h_m: expected a number from 1e-06 to 1e"):
+        RULES[("control", "sigma_h_m")](1e-320)
+    assert RULES[("imu", "sigma_deg")](0.005) == 0.005

@@ -91,10 +91,10 @@ def test_a_section_without_control_is_named():
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"sections": 0}, "sections to be an integer >= 1"),
-        ({"sections": 2.0}, "sections to be an integer >= 1"),
-        ({"sections": True}, "sections to be an integer >= 1"),
-        ({"sections": 2, "polynomial": 0}, "with sections > 1"),
+        ({"sections": 0}, "sections: expected a positive integer, got the number 0"),
+        ({"sections": 2.0}, "sections: expected a positive integer, got the number 2.0"),
+        ({"sections": True}, "sections: expected a positive integer, got the boolean true"),
+        ({"sections": 2, "polynomial": 0}, "sections: 2 sections need a polynomial type 1"),
     ],
 )
 def test_ground_options_check_sections(kwargs, message):

@@ -532,12 +532,12 @@ def test_the_block_project_files_follow_the_format(tmp_path, flight):
 def test_write_project_adjustment_keys(tmp_path):
     block = _block(crs="local")
     block.write_project(
-        tmp_path, block="models", models="independent", polynomial=2, route="projected"
+        tmp_path, block="strips", models="independent", polynomial=2, route="projected"
     )
     with (tmp_path / "strip.toml").open("rb") as fh:
         doc = tomllib.load(fh)
     assert doc["adjustment"] == {
-        "block": "models",
+        "block": "strips",
         "models": "independent",
         "polynomial": 2,
         "route": "projected",
@@ -548,9 +548,11 @@ def test_write_project_adjustment_keys(tmp_path):
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"block": "bundle"}, "Expected `block` to be one of"),
-        ({"models": "free"}, "Expected `models` to be one of"),
-        ({"polynomial": 4}, "Expected `polynomial` to be one of"),
+        ({"block": "bundle"}, "block: invalid value 'bundle'"),
+        ({"models": "free"}, "models: invalid value 'free'"),
+        ({"polynomial": 4}, "polynomial: expected 0, 1, 2, 3"),
+        ({"polynomial": "auto", "block": "strips"}, "in a block the strips share the control"),
+        ({"polynomial": 2, "block": "models"}, 'with block = "models" every model'),
         ({"route": "geocentric"}, "needs a real CRS"),
     ],
 )

@@ -38,7 +38,7 @@ def exact_median(values: ArrayLike) -> float:
     return float(np.median(arr))
 
 
-def critical_value(n_tests: int, alpha: float = 0.001) -> float:
+def critical_value(n_tests: int, alpha: float) -> float:
     """Two-sided critical value of n normal tests at family-wise level alpha.
 
     ``Φ⁻¹(1 − alpha / (2 n))`` (Bonferroni); n < 1 is taken as 1.

@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from ._typing import ArrayLike, BoolArray, FloatArray, Int8Array, IntArray
-from .options import DEFAULT_LINE_WEIGHT
+from .options import DEFAULT_IMAGE_SIGMA_MM, DEFAULT_LINE_WEIGHT
 
 __all__ = [
     "ControlPoints",
@@ -78,7 +78,7 @@ class ImageObservations:
         principal_distance: float,
         *,
         photo_ids: ArrayLike | None = None,
-        sigma: ArrayLike | float = 0.005,
+        sigma: ArrayLike | float = DEFAULT_IMAGE_SIGMA_MM,
         source_line: ArrayLike | None = None,
     ) -> ImageObservations:
         """Build from one row per observation with string ids.

@@ -9,24 +9,42 @@ here, and the tests check that ``docs/project-file.md`` shows the same.
 String options are :class:`OptionEnum` members: they compare equal to their
 value (``Route.PROJECTED == "projected"``) and are created from a member or a
 case-insensitive string.  This module imports nothing heavy.
+
+Each option is defined here once: its default (a ``DEFAULT_*`` constant, the
+only place its literal is written; ``tests/test_options.py`` greps for it)
+and its rule (a ``check_*`` function, an enum, or a rule of
+:func:`adjustment_options` that ties keys together).  A rule raises
+:class:`OptionError` naming the key; the loader only adds the file and the
+table, and the library, the simulator's writer and ``stripaero check`` call
+the same rules.  A run's result carries the :class:`AdjustmentOptions` it ran
+with (``result.options``), and ``report.json`` writes them from there.
+
+Adding an option to ``[adjustment]``: its default and field on
+:class:`AdjustmentOptions`, its rule in ``_ADJUSTMENT_RULES`` (and in
+:func:`adjustment_options` if it depends on other keys), its key in
+``project/schema.py`` (type, unit, description for docs and messages), the
+stage that uses it, :func:`strip_aerotri.report.values.options_record` and
+docs/project-file.md.
 """
 
 from __future__ import annotations
 
+import functools
+import math
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import TYPE_CHECKING, Literal, Self
+from typing import Literal, Protocol, Self
 
 import numpy as np
 
 from ._stats import chi_critical_value, critical_value
-from ._typing import BoolArray, FloatArray
-
-if TYPE_CHECKING:
-    from .observations import ImageObservations
+from ._text import shorten
+from ._typing import BoolArray, FloatArray, IntArray
 
 __all__ = [
     "DEFAULT_ALPHA",
+    "DEFAULT_BLOCK_POLYNOMIAL",
     "DEFAULT_DIFFERENCE_TOLERANCE",
     "DEFAULT_GNSS_SIGMA_XY_M",
     "DEFAULT_GNSS_SIGMA_Z_M",
@@ -38,6 +56,7 @@ __all__ = [
     "DEFAULT_MIN_BASE_TO_HEIGHT",
     "DEFAULT_PHOTO_STEP",
     "DEFAULT_POLYNOMIAL",
+    "DEFAULT_RO_TOLERANCE",
     "DEFAULT_SCALE_TOLERANCE",
     "DEFAULT_SECTIONS",
     "DEFAULT_SIGMA_H_M",
@@ -57,13 +76,22 @@ __all__ = [
     "IntersectionMethod",
     "ModelFormation",
     "OptionEnum",
+    "OptionError",
     "Refine",
     "RelativeOrientationMethod",
     "ReportOptions",
     "Route",
     "ScaleTransfer",
     "StripOptions",
+    "adjustment_options",
+    "check_alpha",
+    "check_max_fraction",
+    "check_max_iterations",
+    "check_min_base_to_height",
+    "check_photo_step",
+    "check_polynomial",
     "check_sections",
+    "describe",
 ]
 
 # --------------------------------------------------------------------------- defaults
@@ -282,35 +310,222 @@ class FiducialTransform(OptionEnum):
     """6 parameters: shift, rotation, two scales, non-orthogonality (3 marks at least)."""
 
 
+# --------------------------------------------------------------------------- rules
+#
+# Each option's rule is one function here: it takes the value as given (a
+# TOML value, a Python value, a command-line value), returns it converted
+# and raises OptionError naming the key.  The loader turns an OptionError
+# into a ConfigError naming the file and ``[table] key``; the dataclasses
+# below call the same rules, so the library refuses what the project file
+# refuses, in the same words.
+
+
+class OptionError(ValueError):
+    """An option's value breaks its rule.
+
+    ``key`` is the option's key as written in the project file (``"alpha"``,
+    ``"polynomial"``); ``rule`` the broken rule in words ("expected ...");
+    ``str(error)`` is ``"key: rule"``.
+    """
+
+    def __init__(self, key: str, rule: str) -> None:
+        super().__init__(f"{key}: {rule}")
+        self.key = key
+        self.rule = rule
+
+
+def describe(value: object) -> str:
+    """A value as written in a project file, for messages (``the number 4``)."""
+    if isinstance(value, bool):
+        return f"the boolean {str(value).lower()}"
+    if isinstance(value, str):
+        return f'the string "{shorten(value)}"'
+    if isinstance(value, int | float | np.integer | np.floating):
+        return f"the number {shorten(repr(value))}"
+    if isinstance(value, list | tuple):
+        return "a list"
+    if isinstance(value, dict):
+        return "a table"
+    return f"a {type(value).__name__}"
+
+
+def _as_integer(value: object) -> int | None:
+    """``value`` as an int if it is an integer (not a bool), else None."""
+    if isinstance(value, int | np.integer) and not isinstance(value, bool):
+        return int(value)
+    return None
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+        value, bool
+    )
+
+
+def _positive_integer(key: str, value: object) -> int:
+    number = _as_integer(value)
+    if number is None or number < 1:
+        raise OptionError(key, f"expected a positive integer, got {describe(value)}")
+    return number
+
+
+def _positive_number(key: str, value: object) -> float:
+    if not _is_number(value):
+        raise OptionError(key, f"expected a positive number, got {describe(value)}")
+    number = float(value)  # type: ignore[arg-type]
+    if not math.isfinite(number) or number <= 0.0:
+        raise OptionError(key, f"expected a positive finite number, got {shorten(repr(value))}")
+    return number
+
+
+#: Sane ranges (inclusive) of the standard deviations of a project, in its
+#: key and in the CSV column that overrides it row by row: beyond them a
+#: value is a typing error, or breaks the arithmetic (a weight 1/sigma² that
+#: overflows, or a normal matrix that no longer inverts).  Image: a
+#: nanometre to a centimetre, far around the micrometres of film and sensors.
+IMAGE_SIGMA_RANGE_MM = (1e-6, 10.0)
+#: Ground (control, GNSS centres): a micrometre to a thousand kilometres.
+GROUND_SIGMA_RANGE_M = (1e-6, 1e6)
+#: Attitude (IMU): 1e-7 degree (a micro-radian is 6e-5) to a half turn.
+ANGLE_SIGMA_RANGE_DEG = (1e-7, 180.0)
+#: Least family-wise false-alarm probability: below it the Bonferroni level
+#: alpha / 2n of a large stage comes near the smallest float and the
+#: critical value is lost.
+MIN_ALPHA = 1e-12
+
+
+def check_range(key: str, value: object, bounds: tuple[float, float], unit: str = "") -> float:
+    """A positive number within ``bounds`` (inclusive), else an OptionError
+    naming ``key``, the range and the value."""
+    number = _positive_number(key, value)
+    low, high = bounds
+    if not low <= number <= high:
+        unit = f" {unit}" if unit else ""
+        raise OptionError(
+            key,
+            f"expected a number from {low:g} to {high:g}{unit}, got {number:g}{unit} (beyond "
+            "any sane value: a typing error?)",
+        )
+    return number
+
+
 def check_sections(sections: object) -> int:
-    """``sections`` as an int, ValueError unless it is an integer >= 1."""
-    if (
-        isinstance(sections, bool)
-        or not isinstance(sections, int | np.integer)
-        or int(sections) < 1
-    ):
-        raise ValueError(f"Expected sections to be an integer >= 1, got {sections!r}")
-    return int(sections)
+    """``sections``: an integer >= 1."""
+    return _positive_integer("sections", sections)
 
 
-def _check_polynomial(poly: object) -> int | Literal["auto"]:
-    if isinstance(poly, str):
-        if poly.strip().lower() != "auto":
-            raise ValueError(f"Expected polynomial 0, 1, 2, 3 or 'auto', got {poly!r}")
+def check_max_iterations(value: object) -> int:
+    """``max_iterations``: an integer >= 1."""
+    return _positive_integer("max_iterations", value)
+
+
+def check_polynomial(value: object) -> int | Literal["auto"]:
+    """``polynomial``: J(16)'s type 0, 1, 2, 3 or ``"auto"`` (any case)."""
+    if isinstance(value, str) and value.strip().lower() == "auto":
         return "auto"
-    if (
-        isinstance(poly, bool)
-        or not isinstance(poly, int | np.integer)
-        or int(poly) not in range(4)
-    ):
-        raise ValueError(f"Expected polynomial 0, 1, 2, 3 or 'auto', got {poly!r}")
-    return int(poly)
+    number = _as_integer(value)
+    if number is not None and 0 <= number <= 3:
+        return number
+    raise OptionError("polynomial", f'expected 0, 1, 2, 3 or "auto", got {describe(value)}')
 
 
-def _check_iterations(value: object) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or int(value) < 1:
-        raise ValueError(f"Expected max_iterations to be an integer >= 1, got {value!r}")
-    return int(value)
+def check_photo_step(value: object) -> int | Literal["auto"]:
+    """``photo_step``: an integer k >= 1 or ``"auto"`` (any case)."""
+    if isinstance(value, str) and value.strip().lower() == "auto":
+        return "auto"
+    number = _as_integer(value)
+    if number is not None and number >= 1:
+        return number
+    raise OptionError("photo_step", f'expected a positive integer or "auto", got {describe(value)}')
+
+
+def check_min_base_to_height(value: object) -> float:
+    """``min_base_to_height``: a positive number."""
+    return _positive_number("min_base_to_height", value)
+
+
+def check_alpha(value: object) -> float:
+    """``alpha``: a probability, :data:`MIN_ALPHA` <= alpha < 1."""
+    alpha = check_range("alpha", value, (MIN_ALPHA, 1.0))
+    if not alpha < 1.0:
+        raise OptionError("alpha", f"expected a probability below 1, got {alpha!r}")
+    return alpha
+
+
+def check_max_fraction(value: object) -> float:
+    """``max_fraction``: 0 < fraction <= 1."""
+    fraction = _positive_number("max_fraction", value)
+    if fraction > 1.0:
+        raise OptionError("max_fraction", f"expected at most 1, got {fraction!r}")
+    return fraction
+
+
+def check_critical_value(stage: str, value: object) -> float:
+    """A stage's critical |w| (``[blunders] <stage>``): a positive number."""
+    if stage not in STAGES:
+        raise OptionError(stage, f"unknown stage {stage!r}; valid: {', '.join(STAGES)}")
+    return _positive_number(stage, value)
+
+
+def check_exclude_observations(items: object) -> tuple[tuple[str, str], ...]:
+    """``exclude_observations``: ``"photo/point"`` strings or (photo, point) pairs."""
+    pairs = []
+    for item in items if isinstance(items, list | tuple) else [items]:
+        if isinstance(item, tuple) and len(item) == 2:
+            photo, point = str(item[0]), str(item[1])
+        else:
+            photo, sep, point = str(item).partition("/")
+            if not sep:
+                photo = ""
+        if not photo or not point:
+            raise OptionError("exclude_observations", f'expected "photo/point", got {item!r}')
+        pairs.append((photo, point))
+    return tuple(pairs)
+
+
+#: The rule of every option of ``[adjustment]`` and ``[blunders]`` that is not
+#: a choice of an enum (those are :meth:`OptionEnum.create`), by (table, key).
+RULES: dict[tuple[str, str], Callable[[object], object]] = {
+    ("adjustment", "polynomial"): check_polynomial,
+    ("adjustment", "sections"): check_sections,
+    ("adjustment", "max_iterations"): check_max_iterations,
+    ("adjustment", "photo_step"): check_photo_step,
+    ("adjustment", "min_base_to_height"): check_min_base_to_height,
+    ("blunders", "alpha"): check_alpha,
+    ("blunders", "max_fraction"): check_max_fraction,
+    **{("blunders", stage): functools.partial(check_critical_value, stage) for stage in STAGES},
+    ("images", "sigma_mm"): functools.partial(
+        check_range, "sigma_mm", bounds=IMAGE_SIGMA_RANGE_MM, unit="mm"
+    ),
+    **{
+        (table, key): functools.partial(check_range, key, bounds=GROUND_SIGMA_RANGE_M, unit="m")
+        for table, key in (
+            ("control", "sigma_xy_m"),
+            ("control", "sigma_h_m"),
+            ("gnss", "sigma_xy"),
+            ("gnss", "sigma_z"),
+        )
+    },
+    ("imu", "sigma_deg"): functools.partial(
+        check_range, "sigma_deg", bounds=ANGLE_SIGMA_RANGE_DEG, unit="deg"
+    ),
+}
+
+
+_MODELS_TAKE_NO = (
+    'applies to block = "strips" (J\'s polynomials); with block = "models" every model has its '
+    'own similarity. Remove {key} or set block = "strips"'
+)
+
+
+def _sections_with(sections: int, polynomial: int | Literal["auto"]) -> int:
+    """Sections need a polynomial to join (type 0 has nothing to join)."""
+    if sections > 1 and polynomial == 0:
+        raise OptionError(
+            "sections",
+            f'{sections} sections need a polynomial type 1, 2, 3 or "auto", got polynomial = 0',
+        )
+    return sections
 
 
 # --------------------------------------------------------------------------- stages
@@ -371,7 +586,7 @@ class StripOptions:
         object.__setattr__(self, "models", ModelFormation.create(self.models))
         object.__setattr__(self, "intersection", IntersectionMethod.create(self.intersection))
         object.__setattr__(self, "scale_transfer", ScaleTransfer.create(self.scale_transfer))
-        object.__setattr__(self, "max_iterations", _check_iterations(self.max_iterations))
+        object.__setattr__(self, "max_iterations", check_max_iterations(self.max_iterations))
         if self.first_base_length is not None and not (
             np.isfinite(self.first_base_length) and self.first_base_length > 0
         ):
@@ -422,18 +637,29 @@ class GroundOptions:
         if construction is Construction.MODELS and (
             self.polynomial not in (None, 0) or self.sections != DEFAULT_SECTIONS
         ):
-            raise ValueError(
-                "Expected no polynomial and no sections with construction 'models' (every "
-                "model has its own similarity); use construction 'strips' for J's polynomials"
-            )
-        poly = DEFAULT_POLYNOMIAL if self.polynomial is None else self.polynomial
-        poly = _check_polynomial(poly)
+            key = "polynomial" if self.polynomial not in (None, 0) else "sections"
+            raise OptionError(key, _MODELS_TAKE_NO.format(key=key))
+        poly = check_polynomial(DEFAULT_POLYNOMIAL if self.polynomial is None else self.polynomial)
         object.__setattr__(self, "polynomial", poly)
-        sections = check_sections(self.sections)
-        if sections > 1 and poly == 0:
-            raise ValueError("Expected polynomial 1, 2, 3 or 'auto' with sections > 1, got 0")
+        sections = _sections_with(check_sections(self.sections), poly)
         object.__setattr__(self, "sections", sections)
-        object.__setattr__(self, "max_iterations", _check_iterations(self.max_iterations))
+        object.__setattr__(self, "max_iterations", check_max_iterations(self.max_iterations))
+
+
+class _Observed(Protocol):
+    """What :meth:`BlunderOptions.excluded` reads of the image observations
+    (:class:`strip_aerotri.observations.ImageObservations`)."""
+
+    @property
+    def n_points(self) -> int: ...
+    @property
+    def point_ids(self) -> tuple[str, ...]: ...
+    @property
+    def photo_ids(self) -> tuple[str, ...]: ...
+    @property
+    def point(self) -> IntArray: ...
+    @property
+    def photo(self) -> IntArray: ...
 
 
 @dataclass(frozen=True)
@@ -469,21 +695,17 @@ class BlunderOptions:
     exclude_observations: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
-        try:
-            object.__setattr__(self, "action", BlunderAction.create(self.action))
-        except ValueError:
-            raise ValueError(
-                f"Expected action 'reject', 'report' or 'off', got {self.action!r}"
-            ) from None
-        if not 0.0 < float(self.alpha) < 1.0:
-            raise ValueError(f"Expected 0 < alpha < 1, got {self.alpha!r}")
-        for stage, value in self.critical_values.items():
-            if stage not in STAGES:
-                raise ValueError(f"Unknown stage {stage!r}; valid: {', '.join(STAGES)}")
-            if not float(value) > 0:
-                raise ValueError(f"Critical value of {stage!r} must be > 0, got {value!r}")
-        if not 0.0 < float(self.max_fraction) <= 1.0:
-            raise ValueError(f"Expected 0 < max_fraction <= 1, got {self.max_fraction!r}")
+        object.__setattr__(self, "action", BlunderAction.create(self.action))
+        object.__setattr__(self, "alpha", check_alpha(self.alpha))
+        object.__setattr__(
+            self,
+            "critical_values",
+            {s: check_critical_value(s, v) for s, v in self.critical_values.items()},
+        )
+        object.__setattr__(self, "max_fraction", check_max_fraction(self.max_fraction))
+        object.__setattr__(
+            self, "exclude_observations", check_exclude_observations(self.exclude_observations)
+        )
 
     @property
     def testing(self) -> bool:
@@ -495,7 +717,7 @@ class BlunderOptions:
         """Whether failing observations are rejected."""
         return self.action is BlunderAction.REJECT
 
-    def excluded(self, observations: ImageObservations) -> tuple[BoolArray, BoolArray]:
+    def excluded(self, observations: _Observed) -> tuple[BoolArray, BoolArray]:
         """The user's exclusions as masks: points (P,) of ``exclude_points``
         and observations (K,) of those points or of ``exclude_observations``
         (ids not in the observations are ignored)."""
@@ -573,6 +795,18 @@ class AdjustmentOptions:
     block: Construction = Construction.MODELS
     models: ModelFormation = ModelFormation.DEPENDENT
 
+    def __post_init__(self) -> None:
+        for key, value in vars(self).items():
+            object.__setattr__(self, key, _adjustment_value(key, value))
+        _sections_with(self.sections, self.polynomial)
+
+    @property
+    def allow_breaks(self) -> bool:
+        """Whether a model sharing no tie point with the one before is a break
+        (:class:`StripOptions`): every model transformed on its own
+        (``block = "models"``) takes it from its own control."""
+        return self.block is Construction.MODELS
+
     def strip_options(self) -> StripOptions:
         """The options of strip formation."""
         return StripOptions(
@@ -580,10 +814,36 @@ class AdjustmentOptions:
             intersection=self.intersection,
             scale_transfer=self.scale_transfer,
             max_iterations=self.max_iterations,
-            # every model transformed on its own takes a model without tie
-            # points to the one before from its own control
-            allow_breaks=self.block is Construction.MODELS,
+            allow_breaks=self.allow_breaks,
             models=self.models,
+        )
+
+    @classmethod
+    def of_stages(
+        cls,
+        strip: StripOptions,
+        ground: GroundOptions,
+        *,
+        route: Route | str,
+        photo_step: int | Literal["auto"] = DEFAULT_PHOTO_STEP,
+        min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT,
+        refine: Refine | str = Refine.NONE,
+    ) -> AdjustmentOptions:
+        """The options of a run given as the stages' options (the library's
+        :func:`~strip_aerotri.pipeline.triangulate` call)."""
+        return cls(
+            route=Route.create(route),
+            polynomial=DEFAULT_POLYNOMIAL if ground.polynomial is None else ground.polynomial,
+            sections=ground.sections,
+            relative_orientation=strip.relative_orientation,
+            intersection=strip.intersection,
+            scale_transfer=strip.scale_transfer,
+            max_iterations=strip.max_iterations,
+            photo_step=photo_step,
+            min_base_to_height=min_base_to_height,
+            refine=Refine.create(refine),
+            block=Construction.MODELS if ground.construction is None else ground.construction,
+            models=strip.models,
         )
 
     def ground_options(self) -> GroundOptions:
@@ -596,6 +856,121 @@ class AdjustmentOptions:
             construction=self.block,
             max_iterations=self.max_iterations,
         )
+
+
+_ADJUSTMENT_RULES: dict[str, Callable[[object], object]] = {
+    "route": Route.create,
+    "polynomial": check_polynomial,
+    "sections": check_sections,
+    "relative_orientation": RelativeOrientationMethod.create,
+    "intersection": IntersectionMethod.create,
+    "scale_transfer": ScaleTransfer.create,
+    "max_iterations": check_max_iterations,
+    "photo_step": check_photo_step,
+    "min_base_to_height": check_min_base_to_height,
+    "refine": Refine.create,
+    "block": Construction.create,
+    "models": ModelFormation.create,
+}
+
+
+def _adjustment_value(key: str, value: object) -> object:
+    """One ``[adjustment]`` value converted by its rule (OptionError naming ``key``)."""
+    rule = _ADJUSTMENT_RULES.get(key)
+    if rule is None:
+        raise OptionError(key, f"unknown option; valid: {', '.join(_ADJUSTMENT_RULES)}")
+    try:
+        return rule(value)
+    except OptionError:
+        raise
+    except ValueError as exc:
+        raise OptionError(key, str(exc)) from None
+
+
+def adjustment_options(
+    given: Mapping[str, object], *, route: Route | str | None = None, block: bool = False
+) -> AdjustmentOptions:
+    """The options of ``[adjustment]`` from the keys a project gives.
+
+    Every value is checked by its option's rule, then the rules that tie
+    keys together: sections need a polynomial; independent models are not
+    oriented by ``"dependent"``; ``block`` defaults to ``"models"``, or to
+    ``"strips"`` when one strip names ``polynomial`` or ``sections``;
+    ``polynomial`` and ``sections`` apply to ``block = "strips"`` only; and
+    a block of strips (``block=True``) takes no sections, no ``"auto"``
+    polynomial (its default is :data:`DEFAULT_BLOCK_POLYNOMIAL`) and no
+    photo step.
+
+    Parameters
+    ----------
+    given : mapping
+        The keys given (absent keys take their default), as written or
+        already converted.
+    route : Route or str, optional
+        The route resolved for the project's CRS; overrides ``given``.
+    block : bool
+        Whether the project is a block of ``[[strips]]``.
+
+    Raises
+    ------
+    OptionError
+        On the first rule broken; its ``key`` names the key to mend.
+    """
+    values = {key: _adjustment_value(key, value) for key, value in given.items()}
+    named = [key for key in ("polynomial", "sections") if key in values]
+    polynomial = values.get("polynomial", DEFAULT_POLYNOMIAL)
+    sections = _sections_with(values.get("sections", DEFAULT_SECTIONS), polynomial)  # type: ignore[arg-type]
+    models = values.get("models", ModelFormation.DEPENDENT)
+    if (
+        models is ModelFormation.INDEPENDENT
+        and values.get("relative_orientation") is RelativeOrientationMethod.DEPENDENT
+    ):
+        raise OptionError(
+            "relative_orientation",
+            '"dependent" orients each pair to the previous photo, which independent models do '
+            'not; with models = "independent" every pair is oriented on its own in B\'s base '
+            'system: remove relative_orientation or set models = "dependent"',
+        )
+    default = Construction.STRIPS if named and not block else Construction.MODELS
+    construction = values.get("block", default)
+    if block:
+        polynomial = _block_polynomial(values, named, construction)  # type: ignore[arg-type]
+    elif construction is Construction.MODELS and named:
+        raise OptionError(named[0], _MODELS_TAKE_NO.format(key=named[0]))
+    if route is not None:
+        values["route"] = route
+    values.update(polynomial=polynomial, sections=sections, block=construction)
+    return AdjustmentOptions(**values)  # type: ignore[arg-type]
+
+
+def _block_polynomial(
+    values: Mapping[str, object], named: Collection[str], construction: Construction
+) -> int:
+    """The type of every strip's own polynomial in a block (0 with
+    ``block = "models"``), and the keys a block refuses."""
+    if "sections" in named:
+        raise OptionError(
+            "sections",
+            'a block has no sections (with block = "strips" every strip has one polynomial); '
+            "remove it",
+        )
+    if construction is Construction.MODELS and named:
+        raise OptionError(
+            "polynomial",
+            'applies to block = "strips" (every strip its own polynomial); with block = '
+            '"models" every model has its own similarity. Remove polynomial or set block = '
+            '"strips"',
+        )
+    polynomial = values.get("polynomial", DEFAULT_BLOCK_POLYNOMIAL)
+    if polynomial == "auto":
+        raise OptionError(
+            "polynomial",
+            "\"auto\" chooses a type from one strip's own control, and in a block the strips "
+            f"share the control: give 0, 1, 2 or 3 (default {DEFAULT_BLOCK_POLYNOMIAL})",
+        )
+    if values.get("photo_step", DEFAULT_PHOTO_STEP) != DEFAULT_PHOTO_STEP:
+        raise OptionError("photo_step", "a block forms its models on every photo; remove it")
+    return 0 if construction is Construction.MODELS else int(polynomial)  # type: ignore[call-overload]
 
 
 @dataclass(frozen=True)

@@ -29,8 +29,11 @@ from .observations import (
     StripSpec,
 )
 from .options import (
+    DEFAULT_BLOCK_POLYNOMIAL,
     DEFAULT_MAX_ITERATIONS,
     DEFAULT_MIN_BASE_TO_HEIGHT,
+    DEFAULT_PHOTO_STEP,
+    AdjustmentOptions,
     BlunderOptions,
     Construction,
     GroundOptions,
@@ -39,12 +42,45 @@ from .options import (
     StripOptions,
 )
 from .plausibility import control_degree_problems, control_problems
-from .results import AccuracyStatistics, BlockResult, StripResult
+from .results import AccuracyStatistics, BlockResult, StripModel, StripResult
 from .strip.densify import form_strip_stepped
 
-__all__ = ["AccuracyStatistics", "Progress", "StripResult", "triangulate", "triangulate_block"]
+__all__ = [
+    "AccuracyStatistics",
+    "Progress",
+    "StripResult",
+    "form_strip_of",
+    "triangulate",
+    "triangulate_block",
+]
 
 Progress = Callable[[str], None]
+
+
+def form_strip_of(
+    observations: ImageObservations,
+    options: AdjustmentOptions,
+    *,
+    strip_options: StripOptions | None = None,
+    blunders: BlunderOptions | None = None,
+) -> StripModel:
+    """The strip formed as a run of ``options`` forms it: the photo step, and
+    breaks allowed where every model is transformed on its own
+    (:attr:`AdjustmentOptions.allow_breaks`); ``strip_options`` (default:
+    ``options.strip_options()``) may set more (the first photo's pose).
+    ``stripaero check`` forms the strip with it too."""
+    strip_options = (
+        options.strip_options()
+        if strip_options is None
+        else dataclasses.replace(strip_options, allow_breaks=options.allow_breaks)
+    )
+    return form_strip_stepped(
+        observations,
+        strip_options,
+        photo_step=options.photo_step,
+        min_base_to_height=options.min_base_to_height,
+        blunders=blunders,
+    )
 
 
 def triangulate(
@@ -53,10 +89,11 @@ def triangulate(
     crs: GroundCRS | str,
     *,
     lines: Sequence[LineSpec] = (),
+    options: AdjustmentOptions | None = None,
     strip_options: StripOptions | None = None,
     ground_options: GroundOptions | None = None,
     blunders: BlunderOptions | None = None,
-    photo_step: int | Literal["auto"] = 1,
+    photo_step: int | Literal["auto"] = DEFAULT_PHOTO_STEP,
     min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT,
     refine: Refine | str = Refine.NONE,
     gnss: Any = None,
@@ -77,6 +114,12 @@ def triangulate(
         Control CRS (any pyproj CRS text, or ``"local"``).
     lines : sequence of LineSpec
         Straight-line conditions, J(18).
+    options : AdjustmentOptions, optional
+        Every option of the run (a project's ``[adjustment]``); then
+        ``ground_options``, ``photo_step``, ``min_base_to_height`` and
+        ``refine`` are taken from it and must not be given, and
+        ``strip_options``, if given, only adds what ``options`` does not hold
+        (the first photo's pose).
     strip_options : StripOptions
     ground_options : GroundOptions
     blunders : BlunderOptions, optional
@@ -105,11 +148,28 @@ def triangulate(
     """
     say = progress or (lambda message: None)
     timings: dict[str, float] = {}
-    ground_options = ground_options or GroundOptions()
-    if ground_options.construction is Construction.MODELS:
-        # every model transformed on its own: a model without tie points to the
-        # one before is a break the ground stage can take (from control)
-        strip_options = dataclasses.replace(strip_options or StripOptions(), allow_breaks=True)
+    if options is None:
+        ground_options = ground_options or GroundOptions()
+        options = AdjustmentOptions.of_stages(
+            strip_options or StripOptions(),
+            ground_options,
+            route=ground_options.route or Route.GEOCENTRIC,
+            photo_step=photo_step,
+            min_base_to_height=min_base_to_height,
+            refine=refine,
+        )
+    elif (
+        ground_options is not None
+        or photo_step != DEFAULT_PHOTO_STEP
+        or min_base_to_height != DEFAULT_MIN_BASE_TO_HEIGHT
+        or refine != Refine.NONE
+    ):
+        raise ValueError(
+            "Expected either `options` or `ground_options`, `photo_step`, `min_base_to_height` "
+            "and `refine`, not both"
+        )
+    else:
+        ground_options = options.ground_options()
     t0 = time.perf_counter()
     mirrored = control_problems(observations, control, crs, file=control_name)
     if mirrored:
@@ -118,12 +178,8 @@ def triangulate(
         f"forming the strip: {observations.n_photos} photos, "
         f"{len(observations.photo)} observations"
     )
-    strip = form_strip_stepped(
-        observations,
-        strip_options,
-        photo_step=photo_step,
-        min_base_to_height=min_base_to_height,
-        blunders=blunders,
+    strip = form_strip_of(
+        observations, options, strip_options=strip_options, blunders=blunders
     )
     timings["strip_formation"] = time.perf_counter() - t0
     t1 = time.perf_counter()
@@ -177,8 +233,10 @@ def triangulate(
         check_statistics=AccuracyStatistics.from_residuals(resid[ground.is_check]),
         warnings=tuple(notes),
         timings=timings,
+        # the options as run: the route taken, the photo step chosen
+        options=dataclasses.replace(options, route=ground.route, photo_step=strip.photo_step),
     )
-    if Refine.create(refine) is Refine.BUNDLE:
+    if options.refine is Refine.BUNDLE:
         from .bundle.refine import refine_bundle  # refine imports this module
 
         say("bundle refinement")
@@ -205,6 +263,7 @@ def triangulate_block(
     crs: GroundCRS | str,
     strips: Sequence[StripSpec],
     *,
+    options: AdjustmentOptions | None = None,
     strip_options: StripOptions | None = None,
     construction: Construction | str = Construction.MODELS,
     route: Route | str | None = None,
@@ -221,32 +280,65 @@ def triangulate_block(
     """Form every strip of a block and transform them all at once
     (:func:`strip_aerotri.block.strips.adjust_block`); control given in
     degrees under a projected CRS stops it first
-    (:func:`strip_aerotri.plausibility.control_degree_problems`)."""
+    (:func:`strip_aerotri.plausibility.control_degree_problems`).
+
+    ``options`` (a project's ``[adjustment]``, checked by
+    :func:`strip_aerotri.options.adjustment_options` with ``block=True``)
+    gives every option at once; then ``construction``, ``route``,
+    ``max_iterations``, ``refine`` and ``polynomial`` must not be given.
+    The result carries the options it ran with.
+    """
     from .block.strips import adjust_block
 
+    if options is None:
+        construction = Construction.create(construction)
+        options = AdjustmentOptions.of_stages(
+            strip_options or StripOptions(max_iterations=max_iterations),
+            GroundOptions(construction=construction, max_iterations=max_iterations),
+            route=Route.GEOCENTRIC if route is None else route,
+            refine=refine,
+        )
+        block_polynomial = DEFAULT_BLOCK_POLYNOMIAL if polynomial is None else polynomial
+        options = dataclasses.replace(
+            options,
+            polynomial=block_polynomial if construction is Construction.STRIPS else 0,
+        )
+    elif (
+        construction != Construction.MODELS
+        or route is not None
+        or max_iterations != DEFAULT_MAX_ITERATIONS
+        or refine != Refine.NONE
+        or polynomial is not None
+    ):
+        raise ValueError(
+            "Expected either `options` or `construction`, `route`, `max_iterations`, `refine` "
+            "and `polynomial`, not both"
+        )
+    else:
+        route = options.route
     degrees = control_degree_problems(control, crs, file=control_name)
     if degrees:
         raise GeometryError(degrees[0])
     if progress is not None:
         progress(
             f"forming {len(strips)} strips and transforming the block "
-            f"({Construction.create(construction).value})"
+            f"({options.block.value})"
         )
     result = adjust_block(
         observations,
         control,
         crs,
         strips,
-        strip_options=strip_options,
-        construction=construction,
+        strip_options=options.strip_options() if strip_options is None else strip_options,
+        construction=options.block,
         route=route,
         blunders=blunders,
-        max_iterations=max_iterations,
-        refine=Refine.create(refine) is Refine.BUNDLE,
+        max_iterations=options.max_iterations,
+        refine=options.refine is Refine.BUNDLE,
         gnss=gnss,
         imu=imu,
-        polynomial=polynomial,
+        polynomial=int(options.polynomial),
     )
-    if warnings:
-        result = dataclasses.replace(result, warnings=tuple(warnings) + result.warnings)
-    return result
+    return dataclasses.replace(
+        result, warnings=tuple(warnings) + result.warnings, options=options
+    )

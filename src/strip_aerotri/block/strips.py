@@ -51,6 +51,7 @@ from ..observations import (
 )
 from ..options import (
     DEFAULT_BLOCK_POLYNOMIAL,
+    DEFAULT_MAX_ITERATIONS,
     BlunderAction,
     BlunderOptions,
     Construction,
@@ -112,7 +113,7 @@ def adjust_block(
     construction: Construction | str = Construction.MODELS,
     route: Route | str | None = None,
     blunders: BlunderOptions | None = None,
-    max_iterations: int = 50,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
     refine: bool = False,
     gnss: GnssCentres | None = None,
     imu: ImuAttitudes | None = None,

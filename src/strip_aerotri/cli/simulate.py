@@ -350,18 +350,17 @@ def simulate(
 def _write(sim: SimulatedStrip | SimulatedBlock, out: Path, polynomial: str | None) -> Path:
     """The project files; a block's polynomials are every strip's own
     (``block = "strips"``), and "auto" is for one strip."""
+    from ..options import OptionError
     from ..simulate import SimulatedBlock
 
     poly: int | str | None = (
         None if polynomial is None else polynomial if polynomial == "auto" else int(polynomial)
     )
-    if isinstance(sim, SimulatedBlock):
-        if poly == "auto":
-            raise click.BadParameter(
-                "\"auto\" chooses a type from one strip's control, not a block's: give 0-3",
-                param_hint="--polynomial",
-            )
-        return sim.write_project(
-            out, polynomial=poly, block="models" if poly is None else "strips"
-        )
-    return sim.write_project(out, polynomial=poly)
+    try:
+        if isinstance(sim, SimulatedBlock):
+            # a block's polynomials are every strip's own: block = "strips"
+            block = "models" if poly is None else "strips"
+            return sim.write_project(out, polynomial=poly, block=block)
+        return sim.write_project(out, polynomial=poly)
+    except OptionError as exc:  # the loader's rule, e.g. "auto" in a block
+        raise click.BadParameter(exc.rule, param_hint="--polynomial") from None

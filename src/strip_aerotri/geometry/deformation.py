@@ -57,7 +57,7 @@ import numpy as np
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import GeometryError, StripAerotriWarning
 from ..observations import LineSpec
-from ..options import check_sections
+from ..options import DEFAULT_LINE_WEIGHT, DEFAULT_SECTIONS, check_sections
 from ._banded import BandedNormals
 from .similarity import (
     RowSupport,
@@ -107,7 +107,7 @@ def _check_kind(kind: object) -> int:
     return int(kind)
 
 
-def n_terms(kind: int, sections: int = 1) -> int:
+def n_terms(kind: int, sections: int = DEFAULT_SECTIONS) -> int:
     """Number of terms per coordinate of a J(16) polynomial type: 0, 4, 5 or 6
     for one section; ``degree + 2 S + 1`` over S sections (module docstring)."""
     k = _check_kind(kind)
@@ -347,7 +347,7 @@ def _section_support(
     return RowSupport(index, value, n_f + breakpoints.size)
 
 
-def term_names(kind: int, sections: int = 1) -> tuple[str, ...]:
+def term_names(kind: int, sections: int = DEFAULT_SECTIONS) -> tuple[str, ...]:
     """Names of the design columns: J's ``1, X, Y, XY, X^2, X^3`` for one
     section, ``f0 .. f(n-1)`` (along-strip B-spline) and ``Y·g0 .. Y·gS``
     (Y times the piecewise-linear basis) for several."""
@@ -399,7 +399,7 @@ class StraightLine:
 
     point_ids: tuple[str, ...]
     xyz: FloatArray
-    weight: float = 100.0
+    weight: float = DEFAULT_LINE_WEIGHT
     name: str = "line"
 
     def __post_init__(self) -> None:
@@ -695,7 +695,7 @@ def fit_deformation(
     sigma_z: ArrayLike | None = None,
     lines: Sequence[StraightLine] = (),
     point_ids: Sequence[str] | None = None,
-    sections: int = 1,
+    sections: int = DEFAULT_SECTIONS,
 ) -> DeformationResult:
     """Fit the J(16) deformation polynomials by weighted least squares.
 
@@ -1261,7 +1261,7 @@ def select_kind_auto(
     kinds: Sequence[int] = (0, 1, 2, 3),
     min_redundancy: int = 2,
     confidence: float = 0.95,
-    sections: int = 1,
+    sections: int = DEFAULT_SECTIONS,
 ) -> KindSelection:
     """Choose the polynomial type ("auto"), as a photogrammetrist would.
 

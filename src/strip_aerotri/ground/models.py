@@ -200,7 +200,6 @@ def _prepare(
             options=GroundOptions(
                 route=options.route,
                 polynomial=0,
-                sections=1,
                 max_iterations=options.max_iterations,
             ),
             blunders=BlunderOptions(action=BlunderAction.OFF),

@@ -45,6 +45,7 @@ from ..geometry.similarity import (
     control_count_problems,
     cross_tilt,
 )
+from ..options import DEFAULT_PHOTO_STEP
 from ..plausibility import control_problems
 from ..strip.chaining import pair_rows
 from ..strip.relative import pair_count_problems
@@ -258,8 +259,8 @@ def _check_pairs(rep: CheckReport, project: Project) -> _PairFacts:
     n_photos = obs.n_photos
     # Models on every k-th photo with [adjustment] photo_step = k (densify); "auto"
     # chooses k from a first relative orientation, so it is checked as k = 1.
-    step = getattr(project.adjustment, "photo_step", 1)
-    step = step if isinstance(step, int) and step > 1 else 1
+    chosen = project.adjustment.photo_step
+    step = chosen if isinstance(chosen, int) else DEFAULT_PHOTO_STEP
     if step > 1:
         from ..strip.densify import model_photo_index
 
@@ -396,17 +397,11 @@ def _check_formation(rep: CheckReport, project: Project, strip: str | None = Non
     # photos in flight order, scale transfer), when the counts allow it.
     if not rep.problems:
         from ..errors import FlightAxisError, PhotoOrderError
-        from ..strip.densify import form_strip_stepped
-        from .run import explain, project_options
+        from ..pipeline import form_strip_of
+        from .run import explain
 
         try:
-            form_strip_stepped(
-                obs,
-                project_options(project)[0],
-                photo_step=getattr(project.adjustment, "photo_step", 1),
-                min_base_to_height=getattr(project.adjustment, "min_base_to_height", 0.3),
-                blunders=project.blunders,
-            )
+            form_strip_of(obs, project.adjustment, blunders=project.blunders)
         except PhotoOrderError as exc:
             # the order is the project file's ([strip] or [[strips]] photos)
             rep.problems.append(f"{project.path}: {_strip_free(explain(project, exc, strip))}")
@@ -445,7 +440,7 @@ def _check_polynomial(
     # its own similarity).
     kind = project.adjustment.polynomial
     sections = project.adjustment.sections
-    strips = str(getattr(getattr(project.adjustment, "block", None), "value", "strips"))
+    strips = project.adjustment.block.value
     if strips == "strips" and kind != "auto" and n_plan >= 2 and n_height >= 3:
         where = (
             f" ([adjustment] polynomial{' and sections' if sections > 1 else ''} in "
@@ -476,7 +471,7 @@ def _summarize(
     kind = project.adjustment.polynomial
     sections = project.adjustment.sections
     in_sections = f" in {sections} sections" if sections > 1 else ""
-    strips = str(getattr(getattr(project.adjustment, "block", None), "value", "strips"))
+    strips = project.adjustment.block.value
     kinds = [k.value for k in ctrl.kind]
     by_kind = ", ".join(f"{kinds.count(k)} {k}" for k in ("full", "plan", "height", "check"))
     tie_text = (

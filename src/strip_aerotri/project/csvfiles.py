@@ -19,7 +19,8 @@ import numpy as np
 from .._text import clean, shorten
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import ConfigError
-from .schema import MAX_ID_LENGTH, ColumnSpec, check_bounds, suggest
+from ..options import OptionError, check_range
+from .schema import MAX_ID_LENGTH, ColumnSpec, suggest
 
 #: Largest CSV file read (bytes): far above any strip or block's tables (a
 #: 10 x 100 drone block's image points are about 8 MB), far below what would
@@ -289,9 +290,10 @@ def float_column(
         bad = ((values < low) | (values > high)) & ~empty
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
-            check_bounds(
-                float(values[row]), spec.bounds, f"{table.where(row)}: column '{name}'", spec.unit
-            )
+            try:
+                check_range(name, float(values[row]), spec.bounds, spec.unit)
+            except OptionError as exc:
+                raise ConfigError(f"{table.where(row)}: column '{name}': {exc.rule}") from None
     return values, empty
 
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import re
 import tomllib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
@@ -32,17 +32,17 @@ from ..observations import (
     StripSpec,
 )
 from ..options import (
-    DEFAULT_BLOCK_POLYNOMIAL,
     STAGES,
     AdjustmentOptions,
     BlunderAction,
     BlunderOptions,
-    Construction,
     ImageOptions,
-    ModelFormation,
+    OptionError,
     Refine,
     ReportOptions,
     Route,
+    adjustment_options,
+    describe,
 )
 from .csvfiles import MAX_TOML_BYTES, CsvTable, decode, read_bytes
 from .model import Camera, Project, readonly
@@ -52,7 +52,6 @@ from .schema import (
     PROJECT_TABLES,
     TABLES_BY_NAME,
     check_table,
-    describe,
     suggest,
 )
 from .tables import (
@@ -562,43 +561,6 @@ def _straight_lines(
     return tuple(straight_lines)
 
 
-def _block_polynomial(
-    toml_path: Path,
-    adjustment: dict[str, object],
-    named: Sequence[str],
-    construction: Construction,
-) -> int:
-    """The ``[adjustment]`` keys a block of strips can take, and the type of
-    every strip's own polynomial (0 with ``block = "models"``)."""
-    if "sections" in named:
-        raise ConfigError(
-            f"{toml_path}: [adjustment] sections: a block has no sections (with block = "
-            '"strips" every strip has one polynomial); remove it'
-        )
-    if construction is Construction.MODELS and named:
-        raise ConfigError(
-            f'{toml_path}: [adjustment] polynomial: applies to block = "strips" (every '
-            'strip its own polynomial); with block = "models" every model has its own '
-            'similarity. Remove polynomial or set block = "strips"'
-        )
-    polynomial: object = adjustment["polynomial"] if named else DEFAULT_BLOCK_POLYNOMIAL
-    if construction is Construction.MODELS:
-        polynomial = 0
-    if polynomial == "auto":
-        raise ConfigError(
-            f'{toml_path}: [adjustment] polynomial: "auto" chooses a type from one strip\'s '
-            "own control, and in a block the strips share the control: give 0, 1, 2 or 3 "
-            f"(default {DEFAULT_BLOCK_POLYNOMIAL})"
-        )
-    if adjustment["photo_step"] != 1:
-        raise ConfigError(
-            f"{toml_path}: [adjustment] photo_step: a block forms its models on every photo; "
-            "remove it"
-        )
-    assert isinstance(polynomial, int)  # the schema allows 0..3 or "auto"
-    return polynomial
-
-
 def _adjustment_options(
     toml_path: Path,
     adjustment: dict[str, object],
@@ -607,84 +569,29 @@ def _adjustment_options(
     *,
     block: bool = False,
 ) -> AdjustmentOptions:
-    """``[adjustment]`` as options, with the rules that tie its keys together
-    (``block``: a project of ``[[strips]]``)."""
-    polynomial: int | Literal["auto"] = adjustment["polynomial"]  # type: ignore[assignment]
-    sections = int(adjustment["sections"])  # type: ignore[call-overload]
-    if sections > 1 and polynomial == 0:
-        raise ConfigError(
-            f"{toml_path}: [adjustment] sections: {sections} sections need a polynomial type "
-            '1, 2, 3 or "auto", got polynomial = 0'
-        )
-    if (
-        adjustment["models"] is ModelFormation.INDEPENDENT
-        and raw_adjustment.get("relative_orientation") == "dependent"
-    ):
-        raise ConfigError(
-            f'{toml_path}: [adjustment] relative_orientation: "dependent" orients each pair '
-            "to the previous photo, which independent models do not; with models = "
-            '"independent" every pair is oriented on its own in B\'s base system: remove '
-            'relative_orientation or set models = "dependent"'
-        )
-    named: list[str] = [key for key in ("polynomial", "sections") if key in raw_adjustment]
-    chosen = adjustment["block"]
-    construction: Construction
-    if isinstance(chosen, Construction):
-        construction = chosen
-    else:  # the default: every model at once, J's polynomials when named
-        construction = Construction.STRIPS if named and not block else Construction.MODELS
-    if block:
-        polynomial = _block_polynomial(toml_path, adjustment, named, construction)
-    if not block and construction is Construction.MODELS and named:
-        raise ConfigError(
-            f'{toml_path}: [adjustment] {named[0]}: applies to block = "strips" (J\'s '
-            'polynomials); with block = "models" every model has its own similarity. Remove '
-            f'{named[0]} or set block = "strips"'
-        )
-    return AdjustmentOptions(
-        route=route,
-        polynomial=polynomial,
-        sections=sections,
-        relative_orientation=adjustment["relative_orientation"],  # type: ignore[arg-type]
-        intersection=adjustment["intersection"],  # type: ignore[arg-type]
-        scale_transfer=adjustment["scale_transfer"],  # type: ignore[arg-type]
-        max_iterations=int(adjustment["max_iterations"]),  # type: ignore[call-overload]
-        photo_step=adjustment["photo_step"],  # type: ignore[arg-type]
-        min_base_to_height=float(adjustment["min_base_to_height"]),  # type: ignore[arg-type]
-        refine=adjustment["refine"],  # type: ignore[arg-type]
-        block=construction,
-        models=adjustment["models"],  # type: ignore[arg-type]
-    )
+    """``[adjustment]`` as options (:func:`strip_aerotri.options.adjustment_options`
+    holds every rule; ``block``: a project of ``[[strips]]``)."""
+    given = {key: adjustment[key] for key in raw_adjustment}
+    try:
+        return adjustment_options(given, route=route, block=block)
+    except OptionError as exc:
+        raise ConfigError(f"{toml_path}: [adjustment] {exc}") from None
 
 
 def _blunder_options(toml_path: Path, table: dict[str, object]) -> BlunderOptions:
-    """``[blunders]`` as :class:`~strip_aerotri.blunders.BlunderOptions`."""
-    where = f"{toml_path}: [blunders]"
-    alpha = float(table["alpha"])  # type: ignore[arg-type]
-    if not alpha < 1.0:
-        raise ConfigError(f"{where} alpha: expected a probability below 1, got {alpha!r}")
-    fraction = float(table["max_fraction"])  # type: ignore[arg-type]
-    if fraction > 1.0:
-        raise ConfigError(f"{where} max_fraction: expected at most 1, got {fraction!r}")
-    pairs = []
-    excluded: list[object] = table["exclude_observations"]  # type: ignore[assignment]
-    for item in excluded:
-        photo, sep, point = str(item).partition("/")
-        if not sep or not photo or not point:
-            raise ConfigError(
-                f'{where} exclude_observations: expected "photo/point", got {item!r}'
-            )
-        pairs.append((photo, point))
-    critical = {
-        stage: float(table[stage])  # type: ignore[arg-type]
-        for stage in STAGES
-        if table[stage] is not None
-    }
-    return BlunderOptions(
-        action=BlunderAction.create(table["action"]),
-        alpha=alpha,
-        critical_values=critical,
-        max_fraction=fraction,
-        exclude_points=tuple(table["exclude_points"]),  # type: ignore[arg-type]
-        exclude_observations=tuple(pairs),
-    )
+    """``[blunders]`` as :class:`~strip_aerotri.options.BlunderOptions`."""
+    try:
+        return BlunderOptions(
+            action=BlunderAction.create(table["action"]),
+            alpha=table["alpha"],  # type: ignore[arg-type]
+            critical_values={
+                stage: table[stage]  # type: ignore[misc]
+                for stage in STAGES
+                if table[stage] is not None
+            },
+            max_fraction=table["max_fraction"],  # type: ignore[arg-type]
+            exclude_points=tuple(table["exclude_points"]),  # type: ignore[arg-type]
+            exclude_observations=table["exclude_observations"],  # type: ignore[arg-type]
+        )
+    except OptionError as exc:
+        raise ConfigError(f"{toml_path}: [blunders] {exc}") from None

@@ -4,7 +4,7 @@ project's own observations and options."""
 from __future__ import annotations
 
 from ..errors import FlightAxisError, GeometryError, PhotoOrderError
-from ..options import BlunderOptions, Construction, GroundOptions, StripOptions
+from ..options import BlunderOptions, GroundOptions, StripOptions
 from ..pipeline import Progress, triangulate, triangulate_block
 from ..plausibility import flight_axis_message, photo_order_message
 from ..results import BlockResult, StripResult
@@ -68,23 +68,19 @@ def _run(
     project: Project, progress: Progress | None, blunders: BlunderOptions | None
 ) -> StripResult | BlockResult:
     adj = project.adjustment
+    blunders = project.blunders if blunders is None else blunders
     if project.is_block:
         return triangulate_block(
             project.observations,
             project.control,
             project.crs,
             project.strips,
-            strip_options=adj.strip_options(),
-            construction=adj.block,
-            route=adj.route,
-            blunders=project.blunders if blunders is None else blunders,
-            max_iterations=adj.max_iterations,
-            refine=adj.refine,
+            options=adj,
+            blunders=blunders,
             gnss=project.gnss,
             imu=project.imu,
             progress=progress,
             warnings=project.warnings,
-            polynomial=int(adj.polynomial) if adj.block is Construction.STRIPS else 0,
             control_name=str(project.control_file),
         )
     return triangulate(
@@ -92,12 +88,8 @@ def _run(
         project.control,
         project.crs,
         lines=project.straight_lines,
-        strip_options=adj.strip_options(),
-        ground_options=adj.ground_options(),
-        blunders=project.blunders if blunders is None else blunders,
-        photo_step=adj.photo_step,
-        min_base_to_height=adj.min_base_to_height,
-        refine=adj.refine,
+        options=adj,
+        blunders=blunders,
         gnss=project.gnss,
         imu=project.imu,
         progress=progress,

@@ -19,12 +19,15 @@ from typing import Any
 from .._text import MAX_ECHO, clean, shorten
 from ..errors import ConfigError
 from ..options import (
+    ANGLE_SIGMA_RANGE_DEG,
+    DEFAULT_ALPHA,
     DEFAULT_DIFFERENCE_TOLERANCE,
     DEFAULT_GNSS_SIGMA_XY_M,
     DEFAULT_GNSS_SIGMA_Z_M,
     DEFAULT_IMAGE_SIGMA_MM,
     DEFAULT_IMU_SIGMA_DEG,
     DEFAULT_LINE_WEIGHT,
+    DEFAULT_MAX_FRACTION,
     DEFAULT_MAX_ITERATIONS,
     DEFAULT_MIN_BASE_TO_HEIGHT,
     DEFAULT_PHOTO_STEP,
@@ -33,6 +36,9 @@ from ..options import (
     DEFAULT_SECTIONS,
     DEFAULT_SIGMA_H_M,
     DEFAULT_SIGMA_XY_M,
+    GROUND_SIGMA_RANGE_M,
+    IMAGE_SIGMA_RANGE_MM,
+    RULES,
     BlunderAction,
     Construction,
     DistortionModel,
@@ -43,10 +49,12 @@ from ..options import (
     IntersectionMethod,
     ModelFormation,
     OptionEnum,
+    OptionError,
     Refine,
     RelativeOrientationMethod,
     Route,
     ScaleTransfer,
+    describe,
 )
 
 
@@ -99,10 +107,6 @@ class KeySpec:
         backward-compatible extensions of this package.
     default_text : str
         The default as written in docs and ``stripaero check``.
-    bounds : tuple of float, optional
-        For a number, its least and largest sane value (inclusive): beyond
-        them it is a typing error or would break the arithmetic (a weight of
-        1/sigma² that overflows, a probability that rounds to zero).
     """
 
     table: str
@@ -114,7 +118,6 @@ class KeySpec:
     description: str
     contract: bool = True
     default_text: str = ""
-    bounds: tuple[float, float] | None = None
 
     @property
     def default_display(self) -> str:
@@ -163,18 +166,6 @@ PROJECT_TABLES: tuple[TableSpec, ...] = (
 
 TABLES_BY_NAME = {t.name: t for t in PROJECT_TABLES}
 
-#: Sane ranges of numbers of the project (inclusive), shared by a key and the
-#: column that overrides it row by row.  Image sigma: a nanometre to a
-#: centimetre, far around the micrometres of film and sensors.
-IMAGE_SIGMA_BOUNDS_MM = (1e-6, 10.0)
-#: Ground sigma (control, GNSS centres): a micrometre to a thousand kilometres.
-GROUND_SIGMA_BOUNDS_M = (1e-6, 1e6)
-#: Attitude sigma (IMU): 1e-7 degrees (a micro-radian is 6e-5) to a half turn.
-ANGLE_SIGMA_BOUNDS_DEG = (1e-7, 180.0)
-#: Family-wise false-alarm probability: below 1e-12 the Bonferroni level of
-#: a large stage underflows to 0 (no critical value); at most 1 (< 1 is checked
-#: by the loader).
-ALPHA_BOUNDS = (1e-12, 1.0)
 #: Longest id (photo, point, mark) in characters; ids are kept as arrays of
 #: fixed-width strings, whose size is rows x the longest id.
 MAX_ID_LENGTH = 128
@@ -228,7 +219,6 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         description="Standard deviation of an image coordinate, for rows without a sigma "
         "value.",
         contract=False,
-        bounds=IMAGE_SIGMA_BOUNDS_MM,
     ),
     KeySpec(
         "images", "units", "choice", required=False, default=ImageUnits.MM, unit="",
@@ -349,14 +339,12 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         description="Standard deviation of control X and Y, for rows without a sigma_xy "
         "value.",
         contract=False,
-        bounds=GROUND_SIGMA_BOUNDS_M,
     ),
     KeySpec(
         "control", "sigma_h_m", "positive number", required=False,
         default=DEFAULT_SIGMA_H_M, unit="m",
         description="Standard deviation of control H, for rows without a sigma_h value.",
         contract=False,
-        bounds=GROUND_SIGMA_BOUNDS_M,
     ),
     KeySpec(
         "straight_line", "points", "list of ids", required=True, default=None, unit="",
@@ -478,11 +466,10 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False,
     ),
     KeySpec(
-        "blunders", "alpha", "positive number", required=False, default=0.001, unit="",
+        "blunders", "alpha", "positive number", required=False, default=DEFAULT_ALPHA, unit="",
         description="Family-wise false-alarm probability per stage (Bonferroni over the "
         "stage's tests), below 1.",
         contract=False,
-        bounds=ALPHA_BOUNDS,
     ),
     KeySpec(
         "blunders", "relative_orientation", "positive number", required=False, default=None,
@@ -528,7 +515,8 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False, default_text="from alpha",
     ),
     KeySpec(
-        "blunders", "max_fraction", "positive number", required=False, default=0.2, unit="",
+        "blunders", "max_fraction", "positive number", required=False,
+        default=DEFAULT_MAX_FRACTION, unit="",
         description="Stop with an error when a stage would reject more than this fraction "
         "of its observations (at most 1).",
         contract=False,
@@ -556,14 +544,12 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         description="Standard deviation of a centre's X and Y, for rows without a sigma_xy "
         "value.",
         contract=False,
-        bounds=GROUND_SIGMA_BOUNDS_M,
     ),
     KeySpec(
         "gnss", "sigma_z", "positive number", required=False,
         default=DEFAULT_GNSS_SIGMA_Z_M, unit="m",
         description="Standard deviation of a centre's Z, for rows without a sigma_z value.",
         contract=False,
-        bounds=GROUND_SIGMA_BOUNDS_M,
     ),
     KeySpec(
         "imu", "file", "path", required=True, default=None, unit="",
@@ -578,7 +564,6 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         description="Standard deviation of each attitude angle, for rows without a "
         "sigma_deg value.",
         contract=False,
-        bounds=ANGLE_SIGMA_BOUNDS_DEG,
     ),
 )
 
@@ -621,7 +606,7 @@ IMAGE_COLUMNS: tuple[ColumnSpec, ...] = (
         False,
         "mm",
         "standard deviation of x and y; empty: [images] sigma_mm",
-        IMAGE_SIGMA_BOUNDS_MM,
+        IMAGE_SIGMA_RANGE_MM,
     ),
 )
 
@@ -645,14 +630,14 @@ CONTROL_COLUMNS: tuple[ColumnSpec, ...] = (
         False,
         "m",
         "standard deviation of X and Y; empty: [control] sigma_xy_m",
-        GROUND_SIGMA_BOUNDS_M,
+        GROUND_SIGMA_RANGE_M,
     ),
     ColumnSpec(
         "sigma_h",
         False,
         "m",
         "standard deviation of H; empty: [control] sigma_h_m",
-        GROUND_SIGMA_BOUNDS_M,
+        GROUND_SIGMA_RANGE_M,
     ),
 )
 
@@ -667,14 +652,14 @@ GNSS_COLUMNS: tuple[ColumnSpec, ...] = (
         False,
         "m",
         "standard deviation of X and Y; empty: [gnss] sigma_xy",
-        GROUND_SIGMA_BOUNDS_M,
+        GROUND_SIGMA_RANGE_M,
     ),
     ColumnSpec(
         "sigma_z",
         False,
         "m",
         "standard deviation of Z; empty: [gnss] sigma_z",
-        GROUND_SIGMA_BOUNDS_M,
+        GROUND_SIGMA_RANGE_M,
     ),
 )
 
@@ -689,24 +674,9 @@ IMU_COLUMNS: tuple[ColumnSpec, ...] = (
         False,
         "deg",
         "standard deviation of each angle; empty: [imu] sigma_deg",
-        ANGLE_SIGMA_BOUNDS_DEG,
+        ANGLE_SIGMA_RANGE_DEG,
     ),
 )
-
-
-def describe(value: object) -> str:
-    """A TOML value as written, for messages."""
-    if isinstance(value, bool):
-        return f"the boolean {str(value).lower()}"
-    if isinstance(value, str):
-        return f'the string "{shorten(value)}"'
-    if isinstance(value, int | float):
-        return f"the number {shorten(repr(value))}"
-    if isinstance(value, list):
-        return "a list"
-    if isinstance(value, dict):
-        return "a table"
-    return f"a {type(value).__name__}"
 
 
 def suggest(word: str, candidates: Sequence[str]) -> str:
@@ -725,7 +695,14 @@ def _is_number(value: object) -> bool:
 
 
 def _parse_value(spec: KeySpec, value: object, where: str) -> object:
-    """Convert one TOML value after checking it against ``spec.kind``."""
+    """Convert one TOML value after checking it against its option's rule
+    (:data:`strip_aerotri.options.RULES`) or ``spec.kind``."""
+    rule = RULES.get((spec.table, spec.key))
+    if rule is not None:
+        try:
+            return rule(value)
+        except OptionError as exc:
+            raise ConfigError(f"{where}: {exc.rule}") from None
     kind = spec.kind
     if kind in ("string", "path"):
         if not isinstance(value, str) or not value.strip():
@@ -739,7 +716,7 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
         number = float(value)  # type: ignore[arg-type]
         if not math.isfinite(number) or number <= 0.0:
             raise ConfigError(f"{where}: expected a positive finite number, got {value!r}")
-        return check_bounds(number, spec.bounds, where, spec.unit)
+        return number
     if kind == "positive integer":
         if not isinstance(value, int) or isinstance(value, bool) or value < 1:
             raise ConfigError(f"{where}: expected a positive integer, got {describe(value)}")
@@ -788,14 +765,6 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
         if not _is_number(value) or not math.isfinite(value):  # type: ignore[arg-type]
             raise ConfigError(f"{where}: expected a finite number, got {describe(value)}")
         return float(value)  # type: ignore[arg-type]
-    if kind == "photo step":
-        if isinstance(value, str) and value.strip().lower() == "auto":
-            return "auto"
-        if isinstance(value, int) and not isinstance(value, bool) and value >= 1:
-            return value
-        raise ConfigError(
-            f'{where}: expected a positive integer or "auto", got {describe(value)}'
-        )
     if kind == "mark table":
         if not isinstance(value, dict) or len(value) < 2:
             raise ConfigError(
@@ -815,12 +784,6 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
                 )
             marks[str(mark).strip()] = (float(xy[0]), float(xy[1]))
         return marks
-    if kind == "polynomial":
-        if isinstance(value, str) and value.strip().lower() == "auto":
-            return "auto"
-        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 3:
-            return value
-        raise ConfigError(f'{where}: expected 0, 1, 2, 3 or "auto", got {describe(value)}')
     raise AssertionError(f"unhandled kind {kind!r}")  # pragma: no cover
 
 
@@ -843,20 +806,6 @@ def _check_text(value: str, where: str, limit: int, what: str) -> None:
             f"{where}: {what} holding a control character (a NUL byte or a terminal escape "
             f"sequence): {shorten(value, 40)!r} as read without them; retype it"
         )
-
-
-def check_bounds(
-    number: float, bounds: tuple[float, float] | None, where: str, unit: str = ""
-) -> float:
-    """``number`` when it lies within ``bounds`` (inclusive), else a ConfigError
-    naming ``where``, the sane range and the value."""
-    if bounds is not None and not bounds[0] <= number <= bounds[1]:
-        unit = f" {unit}" if unit else ""
-        raise ConfigError(
-            f"{where}: expected a number from {bounds[0]:g} to {bounds[1]:g}{unit}, got "
-            f"{number:g}{unit} (beyond any sane value: a typing error?)"
-        )
-    return number
 
 
 def check_table(

@@ -15,7 +15,7 @@ from ..observations import ControlType
 from .block_page import block_html
 from .files import format_photos_csv, format_points_csv
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, _bundle_gnss, _bundle_imu
-from .values import clean, json_float, statistics
+from .values import clean, json_float, options_record, statistics
 
 if TYPE_CHECKING:
     from ..project import Project
@@ -103,9 +103,9 @@ def build_block_report(
             "crs": None if project is None else project.crs,
         },
         "inputs": _inputs(result),
-        "options": _options(result, project),
+        "options": options_record(result.options),
         "block": {
-            "construction": None if project is None else project.adjustment.block.value,
+            "construction": None if result.options is None else result.options.block.value,
             "polynomial": result.polynomial,
             "strips": [
                 {
@@ -202,24 +202,6 @@ def _inputs(result: BlockResult) -> dict[str, Any]:
         "n_observations": len(obs.photo),
         "principal_distance_mm": json_float(obs.principal_distance),
         "control": {k.value: kinds.count(k.value) for k in ControlType},
-    }
-
-
-def _options(result: BlockResult, project: Project | None) -> dict[str, Any] | None:
-    """The method's choices, as a strip's ``options`` (null without a project)."""
-    if project is None:
-        return None
-    adj = project.adjustment
-    return {
-        "route": None if adj.route is None else adj.route.value,
-        "block": adj.block.value,
-        "models": adj.models.value,
-        "relative_orientation": adj.relative_orientation.value,
-        "intersection": adj.intersection.value,
-        "scale_transfer": adj.scale_transfer.value,
-        "max_iterations": int(adj.max_iterations),
-        "polynomial": result.polynomial if adj.block.value == "strips" else None,
-        "refine": adj.refine.value,
     }
 
 

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..options import DEFAULT_SECTIONS
 from .figures import Plan, figure_layout, figure_parallax, figure_residuals, figure_ties
 from .values import point_roles
 
@@ -612,7 +613,7 @@ def _ground_section(report: Mapping[str, Any]) -> list[str]:
         )
     elif poly.get("coefficients_m"):
         terms = poly["terms"]
-        sections = int(poly.get("sections", 1))
+        sections = int(poly.get("sections", DEFAULT_SECTIONS))
         spline_text = ""
         if sections > 1:
             breaks = ", ".join(_fmt(x, 1) for x in poly["breakpoints_x_m"])

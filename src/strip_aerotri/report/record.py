@@ -16,7 +16,7 @@ from ..geometry.rotation import opk_from_matrix
 from ..observations import ControlType
 from ..results import StripResult
 from .tolerances import tolerance_verdicts
-from .values import clean, control_rows, json_float, statistics
+from .values import clean, control_rows, json_float, options_record, statistics
 
 if TYPE_CHECKING:
     from ..project import Project
@@ -279,37 +279,6 @@ def _model_adjustment(result: StripResult) -> dict[str, Any] | None:
     }
 
 
-def _photo_step(result: StripResult) -> int:
-    """The step k of the photos that formed the models (1: every photo)."""
-    pos = result.strip.model_photo_positions
-    steps = np.unique(np.diff(pos))
-    return int(steps[0]) if steps.size == 1 else int(np.max(steps, initial=1))
-
-
-def _options(result: StripResult, project: Project | None) -> dict[str, Any]:
-    strip_opt = result.strip.options
-    construction = getattr(result.ground, "construction", None)
-    opts: dict[str, Any] = {
-        "route": result.ground.route,
-        "block": str(getattr(construction, "value", "strips")),
-        "models": strip_opt.models,
-        "relative_orientation": strip_opt.relative_orientation,
-        "intersection": strip_opt.intersection,
-        "scale_transfer": strip_opt.scale_transfer,
-        "max_iterations": int(strip_opt.max_iterations),
-        "photo_step": _photo_step(result),
-        "polynomial": int(result.ground.polynomial_kind)
-        if result.ground.kind_selection is None
-        else "auto",
-    }
-    if project is not None:
-        adj = project.adjustment
-        opts["polynomial"] = adj.polynomial if adj.polynomial == "auto" else int(adj.polynomial)
-    if opts["block"] == "models":
-        opts["polynomial"] = None  # every model its own similarity
-    return opts
-
-
 def build_report(
     result: StripResult,
     *,
@@ -350,6 +319,9 @@ def build_report(
     criteria = tolerance_verdicts(result, map_scale)
     judged = [c.passed for c in criteria if c.passed is not None]
     frame = ground.frame
+    options = options_record(result.options)
+    if options is None:
+        raise ValueError("Expected a result of triangulate(), which carries its options")
     report: dict[str, Any] = {
         "format": REPORT_FORMAT,
         "format_version": REPORT_FORMAT_VERSION,
@@ -380,7 +352,7 @@ def build_report(
                 for n, i in zip(ground.line_names, ground.line_point_index, strict=True)
             ],
         },
-        "options": _options(result, project),
+        "options": options,
         "relative_orientation": {
             "method": result.strip.relative.method,
             "element_names": _element_names(
@@ -412,7 +384,7 @@ def build_report(
         },
         "model_adjustment": _model_adjustment(result),
         "similarity": _similarity(result),
-        "polynomial": _polynomial(result, _options(result, project)["polynomial"]),
+        "polynomial": _polynomial(result, options["polynomial"]),
         "straight_lines": _lines(result, weights),
         "control": {
             "statistics": statistics(result.control_statistics),

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..observations import ControlType
+from ..options import AdjustmentOptions, Construction
 from ..results import AccuracyStatistics, StripResult
 
 _ROLE_OF_KIND = {
@@ -120,3 +121,25 @@ def image_counts(result: StripResult) -> tuple[np.ndarray, np.ndarray]:
     per_point = np.bincount(np.asarray(obs.point), minlength=obs.n_points)
     per_photo_all = np.bincount(np.asarray(obs.photo), minlength=obs.n_photos)
     return per_point, per_photo_all[np.asarray(result.strip.photo_index)]
+
+
+def options_record(options: AdjustmentOptions | None) -> dict[str, Any] | None:
+    """``report.json``'s ``options``: the options a strip or a block ran with
+    (``result.options``), written the same way for both; None without them.
+    ``polynomial`` is null with ``block = "models"`` (every model its own
+    similarity)."""
+    if options is None:
+        return None
+    models = options.block is Construction.MODELS
+    return {
+        "route": options.route.value,
+        "block": options.block.value,
+        "models": options.models.value,
+        "relative_orientation": options.relative_orientation.value,
+        "intersection": options.intersection.value,
+        "scale_transfer": options.scale_transfer.value,
+        "max_iterations": int(options.max_iterations),
+        "photo_step": options.photo_step,
+        "polynomial": None if models else options.polynomial,
+        "refine": options.refine.value,
+    }

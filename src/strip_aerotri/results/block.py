@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..observations import ControlPoints, ImageObservations, StripSpec
+from ..options import AdjustmentOptions
 from .bundle import GnssResiduals, ImuResiduals
 from .common import AccuracyStatistics, Rejection
 from .strip import StripModel
@@ -115,6 +116,9 @@ class BlockResult:
     block_check_statistics : AccuracyStatistics or None
         After a bundle refinement: the check points of the block's own
         transformation, for comparison (None without a refinement).
+    options : AdjustmentOptions or None
+        The options the block ran with
+        (:func:`strip_aerotri.pipeline.triangulate_block` sets them).
     """
 
     specs: tuple[StripSpec, ...]
@@ -148,6 +152,7 @@ class BlockResult:
     block_check_statistics: AccuracyStatistics | None = None
     gnss: GnssResiduals | None = None
     imu: ImuResiduals | None = None
+    options: AdjustmentOptions | None = None
 
     @property
     def photo_ids(self) -> tuple[str, ...]:

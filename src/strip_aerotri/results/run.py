@@ -8,6 +8,7 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..observations import ControlPoints
+from ..options import AdjustmentOptions
 from .bundle import RefinedResult
 from .common import AccuracyStatistics, Rejection
 from .ground import GroundResult
@@ -36,6 +37,10 @@ class StripResult:
     refined : RefinedResult or None
         The bundle refinement (:mod:`strip_aerotri.bundle.refine`) when asked for;
         then ``points``, ``photo_centres`` and ``photo_opk`` are its values.
+    options : AdjustmentOptions or None
+        The options the run used (:func:`strip_aerotri.pipeline.triangulate`
+        sets them): the route it took and ``photo_step = "auto"`` resolved to
+        the step it chose.
     """
 
     strip: StripModel
@@ -46,6 +51,7 @@ class StripResult:
     warnings: tuple[str, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
     refined: RefinedResult | None = None
+    options: AdjustmentOptions | None = None
 
     @property
     def photo_ids(self) -> tuple[str, ...]:

@@ -8,7 +8,7 @@ import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..observations import ImageObservations
-from ..options import RelativeOrientationMethod, StripOptions
+from ..options import DEFAULT_PHOTO_STEP, RelativeOrientationMethod, StripOptions
 from .common import Rejection
 
 #: The unit of residuals measured in a model before the strip reaches the
@@ -162,6 +162,9 @@ class StripModel:
     breaks : ndarray of int
         Models that share no tie point with the one before
         (``StripOptions.allow_breaks``): their scale is not transferred.
+    photo_step : int
+        The step k of the photos that formed the models (1: every photo;
+        the step ``photo_step = "auto"`` chose, :mod:`strip_aerotri.strip.densify`).
     """
 
     observations: ImageObservations
@@ -190,6 +193,7 @@ class StripModel:
     model_photos: IntArray | None = None
     model_rows: IntArray | None = None
     breaks: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    photo_step: int = DEFAULT_PHOTO_STEP
 
     def with_rejections_in_metres(self, metres_per_unit: float) -> StripModel:
         """The strip with its tie-point rejections told in ground metres: a

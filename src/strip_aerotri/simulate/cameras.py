@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, NamedTuple
 
+from ..options import DEFAULT_LINE_WEIGHT
+
 __all__ = ["CAMERAS", "PRESETS", "Camera", "StripPreset", "camera_preset"]
 
 
@@ -100,7 +102,7 @@ class StripPreset:
     line_offset_mm: float = -35.0
     line_angle_deg: float = 0.3
     line_points_per_model: int = 2
-    line_weight: float = 100.0
+    line_weight: float = DEFAULT_LINE_WEIGHT
     pixel_size_um: float | None = None
 
     @property

@@ -13,42 +13,27 @@ import csv
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..observations import ControlPoints, ImageObservations
+from ..options import OptionError, adjustment_options
 from ._geodesy import _LOCAL
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = ["write_block_project", "write_control", "write_image_points", "write_strip_project"]
 
-_ROUTES = ("geocentric", "projected")
-_POLYNOMIALS = (0, 1, 2, 3, "auto")
-_BLOCKS = ("strips", "models")
-_MODELS = ("dependent", "independent")
-
-
-def _check_adjustment(crs: str, polynomial: int | str | None, route: str | None) -> None:
-    """The ``[adjustment]`` keys shared by strips and blocks."""
-    if polynomial is not None and (isinstance(polynomial, bool) or polynomial not in _POLYNOMIALS):
-        raise ValueError(f"Expected `polynomial` to be one of {_POLYNOMIALS}, got {polynomial!r}")
-    if route is not None and route not in _ROUTES:
-        raise ValueError(f"Expected `route` to be one of {_ROUTES} or None, got {route!r}")
-    if route == "geocentric" and crs == _LOCAL:
-        raise ValueError('`route="geocentric"` needs a real CRS, not crs="local"')
-
-
-def _adjustment_lines(polynomial: int | str | None, route: str | None) -> list[str]:
-    lines = []
-    if route is not None:
-        lines.append(f"route = {_toml_str(route)}")
-    if polynomial is not None:
-        poly = _toml_str(polynomial) if isinstance(polynomial, str) else str(polynomial)
-        lines.append(f"polynomial = {poly}")
-    return lines
+def _adjustment_lines(crs: str, given: dict[str, object], *, block: bool) -> list[str]:
+    """The ``[adjustment]`` keys given (None: left out), checked by the rules
+    the loader applies (:func:`strip_aerotri.options.adjustment_options`), so
+    that the project written is one ``stripaero run`` takes."""
+    given = {key: value for key, value in given.items() if value is not None}
+    adjustment_options(given, block=block)
+    if given.get("route") == "geocentric" and crs == _LOCAL:
+        raise OptionError("route", '"geocentric" needs a real CRS, not crs = "local"')
+    return [
+        f"{key} = {_toml_str(value) if isinstance(value, str) else value}"
+        for key, value in given.items()
+    ]
 
 
 def _common_lines(observations: ImageObservations, crs: str) -> list[str]:
@@ -83,7 +68,7 @@ def write_strip_project(
     ``route`` are written to ``[adjustment]`` when not None. See
     :meth:`~strip_aerotri.simulate.SimulatedStrip.write_project`.
     """
-    _check_adjustment(crs, polynomial, route)
+    adjustment = _adjustment_lines(crs, {"route": route, "polynomial": polynomial}, block=False)
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     text = [
@@ -97,7 +82,7 @@ def write_strip_project(
     for ids, weight in lines:
         text += ["", "[[straight_line]]", f"points = {_toml_list(ids)}"]
         text.append(f"weight = {float(weight)!r}")
-    text += ["", "[adjustment]", *_adjustment_lines(polynomial, route)]
+    text += ["", "[adjustment]", *adjustment]
     toml_path = directory / "strip.toml"
     toml_path.write_text("\n".join(text) + "\n", encoding="utf-8")
     write_image_points(directory / "image_points.csv", observations)
@@ -126,11 +111,11 @@ def write_block_project(
     comment line (a block has no ``[strip] name``). See
     :meth:`~strip_aerotri.simulate.SimulatedBlock.write_project`.
     """
-    _check_adjustment(crs, polynomial, route)
-    if block not in _BLOCKS:
-        raise ValueError(f"Expected `block` to be one of {_BLOCKS}, got {block!r}")
-    if models is not None and models not in _MODELS:
-        raise ValueError(f"Expected `models` to be one of {_MODELS} or None, got {models!r}")
+    adjustment = _adjustment_lines(
+        crs,
+        {"block": block, "models": models, "route": route, "polynomial": polynomial},
+        block=True,
+    )
     if len(strips) < 2:
         raise ValueError(f"Expected two or more strips in a block, got {len(strips)}")
     directory = Path(directory)
@@ -146,11 +131,7 @@ def write_block_project(
             f"photos = {_toml_list(tuple(photos))}",
             "",
         ]
-    text += [*_common_lines(observations, crs), "", "[adjustment]"]
-    text.append(f"block = {_toml_str(block)}")
-    if models is not None:
-        text.append(f"models = {_toml_str(models)}")
-    text += _adjustment_lines(polynomial, route)
+    text += [*_common_lines(observations, crs), "", "[adjustment]", *adjustment]
     toml_path = directory / "strip.toml"
     toml_path.write_text("\n".join(text) + "\n", encoding="utf-8")
     write_image_points(directory / "image_points.csv", observations)

@@ -8,7 +8,7 @@ strip.  The remedy of this module:
 
 1. :func:`choose_photo_step` picks a step k from a first relative orientation
    of consecutive pairs: the smallest k whose base-to-height ratio reaches a
-   minimum (0.3 by default);
+   minimum (:data:`~strip_aerotri.options.DEFAULT_MIN_BASE_TO_HEIGHT` by default);
 2. the strip is formed by the method on the *model photos* only
    (:func:`model_photo_index`: every k-th photo, spread so that the first and
    the last photo are model photos) with
@@ -39,8 +39,10 @@ from ..geometry.intersection import intersect
 from ..geometry.rotation import matrix_from_rotvec, skew
 from ..observations import ImageObservations
 from ..options import (
+    DEFAULT_IMAGE_SIGMA_MM,
     DEFAULT_MAX_ITERATIONS,
     DEFAULT_MIN_BASE_TO_HEIGHT,
+    DEFAULT_PHOTO_STEP,
     BlunderOptions,
     ModelFormation,
     StripOptions,
@@ -238,7 +240,7 @@ def choose_photo_step(
     observations : ImageObservations
         Image coordinates of the whole strip (mm, method's axes).
     min_base_to_height : float
-        The minimum ratio (default 0.3, see :data:`DEFAULT_MIN_BASE_TO_HEIGHT`).
+        The minimum ratio (default :data:`DEFAULT_MIN_BASE_TO_HEIGHT`).
     options : StripOptions, optional
         Relative orientation choices (formulation, iterations).
 
@@ -326,7 +328,7 @@ def resect(
     centres: ArrayLike,
     rotations: ArrayLike,
     *,
-    sigma: ArrayLike | float = 0.005,
+    sigma: ArrayLike | float = DEFAULT_IMAGE_SIGMA_MM,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     tolerance: float = 1e-12,
     labels: tuple[str, ...] | None = None,
@@ -669,7 +671,7 @@ def form_strip_stepped(
     observations: ImageObservations,
     options: StripOptions | None = None,
     *,
-    photo_step: int | Literal["auto"] = 1,
+    photo_step: int | Literal["auto"] = DEFAULT_PHOTO_STEP,
     min_base_to_height: float = DEFAULT_MIN_BASE_TO_HEIGHT,
     all_rays: bool = True,
     blunders: BlunderOptions | None = None,
@@ -707,4 +709,4 @@ def form_strip_stepped(
         return form(observations, options, blunders=blunders)
     seq = model_photo_index(observations.n_photos, k)
     strip = form(observations, options, photo_index=seq, blunders=blunders)
-    return complete_strip(strip, all_rays=all_rays)
+    return dataclasses.replace(complete_strip(strip, all_rays=all_rays), photo_step=k)

@@ -42,7 +42,12 @@ from ..geometry.rotation import (
     matrix_from_schut,
     schut_from_matrix,
 )
-from ..options import DEFAULT_MAX_ITERATIONS, RelativeOrientationMethod
+from ..options import (
+    DEFAULT_IMAGE_SIGMA_MM,
+    DEFAULT_MAX_ITERATIONS,
+    DEFAULT_RO_TOLERANCE,
+    RelativeOrientationMethod,
+)
 from ..plausibility import flight_axis_message
 from ..results import RelativeOrientation
 
@@ -765,10 +770,10 @@ def relative_orientation(
     *,
     method: RelativeOrientationMethod | str = RelativeOrientationMethod.DEPENDENT,
     rotation_first: ArrayLike | None = None,
-    sigma_left: ArrayLike | float = 0.005,
-    sigma_right: ArrayLike | float = 0.005,
+    sigma_left: ArrayLike | float = DEFAULT_IMAGE_SIGMA_MM,
+    sigma_right: ArrayLike | float = DEFAULT_IMAGE_SIGMA_MM,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    tolerance: float = 1e-11,
+    tolerance: float = DEFAULT_RO_TOLERANCE,
     labels: list[str] | None = None,
     robust: bool = False,
     start: RelativeOrientation | None = None,
