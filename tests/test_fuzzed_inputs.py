@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import io
 import os
+import re
 import subprocess
 import time
 from pathlib import Path
@@ -184,6 +185,23 @@ def test_a_point_outside_the_projection_domain_is_implausible(film):
     # UTM 34N cannot take an easting of 9e7 m back to longitude and latitude
     set_cell(film / "control.csv", 0, "X", "9e7")
     both_fail(film, "control.csv:2:", "implausible coordinates")
+
+
+def test_a_gnss_centre_far_away_is_implausible(film):
+    """GNSS centres follow the control's rules (their Z is a height too)."""
+    rows = list(csv.reader(io.StringIO((film / "control.csv").read_text(encoding="utf-8"))))
+    full = [r for r in rows[1:] if r[rows[0].index("type")] == "full"]
+    listed = re.search(r"photos = \[([^\]]*)\]", (film / "strip.toml").read_text("utf-8"))
+    assert listed is not None
+    photos = re.findall(r'"([^"]+)"', listed.group(1))
+    lines = ["photo,X,Y,Z"] + [
+        f"{p},{full[0][1]},{full[0][2]},{float(full[0][3]) + 1200.0}" for p in photos[:6]
+    ]
+    lines[3] = f"{photos[2]},{full[0][1]},-4e9,1500"
+    (film / "gnss.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    edit(film / "strip.toml", "[control]", '[gnss]\nfile = "gnss.csv"\n\n[control]')
+    edit(film / "strip.toml", "[adjustment]", '[adjustment]\nrefine = "bundle"')
+    both_fail(film, f"gnss.csv:4: photo '{photos[2]}' at X, Y, Z", "implausible coordinates")
 
 
 def test_a_photo_whose_points_are_collinear_is_an_error_naming_it(tmp_path):

@@ -362,11 +362,14 @@ MAX_HEIGHT_SPREAD_M = 20_000.0
 AREA_MARGIN_DEG = 20.0
 
 
-def check_plausible_extent(crs: Any, table: CsvTable, xyz: FloatArray) -> None:
+def check_plausible_extent(
+    crs: Any, table: CsvTable, xyz: FloatArray, id_name: str = "point", h_name: str = "H"
+) -> None:
     """Refuse control coordinates no project can have, naming the first row.
 
     ``crs`` is the pyproj CRS of ``[control] crs`` (None for "local"); NaN
-    cells (a plan or height point's empty ones) pass.  Implausible are: a
+    cells (a plan or height point's empty ones) pass; ``id_name`` and
+    ``h_name`` name the id and the height column (GNSS centres: photo, Z).  Implausible are: a
     height beyond :data:`MAX_ABS_HEIGHT_M` or :data:`MAX_HEIGHT_SPREAD_M` from
     the median height; a projected or local X, Y beyond
     :data:`MAX_ABS_PROJECTED`, or far outside the extent of the other points
@@ -379,11 +382,11 @@ def check_plausible_extent(crs: Any, table: CsvTable, xyz: FloatArray) -> None:
     with np.errstate(over="ignore", invalid="ignore"):
         h_median = np.nanmedian(h) if np.isfinite(h).any() else 0.0
         rules = [
-            (np.abs(h) > MAX_ABS_HEIGHT_M, f"H beyond {MAX_ABS_HEIGHT_M:g} m"),
+            (np.abs(h) > MAX_ABS_HEIGHT_M, f"{h_name} beyond {MAX_ABS_HEIGHT_M:g} m"),
             (
                 np.abs(h - h_median) > MAX_HEIGHT_SPREAD_M,
-                f"H more than {MAX_HEIGHT_SPREAD_M:g} m from the median height "
-                f"{h_median:.1f} m of the control",
+                f"{h_name} more than {MAX_HEIGHT_SPREAD_M:g} m from the median height "
+                f"{h_median:.1f} m of the file",
             ),
         ]
         geographic = crs is not None and crs.is_geographic
@@ -403,26 +406,30 @@ def check_plausible_extent(crs: Any, table: CsvTable, xyz: FloatArray) -> None:
                     (
                         distance > max(reach, 1000.0),
                         f"more than {max(reach, 1000.0):.3g} from the median of the plan "
-                        f"control ({centre[0]:.1f}, {centre[1]:.1f}), {EXTENT_FACTOR:g} times "
-                        "its median distance from it",
+                        f"coordinates ({centre[0]:.1f}, {centre[1]:.1f}), {EXTENT_FACTOR:g} "
+                        "times their median distance from it",
                     )
                 )
+    names = (id_name, h_name)
     for bad, text in rules:
         if bad.any():
-            _raise_implausible(table, xyz, int(np.flatnonzero(bad)[0]), text)
+            _raise_implausible(table, xyz, int(np.flatnonzero(bad)[0]), text, names)
     if crs is not None and not geographic:
-        _check_area_of_use(crs, table, xyz)
+        _check_area_of_use(crs, table, xyz, names)
 
 
-def _raise_implausible(table: CsvTable, xyz: FloatArray, row: int, text: str) -> None:
+def _raise_implausible(
+    table: CsvTable, xyz: FloatArray, row: int, text: str, names: tuple[str, str]
+) -> None:
     values = ", ".join("" if v != v else f"{v:.6g}" for v in xyz[row])
     raise ConfigError(
-        f"{table.where(row)}: point '{shorten(table.columns['point'][row].strip())}' at "
-        f"X, Y, H = {values}: implausible coordinates ({text}); a typing or export error?"
+        f"{table.where(row)}: {names[0]} '{shorten(table.columns[names[0]][row].strip())}' at "
+        f"X, Y, {names[1]} = {values}: implausible coordinates ({text}); a typing or export "
+        "error?"
     )
 
 
-def _check_area_of_use(crs: Any, table: CsvTable, xyz: FloatArray) -> None:
+def _check_area_of_use(crs: Any, table: CsvTable, xyz: FloatArray, names: tuple[str, str]) -> None:
     """Projected X, Y that the CRS cannot take to longitude and latitude, or
     far outside its area of use (unless swapping X and Y brings them inside:
     then the mirrored-control check names the cause)."""
@@ -457,7 +464,7 @@ def _check_area_of_use(crs: Any, table: CsvTable, xyz: FloatArray) -> None:
                 f"{shorten(crs.name)} ({shorten(area.name.rstrip('.'), 40)})"
             )
     if bad.any():
-        _raise_implausible(table, xyz, int(plan[int(np.flatnonzero(bad)[0])]), text)
+        _raise_implausible(table, xyz, int(plan[int(np.flatnonzero(bad)[0])]), text, names)
 
 
 def _within_area(lonlat: FloatArray, area: Any) -> BoolArray:
@@ -475,13 +482,19 @@ def _within_area(lonlat: FloatArray, area: Any) -> BoolArray:
     return np.asarray(inside, dtype=bool)
 
 
-def _is_geographic(crs: str) -> bool:
-    """True for a geographic CRS (already validated by :func:`check_crs`)."""
+def _crs_object(crs: str) -> Any:
+    """The pyproj CRS of ``crs`` (already validated by :func:`check_crs`), None for "local"."""
     if crs == "local":
-        return False
+        return None
     import pyproj
 
-    return bool(pyproj.CRS.from_user_input(crs).is_geographic)
+    return pyproj.CRS.from_user_input(crs)
+
+
+def _is_geographic(crs: str) -> bool:
+    """True for a geographic CRS (already validated by :func:`check_crs`)."""
+    crs_object = _crs_object(crs)
+    return crs_object is not None and bool(crs_object.is_geographic)
 
 
 def _strip_rows(
@@ -541,6 +554,7 @@ def load_gnss(
     sigma_z = optional_sigma(table, "sigma_z", float(gnss["sigma_z"]))  # type: ignore[arg-type]
     if _is_geographic(crs):
         _check_geographic_ranges(crs, table, xyz)
+    check_plausible_extent(_crs_object(crs), table, xyz, id_name="photo", h_name="Z")
     rows = _strip_rows(table, photo, photo_ids, notes)
     return GnssCentres(tuple(photo[rows].tolist()), xyz[rows], sigma_xy[rows], sigma_z[rows])
 
