@@ -407,3 +407,14 @@ def test_the_option_rules_hold_the_ranges_for_the_library_too():
     with pytest.raises(OptionError, match="sigma_h_m: expected a number from 1e-06 to 1e"):
         RULES[("control", "sigma_h_m")](1e-320)
     assert RULES[("imu", "sigma_deg")](0.005) == 0.005
+
+
+def test_a_crs_given_as_multi_line_wkt_is_still_read(film):
+    """Line breaks are refused in names, ids and paths only: a CRS's WKT spans lines."""
+    import pyproj
+
+    wkt = pyproj.CRS("EPSG:32634").to_wkt(pretty=True)
+    assert "\n" in wkt
+    edit(film / "strip.toml", 'crs = "EPSG:32634"', f'crs = """{wkt}"""')
+    result = invoke("check", film / "strip.toml")
+    assert result.exit_code == 0, result.output

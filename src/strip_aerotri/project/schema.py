@@ -715,7 +715,9 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
             raise ConfigError(f"{where}: expected a positive number, got {describe(value)}")
         number = float(value)  # type: ignore[arg-type]
         if not math.isfinite(number) or number <= 0.0:
-            raise ConfigError(f"{where}: expected a positive finite number, got {value!r}")
+            raise ConfigError(
+                f"{where}: expected a positive finite number, got {shorten(repr(value))}"
+            )
         return number
     if kind == "positive integer":
         if not isinstance(value, int) or isinstance(value, bool) or value < 1:
@@ -795,13 +797,15 @@ def _max_length(spec: KeySpec) -> int:
 
 def _check_text(value: str, where: str, limit: int, what: str) -> None:
     """Refuse a string longer than ``limit`` characters or holding control
-    characters (a NUL byte, an escape sequence): no name, id or path has them."""
+    characters (a NUL byte, an escape sequence): no name, id or path has them,
+    nor a line break or tab (other text, a CRS's WKT, may span lines)."""
     if len(value) > limit:
         raise ConfigError(
             f"{where}: {what} of {len(value)} characters ({shorten(value, 40)}); at most "
             f"{limit} are allowed"
         )
-    if clean(value) != value or "\n" in value or "\r" in value:
+    breaks = what != "text" and any(c in value for c in "\n\r\t")
+    if breaks or clean(value) != value:
         raise ConfigError(
             f"{where}: {what} holding a control character (a NUL byte or a terminal escape "
             f"sequence): {shorten(value, 40)!r} as read without them; retype it"
