@@ -131,7 +131,6 @@ def test_a_file_beyond_the_size_limit_is_refused(film, monkeypatch):
     from strip_aerotri.project import csvfiles
 
     monkeypatch.setattr(csvfiles, "MAX_CSV_BYTES", 1000)
-    monkeypatch.setattr(csvfiles.read_bytes, "__defaults__", (1000,))
     both_fail(film, "image_points.csv", "larger than the 1000 bytes")
 
 

@@ -31,17 +31,19 @@ MAX_CSV_BYTES = 512 * 2**20
 MAX_TOML_BYTES = 16 * 2**20
 
 
-def read_bytes(path: Path, what: str, limit: int = MAX_CSV_BYTES) -> bytes:
+def read_bytes(path: Path, what: str, limit: int | None = None) -> bytes:
     """The content of the regular file ``path`` (``what`` names it in messages).
 
     Anything that is not a regular file (a named pipe, a device such as
     ``/dev/zero``, a socket, a folder) is refused before it is opened: a pipe
     with no writer would block the read forever, a device never ends.  A
-    file larger than ``limit`` bytes is refused too.
+    file larger than ``limit`` bytes (default :data:`MAX_CSV_BYTES`) is
+    refused too.
     """
     import os
     import stat
 
+    limit = MAX_CSV_BYTES if limit is None else limit
     try:
         info = path.stat()
     except FileNotFoundError:
