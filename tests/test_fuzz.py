@@ -13,7 +13,10 @@ links or nothing) and asserts that:
   not the generic "unexpected" form, under 500 characters (``check`` prints
   one such line per problem);
 * a failed run leaves the earlier result folder byte-identical;
-* a run that succeeds writes no NaN or infinity;
+* a run that succeeds writes no NaN or infinity, and no run succeeds on
+  data that cannot give a result (a photo's points on one line, control
+  with X and Y swapped, a control coordinate at 1e308 or thousands of
+  kilometres away);
 * no command takes more than 30 s.
 
 The cases run in-process (click's CliRunner); a few that could block a
@@ -50,6 +53,9 @@ PROJECTS = {
     "block": ["drone", "--strips", "3", "--photos", "4", "--seed", "3"],
 }
 FILES = ("strip.toml", "image_points.csv", "control.csv")
+#: A file in a case's folder (ignored by stripaero) listing why its run must fail.
+MUST_FAIL = "must-fail.txt"
+SWAPPED = "control X and Y swapped (mirrored)"
 
 # --------------------------------------------------------------------------- mutations
 
@@ -220,6 +226,15 @@ def csv_columns(rng: random.Random, folder: Path) -> None:
 
 
 def geometry(rng: random.Random, folder: Path) -> None:
+    """Image or ground geometry broken (:func:`_geometry`); a file an earlier
+    mutation left without the columns or numbers it needs is left as it is."""
+    try:
+        _geometry(rng, folder)
+    except (ValueError, IndexError, OSError):
+        pass
+
+
+def _geometry(rng: random.Random, folder: Path) -> None:
     """Image or ground geometry broken: one photo's points on a line, a column
     scaled (micrometres for millimetres), a photo's points moved, control
     coordinates swapped or far away."""
@@ -238,6 +253,7 @@ def geometry(rng: random.Random, folder: Path) -> None:
         for i in body:
             if cells[i][0] == photo:
                 cells[i][j] = "3.000"
+        _must_fail(folder, f"photo {photo}'s points on one line")
     elif kind == 1:  # a coordinate column scaled
         j = header.index(rng.choice(["x", "y"]))
         factor = rng.choice([1000.0, 0.001, -1.0])
@@ -251,14 +267,29 @@ def geometry(rng: random.Random, folder: Path) -> None:
     elif kind == 3:  # X and Y swapped
         for i in body:
             cells[i][1], cells[i][2] = cells[i][2], cells[i][1]
+        _must_fail(folder, SWAPPED)  # twice: swapped back
     else:  # one control point far away
         i = rng.choice(body)
         j = rng.choice([1, 2, 3])
         if cells[i][j]:
             cells[i][j] = rng.choice(["1e308", "1e12", "-4e7", "1e5", "0"])
+            if cells[i][j] in ("1e308", "1e12", "-4e7"):
+                _must_fail(folder, f"control point {cells[i][0]} at {cells[i][j]}")
     for i in body:
         rows[i] = ",".join(cells[i])
     _put(path, "\n".join(rows))
+
+
+def _must_fail(folder: Path, reason: str) -> None:
+    """Mark the case as one that no run may turn into a result (a false
+    success); a second swap of X and Y undoes the first."""
+    path = folder / MUST_FAIL
+    reasons = path.read_text("utf-8").splitlines() if path.exists() else []
+    if reason == SWAPPED and SWAPPED in reasons:
+        reasons.remove(SWAPPED)
+    else:
+        reasons.append(reason)
+    path.write_text("".join(f"{r}\n" for r in reasons), encoding="utf-8")
 
 
 def bytes_level(rng: random.Random, folder: Path) -> None:
@@ -407,6 +438,8 @@ def test_fuzzed_project(case, projects, tmp_path, request):
         result = runner.invoke(cli, [command, str(folder / "strip.toml")])
         _assert_answer(result, command, time.perf_counter() - started, label)
     if result.exit_code == 0:
+        reasons = (folder / MUST_FAIL).read_text("utf-8") if (folder / MUST_FAIL).exists() else ""
+        assert not reasons, (label, "a false success:", reasons)
         _assert_finite_outputs(folder / "out", label)
     else:
         assert _snapshot(folder / "out") == earlier, (label, "the earlier result changed")

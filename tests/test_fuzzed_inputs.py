@@ -221,6 +221,25 @@ def test_a_photo_whose_points_are_collinear_is_an_error_naming_it(tmp_path):
     assert not (drone / "out").exists()
 
 
+def test_a_block_with_mirrored_control_is_refused_without_blunder_tests(tmp_path):
+    """Found by the fuzz test: a block's run checked for control in degrees
+    only, so with ``[blunders] action = "off"`` control with X and Y swapped
+    ran to a result (RMSE 0.4 m plan, 1.4 m height, exit 0); ``check`` said
+    it was mirrored."""
+    block = simulate(tmp_path / "b", "drone", "--strips", "3", "--photos", "4", "--seed", "3")
+    path = block / "control.csv"
+    rows = list(csv.reader(io.StringIO(path.read_text(encoding="utf-8"))))
+    for r in rows[1:]:
+        r[1], r[2] = r[2], r[1]
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerows(rows)
+    path.write_text(buffer.getvalue(), encoding="utf-8")
+    with (block / "strip.toml").open("a", encoding="utf-8") as stream:
+        stream.write('\n[blunders]\naction = "off"\n')
+    both_fail(block, "control.csv", "the control is mirrored against the photos")
+    assert not (block / "out").exists()
+
+
 # --------------------------------------------------------------------------- 3. one line
 
 
