@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from ..errors import StripAerotriError
+from ..options import DEFAULT_PHOTO_STEP
 from ..geometry.deformation import n_terms, polynomial_count_problems
 from ..geometry.similarity import (
     COINCIDENT_RTOL,
@@ -45,7 +46,6 @@ from ..geometry.similarity import (
     control_count_problems,
     cross_tilt,
 )
-from ..options import DEFAULT_PHOTO_STEP
 from ..plausibility import control_problems
 from ..strip.chaining import pair_rows
 from ..strip.relative import pair_count_problems
