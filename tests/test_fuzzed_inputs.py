@@ -171,7 +171,7 @@ def test_a_check_point_at_y_1e308_is_implausible_in_check_and_run(film):
     [
         ("H", "250000", "H beyond"),
         ("X", "-4e9", "X or Y beyond"),
-        ("Y", "+5e7", "from the median of the plan control"),
+        ("Y", "+5e7", "from the median of the plan coordinates"),
     ],
     ids=["height", "huge-X", "far-from-the-rest"],
 )
