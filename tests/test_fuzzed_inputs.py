@@ -436,3 +436,14 @@ def test_a_crs_given_as_multi_line_wkt_is_still_read(film):
     edit(film / "strip.toml", 'crs = "EPSG:32634"', f'crs = """{wkt}"""')
     result = invoke("check", film / "strip.toml")
     assert result.exit_code == 0, result.output
+
+
+def test_running_out_of_memory_is_one_line(film, monkeypatch):
+    """The last resort: a MemoryError is told in words, not as "unexpected"."""
+    from strip_aerotri import project
+
+    def exhausted(path):
+        raise MemoryError
+
+    monkeypatch.setattr(project, "load_project", exhausted)
+    one_error(invoke("check", film / "strip.toml"), "out of memory")

@@ -84,6 +84,12 @@ def report_exception(exc: BaseException, debug: bool) -> None:
         echo_error(str(exc))
     elif isinstance(exc, OSError) and exc.filename is not None:
         echo_error(f"{exc.filename}: {exc.strerror or exc}")
+    elif isinstance(exc, MemoryError):
+        echo_error(
+            "out of memory: the project needs more memory than this machine can give "
+            "(inputs are bounded in size, see 'stripaero docs project-file', but a very "
+            "large block may still exceed it)"
+        )
     else:
         hint = "" if debug else " (run with --debug for details)"
         echo_error(f"unexpected {type(exc).__name__}: {exc}{hint}")
