@@ -447,3 +447,13 @@ def test_running_out_of_memory_is_one_line(film, monkeypatch):
 
     monkeypatch.setattr(project, "load_project", exhausted)
     one_error(invoke("check", film / "strip.toml"), "out of memory")
+
+
+def test_a_control_point_no_photo_observes_is_left_out_whatever_its_coordinates(film):
+    """formats.md: an unobserved control point is a warning, not an error;
+    the plausibility rules judge the points the photos observe."""
+    with (film / "control.csv").open("a", encoding="utf-8") as stream:
+        stream.write("FARAWAY,1e308,4e7,9e6,full,,\n")
+    result = invoke("check", film / "strip.toml")
+    assert result.exit_code == 0, result.output
+    assert "'FARAWAY'" in result.stderr and "not observed" in result.stderr

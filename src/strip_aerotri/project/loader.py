@@ -261,6 +261,7 @@ def load_project(path: str | Path) -> Project:
         adjustment["route"],  # type: ignore[arg-type]
         table_c,
         xyz,
+        observed=np.isin(ids, np.asarray(observations.point_ids)),
     )
     warnings += crs_warnings
     gnss = (

@@ -278,9 +278,15 @@ def load_control(
 
 
 def check_crs(
-    toml_name: Path, crs: str, route: Route | None, table: CsvTable, xyz: FloatArray
+    toml_name: Path,
+    crs: str,
+    route: Route | None,
+    table: CsvTable,
+    xyz: FloatArray,
+    observed: BoolArray | None = None,
 ) -> tuple[Route, list[str]]:
-    """Validate ``crs`` with pyproj, choose the route and check geographic ranges."""
+    """Validate ``crs`` with pyproj, choose the route and check geographic
+    ranges and, on the ``observed`` rows, plausible coordinates."""
     warnings: list[str] = []
     if crs == "local":
         if route is Route.GEOCENTRIC:
@@ -288,7 +294,7 @@ def check_crs(
                 f'{toml_name}: [adjustment] route: "geocentric" needs a geodetic CRS; '
                 f'with crs = "local" only "projected" applies'
             )
-        check_plausible_extent(None, table, xyz)
+        check_plausible_extent(None, table, xyz, observed)
         return Route.PROJECTED, warnings
     import pyproj  # deferred: only loading a geodetic project needs it
 
@@ -321,9 +327,8 @@ def check_crs(
                 f"\"local\"; '{crs}' is geographic (longitude, latitude)"
             )
         _check_geographic_ranges(crs, table, xyz)
-        check_plausible_extent(crs_obj, table, xyz)
-    else:
-        check_plausible_extent(crs_obj, table, xyz)
+    check_plausible_extent(crs_obj, table, xyz, observed)
+    if not crs_obj.is_geographic:
         unit = crs_obj.axis_info[0].unit_name if crs_obj.axis_info else "metre"
         if unit not in ("metre", "meter") and chosen is Route.PROJECTED:
             warnings.append(
@@ -363,13 +368,19 @@ AREA_MARGIN_DEG = 20.0
 
 
 def check_plausible_extent(
-    crs: Any, table: CsvTable, xyz: FloatArray, id_name: str = "point", h_name: str = "H"
+    crs: Any,
+    table: CsvTable,
+    xyz: FloatArray,
+    judged: BoolArray | None = None,
+    names: tuple[str, str] = ("point", "H"),
 ) -> None:
     """Refuse control coordinates no project can have, naming the first row.
 
-    ``crs`` is the pyproj CRS of ``[control] crs`` (None for "local"); NaN
-    cells (a plan or height point's empty ones) pass; ``id_name`` and
-    ``h_name`` name the id and the height column (GNSS centres: photo, Z).  Implausible are: a
+    ``crs`` is the pyproj CRS of ``[control] crs`` (None for "local"); only
+    the rows ``judged`` are looked at (default all: a control point no photo
+    observes is left out with a warning, whatever its coordinates), and NaN
+    cells (a plan or height point's empty ones) pass; ``names`` are those of
+    the id and the height column (GNSS centres: photo, Z).  Implausible are: a
     height beyond :data:`MAX_ABS_HEIGHT_M` or :data:`MAX_HEIGHT_SPREAD_M` from
     the median height; a projected or local X, Y beyond
     :data:`MAX_ABS_PROJECTED`, or far outside the extent of the other points
@@ -378,7 +389,10 @@ def check_plausible_extent(
     outside the CRS's area of use.  Such a value is a typing or export error,
     and adjusting with it gives a "result" in the thousands of kilometres.
     """
+    if judged is not None:
+        xyz = np.where(judged[:, None], xyz, np.nan)
     xy, h = xyz[:, :2], xyz[:, 2]
+    h_name = names[1]
     with np.errstate(over="ignore", invalid="ignore"):
         h_median = np.nanmedian(h) if np.isfinite(h).any() else 0.0
         rules = [
@@ -410,7 +424,6 @@ def check_plausible_extent(
                         "times their median distance from it",
                     )
                 )
-    names = (id_name, h_name)
     for bad, text in rules:
         if bad.any():
             _raise_implausible(table, xyz, int(np.flatnonzero(bad)[0]), text, names)
@@ -554,8 +567,10 @@ def load_gnss(
     sigma_z = optional_sigma(table, "sigma_z", float(gnss["sigma_z"]))  # type: ignore[arg-type]
     if _is_geographic(crs):
         _check_geographic_ranges(crs, table, xyz)
-    check_plausible_extent(_crs_object(crs), table, xyz, id_name="photo", h_name="Z")
     rows = _strip_rows(table, photo, photo_ids, notes)
+    in_strip = np.zeros(table.n_rows, dtype=bool)
+    in_strip[rows] = True
+    check_plausible_extent(_crs_object(crs), table, xyz, in_strip, names=("photo", "Z"))
     return GnssCentres(tuple(photo[rows].tolist()), xyz[rows], sigma_xy[rows], sigma_z[rows])
 
 
