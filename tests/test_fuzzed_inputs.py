@@ -457,3 +457,31 @@ def test_a_control_point_no_photo_observes_is_left_out_whatever_its_coordinates(
     result = invoke("check", film / "strip.toml")
     assert result.exit_code == 0, result.output
     assert "'FARAWAY'" in result.stderr and "not observed" in result.stderr
+
+
+def test_collinear_ratio_against_a_dense_svd():
+    """collinear_ratio (per pair, from 2 x 2 scatter eigenvalues) equals the
+    ratio of the singular values of each pair's centred normalised points."""
+    import numpy as np
+
+    from strip_aerotri.strip.relative import collinear_ratio
+
+    rng = np.random.default_rng(2345)
+    counts = np.array([6, 9, 5, 12])
+    pair = np.repeat(np.arange(4), counts)
+    image = np.column_stack(
+        [
+            rng.uniform(-100, 100, pair.size),
+            rng.uniform(-100, 100, pair.size),
+            -np.full(pair.size, 152.0),
+        ]
+    )
+    image[pair == 2, 0] = 3.0  # pair 2: every point on the line x = 3 mm
+    image[pair == 3, 1] = 0.5 * image[pair == 3, 0] + rng.normal(0, 0.05, 12)  # nearly on a line
+    got = collinear_ratio(image, pair, 5)  # pair 4 has no points
+    for m in range(4):
+        uv = image[pair == m, :2] / 152.0
+        s = np.linalg.svd(uv - uv.mean(axis=0), compute_uv=False)
+        assert got[m] == pytest.approx(s[1] / s[0], rel=1e-9, abs=1e-12)
+    assert got[2] == 0.0 and got[3] < 1e-2 < got[0]
+    assert np.isnan(got[4])

@@ -214,7 +214,6 @@ def collinear_ratio(image: ArrayLike, pair: IntArray, n_pairs: int) -> FloatArra
 def _check_not_collinear(
     left: FloatArray,
     pair: IntArray,
-    starts: IntArray,
     counts: IntArray,
     labels: list[str] | None,
 ) -> None:
@@ -857,7 +856,7 @@ def relative_orientation(
     first = np.eye(3) if rotation_first is None else np.asarray(rotation_first, np.float64)
     counts = _check_pairs(pair, n_pairs, labels)
     starts = _segment_starts(pair, n_pairs)
-    _check_not_collinear(left, pair, starts, counts, labels)
+    _check_not_collinear(left, pair, counts, labels)
     var = (
         np.broadcast_to(np.asarray(sigma_left, np.float64), pair.shape) ** 2
         + np.broadcast_to(np.asarray(sigma_right, np.float64), pair.shape) ** 2
