@@ -28,6 +28,7 @@ further.
 
 from __future__ import annotations
 
+import json
 import os
 import random
 import re
@@ -415,6 +416,11 @@ def _assert_finite_outputs(folder: Path, case: str) -> None:
     for name in ("points.csv", "photos.csv"):
         text = (folder / name).read_text(encoding="utf-8").lower()
         assert not re.search(r"(^|,)[-+]?(nan|inf)", text, re.MULTILINE), (case, name)
+
+    def refuse(constant: str) -> None:
+        raise AssertionError((case, "report.json holds", constant))
+
+    json.loads((folder / "report.json").read_text(encoding="utf-8"), parse_constant=refuse)
 
 
 # --------------------------------------------------------------------------- the cases
