@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import traceback
 import warnings
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TextIO
 
 import click
 
@@ -45,9 +46,10 @@ class StripaeroGroup(click.Group):
         try:
             with warnings.catch_warnings():
                 # numpy's floating-point warnings (overflow, invalid value) are
-                # no message for the user: input that makes them is refused in
-                # words, and a failure must print its one error line alone
-                warnings.simplefilter("ignore", RuntimeWarning)
+                # not shown: input that makes them is refused in words, and a
+                # failure prints its one error line alone.  Their filters stay
+                # as they are (a test suite may turn them into errors).
+                warnings.showwarning = _shown_unless_runtime(warnings.showwarning)
                 return super().invoke(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
@@ -59,6 +61,23 @@ class StripaeroGroup(click.Group):
         except Exception as exc:  # the boundary: every other error becomes exit code 1
             report_exception(exc, settings(ctx).debug)
             ctx.exit(1)
+
+
+def _shown_unless_runtime(show: Callable[..., None]) -> Callable[..., None]:
+    """``warnings.showwarning`` that drops RuntimeWarnings and passes on the rest."""
+
+    def showwarning(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
+        if not issubclass(category, RuntimeWarning):
+            show(message, category, filename, lineno, file, line)
+
+    return showwarning
 
 
 def _silence_stdout() -> None:
