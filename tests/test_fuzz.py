@@ -285,11 +285,19 @@ def _geometry(rng: random.Random, folder: Path) -> None:
 
 def _must_fail(folder: Path, reason: str) -> None:
     """Mark the case as one that no run may turn into a result (a false
-    success); a second swap of X and Y undoes the first."""
+    success); a second swap of X and Y undoes the first, a column scaled
+    twice is scaled by the product."""
     path = folder / MUST_FAIL
     reasons = path.read_text("utf-8").splitlines() if path.exists() else []
+    scaled = re.fullmatch(r"(image \w+ times )(\S+)", reason)
+    before = [r for r in reasons if scaled and r.startswith(scaled.group(1))]
     if reason == SWAPPED and SWAPPED in reasons:
         reasons.remove(SWAPPED)
+    elif scaled and before:  # a column scaled again: the product (1: undone)
+        reasons.remove(before[0])
+        factor = float(scaled.group(2)) * float(before[0].split()[-1])
+        if abs(factor - 1.0) > 1e-6:
+            reasons.append(f"{scaled.group(1)}{factor:g}")
     else:
         reasons.append(reason)
     path.write_text("".join(f"{r}\n" for r in reasons), encoding="utf-8")

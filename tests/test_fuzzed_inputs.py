@@ -180,6 +180,20 @@ def test_coordinates_far_outside_the_project_are_implausible(film, column, value
     both_fail(film, "control.csv:2:", "implausible coordinates", rule)
 
 
+def test_a_check_point_400_km_away_is_implausible(film):
+    """Found by the fuzz test: a check point at X = 1e5 instead of ~5e5 (UTM)
+    is inside every absolute bound and within 1000 times the control's
+    spread, and the run printed "RMSE plan 56692.928 m" with exit 0.  On its
+    photos it is 200 times farther from the other plan points than the
+    photos show at the strip's scale (legit projects stay under 1.5)."""
+    rows = list(csv.reader(io.StringIO((film / "control.csv").read_text(encoding="utf-8"))))
+    row = next(i for i, r in enumerate(rows[1:]) if r[rows[0].index("type")] == "check")
+    point = rows[row + 1][0]
+    set_cell(film / "control.csv", row, "X", "1e5")
+    both_fail(film, f"control.csv: point '{point}'", "implausible coordinates", "farther")
+    assert not (film / "out").exists()
+
+
 def test_a_point_outside_the_projection_domain_is_implausible(film):
     # UTM 34N cannot take an easting of 9e7 m back to longitude and latitude
     set_cell(film / "control.csv", 0, "X", "9e7")
