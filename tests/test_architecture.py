@@ -43,6 +43,7 @@ LAYERS: dict[str, int] = {
     **dict.fromkeys(["project", "report", "importers", "export"], 8),
     "cli": 9,
     "__init__": 10,
+    "__main__": 10,
 }
 
 MAX_CODE_LINES = 120

@@ -45,6 +45,17 @@ from .geometry.deformation import (
     select_kind_auto,
 )
 from .geometry.intersection import intersect, intersect_midpoint, intersect_normal
+from .geometry.normals import (
+    BorderRows,
+    Cofactors,
+    FormedNormals,
+    NormalSolution,
+    NormalStructure,
+    PointRows,
+    SingularNormalsError,
+    UnitPointRows,
+    UnitRows,
+)
 from .geometry.rotation import (
     cardan_from_matrix,
     cardan_from_opk,
@@ -101,7 +112,8 @@ from .pipeline import triangulate
 from .project import Project, load_project, run_project
 from .report.files import OutputError, ResultFolder, write_result_folder
 from .report.outputs import build_outputs, build_report
-from .report.tolerances import Criterion, tolerance_verdicts
+from .report.tolerances import Criterion, chance_beyond, tolerance_verdicts
+from .report.verdict import Verdict, overall_verdict
 from .results import (
     AccuracyStatistics,
     BundleResult,
@@ -141,8 +153,10 @@ __all__ = [
     "AccuracyStatistics",
     "BlockStrip",
     "BlunderOptions",
+    "BorderRows",
     "BrownDistortion",
     "BundleResult",
+    "Cofactors",
     "ConfigError",
     "ControlPoints",
     "ControlType",
@@ -151,6 +165,7 @@ __all__ = [
     "DeformationResult",
     "FiducialFit",
     "FlightDirection",
+    "FormedNormals",
     "GeometryError",
     "GnssCentres",
     "GnssResiduals",
@@ -164,7 +179,10 @@ __all__ = [
     "KindSelection",
     "LineSpec",
     "LocalTangentFrame",
+    "NormalSolution",
+    "NormalStructure",
     "OutputError",
+    "PointRows",
     "Project",
     "RefinedResult",
     "Rejection",
@@ -178,6 +196,7 @@ __all__ = [
     "SimulatedBlock",
     "SimulatedStrip",
     "SimulationTruth",
+    "SingularNormalsError",
     "StraightLine",
     "StripAerotriError",
     "StripAerotriWarning",
@@ -185,6 +204,9 @@ __all__ = [
     "StripOptions",
     "StripPreset",
     "StripResult",
+    "UnitPointRows",
+    "UnitRows",
+    "Verdict",
     "__version__",
     "adjust_to_ground",
     "azimuth_from_local_enu",
@@ -195,6 +217,7 @@ __all__ = [
     "cardan_from_opk",
     "cardan_from_schut",
     "chain_rotations",
+    "chance_beyond",
     "check_matrix",
     "choose_photo_step",
     "complete_strip",
@@ -224,6 +247,7 @@ __all__ = [
     "opk_from_cardan",
     "opk_from_matrix",
     "opk_from_schut",
+    "overall_verdict",
     "polynomial_terms",
     "reduce_image_coordinates",
     "refine_bundle",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Collection, Sequence
+from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -18,10 +18,13 @@ from .options import (
     echo_result,
     echo_warning,
     project_arg,
+    settings,
 )
 
 if TYPE_CHECKING:  # the numerical modules are imported when the command runs
     from .._typing import ArrayLike
+    from ..project import Project
+    from ..report.files import ResultFolder
     from ..results import BlockResult, Rejection, StripResult
 
 __all__ = ["run"]
@@ -32,25 +35,15 @@ def _fmt_m(value: float) -> str:
 
 
 def _tolerance_verdict(report_json: bytes | None) -> str | None:
-    """One line on the tolerance criteria of report.json, if it has them."""
+    """The overall tolerance verdict of report.json, in the words of the report's
+    banner and plain summary."""
     import json
 
     try:
-        tolerances = json.loads(report_json or b"{}").get("tolerances") or {}
-        scale = float(tolerances["map_scale"])
-        criteria = tolerances["criteria"]
-        failed = [c["name"] for c in criteria if c.get("passed") is False]
-    except (ValueError, KeyError, TypeError, AttributeError):
+        verdict = json.loads(report_json or b"{}")["tolerances"]["verdict"]["text"]
+    except (ValueError, KeyError, TypeError):
         return None
-    judged = [c for c in criteria if c.get("passed") is not None]
-    head = f"tolerances for 1:{scale:g}: "
-    unjudged = len(criteria) - len(judged)
-    tail = f" ({unjudged} not judged: too few values)" if unjudged else ""
-    if failed:
-        return (
-            head + f"{len(failed)} of {len(judged)} criteria failed ({', '.join(failed)})" + tail
-        )
-    return head + f"all {len(judged)} judged criteria met" + tail
+    return f"tolerances (R4 §1.7.7): {verdict}"
 
 
 def _echo_details(result: StripResult) -> None:
@@ -186,8 +179,8 @@ def _report_name(names: Collection[str]) -> str | None:
     "--out",
     type=click.Path(path_type=Path),
     default=None,
-    help="Result folder (replaced as a whole). Default: [output] directory of the "
-    "project, else 'out' beside strip.toml.",
+    help="Result folder (its results replaced, other files kept). Default: [output] "
+    "directory of the project, else 'out' beside strip.toml.",
 )
 @click.option(
     "--map-scale",
@@ -203,8 +196,11 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
 
     Loads and validates the project, forms the strip model, fits it to the
     control and writes points.csv, photos.csv, report.json and the report
-    into the result folder. The folder is replaced as a whole, only when the
-    run succeeds; a folder that is not a previous result is never touched.
+    into the result folder. The results are replaced only when the run
+    succeeds; other files in the folder (notes, exports) are kept; a folder
+    that is not a previous result is never touched. One run at a time may
+    write a folder; Ctrl-C stops with exit code 130 and says which result
+    the folder holds.
 
     \b
     Examples:
@@ -212,10 +208,10 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
       stripaero run strip.toml --out results/2024-05 --map-scale 5000
       stripaero -q run strip.toml            # the summary only (no warnings)
     """
-    from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+    from ..errors import StripAerotriWarning
     from ..project import load_project, output_folder
-    from ..project import run as project_run
     from ..report.files import ResultFolder
+    from ..report.lock import FolderLock
     from ..results import BlockResult
 
     started = time.perf_counter()
@@ -224,37 +220,28 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         warnings.simplefilter("always", StripAerotriWarning)
         project = load_project(project_file)
         target = output_folder(project, out)
-        echo_progress(
-            f"project '{project.name}': {len(project.photo_ids)} photos, "
-            f"{project.observations.n_points} points, {len(project.control.point_ids)} "
-            f"control and check points, crs {project.crs}"
-        )
-        try:
-            result = project_run.run_project(project, progress=echo_progress)
-        except (GeometryError, ConvergenceError) as exc:
-            if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
-                raise  # the message names its file already
-            raise type(exc)(f"{project.path}: {exc}") from exc
-        echo_progress("writing the report")
-        scale = map_scale if map_scale is not None else project.report.map_scale
-        if isinstance(result, BlockResult):
-            from ..report.block import build_block_outputs
-
-            files = build_block_outputs(result, project=project, map_scale=scale)
-        else:
-            from ..report import outputs as report
-
-            files = report.build_outputs(result, project=project, map_scale=scale)
-
-    # Warnings only once the run has succeeded: a failed run prints its one error line.
-    texts = dict.fromkeys((*project.warnings, *result.warnings, *(str(w.message) for w in caught)))
-    for text in _warning_lines(list(texts), _rejections(result), files):
-        echo_warning(text)
-
-    echo_progress(f"writing {len(files)} files to {target}")
-    with ResultFolder(target, protect=project.input_files) as folder:
-        for name, data in files.items():
-            folder.write_bytes(name, data if isinstance(data, bytes) else str(data).encode())
+        lock = FolderLock(target)
+        folder = ResultFolder(target, protect=project.input_files)
+        with lock:
+            settings().interrupted = _folder_state(folder)
+            result, files = _adjust_and_report(project, map_scale)
+            # Warnings only once the run has succeeded: a failed run prints its one
+            # error line.
+            texts = (
+                *project.warnings,
+                *result.warnings,
+                *(str(w.message) for w in caught),
+                *_report_warnings(files.get("report.json")),
+            )
+            for text in _warning_lines(list(dict.fromkeys(texts)), _rejections(result), files):
+                echo_warning(text)
+            echo_progress(f"writing {len(files)} files to {target}")
+            with folder:
+                for name, data in files.items():
+                    folder.write_bytes(
+                        name, data if isinstance(data, bytes) else str(data).encode()
+                    )
+    _echo_kept(folder)
 
     if isinstance(result, BlockResult):
         _echo_block_details(result)
@@ -289,6 +276,76 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         echo_result(f"report: {target / report_name}")
     echo_result(f"results: {target}")
     echo_progress(f"done in {elapsed:.1f} s", level=1)
+
+
+def _report_warnings(report_json: bytes | None) -> list[str]:
+    """The warnings report.json adds to the run's (the plan drift at the map scale)."""
+    import json
+
+    try:
+        listed = json.loads(report_json or b"{}").get("warnings") or []
+    except ValueError:
+        return []
+    return [str(w) for w in listed]
+
+
+def _adjust_and_report(
+    project: Project, map_scale: float | None
+) -> tuple[StripResult | BlockResult, dict[str, bytes]]:
+    """Adjust the project and make the result folder's files."""
+    from ..errors import ConvergenceError, GeometryError
+    from ..project import run as project_run
+    from ..results import BlockResult
+
+    echo_progress(
+        f"project '{project.name}': {len(project.photo_ids)} photos, "
+        f"{project.observations.n_points} points, {len(project.control.point_ids)} "
+        f"control and check points, crs {project.crs}"
+    )
+    try:
+        result = project_run.run_project(project, progress=echo_progress)
+    except (GeometryError, ConvergenceError) as exc:
+        if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
+            raise  # the message names its file already
+        raise type(exc)(f"{project.path}: {exc}") from exc
+    echo_progress("writing the report")
+    scale = map_scale if map_scale is not None else project.report.map_scale
+    if isinstance(result, BlockResult):
+        from ..report.block import build_block_outputs
+
+        return result, build_block_outputs(result, project=project, map_scale=scale)
+    from ..report import outputs as report
+
+    return result, report.build_outputs(result, project=project, map_scale=scale)
+
+
+def _folder_state(folder: ResultFolder) -> Callable[[], str]:
+    """What the result folder holds if the run stops now (for Ctrl-C's line)."""
+    from ..report.files import RESULT_MARKER
+
+    target = folder.target
+    previous = (target / RESULT_MARKER).is_file()
+
+    def state() -> str:
+        if folder.committed:
+            return f"'{target}' holds the new result (written before the interrupt)"
+        if previous:
+            return f"'{target}' holds the previous result, unchanged"
+        return f"no result was written to '{target}'"
+
+    return state
+
+
+def _echo_kept(folder: ResultFolder) -> None:
+    """Name the files of the previous folder the run kept, and the exports
+    among them that now describe the previous result."""
+    if folder.kept:
+        echo_progress(f"kept in {folder.target}: {', '.join(folder.kept)}")
+    if folder.exports:
+        echo_warning(
+            f"{folder.target}: {', '.join(folder.exports)} kept, but exported from the previous "
+            "result; run stripaero export again to bring them up to date"
+        )
 
 
 def _echo_block_details(result: BlockResult) -> None:
