@@ -499,3 +499,10 @@ def test_collinear_ratio_against_a_dense_svd():
         assert got[m] == pytest.approx(s[1] / s[0], rel=1e-9, abs=1e-12)
     assert got[2] == 0.0 and got[3] < 1e-2 < got[0]
     assert np.isnan(got[4])
+
+
+def test_a_distortion_coefficient_beyond_any_lens(film):
+    """Found by the fuzz test: k1 = 1e308 overflowed the distortion polynomial."""
+    with (film / "strip.toml").open("a", encoding="utf-8") as stream:
+        stream.write("\n[distortion]\nk1 = 1e308\n")
+    both_fail(film, "[distortion] k1", "expected a number from -1e+06 to 1e+06")

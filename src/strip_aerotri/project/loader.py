@@ -258,14 +258,9 @@ def load_project(path: str | Path) -> Project:
         float(control["sigma_xy_m"]),  # type: ignore[arg-type]
         float(control["sigma_h_m"]),  # type: ignore[arg-type]
     )
-    route, crs_warnings = check_crs(
-        toml_path,
-        crs,
-        adjustment["route"],  # type: ignore[arg-type]
-        table_c,
-        xyz,
-        observed=np.isin(ids, np.asarray(observations.point_ids)),
-    )
+    given_route: Route | None = adjustment["route"]  # type: ignore[assignment]
+    observed = np.isin(ids, np.asarray(observations.point_ids))
+    route, crs_warnings = check_crs(toml_path, crs, given_route, table_c, xyz, observed)
     warnings += crs_warnings
     gnss = (
         None

@@ -172,6 +172,10 @@ TABLES_BY_NAME = {t.name: t for t in PROJECT_TABLES}
 MAX_ID_LENGTH = 128
 #: Longest name (of a strip, a line) in characters, as drawn in figures.
 MAX_NAME_LENGTH = 200
+#: Largest magnitude of a distortion coefficient (the keys of kind "number"):
+#: real ones are below 1 (normalised) or 1e-3 (mm); far beyond, the
+#: polynomials overflow.
+MAX_COEFFICIENT = 1e6
 #: Longest other string value (a CRS may be given as WKT) and path.
 MAX_STRING_LENGTH = 65536
 MAX_PATH_LENGTH = 4096
@@ -775,6 +779,11 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
     if kind == "number":
         if not _is_number(value) or not math.isfinite(value):  # type: ignore[arg-type]
             raise ConfigError(f"{where}: expected a finite number, got {describe(value)}")
+        if abs(float(value)) > MAX_COEFFICIENT:  # type: ignore[arg-type]
+            raise ConfigError(
+                f"{where}: expected a number from -{MAX_COEFFICIENT:g} to {MAX_COEFFICIENT:g}, "
+                f"got {float(value):g} (beyond any lens: a typing error?)"  # type: ignore[arg-type]
+            )
         return float(value)  # type: ignore[arg-type]
     if kind == "mark table":
         if not isinstance(value, dict) or len(value) < 2:
