@@ -44,6 +44,7 @@ from .geometry.deformation import (
     polynomial_terms,
     select_kind_auto,
 )
+from .geometry.camera_model import CameraModel
 from .geometry.intersection import intersect, intersect_midpoint, intersect_normal
 from .geometry.normals import (
     BorderRows,
@@ -107,6 +108,7 @@ from .options import (
     Route,
     ScaleTransfer,
     StripOptions,
+    SelfCalibration,
 )
 from .pipeline import triangulate
 from .project import Project, load_project, run_project
@@ -125,6 +127,8 @@ from .results import (
     RelativeOrientation,
     StripModel,
     StripResult,
+    CameraEstimate,
+    SelfCalibrationOutcome,
 )
 from .simulate import (
     PRESETS,
@@ -156,6 +160,10 @@ __all__ = [
     "BorderRows",
     "BrownDistortion",
     "BundleResult",
+    "CameraEstimate",
+    "CameraModel",
+    "SelfCalibration",
+    "SelfCalibrationOutcome",
     "Cofactors",
     "ConfigError",
     "ControlPoints",

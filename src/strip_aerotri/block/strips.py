@@ -42,6 +42,7 @@ from ..geometry.simultaneous import (
 )
 from ..ground.models import model_weights
 from ..ground.polynomials import adjust_to_ground
+from ..ground.systematic import kept_control, systematic_message, systematic_pattern
 from ..observations import (
     ControlPoints,
     GnssCentres,
@@ -50,6 +51,7 @@ from ..observations import (
     StripSpec,
 )
 from ..options import (
+    SelfCalibration,
     DEFAULT_BLOCK_POLYNOMIAL,
     DEFAULT_MAX_ITERATIONS,
     BlunderAction,
@@ -118,6 +120,7 @@ def adjust_block(
     gnss: GnssCentres | None = None,
     imu: ImuAttitudes | None = None,
     polynomial: int | None = None,
+    self_calibration: SelfCalibration | None = None,
 ) -> BlockResult:
     """Form every strip, then transform all strips at once to the control.
 
@@ -193,7 +196,16 @@ def adjust_block(
     if refine:
         t1 = time.perf_counter()
         result = _refine(
-            problem, solution, used_xy, used_z, result, blunders, max_iterations, gnss, imu
+            problem,
+            solution,
+            used_xy,
+            used_z,
+            result,
+            blunders,
+            max_iterations,
+            gnss,
+            imu,
+            self_calibration,
         )
         timings["bundle"] = time.perf_counter() - t1
     return _with_timings(result, timings)
@@ -796,8 +808,9 @@ def _snoop(
     flagged: set[tuple[int, int]] = set()
     sol = _solve(p, use_xy, use_z, None, keep_rows)
     sigma0 = float(sol.result.sigma0)
+    first, control_kept = sol, False
     while blunders.testing:
-        found = _control_test(p, sol, use_xy, use_z, blunders, flagged)
+        found = None if control_kept else _control_test(p, sol, use_xy, use_z, blunders, flagged)
         if found is None:
             found = _determination_test(p, sol, keep_rows, blunders)
         if found is None:
@@ -810,7 +823,11 @@ def _snoop(
             continue
         apply(use_xy, use_z, keep_rows)
         if n_control - int(2 * use_xy.sum() + use_z.sum()) > blunders.max_fraction * n_control:
-            raise GeometryError(_too_much_control_fails(p, blunders, sigma0))
+            if not _keep_systematic(p, first, blunders):
+                raise GeometryError(_too_much_control_fails(p, blunders, sigma0))
+            # a smooth pattern: the camera, not the control; keep it all
+            use_xy, use_z, control_kept = p.use_xy.copy(), p.use_z.copy(), True
+            rejections = kept_control(rejections)
         if (~keep_rows).sum() > blunders.max_fraction * n_det:
             raise GeometryError(
                 f"block: more than {blunders.max_fraction:.0%} of the points' determinations "
@@ -818,6 +835,26 @@ def _snoop(
             )
         sol = _solve(p, use_xy, use_z, sol, keep_rows)
     return sol, use_xy, use_z, keep_rows, tuple(rejections)
+
+
+def _keep_systematic(p: _Problem, first: _Solution, blunders: BlunderOptions) -> bool:
+    """True (and a warning) when the first solution's control fails at many
+    points alike (:mod:`strip_aerotri.ground.systematic`): camera errors, not
+    blunders."""
+    import warnings
+
+    active = p.use_xy | p.use_z
+    w = np.full((p.idx.shape[0], 3), np.nan)
+    w[active] = first.result.control_w
+    w[~p.use_xy, :2] = np.nan
+    w[~p.use_z, 2] = np.nan
+    critical = blunders.critical("control", max(int(np.isfinite(w).sum()), 1))
+    if not systematic_pattern(w[active], critical):
+        return False
+    warnings.warn(
+        systematic_message("block", w[active], critical), StripAerotriWarning, stacklevel=4
+    )
+    return True
 
 
 def _too_much_control_fails(p: _Problem, blunders: BlunderOptions, sigma0: float) -> str:
@@ -968,6 +1005,7 @@ def _refine(
     max_iterations: int,
     gnss: GnssCentres | None = None,
     imu: ImuAttitudes | None = None,
+    self_calibration: SelfCalibration | None = None,
 ) -> BlockResult:
     """The bundle adjustment of the whole block from its solution, in the work
     frame (plan-only and height-only control keep the block's value of their
@@ -999,6 +1037,7 @@ def _refine(
         blunders=blunders,
         max_iterations=max_iterations,
         compute_precision=False,
+        self_calibration=self_calibration,
     )
     work = p.work
     points_work = np.where(fr.point_used[:, None], fr.points, np.nan)
@@ -1026,6 +1065,8 @@ def _refine(
     used[~used_xy, :2] = np.nan
     used[~used_z, 2] = np.nan
     notes = tuple(r.describe() for r in fr.rejections)
+    if fr.self_calibration is not None:
+        notes = fr.self_calibration.notes + notes
     return replace(
         block,
         points=work.from_work(points_work),
@@ -1043,6 +1084,7 @@ def _refine(
         block_check_statistics=block.check_statistics,
         gnss=gnss_out,
         imu=imu_out,
+        self_calibration=fr.self_calibration,
     )
 
 
@@ -1160,6 +1202,7 @@ def _free_block(
         r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
     )
     idx = np.unique(p.idx[active])
+    idx = idx[np.all(np.isfinite(res.points[idx]), axis=1)]  # a point may have lost its rows
     extent = float(np.max(np.ptp(res.points[idx], axis=0), initial=0.0))
     free = adjust_units(
         rows,

@@ -57,6 +57,7 @@ from ..options import BlunderAction, BlunderOptions, GroundOptions
 from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .common import control_detectability, index_of, intersect_unmodelled
 from .polynomials import adjust_to_ground
+from .systematic import kept_control, systematic_message, systematic_pattern
 
 __all__ = ["ModelAdjustment", "adjust_models_to_ground", "model_weights"]
 
@@ -352,9 +353,11 @@ def _snoop(
     flagged: list[Rejection] = []
     rejected_rows: list[tuple[str, str]] = []
     n_control_obs = int(2 * use_xy.sum() + use_z.sum())
-    sol = None
+    sol = start_sol = None
+    control_kept = False
     while True:
         sol = _solve(p, keep_rows, use_xy, use_z, line_keep, sol)
+        start_sol = start_sol or sol
         if not blunders.testing:
             break
         known = {(k.stage, k.point, k.component) for k in flagged}
@@ -362,6 +365,7 @@ def _snoop(
             f
             for f in _tests(p, sol.result, use_xy, use_z, keep_rows, line_keep, blunders)
             if (f[0].stage, f[0].point, f[0].component) not in known
+            and not (control_kept and f[0].stage == "control")
         ]
         if not found:
             break
@@ -392,10 +396,15 @@ def _snoop(
             use_xy, use_z = trial_xy, trial_z
             rejected_obs = n_control_obs - int(2 * use_xy.sum() + use_z.sum())
             if rejected_obs > blunders.max_fraction * max(n_control_obs, 1):
-                raise GeometryError(
-                    f"control: more than {blunders.max_fraction:.0%} of the control "
-                    "observations fail the blunder test; the control cannot be trusted"
-                )
+                if start_sol is None or not _keep_systematic(p, start_sol, blunders):
+                    raise GeometryError(
+                        f"control: more than {blunders.max_fraction:.0%} of the control "
+                        "observations fail the blunder test; the control cannot be trusted"
+                    )
+                # a smooth pattern: the camera, not the control; keep it all
+                use_xy, use_z, control_kept = p.use_xy.copy(), p.use_z.copy(), True
+                rejections = kept_control(rejections)
+                continue
         elif worst.stage == "models":
             apply(keep_rows)
             label = worst.photos
@@ -417,6 +426,23 @@ def _snoop(
         tuple(rejections + flagged),
         tuple(rejected_rows),
     )
+
+
+def _keep_systematic(
+    p: _ModelsProblem, first: _ModelsSolution, blunders: BlunderOptions
+) -> bool:
+    """True (and a warning) when the first solution's control fails at many
+    points alike (:mod:`strip_aerotri.ground.systematic`): camera errors, not
+    blunders."""
+    rows = np.flatnonzero(p.use_xy | p.use_z)
+    w = np.array(first.result.control_w, dtype=np.float64)
+    w[~p.use_xy[rows], :2] = np.nan
+    w[~p.use_z[rows], 2] = np.nan
+    critical = blunders.critical("control", max(int(np.isfinite(w).sum()), 1))
+    if not systematic_pattern(w, critical):
+        return False
+    warnings.warn(systematic_message("control", w, critical), StripAerotriWarning, stacklevel=4)
+    return True
 
 
 def _check_breaks(
