@@ -23,6 +23,7 @@ LAYERS: dict[str, int] = {
             "_typing",
             "_stats",
             "_rows",
+            "_text",
             "_version",
             "_threads",
             "errors",

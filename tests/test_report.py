@@ -461,8 +461,10 @@ def test_plain_summary_counts_the_check_points_compared(tmp_path):
     project = tmp_path / "film"
     shutil.copytree(src, project, ignore=shutil.ignore_patterns("out"))
     control = project / "control.csv"
-    header = control.read_text().splitlines()[0].split(",")
-    row = {"point": "NOWHERE", "X": "500000", "Y": "4650000", "H": "300", "type": "check"}
+    header, first_row = (line.split(",") for line in control.read_text().splitlines()[:2])
+    # within the strip (a point 4000 km away is refused as implausible)
+    x, y = (float(first_row[header.index(c)]) + 50.0 for c in ("X", "Y"))
+    row = {"point": "NOWHERE", "X": f"{x:.3f}", "Y": f"{y:.3f}", "H": "300", "type": "check"}
     control.write_text(
         control.read_text().rstrip("\n") + "\n" + ",".join(row.get(c, "") for c in header) + "\n"
     )

@@ -39,6 +39,7 @@ from typing import Literal, Protocol, Self
 import numpy as np
 
 from ._stats import chi_critical_value, critical_value
+from ._text import shorten
 from ._typing import BoolArray, FloatArray, IntArray
 
 __all__ = [
@@ -347,9 +348,9 @@ def describe(value: object) -> str:
     if isinstance(value, bool):
         return f"the boolean {str(value).lower()}"
     if isinstance(value, str):
-        return f'the string "{value}"'
+        return f'the string "{shorten(value)}"'
     if isinstance(value, int | float | np.integer | np.floating):
-        return f"the number {value!r}"
+        return f"the number {shorten(repr(value))}"
     if isinstance(value, list | tuple):
         return "a list"
     if isinstance(value, dict):
@@ -382,7 +383,38 @@ def _positive_number(key: str, value: object) -> float:
         raise OptionError(key, f"expected a positive number, got {describe(value)}")
     number = float(value)  # type: ignore[arg-type]
     if not math.isfinite(number) or number <= 0.0:
-        raise OptionError(key, f"expected a positive finite number, got {value!r}")
+        raise OptionError(key, f"expected a positive finite number, got {shorten(repr(value))}")
+    return number
+
+
+#: Sane ranges (inclusive) of the standard deviations of a project, in its
+#: key and in the CSV column that overrides it row by row: beyond them a
+#: value is a typing error, or breaks the arithmetic (a weight 1/sigma² that
+#: overflows, or a normal matrix that no longer inverts).  Image: a
+#: nanometre to a centimetre, far around the micrometres of film and sensors.
+IMAGE_SIGMA_RANGE_MM = (1e-6, 10.0)
+#: Ground (control, GNSS centres): a micrometre to a thousand kilometres.
+GROUND_SIGMA_RANGE_M = (1e-6, 1e6)
+#: Attitude (IMU): 1e-7 degree (a micro-radian is 6e-5) to a half turn.
+ANGLE_SIGMA_RANGE_DEG = (1e-7, 180.0)
+#: Least family-wise false-alarm probability: below it the Bonferroni level
+#: alpha / 2n of a large stage comes near the smallest float and the
+#: critical value is lost.
+MIN_ALPHA = 1e-12
+
+
+def check_range(key: str, value: object, bounds: tuple[float, float], unit: str = "") -> float:
+    """A positive number within ``bounds`` (inclusive), else an OptionError
+    naming ``key``, the range and the value."""
+    number = _positive_number(key, value)
+    low, high = bounds
+    if not low <= number <= high:
+        unit = f" {unit}" if unit else ""
+        raise OptionError(
+            key,
+            f"expected a number from {low:g} to {high:g}{unit}, got {number:g}{unit} (beyond "
+            "any sane value: a typing error?)",
+        )
     return number
 
 
@@ -422,8 +454,8 @@ def check_min_base_to_height(value: object) -> float:
 
 
 def check_alpha(value: object) -> float:
-    """``alpha``: a probability, 0 < alpha < 1."""
-    alpha = _positive_number("alpha", value)
+    """``alpha``: a probability, :data:`MIN_ALPHA` <= alpha < 1."""
+    alpha = check_range("alpha", value, (MIN_ALPHA, 1.0))
     if not alpha < 1.0:
         raise OptionError("alpha", f"expected a probability below 1, got {alpha!r}")
     return alpha
@@ -497,6 +529,21 @@ RULES: dict[tuple[str, str], Callable[[object], object]] = {
     ("blunders", "alpha"): check_alpha,
     ("blunders", "max_fraction"): check_max_fraction,
     **{("blunders", stage): functools.partial(check_critical_value, stage) for stage in STAGES},
+    ("images", "sigma_mm"): functools.partial(
+        check_range, "sigma_mm", bounds=IMAGE_SIGMA_RANGE_MM, unit="mm"
+    ),
+    **{
+        (table, key): functools.partial(check_range, key, bounds=GROUND_SIGMA_RANGE_M, unit="m")
+        for table, key in (
+            ("control", "sigma_xy_m"),
+            ("control", "sigma_h_m"),
+            ("gnss", "sigma_xy"),
+            ("gnss", "sigma_z"),
+        )
+    },
+    ("imu", "sigma_deg"): functools.partial(
+        check_range, "sigma_deg", bounds=ANGLE_SIGMA_RANGE_DEG, unit="deg"
+    ),
 }
 
 

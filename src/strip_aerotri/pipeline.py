@@ -43,7 +43,7 @@ from .options import (
     SelfCalibration,
     StripOptions,
 )
-from .plausibility import control_degree_problems, control_problems
+from .plausibility import control_problems
 from .results import AccuracyStatistics, BlockResult, StripModel, StripResult
 from .strip.densify import form_strip_stepped
 
@@ -289,8 +289,8 @@ def triangulate_block(
 ) -> BlockResult:
     """Form every strip of a block and transform them all at once
     (:func:`strip_aerotri.block.strips.adjust_block`); control given in
-    degrees under a projected CRS stops it first
-    (:func:`strip_aerotri.plausibility.control_degree_problems`).
+    degrees under a projected CRS, or mirrored against the photos, stops it
+    first (:func:`strip_aerotri.plausibility.control_problems`, as for one strip).
 
     ``options`` (a project's ``[adjustment]``, checked by
     :func:`strip_aerotri.options.adjustment_options` with ``block=True``)
@@ -326,9 +326,11 @@ def triangulate_block(
         )
     else:
         route = options.route
-    degrees = control_degree_problems(control, crs, file=control_name)
-    if degrees:
-        raise GeometryError(degrees[0])
+    # degrees under a projected CRS, or control mirrored against the photos
+    # (X and Y swapped): a block's run stops on them as one strip's does
+    implausible = control_problems(observations, control, crs, file=control_name)
+    if implausible:
+        raise GeometryError(implausible[0])
     if progress is not None:
         progress(
             f"forming {len(strips)} strips and transforming the block "

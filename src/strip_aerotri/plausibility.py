@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ._text import shorten
 from ._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from .errors import GeometryError, PhotoOrderError
 from .interior import corrected_flight_direction
@@ -45,6 +46,7 @@ if TYPE_CHECKING:
 __all__ = [
     "MAX_IMAGE_RADIUS_MM",
     "control_degree_problems",
+    "control_distance_problems",
     "control_handedness_problems",
     "flight_axis_message",
     "image_coordinate_problems",
@@ -377,8 +379,8 @@ def control_problems(
     crs: str | GroundCRS,
     file: str = "control",
 ) -> list[str]:
-    """:func:`control_degree_problems`, then :func:`control_handedness_problems`,
-    for a project's control.
+    """:func:`control_degree_problems`, :func:`control_distance_problems`, then
+    :func:`control_handedness_problems`, for a project's control.
 
     Every control and check point with plan coordinates takes part (check
     points are measured like control and tell the handedness as well).
@@ -392,9 +394,92 @@ def control_problems(
     lookup = {pid: i for i, pid in enumerate(observations.point_ids)}
     point = np.array([lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
     xy = np.asarray(control.xyz, dtype=np.float64)[:, :2]
+    distant = control_distance_problems(observations, point, xy, control.point_ids, file=file)
+    if distant:
+        return distant
     return control_handedness_problems(
         observations, point, xy, geographic=crs.is_geographic, file=file
     )
+
+
+#: A plan point farther from every plan point it shares a photo with than
+#: this many times their distance on the photo at the strip's scale cannot
+#: lie where its coordinates say (tilt and relief change distances by tens
+#: of per cent, not by this factor).
+_DISTANCE_FACTOR = 20.0
+
+
+def control_distance_problems(
+    observations: ImageObservations,
+    point: IntArray,
+    xy: ArrayLike,
+    ids: Sequence[str],
+    file: str = "control",
+) -> list[str]:
+    """Control or check points far from where the photos show them.
+
+    Two plan points on one photo are as far apart on the ground as on the
+    photo times the photo scale (within what tilt and relief change).  The
+    scale is the median ratio of ground to image distance over every pair of
+    plan points that share a photo; a point whose every such pair is more
+    than :data:`_DISTANCE_FACTOR` times too long lies far outside the
+    project (a typing or export error in its coordinates).
+
+    Parameters
+    ----------
+    observations : ImageObservations
+    point : ndarray of int, shape (m,)
+        Observation point index of each control row (-1: not observed).
+    xy : array_like, shape (m, 2)
+        Plan coordinates of the control rows (NaN for height points).
+    ids : sequence of str
+        The control rows' ids, for the message.
+    file : str
+        The control file, for the message.
+
+    Returns
+    -------
+    list of str
+        One message naming the farthest such point (empty when none).
+    """
+    plan = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    row_of = np.full(observations.n_points, -1, dtype=np.intp)
+    usable = (np.asarray(point) >= 0) & np.isfinite(plan).all(axis=1)
+    row_of[np.asarray(point)[usable]] = np.flatnonzero(usable)
+    row = row_of[observations.point]
+    keep = np.flatnonzero(row >= 0)  # observations of plan points, sorted by photo
+    photo, row, image = observations.photo[keep], row[keep], observations.xy[keep]
+    starts = np.flatnonzero(np.r_[True, photo[1:] != photo[:-1]])
+    sizes = np.diff(np.r_[starts, photo.shape[0]])
+    pairs = [  # every pair of plan points on each photo (a few points per photo)
+        start + np.stack(np.triu_indices(size, 1))
+        for start, size in zip(starts, sizes, strict=True)
+        if size >= 2
+    ]
+    if not pairs:
+        return []
+    a, b = np.concatenate(pairs, axis=1)
+    with np.errstate(all="ignore"):
+        on_photo = np.hypot(*(image[a] - image[b]).T)
+        on_photo = np.maximum(on_photo, 0.05 * float(np.median(on_photo)))
+        ground = np.hypot(*(plan[row[a]] - plan[row[b]]).T)
+        scale = float(np.median(ground / on_photo))
+        ratio = ground / (scale * on_photo)
+    if not np.isfinite(scale) or scale <= 0.0:
+        return []
+    best = np.full(plan.shape[0], np.inf)
+    np.minimum.at(best, row[a], ratio)
+    np.minimum.at(best, row[b], ratio)
+    bad = np.flatnonzero(np.isfinite(best) & (best > _DISTANCE_FACTOR))
+    if not bad.size:
+        return []
+    k = int(bad[np.argmax(best[bad])])
+    return [
+        f"{file}: point '{ids[k]}' at X, Y = {plan[k, 0]:.6g}, {plan[k, 1]:.6g}: implausible "
+        f"coordinates: it lies at least {best[k]:.3g} times farther from every plan point it "
+        f"shares a photo with than the photos show at the strip's scale ({bad.size} such "
+        "point(s)); a typing or export error in its X or Y?"
+    ]
 
 
 #: Plan control spanning less than this in a projected CRS's unit (metres)
@@ -462,7 +547,7 @@ def control_degree_problems(
         if metres_inside and not degrees_inside:
             return []  # small metres near the CRS's origin, inside its area
         if not metres_inside:
-            where = f" and lies outside its area of use ({area.name.rstrip('.')})"
+            where = f" and lies outside its area of use ({shorten(area.name.rstrip('.'), 30)})"
     k = 0
     given = crs.text or crs.name
     return [

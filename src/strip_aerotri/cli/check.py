@@ -29,7 +29,7 @@ __all__ = ["check"]
 @click.option(
     "-o",
     "--out",
-    type=click.Path(file_okay=False, path_type=Path),
+    type=click.Path(path_type=Path),
     default=None,
     help="Check this result folder instead of the project's.",
 )

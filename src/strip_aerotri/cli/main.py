@@ -11,7 +11,9 @@ boundary; ``--debug`` adds the Python traceback.
 from __future__ import annotations
 
 import traceback
-from typing import Any
+import warnings
+from collections.abc import Callable
+from typing import Any, TextIO
 
 import click
 
@@ -43,7 +45,13 @@ class StripaeroGroup(click.Group):
 
     def invoke(self, ctx: click.Context) -> Any:  # what the command returns, as in click
         try:
-            return super().invoke(ctx)
+            with warnings.catch_warnings():
+                # numpy's floating-point warnings (overflow, invalid value) are
+                # not shown: input that makes them is refused in words, and a
+                # failure prints its one error line alone.  Their filters stay
+                # as they are (a test suite may turn them into errors).
+                warnings.showwarning = _shown_unless_runtime(warnings.showwarning)
+                return super().invoke(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
         except KeyboardInterrupt:
@@ -58,6 +66,23 @@ class StripaeroGroup(click.Group):
         except Exception as exc:  # the boundary: every other error becomes exit code 1
             report_exception(exc, settings(ctx).debug)
             ctx.exit(1)
+
+
+def _shown_unless_runtime(show: Callable[..., None]) -> Callable[..., None]:
+    """``warnings.showwarning`` that drops RuntimeWarnings and passes on the rest."""
+
+    def showwarning(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
+        if not issubclass(category, RuntimeWarning):
+            show(message, category, filename, lineno, file, line)
+
+    return showwarning
 
 
 def _silence_stdout() -> None:
@@ -83,6 +108,12 @@ def report_exception(exc: BaseException, debug: bool) -> None:
         echo_error(str(exc))
     elif isinstance(exc, OSError) and exc.filename is not None:
         echo_error(f"{exc.filename}: {exc.strerror or exc}")
+    elif isinstance(exc, MemoryError):
+        echo_error(
+            "out of memory: the project needs more memory than this machine can give "
+            "(inputs are bounded in size, see 'stripaero docs project-file', but a very "
+            "large block may still exceed it)"
+        )
     else:
         hint = "" if debug else " (run with --debug for details)"
         echo_error(f"unexpected {type(exc).__name__}: {exc}{hint}")

@@ -145,9 +145,13 @@ project_arg = click.argument(
 
 
 def one_line(text: object) -> str:
-    """``text`` as one line (line breaks become ``"; "``)."""
+    """``text`` as one line (line breaks become ``"; "``) without control
+    characters, its middle left out beyond :data:`~strip_aerotri._text.MAX_LINE`
+    characters (a message that echoes a huge value stays one readable line)."""
+    from .._text import MAX_LINE, shorten
+
     parts = [part.strip() for part in str(text).splitlines() if part.strip()]
-    return "; ".join(parts)
+    return shorten("; ".join(parts), MAX_LINE)
 
 
 def echo_error(message: object) -> None:

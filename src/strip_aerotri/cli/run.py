@@ -183,7 +183,7 @@ def _report_name(names: Collection[str]) -> str | None:
 @click.option(
     "-o",
     "--out",
-    type=click.Path(file_okay=False, path_type=Path),
+    type=click.Path(path_type=Path),
     default=None,
     help="Result folder (its results replaced, other files kept). Default: [output] "
     "directory of the project, else 'out' beside strip.toml.",

@@ -11,25 +11,86 @@ import csv
 import itertools
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .._text import clean, shorten
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import ConfigError
-from .schema import ColumnSpec, suggest
+from ..options import OptionError, check_range
+from .schema import MAX_ID_LENGTH, ColumnSpec, suggest
+
+#: Largest CSV file read (bytes): far above any strip or block's tables (a
+#: 10 x 100 drone block's image points are about 8 MB), far below what would
+#: exhaust the memory of the machine reading it.
+MAX_CSV_BYTES = 512 * 2**20
+#: Largest project file read (bytes): a block of a thousand strips of a
+#: thousand photos each is under 16 MB.
+MAX_TOML_BYTES = 16 * 2**20
 
 
-def read_bytes(path: Path, what: str) -> bytes:
+def read_bytes(path: Path, what: str, limit: int | None = None) -> bytes:
+    """The content of the regular file ``path`` (``what`` names it in messages).
+
+    Anything that is not a regular file (a named pipe, a device such as
+    ``/dev/zero``, a socket, a folder) is refused before it is opened: a pipe
+    with no writer would block the read forever, a device never ends.  A
+    file larger than ``limit`` bytes (default :data:`MAX_CSV_BYTES`) is
+    refused too.
+    """
+    import os
+    import stat
+
+    limit = MAX_CSV_BYTES if limit is None else limit
     try:
-        return path.read_bytes()
+        info = path.stat()
     except FileNotFoundError:
         raise ConfigError(f"{path}: {what} not found") from None
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        reason = getattr(exc, "strerror", None) or exc
+        raise ConfigError(f"{shorten(path, 200)}: cannot read {what}: {reason}") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise ConfigError(f"{path}: {what} is a folder, not a file")
+    if not stat.S_ISREG(info.st_mode):
+        kind = (
+            "a named pipe (FIFO)"
+            if stat.S_ISFIFO(info.st_mode)
+            else "a device"
+            if stat.S_ISCHR(info.st_mode) or stat.S_ISBLK(info.st_mode)
+            else "a socket"
+            if stat.S_ISSOCK(info.st_mode)
+            else "not a regular file"
+        )
+        raise ConfigError(
+            f"{path}: {what} is {kind}, not a regular file; give the path of the file itself"
+        )
+    if info.st_size > limit:
+        raise ConfigError(
+            f"{path}: {what} is {_size(info.st_size)}, larger than the {_size(limit)} a "
+            "project's file may have: is it the right file?"
+        )
+    try:
+        # not path.read_bytes(): the file may have been swapped since the stat
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        with os.fdopen(fd, "rb") as stream:
+            if not stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
+                raise ConfigError(f"{path}: {what} is not a regular file")
+            data = stream.read(limit + 1)
     except IsADirectoryError:
         raise ConfigError(f"{path}: {what} is a folder, not a file") from None
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
+    if len(data) > limit:
+        raise ConfigError(
+            f"{path}: {what} is larger than the {_size(limit)} a project's file may have"
+        )
+    return data
+
+
+def _size(n_bytes: int) -> str:
+    return f"{n_bytes / 2**20:.0f} MB" if n_bytes >= 2**20 else f"{n_bytes} bytes"
 
 
 def decode(path: Path, data: bytes) -> str:
@@ -51,6 +112,7 @@ class CsvTable:
     columns: dict[str, Sequence[str]]
     line: IntArray
     header_line: int
+    specs: dict[str, ColumnSpec] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
@@ -126,29 +188,35 @@ def read_csv(path: Path, columns: Sequence[ColumnSpec], named_by: str) -> CsvTab
         )
     if len(header) == 1 and ";" in header[0]:
         raise ConfigError(
-            f"{path}:{header_line}: the header '{header[0]}' is separated by ';': the file must "
-            "be comma-separated (a spreadsheet set to a decimal comma writes ';'; save it as "
-            "CSV with ',' between columns and '.' as the decimal mark)"
+            f"{path}:{header_line}: the header '{shorten(header[0])}' is separated by ';': the "
+            "file must be comma-separated (a spreadsheet set to a decimal comma writes ';'; "
+            "save it as CSV with ',' between columns and '.' as the decimal mark)"
         )
     canonical = {c.name.lower(): c.name for c in columns}
     names: list[str] = []
     for name in header:
         if not name:
             raise ConfigError(f"{path}:{header_line}: empty column name in the header")
+        if clean(name) != name:
+            raise ConfigError(
+                f"{path}:{header_line}: column name '{shorten(name)}' (as read without them) "
+                "holds a control character (a NUL byte or a terminal escape sequence); retype "
+                "the header"
+            )
         if name.lower() not in canonical:
             allowed = ", ".join(c.name for c in columns)
             raise ConfigError(
-                f"{path}:{header_line}: unknown column '{name}'"
+                f"{path}:{header_line}: unknown column '{shorten(name)}'"
                 f"{suggest(name, [c.name for c in columns])}; allowed columns: {allowed}"
             )
         if canonical[name.lower()] in names:
-            raise ConfigError(f"{path}:{header_line}: column '{name}' appears twice")
+            raise ConfigError(f"{path}:{header_line}: column '{shorten(name)}' appears twice")
         names.append(canonical[name.lower()])
     missing = [c.name for c in columns if c.required and c.name not in names]
     if missing:
         raise ConfigError(
             f"{path}:{header_line}: missing required column(s) {', '.join(missing)} "
-            f"(header is: {','.join(header)})"
+            f"(header is: {shorten(','.join(header), 120)})"
         )
     body = kept[1:]
     line = numbers[1:]
@@ -176,7 +244,8 @@ def read_csv(path: Path, columns: Sequence[ColumnSpec], named_by: str) -> CsvTab
         cells = [flat[j::n_col] for j in range(n_col)]
     else:
         cells = [[] for _ in names]
-    return CsvTable(path, dict(zip(names, cells, strict=True)), line, header_line)
+    specs = {c.name: c for c in columns}
+    return CsvTable(path, dict(zip(names, cells, strict=True)), line, header_line, specs)
 
 
 def float_column(
@@ -208,14 +277,14 @@ def float_column(
             hint = " (a decimal comma: use a point, e.g. '12.5')" if comma else ""
             raise ConfigError(
                 f"{table.where(row)}: column '{name}': expected a number, got "
-                f"'{stripped[row]}'{hint}"
+                f"'{shorten(stripped[row])}'{hint}"
             ) from None
     bad = ~np.isfinite(values) & ~empty
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
         raise ConfigError(
             f"{table.where(row)}: column '{name}': expected a finite number, "
-            f"got '{strings[row].strip()}'"
+            f"got '{shorten(strings[row].strip())}'"
         )
     if positive:
         bad = (values <= 0.0) & ~empty
@@ -223,8 +292,18 @@ def float_column(
             row = int(np.flatnonzero(bad)[0])
             raise ConfigError(
                 f"{table.where(row)}: column '{name}': expected a positive number, "
-                f"got '{strings[row].strip()}'"
+                f"got '{shorten(strings[row].strip())}'"
             )
+    spec = table.specs.get(name)
+    if spec is not None and spec.bounds is not None:
+        low, high = spec.bounds
+        bad = ((values < low) | (values > high)) & ~empty
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            try:
+                check_range(name, float(values[row]), spec.bounds, spec.unit)
+            except OptionError as exc:
+                raise ConfigError(f"{table.where(row)}: column '{name}': {exc.rule}") from None
     return values, empty
 
 
@@ -239,12 +318,38 @@ def _is_float(text: str) -> bool:
 def id_column(table: CsvTable, name: str) -> np.ndarray:
     """Column ``name`` as a str array with white space stripped; an empty id is an error."""
     strings = table.columns[name]
+    # the length and characters first: the array's width is its longest id
+    lengths = np.fromiter(map(len, strings), dtype=np.intp, count=len(strings))
+    long = np.flatnonzero(lengths > MAX_ID_LENGTH)
+    if long.size:
+        row = int(long[0])
+        raise ConfigError(
+            f"{table.where(row)}: column '{name}': an id of {int(lengths[row])} characters "
+            f"('{shorten(strings[row], 40)}'); at most {MAX_ID_LENGTH} are allowed"
+        )
     arr = np.char.strip(np.asarray(strings, dtype=str).reshape(len(strings)))
+    bad = _control_rows(arr)
+    if bad.size:
+        row = int(bad[0])
+        raise ConfigError(
+            f"{table.where(row)}: column '{name}': an id holding a control character (a NUL "
+            f"byte or a terminal escape sequence): '{shorten(arr[row])}' as read without them"
+        )
     empty = arr == ""
     if empty.any():
         row = int(np.flatnonzero(empty)[0])
         raise ConfigError(f"{table.where(row)}: column '{name}': empty id")
     return arr
+
+
+def _control_rows(arr: np.ndarray) -> IntArray:
+    """Rows of the str array ``arr`` holding a control character (tab included)."""
+    if not arr.size:
+        return np.zeros(0, dtype=np.intp)
+    joined = "".join(arr.tolist())  # one scan of all ids
+    if clean(joined) == joined and "\t" not in joined:
+        return np.zeros(0, dtype=np.intp)
+    return np.flatnonzero([clean(s) != s or "\t" in s for s in arr.tolist()])
 
 
 def optional_sigma(table: CsvTable, name: str, default: float) -> FloatArray:

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from .._text import shorten
 from .._typing import FloatArray, IntArray
 from ..errors import ConfigError, ConvergenceError
 from ..interior import (
@@ -43,7 +44,7 @@ from ..options import (
     adjustment_options,
     describe,
 )
-from .csvfiles import CsvTable, decode, read_bytes
+from .csvfiles import MAX_TOML_BYTES, CsvTable, decode, read_bytes
 from .model import Camera, Project, readonly
 from .output import check_output
 from .schema import (
@@ -75,10 +76,31 @@ __all__ = ["load_project"]
 _TOML_POSITION = re.compile(r"\s*\(at line (\d+), column (\d+)\)$")
 
 
+#: Deepest nesting of tables and arrays in a project file: its deepest value
+#: is a list in a table in an array of tables (``[[strips]] photos``).
+MAX_TOML_DEPTH = 8
+#: Most parts of a dotted key (``a.b.c = 1`` has three); a project's keys
+#: have two at most (``camera.principal_distance_mm``).  tomllib takes time
+#: quadratic in the parts (20 000 parts: 5 s), so they are counted first.
+MAX_KEY_PARTS = 16
+# a match starts at the beginning of a bare word or at a quote only, so that a
+# long word is scanned once, not once from each of its characters
+_KEY_PART = r"(?:(?<![A-Za-z0-9_-])[A-Za-z0-9_-]+|\"[^\"\n]*\"|'[^'\n]*')"
+_DOTTED_KEY = re.compile(rf"{_KEY_PART}(?:[ \t]*\.[ \t]*{_KEY_PART}){{{MAX_KEY_PARTS},}}")
+
+
 def _read_toml(path: Path) -> dict[str, Any]:
-    text = decode(path, read_bytes(path, "project file"))
+    text = decode(path, read_bytes(path, "project file", MAX_TOML_BYTES))
+    dotted = _DOTTED_KEY.search(text)
+    if dotted is not None:
+        line = text.count("\n", 0, dotted.start()) + 1
+        raise ConfigError(
+            f"{path}:{line}: a dotted key of more than {MAX_KEY_PARTS} parts "
+            f"({shorten(dotted.group(), 40)}); a project's keys have at most two "
+            "(table.key)"
+        )
     try:
-        return tomllib.loads(text)
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         message = str(exc)
         match = _TOML_POSITION.search(message)
@@ -88,6 +110,34 @@ def _read_toml(path: Path) -> dict[str, Any]:
                 f"{path}:{match.group(1)}:{match.group(2)}: TOML syntax error: {message}"
             ) from None
         raise ConfigError(f"{path}: TOML syntax error: {message}") from None
+    except (RecursionError, MemoryError):
+        doc = None  # nested too deep for the parser: told below
+    depth, key = _deepest(doc)
+    if doc is None or depth > MAX_TOML_DEPTH:
+        at = f" (at {shorten(key, 60)})" if key else ""
+        raise ConfigError(
+            f"{path}: tables or arrays nested more than {MAX_TOML_DEPTH} deep{at}; a "
+            "project nests a list in a table at most ([[strips]] photos)"
+        )
+    return doc
+
+
+def _deepest(doc: object) -> tuple[int, str]:
+    """The deepest nesting of tables and lists in ``doc`` and the dotted key of
+    its first value that deep, without recursion (the depth is not known yet)."""
+    stack: list[tuple[object, int, str]] = [(doc, 0, "")]
+    deepest, where = 0, ""
+    while stack:
+        value, depth, key = stack.pop()
+        if depth > deepest:
+            deepest, where = depth, key
+            if depth > MAX_TOML_DEPTH:
+                break
+        if isinstance(value, dict):
+            stack.extend((v, depth + 1, f"{key}.{k}" if key else str(k)) for k, v in value.items())
+        elif isinstance(value, list):
+            stack.extend((v, depth + 1, f"{key}[{i}]") for i, v in enumerate(value))
+    return deepest, where
 
 
 # --------------------------------------------------------------------------- CSV
@@ -208,13 +258,9 @@ def load_project(path: str | Path) -> Project:
         float(control["sigma_xy_m"]),  # type: ignore[arg-type]
         float(control["sigma_h_m"]),  # type: ignore[arg-type]
     )
-    route, crs_warnings = check_crs(
-        toml_path,
-        crs,
-        adjustment["route"],  # type: ignore[arg-type]
-        table_c,
-        xyz,
-    )
+    given_route: Route | None = adjustment["route"]  # type: ignore[assignment]
+    observed = np.isin(ids, np.asarray(observations.point_ids))
+    route, crs_warnings = check_crs(toml_path, crs, given_route, table_c, xyz, observed)
     warnings += crs_warnings
     gnss = (
         None
@@ -392,7 +438,7 @@ def _check_structure(toml_path: Path, doc: dict[str, Any]) -> None:
             )
             what = "table" if is_table else "top-level key"
             raise ConfigError(
-                f"{toml_path}: unknown {what} '{name}'{hint}; valid tables: "
+                f"{toml_path}: unknown {what} '{shorten(name)}'{hint}; valid tables: "
                 f"{', '.join(TABLES_BY_NAME)}"
             )
         if spec.array:

@@ -16,8 +16,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from .._text import MAX_ECHO, clean, shorten
 from ..errors import ConfigError
 from ..options import (
+    ANGLE_SIGMA_RANGE_DEG,
     DEFAULT_ALPHA,
     DEFAULT_DIFFERENCE_TOLERANCE,
     DEFAULT_GNSS_SIGMA_XY_M,
@@ -34,6 +36,9 @@ from ..options import (
     DEFAULT_SECTIONS,
     DEFAULT_SIGMA_H_M,
     DEFAULT_SIGMA_XY_M,
+    GROUND_SIGMA_RANGE_M,
+    IMAGE_SIGMA_RANGE_MM,
+    RULES,
     BlunderAction,
     Construction,
     DistortionModel,
@@ -43,7 +48,6 @@ from ..options import (
     ImageUnits,
     IntersectionMethod,
     ModelFormation,
-    RULES,
     OptionEnum,
     OptionError,
     Refine,
@@ -162,6 +166,19 @@ PROJECT_TABLES: tuple[TableSpec, ...] = (
 
 
 TABLES_BY_NAME = {t.name: t for t in PROJECT_TABLES}
+
+#: Longest id (photo, point, mark) in characters; ids are kept as arrays of
+#: fixed-width strings, whose size is rows x the longest id.
+MAX_ID_LENGTH = 128
+#: Longest name (of a strip, a line) in characters, as drawn in figures.
+MAX_NAME_LENGTH = 200
+#: Largest magnitude of a distortion coefficient (the keys of kind "number"):
+#: real ones are below 1 (normalised) or 1e-3 (mm); far beyond, the
+#: polynomials overflow.
+MAX_COEFFICIENT = 1e6
+#: Longest other string value (a CRS may be given as WKT) and path.
+MAX_STRING_LENGTH = 65536
+MAX_PATH_LENGTH = 4096
 
 
 # fmt: off
@@ -608,6 +625,7 @@ class ColumnSpec:
     required: bool
     unit: str
     description: str
+    bounds: tuple[float, float] | None = None
 
 
 IMAGE_COLUMNS: tuple[ColumnSpec, ...] = (
@@ -615,7 +633,13 @@ IMAGE_COLUMNS: tuple[ColumnSpec, ...] = (
     ColumnSpec("point", True, "", "point id; the same id is the same ground point on every photo"),
     ColumnSpec("x", True, "mm", "image x, along the flight"),
     ColumnSpec("y", True, "mm", "image y, to the left of the flight"),
-    ColumnSpec("sigma", False, "mm", "standard deviation of x and y; empty: [images] sigma_mm"),
+    ColumnSpec(
+        "sigma",
+        False,
+        "mm",
+        "standard deviation of x and y; empty: [images] sigma_mm",
+        IMAGE_SIGMA_RANGE_MM,
+    ),
 )
 
 
@@ -634,9 +658,19 @@ CONTROL_COLUMNS: tuple[ColumnSpec, ...] = (
     ColumnSpec("H", True, "m", "ellipsoidal height; empty for plan"),
     ColumnSpec("type", True, "", "full, plan, height or check"),
     ColumnSpec(
-        "sigma_xy", False, "m", "standard deviation of X and Y; empty: [control] sigma_xy_m"
+        "sigma_xy",
+        False,
+        "m",
+        "standard deviation of X and Y; empty: [control] sigma_xy_m",
+        GROUND_SIGMA_RANGE_M,
     ),
-    ColumnSpec("sigma_h", False, "m", "standard deviation of H; empty: [control] sigma_h_m"),
+    ColumnSpec(
+        "sigma_h",
+        False,
+        "m",
+        "standard deviation of H; empty: [control] sigma_h_m",
+        GROUND_SIGMA_RANGE_M,
+    ),
 )
 
 
@@ -645,8 +679,20 @@ GNSS_COLUMNS: tuple[ColumnSpec, ...] = (
     ColumnSpec("X", True, "CRS unit", "projection centre easting (or longitude in degrees)"),
     ColumnSpec("Y", True, "CRS unit", "projection centre northing (or latitude in degrees)"),
     ColumnSpec("Z", True, "m", "projection centre ellipsoidal height"),
-    ColumnSpec("sigma_xy", False, "m", "standard deviation of X and Y; empty: [gnss] sigma_xy"),
-    ColumnSpec("sigma_z", False, "m", "standard deviation of Z; empty: [gnss] sigma_z"),
+    ColumnSpec(
+        "sigma_xy",
+        False,
+        "m",
+        "standard deviation of X and Y; empty: [gnss] sigma_xy",
+        GROUND_SIGMA_RANGE_M,
+    ),
+    ColumnSpec(
+        "sigma_z",
+        False,
+        "m",
+        "standard deviation of Z; empty: [gnss] sigma_z",
+        GROUND_SIGMA_RANGE_M,
+    ),
 )
 
 
@@ -656,13 +702,19 @@ IMU_COLUMNS: tuple[ColumnSpec, ...] = (
     ColumnSpec("phi", True, "deg", "phi of image -> local east-north-up (photos.csv)"),
     ColumnSpec("kappa", True, "deg", "kappa of image -> local east-north-up (photos.csv)"),
     ColumnSpec(
-        "sigma_deg", False, "deg", "standard deviation of each angle; empty: [imu] sigma_deg"
+        "sigma_deg",
+        False,
+        "deg",
+        "standard deviation of each angle; empty: [imu] sigma_deg",
+        ANGLE_SIGMA_RANGE_DEG,
     ),
 )
 
 
 def suggest(word: str, candidates: Sequence[str]) -> str:
     """`` (did you mean 'x'?)`` or empty."""
+    if len(word) > 2 * MAX_ECHO:  # no key is that long, and difflib would take its time
+        return ""
     lower = {c.lower(): c for c in candidates}
     if word.lower() in lower:
         return f" (did you mean '{lower[word.lower()]}'?)"
@@ -687,13 +739,17 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
     if kind in ("string", "path"):
         if not isinstance(value, str) or not value.strip():
             raise ConfigError(f"{where}: expected a non-empty string, got {describe(value)}")
+        what = "a path" if kind == "path" else "a name" if spec.key == "name" else "text"
+        _check_text(value, where, _max_length(spec), what)
         return value.strip() if kind == "string" else value
     if kind == "positive number":
         if not _is_number(value):
             raise ConfigError(f"{where}: expected a positive number, got {describe(value)}")
         number = float(value)  # type: ignore[arg-type]
         if not math.isfinite(number) or number <= 0.0:
-            raise ConfigError(f"{where}: expected a positive finite number, got {value!r}")
+            raise ConfigError(
+                f"{where}: expected a positive finite number, got {shorten(repr(value))}"
+            )
         return number
     if kind == "positive integer":
         if not isinstance(value, int) or isinstance(value, bool) or value < 1:
@@ -706,7 +762,8 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
             or not all(_is_number(v) and math.isfinite(v) for v in value)
         ):
             raise ConfigError(
-                f"{where}: expected a list of two finite numbers like [0.0, 0.0], got {value!r}"
+                f"{where}: expected a list of two finite numbers like [0.0, 0.0], got "
+                f"{shorten(repr(value))}"
             )
         return (float(value[0]), float(value[1]))
     if kind == "list of ids":
@@ -721,11 +778,12 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
                 raise ConfigError(f"{where}: ids must be strings, got {describe(item)}{hint}")
             if not item.strip():
                 raise ConfigError(f"{where}: ids must not be empty")
+            _check_text(item, where, MAX_ID_LENGTH, "an id")
         ids = [item.strip() for item in value]
         seen: set[str] = set()
         for item in ids:
             if item in seen:
-                raise ConfigError(f"{where}: id '{item}' is listed twice")
+                raise ConfigError(f"{where}: id '{shorten(item)}' is listed twice")
             seen.add(item)
         return tuple(ids)
     if kind == "choice":
@@ -740,6 +798,11 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
     if kind == "number":
         if not _is_number(value) or not math.isfinite(value):  # type: ignore[arg-type]
             raise ConfigError(f"{where}: expected a finite number, got {describe(value)}")
+        if abs(float(value)) > MAX_COEFFICIENT:  # type: ignore[arg-type]
+            raise ConfigError(
+                f"{where}: expected a number from -{MAX_COEFFICIENT:g} to {MAX_COEFFICIENT:g}, "
+                f"got {float(value):g} (beyond any lens: a typing error?)"  # type: ignore[arg-type]
+            )
         return float(value)  # type: ignore[arg-type]
     if kind == "mark table":
         if not isinstance(value, dict) or len(value) < 2:
@@ -755,12 +818,35 @@ def _parse_value(spec: KeySpec, value: object, where: str) -> object:
                 or not all(_is_number(v) and math.isfinite(v) for v in xy)
             ):
                 raise ConfigError(
-                    f"{where}: mark '{mark}': expected a list of two finite numbers (x, y in "
-                    f"mm), got {xy!r}"
+                    f"{where}: mark '{shorten(mark)}': expected a list of two finite numbers "
+                    f"(x, y in mm), got {shorten(repr(xy))}"
                 )
             marks[str(mark).strip()] = (float(xy[0]), float(xy[1]))
         return marks
     raise AssertionError(f"unhandled kind {kind!r}")  # pragma: no cover
+
+
+def _max_length(spec: KeySpec) -> int:
+    if spec.kind == "path":
+        return MAX_PATH_LENGTH
+    return MAX_NAME_LENGTH if spec.key == "name" else MAX_STRING_LENGTH
+
+
+def _check_text(value: str, where: str, limit: int, what: str) -> None:
+    """Refuse a string longer than ``limit`` characters or holding control
+    characters (a NUL byte, an escape sequence): no name, id or path has them,
+    nor a line break or tab (other text, a CRS's WKT, may span lines)."""
+    if len(value) > limit:
+        raise ConfigError(
+            f"{where}: {what} of {len(value)} characters ({shorten(value, 40)}); at most "
+            f"{limit} are allowed"
+        )
+    breaks = what != "text" and any(c in value for c in "\n\r\t")
+    if breaks or clean(value) != value:
+        raise ConfigError(
+            f"{where}: {what} holding a control character (a NUL byte or a terminal escape "
+            f"sequence): {shorten(value, 40)!r} as read without them; retype it"
+        )
 
 
 def check_table(
@@ -773,7 +859,7 @@ def check_table(
             elsewhere = [s.qualified for s in PROJECT_KEYS if s.key == key and s.table != table]
             hint = f" (it belongs in {elsewhere[0]})" if elsewhere else suggest(key, list(specs))
             raise ConfigError(
-                f"{toml_name}: unknown key '{key}' in {label}{hint}; "
+                f"{toml_name}: unknown key '{shorten(key)}' in {label}{hint}; "
                 f"valid keys: {', '.join(specs)}"
             )
     out: dict[str, object] = {}

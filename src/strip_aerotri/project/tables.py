@@ -8,10 +8,12 @@ from __future__ import annotations
 import warnings as _warnings
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from .._typing import FloatArray, IntArray
+from .._text import shorten
+from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import ConfigError, GeometryError, StripAerotriWarning
 from ..interior import (
     FiducialFit,
@@ -278,9 +280,15 @@ def load_control(
 
 
 def check_crs(
-    toml_name: Path, crs: str, route: Route | None, table: CsvTable, xyz: FloatArray
+    toml_name: Path,
+    crs: str,
+    route: Route | None,
+    table: CsvTable,
+    xyz: FloatArray,
+    observed: BoolArray | None = None,
 ) -> tuple[Route, list[str]]:
-    """Validate ``crs`` with pyproj, choose the route and check geographic ranges."""
+    """Validate ``crs`` with pyproj, choose the route and check geographic
+    ranges and, on the ``observed`` rows, plausible coordinates."""
     warnings: list[str] = []
     if crs == "local":
         if route is Route.GEOCENTRIC:
@@ -288,6 +296,7 @@ def check_crs(
                 f'{toml_name}: [adjustment] route: "geocentric" needs a geodetic CRS; '
                 f'with crs = "local" only "projected" applies'
             )
+        check_plausible_extent(None, table, xyz, observed)
         return Route.PROJECTED, warnings
     import pyproj  # deferred: only loading a geodetic project needs it
 
@@ -320,7 +329,8 @@ def check_crs(
                 f"\"local\"; '{crs}' is geographic (longitude, latitude)"
             )
         _check_geographic_ranges(crs, table, xyz)
-    else:
+    check_plausible_extent(crs_obj, table, xyz, observed)
+    if not crs_obj.is_geographic:
         unit = crs_obj.axis_info[0].unit_name if crs_obj.axis_info else "metre"
         if unit not in ("metre", "meter") and chosen is Route.PROJECTED:
             warnings.append(
@@ -345,13 +355,161 @@ def _check_geographic_ranges(crs: str, table: CsvTable, xyz: FloatArray) -> None
             )
 
 
-def _is_geographic(crs: str) -> bool:
-    """True for a geographic CRS (already validated by :func:`check_crs`)."""
-    if crs == "local":
-        return False
+#: No ellipsoidal height of a ground point, nor of a site system's H, is
+#: beyond 100 km; no projected coordinate beyond 1e8 (the earth's
+#: circumference is 4e7 m, 1.3e8 US feet).
+MAX_ABS_HEIGHT_M = 1e5
+MAX_ABS_PROJECTED = 1e8
+#: A point farther from the median of the plan control than this many times
+#: the control's own median distance from it (and at least 1 km) lies far
+#: outside the project; heights farther than this from the median height.
+EXTENT_FACTOR = 1000.0
+MAX_HEIGHT_SPREAD_M = 20_000.0
+#: Degrees around a CRS's area of use still taken as plausible.
+AREA_MARGIN_DEG = 20.0
+
+
+def check_plausible_extent(
+    crs: Any,
+    table: CsvTable,
+    xyz: FloatArray,
+    judged: BoolArray | None = None,
+    names: tuple[str, str] = ("point", "H"),
+) -> None:
+    """Refuse control coordinates no project can have, naming the first row.
+
+    ``crs`` is the pyproj CRS of ``[control] crs`` (None for "local"); only
+    the rows ``judged`` are looked at (default all: a control point no photo
+    observes is left out with a warning, whatever its coordinates), and NaN
+    cells (a plan or height point's empty ones) pass; ``names`` are those of
+    the id and the height column (GNSS centres: photo, Z).  Implausible are: a
+    height beyond :data:`MAX_ABS_HEIGHT_M` or :data:`MAX_HEIGHT_SPREAD_M` from
+    the median height; a projected or local X, Y beyond
+    :data:`MAX_ABS_PROJECTED`, or far outside the extent of the other points
+    (:data:`EXTENT_FACTOR`); a projected point that its CRS cannot take to
+    longitude and latitude, or that lies more than :data:`AREA_MARGIN_DEG`
+    outside the CRS's area of use.  Such a value is a typing or export error,
+    and adjusting with it gives a "result" in the thousands of kilometres.
+    """
+    if judged is not None:
+        xyz = np.where(judged[:, None], xyz, np.nan)
+    xy, h = xyz[:, :2], xyz[:, 2]
+    h_name = names[1]
+    with np.errstate(over="ignore", invalid="ignore"):
+        h_median = np.nanmedian(h) if np.isfinite(h).any() else 0.0
+        rules = [
+            (np.abs(h) > MAX_ABS_HEIGHT_M, f"{h_name} beyond {MAX_ABS_HEIGHT_M:g} m"),
+            (
+                np.abs(h - h_median) > MAX_HEIGHT_SPREAD_M,
+                f"{h_name} more than {MAX_HEIGHT_SPREAD_M:g} m from the median height "
+                f"{h_median:.1f} m of the file",
+            ),
+        ]
+        geographic = crs is not None and crs.is_geographic
+        if not geographic:
+            rules.append(
+                (
+                    np.abs(xy).max(axis=1) > MAX_ABS_PROJECTED,
+                    f"X or Y beyond {MAX_ABS_PROJECTED:g}",
+                )
+            )
+            plan = np.isfinite(xy).all(axis=1)
+            if plan.sum() >= 3:
+                centre = np.median(xy[plan], axis=0)
+                distance = np.hypot(*(xy - centre).T)
+                reach = max(float(np.median(distance[plan])), 1.0) * EXTENT_FACTOR
+                rules.append(
+                    (
+                        distance > max(reach, 1000.0),
+                        f"more than {max(reach, 1000.0):.3g} from the median of the plan "
+                        f"coordinates ({centre[0]:.1f}, {centre[1]:.1f}), {EXTENT_FACTOR:g} "
+                        "times their median distance from it",
+                    )
+                )
+    for bad, text in rules:
+        if bad.any():
+            _raise_implausible(table, xyz, int(np.flatnonzero(bad)[0]), text, names)
+    if crs is not None and not geographic:
+        _check_area_of_use(crs, table, xyz, names)
+
+
+def _raise_implausible(
+    table: CsvTable, xyz: FloatArray, row: int, text: str, names: tuple[str, str]
+) -> None:
+    values = ", ".join("" if v != v else f"{v:.6g}" for v in xyz[row])
+    raise ConfigError(
+        f"{table.where(row)}: {names[0]} '{shorten(table.columns[names[0]][row].strip())}' at "
+        f"X, Y, {names[1]} = {values}: implausible coordinates ({text}); a typing or export "
+        "error?"
+    )
+
+
+def _check_area_of_use(crs: Any, table: CsvTable, xyz: FloatArray, names: tuple[str, str]) -> None:
+    """Projected X, Y that the CRS cannot take to longitude and latitude, or
+    far outside its area of use (unless swapping X and Y brings them inside:
+    then the mirrored-control check names the cause)."""
     import pyproj
 
-    return bool(pyproj.CRS.from_user_input(crs).is_geographic)
+    plan = np.flatnonzero(np.isfinite(xyz[:, :2]).all(axis=1))
+    if not plan.size:
+        return
+    try:
+        to_lonlat = pyproj.Transformer.from_crs(crs, crs.geodetic_crs, always_xy=True)
+    except (pyproj.exceptions.ProjError, pyproj.exceptions.CRSError):  # no inverse: no test
+        return
+    xy = xyz[plan, :2]
+
+    def lonlat(a: FloatArray, b: FloatArray) -> FloatArray:
+        with np.errstate(all="ignore"):
+            out = to_lonlat.transform(a, b, errcheck=False)
+        return np.column_stack([np.asarray(v, dtype=np.float64) for v in out])
+
+    given = lonlat(xy[:, 0], xy[:, 1])
+    bad = ~np.isfinite(given).all(axis=1)
+    text = f"outside the domain of crs {shorten(crs.name)}"
+    area = crs.area_of_use
+    if area is not None and not bad.any():
+        outside = ~_within_area(given, area) & ~_within_area(lonlat(xy[:, 1], xy[:, 0]), area)
+        if outside.any():
+            bad = outside
+            k = int(np.flatnonzero(bad)[0])
+            text = (
+                f"at longitude, latitude {given[k, 0]:.2f}, {given[k, 1]:.2f}, more than "
+                f"{AREA_MARGIN_DEG:g} degrees outside the area of use of crs "
+                f"{shorten(crs.name)} ({shorten(area.name.rstrip('.'), 40)})"
+            )
+    if bad.any():
+        _raise_implausible(table, xyz, int(plan[int(np.flatnonzero(bad)[0])]), text, names)
+
+
+def _within_area(lonlat: FloatArray, area: Any) -> BoolArray:
+    """Longitude, latitude within ``area`` (a pyproj AreaOfUse) and its margin."""
+    m = AREA_MARGIN_DEG
+    lon, lat = lonlat[:, 0], lonlat[:, 1]
+    west, east = area.west - m, area.east + m
+    with np.errstate(invalid="ignore"):
+        in_lon = (
+            (lon >= west) & (lon <= east)
+            if area.west <= area.east
+            else (lon >= west) | (lon <= east)
+        )  # an area across the antimeridian
+        inside = in_lon & (lat >= area.south - m) & (lat <= area.north + m)
+    return np.asarray(inside, dtype=bool)
+
+
+def _crs_object(crs: str) -> Any:
+    """The pyproj CRS of ``crs`` (already validated by :func:`check_crs`), None for "local"."""
+    if crs == "local":
+        return None
+    import pyproj
+
+    return pyproj.CRS.from_user_input(crs)
+
+
+def _is_geographic(crs: str) -> bool:
+    """True for a geographic CRS (already validated by :func:`check_crs`)."""
+    crs_object = _crs_object(crs)
+    return crs_object is not None and bool(crs_object.is_geographic)
 
 
 def _strip_rows(
@@ -412,6 +570,9 @@ def load_gnss(
     if _is_geographic(crs):
         _check_geographic_ranges(crs, table, xyz)
     rows = _strip_rows(table, photo, photo_ids, notes)
+    in_strip = np.zeros(table.n_rows, dtype=bool)
+    in_strip[rows] = True
+    check_plausible_extent(_crs_object(crs), table, xyz, in_strip, names=("photo", "Z"))
     return GnssCentres(tuple(photo[rows].tolist()), xyz[rows], sigma_xy[rows], sigma_z[rows])
 
 

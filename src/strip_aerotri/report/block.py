@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .._text import shorten
 from .._version import __version__
 from ..observations import ControlType
 from .block_page import block_html
@@ -317,7 +318,9 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
     ax = fig.subplots()
     for k, spec in enumerate(result.specs):
         xy = plan(centres[result.photo_strip == k])
-        ax.plot(xy[:, 0], xy[:, 1], "o-", ms=3, lw=0.8, label=f"strip {spec.name} photos")
+        ax.plot(
+            xy[:, 0], xy[:, 1], "o-", ms=3, lw=0.8, label=f"strip {shorten(spec.name, 40)} photos"
+        )
     lookup = {pid: i for i, pid in enumerate(result.point_ids)}
     rows = np.asarray(result.control_index)
     index = np.array([lookup[result.control.point_ids[r]] for r in rows], dtype=np.intp)

@@ -28,7 +28,7 @@ from ..options import BlunderOptions, IntersectionMethod, StripOptions
 from ..plausibility import ray_direction_problems
 from ..results import Rejection, RelativeOrientation, StripModel
 from ..results.strip import BASE_UNITS
-from .relative import relative_orientation
+from .relative import COLLINEAR_RATIO, collinear_ratio, relative_orientation
 from .scaling import scale_ratios
 
 __all__ = ["StripModel", "StripOptions", "form_strip"]
@@ -124,6 +124,33 @@ def model_sequence(
         raise GeometryError(f"a strip needs at least two photos, got {seq.shape[0]}")
     ids = observations.photo_ids
     return seq, [f"pair {ids[seq[m]]}-{ids[seq[m + 1]]}" for m in range(seq.shape[0] - 1)]
+
+
+def _check_photos_spread(
+    left: FloatArray,
+    right: FloatArray,
+    model: IntArray,
+    n_models: int,
+    photos: list[str],
+    labels: list[str],
+) -> None:
+    """Refuse a photo whose points of a pair lie nearly on one line: its
+    orientation cannot be determined from them (the rotation about their
+    line stays free), whatever an iteration then returns.  Each photo of a
+    pair is looked at, the left one first (``photos`` in model order)."""
+    counts = np.bincount(model, minlength=n_models)
+    for side, image in ((0, left), (1, right)):
+        ratio = collinear_ratio(image, model, n_models)
+        bad = np.flatnonzero((counts >= 2) & ~(ratio >= COLLINEAR_RATIO))
+        if bad.size:
+            m = int(bad[0])
+            raise GeometryError(
+                f"photo {photos[m + side]}: its {int(counts[m])} points of {labels[m]} lie "
+                f"nearly on one line in the image (spread across that line {ratio[m]:.1e} of "
+                "the spread along it): the points do not determine the relative orientation "
+                "nor the photo's; measure points spread over the whole overlap (or correct "
+                "the photo's image coordinates)"
+            )
 
 
 def form_strip(
@@ -242,6 +269,7 @@ def _orient_pairs(
     right_t = _image_components(observations, row_r)
     left, right = left_t.T, right_t.T
     n_rows = model.shape[0]
+    _check_photos_spread(left, right, model, n_models, [ids[i] for i in seq], labels)
     rel = None
     while True:
         # after a rejection the pairs start from their previous solution: only

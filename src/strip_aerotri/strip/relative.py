@@ -56,11 +56,13 @@ from ..results import RelativeOrientation
 _Components = tuple[FloatArray, FloatArray, FloatArray | float]
 
 __all__ = [
+    "COLLINEAR_RATIO",
     "MIN_POINTS_PER_PAIR",
     "RelativeOrientation",
     "RelativeOrientationMethod",
     "SimilarityStart",
     "chain_rotations",
+    "collinear_ratio",
     "essential_start",
     "homography_start",
     "pair_count_problems",
@@ -84,7 +86,7 @@ _DOUBTFUL_MISFIT = 3.0
 _HOMOGRAPHY_IRLS = 3  # reweighted rounds of the homography start
 # Points whose spread across their best-fitting image line is below this
 # fraction of the spread along it are collinear (_check_not_collinear).
-_COLLINEAR_RATIO = 1e-2
+COLLINEAR_RATIO = 1e-2
 _SUBSAMPLE_POINTS = 40  # points per pair in the first iterations
 _BLOCK_CELLS = 1 << 15  # cells (rows) per block: its temporaries stay in cache
 # Corrections below this fraction of their standard deviation are negligible.
@@ -170,35 +172,56 @@ def _check_pairs(pair: IntArray, n_pairs: int, labels: list[str] | None) -> IntA
     return counts
 
 
+def collinear_ratio(image: ArrayLike, pair: IntArray, n_pairs: int) -> FloatArray:
+    """Per pair, how far its points in one image are from lying on one line.
+
+    Scale-free: the smaller singular value of the pair's centred normalised
+    image coordinates (x / -z, y / -z) over the larger one (0: on one line;
+    NaN for a pair without points).  Below ``COLLINEAR_RATIO`` (1 %) the points
+    cannot determine the orientation whatever the start (the rotation about
+    their line stays free).
+
+    Parameters
+    ----------
+    image : array_like, shape (n, 3)
+        Image vectors of the pairs' points, rows sorted by ``pair``.
+    pair : ndarray of int, shape (n,)
+        The pair of each row, non-decreasing.
+    n_pairs : int
+    """
+    img = np.asarray(image, dtype=np.float64)
+    counts = np.bincount(pair, minlength=n_pairs)
+    ratio = np.full(n_pairs, np.nan)
+    has = np.flatnonzero(counts)
+    if not has.size:
+        return ratio
+    starts = _segment_starts(pair, n_pairs)[has]
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        uv = img[:, :2] / -img[:, 2:3]
+        mean = np.add.reduceat(uv, starts, axis=0) / counts[has, None]
+        d = uv - np.repeat(mean, counts[has], axis=0)
+        sxx = np.add.reduceat(d[:, 0] ** 2, starts)
+        syy = np.add.reduceat(d[:, 1] ** 2, starts)
+        sxy = np.add.reduceat(d[:, 0] * d[:, 1], starts)
+        # eigenvalues of the 2 x 2 scatter matrix
+        half_trace = 0.5 * (sxx + syy)
+        root = np.sqrt(np.maximum(half_trace**2 - (sxx * syy - sxy**2), 0.0))
+        small, large = half_trace - root, half_trace + root
+        ratio[has] = np.sqrt(np.maximum(small, 0.0) / large)
+    return ratio
+
+
 def _check_not_collinear(
     left: FloatArray,
     pair: IntArray,
-    starts: IntArray,
     counts: IntArray,
     labels: list[str] | None,
 ) -> None:
-    """Refuse pairs whose points lie nearly on one line in the left image.
-
-    Scale-free: the smaller singular value of the pair's centred normalised
-    image coordinates (x / -z, y / -z) below ``_COLLINEAR_RATIO`` of the
-    larger one.  Such points cannot determine the orientation whatever the
-    start (the rotation about their line stays free); the iteration may
-    still stop somewhere, so the verdict comes from the data, not from it.
-    """
-    uv = left[:, :2] / -left[:, 2:3]
-    n = counts[:, None]
-    mean = np.add.reduceat(uv, starts, axis=0) / n
-    d = uv - mean[pair]
-    sxx = np.add.reduceat(d[:, 0] ** 2, starts)
-    syy = np.add.reduceat(d[:, 1] ** 2, starts)
-    sxy = np.add.reduceat(d[:, 0] * d[:, 1], starts)
-    # eigenvalues of the 2 x 2 scatter matrix
-    half_trace = 0.5 * (sxx + syy)
-    root = np.sqrt(np.maximum(half_trace**2 - (sxx * syy - sxy**2), 0.0))
-    small, large = half_trace - root, half_trace + root
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.sqrt(np.maximum(small, 0.0) / large)
-    bad = np.flatnonzero(~(ratio >= _COLLINEAR_RATIO))
+    """Refuse pairs whose points lie nearly on one line in the left image
+    (:func:`collinear_ratio`): the iteration may still stop somewhere, so the
+    verdict comes from the data, not from it."""
+    ratio = collinear_ratio(left, pair, counts.shape[0])
+    bad = np.flatnonzero(~(ratio >= COLLINEAR_RATIO))
     if bad.size:
         m = int(bad[0])
         others = f" (and {bad.size - 1} more pair(s))" if bad.size > 1 else ""
@@ -833,7 +856,7 @@ def relative_orientation(
     first = np.eye(3) if rotation_first is None else np.asarray(rotation_first, np.float64)
     counts = _check_pairs(pair, n_pairs, labels)
     starts = _segment_starts(pair, n_pairs)
-    _check_not_collinear(left, pair, starts, counts, labels)
+    _check_not_collinear(left, pair, counts, labels)
     var = (
         np.broadcast_to(np.asarray(sigma_left, np.float64), pair.shape) ** 2
         + np.broadcast_to(np.asarray(sigma_right, np.float64), pair.shape) ** 2
