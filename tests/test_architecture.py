@@ -21,6 +21,8 @@ LAYERS: dict[str, int] = {
     **dict.fromkeys(
         [
             "_typing",
+            "_atomic",
+            "_toml",
             "_stats",
             "_rows",
             "_version",

@@ -404,7 +404,9 @@ def check_photo_step(value: object) -> int | Literal["auto"]:
     number = _as_integer(value)
     if number is not None and number >= 1:
         return number
-    raise OptionError("photo_step", f'expected a positive integer or "auto", got {describe(value)}')
+    raise OptionError(
+        "photo_step", f'expected a positive integer or "auto", got {describe(value)}'
+    )
 
 
 def check_min_base_to_height(value: object) -> float:
@@ -872,7 +874,10 @@ def adjustment_options(
     values = {key: _adjustment_value(key, value) for key, value in given.items()}
     named = [key for key in ("polynomial", "sections") if key in values]
     polynomial = values.get("polynomial", DEFAULT_POLYNOMIAL)
-    sections = _sections_with(values.get("sections", DEFAULT_SECTIONS), polynomial)  # type: ignore[arg-type]
+    sections = _sections_with(
+        values.get("sections", DEFAULT_SECTIONS),  # type: ignore[arg-type]
+        polynomial,  # type: ignore[arg-type]
+    )
     models = values.get("models", ModelFormation.DEPENDENT)
     if (
         models is ModelFormation.INDEPENDENT
@@ -923,7 +928,10 @@ def _block_polynomial(
         )
     if values.get("photo_step", DEFAULT_PHOTO_STEP) != DEFAULT_PHOTO_STEP:
         raise OptionError("photo_step", "a block forms its models on every photo; remove it")
-    return 0 if construction is Construction.MODELS else int(polynomial)  # type: ignore[call-overload]
+    if construction is Construction.MODELS:
+        return 0
+    kind = check_polynomial(polynomial)  # an int here: "auto" is refused above
+    return 0 if kind == "auto" else kind
 
 
 @dataclass(frozen=True)

@@ -18,13 +18,13 @@ import csv
 import io as _io
 import os
 import shutil
-import uuid
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path, PurePosixPath
 from types import TracebackType
 
 import numpy as np
 
+from .._atomic import folder_beside, swap_folder
 from .._typing import ArrayLike
 from ..errors import StripAerotriError
 
@@ -378,9 +378,7 @@ class ResultFolder:
         _check_target(self.target, self._protect)
         parent = self.target.parent
         try:
-            parent.mkdir(parents=True, exist_ok=True)
-            tmp = parent / f".{self.target.name}.tmp-{uuid.uuid4().hex[:12]}"
-            tmp.mkdir()
+            tmp = folder_beside(self.target)
             self._tmp = tmp
             (tmp / RESULT_MARKER).write_text(_MARKER_TEXT, encoding="utf-8")
         except OSError as exc:
@@ -428,22 +426,13 @@ class ResultFolder:
         except OutputError:
             self.abort()
             raise
-        old = target.parent / f".{target.name}.old-{uuid.uuid4().hex[:12]}"
-        moved = False
         try:
-            if target.exists():
-                os.replace(target, old)
-                moved = True
-            os.replace(tmp, target)
+            swap_folder(tmp, target)
         except OSError as exc:
-            if moved and not target.exists():
-                os.replace(old, target)
             self.abort()
             raise OutputError(f"cannot replace '{target}': {exc.strerror or exc}") from exc
         self._tmp = None
         self._done = True
-        if moved:
-            shutil.rmtree(old, ignore_errors=True)
         return target
 
     def abort(self) -> None:
