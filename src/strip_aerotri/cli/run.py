@@ -22,6 +22,7 @@ from .options import (
 
 if TYPE_CHECKING:  # the numerical modules are imported when the command runs
     from .._typing import ArrayLike
+    from ..report.summary import RunSummary, ToleranceVerdict
     from ..results import BlockResult, Rejection, StripResult
 
 __all__ = ["run"]
@@ -31,26 +32,33 @@ def _fmt_m(value: float) -> str:
     return "n/a" if not math.isfinite(value) else f"{value:.3f} m"
 
 
-def _tolerance_verdict(report_json: bytes | None) -> str | None:
-    """One line on the tolerance criteria of report.json, if it has them."""
-    import json
-
-    try:
-        tolerances = json.loads(report_json or b"{}").get("tolerances") or {}
-        scale = float(tolerances["map_scale"])
-        criteria = tolerances["criteria"]
-        failed = [c["name"] for c in criteria if c.get("passed") is False]
-    except (ValueError, KeyError, TypeError, AttributeError):
+def _tolerance_line(verdict: ToleranceVerdict | None) -> str | None:
+    """One line on the tolerance criteria, if the run judged them."""
+    if verdict is None:
         return None
-    judged = [c for c in criteria if c.get("passed") is not None]
-    head = f"tolerances for 1:{scale:g}: "
-    unjudged = len(criteria) - len(judged)
-    tail = f" ({unjudged} not judged: too few values)" if unjudged else ""
-    if failed:
-        return (
-            head + f"{len(failed)} of {len(judged)} criteria failed ({', '.join(failed)})" + tail
+    head = f"tolerances for 1:{verdict.map_scale:g}: "
+    tail = f" ({verdict.n_unjudged} not judged: too few values)" if verdict.n_unjudged else ""
+    if verdict.failed:
+        failed = f"{len(verdict.failed)} of {verdict.n_judged} criteria failed"
+        return head + f"{failed} ({', '.join(verdict.failed)})" + tail
+    return head + f"all {verdict.n_judged} judged criteria met" + tail
+
+
+def _accuracy_lines(summary: RunSummary, own: str = "") -> list[str]:
+    """The control and check points' lines of the summary."""
+    control, check = summary.control, summary.check
+    lines = [
+        f"control: {control.n_plan} plan, {control.n_height} height; "
+        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(control.rmse_height)}{own}"
+    ]
+    if check.n_plan or check.n_height:
+        lines.append(
+            f"check points: {check.n_plan} plan, {check.n_height} height; "
+            f"RMSE plan {_fmt_m(check.rmse_plan)}, height {_fmt_m(check.rmse_height)}"
         )
-    return head + f"all {len(judged)} judged criteria met" + tail
+    else:
+        lines.append("check points: none")
+    return lines
 
 
 def _echo_details(result: StripResult) -> None:
@@ -216,6 +224,7 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     from ..project import load_project, output_folder
     from ..project import run as project_run
     from ..report.files import ResultFolder
+    from ..report.summary import build_run
     from ..results import BlockResult
 
     started = time.perf_counter()
@@ -236,15 +245,8 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
                 raise  # the message names its file already
             raise type(exc)(f"{project.path}: {exc}") from exc
         echo_progress("writing the report")
-        scale = map_scale if map_scale is not None else project.report.map_scale
-        if isinstance(result, BlockResult):
-            from ..report.block import build_block_outputs
-
-            files = build_block_outputs(result, project=project, map_scale=scale)
-        else:
-            from ..report import outputs as report
-
-            files = report.build_outputs(result, project=project, map_scale=scale)
+        outputs = build_run(result, project=project, map_scale=map_scale)
+        files, summary = outputs.files, outputs.summary
 
     # Warnings only once the run has succeeded: a failed run prints its one error line.
     texts = dict.fromkeys((*project.warnings, *result.warnings, *(str(w.message) for w in caught)))
@@ -258,35 +260,20 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
 
     if isinstance(result, BlockResult):
         _echo_block_details(result)
-        _echo_block(result, project.name, files, target, project.adjustment.block.value)
+        _echo_block(summary, target)
         return
     _echo_details(result)
     elapsed = time.perf_counter() - started
-    n_done = int(result.strip.triangulated.sum())
-    # With a bundle refinement the written points come from it: so do the figures.
-    final = result.refined if result.refined is not None else result
-    control = final.control_statistics
-    check = final.check_statistics
-    echo_result(f"strip '{project.name}': {len(result.photo_ids)} photos, {n_done} points")
-    if result.refined is not None:
+    echo_result(f"strip '{summary.name}': {summary.n_photos} photos, {summary.n_points} points")
+    if summary.refined:
         echo_result("bundle refinement: accuracy below is the refined solution's")
-    echo_result(
-        f"control: {control.n_plan} plan, {control.n_height} height; "
-        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}"
-    )
-    if check.n_plan or check.n_height:
-        echo_result(
-            f"check points: {check.n_plan} plan, {check.n_height} height; "
-            f"RMSE plan {_fmt_m(check.rmse_plan)}, height {_fmt_m(float(check.rmse[2]))}"
-        )
-    else:
-        echo_result("check points: none")
-    verdict = _tolerance_verdict(files.get("report.json"))
+    for line in _accuracy_lines(summary):
+        echo_result(line)
+    verdict = _tolerance_line(summary.tolerances)
     if verdict:
         echo_result(verdict)
-    report_name = _report_name(files)
-    if report_name is not None:
-        echo_result(f"report: {target / report_name}")
+    if summary.report_name is not None:
+        echo_result(f"report: {target / summary.report_name}")
     echo_result(f"results: {target}")
     echo_progress(f"done in {elapsed:.1f} s", level=1)
 
@@ -321,59 +308,36 @@ def _echo_block_details(result: BlockResult) -> None:
     )
 
 
-def _echo_block(
-    result: BlockResult,
-    name: str,
-    files: dict[str, bytes],
-    target: Path,
-    construction: str = "model",
-) -> None:
+def _echo_block(summary: RunSummary, target: Path) -> None:
     """The summary of a block's run."""
-    import numpy as np
-
-    n_done = int(np.isfinite(result.points).all(axis=1).sum())
     echo_result(
-        f"block '{name}': {len(result.specs)} strips, {len(result.photo_ids)} photos, "
-        f"{n_done} points"
+        f"block '{summary.name}': {summary.n_strips} strips, {summary.n_photos} photos, "
+        f"{summary.n_points} points"
     )
-    control, check = result.control_statistics, result.check_statistics
-    fit = result.control_fit_statistics
+    fit = summary.control_fit
     own = (
         ""
-        if fit is None or result.refined
-        else f" (the {construction.rstrip('s')}s' own determinations: {_fmt_m(fit.rmse_plan)}, "
-        f"{_fmt_m(float(fit.rmse[2]))})"
+        if fit is None
+        else f" (the {(summary.construction or 'model').rstrip('s')}s' own determinations: "
+        f"{_fmt_m(fit.rmse_plan)}, {_fmt_m(fit.rmse_height)})"
     )
-    echo_result(
-        f"control: {control.n_plan} plan, {control.n_height} height; "
-        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}{own}"
-    )
-    if check.n_plan or check.n_height:
+    for line in _accuracy_lines(summary, own):
+        echo_result(line)
+    join = summary.join
+    if join is not None:
+        a, b = join.strips
         echo_result(
-            f"check points: {check.n_plan} plan, {check.n_height} height; "
-            f"RMSE plan {_fmt_m(check.rmse_plan)}, height {_fmt_m(float(check.rmse[2]))}"
+            f"common points of the strips: largest mean discrepancy {_fmt_m(join.mean_plan_m)} "
+            f"plan, {_fmt_m(join.mean_height_m)} height (strips {a} / {b})"
         )
-    else:
-        echo_result("check points: none")
-    worst = max(result.joins, key=lambda j: j.mean_plan_m, default=None)
-    if worst is not None:
-        a, b = (result.specs[i].name for i in worst.strips)
+    if join is not None and join.transfer_strips is not None:
+        a, b = join.transfer_strips
+        verdict = "within" if join.transfer_passed else "above"
         echo_result(
-            f"common points of the strips: largest mean discrepancy {_fmt_m(worst.mean_plan_m)} "
-            f"plan, {_fmt_m(worst.mean_height_m)} height (strips {a} / {b})"
+            f"transfer errors of the free block: largest mean {join.mean_transfer_um:.0f} µm "
+            f"(strips {a} / {b}), {verdict} R4's {join.transfer_limit_um:.0f} µm"
         )
-    transfer = [j for j in result.joins if math.isfinite(j.mean_transfer_um)]
-    if transfer:
-        from ..report.block import TRANSFER_UM
-
-        worst = max(transfer, key=lambda j: j.mean_transfer_um)
-        a, b = (result.specs[i].name for i in worst.strips)
-        verdict = "within" if worst.mean_transfer_um <= TRANSFER_UM else "above"
-        echo_result(
-            f"transfer errors of the free block: largest mean {worst.mean_transfer_um:.0f} µm "
-            f"(strips {a} / {b}), {verdict} R4's {TRANSFER_UM:.0f} µm"
-        )
-    tolerance = _tolerance_verdict(files.get("report.json"))
+    tolerance = _tolerance_line(summary.tolerances)
     if tolerance is not None:
         echo_result(tolerance)
     echo_result(f"report: {target / 'report.html'}")
