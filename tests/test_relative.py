@@ -6,6 +6,7 @@ import pytest
 from _synthetic import make_strip
 from strip_aerotri.errors import GeometryError
 from strip_aerotri.strip import relative as rel_module
+from strip_aerotri.strip import relative_state
 from strip_aerotri.strip.chaining import pair_rows
 from strip_aerotri.strip.relative import chain_rotations, essential_start, relative_orientation
 
@@ -90,7 +91,7 @@ def test_sigma0_recovers_image_noise():
 def _first_pass_history(syn, factor, monkeypatch, iterations=30):
     """Max |q| (µm) per Gauss-Newton step from the near-vertical start."""
     left, right, pair, n = _pairs(syn)
-    monkeypatch.setattr(rel_module, "_SCHUT_FACTOR", factor)
+    monkeypatch.setattr(relative_state, "_SCHUT_FACTOR", factor)
     state = rel_module._DependentState(n, np.eye(3))
     starts = rel_module._segment_starts(pair, n)
     counts = np.bincount(pair, minlength=n)

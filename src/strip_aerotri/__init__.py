@@ -38,12 +38,11 @@ from .geodesy import (
 )
 from .geometry.deformation import (
     DeformationResult,
-    KindSelection,
     StraightLine,
     fit_deformation,
     polynomial_terms,
-    select_kind_auto,
 )
+from .geometry.deformation_auto import KindSelection, select_kind_auto
 from .geometry.intersection import intersect, intersect_midpoint, intersect_normal
 from .geometry.rotation import (
     cardan_from_matrix,
