@@ -185,3 +185,33 @@ def test_the_length_rule_can_fail(tmp_path, monkeypatch, text):
     (tmp_path / "strip_aerotri" / "long.py").write_text(text)
     monkeypatch.setattr(__import__(__name__), "PACKAGE", tmp_path / "strip_aerotri")
     assert [line.split()[1] for line in _long_functions()] == ["f:"]
+
+
+def test_docstrings_point_to_docs_users_have():
+    """The package names only the pages it ships (docs/, ``stripaero docs``),
+    never a page users do not have."""
+    import re
+
+    shipped = {p.name for p in (PACKAGE.parents[1] / "docs").glob("*.md")}
+    missing = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        for name in set(re.findall(r"\b([\w-]+\.md)\b", text)):
+            if name not in shipped | {"README.md", "report.md"}:  # report.md: an output
+                missing.append(f"{path.relative_to(PACKAGE)}: {name}")
+    assert missing == []
+
+
+MAX_MODULE_LINES = 1000
+
+#: Modules still over the limit, to be split by job (remove them as they are).
+LONG_MODULES = {"bundle/adjust.py", "geometry/simultaneous.py", "block/strips.py"}
+
+
+def test_no_module_over_the_limit():
+    long = {
+        str(path.relative_to(PACKAGE))
+        for path in PACKAGE.rglob("*.py")
+        if len(path.read_text(encoding="utf-8").splitlines()) > MAX_MODULE_LINES
+    }
+    assert long <= LONG_MODULES, sorted(long - LONG_MODULES)

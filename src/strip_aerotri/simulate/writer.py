@@ -1,5 +1,5 @@
 """Project files of a simulation: ``strip.toml``, ``image_points.csv``,
-``control.csv`` (formats.md).
+``control.csv`` (docs/project-file.md).
 
 :func:`write_strip_project` writes a ``[strip]`` project, and
 :func:`write_block_project` a block of ``[[strips]]`` tables; both write
