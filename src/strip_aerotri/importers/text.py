@@ -23,6 +23,8 @@ __all__ = [
     "line_floats",
     "natural_key",
     "photo_id",
+    "pixel_size_mm",
+    "read_photo_order",
     "read_text",
     "split_rows",
     "to_floats",
@@ -218,3 +220,40 @@ def natural_key(name: str) -> tuple[tuple[int, int, str], ...]:
     """Sort key that orders ``"B1_2"`` before ``"B1_10"`` (digit runs as numbers)."""
     parts = _DIGITS.split(str(name))
     return tuple((0, int(p), p) if p.isdigit() else (1, 0, p.lower()) for p in parts if p)
+
+
+def read_photo_order(path: Path | None) -> tuple[tuple[str, ...], ...] | None:
+    """The ``--photo-order`` file: one strip a line, its photo ids in flight
+    order (separated by spaces or commas; ``#`` starts a comment)."""
+    if path is None:
+        return None
+    strips = []
+    for line in read_text(path, "photo order, one strip per line").splitlines():
+        text = line.split("#", 1)[0].replace(",", " ").split()
+        if text:
+            strips.append(tuple(text))
+    if not strips:
+        raise ConfigError(f"{path}: no photo ids (one strip per line)")
+    return tuple(strips)
+
+
+def pixel_size_mm(
+    pixel_um: float | None, sensor_width_mm: float | None, width_px: int | None = None
+) -> float | None:
+    """The pixel size in mm from ``--pixel-um`` or ``--sensor-width-mm`` and the
+    image width in pixels (None when neither is given).
+
+    Examples
+    --------
+    >>> pixel_size_mm(2.5, None), pixel_size_mm(None, 13.2, 4000)
+    (0.0025, 0.0033)
+    """
+    if pixel_um is not None and sensor_width_mm is not None:
+        raise ConfigError("give --pixel-um or --sensor-width-mm, not both")
+    if pixel_um is not None:
+        return pixel_um / 1000.0
+    if sensor_width_mm is not None:
+        if width_px is None:
+            raise ConfigError("--sensor-width-mm needs the image width: use --pixel-um")
+        return sensor_width_mm / width_px
+    return None
