@@ -1,16 +1,5 @@
-"""OpenDroneMap / WebODM ground control: ``gcp_list.txt``.
-
-The layout of OpenDroneMap's documentation ("Ground Control Points", the GCP
-file format): the first line is the CRS of the ground coordinates, a PROJ
-string (``+proj=utm +zone=32 +datum=WGS84 +units=m +no_defs``), ``EPSG:nnnn``
-or ``WGS84 UTM <zone><N|S>``; every following line is
-
-    geo_x geo_y geo_z im_x im_y image_name [gcp_name [extra ...]]
-
-separated by spaces or tabs, ``im_x``, ``im_y`` the pixel column and row of
-the GCP on the image (origin top-left, rows down).  Without ``gcp_name`` the
-lines with the same ``geo_x geo_y geo_z`` are one GCP (named ``gcp1``,
-``gcp2``, ... in order of appearance).
+"""OpenDroneMap / WebODM ground control: ``gcp_list.txt`` (its layout and
+reader in :mod:`.gcp_list`) imported as a project.
 
 The file holds no tie points: they come from another source, such as a
 COLMAP model (``ties``, see :mod:`.colmap`).  Nor does it hold the camera:
