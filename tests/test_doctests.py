@@ -41,7 +41,8 @@ def test_the_examples_are_found():
 def test_docstring_examples_run(module_name, monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)  # an example that writes files writes them here
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
-    with np.printoptions(legacy="1.25" if np.lib.NumpyVersion(np.__version__) >= "2.0.0" else False):
+    numpy_2 = np.lib.NumpyVersion(np.__version__) >= "2.0.0"
+    with np.printoptions(legacy="1.25" if numpy_2 else False):  # scalars shown as 1.0
         for test in _examples(module_name):
             runner.run(test)
     result = runner.summarize(verbose=False)

@@ -169,7 +169,9 @@ def test_pix4d_block_reverses_the_strip_flown_back() -> None:
     ]
     # attitudes do not depend on the photo order, only on the flight axes
     photo, opk = project.imu_opk_deg
-    np.testing.assert_allclose(matrix_from_opk(opk, degrees=True), _true_rotations(photo, "+y"), atol=1e-8)
+    np.testing.assert_allclose(
+        matrix_from_opk(opk, degrees=True), _true_rotations(photo, "+y"), atol=1e-8
+    )
 
 
 def test_pix4d_gcp_axis_order_follows_the_crs(tmp_path: Path) -> None:
