@@ -28,6 +28,7 @@ LAYERS: dict[str, int] = {
             "_version",
             "errors",
             "options",
+            "choices",
             "observations",
             "blunders",
         ],
