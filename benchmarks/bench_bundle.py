@@ -18,8 +18,8 @@ then, in this one process and on the same data:
   long strip's bend is followed, docs/ground.md "Long strips"; 0: J's
   single polynomial; blunder tests in "report" mode);
 * the bundle refinement of its result, :func:`strip_aerotri.bundle.refine.refine_bundle`
-  (also in "report" mode), with and without the precision (``6 M`` sparse
-  solves for the standard deviations);
+  (also in "report" mode), with and without the precision (the selected
+  inverse of the banded normal matrix for the standard deviations);
 
 and prints wall time, peak traced memory (``tracemalloc``, numpy buffers
 included), their ratio, observations per second, and the check-point RMSE
@@ -61,9 +61,7 @@ RELIEF_M = 60.0
 IMAGE_NOISE_MM = 0.005
 CONTROL_NOISE_M = 0.02
 CONTROL_EVERY = 4  # models between full control pairs
-#: Default grid.  5000 photos (``--with-5000``) run without the precision:
-#: its 6 M sparse solves grow as M^2 (13 s at 1000 photos, about 5 minutes
-#: at 5000); the strip method itself fails there (see docs/bundle.md).
+#: Default grid; ``--with-5000`` adds 5000 photos (docs/bundle.md).
 GRID = [(12, 30), (12, 100), (12, 300), (12, 2000), (100, 30), (100, 100), (100, 300)]
 GRID += [(1000, 30), (1000, 100), (1000, 300)]
 
@@ -434,7 +432,7 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--precision-limit",
         type=int,
-        default=1000,
+        default=100_000,
         help="compute the bundle's standard deviations up to this many photos",
     )
     ap.add_argument("--seed", type=int, default=0)

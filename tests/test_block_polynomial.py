@@ -243,7 +243,8 @@ def test_block_of_strips_reports_its_polynomial_and_transfer_errors(tmp_path: Pa
         assert 0 < join["mean_transfer_um"] <= join["max_transfer_um"]
     page = (toml.parent / "out" / "report.html").read_text()
     assert "mean transfer [µm]" in page and "polynomial of type 2" in page
-    assert "Tolerances (R4 §1.7.7):" in page and "check_mean_plan" in page
+    assert "Tolerances of the production rules (R4 §1.7.7):" in page
+    assert "mean plan error at the check points within 0.3 mm at the map scale" in page
 
 
 def test_terms_the_control_cannot_determine_are_left_out():
@@ -282,6 +283,6 @@ def test_simulated_block_with_a_polynomial_runs_as_a_block_of_strips(tmp_path: P
     assert 'block = "strips"' in text and "polynomial = 2" in text
     ran = runner.invoke(cli, ["run", str(out / "strip.toml"), "--map-scale", "1000"])
     assert ran.exit_code == 0, ran.output
-    assert "tolerances for 1:1000:" in ran.stdout
+    assert "tolerances (R4 §1.7.7): " in ran.stdout and "at 1:1000" in ran.stdout
     auto = runner.invoke(cli, [*args, "--polynomial", "auto", "--force"])
     assert auto.exit_code == 2 and "auto" in auto.output

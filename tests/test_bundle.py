@@ -496,3 +496,41 @@ def test_poor_start_needs_damping_and_still_converges(monkeypatch):
     assert res.converged
     np.testing.assert_allclose(res.points, strip.points, atol=1e-6, rtol=0)
     assert np.all(np.diff(res.history) <= 0.0)  # accepted steps never increase the objective
+
+
+def test_a_block_is_numbered_across_its_strips():
+    """The photos of a block, listed strip after strip, are ordered along the
+    block's main axis for the band (across the strips): the half-band is
+    about the strips times the overlap window, not a strip's length, and the
+    adjustment from a perturbed truth is the truth's to the noise."""
+    import strip_aerotri.bundle.adjust as bundle_module
+    from strip_aerotri.geometry.normals import NormalStructure
+    from strip_aerotri.simulate import simulate_block
+
+    sim = simulate_block(4, 25, preset="drone", crs="local", seed=3)
+    obs, truth = sim.observations, sim.truth
+    given = NormalStructure.from_indices(
+        obs.n_photos, 6, obs.n_points, obs.photo, obs.point, order="given"
+    )
+    structures = []
+    build = bundle_module.NormalStructure.from_indices
+
+    def recording(*args, **kwargs):
+        structures.append(build(*args, **kwargs))
+        return structures[-1]
+
+    import unittest.mock
+
+    control = np.full((obs.n_points, 3), np.nan)
+    lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
+    rows = [lookup[pid] for pid in sim.control.point_ids]
+    control[rows] = truth.points_local[rows]
+    with unittest.mock.patch.object(bundle_module.NormalStructure, "from_indices", recording):
+        res = bundle_adjust(
+            obs, truth.photo_centres_local + 0.05, truth.photo_rotations_local,
+            truth.points_local - 0.05, control_xyz=control, control_sigma=0.02,
+        )  # fmt: skip
+    width = structures[0].width
+    assert width < 0.6 * given.width  # strip after strip: about two strips' length
+    assert width <= 4 * 8  # four strips, a window of at most 8 photos each
+    assert res.converged and 0.8 < res.sigma0 < 1.2

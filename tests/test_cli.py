@@ -66,7 +66,7 @@ def fast_report(request, monkeypatch):
     build = report.strip_outputs
 
     def without_html(result, **kwargs):
-        return build(result, html=False, **kwargs)
+        return build(result, **{**kwargs, "html": False})
 
     monkeypatch.setattr(report, "strip_outputs", without_html)
 
@@ -597,10 +597,15 @@ def test_run_twice_replaces_result(tmp_path, project):
     out = tmp_path / "res"
     assert invoke("-q", "run", project, "--out", out).exit_code == 0
     first = (out / "points.csv").read_bytes()
+    # a file the previous run wrote (listed in the marker) that this one does not
     (out / "stale.txt").write_text("from an older run\n", encoding="utf-8")
+    with (out / RESULT_MARKER).open("a", encoding="utf-8") as fh:
+        fh.write("written: stale.txt\n")
+    (out / "notes.txt").write_text("the user's\n", encoding="utf-8")
     result = invoke("-q", "run", project, "--out", out)
     assert result.exit_code == 0, result.output
     assert not (out / "stale.txt").exists()
+    assert (out / "notes.txt").read_text(encoding="utf-8") == "the user's\n"
     assert (out / "points.csv").read_bytes() == first  # deterministic
     assert sorted(p.name for p in tmp_path.iterdir()) == ["proj", "res"]  # no temp folders
 

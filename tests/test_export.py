@@ -134,9 +134,11 @@ def test_odm_gcp_list_round_trip(tmp_path):
         assert xyz == pytest.approx([float(rows[str(name)][c]) for c in "XYH"], abs=1e-4)
 
 
-def test_odm_export_refuses_a_project_measured_in_millimetres(tmp_path):
+def test_odm_export_refuses_millimetres_without_their_pixel_keys(tmp_path):
     toml = simulate_strip(6, seed=1).write_project(tmp_path / "p")
     runner = CliRunner()
     assert runner.invoke(cli, ["-q", "run", str(toml)]).exit_code == 0
     refused = runner.invoke(cli, ["export", "odm", str(toml)])
-    assert refused.exit_code == 1 and "pixel measurements" in refused.stderr
+    assert refused.exit_code == 1 and "without pixel_size_mm and principal_point_px" in (
+        refused.stderr
+    )

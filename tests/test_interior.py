@@ -237,7 +237,7 @@ def test_project_pixels(tmp_path: Path) -> None:
     ("images_keys", "match"),
     [
         ('units = "pixel"\npixel_size_mm = 0.002', "principal_point_px: required"),
-        ("pixel_size_mm = 0.002", 'only used with units = "pixel"'),
+        ("pixel_size_mm = 0.002", 'with units = "mm" give principal_point_px too'),
         ('flight_direction = "y"', 'expected one of "\\+x", "-x", "\\+y", "-y"'),
     ],
 )

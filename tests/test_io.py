@@ -223,3 +223,47 @@ def test_atomic_file_leaves_the_old_file_when_writing_fails(tmp_path):
             raise RuntimeError("half way")
     assert target.read_text() == "old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.geojson"]
+
+
+def test_files_the_run_did_not_write_are_kept(tmp_path: Path) -> None:
+    """A new result replaces what the previous run wrote (the marker lists
+    it) and keeps the rest; an export recorded in the marker is named."""
+    from strip_aerotri.report.files import ResultFolder, record_export
+
+    target = tmp_path / "out"
+    write_result_folder(target, {"points.csv": "old\n", "gone.txt": "x"})
+    (target / "notes.txt").write_text("mine")
+    (target / "sub").mkdir()
+    (target / "sub" / "a.txt").write_text("a")
+    (target / "results.geojson").write_text("{}")
+    record_export(target / "results.geojson")
+    record_export(target / "results.geojson")  # once only
+    folder = ResultFolder(target)
+    with folder:
+        folder.write_text("points.csv", "new\n")
+    assert set(tree(target)) == {
+        RESULT_MARKER,
+        "points.csv",
+        "notes.txt",
+        str(Path("sub/a.txt")),
+        "results.geojson",
+    }
+    assert folder.kept == ("notes.txt", "results.geojson", "sub")
+    assert folder.exports == ("results.geojson",)
+    marker = (target / RESULT_MARKER).read_text().splitlines()
+    assert "written: points.csv" in marker and marker.count("exported: results.geojson") == 1
+    assert sorted(os.listdir(tmp_path)) == ["out"]
+
+
+def test_a_failed_run_keeps_the_folder_and_its_foreign_files(tmp_path: Path) -> None:
+    from strip_aerotri.report.files import ResultFolder
+
+    target = tmp_path / "out"
+    write_result_folder(target, {"points.csv": "old\n"})
+    (target / "notes.txt").write_text("mine")
+    with pytest.raises(RuntimeError), ResultFolder(target) as folder:
+        folder.write_text("points.csv", "new\n")
+        raise RuntimeError("failed")
+    assert (target / "points.csv").read_text() == "old\n"
+    assert (target / "notes.txt").read_text() == "mine"
+    assert sorted(os.listdir(tmp_path)) == ["out"]

@@ -30,7 +30,7 @@ def fast_report(monkeypatch):
     from strip_aerotri.report import outputs as report
 
     build = report.strip_outputs
-    monkeypatch.setattr(report, "strip_outputs", lambda r, **kw: build(r, html=False, **kw))
+    monkeypatch.setattr(report, "strip_outputs", lambda r, **kw: build(r, **{**kw, "html": False}))
 
 
 def invoke(*args: str | Path):

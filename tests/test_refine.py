@@ -217,11 +217,10 @@ def test_image_blunder_is_rejected():
     assert np.isnan(refined.points[obs.point[k]]).all()
 
 
-def test_approximate_redundancy_numbers_against_exact():
-    sim, result = strip_and_result("local", "projected")
-    obs = sim.observations
-    p, m = obs.n_points, obs.n_photos
-    c = sim.control
+def _frame_inputs(sim):
+    """Control (P, 3) with its sigmas (inf where none) in the observations' order."""
+    obs, c = sim.observations, sim.control
+    p = obs.n_points
     lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
     cx = np.full((p, 3), np.nan)
     cs = np.full((p, 3), np.inf)
@@ -231,12 +230,13 @@ def test_approximate_redundancy_numbers_against_exact():
             cx[j, :2], cs[j, :2] = c.xyz[i, :2], c.sigma_xy[i]
         if c.uses_h[i]:
             cx[j, 2], cs[j, 2] = c.xyz[i, 2], c.sigma_h[i]
-    g = result.ground
-    fr = refine_frame(
-        obs, g.photo_centres_work, g.photo_rotations_enu, result.points,
-        control_xyz=cx, control_sigma=cs,
-    )  # fmt: skip
-    # exact redundancy numbers from the dense design matrix (whitened)
+    return cx, cs
+
+
+def _dense_redundancy(fr, obs, cx, cs):
+    """Exact redundancy numbers (2K image rows, then the given control
+    components) from the dense whitened design matrix at the solution."""
+    p, m = obs.n_points, obs.n_photos
     _, _, jac_photo, jac_point = _collinearity(
         fr.centres, fr.rotations, fr.points, obs.photo, obs.point, obs.principal_distance
     )
@@ -255,20 +255,65 @@ def test_approximate_redundancy_numbers_against_exact():
     )
     design = np.vstack([a, a_c])
     hat = np.einsum("ij,jk,ik->i", design, np.linalg.inv(design.T @ design), design)
-    r = 1.0 - hat
+    return 1.0 - hat, given
+
+
+@pytest.mark.parametrize("precision", [False, True], ids=["approximate", "exact"])
+def test_redundancy_numbers_against_the_dense_design(precision):
+    sim, result = strip_and_result("local", "projected")
+    obs = sim.observations
+    cx, cs = _frame_inputs(sim)
+    g = result.ground
+    fr = refine_frame(
+        obs, g.photo_centres_work, g.photo_rotations_enu, result.points,
+        control_xyz=cx, control_sigma=cs, compute_precision=precision,
+    )  # fmt: skip
+    r, given = _dense_redundancy(fr, obs, cx, cs)
     assert abs(r.sum() - fr.redundancy) < 1e-6
+    k = obs.photo.size
     r_img = r[: 2 * k].reshape(k, 2)
     diff = fr.image_redundancy - r_img
-    # measured: RMS 0.066, largest 0.35 (y of two-ray points, where the photos
-    # take more than their average share)
-    assert np.sqrt(np.mean(diff**2)) < 0.08
-    assert np.max(np.abs(diff)) < 0.4
-    assert abs(np.mean(diff)) < 0.02
-    # control: exact from the point cofactors
-    r_ctrl = r[2 * k :]
-    q = (fr.point_std / fr.sigma0) ** 2
-    r_from_std = 1.0 - q[given[:, 0], given[:, 1]] / cs[given[:, 0], given[:, 1]] ** 2
-    np.testing.assert_allclose(r_from_std, r_ctrl, atol=1e-8)
+    if precision:
+        # from the selected inverse of the banded normal matrix: exact
+        np.testing.assert_allclose(fr.image_redundancy, r_img, atol=1e-8)
+        np.testing.assert_allclose(fr.bundle.image_redundancy, r_img, atol=1e-8)
+        # control: exact from the point cofactors
+        r_ctrl = r[2 * k :]
+        q = (fr.point_std / fr.sigma0) ** 2
+        r_from_std = 1.0 - q[given[:, 0], given[:, 1]] / cs[given[:, 0], given[:, 1]] ** 2
+        np.testing.assert_allclose(r_from_std, r_ctrl, atol=1e-8)
+    else:
+        # the approximation without the precision; measured: RMS 0.066,
+        # largest 0.35 (y of two-ray points, where the photos take more than
+        # their average share)
+        assert np.isnan(fr.bundle.image_redundancy).all()
+        assert np.sqrt(np.mean(diff**2)) < 0.08
+        assert np.max(np.abs(diff)) < 0.4
+        assert abs(np.mean(diff)) < 0.02
+
+
+def test_several_image_blunders_are_rejected_in_one_round():
+    """Every failing ray that is the largest of its point and of its photo
+    goes in the same round: six blunders on a 60-photo drone strip, two
+    adjustments (one rejecting round, one to confirm), nothing else rejected."""
+    sim = simulate_strip(
+        60, preset="drone", crs="local", seed=2, control="every_k_models", control_every=10,
+        image_blunders=6,
+    )  # fmt: skip
+    obs = sim.observations
+    result = triangulate(obs, sim.control, sim.crs, blunders=BlunderOptions(action="off"))
+    cx, cs = _frame_inputs(sim)
+    g = result.ground
+    fr = refine_frame(
+        obs, g.photo_centres_work, g.photo_rotations_enu, result.points,
+        control_xyz=cx, control_sigma=cs,
+    )  # fmt: skip
+    blundered = np.zeros(obs.photo.size, bool)
+    blundered[list(sim.truth.blunder_observations)] = True
+    assert blundered.sum() == 6
+    np.testing.assert_array_equal(fr.observation_rejected, blundered)
+    assert fr.rounds == 2
+    assert not fr.control_rejected.any()
 
 
 def test_gnss_for_unknown_photos_warns_and_bad_inputs_raise():

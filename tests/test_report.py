@@ -316,7 +316,7 @@ def test_html_self_contained_with_figures(utm):
     assert "http://" not in page and "https://" not in page
     assert "<script" not in page.lower()
     assert "Tolerance verdicts" in page
-    assert "check_mean_plan" in page
+    assert "mean plan error at the check points within 0.3 mm at the map scale" in page
     for photo in result.photo_ids:
         assert f"<td class='l'>{photo}</td>" in page or f"<td>{photo}</td>" in page
 

@@ -368,3 +368,52 @@ def test_an_image_wider_than_the_page_is_found(broken):
     _, _, layout = broken["images wider than the page"]
     assert any(p.startswith("img") and "the page 0..718" in p for p in layout)
     assert any(p.startswith("img") and "is cut by figure" in p for p in layout)
+
+
+# Paper and words a client reads.
+
+
+def _pdf_text(pdf: Path) -> str:
+    assert PDFTOTEXT is not None
+    raw = subprocess.run(
+        [PDFTOTEXT, "-enc", "UTF-8", str(pdf), "-"], capture_output=True, text=True, check=True
+    ).stdout
+    return " ".join(raw.split())
+
+
+@pytest.mark.parametrize("name", ["strip", "block"])
+def test_printed_on_a4(reports, name):
+    """The page asks for A4 (@page): every page of the PDF is 210 x 297 mm
+    (Chromium prints US Letter otherwise)."""
+    pdfinfo = shutil.which("pdfinfo")
+    if pdfinfo is None:
+        pytest.skip("needs pdfinfo (poppler-utils)")
+    info = subprocess.run(
+        [pdfinfo, "-f", "1", "-l", "999", str(reports[name]["pdf"])],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    sizes = [
+        x.split(":", 1)[1] for x in info.splitlines() if x.startswith("Page") and " size:" in x
+    ]
+    assert sizes, info
+    for size in sizes:
+        width, height = (float(v) for v in size.split("pts")[0].split(" x "))
+        assert abs(width - 595.28) < 1.0 and abs(height - 841.89) < 1.0, size
+
+
+@pytest.mark.parametrize("name", ["strip", "block"])
+def test_the_printed_page_states_its_verdict_in_words(reports, name):
+    """The verdict first, in sentences: what was met or not, with no
+    identifiers of criteria (check_en_interval_decrease) and no pointer to
+    files a client does not have (docs/outputs.md)."""
+    text = _pdf_text(reports[name]["pdf"])
+    assert "Tolerances of the production rules (R4 §1.7.7):" in text
+    verdict = text.split("Tolerances of the production rules (R4 §1.7.7):", 1)[1][:400]
+    assert any(
+        phrase in verdict for phrase in ("criteria met", "criteria not met", "was not judged")
+    ), verdict
+    assert "Russian production rules" in text
+    for identifier in ("check_en_", "y_parallax_", "check_mean_plan", "docs/outputs.md"):
+        assert identifier not in text, identifier

@@ -40,6 +40,7 @@ from strip_aerotri.simulate import (
 
 # formats.md, "A block of strips": the tables and keys a block's strip.toml may hold.
 BLOCK_TOML_KEYS = {
+    "project": {"name"},
     "strips": {"name", "photos"},
     "camera": {"principal_distance_mm", "principal_point_mm"},
     "images": {"file"},

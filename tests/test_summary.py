@@ -1,10 +1,8 @@
-"""The typed summary of a run (report/summary.py) that ``stripaero run``
-prints: the same figures as the result and report.json, computed in the
-library, so the command line parses nothing and judges nothing."""
+"""The typed summary of a run (report/summary.py): the same figures as the
+result and report.json, computed in the library."""
 
 from __future__ import annotations
 
-import ast
 import json
 import math
 from pathlib import Path
@@ -15,8 +13,6 @@ import pytest
 from strip_aerotri.project import load_project, run_project
 from strip_aerotri.report.summary import build_run
 from strip_aerotri.simulate import simulate_block, simulate_strip
-
-CLI = Path(__file__).parents[1] / "src" / "strip_aerotri" / "cli"
 
 
 def _project(tmp_path, sim, extra=""):
@@ -61,16 +57,3 @@ def test_block_summary_judges_the_transfer_as_report_json(tmp_path):
     assert math.isfinite(summary.join.mean_transfer_um)
     assert summary.control.rmse_plan == result.control_statistics.rmse_plan
     assert np.isfinite(summary.control_fit.rmse_plan)
-
-
-@pytest.mark.parametrize("path", sorted(CLI.glob("*.py")), ids=lambda p: p.name)
-def test_the_command_line_parses_no_report(path):
-    """No module of cli/ reads JSON (report.json) or names R4's limits."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    names = {
-        alias.name
-        for node in ast.walk(tree)
-        if isinstance(node, ast.Import | ast.ImportFrom)
-        for alias in node.names
-    }
-    assert "json" not in names and "TRANSFER_UM" not in names

@@ -44,6 +44,17 @@ from .geometry.deformation import (
 )
 from .geometry.deformation_auto import KindSelection, select_kind_auto
 from .geometry.intersection import intersect, intersect_midpoint, intersect_normal
+from .geometry.normals import (
+    BorderRows,
+    Cofactors,
+    FormedNormals,
+    NormalSolution,
+    NormalStructure,
+    PointRows,
+    SingularNormalsError,
+    UnitPointRows,
+    UnitRows,
+)
 from .geometry.rotation import (
     cardan_from_matrix,
     cardan_from_opk,
@@ -100,7 +111,8 @@ from .pipeline import triangulate
 from .project import Project, load_project, run_project
 from .report.files import OutputError, ResultFolder, write_result_folder
 from .report.outputs import build_outputs, build_report
-from .report.tolerances import Criterion, tolerance_verdicts
+from .report.tolerances import Criterion, chance_beyond, tolerance_verdicts
+from .report.verdict import Verdict, overall_verdict
 from .results import (
     AccuracyStatistics,
     BundleResult,
@@ -140,8 +152,10 @@ __all__ = [
     "AccuracyStatistics",
     "BlockStrip",
     "BlunderOptions",
+    "BorderRows",
     "BrownDistortion",
     "BundleResult",
+    "Cofactors",
     "ConfigError",
     "ControlPoints",
     "ControlType",
@@ -150,6 +164,7 @@ __all__ = [
     "DeformationResult",
     "FiducialFit",
     "FlightDirection",
+    "FormedNormals",
     "GeometryError",
     "GnssCentres",
     "GnssResiduals",
@@ -163,7 +178,10 @@ __all__ = [
     "KindSelection",
     "LineSpec",
     "LocalTangentFrame",
+    "NormalSolution",
+    "NormalStructure",
     "OutputError",
+    "PointRows",
     "Project",
     "RefinedResult",
     "Rejection",
@@ -177,6 +195,7 @@ __all__ = [
     "SimulatedBlock",
     "SimulatedStrip",
     "SimulationTruth",
+    "SingularNormalsError",
     "StraightLine",
     "StripAerotriError",
     "StripAerotriWarning",
@@ -184,6 +203,9 @@ __all__ = [
     "StripOptions",
     "StripPreset",
     "StripResult",
+    "UnitPointRows",
+    "UnitRows",
+    "Verdict",
     "__version__",
     "adjust_to_ground",
     "azimuth_from_local_enu",
@@ -194,6 +216,7 @@ __all__ = [
     "cardan_from_opk",
     "cardan_from_schut",
     "chain_rotations",
+    "chance_beyond",
     "check_matrix",
     "choose_photo_step",
     "complete_strip",
@@ -223,6 +246,7 @@ __all__ = [
     "opk_from_cardan",
     "opk_from_matrix",
     "opk_from_schut",
+    "overall_verdict",
     "polynomial_terms",
     "reduce_image_coordinates",
     "refine_bundle",

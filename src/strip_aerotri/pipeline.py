@@ -199,7 +199,7 @@ def triangulate(
     # the tie test's residuals, in model base lengths until now, in metres
     model_per_mm, _ = image_scale(strip)
     strip = strip.with_rejections_in_metres(ground.image_scale / model_per_mm)
-    notes = list(warnings)
+    notes = list(warnings) + list(strip.break_warnings)
     notes += [r.describe() for r in strip.rejections + ground.rejections]
     failed_ties = set(strip.rejected_points)
     notes += [

@@ -628,7 +628,12 @@ def _formation_notes(p: _Problem, result: BlockResult) -> tuple[str, ...]:
     rejection of its blunder tests (tie residuals in metres), and the control
     points on two photos or more that the block does not determine (not on
     both photos of a pair, or every determination of them rejected)."""
-    notes = [r.describe() for strip in result.strips for r in strip.rejections]
+    notes = [
+        f"strip '{spec.name}': {text}"
+        for spec, strip in zip(result.specs, result.strips, strict=True)
+        for text in strip.break_warnings
+    ]
+    notes += [r.describe() for strip in result.strips for r in strip.rejections]
     determined = {int(r) for r in p.control_rows}
     obs = p.observations
     # points on one photo only: the loader has said so, once for all of them

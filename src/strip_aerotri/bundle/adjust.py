@@ -17,9 +17,11 @@ the frame, so with ``v = R.T @ (X - S)``
 Unknowns per photo are a shift of the centre ``dS`` (m) and a small rotation
 ``delta`` (rad) applied on the right, ``R <- R @ exp([delta]x)``, i.e. about
 the axes of the photo's own image system; three per point.  The normal
-equations are reduced to the photos by the Schur complement on the 3 x 3
-point blocks; the reduced system (6M x 6M, banded for a strip) is solved by a
-sparse LU factorisation.
+equations are formed, reduced to the photos by the Schur complement on the
+3 x 3 point blocks and solved by the structured engine of method.md 6B
+(:mod:`strip_aerotri.geometry.normals`: the photos along the strip or in a
+bandwidth-reducing order, LAPACK's banded Cholesky); the cofactors come from
+its selected inverse.
 """
 
 from __future__ import annotations
@@ -27,21 +29,26 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..geometry.collinearity import collinearity_jacobians, project
+from ..geometry.normals import (
+    FormedNormals,
+    NormalSolution,
+    NormalStructure,
+    PointRows,
+    SingularNormalsError,
+    UnitPointRows,
+    UnitRows,
+)
 from ..geometry.rotation import matrix_from_rotvec, rotvec_from_matrix, skew
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
 from ..results import BundleResult
-
-if TYPE_CHECKING:
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
 
 __all__ = ["BundleResult", "bundle_adjust"]
 
@@ -57,8 +64,6 @@ _DATUM_RANK_TOL = 1e-9
 #: Ratio of smallest to largest eigenvalue of a point's 3 x 3 normal block
 #: below which the point counts as undetermined (e.g. seen on one photo only).
 _POINT_RANK_TOL = 1e-10
-#: Largest number of float64 entries of one block of unit-vector solves.
-_SOLVE_CHUNK = 4_000_000
 
 _MOTION_NAMES = (
     "shift along X",
@@ -132,17 +137,10 @@ class _Problem:
     gnss_weight: FloatArray
     imu_rot: FloatArray  # (M, 3, 3), identity where unused
     imu_weight: FloatArray  # (M, 3), 0 where unused
-    photo_sum: sp.csr_matrix  # (M, K) incidence
-    point_sum: sp.csr_matrix  # (P, K) incidence
-    pair_k1: IntArray  # observation pairs on the same point
-    pair_k2: IntArray
-    pair_point_sum: sp.csr_matrix  # (P, n_pairs)
-    # CSC pattern of the reduced matrix; entry j of the COO list (photo blocks,
-    # then observation pairs) adds into data[slot[j]].
-    slot: IntArray
-    indices: IntArray
-    indptr: IntArray
-    entry_col: IntArray  # column of each CSC entry
+    structure: NormalStructure  # photos (6 unknowns each) and points, banded
+    control_points: IntArray  # points with control
+    gnss_photos: IntArray  # photos with a GNSS centre
+    imu_photos: IntArray  # photos with an IMU attitude
 
     @property
     def n_observations(self) -> int:
@@ -154,33 +152,15 @@ class _Problem:
         )
 
 
-def _incidence(index: IntArray, n: int) -> sp.csr_matrix:
-    import scipy.sparse as sp
-
-    k = index.size
-    return sp.csr_matrix((np.ones(k), (index, np.arange(k))), shape=(n, k))
-
-
-def _observation_pairs(point: IntArray, n_points: int) -> tuple[IntArray, IntArray]:
-    """All ordered pairs (k1, k2) of observations of the same point (k1 == k2 included)."""
-    order = np.argsort(point, kind="stable")
-    counts = np.bincount(point, minlength=n_points)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    per_obs = counts[point[order]]  # partners of each sorted observation
-    first = np.repeat(np.arange(order.size), per_obs)
-    group_start = np.repeat(np.cumsum(per_obs) - per_obs, per_obs)
-    offset = np.arange(first.size) - group_start
-    second = starts[point[order][first]] + offset
-    return order[first], order[second]
-
-
-def _block_pattern(a: IntArray, b: IntArray) -> tuple[IntArray, IntArray]:
-    """Row and column indices (n, 6, 6) of the 6 x 6 blocks (a, b) of a 6M x 6M matrix."""
-    blk = np.arange(6)
-    rows = 6 * a[:, None, None] + blk[None, :, None]
-    cols = 6 * b[:, None, None] + blk[None, None, :]
-    rows, cols = np.broadcast_arrays(rows, cols)
-    return rows, cols
+def _along_axis_order(centres: FloatArray) -> IntArray:
+    """The photos by their place along the main axis of their centres' plan:
+    along a strip the strip's order, in a block across the strips (the
+    classical numbering), so that the reduced normal matrix is narrow."""
+    xy = centres[:, :2] - centres[:, :2].mean(axis=0)
+    if xy.shape[0] < 2:
+        return np.arange(xy.shape[0], dtype=np.intp)
+    _, _, vt = np.linalg.svd(xy, full_matrices=False)
+    return np.argsort(xy @ vt[0], kind="stable").astype(np.intp)
 
 
 def observed_with_sigma(
@@ -278,17 +258,17 @@ def _make_problem(
             raise ValueError("Expected positive standard deviations for `imu_rotations`")
         iw = np.zeros((m, 3))
         iw[used] = 1.0 / sig[used] ** 2
-    k1, k2 = _observation_pairs(point, p)
-    rows_u, cols_u = _block_pattern(np.arange(m), np.arange(m))
-    rows_p, cols_p = _block_pattern(photo[k1], photo[k2])
-    n = 6 * m
-    keys = np.concatenate([cols_u.ravel(), cols_p.ravel()]) * n + np.concatenate(
-        [rows_u.ravel(), rows_p.ravel()]
+    structure = NormalStructure.from_indices(
+        m,
+        6,
+        p,
+        photo,
+        point,
+        candidates=[_along_axis_order(centres)],
+        unit_names=tuple(obs.photo_ids),
+        point_names=tuple(obs.point_ids),
+        parameter_names=_PHOTO_PARAMETER_NAMES,
     )
-    unique_keys, slot = np.unique(keys, return_inverse=True)
-    entry_col = unique_keys // n
-    indices = unique_keys % n
-    indptr = np.searchsorted(entry_col, np.arange(n + 1)).astype(np.intp)
     return _Problem(
         photo_ids=tuple(obs.photo_ids),
         photo=photo,
@@ -304,15 +284,10 @@ def _make_problem(
         gnss_weight=gw,
         imu_rot=imu,
         imu_weight=iw,
-        photo_sum=_incidence(photo, m),
-        point_sum=_incidence(point, p),
-        pair_k1=k1,
-        pair_k2=k2,
-        pair_point_sum=_incidence(point[k1], p),
-        slot=slot,
-        indices=indices,
-        indptr=indptr,
-        entry_col=entry_col,
+        structure=structure,
+        control_points=np.flatnonzero(np.any(cw > 0, axis=1)),
+        gnss_photos=np.flatnonzero(np.any(gw > 0, axis=1)),
+        imu_photos=np.flatnonzero(np.any(iw > 0, axis=1)),
     )
 
 
@@ -330,13 +305,12 @@ class _State:
 
 @dataclass(frozen=True)
 class _Normals:
-    """Whitened normal equations ``N d = b`` split into photo and point blocks."""
+    """The observation rows at one linearisation and their normal blocks."""
 
-    u: FloatArray  # (M, 6, 6)
-    v: FloatArray  # (P, 3, 3)
-    w: FloatArray  # (K, 6, 3), one block per observation
-    b_photo: FloatArray  # (M, 6)
-    b_point: FloatArray  # (P, 3)
+    image: UnitPointRows  # whitened image rows (K, 2)
+    control: PointRows
+    photo_rows: tuple[UnitRows, ...]  # GNSS centres, IMU attitudes
+    formed: FormedNormals
     cost: float
     residuals_mm: FloatArray  # (K, 2), computed - observed
 
@@ -345,12 +319,9 @@ class _Normals:
 class _Reduced:
     d_photo: FloatArray  # (M, 6)
     d_point: FloatArray  # (P, 3)
-    lu: spla.SuperLU
-    scale: FloatArray  # (6M,) Jacobi scale, S^-1 = D Stilde^-1 D
-    v_inv: FloatArray  # (P, 3, 3)
-    y: FloatArray  # (K, 6, 3), W_k V_p^-1
+    solution: NormalSolution
     min_pivot: float
-    min_pivot_index: int
+    min_pivot_index: int  # 6 * photo + parameter
 
 
 def _cost(prob: _Problem, state: _State) -> float:
@@ -371,54 +342,50 @@ def _cost(prob: _Problem, state: _State) -> float:
 
 
 def _normals(prob: _Problem, state: _State) -> _Normals:
-    """Linearise all observation equations at ``state`` and form the normal blocks."""
-    m, p, k = prob.n_photos, prob.n_points, prob.photo.size
+    """Linearise all observation equations at ``state`` and form the normal blocks.
+
+    Rows (residual computed minus observed): image ``x - x_obs`` whitened by
+    its sigma; control ``X - X_c`` (m, design identity); GNSS ``S - S_g`` (m,
+    design identity on the centre); IMU ``log(R_imu.T R)`` (rad, design
+    ``Jr^-1(e)`` on the rotation)."""
     xy, _, jac_photo, jac_point = collinearity_jacobians(
         state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c
     )
     res = xy - prob.xy
     inv_s = 1.0 / prob.sigma
-    r = res * inv_s[:, None]
-    a = jac_photo * inv_s[:, None, None]
-    b = jac_point * inv_s[:, None, None]
-    a_t = np.swapaxes(a, 1, 2)
-    b_t = np.swapaxes(b, 1, 2)
-    u = (prob.photo_sum @ (a_t @ a).reshape(k, 36)).reshape(m, 6, 6)
-    v = (prob.point_sum @ (b_t @ b).reshape(k, 9)).reshape(p, 3, 3)
-    w = a_t @ b
-    b_photo = -(prob.photo_sum @ (a_t @ r[:, :, None])[:, :, 0])
-    b_point = -(prob.point_sum @ (b_t @ r[:, :, None])[:, :, 0])
-    # Control: X - X_c (m), design = identity.
-    e_ctrl = state.points - prob.control_xyz
-    idx3 = np.arange(3)
-    v[:, idx3, idx3] += prob.control_weight
-    b_point -= prob.control_weight * e_ctrl
-    # GNSS centres: S - S_g (m).
-    e_gnss = state.centres - prob.gnss_xyz
-    u[:, idx3, idx3] += prob.gnss_weight
-    b_photo[:, :3] -= prob.gnss_weight * e_gnss
-    # IMU attitudes: log(R_imu.T R) (rad), design Jr^-1(e).
-    e_imu = _imu_residual(state.rotations, prob.imu_rot)
-    j_imu = _right_jacobian_inv(e_imu)
-    wj = prob.imu_weight[:, :, None] * j_imu
-    u[:, 3:, 3:] += np.einsum("mai,maj->mij", j_imu, wj)
-    b_photo[:, 3:] -= np.einsum("mai,ma->mi", wj, e_imu)
-    cost = float(
-        np.sum(r**2)
-        + np.sum(prob.control_weight * e_ctrl**2)
-        + np.sum(prob.gnss_weight * e_gnss**2)
-        + np.sum(prob.imu_weight * e_imu**2)
+    image = UnitPointRows(
+        prob.photo,
+        prob.point,
+        jac_photo * inv_s[:, None, None],
+        jac_point * inv_s[:, None, None],
+        res * inv_s[:, None],
     )
-    return _Normals(u, v, w, b_photo, b_point, cost, res)
+    cp = prob.control_points
+    control = PointRows(
+        cp,
+        np.broadcast_to(np.eye(3), (cp.size, 3, 3)),
+        state.points[cp] - prob.control_xyz[cp],
+        prob.control_weight[cp],
+    )
+    gp, ip = prob.gnss_photos, prob.imu_photos
+    gnss_jac = np.zeros((gp.size, 3, 1, 6))
+    gnss_jac[:, :, 0, :3] = np.eye(3)
+    e_imu = _imu_residual(state.rotations[ip], prob.imu_rot[ip])
+    imu_jac = np.zeros((ip.size, 3, 1, 6))
+    imu_jac[:, :, 0, 3:] = _right_jacobian_inv(e_imu)
+    photo_rows = (
+        UnitRows(gp[:, None], gnss_jac, state.centres[gp] - prob.gnss_xyz[gp], prob.gnss_weight[gp]),
+        UnitRows(ip[:, None], imu_jac, e_imu, prob.imu_weight[ip]),
+    )
+    formed = prob.structure.form([image], photo_rows, [control])
+    return _Normals(image, control, photo_rows, formed, formed.cost, res)
 
 
 def _check_points(prob: _Problem, normals: _Normals, point_ids: tuple[str, ...]) -> None:
     """Raise GeometryError for points whose 3 x 3 normal block is (near) singular."""
-    ev = np.linalg.eigvalsh(normals.v)
-    bad = ~(ev[:, 0] > _POINT_RANK_TOL * ev[:, 2])
-    if np.any(bad):
+    idx = normals.formed.undetermined_points(_POINT_RANK_TOL)
+    if idx.size:
         n_rays = np.bincount(prob.point, minlength=prob.n_points)
-        idx = np.flatnonzero(bad)
         listed = ", ".join(f"'{point_ids[i]}' ({n_rays[i]} photo(s))" for i in idx[:5])
         more = f" and {idx.size - 5} more" if idx.size > 5 else ""
         raise GeometryError(
@@ -433,60 +400,19 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
     ``lam`` is the Levenberg-Marquardt factor: the diagonals of U and V are
     multiplied by ``1 + lam``.
     """
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
-
-    m = prob.n_photos
-    u, v = normals.u, normals.v
-    if lam > 0.0:
-        i6, i3 = np.arange(6), np.arange(3)
-        u = u.copy()
-        v = v.copy()
-        u[:, i6, i6] *= 1.0 + lam
-        v[:, i3, i3] *= 1.0 + lam
-    # float64 in, float64 out (the stubs say floating)
-    v_inv: FloatArray = np.linalg.inv(v)  # type: ignore[assignment]
-    y = normals.w @ v_inv[prob.point]
-    pair_blocks = y[prob.pair_k1] @ np.swapaxes(normals.w[prob.pair_k2], 1, 2)
-    entries = np.concatenate([u.ravel(), -pair_blocks.ravel()])
-    data = np.bincount(prob.slot, weights=entries, minlength=prob.indices.size)
-    rhs = normals.b_photo - prob.photo_sum @ (y @ normals.b_point[prob.point][:, :, None])[:, :, 0]
-    is_diag = prob.indices == prob.entry_col
-    diag = np.zeros(6 * m)
-    diag[prob.indices[is_diag]] = data[is_diag]
-    if not np.all(diag > 0.0):
-        j = int(np.flatnonzero(~(diag > 0.0))[0])
-        raise GeometryError(
-            f"photo '{prob.photo_ids[j // 6]}' is not determined: no observation constrains its "
-            f"{_PHOTO_PARAMETER_NAMES[j % 6]}"
-        )
-    scale = 1.0 / np.sqrt(diag)
-    s_tilde = sp.csc_matrix(
-        (data * scale[prob.indices] * scale[prob.entry_col], prob.indices, prob.indptr),
-        shape=(6 * m, 6 * m),
-    )
     try:
-        lu = spla.splu(
-            s_tilde,
-            permc_spec="MMD_AT_PLUS_A",
-            diag_pivot_thresh=0.0,
-            options={"SymmetricMode": True},
-        )
-    except RuntimeError as exc:  # "Factor is exactly singular"
+        solution = normals.formed.solve(lam)
+    except SingularNormalsError as exc:
+        if exc.kind != "unit":
+            raise
         raise GeometryError(
-            "the reduced normal matrix is singular: the datum or a photo's orientation is "
-            "not determined by the observations"
-        ) from exc
-    pivots = np.abs(lu.U.diagonal())[lu.perm_c]
-    j = int(np.argmin(pivots))
-    d_photo = (scale * lu.solve(scale * rhs.ravel())).reshape(m, 6)
-    t = (
-        normals.b_point
-        - prob.point_sum
-        @ (np.swapaxes(normals.w, 1, 2) @ d_photo[prob.photo][:, :, None])[:, :, 0]
-    )
-    d_point = (v_inv @ t[:, :, None])[:, :, 0]
-    return _Reduced(d_photo, d_point, lu, scale, v_inv, y, float(pivots[j]), j)
+            "the reduced normal matrix is singular at the "
+            f"{_PHOTO_PARAMETER_NAMES[exc.parameter or 0]} of photo "
+            f"'{prob.photo_ids[exc.index]}': the datum or that photo's orientation is not "
+            "determined by the observations"
+        ) from None
+    j = 6 * solution.min_pivot_unit + solution.min_pivot_parameter
+    return _Reduced(solution.unit_step, solution.point_step, solution, solution.min_pivot, j)
 
 
 def _apply(state: _State, step: _Reduced) -> _State:
@@ -555,54 +481,6 @@ def _free_motions(prob: _Problem, state: _State) -> list[str]:
 # ----------------------------------------------------------------------------
 # Precision
 # ----------------------------------------------------------------------------
-
-
-def _photo_covariance_blocks(
-    prob: _Problem, red: _Reduced, a: IntArray, b: IntArray
-) -> FloatArray:
-    """Blocks ``(a, b)`` of ``S^-1`` (6 x 6 each), by sparse LU solves with unit vectors.
-
-    Columns of ``S^-1`` are found for the photos in chunks of at most
-    ``_SOLVE_CHUNK / (6 M)`` unit vectors; cost ``6 M`` triangular solves
-    with the LU factors (O(M * bandwidth^2) each for a strip) and
-    ``O(M * chunk)`` memory.
-    """
-    m = prob.n_photos
-    n = 6 * m
-    out = np.empty((a.size, 6, 6))
-    per_chunk = max(1, _SOLVE_CHUNK // (n * 6))
-    blk = np.arange(6)
-    for b0 in range(0, m, per_chunk):
-        b1 = min(m, b0 + per_chunk)
-        sel = np.flatnonzero((b >= b0) & (b < b1))
-        if sel.size == 0:
-            continue
-        cols = np.arange(6 * b0, 6 * b1)
-        e = np.zeros((n, cols.size))
-        e[cols, np.arange(cols.size)] = 1.0
-        x = red.scale[:, None] * red.lu.solve(e) * red.scale[cols][None, :]
-        rows_i = 6 * a[sel][:, None, None] + blk[None, :, None]
-        cols_i = 6 * (b[sel] - b0)[:, None, None] + blk[None, None, :]
-        out[sel] = x[rows_i, cols_i]
-    return out
-
-
-def _precision(prob: _Problem, red: _Reduced) -> tuple[FloatArray, FloatArray]:
-    """Cofactors: photo blocks (M, 6, 6) of S^-1, point diagonals (P, 3) via the Schur structure.
-
-    ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1``; its 3 x 3 diagonal blocks need only
-    the blocks of ``S^-1`` for photo pairs that share a point.
-    """
-    m = prob.n_photos
-    pa, pb = prob.photo[prob.pair_k1], prob.photo[prob.pair_k2]
-    keys = np.concatenate([pa * m + pb, np.arange(m) * (m + 1)])
-    uniq, inverse = np.unique(keys, return_inverse=True)
-    blocks = _photo_covariance_blocks(prob, red, uniq // m, uniq % m)
-    diag_blocks = blocks[inverse[pa.size :]]
-    y1, y2 = red.y[prob.pair_k1], red.y[prob.pair_k2]
-    terms = np.swapaxes(y1, 1, 2) @ blocks[inverse[: pa.size]] @ y2
-    q_point = red.v_inv + (prob.pair_point_sum @ terms.reshape(-1, 9)).reshape(-1, 3, 3)
-    return diag_blocks, np.diagonal(q_point, axis1=1, axis2=2)
 
 
 def _residual_cofactor(weight: FloatArray, q_hat: FloatArray) -> FloatArray:
@@ -711,11 +589,13 @@ def bundle_adjust(
     ``v = R.T (X - S)``.
 
     Each iteration forms the normal blocks ``U`` (6 x 6 per photo), ``V`` (3 x 3
-    per point) and ``W`` (6 x 3 per observation) as whole arrays, reduces to
-    the photos, ``S = U - W V^-1 W.T``, which is assembled in COO form from
-    one 6 x 6 block per pair of observations of the same point, scaled to
-    unit diagonal and factorised by a sparse LU (SuperLU, symmetric mode,
-    minimum-degree ordering); the points follow by back-substitution.
+    per point) and ``W`` (6 x 3 per observation) as whole arrays and reduces
+    to the photos, ``S = U - W V^-1 W.T``, with the structured engine
+    :mod:`strip_aerotri.geometry.normals` (method.md 6B): the photos along the
+    strip (in a block along the main axis of the centres, or by reverse
+    Cuthill-McKee where narrower), ``S`` a block band scaled to unit diagonal
+    and factorised by LAPACK's banded Cholesky; the points follow by
+    back-substitution.
     Levenberg-Marquardt damping (diagonals times ``1 + lambda``) is used only
     when a Gauss-Newton step fails to reduce the objective.
 
@@ -724,14 +604,12 @@ def bundle_adjust(
     IMU observations; a pivot of the scaled reduced matrix below 1e-11
     likewise means a singular system.
 
-    Precision: ``Q = N^-1`` at the solution (undamped).  Photo blocks of
-    ``S^-1`` are found by solving with the LU factors for the 6 unit vectors
-    of every photo (``6 M`` solves in chunks, each O(nnz(LU)), i.e.
-    O(M^2 * bandwidth) in total for a strip: about 0.1 s for M = 200 and 7 s
-    for M = 1000 photos on a small machine), keeping only the blocks of photo
-    pairs that share a point; the 3 x 3 point blocks follow from
-    ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1`` as one batched product over the
-    pairs of observations.  Standard deviations are
+    Precision: ``Q = N^-1`` at the solution (undamped), on its pattern only:
+    the band of ``S^-1`` by Takahashi's recursion on the banded factor, the
+    3 x 3 point blocks ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1`` and every image
+    coordinate's redundancy number ``1 - (A Q A.T P)_ii``
+    (``BundleResult.image_redundancy``), about the cost of one more
+    iteration.  Standard deviations are
     ``sigma0 * sqrt(diag(Q))``.  The cofactors of the GNSS and IMU residuals
     follow from the photos' own 6 x 6 blocks of ``Q`` at no further cost:
     ``Q_vv = P^-1 - A Q A.T`` with ``A`` the identity (GNSS) or ``Jr^-1``
@@ -824,6 +702,7 @@ def bundle_adjust(
         imu_residuals=np.where(prob.imu_weight > 0, precision.imu_residuals, np.nan),
         gnss_residual_cofactor=precision.gnss_cofactor,
         imu_residual_cofactor=precision.imu_cofactor,
+        image_redundancy=precision.image_redundancy,
     )
 
 
@@ -976,6 +855,7 @@ class _Precision(NamedTuple):
     imu_residuals: FloatArray  # (M, 3) rad, log(R_imu.T R)
     gnss_cofactor: FloatArray  # (M, 3, 3)
     imu_cofactor: FloatArray  # (M, 3, 3)
+    image_redundancy: FloatArray  # (K, 2)
 
 
 def _precision_products(
@@ -993,9 +873,12 @@ def _precision_products(
     e_imu = _imu_residual(state.rotations, prob.imu_rot)
     gnss_cofactor = np.full((m, 3, 3), np.nan)
     imu_cofactor = np.full((m, 3, 3), np.nan)
+    image_redundancy = np.full((prob.photo.size, 2), np.nan)
     if compute_precision:
-        final = _solve(prob, normals, 0.0)
-        q_blocks, q_point = _precision(prob, final)
+        cof = _solve(prob, normals, 0.0).solution.cofactors()
+        q_blocks = cof.unit
+        q_point = np.diagonal(cof.point, axis1=1, axis2=2)
+        image_redundancy = cof.redundancy(normals.image)
         q_photo = np.diagonal(q_blocks, axis1=1, axis2=2)
         point_std = sigma0 * np.sqrt(q_point)
         centre_std = sigma0 * np.sqrt(q_photo[:, :3])
@@ -1008,4 +891,6 @@ def _precision_products(
             j_imu = _right_jacobian_inv(e_imu)
             q_imu = j_imu @ q_blocks[:, 3:, 3:] @ np.swapaxes(j_imu, 1, 2)
             imu_cofactor = _residual_cofactor(prob.imu_weight, q_imu)
-    return _Precision(point_std, centre_std, rotation_std, e_imu, gnss_cofactor, imu_cofactor)
+    return _Precision(
+        point_std, centre_std, rotation_std, e_imu, gnss_cofactor, imu_cofactor, image_redundancy
+    )

@@ -269,8 +269,10 @@ def refine_bundle(
     max_iterations : int
         Largest number of bundle steps per adjustment.
     compute_precision : bool
-        Standard deviations of points and centres (costs ``6 M`` sparse
-        solves; see :func:`~strip_aerotri.bundle.bundle_adjust`).
+        Standard deviations of points and centres and exact redundancy
+        numbers of the image coordinates (the selected inverse of the normal
+        matrix, about one more iteration; see
+        :func:`~strip_aerotri.bundle.bundle_adjust`).
 
     Returns
     -------

@@ -127,14 +127,15 @@ def refine_frame(
     adjusted coordinate (exact; with ``compute_precision=False`` ``q`` is
     approximated by the point's own 3 x 3 block, photos held fixed).
 
-    *Image coordinates*: exact redundancy numbers need the photo-by-photo
-    blocks of the inverse normal matrix for every observation; they are
-    approximated by ``r = (1 - h) rho``, where ``h`` is the exact leverage of
-    the coordinate on its own point with the photos held fixed and
-    ``rho = 1 - 6 M / sum(1 - h)`` spreads the photos' unknowns evenly over
-    the image coordinates (so that the numbers add up to the image share of
-    the redundancy).  On the 12-photo film strip the approximation is within
-    0.1 of the exact numbers (tests/test_refine.py).
+    *Image coordinates*: with ``compute_precision`` the exact redundancy
+    numbers ``r = 1 - (A Q Aᵀ P)ᵢᵢ`` from the selected inverse of the normal
+    matrix (:mod:`strip_aerotri.geometry.normals`, no further solves).
+    Without it they are approximated by ``r = (1 - h) rho``, where ``h`` is
+    the exact leverage of the coordinate on its own point with the photos
+    held fixed and ``rho = 1 - 6 M / sum(1 - h)`` spreads the photos'
+    unknowns evenly over the image coordinates (so that the numbers add up
+    to the image share of the redundancy); on the 12-photo film strip the
+    approximation is within 0.1 of the exact numbers (tests/test_refine.py).
 
     *GNSS centres and IMU attitudes* (with ``compute_precision`` only): the
     exact directional tests of :func:`_directional_tests` from the residual
@@ -148,10 +149,10 @@ def refine_frame(
     A control component is rejected alone (a plan point loses X and Y
     together), a GNSS centre or an IMU attitude as a whole (its three
     components).  Image
-    observations (both coordinates of a ray) are rejected several per round:
-    the failing ones, largest first, as long as their photos are more than
-    ``n`` photos apart, ``n`` the largest number of photos that see one point
-    (so no two rejections of a round share a point or a photo).  A point
+    observations (both coordinates of a ray) are rejected several per round
+    (method.md 6B): every failing one whose test value is the largest of its
+    point's and of its photo's, so that no rejection of a round is the echo
+    of another through their shared point or photo.  A point
     left with one ray (and no full control) is dropped.  The adjustment is
     then solved again from the last solution, until nothing fails.
     """
@@ -173,7 +174,6 @@ def refine_frame(
     sets = _Sets.start(inp, blunders, observation_used, control_used, gnss_used, imu_used)
     rejections: list[Rejection] = []
     rounds = iterations = 0
-    window = int(np.max(np.bincount(obs.point, minlength=inp.n_points), initial=1))
     previous_effect: int | None = None
     state = (inp.centres0, inp.rotations0, inp.points0)
     while True:
@@ -249,8 +249,7 @@ def refine_frame(
         if not blunders.rejecting:
             picks = [(f[1], f[2]) for f in sorted(failures.found, reverse=True)]
         elif worst[1] == "image":
-            candidates = [(f[0], f[2]) for f in failures.found if f[1] == "image"]
-            picks = [("image", k) for k in _separated(candidates, obs.photo, window)]
+            picks = [("image", k) for k in _largest_of_point_and_photo(failures, obs)]
         else:
             picks = [(worst[1], worst[2])]
         new_rejections = describe(obs, picks, failures, stats, res.sigma0, blunders)
@@ -519,11 +518,19 @@ def _round_statistics(
 
     ctrl_on, c_sig, given = sets.ctrl_on, inp.c_sig, inp.c_given
     weight_sub = np.where(ctrl_on[pts], 1.0 / np.where(ctrl_on[pts], c_sig[pts], 1.0) ** 2, 0)
-    h_sub, vinv_diag = _point_leverage(sub, res.centres, res.rotations, res.points, weight_sub)
-    free = float(np.sum(1.0 - h_sub))
-    rho = max(_MIN_PHOTO_FACTOR, 1.0 - 6.0 * m / free) if free > 0 else _MIN_PHOTO_FACTOR
     r_img = np.full((k_all, 2), np.nan)
-    r_img[rows] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
+    exact = res.image_redundancy
+    precise = compute_precision and np.isfinite(res.sigma0) and res.sigma0 > 0
+    if precise and exact.shape == (rows.size, 2) and np.all(np.isfinite(exact)):
+        r_img[rows] = np.clip(exact, 1e-12, 1.0)
+        vinv_diag = np.full((pts.size, 3), np.nan)  # not needed: the cofactors are exact
+    else:
+        h_sub, vinv_diag = _point_leverage(
+            sub, res.centres, res.rotations, res.points, weight_sub
+        )
+        free = float(np.sum(1.0 - h_sub))
+        rho = max(_MIN_PHOTO_FACTOR, 1.0 - 6.0 * m / free) if free > 0 else _MIN_PHOTO_FACTOR
+        r_img[rows] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
     w_img = np.full((k_all, 2), np.nan)
     w_img[rows] = v_all[rows] / (inp.sigma_img[rows, None] * np.sqrt(r_img[rows]))
     w_img /= np.sqrt(robust_variance_factor(w_img[rows].ravel()))
@@ -531,7 +538,7 @@ def _round_statistics(
     ctrl_res = np.full((p, 3), np.nan)
     ctrl_res[given] = np.where(pt_used[:, None], new_points, np.nan)[given] - inp.c_xyz[given]
     q = np.full((p, 3), np.nan)
-    if compute_precision and np.isfinite(res.sigma0) and res.sigma0 > 0:
+    if precise:
         q[pts] = (res.point_std / res.sigma0) ** 2
     else:
         q[pts] = vinv_diag
@@ -549,6 +556,7 @@ class _Failures(NamedTuple):
     #: (observation index), "plan" / "height" (point index), "gnss" / "imu"
     #: (photo index)
     found: list[tuple[float, str, int]]
+    ray_w: FloatArray  # (K,) the larger of |w_x|, |w_y| of each observation in use
     crit_img: float
     crit_ctrl: float
     plan_w: FloatArray
@@ -614,7 +622,7 @@ def _failures(
         found += [
             (float(photo_w[j]) / crit_k, kind, int(j)) for j in np.flatnonzero(photo_w > crit_k)
         ]
-    return _Failures(found, crit_img, crit_ctrl, plan_w, h_w, photo_stages)  # type: ignore[arg-type]
+    return _Failures(found, ray_w, crit_img, crit_ctrl, plan_w, h_w, photo_stages)  # type: ignore[arg-type]
 
 
 def describe(
@@ -739,17 +747,26 @@ def _compact(
     return sub, rows, points
 
 
-def _separated(candidates: list[tuple[float, int]], photo: IntArray, window: int) -> list[int]:
-    """Greedy pick of failing observations, largest first, pairwise more than
-    ``window`` photos apart (so that no two share a point)."""
-    chosen: list[int] = []
-    taken: list[int] = []
-    for _, k in sorted(candidates, reverse=True):
-        j = int(photo[k])
-        if all(abs(j - t) > window for t in taken):
-            chosen.append(k)
-            taken.append(j)
-    return chosen
+def _largest_of_point_and_photo(failures: _Failures, obs: ImageObservations) -> list[int]:
+    """The failing image observations whose test value is the largest of
+    their point's and of their photo's (over every observation tested),
+    largest first: one per point and per photo, so that no rejection of a
+    round is the echo of another in the same point or the same photo."""
+    ray_w = failures.ray_w
+    w = np.where(np.isfinite(ray_w), ray_w, -np.inf)
+    best_point = np.full(len(obs.point_ids), -np.inf)
+    np.maximum.at(best_point, obs.point, w)
+    best_photo = np.full(len(obs.photo_ids), -np.inf)
+    np.maximum.at(best_photo, obs.photo, w)
+    failing = np.zeros(w.size, bool)
+    failing[[k for _, kind, k in failures.found if kind == "image"]] = True
+    pick = np.flatnonzero(failing & (w >= best_point[obs.point]) & (w >= best_photo[obs.photo]))
+    pick = pick[np.argsort(-w[pick], kind="stable")]
+    # ties: the first of a point, then of a photo
+    _, first = np.unique(obs.point[pick], return_index=True)
+    pick = pick[np.sort(first)]
+    _, first = np.unique(obs.photo[pick], return_index=True)
+    return [int(k) for k in pick[np.sort(first)]]
 
 
 def _photo_flags(values: ArrayLike | None, m: int, name: str) -> BoolArray:

@@ -44,11 +44,34 @@ def _write_whole(target: Path, data: str | bytes) -> None:
     """Write ``target`` whole or not at all (:func:`strip_aerotri._atomic.atomic_file`)."""
     from .._atomic import atomic_file
 
-    with atomic_file(target) as partial:
-        if isinstance(data, str):
-            partial.write_text(data, encoding="utf-8")
-        else:
-            partial.write_bytes(data)
+    def write() -> None:
+        with atomic_file(target) as partial:
+            if isinstance(data, str):
+                partial.write_text(data, encoding="utf-8")
+            else:
+                partial.write_bytes(data)
+
+    _written(target, write)
+
+
+def _written(target: Path, write: Callable[[], None]) -> None:
+    """Call ``write``; an I/O error names ``target`` (not a temporary file), and
+    a file written into a result folder is noted in its marker, so that the
+    next run keeps it."""
+    from ..errors import StripAerotriError
+    from ..report.files import OutputError, record_export
+
+    try:
+        write()
+    except StripAerotriError:
+        raise
+    except (OSError, RuntimeError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc).splitlines()[0]
+        raise OutputError(f"cannot write '{target}': {reason}") from exc
+    try:
+        record_export(target)
+    except OSError:
+        pass  # the export is written; only the note for the next run is missing
 
 
 _FROM_HELP = "The run's result folder (default: the project's, as stripaero run chose it)."
@@ -152,8 +175,9 @@ def odm(
 ) -> None:
     """Points with their pixel measurements as OpenDroneMap's gcp_list.txt.
 
-    Reads STRIP_TOML (its CRS and its image file, which must be measured in
-    pixels) and the points.csv of its result folder, and writes a line per
+    Reads STRIP_TOML (its CRS and its image file, measured in pixels or in mm
+    with [images] pixel_size_mm and principal_point_px, as the FC300X import
+    writes them) and the points.csv of its result folder, and writes a line per
     observation of each chosen point: its adjusted coordinates, its pixel
     column and row, the image and the point (docs/export.md).
 
@@ -173,10 +197,13 @@ def odm(
     from ..project.csvfiles import float_column, read_csv
 
     project = load_project(project_file)
-    if project.images.units is not ImageUnits.PIXEL:
+    images = project.images
+    in_mm = images.units is not ImageUnits.PIXEL
+    if in_mm and (images.pixel_size_mm is None or images.principal_point_px is None):
         raise ConfigError(
-            f"{project.path}: [images] units: gcp_list.txt needs the pixel measurements, "
-            "and this project's image coordinates are in millimetres"
+            f"{project.path}: [images]: gcp_list.txt needs pixels, and this project's image "
+            "coordinates are in millimetres without pixel_size_mm and principal_point_px (the "
+            "pixel column and row of the mm origin); add them to convert"
         )
     folder = _result_folder(project, results)
     table = folder / "points.csv"
@@ -193,6 +220,9 @@ def odm(
     raw = read_csv(project.images_file, IMAGE_COLUMNS, "[images] file")
     column, _ = float_column(raw, "x")
     row_px, _ = float_column(raw, "y")
+    if in_mm:  # x right, y up in mm from the origin at principal_point_px
+        size, (c0, r0) = float(images.pixel_size_mm), images.principal_point_px  # type: ignore[arg-type, misc]
+        column, row_px = c0 + column / size, r0 - row_px / size
     line_to_row = {int(line): k for k, line in enumerate(raw.line)}
     obs = project.observations
     keep = [k for k in range(obs.photo.size) if obs.point_ids[int(obs.point[k])] in geo_of]
@@ -261,5 +291,5 @@ def gpkg(project_file: Path, results: Path | None, out: Path | None) -> None:
 
     project, folder, points, photos = _tables(project_file, results)
     target = out or folder / "results.gpkg"
-    write_gpkg(target, points, photos, project.crs, strip=project.name)
+    _written(target, lambda: write_gpkg(target, points, photos, project.crs, strip=project.name))
     echo_result(f"wrote {target}: {len(points.ids)} points, {len(photos.ids)} photo centres")

@@ -23,7 +23,9 @@ if TYPE_CHECKING:  # the formats are imported when a command runs (a fast --help
 
 __all__ = ["import_group"]
 
-IMPORT_EPILOG = "Documentation: docs/import.md (every format, its options and what is decided)."
+IMPORT_EPILOG = (
+    "Documentation: stripaero docs import (every format, its options and what is decided)."
+)
 
 
 def _id_list(
@@ -319,7 +321,7 @@ def odm(
     Examples:
       stripaero import odm gcp_list.txt --ties sparse/0 --pixel-um 2.41 --out proj
       stripaero import odm gcp_list.txt --focal-mm 8.8 --pixel-um 2.41 \\
-          --image-size 5472 3648 --out proj
+          --image-size 4000 3000 --out proj
     """
     from ..importers.odm import import_odm
 
@@ -505,6 +507,12 @@ def patb(
 )
 @click.option("--crs", default=None, help="Overrides the chunk CRS.")
 @click.option("--no-attitudes", is_flag=True, help="Do not write the attitudes ([imu]).")
+@click.option(
+    "--source-types",
+    is_flag=True,
+    help="Control types from the markers' reference flags (enabled: full control, "
+    "disabled: check point) instead of the default choice.",
+)
 @_camera_options
 @_shared
 def metashape(
@@ -512,6 +520,7 @@ def metashape(
     cameras_file: Path | None,
     crs: str | None,
     no_attitudes: bool,
+    source_types: bool,
     out: Path,
     force: bool,
     **kw: Any,  # the options of _shared and _camera_options, as click parsed them
@@ -522,7 +531,7 @@ def metashape(
     Examples:
       stripaero import metashape markers.xml --cameras opk.txt --out proj
       stripaero import metashape markers.xml --focal-mm 8.8 --pixel-um 2.41 \\
-          --image-size 5472 3648 --out proj
+          --image-size 4000 3000 --out proj
     """
     from ..importers.metashape import import_metashape
 
@@ -533,6 +542,7 @@ def metashape(
         camera=_camera(kw, False),
         crs=crs,
         attitudes=not no_attitudes,
+        source_types=source_types,
     )
     _write(project, out, force)
 
@@ -574,7 +584,7 @@ def pix4d(
     \b
     Examples:
       stripaero import pix4d marks.csv gcps.csv --crs EPSG:32632 --focal-mm 8.8 \\
-          --pixel-um 2.41 --image-size 5472 3648 --out proj \\
+          --pixel-um 2.41 --image-size 4000 3000 --out proj \\
           --external p_calibrated_external_camera_parameters.txt
     """
     from ..importers.pix4d import import_pix4d

@@ -3,7 +3,8 @@
 Exit codes (docs/cli.md): ``0`` success; ``1`` bad input or an adjustment that
 cannot be done, with one line ``stripaero: error: <message>`` on stderr (the
 message names the file, line or point and the rule broken); ``2`` usage
-errors reported by click.  Exceptions are translated here only, at the
+errors reported by click; ``130`` interrupted (Ctrl-C, SIGINT), with one
+line saying what the output folder holds.  Exceptions are translated here only, at the
 boundary; ``--debug`` adds the Python traceback.
 """
 
@@ -45,6 +46,10 @@ class StripaeroGroup(click.Group):
             return super().invoke(ctx)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
+        except KeyboardInterrupt:
+            state = settings(ctx).interrupted
+            echo_error("interrupted" + (f"; {state()}" if state is not None else ""))
+            ctx.exit(130)
         except BrokenPipeError:
             # the reader of stdout went away (``stripaero run ... | head``): the
             # work is done, nothing more can be shown; no traceback at exit

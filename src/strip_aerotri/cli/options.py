@@ -59,11 +59,15 @@ class Settings:
         Number of ``-q`` given.
     debug : bool
         Show tracebacks of errors.
+    interrupted : callable or None
+        What the command's state is when Ctrl-C stops it (which result its
+        output folder holds), for the one error line; None: nothing to say.
     """
 
     verbose: int = 0
     quiet: int = 0
     debug: bool = False
+    interrupted: Callable[[], str] | None = None
 
     @property
     def level(self) -> int:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Collection, Sequence
+from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -18,11 +18,13 @@ from .options import (
     echo_result,
     echo_warning,
     project_arg,
+    settings,
 )
 
 if TYPE_CHECKING:  # the numerical modules are imported when the command runs
     from .._typing import ArrayLike
-    from ..report.summary import RunSummary, ToleranceVerdict
+    from ..project import Project
+    from ..report.files import ResultFolder
     from ..results import BlockResult, Rejection, StripResult
 
 __all__ = ["run"]
@@ -32,33 +34,16 @@ def _fmt_m(value: float) -> str:
     return "n/a" if not math.isfinite(value) else f"{value:.3f} m"
 
 
-def _tolerance_line(verdict: ToleranceVerdict | None) -> str | None:
-    """One line on the tolerance criteria, if the run judged them."""
-    if verdict is None:
+def _tolerance_verdict(report_json: bytes | None) -> str | None:
+    """The overall tolerance verdict of report.json, in the words of the report's
+    banner and plain summary."""
+    import json
+
+    try:
+        verdict = json.loads(report_json or b"{}")["tolerances"]["verdict"]["text"]
+    except (ValueError, KeyError, TypeError):
         return None
-    head = f"tolerances for 1:{verdict.map_scale:g}: "
-    tail = f" ({verdict.n_unjudged} not judged: too few values)" if verdict.n_unjudged else ""
-    if verdict.failed:
-        failed = f"{len(verdict.failed)} of {verdict.n_judged} criteria failed"
-        return head + f"{failed} ({', '.join(verdict.failed)})" + tail
-    return head + f"all {verdict.n_judged} judged criteria met" + tail
-
-
-def _accuracy_lines(summary: RunSummary, own: str = "") -> list[str]:
-    """The control and check points' lines of the summary."""
-    control, check = summary.control, summary.check
-    lines = [
-        f"control: {control.n_plan} plan, {control.n_height} height; "
-        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(control.rmse_height)}{own}"
-    ]
-    if check.n_plan or check.n_height:
-        lines.append(
-            f"check points: {check.n_plan} plan, {check.n_height} height; "
-            f"RMSE plan {_fmt_m(check.rmse_plan)}, height {_fmt_m(check.rmse_height)}"
-        )
-    else:
-        lines.append("check points: none")
-    return lines
+    return f"tolerances (R4 §1.7.7): {verdict}"
 
 
 def _echo_details(result: StripResult) -> None:
@@ -194,8 +179,8 @@ def _report_name(names: Collection[str]) -> str | None:
     "--out",
     type=click.Path(file_okay=False, path_type=Path),
     default=None,
-    help="Result folder (replaced as a whole). Default: [output] directory of the "
-    "project, else 'out' beside strip.toml.",
+    help="Result folder (its results replaced, other files kept). Default: [output] "
+    "directory of the project, else 'out' beside strip.toml.",
 )
 @click.option(
     "--map-scale",
@@ -211,8 +196,11 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
 
     Loads and validates the project, forms the strip model, fits it to the
     control and writes points.csv, photos.csv, report.json and the report
-    into the result folder. The folder is replaced as a whole, only when the
-    run succeeds; a folder that is not a previous result is never touched.
+    into the result folder. The results are replaced only when the run
+    succeeds; other files in the folder (notes, exports) are kept; a folder
+    that is not a previous result is never touched. One run at a time may
+    write a folder; Ctrl-C stops with exit code 130 and says which result
+    the folder holds.
 
     \b
     Examples:
@@ -220,11 +208,10 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
       stripaero run strip.toml --out results/2024-05 --map-scale 5000
       stripaero -q run strip.toml            # the summary only (no warnings)
     """
-    from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+    from ..errors import StripAerotriWarning
     from ..project import load_project, output_folder
-    from ..project import run as project_run
     from ..report.files import ResultFolder
-    from ..report.summary import build_run
+    from ..report.lock import FolderLock
     from ..results import BlockResult
 
     started = time.perf_counter()
@@ -233,49 +220,132 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         warnings.simplefilter("always", StripAerotriWarning)
         project = load_project(project_file)
         target = output_folder(project, out)
-        echo_progress(
-            f"project '{project.name}': {len(project.photo_ids)} photos, "
-            f"{project.observations.n_points} points, {len(project.control.point_ids)} "
-            f"control and check points, crs {project.crs}"
-        )
-        try:
-            result = project_run.run_project(project, progress=echo_progress)
-        except (GeometryError, ConvergenceError) as exc:
-            if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
-                raise  # the message names its file already
-            raise type(exc)(f"{project.path}: {exc}") from exc
-        echo_progress("writing the report")
-        outputs = build_run(result, project=project, map_scale=map_scale)
-        files, summary = outputs.files, outputs.summary
-
-    # Warnings only once the run has succeeded: a failed run prints its one error line.
-    texts = dict.fromkeys((*project.warnings, *result.warnings, *(str(w.message) for w in caught)))
-    for text in _warning_lines(list(texts), _rejections(result), files):
-        echo_warning(text)
-
-    echo_progress(f"writing {len(files)} files to {target}")
-    with ResultFolder(target, protect=project.input_files) as folder:
-        for name, data in files.items():
-            folder.write_bytes(name, data if isinstance(data, bytes) else str(data).encode())
+        lock = FolderLock(target)
+        folder = ResultFolder(target, protect=project.input_files)
+        with lock:
+            settings().interrupted = _folder_state(folder)
+            result, files = _adjust_and_report(project, map_scale)
+            # Warnings only once the run has succeeded: a failed run prints its one
+            # error line.
+            texts = (
+                *project.warnings,
+                *result.warnings,
+                *(str(w.message) for w in caught),
+                *_report_warnings(files.get("report.json")),
+            )
+            for text in _warning_lines(list(dict.fromkeys(texts)), _rejections(result), files):
+                echo_warning(text)
+            echo_progress(f"writing {len(files)} files to {target}")
+            with folder:
+                for name, data in files.items():
+                    folder.write_bytes(
+                        name, data if isinstance(data, bytes) else str(data).encode()
+                    )
+    _echo_kept(folder)
 
     if isinstance(result, BlockResult):
         _echo_block_details(result)
-        _echo_block(summary, target)
+        _echo_block(result, project.name, files, target, project.adjustment.block.value)
         return
     _echo_details(result)
     elapsed = time.perf_counter() - started
-    echo_result(f"strip '{summary.name}': {summary.n_photos} photos, {summary.n_points} points")
-    if summary.refined:
+    n_done = int(result.strip.triangulated.sum())
+    # With a bundle refinement the written points come from it: so do the figures.
+    final = result.refined if result.refined is not None else result
+    control = final.control_statistics
+    check = final.check_statistics
+    echo_result(f"strip '{project.name}': {len(result.photo_ids)} photos, {n_done} points")
+    if result.refined is not None:
         echo_result("bundle refinement: accuracy below is the refined solution's")
-    for line in _accuracy_lines(summary):
-        echo_result(line)
-    verdict = _tolerance_line(summary.tolerances)
+    echo_result(
+        f"control: {control.n_plan} plan, {control.n_height} height; "
+        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}"
+    )
+    if check.n_plan or check.n_height:
+        echo_result(
+            f"check points: {check.n_plan} plan, {check.n_height} height; "
+            f"RMSE plan {_fmt_m(check.rmse_plan)}, height {_fmt_m(float(check.rmse[2]))}"
+        )
+    else:
+        echo_result("check points: none")
+    verdict = _tolerance_verdict(files.get("report.json"))
     if verdict:
         echo_result(verdict)
-    if summary.report_name is not None:
-        echo_result(f"report: {target / summary.report_name}")
+    report_name = _report_name(files)
+    if report_name is not None:
+        echo_result(f"report: {target / report_name}")
     echo_result(f"results: {target}")
     echo_progress(f"done in {elapsed:.1f} s", level=1)
+
+
+def _report_warnings(report_json: bytes | None) -> list[str]:
+    """The warnings report.json adds to the run's (the plan drift at the map scale)."""
+    import json
+
+    try:
+        listed = json.loads(report_json or b"{}").get("warnings") or []
+    except ValueError:
+        return []
+    return [str(w) for w in listed]
+
+
+def _adjust_and_report(
+    project: Project, map_scale: float | None
+) -> tuple[StripResult | BlockResult, dict[str, bytes]]:
+    """Adjust the project and make the result folder's files."""
+    from ..errors import ConvergenceError, GeometryError
+    from ..project import run as project_run
+    from ..results import BlockResult
+
+    echo_progress(
+        f"project '{project.name}': {len(project.photo_ids)} photos, "
+        f"{project.observations.n_points} points, {len(project.control.point_ids)} "
+        f"control and check points, crs {project.crs}"
+    )
+    try:
+        result = project_run.run_project(project, progress=echo_progress)
+    except (GeometryError, ConvergenceError) as exc:
+        if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
+            raise  # the message names its file already
+        raise type(exc)(f"{project.path}: {exc}") from exc
+    echo_progress("writing the report")
+    scale = map_scale if map_scale is not None else project.report.map_scale
+    if isinstance(result, BlockResult):
+        from ..report.block import build_block_outputs
+
+        return result, build_block_outputs(result, project=project, map_scale=scale)
+    from ..report import outputs as report
+
+    return result, report.build_outputs(result, project=project, map_scale=scale)
+
+
+def _folder_state(folder: ResultFolder) -> Callable[[], str]:
+    """What the result folder holds if the run stops now (for Ctrl-C's line)."""
+    from ..report.files import RESULT_MARKER
+
+    target = folder.target
+    previous = (target / RESULT_MARKER).is_file()
+
+    def state() -> str:
+        if folder.committed:
+            return f"'{target}' holds the new result (written before the interrupt)"
+        if previous:
+            return f"'{target}' holds the previous result, unchanged"
+        return f"no result was written to '{target}'"
+
+    return state
+
+
+def _echo_kept(folder: ResultFolder) -> None:
+    """Name the files of the previous folder the run kept, and the exports
+    among them that now describe the previous result."""
+    if folder.kept:
+        echo_progress(f"kept in {folder.target}: {', '.join(folder.kept)}")
+    if folder.exports:
+        echo_warning(
+            f"{folder.target}: {', '.join(folder.exports)} kept, but exported from the previous "
+            "result; run stripaero export again to bring them up to date"
+        )
 
 
 def _echo_block_details(result: BlockResult) -> None:
@@ -308,36 +378,59 @@ def _echo_block_details(result: BlockResult) -> None:
     )
 
 
-def _echo_block(summary: RunSummary, target: Path) -> None:
+def _echo_block(
+    result: BlockResult,
+    name: str,
+    files: dict[str, bytes],
+    target: Path,
+    construction: str = "model",
+) -> None:
     """The summary of a block's run."""
+    import numpy as np
+
+    n_done = int(np.isfinite(result.points).all(axis=1).sum())
     echo_result(
-        f"block '{summary.name}': {summary.n_strips} strips, {summary.n_photos} photos, "
-        f"{summary.n_points} points"
+        f"block '{name}': {len(result.specs)} strips, {len(result.photo_ids)} photos, "
+        f"{n_done} points"
     )
-    fit = summary.control_fit
+    control, check = result.control_statistics, result.check_statistics
+    fit = result.control_fit_statistics
     own = (
         ""
-        if fit is None
-        else f" (the {(summary.construction or 'model').rstrip('s')}s' own determinations: "
-        f"{_fmt_m(fit.rmse_plan)}, {_fmt_m(fit.rmse_height)})"
+        if fit is None or result.refined
+        else f" (the {construction.rstrip('s')}s' own determinations: {_fmt_m(fit.rmse_plan)}, "
+        f"{_fmt_m(float(fit.rmse[2]))})"
     )
-    for line in _accuracy_lines(summary, own):
-        echo_result(line)
-    join = summary.join
-    if join is not None:
-        a, b = join.strips
+    echo_result(
+        f"control: {control.n_plan} plan, {control.n_height} height; "
+        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}{own}"
+    )
+    if check.n_plan or check.n_height:
         echo_result(
-            f"common points of the strips: largest mean discrepancy {_fmt_m(join.mean_plan_m)} "
-            f"plan, {_fmt_m(join.mean_height_m)} height (strips {a} / {b})"
+            f"check points: {check.n_plan} plan, {check.n_height} height; "
+            f"RMSE plan {_fmt_m(check.rmse_plan)}, height {_fmt_m(float(check.rmse[2]))}"
         )
-    if join is not None and join.transfer_strips is not None:
-        a, b = join.transfer_strips
-        verdict = "within" if join.transfer_passed else "above"
+    else:
+        echo_result("check points: none")
+    worst = max(result.joins, key=lambda j: j.mean_plan_m, default=None)
+    if worst is not None:
+        a, b = (result.specs[i].name for i in worst.strips)
         echo_result(
-            f"transfer errors of the free block: largest mean {join.mean_transfer_um:.0f} µm "
-            f"(strips {a} / {b}), {verdict} R4's {join.transfer_limit_um:.0f} µm"
+            f"common points of the strips: largest mean discrepancy {_fmt_m(worst.mean_plan_m)} "
+            f"plan, {_fmt_m(worst.mean_height_m)} height (strips {a} / {b})"
         )
-    tolerance = _tolerance_line(summary.tolerances)
+    transfer = [j for j in result.joins if math.isfinite(j.mean_transfer_um)]
+    if transfer:
+        from ..report.block import TRANSFER_UM
+
+        worst = max(transfer, key=lambda j: j.mean_transfer_um)
+        a, b = (result.specs[i].name for i in worst.strips)
+        verdict = "within" if worst.mean_transfer_um <= TRANSFER_UM else "above"
+        echo_result(
+            f"transfer errors of the free block: largest mean {worst.mean_transfer_um:.0f} µm "
+            f"(strips {a} / {b}), {verdict} R4's {TRANSFER_UM:.0f} µm"
+        )
+    tolerance = _tolerance_verdict(files.get("report.json"))
     if tolerance is not None:
         echo_result(tolerance)
     echo_result(f"report: {target / 'report.html'}")

@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from .rotation import skew
 
 __all__ = ["collinearity_jacobians", "image_jacobian", "image_vectors", "project"]
 
@@ -93,8 +92,23 @@ def collinearity_jacobians(
         d(x, y) / dX, mm per unit.
     """
     xy, v = project(centres, rotations, points, photo, point, principal_distance)
-    d_v = image_jacobian(v, principal_distance)
-    # dv/dX = Rᵀ, dv/dS = −Rᵀ, dv/dδ = [v]×  (Rᵀ <- (I − [δ]×) Rᵀ).
-    jac_point = np.einsum("kab,kcb->kac", d_v, rotations[photo])
-    jac_photo = np.concatenate([-jac_point, d_v @ skew(v)], axis=2)
+    # d(x, y)/dv = f [[1, 0, -v_x/v_z], [0, 1, -v_y/v_z]] with f = -c / v_z;
+    # dv/dX = Rᵀ, dv/dS = −Rᵀ, dv/dδ = [v]×  (Rᵀ <- (I − [δ]×) Rᵀ), written
+    # out term by term (the 2 x 3 factor has four nonzeros)
+    f = -principal_distance / v[:, 2]
+    ux, uy = v[:, 0] / v[:, 2], v[:, 1] / v[:, 2]
+    rot = rotations[photo]  # (K, 3, 3); row a of Rᵀ is column a of R
+    jac_point = np.empty((v.shape[0], 2, 3))
+    jac_point[:, 0] = f[:, None] * (rot[:, :, 0] - ux[:, None] * rot[:, :, 2])
+    jac_point[:, 1] = f[:, None] * (rot[:, :, 1] - uy[:, None] * rot[:, :, 2])
+    vx, vy, vz = v[:, 0], v[:, 1], v[:, 2]
+    jac_photo = np.empty((v.shape[0], 2, 6))
+    jac_photo[:, :, :3] = -jac_point
+    # rows of d_v times [v]× = [[0, -vz, vy], [vz, 0, -vx], [-vy, vx, 0]]
+    jac_photo[:, 0, 3] = f * ux * vy
+    jac_photo[:, 0, 4] = -f * (vz + ux * vx)
+    jac_photo[:, 0, 5] = f * vy
+    jac_photo[:, 1, 3] = f * (vz + uy * vy)
+    jac_photo[:, 1, 4] = -f * uy * vx
+    jac_photo[:, 1, 5] = -f * vx
     return xy, v, jac_photo, jac_point

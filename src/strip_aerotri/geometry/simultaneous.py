@@ -350,6 +350,14 @@ class SimultaneousResult:
         With a polynomial: the cofactor (variance at σ0 = 1) of every
         coefficient, its prior included; near the prior's variance, the
         data say little of that term.
+    probe_points : ndarray of int, shape (U,), optional
+        One point of each of at most 24 units evenly along the block (the
+        point the most units share; -1 for the other units), whose plan
+        precision :attr:`probe_plan_sigma` gives: how well the adjustment
+        holds the plan position along the block of units.
+    probe_plan_sigma : ndarray, shape (U,), optional
+        A priori plan standard deviation ``sqrt(q_xx + q_yy)`` of the probe
+        points (metres at σ0 = 1; NaN for -1). None without statistics.
     """
 
     transforms: UnitTransforms
@@ -369,6 +377,8 @@ class SimultaneousResult:
     iterations: int
     converged: bool
     coefficient_variance: FloatArray | None = None
+    probe_points: IntArray | None = None
+    probe_plan_sigma: FloatArray | None = None
 
 
 def _rows_whitening(weight: FloatArray) -> FloatArray:
@@ -927,6 +937,9 @@ def _result(
     )
     points = st.points.copy()
     points[~prob.observed] = np.nan
+    probe = probe_sigma = None
+    if statistics:
+        probe, probe_sigma = _probe_plan_sigma(prob, normals, lu, scale)
     return SimultaneousResult(
         transforms=transforms,
         points=points,
@@ -945,7 +958,42 @@ def _result(
         iterations=int(iterations),
         converged=bool(converged),
         coefficient_variance=coefficient_variance,
+        probe_points=probe,
+        probe_plan_sigma=probe_sigma,
     )
+
+
+_PROBES = 24
+"""Units whose plan precision :func:`_probe_plan_sigma` computes, at most."""
+
+
+def _probe_plan_sigma(
+    prob: _Problem, normals: _Normals, lu: spl.SuperLU, scale: FloatArray
+) -> tuple[IntArray, FloatArray]:
+    """For at most :data:`_PROBES` units evenly along the block, the point most
+    units share (ties first) and its a priori plan standard deviation (two
+    solves each); -1 and NaN for the other units."""
+    obs = prob.obs
+    shared = np.bincount(obs.point, minlength=prob.n_points)
+    order = np.lexsort((-shared[obs.point], obs.unit))
+    units, first = np.unique(obs.unit[order], return_index=True)
+    probe = np.full(prob.n_units, -1, dtype=np.intp)
+    probe[units] = obs.point[order[first]]
+    # at most _PROBES units evenly along the block: the precision varies slowly
+    # from unit to unit, and every probe costs two solves
+    sampled = np.zeros(prob.n_units, dtype=bool)
+    sampled[np.round(np.linspace(0, prob.n_units - 1, min(prob.n_units, _PROBES))).astype(int)] = (
+        True
+    )
+    probe[~sampled] = -1
+    sigma = np.full(prob.n_units, np.nan)
+    has = probe >= 0
+    if has.any():
+        plan = np.zeros((int(has.sum()), 3), dtype=bool)
+        plan[:, :2] = True
+        cof = point_cofactors(normals, lu, scale, probe[has], plan)
+        sigma[has] = np.sqrt(np.maximum(cof[:, 0, 0] + cof[:, 1, 1], 0.0))
+    return probe, sigma
 
 
 def _line_cofactors(

@@ -321,6 +321,7 @@ def import_metashape(
     camera: PixelCamera | None = None,
     crs: str | None = None,
     attitudes: bool = True,
+    source_types: bool = False,
 ) -> ImportedProject:
     """A project from Metashape's markers XML and, optionally, its OPK camera text.
 
@@ -337,12 +338,34 @@ def import_metashape(
         Overrides the chunk CRS.
     attitudes : bool
         Write the attitudes of ``cameras_file`` (``[imu]``).
+    source_types : bool
+        Take the markers' reference flags as the control types (enabled: full
+        control, disabled: check point). By default the control is chosen as
+        for every other format (:func:`.common.split_control`), because a
+        Metashape project usually has every reference enabled.
     """
     options = options or ImportOptions()
     path = Path(markers_file)
     xml = read_markers_xml(path)
     notes = list(xml.notes)
+    control = xml.control
+    if not source_types:
+        kinds = control.kind if control.kind is not None else np.array([], str)
+        n_on, n_off = int(np.sum(kinds == "full")), int(np.sum(kinds == "check"))
+        control = ControlTable(
+            control.point,
+            control.xyz,
+            np.full(len(control), "full"),
+            False,
+            control.sigma_xy,
+            control.sigma_h,
+        )
+        notes.append(
+            f"the markers' reference flags ({n_on} enabled, {n_off} disabled) are not used as "
+            "control types (--source-types uses them)"
+        )
     if camera is not None:
+        camera.check_marks(xml.images, str(path))
         frame, cam, distortion = camera.frame(), Camera(camera.focal_mm), None
         notes.append("camera as given on the command line; no distortion")
     elif xml.camera is not None:
@@ -378,7 +401,7 @@ def import_metashape(
         xml.images,
         frame,
         cam,
-        xml.control,
+        control,
         crs,
         options,
         inputs=inputs,

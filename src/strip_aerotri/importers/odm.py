@@ -12,10 +12,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import ConfigError
 from .common import (
     Camera,
     ImageFrame,
+    ImageTable,
     ImportedProject,
     ImportOptions,
     assemble,
@@ -67,6 +70,48 @@ class PixelCamera:
         if not (focal_mm > 0 and pixel > 0 and min(image_size) > 0):
             raise ConfigError("focal length, pixel size and image size must be positive")
         return PixelCamera(focal_mm, pixel, image_size, principal_point_px)
+
+    def check_marks(self, images: ImageTable, source: str) -> None:
+        """Refuse an image size that contradicts the marked pixels.
+
+        A mark outside the image (beyond half a pixel) is an error, naming
+        the photo and point; so is marks whose mean column or row lies far
+        from the centre the image size gives (more than a tenth of the size
+        and more than four standard errors of a uniform spread), unless the
+        principal point is given: the image size then sets the principal
+        point wrongly (as a larger size with the marks of a smaller image).
+
+        Raises
+        ------
+        ConfigError
+            Naming ``source``, the image size and what contradicts it.
+        """
+        xy = np.asarray(images.xy, dtype=np.float64).reshape(-1, 2)
+        size = np.asarray(self.image_size, dtype=np.float64)
+        given = f"--image-size {self.image_size[0]} {self.image_size[1]}"
+        outside = np.flatnonzero(((xy < -0.5) | (xy > size + 0.5)).any(axis=1))
+        if outside.size:
+            k = int(outside[0])
+            raise ConfigError(
+                f"{source}: photo {images.photo[k]}, point {images.point[k]}: the mark at "
+                f"column {xy[k, 0]:g}, row {xy[k, 1]:g} lies outside the image of {given} "
+                f"({outside.size} marks do; the largest column is {xy[:, 0].max():g}, row "
+                f"{xy[:, 1].max():g}): check the image size"
+            )
+        if self.principal_point_px is not None or len(xy) < 8:
+            return
+        off = xy.mean(axis=0) - size / 2.0
+        spread = size / np.sqrt(12.0 * len(xy))
+        far = (np.abs(off) > 0.1 * size) & (np.abs(off) > 4.0 * spread)
+        if far.any():
+            fits = np.round(2.0 * xy.mean(axis=0) / 100.0) * 100.0
+            raise ConfigError(
+                f"{source}: the {len(xy)} marks centre on column {xy[:, 0].mean():.0f}, row "
+                f"{xy[:, 1].mean():.0f}, far from the centre of an image of {given} "
+                f"({size[0] / 2:g}, {size[1] / 2:g}); an image of about {fits[0]:.0f} x "
+                f"{fits[1]:.0f} fits them: check the image size (or give "
+                "--principal-point-px if the marks truly lie off the centre)"
+            )
 
     def frame(self) -> ImageFrame:
         pp = self.principal_point_px or (self.image_size[0] / 2.0, self.image_size[1] / 2.0)
@@ -127,6 +172,7 @@ def import_odm(
             "and --image-size, or --ties with a COLMAP model"
         )
     gcp = read_gcp_list(path)
+    camera.check_marks(gcp.images, str(path))
     frame = camera.frame()
     notes = [
         *gcp.notes,

@@ -191,6 +191,7 @@ def import_pix4d(
     options = options or ImportOptions()
     marks_path, gcp_path = Path(marks_file), Path(gcp_file)
     images = read_marks(marks_path)
+    camera.check_marks(images, str(marks_path))
     if images.sigma_mm is not None:
         images = ImageTable(
             images.photo, images.point, images.xy, images.sigma_mm * camera.pixel_size_mm

@@ -128,11 +128,15 @@ class CalCamCalibration:
         Sensor width in mm / width in pixels.
     distortion : Distortion
         The radial terms as ``units = "normalized"``, ``model = "projection"``.
+    image_size_px : (float, float)
+        Width and height in pixels (the image coordinates' origin is the
+        image centre, half of them).
     """
 
     camera: Camera
     pixel_size_mm: float
     distortion: Distortion
+    image_size_px: tuple[float, float] = (0.0, 0.0)
 
 
 def read_calibration(path: Path) -> CalCamCalibration:
@@ -214,7 +218,7 @@ def read_calibration(path: Path) -> CalCamCalibration:
             "as k g^(2i+1) f^(2i) (docs/import.md)"
         ),
     )
-    return CalCamCalibration(camera, s, distortion)
+    return CalCamCalibration(camera, s, distortion, (width_px, height_px))
 
 
 def _drop_duplicates(
@@ -357,7 +361,13 @@ def import_uav_fc300x(
     return assemble(
         f"the FC300X UAV block in {folder}",
         images,
-        ImageFrame("mm", cal.pixel_size_mm),
+        # the mm coordinates start at the image centre: where that is in pixels
+        # (pixel_size_mm and principal_point_px), for exports in pixels
+        ImageFrame(
+            "mm",
+            cal.pixel_size_mm,
+            (cal.image_size_px[0] / 2.0, cal.image_size_px[1] / 2.0),
+        ),
         cal.camera,
         control,
         crs,

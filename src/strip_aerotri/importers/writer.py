@@ -37,7 +37,7 @@ def project_toml(project: ImportedProject) -> str:
         lines += ["[strip]", f"name = {toml_string(p.name)}"]
         lines.append(f"photos = {_toml_id_list(p.strips[0].photos)}")
     else:
-        lines.append(f"# {p.name}: a block of {len(p.strips)} strips")
+        lines += ["[project]", f"name = {toml_string(p.name)}", ""]
         for strip in p.strips:
             lines += ["[[strips]]", f"name = {toml_string(strip.name)}"]
             lines.append(f"photos = {_toml_id_list(strip.photos)}")
@@ -50,9 +50,12 @@ def project_toml(project: ImportedProject) -> str:
         lines.append(f"principal_point_mm = {toml_value(list(p.camera.principal_point_mm))}")
     f = p.frame
     lines += ["", "[images]", 'file = "image_points.csv"']
-    if f.units == "pixel":
+    if f.units == "pixel" or (f.pixel_size_mm is not None and f.principal_point_px is not None):
+        if f.units == "pixel":
+            lines.append('units = "pixel"')
+        else:
+            lines.append("# where the mm origin lies in the pixels (for export odm)")
         lines += [
-            'units = "pixel"',
             f"pixel_size_mm = {toml_value(float(f.pixel_size_mm))}",  # type: ignore[arg-type]
             f"principal_point_px = {toml_value([float(v) for v in f.principal_point_px])}",  # type: ignore[union-attr]
         ]

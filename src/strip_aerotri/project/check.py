@@ -198,6 +198,7 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
 
     triangulable = np.zeros(project.observations.n_points, dtype=bool)
     per_strip: list[str] = []
+    seen_by = []
     for spec in project.strips:
         sub = dataclasses.replace(
             project,
@@ -206,6 +207,7 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
             strips=(),
         )
         own = CheckReport()
+        seen_by.append(np.unique(sub.observations.point))
         facts = _check_pairs(own, sub)
         if not own.problems:
             _check_formation(own, sub, spec.name)
@@ -240,15 +242,35 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
         f"block: {len(project.strips)} strips, {len(project.photo_ids)} photos "
         f"({', '.join(f'{s.name}: {len(s.photo_ids)}' for s in project.strips)})",
         *per_strip,
+        *_common_points(project, seen_by),
         f"image points: {project.observations.n_points} on {len(project.observations.photo)} "
         f"observations, {int(triangulable.sum())} measured on a pair",
         f"control: {by_kind}; usable {len(plan_ids)} plan, {len(height_ids)} height",
+        f"straight lines: {len(project.straight_lines)}",
         f"crs: {project.crs}; route {project.adjustment.route.value}; "
         f"block = {project.adjustment.block.value}",
     ]
     if target is not None:
         rep.summary.append(f"output folder: {target}")
     return rep
+
+
+def _common_points(project: Project, seen_by: list[IntArray]) -> list[str]:
+    """A line per two strips that share measured points (the side overlap
+    that ties them), and the strips that share none with any other."""
+    lines = []
+    tied: set[int] = set()
+    names = [s.name for s in project.strips]
+    for i in range(len(seen_by)):
+        for j in range(i + 1, len(seen_by)):
+            n = int(np.intersect1d(seen_by[i], seen_by[j], assume_unique=True).size)
+            if n:
+                lines.append(f"strips '{names[i]}' / '{names[j]}': {n} common points")
+                tied.update((i, j))
+    alone = [names[k] for k in range(len(names)) if k not in tied]
+    if alone:
+        lines.append(f"strips without a point in common with another: {', '.join(alone)}")
+    return lines
 
 
 class _PairFacts(NamedTuple):

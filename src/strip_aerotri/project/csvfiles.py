@@ -118,6 +118,12 @@ def read_csv(path: Path, columns: Sequence[ColumnSpec], named_by: str) -> CsvTab
         raise ConfigError(f"{path}: no header line (the file is empty or all comments)")
     header_line = int(numbers[0])
     header = [name.strip() for name in _split_fields(path, kept[:1], numbers[:1])[0]]
+    if len(header) == 1 and "\t" in header[0]:
+        raise ConfigError(
+            f"{path}:{header_line}: the header is separated by tabs: the file must be "
+            "comma-separated (save it from the spreadsheet as CSV with ',' between columns, "
+            "or replace the tabs by commas)"
+        )
     if len(header) == 1 and ";" in header[0]:
         raise ConfigError(
             f"{path}:{header_line}: the header '{header[0]}' is separated by ';': the file must "
@@ -198,8 +204,11 @@ def float_column(
             values = np.asarray(filled, dtype=np.float64).reshape(n)
         except ValueError:
             row = next(i for i, s in enumerate(filled) if not _is_float(s))
+            comma = _is_float(stripped[row].replace(",", ".", 1))
+            hint = " (a decimal comma: use a point, e.g. '12.5')" if comma else ""
             raise ConfigError(
-                f"{table.where(row)}: column '{name}': expected a number, got '{stripped[row]}'"
+                f"{table.where(row)}: column '{name}': expected a number, got "
+                f"'{stripped[row]}'{hint}"
             ) from None
     bad = ~np.isfinite(values) & ~empty
     if bad.any():

@@ -173,6 +173,9 @@ def load_project(path: str | Path) -> Project:
     ]
 
     strips, photo_ids, name = _photos(toml_path, doc)
+    project_table = optional("project")
+    if project_table is not None and project_table["name"] is not None:
+        name = str(project_table["name"])
     crs = "local" if str(control["crs"]).lower() == "local" else str(control["crs"])
 
     principal_point: tuple[float, float] = camera["principal_point_mm"]  # type: ignore[assignment]

@@ -16,7 +16,7 @@ from ..errors import ConfigError
 if TYPE_CHECKING:
     from .model import Project
 
-__all__ = ["DEFAULT_OUTPUT", "check_output_directory", "output_folder"]
+__all__ = ["DEFAULT_OUTPUT", "check_output_directory", "check_writable", "output_folder"]
 
 DEFAULT_OUTPUT = "out"
 """Result folder (inside the project folder) when neither --out nor [output] directory is given."""
@@ -45,7 +45,37 @@ def output_folder(project: Project, out: Path | None) -> Path:
             project.path.parent / DEFAULT_OUTPUT, project, source="default output folder"
         )
     _check_replaceable(target, project.input_files)
+    check_writable(target)
     return target
+
+
+def check_writable(target: Path) -> None:
+    """Refuse, before any work, a result folder whose parent cannot be written
+    (a result is written beside it and renamed in): a folder is made and
+    removed in the nearest existing one of its parents.
+
+    Raises
+    ------
+    OutputError
+        Naming the folder, the parent that cannot be written and why.
+    """
+    import tempfile
+
+    from ..report.files import OutputError
+
+    parent = target.absolute().parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    try:
+        if not parent.is_dir():
+            raise NotADirectoryError(20, "not a folder")
+        probe = tempfile.mkdtemp(prefix=f".{target.name}.probe-", dir=parent)
+        Path(probe).rmdir()
+    except OSError as exc:
+        raise OutputError(
+            f"output folder '{target}' cannot be written: '{parent}': {exc.strerror or exc}; "
+            "choose another --out (or [output] directory)"
+        ) from exc
 
 
 def _check_replaceable(target: Path, inputs: Sequence[Path]) -> None:

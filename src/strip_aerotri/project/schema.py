@@ -137,6 +137,7 @@ class KeySpec:
 
 
 PROJECT_TABLES: tuple[TableSpec, ...] = (
+    TableSpec("project", False, False, "the project's name, for the report's title"),
     TableSpec("strip", False, False, "the strip: its name and photos in flight order"),
     TableSpec(
         "strips", False, True, "a block: one table per strip, its name and photos in flight order"
@@ -165,6 +166,13 @@ TABLES_BY_NAME = {t.name: t for t in PROJECT_TABLES}
 
 # fmt: off
 PROJECT_KEYS: tuple[KeySpec, ...] = (
+    KeySpec(
+        "project", "name", "string", required=False, default=None, unit="",
+        description="Name of the project (the client's job), the title of the report and "
+        "of the run's summary; overrides [strip] name there.",
+        contract=False,
+        default_text="[strip] name; for a block the name of the folder holding strip.toml",
+    ),
     KeySpec(
         "strip", "name", "string", required=False, default=None, unit="",
         description="Name of the strip, used in reports.",
@@ -215,8 +223,9 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
     ),
     KeySpec(
         "images", "pixel_size_mm", "positive number", required=False, default=None, unit="mm",
-        description='Side of a square pixel; required with units = "pixel", refused '
-        "otherwise.",
+        description='Side of a square pixel; required with units = "pixel". With units = '
+        '"mm" (an extension) it may be given together with principal_point_px: they then '
+        "only tell the exports that need pixels (export odm) how to convert.",
         contract=False,
         default_text="none",
     ),
@@ -225,7 +234,7 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         unit="px",
         description="Column c0 and row r0 of the origin of the image coordinates (principal "
         'point or image centre): x = (col - c0) s, y = -(row - r0) s. Required with units = '
-        '"pixel", refused otherwise.',
+        '"pixel"; with units = "mm" only together with pixel_size_mm (see there).',
         contract=False,
         default_text="none",
     ),

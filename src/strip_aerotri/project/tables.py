@@ -128,12 +128,14 @@ def read_image_options(toml_path: Path, images: dict[str, object]) -> ImageOptio
         for key in pixel_keys:
             if images[key] is None:
                 raise ConfigError(f'{toml_path}: [images] {key}: required with units = "pixel"')
-    else:
-        for key in pixel_keys:
-            if images[key] is not None:
-                raise ConfigError(
-                    f'{toml_path}: [images] {key}: only used with units = "pixel" (units is "mm")'
-                )
+    elif (images["pixel_size_mm"] is None) != (images["principal_point_px"] is None):
+        # with units = "mm" the two keys together only say where the mm origin
+        # lies in the image's pixels, for exports that need pixels (export odm)
+        given, missing = pixel_keys if images["pixel_size_mm"] is not None else pixel_keys[::-1]
+        raise ConfigError(
+            f'{toml_path}: [images] {given}: with units = "mm" give {missing} too (the pixel '
+            "column and row of the origin of the mm coordinates, for pixel exports), or neither"
+        )
     pp = images["principal_point_px"]
     return ImageOptions(
         units=units,

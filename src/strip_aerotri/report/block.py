@@ -16,6 +16,7 @@ from .files import format_photos_csv, format_points_csv
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, _bundle_gnss, _bundle_imu
 from .tolerances import TRANSFER_UM, transfer_passed
 from .values import clean, json_float, options_record, statistics
+from .verdict import with_verdict
 
 if TYPE_CHECKING:
     from ..project import Project
@@ -154,7 +155,7 @@ def build_block_report(
             if result.refined
             else None
         ),
-        "tolerances": _tolerances(result, map_scale),
+        "tolerances": with_verdict(_tolerances(result, map_scale), joins),
         "rejections": [r.describe() for r in result.rejections],
         "warnings": list(result.warnings),
         "timings_s": dict(result.timings),

@@ -22,7 +22,9 @@ from .html import (
     _verdict_cell,
     criteria_table,
     stat_row,
+    verdict_banner,
 )
+from .verdict import overall_verdict
 
 __all__ = ["block_html"]
 
@@ -60,9 +62,8 @@ def _plain(report: Mapping[str, Any]) -> str:
         means = [j["mean_plan_m"] for j in joins if j["mean_plan_m"] is not None]
         transfer = [j["mean_transfer_um"] for j in joins if j["mean_transfer_um"] is not None]
         if means:
-            spread = (
-                _fmt(means[0]) if len(means) == 1 else f"{_fmt(min(means))}-{_fmt(max(means))}"
-            )
+            low, high = _fmt(min(means)), _fmt(max(means))
+            spread = low if low == high else f"{low}-{high}"
             text += (
                 f"On the points two strips share, the strips agree to {spread} m in plan "
                 "on average"
@@ -76,22 +77,14 @@ def _plain(report: Mapping[str, Any]) -> str:
                     f"{joins[0]['transfer_limit_um']:.0f} µm)"
                 )
             text += ". "
+    verdict = overall_verdict(report["tolerances"], joins)
+    text += f"Against the tolerances of the production rules: {verdict.text}."
     return f"<p class='plain'>{_esc(text)}</p>"
 
 
 def _verdict_banner(report: Mapping[str, Any]) -> str:
     """R4's verdict at the check points and on the joins, first on the page."""
-    verdicts = [report["tolerances"]["passed"]]
-    verdicts += [j["passed"] for j in report["block"]["joins"]]
-    verdicts += [j["transfer_passed"] for j in report["block"]["joins"]]
-    judged = [v for v in verdicts if v is not None]
-    if not judged:
-        cls, text = "na", "not judged (give the map scale: [report] map_scale or --map-scale)"
-    elif all(judged):
-        cls, text = "pass", "all judged criteria pass"
-    else:
-        cls, text = "fail", "at least one criterion fails"
-    return f"<div class='verdict {cls}'>Tolerances (R4 §1.7.7): {_esc(text)}</div>"
+    return verdict_banner(overall_verdict(report["tolerances"], report["block"]["joins"]))
 
 
 def _readable(criterion: str) -> str:
@@ -123,10 +116,10 @@ def _joins(report: Mapping[str, Any]) -> str:
         "max plan [m]",
         "mean |dH| [m]",
         "max |dH| [m]",
-        "R4 1.7.7.7",
+        "agree within 0.5 mm at map scale (R4 1.7.7.7)",
         "mean transfer [µm]",
         "max transfer [µm]",
-        "R4 1.7.7.3",
+        "transfer within 40 µm (R4 1.7.7.3)",
     ]
     digits = [0, 0, 3, 3, 3, 3, 0, 1, 1, 0]
     return (
@@ -259,7 +252,9 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
     others = [w for w in report["warnings"] if w not in set(rejections)]
     stats = [stat_row("control (used)", report["control"]["statistics"])]
     if report["control"].get("fit_statistics") is not None:
-        label = f"control: the {block['construction'] or 'unit'}s' own determinations"
+        units = str(block["construction"] or "units")
+        units = units if units.endswith("s") else f"{units}s"
+        label = f"control: the {units}' own determinations"
         stats.append(stat_row(label, report["control"]["fit_statistics"]))
     stats.append(stat_row("check (not used)", report["check"]["statistics"]))
     parts = [
@@ -274,8 +269,9 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
         + "</p>",
         _verdict_banner(report),
         _plain(report),
-        "<p class='sub'>R4: the production rules of analytical phototriangulation whose "
-        "tolerances this report applies; a <em>model</em> is the 3D model of one pair of "
+        "<p class='sub'>The tolerances are those of the Russian production rules for "
+        "analytical phototriangulation (called R4 below); a <em>model</em> is the 3D model "
+        "of one pair of "
         "overlapping photos, a <em>strip</em> one flight line of photos.</p>",
         f"<p>Construction: {_esc(block['construction'])} (every "
         f"{'strip' if block['construction'] == 'strips' else 'model'} its own 3D "

@@ -447,6 +447,17 @@ def _bars_or_lines(
             ax.bar(x + offset, v, width=width, color=colour, label=label)
 
 
+def _left_photo_ticks(ax: Any, x: FloatArray | IntArray, result: StripResult) -> None:
+    """Tick the pairs (models) at ``x`` by their left photo's id, at most 16."""
+    strip = result.strip
+    left = [strip.photo_ids[i] for i in strip.model_photo_positions[:-1]]
+    index = np.asarray(x, dtype=np.intp)
+    if index.size == 0 or index.max() >= len(left):
+        return
+    shown = index[:: max(1, int(np.ceil(index.size / 16)))]
+    ax.set_xticks(shown, [left[i] for i in shown], rotation=45 if shown.size > 6 else 0)
+
+
 def figure_parallax(result: StripResult) -> str:
     from matplotlib.figure import Figure
 
@@ -461,7 +472,8 @@ def figure_parallax(result: StripResult) -> str:
         ["σ0 (one image coordinate)", "max |y-parallax|"],
         ["#2e86c1", "#e67e22"],
     )
-    ax.set_xlabel("pair (left photo's position in the strip)")
+    _left_photo_ticks(ax, x, result)
+    ax.set_xlabel("pair (its left photo)")
     ax.set_ylabel("µm at image scale")
     ax.set_title("Relative orientation: residual y-parallax per pair")
     ax.grid(True, axis="y", lw=0.3)
@@ -497,7 +509,8 @@ def figure_ties(result: StripResult, models: list[dict[str, Any]]) -> str | None
         ["plan (X, Y)", "height (Z)"],
         ["#16a085", "#8e44ad"],
     )
-    ax.set_xlabel("model (left photo's position in the strip)")
+    _left_photo_ticks(ax, x[1:], result)
+    ax.set_xlabel("model (its left photo)")
     ax.set_ylabel("RMS difference [m]")
     ax.set_title("Differences between the two determinations of tie points, per model")
     ax.grid(True, axis="y", lw=0.3)

@@ -7,9 +7,13 @@ and :func:`write_result_folder` write a whole result folder so that a run
 either replaces the previous result completely or leaves it exactly as it was.
 
 The swap: everything is written into a hidden temporary folder beside the
-target; at the end the old folder is renamed away, the new one renamed in and
-the old one deleted.  A folder is only ever replaced if it is empty or carries
-the marker file :data:`RESULT_MARKER` written by a previous run.
+target; every file of the old folder that the previous run did not write (a
+user's notes, the exports of ``stripaero export``) is linked or copied into
+it; at the end the old folder is renamed away, the new one renamed in and the
+old one deleted.  A folder is only ever replaced if it is empty or carries
+the marker file :data:`RESULT_MARKER` written by a previous run, which lists
+the files that run wrote.  SIGINT (Ctrl-C) is held back during the swap, so
+the folder always holds either the old or the new result whole.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ __all__ = [
     "format_csv",
     "format_photos_csv",
     "format_points_csv",
+    "record_export",
     "write_csv",
     "write_result_folder",
 ]
@@ -42,7 +47,16 @@ __all__ = [
 RESULT_MARKER = ".stripaero-result"
 """Name of the marker file that identifies a result folder."""
 
-_MARKER_TEXT = "This folder holds results of stripaero; a new run replaces it as a whole.\n"
+_MARKER_TEXT = (
+    "This folder holds results of stripaero; a new run replaces the files listed below\n"
+    "and keeps every other file.\n"
+)
+_WRITTEN = "written: "
+_EXPORTED = "exported: "
+_LEGACY_WRITTEN = frozenset(
+    {"points.csv", "photos.csv", "report.json", "report.html", "report.md", "points.geojson"}
+)
+"""What a run wrote into a result folder whose marker lists nothing (older versions)."""
 
 METRE_DECIMALS = 4
 DEGREE_DECIMALS = 6
@@ -326,6 +340,107 @@ def _check_target(target: Path, protect: Iterable[os.PathLike[str] | str]) -> No
             )
 
 
+def _marker_lists(folder: Path) -> tuple[frozenset[str], frozenset[str]] | None:
+    """The files a result folder's marker says the run wrote and those
+    ``stripaero export`` wrote; None when it is no result folder."""
+    try:
+        lines = (folder / RESULT_MARKER).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return None
+    written = frozenset(x[len(_WRITTEN) :] for x in lines if x.startswith(_WRITTEN))
+    exported = frozenset(x[len(_EXPORTED) :] for x in lines if x.startswith(_EXPORTED))
+    return (written or _LEGACY_WRITTEN), exported
+
+
+def _write_marker(folder: Path, written: Iterable[str], exported: Iterable[str]) -> None:
+    lines = [_MARKER_TEXT]
+    lines += [f"{_WRITTEN}{name}\n" for name in written]
+    lines += [f"{_EXPORTED}{name}\n" for name in exported]
+    (folder / RESULT_MARKER).write_text("".join(lines), encoding="utf-8")
+
+
+def record_export(path: str | os.PathLike[str]) -> None:
+    """Note in the marker of the result folder holding ``path`` that
+    ``stripaero export`` wrote it (nothing when the folder is no result
+    folder); a new run keeps it and says it describes the previous result."""
+    path = Path(path)
+    listed = _marker_lists(path.parent)
+    if listed is None or path.name in listed[1]:
+        return
+    with (path.parent / RESULT_MARKER).open("a", encoding="utf-8") as fh:
+        fh.write(f"{_EXPORTED}{path.name}\n")
+
+
+def _carry_over(
+    old: Path, new: Path, written: Sequence[str]
+) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Link (else copy) into ``new`` every entry of the result folder ``old``
+    that the previous run did not write and the new one does not write.
+
+    Returns the names kept and, among them, those ``stripaero export`` wrote.
+    """
+    listed = _marker_lists(old) if old.is_dir() else None
+    if listed is None:
+        return (), ()
+    previous, exported = listed
+    mine = {PurePosixPath(n).parts[0] for n in written} | {RESULT_MARKER}
+    ours = {PurePosixPath(n).parts[0] for n in previous}
+    kept = []
+    for entry in sorted(old.iterdir()):
+        if entry.name in mine or entry.name in ours:
+            continue
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.copytree(entry, new / entry.name, symlinks=True, copy_function=_link_or_copy)
+        else:
+            _link_or_copy(entry, new / entry.name)
+        kept.append(entry.name)
+    return tuple(kept), tuple(n for n in kept if n in exported)
+
+
+def _link_or_copy(source: str | os.PathLike[str], dest: str | os.PathLike[str]) -> None:
+    """A hard link (no copy, same file), else a copy with its metadata."""
+    if os.path.islink(source):
+        os.symlink(os.readlink(source), dest)
+        return
+    try:
+        os.link(source, dest)
+    except OSError:
+        shutil.copy2(source, dest)
+
+
+class _sigint_held:
+    """Hold SIGINT back inside the block and deliver it at its end.
+
+    Outside the main thread (where signals cannot be handled) it does nothing.
+    """
+
+    def __enter__(self) -> None:
+        import signal
+        import threading
+
+        self._received = False
+        self._previous: object = None
+        if threading.current_thread() is not threading.main_thread():
+            return
+
+        def hold(signum: int, frame: object) -> None:
+            self._received = True
+
+        self._previous = signal.signal(signal.SIGINT, hold)
+
+    def __exit__(self, *exc: object) -> None:
+        import signal
+
+        if self._previous is None:
+            return
+        signal.signal(signal.SIGINT, self._previous)  # type: ignore[arg-type]
+        if self._received and exc[0] is None:
+            if callable(self._previous):
+                self._previous(signal.SIGINT, None)
+            elif self._previous == signal.SIG_DFL:
+                raise KeyboardInterrupt
+
+
 class ResultFolder:
     """Write a result folder atomically.
 
@@ -365,6 +480,16 @@ class ResultFolder:
         self._protect = tuple(protect)
         self._tmp: Path | None = None
         self._done = False
+        self._written: list[str] = []
+        self.kept: tuple[str, ...] = ()
+        """Files of the previous folder that the run did not write, kept (after commit)."""
+        self.exports: tuple[str, ...] = ()
+        """Those of :attr:`kept` that ``stripaero export`` wrote from the previous result."""
+
+    @property
+    def committed(self) -> bool:
+        """True once the new result is in place."""
+        return self._done
 
     @property
     def path(self) -> Path:
@@ -380,7 +505,7 @@ class ResultFolder:
         try:
             tmp = folder_beside(self.target)
             self._tmp = tmp
-            (tmp / RESULT_MARKER).write_text(_MARKER_TEXT, encoding="utf-8")
+            _write_marker(tmp, (), ())
         except OSError as exc:
             self.abort()
             raise OutputError(f"cannot write into '{parent}': {exc.strerror or exc}") from exc
@@ -406,6 +531,7 @@ class ResultFolder:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(data)
+            self._written.append(str(PurePosixPath(name)))
         except OSError as exc:
             raise OutputError(f"cannot write '{name}': {exc.strerror or exc}") from exc
         return path
@@ -427,12 +553,16 @@ class ResultFolder:
             self.abort()
             raise
         try:
-            swap_folder(tmp, target)
+            kept, exports = _carry_over(target, tmp, self._written)
+            _write_marker(tmp, self._written, exports)
+            with _sigint_held():
+                swap_folder(tmp, target)
+                self._tmp = None
+                self._done = True
         except OSError as exc:
             self.abort()
             raise OutputError(f"cannot replace '{target}': {exc.strerror or exc}") from exc
-        self._tmp = None
-        self._done = True
+        self.kept, self.exports = kept, exports
         return target
 
     def abort(self) -> None:

@@ -13,6 +13,7 @@ import numpy as np
 from ..options import DEFAULT_SECTIONS
 from .figures import Plan, figure_layout, figure_parallax, figure_residuals, figure_ties
 from .values import point_roles
+from .verdict import Verdict, criterion_label, overall_verdict
 
 if TYPE_CHECKING:
     from ..results import StripResult
@@ -37,6 +38,7 @@ figcaption{color:#5d6d7e;font-size:0.88em}
 .scroll table{margin:0}
 ul.warn li{color:#7e5109}
 footer{margin-top:2em;color:#7f8c8d;font-size:0.8em}
+@page{size:A4;margin:14mm 12mm}
 @media print{body{max-width:none;margin:0;padding:0}.scroll{max-height:none;overflow:visible;
 display:block;border:none}thead{display:table-header-group}tr,figure{break-inside:avoid}
 h2,h3{break-after:avoid}table{font-size:7.5pt}th,td{padding:1px 4px}th{white-space:normal}
@@ -183,7 +185,10 @@ def criteria_table(criteria: list[Mapping[str, Any]]) -> str:
         ["criterion", "source", "n", "value", "limit", "unit", "verdict", "explanation"],
         [
             [
-                c["name"],
+                (
+                    f"<span style='white-space:normal'>"
+                    f"{_esc(c.get('label') or criterion_label(c['name']))}</span>",
+                ),
                 c["source"],
                 c["n"],
                 c["value"],
@@ -205,7 +210,6 @@ def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
     inp, chk = report["inputs"], report["check"]["statistics"]
     ctrl = inp["control"]
     used = report["control"]["statistics"]
-    scale = report["tolerances"]["map_scale"]
     text = (
         f"{inp['n_photos']} photos were oriented and {inp['n_points_triangulated']} points "
         f"measured on them were given ground coordinates, fitted to "
@@ -239,9 +243,19 @@ def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
         )
     else:
         text += "There were no independent check points, so the accuracy is not proven. "
-    if scale is not None:
-        text += f"Against the tolerances for a map at 1:{scale:g}: {verdict}."
+    text += f"Against the tolerances of the production rules: {verdict}."
     return f"<p class='plain'>{_esc(text)}</p>"
+
+
+_VERDICT_WORD = {"pass": "met", "fail": "not met", "na": "not fully judged"}
+
+
+def verdict_banner(verdict: Verdict) -> str:
+    """The verdict first on the page, in the words of the plain summary and the CLI."""
+    return (
+        f"<div class='verdict {verdict.status}'>Tolerances of the production rules (R4 "
+        f"§1.7.7): {_esc(verdict.text)}</div>"
+    )
 
 
 def _html_page(
@@ -263,15 +277,8 @@ def _html_page(
     tol = report["tolerances"]
     name = proj["name"] or "Strip aerotriangulation"
     ctrl = inp["control"]
-    overall = tol["passed"]
-    overall_cls = "na" if overall is None else "pass" if overall else "fail"
-    overall_text = (
-        "not judged"
-        if overall is None
-        else "all judged criteria pass"
-        if overall
-        else "at least one criterion fails"
-    )
+    verdict = overall_verdict(tol)
+    overall_cls, overall_text = verdict.status, verdict.text
     chk = report["check"]["statistics"]
     pairs = report["pairs"]
     sig = [p["sigma0_um"] for p in pairs if p["sigma0_um"] is not None]
@@ -299,7 +306,8 @@ def _html_page(
             (
                 "every model its own similarity, all at once"
                 if opt.get("block") == "models"
-                else f"J's similarity and polynomial (requested {_esc(opt['polynomial'])}, "
+                else f"one transformation of the whole strip and polynomials (Janiszewski; "
+                f"requested {_esc(opt['polynomial'])}, "
                 f"used {report['polynomial']['kind']})",
             ),
         ],
@@ -318,7 +326,10 @@ def _html_page(
             "map scale for the verdicts",
             ("–" if tol["map_scale"] is None else f"1:{tol['map_scale']:g}",),
         ],
-        ["R4 §1.7.7 verdict", (f"<span class='{overall_cls}'>{_esc(overall_text)}</span>",)],
+        [
+            "tolerance verdict",
+            (f"<span class='{overall_cls}'>{_esc(_VERDICT_WORD[overall_cls])}</span>",),
+        ],
     ]
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
@@ -329,11 +340,13 @@ def _html_page(
         "<p class='sub'>Analytical strip aerotriangulation by partially dependent models"
         f" · strip_aerotri {_esc(report['software']['version'])}"
         f" · {_esc(report['created_utc'])}</p>",
-        f"<div class='verdict {overall_cls}'>Tolerances (R4 §1.7.7): {_esc(overall_text)}</div>",
-        "<p class='sub'>R4: the production rules of analytical phototriangulation whose "
-        "tolerances this report applies (§1.7.7: control and check points at the map "
-        "scale, relative orientation, model junctions); J: Janiszewski's strip "
-        "method (similarity and deformation polynomials J(16)).</p>",
+        verdict_banner(verdict),
+        "<p class='sub'>The tolerances are those of the Russian production rules for "
+        "analytical phototriangulation (called R4 below; §1.7.7: the check points at the "
+        "map scale, the relative orientation, the joins of the models). J below is "
+        "Janiszewski's description of the strip method, whose formulas the report cites "
+        "(his transformation of the whole strip bent by polynomials is formula 16; the "
+        "construction used is in the summary).</p>",
         _plain_summary(report, overall_text),
         "<h2>Summary</h2>",
         _table(["item", "value"], summary, left=1),
@@ -362,14 +375,15 @@ def _html_page(
         ),
         _figure(
             fig_par,
-            "Figure 3. Residual y-parallax of the relative orientation per pair "
-            "(left) and of all points (right), µm at image scale.",
+            "Figure 3. Residual y-parallax of the relative orientation per pair of photos, "
+            "named by its left photo (left), and of all points (right), µm at image scale.",
             "y-parallax",
         ),
         _figure(
             fig_ties,
             "Figure 4. RMS of the differences between the two determinations of "
-            "the tie points of each model and the previous one, in metres.",
+            "the tie points of each model (named by its left photo) and the previous one, "
+            "in metres.",
             "tie-point differences",
         ),
         "<h2>Tolerance verdicts (R4 §1.7.7)</h2>",
@@ -379,7 +393,8 @@ def _html_page(
     parts.append(
         "<footer>Residuals and discrepancies are given minus adjusted, along local east, "
         "north and up. photos.csv angles: R = Rx(ω)·Ry(φ)·Rz(κ) maps image vectors to local "
-        "east-north-up. See docs/outputs.md for every figure of this report.</footer>"
+        "east-north-up. Every figure of this report is described in the documentation "
+        "installed with the program (stripaero docs outputs).</footer>"
         "</body></html>"
     )
     return "\n".join(parts)
@@ -447,6 +462,14 @@ def _relative_section(report: Mapping[str, Any]) -> list[str]:
             digits=[0, 0, 0, 0, 0, 2, 2, 2, 6, 6, 6, 6, 6],
         )
     )
+    if "b_y" in names:
+        out.append(
+            "<p class='sub'>q: the residual y-parallax, the vertical mismatch of a point "
+            "between the two photos. b_y, b_z: the base from the left to the right photo, "
+            "across and up, in units of its length along the strip; a, b, c: the turn of the "
+            "right photo against the left (the rotation axis times tan(angle/2), about "
+            "x, y, z).</p>"
+        )
     return out
 
 

@@ -15,8 +15,9 @@ from .._version import __version__
 from ..geometry.rotation import opk_from_matrix
 from ..observations import ControlType
 from ..results import StripResult
-from .tolerances import tolerance_verdicts
+from .tolerances import plan_drift_warning, tolerance_verdicts
 from .values import clean, control_rows, json_float, options_record, statistics
+from .verdict import with_verdict
 
 if TYPE_CHECKING:
     from ..project import Project
@@ -279,6 +280,19 @@ def _model_adjustment(result: StripResult) -> dict[str, Any] | None:
     }
 
 
+def _tolerances(result: StripResult, map_scale: float | None) -> dict[str, Any]:
+    """report.json's ``tolerances``: the criteria, their verdicts and the words."""
+    criteria = tolerance_verdicts(result, map_scale)
+    judged = [c.passed for c in criteria if c.passed is not None]
+    return with_verdict(
+        {
+            "map_scale": None if map_scale is None else float(map_scale),
+            "passed": None if not judged else all(judged),
+            "criteria": [c.as_dict() for c in criteria],
+        }
+    )
+
+
 def build_report(
     result: StripResult,
     *,
@@ -316,8 +330,7 @@ def build_report(
     weights: dict[str, float] = {}
     if project is not None:
         weights = {spec.name: float(spec.weight) for spec in project.straight_lines}
-    criteria = tolerance_verdicts(result, map_scale)
-    judged = [c.passed for c in criteria if c.passed is not None]
+    drift = [w for w in (plan_drift_warning(result, map_scale),) if w is not None]
     frame = ground.frame
     options = options_record(result.options)
     if options is None:
@@ -394,11 +407,7 @@ def build_report(
             "statistics": statistics(result.check_statistics),
             "points": _control_points(result, check=True),
         },
-        "tolerances": {
-            "map_scale": None if map_scale is None else float(map_scale),
-            "passed": None if not judged else all(judged),
-            "criteria": [c.as_dict() for c in criteria],
-        },
+        "tolerances": _tolerances(result, map_scale),
         "bundle": _bundle(result),
         "rejections": [
             {
@@ -415,7 +424,7 @@ def build_report(
             }
             for r in getattr(result, "rejections", ())
         ],
-        "warnings": [*result.warnings, *notes],
+        "warnings": [*result.warnings, *notes, *drift],
         "timings_s": dict(result.timings),
         "outputs": {
             "points.geojson": {

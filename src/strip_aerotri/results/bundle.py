@@ -79,6 +79,10 @@ class BundleResult:
         Cofactor matrix of the IMU residuals, ``P^-1 - J Q_dd J.T`` in rad^2
         about the image axes (``J`` the inverse right Jacobian at the
         solution, ``Q_dd`` the rotation block of ``N^-1``); NaN as above.
+    image_redundancy : ndarray, shape (K, 2)
+        Redundancy numbers ``1 - (A Q Aᵀ P)ᵢᵢ`` of the image coordinates,
+        exact (from the selected inverse of the normal matrix); NaN when the
+        precision is not computed.
     """
 
     centres: FloatArray
@@ -99,6 +103,7 @@ class BundleResult:
     imu_residuals: FloatArray
     gnss_residual_cofactor: FloatArray
     imu_residual_cofactor: FloatArray
+    image_redundancy: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 @dataclass(frozen=True)
@@ -129,8 +134,8 @@ class FrameRefinement:
     image_w : ndarray, shape (K, 2)
         Test values of the image coordinates (NaN where not tested).
     image_redundancy : ndarray, shape (K, 2)
-        Approximate redundancy numbers used by the test (see Notes of
-        :func:`refine_frame`).
+        Redundancy numbers used by the test: exact with the precision,
+        approximate without (see Notes of :func:`refine_frame`).
     control_residuals : ndarray, shape (P, 3)
         ``adjusted - given`` in metres where control was given (rejected
         components included), NaN elsewhere.

@@ -195,6 +195,20 @@ class StripModel:
     breaks: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     photo_step: int = DEFAULT_PHOTO_STEP
 
+    @property
+    def break_warnings(self) -> tuple[str, ...]:
+        """One warning per model that shares no tie point with the one before:
+        its scale comes from the control alone."""
+        labels = self.model_labels or tuple(f"model {m + 1}" for m in range(self.n_models))
+        return tuple(
+            f"{labels[m]} shares no tie point with {labels[m - 1]} (0 tie points): its scale "
+            "is not carried over from its neighbour and comes from the control alone, so it "
+            "is only as good as the control on it; measure points on the three photos of the "
+            "two pairs to join them"
+            for m in np.asarray(self.breaks, dtype=np.intp).tolist()
+            if 0 < m < len(labels)
+        )
+
     def with_rejections_in_metres(self, metres_per_unit: float) -> StripModel:
         """The strip with its tie-point rejections told in ground metres: a
         residual in the units of its model's base (the strip system's units

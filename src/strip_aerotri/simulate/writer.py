@@ -109,7 +109,7 @@ def write_block_project(
     ``strips`` are (name, photo ids in flight order) in file order;
     ``block`` is written to ``[adjustment] block``, and ``models``,
     ``polynomial``, ``route`` when not None. ``name`` goes into the first
-    comment line (a block has no ``[strip] name``). See
+    comment line and ``[project] name``. See
     :meth:`~strip_aerotri.simulate.SimulatedBlock.write_project`.
     """
     adjustment = _adjustment_lines(
@@ -124,6 +124,9 @@ def write_block_project(
     text = [
         f"# {_comment(name)}",
         "# Simulated block (strip_aerotri.simulate); truth is not in these files.",
+        "[project]",
+        f"name = {toml_string(name)}",
+        "",
     ]
     for strip_name, photos in strips:
         text += [

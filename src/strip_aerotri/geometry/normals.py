@@ -1,0 +1,588 @@
+"""Structured normal equations of strips and blocks (method.md 6B).
+
+Every adjustment of photos or models along strips has the same shape: *units*
+(photos with 6 parameters, or models/strips with 7 plus polynomial terms:
+any fixed number ``d`` per problem) tied only to their neighbours along the
+strip, *points* (3 parameters each) tied to a few units, and optionally a
+dense *border* of ``k`` global parameters (self-calibration) tied to
+anything.  This module forms and solves the linearised least-squares problem
+
+    minimise  Σ ‖T (f + A δ)‖²       (T the whitening, Tᵀ T = P the weight)
+
+by its normal equations ``N δ = -Aᵀ P f``: points eliminated by the Schur
+complement (batched 3 x 3 inverses; the products summed per group of points
+that share the same units), the reduced unit system held as a block band in
+the units' order along the strip (or reverse Cuthill-McKee where that is
+narrower) and factorised by LAPACK's banded Cholesky
+(:func:`scipy.linalg.cholesky_banded`), the border eliminated after the band
+(k right-hand sides).  Cofactors come from the *selected inverse* of the
+banded factor (Takahashi's recursion): every unit's block and the band, every
+point's 3 x 3 block, the unit-point blocks, the border, and from those every
+observation's redundancy number ``rᵢ = 1 - (A Q Aᵀ P)ᵢᵢ``.
+
+API
+---
+Observations are given as arrays, in four kinds (each a frozen dataclass;
+``g`` row groups of ``r`` rows each, ``k`` border parameters):
+
+:class:`UnitPointRows`
+    rows on one unit and one point (an image point, a model point): ``unit``
+    (g,), ``point`` (g,), ``unit_jacobian`` (g, r, d), ``point_jacobian``
+    (g, r, 3), ``residual`` (g, r), optional ``weight`` and
+    ``border_jacobian`` (g, r, k).
+:class:`UnitRows`
+    rows on units alone (GNSS centres, IMU attitudes, priors, conditions
+    linking neighbouring units): ``units`` (g, q), ``jacobian`` (g, r, q, d).
+:class:`PointRows`
+    rows on points alone (control): ``point`` (g,), ``jacobian`` (g, r, 3).
+:class:`BorderRows`
+    rows on the border alone (priors of global parameters): ``jacobian``
+    (g, r, k).
+
+``residual`` is ``f``, the computed minus the observed value at the current
+unknowns (the step δ makes ``f + A δ`` small); ``weight`` is None (unit
+weights: rows already whitened), (g, r) diagonal weights ``1/σ²`` (0 drops a
+row) or (g, r, r) full weight matrices (positive definite).  Units are those
+of the caller (the engine is unit-free; a whitened residual is
+dimensionless).
+
+:class:`NormalStructure` is built once per problem from the index arrays
+(which units each point is tied to and which units the unit rows link;
+:meth:`NormalStructure.from_indices` takes the arrays themselves): it fixes
+the units' order (``order="auto"``: as numbered, reverse Cuthill-McKee or
+the caller's ``candidates``, whichever is narrowest) and the band
+(``width``, ``order``).  :meth:`NormalStructure.form` forms the normal
+blocks of the rows at the current unknowns (same ``unit``/``point``/
+``units`` arrays) as a :class:`FormedNormals` (``cost`` ``Σ‖T f‖²``,
+``point_blocks``, ``unit_blocks``, :meth:`FormedNormals.undetermined_points`),
+whose :meth:`FormedNormals.solve` takes an optional Levenberg-Marquardt
+``damping`` (diagonals of the unit, point and border blocks times
+``1 + damping``; :meth:`NormalStructure.solve` is form and solve in one)
+and returns a :class:`NormalSolution`: ``unit_step`` (n, d),
+``point_step`` (p, 3), ``border_step`` (k,), ``cost``, ``predicted_cost``
+(``Σ‖T (f + A δ)‖²``), ``min_pivot`` (smallest relative pivot of the
+equilibrated reduced matrix, ``min_pivot_unit``, ``min_pivot_parameter``)
+and :meth:`NormalSolution.cofactors`, a :class:`Cofactors` (undamped
+solutions only) with ``unit`` (n, d, d), ``point`` (p, 3, 3), ``border``
+(k, k), ``unit_border`` (n, d, k), ``point_border`` (p, 3, k),
+:meth:`Cofactors.unit_blocks` (any unit pair within the band),
+:meth:`Cofactors.unit_point` (any coupled pair) and
+:meth:`Cofactors.redundancy` (the redundancy numbers (g, r) of any rows of
+the four kinds).  A singular system raises :class:`SingularNormalsError`
+(a :class:`~strip_aerotri.errors.GeometryError`) naming the unit, point or
+border parameter.
+
+Cost: forming O(G r d²) plus O(Σ_points (q d)²) for the Schur products,
+factorising O(n d³ w²) with w the half-bandwidth in units (about the overlap
+window along a strip; in a block, the window times the strips), selected
+inversion about the same, so linear in the number of units for a strip.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from .._typing import ArrayLike, FloatArray, IntArray
+from ..errors import GeometryError
+from ._blockband import BandFactor, NotPositiveDefinite, factor_band, selected_inverse
+from ._normal_pattern import Pattern, bandwidth, build_pattern, unit_graph_order
+
+__all__ = [
+    "BorderRows",
+    "Cofactors",
+    "FormedNormals",
+    "NormalSolution",
+    "NormalStructure",
+    "PointRows",
+    "SingularNormalsError",
+    "UnitPointRows",
+    "UnitRows",
+]
+
+#: Ratio of smallest to largest eigenvalue of a point's (damped) 3 x 3 normal
+#: block below which the point counts as undetermined.
+POINT_RANK_TOL = 1e-10
+
+
+class SingularNormalsError(GeometryError):
+    """The normal equations are singular; ``kind`` is "unit", "point" or
+    "border", ``index`` the unit, point or border parameter, ``parameter``
+    the component within the unit or point (None when not known)."""
+
+    def __init__(self, message: str, kind: str, index: int, parameter: int | None = None):
+        super().__init__(message)
+        self.kind = kind
+        self.index = index
+        self.parameter = parameter
+
+
+def _as_weight(weight: ArrayLike | None, g: int, r: int) -> FloatArray | None:
+    if weight is None:
+        return None
+    w = np.asarray(weight, dtype=np.float64)
+    if w.shape not in ((g, r), (g, r, r)):
+        raise ValueError(f"Expected `weight` to have shape {(g, r)} or {(g, r, r)}, got {w.shape}")
+    if w.ndim == 2 and not np.all(w >= 0.0):
+        raise ValueError("Expected non-negative diagonal weights")
+    return w
+
+
+def _whiten(weight: FloatArray | None, *arrays: FloatArray) -> tuple[FloatArray, ...]:
+    """Rows times T (Tᵀ T = weight); each array (g, r, ...)."""
+    if weight is None:
+        return arrays
+    if weight.ndim == 2:
+        s = np.sqrt(weight)
+        return tuple(a * s.reshape(s.shape + (1,) * (a.ndim - 2)) for a in arrays)
+    try:
+        t = np.swapaxes(np.linalg.cholesky(weight), 1, 2)  # P = L Lᵀ, T = Lᵀ
+    except np.linalg.LinAlgError as exc:
+        raise ValueError("Expected positive definite weight matrices") from exc
+    out = []
+    for a in arrays:
+        flat = a.reshape(a.shape[0], a.shape[1], -1)
+        out.append((t @ flat).reshape(a.shape))
+    return tuple(out)
+
+
+def _check(a: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:
+    x = np.asarray(a, dtype=np.float64)
+    if x.shape != shape:
+        raise ValueError(f"Expected `{name}` to have shape {shape}, got {x.shape}")
+    return x
+
+
+@dataclass(frozen=True)
+class UnitPointRows:
+    """Rows on one unit and one point each (see the module docstring)."""
+
+    unit: IntArray
+    point: IntArray
+    unit_jacobian: FloatArray
+    point_jacobian: FloatArray
+    residual: FloatArray
+    weight: FloatArray | None = None
+    border_jacobian: FloatArray | None = None
+
+    def whitened(self, k: int, d: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """T A_unit, T A_point, T f, T A_border for k border and d unit parameters."""
+        g, r = np.shape(self.residual)
+        au = _check(self.unit_jacobian, (g, r, d), "unit_jacobian")
+        ap = _check(self.point_jacobian, (g, r, 3), "point_jacobian")
+        f = _check(self.residual, (g, r), "residual")
+        ab = _border(self.border_jacobian, g, r, k)
+        return _whiten(_as_weight(self.weight, g, r), au, ap, f, ab)  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class UnitRows:
+    """Rows on units alone: ``units`` (g, q), ``jacobian`` (g, r, q, d)."""
+
+    units: IntArray
+    jacobian: FloatArray
+    residual: FloatArray
+    weight: FloatArray | None = None
+    border_jacobian: FloatArray | None = None
+
+    def whitened(self, k: int, d: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """T A, T f, T A_border for k border and d unit parameters."""
+        g, r = np.shape(self.residual)
+        q = np.shape(self.units)[1]
+        a = _check(self.jacobian, (g, r, q, d), "jacobian")
+        f = _check(self.residual, (g, r), "residual")
+        ab = _border(self.border_jacobian, g, r, k)
+        return _whiten(_as_weight(self.weight, g, r), a, f, ab)  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class PointRows:
+    """Rows on points alone: ``point`` (g,), ``jacobian`` (g, r, 3)."""
+
+    point: IntArray
+    jacobian: FloatArray
+    residual: FloatArray
+    weight: FloatArray | None = None
+    border_jacobian: FloatArray | None = None
+
+    def whitened(self, k: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+        g, r = np.shape(self.residual)
+        a = _check(self.jacobian, (g, r, 3), "jacobian")
+        f = _check(self.residual, (g, r), "residual")
+        ab = _border(self.border_jacobian, g, r, k)
+        return _whiten(_as_weight(self.weight, g, r), a, f, ab)  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class BorderRows:
+    """Rows on the border alone: ``jacobian`` (g, r, k)."""
+
+    jacobian: FloatArray
+    residual: FloatArray
+    weight: FloatArray | None = None
+
+    def whitened(self, k: int) -> tuple[FloatArray, FloatArray]:
+        g, r = np.shape(self.residual)
+        a = _check(self.jacobian, (g, r, k), "jacobian")
+        f = _check(self.residual, (g, r), "residual")
+        return _whiten(_as_weight(self.weight, g, r), a, f)  # type: ignore[return-value]
+
+
+Rows = UnitPointRows | UnitRows | PointRows | BorderRows
+
+
+def _border(a: FloatArray | None, g: int, r: int, k: int) -> FloatArray:
+    if a is None:
+        return np.zeros((g, r, k))
+    return _check(a, (g, r, k), "border_jacobian")
+
+
+@dataclass
+class _Normals:
+    """The normal blocks at one linearisation (position order for the band)."""
+
+    band: FloatArray  # (n, w+1, d, d) U - W V⁻¹ Wᵀ, position order
+    g_unit: FloatArray  # (n, d) Aᵀ T f by unit
+    v: FloatArray  # (p, 3, 3)
+    g_point: FloatArray  # (p, 3)
+    w: FloatArray  # (n_pairs, d, 3)
+    unit_border: FloatArray  # (n, d, k)
+    point_border: FloatArray  # (p, 3, k)
+    border: FloatArray  # (k, k)
+    g_border: FloatArray  # (k,)
+    cost: float
+
+
+class NormalStructure:
+    """The pattern of a problem: units, points, border, the band and its order.
+
+    Parameters
+    ----------
+    n_units, unit_size, n_points : int
+        Number of units, parameters per unit (d), number of points.
+    unit_point_rows : sequence of UnitPointRows
+        The unit-point rows of the problem (only ``unit`` and ``point`` are
+        read here).
+    unit_rows : sequence of UnitRows, optional
+        The unit rows (only ``units`` is read).
+    n_border : int
+        Number of global (border) parameters k.
+    order : "auto", "given", "rcm" or array of int (n,)
+        The units' order along the band: as numbered ("given", units
+        numbered along the strip), reverse Cuthill-McKee of the units' graph
+        ("rcm"), the narrowest of these two and the `candidates` ("auto"),
+        or the unit at each place.
+    candidates : sequence of array of int (n,), optional
+        More orders for "auto" to consider, e.g. the photos by their
+        position along a block (which numbers them across the strips).
+    unit_names, point_names : sequence of str, optional
+        For the messages (default "unit 3", "point 7").
+    parameter_names : sequence of str, optional
+        The d names of a unit's parameters, for the messages.
+    """
+
+    def __init__(
+        self,
+        n_units: int,
+        unit_size: int,
+        n_points: int,
+        unit_point_rows: Sequence[UnitPointRows],
+        unit_rows: Sequence[UnitRows] = (),
+        *,
+        n_border: int = 0,
+        order: Literal["auto", "given", "rcm"] | ArrayLike = "auto",
+        candidates: Sequence[ArrayLike] = (),
+        unit_names: Sequence[str] | None = None,
+        point_names: Sequence[str] | None = None,
+        parameter_names: Sequence[str] | None = None,
+    ):
+        if n_units < 1 or unit_size < 1 or n_points < 0 or n_border < 0:
+            raise ValueError(
+                f"Expected n_units >= 1, unit_size >= 1, n_points >= 0, n_border >= 0; got "
+                f"{n_units}, {unit_size}, {n_points}, {n_border}"
+            )
+        self.n_units, self.unit_size, self.n_points = n_units, unit_size, n_points
+        self.n_border = n_border
+        self._unit_names = unit_names
+        self._point_names = point_names
+        self._parameter_names = parameter_names
+        row_unit = np.concatenate(
+            [np.asarray(r.unit, np.intp) for r in unit_point_rows] or [np.zeros(0, np.intp)]
+        )
+        row_point = np.concatenate(
+            [np.asarray(r.point, np.intp) for r in unit_point_rows] or [np.zeros(0, np.intp)]
+        )
+        if row_unit.size and (row_unit.min() < 0 or row_unit.max() >= n_units):
+            raise ValueError("unit index out of range in `unit_point_rows`")
+        if row_point.size and (row_point.min() < 0 or row_point.max() >= n_points):
+            raise ValueError("point index out of range in `unit_point_rows`")
+        sets = [np.asarray(r.units, np.intp) for r in unit_rows]
+        for s in sets:
+            if s.ndim != 2 or (s.size and (s.min() < 0 or s.max() >= n_units)):
+                raise ValueError("Expected `units` of shape (g, q) with indices of units")
+        self._order = self._choose_order(order, row_unit, row_point, sets, candidates)
+        self.pattern: Pattern = build_pattern(
+            n_units, unit_size, n_points, row_unit, row_point, sets, self._order
+        )
+
+    def _choose_order(
+        self,
+        order: Literal["auto", "given", "rcm"] | ArrayLike,
+        row_unit: IntArray,
+        row_point: IntArray,
+        sets: list[IntArray],
+        candidates: Sequence[ArrayLike] = (),
+    ) -> IntArray:
+        n = self.n_units
+        if isinstance(order, str):
+            if order not in ("auto", "given", "rcm"):
+                raise ValueError(f"Expected `order` 'auto', 'given', 'rcm' or an array, got {order!r}")
+            given = np.arange(n, dtype=np.intp)
+            if order == "given":
+                return given
+            pairs = np.unique(row_point * n + row_unit)
+            point_pairs = (pairs // n, pairs % n)
+            if order == "rcm":
+                return unit_graph_order(n, point_pairs, sets)
+
+            def width(o: IntArray) -> int:
+                pos = np.empty(n, np.intp)
+                pos[o] = np.arange(n)
+                return bandwidth(pos, point_pairs, sets)
+
+            options = [given, *(self._permutation(c, "candidates") for c in candidates)]
+            widths = [width(o) for o in options]
+            # no order is narrower than the most units of one point or row, less one
+            least = max(
+                int(np.max(np.bincount(point_pairs[0]), initial=1)) - 1,
+                *(s.shape[1] - 1 for s in sets if s.size),
+                0,
+            )
+            if min(widths) > least:
+                options.insert(1, unit_graph_order(n, point_pairs, sets))
+                widths.insert(1, width(options[1]))
+            return options[int(np.argmin(widths))]  # the first of the narrowest
+        return self._permutation(order, "order")
+
+    def _permutation(self, order: ArrayLike, name: str) -> IntArray:
+        n = self.n_units
+        arr = np.asarray(order, dtype=np.intp)
+        if arr.shape != (n,) or not np.array_equal(np.sort(arr), np.arange(n)):
+            raise ValueError(f"Expected `{name}` to hold permutations of the {n} units")
+        return arr
+
+    @property
+    def order(self) -> IntArray:
+        """The unit at each place along the band (n,)."""
+        return self.pattern.order
+
+    @property
+    def width(self) -> int:
+        """Half-bandwidth of the reduced matrix, in units."""
+        return self.pattern.width
+
+    # ------------------------------------------------------------------ names
+
+    def unit_name(self, i: int) -> str:
+        return f"'{self._unit_names[i]}'" if self._unit_names is not None else f"unit {i}"
+
+    def point_name(self, i: int) -> str:
+        return f"'{self._point_names[i]}'" if self._point_names is not None else f"point {i}"
+
+    def parameter_name(self, j: int) -> str:
+        names = self._parameter_names
+        return names[j] if names is not None and j < len(names) else f"parameter {j}"
+
+    # ------------------------------------------------------------------ solve
+
+    def form(
+        self,
+        unit_point_rows: Sequence[UnitPointRows],
+        unit_rows: Sequence[UnitRows] = (),
+        point_rows: Sequence[PointRows] = (),
+        border_rows: Sequence[BorderRows] = (),
+    ) -> FormedNormals:
+        """The normal blocks of the rows at the current unknowns, to be solved
+        with one or more dampings (:meth:`FormedNormals.solve`)."""
+        from ._normal_assembly import assemble
+
+        return FormedNormals(self, assemble(self, unit_point_rows, unit_rows, point_rows,
+                                            border_rows))
+
+    def solve(
+        self,
+        unit_point_rows: Sequence[UnitPointRows],
+        unit_rows: Sequence[UnitRows] = (),
+        point_rows: Sequence[PointRows] = (),
+        border_rows: Sequence[BorderRows] = (),
+        *,
+        damping: float = 0.0,
+    ) -> NormalSolution:
+        """Form, reduce, factor and solve the normal equations of the rows at
+        the current unknowns (see the module docstring)."""
+        return self.form(unit_point_rows, unit_rows, point_rows, border_rows).solve(damping)
+
+    @classmethod
+    def from_indices(
+        cls,
+        n_units: int,
+        unit_size: int,
+        n_points: int,
+        unit: ArrayLike,
+        point: ArrayLike,
+        unit_sets: Sequence[ArrayLike] = (),
+        **options: object,
+    ) -> NormalStructure:
+        """As the constructor, from the unit-point rows' ``unit`` and ``point``
+        (G,) and the unit rows' ``units`` (each (g, q)) instead of the rows;
+        `options` are the constructor's keywords."""
+        ui = np.asarray(unit, dtype=np.intp)
+        pi = np.asarray(point, dtype=np.intp)
+        empty = np.zeros((ui.size, 0, 0))
+        rows = [UnitPointRows(ui, pi, empty, empty, empty)]
+        sets = [UnitRows(np.asarray(u, dtype=np.intp), empty, empty) for u in unit_sets]
+        return cls(n_units, unit_size, n_points, rows, sets, **options)  # type: ignore[arg-type]
+
+
+class FormedNormals:
+    """The normal blocks of one linearisation (:meth:`NormalStructure.form`);
+    ``cost`` is ``Σ‖T f‖²``."""
+
+    def __init__(self, structure: NormalStructure, normals: _Normals):
+        self.structure = structure
+        self._normals = normals
+        self.cost = normals.cost
+
+    @property
+    def point_blocks(self) -> FloatArray:
+        """The points' 3 x 3 normal blocks V (p, 3, 3), undamped."""
+        return self._normals.v
+
+    def undetermined_points(self, tol: float = POINT_RANK_TOL) -> IntArray:
+        """Points whose 3 x 3 normal block (undamped) has ``λmin <= tol λmax``."""
+        from ._normal_assembly import undetermined_points
+
+        return undetermined_points(self._normals.v, tol)[0] if self._normals.v.size else (
+            np.zeros(0, np.intp)
+        )
+
+    @property
+    def unit_blocks(self) -> FloatArray:
+        """The units' d x d normal blocks U (n, d, d), undamped, before the
+        points are eliminated."""
+        blocks: FloatArray = self._normals.band[self.structure.pattern.position, 0]
+        return blocks
+
+    def solve(self, damping: float = 0.0) -> NormalSolution:
+        """The step with Levenberg-Marquardt `damping` (diagonals of the unit,
+        point and border blocks times ``1 + damping``)."""
+        from ._normal_assembly import reduce_points
+
+        if not damping >= 0.0:
+            raise ValueError(f"Expected a non-negative `damping`, got {damping}")
+        reduced = reduce_points(self.structure, self._normals, damping)
+        return NormalSolution._from(self.structure, self._normals, reduced, damping)
+
+
+@dataclass
+class NormalSolution:
+    """The step of one linearisation and what its cofactors need."""
+
+    unit_step: FloatArray  # (n, d)
+    point_step: FloatArray  # (p, 3)
+    border_step: FloatArray  # (k,)
+    cost: float
+    min_pivot: float
+    min_pivot_unit: int
+    min_pivot_parameter: int
+    damping: float
+    _structure: NormalStructure = field(repr=False)
+    _state: object = field(repr=False)
+    _cofactors: Cofactors | None = field(default=None, repr=False)
+
+    @classmethod
+    def _from(cls, structure: NormalStructure, normals: _Normals, reduced: object,
+              damping: float) -> NormalSolution:
+        from ._normal_assembly import Reduced
+
+        assert isinstance(reduced, Reduced)
+        d = structure.unit_size
+        j = reduced.factor.min_pivot_index
+        return cls(
+            unit_step=reduced.unit_step,
+            point_step=reduced.point_step,
+            border_step=reduced.border_step,
+            cost=normals.cost,
+            min_pivot=min(reduced.factor.min_pivot, reduced.border_min_pivot),
+            min_pivot_unit=int(structure.order[j // d]),
+            min_pivot_parameter=j % d,
+            damping=damping,
+            _structure=structure,
+            _state=reduced,
+        )
+
+    @property
+    def predicted_cost(self) -> float:
+        """``Σ‖T (f + A δ)‖²`` of the step with the undamped normal matrix."""
+        from ._normal_assembly import Reduced, predicted_cost
+
+        assert isinstance(self._state, Reduced)
+        return predicted_cost(self._structure, self._state)
+
+    def cofactors(self) -> Cofactors:
+        """The selected inverse of the normal matrix (undamped solutions only)."""
+        if self.damping != 0.0:
+            raise ValueError("cofactors of a damped system are not those of the adjustment")
+        if self._cofactors is None:
+            from ._normal_assembly import Reduced, cofactors
+
+            assert isinstance(self._state, Reduced)
+            self._cofactors = cofactors(self._structure, self._state)
+        return self._cofactors
+
+
+@dataclass(frozen=True)
+class Cofactors:
+    """Blocks of ``Q = N⁻¹`` on the pattern (the selected inverse).
+
+    ``unit`` (n, d, d), ``point`` (p, 3, 3), ``border`` (k, k),
+    ``unit_border`` (n, d, k), ``point_border`` (p, 3, k); ``band`` (n, w+1,
+    d, d) the band in the structure's order (``band[J, o] = Q[order[J + o],
+    order[J]]``), ``pair`` (n_pairs, d, 3) the unit-point blocks of the
+    pattern's pairs."""
+
+    structure: NormalStructure
+    unit: FloatArray
+    point: FloatArray
+    border: FloatArray
+    unit_border: FloatArray
+    point_border: FloatArray
+    band: FloatArray
+    pair: FloatArray
+
+    def unit_blocks(self, unit_a: ArrayLike, unit_b: ArrayLike) -> FloatArray:
+        """Blocks ``Q[a, b]`` (m, d, d) of units within the band of each other."""
+        a = np.asarray(unit_a, dtype=np.intp)
+        b = np.asarray(unit_b, dtype=np.intp)
+        d = self.structure.unit_size
+        idx, upper = self.structure.pattern.block_index(a, b)
+        blocks = self.band.reshape(-1, d, d)[idx]
+        return np.where(upper[..., None, None], np.swapaxes(blocks, -1, -2), blocks)
+
+    def unit_point(self, unit: ArrayLike, point: ArrayLike) -> FloatArray:
+        """Blocks ``Q[unit, point]`` (m, d, 3) of coupled unit-point pairs."""
+        pairs = self.structure.pattern.pair_of(
+            np.asarray(unit, dtype=np.intp), np.asarray(point, dtype=np.intp)
+        )
+        return self.pair[pairs]
+
+    def redundancy(self, rows: Rows) -> FloatArray:
+        """Redundancy numbers ``1 - (T A Q Aᵀ Tᵀ)ᵢᵢ`` (g, r) of rows (with the
+        weights of `rows`; for diagonal weights ``1 - (A Q Aᵀ P)ᵢᵢ``)."""
+        from ._normal_assembly import leverage
+
+        h = leverage(self, rows)
+        return 1.0 - h
