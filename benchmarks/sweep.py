@@ -20,6 +20,10 @@ has them), on the same observations:
 * the strip method as ``stripaero run`` does it (its defaults: every model
   at once, blunder tests rejecting), :func:`strip_aerotri.pipeline.triangulate`;
 * its bundle refinement (``refine = "bundle"``);
+* in the camera-error family (uncorrected lens distortion, decentring,
+  affinity and shear of 10-50 µm at the format corner), also the
+  refinement with ``self_calibration = "auto"`` and the reference given the
+  true camera (the observations corrected by the simulated errors);
 * the reference: the package's rigorous bundle adjustment with its data
   snooping, started from the truth, in the simulator's local east-north-up
   frame, on the same observations, the control at its sigmas
@@ -46,9 +50,10 @@ import numpy as np
 
 from strip_aerotri.bundle.adjust import bundle_adjust
 from strip_aerotri.bundle.refine import refine_bundle, refine_frame
+from strip_aerotri.errors import GeometryError
 from strip_aerotri.geodesy import GroundCRS
 from strip_aerotri.ground.polynomials import LineSpec
-from strip_aerotri.options import StripOptions
+from strip_aerotri.options import SelfCalibration, StripOptions
 from strip_aerotri.pipeline import triangulate
 from strip_aerotri.simulate import CAMERAS, SimulatedStrip, camera_preset, simulate_strip
 
@@ -73,10 +78,39 @@ class Case:
     line: bool = False
     image_blunders: int = 0
     control_blunders: int = 0
+    camera_error_um: float = 0.0  # uncorrected camera errors at the format corner
+
+    def camera_errors(self) -> dict[str, float] | None:
+        """Brown/Fraser errors (the corrections the measurements need) whose
+        shift at the format corner is ``camera_error_um``: radial, decentring,
+        affinity and shear in proportions drawn from the seed."""
+        if not self.camera_error_um:
+            return None
+        from strip_aerotri.geometry.camera_model import BROWN_PARAMETERS, brown_correction
+
+        rng = np.random.default_rng(self.seed + 7)
+        fmt = camera_preset(self.camera, long_side=self.long_side).format_mm
+        corner = np.array([[fmt[0] / 2, fmt[1] / 2]])
+        r = float(np.hypot(*corner[0]))
+        share = rng.dirichlet([3.0, 1.0, 1.0, 1.0, 1.0])  # radial, p1, p2, b1, b2
+        sign = rng.choice([-1.0, 1.0], 5)
+        unit = {
+            "k1": -share[0] / r**3,
+            "p1": sign[1] * share[1] / r**2,
+            "p2": sign[2] * share[2] / r**2,
+            "b1": sign[3] * share[3] / r,
+            "b2": sign[4] * share[4] / r,
+        }
+        v = np.array([unit.get(n, 0.0) for n in BROWN_PARAMETERS])
+        size = float(np.hypot(*brown_correction(corner, v, 100.0)[0]))
+        factor = self.camera_error_um * 1e-3 / size
+        return {n: factor * unit[n] for n in unit}
 
     @property
     def label(self) -> str:
         extra = (" line" if self.line else "") + (
+            f" cam{self.camera_error_um:.0f}um" if self.camera_error_um else ""
+        ) + (
             f" bl{self.image_blunders}/{self.control_blunders}"
             if self.image_blunders or self.control_blunders
             else ""
@@ -180,6 +214,13 @@ def _family_cases(family: str, count: int, first_seed: int) -> Iterator[Case]:
                 image_blunders=int(rng.integers(1, 4)),
                 control_blunders=int(rng.integers(0, 2)),
             )
+        elif family == "camera":
+            base = (
+                _film(rng, family, seed)
+                if k % 2 == 0
+                else _drone(rng, family, seed, str(rng.choice(["along", "across"])))
+            )
+            yield replace(base, camera_error_um=_uniform(rng, 10.0, 50.0))
         else:
             raise ValueError(f"unknown family {family!r}")
 
@@ -192,6 +233,7 @@ FAMILIES = {
     "drone-long": 6,
     "corridor": 8,
     "blunders": 8,
+    "camera": 12,
 }
 QUICK = {"film": 3, "drone-along": 3, "drone-across": 2, "corridor": 2, "blunders": 2}
 
@@ -219,6 +261,7 @@ def simulate(case: Case) -> SimulatedStrip:
         control_every=case.control_every,
         image_blunders=case.image_blunders,
         control_blunders=case.control_blunders,
+        camera_errors=case.camera_errors(),
     )
 
 
@@ -266,13 +309,22 @@ def control_in_local(sim: SimulatedStrip) -> tuple[np.ndarray, np.ndarray]:
     return index, np.where(np.isnan(xyz), np.nan, local)
 
 
-def reference_bundle(sim: SimulatedStrip, *, oracle: bool = False) -> tuple[float, float]:
+def reference_bundle(
+    sim: SimulatedStrip, *, oracle: bool = False, camera: dict[str, float] | None = None
+) -> tuple[float, float]:
     """Check-point RMSE (plan, height) of the package's bundle adjustment
     from the truth, local frame: on the same observations with its data
     snooping (:func:`strip_aerotri.bundle.refine.refine_frame`), or with
     ``oracle`` on the observations without the simulated blunders and no
-    tests (what a perfect blunder detection would leave)."""
+    tests (what a perfect blunder detection would leave); ``camera`` (the
+    simulated camera errors) corrects the observations first: a bundle given
+    the true camera."""
     obs = sim.observations
+    if camera is not None:
+        from strip_aerotri.geometry.camera_model import BROWN_PARAMETERS, brown_correction
+
+        values = np.array([camera.get(n, 0.0) for n in BROWN_PARAMETERS])
+        obs = replace(obs, xy=obs.xy + brown_correction(obs.xy, values, obs.principal_distance))
     truth = sim.truth
     index, local = control_in_local(sim)
     kinds = np.array([k.value for k in sim.control.kind])
@@ -330,6 +382,8 @@ class Outcome:
     refined: tuple[float, float] = (math.nan, math.nan)
     reference: tuple[float, float] = (math.nan, math.nan)
     oracle: tuple[float, float] = (math.nan, math.nan)
+    selfcal: tuple[float, float] = (math.nan, math.nan)  # refined, self_calibration "auto"
+    true_camera: tuple[float, float] = (math.nan, math.nan)  # reference, the camera known
     seconds: float = math.nan
 
     @property
@@ -344,12 +398,22 @@ class Outcome:
     def refined_ratio(self) -> tuple[float, float]:
         return tuple(s / r for s, r in zip(self.refined, self.reference, strict=True))
 
+    @property
+    def selfcal_ratio(self) -> tuple[float, float]:
+        return tuple(s / r for s, r in zip(self.selfcal, self.true_camera, strict=True))
 
-def run_case(case: Case, *, refine: bool = True, models: str = "dependent") -> Outcome:
+
+def run_case(
+    case: Case, *, refine: bool = True, models: str = "dependent", auto: bool = False
+) -> Outcome:
     """Strip method, its bundle refinement and the reference on one case."""
     out = Outcome(case)
     sim = simulate(case)
-    out.reference = reference_bundle(sim)
+    try:
+        out.reference = reference_bundle(sim)
+    except GeometryError:  # uncorrected camera errors may fail the reference's control
+        if not case.camera_error_um:
+            raise
     out.oracle = (
         reference_bundle(sim, oracle=True)
         if sim.truth.blunder_observations or sim.truth.blunder_control
@@ -369,10 +433,22 @@ def run_case(case: Case, *, refine: bool = True, models: str = "dependent") -> O
             )
             out.seconds = time.perf_counter() - t0
             out.strip = (result.check_statistics.rmse_plan, float(result.check_statistics.rmse[2]))
+            errors = case.camera_errors()
             if refine:
-                refined = refine_bundle(result)  # as refine = "bundle" runs it
-                stats = refined.check_statistics
-                out.refined = (stats.rmse_plan, float(stats.rmse[2]))
+                try:
+                    refined = refine_bundle(result)  # as refine = "bundle" runs it
+                    stats = refined.check_statistics
+                    out.refined = (stats.rmse_plan, float(stats.rmse[2]))
+                except GeometryError:  # its control tests may stop on camera errors
+                    if errors is None:
+                        raise
+            if errors is not None or auto:
+                out.true_camera = (
+                    out.refined if errors is None else reference_bundle(sim, camera=errors)
+                )
+                calibrated = refine_bundle(result, self_calibration=SelfCalibration("auto"))
+                stats = calibrated.check_statistics
+                out.selfcal = (stats.rmse_plan, stats.rmse[2])
         out.ok = True
     except Exception as exc:  # every failure is a result of the sweep
         out.error = f"{type(exc).__name__}: {exc}"
@@ -427,18 +503,36 @@ def summarise(outcomes: list[Outcome]) -> None:
         f"{'family':14s} {'cases':>5s} {'ok':>4s}  strip/bundle plan, height: median  max"
         "   refined/bundle: median  max"
     )
+    clean = [o for o in outcomes if o.ok and not o.case.camera_error_um and o.selfcal[0] > 0]
+    if clean:
+        r = np.array([o.selfcal_ratio for o in clean])
+        print(
+            f"without camera errors, refined with self_calibration = \"auto\" / without: "
+            f"median {np.median(r[:, 0]):.3f} {np.median(r[:, 1]):.3f}, largest "
+            f"{r[:, 0].max():.3f} {r[:, 1].max():.3f} over {len(clean)} cases"
+        )
+    cams = [o for o in outcomes if o.ok and o.case.camera_error_um]
+    if cams:
+        r = np.array([o.selfcal_ratio for o in cams])
+        print(
+            f"camera errors, refined with self_calibration = \"auto\" / bundle given the true "
+            f"camera: median {np.median(r[:, 0]):.2f} {np.median(r[:, 1]):.2f}, largest "
+            f"{r[:, 0].max():.2f} {r[:, 1].max():.2f} over {len(cams)} cases"
+        )
     for fam in [*fams, "all"]:
         sel = [o for o in outcomes if fam in ("all", o.case.family)]
         ok = [o for o in sel if o.ok]
         r = np.array([o.ratio for o in ok]) if ok else np.full((1, 2), np.nan)
         rr = np.array([o.refined_ratio for o in ok]) if ok else np.full((1, 2), np.nan)
-        print(
-            f"{fam:14s} {len(sel):5d} {len(ok):4d}  "
-            f"{np.median(r[:, 0]):5.2f} {np.median(r[:, 1]):5.2f}  "
-            f"{np.max(r[:, 0]):5.2f} {np.max(r[:, 1]):5.2f}      "
-            f"{np.median(rr[:, 0]):5.2f} {np.median(rr[:, 1]):5.2f}  "
-            f"{np.max(rr[:, 0]):5.2f} {np.max(rr[:, 1]):5.2f}"
-        )
+        with warnings.catch_warnings():  # a family may have no reference (camera errors)
+            warnings.simplefilter("ignore", RuntimeWarning)
+            print(
+                f"{fam:14s} {len(sel):5d} {len(ok):4d}  "
+                f"{np.nanmedian(r[:, 0]):5.2f} {np.nanmedian(r[:, 1]):5.2f}  "
+                f"{np.nanmax(r[:, 0]):5.2f} {np.nanmax(r[:, 1]):5.2f}      "
+                f"{np.nanmedian(rr[:, 0]):5.2f} {np.nanmedian(rr[:, 1]):5.2f}  "
+                f"{np.nanmax(rr[:, 0]):5.2f} {np.nanmax(rr[:, 1]):5.2f}"
+            )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -459,6 +553,11 @@ def main(argv: list[str] | None = None) -> int:
         "--scale", type=int, default=1, help="this many times the cases per family"
     )
     parser.add_argument(
+        "--auto",
+        action="store_true",
+        help='also refine every case with self_calibration = "auto" (against without)',
+    )
+    parser.add_argument(
         "-v", "--verbose", action="store_true", help="print invalid draws and tracebacks"
     )
     args = parser.parse_args(argv)
@@ -477,7 +576,7 @@ def main(argv: list[str] | None = None) -> int:
             if args.verbose:
                 print(f"    invalid draw {case.label}: {why}")
             continue
-        out = run_case(case, refine=not args.no_refine, models=args.models)
+        out = run_case(case, refine=not args.no_refine, models=args.models, auto=args.auto)
         outcomes.append(out)
         status = _f(out.ratio) if out.ok else "FAILED"
         print(
@@ -486,6 +585,12 @@ def main(argv: list[str] | None = None) -> int:
         )
         if not out.ok:
             print(f"      {out.error[:200]}")
+        elif case.camera_error_um or args.auto:
+            against = "bundle given the true camera" if case.camera_error_um else "without"
+            print(
+                f"      self_calibration auto {_f(out.selfcal)}, {against} "
+                f"{_f(out.true_camera)}, ratio {_f(out.selfcal_ratio)}"
+            )
     summarise(outcomes)
     print(f"\n{len(outcomes)} cases in {time.perf_counter() - t0:.0f} s")
     return 0 if all(o.ok for o in outcomes) else 1

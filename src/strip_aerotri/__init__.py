@@ -42,6 +42,7 @@ from .geometry.deformation import (
     fit_deformation,
     polynomial_terms,
 )
+from .geometry.camera_model import CameraModel
 from .geometry.deformation_auto import KindSelection, select_kind_auto
 from .geometry.intersection import intersect, intersect_midpoint, intersect_normal
 from .geometry.normals import (
@@ -106,6 +107,7 @@ from .options import (
     Route,
     ScaleTransfer,
     StripOptions,
+    SelfCalibration,
 )
 from .pipeline import triangulate
 from .project import Project, load_project, run_project
@@ -124,6 +126,8 @@ from .results import (
     RelativeOrientation,
     StripModel,
     StripResult,
+    CameraEstimate,
+    SelfCalibrationOutcome,
 )
 from .simulate import (
     PRESETS,
@@ -155,6 +159,10 @@ __all__ = [
     "BorderRows",
     "BrownDistortion",
     "BundleResult",
+    "CameraEstimate",
+    "CameraModel",
+    "SelfCalibration",
+    "SelfCalibrationOutcome",
     "Cofactors",
     "ConfigError",
     "ControlPoints",

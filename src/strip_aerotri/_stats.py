@@ -6,7 +6,7 @@ from statistics import NormalDist
 
 import numpy as np
 
-from ._typing import ArrayLike
+from ._typing import ArrayLike, IntArray
 
 #: Values above which a robust scale is taken from an evenly spaced sample.
 MEDIAN_SAMPLE = 65_536
@@ -55,3 +55,31 @@ def chi_critical_value(n_tests: int, alpha: float, dof: int) -> float:
     from scipy.special import chdtri  # inverse upper tail; scipy.stats costs 0.2 s
 
     return float(np.sqrt(chdtri(int(dof), float(alpha) / max(int(n_tests), 1))))
+
+
+def leading_failures(score: ArrayLike, critical: float, *groups: ArrayLike) -> IntArray:
+    """The tests that fail and lead each of their groups: indices of every
+    ``score`` above ``critical`` that is the largest score of each group it
+    belongs to (``groups``: one integer label per test each, e.g. its point
+    and its model), by decreasing score; of equal scores in a group, the
+    first.
+
+    Data snooping that rejects these together in one round rejects what
+    one-at-a-time snooping would reject round after round, as long as a
+    blunder's effect on the other tests stays within its groups (a point's
+    other determinations, a model's other points): the largest failing test
+    of a point or a model may be the echo of a blunder, so only the leader
+    of both goes (method.md §6B).  NaN scores neither fail nor lead.
+    """
+    s = np.asarray(score, dtype=np.float64).reshape(-1)
+    s = np.where(np.isfinite(s), s, -np.inf)
+    order = np.argsort(-s, kind="stable")
+    lead = s[order] > critical
+    for labels in groups:
+        g = np.asarray(labels).reshape(-1)[order]
+        _, first = np.unique(g, return_index=True)
+        leads_group = np.zeros(order.size, dtype=bool)
+        leads_group[first] = True
+        lead &= leads_group
+    chosen: IntArray = order[lead].astype(np.intp)
+    return chosen

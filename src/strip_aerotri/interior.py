@@ -222,9 +222,12 @@ class BrownDistortion:
     right, y up, mm), ``r² = x² + y²`` (``u = x/c``, ``v = y/c`` in place of x,
     y for ``units = "normalized"``), the shift is
 
-    ``Δx = x (k1 r² + k2 r⁴ + k3 r⁶) + p1 (r² + 2 x²) + 2 p2 x y``
+    ``Δx = x (k1 r² + k2 r⁴ + k3 r⁶) + p1 (r² + 2 x²) + 2 p2 x y + b1 x + b2 y``
 
     ``Δy = y (k1 r² + k2 r⁴ + k3 r⁶) + 2 p1 x y + p2 (r² + 2 y²)``
+
+    (``b1`` affinity and ``b2`` shear of the sensor or film, Fraser 1997; a
+    self-calibration's ``camera.toml`` may carry them.)
 
     (radial: Brown 1971; decentring: Brown 1966, with his pairing of P1 with
     ``r² + 2x²``.  OpenCV names the same terms the other way round: OpenCV's
@@ -246,6 +249,8 @@ class BrownDistortion:
         Radial coefficients (mm^-2, mm^-4, mm^-6 for units "mm").
     p1, p2 : float
         Decentring coefficients (mm^-1 for units "mm").
+    b1, b2 : float
+        Affinity and shear (dimensionless).
     units : DistortionUnits
     model : DistortionModel
 
@@ -262,13 +267,15 @@ class BrownDistortion:
     k3: float = 0.0
     p1: float = 0.0
     p2: float = 0.0
+    b1: float = 0.0
+    b2: float = 0.0
     units: DistortionUnits = DistortionUnits.MM
     model: DistortionModel = DistortionModel.CORRECTION
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "units", DistortionUnits(self.units))
         object.__setattr__(self, "model", DistortionModel(self.model))
-        for name in ("k1", "k2", "k3", "p1", "p2"):
+        for name in ("k1", "k2", "k3", "p1", "p2", "b1", "b2"):
             value = float(getattr(self, name))
             if not np.isfinite(value):
                 raise ValueError(f"Expected `{name}` to be finite, got {value!r}")
@@ -277,7 +284,7 @@ class BrownDistortion:
     @property
     def is_zero(self) -> bool:
         """True when every coefficient is zero (no correction)."""
-        return not any((self.k1, self.k2, self.k3, self.p1, self.p2))
+        return not any((self.k1, self.k2, self.k3, self.p1, self.p2, self.b1, self.b2))
 
 
 def distortion_shift(
@@ -310,6 +317,8 @@ def distortion_shift(
     radial = r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3))
     out = np.empty_like(arr)
     out[:, 0] = x * radial + d.p1 * (r2 + 2.0 * x * x) + 2.0 * d.p2 * x * y
+    if d.b1 or d.b2:  # affinity and shear (kept out of the sum when zero: same bits)
+        out[:, 0] += d.b1 * x + d.b2 * y
     out[:, 1] = y * radial + 2.0 * d.p1 * x * y + d.p2 * (r2 + 2.0 * y * y)
     return out * norm
 

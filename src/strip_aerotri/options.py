@@ -58,6 +58,8 @@ from .choices import (
 )
 
 __all__ = [
+    "SELF_CALIBRATION_CHOICES",
+    "SELF_CALIBRATION_PARAMETERS",
     "DEFAULT_ALPHA",
     "DEFAULT_BLOCK_POLYNOMIAL",
     "DEFAULT_DIFFERENCE_TOLERANCE",
@@ -93,6 +95,7 @@ __all__ = [
     "OptionEnum",
     "OptionError",
     "Refine",
+    "SelfCalibration",
     "RelativeOrientationMethod",
     "ReportOptions",
     "Route",
@@ -104,6 +107,7 @@ __all__ = [
     "check_max_iterations",
     "check_min_base_to_height",
     "check_photo_step",
+    "check_self_calibration",
     "check_polynomial",
     "check_sections",
     "describe",
@@ -130,6 +134,11 @@ DEFAULT_POLYNOMIAL = 3
 DEFAULT_BLOCK_POLYNOMIAL = 2
 DEFAULT_SECTIONS = 1
 DEFAULT_PHOTO_STEP = 1
+#: The Brown/Fraser parameters ``[adjustment] self_calibration`` may list
+#: (method.md 6C), in their fixed order.
+SELF_CALIBRATION_PARAMETERS = ("c", "x0", "y0", "k1", "k2", "k3", "p1", "p2", "b1", "b2")
+#: The named choices of ``[adjustment] self_calibration``.
+SELF_CALIBRATION_CHOICES = ("none", "auto", "ebner12")
 #: Smallest base-to-height ratio of a model for ``photo_step = "auto"``
 #: (method.md §5.1).  0.3 is about the ratio of a normal-angle film camera at
 #: 60 % overlap (B/H = 0.4 · 230 mm / 210 mm ≈ 0.44) reduced by a third:
@@ -310,6 +319,31 @@ def check_exclude_observations(items: object) -> tuple[tuple[str, str], ...]:
     return tuple(pairs)
 
 
+def check_self_calibration(value: object) -> str | tuple[str, ...]:
+    """``self_calibration``: ``"none"``, ``"auto"``, ``"ebner12"`` (any case) or a
+    non-empty list of distinct Brown/Fraser names, returned in their fixed order."""
+    if isinstance(value, str) and value.strip().lower() in SELF_CALIBRATION_CHOICES:
+        return value.strip().lower()
+    if isinstance(value, list | tuple) and value and all(isinstance(v, str) for v in value):
+        names = [str(v).strip().lower() for v in value]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise OptionError("self_calibration", f"{twice[0]!r} is listed twice")
+        unknown = [n for n in names if n not in SELF_CALIBRATION_PARAMETERS]
+        if unknown:
+            raise OptionError(
+                "self_calibration",
+                f"unknown parameter {unknown[0]!r}; expected names from "
+                f"{list(SELF_CALIBRATION_PARAMETERS)}",
+            )
+        return tuple(n for n in SELF_CALIBRATION_PARAMETERS if n in names)
+    raise OptionError(
+        "self_calibration",
+        f'expected "none", "auto", "ebner12" or a non-empty list from '
+        f"{list(SELF_CALIBRATION_PARAMETERS)}, got {describe(value)}",
+    )
+
+
 #: The rule of every option of ``[adjustment]`` and ``[blunders]`` that is not
 #: a choice of an enum (those are :meth:`OptionEnum.create`), by (table, key).
 RULES: dict[tuple[str, str], Callable[[object], object]] = {
@@ -318,6 +352,7 @@ RULES: dict[tuple[str, str], Callable[[object], object]] = {
     ("adjustment", "max_iterations"): check_max_iterations,
     ("adjustment", "photo_step"): check_photo_step,
     ("adjustment", "min_base_to_height"): check_min_base_to_height,
+    ("adjustment", "self_calibration"): check_self_calibration,
     ("blunders", "alpha"): check_alpha,
     ("blunders", "max_fraction"): check_max_fraction,
     **{("blunders", stage): functools.partial(check_critical_value, stage) for stage in STAGES},
@@ -566,6 +601,36 @@ class BlunderOptions:
 
 
 @dataclass(frozen=True)
+class SelfCalibration:
+    """How the bundle calibrates the camera (``[adjustment] self_calibration``).
+
+    Attributes
+    ----------
+    choice : str or tuple of str
+        ``"auto"``, ``"ebner12"`` or Brown/Fraser names
+        (:data:`strip_aerotri.options.SELF_CALIBRATION_PARAMETERS`).
+    flight_direction : FlightDirection
+        The sensor axis along the flight (``[images] flight_direction``): the
+        corrections are defined in the sensor axes.
+    """
+
+    choice: str | tuple[str, ...]
+    flight_direction: FlightDirection = FlightDirection.PLUS_X
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "flight_direction", FlightDirection(self.flight_direction))
+        choice = check_self_calibration(self.choice)
+        if choice == "none":
+            raise OptionError("self_calibration", 'a SelfCalibration is not "none"')
+        object.__setattr__(self, "choice", choice)
+
+    @property
+    def family(self) -> str:
+        """``"ebner"`` for ebner12, else ``"brown"``."""
+        return "ebner" if self.choice == "ebner12" else "brown"
+
+
+@dataclass(frozen=True)
 class AdjustmentOptions:
     """Method variants chosen in ``[adjustment]`` (method.md §3-6).
 
@@ -592,6 +657,10 @@ class AdjustmentOptions:
     refine : Refine
     models : ModelFormation
         Dependent (J) or independent models (R4 2.2).
+    self_calibration : str or tuple of str
+        ``"none"``, ``"auto"``, ``"ebner12"`` or the Brown/Fraser parameters
+        to estimate (:data:`SELF_CALIBRATION_PARAMETERS`); with ``refine =
+        "bundle"`` only.
     """
 
     route: Route = Route.GEOCENTRIC
@@ -606,6 +675,13 @@ class AdjustmentOptions:
     refine: Refine = Refine.NONE
     block: Construction = Construction.MODELS
     models: ModelFormation = ModelFormation.DEPENDENT
+    self_calibration: str | tuple[str, ...] = "none"
+
+    def calibration(self, flight_direction: FlightDirection | str) -> SelfCalibration | None:
+        """The self-calibration asked for (None for "none")."""
+        if self.self_calibration == "none":
+            return None
+        return SelfCalibration(self.self_calibration, FlightDirection(flight_direction))
 
     def __post_init__(self) -> None:
         for key, value in vars(self).items():
@@ -683,6 +759,7 @@ _ADJUSTMENT_RULES: dict[str, Callable[[object], object]] = {
     "refine": Refine.create,
     "block": Construction.create,
     "models": ModelFormation.create,
+    "self_calibration": check_self_calibration,
 }
 
 
@@ -705,7 +782,8 @@ def adjustment_options(
     """The options of ``[adjustment]`` from the keys a project gives.
 
     Every value is checked by its option's rule, then the rules that tie
-    keys together: sections need a polynomial; independent models are not
+    keys together: ``self_calibration`` needs ``refine = "bundle"``;
+    sections need a polynomial; independent models are not
     oriented by ``"dependent"``; ``block`` defaults to ``"models"``, or to
     ``"strips"`` when one strip names ``polynomial`` or ``sections``;
     ``polynomial`` and ``sections`` apply to ``block = "strips"`` only; and
@@ -752,6 +830,14 @@ def adjustment_options(
         polynomial = _block_polynomial(values, named, construction)  # type: ignore[arg-type]
     elif construction is Construction.MODELS and named:
         raise OptionError(named[0], _MODELS_TAKE_NO.format(key=named[0]))
+    if values.get("self_calibration", "none") != "none" and values.get("refine") is not (
+        Refine.BUNDLE
+    ):
+        raise OptionError(
+            "self_calibration",
+            'the camera is calibrated in the bundle refinement only; add refine = "bundle" '
+            "to [adjustment], or remove self_calibration",
+        )
     if route is not None:
         values["route"] = route
     values.update(polynomial=polynomial, sections=sections, block=construction)

@@ -39,6 +39,7 @@ from .options import (
     GroundOptions,
     Refine,
     Route,
+    SelfCalibration,
     StripOptions,
 )
 from .plausibility import control_degree_problems, control_problems
@@ -98,6 +99,7 @@ def triangulate(
     refine: Refine | str = Refine.NONE,
     gnss: Any = None,
     imu: Any = None,
+    self_calibration: SelfCalibration | None = None,
     progress: Progress | None = None,
     warnings: Sequence[str] = (),
     control_name: str = "control",
@@ -135,6 +137,8 @@ def triangulate(
         (:func:`strip_aerotri.bundle.refine.refine_bundle`).
     gnss, imu : GnssCentres, ImuAttitudes, optional
         Observed projection centres and attitudes for the bundle refinement.
+    self_calibration : SelfCalibration, optional
+        Calibrate the camera in the bundle refinement (``refine = "bundle"``).
     progress : callable, optional
         Called with a short message at each stage (the CLI shows it).
     warnings : sequence of str
@@ -247,6 +251,7 @@ def triangulate(
             imu=imu,
             blunders=blunders,
             max_iterations=ground_options.max_iterations,
+            self_calibration=self_calibration,
         )
         timings["bundle"] = time.perf_counter() - t2
         result = dataclasses.replace(
@@ -276,6 +281,7 @@ def triangulate_block(
     warnings: Sequence[str] = (),
     polynomial: int | None = None,
     control_name: str = "control",
+    self_calibration: SelfCalibration | None = None,
 ) -> BlockResult:
     """Form every strip of a block and transform them all at once
     (:func:`strip_aerotri.block.strips.adjust_block`); control given in
@@ -338,6 +344,7 @@ def triangulate_block(
         gnss=gnss,
         imu=imu,
         polynomial=int(options.polynomial),
+        self_calibration=self_calibration,
     )
     return dataclasses.replace(
         result, warnings=tuple(warnings) + result.warnings, options=options

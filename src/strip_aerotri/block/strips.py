@@ -21,27 +21,16 @@ points (R4 1.7.7.3 and 1.7.7.7) are the block's accuracy criteria.
 from __future__ import annotations
 
 import time
-import warnings
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
-from ..errors import FlightAxisError, GeometryError, PhotoOrderError, StripAerotriWarning
-from ..frames import WorkFrame, make_work_frame
+from ..errors import FlightAxisError, GeometryError, PhotoOrderError
 from ..geodesy import GroundCRS
 from ..geometry.rotation import opk_from_matrix
-from ..geometry.similarity import SimilarityTransform, similarity_from_points
-from ..geometry.simultaneous import (
-    SimultaneousResult,
-    UnitObservations,
-    UnitPolynomial,
-    UnitTransforms,
-    adjust_units,
-)
-from ..ground.models import model_weights
-from ..ground.polynomials import adjust_to_ground
+from ..geometry.simultaneous import UnitObservations, UnitTransforms, adjust_units
 from ..observations import (
     ControlPoints,
     GnssCentres,
@@ -52,26 +41,18 @@ from ..observations import (
 from ..options import (
     DEFAULT_BLOCK_POLYNOMIAL,
     DEFAULT_MAX_ITERATIONS,
-    BlunderAction,
     BlunderOptions,
     Construction,
-    GroundOptions,
     Route,
+    SelfCalibration,
     StripOptions,
 )
 from ..results import AccuracyStatistics, BlockResult, Rejection, StripJoin, StripModel
 from ..strip.densify import form_strip_stepped
+from .problem import _prepare, _Problem
+from .snooping import _band_order, _determined_terms, _snoop, _Solution
 
 __all__ = ["adjust_block", "strip_observations"]
-
-#: Common points a strip needs with the placed strips when its own control
-#: cannot place it (a 3D similarity needs three).
-MIN_COMMON_POINTS = 3
-
-_MAX_PASSES = 6
-_CHI2_3_MEDIAN = 2.365973884375338  # median of chi-square with 3 degrees of freedom
-_NO_TESTS = BlunderOptions(action=BlunderAction.OFF)
-_PASS_TOLERANCE_M = 1e-5
 
 
 def strip_observations(
@@ -118,6 +99,7 @@ def adjust_block(
     gnss: GnssCentres | None = None,
     imu: ImuAttitudes | None = None,
     polynomial: int | None = None,
+    self_calibration: SelfCalibration | None = None,
 ) -> BlockResult:
     """Form every strip, then transform all strips at once to the control.
 
@@ -193,7 +175,16 @@ def adjust_block(
     if refine:
         t1 = time.perf_counter()
         result = _refine(
-            problem, solution, used_xy, used_z, result, blunders, max_iterations, gnss, imu
+            problem,
+            solution,
+            used_xy,
+            used_z,
+            result,
+            blunders,
+            max_iterations,
+            gnss,
+            imu,
+            self_calibration,
         )
         timings["bundle"] = time.perf_counter() - t1
     return _with_timings(result, timings)
@@ -221,365 +212,6 @@ def _form(
         ) from None
     except GeometryError as exc:
         raise GeometryError(f"strip '{spec.name}': {exc}") from None
-
-
-@dataclass
-class _Problem:
-    """What every solution of the block's transformation needs."""
-
-    observations: ImageObservations
-    control: ControlPoints
-    crs: GroundCRS
-    specs: tuple[StripSpec, ...]
-    strips: tuple[StripModel, ...]
-    work: WorkFrame
-    photo_strip: IntArray  # (M,)
-    photo_in_strip: IntArray  # (M,) position of each photo in its strip
-    photo_units: IntArray  # (M, 2) the units whose transforms carry each photo's attitude
-    unit_strip: IntArray  # (U,) the strip of each unit
-    rows: UnitObservations  # points, then centres (point index n_points + photo)
-    start: UnitTransforms
-    points0: FloatArray
-    control_rows: IntArray  # control rows the block determined
-    idx: IntArray  # their points
-    given: FloatArray
-    sigma: FloatArray  # (C, 3)
-    use_xy: BoolArray
-    use_z: BoolArray
-    check: BoolArray
-    max_iterations: int
-    construction: Construction = Construction.MODELS
-    polynomial: UnitPolynomial | None = None  # the strips' deformation ("strips")
-    tie_rejected: BoolArray | None = None  # rows the strips' tie tests left out
-    unit_sigma: FloatArray | None = None  # (U, 3) a strip point's sigma ("strips")
-
-
-def _prepare(
-    observations: ImageObservations,
-    control: ControlPoints,
-    crs: GroundCRS,
-    specs: tuple[StripSpec, ...],
-    strips: tuple[StripModel, ...],
-    route: Route,
-    construction: Construction,
-    max_iterations: int,
-    polynomial: int = 0,
-) -> _Problem:
-    """Start values (each strip to the ground), the work frame, and the rows
-    (``polynomial``: J(16)'s type of every strip's own deformation with
-    ``"strips"``, 0 for none)."""
-    n_points = observations.n_points
-    lookup = {pid: i for i, pid in enumerate(observations.point_ids)}
-    point_of = np.array([lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
-    determined = np.zeros(n_points, dtype=bool)
-    for strip in strips:
-        determined |= np.isfinite(strip.points).all(axis=1)
-    rows = np.flatnonzero((point_of >= 0) & determined[np.maximum(point_of, 0)])
-    idx = point_of[rows]
-    given = control.xyz[rows]
-    check = control.is_check[rows]
-    use_xy = control.uses_xy[rows] & ~check
-    use_z = control.uses_h[rows] & ~check
-    placed_crs, azimuth = _start_in_crs(observations, control, crs, specs, strips)
-    active = use_xy | use_z
-    guess = np.where(np.isnan(given), placed_crs[idx], given)
-    work = make_work_frame(route, crs, guess[active], azimuth)
-    start_work = work.to_work(np.where(np.isfinite(placed_crs), placed_crs, 0.0))
-    units = _units(observations, strips, start_work, construction)
-    sig_xy, sig_h = control.sigma_xy[rows], control.sigma_h[rows]
-    deformation = (
-        UnitPolynomial.fit(units.rows.unit, units.rows.xyz, units.unit_strip.shape[0], polynomial)
-        if polynomial and construction is Construction.STRIPS
-        else None
-    )
-    return _Problem(
-        observations=observations,
-        control=control,
-        crs=crs,
-        specs=specs,
-        strips=strips,
-        work=work,
-        photo_strip=units.photo_strip,
-        photo_in_strip=units.photo_in_strip,
-        photo_units=units.photo_units,
-        unit_strip=units.unit_strip,
-        rows=units.rows,
-        start=units.start,
-        points0=np.vstack([start_work, units.centres0]),
-        control_rows=rows,
-        idx=idx,
-        given=given,
-        sigma=np.column_stack([sig_xy, sig_xy, sig_h]),
-        use_xy=use_xy,
-        use_z=use_z,
-        check=check,
-        max_iterations=max_iterations,
-        construction=construction,
-        polynomial=deformation,
-        tie_rejected=units.tie_rejected,
-        unit_sigma=units.unit_sigma,
-    )
-
-
-def _start_in_crs(
-    observations: ImageObservations,
-    control: ControlPoints,
-    crs: GroundCRS,
-    specs: tuple[StripSpec, ...],
-    strips: tuple[StripModel, ...],
-) -> tuple[FloatArray, float]:
-    """Every point in the CRS from the strips placed so far, and the azimuth of
-    the first placed strip's work frame.
-
-    A strip whose own control carries J's similarity is placed by it; the
-    others, in turn, by a similarity on the points they share with the strips
-    placed (the strip sharing most first).  A strip placed neither way is an
-    error naming it.
-    """
-    n_points = observations.n_points
-    placed = np.full((n_points, 3), np.nan)
-    done = np.zeros(len(strips), dtype=bool)
-    azimuth = None
-    start_options = GroundOptions(polynomial=0, construction=Construction.STRIPS)
-    for k, strip in enumerate(strips):
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", StripAerotriWarning)
-                ground = adjust_to_ground(
-                    strip,
-                    control,
-                    crs,
-                    options=start_options,
-                    blunders=_NO_TESTS,
-                )
-        except GeometryError:
-            continue
-        fill = np.isnan(placed).any(axis=1) & np.isfinite(ground.points).all(axis=1)
-        placed[fill] = ground.points[fill]
-        done[k] = True
-        azimuth = ground.azimuth if azimuth is None else azimuth
-    if azimuth is None:
-        raise GeometryError(
-            "block: no strip has the control for its own similarity (two plan and three "
-            "height points, not in one vertical plane): the block cannot be placed"
-        )
-    while not done.all():
-        shared: list[tuple[int, int, BoolArray]] = []
-        for j in np.flatnonzero(~done):
-            ok = np.isfinite(strips[j].points).all(axis=1) & np.isfinite(placed).all(axis=1)
-            shared.append((int(ok.sum()), int(j), np.asarray(ok, dtype=bool)))
-        count, k, ok = max(shared)
-        if count < MIN_COMMON_POINTS:
-            names = ", ".join(f"'{specs[j].name}'" for j in np.flatnonzero(~done))
-            raise GeometryError(
-                f"block: strip {names} shares {count} point(s) with the rest of the block and "
-                "has too little control of its own (a similarity needs two plan and three "
-                f"height control points, or {MIN_COMMON_POINTS} points common with a "
-                "neighbouring strip): measure common points in the side overlap or add control"
-            )
-        local = _local_frame(crs, placed[ok])
-        fit = similarity_from_points(strips[k].points[ok], local.to_local(placed[ok]))
-        here = np.isfinite(strips[k].points).all(axis=1) & np.isnan(placed).any(axis=1)
-        placed[here] = local.from_local(fit.apply(strips[k].points[here]))
-        done[k] = True
-    return placed, float(azimuth)
-
-
-@dataclass(frozen=True)
-class _LocalFrame:
-    """A Cartesian frame for closed-form similarities: ECEF minus an origin,
-    or the CRS coordinates themselves for ``"local"`` (metres either way)."""
-
-    crs: GroundCRS
-    origin: FloatArray
-
-    def to_local(self, xyh: FloatArray) -> FloatArray:
-        if self.crs.is_local:
-            return xyh - self.origin
-        ecef: FloatArray = self.crs.to_ecef(xyh) - self.origin
-        return ecef
-
-    def from_local(self, xyz: FloatArray) -> FloatArray:
-        if self.crs.is_local:
-            return xyz + self.origin
-        back: FloatArray = self.crs.from_ecef(xyz + self.origin)
-        return back
-
-
-def _local_frame(crs: GroundCRS, xyh: FloatArray) -> _LocalFrame:
-    origin = xyh.mean(axis=0) if crs.is_local else crs.to_ecef(xyh).mean(axis=0)
-    return _LocalFrame(crs, origin)
-
-
-@dataclass
-class _Units:
-    """The units of the transformation and how photos and strips map to them."""
-
-    rows: UnitObservations
-    start: UnitTransforms
-    unit_strip: IntArray
-    photo_strip: IntArray
-    photo_in_strip: IntArray
-    photo_units: IntArray
-    centres0: FloatArray
-    tie_rejected: BoolArray  # rows the strips' tie tests left out
-    unit_sigma: FloatArray  # (U, 3) a strip point's sigma, m ("strips"; NaN for models)
-
-
-def _strip_point_weights(
-    strip: StripModel, fit: SimilarityTransform, pts: IntArray, iso: FloatArray
-) -> FloatArray:
-    """Weights (n, 3, 3) of a strip's points in the block of independent
-    strips: the shape of each point's information from its rays (the sum
-    over its determinations the tie test kept, as the ground stage weighs
-    one model's points), scaled so that their median trace is that of the
-    strip's own precision ``iso`` (the RMS of its tie points' double
-    determinations: the chained strip is less precise than its rays say).
-
-    Rays rather than one sigma for all: a point seen on two photos at the
-    image edge and one seen on five in the middle differ several times in
-    precision, in height most (on simulated drone blocks the check points'
-    height error fell by a fifth to a quarter; on the real FC300X block from
-    0.125 / 0.045 to 0.030 / 0.025 m)."""
-    info, _, _ = model_weights(strip, fit, float(np.median(strip.observations.sigma)))
-    keep = strip.kept_determinations
-    n = strip.points.shape[0]
-    total = np.zeros((n, 3, 3))
-    np.add.at(total, strip.model_point[keep], info[keep])
-    out = total[pts]
-    good = np.all(np.linalg.eigvalsh(out) > 0, axis=1)
-    if not good.any():
-        flat: FloatArray = np.broadcast_to(iso, (pts.size, 3, 3)).copy()
-        return flat
-    factor = float(np.trace(iso)) / float(np.median(np.einsum("nii->n", out[good])))
-    shaped: FloatArray = out * factor
-    shaped[~good] = iso  # a point its kept rays do not fix: the strip's precision
-    return shaped
-
-
-def _units(
-    observations: ImageObservations,
-    strips: tuple[StripModel, ...],
-    start_work: FloatArray,
-    construction: Construction,
-) -> _Units:
-    """The rows of every unit: a strip's points and centres weighted by the
-    strip's own precision (``"strips"``), or each model's determinations and
-    its two centres weighted by their rays (``"models"``, as the ground stage
-    weights one strip's models)."""
-    n_points = observations.n_points
-    photo_index = {pid: i for i, pid in enumerate(observations.photo_ids)}
-    photo_strip = np.zeros(observations.n_photos, dtype=np.intp)
-    photo_in_strip = np.zeros(observations.n_photos, dtype=np.intp)
-    photo_units = np.zeros((observations.n_photos, 2), dtype=np.intp)
-    centres0 = np.zeros((observations.n_photos, 3))
-    units, points, xyz, weights, unit_strip, rejected = [], [], [], [], [], []
-    unit_sigma: list[list[float]] = []
-    scale, rotation, translation = [], [], []
-    n_units = 0
-    for k, strip in enumerate(strips):
-        ok = np.isfinite(strip.points).all(axis=1)
-        fit = similarity_from_points(strip.points[ok], start_work[ok])
-        photos = np.array([photo_index[p] for p in strip.photo_ids], dtype=np.intp)
-        photo_strip[photos] = k
-        photo_in_strip[photos] = np.arange(photos.size)
-        centres0[photos] = fit.apply(strip.centres)
-        if construction is Construction.STRIPS:
-            sigma_plan, sigma_height = _strip_sigmas(strip, fit.scale)
-            w = np.diag([sigma_plan**-2, sigma_plan**-2, sigma_height**-2])
-            pts = np.flatnonzero(ok)
-            units.append(np.full(pts.size + photos.size, n_units, dtype=np.intp))
-            points.append(np.concatenate([pts, n_points + photos]))
-            xyz.append(np.vstack([strip.points[pts], strip.centres]))
-            weights.append(
-                np.concatenate(
-                    [
-                        _strip_point_weights(strip, fit, pts, w),
-                        np.broadcast_to(w, (photos.size, 3, 3)),
-                    ]
-                )
-            )
-            unit_sigma.append([sigma_plan, sigma_plan, sigma_height])
-            rejected.append(np.zeros(pts.size + photos.size, dtype=bool))
-            photo_units[photos] = n_units
-            n_here = 1
-        else:
-            info, c_left, c_right = model_weights(
-                strip, fit, float(np.median(strip.observations.sigma))
-            )
-            pos = strip.model_photo_positions
-            model = np.arange(strip.n_models)
-            units.append(n_units + np.concatenate([strip.model, model, model]))
-            points.append(
-                np.concatenate(
-                    [strip.model_point, n_points + photos[pos[:-1]], n_points + photos[pos[1:]]]
-                )
-            )
-            xyz.append(
-                np.vstack([strip.model_points, strip.centres[pos[:-1]], strip.centres[pos[1:]]])
-            )
-            weights.append(np.concatenate([info, c_left, c_right]))
-            # the determinations the strip's tie test left out stay out, as
-            # in one strip's ground stage (the centres are not tested there)
-            rejected.append(
-                np.concatenate(
-                    [~strip.kept_determinations, np.zeros(2 * strip.n_models, dtype=bool)]
-                )
-            )
-            unit_sigma += [[np.nan] * 3] * strip.n_models
-            # a photo's attitude: the mean of the models it belongs to
-            as_left = np.searchsorted(pos[:-1], np.arange(photos.size), side="right") - 1
-            photo_units[photos, 0] = n_units + np.clip(as_left, 0, strip.n_models - 1)
-            photo_units[photos, 1] = n_units + np.clip(
-                as_left - (np.isin(np.arange(photos.size), pos[1:])), 0, strip.n_models - 1
-            )
-            n_here = strip.n_models
-        unit_strip.append(np.full(n_here, k, dtype=np.intp))
-        scale.append(np.full(n_here, fit.scale))
-        rotation.append(np.broadcast_to(fit.rotation, (n_here, 3, 3)))
-        translation.append(np.broadcast_to(fit.translation, (n_here, 3)))
-        n_units += n_here
-    rows = UnitObservations(
-        np.concatenate(units), np.concatenate(points), np.vstack(xyz), np.concatenate(weights)
-    )
-    start = UnitTransforms(
-        np.concatenate(scale),
-        np.concatenate(rotation).copy(),
-        np.concatenate(translation).copy(),
-        np.zeros((n_units, 3)),
-    )
-    return _Units(
-        rows,
-        start,
-        np.concatenate(unit_strip),
-        photo_strip,
-        photo_in_strip,
-        photo_units,
-        centres0,
-        np.concatenate(rejected),
-        np.asarray(unit_sigma, dtype=np.float64),
-    )
-
-
-def _strip_sigmas(strip: StripModel, scale: float) -> tuple[float, float]:
-    """A strip point's standard deviation in plan and in height, metres: the
-    RMS of its tie points' double determinations over √2 (each difference
-    holds two determinations), times the strip's scale."""
-    tie = np.asarray(strip.tie_difference, dtype=np.float64).reshape(-1, 3)
-    if tie.shape[0] < 3:
-        raise GeometryError(
-            f"block: a strip of {strip.n_models} model(s) with {tie.shape[0]} tie point(s) "
-            "gives no precision of its points; a strip of a block needs tie points"
-        )
-    plan = float(np.sqrt(np.mean(tie[:, 0] ** 2 + tie[:, 1] ** 2) / 2.0 / 2.0))
-    height = float(np.sqrt(np.mean(tie[:, 2] ** 2) / 2.0))
-    return max(plan * scale, 1e-6), max(height * scale, 1e-6)
-
-
-@dataclass
-class _Solution:
-    result: SimultaneousResult
-    guess: FloatArray
 
 
 def _strip_sums(
@@ -653,293 +285,6 @@ def _formation_notes(p: _Problem, result: BlockResult) -> tuple[str, ...]:
     return tuple(notes)
 
 
-#: A strip's polynomial term whose effect the block determines worse than
-#: this many times a point of the strip is held at 0: it would add more
-#: noise than the bending it removes (control at the block's corners only
-#: leaves the bending of all strips together undetermined: a film block
-#: missed its check points by 3.4 m).
-_TERM_NOISE_RATIO = 2.0
-_AXES = ("along", "across", "up")
-_MONOMIALS = ("uv", "u²", "u³")
-
-
-def _determined_terms(p: _Problem) -> tuple[_Problem, list[str]]:
-    """The problem with every strip polynomial term that the control and the
-    common points do not determine held at 0, and a warning per strip
-    naming them."""
-    if p.polynomial is None:
-        return p, []
-    res = _solve(p, p.use_xy, p.use_z, None, statistics=False).result
-    if res.coefficient_variance is None:
-        return p, []
-    poly = p.polynomial
-    assert p.unit_sigma is not None  # set with the strips' rows
-    sigma = p.unit_sigma  # a strip point's sigma along its axes (m)
-    effect = (
-        res.transforms.scale[:, None]
-        * poly.half_length[:, None]
-        * np.sqrt(np.maximum(res.coefficient_variance, 0.0))
-    )  # the term's standard deviation at the strip's end, metres
-    weak = effect > _TERM_NOISE_RATIO * np.tile(sigma, poly.degree)
-    if not weak.any():
-        return p, []
-    notes = []
-    for u in np.flatnonzero(weak.any(axis=1)):
-        terms = ", ".join(f"{_MONOMIALS[j // 3]} {_AXES[j % 3]}" for j in np.flatnonzero(weak[u]))
-        notes.append(
-            f"strip '{p.specs[int(p.unit_strip[u])].name}': polynomial term(s) {terms} left "
-            "out: the control and the common points do not determine them (more control "
-            "along the block's edges would)"
-        )
-    return replace(p, polynomial=poly.without(weak)), notes
-
-
-def _solve(
-    p: _Problem,
-    use_xy: BoolArray,
-    use_z: BoolArray,
-    previous: _Solution | None,
-    keep_rows: BoolArray | None = None,
-    *,
-    statistics: bool = True,
-) -> _Solution:
-    """The transformation, with passes for control given in plan or height only
-    (their other coordinates from the adjusted point, as the ground stage);
-    ``statistics``: the control's tests (cofactors) at the end."""
-    active = use_xy | use_z
-    guess = (
-        np.where(np.isnan(p.given), p.work.from_work(p.points0[p.idx]), p.given)
-        if previous is None
-        else previous.guess
-    )
-    starts, points0 = (
-        (p.start, p.points0)
-        if previous is None
-        else (
-            previous.result.transforms,
-            np.where(np.isfinite(previous.result.points), previous.result.points, p.points0),
-        )
-    )
-    guessed = bool(np.isnan(p.given[active]).any())
-    n_total = p.observations.n_points + p.observations.n_photos
-    r = p.rows
-    rows = (
-        r
-        if keep_rows is None
-        else UnitObservations(
-            r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
-        )
-    )
-    result = None
-    for n_pass in range(1, _MAX_PASSES + 1):
-        target = p.work.to_work(guess)
-        target[~use_xy, :2] = np.nan
-        target[~use_z, 2] = np.nan
-
-        def solve(
-            start: UnitTransforms,
-            points0: FloatArray,
-            statistics: bool,
-            target: FloatArray = target,
-        ) -> SimultaneousResult:
-            return adjust_units(
-                rows,
-                p.unit_strip.shape[0],
-                n_total,
-                start=start,
-                points0=points0,
-                control_point=p.idx[active],
-                control_xyz=target[active],
-                control_sigma=p.sigma[active],
-                max_iterations=p.max_iterations,
-                polynomial=p.polynomial,
-                statistics=statistics,
-            )
-
-        # the control's cofactors (the costly part of a large block) only for
-        # the pass that is the last
-        last = not guessed or n_pass == _MAX_PASSES
-        result = solve(starts, points0, statistics=last and statistics)
-        if last:
-            break
-        adjusted = p.work.from_work(result.points[p.idx])
-        new_guess = np.where(np.isnan(p.given), adjusted, p.given)
-        change = float(np.nanmax(np.abs(new_guess - guess), initial=0.0))
-        if change < _PASS_TOLERANCE_M:  # converged: once more from it, with the statistics
-            if statistics:
-                filled = np.where(np.isfinite(result.points), result.points, points0)
-                result = solve(result.transforms, filled, statistics=True)
-            guess = new_guess
-            break
-        guess = new_guess
-        starts = result.transforms
-        points0 = np.where(np.isfinite(result.points), result.points, points0)
-    assert result is not None
-    return _Solution(result, guess)
-
-
-def _snoop(
-    p: _Problem, blunders: BlunderOptions
-) -> tuple[_Solution, BoolArray, BoolArray, BoolArray, tuple[Rejection, ...]]:
-    """Data snooping, one rejection at a time until nothing fails: the control
-    by Baarda's w (never a component the block cannot spare: kept and
-    flagged), then the determinations of the points in their units by their
-    3-D residuals against chi-square(3), as the ground stage tests a strip's
-    models."""
-    use_xy, use_z = p.use_xy.copy(), p.use_z.copy()
-    keep_rows = (
-        np.ones(p.rows.unit.shape[0], dtype=bool) if p.tie_rejected is None else ~p.tie_rejected
-    )
-    n_det = int((p.rows.point < p.observations.n_points).sum())
-    n_control = int(2 * use_xy.sum() + use_z.sum())
-    rejections: list[Rejection] = []
-    flagged: set[tuple[int, int]] = set()
-    sol = _solve(p, use_xy, use_z, None, keep_rows)
-    sigma0 = float(sol.result.sigma0)
-    while blunders.testing:
-        found = _control_test(p, sol, use_xy, use_z, blunders, flagged)
-        if found is None:
-            found = _determination_test(p, sol, keep_rows, blunders)
-        if found is None:
-            break
-        rejection, apply = found
-        rejections.append(rejection)
-        if not (blunders.rejecting and rejection.applied):
-            if not blunders.rejecting:
-                break
-            continue
-        apply(use_xy, use_z, keep_rows)
-        if n_control - int(2 * use_xy.sum() + use_z.sum()) > blunders.max_fraction * n_control:
-            raise GeometryError(_too_much_control_fails(p, blunders, sigma0))
-        if (~keep_rows).sum() > blunders.max_fraction * n_det:
-            raise GeometryError(
-                f"block: more than {blunders.max_fraction:.0%} of the points' determinations "
-                "fail the blunder test; the image coordinates or point ids cannot be trusted"
-            )
-        sol = _solve(p, use_xy, use_z, sol, keep_rows)
-    return sol, use_xy, use_z, keep_rows, tuple(rejections)
-
-
-def _too_much_control_fails(p: _Problem, blunders: BlunderOptions, sigma0: float) -> str:
-    """The message of a block whose control fails the tests beyond
-    ``max_fraction`` (as the ground stage of one strip stops).  With one
-    similarity per strip the usual cause is the strips' own bending, which a
-    similarity cannot follow (long strips of dependent models drift in scale
-    and azimuth): the good control then fails by the dozen."""
-    head = (
-        f"block: more than {blunders.max_fraction:.0%} of the control observations fail the "
-        f"blunder test (sigma0 {sigma0:.3g} before the tests)"
-    )
-    if p.construction is Construction.STRIPS:
-        return (
-            f"{head}: one similarity per strip cannot follow the strips' bending, or the "
-            'control has errors; use block = "models" (every model its own similarity), '
-            "and check the control"
-        )
-    return f"{head}; the control cannot be trusted"
-
-
-_Apply = Callable[[BoolArray, BoolArray, BoolArray], None]
-
-
-def _control_test(
-    p: _Problem,
-    sol: _Solution,
-    use_xy: BoolArray,
-    use_z: BoolArray,
-    blunders: BlunderOptions,
-    flagged: set[tuple[int, int]],
-) -> tuple[Rejection, _Apply] | None:
-    """The control component with the largest |w| beyond the critical value."""
-    active = use_xy | use_z
-    w = np.full((p.idx.shape[0], 3), np.nan)
-    w[active] = sol.result.control_w
-    w[~use_xy, :2] = np.nan
-    w[~use_z, 2] = np.nan
-    n_tests = int(np.isfinite(w).sum())
-    critical = blunders.critical("control", max(n_tests, 1))
-    score = np.where(np.isfinite(w), np.abs(w), -np.inf)
-    for row, comp in flagged:
-        score[row, comp] = -np.inf
-    row, comp = (int(v) for v in np.unravel_index(int(np.argmax(score)), score.shape))
-    if not score[row, comp] > critical:
-        return None
-    plan = comp < 2
-    spare = bool(use_xy.sum() > 2) if plan else bool(use_z.sum() > 3)
-    if not spare:
-        flagged.add((row, comp))
-    resid = sol.result.control_residuals[int(active[: row + 1].sum()) - 1]
-
-    def apply(xy: BoolArray, z: BoolArray, keep: BoolArray) -> None:
-        if plan:
-            xy[row] = False
-        else:
-            z[row] = False
-
-    return (
-        Rejection(
-            stage="control",
-            point=p.control.point_ids[p.control_rows[row]],
-            photos=(),
-            component="XY" if plan else "H",
-            residual=float(np.hypot(resid[0], resid[1]) if plan else resid[2]),
-            unit="m",
-            w=float(w[row, comp]),
-            critical=critical,
-            applied=blunders.rejecting and spare,
-            effect=(
-                "left out of the block's transformation"
-                if spare
-                else "kept: the block cannot spare it (flagged); check this point"
-            ),
-        ),
-        apply,
-    )
-
-
-def _determination_test(
-    p: _Problem, sol: _Solution, keep_rows: BoolArray, blunders: BlunderOptions
-) -> tuple[Rejection, _Apply] | None:
-    """The point determination whose 3-D residual fails chi-square(3) most
-    (``row_statistic`` times 3, scaled down by its median over chi-square(3)'s
-    when the data are noisier than declared, never up)."""
-    n_points = p.observations.n_points
-    kept = np.flatnonzero(keep_rows)
-    stat = 3.0 * sol.result.row_statistic
-    stat = np.where((p.rows.point[kept] < n_points) & np.isfinite(stat), stat, np.nan)
-    finite = stat[np.isfinite(stat)]
-    if finite.size == 0:
-        return None
-    stat = stat / max(1.0, float(np.median(finite)) / _CHI2_3_MEDIAN)
-    critical = blunders.critical("models", int(finite.size), dof=3)
-    w = np.sqrt(np.where(np.isfinite(stat), stat, 0.0))
-    k = int(np.argmax(w))
-    if not w[k] > critical:
-        return None
-    row = int(kept[k])
-    unit = int(p.rows.unit[row])
-    strip = p.specs[int(p.unit_strip[unit])].name
-
-    def apply(xy: BoolArray, z: BoolArray, keep: BoolArray, row: int = row) -> None:
-        keep[row] = False
-
-    return (
-        Rejection(
-            stage="models",
-            point=p.observations.point_ids[int(p.rows.point[row])],
-            photos=(f"strip {strip}",),
-            component="point",
-            residual=float(np.linalg.norm(sol.result.residuals[k])),
-            unit="m",
-            w=float(w[k]),
-            critical=critical,
-            applied=blunders.rejecting,
-            effect="determination left out of the block's transformation",
-        ),
-        apply,
-    )
-
-
 def _in_work_frame(p: _Problem, sol: _Solution) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Points (P, 3), projection centres (M, 3) and image -> work rotations
     (M, 3, 3) of the block's solution; a photo's attitude is the mean of its
@@ -968,6 +313,7 @@ def _refine(
     max_iterations: int,
     gnss: GnssCentres | None = None,
     imu: ImuAttitudes | None = None,
+    self_calibration: SelfCalibration | None = None,
 ) -> BlockResult:
     """The bundle adjustment of the whole block from its solution, in the work
     frame (plan-only and height-only control keep the block's value of their
@@ -999,6 +345,7 @@ def _refine(
         blunders=blunders,
         max_iterations=max_iterations,
         compute_precision=False,
+        self_calibration=self_calibration,
     )
     work = p.work
     points_work = np.where(fr.point_used[:, None], fr.points, np.nan)
@@ -1026,6 +373,8 @@ def _refine(
     used[~used_xy, :2] = np.nan
     used[~used_z, 2] = np.nan
     notes = tuple(r.describe() for r in fr.rejections)
+    if fr.self_calibration is not None:
+        notes = fr.self_calibration.notes + notes
     return replace(
         block,
         points=work.from_work(points_work),
@@ -1043,6 +392,7 @@ def _refine(
         block_check_statistics=block.check_statistics,
         gnss=gnss_out,
         imu=imu_out,
+        self_calibration=fr.self_calibration,
     )
 
 
@@ -1160,6 +510,7 @@ def _free_block(
         r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
     )
     idx = np.unique(p.idx[active])
+    idx = idx[np.all(np.isfinite(res.points[idx]), axis=1)]  # a point may have lost its rows
     extent = float(np.max(np.ptp(res.points[idx], axis=0), initial=0.0))
     free = adjust_units(
         rows,
@@ -1173,6 +524,7 @@ def _free_block(
         max_iterations=p.max_iterations,
         statistics=False,
         polynomial=p.polynomial,
+        order=_band_order(p),
     )
     return free.transforms
 

@@ -26,15 +26,17 @@ its selected inverse.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+from ..geometry.camera_model import CameraModel
 from ..geometry.collinearity import collinearity_jacobians, project
 from ..geometry.normals import (
     FormedNormals,
@@ -48,9 +50,17 @@ from ..geometry.normals import (
 from ..geometry.rotation import matrix_from_rotvec, rotvec_from_matrix, skew
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
-from ..results import BundleResult
+from ..results import BundleResult, CameraEstimate
 
-__all__ = ["BundleResult", "bundle_adjust"]
+__all__ = ["BundleResult", "CameraUndetermined", "bundle_adjust"]
+
+
+class CameraUndetermined(GeometryError):
+    """A camera parameter of a self-calibration (``name``) is not determined."""
+
+    def __init__(self, message: str, name: str) -> None:
+        super().__init__(message)
+        self.name = name
 
 #: Relative pivot (of the Jacobi-scaled reduced matrix, whose diagonal is 1)
 #: below which the reduced normal matrix is taken as singular.
@@ -141,6 +151,11 @@ class _Problem:
     control_points: IntArray  # points with control
     gnss_photos: IntArray  # photos with a GNSS centre
     imu_photos: IntArray  # photos with an IMU attitude
+    camera: CameraModel | None = None  # self-calibration: the border's parameters
+
+    @property
+    def n_camera(self) -> int:
+        return 0 if self.camera is None else len(self.camera.estimated)
 
     @property
     def n_observations(self) -> int:
@@ -222,6 +237,7 @@ def _make_problem(
     gnss_sigma: ArrayLike | None,
     imu_rotations: ArrayLike | None,
     imu_sigma: ArrayLike | None,
+    camera: CameraModel | None = None,
 ) -> _Problem:
     m, p = centres.shape[0], points.shape[0]
     photo = np.asarray(obs.photo, dtype=np.intp)
@@ -268,6 +284,7 @@ def _make_problem(
         unit_names=tuple(obs.photo_ids),
         point_names=tuple(obs.point_ids),
         parameter_names=_PHOTO_PARAMETER_NAMES,
+        n_border=0 if camera is None else len(camera.estimated),
     )
     return _Problem(
         photo_ids=tuple(obs.photo_ids),
@@ -288,6 +305,7 @@ def _make_problem(
         control_points=np.flatnonzero(np.any(cw > 0, axis=1)),
         gnss_photos=np.flatnonzero(np.any(gw > 0, axis=1)),
         imu_photos=np.flatnonzero(np.any(iw > 0, axis=1)),
+        camera=camera,
     )
 
 
@@ -301,6 +319,7 @@ class _State:
     centres: FloatArray
     rotations: FloatArray
     points: FloatArray
+    camera: FloatArray = field(default_factory=lambda: np.zeros(0))  # (k,) increments
 
 
 @dataclass(frozen=True)
@@ -329,7 +348,7 @@ def _cost(prob: _Problem, state: _State) -> float:
     xy, v = project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
     if not np.all(v[:, 2] < 0.0) or not np.all(np.isfinite(xy)):
         return float("inf")
-    e_img = (xy - prob.xy) / prob.sigma[:, None]
+    e_img = (xy - _observed(prob, state)) / prob.sigma[:, None]
     e_ctrl = state.points - prob.control_xyz
     e_gnss = state.centres - prob.gnss_xyz
     e_imu = _imu_residual(state.rotations, prob.imu_rot)
@@ -339,6 +358,14 @@ def _cost(prob: _Problem, state: _State) -> float:
         + np.sum(prob.gnss_weight * e_gnss**2)
         + np.sum(prob.imu_weight * e_imu**2)
     )
+
+
+def _observed(prob: _Problem, state: _State) -> FloatArray:
+    """The image observations corrected by the camera's parameters (mm)."""
+    if prob.camera is None:
+        return prob.xy
+    out: FloatArray = prob.xy + prob.camera.correction(prob.xy, state.camera)
+    return out
 
 
 def _normals(prob: _Problem, state: _State) -> _Normals:
@@ -351,14 +378,18 @@ def _normals(prob: _Problem, state: _State) -> _Normals:
     xy, _, jac_photo, jac_point = collinearity_jacobians(
         state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c
     )
-    res = xy - prob.xy
+    res = xy - _observed(prob, state)
     inv_s = 1.0 / prob.sigma
+    border = None
+    if prob.camera is not None:  # the camera's columns: d(x - (x_obs + Δ))/dθ = -dΔ/dθ
+        border = -prob.camera.partials(prob.xy, state.camera) * inv_s[:, None, None]
     image = UnitPointRows(
         prob.photo,
         prob.point,
         jac_photo * inv_s[:, None, None],
         jac_point * inv_s[:, None, None],
         res * inv_s[:, None],
+        border_jacobian=border,
     )
     cp = prob.control_points
     control = PointRows(
@@ -403,6 +434,15 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
     try:
         solution = normals.formed.solve(lam)
     except SingularNormalsError as exc:
+        if exc.kind == "border" and prob.camera is not None:
+            name = prob.camera.estimated[exc.index]
+            raise CameraUndetermined(
+                f"the camera parameter {name} is not determined: the exterior orientation "
+                "absorbs it (e.g. c with the flying height over flat ground, x0 and y0 with "
+                'the centres), or other parameters do; leave it out of self_calibration or '
+                'use "auto"',
+                name,
+            ) from None
         if exc.kind != "unit":
             raise
         raise GeometryError(
@@ -420,6 +460,7 @@ def _apply(state: _State, step: _Reduced) -> _State:
         centres=state.centres + step.d_photo[:, :3],
         rotations=state.rotations @ matrix_from_rotvec(step.d_photo[:, 3:]),
         points=state.points + step.d_point,
+        camera=state.camera + step.solution.border_step if state.camera.size else state.camera,
     )
 
 
@@ -515,6 +556,8 @@ def bundle_adjust(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     tolerance: float = 1e-10,
     compute_precision: bool = True,
+    camera: CameraModel | None = None,
+    camera0: ArrayLike | None = None,
 ) -> BundleResult:
     """Least-squares bundle adjustment of a strip by the collinearity equations.
 
@@ -554,6 +597,14 @@ def bundle_adjust(
         metres relative to the mean point depth below the photos).
     compute_precision : bool
         Compute ``point_std``, ``centre_std`` and ``rotation_std`` (else NaN).
+    camera : CameraModel, optional
+        Self-calibration: the camera parameters estimated with the block, the
+        dense border of the normal equations (method.md 6B, 6C); the image
+        observations are corrected by ``Δ(x_obs; θ)``
+        (:mod:`strip_aerotri.geometry.camera_model`) and the observation
+        equation is ``x(S, R, X) - (x_obs + Δ(x_obs; θ))``.
+    camera0 : array_like, shape (k,), optional
+        Start values of the camera parameters (default 0: the start camera).
 
     Returns
     -------
@@ -654,10 +705,14 @@ def bundle_adjust(
         gnss_sigma,
         imu_rotations,
         imu_sigma,
+        camera,
     )
-    state = _State(centres.copy(), rotations.copy(), points.copy())
+    start_camera = np.zeros(prob.n_camera) if camera0 is None else np.asarray(camera0, float)
+    if start_camera.shape != (prob.n_camera,):
+        raise ValueError(f"Expected `camera0` of shape ({prob.n_camera},), got {start_camera.shape}")
+    state = _State(centres.copy(), rotations.copy(), points.copy(), start_camera.copy())
     depth = _check_datum_and_sides(prob, state, observations)
-    redundancy = prob.n_observations - 6 * m - 3 * p
+    redundancy = prob.n_observations - 6 * m - 3 * p - prob.n_camera
 
     def sigma0_of(cost: float) -> float:
         return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
@@ -703,6 +758,7 @@ def bundle_adjust(
         gnss_residual_cofactor=precision.gnss_cofactor,
         imu_residual_cofactor=precision.imu_cofactor,
         image_redundancy=precision.image_redundancy,
+        camera=precision.camera,
     )
 
 
@@ -856,6 +912,26 @@ class _Precision(NamedTuple):
     gnss_cofactor: FloatArray  # (M, 3, 3)
     imu_cofactor: FloatArray  # (M, 3, 3)
     image_redundancy: FloatArray  # (K, 2)
+    camera: CameraEstimate | None = None
+
+
+#: Share of a camera parameter's information left once photos and points are
+#: estimated (``C_ii / G_ii``) below which it counts as not determined.
+_CAMERA_RANK_TOL = 1e-10
+
+
+def _check_camera(camera: CameraEstimate) -> None:
+    """CameraUndetermined when the orientation absorbs a camera parameter."""
+    share = camera.conditional_information / np.maximum(camera.information, 1e-300)
+    weak = ~(share > _CAMERA_RANK_TOL)
+    if np.any(weak):
+        name = camera.names[int(np.flatnonzero(weak)[0])]
+        raise CameraUndetermined(
+            f"the camera parameter {name} is not determined: the exterior orientation "
+            "absorbs it (e.g. c with the flying height over flat ground, x0 and y0 with "
+            'the centres); leave it out of self_calibration or use "auto"',
+            name,
+        )
 
 
 def _precision_products(
@@ -874,8 +950,22 @@ def _precision_products(
     gnss_cofactor = np.full((m, 3, 3), np.nan)
     imu_cofactor = np.full((m, 3, 3), np.nan)
     image_redundancy = np.full((prob.photo.size, 2), np.nan)
-    if compute_precision:
+    camera = None
+    if compute_precision or prob.camera is not None:
         cof = _solve(prob, normals, 0.0).solution.cofactors()
+    if prob.camera is not None:
+        border = normals.image.border_jacobian
+        assert border is not None
+        camera = CameraEstimate(
+            model=prob.camera,
+            values=state.camera,
+            cofactor=cof.border,
+            sigma0=sigma0,
+            information=np.einsum("kri,kri->i", border, border),
+            conditional_information=np.diag(np.linalg.inv(cof.border)),
+        )
+        _check_camera(camera)
+    if compute_precision:
         q_blocks = cof.unit
         q_point = np.diagonal(cof.point, axis1=1, axis2=2)
         image_redundancy = cof.redundancy(normals.image)
@@ -892,5 +982,12 @@ def _precision_products(
             q_imu = j_imu @ q_blocks[:, 3:, 3:] @ np.swapaxes(j_imu, 1, 2)
             imu_cofactor = _residual_cofactor(prob.imu_weight, q_imu)
     return _Precision(
-        point_std, centre_std, rotation_std, e_imu, gnss_cofactor, imu_cofactor, image_redundancy
+        point_std,
+        centre_std,
+        rotation_std,
+        e_imu,
+        gnss_cofactor,
+        imu_cofactor,
+        image_redundancy,
+        camera,
     )

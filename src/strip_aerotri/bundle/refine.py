@@ -32,6 +32,7 @@ control no longer change by more than 1 µm.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 from collections.abc import Sequence
@@ -44,7 +45,7 @@ from ..errors import StripAerotriWarning
 from ..frames import LocalTangentFrame, TangentWorkFrame, WorkFrame, enu_residuals
 from ..geometry.rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
 from ..observations import ControlPoints, GnssCentres, ImuAttitudes
-from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions
+from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import (
     AccuracyStatistics,
     FrameRefinement,
@@ -54,6 +55,7 @@ from ..results import (
     Rejection,
     StripResult,
 )
+from .selfcal import final_outcome
 from .snooping import GNSS_STAGE, IMU_STAGE, _directional_tests, refine_frame
 
 __all__ = [
@@ -242,6 +244,7 @@ def refine_bundle(
     blunders: BlunderOptions | None = None,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     compute_precision: bool = True,
+    self_calibration: SelfCalibration | None = None,
 ) -> RefinedResult:
     """Refine a strip-method result by a rigorous bundle adjustment.
 
@@ -273,6 +276,9 @@ def refine_bundle(
         numbers of the image coordinates (the selected inverse of the normal
         matrix, about one more iteration; see
         :func:`~strip_aerotri.bundle.bundle_adjust`).
+    self_calibration : SelfCalibration, optional
+        Estimate the camera with the photos and points
+        (:mod:`strip_aerotri.bundle.selfcal`).
 
     Returns
     -------
@@ -335,6 +341,7 @@ def refine_bundle(
         blunders=blunders,
         max_iterations=max_iterations,
         compute_precision=compute_precision,
+        self_calibration=self_calibration,
     )
     fr, adjusted_crs, rejections, notes = (
         passes.last,
@@ -362,6 +369,8 @@ def refine_bundle(
         dropped = [control.point_ids[r] for r in ctrl.rows[~keep_rows & ~check]]
         notes.append(f"control point(s) {', '.join(map(repr, dropped[:5]))} left out")
     notes += [r.describe() for r in rejections]
+    if fr.self_calibration is not None:
+        notes += list(fr.self_calibration.notes)
     return RefinedResult(
         photo_ids=obs.photo_ids,
         point_ids=obs.point_ids,
@@ -398,6 +407,7 @@ def refine_bundle(
         n_observations=fr.bundle.n_observations,
         gnss=gnss_out,
         imu=imu_out,
+        self_calibration=fr.self_calibration,
     )
 
 
@@ -535,6 +545,7 @@ def _passes(
     blunders: BlunderOptions | None,
     max_iterations: int,
     compute_precision: bool,
+    self_calibration: SelfCalibration | None = None,
 ) -> _Passes:
     """Bundle adjustments in the frame until the control settles.
 
@@ -559,6 +570,7 @@ def _passes(
     iterations = 0
     control_frame_prev: FloatArray | None = None
     notes: list[str] = []
+    spec, chosen = self_calibration, None
     for _ in range(_MAX_PASSES):
         t0 = time.perf_counter()
         filled = np.where(np.isnan(given_crs), adjusted_crs[idx], given_crs)
@@ -591,8 +603,28 @@ def _passes(
             gnss_axes=aux.gnss_axes,
             gnss_used=gnss_used,
             imu_used=imu_used,
+            self_calibration=spec,
         )
         t_bundle += time.perf_counter() - t0
+        if self_calibration is not None and fr.self_calibration is not None:
+            # later passes estimate what the first kept; the outcome keeps its reasons
+            chosen = chosen or fr.self_calibration
+            fr = dataclasses.replace(
+                fr,
+                self_calibration=dataclasses.replace(
+                    final_outcome(self_calibration, chosen, fr.bundle.camera),
+                    cells=fr.self_calibration.cells,
+                ),
+            )
+            kept = chosen.kept
+            spec = (
+                None
+                if not kept
+                else SelfCalibration(
+                    "ebner12" if chosen.family == "ebner" else kept,
+                    self_calibration.flight_direction,
+                )
+            )
         iterations += fr.iterations
         rejections.extend(r for r in fr.rejections if r.applied)
         # what would be rejected ("report"): as found in the last pass only

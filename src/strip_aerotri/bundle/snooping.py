@@ -22,9 +22,11 @@ from ..blunders import robust_variance_factor
 from ..errors import GeometryError
 from ..geometry.collinearity import image_jacobian, image_vectors
 from ..observations import ImageObservations
-from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions
-from ..results import BundleResult, FrameRefinement, Rejection
+from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
+from ..geometry.camera_model import CameraModel
+from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
 from .adjust import bundle_adjust, observed_with_sigma
+from .selfcal import ebner_base_mm, final_outcome, residual_cells, start_model
 
 __all__ = ["CONTROL_STAGE", "GNSS_STAGE", "IMAGE_STAGE", "IMU_STAGE", "refine_frame"]
 
@@ -59,6 +61,7 @@ def refine_frame(
     gnss_axes: ArrayLike | None = None,
     gnss_used: ArrayLike | None = None,
     imu_used: ArrayLike | None = None,
+    self_calibration: SelfCalibration | None = None,
 ) -> FrameRefinement:
     """Bundle adjustment in a Cartesian frame with data snooping.
 
@@ -101,6 +104,10 @@ def refine_frame(
         frame axes.
     gnss_used, imu_used : array_like of bool, shape (M,), optional
         GNSS centres / IMU attitudes to start with (default all given).
+    self_calibration : SelfCalibration, optional
+        Estimate the camera with the block (:mod:`strip_aerotri.bundle.selfcal`);
+        ``"auto"`` chooses the parameters before the blunder tests, which
+        then run with the chosen camera.
 
     Returns
     -------
@@ -176,29 +183,24 @@ def refine_frame(
     rounds = iterations = 0
     previous_effect: int | None = None
     state = (inp.centres0, inp.rotations0, inp.points0)
+    camera = _Camera.start(inp, sets, self_calibration, max_iterations)
     while True:
         pt_used = sets.used_points(inp)
         sub, rows, pts = _compact(obs, sets.keep, pt_used)
-        res = bundle_adjust(
+        res = _adjust(
+            inp,
+            sets,
             sub,
-            state[0],
-            state[1],
-            state[2][pts],
-            control_xyz=np.where(sets.ctrl_on[pts], inp.c_xyz[pts], np.nan),
-            control_sigma=np.where(sets.ctrl_on[pts], inp.c_sig[pts], np.inf),
-            gnss_centres=None
-            if inp.g_xyz is None
-            else np.where(sets.g_on[:, None], inp.g_xyz, np.nan),
-            gnss_sigma=None if inp.g_xyz is None else inp.g_sig,
-            imu_rotations=None
-            if inp.i_rot is None
-            else np.where(sets.i_on[:, None, None], inp.i_rot, np.nan),
-            imu_sigma=None if inp.i_rot is None else inp.i_sig,
+            pts,
+            state,
             max_iterations=max_iterations,
             compute_precision=compute_precision,
+            camera=camera.model,
+            camera0=camera.values,
         )
         rounds += 1
         iterations += res.iterations
+        camera = camera.moved(res)
         new_points = np.full((inp.n_points, 3), np.nan)
         new_points[pts] = res.points
         # keep initial values of dropped points for a possible later round
@@ -239,6 +241,9 @@ def refine_frame(
             gnss_rejected=sets.g_rejected.copy(),
             imu_used=sets.i_on.copy(),
             imu_rejected=sets.i_rejected.copy(),
+            self_calibration=camera.outcome(
+                res, obs.xy, np.where(sets.keep[:, None], stats.v_img, np.nan)
+            ),
         )
         if not blunders.testing:
             return result
@@ -259,6 +264,108 @@ def refine_frame(
         rejections.extend(new_rejections)
         sets.reject(picks)
         sets.check_fractions(inp, blunders)
+
+
+def _adjust(
+    inp: _Inputs,
+    sets: _Sets,
+    sub: ImageObservations,
+    pts: IntArray,
+    state: tuple[FloatArray, FloatArray, FloatArray],
+    *,
+    max_iterations: int,
+    compute_precision: bool,
+    camera: CameraModel | None,
+    camera0: FloatArray | None,
+) -> BundleResult:
+    """One bundle adjustment of the observations, control, GNSS and IMU in use."""
+    return bundle_adjust(
+        sub,
+        state[0],
+        state[1],
+        state[2][pts],
+        camera=camera,
+        camera0=camera0,
+        control_xyz=np.where(sets.ctrl_on[pts], inp.c_xyz[pts], np.nan),
+        control_sigma=np.where(sets.ctrl_on[pts], inp.c_sig[pts], np.inf),
+        gnss_centres=None
+        if inp.g_xyz is None
+        else np.where(sets.g_on[:, None], inp.g_xyz, np.nan),
+        gnss_sigma=None if inp.g_xyz is None else inp.g_sig,
+        imu_rotations=None
+        if inp.i_rot is None
+        else np.where(sets.i_on[:, None, None], inp.i_rot, np.nan),
+        imu_sigma=None if inp.i_rot is None else inp.i_sig,
+        max_iterations=max_iterations,
+        compute_precision=compute_precision,
+    )
+
+
+@dataclass(frozen=True)
+class _Camera:
+    """The self-calibration of a refinement: its model, current values and choice."""
+
+    spec: SelfCalibration | None
+    model: CameraModel | None
+    values: FloatArray | None
+    chosen: SelfCalibrationOutcome | None
+
+    @classmethod
+    def start(
+        cls,
+        inp: _Inputs,
+        sets: _Sets,
+        spec: SelfCalibration | None,
+        max_iterations: int,
+    ) -> _Camera:
+        """The model to start with; ``"auto"`` chooses it on the data as given."""
+        if spec is None:
+            return cls(None, None, None, None)
+        obs = inp.obs
+        pt_used = sets.used_points(inp)
+        sub, _, pts = _compact(obs, sets.keep, pt_used)
+        c_mm = float(obs.principal_distance)
+
+        # each trial starts from the last one's photos and points (a few steps less)
+        last = [(inp.centres0, inp.rotations0, inp.points0.copy())]
+
+        def adjust(model: CameraModel | None, start: FloatArray | None) -> BundleResult:
+            res = _adjust(
+                inp,
+                sets,
+                sub,
+                pts,
+                last[0],
+                max_iterations=max_iterations,
+                compute_precision=False,
+                camera=model,
+                camera0=start,
+            )
+            points = last[0][2].copy()
+            points[pts] = res.points
+            last[0] = (res.centres, res.rotations, points)
+            return res
+
+        base = ebner_base_mm(inp.centres0, inp.points0[pts], c_mm)
+        model, values, chosen = start_model(spec, adjust, c_mm, base)
+        return cls(spec, model, values, chosen)
+
+    def moved(self, res: BundleResult) -> _Camera:
+        """The camera of the next round starts from this round's estimate."""
+        if res.camera is None:
+            return self
+        return dataclasses.replace(self, values=res.camera.values)
+
+    def outcome(
+        self, res: BundleResult, xy: FloatArray, residuals_mm: FloatArray
+    ) -> SelfCalibrationOutcome | None:
+        """What was estimated, kept and held, with the residuals over the format."""
+        if self.spec is None:
+            return None
+        out = final_outcome(self.spec, self.chosen, res.camera)
+        if res.camera is None:
+            return out
+        return dataclasses.replace(out, cells=residual_cells(res.camera, xy, residuals_mm))
 
 
 class _Inputs(NamedTuple):
@@ -466,7 +573,9 @@ class _Sets:
         if n_ctrl_rej > limit * max(self.n_ctrl_start, 1):
             raise GeometryError(
                 f"bundle adjustment: more than {limit:.0%} of the control "
-                "observations fail the blunder test; the control cannot be trusted"
+                "observations fail the blunder test; the control cannot be trusted, or "
+                "uncorrected camera errors bend the block (when many points fail together, "
+                'add [adjustment] self_calibration = "auto")'
             )
         for stage, what, given_k, rejected_k in (
             (GNSS_STAGE, "GNSS centres", inp.g_given, self.g_rejected),
@@ -515,6 +624,8 @@ def _round_statistics(
         new_points[obs.point[rows_t]],
     )
     v_all[rows_t] = -obs.principal_distance * vv[:, :2] / vv[:, 2:3] - obs.xy[rows_t]
+    if res.camera is not None:  # computed minus corrected observed
+        v_all[rows_t] -= res.camera.model.correction(obs.xy[rows_t], res.camera.values)
 
     ctrl_on, c_sig, given = sets.ctrl_on, inp.c_sig, inp.c_given
     weight_sub = np.where(ctrl_on[pts], 1.0 / np.where(ctrl_on[pts], c_sig[pts], 1.0) ** 2, 0)
@@ -529,7 +640,8 @@ def _round_statistics(
             sub, res.centres, res.rotations, res.points, weight_sub
         )
         free = float(np.sum(1.0 - h_sub))
-        rho = max(_MIN_PHOTO_FACTOR, 1.0 - 6.0 * m / free) if free > 0 else _MIN_PHOTO_FACTOR
+        n_photo = 6.0 * m + (0 if res.camera is None else len(res.camera.names))
+        rho = max(_MIN_PHOTO_FACTOR, 1.0 - n_photo / free) if free > 0 else _MIN_PHOTO_FACTOR
         r_img[rows] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
     w_img = np.full((k_all, 2), np.nan)
     w_img[rows] = v_all[rows] / (inp.sigma_img[rows, None] * np.sqrt(r_img[rows]))

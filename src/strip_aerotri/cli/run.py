@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -153,7 +153,13 @@ def _warning_lines(
         counts = [f"{applied} {what} rejected as blunders"] if applied else []
         if applied < len(group):
             kept = len(group) - applied
-            counts.append(f'{kept} {what} fail the blunder test, kept (action = "report")')
+            effects = {r.effect for r in group if not r.applied}
+            why = (
+                effects.pop().removeprefix("kept: ")
+                if len(effects) == 1 and next(iter(effects)).startswith("kept: ")
+                else 'action = "report"'
+            )
+            counts.append(f"{kept} {what} fail the blunder test, kept ({why})")
         out.append(f"{line[0]}: {'; '.join(counts)} ({where}-v lists them here)")
     return out
 
@@ -257,6 +263,7 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     echo_result(f"strip '{project.name}': {len(result.photo_ids)} photos, {n_done} points")
     if result.refined is not None:
         echo_result("bundle refinement: accuracy below is the refined solution's")
+        _echo_calibration(result.refined.self_calibration, target, files)
     echo_result(
         f"control: {control.n_plan} plan, {control.n_height} height; "
         f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}"
@@ -276,6 +283,18 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         echo_result(f"report: {target / report_name}")
     echo_result(f"results: {target}")
     echo_progress(f"done in {elapsed:.1f} s", level=1)
+
+
+def _echo_calibration(outcome: Any, target: Path, files: Mapping[str, bytes]) -> None:
+    """One line on a self-calibration: the kept parameters and camera.toml."""
+    if outcome is None:
+        return
+    kept = ", ".join(outcome.kept) or "none"
+    sigma = "" if outcome.estimate is None else f", sigma0 {outcome.estimate.sigma0:.3g}"
+    without = outcome.sigma0_without
+    sigma += f" (without: {without:.3g})" if math.isfinite(without) else ""
+    written = f"; camera: {target / 'camera.toml'}" if "camera.toml" in files else ""
+    echo_result(f"self-calibration: kept {kept}{sigma}{written}")
 
 
 def _report_warnings(report_json: bytes | None) -> list[str]:
@@ -412,6 +431,7 @@ def _echo_block(
         )
     else:
         echo_result("check points: none")
+    _echo_calibration(result.self_calibration, target, files)
     worst = max(result.joins, key=lambda j: j.mean_plan_m, default=None)
     if worst is not None:
         a, b = (result.specs[i].name for i in worst.strips)

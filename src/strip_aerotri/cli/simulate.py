@@ -173,6 +173,16 @@ FLIGHTS = ("serpentine", "same")
     "once (the default).",
 )
 @click.option(
+    "--camera-error",
+    "camera_errors",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="An uncorrected camera error, repeatable: a Brown/Fraser parameter (c, x0, y0 in "
+    "mm; k1, k2, k3 in mm^-2, mm^-4, mm^-6; p1, p2 in mm^-1; b1 affinity, b2 shear) as the "
+    "correction the measurements need (docs/bundle.md, Self-calibration); e.g. "
+    "--camera-error k1=-3e-8 --camera-error b1=6e-5.",
+)
+@click.option(
     "--force",
     is_flag=True,
     help="Overwrite strip.toml, image_points.csv and control.csv already in the folder.",
@@ -201,6 +211,7 @@ def simulate(
     noise_um: float | None,
     control_layout: str | None,
     polynomial: str | None,
+    camera_errors: tuple[str, ...],
     force: bool,
 ) -> None:
     """Write a project of a simulated strip or block of PRESET to the folder --out.
@@ -313,6 +324,7 @@ def simulate(
             "control": layout,
             "image_blunders": image_blunders,
             "control_blunders": control_blunders,
+            "camera_errors": _camera_errors(camera_errors),
         }
         sim: SimulatedStrip | SimulatedBlock
         if block:
@@ -364,3 +376,25 @@ def _write(sim: SimulatedStrip | SimulatedBlock, out: Path, polynomial: str | No
         return sim.write_project(out, polynomial=poly)
     except OptionError as exc:  # the loader's rule, e.g. "auto" in a block
         raise click.BadParameter(exc.rule, param_hint="--polynomial") from None
+
+
+def _camera_errors(items: tuple[str, ...]) -> dict[str, float] | None:
+    """``--camera-error NAME=VALUE`` items as a dict (None without any)."""
+    from ..geometry.camera_model import BROWN_PARAMETERS
+
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        name = name.strip().lower()
+        try:
+            number = float(value)
+        except ValueError:
+            number = float("nan")
+        if not sep or name not in BROWN_PARAMETERS or number != number:
+            raise click.BadParameter(
+                f"expected NAME=VALUE with NAME one of {', '.join(BROWN_PARAMETERS)} and a "
+                f"number, got {item!r}",
+                param_hint="--camera-error",
+            )
+        out[name] = number
+    return out or None

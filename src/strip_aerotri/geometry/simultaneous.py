@@ -18,12 +18,15 @@ every unit and the coordinates of every point; the observations are
 * optionally straight lines, J(18): points on one vertical plane along the
   work frame's X axis, ``Y_p − a − b X_p = v`` with unknown ``a, b``.
 
-Gauss-Newton on the linearised rotations (``R ← exp([ω]×) R``), normal
-equations with the points eliminated block by block (3 × 3) and the reduced
-system of the units (and lines) solved by a sparse LU (SuperLU): one
-iteration costs time linear in the observations, and the reduced system is
-banded along a strip.  Units are Cartesian frames in metres or model units;
-the points are in the work frame (metres).
+Gauss-Newton on the linearised rotations (``R ← exp([ω]×) R``), each step
+by the structured normal-equation engine (:mod:`strip_aerotri.geometry.normals`,
+method.md §6B): the points eliminated block by block (3 × 3), the reduced
+system of the units solved as a block band by LAPACK's banded Cholesky
+(units in their order along the strip, or reverse Cuthill-McKee where
+narrower, as in a block), the lines' ``a, b`` as its dense border; the
+cofactors of the tests by the selected inverse of the banded factor.  One
+iteration costs time linear in the observations.  Units are Cartesian
+frames in metres or model units; the points are in the work frame (metres).
 
 References: Ackermann, Ebner, Klein (1970), "Block triangulation with
 independent models", Photogrammetric Engineering 36; R4 §2.2-§3.
@@ -31,9 +34,10 @@ independent models", Photogrammetric Engineering 36; R4 §2.2-§3.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from functools import partial
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 
@@ -43,8 +47,7 @@ from ..options import DEFAULT_MAX_ITERATIONS
 from .rotation import matrix_from_rotvec, skew
 
 if TYPE_CHECKING:
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spl
+    from .normals import Cofactors, NormalSolution
 
 __all__ = [
     "LineCondition",
@@ -358,6 +361,9 @@ class SimultaneousResult:
     probe_plan_sigma : ndarray, shape (U,), optional
         A priori plan standard deviation ``sqrt(q_xx + q_yy)`` of the probe
         points (metres at σ0 = 1; NaN for -1). None without statistics.
+    statistics_later : callable, optional
+        Without the statistics (``statistics=False``): what computes them
+        (:meth:`with_statistics`).
     """
 
     transforms: UnitTransforms
@@ -379,6 +385,15 @@ class SimultaneousResult:
     coefficient_variance: FloatArray | None = None
     probe_points: IntArray | None = None
     probe_plan_sigma: FloatArray | None = None
+    statistics_later: Callable[[], SimultaneousResult] | None = field(
+        default=None, repr=False, compare=False
+    )
+
+    def with_statistics(self) -> SimultaneousResult:
+        """This result with the statistics of the control and lines, from the
+        factor of its last step (a result of ``statistics=False``; the
+        adjustment is not solved again)."""
+        return self if self.statistics_later is None else self.statistics_later()
 
 
 def _rows_whitening(weight: FloatArray) -> FloatArray:
@@ -390,22 +405,14 @@ def _rows_whitening(weight: FloatArray) -> FloatArray:
     return np.swapaxes(low, 1, 2)
 
 
-def _summation(index: IntArray, n_groups: int) -> sp.csr_matrix:
-    """(n_groups, n) matrix of ones that sums rows into their groups."""
-    import scipy.sparse as sp
-
-    n = index.shape[0]
-    return sp.csr_matrix((np.ones(n), (index, np.arange(n))), shape=(n_groups, n))
-
-
 class _Problem:
     """Fixed structure of an adjustment: rows, control, lines and indices.
 
-    The *coupled rows* are the unit observations (3 equations each, one unit
-    and one point) and the line equations (one equation each, one line and
-    one point).  Every unit and every line is a *block* of 7 reduced unknowns
-    (a line uses the first two, a and b; the other five are fixed at 0), so
-    that the sparse structure of ``N_zp`` (blocks x points) is built once.
+    The unknowns of the normal-equation engine
+    (:mod:`strip_aerotri.geometry.normals`): every unit a block of ``width``
+    parameters (7, then its polynomial's coefficients), every point that a
+    row observes (numbered ``engine_point``), and the lines' ``a, b`` as the
+    dense border (2 per line: a line ties points all along the strip).
     """
 
     def __init__(
@@ -418,13 +425,14 @@ class _Problem:
         control_sigma: FloatArray,
         lines: Sequence[LineCondition],
         polynomial: UnitPolynomial | None = None,
+        order: Literal["auto", "given", "rcm"] | IntArray = "auto",
     ):
-        import scipy.sparse as sp
+        from .normals import NormalStructure
 
         self.obs = obs
         self.polynomial = polynomial
         self.n_extra = 0 if polynomial is None else polynomial.n_terms
-        self.width = N_UNIT + self.n_extra  # reduced unknowns of a block
+        self.width = N_UNIT + self.n_extra  # parameters of a unit
         self.n_units = n_units
         self.n_points = n_points
         self.whiten = _rows_whitening(obs.weight)
@@ -434,8 +442,6 @@ class _Problem:
         self.control_given = np.isfinite(control_xyz)
         self.lines = list(lines)
         self.n_lines = len(self.lines)
-        self.n_blocks = n_units + self.n_lines
-        self.n_reduced = self.width * self.n_blocks
         counts = np.bincount(obs.unit, minlength=n_units).astype(np.float64)
         if np.any(counts == 0):
             raise GeometryError(f"unit {int(np.flatnonzero(counts == 0)[0])} has no points")
@@ -448,52 +454,28 @@ class _Problem:
             np.zeros((n_units, 0)) if polynomial is None else polynomial.prior_weights()
         )
         self.observed = np.bincount(obs.point, minlength=n_points) > 0
-        self.line_rows: list[int] = [line.point.shape[0] for line in self.lines]
-        line_point = (
-            np.concatenate([line.point for line in self.lines]) if self.lines else np.zeros(0, int)
-        )
-        line_block = np.repeat(n_units + np.arange(self.n_lines), self.line_rows).astype(np.intp)
-        self.row_block = np.concatenate([obs.unit, line_block]).astype(np.intp)
-        self.row_point = np.concatenate([obs.point, line_point]).astype(np.intp)
-        self.to_block = _summation(self.row_block, self.n_blocks)
-        self.to_point = _summation(self.row_point, n_points)
-        # N_zp's CSR structure: each coupled row contributes a width x 3 block
-        # at (its block, its point); data are given in that (row, width, 3) order.
-        n_r = self.row_block.shape[0]
-        width = self.width
-        rows = (width * self.row_block[:, None, None] + np.arange(width)[None, :, None]).repeat(
-            3, axis=2
-        )
-        cols = (3 * self.row_point[:, None, None] + np.arange(3)[None, None, :]).repeat(
-            width, axis=1
-        )
-        order = sp.csr_matrix(
-            (np.arange(1, n_r * 3 * width + 1, dtype=np.float64), (rows.ravel(), cols.ravel())),
-            shape=(self.n_reduced, 3 * n_points),
-        )
-        order.sort_indices()
-        if order.nnz != n_r * 3 * width:  # a point twice in one unit or line
-            raise ValueError("Expected each point at most once in a unit and in a line")
-        self.zp_order = order.data.astype(np.intp) - 1
-        self.zp_indices = order.indices
-        self.zp_indptr = order.indptr
-        # the reduced unknowns fixed at 0: the five unused slots of a line block
-        fixed = np.zeros((self.n_blocks, width), dtype=bool)
-        fixed[n_units:, 2:] = True
-        self.fixed = fixed
-
-    def zp_matrix(self, blocks: FloatArray) -> sp.csr_matrix:
-        """Sparse (n_reduced, 3P) matrix from per-row (n_r, width, 3) blocks."""
-        import scipy.sparse as sp
-
-        return sp.csr_matrix(
-            (blocks.ravel()[self.zp_order], self.zp_indices, self.zp_indptr),
-            shape=(self.n_reduced, 3 * self.n_points),
+        # the engine's points: those a row observes (others stay where they are)
+        self.points_used = np.flatnonzero(self.observed)
+        self.engine_point = np.full(n_points, -1, dtype=np.intp)
+        self.engine_point[self.points_used] = np.arange(self.points_used.size)
+        self.control_used = self.observed[control_point]
+        self.line_used = [self.observed[line.point] for line in self.lines]
+        self.unit_index = np.arange(n_units, dtype=np.intp)[:, None]
+        self.point_jacobian = -self.whiten  # Lᵀ ∂v/∂X_p, ∂v/∂X_p = -I
+        self.structure = NormalStructure.from_indices(
+            n_units,
+            self.width,
+            self.points_used.size,
+            obs.unit,
+            self.engine_point[obs.point],
+            [self.unit_index] if self.n_extra else [],
+            n_border=2 * self.n_lines,
+            order=order,
         )
 
     @property
     def n_observations(self) -> int:
-        n_line = sum(self.line_rows)
+        n_line = sum(int(line.point.shape[0]) for line in self.lines)
         n_rows: int = self.obs.unit.shape[0]
         n_prior = self.n_extra * self.n_units  # the coefficients' priors
         return 3 * n_rows + int(self.control_given.sum()) + n_line + n_prior
@@ -502,6 +484,7 @@ class _Problem:
     def n_unknowns(self) -> int:
         n_blocks = self.width * self.n_units
         return n_blocks + 2 * self.n_lines + 3 * int(self.observed.sum())
+
 
 
 class _State:
@@ -557,36 +540,16 @@ def _cost(prob: _Problem, st: _State) -> float:
     return total
 
 
-class _Normals:
-    """Reduced normal equations of one iteration, ``S z = r`` for the blocks
-    (units and lines), and what back-substitution and cofactors need:
-    ``V⁻¹`` (P, 3, 3; 0 for unobserved points), ``reduce = N_zp V⁻¹``
-    (sparse), the per-row ``N_zp`` blocks (n_r, 7, 3) and ``g_p`` (P, 3)."""
-
-    def __init__(
-        self,
-        s_matrix: sp.csc_matrix,
-        rhs: FloatArray,
-        v_inv: FloatArray,
-        reduce: sp.csr_matrix,
-        n_zp_rows: FloatArray,
-        g_p: FloatArray,
-    ) -> None:
-        self.s_matrix = s_matrix
-        self.rhs = rhs
-        self.v_inv = v_inv
-        self.reduce = reduce
-        self.n_zp_rows = n_zp_rows
-        self.g_p = g_p
-
-
-def _normals(prob: _Problem, st: _State) -> _Normals:
-    import scipy.sparse as sp
+def _engine_rows(prob: _Problem, st: _State) -> tuple[list[Any], list[Any], list[Any]]:
+    """The rows of the linearised problem at ``st`` for the engine: the unit
+    observations (whitened), the coefficients' priors, and the control and
+    line equations on the points (the lines' ``a, b`` in the border)."""
+    from .normals import PointRows, UnitPointRows, UnitRows
 
     obs = prob.obs
     n = obs.unit.shape[0]
     y, v = _predict(prob, st)
-    # Design of a row in its unit's 7 parameters: dt, dω (R <- exp(ω) R),
+    # Design of a row in its unit's parameters: dt, dω (R <- exp(ω) R),
     # ds / s, then its polynomial's coefficients (s R B); its point's is -I.
     width = prob.width
     a_u = np.zeros((n, 3, width))
@@ -596,98 +559,93 @@ def _normals(prob: _Problem, st: _State) -> _Normals:
     if prob.basis is not None:
         u = obs.unit
         a_u[:, :, N_UNIT:] = st.scale[u, None, None] * (st.rotation[u] @ prob.basis)
-    w = obs.weight
-    wa = w @ a_u  # W A_u
-    n_bb = [np.swapaxes(a_u, 1, 2) @ wa]  # (n, 7, 7)
-    n_bp = [-np.swapaxes(wa, 1, 2)]  # A_uᵀ W A_p, A_p = -I
-    n_pp = [w]
-    g_b = [-np.einsum("nki,nk->ni", wa, v)]  # -A_uᵀ W v
-    g_pr = [np.einsum("nij,nj->ni", w, v)]  # -A_pᵀ W v
-    # lines: e = Y - a - b X; de = dY - b dX - da - X db
-    for k in range(prob.n_lines):
-        xyz, e, wl = _line_terms(prob, st, k)
-        b = st.line_ab[k, 1]
-        m = xyz.shape[0]
-        d_p = np.zeros((m, 3))
-        d_p[:, 0], d_p[:, 1] = -b, 1.0
-        d_l = np.zeros((m, width))
-        d_l[:, 0], d_l[:, 1] = -1.0, -xyz[:, 0]
-        n_bb.append(wl * d_l[:, :, None] * d_l[:, None, :])
-        n_bp.append(wl * d_l[:, :, None] * d_p[:, None, :])
-        n_pp.append(wl * d_p[:, :, None] * d_p[:, None, :])
-        g_b.append(-wl * d_l * e[:, None])
-        g_pr.append(-wl * d_p * e[:, None])
-    n_bb_r, n_bp_r = np.concatenate(n_bb), np.concatenate(n_bp)
-    n_pp_r, g_b_r, g_p_r = np.concatenate(n_pp), np.concatenate(g_b), np.concatenate(g_pr)
-    blocks = (prob.to_block @ n_bb_r.reshape(-1, width * width)).reshape(-1, width, width)
-    fixed = prob.fixed
-    blocks[:, np.arange(width), np.arange(width)] += fixed  # unused line slots
-    g_z = prob.to_block @ g_b_r
-    if prob.polynomial is not None:  # the coefficients' priors a = 0
-        prior_w = prob.prior_weights
-        extra = np.arange(N_UNIT, width)
-        blocks[: prob.n_units, extra, extra] += prior_w
-        g_z[: prob.n_units, N_UNIT:] -= prior_w * st.coefficients
-    v_blocks = (prob.to_point @ n_pp_r.reshape(-1, 9)).reshape(-1, 3, 3)
-    g_p = prob.to_point @ g_p_r
-    # control
-    cp, given, sig = prob.control_point, prob.control_given, prob.control_sigma
-    cw = np.where(given, 1.0 / np.where(given, sig, 1.0) ** 2, 0.0)
-    resid_c = np.where(given, st.points[cp] - np.where(given, prob.control_xyz, 0.0), 0.0)
-    add_v = np.zeros((prob.n_points, 3))
-    np.add.at(add_v, cp, cw)
-    v_blocks[:, [0, 1, 2], [0, 1, 2]] += add_v
-    g_pc = np.zeros((prob.n_points, 3))
-    np.add.at(g_pc, cp, -cw * resid_c)
-    g_p += g_pc
-    # V⁻¹ block by block (unobserved points: 0)
-    v_inv = np.zeros_like(v_blocks)
-    try:
-        v_inv[prob.observed] = np.linalg.inv(v_blocks[prob.observed])
-    except np.linalg.LinAlgError as exc:
-        raise GeometryError(
-            "a point is not determined by its rows (singular 3 x 3 block)"
-        ) from exc
-    # Schur complement: S = N_zz − N_zp V⁻¹ N_pz, with N_zp V⁻¹ of N_zp's pattern
-    n_zp = prob.zp_matrix(n_bp_r)
-    reduce = prob.zp_matrix(n_bp_r @ v_inv[prob.row_point])
-    n_zz = sp.bsr_matrix(
-        (blocks, np.arange(prob.n_blocks), np.arange(prob.n_blocks + 1)),
-        shape=(prob.n_reduced, prob.n_reduced),
-    )
-    s_matrix = (n_zz - reduce @ n_zp.T).tocsc()
-    rhs = g_z.ravel() - reduce @ g_p.ravel()
-    rhs[fixed.ravel()] = 0.0
-    return _Normals(s_matrix, rhs, v_inv, reduce, n_bp_r, g_p)
-
-
-def _factor(s_matrix: sp.csc_matrix) -> tuple[spl.SuperLU, FloatArray]:
-    """SuperLU factors of the reduced matrix, Jacobi-scaled; raises
-    GeometryError when it is singular (units not tied to the control)."""
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spl
-
-    d = s_matrix.diagonal()
-    if np.any(~(d > 0)):
-        raise GeometryError(
-            "the units are not determined: a unit shares too few points with the others "
-            "and the control"
+    lt = prob.whiten
+    unit_point = [
+        UnitPointRows(
+            obs.unit,
+            prob.engine_point[obs.point],
+            lt @ a_u,
+            prob.point_jacobian,
+            np.einsum("nij,nj->ni", lt, v),
         )
-    scale = 1.0 / np.sqrt(d)
-    scaled = (sp.diags(scale) @ s_matrix @ sp.diags(scale)).tocsc()
+    ]
+    unit_rows = []
+    if prob.n_extra:  # the coefficients' priors a = 0
+        jac = np.zeros((prob.n_units, prob.n_extra, 1, width))
+        jac[:, np.arange(prob.n_extra), 0, N_UNIT + np.arange(prob.n_extra)] = 1.0
+        unit_rows.append(
+            UnitRows(prob.unit_index, jac, st.coefficients.copy(), prob.prior_weights)
+        )
+    return unit_point, unit_rows, _point_rows(prob, st)
+
+
+def _point_rows(prob: _Problem, st: _State) -> list[Any]:
+    """Control (``X_p − X_c``, weight 1/σ² on the given components) and line
+    equations (``Y − a − b X``, weight 1/σ², ``a, b`` in the border) at ``st``."""
+    from .normals import PointRows
+
+    rows = []
+    used = prob.control_used
+    cp, given = prob.control_point[used], prob.control_given[used]
+    sig = prob.control_sigma[used]
+    rows.append(
+        PointRows(
+            prob.engine_point[cp],
+            np.broadcast_to(np.eye(3), (cp.shape[0], 3, 3)),
+            np.where(given, st.points[cp] - np.where(given, prob.control_xyz[used], 0.0), 0.0),
+            np.where(given, 1.0 / np.where(given, sig, 1.0) ** 2, 0.0),
+        )
+    )
+    for k in range(prob.n_lines):
+        rows.append(_line_rows(prob, st, k))
+    return rows
+
+
+def _line_rows(prob: _Problem, st: _State, k: int) -> Any:
+    """Line k's equations ``e = Y − a − b X`` of its (observed) points:
+    ``de = dY − b dX − da − X db``."""
+    from .normals import PointRows
+
+    xyz, e, wl = _line_terms(prob, st, k)
+    used = prob.line_used[k]
+    m = int(used.sum())
+    d_p = np.zeros((m, 1, 3))
+    d_p[:, 0, 0], d_p[:, 0, 1] = -st.line_ab[k, 1], 1.0
+    d_b = np.zeros((m, 1, 2 * prob.n_lines))
+    d_b[:, 0, 2 * k], d_b[:, 0, 2 * k + 1] = -1.0, -xyz[used, 0]
+    return PointRows(
+        prob.engine_point[prob.lines[k].point[used]],
+        d_p,
+        e[used, None],
+        np.full((m, 1), wl),
+        d_b,
+    )
+
+
+class _Step(NamedTuple):
+    """The engine's solution of one linearisation (unit, point and border
+    steps, the cofactors) and its points' 3 x 3 normal blocks ``V``."""
+
+    solution: NormalSolution
+    point_normals: FloatArray
+
+
+def _solve(prob: _Problem, st: _State) -> _Step:
+    """The step of one Gauss-Newton iteration at ``st``."""
+    from .normals import SingularNormalsError
+
+    unit_point, unit_rows, point_rows = _engine_rows(prob, st)
     try:
-        lu = spl.splu(scaled, permc_spec="MMD_AT_PLUS_A")
-    except RuntimeError as exc:  # "Factor is exactly singular"
-        raise GeometryError(
-            "the units are not determined: a unit shares too few points with the others "
-            "and the control"
-        ) from exc
-    return lu, scale
-
-
-def _solve_reduced(lu: spl.SuperLU, scale: FloatArray, rhs: FloatArray) -> FloatArray:
-    solution: FloatArray = scale * lu.solve(scale * rhs)
-    return solution
+        formed = prob.structure.form(unit_point, unit_rows, point_rows)
+        return _Step(formed.solve(), formed.point_blocks)
+    except SingularNormalsError as exc:
+        if exc.kind == "unit":
+            what = f"unit {exc.index} shares too few points with the others and the control"
+        elif exc.kind == "point":
+            what = f"point {int(prob.points_used[exc.index])} is not fixed by its rows"
+        else:  # the border: a line's a, b
+            what = f"line {exc.index // 2} is not fixed by its points"
+        raise GeometryError(f"the units are not determined: {what}") from exc
 
 
 def adjust_units(
@@ -705,6 +663,7 @@ def adjust_units(
     tolerance: float = 1e-10,
     statistics: bool = True,
     polynomial: UnitPolynomial | None = None,
+    order: Literal["auto", "given", "rcm"] | IntArray = "auto",
 ) -> SimultaneousResult:
     """Transform all units at once to the control and to each other.
 
@@ -735,11 +694,18 @@ def adjust_units(
     statistics : bool
         Compute the cofactors of the control points and lines (their
         redundancy numbers and w); without them (False) those fields are
-        NaN, at a fraction of the cost (start values, intermediate passes).
+        NaN, at a fraction of the cost (start values, intermediate passes),
+        and :meth:`SimultaneousResult.with_statistics` computes them later
+        from the factor of the last step.
     polynomial : UnitPolynomial, optional
         A deformation polynomial of every unit, adjusted with its
         similarity (the block of independent strips, R4 3); the start's
         coefficients are used when it has them, else zeros.
+    order : "auto", "given", "rcm" or array of int (U,)
+        The units' order along the band of the reduced normal equations
+        (:class:`~strip_aerotri.geometry.normals.NormalStructure`): as
+        numbered, reverse Cuthill-McKee, the narrower of the two ("auto"),
+        or the unit at each place.  It changes the cost, not the solution.
 
     Returns
     -------
@@ -769,14 +735,69 @@ def adjust_units(
     if np.any(given & ~(control_sigma > 0)):
         raise ValueError("Expected control_sigma > 0 for every given control component")
     prob = _Problem(
-        obs, n_units, n_points, control_point, control_xyz, control_sigma, lines, polynomial
+        obs, n_units, n_points, control_point, control_xyz, control_sigma, lines, polynomial, order
     )
-    # The start's similarity re-expressed about each unit's own centroid
-    # (its deformation, if any, kept as it is).
+    st = _start_state(prob, start, points0)
+    points = st.points
+    extent = (
+        float(np.nanmax(np.ptp(points[prob.observed], axis=0))) if prob.observed.any() else 1.0
+    )
+    extent = max(extent, 1.0)
+
+    cost = _cost(prob, st)
+    converged = False
+    iterations = 0
+    sol = None
+    for iterations in range(1, max_iterations + 1):  # noqa: B007 (reported after the loop)
+        sol = None  # the last step's factor goes before the next is formed
+        sol = _solve(prob, st)
+        dp = np.zeros((n_points, 3))
+        dp[prob.points_used] = sol.solution.point_step
+        step = 1.0
+        for _ in range(30):
+            trial = _step(prob, st, sol.solution, dp, step)
+            trial_cost = _cost(prob, trial)
+            if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
+                break
+            step *= 0.5
+        else:
+            raise ConvergenceError(
+                "the simultaneous transformation of the units diverges: no step lowers the "
+                "sum of squares (start values too far off)"
+            )
+        du = sol.solution.unit_step * step
+        largest = max(
+            float(np.max(np.abs(du[:, :3]), initial=0.0)) / extent,
+            float(np.max(np.abs(du[:, 3:]), initial=0.0)),
+            float(np.max(np.abs(dp[prob.observed]), initial=0.0)) * step / extent,
+        )
+        change = abs(cost - trial_cost) / max(cost, 1e-300)
+        st, cost = trial, trial_cost
+        if largest < tolerance or change < tolerance:
+            converged = True
+            break
+    if not converged:
+        sol = None
+        sol = _solve(prob, st)
+    assert sol is not None  # set in the loop, or just above
+    # Converged: the normal equations of the last step serve the statistics
+    # (the state moved by less than the tolerance since).
+    result = _result(prob, st, sol, cost, iterations, converged, statistics)
+    if statistics:
+        return result
+    later = partial(_result, prob, st, sol, cost, iterations, converged, True)
+    return replace(result, statistics_later=later)
+
+
+def _start_state(prob: _Problem, start: UnitTransforms, points0: ArrayLike) -> _State:
+    """The start: its similarities re-expressed about each unit's own
+    centroid (the deformation, if any, kept as it is), the points, and each
+    line's ``a, b`` fitted to its points."""
+    n_units = prob.n_units
     s0 = np.asarray(start.scale, dtype=np.float64).copy()
     r0 = np.asarray(start.rotation, dtype=np.float64).copy()
     coefficients = np.zeros((n_units, prob.n_extra))
-    if polynomial is None:
+    if prob.polynomial is None:
         t0 = start.apply(np.arange(n_units), prob.centroid)
     else:
         shift = np.einsum("uij,uj->ui", r0, prob.centroid - start.centroid)
@@ -789,65 +810,14 @@ def adjust_units(
         xyz = points[line.point]
         design = np.column_stack([np.ones(len(xyz)), xyz[:, 0]])
         line_ab[k] = np.linalg.lstsq(design, xyz[:, 1], rcond=None)[0]
-    st = _State(s0, r0, t0, points, line_ab, coefficients)
-    extent = (
-        float(np.nanmax(np.ptp(points[prob.observed], axis=0))) if prob.observed.any() else 1.0
-    )
-    extent = max(extent, 1.0)
-
-    cost = _cost(prob, st)
-    converged = False
-    iterations = 0
-    normals = None
-    for iterations in range(1, max_iterations + 1):  # noqa: B007 (reported after the loop)
-        normals = _normals(prob, st)
-        lu, scale = _factor(normals.s_matrix)
-        dz = _solve_reduced(lu, scale, normals.rhs)
-        dp = _back_substitute(prob, normals, dz)
-        step = 1.0
-        for _ in range(30):
-            trial = _step(prob, st, dz, dp, step)
-            trial_cost = _cost(prob, trial)
-            if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
-                break
-            step *= 0.5
-        else:
-            raise ConvergenceError(
-                "the simultaneous transformation of the units diverges: no step lowers the "
-                "sum of squares (start values too far off)"
-            )
-        du = dz[: prob.width * n_units].reshape(n_units, prob.width) * step
-        largest = max(
-            float(np.max(np.abs(du[:, :3]), initial=0.0)) / extent,
-            float(np.max(np.abs(du[:, 3:]), initial=0.0)),
-            float(np.max(np.abs(dp[prob.observed]), initial=0.0)) * step / extent,
-        )
-        change = abs(cost - trial_cost) / max(cost, 1e-300)
-        st, cost = trial, trial_cost
-        if largest < tolerance or change < tolerance:
-            converged = True
-            break
-    if not converged:
-        normals = _normals(prob, st)
-        lu, scale = _factor(normals.s_matrix)
-    assert normals is not None  # set in the loop, or just above
-    # Converged: the normal equations of the last step serve the statistics
-    # (the state moved by less than the tolerance since).
-    return _result(prob, st, normals, lu, scale, cost, iterations, converged, statistics)
+    return _State(s0, r0, t0, points, line_ab, coefficients)
 
 
-def _back_substitute(prob: _Problem, normals: _Normals, dz: FloatArray) -> FloatArray:
-    """Point corrections ``V⁻¹ (g_p − N_pz dz)`` (P, 3)."""
-    dz_rows = dz.reshape(-1, prob.width)[prob.row_block]  # (n_r, width)
-    coupled = prob.to_point @ np.einsum("rki,rk->ri", normals.n_zp_rows, dz_rows)
-    corrections: FloatArray = np.einsum("pij,pj->pi", normals.v_inv, normals.g_p - coupled)
-    return corrections
-
-
-def _step(prob: _Problem, st: _State, dz: FloatArray, dp: FloatArray, step: float) -> _State:
-    n_u, width = prob.n_units, prob.width
-    du = dz[: width * n_u].reshape(n_u, width) * step
-    dl = dz[width * n_u :].reshape(-1, width)[:, :2] * step
+def _step(
+    prob: _Problem, st: _State, sol: NormalSolution, dp: FloatArray, step: float
+) -> _State:
+    du = sol.unit_step * step
+    dl = sol.border_step.reshape(-1, 2) * step
     rotation = matrix_from_rotvec(du[:, 3:6]) @ st.rotation
     points = st.points + step * dp
     return _State(
@@ -863,29 +833,34 @@ def _step(prob: _Problem, st: _State, dz: FloatArray, dp: FloatArray, step: floa
 def _result(
     prob: _Problem,
     st: _State,
-    normals: _Normals,
-    lu: spl.SuperLU,
-    scale: FloatArray,
+    sol: _Step,
     cost: float,
     iterations: int,
     converged: bool,
     statistics: bool = True,
 ) -> SimultaneousResult:
+    """The solution with its tests' statistics (Length: every output field of
+    the adjustment, each a few lines from the selected inverse)."""
     obs = prob.obs
     _, v = _predict(prob, st)
     redundancy = prob.n_observations - prob.n_unknowns
     sigma0 = float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
+    cof = sol.solution.cofactors() if statistics or prob.polynomial is not None else None
 
-    # Cofactors of the control points: Q_pp = V⁻¹ + V⁻¹ N_pz S⁻¹ N_zp V⁻¹.
+    # Cofactors of the control points (the selected inverse's point blocks):
+    # the diagonal of the given components, which the tests need.
     cp = prob.control_point
-    if statistics:  # the diagonal of the given components: what the tests need
-        cof = point_cofactors(normals, lu, scale, cp, prob.control_given)
-    else:
-        cof = np.full((cp.shape[0], 3, 3), np.nan)
     given = prob.control_given
+    q_diag = np.full(given.shape, np.nan)
+    if statistics and cof is not None:
+        q_all = np.zeros((cp.shape[0], 3, 3))  # a point no row observes: V⁻¹ = 0
+        used = prob.control_used
+        q_all[used] = cof.point[prob.engine_point[cp[used]]]
+        q_diag = np.where(given, np.einsum("cii->ci", q_all), np.nan)
+    cof_blocks = np.full((cp.shape[0], 3, 3), np.nan)
+    cof_blocks[:, [0, 1, 2], [0, 1, 2]] = q_diag
     resid_c = np.where(given, prob.control_xyz - st.points[cp], np.nan)
     sig = prob.control_sigma
-    q_diag = np.einsum("cii->ci", cof)
     with np.errstate(invalid="ignore", divide="ignore"):
         r = np.where(given, 1.0 - q_diag / np.where(given, sig, 1.0) ** 2, np.nan)
         w = resid_c / (sig * np.sqrt(np.maximum(r, 0.0)))
@@ -895,7 +870,8 @@ def _result(
     # fixed, h = W^(1/2) V⁻¹ W^(1/2); the units' 7 U parameters spread evenly.
     lt = prob.whiten
     wv = np.einsum("nij,nj->ni", lt, v)
-    h = lt @ normals.v_inv[obs.point] @ np.swapaxes(lt, 1, 2)
+    v_inv = np.linalg.inv(sol.point_normals)  # V⁻¹ of the points the rows observe
+    h = lt @ v_inv[prob.engine_point[obs.point]] @ np.swapaxes(lt, 1, 2)
     free = 3.0 - np.einsum("nii->n", h)
     share = max(1.0 - prob.width * prob.n_units / max(float(free.sum()), 1e-300), 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -907,11 +883,10 @@ def _result(
     line_w = []
     line_r = []
     for k, line in enumerate(prob.lines):
-        xyz, e, _ = _line_terms(prob, st, k)
-        if statistics:
-            r_line = 1.0 - _line_cofactors(prob, st, normals, lu, scale, k, xyz) / line.sigma**2
-        else:
-            r_line = np.full(e.shape, np.nan)
+        _, e, _ = _line_terms(prob, st, k)
+        r_line = np.full(e.shape, np.nan)
+        if statistics and cof is not None:  # exact: with the line's a, b (the border)
+            r_line[prob.line_used[k]] = cof.redundancy(_line_rows(prob, st, k))[:, 0]
         with np.errstate(invalid="ignore", divide="ignore"):
             wl = e / (line.sigma * np.sqrt(np.maximum(r_line, 0.0)))
         wl[~(r_line > _MIN_TESTED_REDUNDANCY)] = np.nan
@@ -919,14 +894,9 @@ def _result(
         line_w.append(wl)
         line_r.append(r_line)
     coefficient_variance = None
-    if prob.polynomial is not None:  # a handful of columns: every unit's terms
-        cols = (
-            prob.width * np.arange(prob.n_units)[:, None] + np.arange(N_UNIT, prob.width)
-        ).ravel()
-        unit_vectors = np.zeros((scale.shape[0], cols.shape[0]))
-        unit_vectors[cols, np.arange(cols.shape[0])] = 1.0
-        x = scale[:, None] * lu.solve(scale[:, None] * unit_vectors)
-        coefficient_variance = x[cols, np.arange(cols.shape[0])].reshape(prob.n_units, -1)
+    if prob.polynomial is not None and cof is not None:
+        extra = np.arange(N_UNIT, prob.width)
+        coefficient_variance = cof.unit[:, extra, extra]
     transforms = UnitTransforms(
         st.scale,
         st.rotation,
@@ -938,15 +908,15 @@ def _result(
     points = st.points.copy()
     points[~prob.observed] = np.nan
     probe = probe_sigma = None
-    if statistics:
-        probe, probe_sigma = _probe_plan_sigma(prob, normals, lu, scale)
+    if statistics and cof is not None:
+        probe, probe_sigma = _probe_plan_sigma(prob, cof)
     return SimultaneousResult(
         transforms=transforms,
         points=points,
         residuals=v,
         row_statistic=stat,
         control_residuals=resid_c,
-        control_cofactor=cof,
+        control_cofactor=cof_blocks,
         control_redundancy=r,
         control_w=w,
         line_parameters=st.line_ab.copy(),
@@ -961,18 +931,14 @@ def _result(
         probe_points=probe,
         probe_plan_sigma=probe_sigma,
     )
-
-
 _PROBES = 24
-"""Units whose plan precision :func:`_probe_plan_sigma` computes, at most."""
+"""Units whose plan precision :func:`_probe_plan_sigma` gives, at most."""
 
 
-def _probe_plan_sigma(
-    prob: _Problem, normals: _Normals, lu: spl.SuperLU, scale: FloatArray
-) -> tuple[IntArray, FloatArray]:
+def _probe_plan_sigma(prob: _Problem, cof: Cofactors) -> tuple[IntArray, FloatArray]:
     """For at most :data:`_PROBES` units evenly along the block, the point most
-    units share (ties first) and its a priori plan standard deviation (two
-    solves each); -1 and NaN for the other units."""
+    units share (ties first) and its a priori plan standard deviation (from
+    the selected inverse's point block); -1 and NaN for the other units."""
     obs = prob.obs
     shared = np.bincount(obs.point, minlength=prob.n_points)
     order = np.lexsort((-shared[obs.point], obs.unit))
@@ -980,7 +946,7 @@ def _probe_plan_sigma(
     probe = np.full(prob.n_units, -1, dtype=np.intp)
     probe[units] = obs.point[order[first]]
     # at most _PROBES units evenly along the block: the precision varies slowly
-    # from unit to unit, and every probe costs two solves
+    # from unit to unit
     sampled = np.zeros(prob.n_units, dtype=bool)
     sampled[np.round(np.linspace(0, prob.n_units - 1, min(prob.n_units, _PROBES))).astype(int)] = (
         True
@@ -988,88 +954,6 @@ def _probe_plan_sigma(
     probe[~sampled] = -1
     sigma = np.full(prob.n_units, np.nan)
     has = probe >= 0
-    if has.any():
-        plan = np.zeros((int(has.sum()), 3), dtype=bool)
-        plan[:, :2] = True
-        cof = point_cofactors(normals, lu, scale, probe[has], plan)
-        sigma[has] = np.sqrt(np.maximum(cof[:, 0, 0] + cof[:, 1, 1], 0.0))
+    q = cof.point[prob.engine_point[probe[has]]]
+    sigma[has] = np.sqrt(np.maximum(q[:, 0, 0] + q[:, 1, 1], 0.0))
     return probe, sigma
-
-
-def _line_cofactors(
-    prob: _Problem,
-    st: _State,
-    normals: _Normals,
-    lu: spl.SuperLU,
-    scale: FloatArray,
-    k: int,
-    xyz: FloatArray,
-) -> FloatArray:
-    """Cofactors of the adjusted ``e = Y − a − b X`` of line k's points (m,).
-
-    With ``d_p = (−b, 1, 0)`` the derivative by the point and ``d_z`` by the
-    reduced unknowns (``−1, −X`` at the line's ``a, b``), and
-    ``u = N_zp V⁻¹ d_p``: ``q_ee = d_pᵀ V⁻¹ d_p + (u − d_z)ᵀ S⁻¹ (u − d_z)``.
-    """
-    import scipy.sparse as sp
-
-    line = prob.lines[k]
-    points = line.point
-    m = points.shape[0]
-    d_p = np.zeros((m, 3))
-    d_p[:, 0], d_p[:, 1] = -st.line_ab[k, 1], 1.0
-    vd = np.einsum("mij,mj->mi", normals.v_inv[points], d_p)  # V⁻¹ d_p
-    cols = (3 * points[:, None] + np.arange(3)).ravel()
-    sel = sp.csr_matrix(
-        (d_p.ravel(), (cols, np.repeat(np.arange(m), 3))), shape=(3 * prob.n_points, m)
-    )
-    u = (normals.reduce @ sel).toarray()  # N_zp V⁻¹ d_p: (nz, m)
-    col0 = prob.width * (prob.n_units + k)
-    u[col0] += 1.0  # − d_z: d_z = −1 at a
-    u[col0 + 1] += xyz[:, 0]  # and −X at b
-    x = scale[:, None] * lu.solve(scale[:, None] * u)
-    cofactors: FloatArray = np.einsum("mi,mi->m", d_p, vd) + np.einsum("zm,zm->m", u, x)
-    return cofactors
-
-
-_COFACTOR_CHUNK = 768  # right-hand sides per solve (memory: 768 x n_reduced)
-
-
-def point_cofactors(
-    normals: _Normals,
-    lu: spl.SuperLU,
-    scale: FloatArray,
-    points: IntArray,
-    components: BoolArray | None = None,
-) -> FloatArray:
-    """Cofactor blocks (C, 3, 3) of adjusted points at the solution:
-    ``Q_pp = V⁻¹ + V⁻¹ N_pz S⁻¹ N_zp V⁻¹``, solved in chunks of columns.
-
-    With ``components`` (C, 3) only the diagonal entries of the components
-    asked for are computed (one solve each instead of three per point: the
-    redundancy numbers of a height point need its height only); the other
-    entries are NaN.
-    """
-    n_c = points.shape[0]
-    out = normals.v_inv[points].copy()
-    reduce = normals.reduce.tocsc()
-    if components is None:
-        for lo in range(0, n_c, _COFACTOR_CHUNK // 3):
-            chunk = points[lo : lo + _COFACTOR_CHUNK // 3]
-            m = chunk.shape[0]
-            cols = (3 * chunk[:, None] + np.arange(3)).ravel()
-            b = reduce[:, cols].toarray()  # (N_zp V⁻¹) restricted to the chunk: (nz, 3m)
-            x = scale[:, None] * lu.solve(scale[:, None] * b)
-            out[lo : lo + m] += np.einsum("zci,zcj->cij", b.reshape(-1, m, 3), x.reshape(-1, m, 3))
-        return out
-    owner, axis = np.nonzero(components)
-    diagonal = out[owner, axis, axis]
-    out[:] = np.nan
-    cols_all = 3 * points[owner] + axis
-    for lo in range(0, cols_all.shape[0], _COFACTOR_CHUNK):
-        cols = cols_all[lo : lo + _COFACTOR_CHUNK]
-        b = reduce[:, cols].toarray()
-        x = scale[:, None] * lu.solve(scale[:, None] * b)
-        diagonal[lo : lo + cols.shape[0]] += np.einsum("zk,zk->k", b, x)
-    out[owner, axis, axis] = diagonal
-    return out

@@ -38,6 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._stats import leading_failures
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import GeometryError, StripAerotriWarning
 from ..frames import WorkFrame, make_work_frame
@@ -57,6 +58,7 @@ from ..options import BlunderAction, BlunderOptions, GroundOptions
 from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .common import control_detectability, index_of, intersect_unmodelled
 from .polynomials import adjust_to_ground
+from .systematic import kept_control, systematic_message, systematic_pattern
 
 __all__ = ["ModelAdjustment", "adjust_models_to_ground", "model_weights"]
 
@@ -272,7 +274,8 @@ def _solve(
 
     Control given in full needs one pass; plan and height points get their
     missing coordinate from the adjustment, pass by pass, and the statistics
-    (cofactors) are computed in the last one only."""
+    (cofactors) are computed in the last one only (from the factor of its
+    last step, once the coordinates have settled)."""
     active = use_xy | use_z
     r = p.rows
     unit_obs = UnitObservations(
@@ -306,6 +309,7 @@ def _solve(
             lines=conditions,
             statistics=final,
             max_iterations=p.max_iterations,
+            order="given",  # the models are numbered along the strip
         )
         if final:
             break
@@ -318,6 +322,10 @@ def _solve(
         starts = res.transforms
         points0 = np.where(np.isfinite(res.points), res.points, points0)
         converged = change < _PASS_TOLERANCE_M
+        if converged:  # its statistics from its last step: no pass again
+            res = res.with_statistics()
+            break
+        res = None  # its factor (held for its statistics) goes before the next pass
     assert res is not None
     return _ModelsSolution(res, guess, converged or not guessed, min(n_pass, _MAX_PASSES), active)
 
@@ -333,10 +341,12 @@ def _snoop(
     tuple[Rejection, ...],
     tuple[tuple[str, str], ...],
 ]:
-    """The simultaneous transformation, then data snooping: the worst failing
-    observation out (control and line points first) and solve again, until
-    none fails.  A control point whose rejection would leave the control
-    unable to carry the strip is kept and flagged.
+    """The simultaneous transformation, then data snooping until nothing
+    fails: the worst failing control component or line point out (they come
+    first: their errors show in their points' determinations too), else
+    every failing determination that is the largest of its point and of its
+    model, all in one round; solve again.  A control point whose rejection
+    would leave the control unable to carry the strip is kept and flagged.
 
     Returns the last solution, the rows, control coordinates and line points
     used, the rejections (the flagged ones last) and the (model, point) of
@@ -352,9 +362,11 @@ def _snoop(
     flagged: list[Rejection] = []
     rejected_rows: list[tuple[str, str]] = []
     n_control_obs = int(2 * use_xy.sum() + use_z.sum())
-    sol = None
+    sol = start_sol = None
+    control_kept = False
     while True:
         sol = _solve(p, keep_rows, use_xy, use_z, line_keep, sol)
+        start_sol = start_sol or sol
         if not blunders.testing:
             break
         known = {(k.stage, k.point, k.component) for k in flagged}
@@ -362,6 +374,7 @@ def _snoop(
             f
             for f in _tests(p, sol.result, use_xy, use_z, keep_rows, line_keep, blunders)
             if (f[0].stage, f[0].point, f[0].component) not in known
+            and not (control_kept and f[0].stage == "control")
         ]
         if not found:
             break
@@ -392,19 +405,28 @@ def _snoop(
             use_xy, use_z = trial_xy, trial_z
             rejected_obs = n_control_obs - int(2 * use_xy.sum() + use_z.sum())
             if rejected_obs > blunders.max_fraction * max(n_control_obs, 1):
-                raise GeometryError(
-                    f"control: more than {blunders.max_fraction:.0%} of the control "
-                    "observations fail the blunder test; the control cannot be trusted"
-                )
+                if start_sol is None or not _keep_systematic(p, start_sol, blunders):
+                    raise GeometryError(
+                        f"control: more than {blunders.max_fraction:.0%} of the control "
+                        "observations fail the blunder test; the control cannot be trusted"
+                    )
+                # a smooth pattern: the camera, not the control; keep it all
+                use_xy, use_z, control_kept = p.use_xy.copy(), p.use_z.copy(), True
+                rejections = kept_control(rejections)
+                continue
         elif worst.stage == "models":
-            apply(keep_rows)
-            label = worst.photos
-            rejected_rows.append((label[0] if label else "", worst.point))
+            # every determination that leads its point and its model, at once
+            for rejection, reject in found:
+                reject(keep_rows)
+                label = rejection.photos
+                rejected_rows.append((label[0] if label else "", rejection.point))
+                rejections.append(rejection)
             if (~keep_rows[: p.n_det]).sum() > blunders.max_fraction * p.n_det:
                 raise GeometryError(
                     f"models: more than {blunders.max_fraction:.0%} of the determinations "
                     "fail the blunder test; the image coordinates cannot be trusted"
                 )
+            continue
         else:
             apply(line_keep)
         rejections.append(worst)
@@ -417,6 +439,23 @@ def _snoop(
         tuple(rejections + flagged),
         tuple(rejected_rows),
     )
+
+
+def _keep_systematic(
+    p: _ModelsProblem, first: _ModelsSolution, blunders: BlunderOptions
+) -> bool:
+    """True (and a warning) when the first solution's control fails at many
+    points alike (:mod:`strip_aerotri.ground.systematic`): camera errors, not
+    blunders."""
+    rows = np.flatnonzero(p.use_xy | p.use_z)
+    w = np.array(first.result.control_w, dtype=np.float64)
+    w[~p.use_xy[rows], :2] = np.nan
+    w[~p.use_z[rows], 2] = np.nan
+    critical = blunders.critical("control", max(int(np.isfinite(w).sum()), 1))
+    if not systematic_pattern(w, critical):
+        return False
+    warnings.warn(systematic_message("control", w, critical), StripAerotriWarning, stacklevel=4)
+    return True
 
 
 def _check_breaks(
@@ -552,8 +591,10 @@ def _determination_tests(
     p: _ModelsProblem, res: SimultaneousResult, keep_rows: BoolArray, blunders: BlunderOptions
 ) -> _Found:
     """The 3-D residual of each determination against chi-square(3), as a
-    "w" = sqrt(statistic) (row_statistic has mean 1 per row: times 3); the
-    five largest above the critical value.
+    "w" = sqrt(statistic) (row_statistic has mean 1 per row: times 3).
+    Rejecting: every failing determination that is the largest of its point
+    and of its model (they go out together, :func:`leading_failures`);
+    flagging only: the five largest above the critical value.
 
     Data noisier than declared scale the statistic down by the rows' median
     over chi-square(3)'s, never up (the statistic's redundancy share is an
@@ -567,9 +608,12 @@ def _determination_tests(
         stat = stat / max(1.0, float(np.median(finite)) / _CHI2_3_MEDIAN)
     crit = blunders.critical("models", int(np.isfinite(stat).sum()), dof=3)
     w_rows = np.sqrt(np.where(np.isfinite(stat), stat, 0.0))
-    for k in np.argsort(-w_rows)[:5]:
-        if not w_rows[k] > crit:
-            break
+    if blunders.rejecting:
+        chosen = leading_failures(w_rows, crit, strip.model_point[kept], strip.model[kept])
+    else:
+        chosen = np.argsort(-w_rows)[:5]
+        chosen = chosen[w_rows[chosen] > crit]
+    for k in chosen:
         det = int(kept[k])
         m = int(strip.model[det])
         label = strip.model_labels[m] if strip.model_labels else f"model {m}"

@@ -531,6 +531,7 @@ def _adjustment_options(
         raise ConfigError(f"{toml_path}: [adjustment] {exc}") from None
 
 
+
 def _blunder_options(toml_path: Path, table: dict[str, object]) -> BlunderOptions:
     """``[blunders]`` as :class:`~strip_aerotri.options.BlunderOptions`."""
     try:

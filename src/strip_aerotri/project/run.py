@@ -68,6 +68,7 @@ def _run(
     project: Project, progress: Progress | None, blunders: BlunderOptions | None
 ) -> StripResult | BlockResult:
     adj = project.adjustment
+    calibration = adj.calibration(project.images.flight_direction)
     blunders = project.blunders if blunders is None else blunders
     if project.is_block:
         return triangulate_block(
@@ -82,6 +83,7 @@ def _run(
             progress=progress,
             warnings=project.warnings,
             control_name=str(project.control_file),
+            self_calibration=calibration,
         )
     return triangulate(
         project.observations,
@@ -95,4 +97,5 @@ def _run(
         progress=progress,
         warnings=project.warnings,
         control_name=str(project.control_file),
+        self_calibration=calibration,
     )

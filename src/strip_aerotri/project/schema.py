@@ -271,6 +271,14 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         contract=False,
     ),
     KeySpec(
+        "distortion", "b1", "number", required=False, default=0.0, unit="",
+        description="Affinity: b1 x added to x (Fraser 1997).", contract=False,
+    ),
+    KeySpec(
+        "distortion", "b2", "number", required=False, default=0.0, unit="",
+        description="Shear: b2 y added to x (Fraser 1997).", contract=False,
+    ),
+    KeySpec(
         "distortion", "units", "choice", required=False, default=DistortionUnits.MM, unit="",
         description='"mm": r in millimetres; "normalized": r divided by the principal '
         "distance (OpenCV, Agisoft).",
@@ -435,6 +443,17 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         "the strip solution, in the local tangent frame (docs/bundle.md); points.csv and "
         "photos.csv then hold its results.",
         contract=False,
+    ),
+    KeySpec(
+        "adjustment", "self_calibration", "self calibration", required=False, default="none",
+        unit="",
+        description='With refine = "bundle" only: "none"; "auto" (the parameters the data '
+        "determine and that are significant, chosen by t values and correlations); a list "
+        'from ["c", "x0", "y0", "k1", "k2", "k3", "p1", "p2", "b1", "b2"] (Brown/Fraser, '
+        'estimated as given); or "ebner12" (film: Ebner\'s 12 parameters). One camera '
+        "shared by all photos, starting from [camera] and [distortion]; the adjusted camera "
+        "is written to camera.toml.",
+        default_text='"none"',
     ),
     KeySpec(
         "adjustment", "min_base_to_height", "positive number", required=False,

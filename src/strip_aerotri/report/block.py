@@ -12,6 +12,7 @@ import numpy as np
 from .._version import __version__
 from ..observations import ControlType
 from .block_page import block_html
+from .calibration import calibration_figures, calibration_html, calibration_outputs
 from .files import format_photos_csv, format_points_csv
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, _bundle_gnss, _bundle_imu
 from .tolerances import TRANSFER_UM, transfer_passed
@@ -267,13 +268,23 @@ def block_outputs(
         extra={"strip": strip_names},
         geographic=geographic,
     )
+    cal_record, cal_toml = calibration_outputs(
+        result.self_calibration, project, float(result.observations.principal_distance)
+    )
+    section = ""
+    if cal_record is not None:
+        report["bundle"]["self_calibration"] = cal_record
+        section = calibration_html(cal_record, calibration_figures(result.self_calibration))
     figure = block_figure(result, geographic=geographic)
-    return {
+    files = {
         "points.csv": points_text.encode("utf-8"),
         "photos.csv": photos_text.encode("utf-8"),
         "report.json": (json.dumps(report, indent=2, allow_nan=False) + "\n").encode("utf-8"),
-        "report.html": block_html(report, figure).encode("utf-8"),
+        "report.html": block_html(report, figure, calibration=section).encode("utf-8"),
     }
+    if cal_toml is not None:
+        files["camera.toml"] = cal_toml
+    return files
 
 
 def _geographic(crs: str) -> bool:

@@ -227,7 +227,7 @@ def _rejections(rejections: list[str]) -> str:
     return f"{summary}<ul class='small'>{items}</ul>"
 
 
-def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
+def block_html(report: Mapping[str, Any], figure: str | None = None, calibration: str = "") -> str:
     """The page of a block's ``report.json`` content and its figure (PNG, base64)."""
     block = report["block"]
     project = report["project"]
@@ -295,6 +295,7 @@ def block_html(report: Mapping[str, Any], figure: str | None = None) -> str:
         "<h2>Tolerance verdicts at the check points (R4 §1.7.7)</h2>",
         criteria_table(report["tolerances"]["criteria"]),
         _bundle(report),
+        calibration,
         "<h2>Control and check points</h2>",
         _points(report, "control", "Control points (residuals of the components used)"),
         _points(report, "check", "Check points (not used in the adjustment)"),

@@ -139,7 +139,27 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
         fig_resid = figure_residuals(result, plan)
         fig_par = figure_parallax(result)
         fig_ties = figure_ties(result, report["models"])
-    return _html_page(report, fig_layout, fig_resid, fig_par, fig_ties, long_strip=plan.long)
+        calibration = _calibration_section(result, report)
+    return _html_page(
+        report,
+        fig_layout,
+        fig_resid,
+        fig_par,
+        fig_ties,
+        long_strip=plan.long,
+        calibration=calibration,
+    )
+
+
+def _calibration_section(result: StripResult, report: Mapping[str, Any]) -> str:
+    """The self-calibration's section with its figures ('' without one)."""
+    from .calibration import calibration_figures, calibration_html
+
+    refined = getattr(result, "refined", None)
+    record = (report.get("bundle") or {}).get("self_calibration")
+    if refined is None or record is None:
+        return ""
+    return calibration_html(record, calibration_figures(refined.self_calibration))
 
 
 #: The columns of an accuracy row (:func:`stat_row`).
@@ -266,6 +286,7 @@ def _html_page(
     fig_ties: str | None,
     *,
     long_strip: bool = False,
+    calibration: str = "",
 ) -> str:
     """The page: head, summary, verdicts, figures, then the tables.
 
@@ -389,6 +410,8 @@ def _html_page(
         "<h2>Tolerance verdicts (R4 §1.7.7)</h2>",
         criteria_table(tol["criteria"]),
     ]
+    if calibration:
+        parts.append(calibration)
     parts += _html_tables(report)
     parts.append(
         "<footer>Residuals and discrepancies are given minus adjusted, along local east, "

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 from typing import TYPE_CHECKING, Any
 
+from .calibration import calibration_outputs
 from .html import build_html
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, build_report
 from .tables import photos_csv, points_csv, points_geojson
@@ -76,6 +77,13 @@ def strip_outputs(
     if geojson is None:
         notes.append('points.geojson not written: crs is "local" (no geodesy to WGS 84)')
     report = build_report(result, project=project, map_scale=map_scale, notes=notes)
+    refined = getattr(result, "refined", None)
+    outcome = None if refined is None else refined.self_calibration
+    cal_record, cal_toml = calibration_outputs(
+        outcome, project, float(result.strip.observations.principal_distance)
+    )
+    if cal_record is not None:
+        report["bundle"]["self_calibration"] = cal_record
     if geojson is not None:
         report["outputs"]["points.geojson"] = {
             "written": True,
@@ -87,6 +95,8 @@ def strip_outputs(
     }
     if geojson is not None:
         files["points.geojson"] = (geojson + "\n").encode("utf-8")
+    if cal_toml is not None:
+        files["camera.toml"] = cal_toml
     if html:
         files["report.html"] = build_html(result, report).encode("utf-8")
     files["report.json"] = (

@@ -7,7 +7,17 @@ import them without importing each other.
 """
 
 from .block import BlockResult, StripJoin
-from .bundle import BundleResult, FrameRefinement, GnssResiduals, ImuResiduals, RefinedResult
+from .bundle import (
+    BundleResult,
+    CameraEstimate,
+    FrameRefinement,
+    GnssResiduals,
+    ImuResiduals,
+    ParameterOutcome,
+    RefinedResult,
+    ResidualCells,
+    SelfCalibrationOutcome,
+)
 from .common import AccuracyStatistics, Rejection
 from .ground import GroundResult, ModelAdjustment
 from .run import StripResult
@@ -17,12 +27,16 @@ __all__ = [
     "AccuracyStatistics",
     "BlockResult",
     "BundleResult",
+    "CameraEstimate",
     "FrameRefinement",
     "GnssResiduals",
     "GroundResult",
     "ImuResiduals",
     "ModelAdjustment",
+    "ParameterOutcome",
     "RefinedResult",
+    "ResidualCells",
+    "SelfCalibrationOutcome",
     "Rejection",
     "RelativeOrientation",
     "StripJoin",

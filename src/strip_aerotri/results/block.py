@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from .._typing import BoolArray, FloatArray, IntArray
 from ..observations import ControlPoints, ImageObservations, StripSpec
 from ..options import AdjustmentOptions
-from .bundle import GnssResiduals, ImuResiduals
+from .bundle import GnssResiduals, ImuResiduals, SelfCalibrationOutcome
 from .common import AccuracyStatistics, Rejection
 from .strip import StripModel
 
@@ -102,6 +102,8 @@ class BlockResult:
     gnss, imu : GnssResiduals, ImuResiduals or None
         The refinement's GNSS centres and IMU attitudes: residuals and tests
         (None without them).
+    self_calibration : SelfCalibrationOutcome or None
+        The refinement's self-calibrated camera (None without).
     polynomial : int
         J(16)'s type of every strip's own deformation polynomial (block of
         independent strips), 0 for none.
@@ -152,6 +154,7 @@ class BlockResult:
     block_check_statistics: AccuracyStatistics | None = None
     gnss: GnssResiduals | None = None
     imu: ImuResiduals | None = None
+    self_calibration: SelfCalibrationOutcome | None = None
     options: AdjustmentOptions | None = None
 
     @property

@@ -8,15 +8,169 @@ import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..frames import LocalTangentFrame
+from ..geometry.camera_model import CameraModel
 from .common import AccuracyStatistics, Rejection
 
 __all__ = [
     "BundleResult",
+    "CameraEstimate",
     "FrameRefinement",
     "GnssResiduals",
     "ImuResiduals",
+    "ParameterOutcome",
     "RefinedResult",
+    "ResidualCells",
+    "SelfCalibrationOutcome",
 ]
+
+
+@dataclass(frozen=True)
+class CameraEstimate:
+    """The self-calibrated camera of a bundle adjustment.
+
+    Attributes
+    ----------
+    model : CameraModel
+        The estimated parameters and how they act.
+    values : ndarray, shape (k,)
+        Their estimates (increments from the start camera; units in
+        :data:`strip_aerotri.geometry.camera_model.PARAMETER_UNITS`).
+    cofactor : ndarray, shape (k, k)
+        Their cofactor matrix ``Q`` (the block of ``N^-1``).
+    sigma0 : float
+        The adjustment's sigma0.
+    information : ndarray, shape (k,)
+        Diagonal of the camera's own normal block ``G``.
+    conditional_information : ndarray, shape (k,)
+        Diagonal of the border's Schur complement ``C`` (the information
+        left to each parameter once photos and points are estimated too).
+    """
+
+    model: CameraModel
+    values: FloatArray
+    cofactor: FloatArray
+    sigma0: float
+    information: FloatArray
+    conditional_information: FloatArray
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The estimated parameters' names."""
+        return self.model.estimated
+
+    @property
+    def std(self) -> FloatArray:
+        """Standard deviations ``sigma0 sqrt(Q_ii)``."""
+        out: FloatArray = self.sigma0 * np.sqrt(np.diag(self.cofactor))
+        return out
+
+    @property
+    def t_values(self) -> FloatArray:
+        """``value / std`` of each parameter."""
+        out: FloatArray = self.values / self.std
+        return out
+
+    @property
+    def correlations(self) -> FloatArray:
+        """Correlation matrix (k, k) of the parameters."""
+        d = 1.0 / np.sqrt(np.diag(self.cofactor))
+        out: FloatArray = self.cofactor * d[:, None] * d[None, :]
+        return out
+
+    @property
+    def orientation_correlation(self) -> FloatArray:
+        """Multiple correlation (k,) of each parameter with the photos' orientation
+        and the points: ``sqrt(1 - C_ii / G_ii)`` (0: independent of them; 1: they
+        absorb it entirely, e.g. c with the flying height over flat ground)."""
+        ratio = self.conditional_information / np.maximum(self.information, 1e-300)
+        out: FloatArray = np.sqrt(np.clip(1.0 - ratio, 0.0, 1.0))
+        return out
+
+
+@dataclass(frozen=True)
+class ParameterOutcome:
+    """One camera parameter of a self-calibration.
+
+    ``value``, ``std`` and ``t`` are those of the last adjustment that
+    estimated it (NaN if none did); ``kept`` says whether the delivered
+    adjustment estimates it, ``reason`` why not (empty when kept).
+    ``orientation_correlation`` is its multiple correlation with the photos'
+    orientation and the points.
+    """
+
+    name: str
+    unit: str
+    value: float
+    std: float
+    t: float
+    kept: bool
+    reason: str
+    orientation_correlation: float
+
+
+@dataclass(frozen=True)
+class ResidualCells:
+    """Image residuals averaged in cells over the format (sensor axes, x right, y up).
+
+    Attributes
+    ----------
+    x_edges, y_edges : ndarray
+        Cell edges in mm.
+    after : ndarray, shape (ny, nx, 2)
+        Mean residual (computed minus corrected observed) per cell, µm, with
+        the self-calibration; NaN in empty cells.
+    before : ndarray, shape (ny, nx, 2)
+        The same with the camera's correction added back: what the
+        orientation would have to absorb without it.
+    count : ndarray of int, shape (ny, nx)
+    """
+
+    x_edges: FloatArray
+    y_edges: FloatArray
+    after: FloatArray
+    before: FloatArray
+    count: IntArray
+
+
+@dataclass(frozen=True)
+class SelfCalibrationOutcome:
+    """What a self-calibration estimated, kept and held, and why.
+
+    Attributes
+    ----------
+    choice : str or tuple of str
+        ``[adjustment] self_calibration`` as given.
+    family : {"brown", "ebner"}
+    parameters : tuple of ParameterOutcome
+        Every candidate parameter.
+    correlations : tuple of (str, str, float)
+        Pairs of estimated parameters correlated above 0.9 in magnitude
+        (in the last adjustment that estimated both).
+    estimate : CameraEstimate or None
+        The delivered camera (None when every parameter was held).
+    sigma0_without : float
+        sigma0 of the same adjustment without self-calibration (NaN when not
+        computed, i.e. for an explicit list).
+    notes : tuple of str
+        Warnings: the held parameters with their reasons, a fallback.
+    cells : ResidualCells or None
+        The image residuals averaged over the format, with and without the
+        camera's correction.
+    """
+
+    choice: str | tuple[str, ...]
+    family: str
+    parameters: tuple[ParameterOutcome, ...]
+    correlations: tuple[tuple[str, str, float], ...]
+    estimate: CameraEstimate | None
+    sigma0_without: float
+    notes: tuple[str, ...]
+    cells: ResidualCells | None = None
+
+    @property
+    def kept(self) -> tuple[str, ...]:
+        """The parameters the delivered adjustment estimates."""
+        return tuple(p.name for p in self.parameters if p.kept)
 
 
 @dataclass(frozen=True)
@@ -83,6 +237,8 @@ class BundleResult:
         Redundancy numbers ``1 - (A Q Aᵀ P)ᵢᵢ`` of the image coordinates,
         exact (from the selected inverse of the normal matrix); NaN when the
         precision is not computed.
+    camera : CameraEstimate or None
+        The self-calibrated camera (None without self-calibration).
     """
 
     centres: FloatArray
@@ -104,6 +260,7 @@ class BundleResult:
     gnss_residual_cofactor: FloatArray
     imu_residual_cofactor: FloatArray
     image_redundancy: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
+    camera: CameraEstimate | None = None
 
 
 @dataclass(frozen=True)
@@ -161,6 +318,9 @@ class FrameRefinement:
     gnss_rejected, imu_rejected : ndarray of bool, shape (M,)
         Photos whose GNSS centre / IMU attitude was rejected by the tests
         (in this call or, through ``gnss_used`` / ``imu_used``, before).
+    self_calibration : SelfCalibrationOutcome or None
+        The camera's parameters estimated, kept and held (None without
+        self-calibration).
     """
 
     centres: FloatArray
@@ -190,6 +350,7 @@ class FrameRefinement:
     gnss_rejected: BoolArray = field(default_factory=lambda: np.zeros(0, bool))
     imu_used: BoolArray = field(default_factory=lambda: np.zeros(0, bool))
     imu_rejected: BoolArray = field(default_factory=lambda: np.zeros(0, bool))
+    self_calibration: SelfCalibrationOutcome | None = None
 
 
 def _rms(values: FloatArray) -> FloatArray:
@@ -489,6 +650,9 @@ class RefinedResult:
         Scalar observations of the final adjustment.
     gnss : GnssResiduals or None
         Counts, residuals and tests of the GNSS centres (None without them).
+    self_calibration : SelfCalibrationOutcome or None
+        The self-calibrated camera: every parameter's estimate, standard
+        deviation, t value, whether it was kept and why not.
     imu : ImuResiduals or None
         Counts, residuals and tests of the IMU attitudes (None without them).
     """
@@ -524,6 +688,7 @@ class RefinedResult:
     n_observations: int = 0
     gnss: GnssResiduals | None = None
     imu: ImuResiduals | None = None
+    self_calibration: SelfCalibrationOutcome | None = None
 
     @property
     def photo_opk_degrees(self) -> FloatArray:

@@ -62,6 +62,7 @@ first and last station, is a check point. Noise and sigmas as for a strip.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -72,6 +73,7 @@ from ..observations import ControlPoints, ControlType, ImageObservations
 from ._control import _CONTROL_LAYOUTS, _blunders, _control_points, _strip_roles, _zone_points
 from ._geodesy import LocalFrame, _ecef2enu_matrix, _Geodesy
 from ._scene import (
+    camera_error_values,
     _EXTRA,
     _GRUBER,
     _frozen,
@@ -272,6 +274,7 @@ def simulate_block(
     side_points_per_zone: int = 2,
     systematic_k1: float = 0.0,
     film_shrink_y: float = 1.0,
+    camera_errors: Mapping[str, float] | None = None,
     image_blunders: int = 0,
     image_blunder_mm: float | None = None,
     control_blunders: int = 0,
@@ -327,6 +330,13 @@ def simulate_block(
         Radial distortion added to the images and not modelled, mm^-2.
     film_shrink_y : float
         Scale applied to the image y coordinates (1 = none).
+    camera_errors : mapping of str to float, optional
+        Uncorrected camera errors: Brown/Fraser values by name (``c, x0, y0,
+        k1, k2, k3, p1, p2, b1, b2``; units and formula in
+        :mod:`strip_aerotri.geometry.camera_model`), given as the correction
+        that the simulated measurements need: measured ``m`` with ``m +
+        Δ(m) = ideal``.  A self-calibration estimating them finds these
+        values.  Default none (the images are unchanged).
     image_blunders, image_blunder_mm, control_blunders, control_blunder_m
         Gross errors, as for :func:`~strip_aerotri.simulate.simulate_strip`
         (rows in ``truth.blunder_observations`` and ``truth.blunder_control``).
@@ -377,6 +387,7 @@ def simulate_block(
         raise ValueError(f"Expected `crs` to be a string, got {type(crs).__name__}")
     if not (math.isfinite(heading_deg) and math.isfinite(systematic_k1)) or film_shrink_y <= 0:
         raise ValueError("Expected finite `heading_deg`, `systematic_k1` and `film_shrink_y` > 0")
+    errors = camera_error_values(camera_errors)
     extra: dict[str, object] = dict(overrides)
     if image_noise_mm is not None:
         extra["image_noise_mm"] = float(image_noise_mm)
@@ -401,7 +412,15 @@ def simulate_block(
     # only the points within reach across the flight of its axis.
     ground = points.ground
     reach = _projection_reach(
-        pre, geo, opk, centre_plan[:, 2], ground, centres, systematic_k1, film_shrink_y
+        pre,
+        geo,
+        opk,
+        centre_plan[:, 2],
+        ground,
+        centres,
+        systematic_k1,
+        film_shrink_y,
+        margin=1.0 if errors is None else 1.05,
     )
     right_local = np.array([lay.right[0], lay.right[1], 0.0])
     ahead_local = np.array([lay.ahead[0], lay.ahead[1], 0.0])
@@ -426,6 +445,7 @@ def simulate_block(
             ahead_local,
             systematic_k1,
             film_shrink_y,
+            errors,
         )
         pairs.append((photo + s * m, candidates[point], xy))
     pair_photo = np.concatenate([p[0] for p in pairs])

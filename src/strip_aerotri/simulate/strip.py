@@ -69,6 +69,7 @@ exact truth. The ``sigma_xy`` and ``sigma_h`` written for control equal
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -79,6 +80,7 @@ from ..observations import ControlPoints, ImageObservations
 from ._control import _CONTROL_LAYOUTS, _blunders, _control
 from ._geodesy import LocalFrame, _ecef2enu_matrix, _Geodesy
 from ._scene import (
+    camera_error_values,
     _EXTRA,
     _GRUBER,
     _LINE,
@@ -243,6 +245,7 @@ def simulate_strip(
     line: bool | None = None,
     systematic_k1: float = 0.0,
     film_shrink_y: float = 1.0,
+    camera_errors: Mapping[str, float] | None = None,
     image_blunders: int = 0,
     image_blunder_mm: float | None = None,
     control_blunders: int = 0,
@@ -293,6 +296,13 @@ def simulate_strip(
         adjustment, in mm^-2: ``x' = x (1 + k1 r**2)``, ``y' = y (1 + k1 r**2)``.
     film_shrink_y : float
         Scale applied to the image y coordinates (film shrinkage; 1 = none).
+    camera_errors : mapping of str to float, optional
+        Uncorrected camera errors: Brown/Fraser values by name (``c, x0, y0,
+        k1, k2, k3, p1, p2, b1, b2``; units and formula in
+        :mod:`strip_aerotri.geometry.camera_model`), given as the correction
+        that the simulated measurements need: measured ``m`` with ``m +
+        Δ(m) = ideal``.  A self-calibration estimating them finds these
+        values.  Default none (the images are unchanged).
     image_blunders : int
         Observations of points seen on three or more photos given a gross
         error: a shift in a random direction of ``image_blunder_mm`` (default
@@ -338,6 +348,7 @@ def simulate_strip(
         raise ValueError(f"Expected `crs` to be a string, got {type(crs).__name__}")
     if not (math.isfinite(heading_deg) and math.isfinite(systematic_k1)) or film_shrink_y <= 0:
         raise ValueError("Expected finite `heading_deg`, `systematic_k1` and `film_shrink_y` > 0")
+    errors = camera_error_values(camera_errors)
     extra: dict[str, object] = dict(overrides)
     if image_noise_mm is not None:
         extra["image_noise_mm"] = float(image_noise_mm)
@@ -423,10 +434,26 @@ def simulate_strip(
     # reach it (a dense (photos, points) projection is quadratic in the strip).
     ahead_local = np.array([ahead[0], ahead[1], 0.0])
     reach = _projection_reach(
-        pre, geo, opk, centre_plan[:, 2], ground, centres, systematic_k1, film_shrink_y
+        pre,
+        geo,
+        opk,
+        centre_plan[:, 2],
+        ground,
+        centres,
+        systematic_k1,
+        film_shrink_y,
+        margin=1.0 if errors is None else 1.05,
     )
     pair_photo, pair_point, pair_xy = _visible_pairs(
-        ground, centres, rotations, pre, reach, ahead_local, systematic_k1, film_shrink_y
+        ground,
+        centres,
+        rotations,
+        pre,
+        reach,
+        ahead_local,
+        systematic_k1,
+        film_shrink_y,
+        errors,
     )
     keep = np.bincount(pair_point, minlength=ground.shape[0]) >= 2
     if keep.sum() < 3:

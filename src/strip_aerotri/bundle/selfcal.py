@@ -1,0 +1,337 @@
+"""Which camera parameters a self-calibrating bundle estimates (method.md 6C).
+
+``[adjustment] self_calibration`` names a list of Brown/Fraser parameters, or
+``"ebner12"``, which are estimated as given, or ``"auto"``: start from all ten
+Brown/Fraser parameters and hold, at their start values, those the data do not
+determine or that are not significant, one decision per adjustment, until the
+set is stable:
+
+1. every parameter whose multiple correlation with the photos' orientation and
+   the points exceeds :data:`INTERIOR_CORRELATION` (0.999) for c, x0, y0 (c
+   with the flying height over flat ground, x0 and y0 with the centres unless
+   GNSS centres or oblique photos separate them: a confusion the geometry
+   makes exact) or :data:`MAX_ORIENTATION_CORRELATION` (0.9999) for the
+   others; the correlation does not depend on the other camera parameters,
+   so all such are held at once;
+2. of the most correlated pair of parameters above :data:`MAX_CORRELATION`,
+   the one with the smaller t value;
+3. the parameter with the smallest t value, if below :data:`T_CRITICAL`.
+
+The chosen set must then lower the sum of squares significantly (an F test
+of the set against the same adjustment without it, at ``alpha = 0.001``);
+otherwise the camera is left as given ("never make a well-calibrated project
+worse").  Every held parameter is named in a note with its reason.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..geometry.camera_model import (
+    BROWN_PARAMETERS,
+    EBNER_PARAMETERS,
+    PARAMETER_UNITS,
+    CameraModel,
+)
+from ..options import FlightDirection, SelfCalibration
+from ..results import (
+    BundleResult,
+    CameraEstimate,
+    ParameterOutcome,
+    ResidualCells,
+    SelfCalibrationOutcome,
+)
+from .adjust import CameraUndetermined
+
+__all__ = [
+    "MAX_CORRELATION",
+    "INTERIOR_CORRELATION",
+    "MAX_ORIENTATION_CORRELATION",
+    "T_CRITICAL",
+    "SelfCalibration",
+    "camera_model",
+    "ebner_base_mm",
+    "final_outcome",
+    "residual_cells",
+    "start_model",
+]
+
+#: |t| below which "auto" holds a parameter (two-sided, about 0.3 %).
+T_CRITICAL = 3.0
+#: Correlation between two camera parameters above which "auto" holds one.
+MAX_CORRELATION = 0.9
+#: Multiple correlation with the orientation and points above which "auto"
+#: holds a lens or affinity parameter whatever its t value (a variance
+#: inflation of 5000).  A multiple correlation with thousands of unknowns is
+#: high for every parameter of a strip (0.93-0.9998 for lens and affinity
+#: terms that the data do determine, at t of 6-30: simulated drone blocks, the
+#: real FC300X block), so the pairwise bound of 0.9 does not apply to it;
+#: below this bound the t test decides.
+MAX_ORIENTATION_CORRELATION = 0.9999
+#: The same bound for c, x0 and y0, whose confusion with the flying height and
+#: the centres the geometry makes exact on flat ground (0.9999-1.0000 on every
+#: block here, where a t of 5.7 for c was spurious: the simulated c was exact).
+INTERIOR_CORRELATION = 0.999
+#: False-alarm probability of the F test of the chosen set against none.
+ALPHA_SET = 0.001
+
+_FLIGHT = {
+    FlightDirection.PLUS_X: np.array([[1.0, 0.0], [0.0, 1.0]]),
+    FlightDirection.MINUS_X: np.array([[-1.0, 0.0], [0.0, -1.0]]),
+    FlightDirection.PLUS_Y: np.array([[0.0, 1.0], [-1.0, 0.0]]),
+    FlightDirection.MINUS_Y: np.array([[0.0, -1.0], [1.0, 0.0]]),
+}
+
+#: What the exterior orientation absorbs of each parameter, for the notes.
+_ABSORBED_BY = {
+    "c": "the flying height",
+    "x0": "the centres and rotations",
+    "y0": "the centres and rotations",
+}
+
+Adjust = Callable[[CameraModel | None, FloatArray | None], BundleResult]
+
+
+def camera_model(
+    spec: SelfCalibration, names: tuple[str, ...], c_mm: float, base_mm: float
+) -> CameraModel:
+    """The camera model of ``spec`` estimating ``names``."""
+    return CameraModel(
+        spec.family, names, c_mm, base_mm, flight_matrix=_FLIGHT[spec.flight_direction]
+    )
+
+
+def ebner_base_mm(centres: FloatArray, points: FloatArray, c_mm: float) -> float:
+    """The base at image scale (mm): the median distance of consecutive centres
+    times c over the median height of the centres above the points."""
+    good = points[np.all(np.isfinite(points), axis=1)]
+    if centres.shape[0] < 2 or good.shape[0] == 0:
+        return float("nan")
+    step = float(np.median(np.linalg.norm(np.diff(centres, axis=0), axis=1)))
+    height = float(np.median(centres[:, 2]) - np.median(good[:, 2]))
+    return c_mm * step / height if height > 0 else float("nan")
+
+
+def _auto(
+    spec: SelfCalibration, adjust: Adjust, c_mm: float, base_mm: float
+) -> tuple[BundleResult, SelfCalibrationOutcome]:
+    """``"auto"``: hold parameters until the set is stable (module notes)."""
+    active = list(BROWN_PARAMETERS)
+    held: dict[str, str] = {}
+    last: dict[str, tuple[float, float, float, float]] = {}
+    res: BundleResult | None = None
+    for _ in range(len(BROWN_PARAMETERS) + 1):
+        if not active:
+            break
+        try:
+            res = adjust(camera_model(spec, tuple(active), c_mm, base_mm), None)
+        except CameraUndetermined as exc:
+            name = exc.name or active[-1]
+            held[name] = "not determined by the data"
+            active.remove(name)
+            res = None
+            continue
+        cam = res.camera
+        assert cam is not None
+        for i, name in enumerate(cam.names):
+            last[name] = (
+                float(cam.values[i]),
+                float(cam.std[i]),
+                float(cam.t_values[i]),
+                float(cam.orientation_correlation[i]),
+            )
+        hold = _next_to_hold(cam)
+        if not hold:
+            break
+        for name, reason in hold:
+            held[name] = reason
+            active.remove(name)
+    none = adjust(None, None)
+    notes: list[str] = []
+    if res is None or not active:
+        res = none
+    elif not _significant(res, none):
+        notes.append(
+            "self-calibration: the parameters "
+            + ", ".join(active)
+            + " do not lower the residuals significantly together (F test); the camera is "
+            "left as given"
+        )
+        for name in active:
+            held[name] = "the set is not significant (F test against none)"
+        res = none
+    if held:
+        notes.insert(
+            0,
+            "self-calibration held at their start values: "
+            + "; ".join(f"{n} ({why})" for n, why in held.items()),
+        )
+    outcome = _outcome(spec, res.camera, held, last, none.sigma0, tuple(notes))
+    return res, outcome
+
+
+def _next_to_hold(cam: CameraEstimate) -> list[tuple[str, str]]:
+    """The parameters to hold after one adjustment, with reasons (empty: stable)."""
+    r_eo = cam.orientation_correlation
+    bound = np.array(
+        [
+            INTERIOR_CORRELATION if n in _ABSORBED_BY else MAX_ORIENTATION_CORRELATION
+            for n in cam.names
+        ]
+    )
+    over = np.flatnonzero(r_eo > bound)
+    if over.size:
+        return [
+            (
+                cam.names[i],
+                f"correlation {r_eo[i]:.4f} with the exterior orientation"
+                + (f": {_ABSORBED_BY[cam.names[i]]}" if cam.names[i] in _ABSORBED_BY else ""),
+            )
+            for i in over
+        ]
+    t = np.abs(cam.t_values)
+    corr = np.abs(cam.correlations) - np.eye(len(cam.names))
+    if corr.size and np.max(corr) > MAX_CORRELATION:
+        i, j = np.unravel_index(int(np.argmax(corr)), corr.shape)
+        weak, strong = (i, j) if t[i] < t[j] else (j, i)
+        return [
+            (
+                cam.names[weak],
+                f"correlation {corr[i, j]:.3f} with {cam.names[strong]}",
+            )
+        ]
+    worst = int(np.argmin(t))
+    if t[worst] < T_CRITICAL:
+        return [(cam.names[worst], f"t = {t[worst]:.2f}, below {T_CRITICAL:g}")]
+    return []
+
+
+def _significant(with_camera: BundleResult, without: BundleResult) -> bool:
+    """F test: does the camera set lower the weighted sum of squares significantly?"""
+    from scipy.stats import f as f_dist
+
+    k = without.redundancy - with_camera.redundancy
+    red = with_camera.redundancy
+    if k <= 0 or red <= 0:
+        return False
+    ss_with = with_camera.sigma0**2 * red
+    ss_without = without.sigma0**2 * without.redundancy
+    statistic = (ss_without - ss_with) / k / (ss_with / red)
+    return bool(statistic > f_dist.ppf(1.0 - ALPHA_SET, k, red))
+
+
+def _outcome(
+    spec: SelfCalibration,
+    cam: CameraEstimate | None,
+    held: dict[str, str],
+    last: dict[str, tuple[float, float, float, float]],
+    sigma0_without: float,
+    notes: tuple[str, ...],
+) -> SelfCalibrationOutcome:
+    """Every candidate's outcome, and the strongly correlated pairs."""
+    current: dict[str, tuple[float, float, float, float]] = dict(last)
+    correlations: list[tuple[str, str, float]] = []
+    if cam is not None:
+        for i, name in enumerate(cam.names):
+            current[name] = (
+                float(cam.values[i]),
+                float(cam.std[i]),
+                float(cam.t_values[i]),
+                float(cam.orientation_correlation[i]),
+            )
+        corr = cam.correlations
+        ii, jj = np.triu_indices(len(cam.names), 1)
+        strong = np.abs(corr[ii, jj]) > MAX_CORRELATION
+        correlations = [
+            (cam.names[i], cam.names[j], float(corr[i, j]))
+            for i, j in zip(ii[strong], jj[strong], strict=True)
+        ]
+    kept = set(cam.names) if cam is not None else set()
+    candidates = EBNER_PARAMETERS if spec.family == "ebner" else BROWN_PARAMETERS
+    if spec.choice not in ("auto", "ebner12"):
+        candidates = tuple(spec.choice)
+    nan4 = (float("nan"),) * 4
+    parameters = tuple(
+        ParameterOutcome(
+            name=n,
+            unit=PARAMETER_UNITS[n],
+            value=current.get(n, nan4)[0],
+            std=current.get(n, nan4)[1],
+            t=current.get(n, nan4)[2],
+            kept=n in kept,
+            reason="" if n in kept else held.get(n, "not estimated"),
+            orientation_correlation=current.get(n, nan4)[3],
+        )
+        for n in candidates
+    )
+    return SelfCalibrationOutcome(
+        choice=spec.choice,
+        family=spec.family,
+        parameters=parameters,
+        correlations=tuple(correlations),
+        estimate=cam,
+        sigma0_without=sigma0_without,
+        notes=notes,
+    )
+
+
+def start_model(
+    spec: SelfCalibration, adjust: Adjust, c_mm: float, base_mm: float
+) -> tuple[CameraModel | None, FloatArray | None, SelfCalibrationOutcome | None]:
+    """The model to adjust with (None: none), its start values and, for
+    ``"auto"``, the outcome of the choice (completed by :func:`final_outcome`)."""
+    if spec.choice != "auto":
+        names = EBNER_PARAMETERS if spec.choice == "ebner12" else tuple(spec.choice)
+        return camera_model(spec, names, c_mm, base_mm), None, None
+    res, outcome = _auto(spec, adjust, c_mm, base_mm)
+    if res.camera is None:
+        return None, None, outcome
+    return res.camera.model, res.camera.values, outcome
+
+
+def final_outcome(
+    spec: SelfCalibration, chosen: SelfCalibrationOutcome | None, cam: CameraEstimate | None
+) -> SelfCalibrationOutcome:
+    """The outcome with the delivered adjustment's estimates (after the blunder tests)."""
+    if chosen is None:
+        return _outcome(spec, cam, {}, {}, float("nan"), ())
+    held = {p.name: p.reason for p in chosen.parameters if not p.kept}
+    last = {
+        p.name: (p.value, p.std, p.t, p.orientation_correlation) for p in chosen.parameters
+    }
+    return _outcome(spec, cam, held, last, chosen.sigma0_without, chosen.notes)
+
+
+def residual_cells(
+    cam: CameraEstimate, xy: FloatArray, residuals_mm: FloatArray, n_cells: int = 8
+) -> ResidualCells | None:
+    """Image residuals (K, 2; flight axes, mm) at the observations ``xy`` (K, 2)
+    averaged in ``n_cells`` x ``n_cells`` cells over the format, in the sensor
+    axes and µm, with the camera's correction (``after``) and with it added
+    back (``before``)."""
+    good = np.all(np.isfinite(residuals_mm), axis=1) & np.all(np.isfinite(xy), axis=1)
+    if not good.any():
+        return None
+    turn = cam.model.flight_matrix
+    xy_s = xy[good] @ turn  # rows f = M s: s = f M
+    after = residuals_mm[good] @ turn
+    before = after + cam.model.correction(xy[good], cam.values) @ turn
+    lo, hi = xy_s.min(axis=0), xy_s.max(axis=0)
+    x_edges = np.linspace(lo[0], hi[0], n_cells + 1)
+    y_edges = np.linspace(lo[1], hi[1], n_cells + 1)
+    ix = np.clip(np.searchsorted(x_edges, xy_s[:, 0], side="right") - 1, 0, n_cells - 1)
+    iy = np.clip(np.searchsorted(y_edges, xy_s[:, 1], side="right") - 1, 0, n_cells - 1)
+    cell = iy * n_cells + ix
+    count = np.bincount(cell, minlength=n_cells * n_cells)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means = [
+            np.stack(
+                [np.bincount(cell, v[:, j], n_cells * n_cells) / count for j in range(2)], axis=-1
+            ).reshape(n_cells, n_cells, 2)
+            * 1000.0
+            for v in (after, before)
+        ]
+    return ResidualCells(x_edges, y_edges, means[0], means[1], count.reshape(n_cells, n_cells))

@@ -1,0 +1,99 @@
+"""Figures of a self-calibration: the camera's correction over the format and
+the image residuals averaged in cells (sensor axes, x right, y up)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .figures import _png
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from .._typing import FloatArray
+    from ..results import ResidualCells, SelfCalibrationOutcome
+
+__all__ = ["distortion_field", "figure_cells", "figure_distortion"]
+
+#: The interior orientation's parameters, left out of the distortion field.
+_INTERIOR = ("c", "x0", "y0")
+
+
+def distortion_field(outcome: SelfCalibrationOutcome, xy_sensor: FloatArray) -> FloatArray:
+    """The estimated correction (mm, sensor axes) at ``xy_sensor`` (K, 2),
+    without the change of c and of the principal point."""
+    est = outcome.estimate
+    assert est is not None
+    turn = est.model.flight_matrix
+    values = np.where([n in _INTERIOR for n in est.names], 0.0, est.values)
+    out: FloatArray = est.model.correction(xy_sensor @ turn.T, values) @ turn
+    return out
+
+
+def _quiver(ax: Axes, x: FloatArray, y: FloatArray, d: FloatArray, scale: float) -> None:
+    ax.quiver(x, y, d[..., 0], d[..., 1], angles="xy", scale_units="xy", scale=scale, width=0.004)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+
+
+def figure_distortion(outcome: SelfCalibrationOutcome) -> str | None:
+    """Vectors of the correction on a 15 x 15 grid over the observed area, and
+    its radial component's mean over the directions against r."""
+    from matplotlib.figure import Figure
+
+    cells = outcome.cells
+    if outcome.estimate is None or cells is None:
+        return None
+    lo = np.array([cells.x_edges[0], cells.y_edges[0]])
+    hi = np.array([cells.x_edges[-1], cells.y_edges[-1]])
+    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 15), np.linspace(lo[1], hi[1], 15))
+    grid = np.column_stack([gx.ravel(), gy.ravel()])
+    d_um = distortion_field(outcome, grid) * 1000.0
+    largest = float(np.max(np.hypot(d_um[:, 0], d_um[:, 1]), initial=0.0))
+    fig = Figure(figsize=(9.0, 3.8), layout="constrained")
+    ax1, ax2 = fig.subplots(1, 2)
+    step = float(hi[0] - lo[0]) / 14.0
+    _quiver(ax1, grid[:, 0], grid[:, 1], d_um, max(largest, 1e-9) / (0.9 * step))
+    ax1.set_title(f"correction, largest {largest:.1f} µm")
+    r_max = float(np.max(np.hypot(*np.abs(np.vstack([lo, hi])).max(axis=0)), initial=1.0))
+    radii = np.linspace(0.0, r_max, 60)
+    angles = np.linspace(0.0, 2 * np.pi, 36, endpoint=False)
+    ring = np.stack([np.cos(angles), np.sin(angles)], axis=-1)  # (36, 2)
+    pts = (radii[:, None, None] * ring[None]).reshape(-1, 2)
+    radial = np.sum(distortion_field(outcome, pts).reshape(60, 36, 2) * ring[None], axis=-1)
+    ax2.plot(radii, radial.mean(axis=1) * 1000.0, color="C0")
+    ax2.axhline(0.0, color="0.6", lw=0.8)
+    ax2.set_xlabel("r (mm)")
+    ax2.set_ylabel("radial correction (µm)")
+    ax2.set_title("radial profile (mean over directions)")
+    return _png(fig)
+
+
+def figure_cells(cells: ResidualCells) -> str | None:
+    """Mean residual per cell, before (correction added back) and after."""
+    from matplotlib.figure import Figure
+
+    if not np.any(cells.count):
+        return None
+    xc = 0.5 * (cells.x_edges[1:] + cells.x_edges[:-1])
+    yc = 0.5 * (cells.y_edges[1:] + cells.y_edges[:-1])
+    gx, gy = np.meshgrid(xc, yc)
+    largest = float(
+        np.nanmax(np.hypot(cells.before[..., 0], cells.before[..., 1]), initial=0.0)
+    )
+    step = float(xc[1] - xc[0]) if xc.size > 1 else 1.0
+    scale = max(largest, 1e-9) / (0.9 * step)
+    fig = Figure(figsize=(9.0, 3.8), layout="constrained")
+    for ax, field, title in zip(
+        fig.subplots(1, 2),
+        (cells.before, cells.after),
+        ("without the camera's correction", "after self-calibration"),
+        strict=True,
+    ):
+        _quiver(ax, gx, gy, np.nan_to_num(field), scale)
+        rms = float(np.sqrt(np.nanmean(np.sum(field**2, axis=-1))))
+        ax.set_title(f"{title}: RMS {rms:.2f} µm")
+    return _png(fig)
