@@ -21,6 +21,8 @@ LAYERS: dict[str, int] = {
     **dict.fromkeys(
         [
             "_typing",
+            "_atomic",
+            "_toml",
             "_stats",
             "_rows",
             "_text",
@@ -28,6 +30,7 @@ LAYERS: dict[str, int] = {
             "_threads",
             "errors",
             "options",
+            "choices",
             "observations",
             "blunders",
         ],
@@ -112,9 +115,10 @@ def test_no_module_imports_a_higher_layer():
     assert upward == []
 
 
-def test_no_import_cycle():
-    modules = _modules()
-    edges = {m: _imports(m, p, modules)[0] & set(modules) - {m} for m, p in modules.items()}
+def _cycles(modules: dict[str, Path]) -> list[str]:
+    """Import cycles, counting imports inside functions and under
+    ``TYPE_CHECKING`` too (a cycle hidden in a function is still a cycle)."""
+    edges = {m: _imports(m, p, modules)[1] & set(modules) - {m} for m, p in modules.items()}
     state: dict[str, int] = {}  # 1 on the current path, 2 done
     cycles = []
 
@@ -130,7 +134,44 @@ def test_no_import_cycle():
     for module in sorted(modules):
         if module not in state:
             visit(module, [module])
-    assert cycles == []
+    return cycles
+
+
+#: Cycles still to be cut (remove them as they are): the engine's assembly
+#: imports its types back from normals.py inside functions.
+KNOWN_CYCLES = {
+    "strip_aerotri.geometry._normal_assembly -> strip_aerotri.geometry.normals "
+    "-> strip_aerotri.geometry._normal_assembly",
+    "strip_aerotri.geometry.normals -> strip_aerotri.geometry._normal_assembly "
+    "-> strip_aerotri.geometry.normals",
+    # the self-calibration section borrows the page's HTML helpers inside a function
+    "strip_aerotri.report.calibration -> strip_aerotri.report.html "
+    "-> strip_aerotri.report.calibration",
+    "strip_aerotri.report.html -> strip_aerotri.report.calibration "
+    "-> strip_aerotri.report.html",
+}
+
+
+def test_no_import_cycle():
+    assert set(_cycles(_modules())) - KNOWN_CYCLES == set()
+
+
+def test_the_cycle_rule_sees_imports_inside_functions(tmp_path):
+    package = tmp_path / "strip_aerotri"
+    package.mkdir()
+    (package / "a.py").write_text("from . import b\n")
+    (package / "b.py").write_text("def f():\n    from .a import g\n")
+    (package / "c.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .d import x\n"
+    )
+    (package / "d.py").write_text("from .c import y\n")
+    modules = {
+        f"strip_aerotri.{p.stem}": p for p in package.glob("*.py")
+    }
+    assert sorted(_cycles(modules)) == [
+        "strip_aerotri.a -> strip_aerotri.b -> strip_aerotri.a",
+        "strip_aerotri.c -> strip_aerotri.d -> strip_aerotri.c",
+    ]
 
 
 def _long_functions() -> list[str]:
@@ -163,3 +204,33 @@ def test_the_length_rule_can_fail(tmp_path, monkeypatch, text):
     (tmp_path / "strip_aerotri" / "long.py").write_text(text)
     monkeypatch.setattr(__import__(__name__), "PACKAGE", tmp_path / "strip_aerotri")
     assert [line.split()[1] for line in _long_functions()] == ["f:"]
+
+
+def test_docstrings_point_to_docs_users_have():
+    """The package names only the pages it ships (docs/, ``stripaero docs``),
+    never a page users do not have."""
+    import re
+
+    shipped = {p.name for p in (PACKAGE.parents[1] / "docs").glob("*.md")}
+    missing = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        for name in set(re.findall(r"\b([\w-]+\.md)\b", text)):
+            if name not in shipped | {"README.md", "report.md"}:  # report.md: an output
+                missing.append(f"{path.relative_to(PACKAGE)}: {name}")
+    assert missing == []
+
+
+MAX_MODULE_LINES = 1000
+
+#: Modules still over the limit, to be split by job (remove them as they are).
+LONG_MODULES = {"geometry/simultaneous.py", "block/strips.py"}
+
+
+def test_no_module_over_the_limit():
+    long = {
+        str(path.relative_to(PACKAGE))
+        for path in PACKAGE.rglob("*.py")
+        if len(path.read_text(encoding="utf-8").splitlines()) > MAX_MODULE_LINES
+    }
+    assert long <= LONG_MODULES, sorted(long - LONG_MODULES)

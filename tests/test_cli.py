@@ -63,12 +63,12 @@ def fast_report(request, monkeypatch):
         return
     from strip_aerotri.report import outputs as report
 
-    build = report.build_outputs
+    build = report.strip_outputs
 
     def without_html(result, **kwargs):
-        return build(result, html=False, **kwargs)
+        return build(result, **{**kwargs, "html": False})
 
-    monkeypatch.setattr(report, "build_outputs", without_html)
+    monkeypatch.setattr(report, "strip_outputs", without_html)
 
 
 def invoke(*args: str | Path):

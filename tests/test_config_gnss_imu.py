@@ -499,8 +499,8 @@ E2E_CONTROL = {"P0004": "full", "P0137": "full", "P0061": "height"}
 def test_run_with_gnss_and_imu_end_to_end(tmp_path: Path, monkeypatch) -> None:
     from strip_aerotri.report import outputs as report
 
-    build = report.build_outputs  # the HTML figures take seconds; every other file is built
-    monkeypatch.setattr(report, "build_outputs", lambda r, **kw: build(r, html=False, **kw))
+    build = report.strip_outputs  # the HTML figures take seconds; every other file is built
+    monkeypatch.setattr(report, "strip_outputs", lambda r, **kw: build(r, **{**kw, "html": False}))
 
     sim = simulate_strip(12, seed=1, crs="EPSG:32634")
     folder = tmp_path / "film"

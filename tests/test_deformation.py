@@ -13,8 +13,8 @@ from strip_aerotri.geometry.deformation import (
     fit_deformation,
     n_terms,
     polynomial_terms,
-    select_kind_auto,
 )
+from strip_aerotri.geometry.deformation_auto import select_kind_auto
 
 # A synthetic strip 10 km long (X along the strip), 2 km wide, +-30 m relief, in metres.
 LENGTH, HALF_WIDTH = 10_000.0, 1_000.0

@@ -22,9 +22,9 @@ from strip_aerotri.geometry.deformation import (
     n_terms,
     polynomial_terms,
     section_terms,
-    select_kind_auto,
     term_names,
 )
+from strip_aerotri.geometry.deformation_auto import select_kind_auto
 
 # A synthetic strip 12 km long (X along the strip), 2 km wide, in metres: stations every
 # 1 km, so three sections of 4 km hold four or five stations each.
@@ -545,7 +545,7 @@ def test_piecewise_evaluation_equals_the_basis_times_the_coefficients(kind, brea
     """The fast evaluation (each section's piece by Horner's rule, in chunks of points)
     against the dense design of section_terms: inside, at the breakpoints, beyond the ends,
     over more points than one chunk."""
-    from strip_aerotri.geometry.deformation import _CHUNK_POINTS, _section_values
+    from strip_aerotri.geometry.deformation_basis import _CHUNK_POINTS, _section_values
 
     rng = np.random.default_rng(kind)
     n = 2 * _CHUNK_POINTS + 17

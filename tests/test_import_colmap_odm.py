@@ -23,7 +23,8 @@ from strip_aerotri.importers.colmap import (
     read_cameras,
     read_model,
 )
-from strip_aerotri.importers.common import ImportOptions, flight_matrix, write_project
+from strip_aerotri.importers.common import ImportOptions, write_project
+from strip_aerotri.interior import flight_matrix
 from strip_aerotri.importers.odm import PixelCamera, crs_from_odm, import_odm, read_gcp_list
 from strip_aerotri.project import load_project
 

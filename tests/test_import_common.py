@@ -7,10 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from strip_aerotri.errors import ConfigError
-from strip_aerotri.importers import common
 from strip_aerotri.importers.common import (
     Camera,
     ControlTable,
@@ -20,16 +18,14 @@ from strip_aerotri.importers.common import (
     Strip,
     assemble,
     decide_flight_direction,
-    grid_convergence_deg,
-    matrix_from_opk_deg,
     natural_key,
-    opk_deg_from_matrix,
     photo_id,
     split_control,
     strips_from_positions,
     toml_value,
     write_project,
 )
+from strip_aerotri.geodesy import grid_convergence_deg
 from strip_aerotri.project import load_project
 
 # --------------------------------------------------------------------------- a small strip
@@ -95,15 +91,6 @@ def test_natural_key_orders_numbers_as_numbers() -> None:
 
 
 # --------------------------------------------------------------------------- rotations
-
-
-def test_opk_matrix_matches_scipy_and_round_trips() -> None:
-    rng = np.random.default_rng(2345)
-    opk = rng.uniform([-60, -80, -179], [60, 80, 179], (20, 3))
-    # oracle: R = Rx(omega) Ry(phi) Rz(kappa) is scipy's intrinsic "XYZ" (docs/conventions.md)
-    expected = Rotation.from_euler("XYZ", opk, degrees=True).as_matrix()
-    np.testing.assert_allclose(matrix_from_opk_deg(opk), expected, atol=1e-14)
-    np.testing.assert_allclose(opk_deg_from_matrix(expected), opk, atol=1e-9)
 
 
 def test_grid_convergence_has_the_sign_of_conventions_md() -> None:
@@ -347,7 +334,9 @@ def test_failed_write_leaves_the_old_folder_as_it_was(tmp_path: Path, monkeypatc
     out = tmp_path / "proj"
     out.mkdir()
     (out / "old.txt").write_text("old")
-    real = common.os.rename
+    from strip_aerotri import _atomic
+
+    real = _atomic.os.replace
     calls = []
 
     def failing(a, b):
@@ -356,7 +345,7 @@ def test_failed_write_leaves_the_old_folder_as_it_was(tmp_path: Path, monkeypatc
             raise OSError("disk full")
         return real(a, b)
 
-    monkeypatch.setattr(common.os, "rename", failing)
+    monkeypatch.setattr(_atomic.os, "replace", failing)
     with pytest.raises(OSError, match="disk full"):
         write_project(project, out, force=True)
     assert sorted(p.name for p in out.iterdir()) == ["old.txt"]

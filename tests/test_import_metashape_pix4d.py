@@ -19,15 +19,12 @@ import pytest
 from pyproj import CRS, Proj, Transformer
 
 from strip_aerotri.errors import ConfigError
-from strip_aerotri.importers.common import (
-    ImportOptions,
-    flight_matrix,
-    matrix_from_opk_deg,
-    write_project,
-)
+from strip_aerotri.geometry.rotation import matrix_from_opk
+from strip_aerotri.importers.common import ImportOptions, write_project
 from strip_aerotri.importers.metashape import import_metashape, read_markers_xml, read_opk_text
 from strip_aerotri.importers.odm import PixelCamera
 from strip_aerotri.importers.pix4d import import_pix4d, read_gcp_coordinates, read_marks
+from strip_aerotri.interior import flight_matrix
 from strip_aerotri.project import load_project
 
 SAMPLE = Path(__file__).resolve().parent / "data" / "import"
@@ -48,7 +45,7 @@ def _true_rotations(photo_ids, direction: str) -> np.ndarray:
     out = []
     for pid in photo_ids:
         r = rows[pid]
-        grid = matrix_from_opk_deg(np.array([float(r[k]) for k in ("omega", "phi", "kappa")]))
+        grid = matrix_from_opk([float(r[k]) for k in ("omega", "phi", "kappa")], degrees=True)
         lon, lat = to_geo.transform(float(r["X"]), float(r["Y"]))
         gamma = Proj(crs).get_factors(lon, lat).meridian_convergence  # independent of the importer
         out.append(_rz(-gamma) @ grid @ flight_matrix(direction).T)
@@ -81,7 +78,7 @@ def test_metashape_strip_with_cameras(tmp_path: Path) -> None:
     assert loaded.crs == "EPSG:32632"  # the chunk's WKT, identified
     # the sensor calibration (Metashape Appendix C) undone by the loader
     np.testing.assert_allclose(loaded.observations.xy, _true_xy(loaded), atol=5e-6)
-    got = matrix_from_opk_deg(np.rad2deg(loaded.imu.opk))
+    got = matrix_from_opk(loaded.imu.opk)
     np.testing.assert_allclose(got, _true_rotations(loaded.imu.photo_ids, "+y"), atol=1e-8)
     assert loaded.adjustment.refine.value == "bundle"
 
@@ -119,7 +116,7 @@ def test_attitudes_of_another_camera_convention_are_refused(tmp_path: Path) -> N
     out = lines[:3]
     for line in lines[3:]:
         f = line.split("\t")
-        r = matrix_from_opk_deg(np.array([float(v) for v in f[4:7]])) @ np.diag([1.0, -1.0, -1.0])
+        r = matrix_from_opk([float(v) for v in f[4:7]], degrees=True) @ np.diag([1.0, -1.0, -1.0])
         omega = np.degrees(np.arctan2(-r[1, 2], r[2, 2]))
         phi, kappa = np.degrees(np.arcsin(r[0, 2])), np.degrees(np.arctan2(-r[0, 1], r[0, 0]))
         out.append("\t".join([*f[:4], f"{omega:.9f}", f"{phi:.9f}", f"{kappa:.9f}"]))
@@ -152,7 +149,7 @@ def test_pix4d_strip_with_external_parameters(tmp_path: Path) -> None:
     np.testing.assert_allclose(loaded.observations.xy, _true_xy(loaded), atol=2e-6)
     # the marks' accuracy of 0.5 px is each observation's sigma
     np.testing.assert_allclose(loaded.observations.sigma, 0.5 * 0.00241)
-    got = matrix_from_opk_deg(np.rad2deg(loaded.imu.opk))
+    got = matrix_from_opk(loaded.imu.opk)
     np.testing.assert_allclose(got, _true_rotations(loaded.imu.photo_ids, "+y"), atol=1e-8)
     np.testing.assert_allclose(loaded.control.sigma_xy, 0.02)  # gcps.csv: accuracy 0.02, 0.03
     np.testing.assert_allclose(loaded.control.sigma_h, 0.03)
@@ -172,7 +169,9 @@ def test_pix4d_block_reverses_the_strip_flown_back() -> None:
     ]
     # attitudes do not depend on the photo order, only on the flight axes
     photo, opk = project.imu_opk_deg
-    np.testing.assert_allclose(matrix_from_opk_deg(opk), _true_rotations(photo, "+y"), atol=1e-8)
+    np.testing.assert_allclose(
+        matrix_from_opk(opk, degrees=True), _true_rotations(photo, "+y"), atol=1e-8
+    )
 
 
 def test_pix4d_gcp_axis_order_follows_the_crs(tmp_path: Path) -> None:

@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 
 from strip_aerotri.errors import ConfigError
-from strip_aerotri.importers.common import ImportOptions, flight_matrix, write_project
+from strip_aerotri.importers.common import ImportOptions, write_project
+from strip_aerotri.interior import flight_matrix
 from strip_aerotri.importers.uav_fc300x import import_uav_fc300x, read_calibration
 from strip_aerotri.project import load_project
 

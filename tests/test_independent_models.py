@@ -34,18 +34,29 @@ def run(sim, options):
 
 @pytest.mark.parametrize(("preset", "n_photos", "seed"), [("film", 12, 1), ("drone", 20, 3)])
 def test_both_constructions_agree_on_a_clean_strip(preset, n_photos, seed):
-    """The two constructions see the same observations: on the ground their
-    check-point errors agree within a few per cent, and both stay at the
-    level the noise allows."""
+    """The two constructions see the same observations: against the
+    simulator's truth, over every triangulated point, their errors agree
+    within 5 % (measured within 1 %), and the points themselves lie within
+    0.3 times that error of each other (measured 0.13 film, 0.23 drone)."""
     sim = simulate_strip(n_photos, seed=seed, preset=preset)
     dependent, independent = run(sim, StripOptions()), run(sim, INDEPENDENT)
     assert independent.strip.options.models is ModelFormation.INDEPENDENT
-    d, i = dependent.check_statistics, independent.check_statistics
-    assert i.rmse_plan == pytest.approx(d.rmse_plan, rel=0.1)
-    assert i.rmse[2] == pytest.approx(d.rmse[2], rel=0.1)
-    # the points themselves: within a fraction of their own error of each other
+
+    def truth_rmse(result) -> np.ndarray:
+        error = result.points - sim.truth.points_crs
+        error = error[np.isfinite(error).all(axis=1)]
+        assert error.shape[0] >= 0.9 * error.shape[0] + 0.1 * sim.observations.n_points
+        plan = np.sqrt(np.mean(np.sum(error[:, :2] ** 2, axis=1)))
+        return np.array([plan, np.sqrt(np.mean(error[:, 2] ** 2))])
+
+    d, i = truth_rmse(dependent), truth_rmse(independent)
+    np.testing.assert_allclose(i, d, rtol=0.05)
+    # both near the check points' figures, which are computed from the control
+    np.testing.assert_allclose(
+        [dependent.check_statistics.rmse_plan, dependent.check_statistics.rmse[2]], d, rtol=0.25
+    )
     gap = np.nanmax(np.linalg.norm(independent.points - dependent.points, axis=1))
-    assert gap < 3 * max(d.rmse_plan, d.rmse[2])
+    assert gap < 0.3 * d.max()
     assert independent.strip.rejections == ()
 
 

@@ -212,6 +212,19 @@ def test_bad_file_names(tmp_path: Path, name: str) -> None:
     assert not (tmp_path / "out").exists()
 
 
+def test_atomic_file_leaves_the_old_file_when_writing_fails(tmp_path):
+    from strip_aerotri._atomic import atomic_file
+
+    target = tmp_path / "a.geojson"
+    target.write_text("old")
+    with pytest.raises(RuntimeError, match="half way"):
+        with atomic_file(target) as partial:
+            partial.write_text("new, half")
+            raise RuntimeError("half way")
+    assert target.read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.geojson"]
+
+
 def test_files_the_run_did_not_write_are_kept(tmp_path: Path) -> None:
     """A new result replaces what the previous run wrote (the marker lists
     it) and keeps the rest; an export recorded in the marker is named."""

@@ -29,8 +29,8 @@ def fast_report(monkeypatch):
     """No matplotlib figures (about 2 s a run): the messages are the point here."""
     from strip_aerotri.report import outputs as report
 
-    build = report.build_outputs
-    monkeypatch.setattr(report, "build_outputs", lambda r, **kw: build(r, html=False, **kw))
+    build = report.strip_outputs
+    monkeypatch.setattr(report, "strip_outputs", lambda r, **kw: build(r, **{**kw, "html": False}))
 
 
 def invoke(*args: str | Path):

@@ -295,3 +295,62 @@ def test_check_forms_the_strip_as_the_run_does(tmp_path, monkeypatch):
     check_project(project)
     run_project(project)
     assert seen == [project.adjustment, project.adjustment]
+
+
+def _road_and_one_height(tmp_path: Path, sim, extra: str | None) -> Path:
+    """The corridor's road points as full control (all in one vertical plane)
+    and the height of one other point ``extra``."""
+    road = sim.lines[0][0]
+    index = {p: i for i, p in enumerate(sim.observations.point_ids)}
+    truth = sim.truth.points_crs
+    folder = tmp_path / (extra or "road")
+    toml = sim.write_project(folder, polynomial=0)
+    rows = ["point,X,Y,H,type"]
+    rows += [
+        f"{p},{truth[index[p], 0]:.4f},{truth[index[p], 1]:.4f},{truth[index[p], 2]:.4f},full"
+        for p in road
+    ]
+    if extra is not None:
+        rows.append(f"{extra},,,{truth[index[extra], 2]:.4f},height")
+    (folder / "control.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+    text = toml.read_text(encoding="utf-8")
+    start = text.index("[[straight_line]]")
+    toml.write_text(text[:start] + text[text.index("[adjustment]") :], encoding="utf-8")
+    return toml
+
+
+def test_check_judges_height_control_in_one_plane_as_the_run(tmp_path):
+    """Road control plus the height of one point at 0 to 900 m off the road:
+    ``check`` finds what ``run`` finds (an error, a warning or nothing),
+    because both apply the similarity's rule to the formed strip.  Before,
+    the check judged from the control's coordinates with its own margin and
+    missed the run's warning at 52 m (P0049)."""
+    import warnings as _warnings
+
+    from strip_aerotri.errors import StripAerotriError
+    from strip_aerotri.project import check_project, load_project, run_project
+    from strip_aerotri.simulate import simulate_strip
+
+    sim = simulate_strip(6, preset="corridor", crs="EPSG:32634", seed=4)
+    verdicts = []
+    for extra in (None, "P0049", "P0019", "P0055"):  # the road alone; 52, 229, 847 m off
+        project = load_project(_road_and_one_height(tmp_path, sim, extra))
+        report = check_project(project)
+        check = (
+            "error"
+            if any("vertical plane" in p for p in report.problems)
+            else "warning"
+            if any("vertical plane" in w for w in report.warnings)
+            else "none"
+        )
+        try:
+            with _warnings.catch_warnings(record=True) as caught:
+                _warnings.simplefilter("always")
+                run_project(project)
+            said = [str(w.message) for w in caught]
+            run = "warning" if any("vertical plane" in s for s in said) else "none"
+        except StripAerotriError as exc:
+            run = "error" if "vertical plane" in str(exc) else f"other: {exc}"
+        verdicts.append((extra, check, run))
+    assert [v[1] for v in verdicts] == [v[2] for v in verdicts], verdicts
+    assert [v[2] for v in verdicts] == ["error", "warning", "none", "none"], verdicts

@@ -6,6 +6,7 @@ import pytest
 from _synthetic import make_strip
 from strip_aerotri.errors import GeometryError
 from strip_aerotri.strip import relative as rel_module
+from strip_aerotri.strip import relative_state
 from strip_aerotri.strip.chaining import pair_rows
 from strip_aerotri.strip.relative import chain_rotations, essential_start, relative_orientation
 
@@ -35,12 +36,14 @@ def test_noise_free_converges_quadratically_to_truth(method):
     # base units), i.e. y-parallaxes below about 1e-11 × c = 1.5e-9 mm
     assert res.history[-1] < 1e-6
     assert np.all(res.max_parallax_um < 1e-6)
-    # quadratic: q_{k+1} / q_k^2 stays bounded while the digits double
+    # quadratic: q_{k+1} / q_k^2 is one constant (measured 5e-5 to 1.2e-4)
+    # while the digits double; a linear rate r would make it grow as r / q_k
     h = res.history
-    steps = [(h[k], h[k + 1]) for k in range(len(h) - 1) if 1e-5 < h[k + 1] and h[k] < 1e3]
-    assert steps, h
-    for before, after in steps:
-        assert after < 1e-3 * before**2 or after < 1e-3 * before, h
+    ratios = np.array(
+        [h[k + 1] / h[k] ** 2 for k in range(len(h) - 1) if 1e-12 < h[k + 1] and h[k] < 1e3]
+    )
+    assert ratios.size >= 3, h
+    assert ratios.max() < 1e-3 and ratios.max() < 10 * ratios.min(), (h, ratios)
     q_true, b_true = _relative_truth(syn)
     np.testing.assert_allclose(res.relative_rotation, q_true, atol=1e-10)
     b_dir = res.base / np.linalg.norm(res.base, axis=1, keepdims=True)
@@ -88,7 +91,7 @@ def test_sigma0_recovers_image_noise():
 def _first_pass_history(syn, factor, monkeypatch, iterations=30):
     """Max |q| (µm) per Gauss-Newton step from the near-vertical start."""
     left, right, pair, n = _pairs(syn)
-    monkeypatch.setattr(rel_module, "_SCHUT_FACTOR", factor)
+    monkeypatch.setattr(relative_state, "_SCHUT_FACTOR", factor)
     state = rel_module._DependentState(n, np.eye(3))
     starts = rel_module._segment_starts(pair, n)
     counts = np.bincount(pair, minlength=n)

@@ -96,9 +96,9 @@ def test_points_csv_contract_columns_and_values(utm):
     assert ids == [p for p, k in zip(result.point_ids, ok, strict=True) if k]
     xyz = np.array([[float(r[c]) for c in "XYH"] for r in rows])
     np.testing.assert_allclose(xyz, result.points[ok], atol=5e-5)  # 4 decimals
-    # near the simulated truth (the adjustment is good to decimetres here)
+    # near the simulated truth: largest errors measured 0.19, 0.21, 0.34 m (E, N, H)
     truth = sim.truth.points_crs[ok]
-    assert np.max(np.abs(xyz - truth)) < 1.0
+    assert np.all(np.max(np.abs(xyz - truth), axis=0) < [0.3, 0.3, 0.5])
     n_models = np.array([int(r["n_models"]) for r in rows])
     np.testing.assert_array_equal(n_models, result.strip.n_determinations[ok])
     n_images = np.array([int(r["n_images"]) for r in rows])
@@ -144,7 +144,8 @@ def test_photos_csv_contract_and_angle_convention(utm):
     rows = _rows(files["photos.csv"])
     assert [r["photo"] for r in rows] == list(result.photo_ids)
     xyz = np.array([[float(r[c]) for c in "XYZ"] for r in rows])
-    assert np.max(np.abs(xyz - sim.truth.photo_centres_crs)) < 2.0
+    # largest errors of the projection centres measured 0.26, 0.34, 0.22 m (X, Y, Z)
+    assert np.all(np.max(np.abs(xyz - sim.truth.photo_centres_crs), axis=0) < 0.5)
     opk = np.array([[float(r[c]) for c in ("omega", "phi", "kappa")] for r in rows])
     # R = Rx(omega) Ry(phi) Rz(kappa), image -> local east-north-up (docs/conventions.md);
     # scipy's intrinsic "XYZ" is that product (independent oracle).  The simulation's

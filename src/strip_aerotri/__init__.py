@@ -38,13 +38,12 @@ from .geodesy import (
 )
 from .geometry.deformation import (
     DeformationResult,
-    KindSelection,
     StraightLine,
     fit_deformation,
     polynomial_terms,
-    select_kind_auto,
 )
 from .geometry.camera_model import CameraModel
+from .geometry.deformation_auto import KindSelection, select_kind_auto
 from .geometry.intersection import intersect, intersect_midpoint, intersect_normal
 from .geometry.normals import (
     BorderRows,

@@ -10,5 +10,6 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 Int8Array = npt.NDArray[np.int8]
 BoolArray = npt.NDArray[np.bool_]
+StrArray = npt.NDArray[np.str_]
 
-__all__ = ["ArrayLike", "BoolArray", "FloatArray", "Int8Array", "IntArray"]
+__all__ = ["ArrayLike", "BoolArray", "FloatArray", "Int8Array", "IntArray", "StrArray"]

@@ -37,6 +37,7 @@ if TYPE_CHECKING:
     from strip_aerotri._typing import ArrayLike, FloatArray
 
 __all__ = [
+    "grid_convergence_deg",
     "MEAN_EARTH_RADIUS",
     "EllipsoidParameters",
     "GroundCRS",
@@ -703,3 +704,33 @@ def gaussian_mean_radius(
     e2 = ell.eccentricity_squared
     w2 = 1.0 - e2 * np.sin(b) ** 2
     return ell.semi_major_metre * math.sqrt(1.0 - e2) / w2
+
+
+def grid_convergence_deg(crs: str, xy: FloatArray) -> FloatArray:
+    """Meridian convergence of a projected CRS at ``xy`` (shape (M, 2)), degrees.
+
+    The azimuth of grid north clockwise from true north (pyproj's
+    ``Proj.get_factors(...).meridian_convergence``), so that a matrix to the
+    grid axes is ``Rz(gamma) @ R_enu`` (docs/conventions.md).  Zero for
+    ``crs = "local"``.
+
+    Raises
+    ------
+    ConfigError
+        For a geographic CRS (attitudes from a map grid are not defined there).
+    """
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    if crs.strip().lower() == "local":
+        return np.zeros(xy.shape[0])
+    from pyproj import CRS, Proj, Transformer
+
+    target = CRS.from_user_input(crs)
+    if not target.is_projected:
+        raise ConfigError(
+            f"crs {crs!r} is not a projected CRS: omega, phi, kappa refer to a map grid, so "
+            "the attitudes cannot be converted; use the projected CRS of the source"
+        )
+    to_geo = Transformer.from_crs(target, target.geodetic_crs, always_xy=True)
+    lon, lat = to_geo.transform(xy[:, 0], xy[:, 1])
+    factors = Proj(target).get_factors(np.asarray(lon), np.asarray(lat))
+    return np.asarray(factors.meridian_convergence, dtype=np.float64).reshape(-1)

@@ -57,6 +57,7 @@ __all__ = [
     "fit_fiducial_transform",
     "fit_fiducial_transforms",
     "flight_from_sensor",
+    "flight_matrix",
     "mm_from_pixel",
     "reduce_image_coordinates",
     "sensor_from_flight",
@@ -124,6 +125,21 @@ _FLIGHT_MATRICES: dict[FlightDirection, FloatArray] = {
     FlightDirection.PLUS_Y: np.array([[0.0, 1.0], [-1.0, 0.0]]),
     FlightDirection.MINUS_Y: np.array([[0.0, -1.0], [1.0, 0.0]]),
 }
+
+
+def flight_matrix(flight_direction: FlightDirection | str) -> FloatArray:
+    """The 3 x 3 matrix taking sensor-axis image vectors to the flight axes
+    (a turn about the image z axis, z kept): the rotation of
+    :func:`flight_from_sensor`, ``"+y"`` giving x' = y, y' = -x.
+
+    Examples
+    --------
+    >>> flight_matrix("+y") @ [1.0, 2.0, -3.0]
+    array([ 2., -1., -3.])
+    """
+    out = np.eye(3)
+    out[:2, :2] = _FLIGHT_MATRICES[FlightDirection(flight_direction)]
+    return out
 
 
 def flight_from_sensor(xy: ArrayLike, flight_direction: FlightDirection | str) -> FloatArray:

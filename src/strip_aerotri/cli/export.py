@@ -41,19 +41,15 @@ def _tables(
 
 
 def _write_whole(target: Path, data: str | bytes) -> None:
-    """Write ``target`` whole or not at all (a partial file renamed into place)."""
-    import os
+    """Write ``target`` whole or not at all (:func:`strip_aerotri._atomic.atomic_file`)."""
+    from .._atomic import atomic_file
 
     def write() -> None:
-        partial = target.with_name(f".{target.name}.partial")
-        try:
+        with atomic_file(target) as partial:
             if isinstance(data, str):
                 partial.write_text(data, encoding="utf-8")
             else:
                 partial.write_bytes(data)
-            os.replace(partial, target)
-        finally:
-            partial.unlink(missing_ok=True)
 
     _written(target, write)
 

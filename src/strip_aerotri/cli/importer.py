@@ -164,25 +164,9 @@ def _camera_options(func: F) -> F:
     return func
 
 
-def _read_photo_order(path: Path | None) -> tuple[tuple[str, ...], ...] | None:
-    if path is None:
-        return None
-    from ..importers.common import read_text
-
-    strips = []
-    for line in read_text(path, "photo order, one strip per line").splitlines():
-        text = line.split("#", 1)[0].replace(",", " ").split()
-        if text:
-            strips.append(tuple(text))
-    if not strips:
-        from ..errors import ConfigError
-
-        raise ConfigError(f"{path}: no photo ids (one strip per line)")
-    return tuple(strips)
-
-
 def _options(kw: dict[str, Any]) -> ImportOptions:
     from ..importers.common import ImportOptions
+    from ..importers.text import read_photo_order
 
     direction = kw.pop("flight_direction")
     return ImportOptions(
@@ -190,7 +174,7 @@ def _options(kw: dict[str, Any]) -> ImportOptions:
         control_ids=kw.pop("control_ids"),
         check_ids=kw.pop("check_ids"),
         flight_direction=None if direction == "auto" else direction,
-        photo_order=_read_photo_order(kw.pop("photo_order")),
+        photo_order=read_photo_order(kw.pop("photo_order")),
         name=kw.pop("name"),
         sigma_mm=kw.pop("sigma_mm"),
         turn_deg=kw.pop("turn_deg"),
@@ -218,22 +202,9 @@ def _camera(kw: dict[str, Any], required: bool) -> PixelCamera | None:
 
 
 def _pixel_size_mm(kw: dict[str, Any], width: int | None = None) -> float | None:
-    pixel_um: float | None
-    sensor: float | None
-    pixel_um, sensor = kw.pop("pixel_um", None), kw.pop("sensor_width_mm", None)
-    if pixel_um is not None and sensor is not None:
-        from ..errors import ConfigError
+    from ..importers.text import pixel_size_mm
 
-        raise ConfigError("give --pixel-um or --sensor-width-mm, not both")
-    if pixel_um is not None:
-        return pixel_um / 1000.0
-    if sensor is not None:
-        if width is None:
-            from ..errors import ConfigError
-
-            raise ConfigError("--sensor-width-mm needs the image width: use --pixel-um")
-        return sensor / width
-    return None
+    return pixel_size_mm(kw.pop("pixel_um", None), kw.pop("sensor_width_mm", None), width)
 
 
 def _write(project: ImportedProject, out: Path, force: bool) -> None:

@@ -1,6 +1,6 @@
 """The ``stripaero`` command group and the translation of errors into exit codes.
 
-Exit codes (formats.md): ``0`` success; ``1`` bad input or an adjustment that
+Exit codes (docs/cli.md): ``0`` success; ``1`` bad input or an adjustment that
 cannot be done, with one line ``stripaero: error: <message>`` on stderr (the
 message names the file, line or point and the rule broken); ``2`` usage
 errors reported by click; ``130`` interrupted (Ctrl-C, SIGINT), with one

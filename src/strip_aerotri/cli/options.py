@@ -136,7 +136,7 @@ def common_options(func: F) -> F:
 
 
 # Not ``exists=True``: a missing project file is bad input (exit 1, one line from
-# the loader), not a usage error (exit 2), as formats.md counts it.
+# the loader), not a usage error (exit 2), as docs/cli.md counts it.
 project_arg = click.argument(
     "project_file",
     metavar="STRIP_TOML",

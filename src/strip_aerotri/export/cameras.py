@@ -20,9 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray
+from ..geodesy import grid_convergence_deg
 from ..geometry.rotation import matrix_from_opk, opk_from_matrix
-from ..importers.common import grid_convergence_deg
-from ..interior import flight_from_sensor
+from ..interior import flight_matrix
 from ..options import FlightDirection
 
 __all__ = ["camera_rotations_grid", "cameras_opk_text"]
@@ -36,14 +36,12 @@ def camera_rotations_grid(
 ) -> FloatArray:
     """Sensor -> grid rotations (M, 3, 3) of photos given as this package's
     omega, phi, kappa (radians; flight axes -> local east-north-up)."""
-    flight = np.eye(3)  # sensor -> flight axes, a turn about the image z axis
-    flight[:2, :2] = flight_from_sensor(np.eye(2), flight_direction).T
-    enu = matrix_from_opk(np.asarray(opk_enu_rad, dtype=np.float64)) @ flight
-    gamma = np.radians(grid_convergence_deg(crs, np.asarray(centres_xy, dtype=np.float64)))
-    c, s = np.cos(gamma), np.sin(gamma)
-    rz = np.zeros((gamma.size, 3, 3))
-    rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = c, -s, s, c, 1.0
-    grid: FloatArray = rz @ enu
+    enu = matrix_from_opk(np.asarray(opk_enu_rad, dtype=np.float64)) @ flight_matrix(
+        flight_direction
+    )
+    gamma = grid_convergence_deg(crs, np.asarray(centres_xy, dtype=np.float64))
+    zeros = np.zeros_like(gamma)
+    grid: FloatArray = matrix_from_opk(np.column_stack([zeros, zeros, gamma]), degrees=True) @ enu
     return grid
 
 

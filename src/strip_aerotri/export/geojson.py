@@ -25,7 +25,7 @@ from ..errors import ConfigError
 from ..geodesy import GroundCRS
 from .tables import ResultTable, Value
 
-__all__ = ["ANGLES", "GEOJSON_DECIMALS", "results_geojson"]
+__all__ = ["ANGLES", "GEOJSON_DECIMALS", "geojson_text", "point_feature", "results_geojson"]
 
 GEOJSON_DECIMALS = 8
 """Decimals of longitude and latitude (1e-8 degree is about 1 mm), as in points.geojson."""
@@ -38,27 +38,35 @@ ANGLES = (
 """The convention of the photo centres' angles, stated in the file."""
 
 
+def point_feature(fid: str, lon: float, lat: float, properties: dict[str, Any]) -> dict[str, Any]:
+    """One RFC 7946 ``Point`` feature (longitude, latitude in degrees); its
+    geometry null where they are not finite.  The one writer of features:
+    ``points.geojson`` of the result folder and ``stripaero export geojson``."""
+    geometry = (
+        {"type": "Point", "coordinates": [lon, lat]}
+        if math.isfinite(lon) and math.isfinite(lat)
+        else None
+    )
+    return {"type": "Feature", "id": fid, "geometry": geometry, "properties": properties}
+
+
+def geojson_text(value: Any) -> str:
+    """Compact JSON of a GeoJSON object (UTF-8 text, no NaN)."""
+    return json.dumps(value, ensure_ascii=False, allow_nan=False, separators=(",", ":"))
+
+
 def _features(
     table: ResultTable, lonlat: np.ndarray, kind: str, extra: dict[str, Value]
 ) -> list[dict[str, Any]]:
-    out = []
-    for k, pid in enumerate(table.ids):
-        lon, lat = (float(v) for v in lonlat[k])
-        geometry = (
-            {"type": "Point", "coordinates": [lon, lat]}
-            if math.isfinite(lon) and math.isfinite(lat)
-            else None
+    return [
+        point_feature(
+            f"{kind}/{pid}",
+            float(lonlat[k, 0]),
+            float(lonlat[k, 1]),
+            {"feature": kind, **extra, **table.row(k)},
         )
-        properties: dict[str, Value] = {"feature": kind, **extra, **table.row(k)}
-        out.append(
-            {
-                "type": "Feature",
-                "id": f"{kind}/{pid}",
-                "geometry": geometry,
-                "properties": properties,
-            }
-        )
-    return out
+        for k, pid in enumerate(table.ids)
+    ]
 
 
 def results_geojson(
@@ -113,9 +121,5 @@ def results_geojson(
     features = _features(points, lonlat["points"], "point", {}) + _features(
         photos, lonlat["photos"], "photo_centre", photo_extra
     )
-    lines = [_dumps(f) for f in features]  # one feature a line
-    return _dumps(head)[:-1] + ',"features":[\n' + ",\n".join(lines) + "\n]}\n"
-
-
-def _dumps(value: Any) -> str:
-    return json.dumps(value, ensure_ascii=False, allow_nan=False, separators=(",", ":"))
+    lines = [geojson_text(f) for f in features]  # one feature a line
+    return geojson_text(head)[:-1] + ',"features":[\n' + ",\n".join(lines) + "\n]}\n"

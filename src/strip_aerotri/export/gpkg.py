@@ -15,7 +15,6 @@ a file is written, so that ``import strip_aerotri`` stays light.
 
 from __future__ import annotations
 
-import os
 import struct
 import warnings
 from pathlib import Path
@@ -23,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from .._atomic import atomic_file
 from ..errors import MissingExtraError
 from ..geodesy import GroundCRS
 from .tables import ResultTable, Value
@@ -99,9 +99,7 @@ def write_gpkg(
     photo_columns = dict(photos.columns)
     if "strip" not in photo_columns and strip is not None:
         photo_columns = {"strip": [strip] * len(photos.ids), **photo_columns}
-    partial = path.with_name(f".{path.stem}.partial.gpkg")
-    partial.unlink(missing_ok=True)  # GDAL would add to an existing file
-    try:
+    with atomic_file(path) as partial:  # a new file: GDAL would add to an existing one
         for layer, table, columns in (
             ("points", points, points.columns),
             ("photo_centres", photos, photo_columns),
@@ -119,6 +117,3 @@ def write_gpkg(
                     crs=wkt,
                     geometry_type="Point Z",
                 )
-        os.replace(partial, path)
-    finally:
-        partial.unlink(missing_ok=True)

@@ -44,6 +44,7 @@ __all__ = [
     "SimilarityTransform",
     "control_count_problems",
     "fit_similarity",
+    "height_plane_verdict",
     "similarity_from_points",
 ]
 
@@ -550,7 +551,30 @@ def _validate_control_geometry(
                 f"plan control points coincide in the {frame} (scale and azimuth are "
                 f"undetermined): {_quote(plan_ids)}"
             )
-    ratio, magnified = cross_tilt(src[height, :2], None if served is None else served[:, :2])
+    error, warning = height_plane_verdict(
+        src[height, :2], None if served is None else served[:, :2], height_ids
+    )
+    if error is not None:
+        raise GeometryError(error)
+    if warning is not None:
+        warnings.warn(warning, StripAerotriWarning, stacklevel=3)
+
+
+def height_plane_verdict(
+    height_xy: FloatArray, served_xy: FloatArray | None, height_ids: Sequence[str]
+) -> tuple[str | None, str | None]:
+    """J's rule on height control nearly in one vertical plane: (error, warning).
+
+    The error when the points are collinear in plan (singular value ratio
+    below :data:`COLLINEAR_RTOL`) and an error of their heights reaches the
+    farthest served point more than :data:`COLLINEAR_MAGNIFICATION` times
+    magnified (:func:`cross_tilt`; always without served points); else a
+    warning when the tilt across is weak.  Plan coordinates of the height
+    points and of the served points in any one Cartesian frame (the strip
+    model's too: the ratio and the magnification do not depend on scale).
+    The similarity applies it, and ``stripaero check`` on the formed strip.
+    """
+    ratio, magnified = cross_tilt(height_xy, served_xy)
     if ratio < COLLINEAR_RTOL and (magnified is None or magnified > COLLINEAR_MAGNIFICATION):
         reach = (
             ""
@@ -558,27 +582,25 @@ def _validate_control_geometry(
             else f"; an error of their heights reaches the farthest point {magnified:.0f} "
             "times magnified"
         )
-        raise GeometryError(
+        return (
             "height control points all lie in one vertical plane (collinear in plan, "
             f"singular value ratio {ratio:.1e}{reach}); the tilt across it is undetermined: "
-            f"{_quote(height_ids)}"
+            f"{_quote(height_ids)}",
+            None,
         )
     if magnified is not None:
         if magnified > WEAK_COLLINEAR_MAGNIFICATION:
-            warnings.warn(
+            return None, (
                 "height control points lie nearly in one vertical plane (an error of their "
                 f"heights reaches the farthest point {magnified:.0f} times magnified); the "
-                f"cross tilt is weak: {_quote(height_ids)}",
-                StripAerotriWarning,
-                stacklevel=3,
+                f"cross tilt is weak: {_quote(height_ids)}"
             )
     elif ratio < WEAK_COLLINEAR_RTOL:
-        warnings.warn(
+        return None, (
             "height control points lie nearly in one vertical plane (singular value ratio "
-            f"{ratio:.1e}); the cross tilt is weak: {_quote(height_ids)}",
-            StripAerotriWarning,
-            stacklevel=3,
+            f"{ratio:.1e}); the cross tilt is weak: {_quote(height_ids)}"
         )
+    return None, None
 
 
 def cross_tilt(

@@ -23,13 +23,8 @@ import numpy as np
 from .._typing import BoolArray, FloatArray, IntArray
 from ..frames import WorkFrame, make_work_frame
 from ..geodesy import GroundCRS
-from ..geometry.deformation import (
-    DeformationResult,
-    KindSelection,
-    StraightLine,
-    fit_deformation,
-    select_kind_auto,
-)
+from ..geometry.deformation import DeformationResult, StraightLine, fit_deformation
+from ..geometry.deformation_auto import KindSelection, select_kind_auto
 from ..geometry.similarity import (
     SimilarityResult,
     SimilarityTransform,

@@ -76,6 +76,15 @@ _SERVED_SAMPLE = 8192  # strip points for the similarity's test of the cross til
 _CERTAIN = 3.0
 
 
+def served_points(strip: StripModel) -> FloatArray:
+    """The points the similarity serves, for its rule on height control
+    nearly in one vertical plane (the point farthest from that plane counts):
+    an evenly spaced sample of the strip's triangulated points, which reaches
+    the strip's edges in every few models (strip frame, shape (S, 3))."""
+    served = strip.points[:: max(1, -(-strip.points.shape[0] // _SERVED_SAMPLE))]
+    return served[np.isfinite(served).all(axis=1)]
+
+
 @limit_blas_threads
 def adjust_to_ground(
     strip: StripModel,
@@ -173,12 +182,7 @@ def _prepare(
     sigma_plan = exact_median(strip.observations.sigma) * metres_per_mm
     sigma_height = sigma_plan * h_to_b
 
-    # The points the similarity serves, for its warning about height control
-    # nearly in one vertical plane (the point farthest from that plane
-    # counts): an evenly spaced sample of the strip's points, which reaches
-    # the strip's edges in every few models.
-    served = strip.points[:: max(1, -(-strip.points.shape[0] // _SERVED_SAMPLE))]
-    served = served[np.isfinite(served).all(axis=1)]
+    served = served_points(strip)
     return StripProblem(
         strip=strip,
         crs=crs,

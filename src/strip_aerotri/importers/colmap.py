@@ -43,6 +43,7 @@ from .common import (
     split_rows,
     to_floats,
 )
+from .gcp_list import read_gcp_list
 
 __all__ = [
     "TIE_PREFIX",
@@ -445,8 +446,6 @@ def import_colmap(
     min_track, max_error_px
         See :func:`read_model`.
     """
-    from .odm import read_gcp_list
-
     options = options or ImportOptions()
     model, notes = read_model(model_dir, min_track=min_track, max_error_px=max_error_px)
     camera, frame, distortion, more = camera_from_colmap(model.camera, pixel_size_mm)

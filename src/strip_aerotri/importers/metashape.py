@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError
+from ..geometry.rotation import matrix_from_opk
 from .common import (
     Camera,
     ControlTable,
@@ -54,7 +55,6 @@ from .common import (
     attitudes_from_opk,
     check_unique,
     line_floats,
-    matrix_from_opk_deg,
     photo_id,
     read_text,
     split_rows,
@@ -126,7 +126,7 @@ def read_opk_text(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str |
             [line_floats(f[7:16], rows.where(k), "r11..r33") for k, f in enumerate(rows.fields)]
         )
         r = r.reshape(-1, 3, 3)
-        m = matrix_from_opk_deg(opk)
+        m = matrix_from_opk(opk, degrees=True)
         same = np.abs(r - m).max(axis=(1, 2)) < 1e-5
         transposed = np.abs(r - np.swapaxes(m, 1, 2)).max(axis=(1, 2)) < 1e-5
         bad = np.flatnonzero(~(same | transposed))

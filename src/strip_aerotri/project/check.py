@@ -54,6 +54,7 @@ from .output import output_folder
 if TYPE_CHECKING:
     from .._typing import BoolArray, FloatArray, IntArray
     from ..observations import ImageObservations
+    from ..results import StripModel
     from .model import Project
 
 __all__ = ["CheckReport", "check_project"]
@@ -95,11 +96,13 @@ def _plan_metres(xy: np.ndarray, geographic: bool) -> np.ndarray:
     return np.column_stack([xy[:, 0] * np.cos(lat), xy[:, 1]])
 
 
-#: The check's estimate of how far the strip reaches (control and check points
-#: widened by a photo's footprint) exceeds the run's by up to this factor: the
-#: check refuses height control in nearly one plane only when it is magnified
-#: more than this times COLLINEAR_MAGNIFICATION, and warns between 1 and this
-#: times.
+#: When the strip cannot be formed (a block's control, or other problems), the
+#: check estimates how far the strip reaches from the control and check points
+#: widened by a photo's footprint, which exceeds the run's reach by up to this
+#: factor: it then refuses height control in nearly one plane only when it is
+#: magnified more than this times COLLINEAR_MAGNIFICATION, and warns between 1
+#: and this times.  A formed strip is judged by the run's own rule instead
+#: (:func:`_check_height_plane`).
 _CHECK_MARGIN = 3.0
 
 
@@ -168,8 +171,12 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
     rep.problems += control_problems(
         project.observations, project.control, project.crs, str(project.control_file)
     )
-    plan_ids, height_ids = _check_control(rep, project, facts.triangulable)
-    _check_formation(rep, project)
+    plan_ids, height_ids, plane = _check_control(rep, project, facts.triangulable)
+    formed = _check_formation(rep, project)
+    if formed is not None and len(height_ids) >= 3:
+        _check_height_plane(rep, project, formed, height_ids)  # as the run judges it
+    else:
+        _add_plane(rep, plane)
     _check_lines(rep, project, facts.triangulable)
     _check_polynomial(rep, project, plan_ids, height_ids)
     # Output folder.
@@ -220,7 +227,8 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
     rep.problems += control_problems(
         project.observations, project.control, project.crs, str(project.control_file)
     )
-    plan_ids, height_ids = _check_control(rep, project, triangulable)
+    plan_ids, height_ids, plane = _check_control(rep, project, triangulable)
+    _add_plane(rep, plane)
     _check_lines(rep, project, triangulable)
     try:
         target = output_folder(project, out)
@@ -324,11 +332,21 @@ def _check_pairs(rep: CheckReport, project: Project) -> _PairFacts:
     return _PairFacts(step, n_models, counts, ties, triangulable)
 
 
+class _Plane(NamedTuple):
+    """Height control in one vertical plane, as judged before the strip is
+    formed: a problem or a warning (``problem``) and its line."""
+
+    problem: bool
+    text: str
+
+
 def _check_control(
     rep: CheckReport, project: Project, triangulable: np.ndarray
-) -> tuple[list[str], list[str]]:
+) -> tuple[list[str], list[str], _Plane | None]:
     """Enough control for the similarity, not degenerate; returns the ids of the
-    usable plan and height control."""
+    usable plan and height control, and the finding on height control in one
+    vertical plane (left to the caller: the formed strip judges it as the run
+    does)."""
     obs = project.observations
     control_file = project.control_file
     # Control.
@@ -348,6 +366,7 @@ def _check_control(
     plan_ids = [ctrl.point_ids[i] for i in np.flatnonzero(uses_xy)]
     height_ids = [ctrl.point_ids[i] for i in np.flatnonzero(uses_h)]
     n_plan, n_height = len(plan_ids), len(height_ids)
+    plane: _Plane | None = None
     geographic = False
     if not project.is_local:
         import pyproj
@@ -386,33 +405,69 @@ def _check_control(
                 )
                 if radius is None:
                     if magnified > COLLINEAR_MAGNIFICATION:
-                        rep.problems.append(
-                            f"{text}); the tilt across it is undetermined: {_quote(height_ids)}"
+                        plane = _Plane(
+                            True,
+                            f"{text}); the tilt across it is undetermined: {_quote(height_ids)}",
                         )
                     else:
-                        rep.warnings.append(
+                        plane = _Plane(
+                            False,
                             f"{text}); no photo shows two plan control points to size the strip, "
                             "so whether the tilt across it is determined is decided by the run: "
-                            f"{_quote(height_ids)}"
+                            f"{_quote(height_ids)}",
                         )
                 elif magnified > _CHECK_MARGIN * COLLINEAR_MAGNIFICATION:
-                    rep.problems.append(
+                    plane = _Plane(
+                        True,
                         f"{text}; an error of their heights reaches the strip's edge about "
                         f"{magnified:.0f} times magnified); the tilt across it is undetermined: "
-                        f"{_quote(height_ids)}"
+                        f"{_quote(height_ids)}",
                     )
                 elif magnified > COLLINEAR_MAGNIFICATION:
-                    rep.warnings.append(
+                    plane = _Plane(
+                        False,
                         f"{text}; an error of their heights may reach the strip's edge up to "
                         f"{magnified:.0f} times magnified); the run refuses the tilt above "
-                        f"{COLLINEAR_MAGNIFICATION:.0f}: {_quote(height_ids)}"
+                        f"{COLLINEAR_MAGNIFICATION:.0f}: {_quote(height_ids)}",
                     )
-    return plan_ids, height_ids
+    return plan_ids, height_ids, plane
 
 
-def _check_formation(rep: CheckReport, project: Project, strip: str | None = None) -> None:
+def _add_plane(rep: CheckReport, plane: _Plane | None) -> None:
+    """The finding of :func:`_check_control` on height control in one plane."""
+    if plane is not None:
+        (rep.problems if plane.problem else rep.warnings).append(plane.text)
+
+
+def _check_height_plane(
+    rep: CheckReport, project: Project, strip: StripModel, height_ids: list[str]
+) -> None:
+    """Height control in one vertical plane judged on the formed strip by the
+    run's own rule (:func:`~strip_aerotri.geometry.similarity.height_plane_verdict`
+    over the points the similarity serves, in the strip's frame)."""
+    from ..geometry.similarity import height_plane_verdict
+    from ..ground.polynomials import served_points
+
+    lookup = {pid: i for i, pid in enumerate(project.observations.point_ids)}
+    rows = np.array([lookup[p] for p in height_ids], dtype=np.intp)
+    xy = strip.points[rows, :2]
+    known = np.asarray(np.isfinite(xy).all(axis=1), dtype=bool)
+    ids = [height_ids[i] for i in np.flatnonzero(known)]
+    if len(ids) < 3:
+        return
+    error, warning = height_plane_verdict(xy[known], served_points(strip)[:, :2], ids)
+    if error is not None:
+        rep.problems.append(f"{project.control_file}: the {error}")
+    elif warning is not None:
+        rep.warnings.append(f"{project.control_file}: the {warning}")
+
+
+def _check_formation(
+    rep: CheckReport, project: Project, strip: str | None = None
+) -> StripModel | None:
     """The strip formed as the run forms it, when the counts allow it
-    (``strip``: the strip of a block that ``project`` stands for)."""
+    (``strip``: the strip of a block that ``project`` stands for); None
+    when it was not formed."""
     images = project.images_file
     obs = project.observations
     # Strip formation as the run does it (relative orientation of every pair,
@@ -423,7 +478,7 @@ def _check_formation(rep: CheckReport, project: Project, strip: str | None = Non
         from .run import explain
 
         try:
-            form_strip_of(obs, project.adjustment, blunders=project.blunders)
+            return form_strip_of(obs, project.adjustment, blunders=project.blunders)
         except PhotoOrderError as exc:
             # the order is the project file's ([strip] or [[strips]] photos)
             rep.problems.append(f"{project.path}: {_strip_free(explain(project, exc, strip))}")
@@ -431,6 +486,7 @@ def _check_formation(rep: CheckReport, project: Project, strip: str | None = Non
             rep.problems.append(f"{images}: {_strip_free(explain(project, exc, strip))}")
         except StripAerotriError as exc:
             rep.problems.append(f"{images}: {exc}")
+    return None
 
 
 def _strip_free(exc: Exception) -> str:

@@ -323,7 +323,7 @@ def _observed_control(
     warnings: list[str],
 ) -> ControlPoints:
     """The control rows whose point some photo observes; a warning naming each
-    row left out (formats.md: a warning, not an error)."""
+    row left out (docs/project-file.md, "Errors": a warning, not an error)."""
     observed = set(observations.point_ids)
     is_observed = np.fromiter((i in observed for i in ids.tolist()), bool, count=ids.shape[0])
     warnings.extend(

@@ -103,7 +103,7 @@ class KeySpec:
     description : str
         Meaning, one or two sentences.
     contract : bool
-        True for keys of the stable contract (formats.md), False for the
+        True for keys of the stable contract (docs/project-file.md), False for the
         backward-compatible extensions of this package.
     default_text : str
         The default as written in docs and ``stripaero check``.

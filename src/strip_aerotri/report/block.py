@@ -16,6 +16,7 @@ from .block_page import block_html
 from .calibration import calibration_figures, calibration_html, calibration_outputs
 from .files import format_photos_csv, format_points_csv
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, _bundle_gnss, _bundle_imu
+from .tolerances import TRANSFER_UM, transfer_passed
 from .values import clean, json_float, options_record, statistics
 from .verdict import with_verdict
 
@@ -23,13 +24,15 @@ if TYPE_CHECKING:
     from ..project import Project
     from ..results import BlockResult
 
-__all__ = ["JOIN_PLAN_MM", "TRANSFER_UM", "build_block_outputs", "build_block_report"]
+__all__ = [
+    "JOIN_PLAN_MM",
+    "TRANSFER_UM",
+    "block_outputs",
+    "build_block_outputs",
+    "build_block_report",
+]
 
 JOIN_PLAN_MM = 0.5
-#: R4 1.7.7.3: mean transfer error of the common points from strip to strip
-#: in the free block, micrometres in the image, with digital identification
-#: of the points (60 um with other identification).
-TRANSFER_UM = 40.0
 """Mean plan discrepancy of the common points of two strips, mm at the map
 scale (R4 1.7.7.7)."""
 
@@ -83,11 +86,7 @@ def build_block_report(
             "mean_transfer_um": json_float(join.mean_transfer_um),
             "max_transfer_um": json_float(join.max_transfer_um),
             "transfer_limit_um": TRANSFER_UM,
-            "transfer_passed": (
-                None
-                if not np.isfinite(join.mean_transfer_um)
-                else bool(join.mean_transfer_um <= TRANSFER_UM)
-            ),
+            "transfer_passed": transfer_passed(join.mean_transfer_um),
         }
         for join in result.joins
         for i, j in [join.strips]
@@ -234,6 +233,14 @@ def build_block_outputs(
     result: BlockResult, *, project: Project | None = None, map_scale: float | None = None
 ) -> dict[str, bytes]:
     """Every file of a block's result folder, name -> UTF-8 bytes."""
+    report = build_block_report(result, project=project, map_scale=map_scale)
+    return block_outputs(result, report, project=project)
+
+
+def block_outputs(
+    result: BlockResult, report: dict[str, Any], *, project: Project | None = None
+) -> dict[str, bytes]:
+    """:func:`build_block_outputs` with the ``report.json`` content already built."""
     geographic = result.control is not None and bool(
         project is not None and not project.is_local and _geographic(project.crs)
     )
@@ -262,7 +269,6 @@ def build_block_outputs(
         extra={"strip": strip_names},
         geographic=geographic,
     )
-    report = build_block_report(result, project=project, map_scale=map_scale)
     cal_record, cal_toml = calibration_outputs(
         result.self_calibration, project, float(result.observations.principal_distance)
     )

@@ -22,13 +22,13 @@ import csv
 import io as _io
 import os
 import shutil
-import uuid
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path, PurePosixPath
 from types import TracebackType
 
 import numpy as np
 
+from .._atomic import folder_beside, swap_folder
 from .._typing import ArrayLike
 from ..errors import StripAerotriError
 
@@ -503,9 +503,7 @@ class ResultFolder:
         _check_target(self.target, self._protect)
         parent = self.target.parent
         try:
-            parent.mkdir(parents=True, exist_ok=True)
-            tmp = parent / f".{self.target.name}.tmp-{uuid.uuid4().hex[:12]}"
-            tmp.mkdir()
+            tmp = folder_beside(self.target)
             self._tmp = tmp
             _write_marker(tmp, (), ())
         except OSError as exc:
@@ -554,26 +552,17 @@ class ResultFolder:
         except OutputError:
             self.abort()
             raise
-        old = target.parent / f".{target.name}.old-{uuid.uuid4().hex[:12]}"
-        moved = False
         try:
             kept, exports = _carry_over(target, tmp, self._written)
             _write_marker(tmp, self._written, exports)
             with _sigint_held():
-                if target.exists():
-                    os.replace(target, old)
-                    moved = True
-                os.replace(tmp, target)
+                swap_folder(tmp, target)
                 self._tmp = None
                 self._done = True
         except OSError as exc:
-            if moved and not target.exists():
-                os.replace(old, target)
             self.abort()
             raise OutputError(f"cannot replace '{target}': {exc.strerror or exc}") from exc
         self.kept, self.exports = kept, exports
-        if moved:
-            shutil.rmtree(old, ignore_errors=True)
         return target
 
     def abort(self) -> None:

@@ -11,7 +11,7 @@ described in ``docs/outputs.md``.
 from __future__ import annotations
 
 import json
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .calibration import calibration_outputs
 from .html import build_html
@@ -29,6 +29,7 @@ __all__ = [
     "build_outputs",
     "build_report",
     "point_roles",
+    "strip_outputs",
 ]
 
 
@@ -60,6 +61,17 @@ def build_outputs(
         docs/outputs.md).  When the GeoJSON is left out, ``report.json``
         says so under ``warnings``.
     """
+    return strip_outputs(result, project=project, map_scale=map_scale, html=html)[0]
+
+
+def strip_outputs(
+    result: StripResult,
+    *,
+    project: Project | None = None,
+    map_scale: float | None = None,
+    html: bool = True,
+) -> tuple[dict[str, bytes], dict[str, Any]]:
+    """:func:`build_outputs` and the content of ``report.json`` it wrote."""
     notes: list[str] = []
     geojson = points_geojson(result)
     if geojson is None:
@@ -90,4 +102,4 @@ def build_outputs(
     files["report.json"] = (
         json.dumps(report, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
     ).encode("utf-8")
-    return files
+    return files, report

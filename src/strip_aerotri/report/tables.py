@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 
+from ..export.geojson import GEOJSON_DECIMALS, geojson_text, point_feature
 from ..results import StripResult
 from .files import format_photos_csv, format_points_csv
 from .values import image_counts, point_roles, residual_columns
@@ -50,10 +49,6 @@ def photos_csv(result: StripResult) -> str:
     )
 
 
-GEOJSON_DECIMALS = 8
-"""Decimals of longitude and latitude in points.geojson (1e-8 degree is about 1 mm)."""
-
-
 def points_geojson(result: StripResult) -> str | None:
     """Text of ``points.geojson``: RFC 7946 FeatureCollection in WGS 84 lon/lat.
 
@@ -74,20 +69,14 @@ def points_geojson(result: StripResult) -> str | None:
     heights = np.round(points[ok, 2], 4)
     n_det = np.asarray(result.strip.n_determinations)[ok]
     features = [
-        {
-            "type": "Feature",
-            "id": str(pid),
-            "geometry": {"type": "Point", "coordinates": [float(lon), float(lat)]},
-            "properties": {
-                "id": str(pid),
-                "role": str(role),
-                "H": float(h),
-                "n_models": int(n),
-            },
-        }
+        point_feature(
+            str(pid),
+            float(lon),
+            float(lat),
+            {"id": str(pid), "role": str(role), "H": float(h), "n_models": int(n)},
+        )
         for pid, (lon, lat), role, h, n in zip(
             ids, lonlat.tolist(), roles, heights.tolist(), n_det.tolist(), strict=True
         )
     ]
-    collection = {"type": "FeatureCollection", "features": features}
-    return json.dumps(collection, ensure_ascii=False, allow_nan=False, separators=(",", ":"))
+    return geojson_text({"type": "FeatureCollection", "features": features})

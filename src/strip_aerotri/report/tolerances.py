@@ -52,6 +52,7 @@ Not implemented, with the reason:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -68,6 +69,7 @@ __all__ = [
     "LIMIT_FACTOR",
     "LIMIT_SHARE",
     "MIN_DISTRIBUTION_SIZE",
+    "TRANSFER_UM",
     "Criterion",
     "chance_beyond",
     "check_interval_decrease",
@@ -78,6 +80,7 @@ __all__ = [
     "plan_drift_warning",
     "residual_distribution",
     "tolerance_verdicts",
+    "transfer_passed",
 ]
 
 CHECK_PLAN_MM = 0.3
@@ -512,6 +515,20 @@ def tolerance_verdicts(result: StripResult, map_scale: float | None) -> tuple[Cr
             check_en, prefix="check_en", what="check-point discrepancies dE, dN", unit="m"
         ),
     )
+
+
+#: R4 1.7.7.3: mean transfer error of the common points from strip to strip
+#: in the free block, micrometres in the image, with digital identification
+#: of the points (60 um with other identification).
+TRANSFER_UM = 40.0
+
+
+def transfer_passed(mean_transfer_um: float) -> bool | None:
+    """R4 1.7.7.3's verdict on a join's mean transfer error in the image
+    (:data:`TRANSFER_UM`); None when it was not computed."""
+    if not math.isfinite(mean_transfer_um):
+        return None
+    return bool(mean_transfer_um <= TRANSFER_UM)
 
 
 def plan_drift_warning(result: StripResult, map_scale: float | None) -> str | None:

@@ -10,7 +10,8 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..frames import LocalTangentFrame
 from ..geodesy import GroundCRS
-from ..geometry.deformation import DeformationResult, KindSelection
+from ..geometry.deformation import DeformationResult
+from ..geometry.deformation_auto import KindSelection
 from ..geometry.similarity import SimilarityResult
 from ..geometry.simultaneous import SimultaneousResult
 from ..options import Construction, Route

@@ -204,8 +204,8 @@ class SimulatedBlock:
     ) -> Path:
         """Write ``strip.toml`` (``[[strips]]``), ``image_points.csv`` and ``control.csv``.
 
-        The files follow the project format (formats.md, "A block of
-        strips"). Existing files of those names in ``directory`` are
+        The files follow the project format (docs/project-file.md,
+        ``[[strips]]``). Existing files of those names in ``directory`` are
         overwritten; the folder is created if needed.
 
         Parameters

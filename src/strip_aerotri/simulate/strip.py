@@ -187,7 +187,7 @@ class SimulatedStrip:
     ) -> Path:
         """Write ``strip.toml``, ``image_points.csv`` and ``control.csv``.
 
-        The files follow the project format (formats.md). Existing files of
+        The files follow the project format (docs/project-file.md). Existing files of
         those names in ``directory`` are overwritten; the folder is created if
         needed.
 

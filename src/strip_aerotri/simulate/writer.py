@@ -1,5 +1,5 @@
 """Project files of a simulation: ``strip.toml``, ``image_points.csv``,
-``control.csv`` (formats.md).
+``control.csv`` (docs/project-file.md).
 
 :func:`write_strip_project` writes a ``[strip]`` project, and
 :func:`write_block_project` a block of ``[[strips]]`` tables; both write
@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._toml import toml_id_list, toml_string, toml_value
 from ..observations import ControlPoints, ImageObservations
 from ..options import OptionError, adjustment_options
 from ._geodesy import _LOCAL
@@ -31,7 +32,7 @@ def _adjustment_lines(crs: str, given: dict[str, object], *, block: bool) -> lis
     if given.get("route") == "geocentric" and crs == _LOCAL:
         raise OptionError("route", '"geocentric" needs a real CRS, not crs = "local"')
     return [
-        f"{key} = {_toml_str(value) if isinstance(value, str) else value}"
+        f"{key} = {toml_value(value)}"
         for key, value in given.items()
     ]
 
@@ -47,7 +48,7 @@ def _common_lines(observations: ImageObservations, crs: str) -> list[str]:
         "",
         "[control]",
         'file = "control.csv"',
-        f"crs = {_toml_str(crs)}",
+        f"crs = {toml_string(crs)}",
     ]
 
 
@@ -74,13 +75,13 @@ def write_strip_project(
     text = [
         "# Simulated strip (strip_aerotri.simulate); truth is not in these files.",
         "[strip]",
-        f"name = {_toml_str(name)}",
-        f"photos = {_toml_list(observations.photo_ids)}",
+        f"name = {toml_string(name)}",
+        f"photos = {toml_id_list(observations.photo_ids, per_line=None)}",
         "",
         *_common_lines(observations, crs),
     ]
     for ids, weight in lines:
-        text += ["", "[[straight_line]]", f"points = {_toml_list(ids)}"]
+        text += ["", "[[straight_line]]", f"points = {toml_id_list(ids, per_line=None)}"]
         text.append(f"weight = {float(weight)!r}")
     text += ["", "[adjustment]", *adjustment]
     toml_path = directory / "strip.toml"
@@ -124,14 +125,14 @@ def write_block_project(
         f"# {_comment(name)}",
         "# Simulated block (strip_aerotri.simulate); truth is not in these files.",
         "[project]",
-        f"name = {_toml_str(name)}",
+        f"name = {toml_string(name)}",
         "",
     ]
     for strip_name, photos in strips:
         text += [
             "[[strips]]",
-            f"name = {_toml_str(strip_name)}",
-            f"photos = {_toml_list(tuple(photos))}",
+            f"name = {toml_string(strip_name)}",
+            f"photos = {toml_id_list(tuple(photos), per_line=None)}",
             "",
         ]
     text += [*_common_lines(observations, crs), "", "[adjustment]", *adjustment]
@@ -200,20 +201,3 @@ def write_control(path: str | Path, control: ControlPoints, crs: str) -> None:
 def _comment(text: str) -> str:
     """One line of a TOML comment (no control characters)."""
     return " ".join("".join(ch if ch.isprintable() else " " for ch in str(text)).split())
-
-
-def _toml_str(text: str) -> str:
-    """A TOML basic string."""
-    out = []
-    for ch in str(text):
-        if ch in ('"', "\\"):
-            out.append("\\" + ch)
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-            out.append(f"\\u{ord(ch):04X}")
-        else:
-            out.append(ch)
-    return '"' + "".join(out) + '"'
-
-
-def _toml_list(items: Sequence[str]) -> str:
-    return "[" + ", ".join(_toml_str(s) for s in items) + "]"

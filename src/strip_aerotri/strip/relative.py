@@ -28,20 +28,13 @@ image scale in micrometres.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from typing import Any, NamedTuple, NoReturn
+from typing import NoReturn
 
 import numpy as np
 
 from .._stats import exact_median, sample_median
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import ConvergenceError, FlightAxisError, GeometryError
-from ..geometry.rotation import (
-    cardan_from_matrix,
-    matrix_from_cardan,
-    matrix_from_schut,
-    schut_from_matrix,
-)
 from ..options import (
     DEFAULT_IMAGE_SIGMA_MM,
     DEFAULT_MAX_ITERATIONS,
@@ -50,10 +43,25 @@ from ..options import (
 )
 from ..plausibility import flight_axis_message
 from ..results import RelativeOrientation
+from .relative_state import (
+    _BaseState,
+    _Block,
+    _Components,
+    _DependentState,
+    _State,
+    _segment_starts,
+    chain_rotations,
+)
+from .relative_starts import (
+    SimilarityStart,
+    _similarity_start,
+    _vertical_start,
+    essential_start,
+    homography_start,
+    similarity_start,
+)
+from .relative_normals import _solve_damped, _solve_normals
 
-# An image vector's components over a block: x, y (nb, width) and z, which is
-# one float where it is one constant (-c) for all rows.
-_Components = tuple[FloatArray, FloatArray, FloatArray | float]
 
 __all__ = [
     "COLLINEAR_RATIO",
@@ -71,19 +79,10 @@ __all__ = [
 ]
 
 MIN_POINTS_PER_PAIR = 5
-_J = np.array([0.0, 1.0, 0.0])
-_EX = np.array([1.0, 0.0, 0.0])
-_EY = np.array([0.0, 1.0, 0.0])
-_EZ = np.array([0.0, 0.0, 1.0])
-# J(9) fixed: the Schut parameters of the correcting rotation are half of the
-# rotation vector a (phi = 2 (a, b, c)); the printed factor 1 converges only
-# linearly (tests patch this to show it).
-_SCHUT_FACTOR = 0.5
 _ROBUST_STEPS = 10  # IRLS steps of the robust start
 # RMS y-parallax (in a priori sigmas) above which a converged pair is tried
 # from the other starts too (a wrong local minimum, or gross errors)
 _DOUBTFUL_MISFIT = 3.0
-_HOMOGRAPHY_IRLS = 3  # reweighted rounds of the homography start
 # Points whose spread across their best-fitting image line is below this
 # fraction of the spread along it are collinear (_check_not_collinear).
 COLLINEAR_RATIO = 1e-2
@@ -105,49 +104,6 @@ _DAMPING_START = 1e-3
 _DAMPING_MIN = 1e-7
 _DAMPING_MAX = 1e8
 _STALL_RTOL = 1e-6
-# Singular normal matrices (after equilibration to a unit diagonal): a
-# Cholesky pivot below _PIVOT_MIN or trace(N⁻¹) above _TRACE_MAX (condition
-# number of order 1e10).
-_PIVOT_MIN = 1e-13
-_TRACE_MAX = 1e10
-
-
-def chain_rotations(first: ArrayLike, relative: ArrayLike) -> FloatArray:
-    """Rotations of the photos of a chain from the pairs' relative rotations.
-
-    Parameters
-    ----------
-    first : array_like, shape (3, 3)
-        Image -> strip rotation of the first photo.
-    relative : array_like, shape (n_pairs, 3, 3)
-        Right image -> left image rotation of each pair.
-
-    Returns
-    -------
-    ndarray, shape (n_pairs + 1, 3, 3)
-        ``R[0] = first``, ``R[m + 1] = R[m] @ relative[m]``.
-
-    Notes
-    -----
-    The products are formed by a parallel prefix scan (Hillis-Steele):
-    ``log2(n_pairs)`` batched 3 × 3 products instead of a Python loop over
-    the pairs; the round-off is that of the sequential products.
-    """
-    first = np.asarray(first, dtype=np.float64)
-    prefix = np.array(relative, dtype=np.float64)  # a copy
-    shift = 1
-    while shift < prefix.shape[0]:
-        # prefix[m] = relative[m - 2 shift + 1] ... relative[m], in chain order
-        prefix[shift:] = prefix[:-shift] @ prefix[shift:]
-        shift *= 2
-    out = np.empty((prefix.shape[0] + 1, 3, 3))
-    out[0] = first
-    out[1:] = first @ prefix
-    return out
-
-
-def _segment_starts(pair: IntArray, n_pairs: int) -> IntArray:
-    return np.searchsorted(pair, np.arange(n_pairs)).astype(np.intp)
 
 
 def pair_count_problems(counts: IntArray, labels: Sequence[str] | None = None) -> list[str]:
@@ -253,47 +209,6 @@ def _raise_across(
     raise FlightAxisError(
         flight_axis_message(name, "" if along == "+x" else along), pair=name, along=along
     )
-
-
-@dataclass(frozen=True)
-class _Block:
-    """Rows of a group of pairs as a padded (pairs, width) table.
-
-    ``rows[i, k]`` indexes the flat (pair-sorted) arrays; padding cells repeat
-    the pair's last row and are marked invalid, so maxima need no mask and
-    sums only a zero weight.
-    """
-
-    pairs: IntArray  # (nb,)
-    rows: IntArray  # (nb, width)
-    valid: np.ndarray  # (nb, width) bool
-    counts: IntArray  # (nb,) valid cells per pair
-    # image vectors on the left and the right photo (mm): components x, y, z,
-    # each (nb, width), z a float where it is one constant (-c) for all rows
-    left: _Components
-    right: _Components
-    design: FloatArray = field(init=False, repr=False)  # (nb, 6, width) work buffer
-    # (weights, sqrt w of the cells) for the last weights array, see root_weight
-    _root: tuple[FloatArray | None, FloatArray | None] = field(
-        init=False, repr=False, compare=False, default=(None, None)
-    )
-
-    def __post_init__(self) -> None:
-        # Reused by every evaluation of the block: fresh 48 bytes per row per
-        # evaluation would cost page faults comparable to the arithmetic.
-        object.__setattr__(self, "design", np.empty((self.rows.shape[0], 6, self.rows.shape[1])))
-
-    def root_weight(self, weight: FloatArray) -> FloatArray:
-        """sqrt(w) of the cells (0 in padding), (nb, width), for the flat
-        weights ``weight``; kept for the last weights array passed (the
-        weights are replaced, never changed in place, when rows lose theirs)."""
-        if self._root[0] is not weight:
-            root: FloatArray = np.sqrt(np.take(weight, self.rows) * self.valid)
-            object.__setattr__(self, "_root", (weight, root))
-            return root
-        cached = self._root[1]
-        assert cached is not None
-        return cached
 
 
 class _Blocks:
@@ -528,77 +443,6 @@ def _negligible_limit(ev: _Evaluation, n_inv: FloatArray, tolerance: float) -> F
             _PRECISION_FRACTION * np.sqrt(sigma0_sq[:, None] * np.einsum("mii->mi", n_inv)),
         )
     return limit
-
-
-def _solve_normals(
-    normal: FloatArray, gradient: FloatArray
-) -> tuple[FloatArray, np.ndarray, FloatArray]:
-    """Solve per-pair normal equations: (n_pairs, k, k), (n_pairs, k) ->
-    corrections (n_pairs, k), a mask of pairs whose normal matrix is singular
-    or not finite, and N⁻¹ (n_pairs, k, k).
-
-    Cholesky of the equilibrated (unit-diagonal) matrices, written out over
-    the k × k entries so that every operation runs on all pairs at once (a
-    batched LAPACK call costs more per 5 × 5 matrix than the arithmetic).
-    Singular: a pivot below 1e-13, or trace(N⁻¹) of the equilibrated matrix
-    above 1e10, which bounds its condition number within a factor k.
-    """
-    k = normal.shape[-1]
-    finite = np.asarray(
-        np.isfinite(normal).all(axis=(1, 2)) & np.isfinite(gradient).all(axis=1), dtype=bool
-    )
-    diag = np.einsum("mii->mi", normal)
-    scale = 1.0 / np.sqrt(np.where(finite[:, None] & (diag > 1e-300), diag, 1.0))
-    a = (normal * scale[:, :, None] * scale[:, None, :]).transpose(1, 2, 0)  # (k, k, m)
-    ok = finite.copy()
-    low: list[list[Any]] = [[None] * k for _ in range(k)]  # L, entries (m,)
-    for j in range(k):
-        d = a[j, j].copy()
-        for t in range(j):
-            d -= low[j][t] * low[j][t]
-        with np.errstate(invalid="ignore"):
-            ok &= d > _PIVOT_MIN
-        inv_pivot = 1.0 / np.sqrt(np.where(ok, d, 1.0))
-        low[j][j] = 1.0 / inv_pivot
-        for i in range(j + 1, k):
-            s = a[i, j].copy()
-            for t in range(j):
-                s -= low[i][t] * low[j][t]
-            low[i][j] = s * inv_pivot
-    inv_low: list[list[Any]] = [[None] * k for _ in range(k)]  # L⁻¹ by forward substitution
-    for j in range(k):
-        inv_low[j][j] = 1.0 / low[j][j]
-        for i in range(j + 1, k):
-            s = low[i][j] * inv_low[j][j]
-            for t in range(j + 1, i):
-                s = s + low[i][t] * inv_low[t][j]
-            inv_low[i][j] = -s / low[i][i]
-    inverse = np.empty_like(a)  # N⁻¹ = L⁻ᵀ L⁻¹
-    for r in range(k):
-        for c in range(r, k):
-            s = inv_low[c][r] * inv_low[c][c]
-            for i in range(c + 1, k):
-                s = s + inv_low[i][r] * inv_low[i][c]
-            inverse[r, c] = s
-            inverse[c, r] = s
-    with np.errstate(invalid="ignore"):
-        singular = ~ok | ~(np.einsum("iim->m", inverse) < _TRACE_MAX)
-    g = np.where(finite[:, None], gradient, 0.0) * scale
-    sol = np.einsum("ijm,mj->mi", inverse, g) * scale
-    sol[singular] = 0.0
-    return sol, singular, inverse.transpose(2, 0, 1) * scale[:, :, None] * scale[:, None, :]
-
-
-def _solve_damped(normal: FloatArray, gradient: FloatArray, damping: FloatArray) -> FloatArray:
-    """Levenberg-Marquardt corrections ``(N + λ diag N)⁻¹ g`` of a few pairs:
-    (m, 5, 5), (m, 5), (m,) -> (m, 5); zero where the damped matrix is
-    singular too."""
-    diag = np.einsum("mii->mi", normal)
-    scale = np.where(diag > 0.0, diag, np.maximum(diag.max(axis=1, keepdims=True), 1e-300))
-    damped = normal + (damping[:, None] * scale)[:, :, None] * np.eye(normal.shape[-1])
-    corr, singular, _ = _solve_normals(damped, gradient)
-    corr[singular] = 0.0
-    return corr
 
 
 def _iterate(
@@ -1039,223 +883,6 @@ def relative_orientation(
     )
 
 
-def _similarity_start(
-    left: FloatArray, right: FloatArray, pair: IntArray, n_pairs: int, starts: IntArray
-) -> tuple[FloatArray, FloatArray]:
-    """The rotation and base direction of :func:`similarity_start`."""
-    start = similarity_start(left, right, pair, n_pairs, starts)
-    return start.relative, start.base
-
-
-def _vertical_start(
-    left: FloatArray, right: FloatArray, pair: IntArray, n_pairs: int, starts: IntArray
-) -> tuple[FloatArray, FloatArray]:
-    """J's near-vertical start: ``Q = I`` and the base along image x."""
-    return np.broadcast_to(np.eye(3), (n_pairs, 3, 3)), np.tile(_EX, (n_pairs, 1))
-
-
-class SimilarityStart(NamedTuple):
-    """Start values of the pairs from a 2D similarity between their images.
-
-    Attributes
-    ----------
-    relative : ndarray, shape (n_pairs, 3, 3)
-        Right image -> left image rotation: the relative kappa about image z.
-    base : ndarray, shape (n_pairs, 3)
-        Base direction in the left image (not normalised): the image shift
-        (x, y) of the similarity and the change of scale as z.
-    shift : ndarray, shape (n_pairs, 2)
-        The similarity's shift ``t`` of ``left ≈ a · right + t`` in
-        normalised image units (x / -z, y / -z): about base / height along
-        the base's image direction; its x is positive when the pair's right
-        photo follows the left one along image x.
-    kappa : ndarray, shape (n_pairs,)
-        Relative kappa ``arg a`` in radians.
-    scale : ndarray, shape (n_pairs,)
-        ``|a|``: the ratio of the photos' distances to the ground (right over
-        left).
-    """
-
-    relative: FloatArray
-    base: FloatArray
-    shift: FloatArray
-    kappa: FloatArray
-    scale: FloatArray
-
-
-def similarity_start(
-    left: ArrayLike,
-    right: ArrayLike,
-    pair: ArrayLike,
-    n_pairs: int,
-    starts: IntArray | None = None,
-) -> SimilarityStart:
-    """Linear start values of every pair from a 2D similarity of its images.
-
-    For near-vertical photos the image of a point on the right photo,
-    turned by the relative kappa, is the left one shifted by the base over
-    the height (times c) and scaled by the ratio of the flying heights:
-    ``z_l ≈ a z_r + t`` in complex normalised image coordinates
-    ``z = (x + i y) / (-z_image)``, solved in closed form per pair (least
-    squares over its points).  The start is ``Q = R_z(arg a)`` and the base
-    direction ``(t_x, t_y, |a| - 1)``; the tilts start at zero.  Unlike the
-    essential matrix it is not degenerate over flat ground, and unlike J's
-    start (``Q = I``) it is not far off for the swings of drone photos.
-
-    Parameters
-    ----------
-    left, right : array_like, shape (n, 3)
-        Image vectors of each point on the left and the right photo.
-    pair : array_like of int, shape (n,)
-        Sorted pair index of each row; every pair has at least one row.
-    n_pairs : int
-
-    Returns
-    -------
-    SimilarityStart
-    """
-    l = np.asarray(left, dtype=np.float64)
-    r = np.asarray(right, dtype=np.float64)
-    pair = np.asarray(pair, dtype=np.intp)
-    if starts is None:
-        starts = _segment_starts(pair, n_pairs)
-    zl = (l[:, 0] + 1j * l[:, 1]) / -l[:, 2]
-    zr = (r[:, 0] + 1j * r[:, 1]) / -r[:, 2]
-    counts = np.bincount(pair, minlength=n_pairs)
-    ml = np.add.reduceat(zl, starts) / counts
-    mr = np.add.reduceat(zr, starts) / counts
-    dl, dr = zl - ml[pair], zr - mr[pair]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        a = np.add.reduceat(np.conj(dr) * dl, starts) / np.add.reduceat(np.abs(dr) ** 2, starts)
-    a = np.where(np.isfinite(a), a, 1.0)
-    t = ml - a * mr
-    kappa = np.angle(a)
-    c, s = np.cos(kappa), np.sin(kappa)
-    relative = np.zeros((n_pairs, 3, 3))
-    relative[:, 0, 0], relative[:, 0, 1] = c, -s
-    relative[:, 1, 0], relative[:, 1, 1] = s, c
-    relative[:, 2, 2] = 1.0
-    base = np.column_stack([t.real, t.imag, np.abs(a) - 1.0])
-    # No usable direction from a shift of zero length (identical images) or
-    # across image x (the dependent pair fixes b_x = 1): start along x; the
-    # flight-direction checks name such strips before they get here.
-    base[~(np.abs(t.real) > 0.1 * np.abs(t))] = _EX
-    return SimilarityStart(relative, base, np.column_stack([t.real, t.imag]), kappa, np.abs(a))
-
-
-def _pair_medians(values: FloatArray, pair: IntArray, starts: IntArray) -> FloatArray:
-    """Median of each pair's values (rows sorted by pair), (n_pairs,)."""
-    order = np.lexsort((values, pair))
-    ranked = values[order]
-    counts = np.diff(np.append(starts, values.shape[0]))
-    medians: FloatArray = 0.5 * (ranked[starts + (counts - 1) // 2] + ranked[starts + counts // 2])
-    return medians
-
-
-def homography_start(
-    left: ArrayLike,
-    right: ArrayLike,
-    pair: ArrayLike,
-    n_pairs: int,
-    starts: IntArray | None = None,
-) -> tuple[FloatArray, FloatArray]:
-    """Linear start values of every pair from the homography of its images.
-
-    Over nearly flat ground the two bundles are related by the homography
-    of the ground plane, ``p ~ H l`` with ``H = R + t nᵀ / d`` (``R = Qᵀ``
-    and ``t = -Qᵀ b`` for the right photo, ``n`` the plane's normal and
-    ``d`` its distance in the left image system).  H is the eigenvector of
-    the smallest eigenvalue of each pair's 9 × 9 normal matrix (the DLT on
-    normalised image coordinates), and its decomposition (Malis & Vargas,
-    "Deeper understanding of the homography decomposition for vision-based
-    control", INRIA RR-6303, 2007, §3.1) gives two candidates with the
-    points in front of both photos; the one whose plane normal is nearest
-    the left photo's axis (ground below a near-vertical camera) is kept.
-    Unlike the image similarity it includes the relative tilts, and unlike
-    the essential matrix it is not degenerate over flat ground; relief makes
-    it approximate, which is all a start needs.  The fit is iteratively
-    reweighted (Cauchy weights of the points' transfer errors, three
-    rounds), so that a few gross errors do not turn it.
-
-    Parameters and returns as :func:`essential_start`.
-    """
-    l = np.asarray(left, dtype=np.float64)
-    p = np.asarray(right, dtype=np.float64)
-    pair = np.asarray(pair, dtype=np.intp)
-    if starts is None:
-        starts = _segment_starts(pair, n_pairs)
-    # image vectors scaled to z = -1: (u, v, -1)
-    a = l / -l[:, 2:3]
-    b = p / -p[:, 2:3]
-    # p × (H l) = 0: two rows per point in the nine entries of H (row-major)
-    zero = np.zeros_like(a)
-    rows1 = np.concatenate([zero, -b[:, 2:3] * a, b[:, 1:2] * a], axis=1)
-    rows2 = np.concatenate([b[:, 2:3] * a, zero, -b[:, 0:1] * a], axis=1)
-    products = rows1[:, :, None] * rows1[:, None, :] + rows2[:, :, None] * rows2[:, None, :]
-    weight = np.ones(pair.shape[0])
-    for _ in range(_HOMOGRAPHY_IRLS + 1):
-        normal = np.add.reduceat(weight[:, None, None] * products, starts, axis=0)
-        _, vec = np.linalg.eigh(normal)
-        h = vec[:, :, 0].reshape(-1, 3, 3)
-        # Transfer errors of the points (normalised image units) and Cauchy
-        # weights at 2.385 robust sigmas of the pair: a few gross errors (a
-        # swapped id) must not turn the start, nor the flight-direction check
-        # that uses it.
-        mapped = np.einsum("nij,nj->ni", h[pair], a)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            error = np.hypot(*(mapped[:, :2] / -mapped[:, 2:3] - b[:, :2]).T)
-        error = np.where(np.isfinite(error), error, np.inf)
-        scale = np.maximum(1.4826 * _pair_medians(error, pair, starts), 1e-12)
-        weight = 1.0 / (1.0 + (error / (2.385 * scale[pair])) ** 2)
-    # Scale so that the middle singular value is 1 and det(H) > 0.
-    sv = np.linalg.svd(h, compute_uv=False)
-    h = h / (sv[:, 1] * np.sign(np.linalg.det(h)))[:, None, None]
-    lam, v = np.linalg.eigh(np.swapaxes(h, 1, 2) @ h)  # ascending: λ3 <= 1 <= λ1
-    v1, v2, v3 = v[:, :, 2], v[:, :, 1], v[:, :, 0]
-    l1 = np.maximum(lam[:, 2], 1.0)
-    l3 = np.minimum(lam[:, 0], 1.0)
-    spread = np.sqrt(np.maximum(l1 - l3, 1e-300))[:, None]
-    wa = np.sqrt(1.0 - l3)[:, None]
-    wb = np.sqrt(l1 - 1.0)[:, None]
-    candidates: list[tuple[FloatArray, FloatArray, FloatArray]] = []
-    for sign in (1.0, -1.0):
-        u = (wa * v1 + sign * wb * v3) / spread
-        n = np.cross(v2, u)
-        hv2 = np.einsum("mij,mj->mi", h, v2)
-        hu = np.einsum("mij,mj->mi", h, u)
-        frame_u = np.stack([v2, u, n], axis=2)
-        frame_w = np.stack([hv2, hu, np.cross(hv2, hu)], axis=2)
-        rot = frame_w @ np.swapaxes(frame_u, 1, 2)
-        t = np.einsum("mij,mj->mi", h - rot, n)
-        candidates.extend((rot, flip * t, flip * n) for flip in (1.0, -1.0))
-    # In front of the left photo: nᵀ l > 0 for the points (the plane at
-    # distance d > 0 along n); among those, the normal nearest -z (ground
-    # below the camera).
-    best_q = np.broadcast_to(np.eye(3), (n_pairs, 3, 3)).copy()
-    best_b = np.tile(_EX, (n_pairs, 1))
-    best_score = np.full(n_pairs, -np.inf)
-    counts = np.bincount(pair, minlength=n_pairs)
-    for rot, t, n in candidates:
-        in_front = np.bincount(pair, np.einsum("ij,ij->i", n[pair], a) > 0, minlength=n_pairs)
-        norm = np.linalg.norm(n, axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            score = np.where(in_front == counts, -n[:, 2] / norm, -np.inf)
-        better = score > best_score
-        q = np.swapaxes(rot, 1, 2)
-        base = -np.einsum("mij,mj->mi", q, t)
-        best_q[better] = q[better]
-        best_b[better] = base[better]
-        best_score = np.where(better, score, best_score)
-    ok = (
-        np.isfinite(best_score)
-        & np.isfinite(best_b).all(axis=1)
-        & (np.linalg.norm(best_b, axis=1) > 0)
-    )
-    best_q[~ok] = np.eye(3)
-    best_b[~ok] = _EX
-    return best_q, best_b
-
-
 def _raise_not_oriented(
     failed: BoolArray,
     singular: BoolArray,
@@ -1333,313 +960,3 @@ def _suspect_pairs(
     return (np.bincount(pair[over], minlength=n_pairs) > 0) | ~(rms <= 3.0)
 
 
-_W = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-
-
-def essential_start(
-    left: ArrayLike,
-    right: ArrayLike,
-    pair: ArrayLike,
-    n_pairs: int,
-    starts: IntArray | None = None,
-) -> tuple[FloatArray, FloatArray]:
-    """Linear start for pairs with large relative rotations (essential matrix).
-
-    The coplanarity ``l · (b × Q p) = 0`` is linear in ``E = [b]× Q``; E is
-    the eigenvector of the smallest eigenvalue of each pair's 9 × 9 normal
-    matrix (the eight-point solution on unit ray vectors), projected to an
-    essential matrix and decomposed into the four ``(Q, ±b)`` candidates
-    (Hartley & Zisserman, Multiple View Geometry, 2nd ed., §9.6); the
-    candidate with most points in front of both photos is kept.
-
-    Parameters
-    ----------
-    left, right : array_like, shape (n, 3)
-        Image vectors of each point on the left and right photo.
-    pair : array_like of int, shape (n,)
-        Sorted pair index of each row.
-    n_pairs : int
-
-    Returns
-    -------
-    relative : ndarray, shape (n_pairs, 3, 3)
-        Right image -> left image rotation Q.
-    base : ndarray, shape (n_pairs, 3)
-        Unit base direction in the left image system.
-
-    Notes
-    -----
-    Degenerate for a planar scene; used only where the iteration from the
-    near-vertical start fails.
-    """
-    l = np.asarray(left, dtype=np.float64)
-    p = np.asarray(right, dtype=np.float64)
-    pair = np.asarray(pair, dtype=np.intp)
-    if starts is None:
-        starts = _segment_starts(pair, n_pairs)
-    l = l / np.linalg.norm(l, axis=1, keepdims=True)
-    p = p / np.linalg.norm(p, axis=1, keepdims=True)
-    rows = (l[:, :, None] * p[:, None, :]).reshape(-1, 9)
-    normal = np.add.reduceat(rows[:, :, None] * rows[:, None, :], starts, axis=0)
-    _, vec = np.linalg.eigh(normal)
-    e = vec[:, :, 0].reshape(-1, 3, 3)
-    u, _, vt = np.linalg.svd(e)
-    u = u * np.sign(np.linalg.det(u))[:, None, None]
-    vt = vt * np.sign(np.linalg.det(vt))[:, None, None]
-    candidates_q = [u @ _W @ vt, u @ _W.T @ vt]
-    t = u[:, :, 2]
-    best_q = candidates_q[0].copy()
-    best_b = t.copy()
-    best_count = np.full(n_pairs, -1)
-    for q_m in candidates_q:
-        qp = np.einsum("nij,nj->ni", q_m[pair], p)
-        lxqp = np.cross(l, qp)
-        norm2 = np.einsum("ij,ij->i", lxqp, lxqp)
-        for sign in (1.0, -1.0):
-            b = sign * t[pair]
-            k = np.einsum("ij,ij->i", np.cross(b, qp), lxqp) / norm2
-            m = np.einsum("ij,ij->i", np.cross(b, l), lxqp) / norm2
-            count = np.bincount(pair, (k > 0) & (m > 0), minlength=n_pairs)
-            better = count > best_count
-            best_q[better] = q_m[better]
-            best_b[better] = sign * t[better]
-            best_count = np.where(better, count, best_count)
-    return best_q, best_b
-
-
-class _Snapshot:
-    """Copies of a state's unknowns (per-pair arrays), for steps taken back."""
-
-    def __init__(self, state: _StateBase) -> None:
-        self.arrays: dict[str, FloatArray] = {
-            name: getattr(state, name).copy() for name in state.UNKNOWNS
-        }
-
-    def save(self, mask: BoolArray, state: _StateBase) -> None:
-        """Copy the unknowns of the pairs in ``mask`` from ``state``."""
-        if mask.any():
-            for name, values in self.arrays.items():
-                values[mask] = getattr(state, name)[mask]
-
-
-class _StateBase:
-    """Snapshot and restore of the per-pair unknowns listed in ``UNKNOWNS``."""
-
-    UNKNOWNS: tuple[str, ...] = ()
-
-    def snapshot(self) -> _Snapshot:
-        return _Snapshot(self)
-
-    def restore(self, mask: BoolArray, snapshot: _Snapshot) -> None:
-        """Unknowns of the pairs in ``mask`` back to those of ``snapshot``."""
-        if mask.any():
-            for name, values in snapshot.arrays.items():
-                current = getattr(self, name).copy()
-                current[mask] = values[mask]
-                setattr(self, name, current)
-            self._refresh()
-
-    def _refresh(self) -> None:
-        """Recompute what derives from the unknowns (nothing by default)."""
-
-
-def _rotate(
-    matrices: FloatArray, x: FloatArray, y: FloatArray, z: FloatArray | float
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Rows of ``matrices`` (nb, 3, 3) applied to the block's vectors (x, y, z),
-    each (nb, width): the components of ``R @ v`` as three (nb, width) arrays."""
-    r = matrices[:, :, :, None]
-    c0, c1, c2 = (r[:, i, 0] * x + r[:, i, 1] * y + r[:, i, 2] * z for i in range(3))
-    return c0, c1, c2
-
-
-class _DependentState(_StateBase):
-    """Unknowns of J's dependent pairs, solved in the left photo's image frame.
-
-    Per pair: the relative rotation ``Q`` (right image -> left image) and the
-    base components ``(b_y, b_z)`` along the left photo's image y and z axes
-    (``b_x = 1``).  The y-parallax J(5) is taken along the left photo's image
-    y axis, ``j = R_l (0, 1, 0)``: J's strip y axis when ``R_l = I`` (his first
-    pair), and within the photos' tilts of it along a strip flown along x.
-    The triple products of J(5) do not change under a common rotation, so the
-    pair is solved in the left image frame: the left rays need no rotation,
-    the right rays only ``Q``, and a pair's solution does not depend on the
-    orientation of its left photo, whatever the heading and the given first
-    orientation.  The chain of rotations is formed once, at the end.  The
-    corrections of the rotation are found in the left image frame, where
-    J's correcting rotation ``R_schut(a / 2)`` (fixed J(9)) premultiplies ``Q``.
-    """
-
-    UNKNOWNS = ("relative", "beta")
-
-    def __init__(self, n_pairs: int, first: FloatArray) -> None:
-        self.n_pairs = n_pairs
-        self.first = first
-        self.relative = np.broadcast_to(np.eye(3), (n_pairs, 3, 3)).copy()
-        self.beta = np.zeros((n_pairs, 2))
-
-    def terms(self, pairs: IntArray, block: _Block, m: FloatArray) -> FloatArray:
-        """Fill ``m[:, :5]`` with the design rows (J(7) fixed) and ``m[:, 5]``
-        with the y-parallax q (J(5)) of the block; return q at image scale (mm)."""
-        lx, ly, lz = block.left
-        p0, p1, p2 = _rotate(self.relative[pairs], *block.right)
-        b1, b2 = self.beta[pairs].T[:, :, None]
-        c0 = ly * p2 - lz * p1  # l × p
-        c1 = lz * p0 - lx * p2
-        c2 = lx * p1 - ly * p0
-        inv_d = 1.0 / c1  # D = j·(l × p), j = (0, 1, 0)
-        num = c0 + b1 * c1 + b2 * c2  # b·(l × p), b = (1, b_y, b_z)
-        q = num * inv_d
-        np.multiply(c1, inv_d, out=m[:, 0])  # ∂q/∂b_y = (l × p)_y / D
-        np.multiply(c2, inv_d, out=m[:, 1])
-        # ∂q/∂a = p × ((b − q j) × l) / D = (u (p·l) − l (p·u)) / D, u = b − q j
-        u1 = b1 - q
-        pl = p0 * lx + p1 * ly + p2 * lz
-        pu = p0 + p1 * u1 + p2 * b2
-        m[:, 2] = (pl - lx * pu) * inv_d
-        m[:, 3] = (u1 * pl - ly * pu) * inv_d
-        m[:, 4] = (b2 * pl - lz * pu) * inv_d
-        m[:, 5] = q
-        # At the left photo's image scale: q / k_l with k_l = j·(b × p) / D (J(12)).
-        q_img: FloatArray = num / (b2 * p0 - p2)
-        return q_img
-
-    def residuals(self, pairs: IntArray, block: _Block) -> tuple[FloatArray, FloatArray]:
-        """The y-parallaxes of ``terms`` without the design rows: q (model
-        units) and q at image scale (mm), by the same operations."""
-        lx, ly, lz = block.left
-        p0, p1, p2 = _rotate(self.relative[pairs], *block.right)
-        b1, b2 = self.beta[pairs].T[:, :, None]
-        c1 = lz * p0 - lx * p2
-        inv_d = 1.0 / c1
-        num = (ly * p2 - lz * p1) + b1 * c1 + b2 * (lx * p1 - ly * p0)
-        return num * inv_d, num / (b2 * p0 - p2)
-
-    def set_start(self, elements: FloatArray) -> None:
-        self.beta = elements[:, :2].copy()
-        self.relative = matrix_from_schut(elements[:, 2:])
-
-    def restart(self, mask: BoolArray, relative: FloatArray, base_dir: FloatArray) -> None:
-        self.relative[mask] = relative
-        self.beta[mask] = base_dir[:, 1:] / base_dir[:, :1]
-
-    def update(self, corr: FloatArray) -> None:
-        self.relative = matrix_from_schut(_SCHUT_FACTOR * corr[:, 2:]) @ self.relative
-        self.beta = self.beta + corr[:, :2]
-
-    def base_strip(self, r_left: FloatArray) -> FloatArray:
-        """Base vectors in the strip system, given the left rotations of the chain."""
-        beta = np.column_stack([np.ones(self.n_pairs), self.beta])
-        base: FloatArray = np.einsum("mij,mj->mi", r_left, beta)
-        return base
-
-    def rotations(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        chain = chain_rotations(self.first, self.relative)
-        # separate arrays: rotation_left and rotation_right are not views of each other
-        return chain[:-1].copy(), chain[1:].copy(), self.relative.copy()
-
-    def elements(self) -> FloatArray:
-        return np.column_stack([self.beta, schut_from_matrix(self.relative)])
-
-
-class _BaseState(_StateBase):
-    """Unknowns of B's base system: alpha'1, chi'1 of the left photo and the right
-    photo's rotation (alpha'2, omega'2, chi'2) relative to the base system, whose
-    x axis is the base.  Independent of the chain; the strip values follow from
-    A_tau_nu = R_left · A(alpha'1, 0, chi'1)^T, B(126)-(136)."""
-
-    UNKNOWNS = ("angles_left", "r_right_base")
-
-    def __init__(self, n_pairs: int, first: FloatArray) -> None:
-        self.n_pairs = n_pairs
-        self.first = first
-        self.angles_left = np.zeros((n_pairs, 2))  # alpha'1, chi'1
-        self.r_right_base = np.broadcast_to(np.eye(3), (n_pairs, 3, 3)).copy()
-        self._refresh()
-
-    def _left_base(self) -> FloatArray:
-        a = np.zeros((self.angles_left.shape[0], 3))
-        a[:, 0] = self.angles_left[:, 0]
-        a[:, 2] = self.angles_left[:, 1]
-        return matrix_from_cardan(a)
-
-    def _refresh(self) -> None:
-        self.l_base = self._left_base()
-
-    def terms(self, pairs: IntArray, block: _Block, m: FloatArray) -> FloatArray:
-        """As ``_DependentState.terms`` with b = (1, 0, 0) and j = (0, 1, 0) in
-        the base system: B(131)-(136) for the elements alpha'1, chi'1 (left)
-        and a rotation correction of the right photo."""
-        l_base = self.l_base[pairs]
-        l0, l1, l2 = _rotate(l_base, *block.left)
-        p0, p1, p2 = _rotate(self.r_right_base[pairs], *block.right)
-        num = l1 * p2 - l2 * p1  # (l × p)_x
-        inv_d = 1.0 / (l2 * p0 - l0 * p2)  # (l × p)_y
-        q = num * inv_d
-        u1 = -q  # u = b − q j = (1, −q, 0)
-        lu = l0 + u1 * l1
-        pl = p0 * l0 + p1 * l1 + p2 * l2
-        pu = p0 + u1 * p1
-        # left photo: g = l × (p × u) / D = (p (l·u) − u (l·p)) / D
-        g0 = (p0 * lu - pl) * inv_d
-        g1 = (p1 * lu - u1 * pl) * inv_d
-        g2 = p2 * lu * inv_d
-        np.negative(g1, out=m[:, 0])  # alpha'1 turns the left ray about the base-system y axis
-        e0, e1, e2 = l_base[:, :, 2].T[:, :, None]  # chi'1: about the left image z axis
-        m[:, 1] = e0 * g0 + e1 * g1 + e2 * g2
-        # right photo: p × (u × l) / D = (u (p·l) − l (p·u)) / D
-        m[:, 2] = (pl - l0 * pu) * inv_d
-        m[:, 3] = (u1 * pl - l1 * pu) * inv_d
-        m[:, 4] = -l2 * pu * inv_d
-        m[:, 5] = q
-        return num / -p2  # q / k_l with k_l = j·(b × p) / D = −p_z / D
-
-    def residuals(self, pairs: IntArray, block: _Block) -> tuple[FloatArray, FloatArray]:
-        """The y-parallaxes of ``terms``: q (model units) and at image scale (mm)."""
-        m = np.empty_like(block.design)
-        q_img = self.terms(pairs, block, m)
-        return m[:, 5], q_img
-
-    def restart(self, mask: BoolArray, relative: FloatArray, base_dir: FloatArray) -> None:
-        # Base system: x' along the base, z' in the principal plane of the left
-        # photo (B §125), so the left photo needs no omega'.
-        x = base_dir / np.linalg.norm(base_dir, axis=1, keepdims=True)
-        z = _EZ - x[:, 2:3] * x
-        z /= np.linalg.norm(z, axis=1, keepdims=True)
-        y = np.cross(z, x)
-        left_base = np.stack([x, y, z], axis=1)  # rows: base axes in the left image
-        angles = cardan_from_matrix(left_base)
-        self.angles_left[mask] = angles[:, [0, 2]]
-        self.r_right_base[mask] = self._left_base()[mask] @ relative
-        self._refresh()
-
-    def set_start(self, elements: FloatArray) -> None:
-        self.angles_left = elements[:, :2].copy()
-        self.r_right_base = matrix_from_cardan(elements[:, 2:])
-        self._refresh()
-
-    def update(self, corr: FloatArray) -> None:
-        self.angles_left = self.angles_left + corr[:, :2]
-        self.r_right_base = matrix_from_schut(_SCHUT_FACTOR * corr[:, 2:]) @ self.r_right_base
-        self._refresh()
-
-    def rotations(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        relative = np.swapaxes(self.l_base, 1, 2) @ self.r_right_base
-        chain = chain_rotations(self.first, relative)
-        return chain[:-1].copy(), chain[1:].copy(), relative
-
-    def base_strip(self, r_left: FloatArray) -> FloatArray:
-        """Base vectors in the strip system, given the left rotations of the chain."""
-        # A_tau_nu = R_left A'^T; its first column is the base direction, B(130).
-        a_tau_nu = r_left @ np.swapaxes(self.l_base, 1, 2)
-        b = a_tau_nu[:, :, 0]
-        along = np.einsum("mi,mi->m", b, r_left[:, :, 0])  # component along image x
-        base: FloatArray = b / along[:, None]
-        return base
-
-    def elements(self) -> FloatArray:
-        right = cardan_from_matrix(self.r_right_base)
-        return np.column_stack([self.angles_left, right])
-
-
-_State = _DependentState | _BaseState
