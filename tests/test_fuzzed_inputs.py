@@ -24,7 +24,7 @@ from _cli_process import cli_subprocess
 from strip_aerotri._text import MAX_ECHO, clean, shorten
 from strip_aerotri.cli.main import cli
 
-#: The floor of a message line (the issue's): under 500 characters.
+#: The floor of a message line: under 500 characters.
 MAX_LINE_CHARS = 500
 
 
