@@ -144,11 +144,6 @@ KNOWN_CYCLES = {
     "-> strip_aerotri.geometry._normal_assembly",
     "strip_aerotri.geometry.normals -> strip_aerotri.geometry._normal_assembly "
     "-> strip_aerotri.geometry.normals",
-    # the self-calibration section borrows the page's HTML helpers inside a function
-    "strip_aerotri.report.calibration -> strip_aerotri.report.html "
-    "-> strip_aerotri.report.calibration",
-    "strip_aerotri.report.html -> strip_aerotri.report.calibration "
-    "-> strip_aerotri.report.html",
 }
 
 

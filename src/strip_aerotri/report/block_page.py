@@ -15,15 +15,12 @@ from typing import Any
 from .html import (
     _CSS,
     STAT_HEADER,
-    _esc,
-    _figure,
-    _fmt,
-    _table,
     _verdict_cell,
     criteria_table,
     stat_row,
     verdict_banner,
 )
+from .html_parts import _esc, _figure, _fmt, _table
 from .verdict import overall_verdict
 
 __all__ = ["block_html"]

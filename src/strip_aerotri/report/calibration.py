@@ -26,8 +26,8 @@ from .values import json_float
 
 __all__ = [
     "calibration_figures",
-    "calibration_outputs",
     "calibration_html",
+    "calibration_outputs",
     "calibration_record",
     "camera_toml",
     "fitted_camera",
@@ -209,7 +209,7 @@ def calibration_html(record: dict[str, Any] | None, figures: tuple[str | None, s
     """The page's section on the self-calibration ('' without one)."""
     if record is None:
         return ""
-    from .html import _esc, _figure, _fmt, _table
+    from .html_parts import _esc, _figure, _fmt, _table
 
     rows = [
         [

@@ -4,7 +4,6 @@ from ``report.json``'s content and the figures.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -12,6 +11,7 @@ import numpy as np
 
 from ..options import DEFAULT_SECTIONS
 from .figures import Plan, figure_layout, figure_parallax, figure_residuals, figure_ties
+from .html_parts import _esc, _figure, _fmt, _table
 from .values import point_roles
 from .verdict import Verdict, criterion_label, overall_verdict
 
@@ -46,68 +46,10 @@ figure img{border:none}}
 """
 
 
-def _esc(value: Any) -> str:
-    import html
-
-    return html.escape(str(value), quote=True)
-
-
-def _fmt(value: Any, digits: int = 3) -> str:
-    if value is None:
-        return "–"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, (int, np.integer)):
-        return str(int(value))
-    if isinstance(value, (float, np.floating)):
-        if not math.isfinite(float(value)):
-            return "–"
-        return f"{float(value):.{digits}f}"
-    return _esc(value)
-
-
-def _table(
-    header: list[str],
-    rows: list[list[Any]],
-    *,
-    left: int = 1,
-    left_columns: tuple[int, ...] = (),
-    scroll: bool = False,
-    digits: list[int] | int = 3,
-) -> str:
-    if not rows:
-        return "<p class='na'>none</p>"
-    if isinstance(digits, int):
-        digits = [digits] * len(header)
-    head = "".join(
-        ("<th class='l'>" if i < left else "<th>") + f"{_esc(h)}</th>"
-        for i, h in enumerate(header)
-    )
-    body = []
-    for row in rows:
-        cells = []
-        for i, v in enumerate(row):
-            text = v[0] if isinstance(v, tuple) else _fmt(v, digits[i])
-            cls = " class='l'" if i < left or i in left_columns else ""
-            cells.append(f"<td{cls}>{text}</td>")
-        body.append("<tr>" + "".join(cells) + "</tr>")
-    html_table = f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
-    return f"<div class='scroll'>{html_table}</div>" if scroll and len(rows) > 25 else html_table
-
-
 def _verdict_cell(passed: bool | None) -> tuple[str]:
     if passed is None:
         return ("<span class='na'>not judged</span>",)
     return ("<span class='pass'>PASS</span>",) if passed else ("<span class='fail'>FAIL</span>",)
-
-
-def _figure(b64: str | None, caption: str, alt: str) -> str:
-    if b64 is None:
-        return f"<p class='na'>{_esc(caption)}: nothing to show.</p>"
-    return (
-        f"<figure><img alt='{_esc(alt)}' src='data:image/png;base64,{b64}'>"
-        f"<figcaption>{_esc(caption)}</figcaption></figure>"
-    )
 
 
 def build_html(result: StripResult, report: Mapping[str, Any]) -> str:

@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ..results import AccuracyStatistics, BlockResult, StripResult
-from .block import block_outputs, build_block_report
 from . import outputs
+from .block import block_outputs, build_block_report
 from .tolerances import TRANSFER_UM, transfer_passed
 
 if TYPE_CHECKING:
