@@ -228,8 +228,9 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         target = output_folder(project, out)
         lock = FolderLock(target)
         folder = ResultFolder(target, protect=project.input_files)
+        # before the lock is taken, so that a Ctrl-C as soon as it exists is told too
+        settings().interrupted = _folder_state(folder)
         with lock:
-            settings().interrupted = _folder_state(folder)
             result, files = _adjust_and_report(project, map_scale)
             # Warnings only once the run has succeeded: a failed run prints its one
             # error line.
