@@ -17,13 +17,14 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._stats import leading_failures
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
 from ..errors import GeometryError
+from ..geometry.camera_model import CameraModel
 from ..geometry.collinearity import image_jacobian, image_vectors
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
-from ..geometry.camera_model import CameraModel
 from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
 from .adjust import bundle_adjust, observed_with_sigma
 from .selfcal import ebner_base_mm, final_outcome, residual_cells, start_model
@@ -254,7 +255,10 @@ def refine_frame(
         if not blunders.rejecting:
             picks = [(f[1], f[2]) for f in sorted(failures.found, reverse=True)]
         elif worst[1] == "image":
-            picks = [("image", k) for k in _largest_of_point_and_photo(failures, obs)]
+            # every failing ray that leads its point and its photo: none is the
+            # echo of another rejection of the round
+            leaders = leading_failures(failures.ray_w, failures.crit_img, obs.point, obs.photo)
+            picks = [("image", int(k)) for k in leaders]
         else:
             picks = [(worst[1], worst[2])]
         new_rejections = describe(obs, picks, failures, stats, res.sigma0, blunders)
@@ -857,28 +861,6 @@ def _compact(
         principal_distance=obs.principal_distance,
     )
     return sub, rows, points
-
-
-def _largest_of_point_and_photo(failures: _Failures, obs: ImageObservations) -> list[int]:
-    """The failing image observations whose test value is the largest of
-    their point's and of their photo's (over every observation tested),
-    largest first: one per point and per photo, so that no rejection of a
-    round is the echo of another in the same point or the same photo."""
-    ray_w = failures.ray_w
-    w = np.where(np.isfinite(ray_w), ray_w, -np.inf)
-    best_point = np.full(len(obs.point_ids), -np.inf)
-    np.maximum.at(best_point, obs.point, w)
-    best_photo = np.full(len(obs.photo_ids), -np.inf)
-    np.maximum.at(best_photo, obs.photo, w)
-    failing = np.zeros(w.size, bool)
-    failing[[k for _, kind, k in failures.found if kind == "image"]] = True
-    pick = np.flatnonzero(failing & (w >= best_point[obs.point]) & (w >= best_photo[obs.photo]))
-    pick = pick[np.argsort(-w[pick], kind="stable")]
-    # ties: the first of a point, then of a photo
-    _, first = np.unique(obs.point[pick], return_index=True)
-    pick = pick[np.sort(first)]
-    _, first = np.unique(obs.photo[pick], return_index=True)
-    return [int(k) for k in pick[np.sort(first)]]
 
 
 def _photo_flags(values: ArrayLike | None, m: int, name: str) -> BoolArray:
