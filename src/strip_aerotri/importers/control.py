@@ -60,16 +60,18 @@ def _default_full(
         t = -t  # the start of the strip is where its first photos see the ground
     side = centred @ np.array([-axis[1], axis[0]]) > 0
     chosen: list[int] = []
+    free = np.ones(pts.size, dtype=bool)
     for place in (t.min(), 0.5 * (t.min() + t.max()), t.max()):
         for want in (True, False):
-            free = np.array([k not in chosen for k in range(pts.size)])
             pool = free & (side == want)
             if not pool.any():
                 pool = free
             if not pool.any():
                 break
             cand = np.flatnonzero(pool)
-            chosen.append(int(cand[np.argmin(np.abs(t[cand] - place))]))
+            pick = int(cand[np.argmin(np.abs(t[cand] - place))])
+            chosen.append(pick)
+            free[pick] = False
     return [str(pts[k]) for k in chosen]
 
 
