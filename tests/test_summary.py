@@ -3,6 +3,7 @@ result and report.json, computed in the library."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -10,7 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from strip_aerotri.geodesy import GroundCRS
 from strip_aerotri.project import load_project, run_project
+from strip_aerotri.report.outputs import GEOJSON_LOCAL_NOTE
 from strip_aerotri.report.summary import build_run
 from strip_aerotri.simulate import simulate_block, simulate_strip
 
@@ -57,3 +60,114 @@ def test_block_summary_judges_the_transfer_as_report_json(tmp_path):
     assert math.isfinite(summary.join.mean_transfer_um)
     assert summary.control.rmse_plan == result.control_statistics.rmse_plan
     assert np.isfinite(summary.control_fit.rmse_plan)
+
+
+@pytest.mark.parametrize("map_scale", [None, 5000.0])
+def test_strip_verdict_and_warnings_are_report_json_s(tmp_path, map_scale):
+    """The verdict sentence and the warnings, made from the result alone, are
+    those report.json writes (the page's banner prints the same sentence)."""
+    project = _project(tmp_path, simulate_strip(8, seed=4))
+    result = run_project(project)
+    outputs = build_run(result, project=project, map_scale=map_scale)
+    summary, record = outputs.summary, json.loads(outputs.files["report.json"])
+    assert summary.verdict.text == record["tolerances"]["verdict"]["text"]
+    assert summary.verdict.status == record["tolerances"]["verdict"]["status"]
+    assert (summary.tolerances is None) == (map_scale is None)
+    assert [*summary.warnings, *summary.output_warnings] == record["warnings"]
+
+
+def test_a_local_strip_says_its_geojson_is_not_written(tmp_path):
+    """A strip in a local frame: the summary's output warnings carry the note
+    report.json carries, and no points.geojson is among the files."""
+    project = _project(tmp_path, simulate_strip(6, seed=3))
+    result = run_project(project)
+    local = dataclasses.replace(
+        result, ground=dataclasses.replace(result.ground, crs=GroundCRS.from_user_input("local"))
+    )
+    outputs = build_run(local, project=project)
+    record = json.loads(outputs.files["report.json"])
+    assert "points.geojson" not in outputs.files
+    assert outputs.summary.output_warnings == (GEOJSON_LOCAL_NOTE,)
+    assert GEOJSON_LOCAL_NOTE in record["warnings"]
+
+
+@pytest.mark.parametrize("map_scale", [None, 2000.0])
+def test_block_verdict_is_report_json_s(tmp_path, map_scale):
+    project = _project(tmp_path, simulate_block(3, 6, seed=2))
+    result = run_project(project)
+    outputs = build_run(result, project=project, map_scale=map_scale)
+    summary, record = outputs.summary, json.loads(outputs.files["report.json"])
+    assert summary.verdict.text == record["tolerances"]["verdict"]["text"]
+    assert summary.verdict.status == record["tolerances"]["verdict"]["status"]
+    assert list(summary.warnings) == record["warnings"] and summary.output_warnings == ()
+    formed = [r for strip in result.strips for r in strip.rejections]
+    assert list(summary.rejections) == formed + list(result.rejections)
+    assert [r.describe() for r in summary.rejections[len(formed) :]] == record["rejections"]
+
+
+def test_build_run_writes_the_files_of_build_outputs(tmp_path):
+    """build_run's files are build_outputs' byte for byte (report.json apart
+    from its creation time)."""
+    from strip_aerotri.report.outputs import build_outputs
+
+    project = _project(tmp_path, simulate_strip(6, seed=5))
+    result = run_project(project)
+    ours = build_run(result, project=project, map_scale=5000).files
+    theirs = build_outputs(result, project=project, map_scale=5000)
+    assert set(ours) == set(theirs)
+    for name in ours:
+        if name == "report.json":
+            a, b = json.loads(ours[name]), json.loads(theirs[name])
+            a.pop("created_utc"), b.pop("created_utc")
+            assert a == b
+        elif name != "report.html":  # the page shows the creation time
+            assert ours[name] == theirs[name], name
+
+
+def _reads_report_json(source: str) -> list[str]:
+    """Where a module's source reads a result's report.json back: an import
+    of json, or a lookup of the key "report.json" (``files["report.json"]``,
+    ``files.get("report.json")``, ``folder / "report.json"``)."""
+    import ast
+
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import | ast.ImportFrom):
+            names = [a.name for a in node.names] + [getattr(node, "module", None) or ""]
+            if "json" in names:
+                found.append(f"line {node.lineno}: imports json")
+        key = None
+        if isinstance(node, ast.Subscript):
+            key = node.slice
+        elif isinstance(node, ast.Call) and getattr(node.func, "attr", "") == "get":
+            key = node.args[0] if node.args else None
+        elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.Div):
+            key = node.right
+        if isinstance(key, ast.Constant) and key.value == "report.json":
+            found.append(f"line {node.lineno}: looks up report.json")
+    return found
+
+
+def test_the_command_line_never_reads_report_json():
+    """``stripaero run`` prints the library's summary: no module of cli/ reads
+    report.json back (nor imports json to parse it)."""
+    cli = Path(__file__).parents[1] / "src" / "strip_aerotri" / "cli"
+    found = {
+        path.name: hits
+        for path in sorted(cli.glob("*.py"))
+        if (hits := _reads_report_json(path.read_text(encoding="utf-8")))
+    }
+    assert found == {}
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        "import json\n",
+        "v = files.get('report.json')\n",
+        "v = files['report.json']\n",
+        "p = folder / 'report.json'\n",
+    ],
+)
+def test_the_report_json_rule_can_fail(source):
+    assert _reads_report_json(source) != []

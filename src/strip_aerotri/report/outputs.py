@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from ..results import StripResult
 
 __all__ = [
+    "GEOJSON_LOCAL_NOTE",
     "REPORT_FORMAT",
     "REPORT_FORMAT_VERSION",
     "build_outputs",
@@ -31,6 +32,9 @@ __all__ = [
     "point_roles",
     "strip_outputs",
 ]
+
+#: The note of report.json's ``warnings`` when points.geojson is not written.
+GEOJSON_LOCAL_NOTE = 'points.geojson not written: crs is "local" (no geodesy to WGS 84)'
 
 
 def build_outputs(
@@ -75,7 +79,7 @@ def strip_outputs(
     notes: list[str] = []
     geojson = points_geojson(result)
     if geojson is None:
-        notes.append('points.geojson not written: crs is "local" (no geodesy to WGS 84)')
+        notes.append(GEOJSON_LOCAL_NOTE)
     report = build_report(result, project=project, map_scale=map_scale, notes=notes)
     refined = getattr(result, "refined", None)
     outcome = None if refined is None else refined.self_calibration
