@@ -337,9 +337,7 @@ def simulate_strip(
         raise ValueError(f"Expected `n_photos` to be an integer >= 2, got {n_photos!r}")
     if control not in _CONTROL_LAYOUTS:
         raise ValueError(f"Expected `control` to be one of {_CONTROL_LAYOUTS}, got {control!r}")
-    extra: dict[str, object] = dict(overrides)
-    if line is not None:
-        extra["line"] = bool(line)
+    extra: dict[str, object] = {**overrides, **({} if line is None else {"line": bool(line)})}
     pre, errors = _preset_and_errors(
         preset,
         extra,
