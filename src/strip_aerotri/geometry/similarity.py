@@ -538,7 +538,9 @@ def _given_start(
     """A given start in the centred frames: scale, rotation and the shift of
     ``target_c = shift + s R source_c``."""
     if not isinstance(start, SimilarityTransform):
-        raise TypeError(f"Expected `start` to be a SimilarityTransform, got {type(start).__name__}")
+        raise TypeError(
+            f"Expected `start` to be a SimilarityTransform, got {type(start).__name__}"
+        )
     # target = t + s R source  <=>  target_c = (t + s R c_src - c_tgt) + s R source_c
     scale, rotation = float(start.scale), start.rotation.copy()
     return scale, rotation, start.translation + scale * (rotation @ c_src) - c_tgt

@@ -124,7 +124,9 @@ class Calibration:
     camera_written: bool
 
     @classmethod
-    def of(cls, outcome: SelfCalibrationOutcome | None, files: Sequence[str]) -> Calibration | None:
+    def of(
+        cls, outcome: SelfCalibrationOutcome | None, files: Sequence[str]
+    ) -> Calibration | None:
         if outcome is None:
             return None
         estimate = outcome.estimate
