@@ -8,9 +8,10 @@ import dataclasses
 
 import numpy as np
 import pytest
+from _synthetic import without_ties
 
 from strip_aerotri.errors import GeometryError
-from strip_aerotri.observations import ControlType, ImageObservations
+from strip_aerotri.observations import ControlType
 from strip_aerotri.project import check_project, load_project, run_project
 from strip_aerotri.simulate import simulate_block, simulate_strip
 
@@ -24,23 +25,6 @@ def _load(tmp_path, sim, adjustment=""):
         text = text.replace(head, head + adjustment) if head in text else text + head + adjustment
         toml.write_text(text, encoding="utf-8")
     return load_project(toml)
-
-
-def _without_ties(obs: ImageObservations, model: int) -> ImageObservations:
-    """Every point of the triple overlap of photos model - 1, model, model + 1
-    taken off photo model + 1: model ``model`` shares no tie point with the
-    one before."""
-    on = [set(obs.point[obs.photo == k].tolist()) for k in range(obs.n_photos)]
-    triple = on[model - 1] & on[model] & on[model + 1]
-    keep = ~((obs.photo == model + 1) & np.isin(obs.point, list(triple)))
-    return ImageObservations.from_ids(
-        np.asarray(obs.photo_ids)[obs.photo[keep]],
-        np.asarray(obs.point_ids)[obs.point[keep]],
-        obs.xy[keep],
-        obs.principal_distance,
-        photo_ids=obs.photo_ids,
-        sigma=obs.sigma[keep],
-    )
 
 
 def _run_outcome(project) -> str | None:
@@ -57,7 +41,7 @@ def test_a_model_without_ties_is_a_break_for_check_as_for_run(tmp_path):
     break, each side on its own control: check warns and finds no problem,
     and the run succeeds with the break."""
     project = _load(tmp_path, simulate_strip(16, seed=4))
-    project = dataclasses.replace(project, observations=_without_ties(project.observations, 6))
+    project = dataclasses.replace(project, observations=without_ties(project.observations, 6))
     report = check_project(project)
     assert report.problems == []
     assert any("pair 1007-1008 shares no tie point" in w for w in report.warnings)
@@ -69,7 +53,7 @@ def test_j_chain_refuses_a_model_without_ties_in_check_and_run(tmp_path):
     """With J's polynomials (block = "strips") the scale must be carried
     along the chain: check and run both refuse, naming the pair."""
     project = _load(tmp_path, simulate_strip(16, seed=4), 'block = "strips"\npolynomial = 1\n')
-    project = dataclasses.replace(project, observations=_without_ties(project.observations, 6))
+    project = dataclasses.replace(project, observations=without_ties(project.observations, 6))
     report = check_project(project)
     assert any("pair 1007-1008 shares no tie point" in p for p in report.problems)
     assert "pair 1007-1008 shares no tie point" in (_run_outcome(project) or "")
@@ -80,7 +64,7 @@ def test_a_break_without_control_beyond_it_is_refused_by_check_and_run(tmp_path)
     the control only before the break, check names the models as the run
     does."""
     project = _load(tmp_path, simulate_strip(16, seed=4))
-    obs = _without_ties(project.observations, 6)
+    obs = without_ties(project.observations, 6)
     first = set(obs.point[obs.photo <= 5].tolist())
     control = project.control
     kinds = tuple(

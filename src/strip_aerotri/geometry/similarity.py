@@ -564,13 +564,7 @@ def _solution(
     c_src, c_tgt = centres
     n = obs.shape[0]
     used = obs.any(axis=1)
-    q, cond = _normal_inverse(a_w)
-    if not np.isfinite(cond) or cond > SINGULAR_COND:
-        raise GeometryError(
-            "similarity transformation: the normal matrix is singular (condition "
-            f"{cond:.1e}); the control does not determine the 7 parameters: "
-            f"{_quote([ids[i] for i in np.flatnonzero(used)])}"
-        )
+    q = _regular_inverse(a_w, [ids[i] for i in np.flatnonzero(used)])
     m = a_w.shape[0]
     redundancy = m - 7
     v_obs = l_w * sigma[obs]  # target - fitted, target units
@@ -652,6 +646,19 @@ def _start_values(
     return scale, rotation, translation
 
 
+def _regular_inverse(a_w: FloatArray, used_ids: Sequence[str]) -> FloatArray:
+    """The inverse of the normal matrix of the weighted design ``a_w``; an
+    error naming the control points when it is singular."""
+    q, cond = _normal_inverse(a_w)
+    if not np.isfinite(cond) or cond > SINGULAR_COND:
+        raise GeometryError(
+            "similarity transformation: the normal matrix is singular (condition "
+            f"{cond:.1e}); the control does not determine the 7 parameters: "
+            f"{_quote(used_ids)}"
+        )
+    return q
+
+
 def _gauss_newton(
     linearise: Callable[[float, FloatArray, FloatArray], tuple[FloatArray, FloatArray]],
     scale: float,
@@ -673,13 +680,7 @@ def _gauss_newton(
     converged = False
     for iterations in range(1, max_iterations + 1):
         a_w, l_w = linearise(scale, rotation, shift)
-        q, cond = _normal_inverse(a_w)
-        if not np.isfinite(cond) or cond > SINGULAR_COND:
-            raise GeometryError(
-                "similarity transformation: the normal matrix is singular (condition "
-                f"{cond:.1e}); the control does not determine the 7 parameters: "
-                f"{_quote(used_ids)}"
-            )
+        q = _regular_inverse(a_w, used_ids)
         dx = q @ (a_w.T @ l_w)
         shift = shift + dx[0:3]
         scale = scale + dx[3]

@@ -71,8 +71,9 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..observations import ControlPoints, ControlType, ImageObservations
 from ._control import _CONTROL_LAYOUTS, _control_points, _strip_roles, _zone_points
-from ._geodesy import _ecef2enu_matrix, _Geodesy
+from ._geodesy import _Geodesy
 from ._scene import (
+    _attitudes_about,
     _EXTRA,
     _GRUBER,
     _frozen,
@@ -81,7 +82,6 @@ from ._scene import (
     _projection_reach,
     _Terrain,
     _triple_overlap_centre_x,
-    _truncated_normal,
     _visible_pairs,
 )
 from .cameras import StripPreset
@@ -589,24 +589,12 @@ def _photos(
     plan (N, 3), local centres (N, 3), rotations (N, 3, 3), opk (N, 3).
     """
     count = lay.n * lay.m
-    w, hw = pre.position_wander_m, pre.height_wander_m
+    w = pre.position_wander_m
     along = lay.stations[lay.photo_station] + rng.uniform(-w, w, count)
     across = lay.offsets[lay.photo_strip] + rng.uniform(-w, w, count)
-    centre_plan = np.column_stack(
-        [
-            along[:, None] * lay.ahead + across[:, None] * lay.right,
-            pre.terrain_height_m + pre.flying_height_m + rng.uniform(-hw, hw, count),
-        ]
+    centre_plan, centres, opk, tilt = _attitudes_about(
+        rng, geo, pre, along[:, None] * lay.ahead + across[:, None] * lay.right
     )
-    centres = geo.plan2local(centre_plan)
-    opk = np.column_stack(
-        [
-            _truncated_normal(rng, math.radians(pre.attitude_sigma_deg), (count, 2)),
-            _truncated_normal(rng, math.radians(pre.kappa_sigma_deg), (count, 1)),
-        ]
-    )
-    llh = geo.local2geodetic(centres)
-    tilt = geo.frame.ecef2enu @ np.swapaxes(_ecef2enu_matrix(llh[:, 0], llh[:, 1]), -1, -2)
     swing = math.pi / 2.0 - lay.heading - math.pi * lay.reversed[lay.photo_strip]
     cos, sin = np.cos(swing), np.sin(swing)
     zero, one = np.zeros(count), np.ones(count)

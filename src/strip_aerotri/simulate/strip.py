@@ -78,9 +78,11 @@ import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..observations import ControlPoints, ImageObservations
+from ..options import DEFAULT_IMAGE_SIGMA_MM
 from ._control import _CONTROL_LAYOUTS, _blunders, _control
-from ._geodesy import LocalFrame, _ecef2enu_matrix, _Geodesy
+from ._geodesy import LocalFrame, _Geodesy
 from ._scene import (
+    _attitudes_about,
     camera_error_values,
     _EXTRA,
     _GRUBER,
@@ -93,7 +95,6 @@ from ._scene import (
     _rz,
     _Terrain,
     _triple_overlap_centre_x,
-    _truncated_normal,
     _visible_pairs,
 )
 from .cameras import StripPreset, _resolve_preset
@@ -278,7 +279,7 @@ def simulate_strip(
     image_noise_mm : float, optional
         Image noise standard deviation in mm; default: the preset's (film
         5 µm). With 0 the observations are exact; their ``sigma`` is then
-        0.005 mm.
+        the default image sigma (``DEFAULT_IMAGE_SIGMA_MM``).
     control : {"ends", "every_k_models", "dense", "fig4", "weak"}
         Control layout (see the module notes).
     control_every : int
@@ -498,24 +499,12 @@ class _Flight:
         ahead = np.array([math.sin(heading), math.cos(heading)])  # plan (east, north)
         left = np.array([-math.cos(heading), math.sin(heading)])
         along = np.asarray((np.arange(m) - 0.5 * (m - 1)) * pre.base_m, dtype=np.float64)
-        w, hw = pre.position_wander_m, pre.height_wander_m
+        w = pre.position_wander_m
         d_along = along + rng.uniform(-w, w, m)
         d_across = rng.uniform(-w, w, m)
-        centre_plan = np.column_stack(
-            [
-                d_along[:, None] * ahead + d_across[:, None] * left,
-                pre.terrain_height_m + pre.flying_height_m + rng.uniform(-hw, hw, m),
-            ]
+        centre_plan, centres, opk, tilt = _attitudes_about(
+            rng, geo, pre, d_along[:, None] * ahead + d_across[:, None] * left
         )
-        centres = geo.plan2local(centre_plan)
-        opk = np.column_stack(
-            [
-                _truncated_normal(rng, math.radians(pre.attitude_sigma_deg), (m, 2)),
-                _truncated_normal(rng, math.radians(pre.kappa_sigma_deg), (m, 1)),
-            ]
-        )
-        llh = geo.local2geodetic(centres)
-        tilt = geo.frame.ecef2enu @ np.swapaxes(_ecef2enu_matrix(llh[:, 0], llh[:, 1]), -1, -2)
         rotations = tilt @ _rz(math.pi / 2.0 - heading) @ _matrix_from_opk(opk)
         return cls(heading, ahead, left, along, centre_plan, centres, opk, rotations)
 
@@ -615,7 +604,7 @@ def _observe(
     obs_photo, obs_point, xy = obs_photo[order], obs_point[order], xy[order]
     if pre.image_noise_mm > 0:
         xy = xy + rng.normal(0.0, pre.image_noise_mm, xy.shape)
-    sigma = pre.image_noise_mm if pre.image_noise_mm > 0 else 0.005
+    sigma = pre.image_noise_mm if pre.image_noise_mm > 0 else DEFAULT_IMAGE_SIGMA_MM
     observations = ImageObservations.from_ids(
         photo_names[obs_photo],
         point_names[obs_point],
