@@ -171,3 +171,27 @@ def test_the_command_line_never_reads_report_json():
 )
 def test_the_report_json_rule_can_fail(source):
     assert _reads_report_json(source) != []
+
+
+def test_the_python_example_of_the_cli_page_runs(tmp_path, monkeypatch):
+    """docs/cli.md's "Python instead of the command line" runs as written
+    (from the repository root) and prints what ``stripaero run`` prints."""
+    import re
+
+    root = Path(__file__).parents[1]
+    page = (root / "docs" / "cli.md").read_text(encoding="utf-8")
+    section = page.split("## Python instead of the command line", 1)[1]
+    code = re.search(r"```python\n(.*?)```", section, re.S)
+    assert code is not None
+    source = code.group(1).replace("examples/", f"{root.as_posix()}/examples/")
+    source = source.replace('"my-out"', repr(str(tmp_path / "my-out")))
+    printed: list[str] = []
+    exec(compile(source, "docs/cli.md", "exec"), {"print": lambda *a: printed.append(a)})
+    assert (tmp_path / "my-out" / "points.csv").is_file()
+    assert len(printed) == 2 and all(math.isfinite(v) for v in printed[0])
+    record = json.loads((tmp_path / "my-out" / "report.json").read_text(encoding="utf-8"))
+    assert printed[1] == (record["tolerances"]["verdict"]["text"],)
+    assert printed[0] == (
+        record["check"]["statistics"]["rmse_plan_m"],
+        record["check"]["statistics"]["rmse_h_m"],
+    )
