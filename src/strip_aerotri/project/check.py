@@ -8,7 +8,9 @@ follow list every problem, each by the rule of the stage that applies it
 * each consecutive pair has at least five points measured on both photos
   (:func:`strip_aerotri.strip.relative.pair_count_problems`, J(5)-(10));
 * each model after the first shares at least one tie point with the previous
-  model (a point measured on all three photos; scale transfer, J(15));
+  model (a point measured on all three photos; scale transfer, J(15)); with
+  ``block = "models"`` a model without one is the break the run takes, and
+  each run of models between breaks carries itself on its own control;
 * enough control for the similarity
   (:func:`strip_aerotri.geometry.similarity.control_count_problems`, J(14)),
   the plan points not coinciding and the height points not all in one
@@ -23,7 +25,8 @@ follow list every problem, each by the rule of the stage that applies it
 When the counts allow it, the strip is then formed as the run forms it
 (relative orientation of every pair, the photos' order, scale transfer), so
 that a pair that cannot be oriented or photos listed against the flight are
-found here too; the ground stage is not run.
+found here too, and a block's strips are placed on the control as the run
+places them; the ground stage is not run.
 """
 
 from __future__ import annotations
