@@ -124,3 +124,38 @@ def test_check_places_a_block_as_the_run_does(tmp_path, placeable):
     else:
         assert refusal is not None and "no strip has the control for its own similarity" in refusal
         assert any("no strip has the control for its own similarity" in p for p in report.problems)
+
+
+def test_the_commands_agree_on_a_block_no_strip_carries(tmp_path):
+    """Through the command line: ``stripaero check`` exits 1 with the line
+    ``stripaero run`` stops with (a block no strip's own control places)."""
+    import csv
+
+    from click.testing import CliRunner
+
+    from strip_aerotri.cli.main import cli
+
+    sim = simulate_block(3, 6, seed=2)
+    sim.write_project(tmp_path)
+    first, last = _strip_only_points(sim, 0), _strip_only_points(sim, 2)
+    path = tmp_path / "control.csv"
+    with path.open(encoding="utf-8", newline="") as f:
+        rows = list(csv.DictReader(f))
+    full_first = [r["point"] for r in rows if r["type"] == "full" and r["point"] in first][:2]
+    full_last = [r["point"] for r in rows if r["type"] == "full" and r["point"] in last][:2]
+    for row in rows:
+        p = row["point"]
+        row["type"] = "full" if p in full_first else "height" if p in full_last else "check"
+        if row["type"] == "height":  # a height point gives no plan position
+            row["X"] = row["Y"] = ""
+    with path.open("w", encoding="utf-8", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    toml = tmp_path / "strip.toml"
+    checked = CliRunner().invoke(cli, ["-q", "check", str(toml)])
+    ran = CliRunner().invoke(cli, ["-q", "run", str(toml), "--out", str(tmp_path / "out")])
+    assert (checked.exit_code, ran.exit_code) == (1, 1), (checked.output, ran.output)
+    words = "no strip has the control for its own similarity"
+    assert words in checked.stderr and words in ran.stderr
+    assert not (tmp_path / "out").exists()
