@@ -82,6 +82,18 @@ def test_a_break_without_control_beyond_it_is_refused_by_check_and_run(tmp_path)
     )
 
 
+def test_a_block_strip_without_ties_is_a_break_for_check_as_for_run(tmp_path):
+    """A strip of a block with a model without tie points: check warns, the
+    run takes the break (its neighbours and the control carry the models)."""
+    project = _load(tmp_path, simulate_block(2, 8, seed=3, preset="drone"))
+    project = dataclasses.replace(project, observations=without_ties(project.observations, 3))
+    report = check_project(project)
+    assert report.problems == []
+    assert any("strip 'S1'" in w and "shares no tie point" in w for w in report.warnings)
+    result = run_project(project)
+    assert [s.breaks.tolist() for s in result.strips] == [[3], []]
+
+
 def _strip_only_points(sim, k: int) -> set[str]:
     """The points seen on the photos of strip ``k`` alone."""
     obs = sim.observations
