@@ -331,7 +331,7 @@ def _check_pairs(rep: CheckReport, project: Project) -> _PairFacts:
         f"{images}: {labels[m]} shares no tie point with {labels[m - 1]} (no point is "
         f"measured on all three photos {ids[m - 1]}, {ids[m]}, {ids[m + 1]}): the scale "
         + (
-            "is not carried across it: with block = \"models\" the models after it take "
+            'is not carried across it: with block = "models" the models after it take '
             "theirs from the control (in a block, also from the neighbouring strips)"
             if breaks
             else "cannot be transferred"
