@@ -8,8 +8,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from _synthetic import without_ties
 
+from _synthetic import without_ties
 from strip_aerotri.errors import GeometryError
 from strip_aerotri.observations import ControlType
 from strip_aerotri.project import check_project, load_project, run_project

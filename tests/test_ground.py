@@ -13,9 +13,9 @@ from functools import cache
 
 import numpy as np
 import pytest
-from _synthetic import without_ties
 
 import strip_aerotri as sa
+from _synthetic import without_ties
 from strip_aerotri.blunders import BlunderOptions
 from strip_aerotri.errors import GeometryError, StripAerotriWarning
 from strip_aerotri.geodesy import GroundCRS, enu_rotation

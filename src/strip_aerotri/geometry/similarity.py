@@ -43,10 +43,12 @@ from .control_geometry import (
     WEAK_COLLINEAR_MAGNIFICATION,
     WEAK_COLLINEAR_RTOL,
     _quote,
-    _validate_control_geometry as _validate_control_geometry,
     control_count_problems,
     cross_tilt,
     height_plane_verdict,
+)
+from .control_geometry import (
+    _validate_control_geometry as _validate_control_geometry,
 )
 from .rotation import matrix_from_rotvec, skew
 

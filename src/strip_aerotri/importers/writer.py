@@ -13,8 +13,7 @@ import numpy as np
 
 from .._atomic import folder_beside, input_inside, swap_folder
 from .._toml import toml_id_list as _toml_id_list
-from .._toml import toml_string
-from .._toml import toml_value
+from .._toml import toml_string, toml_value
 from .._typing import FloatArray, StrArray
 from ..errors import ConfigError
 from .tables import ImportedProject

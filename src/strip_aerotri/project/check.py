@@ -35,13 +35,13 @@ import dataclasses
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from itertools import pairwise
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from ..errors import StripAerotriError
-from ..options import DEFAULT_PHOTO_STEP
 from ..geometry.deformation import n_terms, polynomial_count_problems
 from ..geometry.similarity import (
     COINCIDENT_RTOL,
@@ -50,6 +50,7 @@ from ..geometry.similarity import (
     control_count_problems,
     cross_tilt,
 )
+from ..options import DEFAULT_PHOTO_STEP
 from ..plausibility import control_problems
 from ..strip.chaining import pair_rows
 from ..strip.relative import pair_count_problems
@@ -552,7 +553,7 @@ def _check_breaks(rep: CheckReport, project: Project, strip: StripModel) -> None
     target = np.column_stack([_plan_metres(ctrl.xyz[:, :2], geographic), ctrl.xyz[:, 2]])
     labels = strip.model_labels or tuple(f"model {m + 1}" for m in range(strip.n_models))
     edges = [0, *breaks.tolist(), strip.n_models]
-    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+    for lo, hi in pairwise(edges):
         in_run = np.zeros(project.observations.n_points, dtype=bool)
         in_run[strip.model_point[(strip.model >= lo) & (strip.model < hi)]] = True
         here = known & in_run[np.maximum(point, 0)] & (point >= 0) & ~ctrl.is_check

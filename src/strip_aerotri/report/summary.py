@@ -23,8 +23,8 @@ import numpy as np
 
 from ..results import AccuracyStatistics, BlockResult, Rejection, StripResult
 from . import outputs
-from .outputs import GEOJSON_LOCAL_NOTE
 from .block import block_outputs, block_tolerances_record, build_block_report, joins_record
+from .outputs import GEOJSON_LOCAL_NOTE
 from .record import drift_warnings, tolerances_record
 from .tolerances import TRANSFER_UM, transfer_passed
 from .verdict import Verdict

@@ -73,9 +73,9 @@ from ..observations import ControlPoints, ControlType, ImageObservations
 from ._control import _CONTROL_LAYOUTS, _control_points, _strip_roles, _zone_points
 from ._geodesy import _Geodesy
 from ._scene import (
-    _attitudes_about,
     _EXTRA,
     _GRUBER,
+    _attitudes_about,
     _frozen,
     _image2terrain_plan,
     _matrix_from_opk,

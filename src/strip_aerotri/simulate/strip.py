@@ -82,11 +82,10 @@ from ..options import DEFAULT_IMAGE_SIGMA_MM
 from ._control import _CONTROL_LAYOUTS, _blunders, _control
 from ._geodesy import LocalFrame, _Geodesy
 from ._scene import (
-    _attitudes_about,
-    camera_error_values,
     _EXTRA,
     _GRUBER,
     _LINE,
+    _attitudes_about,
     _frozen,
     _image2terrain_plan,
     _matrix_from_opk,
@@ -96,6 +95,7 @@ from ._scene import (
     _Terrain,
     _triple_overlap_centre_x,
     _visible_pairs,
+    camera_error_values,
 )
 from .cameras import StripPreset, _resolve_preset
 from .writer import write_strip_project

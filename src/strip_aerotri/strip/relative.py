@@ -52,13 +52,6 @@ from .relative_iterate import (
     _Record,
     _suspect_pairs,
 )
-from .relative_state import (
-    _BaseState,
-    _DependentState,
-    _State,
-    _segment_starts,
-    chain_rotations,
-)
 from .relative_starts import (
     SimilarityStart,
     _similarity_start,
@@ -67,7 +60,13 @@ from .relative_starts import (
     homography_start,
     similarity_start,
 )
-
+from .relative_state import (
+    _BaseState,
+    _DependentState,
+    _segment_starts,
+    _State,
+    chain_rotations,
+)
 
 __all__ = [
     "COLLINEAR_RATIO",
