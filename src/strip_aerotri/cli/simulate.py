@@ -321,6 +321,7 @@ def simulate(
         raise ConfigError(f"simulate {what}: {exc}") from exc
     _echo_written(sim, _write(sim, out, polynomial))
 
+
 def _check_out(out: Path, force: bool) -> None:
     """--out may be written: no project there unless --force, not a file."""
     from ..report.files import OutputError
@@ -379,7 +380,6 @@ def _echo_written(sim: SimulatedStrip | SimulatedBlock, toml_path: Path) -> None
             + (f", {len(sim.lines)} straight line(s)" if sim.lines else "")
         )
     echo_result(f"run it with: stripaero run {toml_path}")
-
 
 
 def _write(sim: SimulatedStrip | SimulatedBlock, out: Path, polynomial: str | None) -> Path:

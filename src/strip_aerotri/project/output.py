@@ -99,8 +99,7 @@ def _check_replaceable(target: Path, inputs: Sequence[Path]) -> None:
     item = input_inside(target, inputs)
     if item is not None:
         raise OutputError(
-            f"output folder '{target}' contains the input file '{item}'; refusing to "
-            "replace it"
+            f"output folder '{target}' contains the input file '{item}'; refusing to replace it"
         )
 
 

@@ -333,8 +333,7 @@ def _check_target(target: Path, protect: Iterable[os.PathLike[str] | str]) -> No
     item = input_inside(target, protect)
     if item is not None:
         raise OutputError(
-            f"output folder '{target}' contains the input file '{item}'; refusing to "
-            "replace it"
+            f"output folder '{target}' contains the input file '{item}'; refusing to replace it"
         )
 
 

@@ -44,6 +44,7 @@ __all__ = [
     "summarize",
 ]
 
+
 @dataclass(frozen=True)
 class Accuracy:
     """Counts and RMSE (metres) of residuals at the control or check points."""
@@ -215,7 +216,6 @@ class RunSummary:
             if name.startswith("report.") and not name.endswith(".json"):
                 return name
         return "report.json" if "report.json" in self.files else None
-
 
     def warning_lines(self, texts: Sequence[str], *, every: bool = False) -> list[str]:
         """The warnings to print, each once in the order given: with ``every``

@@ -463,5 +463,3 @@ def _suspect_pairs(
     n_pairs = counts.shape[0]
     rms = np.sqrt(np.bincount(pair, np.minimum(z, 1e150) ** 2, minlength=n_pairs) / counts)
     return (np.bincount(pair[over], minlength=n_pairs) > 0) | ~(rms <= 3.0)
-
-
