@@ -36,9 +36,7 @@ def test_strip_summary_is_the_result_and_its_report(tmp_path):
     assert summary.check.n_height == result.check_statistics.n_height
     criteria = record["tolerances"]["criteria"]
     assert summary.tolerances is not None and summary.tolerances.map_scale == 5000
-    assert summary.tolerances.failed == tuple(
-        c["name"] for c in criteria if c["passed"] is False
-    )
+    assert summary.tolerances.failed == tuple(c["name"] for c in criteria if c["passed"] is False)
     assert summary.tolerances.n_judged == sum(c["passed"] is not None for c in criteria)
     assert summary.report_name == "report.html" and set(summary.files) == set(outputs.files)
 
@@ -195,3 +193,48 @@ def test_the_python_example_of_the_cli_page_runs(tmp_path, monkeypatch):
         record["check"]["statistics"]["rmse_plan_m"],
         record["check"]["statistics"]["rmse_h_m"],
     )
+
+
+def test_warning_lines_sum_up_each_stage_s_rejections():
+    """Two or more rejections of a stage are one line at the place of the
+    first, naming the files that list them; one rejection stays as it is;
+    with ``every`` (``-v``) every warning is printed, each once."""
+    from strip_aerotri.report.summary import Accuracy, RunSummary
+    from strip_aerotri.report.verdict import Verdict
+    from strip_aerotri.results import Rejection
+
+    def rejection(stage, point, applied=True, effect=""):
+        return Rejection(
+            stage, point, ("1", "2"), "y-parallax", 30.0, "µm", 9.0, 4.8, applied, effect
+        )
+
+    ro = [rejection("relative_orientation", p) for p in ("A", "B", "C")]
+    kept = [rejection("control", p, applied=False, effect="kept: too few left") for p in "DE"]
+    tie = rejection("tie_points", "F")
+    none = Accuracy(0, 0, math.nan, math.nan)
+    summary = RunSummary(
+        "strip",
+        "s",
+        1,
+        2,
+        3,
+        False,
+        "models",
+        none,
+        none,
+        Verdict("na", "nothing"),
+        rejections=(*ro, *kept, tie),
+        files=("report.json", "report.html", "points.csv"),
+    )
+    texts = ["first", ro[0].describe(), "second", ro[1].describe(), tie.describe()]
+    texts += [kept[0].describe(), ro[2].describe(), kept[1].describe(), "first"]
+    assert summary.warning_lines(texts) == [
+        "first",
+        "relative_orientation: 3 y-parallaxes rejected as blunders (listed in report.json / "
+        "report.html; -v lists them here)",
+        "second",
+        tie.describe(),
+        "control: 2 control coordinates fail the blunder test, kept (too few left) (listed in "
+        "report.json / report.html; -v lists them here)",
+    ]
+    assert summary.warning_lines(texts, every=True) == list(dict.fromkeys(texts))
