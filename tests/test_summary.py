@@ -238,3 +238,34 @@ def test_warning_lines_sum_up_each_stage_s_rejections():
         "report.json / report.html; -v lists them here)",
     ]
     assert summary.warning_lines(texts, every=True) == list(dict.fromkeys(texts))
+
+
+# the ground stage before the bundle sees the camera error in the control
+@pytest.mark.filterwarnings("ignore:control.*fail the blunder test alike")
+def test_a_refined_strip_s_summary_is_the_bundle_s(tmp_path):
+    """After a bundle refinement with self-calibration the summary's accuracy
+    is the refinement's (the delivered points; report.json's "bundle"); the
+    calibration names what was kept and camera.toml among the files."""
+    sim = simulate_strip(12, preset="drone", seed=2, camera_errors={"k1": -3e-4})
+    project = _project(tmp_path, sim)
+    text = project.path.read_text(encoding="utf-8")
+    project.path.write_text(
+        text.replace(
+            "[adjustment]\n", '[adjustment]\nrefine = "bundle"\nself_calibration = "auto"\n'
+        ),
+        encoding="utf-8",
+    )
+    project = load_project(project.path)
+    result = run_project(project)
+    outputs = build_run(result, project=project)
+    summary, record = outputs.summary, json.loads(outputs.files["report.json"])
+    assert summary.refined and result.refined is not None
+    # report.json keeps the refinement's figures under "bundle"
+    assert summary.check.rmse_plan == record["bundle"]["check"]["rmse_plan_m"]
+    assert summary.control.rmse_height == record["bundle"]["control"]["rmse_h_m"]
+    assert summary.check.rmse_plan == result.refined.check_statistics.rmse_plan
+    assert summary.check.rmse_plan != result.check_statistics.rmse_plan  # not the strip's
+    outcome = result.refined.self_calibration
+    assert summary.calibration is not None and summary.calibration.kept == outcome.kept
+    assert "k1" in summary.calibration.kept
+    assert summary.calibration.camera_written == ("camera.toml" in outputs.files) is True
