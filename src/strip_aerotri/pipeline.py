@@ -267,7 +267,7 @@ def triangulate(
             refined=refined,
             warnings=result.warnings + tuple(refined.warnings),
         )
-    return result
+    return _without_weak_checks(result)
 
 
 @limit_blas_threads
@@ -360,6 +360,78 @@ def triangulate_block(
             polynomial=int(options.polynomial),
             self_calibration=self_calibration,
         )
-    return dataclasses.replace(
+    result = dataclasses.replace(
         result, warnings=tuple(warnings) + result.warnings, options=options
+    )
+    return _block_without_weak_checks(result, crs)
+
+
+def _without_weak_checks(result: StripResult) -> StripResult:
+    """The check statistics without the weakly determined check points, and a
+    warning naming each (:mod:`strip_aerotri.ground.check_precision`)."""
+    from .ground.check_precision import (
+        check_statistics_without,
+        weak_check_message,
+        weak_check_points,
+    )
+
+    ground, refined = result.ground, result.refined
+    final = ground if refined is None else refined  # the photos as delivered
+    weak = weak_check_points(
+        result.strip.observations,
+        result.control,
+        ground.crs,
+        ground.control_index[ground.is_check],
+        final.points,
+        final.photo_centres,
+        final.photo_opk,
+    )
+    if not weak:
+        return result
+    if refined is not None:
+        refined = dataclasses.replace(
+            refined,
+            check_statistics=check_statistics_without(
+                refined.control_residuals,
+                refined.is_check,
+                refined.control_index,
+                result.control,
+                weak,
+            ),
+        )
+    return dataclasses.replace(
+        result,
+        check_statistics=check_statistics_without(
+            ground.control_residuals, ground.is_check, ground.control_index, result.control, weak
+        ),
+        refined=refined,
+        warnings=result.warnings + tuple(weak_check_message(w) for w in weak),
+    )
+
+
+def _block_without_weak_checks(result: BlockResult, crs: GroundCRS | str) -> BlockResult:
+    """:func:`_without_weak_checks` of a block."""
+    from .ground.check_precision import (
+        check_statistics_without,
+        weak_check_message,
+        weak_check_points,
+    )
+
+    weak = weak_check_points(
+        result.observations,
+        result.control,
+        crs if isinstance(crs, GroundCRS) else GroundCRS.from_user_input(crs),
+        result.control_index[result.is_check],
+        result.points,
+        result.photo_centres,
+        result.photo_opk,
+    )
+    if not weak:
+        return result
+    return dataclasses.replace(
+        result,
+        check_statistics=check_statistics_without(
+            result.control_residuals, result.is_check, result.control_index, result.control, weak
+        ),
+        warnings=result.warnings + tuple(weak_check_message(w) for w in weak),
     )

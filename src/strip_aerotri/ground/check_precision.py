@@ -1,0 +1,162 @@
+"""Check points that their own rays fix too loosely to check anything.
+
+A check point's discrepancy (given minus adjusted) is the adjustment's error
+there plus the error of the point's own determination from its rays.  When
+its rays meet at a small angle the second part dominates: on the real FC300X
+block, check point '14' is seen on two consecutive photos 5.3 m apart at
+50-55 m (its rays meet at 2.5°), and with the photos held its two rays fix
+it to 0.2-0.5 m along them where every other check point is fixed to
+millimetres; the rigorous bundle gives it standard deviations of 0.11 /
+0.21 / 0.10 m (E / N / H) with the photos' own uncertainty.  Its
+discrepancy, 0.13 m in plan from the bundle and 0.01 m from the strip
+constructions, then says nothing about which is better, and as one of 15 it
+decided their comparison.
+
+The rule (the spirit of the ASPRS accuracy standard's: a check must be at
+least three times more accurate than what it checks): a check point is
+*weakly determined* when the standard deviation of its forward intersection
+from its own rays (:mod:`strip_aerotri.geometry.intersection_precision`,
+the photos as adjusted, the image coordinates' a priori sigma) exceeds
+:data:`WEAK_CHECK_FACTOR` times its control sigma, in plan or in height.  The
+rule looks at the geometry only, never at the discrepancy.  Such points stay
+in the outputs with their discrepancies; the check statistics leave them out
+and a warning names them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._typing import BoolArray, FloatArray, IntArray
+from ..frames import TangentWorkFrame
+from ..geodesy import GroundCRS
+from ..geometry.intersection_precision import intersection_angles, intersection_covariances
+from ..geometry.rotation import matrix_from_opk
+from ..observations import ControlPoints, ImageObservations
+from ..results import AccuracyStatistics
+
+__all__ = [
+    "WEAK_CHECK_FACTOR",
+    "WeakCheck",
+    "check_statistics_without",
+    "weak_check_message",
+    "weak_check_points",
+]
+
+#: A check point whose own intersection's sigma exceeds this many times its
+#: control sigma (plan or height) is weakly determined.
+WEAK_CHECK_FACTOR = 3.0
+
+
+@dataclass(frozen=True)
+class WeakCheck:
+    """A weakly determined check point: its rays, their largest angle
+    (degrees), and its intersection's sigmas in plan and height (m) against
+    its control sigmas (m)."""
+
+    point: str
+    n_rays: int
+    angle_deg: float
+    sigma_plan_m: float
+    sigma_height_m: float
+    control_sigma_xy_m: float
+    control_sigma_h_m: float
+
+
+def weak_check_points(
+    observations: ImageObservations,
+    control: ControlPoints,
+    crs: GroundCRS,
+    check_rows: IntArray,
+    points: FloatArray,
+    photo_centres: FloatArray,
+    photo_opk: FloatArray,
+) -> tuple[WeakCheck, ...]:
+    """The weakly determined check points among ``check_rows`` (module notes).
+
+    Parameters
+    ----------
+    observations : ImageObservations
+        The image observations of the result (points and photos indexed as
+        ``points`` and ``photo_centres``).
+    control : ControlPoints
+    crs : GroundCRS
+    check_rows : ndarray of int
+        Rows of ``control`` that are check points.
+    points : ndarray, shape (P, 3)
+        Adjusted points in the CRS (NaN where not determined).
+    photo_centres, photo_opk : ndarray, shape (M, 3)
+        Adjusted centres in the CRS and omega, phi, kappa (radians, image ->
+        east-north-up at each centre).
+    """
+    ids = np.asarray(observations.point_ids, dtype=object)
+    sorter = np.argsort(ids)
+    rows = np.asarray(check_rows, dtype=np.intp)
+    names = np.asarray(control.point_ids, dtype=object)[rows]
+    at = np.clip(np.searchsorted(ids, names, sorter=sorter), 0, max(ids.size - 1, 0))
+    seen = ids.size > 0 and ids[sorter[at]] == names
+    rows, index = rows[seen], sorter[at][seen]
+    if rows.size == 0:
+        return ()
+    given = np.all(np.isfinite(points[index]), axis=1)
+    rows, index = rows[given], index[given]
+    if rows.size == 0:
+        return ()
+    if crs.is_local:
+        frame = TangentWorkFrame(crs, None)
+    else:
+        frame = TangentWorkFrame.at_control(crs, points[index], 0.0)
+    compact = np.full(observations.n_points, -1, dtype=np.intp)
+    compact[index] = np.arange(index.size)
+    sel = np.flatnonzero(compact[observations.point] >= 0)
+    photo, point = observations.photo[sel], compact[observations.point[sel]]
+    centres = frame.to_work(photo_centres)
+    rotations = frame.work_from_enu(photo_centres) @ matrix_from_opk(photo_opk)
+    pts = frame.to_work(points[index])
+    cov = intersection_covariances(
+        centres, rotations, pts, photo, point, observations.principal_distance,
+        observations.sigma[sel],
+    )  # fmt: skip
+    angle = intersection_angles(centres, pts, photo, point)
+    rays = np.bincount(point, minlength=index.size)
+    sig_plan = np.sqrt(cov[:, 0, 0] + cov[:, 1, 1])
+    sig_h = np.sqrt(cov[:, 2, 2])
+    sxy, sh = control.sigma_xy[rows], control.sigma_h[rows]
+    # undetermined by its rays (one ray, parallel rays): NaN, weak as well
+    weak = ~(sig_plan <= WEAK_CHECK_FACTOR * sxy) | ~(sig_h <= WEAK_CHECK_FACTOR * sh)
+    return tuple(
+        WeakCheck(
+            control.point_ids[rows[i]], int(rays[i]), float(angle[i]), float(sig_plan[i]),
+            float(sig_h[i]), float(sxy[i]), float(sh[i]),
+        )  # fmt: skip
+        for i in np.flatnonzero(weak)
+    )
+
+
+def check_statistics_without(
+    residuals: FloatArray,
+    is_check: BoolArray,
+    control_index: IntArray,
+    control: ControlPoints,
+    weak: tuple[WeakCheck, ...],
+) -> AccuracyStatistics:
+    """The check statistics of ``residuals`` (rows ``control_index`` of
+    ``control``, ``is_check`` marking the check rows) without the weak points."""
+    names = np.array(control.point_ids, dtype=object)[np.asarray(control_index, dtype=np.intp)]
+    keep = np.asarray(is_check, dtype=bool) & ~np.isin(names, [w.point for w in weak])
+    return AccuracyStatistics.from_residuals(np.asarray(residuals)[keep])
+
+
+def weak_check_message(weak: WeakCheck) -> str:
+    """The warning naming a weakly determined check point and why."""
+    return (
+        f"check point {weak.point!r} is weakly determined: its {weak.n_rays} ray(s) meet at "
+        f"{weak.angle_deg:.1f} deg and fix it to {weak.sigma_plan_m:.3f} m in plan and "
+        f"{weak.sigma_height_m:.3f} m in height at the image sigma (more than "
+        f"{WEAK_CHECK_FACTOR:g} times its sigma of {weak.control_sigma_xy_m:g} / "
+        f"{weak.control_sigma_h_m:g} m), so its discrepancy measures its own intersection "
+        "more than the adjustment: it is listed with the check points but left out of "
+        "their statistics (measure it on more photos, farther apart)"
+    )
