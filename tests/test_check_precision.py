@@ -127,3 +127,24 @@ def test_fc300x_weak_check_points_are_named_and_left_out(tmp_path, adjustment: s
     assert stats.n_plan == 13 == keep.sum()
     assert stats.rmse_plan == pytest.approx(np.sqrt(np.mean(np.sum(r[:, :2] ** 2, axis=1))))
     assert stats.rmse[2] == pytest.approx(np.sqrt(np.mean(r[:, 2] ** 2)))
+
+
+def test_check_points_of_one_geometry_are_never_left_out(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """The drone-corridor example: its 30 check points are seen alike (their
+    own intersections within 1.9 times the median) while its control sigma
+    is 1 cm, below their own intersections' 3-5 cm: none is weak, and its
+    check statistics are those of all 30."""
+    import shutil
+    import warnings
+
+    from strip_aerotri.errors import StripAerotriWarning
+    from strip_aerotri.project import load_project
+    from strip_aerotri.project.run import run_project
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "drone-corridor"
+    shutil.copytree(example, tmp_path / "p")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        result = run_project(load_project(tmp_path / "p" / "strip.toml"))
+    assert not [w for w in result.warnings if "weakly determined" in w]
+    assert result.check_statistics.n_plan == 30
