@@ -34,18 +34,10 @@ def _example():
 
 def _weak_checks(result):  # type: ignore[no-untyped-def]
     """The weakly determined check points of a strip result, as the pipeline finds them."""
-    from strip_aerotri.ground.check_precision import weak_check_points
+    from strip_aerotri.ground.check_precision import weak_checks_of
 
     ground = result.ground
-    return weak_check_points(
-        result.strip.observations,
-        result.control,
-        ground.crs,
-        ground.control_index[ground.is_check],
-        ground.points,
-        ground.photo_centres,
-        ground.photo_opk,
-    )
+    return weak_checks_of(result.strip.observations, result.control, ground.crs, ground, ground)
 
 
 def _weak(result):  # type: ignore[no-untyped-def]
@@ -111,13 +103,7 @@ def test_strip_one_by_models_is_near_the_bundle(uav, tmp_path: Path, photo_step:
     strip = result.check_statistics
     refined = refine_bundle(result, compute_precision=False)
     # the bundle's statistics on the same check points (the weak ones out)
-    bundle = check_statistics_without(
-        refined.control_residuals,
-        refined.is_check,
-        refined.control_index,
-        result.control,
-        tuple(w for w in _weak_checks(result)),
-    )
+    bundle = check_statistics_without(refined, result.control, _weak_checks(result))
     assert strip.n_plan == bundle.n_plan == 18 - len(_weak(result))
     assert strip.rmse_plan < 1.3 * bundle.rmse_plan
     assert strip.rmse[2] < 1.3 * bundle.rmse[2]

@@ -372,38 +372,21 @@ def _without_weak_checks(result: StripResult) -> StripResult:
     from .ground.check_precision import (
         check_statistics_without,
         weak_check_message,
-        weak_check_points,
+        weak_checks_of,
     )
 
     ground, refined = result.ground, result.refined
     final = ground if refined is None else refined  # the photos as delivered
-    weak = weak_check_points(
-        result.strip.observations,
-        result.control,
-        ground.crs,
-        ground.control_index[ground.is_check],
-        final.points,
-        final.photo_centres,
-        final.photo_opk,
-    )
+    weak = weak_checks_of(result.strip.observations, result.control, ground.crs, ground, final)
     if not weak:
         return result
     if refined is not None:
         refined = dataclasses.replace(
-            refined,
-            check_statistics=check_statistics_without(
-                refined.control_residuals,
-                refined.is_check,
-                refined.control_index,
-                result.control,
-                weak,
-            ),
+            refined, check_statistics=check_statistics_without(refined, result.control, weak)
         )
     return dataclasses.replace(
         result,
-        check_statistics=check_statistics_without(
-            ground.control_residuals, ground.is_check, ground.control_index, result.control, weak
-        ),
+        check_statistics=check_statistics_without(ground, result.control, weak),
         refined=refined,
         warnings=result.warnings + tuple(weak_check_message(w) for w in weak),
     )
@@ -414,24 +397,15 @@ def _block_without_weak_checks(result: BlockResult, crs: GroundCRS | str) -> Blo
     from .ground.check_precision import (
         check_statistics_without,
         weak_check_message,
-        weak_check_points,
+        weak_checks_of,
     )
 
-    weak = weak_check_points(
-        result.observations,
-        result.control,
-        crs if isinstance(crs, GroundCRS) else GroundCRS.from_user_input(crs),
-        result.control_index[result.is_check],
-        result.points,
-        result.photo_centres,
-        result.photo_opk,
-    )
+    ground_crs = crs if isinstance(crs, GroundCRS) else GroundCRS.from_user_input(crs)
+    weak = weak_checks_of(result.observations, result.control, ground_crs, result, result)
     if not weak:
         return result
     return dataclasses.replace(
         result,
-        check_statistics=check_statistics_without(
-            result.control_residuals, result.is_check, result.control_index, result.control, weak
-        ),
+        check_statistics=check_statistics_without(result, result.control, weak),
         warnings=result.warnings + tuple(weak_check_message(w) for w in weak),
     )

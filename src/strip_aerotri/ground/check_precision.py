@@ -35,6 +35,7 @@ drone corridor) no check point is beyond 1.9 times the median.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -49,9 +50,11 @@ from ..results import AccuracyStatistics
 __all__ = [
     "WEAK_CHECK_FACTOR",
     "WeakCheck",
+    "Adjusted",
     "check_statistics_without",
     "weak_check_message",
     "weak_check_points",
+    "weak_checks_of",
 ]
 
 #: A check point whose own intersection's sigma exceeds this many times its
@@ -157,18 +160,53 @@ def _beyond(sigma: FloatArray, control_sigma: FloatArray) -> BoolArray:
     return out
 
 
-def check_statistics_without(
-    residuals: FloatArray,
-    is_check: BoolArray,
-    control_index: IntArray,
+class Adjusted(Protocol):
+    """What a strip's ground stage, its bundle refinement and a block result
+    share: the control rows' residuals and the adjusted points and photos."""
+
+    @property
+    def control_index(self) -> IntArray: ...
+    @property
+    def is_check(self) -> BoolArray: ...
+    @property
+    def control_residuals(self) -> FloatArray: ...
+    @property
+    def points(self) -> FloatArray: ...
+    @property
+    def photo_centres(self) -> FloatArray: ...
+    @property
+    def photo_opk(self) -> FloatArray: ...
+
+
+def weak_checks_of(
+    observations: ImageObservations,
     control: ControlPoints,
-    weak: tuple[WeakCheck, ...],
+    crs: GroundCRS,
+    rows: Adjusted,
+    final: Adjusted,
+) -> tuple[WeakCheck, ...]:
+    """:func:`weak_check_points` of the check rows of ``rows`` with the
+    points and photos of ``final``."""
+    return weak_check_points(
+        observations,
+        control,
+        crs,
+        rows.control_index[rows.is_check],
+        final.points,
+        final.photo_centres,
+        final.photo_opk,
+    )
+
+
+def check_statistics_without(
+    adjusted: Adjusted, control: ControlPoints, weak: tuple[WeakCheck, ...]
 ) -> AccuracyStatistics:
-    """The check statistics of ``residuals`` (rows ``control_index`` of
-    ``control``, ``is_check`` marking the check rows) without the weak points."""
-    names = np.array(control.point_ids, dtype=object)[np.asarray(control_index, dtype=np.intp)]
-    keep = np.asarray(is_check, dtype=bool) & ~np.isin(names, [w.point for w in weak])
-    return AccuracyStatistics.from_residuals(np.asarray(residuals)[keep])
+    """The check statistics of ``adjusted``'s residuals (its rows of
+    ``control``) without the weak points."""
+    index = np.asarray(adjusted.control_index, dtype=np.intp)
+    names = np.array(control.point_ids, dtype=object)[index]
+    keep = np.asarray(adjusted.is_check, dtype=bool) & ~np.isin(names, [w.point for w in weak])
+    return AccuracyStatistics.from_residuals(np.asarray(adjusted.control_residuals)[keep])
 
 
 def weak_check_message(weak: WeakCheck) -> str:
