@@ -53,7 +53,8 @@ class ReferenceBundle:
     ``sigma`` (K,) mm; ``centres0`` (M, 3), ``rotations0`` (M, 3, 3) image
     -> frame and ``points0`` (P, 3) the start; ``control_point`` (N,) the
     points with full control at ``control_xyz`` (N, 3) with sigmas
-    ``control_sigma`` (N, 3) (NaN components not given); ``c`` mm; ``camera`` the camera terms estimated.
+    ``control_sigma`` (N, 3) (NaN components not given); ``c`` mm;
+    ``camera`` the camera terms estimated.
     """
 
     xy: np.ndarray
@@ -207,7 +208,8 @@ def check_errors(ref: ReferenceBundle, result: Any) -> dict[str, np.ndarray]:
 
 def rmse(errors: dict[str, np.ndarray], leave_out: tuple[str, ...] = ()) -> tuple[float, float]:
     e = np.array([v for k, v in errors.items() if k not in leave_out])
-    return float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))), float(np.sqrt(np.mean(e[:, 2] ** 2)))
+    plan = float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2)))
+    return plan, float(np.sqrt(np.mean(e[:, 2] ** 2)))
 
 
 def _used_rays(result: Any) -> np.ndarray:
@@ -241,16 +243,20 @@ def main(argv: list[str] | None = None) -> None:
     ref = from_block(result, used=used).solve()
     errors = check_errors(ref, result)
     names = np.array(result.control.point_ids)[result.control_index]
-    engine = dict(zip(names[result.is_check], result.control_residuals[result.is_check], strict=True))
+    check = result.is_check
+    engine = dict(zip(names[check], result.control_residuals[check], strict=True))
     print(f"sigma0: engine {result.refined_sigma0:.4f}, reference {ref.sigma0:.4f}")
     print("check point   engine E/N/H (m)          reference E/N/H (m)       ref. sd E/N/H (m)")
     lookup = {pid: i for i, pid in enumerate(result.observations.point_ids)}
     for pid, e in sorted(errors.items(), key=lambda kv: int(kv[0]) if kv[0].isdigit() else 0):
-        sd = ref.point_std(lookup[pid])
-        print(f"{pid:>8}  {np.array2string(engine[pid], precision=3):>24}  "
-              f"{np.array2string(e, precision=3):>24}  {np.array2string(sd, precision=3)}")  # fmt: skip
-    print("RMSE plan/height: reference %.4f / %.4f, without 14 and 78 %.4f / %.4f"
-          % (*rmse(errors), *rmse(errors, ("14", "78"))))  # fmt: skip
+        a, b = np.array2string(engine[pid], precision=3), np.array2string(e, precision=3)
+        sd = np.array2string(ref.point_std(lookup[pid]), precision=3)
+        print(f"{pid:>8}  {a:>24}  {b:>24}  {sd}")
+    (p_all, h_all), (p_13, h_13) = rmse(errors), rmse(errors, ("14", "78"))
+    print(
+        f"RMSE plan/height: reference {p_all:.4f} / {h_all:.4f}, without 14 and 78 "
+        f"{p_13:.4f} / {h_13:.4f}"
+    )
     for label, kw in (
         ("control sigma 0.01 / 0.015 m", {"control_sigma": (0.01, 0.01, 0.015)}),
         ("control sigma 0.04 / 0.06 m", {"control_sigma": (0.04, 0.04, 0.06)}),

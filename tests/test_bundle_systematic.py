@@ -58,9 +58,7 @@ def test_plain_bundle_keeps_control_failing_alike_and_warns() -> None:
     control = [r for r in refined.rejections if r.stage == "control"]
     assert not any(r.applied for r in control)
     assert all(r.effect.startswith(KEPT_EFFECT) for r in control)
-    kind = np.array([str(getattr(k, "value", k)) for k in sim.control.kind])[
-        refined.control_index
-    ]
+    kind = np.array([str(getattr(k, "value", k)) for k in sim.control.kind])[refined.control_index]
     given = ~refined.is_check
     assert np.array_equal(refined.used_xy[given], np.isin(kind[given], ("full", "plan")))
     assert np.array_equal(refined.used_h[given], np.isin(kind[given], ("full", "height")))
@@ -104,7 +102,10 @@ def test_too_many_failing_control_points_that_are_not_alike_still_stop() -> None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StripAerotriWarning)
         strip = triangulate(
-            sim.observations, sim.control, sim.crs, ground_options=GroundOptions(route=Route.PROJECTED)
+            sim.observations,
+            sim.control,
+            sim.crs,
+            ground_options=GroundOptions(route=Route.PROJECTED),
         )
     obs = strip.strip.observations
     refined = _run(sim)[0].refined
@@ -117,7 +118,8 @@ def test_too_many_failing_control_points_that_are_not_alike_still_stop() -> None
     control[chosen] = given[chosen]
     control[chosen[1], 2] += 3.0
     control[chosen[3], 0] -= 4.0
-    with pytest.raises(GeometryError, match="control cannot be trusted"), warnings.catch_warnings():
+    trusted = pytest.raises(GeometryError, match="control cannot be trusted")
+    with trusted, warnings.catch_warnings():
         warnings.simplefilter("ignore", StripAerotriWarning)
         refine_frame(
             obs,

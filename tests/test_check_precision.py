@@ -32,9 +32,7 @@ def _scene(seed: int = 2) -> tuple[np.ndarray, ...]:
         [rng.uniform(0, 1200, 12), rng.uniform(-300, 300, 12), rng.uniform(-50, 50, 12)]
     )
     # point k seen on photos k % 4 .. (k % 4) + 1 + k % 3: 2 to 4 rays each
-    pairs = [
-        (j, k) for k in range(12) for j in range(k % 4, min(5, k % 4 + 2 + k % 3))
-    ]
+    pairs = [(j, k) for k in range(12) for j in range(k % 4, min(5, k % 4 + 2 + k % 3))]
     photo = np.array([j for j, _ in pairs])
     point = np.array([k for _, k in pairs])
     return centres, rotations, points, photo, point

@@ -56,8 +56,8 @@ from ..results import (
     Rejection,
     StripResult,
 )
-from .selfcal import final_outcome
 from .photo_tests import _directional_tests
+from .selfcal import final_outcome
 from .snooping import GNSS_STAGE, IMU_STAGE, refine_frame
 
 __all__ = [

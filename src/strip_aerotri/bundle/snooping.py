@@ -29,7 +29,7 @@ from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
 from .adjust import bundle_adjust, observed_with_sigma
-from .photo_tests import _directional_tests, _photo_flags, _photo_tests
+from .photo_tests import _photo_flags, _photo_tests
 from .selfcal import ebner_base_mm, final_outcome, residual_cells, start_model
 
 __all__ = ["CONTROL_STAGE", "GNSS_STAGE", "IMAGE_STAGE", "IMU_STAGE", "refine_frame"]

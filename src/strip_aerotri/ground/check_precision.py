@@ -49,8 +49,8 @@ from ..results import AccuracyStatistics
 
 __all__ = [
     "WEAK_CHECK_FACTOR",
-    "WeakCheck",
     "Adjusted",
+    "WeakCheck",
     "check_statistics_without",
     "weak_check_message",
     "weak_check_points",
@@ -140,9 +140,14 @@ def weak_check_points(
     weak = _beyond(sig_plan, sxy) | _beyond(sig_h, sh)
     return tuple(
         WeakCheck(
-            control.point_ids[rows[i]], int(rays[i]), float(angle[i]), float(sig_plan[i]),
-            float(sig_h[i]), float(sxy[i]), float(sh[i]),
-        )  # fmt: skip
+            control.point_ids[rows[i]],
+            int(rays[i]),
+            float(angle[i]),
+            float(sig_plan[i]),
+            float(sig_h[i]),
+            float(sxy[i]),
+            float(sh[i]),
+        )
         for i in np.flatnonzero(weak)
     )
 
@@ -216,7 +221,8 @@ def weak_check_message(weak: WeakCheck) -> str:
         f"{weak.angle_deg:.1f} deg and fix it to {weak.sigma_plan_m:.3f} m in plan and "
         f"{weak.sigma_height_m:.3f} m in height at the image sigma (more than "
         f"{WEAK_CHECK_FACTOR:g} times its control sigma of {weak.control_sigma_xy_m:g} / "
-        f"{weak.control_sigma_h_m:g} m and than the other check points' own), so its discrepancy measures its own intersection "
-        "more than the adjustment: it is listed with the check points but left out of "
-        "their statistics (measure it on more photos, farther apart)"
+        f"{weak.control_sigma_h_m:g} m and than the other check points' own), so its "
+        "discrepancy measures its own intersection more than the adjustment: it is listed "
+        "with the check points but left out of their statistics (measure it on more photos, "
+        "farther apart)"
     )
