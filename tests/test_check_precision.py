@@ -117,6 +117,7 @@ def test_fc300x_weak_check_points_are_named_and_left_out(tmp_path, adjustment: s
         result = run_project(load_project(toml))
     weak = [w for w in result.warnings if "is weakly determined" in w]
     assert [w.split("'")[1] for w in weak] == ["14", "78"]
+    assert result.weak_checks == ("14", "78")
     assert "meet at 2.5 deg" in weak[0]
     stats = result.check_statistics
     names = np.array(result.control.point_ids)[result.control_index]
@@ -145,4 +146,5 @@ def test_check_points_of_one_geometry_are_never_left_out(tmp_path) -> None:  # t
         warnings.simplefilter("ignore", StripAerotriWarning)
         result = run_project(load_project(tmp_path / "p" / "strip.toml"))
     assert not [w for w in result.warnings if "weakly determined" in w]
+    assert result.weak_checks == ()
     assert result.check_statistics.n_plan == 30

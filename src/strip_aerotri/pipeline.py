@@ -389,6 +389,7 @@ def _without_weak_checks(result: StripResult) -> StripResult:
         check_statistics=check_statistics_without(ground, result.control, weak),
         refined=refined,
         warnings=result.warnings + tuple(weak_check_message(w) for w in weak),
+        weak_checks=tuple(w.point for w in weak),
     )
 
 
@@ -408,4 +409,5 @@ def _block_without_weak_checks(result: BlockResult, crs: GroundCRS | str) -> Blo
         result,
         check_statistics=check_statistics_without(result, result.control, weak),
         warnings=result.warnings + tuple(weak_check_message(w) for w in weak),
+        weak_checks=tuple(w.point for w in weak),
     )
