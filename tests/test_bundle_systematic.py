@@ -158,25 +158,3 @@ def test_ground_stage_warning_knows_the_bundle_self_calibrates() -> None:
     _, plain = _run(sim)
     assert any('self_calibration = "auto"' in m for m in plain if "alike" in m)
 
-
-def test_auto_needs_a_set_that_explains_a_share_of_the_residuals() -> None:
-    """The FC300X figures: 10 000 redundancies, k1, k3, p1, p2 taking sigma0
-    from 0.3961 to 0.3930 (1.6 % of the sum of squares: significant by the F
-    test, too small to keep) and, without the calibration, k1, k2, p1, p2
-    from 0.5865 to 0.3786 (58 %: kept)."""
-    from types import SimpleNamespace
-
-    from strip_aerotri.bundle.selfcal import MIN_EXPLAINED_SHARE, _significant
-
-    def fit(sigma0: float, redundancy: int) -> Any:
-        return SimpleNamespace(sigma0=sigma0, redundancy=redundancy)
-
-    none, red = fit(0.3961, 10_000), 9_996
-    small = fit(0.3961 * np.sqrt(1 - 0.016) * np.sqrt(10_000 / red), red)
-    assert not _significant(small, none)
-    # the same sum of squares with the share asked for is kept
-    enough = fit(0.3961 * np.sqrt(1 - MIN_EXPLAINED_SHARE - 0.001) * np.sqrt(10_000 / red), red)
-    assert _significant(enough, none)
-    assert _significant(fit(0.3786, red), fit(0.5865, 10_000))
-    # a share that is large but not significant (few redundancies) is not kept
-    assert not _significant(fit(0.9, 3), fit(1.0, 7))

@@ -18,10 +18,9 @@ set is stable:
 3. the parameter with the smallest t value, if below :data:`T_CRITICAL`.
 
 The chosen set must then lower the sum of squares significantly (an F test
-of the set against the same adjustment without it, at ``alpha = 0.001``) and
-by at least :data:`MIN_EXPLAINED_SHARE` of it; otherwise the camera is left
-as given ("never make a well-calibrated project worse").  Every held
-parameter is named in a note with its reason.
+of the set against the same adjustment without it, at ``alpha = 0.001``);
+otherwise the camera is left as given ("never make a well-calibrated project
+worse").  Every held parameter is named in a note with its reason.
 """
 
 from __future__ import annotations
@@ -48,10 +47,9 @@ from ..results import (
 from .adjust import CameraUndetermined
 
 __all__ = [
-    "INTERIOR_CORRELATION",
     "MAX_CORRELATION",
+    "INTERIOR_CORRELATION",
     "MAX_ORIENTATION_CORRELATION",
-    "MIN_EXPLAINED_SHARE",
     "T_CRITICAL",
     "SelfCalibration",
     "camera_model",
@@ -79,17 +77,6 @@ MAX_ORIENTATION_CORRELATION = 0.9999
 INTERIOR_CORRELATION = 0.999
 #: False-alarm probability of the F test of the chosen set against none.
 ALPHA_SET = 0.001
-#: Smallest share of the weighted residual sum of squares that the chosen set
-#: must explain (1 - its sum over the sum without it).  With ten thousand
-#: image coordinates the F test finds corrections of a tenth of the image
-#: noise significant; corrections that small move check points by less than
-#: their own noise, in either direction: on the real FC300X block with the
-#: data's calibration the set k1, k3, p1, p2 (t 5-8) explains 2 % and makes
-#: the check points worse in plan and height on four of six splits of the
-#: control and worse in one of them on the other two (by up to 0.007 m);
-#: without the calibration k1, k2, p1, p2 explain 58 %, and the
-#: simulated camera errors of 10-50 µm far more.
-MIN_EXPLAINED_SHARE = 0.05
 
 _FLIGHT = {
     FlightDirection.PLUS_X: np.array([[1.0, 0.0], [0.0, 1.0]]),
@@ -167,21 +154,14 @@ def _auto(
     if res is None or not active:
         res = none
     elif not _significant(res, none):
-        share = 1.0 - (res.sigma0**2 * res.redundancy) / max(
-            none.sigma0**2 * none.redundancy, 1e-300
-        )
         notes.append(
             "self-calibration: the parameters "
             + ", ".join(active)
-            + f" explain {share:.1%} of the residuals' sum of squares together (needed: "
-            f"significant by an F test and at least {MIN_EXPLAINED_SHARE:.0%}); the camera "
-            "is left as given"
+            + " do not lower the residuals significantly together (F test); the camera is "
+            "left as given"
         )
         for name in active:
-            held[name] = (
-                f"the set is not significant (F test against none, or under "
-                f"{MIN_EXPLAINED_SHARE:.0%} of the residuals explained)"
-            )
+            held[name] = "the set is not significant (F test against none)"
         res = none
     if held:
         notes.insert(
@@ -230,8 +210,7 @@ def _next_to_hold(cam: CameraEstimate) -> list[tuple[str, str]]:
 
 
 def _significant(with_camera: BundleResult, without: BundleResult) -> bool:
-    """Does the camera set lower the weighted sum of squares significantly (F
-    test) and by at least :data:`MIN_EXPLAINED_SHARE`?"""
+    """F test: does the camera set lower the weighted sum of squares significantly?"""
     from scipy.stats import f as f_dist
 
     k = without.redundancy - with_camera.redundancy
@@ -241,10 +220,7 @@ def _significant(with_camera: BundleResult, without: BundleResult) -> bool:
     ss_with = with_camera.sigma0**2 * red
     ss_without = without.sigma0**2 * without.redundancy
     statistic = (ss_without - ss_with) / k / (ss_with / red)
-    explained = 1.0 - ss_with / ss_without if ss_without > 0 else 0.0
-    return bool(
-        statistic > f_dist.ppf(1.0 - ALPHA_SET, k, red) and explained >= MIN_EXPLAINED_SHARE
-    )
+    return bool(statistic > f_dist.ppf(1.0 - ALPHA_SET, k, red))
 
 
 def _outcome(
