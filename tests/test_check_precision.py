@@ -148,3 +148,26 @@ def test_check_points_of_one_geometry_are_never_left_out(tmp_path) -> None:  # t
     assert not [w for w in result.warnings if "weakly determined" in w]
     assert result.weak_checks == ()
     assert result.check_statistics.n_plan == 30
+
+
+@pytest.mark.skipif(not FC300X.is_dir(), reason="needs ../shared/data/uav-block-fc300x")
+def test_fc300x_report_lists_the_weak_check_points(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """`stripaero run` on the imported block: report.json's check statistics
+    are over 13 points, `weakly_determined` names 14 and 78, which stay in
+    the per-point listing, and the command prints the warning."""
+    import json
+    import subprocess
+    import sys
+
+    project = tmp_path / "fc300x"
+    run = [sys.executable, "-m", "strip_aerotri"]
+    subprocess.run([*run, "import", "uav-fc300x", str(FC300X), "--out", str(project)], check=True)
+    done = subprocess.run(
+        [*run, "run", str(project / "strip.toml")], capture_output=True, text=True, check=True
+    )
+    assert "check point '14' is weakly determined" in done.stderr
+    report = json.loads((project / "out" / "report.json").read_text())
+    check = report["check"]
+    assert check["weakly_determined"] == ["14", "78"]
+    assert check["statistics"]["n_plan"] == 13
+    assert {"14", "78"} <= {p["point"] for p in check["points"]}
