@@ -171,3 +171,23 @@ def test_fc300x_report_lists_the_weak_check_points(tmp_path) -> None:  # type: i
     assert check["weakly_determined"] == ["14", "78"]
     assert check["statistics"]["n_plan"] == 13
     assert {"14", "78"} <= {p["point"] for p in check["points"]}
+
+
+def test_the_rule_needs_both_bounds() -> None:
+    """Weak: beyond 3 times the control sigma and 3 times the check points'
+    median (or not fixed at all); not weak when only one bound is passed."""
+    from strip_aerotri.ground.check_precision import WEAK_CHECK_FACTOR, _beyond
+
+    assert WEAK_CHECK_FACTOR == 3.0
+    control = np.full(6, 0.02)
+    # FC300X-like: one point 40 times the others, far beyond its control sigma
+    sigma = np.array([0.014, 0.012, 0.02, 0.016, 0.59, 0.013])
+    assert _beyond(sigma, control).tolist() == [False] * 4 + [True, False]
+    # all alike and all beyond the control sigma (a tightly controlled design)
+    assert not _beyond(np.full(6, 0.09), control).any()
+    # an outlier of the geometry still within 3 times its control sigma
+    assert not _beyond(np.array([0.005, 0.005, 0.005, 0.05, 0.005, 0.005]), control).any()
+    # one ray, or parallel rays: not fixed, weak
+    assert _beyond(np.array([0.01, np.nan, 0.01, 0.01, 0.01, 0.01]), control).tolist() == [
+        False, True, False, False, False, False,
+    ]  # fmt: skip
