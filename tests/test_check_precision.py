@@ -191,3 +191,48 @@ def test_the_rule_needs_both_bounds() -> None:
     assert _beyond(np.array([0.01, np.nan, 0.01, 0.01, 0.01, 0.01]), control).tolist() == [
         False, True, False, False, False, False,
     ]  # fmt: skip
+
+
+def test_precision_in_a_map_projection_is_that_of_the_bundle_frame(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """The film-strip example (EPSG:2180) refined by the bundle: the check
+    points' sigmas from the CRS results (centres and points through ECEF to
+    a tangent frame, omega-phi-kappa from east-north-up at each centre) equal
+    those from the bundle's own Cartesian frame arrays within 0.1 %."""
+    import shutil
+    import warnings
+
+    from strip_aerotri.errors import StripAerotriWarning
+    from strip_aerotri.ground.check_precision import check_point_precision
+    from strip_aerotri.project import load_project
+    from strip_aerotri.project.run import run_project
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "film-strip"
+    shutil.copytree(example, tmp_path / "p")
+    toml = tmp_path / "p" / "strip.toml"
+    text = toml.read_text()
+    toml.write_text(
+        text.replace("[adjustment]\n", '[adjustment]\nrefine = "bundle"\n', 1)
+        if "[adjustment]" in text
+        else text + '\n[adjustment]\nrefine = "bundle"\n'
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        result = run_project(load_project(toml))
+    refined, ground = result.refined, result.ground
+    assert refined is not None and not ground.crs.is_local
+    obs = result.strip.observations
+    rows = ground.control_index[ground.is_check]
+    prec = check_point_precision(
+        obs, result.control, ground.crs, rows, refined.points, refined.photo_centres,
+        refined.photo_opk,
+    )  # fmt: skip
+    assert prec.rows.size >= 20
+    assert np.all(np.isfinite(prec.sigma_plan_m)) and np.all(prec.sigma_height_m > 0)
+    lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
+    index = np.array([lookup[result.control.point_ids[r]] for r in prec.rows])
+    cov = intersection_covariances(
+        refined.photo_centres_frame, refined.photo_rotations_frame, refined.points_frame,
+        obs.photo, obs.point, obs.principal_distance, obs.sigma,
+    )[index]  # fmt: skip
+    np.testing.assert_allclose(prec.sigma_plan_m, np.sqrt(cov[:, 0, 0] + cov[:, 1, 1]), rtol=1e-3)
+    np.testing.assert_allclose(prec.sigma_height_m, np.sqrt(cov[:, 2, 2]), rtol=1e-3)

@@ -35,7 +35,7 @@ drone corridor) no check point is beyond 1.9 times the median.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
@@ -50,7 +50,9 @@ from ..results import AccuracyStatistics
 __all__ = [
     "WEAK_CHECK_FACTOR",
     "Adjusted",
+    "CheckPrecision",
     "WeakCheck",
+    "check_point_precision",
     "check_statistics_without",
     "weak_check_message",
     "weak_check_points",
@@ -78,7 +80,19 @@ class WeakCheck:
     control_sigma_h_m: float
 
 
-def weak_check_points(
+class CheckPrecision(NamedTuple):
+    """How well their own rays fix check points: the rows of the control,
+    their rays, the rays' largest angle (degrees) and the intersection's
+    sigmas in plan and height (m; NaN where the rays do not fix the point)."""
+
+    rows: IntArray
+    n_rays: IntArray
+    angle_deg: FloatArray
+    sigma_plan_m: FloatArray
+    sigma_height_m: FloatArray
+
+
+def check_point_precision(
     observations: ImageObservations,
     control: ControlPoints,
     crs: GroundCRS,
@@ -86,8 +100,9 @@ def weak_check_points(
     points: FloatArray,
     photo_centres: FloatArray,
     photo_opk: FloatArray,
-) -> tuple[WeakCheck, ...]:
-    """The weakly determined check points among ``check_rows`` (module notes).
+) -> CheckPrecision:
+    """The forward intersection's precision of the check points among
+    ``check_rows`` that the result determines (module notes).
 
     Parameters
     ----------
@@ -103,6 +118,12 @@ def weak_check_points(
     photo_centres, photo_opk : ndarray, shape (M, 3)
         Adjusted centres in the CRS and omega, phi, kappa (radians, image ->
         east-north-up at each centre).
+
+    Notes
+    -----
+    The rays are intersected in the site system (``crs = "local"``) or in a
+    tangent frame at the check points' centroid, Z along its normal: plan
+    and height are those of that frame.
     """
     ids = np.asarray(observations.point_ids, dtype=object)
     sorter = np.argsort(ids)
@@ -111,12 +132,12 @@ def weak_check_points(
     at = np.clip(np.searchsorted(ids, names, sorter=sorter), 0, max(ids.size - 1, 0))
     seen = ids.size > 0 and ids[sorter[at]] == names
     rows, index = rows[seen], sorter[at][seen]
+    if rows.size:
+        given = np.all(np.isfinite(points[index]), axis=1)
+        rows, index = rows[given], index[given]
     if rows.size == 0:
-        return ()
-    given = np.all(np.isfinite(points[index]), axis=1)
-    rows, index = rows[given], index[given]
-    if rows.size == 0:
-        return ()
+        empty = np.zeros(0)
+        return CheckPrecision(rows, np.zeros(0, dtype=np.intp), empty, empty, empty)
     if crs.is_local:
         frame = TangentWorkFrame(crs, None)
     else:
@@ -132,19 +153,39 @@ def weak_check_points(
         centres, rotations, pts, photo, point, observations.principal_distance,
         observations.sigma[sel],
     )  # fmt: skip
-    angle = intersection_angles(centres, pts, photo, point)
-    rays = np.bincount(point, minlength=index.size)
-    sig_plan = np.sqrt(cov[:, 0, 0] + cov[:, 1, 1])
-    sig_h = np.sqrt(cov[:, 2, 2])
+    return CheckPrecision(
+        rows,
+        np.bincount(point, minlength=index.size),
+        intersection_angles(centres, pts, photo, point),
+        np.sqrt(cov[:, 0, 0] + cov[:, 1, 1]),
+        np.sqrt(cov[:, 2, 2]),
+    )
+
+
+def weak_check_points(
+    observations: ImageObservations,
+    control: ControlPoints,
+    crs: GroundCRS,
+    check_rows: IntArray,
+    points: FloatArray,
+    photo_centres: FloatArray,
+    photo_opk: FloatArray,
+) -> tuple[WeakCheck, ...]:
+    """The weakly determined check points among ``check_rows`` (module notes;
+    arguments as :func:`check_point_precision`)."""
+    prec = check_point_precision(
+        observations, control, crs, check_rows, points, photo_centres, photo_opk
+    )
+    rows = prec.rows
     sxy, sh = control.sigma_xy[rows], control.sigma_h[rows]
-    weak = _beyond(sig_plan, sxy) | _beyond(sig_h, sh)
+    weak = _beyond(prec.sigma_plan_m, sxy) | _beyond(prec.sigma_height_m, sh)
     return tuple(
         WeakCheck(
             control.point_ids[rows[i]],
-            int(rays[i]),
-            float(angle[i]),
-            float(sig_plan[i]),
-            float(sig_h[i]),
+            int(prec.n_rays[i]),
+            float(prec.angle_deg[i]),
+            float(prec.sigma_plan_m[i]),
+            float(prec.sigma_height_m[i]),
             float(sxy[i]),
             float(sh[i]),
         )
