@@ -426,6 +426,7 @@ class _Problem:
         lines: Sequence[LineCondition],
         polynomial: UnitPolynomial | None = None,
         order: Literal["auto", "given", "rcm"] | IntArray = "auto",
+        weight_rotation: FloatArray | None = None,
     ):
         from .normals import NormalStructure
 
@@ -435,7 +436,9 @@ class _Problem:
         self.width = N_UNIT + self.n_extra  # parameters of a unit
         self.n_units = n_units
         self.n_points = n_points
-        self.whiten = _rows_whitening(obs.weight)
+        self.whiten0 = _rows_whitening(obs.weight)
+        self.whiten = self.whiten0
+        self.weight_rotation = weight_rotation
         self.control_point = control_point
         self.control_xyz = control_xyz
         self.control_sigma = control_sigma
@@ -472,6 +475,17 @@ class _Problem:
             n_border=2 * self.n_lines,
             order=order,
         )
+
+    def turn_weights(self, rotation: FloatArray) -> None:
+        """The rows' whitening at the units' ``rotation`` (U, 3, 3): the weights
+        given at :attr:`weight_rotation` turned with their unit,
+        ``W = Δ W₀ Δᵀ``, ``Δ = R R₀ᵀ`` (whitening ``L₀ᵀ Δᵀ``); nothing without
+        a weight rotation."""
+        if self.weight_rotation is None:
+            return
+        delta_t = np.swapaxes(rotation @ np.swapaxes(self.weight_rotation, 1, 2), 1, 2)
+        self.whiten = self.whiten0 @ delta_t[self.obs.unit]
+        self.point_jacobian = -self.whiten
 
     @property
     def n_observations(self) -> int:
@@ -664,6 +678,7 @@ def adjust_units(
     statistics: bool = True,
     polynomial: UnitPolynomial | None = None,
     order: Literal["auto", "given", "rcm"] | IntArray = "auto",
+    weight_rotation: ArrayLike | None = None,
 ) -> SimultaneousResult:
     """Transform all units at once to the control and to each other.
 
@@ -706,6 +721,14 @@ def adjust_units(
         (:class:`~strip_aerotri.geometry.normals.NormalStructure`): as
         numbered, reverse Cuthill-McKee, the narrower of the two ("auto"),
         or the unit at each place.  It changes the cost, not the solution.
+    weight_rotation : array_like, shape (U, 3, 3), optional
+        The units' rotations at which the rows' weights are given: the
+        weights are then the information of the rows in their unit and turn
+        with it, ``W = Δ W₀ Δᵀ`` with ``Δ = R_u R₀ᵀ`` (a model point is weak
+        along its rays wherever the model is turned to).  They are turned at
+        the start of every iteration (iteratively reweighted: the step of an
+        iteration holds them).  None: the weights are fixed in the work
+        frame.
 
     Returns
     -------
@@ -735,9 +758,12 @@ def adjust_units(
     if np.any(given & ~(control_sigma > 0)):
         raise ValueError("Expected control_sigma > 0 for every given control component")
     prob = _Problem(
-        obs, n_units, n_points, control_point, control_xyz, control_sigma, lines, polynomial, order
-    )
+        obs, n_units, n_points, control_point, control_xyz, control_sigma, lines, polynomial, order,
+        None if weight_rotation is None
+        else np.asarray(weight_rotation, dtype=np.float64).reshape(n_units, 3, 3),
+    )  # fmt: skip
     st = _start_state(prob, start, points0)
+    prob.turn_weights(st.rotation)
     points = st.points
     extent = (
         float(np.nanmax(np.ptp(points[prob.observed], axis=0))) if prob.observed.any() else 1.0
@@ -750,6 +776,9 @@ def adjust_units(
     sol = None
     for iterations in range(1, max_iterations + 1):  # noqa: B007 (reported after the loop)
         sol = None  # the last step's factor goes before the next is formed
+        if iterations > 1 and prob.weight_rotation is not None:
+            prob.turn_weights(st.rotation)
+            cost = _cost(prob, st)
         sol = _solve(prob, st)
         dp = np.zeros((n_points, 3))
         dp[prob.points_used] = sol.solution.point_step
@@ -778,6 +807,9 @@ def adjust_units(
             break
     if not converged:
         sol = None
+        if prob.weight_rotation is not None:
+            prob.turn_weights(st.rotation)
+            cost = _cost(prob, st)
         sol = _solve(prob, st)
     assert sol is not None  # set in the loop, or just above
     # Converged: the normal equations of the last step serve the statistics

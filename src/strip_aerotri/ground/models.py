@@ -310,6 +310,9 @@ def _solve(
             statistics=final,
             max_iterations=p.max_iterations,
             order="given",  # the models are numbered along the strip
+            # each model's weights are its points' information in the model,
+            # given at the start's rotation: they turn with the model
+            weight_rotation=p.start_units.rotation,
         )
         if final:
             break
