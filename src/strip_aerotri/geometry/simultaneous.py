@@ -476,6 +476,14 @@ class _Problem:
             order=order,
         )
 
+    def set_control(self, control_xyz: FloatArray) -> None:
+        """New control coordinates (C, 3), NaN where not given (the same
+        components as before)."""
+        control_xyz = np.asarray(control_xyz, dtype=np.float64).reshape(self.control_xyz.shape)
+        if not np.array_equal(np.isfinite(control_xyz), self.control_given):
+            raise ValueError("Expected the control update to give the same components")
+        self.control_xyz = control_xyz
+
     def turn_weights(self, rotation: FloatArray) -> None:
         """The rows' whitening at the units' ``rotation`` (U, 3, 3): the weights
         given at :attr:`weight_rotation` turned with their unit,
@@ -679,6 +687,7 @@ def adjust_units(
     polynomial: UnitPolynomial | None = None,
     order: Literal["auto", "given", "rcm"] | IntArray = "auto",
     weight_rotation: ArrayLike | None = None,
+    control_update: Callable[[FloatArray, bool], FloatArray | None] | None = None,
 ) -> SimultaneousResult:
     """Transform all units at once to the control and to each other.
 
@@ -729,6 +738,13 @@ def adjust_units(
         the start of every iteration (iteratively reweighted: the step of an
         iteration holds them).  None: the weights are fixed in the work
         frame.
+    control_update : callable, optional
+        Called after every iteration with the points (P, 3, work frame) and
+        whether the iteration met the tolerance; returns the control
+        coordinates (C, 3) for the next iteration, or None when they stay:
+        control whose coordinates depend on the adjustment (a plan point's
+        height in a curved work frame, guessed from its adjusted position).
+        The adjustment converges only in an iteration after which they stay.
 
     Returns
     -------
@@ -801,8 +817,13 @@ def adjust_units(
             float(np.max(np.abs(dp[prob.observed]), initial=0.0)) * step / extent,
         )
         change = abs(cost - trial_cost) / max(cost, 1e-300)
+        settled = largest < tolerance or change < tolerance
         st, cost = trial, trial_cost
-        if largest < tolerance or change < tolerance:
+        target = None if control_update is None else control_update(st.points, settled)
+        if target is not None:  # the control moved: not converged yet
+            prob.set_control(target)
+            cost = _cost(prob, st)
+        elif settled:
             converged = True
             break
     if not converged:

@@ -262,6 +262,65 @@ def _prepare(
     )
 
 
+class _Passes:
+    """The plan/height iteration inside the adjustment: after each of its
+    iterations the missing coordinates of plan and height points are taken
+    from the adjusted points and the control's work-frame coordinates
+    computed again (the work frame is curved: a plan point's height moves
+    its X, Y), until they change by less than 1e-5 m.  A *pass* ends where
+    the adjustment met its tolerance with the control still moving; after
+    :data:`_MAX_PASSES` passes the control is left as it is (not settled)."""
+
+    def __init__(
+        self, p: _ModelsProblem, guess: FloatArray, use_xy: BoolArray, use_z: BoolArray
+    ) -> None:
+        self.p = p
+        self.guess = guess
+        self.use_xy, self.use_z = use_xy, use_z
+        self.active = use_xy | use_z
+        self.n_pass = 1
+        self.settled = False
+        self.done = False
+        self.last_change = np.inf
+        self.folded = True
+
+    def target(self) -> FloatArray:
+        """Work-frame control of the active rows, NaN where not used."""
+        target = self.p.work.to_work(self.guess)
+        target[~self.use_xy, :2] = np.nan
+        target[~self.use_z, 2] = np.nan
+        return target[self.active]
+
+    def update(self, points: FloatArray, converged: bool) -> FloatArray | None:
+        """The control for the next iteration from the adjusted ``points``
+        (P, 3, work frame), or None when it stays (settled, or given up)."""
+        if self.done:
+            return None
+        p = self.p
+        adjusted = p.work.from_work(points[p.idx])
+        missing = np.isnan(p.given)
+        new_guess = p.given.copy()
+        new_guess[missing] = adjusted[missing]
+        change = float(np.nanmax(np.abs(new_guess - self.guess), initial=0.0))
+        self.guess = new_guess
+        if change < _PASS_TOLERANCE_M:
+            self.settled = self.done = True
+            return None
+        # While the changes at least halve from iteration to iteration the
+        # control follows every iteration; once they do not, only the
+        # adjustment's settling on it ends a pass and moves it.
+        self.folded = self.folded and change <= 0.5 * self.last_change
+        self.last_change = change
+        if converged:  # the adjustment settled on control that still moves
+            if self.n_pass == _MAX_PASSES:
+                self.done = True
+                return None
+            self.n_pass += 1
+        elif not self.folded:
+            return None
+        return self.target()
+
+
 def _solve(
     p: _ModelsProblem,
     keep_rows: BoolArray,
@@ -270,12 +329,13 @@ def _solve(
     line_keep: list[BoolArray],
     previous: _ModelsSolution | None,
 ) -> _ModelsSolution:
-    """The passes of the plan/height iteration for one set of observations.
+    """The adjustment for one set of observations, from the previous
+    solution when there is one.
 
-    Control given in full needs one pass; plan and height points get their
-    missing coordinate from the adjustment, pass by pass, and the statistics
-    (cofactors) are computed in the last one only (from the factor of its
-    last step, once the coordinates have settled)."""
+    Control given in full is met as given; plan and height points get their
+    missing coordinate from the adjustment as it goes (:class:`_Passes`), and
+    the statistics come from the factor of its last step, once the
+    coordinates have settled."""
     active = use_xy | use_z
     r = p.rows
     unit_obs = UnitObservations(
@@ -290,47 +350,28 @@ def _solve(
     else:
         guess, starts = previous.guess, previous.result.transforms
         points0 = np.where(np.isfinite(previous.result.points), previous.result.points, p.points0)
-    res, converged, n_pass = None, False, 0
+    passes = _Passes(p, guess, use_xy, use_z)
     guessed = bool(np.isnan(p.given[active]).any())
-    for n_pass in range(1, _MAX_PASSES + 2):
-        target = p.work.to_work(guess)
-        target[~use_xy, :2] = np.nan
-        target[~use_z, 2] = np.nan
-        final = not guessed or converged or n_pass == _MAX_PASSES + 1
-        res = adjust_units(
-            unit_obs,
-            p.strip.n_models,
-            p.n_unknown_points,
-            start=starts,
-            points0=points0,
-            control_point=p.idx[active],
-            control_xyz=target[active],
-            control_sigma=p.sigma[active],
-            lines=conditions,
-            statistics=final,
-            max_iterations=p.max_iterations,
-            order="given",  # the models are numbered along the strip
-            # each model's weights are its points' information in the model,
-            # given at the start's rotation: they turn with the model
-            weight_rotation=p.start_units.rotation,
-        )
-        if final:
-            break
-        adjusted = p.work.from_work(res.points[p.idx])
-        missing = np.isnan(p.given)
-        new_guess = p.given.copy()
-        new_guess[missing] = adjusted[missing]
-        change = float(np.nanmax(np.abs(new_guess - guess), initial=0.0))
-        guess = new_guess
-        starts = res.transforms
-        points0 = np.where(np.isfinite(res.points), res.points, points0)
-        converged = change < _PASS_TOLERANCE_M
-        if converged:  # its statistics from its last step: no pass again
-            res = res.with_statistics()
-            break
-        res = None  # its factor (held for its statistics) goes before the next pass
-    assert res is not None
-    return _ModelsSolution(res, guess, converged or not guessed, min(n_pass, _MAX_PASSES), active)
+    res = adjust_units(
+        unit_obs,
+        p.strip.n_models,
+        p.n_unknown_points,
+        start=starts,
+        points0=points0,
+        control_point=p.idx[active],
+        control_xyz=passes.target(),
+        control_sigma=p.sigma[active],
+        lines=conditions,
+        statistics=True,
+        max_iterations=p.max_iterations,
+        order="given",  # the models are numbered along the strip
+        # each model's weights are its points' information in the model,
+        # given at the start's rotation: they turn with the model
+        weight_rotation=p.start_units.rotation,
+        control_update=passes.update if guessed else None,
+    )
+    converged = passes.settled or not guessed
+    return _ModelsSolution(res, passes.guess, converged, passes.n_pass, active)
 
 
 def _snoop(
