@@ -72,6 +72,10 @@ _Z_BETA = 0.8416212335729143  # standard normal quantile of 0.8: power 80 %
 _MIN_TESTED_REDUNDANCY = 1e-3
 #: Standard deviation of the prior that holds a polynomial term at 0.
 _FIXED_SIGMA = 1e-9
+#: Radians a unit must turn before its rows' weights are turned with it
+#: (``weight_rotation``): a weight turned 1e-6 rad off moves a point by
+#: 1e-6 of its residual's share across the weight's axes.
+_WEIGHT_TURN = 1e-6
 
 
 def baarda_delta(critical: float) -> float:
@@ -439,6 +443,7 @@ class _Problem:
         self.whiten0 = _rows_whitening(obs.weight)
         self.whiten = self.whiten0
         self.weight_rotation = weight_rotation
+        self.turned_at: FloatArray | None = None
         self.control_point = control_point
         self.control_xyz = control_xyz
         self.control_sigma = control_sigma
@@ -484,16 +489,26 @@ class _Problem:
             raise ValueError("Expected the control update to give the same components")
         self.control_xyz = control_xyz
 
-    def turn_weights(self, rotation: FloatArray) -> None:
+    def turn_weights(self, rotation: FloatArray) -> bool:
         """The rows' whitening at the units' ``rotation`` (U, 3, 3): the weights
         given at :attr:`weight_rotation` turned with their unit,
-        ``W = Δ W₀ Δᵀ``, ``Δ = R R₀ᵀ`` (whitening ``L₀ᵀ Δᵀ``); nothing without
-        a weight rotation."""
+        ``W = Δ W₀ Δᵀ``, ``Δ = R R₀ᵀ`` (whitening ``L₀ᵀ Δᵀ``).  Only when a
+        unit has turned by more than :data:`_WEIGHT_TURN` since the weights
+        were last turned (below it the weights' change moves the solution by
+        nothing that counts, and holding them lets the iterations converge
+        quadratically); True when turned."""
         if self.weight_rotation is None:
-            return
+            return False
+        if self.turned_at is not None:
+            # |R - R_t| (Frobenius) / sqrt(2) is the angle between them, to first order
+            moved = np.sqrt(np.einsum("uij,uij->u", *(rotation - self.turned_at,) * 2) / 2.0)
+            if not float(np.max(moved, initial=0.0)) > _WEIGHT_TURN:
+                return False
+        self.turned_at = rotation.copy()
         delta_t = np.swapaxes(rotation @ np.swapaxes(self.weight_rotation, 1, 2), 1, 2)
         self.whiten = self.whiten0 @ delta_t[self.obs.unit]
         self.point_jacobian = -self.whiten
+        return True
 
     @property
     def n_observations(self) -> int:
@@ -688,6 +703,7 @@ def adjust_units(
     order: Literal["auto", "given", "rcm"] | IntArray = "auto",
     weight_rotation: ArrayLike | None = None,
     control_update: Callable[[FloatArray, bool], FloatArray | None] | None = None,
+    project_points: bool = False,
 ) -> SimultaneousResult:
     """Transform all units at once to the control and to each other.
 
@@ -745,6 +761,14 @@ def adjust_units(
         control whose coordinates depend on the adjustment (a plan point's
         height in a curved work frame, guessed from its adjusted position).
         The adjustment converges only in an iteration after which they stay.
+    project_points : bool
+        After every step put each point where its rows and its control put
+        it for the units' new transforms (the least-squares point with the
+        units held; without lines only): the linearised step moves a point
+        along the tangent of its unit's turn, which from start values far
+        off (a long strip's model turned by a radian) lands it metres away
+        and makes the line search halve the step again and again.  The
+        solution is the same.
 
     Returns
     -------
@@ -792,8 +816,7 @@ def adjust_units(
     sol = None
     for iterations in range(1, max_iterations + 1):  # noqa: B007 (reported after the loop)
         sol = None  # the last step's factor goes before the next is formed
-        if iterations > 1 and prob.weight_rotation is not None:
-            prob.turn_weights(st.rotation)
+        if iterations > 1 and prob.turn_weights(st.rotation):
             cost = _cost(prob, st)
         sol = _solve(prob, st)
         dp = np.zeros((n_points, 3))
@@ -801,6 +824,8 @@ def adjust_units(
         step = 1.0
         for _ in range(30):
             trial = _step(prob, st, sol.solution, dp, step)
+            if project_points:
+                trial = _projected(prob, trial)
             trial_cost = _cost(prob, trial)
             if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
                 break
@@ -828,8 +853,7 @@ def adjust_units(
             break
     if not converged:
         sol = None
-        if prob.weight_rotation is not None:
-            prob.turn_weights(st.rotation)
+        if prob.turn_weights(st.rotation):
             cost = _cost(prob, st)
         sol = _solve(prob, st)
     assert sol is not None  # set in the loop, or just above
@@ -864,6 +888,42 @@ def _start_state(prob: _Problem, start: UnitTransforms, points0: ArrayLike) -> _
         design = np.column_stack([np.ones(len(xyz)), xyz[:, 0]])
         line_ab[k] = np.linalg.lstsq(design, xyz[:, 1], rcond=None)[0]
     return _State(s0, r0, t0, points, line_ab, coefficients)
+
+
+def _projected(prob: _Problem, st: _State) -> _State:
+    """``st`` with every observed point at its least-squares position for the
+    units as they are (its rows and its control; nothing when there are
+    lines: they tie the points to each other)."""
+    if prob.n_lines:
+        return st
+    obs = prob.obs
+    y, _ = _predict(prob, st)
+    placed = st.translation[obs.unit] + y  # T_u(x) of every row
+    lt = prob.whiten
+    weight = np.swapaxes(lt, 1, 2) @ lt  # W = L Lᵀ of the rows as turned
+    n = prob.n_points
+    v = _sum_into_points(obs.point, weight, n)
+    rhs = _sum_into_points(obs.point, np.einsum("nij,nj->ni", weight, placed), n)
+    cp, given = prob.control_point, prob.control_given
+    w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma, 1.0) ** 2, 0.0)
+    v += _sum_into_points(cp, w_c[:, :, None] * np.eye(3), n)
+    rhs += _sum_into_points(cp, w_c * np.where(given, prob.control_xyz, 0.0), n)
+    used = prob.points_used
+    points = st.points.copy()
+    try:
+        points[used] = np.linalg.solve(v[used], rhs[used][:, :, None])[:, :, 0]
+    except np.linalg.LinAlgError:  # a point its rows do not fix: the step's own
+        return st
+    return _State(st.scale, st.rotation, st.translation, points, st.line_ab, st.coefficients)
+
+
+def _sum_into_points(index: IntArray, values: FloatArray, n: int) -> FloatArray:
+    """``out[index[i]] += values[i]`` (values (m, *shape)) -> (n, *shape)."""
+    shape = values.shape[1:]
+    size = int(np.prod(shape, dtype=np.intp))
+    flat = (index[:, None] * size + np.arange(size)[None, :]).reshape(-1)
+    out: FloatArray = np.bincount(flat, values.reshape(-1), minlength=n * size)
+    return out.reshape(n, *shape)
 
 
 def _step(

@@ -282,7 +282,6 @@ class _Passes:
         self.settled = False
         self.done = False
         self.last_change = np.inf
-        self.folded = True
 
     def target(self) -> FloatArray:
         """Work-frame control of the active rows, NaN where not used."""
@@ -293,7 +292,8 @@ class _Passes:
 
     def update(self, points: FloatArray, converged: bool) -> FloatArray | None:
         """The control for the next iteration from the adjusted ``points``
-        (P, 3, work frame), or None when it stays (settled, or given up)."""
+        (P, 3, work frame), or None when it stays (settled, given up, or
+        not yet: see below)."""
         if self.done:
             return None
         p = self.p
@@ -302,22 +302,24 @@ class _Passes:
         new_guess = p.given.copy()
         new_guess[missing] = adjusted[missing]
         change = float(np.nanmax(np.abs(new_guess - self.guess), initial=0.0))
-        self.guess = new_guess
         if change < _PASS_TOLERANCE_M:
+            self.guess = new_guess
             self.settled = self.done = True
             return None
-        # While the changes at least halve from iteration to iteration the
-        # control follows every iteration; once they do not, only the
-        # adjustment's settling on it ends a pass and moves it.
-        self.folded = self.folded and change <= 0.5 * self.last_change
+        # The control follows the iterations while its changes at least
+        # halve from one to the next (the two converge together); else it
+        # waits for the adjustment to settle on it, which ends a pass.
+        following = change <= 0.5 * self.last_change
         self.last_change = change
-        if converged:  # the adjustment settled on control that still moves
+        if converged:
             if self.n_pass == _MAX_PASSES:
                 self.done = True
                 return None
             self.n_pass += 1
-        elif not self.folded:
+        elif not following:
             return None
+        self.guess = new_guess
+        self.last_change = np.inf
         return self.target()
 
 
@@ -369,6 +371,7 @@ def _solve(
         # given at the start's rotation: they turn with the model
         weight_rotation=p.start_units.rotation,
         control_update=passes.update if guessed else None,
+        project_points=True,
     )
     converged = passes.settled or not guessed
     return _ModelsSolution(res, passes.guess, converged, passes.n_pass, active)
