@@ -762,8 +762,8 @@ def adjust_units(
         height in a curved work frame, guessed from its adjusted position).
         The adjustment converges only in an iteration after which they stay.
     project_points : bool
-        After every step put each point where its rows and its control put
-        it for the units' new transforms (the least-squares point with the
+        At the start and after every step put each point where its rows and
+        its control put it for the units' transforms (the least-squares point with the
         units held; without lines only): the linearised step moves a point
         along the tangent of its unit's turn, which from start values far
         off (a long strip's model turned by a radian) lands it metres away
@@ -804,6 +804,8 @@ def adjust_units(
     )  # fmt: skip
     st = _start_state(prob, start, points0)
     prob.turn_weights(st.rotation)
+    if project_points:  # the points where the units put them, not yet the control
+        st = _projected(prob, st, control=False)
     points = st.points
     extent = (
         float(np.nanmax(np.ptp(points[prob.observed], axis=0))) if prob.observed.any() else 1.0
@@ -890,10 +892,10 @@ def _start_state(prob: _Problem, start: UnitTransforms, points0: ArrayLike) -> _
     return _State(s0, r0, t0, points, line_ab, coefficients)
 
 
-def _projected(prob: _Problem, st: _State) -> _State:
+def _projected(prob: _Problem, st: _State, control: bool = True) -> _State:
     """``st`` with every observed point at its least-squares position for the
-    units as they are (its rows and its control; nothing when there are
-    lines: they tie the points to each other)."""
+    units as they are (its rows, and its control with ``control``; nothing
+    when there are lines: they tie the points to each other)."""
     if prob.n_lines:
         return st
     obs = prob.obs
@@ -904,10 +906,11 @@ def _projected(prob: _Problem, st: _State) -> _State:
     n = prob.n_points
     v = _sum_into_points(obs.point, weight, n)
     rhs = _sum_into_points(obs.point, np.einsum("nij,nj->ni", weight, placed), n)
-    cp, given = prob.control_point, prob.control_given
-    w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma, 1.0) ** 2, 0.0)
-    v += _sum_into_points(cp, w_c[:, :, None] * np.eye(3), n)
-    rhs += _sum_into_points(cp, w_c * np.where(given, prob.control_xyz, 0.0), n)
+    if control:
+        cp, given = prob.control_point, prob.control_given
+        w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma, 1.0) ** 2, 0.0)
+        v += _sum_into_points(cp, w_c[:, :, None] * np.eye(3), n)
+        rhs += _sum_into_points(cp, w_c * np.where(given, prob.control_xyz, 0.0), n)
     used = prob.points_used
     points = st.points.copy()
     try:

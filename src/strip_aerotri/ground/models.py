@@ -262,6 +262,41 @@ def _prepare(
     )
 
 
+def _adjust(
+    p: _ModelsProblem,
+    keep_rows: BoolArray,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    conditions: list[LineCondition],
+    passes: _Passes,
+    starts: UnitTransforms,
+    points0: FloatArray,
+) -> SimultaneousResult:
+    """:func:`adjust_units` on the rows ``keep_rows`` with the control used."""
+    active = use_xy | use_z
+    r = p.rows
+    guessed = bool(np.isnan(p.given[active]).any())
+    return adjust_units(
+        UnitObservations(r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]),
+        p.strip.n_models,
+        p.n_unknown_points,
+        start=starts,
+        points0=points0,
+        control_point=p.idx[active],
+        control_xyz=passes.target(),
+        control_sigma=p.sigma[active],
+        lines=conditions,
+        statistics=True,
+        max_iterations=p.max_iterations,
+        order="given",  # the models are numbered along the strip
+        # each model's weights are its points' information in the model,
+        # given at the start's rotation: they turn with the model
+        weight_rotation=p.start_units.rotation,
+        control_update=passes.update if guessed else None,
+        project_points=True,
+    )
+
+
 class _Passes:
     """The plan/height iteration inside the adjustment: after each of its
     iterations the missing coordinates of plan and height points are taken
@@ -339,10 +374,6 @@ def _solve(
     the statistics come from the factor of its last step, once the
     coordinates have settled."""
     active = use_xy | use_z
-    r = p.rows
-    unit_obs = UnitObservations(
-        r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
-    )
     conditions = [
         LineCondition(point=li[keep], sigma=p.plan_sigma / np.sqrt(line.weight))
         for line, li, keep in zip(p.lines, p.line_index, line_keep, strict=True)
@@ -352,27 +383,9 @@ def _solve(
     else:
         guess, starts = previous.guess, previous.result.transforms
         points0 = np.where(np.isfinite(previous.result.points), previous.result.points, p.points0)
-    passes = _Passes(p, guess, use_xy, use_z)
     guessed = bool(np.isnan(p.given[active]).any())
-    res = adjust_units(
-        unit_obs,
-        p.strip.n_models,
-        p.n_unknown_points,
-        start=starts,
-        points0=points0,
-        control_point=p.idx[active],
-        control_xyz=passes.target(),
-        control_sigma=p.sigma[active],
-        lines=conditions,
-        statistics=True,
-        max_iterations=p.max_iterations,
-        order="given",  # the models are numbered along the strip
-        # each model's weights are its points' information in the model,
-        # given at the start's rotation: they turn with the model
-        weight_rotation=p.start_units.rotation,
-        control_update=passes.update if guessed else None,
-        project_points=True,
-    )
+    passes = _Passes(p, guess, use_xy, use_z)
+    res = _adjust(p, keep_rows, use_xy, use_z, conditions, passes, starts, points0)
     converged = passes.settled or not guessed
     return _ModelsSolution(res, passes.guess, converged, passes.n_pass, active)
 
