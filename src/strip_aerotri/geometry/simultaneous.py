@@ -896,6 +896,8 @@ def _projected(prob: _Problem, st: _State, control: bool = True) -> _State:
     """``st`` with every observed point at its least-squares position for the
     units as they are (its rows, and its control with ``control``; nothing
     when there are lines: they tie the points to each other)."""
+    from ._normal_assembly import sum_into
+
     if prob.n_lines:
         return st
     obs = prob.obs
@@ -904,13 +906,13 @@ def _projected(prob: _Problem, st: _State, control: bool = True) -> _State:
     lt = prob.whiten
     weight = np.swapaxes(lt, 1, 2) @ lt  # W = L Lᵀ of the rows as turned
     n = prob.n_points
-    v = _sum_into_points(obs.point, weight, n)
-    rhs = _sum_into_points(obs.point, np.einsum("nij,nj->ni", weight, placed), n)
+    v = sum_into(obs.point, weight, n)
+    rhs = sum_into(obs.point, np.einsum("nij,nj->ni", weight, placed), n)
     if control:
         cp, given = prob.control_point, prob.control_given
         w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma, 1.0) ** 2, 0.0)
-        v += _sum_into_points(cp, w_c[:, :, None] * np.eye(3), n)
-        rhs += _sum_into_points(cp, w_c * np.where(given, prob.control_xyz, 0.0), n)
+        v += sum_into(cp, w_c[:, :, None] * np.eye(3), n)
+        rhs += sum_into(cp, w_c * np.where(given, prob.control_xyz, 0.0), n)
     used = prob.points_used
     points = st.points.copy()
     try:
@@ -918,15 +920,6 @@ def _projected(prob: _Problem, st: _State, control: bool = True) -> _State:
     except np.linalg.LinAlgError:  # a point its rows do not fix: the step's own
         return st
     return _State(st.scale, st.rotation, st.translation, points, st.line_ab, st.coefficients)
-
-
-def _sum_into_points(index: IntArray, values: FloatArray, n: int) -> FloatArray:
-    """``out[index[i]] += values[i]`` (values (m, *shape)) -> (n, *shape)."""
-    shape = values.shape[1:]
-    size = int(np.prod(shape, dtype=np.intp))
-    flat = (index[:, None] * size + np.arange(size)[None, :]).reshape(-1)
-    out: FloatArray = np.bincount(flat, values.reshape(-1), minlength=n * size)
-    return out.reshape(n, *shape)
 
 
 def _step(
