@@ -121,6 +121,7 @@ __all__ = [
     "UnitRows",
 ]
 
+
 class NormalStructure:
     """The pattern of a problem: units, points, border, the band and its order.
 

@@ -57,6 +57,7 @@ from ..observations import ControlPoints, LineSpec
 from ..options import BlunderAction, BlunderOptions, GroundOptions
 from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .common import control_detectability, index_of, intersect_unmodelled
+from .control_passes import ControlPasses
 from .polynomials import adjust_to_ground
 from .systematic import kept_control, systematic_message, systematic_pattern
 
@@ -64,7 +65,6 @@ __all__ = ["ModelAdjustment", "adjust_models_to_ground", "model_weights"]
 
 _MAX_PASSES = 8
 _CHI2_3_MEDIAN = 2.365973884375338  # median of chi-square with 3 degrees of freedom
-_PASS_TOLERANCE_M = 1e-5
 
 
 def model_weights(
@@ -268,16 +268,18 @@ def _adjust(
     use_xy: BoolArray,
     use_z: BoolArray,
     conditions: list[LineCondition],
-    passes: _Passes,
+    passes: ControlPasses,
     starts: UnitTransforms,
     points0: FloatArray,
 ) -> SimultaneousResult:
     """:func:`adjust_units` on the rows ``keep_rows`` with the control used."""
     active = use_xy | use_z
     r = p.rows
-    guessed = bool(np.isnan(p.given[active]).any())
+    rows = UnitObservations(
+        r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
+    )
     return adjust_units(
-        UnitObservations(r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]),
+        rows,
         p.strip.n_models,
         p.n_unknown_points,
         start=starts,
@@ -292,70 +294,9 @@ def _adjust(
         # each model's weights are its points' information in the model,
         # given at the start's rotation: they turn with the model
         weight_rotation=p.start_units.rotation,
-        control_update=passes.update if guessed else None,
+        control_update=passes.update if passes.guessed else None,
         project_points=True,
     )
-
-
-class _Passes:
-    """The plan/height iteration inside the adjustment: after each of its
-    iterations the missing coordinates of plan and height points are taken
-    from the adjusted points and the control's work-frame coordinates
-    computed again (the work frame is curved: a plan point's height moves
-    its X, Y), until they change by less than 1e-5 m.  A *pass* ends where
-    the adjustment met its tolerance with the control still moving; after
-    :data:`_MAX_PASSES` passes the control is left as it is (not settled)."""
-
-    def __init__(
-        self, p: _ModelsProblem, guess: FloatArray, use_xy: BoolArray, use_z: BoolArray
-    ) -> None:
-        self.p = p
-        self.guess = guess
-        self.use_xy, self.use_z = use_xy, use_z
-        self.active = use_xy | use_z
-        self.n_pass = 1
-        self.settled = False
-        self.done = False
-        self.last_change = np.inf
-
-    def target(self) -> FloatArray:
-        """Work-frame control of the active rows, NaN where not used."""
-        target = self.p.work.to_work(self.guess)
-        target[~self.use_xy, :2] = np.nan
-        target[~self.use_z, 2] = np.nan
-        return target[self.active]
-
-    def update(self, points: FloatArray, converged: bool) -> FloatArray | None:
-        """The control for the next iteration from the adjusted ``points``
-        (P, 3, work frame), or None when it stays (settled, given up, or
-        not yet: see below)."""
-        if self.done:
-            return None
-        p = self.p
-        adjusted = p.work.from_work(points[p.idx])
-        missing = np.isnan(p.given)
-        new_guess = p.given.copy()
-        new_guess[missing] = adjusted[missing]
-        change = float(np.nanmax(np.abs(new_guess - self.guess), initial=0.0))
-        if change < _PASS_TOLERANCE_M:
-            self.guess = new_guess
-            self.settled = self.done = True
-            return None
-        # The control follows the iterations while its changes at least
-        # halve from one to the next (the two converge together); else it
-        # waits for the adjustment to settle on it, which ends a pass.
-        following = change <= 0.5 * self.last_change
-        self.last_change = change
-        if converged:
-            if self.n_pass == _MAX_PASSES:
-                self.done = True
-                return None
-            self.n_pass += 1
-        elif not following:
-            return None
-        self.guess = new_guess
-        self.last_change = np.inf
-        return self.target()
 
 
 def _solve(
@@ -370,9 +311,10 @@ def _solve(
     solution when there is one.
 
     Control given in full is met as given; plan and height points get their
-    missing coordinate from the adjustment as it goes (:class:`_Passes`), and
-    the statistics come from the factor of its last step, once the
-    coordinates have settled."""
+    missing coordinate from the adjustment as it goes
+    (:class:`~strip_aerotri.ground.control_passes.ControlPasses`), and the
+    statistics come from the factor of its last step, once the coordinates
+    have settled."""
     active = use_xy | use_z
     conditions = [
         LineCondition(point=li[keep], sigma=p.plan_sigma / np.sqrt(line.weight))
@@ -383,10 +325,9 @@ def _solve(
     else:
         guess, starts = previous.guess, previous.result.transforms
         points0 = np.where(np.isfinite(previous.result.points), previous.result.points, p.points0)
-    guessed = bool(np.isnan(p.given[active]).any())
-    passes = _Passes(p, guess, use_xy, use_z)
+    passes = ControlPasses(p.work, p.idx, p.given, guess, use_xy, use_z, _MAX_PASSES)
     res = _adjust(p, keep_rows, use_xy, use_z, conditions, passes, starts, points0)
-    converged = passes.settled or not guessed
+    converged = passes.settled or not passes.guessed
     return _ModelsSolution(res, passes.guess, converged, passes.n_pass, active)
 
 
