@@ -16,12 +16,11 @@ from strip_aerotri.geometry.simultaneous import UnitObservations, UnitTransforms
 N_UNITS = 6
 
 
-def _problem(seed: int, turn: float = 0.0):
-    """Units along X, 8 points each, neighbours sharing 3; every unit's own
-    system turned by ``turn`` rad about X more than the others' noise.
-    Returns the observations with the weights of the rows in their units
-    (``weight_local``: the information of the unit coordinates), the true
-    rotations and the points."""
+def _problem(seed: int):
+    """Units along X, 8 points each, neighbours sharing 3.  Returns the rows
+    (unit, point, unit coordinates), their weights in their units (the
+    information of the unit coordinates), the true rotations, the points and
+    their count."""
     rng = np.random.default_rng(seed)
     n_points = 3 + N_UNITS * 5
     truth = np.column_stack(
@@ -35,7 +34,7 @@ def _problem(seed: int, turn: float = 0.0):
     rotations = []
     for u in range(N_UNITS):
         pts = np.arange(5 * u, 5 * u + 8)
-        rot = matrix_from_rotvec(rng.normal(0.0, 0.05, 3) + [turn, 0.0, 0.0])
+        rot = matrix_from_rotvec(rng.normal(0.0, 0.05, 3))
         rotations.append(rot)
         local = (truth[pts] - rng.normal(0.0, 10.0, 3)) @ rot  # X = t + R x
         # weak along the unit's own z (a model point along its rays)
@@ -86,7 +85,7 @@ def test_turning_weights_equal_the_weights_at_the_solution():
     off = np.array([matrix_from_rotvec([0.5, 0.1, 0.0]) @ r for r in rotations])
     obs0 = UnitObservations(unit, point, xyz, _in_work(unit, w_local, off))
     control_xyz, control_sigma = _control(truth)
-    kwargs = dict(control_point=CONTROL, control_xyz=control_xyz, control_sigma=control_sigma)
+    kwargs = {"control_point": CONTROL, "control_xyz": control_xyz, "control_sigma": control_sigma}
     turning = adjust_units(
         obs0, N_UNITS, n_points, start=_start(off, truth, obs0), points0=truth,
         weight_rotation=off, **kwargs,
@@ -137,7 +136,7 @@ def test_control_that_follows_reaches_the_control_it_settles_on():
 
     follow = Follow()
     start = _start(rotations, truth, obs)
-    kwargs = dict(control_point=CONTROL, control_sigma=control_sigma)
+    kwargs = {"control_point": CONTROL, "control_sigma": control_sigma}
     followed = adjust_units(
         obs, N_UNITS, n_points, start=start, points0=truth, control_xyz=follow.current,
         control_update=follow, **kwargs,
@@ -162,10 +161,10 @@ def test_projected_points_change_the_path_not_the_solution():
     obs = UnitObservations(unit, point, xyz, _in_work(unit, w_local, rotations))
     control_xyz, control_sigma = _control(truth)
     off = np.array([matrix_from_rotvec([0.8, 0.0, 0.2]) @ r for r in rotations])
-    kwargs = dict(
-        start=_start(off, truth, obs), points0=truth, control_point=CONTROL,
-        control_xyz=control_xyz, control_sigma=control_sigma,
-    )  # fmt: skip
+    kwargs = {
+        "start": _start(off, truth, obs), "points0": truth, "control_point": CONTROL,
+        "control_xyz": control_xyz, "control_sigma": control_sigma,
+    }  # fmt: skip
     plain = adjust_units(obs, N_UNITS, n_points, **kwargs)
     projected = adjust_units(obs, N_UNITS, n_points, project_points=True, **kwargs)
     assert plain.converged and projected.converged
