@@ -137,14 +137,8 @@ def _cycles(modules: dict[str, Path]) -> list[str]:
     return cycles
 
 
-#: Cycles still to be cut (remove them as they are): the engine's assembly
-#: imports its types back from normals.py inside functions.
-KNOWN_CYCLES = {
-    "strip_aerotri.geometry._normal_assembly -> strip_aerotri.geometry.normals "
-    "-> strip_aerotri.geometry._normal_assembly",
-    "strip_aerotri.geometry.normals -> strip_aerotri.geometry._normal_assembly "
-    "-> strip_aerotri.geometry.normals",
-}
+#: Cycles still to be cut (remove them as they are); none now.
+KNOWN_CYCLES: set[str] = set()
 
 
 def test_no_import_cycle():

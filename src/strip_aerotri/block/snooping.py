@@ -18,9 +18,9 @@ from ..errors import GeometryError, StripAerotriWarning
 from ..geometry.simultaneous import (
     SimultaneousResult,
     UnitObservations,
-    UnitTransforms,
     adjust_units,
 )
+from ..ground.control_passes import ControlPasses
 from ..ground.systematic import kept_control, systematic_message, systematic_pattern
 from ..options import BlunderOptions, Construction
 from ..results import Rejection
@@ -28,7 +28,6 @@ from .problem import _Problem
 
 _MAX_PASSES = 6
 _CHI2_3_MEDIAN = 2.365973884375338  # median of chi-square with 3 degrees of freedom
-_PASS_TOLERANCE_M = 1e-5
 
 
 @dataclass
@@ -87,8 +86,9 @@ def _solve(
     *,
     statistics: bool = True,
 ) -> _Solution:
-    """The transformation, with passes for control given in plan or height only
-    (their other coordinates from the adjusted point, as the ground stage);
+    """The transformation, control given in plan or height only getting its
+    other coordinates from the adjusted point as it goes (as the ground
+    stage, :class:`~strip_aerotri.ground.control_passes.ControlPasses`);
     ``statistics``: the control's tests (cofactors) at the end."""
     active = use_xy | use_z
     guess = (
@@ -114,53 +114,23 @@ def _solve(
             r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
         )
     )
-    result = None
-    for n_pass in range(1, _MAX_PASSES + 1):
-        target = p.work.to_work(guess)
-        target[~use_xy, :2] = np.nan
-        target[~use_z, 2] = np.nan
-
-        def solve(
-            start: UnitTransforms,
-            points0: FloatArray,
-            statistics: bool,
-            target: FloatArray = target,
-        ) -> SimultaneousResult:
-            return adjust_units(
-                rows,
-                p.unit_strip.shape[0],
-                n_total,
-                start=start,
-                points0=points0,
-                control_point=p.idx[active],
-                control_xyz=target[active],
-                control_sigma=p.sigma[active],
-                max_iterations=p.max_iterations,
-                polynomial=p.polynomial,
-                statistics=statistics,
-                order=_band_order(p),
-            )
-
-        # the control's cofactors (the costly part of a large block) only for
-        # the pass that is the last
-        last = not guessed or n_pass == _MAX_PASSES
-        result = solve(starts, points0, statistics=last and statistics)
-        if last:
-            break
-        adjusted = p.work.from_work(result.points[p.idx])
-        new_guess = np.where(np.isnan(p.given), adjusted, p.given)
-        change = float(np.nanmax(np.abs(new_guess - guess), initial=0.0))
-        if change < _PASS_TOLERANCE_M:  # converged: its statistics, from its last step
-            if statistics:
-                result = result.with_statistics()
-            guess = new_guess
-            break
-        guess = new_guess
-        starts = result.transforms
-        points0 = np.where(np.isfinite(result.points), result.points, points0)
-        result = None  # its factor (held for its statistics) goes before the next pass
-    assert result is not None
-    return _Solution(result, guess)
+    passes = ControlPasses(p.work, p.idx, p.given, guess, use_xy, use_z, _MAX_PASSES)
+    result = adjust_units(
+        rows,
+        p.unit_strip.shape[0],
+        n_total,
+        start=starts,
+        points0=points0,
+        control_point=p.idx[active],
+        control_xyz=passes.target(),
+        control_sigma=p.sigma[active],
+        max_iterations=p.max_iterations,
+        polynomial=p.polynomial,
+        statistics=statistics,
+        order=_band_order(p),
+        control_update=passes.update if guessed else None,
+    )
+    return _Solution(result, passes.guess)
 
 
 def _snoop(

@@ -8,30 +8,29 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, TypeVar
+from typing import TypeVar
 
 import numpy as np
 
-from .._typing import FloatArray, IntArray
+from .._typing import ArrayLike, FloatArray, IntArray
 from ._blockband import BandFactor, NotPositiveDefinite, factor_band, selected_inverse
-
-if TYPE_CHECKING:
-    from .normals import (
-        BorderRows,
-        Cofactors,
-        NormalStructure,
-        PointRows,
-        Rows,
-        UnitPointRows,
-        UnitRows,
-        _Normals,
-    )
+from ._normal_rows import (
+    POINT_RANK_TOL,
+    BorderRows,
+    PointRows,
+    Rows,
+    SingularNormalsError,
+    UnitPointRows,
+    UnitRows,
+    _Normals,
+)
+from ._normal_rows import StructureLike as NormalStructure
 
 
 _A = TypeVar("_A", FloatArray, IntArray)
 
 
-def _sum_into(index: IntArray, values: FloatArray, n: int) -> FloatArray:
+def sum_into(index: IntArray, values: FloatArray, n: int) -> FloatArray:
     """``out[index[i]] += values[i]`` for values (m, *shape) -> (n, *shape)."""
     shape = values.shape[1:]
     size = int(np.prod(shape, dtype=np.intp))
@@ -55,7 +54,7 @@ def _add_blocks(
     if index.size == 0:
         return
     uniq, inverse = compressed if compressed is not None else np.unique(index, return_inverse=True)
-    blocks[uniq] += _sum_into(inverse, values, uniq.size)
+    blocks[uniq] += sum_into(inverse, values, uniq.size)
 
 
 def assemble(
@@ -70,7 +69,6 @@ def assemble(
 
     Length: one accumulation per kind of row, in one place so that the four
     kinds add into the same arrays in the same way."""
-    from .normals import _Normals
 
     pat = st.pattern
     n, d, p, k = st.n_units, st.unit_size, st.n_points, st.n_border
@@ -106,14 +104,14 @@ def assemble(
             pair = pat.pair_of(unit, point)
         offset += g
         _add_blocks(band.reshape(n * w1, d, d), diag_block[unit], np.einsum("gra,grb->gab", au, au))
-        w += _sum_into(pair, np.einsum("gra,grb->gab", au, ap), n_pairs)
-        v += _sum_into(point, np.einsum("gra,grb->gab", ap, ap), p)
-        g_unit += _sum_into(unit, np.einsum("gra,gr->ga", au, f), n)
-        g_point += _sum_into(point, np.einsum("gra,gr->ga", ap, f), p)
+        w += sum_into(pair, np.einsum("gra,grb->gab", au, ap), n_pairs)
+        v += sum_into(point, np.einsum("gra,grb->gab", ap, ap), p)
+        g_unit += sum_into(unit, np.einsum("gra,gr->ga", au, f), n)
+        g_point += sum_into(point, np.einsum("gra,gr->ga", ap, f), p)
         cost += float(np.sum(f * f))
         if k:
-            unit_border += _sum_into(unit, np.einsum("gra,grb->gab", au, ab), n)
-            point_border += _sum_into(point, np.einsum("gra,grb->gab", ap, ab), p)
+            unit_border += sum_into(unit, np.einsum("gra,grb->gab", au, ab), n)
+            point_border += sum_into(point, np.einsum("gra,grb->gab", ap, ab), p)
             border += np.einsum("gra,grb->ab", ab, ab)
             g_border += np.einsum("gra,gr->a", ab, f)
     for urows in unit_rows:
@@ -128,21 +126,21 @@ def assemble(
         _add_blocks(
             band.reshape(n * w1, d, d), idx[keep], blocks.reshape(units.shape[0], q * q, d, d)[keep]
         )
-        g_unit += _sum_into(units.reshape(-1), np.einsum("grai,gr->gai", a, f).reshape(-1, d), n)
+        g_unit += sum_into(units.reshape(-1), np.einsum("grai,gr->gai", a, f).reshape(-1, d), n)
         cost += float(np.sum(f * f))
         if k:
             ub_blocks = np.einsum("grai,grb->gaib", a, ab).reshape(-1, d, k)
-            unit_border += _sum_into(units.reshape(-1), ub_blocks, n)
+            unit_border += sum_into(units.reshape(-1), ub_blocks, n)
             border += np.einsum("gra,grb->ab", ab, ab)
             g_border += np.einsum("gra,gr->a", ab, f)
     for prows in point_rows:
         a, f, ab = prows.whitened(k)
         point = np.asarray(prows.point, np.intp)
-        v += _sum_into(point, np.einsum("gra,grb->gab", a, a), p)
-        g_point += _sum_into(point, np.einsum("gra,gr->ga", a, f), p)
+        v += sum_into(point, np.einsum("gra,grb->gab", a, a), p)
+        g_point += sum_into(point, np.einsum("gra,gr->ga", a, f), p)
         cost += float(np.sum(f * f))
         if k:
-            point_border += _sum_into(point, np.einsum("gra,grb->gab", a, ab), p)
+            point_border += sum_into(point, np.einsum("gra,grb->gab", a, ab), p)
             border += np.einsum("gra,grb->ab", ab, ab)
             g_border += np.einsum("gra,gr->a", ab, f)
     for brows in border_rows:
@@ -222,7 +220,7 @@ def _fast_unit_point(
     if starts.size:
         vv[seen] = np.add.reduceat(np.swapaxes(ap_pairs, 1, 2) @ apb, starts, axis=0)
         g_point[seen] = np.add.reduceat(np.einsum("gra,gr->ga", ap_pairs, f[rows]), starts, axis=0)
-    g_unit = _sum_into(unit, np.einsum("gra,gr->ga", au, f), n)
+    g_unit = sum_into(unit, np.einsum("gra,gr->ga", au, f), n)
     border = uu[:, d:, d:].sum(axis=0)
     g_border = np.einsum("gra,gr->a", ab, f) if k else np.zeros(0)
     return (
@@ -285,7 +283,6 @@ def undetermined_points(v: FloatArray, tol: float) -> tuple[IntArray, FloatArray
 
 def _point_inverse(st: NormalStructure, v: FloatArray) -> FloatArray:
     """V⁻¹ of every point; SingularNormalsError naming the first undetermined one."""
-    from .normals import POINT_RANK_TOL, SingularNormalsError
 
     if v.shape[0] == 0:
         return v.copy()
@@ -308,7 +305,6 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
 
     Length: the four stages of method.md 6B 1-2 for one step, which share
     their intermediate products."""
-    from .normals import SingularNormalsError
 
     pat = st.pattern
     n, d, k = st.n_units, st.unit_size, st.n_border
@@ -329,12 +325,12 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
         blocks = sums.reshape(-1, q, d, q, d).transpose(0, 1, 3, 2, 4)[:, c.lower_a, c.lower_b]
         # summed over the distinct blocks of the chunk (several groups add
         # into one block of the band)
-        flat_blocks[c.scatter_unique] -= _sum_into(
+        flat_blocks[c.scatter_unique] -= sum_into(
             c.scatter_inverse, blocks.reshape(-1, dd), c.scatter_unique.size
         )
     s_band = flat.reshape(n, w1, d, d)
     b_point = -normals.g_point
-    rhs_unit = -normals.g_unit - _sum_into(
+    rhs_unit = -normals.g_unit - sum_into(
         pat.pair_unit, np.einsum("pij,pj->pi", y, b_point[pat.pair_point]), n
     )
     try:
@@ -359,7 +355,7 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     if k:
         # Sb = Ub - Σ Y Vb ; Sbb = C - Σ Vbᵀ V⁻¹ Vb ; rb = b_b - Σ Vbᵀ V⁻¹ b_p
         vb = normals.point_border
-        s_b = normals.unit_border - _sum_into(pat.pair_unit, y @ vb[pat.pair_point], n)
+        s_b = normals.unit_border - sum_into(pat.pair_unit, y @ vb[pat.pair_point], n)
         y_border = np.swapaxes(vb, 1, 2) @ v_inv  # (p, k, 3)
         s_bb = border - np.einsum("pki,pil->kl", y_border, vb)
         r_b = -normals.g_border - np.einsum("pki,pi->k", y_border, b_point)
@@ -374,7 +370,7 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     unit_step = np.empty((n, d))
     unit_step[order] = x_pos.reshape(n, d)
     # points: V⁻¹ (b_p - Σ Wᵀ δu - Vb δb)
-    t_p = b_point - _sum_into(
+    t_p = b_point - sum_into(
         pat.pair_point,
         np.einsum("pij,pi->pj", normals.w, unit_step[pat.pair_unit]),
         st.n_points,
@@ -389,7 +385,6 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
 
 
 def _border_inverse(st: NormalStructure, t: FloatArray) -> tuple[FloatArray, float]:
-    from .normals import SingularNormalsError
 
     diag = np.diag(t).copy()
     if np.any(~(diag > 0.0)):
@@ -448,7 +443,6 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     ``Q_pp = V⁻¹ + Yᵀ Q_RR Y``, ``Q_Rp = -Q_RR Y`` over its units and the
     border R (``Y = N_Rp V⁻¹``), one chunk of points with the same number of
     units at a time."""
-    from .normals import Cofactors
 
     pat = st.pattern
     n, d, k, p = st.n_units, st.unit_size, st.n_border, st.n_points
@@ -524,7 +518,6 @@ def _quadratic(a: FloatArray, c: FloatArray) -> FloatArray:
 
 def leverage(cof: Cofactors, rows: Rows) -> FloatArray:
     """``diag(T A Q Aᵀ Tᵀ)`` (g, r) of rows of any kind."""
-    from .normals import BorderRows, PointRows, UnitPointRows, UnitRows
 
     st = cof.structure
     k = st.n_border
@@ -568,3 +561,45 @@ def leverage(cof: Cofactors, rows: Rows) -> FloatArray:
         a, _ = rows.whitened(k)
         return _quadratic(a, np.broadcast_to(cof.border, (a.shape[0], k, k)))
     raise TypeError(f"Expected rows of the four kinds, got {type(rows).__name__}")
+
+
+@dataclass(frozen=True)
+class Cofactors:
+    """Blocks of ``Q = N⁻¹`` on the pattern (the selected inverse).
+
+    ``unit`` (n, d, d), ``point`` (p, 3, 3), ``border`` (k, k),
+    ``unit_border`` (n, d, k), ``point_border`` (p, 3, k); ``band`` (n, w+1,
+    d, d) the band in the structure's order (``band[J, o] = Q[order[J + o],
+    order[J]]``), ``pair`` (n_pairs, d, 3) the unit-point blocks of the
+    pattern's pairs."""
+
+    structure: NormalStructure  # the structure the blocks follow
+    unit: FloatArray
+    point: FloatArray
+    border: FloatArray
+    unit_border: FloatArray
+    point_border: FloatArray
+    band: FloatArray
+    pair: FloatArray
+
+    def unit_blocks(self, unit_a: ArrayLike, unit_b: ArrayLike) -> FloatArray:
+        """Blocks ``Q[a, b]`` (m, d, d) of units within the band of each other."""
+        a = np.asarray(unit_a, dtype=np.intp)
+        b = np.asarray(unit_b, dtype=np.intp)
+        d = self.structure.unit_size
+        idx, upper = self.structure.pattern.block_index(a, b)
+        blocks = self.band.reshape(-1, d, d)[idx]
+        return np.where(upper[..., None, None], np.swapaxes(blocks, -1, -2), blocks)
+
+    def unit_point(self, unit: ArrayLike, point: ArrayLike) -> FloatArray:
+        """Blocks ``Q[unit, point]`` (m, d, 3) of coupled unit-point pairs."""
+        pairs = self.structure.pattern.pair_of(
+            np.asarray(unit, dtype=np.intp), np.asarray(point, dtype=np.intp)
+        )
+        return self.pair[pairs]
+
+    def redundancy(self, rows: Rows) -> FloatArray:
+        """Redundancy numbers ``1 - (T A Q Aᵀ Tᵀ)ᵢᵢ`` (g, r) of rows (with the
+        weights of `rows`; for diagonal weights ``1 - (A Q Aᵀ P)ᵢᵢ``)."""
+        h = leverage(self, rows)
+        return 1.0 - h

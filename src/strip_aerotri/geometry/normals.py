@@ -87,9 +87,27 @@ from typing import Literal
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
-from ..errors import GeometryError
 from ._blockband import BandFactor, NotPositiveDefinite, factor_band, selected_inverse
+from ._normal_assembly import (
+    Cofactors,
+    Reduced,
+    assemble,
+    cofactors,
+    predicted_cost,
+    reduce_points,
+    undetermined_points,
+)
 from ._normal_pattern import Pattern, bandwidth, build_pattern, unit_graph_order
+from ._normal_rows import (
+    POINT_RANK_TOL,
+    BorderRows,
+    PointRows,
+    Rows,
+    SingularNormalsError,
+    UnitPointRows,
+    UnitRows,
+    _Normals,
+)
 
 __all__ = [
     "BorderRows",
@@ -102,158 +120,6 @@ __all__ = [
     "UnitPointRows",
     "UnitRows",
 ]
-
-#: Ratio of smallest to largest eigenvalue of a point's (damped) 3 x 3 normal
-#: block below which the point counts as undetermined.
-POINT_RANK_TOL = 1e-10
-
-
-class SingularNormalsError(GeometryError):
-    """The normal equations are singular; ``kind`` is "unit", "point" or
-    "border", ``index`` the unit, point or border parameter, ``parameter``
-    the component within the unit or point (None when not known)."""
-
-    def __init__(self, message: str, kind: str, index: int, parameter: int | None = None):
-        super().__init__(message)
-        self.kind = kind
-        self.index = index
-        self.parameter = parameter
-
-
-def _as_weight(weight: ArrayLike | None, g: int, r: int) -> FloatArray | None:
-    if weight is None:
-        return None
-    w = np.asarray(weight, dtype=np.float64)
-    if w.shape not in ((g, r), (g, r, r)):
-        raise ValueError(f"Expected `weight` to have shape {(g, r)} or {(g, r, r)}, got {w.shape}")
-    if w.ndim == 2 and not np.all(w >= 0.0):
-        raise ValueError("Expected non-negative diagonal weights")
-    return w
-
-
-def _whiten(weight: FloatArray | None, *arrays: FloatArray) -> tuple[FloatArray, ...]:
-    """Rows times T (Tᵀ T = weight); each array (g, r, ...)."""
-    if weight is None:
-        return arrays
-    if weight.ndim == 2:
-        s = np.sqrt(weight)
-        return tuple(a * s.reshape(s.shape + (1,) * (a.ndim - 2)) for a in arrays)
-    try:
-        t = np.swapaxes(np.linalg.cholesky(weight), 1, 2)  # P = L Lᵀ, T = Lᵀ
-    except np.linalg.LinAlgError as exc:
-        raise ValueError("Expected positive definite weight matrices") from exc
-    out = []
-    for a in arrays:
-        flat = a.reshape(a.shape[0], a.shape[1], -1)
-        out.append((t @ flat).reshape(a.shape))
-    return tuple(out)
-
-
-def _check(a: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:
-    x = np.asarray(a, dtype=np.float64)
-    if x.shape != shape:
-        raise ValueError(f"Expected `{name}` to have shape {shape}, got {x.shape}")
-    return x
-
-
-@dataclass(frozen=True)
-class UnitPointRows:
-    """Rows on one unit and one point each (see the module docstring)."""
-
-    unit: IntArray
-    point: IntArray
-    unit_jacobian: FloatArray
-    point_jacobian: FloatArray
-    residual: FloatArray
-    weight: FloatArray | None = None
-    border_jacobian: FloatArray | None = None
-
-    def whitened(self, k: int, d: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """T A_unit, T A_point, T f, T A_border for k border and d unit parameters."""
-        g, r = np.shape(self.residual)
-        au = _check(self.unit_jacobian, (g, r, d), "unit_jacobian")
-        ap = _check(self.point_jacobian, (g, r, 3), "point_jacobian")
-        f = _check(self.residual, (g, r), "residual")
-        ab = _border(self.border_jacobian, g, r, k)
-        return _whiten(_as_weight(self.weight, g, r), au, ap, f, ab)  # type: ignore[return-value]
-
-
-@dataclass(frozen=True)
-class UnitRows:
-    """Rows on units alone: ``units`` (g, q), ``jacobian`` (g, r, q, d)."""
-
-    units: IntArray
-    jacobian: FloatArray
-    residual: FloatArray
-    weight: FloatArray | None = None
-    border_jacobian: FloatArray | None = None
-
-    def whitened(self, k: int, d: int) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """T A, T f, T A_border for k border and d unit parameters."""
-        g, r = np.shape(self.residual)
-        q = np.shape(self.units)[1]
-        a = _check(self.jacobian, (g, r, q, d), "jacobian")
-        f = _check(self.residual, (g, r), "residual")
-        ab = _border(self.border_jacobian, g, r, k)
-        return _whiten(_as_weight(self.weight, g, r), a, f, ab)  # type: ignore[return-value]
-
-
-@dataclass(frozen=True)
-class PointRows:
-    """Rows on points alone: ``point`` (g,), ``jacobian`` (g, r, 3)."""
-
-    point: IntArray
-    jacobian: FloatArray
-    residual: FloatArray
-    weight: FloatArray | None = None
-    border_jacobian: FloatArray | None = None
-
-    def whitened(self, k: int) -> tuple[FloatArray, FloatArray, FloatArray]:
-        g, r = np.shape(self.residual)
-        a = _check(self.jacobian, (g, r, 3), "jacobian")
-        f = _check(self.residual, (g, r), "residual")
-        ab = _border(self.border_jacobian, g, r, k)
-        return _whiten(_as_weight(self.weight, g, r), a, f, ab)  # type: ignore[return-value]
-
-
-@dataclass(frozen=True)
-class BorderRows:
-    """Rows on the border alone: ``jacobian`` (g, r, k)."""
-
-    jacobian: FloatArray
-    residual: FloatArray
-    weight: FloatArray | None = None
-
-    def whitened(self, k: int) -> tuple[FloatArray, FloatArray]:
-        g, r = np.shape(self.residual)
-        a = _check(self.jacobian, (g, r, k), "jacobian")
-        f = _check(self.residual, (g, r), "residual")
-        return _whiten(_as_weight(self.weight, g, r), a, f)  # type: ignore[return-value]
-
-
-Rows = UnitPointRows | UnitRows | PointRows | BorderRows
-
-
-def _border(a: FloatArray | None, g: int, r: int, k: int) -> FloatArray:
-    if a is None:
-        return np.zeros((g, r, k))
-    return _check(a, (g, r, k), "border_jacobian")
-
-
-@dataclass
-class _Normals:
-    """The normal blocks at one linearisation (position order for the band)."""
-
-    band: FloatArray  # (n, w+1, d, d) U - W V⁻¹ Wᵀ, position order
-    g_unit: FloatArray  # (n, d) Aᵀ T f by unit
-    v: FloatArray  # (p, 3, 3)
-    g_point: FloatArray  # (p, 3)
-    w: FloatArray  # (n_pairs, d, 3)
-    unit_border: FloatArray  # (n, d, k)
-    point_border: FloatArray  # (p, 3, k)
-    border: FloatArray  # (k, k)
-    g_border: FloatArray  # (k,)
-    cost: float
 
 
 class NormalStructure:
@@ -407,7 +273,6 @@ class NormalStructure:
     ) -> FormedNormals:
         """The normal blocks of the rows at the current unknowns, to be solved
         with one or more dampings (:meth:`FormedNormals.solve`)."""
-        from ._normal_assembly import assemble
 
         return FormedNormals(self, assemble(self, unit_point_rows, unit_rows, point_rows,
                                             border_rows))
@@ -463,7 +328,6 @@ class FormedNormals:
 
     def undetermined_points(self, tol: float = POINT_RANK_TOL) -> IntArray:
         """Points whose 3 x 3 normal block (undamped) has ``λmin <= tol λmax``."""
-        from ._normal_assembly import undetermined_points
 
         return undetermined_points(self._normals.v, tol)[0] if self._normals.v.size else (
             np.zeros(0, np.intp)
@@ -479,7 +343,6 @@ class FormedNormals:
     def solve(self, damping: float = 0.0) -> NormalSolution:
         """The step with Levenberg-Marquardt `damping` (diagonals of the unit,
         point and border blocks times ``1 + damping``)."""
-        from ._normal_assembly import reduce_points
 
         if not damping >= 0.0:
             raise ValueError(f"Expected a non-negative `damping`, got {damping}")
@@ -506,7 +369,6 @@ class NormalSolution:
     @classmethod
     def _from(cls, structure: NormalStructure, normals: _Normals, reduced: object,
               damping: float) -> NormalSolution:
-        from ._normal_assembly import Reduced
 
         assert isinstance(reduced, Reduced)
         d = structure.unit_size
@@ -527,7 +389,6 @@ class NormalSolution:
     @property
     def predicted_cost(self) -> float:
         """``Σ‖T (f + A δ)‖²`` of the step with the undamped normal matrix."""
-        from ._normal_assembly import Reduced, predicted_cost
 
         assert isinstance(self._state, Reduced)
         return predicted_cost(self._structure, self._state)
@@ -537,52 +398,7 @@ class NormalSolution:
         if self.damping != 0.0:
             raise ValueError("cofactors of a damped system are not those of the adjustment")
         if self._cofactors is None:
-            from ._normal_assembly import Reduced, cofactors
 
             assert isinstance(self._state, Reduced)
             self._cofactors = cofactors(self._structure, self._state)
         return self._cofactors
-
-
-@dataclass(frozen=True)
-class Cofactors:
-    """Blocks of ``Q = N⁻¹`` on the pattern (the selected inverse).
-
-    ``unit`` (n, d, d), ``point`` (p, 3, 3), ``border`` (k, k),
-    ``unit_border`` (n, d, k), ``point_border`` (p, 3, k); ``band`` (n, w+1,
-    d, d) the band in the structure's order (``band[J, o] = Q[order[J + o],
-    order[J]]``), ``pair`` (n_pairs, d, 3) the unit-point blocks of the
-    pattern's pairs."""
-
-    structure: NormalStructure
-    unit: FloatArray
-    point: FloatArray
-    border: FloatArray
-    unit_border: FloatArray
-    point_border: FloatArray
-    band: FloatArray
-    pair: FloatArray
-
-    def unit_blocks(self, unit_a: ArrayLike, unit_b: ArrayLike) -> FloatArray:
-        """Blocks ``Q[a, b]`` (m, d, d) of units within the band of each other."""
-        a = np.asarray(unit_a, dtype=np.intp)
-        b = np.asarray(unit_b, dtype=np.intp)
-        d = self.structure.unit_size
-        idx, upper = self.structure.pattern.block_index(a, b)
-        blocks = self.band.reshape(-1, d, d)[idx]
-        return np.where(upper[..., None, None], np.swapaxes(blocks, -1, -2), blocks)
-
-    def unit_point(self, unit: ArrayLike, point: ArrayLike) -> FloatArray:
-        """Blocks ``Q[unit, point]`` (m, d, 3) of coupled unit-point pairs."""
-        pairs = self.structure.pattern.pair_of(
-            np.asarray(unit, dtype=np.intp), np.asarray(point, dtype=np.intp)
-        )
-        return self.pair[pairs]
-
-    def redundancy(self, rows: Rows) -> FloatArray:
-        """Redundancy numbers ``1 - (T A Q Aᵀ Tᵀ)ᵢᵢ`` (g, r) of rows (with the
-        weights of `rows`; for diagonal weights ``1 - (A Q Aᵀ P)ᵢᵢ``)."""
-        from ._normal_assembly import leverage
-
-        h = leverage(self, rows)
-        return 1.0 - h

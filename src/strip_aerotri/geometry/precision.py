@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
+from ._normal_assembly import sum_into
 from .collinearity import image_jacobian, image_vectors
 
 __all__ = ["centre_information", "ray_information"]
@@ -100,8 +101,7 @@ def _resection_normals(
     d_attitude = jac @ vx
     sigma = np.broadcast_to(np.asarray(sigma_mm, dtype=np.float64), points.shape[:1])
     full = np.concatenate([d_centre, d_attitude], axis=2) / sigma[:, None, None]
-    normal = np.zeros((n_groups, 6, 6))
-    np.add.at(normal, group, np.swapaxes(full, 1, 2) @ full)
+    normal = sum_into(group, np.swapaxes(full, 1, 2) @ full, n_groups)
     return normal, np.bincount(group, minlength=n_groups)
 
 

@@ -72,6 +72,10 @@ _Z_BETA = 0.8416212335729143  # standard normal quantile of 0.8: power 80 %
 _MIN_TESTED_REDUNDANCY = 1e-3
 #: Standard deviation of the prior that holds a polynomial term at 0.
 _FIXED_SIGMA = 1e-9
+#: Radians a unit must turn before its rows' weights are turned with it
+#: (``weight_rotation``): a weight turned 1e-6 rad off moves a point by
+#: 1e-6 of its residual's share across the weight's axes.
+_WEIGHT_TURN = 1e-6
 
 
 def baarda_delta(critical: float) -> float:
@@ -426,6 +430,7 @@ class _Problem:
         lines: Sequence[LineCondition],
         polynomial: UnitPolynomial | None = None,
         order: Literal["auto", "given", "rcm"] | IntArray = "auto",
+        weight_rotation: FloatArray | None = None,
     ):
         from .normals import NormalStructure
 
@@ -435,7 +440,10 @@ class _Problem:
         self.width = N_UNIT + self.n_extra  # parameters of a unit
         self.n_units = n_units
         self.n_points = n_points
-        self.whiten = _rows_whitening(obs.weight)
+        self.whiten0 = _rows_whitening(obs.weight)
+        self.whiten = self.whiten0
+        self.weight_rotation = weight_rotation
+        self.turned_at: FloatArray | None = None
         self.control_point = control_point
         self.control_xyz = control_xyz
         self.control_sigma = control_sigma
@@ -472,6 +480,35 @@ class _Problem:
             n_border=2 * self.n_lines,
             order=order,
         )
+
+    def set_control(self, control_xyz: FloatArray) -> None:
+        """New control coordinates (C, 3), NaN where not given (the same
+        components as before)."""
+        control_xyz = np.asarray(control_xyz, dtype=np.float64).reshape(self.control_xyz.shape)
+        if not np.array_equal(np.isfinite(control_xyz), self.control_given):
+            raise ValueError("Expected the control update to give the same components")
+        self.control_xyz = control_xyz
+
+    def turn_weights(self, rotation: FloatArray) -> bool:
+        """The rows' whitening at the units' ``rotation`` (U, 3, 3): the weights
+        given at :attr:`weight_rotation` turned with their unit,
+        ``W = Δ W₀ Δᵀ``, ``Δ = R R₀ᵀ`` (whitening ``L₀ᵀ Δᵀ``).  Only when a
+        unit has turned by more than :data:`_WEIGHT_TURN` since the weights
+        were last turned (below it the weights' change moves the solution by
+        nothing that counts, and holding them lets the iterations converge
+        quadratically); True when turned."""
+        if self.weight_rotation is None:
+            return False
+        if self.turned_at is not None:
+            # |R - R_t| (Frobenius) / sqrt(2) is the angle between them, to first order
+            moved = np.sqrt(np.einsum("uij,uij->u", *(rotation - self.turned_at,) * 2) / 2.0)
+            if not float(np.max(moved, initial=0.0)) > _WEIGHT_TURN:
+                return False
+        self.turned_at = rotation.copy()
+        delta_t = np.swapaxes(rotation @ np.swapaxes(self.weight_rotation, 1, 2), 1, 2)
+        self.whiten = self.whiten0 @ delta_t[self.obs.unit]
+        self.point_jacobian = -self.whiten
+        return True
 
     @property
     def n_observations(self) -> int:
@@ -664,6 +701,9 @@ def adjust_units(
     statistics: bool = True,
     polynomial: UnitPolynomial | None = None,
     order: Literal["auto", "given", "rcm"] | IntArray = "auto",
+    weight_rotation: ArrayLike | None = None,
+    control_update: Callable[[FloatArray, bool], FloatArray | None] | None = None,
+    project_points: bool = False,
 ) -> SimultaneousResult:
     """Transform all units at once to the control and to each other.
 
@@ -706,6 +746,29 @@ def adjust_units(
         (:class:`~strip_aerotri.geometry.normals.NormalStructure`): as
         numbered, reverse Cuthill-McKee, the narrower of the two ("auto"),
         or the unit at each place.  It changes the cost, not the solution.
+    weight_rotation : array_like, shape (U, 3, 3), optional
+        The units' rotations at which the rows' weights are given: the
+        weights are then the information of the rows in their unit and turn
+        with it, ``W = Δ W₀ Δᵀ`` with ``Δ = R_u R₀ᵀ`` (a model point is weak
+        along its rays wherever the model is turned to).  They are turned at
+        the start of every iteration (iteratively reweighted: the step of an
+        iteration holds them).  None: the weights are fixed in the work
+        frame.
+    control_update : callable, optional
+        Called after every iteration with the points (P, 3, work frame) and
+        whether the iteration met the tolerance; returns the control
+        coordinates (C, 3) for the next iteration, or None when they stay:
+        control whose coordinates depend on the adjustment (a plan point's
+        height in a curved work frame, guessed from its adjusted position).
+        The adjustment converges only in an iteration after which they stay.
+    project_points : bool
+        At the start and after every step put each point where its rows and
+        its control put it for the units' transforms (the least-squares point with the
+        units held; without lines only): the linearised step moves a point
+        along the tangent of its unit's turn, which from start values far
+        off (a long strip's model turned by a radian) lands it metres away
+        and makes the line search halve the step again and again.  The
+        solution is the same.
 
     Returns
     -------
@@ -735,9 +798,14 @@ def adjust_units(
     if np.any(given & ~(control_sigma > 0)):
         raise ValueError("Expected control_sigma > 0 for every given control component")
     prob = _Problem(
-        obs, n_units, n_points, control_point, control_xyz, control_sigma, lines, polynomial, order
-    )
+        obs, n_units, n_points, control_point, control_xyz, control_sigma, lines, polynomial, order,
+        None if weight_rotation is None
+        else np.asarray(weight_rotation, dtype=np.float64).reshape(n_units, 3, 3),
+    )  # fmt: skip
     st = _start_state(prob, start, points0)
+    prob.turn_weights(st.rotation)
+    if project_points:  # the points where the units put them, not yet the control
+        st = _projected(prob, st, control=False)
     points = st.points
     extent = (
         float(np.nanmax(np.ptp(points[prob.observed], axis=0))) if prob.observed.any() else 1.0
@@ -750,12 +818,16 @@ def adjust_units(
     sol = None
     for iterations in range(1, max_iterations + 1):  # noqa: B007 (reported after the loop)
         sol = None  # the last step's factor goes before the next is formed
+        if iterations > 1 and prob.turn_weights(st.rotation):
+            cost = _cost(prob, st)
         sol = _solve(prob, st)
         dp = np.zeros((n_points, 3))
         dp[prob.points_used] = sol.solution.point_step
         step = 1.0
         for _ in range(30):
             trial = _step(prob, st, sol.solution, dp, step)
+            if project_points:
+                trial = _projected(prob, trial)
             trial_cost = _cost(prob, trial)
             if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
                 break
@@ -772,12 +844,19 @@ def adjust_units(
             float(np.max(np.abs(dp[prob.observed]), initial=0.0)) * step / extent,
         )
         change = abs(cost - trial_cost) / max(cost, 1e-300)
+        settled = largest < tolerance or change < tolerance
         st, cost = trial, trial_cost
-        if largest < tolerance or change < tolerance:
+        target = None if control_update is None else control_update(st.points, settled)
+        if target is not None:  # the control moved: not converged yet
+            prob.set_control(target)
+            cost = _cost(prob, st)
+        elif settled:
             converged = True
             break
     if not converged:
         sol = None
+        if prob.turn_weights(st.rotation):
+            cost = _cost(prob, st)
         sol = _solve(prob, st)
     assert sol is not None  # set in the loop, or just above
     # Converged: the normal equations of the last step serve the statistics
@@ -811,6 +890,36 @@ def _start_state(prob: _Problem, start: UnitTransforms, points0: ArrayLike) -> _
         design = np.column_stack([np.ones(len(xyz)), xyz[:, 0]])
         line_ab[k] = np.linalg.lstsq(design, xyz[:, 1], rcond=None)[0]
     return _State(s0, r0, t0, points, line_ab, coefficients)
+
+
+def _projected(prob: _Problem, st: _State, control: bool = True) -> _State:
+    """``st`` with every observed point at its least-squares position for the
+    units as they are (its rows, and its control with ``control``; nothing
+    when there are lines: they tie the points to each other)."""
+    from ._normal_assembly import sum_into
+
+    if prob.n_lines:
+        return st
+    obs = prob.obs
+    y, _ = _predict(prob, st)
+    placed = st.translation[obs.unit] + y  # T_u(x) of every row
+    lt = prob.whiten
+    weight = np.swapaxes(lt, 1, 2) @ lt  # W = L Lᵀ of the rows as turned
+    n = prob.n_points
+    v = sum_into(obs.point, weight, n)
+    rhs = sum_into(obs.point, np.einsum("nij,nj->ni", weight, placed), n)
+    if control:
+        cp, given = prob.control_point, prob.control_given
+        w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma, 1.0) ** 2, 0.0)
+        v += sum_into(cp, w_c[:, :, None] * np.eye(3), n)
+        rhs += sum_into(cp, w_c * np.where(given, prob.control_xyz, 0.0), n)
+    used = prob.points_used
+    points = st.points.copy()
+    try:
+        points[used] = np.linalg.solve(v[used], rhs[used][:, :, None])[:, :, 0]
+    except np.linalg.LinAlgError:  # a point its rows do not fix: the step's own
+        return st
+    return _State(st.scale, st.rotation, st.translation, points, st.line_ab, st.coefficients)
 
 
 def _step(

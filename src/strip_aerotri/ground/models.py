@@ -57,6 +57,7 @@ from ..observations import ControlPoints, LineSpec
 from ..options import BlunderAction, BlunderOptions, GroundOptions
 from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .common import control_detectability, index_of, intersect_unmodelled
+from .control_passes import ControlPasses
 from .polynomials import adjust_to_ground
 from .systematic import kept_control, systematic_message, systematic_pattern
 
@@ -64,7 +65,6 @@ __all__ = ["ModelAdjustment", "adjust_models_to_ground", "model_weights"]
 
 _MAX_PASSES = 8
 _CHI2_3_MEDIAN = 2.365973884375338  # median of chi-square with 3 degrees of freedom
-_PASS_TOLERANCE_M = 1e-5
 
 
 def model_weights(
@@ -262,6 +262,43 @@ def _prepare(
     )
 
 
+def _adjust(
+    p: _ModelsProblem,
+    keep_rows: BoolArray,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    conditions: list[LineCondition],
+    passes: ControlPasses,
+    starts: UnitTransforms,
+    points0: FloatArray,
+) -> SimultaneousResult:
+    """:func:`adjust_units` on the rows ``keep_rows`` with the control used."""
+    active = use_xy | use_z
+    r = p.rows
+    rows = UnitObservations(
+        r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
+    )
+    return adjust_units(
+        rows,
+        p.strip.n_models,
+        p.n_unknown_points,
+        start=starts,
+        points0=points0,
+        control_point=p.idx[active],
+        control_xyz=passes.target(),
+        control_sigma=p.sigma[active],
+        lines=conditions,
+        statistics=True,
+        max_iterations=p.max_iterations,
+        order="given",  # the models are numbered along the strip
+        # each model's weights are its points' information in the model,
+        # given at the start's rotation: they turn with the model
+        weight_rotation=p.start_units.rotation,
+        control_update=passes.update if passes.guessed else None,
+        project_points=True,
+    )
+
+
 def _solve(
     p: _ModelsProblem,
     keep_rows: BoolArray,
@@ -270,17 +307,15 @@ def _solve(
     line_keep: list[BoolArray],
     previous: _ModelsSolution | None,
 ) -> _ModelsSolution:
-    """The passes of the plan/height iteration for one set of observations.
+    """The adjustment for one set of observations, from the previous
+    solution when there is one.
 
-    Control given in full needs one pass; plan and height points get their
-    missing coordinate from the adjustment, pass by pass, and the statistics
-    (cofactors) are computed in the last one only (from the factor of its
-    last step, once the coordinates have settled)."""
+    Control given in full is met as given; plan and height points get their
+    missing coordinate from the adjustment as it goes
+    (:class:`~strip_aerotri.ground.control_passes.ControlPasses`), and the
+    statistics come from the factor of its last step, once the coordinates
+    have settled."""
     active = use_xy | use_z
-    r = p.rows
-    unit_obs = UnitObservations(
-        r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
-    )
     conditions = [
         LineCondition(point=li[keep], sigma=p.plan_sigma / np.sqrt(line.weight))
         for line, li, keep in zip(p.lines, p.line_index, line_keep, strict=True)
@@ -290,44 +325,10 @@ def _solve(
     else:
         guess, starts = previous.guess, previous.result.transforms
         points0 = np.where(np.isfinite(previous.result.points), previous.result.points, p.points0)
-    res, converged, n_pass = None, False, 0
-    guessed = bool(np.isnan(p.given[active]).any())
-    for n_pass in range(1, _MAX_PASSES + 2):
-        target = p.work.to_work(guess)
-        target[~use_xy, :2] = np.nan
-        target[~use_z, 2] = np.nan
-        final = not guessed or converged or n_pass == _MAX_PASSES + 1
-        res = adjust_units(
-            unit_obs,
-            p.strip.n_models,
-            p.n_unknown_points,
-            start=starts,
-            points0=points0,
-            control_point=p.idx[active],
-            control_xyz=target[active],
-            control_sigma=p.sigma[active],
-            lines=conditions,
-            statistics=final,
-            max_iterations=p.max_iterations,
-            order="given",  # the models are numbered along the strip
-        )
-        if final:
-            break
-        adjusted = p.work.from_work(res.points[p.idx])
-        missing = np.isnan(p.given)
-        new_guess = p.given.copy()
-        new_guess[missing] = adjusted[missing]
-        change = float(np.nanmax(np.abs(new_guess - guess), initial=0.0))
-        guess = new_guess
-        starts = res.transforms
-        points0 = np.where(np.isfinite(res.points), res.points, points0)
-        converged = change < _PASS_TOLERANCE_M
-        if converged:  # its statistics from its last step: no pass again
-            res = res.with_statistics()
-            break
-        res = None  # its factor (held for its statistics) goes before the next pass
-    assert res is not None
-    return _ModelsSolution(res, guess, converged or not guessed, min(n_pass, _MAX_PASSES), active)
+    passes = ControlPasses(p.work, p.idx, p.given, guess, use_xy, use_z, _MAX_PASSES)
+    res = _adjust(p, keep_rows, use_xy, use_z, conditions, passes, starts, points0)
+    converged = passes.settled or not passes.guessed
+    return _ModelsSolution(res, passes.guess, converged, passes.n_pass, active)
 
 
 def _snoop(

@@ -1,0 +1,173 @@
+"""adjust_units' options for long strips: weights that turn with their units,
+control that follows the adjustment, points projected after each step.
+
+Each is checked against an adjustment that does not need it: the same
+problem posed with the weights at the solution's rotations, the control
+given at its final value, or no projection."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from strip_aerotri.geometry.rotation import matrix_from_rotvec
+from strip_aerotri.geometry.simultaneous import UnitObservations, UnitTransforms, adjust_units
+
+N_UNITS = 6
+
+
+def _problem(seed: int):
+    """Units along X, 8 points each, neighbours sharing 3.  Returns the rows
+    (unit, point, unit coordinates), their weights in their units (the
+    information of the unit coordinates), the true rotations, the points and
+    their count."""
+    rng = np.random.default_rng(seed)
+    n_points = 3 + N_UNITS * 5
+    truth = np.column_stack(
+        [
+            np.linspace(0.0, 100.0 * N_UNITS, n_points) + rng.normal(0, 5, n_points),
+            rng.uniform(-40.0, 40.0, n_points),
+            rng.normal(0.0, 4.0, n_points),
+        ]
+    )
+    unit, point, xyz, w_local = [], [], [], []
+    rotations = []
+    for u in range(N_UNITS):
+        pts = np.arange(5 * u, 5 * u + 8)
+        rot = matrix_from_rotvec(rng.normal(0.0, 0.05, 3))
+        rotations.append(rot)
+        local = (truth[pts] - rng.normal(0.0, 10.0, 3)) @ rot  # X = t + R x
+        # weak along the unit's own z (a model point along its rays)
+        sig = np.array([0.02, 0.03, 0.2])
+        for k, p in enumerate(pts):
+            a = rng.normal(size=(3, 3)) * 0.5 + np.diag(1.0 / sig)
+            unit.append(u)
+            point.append(p)
+            xyz.append(local[k] + rng.normal(0.0, 0.01, 3))
+            w_local.append(a.T @ a)
+    return (
+        np.array(unit), np.array(point), np.array(xyz), np.array(w_local),
+        np.array(rotations), truth, n_points,
+    )  # fmt: skip
+
+
+def _in_work(unit, w_local, rotations):
+    """The rows' weights in the work frame for units at ``rotations``: R W Rᵀ."""
+    r = rotations[unit]
+    return r @ w_local @ np.swapaxes(r, 1, 2)
+
+
+def _start(rotations, truth, obs):
+    """Similarities with the given rotations, unit scale, translations that
+    put each unit's centroid on its points' centroid."""
+    trans = np.array(
+        [truth[obs.point[obs.unit == u]].mean(axis=0) for u in range(N_UNITS)]
+    )
+    centroid = np.array([obs.xyz[obs.unit == u].mean(axis=0) for u in range(N_UNITS)])
+    return UnitTransforms(np.ones(N_UNITS), rotations.copy(), trans, centroid)
+
+
+CONTROL = np.array([0, 2, 14, 18, 30, 32])
+
+
+def _control(truth):
+    xyz = truth[CONTROL] + 0.01
+    xyz[2, 2] = np.nan
+    return xyz, np.array([[0.03, 0.03, 0.05]] * CONTROL.size)
+
+
+def test_turning_weights_equal_the_weights_at_the_solution():
+    """Weights given at a start turned 0.5 rad off and turning with their
+    units reach the solution of the weights posed at the solution's own
+    rotations (those fixed in the work frame); held in the work frame
+    instead they give another, worse-weighted solution."""
+    unit, point, xyz, w_local, rotations, truth, n_points = _problem(3)
+    off = np.array([matrix_from_rotvec([0.5, 0.1, 0.0]) @ r for r in rotations])
+    obs0 = UnitObservations(unit, point, xyz, _in_work(unit, w_local, off))
+    control_xyz, control_sigma = _control(truth)
+    kwargs = {"control_point": CONTROL, "control_xyz": control_xyz, "control_sigma": control_sigma}
+    turning = adjust_units(
+        obs0, N_UNITS, n_points, start=_start(off, truth, obs0), points0=truth,
+        weight_rotation=off, **kwargs,
+    )  # fmt: skip
+    assert turning.converged
+    # the same problem posed with the weights at the solution's rotations
+    solved = turning.transforms.rotation
+    obs1 = UnitObservations(unit, point, xyz, _in_work(unit, w_local, solved))
+    fixed = adjust_units(
+        obs1, N_UNITS, n_points, start=turning.transforms, points0=turning.points, **kwargs
+    )
+    np.testing.assert_allclose(turning.points, fixed.points, rtol=0, atol=1e-5)
+    assert turning.sigma0 == pytest.approx(fixed.sigma0, rel=1e-4)
+    held = adjust_units(
+        obs0, N_UNITS, n_points, start=_start(off, truth, obs0), points0=truth, **kwargs
+    )
+    assert np.max(np.abs(held.points - fixed.points)) > 1e-3
+
+
+def test_control_that_follows_reaches_the_control_it_settles_on():
+    """A control update that moves a height target by a function of the
+    adjusted point (as a curved work frame does) ends where the adjustment
+    given the settled target directly ends; the callback is told when the
+    adjustment met its tolerance."""
+    unit, point, xyz, w_local, rotations, truth, n_points = _problem(4)
+    obs = UnitObservations(unit, point, xyz, _in_work(unit, w_local, rotations))
+    control_xyz, control_sigma = _control(truth)
+    control_xyz[0, :2] = np.nan  # a height point: its height depends on where it is
+    base = control_xyz.copy()
+
+    def target_at(points):
+        out = base.copy()
+        out[0, 2] = base[0, 2] - 1e-2 * points[CONTROL[0], 0]  # "curvature"
+        return out
+
+    class Follow:
+        def __init__(self) -> None:
+            self.current = target_at(truth)
+            self.calls: list[bool] = []
+
+        def __call__(self, points, settled):
+            self.calls.append(settled)
+            new = target_at(points)
+            if abs(new[0, 2] - self.current[0, 2]) < 1e-9:
+                return None
+            self.current = new
+            return new
+
+    follow = Follow()
+    start = _start(rotations, truth, obs)
+    kwargs = {"control_point": CONTROL, "control_sigma": control_sigma}
+    followed = adjust_units(
+        obs, N_UNITS, n_points, start=start, points0=truth, control_xyz=follow.current,
+        control_update=follow, **kwargs,
+    )  # fmt: skip
+    assert followed.converged and len(follow.calls) >= 2
+    # the target moved after the start (the point's X moved): it was followed
+    assert follow.current[0, 2] != target_at(truth)[0, 2]
+    settled = target_at(followed.points)
+    direct = adjust_units(
+        obs, N_UNITS, n_points, start=start, points0=truth, control_xyz=settled, **kwargs
+    )
+    np.testing.assert_allclose(followed.points, direct.points, rtol=0, atol=1e-7)
+    # the statistics come from the factor of the last step (formed a step
+    # before the state settled): w to 1e-5
+    np.testing.assert_allclose(followed.control_w, direct.control_w, rtol=0, atol=1e-5)
+
+
+def test_projected_points_change_the_path_not_the_solution():
+    """From units turned 0.8 rad off, with the points projected the solution
+    is the one without, in fewer iterations."""
+    unit, point, xyz, w_local, rotations, truth, n_points = _problem(5)
+    obs = UnitObservations(unit, point, xyz, _in_work(unit, w_local, rotations))
+    control_xyz, control_sigma = _control(truth)
+    off = np.array([matrix_from_rotvec([0.8, 0.0, 0.2]) @ r for r in rotations])
+    kwargs = {
+        "start": _start(off, truth, obs), "points0": truth, "control_point": CONTROL,
+        "control_xyz": control_xyz, "control_sigma": control_sigma,
+    }  # fmt: skip
+    plain = adjust_units(obs, N_UNITS, n_points, **kwargs)
+    projected = adjust_units(obs, N_UNITS, n_points, project_points=True, **kwargs)
+    assert plain.converged and projected.converged
+    np.testing.assert_allclose(projected.points, plain.points, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(projected.control_w, plain.control_w, rtol=1e-6, atol=1e-9)
+    assert projected.iterations <= plain.iterations
