@@ -12,7 +12,8 @@ import warnings
 from strip_aerotri.errors import StripAerotriWarning
 from strip_aerotri.observations import ControlType
 from strip_aerotri.pipeline import triangulate
-from strip_aerotri.simulate import camera_preset, simulate_strip
+from strip_aerotri.results import StripResult
+from strip_aerotri.simulate import SimulatedStrip, camera_preset, simulate_strip
 
 #: A case of the sweep's camera family (``benchmarks/sweep.py --family camera``,
 #: case 6): 34 one-inch photos across, R4's "fig4" control, 23 µm of
@@ -26,7 +27,7 @@ _CAMERA = {
 }
 
 
-def _strip(camera_errors: dict[str, float] | None) -> object:
+def _strip(camera_errors: dict[str, float] | None) -> SimulatedStrip:
     return simulate_strip(
         34,
         preset=camera_preset(
@@ -49,10 +50,10 @@ def _strip(camera_errors: dict[str, float] | None) -> object:
     )
 
 
-def _triangulate(sim: object) -> tuple[object, list[str]]:
+def _triangulate(sim: SimulatedStrip) -> tuple[StripResult, list[str]]:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", StripAerotriWarning)
-        result = triangulate(sim.observations, sim.control, sim.crs)  # type: ignore[attr-defined]
+        result = triangulate(sim.observations, sim.control, sim.crs)
     return result, [str(w.message) for w in caught if issubclass(w.category, StripAerotriWarning)]
 
 
@@ -72,7 +73,7 @@ def test_a_control_blunder_on_the_same_strip_is_still_rejected() -> None:
     """The rule keeps a bending, not a blunder: the same strip without camera
     errors and a 1 m error at one control point rejects that point alone."""
     sim = _strip(None)
-    control = sim.control  # type: ignore[attr-defined]
+    control = sim.control
     full = [i for i, k in enumerate(control.kind) if k is ControlType.FULL]
     row = full[len(full) // 2]  # one in the middle of the strip
     xyz = control.xyz.copy()
@@ -80,9 +81,9 @@ def test_a_control_blunder_on_the_same_strip_is_still_rejected() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StripAerotriWarning)
         result = triangulate(
-            sim.observations,  # type: ignore[attr-defined]
+            sim.observations,
             dataclasses.replace(control, xyz=xyz),
-            sim.crs,  # type: ignore[attr-defined]
+            sim.crs,
         )
     applied = [r for r in result.ground.rejections if r.stage == "control" and r.applied]
     assert [(r.point, r.component) for r in applied] == [(control.point_ids[row], "height")]
