@@ -12,6 +12,7 @@ import numpy as np
 from .._text import shorten
 from .._version import __version__
 from ..observations import ControlType
+from ..results import AccuracyStatistics
 from .block_page import block_html
 from .calibration import calibration_figures, calibration_html, calibration_outputs
 from .files import format_photos_csv, format_points_csv
@@ -145,6 +146,11 @@ def build_block_report(
             "statistics": statistics(result.check_statistics),
             "points": _control_points(result, check=True),
             "weakly_determined": list(getattr(result, "weak_checks", ())),
+            "statistics_with_weak": statistics(
+                AccuracyStatistics.from_residuals(
+                    np.asarray(result.control_residuals)[np.asarray(result.is_check, dtype=bool)]
+                )
+            ),
         },
         "bundle": (
             {
