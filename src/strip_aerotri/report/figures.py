@@ -475,7 +475,8 @@ def _bars_or_lines(
 def _left_photo_ticks(ax: Any, x: FloatArray | IntArray, result: StripResult) -> None:
     """Tick the pairs (models) at ``x`` by their left photo's id, at most 16."""
     strip = result.strip
-    left = [strip.photo_ids[i] for i in strip.model_photo_positions[:-1]]
+    ids = strip.photo_ids  # a property that builds the tuple: read once
+    left = [ids[i] for i in strip.model_photo_positions[:-1]]
     index = np.asarray(x, dtype=np.intp)
     if index.size == 0 or index.max() >= len(left):
         return
