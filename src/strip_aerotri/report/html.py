@@ -5,11 +5,13 @@ from ``report.json``'s content and the figures.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..options import DEFAULT_SECTIONS
+from .calibration import calibration_figures, calibration_html
 from .figures import Plan, figure_layout, figure_parallax, figure_residuals, figure_ties
 from .html_parts import _esc, _figure, _fmt, _table
 from .values import point_roles
@@ -52,6 +54,19 @@ def _verdict_cell(passed: bool | None) -> tuple[str]:
     return ("<span class='pass'>PASS</span>",) if passed else ("<span class='fail'>FAIL</span>",)
 
 
+@dataclass(frozen=True)
+class StripFigures:
+    """The figures of a strip's page (PNG as base64; None where not drawn)."""
+
+    layout: str | None
+    residuals: str | None
+    parallax: str | None
+    ties: str | None
+    long_strip: bool = False
+    #: the self-calibration's distortion field and cells; None: no such section
+    calibration: tuple[str | None, str | None] | None = None
+
+
 def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     """Text of ``report.html``: one self-contained page (inline PNG figures, no scripts).
 
@@ -61,6 +76,15 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     report : mapping
         :func:`build_report` of the same result.
     """
+    calibration = (report.get("bundle") or {}).get("self_calibration") is not None
+    return html_page(report, draw_figures(result, report["models"], calibration=calibration))
+
+
+def draw_figures(
+    result: StripResult, models: list[dict[str, Any]], *, calibration: bool = False
+) -> StripFigures:
+    """The page's figures of ``result`` (``models``: report.json's ``models``;
+    ``calibration``: also the self-calibration's two)."""
     import matplotlib
 
     style: dict[str, Any] = {
@@ -77,31 +101,33 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
         finite = np.isfinite(points).all(axis=1)
         plan.decide_long(np.vstack([plan.xy(plan.centres), plan.xy(points[finite])]))
         roles = point_roles(result)
-        fig_layout = figure_layout(result, plan, roles)
-        fig_resid = figure_residuals(result, plan)
-        fig_par = figure_parallax(result)
-        fig_ties = figure_ties(result, report["models"])
-        calibration = _calibration_section(result, report)
+        refined = getattr(result, "refined", None)
+        return StripFigures(
+            figure_layout(result, plan, roles),
+            figure_residuals(result, plan),
+            figure_parallax(result),
+            figure_ties(result, models),
+            plan.long,
+            calibration_figures(refined.self_calibration)
+            if calibration and refined is not None
+            else None,
+        )
+
+
+def html_page(report: Mapping[str, Any], figures: StripFigures) -> str:
+    """The page of ``report`` (report.json's content) with its ``figures``."""
+    record = (report.get("bundle") or {}).get("self_calibration")
     return _html_page(
         report,
-        fig_layout,
-        fig_resid,
-        fig_par,
-        fig_ties,
-        long_strip=plan.long,
-        calibration=calibration,
+        figures.layout,
+        figures.residuals,
+        figures.parallax,
+        figures.ties,
+        long_strip=figures.long_strip,
+        calibration=""
+        if figures.calibration is None or record is None
+        else calibration_html(record, figures.calibration),
     )
-
-
-def _calibration_section(result: StripResult, report: Mapping[str, Any]) -> str:
-    """The self-calibration's section with its figures ('' without one)."""
-    from .calibration import calibration_figures, calibration_html
-
-    refined = getattr(result, "refined", None)
-    record = (report.get("bundle") or {}).get("self_calibration")
-    if refined is None or record is None:
-        return ""
-    return calibration_html(record, calibration_figures(refined.self_calibration))
 
 
 #: The columns of an accuracy row (:func:`stat_row`).

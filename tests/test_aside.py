@@ -1,0 +1,188 @@
+"""The report's second process (report/aside.py): the same value as in
+process, errors reported here, Ctrl-C ending both, no stray process."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from strip_aerotri.report.aside import FORK_ENV, aside, fork_allowed
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
+
+PARENT = os.getpid()
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, dead but not reaped, counts as gone)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+    return state != "Z"
+
+
+def _where() -> tuple[int, np.ndarray]:
+    return os.getpid(), np.arange(100_000, dtype=np.float64) ** 0.5
+
+
+def test_the_value_comes_from_a_child_and_equals_the_value_here(monkeypatch):
+    monkeypatch.delenv(FORK_ENV, raising=False)
+    assert fork_allowed()
+    with aside(_where) as pending:
+        pid, values = pending.result()
+    assert pid != PARENT  # drawn in a second process
+    assert np.array_equal(values, _where()[1])
+    assert pending.result()[0] == pid  # asked again: the same value, no second call
+
+
+def test_no_fork_when_disabled_or_other_threads_run(monkeypatch):
+    monkeypatch.setenv(FORK_ENV, "0")
+    with aside(_where) as pending:
+        assert pending.result()[0] == PARENT
+    monkeypatch.delenv(FORK_ENV)
+    stop = threading.Event()
+    worker = threading.Thread(target=stop.wait)
+    worker.start()
+    try:
+        assert not fork_allowed()
+        with aside(_where) as pending:
+            assert pending.result()[0] == PARENT
+    finally:
+        stop.set()
+        worker.join()
+
+
+def _fails() -> int:
+    raise ValueError("figure 2: no axes")
+
+
+def test_an_error_in_the_child_is_raised_here():
+    with aside(_fails) as pending, pytest.raises(ValueError, match="figure 2: no axes"):
+        pending.result()
+
+
+def _fails_in_the_child_only() -> int:
+    if os.getpid() != PARENT:
+        raise MemoryError
+    return 7
+
+
+def _killed_in_the_child() -> int:
+    if os.getpid() != PARENT:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return 8
+
+
+def test_a_child_that_fails_or_dies_is_replaced_by_the_call_here():
+    with aside(_fails_in_the_child_only) as pending:
+        assert pending.result() == 7
+    with aside(_killed_in_the_child) as pending:
+        assert pending.result() == 8
+
+
+def _sleeps_and_names_itself(path: str) -> int:
+    Path(path).write_text(str(os.getpid()))
+    time.sleep(60)
+    return 0
+
+
+def test_leaving_the_block_kills_and_reaps_the_child(tmp_path):
+    note = tmp_path / "pid"
+    started = time.monotonic()
+    with pytest.raises(RuntimeError), aside(lambda: _sleeps_and_names_itself(str(note))):
+        while not note.exists() or not note.read_text():
+            time.sleep(0.01)
+        raise RuntimeError("the run failed")
+    assert time.monotonic() - started < 10
+    assert not _alive(int(note.read_text()))
+
+
+_SCRIPT = """
+import os, sys, time
+from pathlib import Path
+from strip_aerotri.report.aside import aside
+
+def work():
+    Path(sys.argv[1]).write_text(str(os.getpid()))
+    time.sleep(60)
+    return 1
+
+print("before the fork", end="")  # buffered: written once, by the parent
+with aside(work) as pending:
+    pending.result()
+"""
+
+
+def test_ctrl_c_stops_both_processes_at_once(tmp_path):
+    note = tmp_path / "pid"
+    script = tmp_path / "run.py"
+    script.write_text(textwrap.dedent(_SCRIPT))
+    proc = subprocess.Popen(
+        [sys.executable, str(script), str(note)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,  # its own process group, as a terminal's job
+    )
+    deadline = time.monotonic() + 60
+    while not (note.exists() and note.read_text()) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    child = int(note.read_text())
+    sent = time.monotonic()
+    os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C sends: the whole group
+    out, err = proc.communicate(timeout=30)
+    assert time.monotonic() - sent < 1.0
+    assert proc.returncode != 0 and b"KeyboardInterrupt" in err
+    assert out == b"before the fork"
+    assert not _alive(child)
+
+
+def test_sigint_to_the_parent_alone_ends_the_child_too(tmp_path):
+    note = tmp_path / "pid"
+    script = tmp_path / "run.py"
+    script.write_text(textwrap.dedent(_SCRIPT))
+    proc = subprocess.Popen(
+        [sys.executable, str(script), str(note)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 60
+    while not (note.exists() and note.read_text()) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    child = int(note.read_text())
+    proc.send_signal(signal.SIGINT)
+    proc.communicate(timeout=30)
+    deadline = time.monotonic() + 5
+    while _alive(child) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert not _alive(child)
+
+
+def test_the_page_drawn_aside_equals_the_page_drawn_here(monkeypatch):
+    """report.html and every other file of a run, byte for byte, with the
+    figures drawn in a second process and in this one."""
+    from strip_aerotri import simulate_strip, triangulate
+    from strip_aerotri.report.outputs import build_outputs
+
+    sim = simulate_strip(9, preset="drone", seed=3)
+    result = triangulate(sim.observations, sim.control, sim.crs)
+    monkeypatch.delenv(FORK_ENV, raising=False)
+    forked = build_outputs(result)
+    monkeypatch.setenv(FORK_ENV, "0")
+    here = build_outputs(result)
+    assert forked.keys() == here.keys()
+    stamp = re.compile(rb"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00")
+    for name in here:
+        assert stamp.sub(b"", forked[name]) == stamp.sub(b"", here[name]), name
+    assert forked["report.html"].count(b"data:image/png;base64,") == 4
