@@ -12,9 +12,15 @@ import numpy as np
 
 from ..options import DEFAULT_SECTIONS
 from .calibration import calibration_figures, calibration_html
-from .figures import Plan, figure_layout, figure_parallax, figure_residuals, figure_ties
+from .figures import (
+    StripFigureData,
+    figure_data,
+    figure_layout,
+    figure_parallax,
+    figure_residuals,
+    figure_ties,
+)
 from .html_parts import _esc, _figure, _fmt, _table
-from .values import point_roles
 from .verdict import Verdict, criterion_label, overall_verdict
 
 if TYPE_CHECKING:
@@ -77,14 +83,12 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
         :func:`build_report` of the same result.
     """
     calibration = (report.get("bundle") or {}).get("self_calibration") is not None
-    return html_page(report, draw_figures(result, report["models"], calibration=calibration))
+    data = figure_data(result, report["models"], calibration=calibration)
+    return html_page(report, draw_figures(data))
 
 
-def draw_figures(
-    result: StripResult, models: list[dict[str, Any]], *, calibration: bool = False
-) -> StripFigures:
-    """The page's figures of ``result`` (``models``: report.json's ``models``;
-    ``calibration``: also the self-calibration's two)."""
+def draw_figures(data: StripFigureData) -> StripFigures:
+    """The page's figures of :func:`.figures.figure_data`'s inputs."""
     import matplotlib
 
     style: dict[str, Any] = {
@@ -96,21 +100,13 @@ def draw_figures(
         "figure.constrained_layout.use": True,
     }
     with matplotlib.rc_context(style):  # type: ignore[arg-type]  # typed as literal keys
-        plan = Plan(result)
-        points = np.asarray(result.points, dtype=np.float64)
-        finite = np.isfinite(points).all(axis=1)
-        plan.decide_long(np.vstack([plan.xy(plan.centres), plan.xy(points[finite])]))
-        roles = point_roles(result)
-        refined = getattr(result, "refined", None)
         return StripFigures(
-            figure_layout(result, plan, roles),
-            figure_residuals(result, plan),
-            figure_parallax(result),
-            figure_ties(result, models),
-            plan.long,
-            calibration_figures(refined.self_calibration)
-            if calibration and refined is not None
-            else None,
+            figure_layout(data),
+            figure_residuals(data),
+            figure_parallax(data),
+            figure_ties(data),
+            data.plan.long,
+            None if data.calibration is None else calibration_figures(data.calibration),
         )
 
 

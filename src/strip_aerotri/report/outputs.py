@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING, Any
 
 from .aside import aside
 from .calibration import calibration_outputs
-from .html import StripFigures, build_html, draw_figures, html_page
+from .figures import figure_data
+from .html import build_html, draw_figures, html_page
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, build_report, model_records
 from .tables import photos_csv, points_csv, points_geojson
 from .values import point_roles
@@ -82,8 +83,12 @@ def strip_outputs(
     """
     refined = getattr(result, "refined", None)
     outcome = None if refined is None else refined.self_calibration
-    drawing = partial(_figures, result, calibration=outcome is not None)
-    with aside(drawing) if html else nullcontext() as figures:
+    drawing = (
+        aside(partial(draw_figures, figure_data(result, model_records(result), calibration=True)))
+        if html  # calibration: the outcome's figures if the refinement has one
+        else nullcontext()
+    )
+    with drawing as figures:
         notes: list[str] = []
         geojson = points_geojson(result)
         if geojson is None:
@@ -112,8 +117,3 @@ def strip_outputs(
             files["report.html"] = html_page(report, figures.result()).encode("utf-8")
     files["report.json"] = text.encode("utf-8")
     return files, report
-
-
-def _figures(result: StripResult, *, calibration: bool) -> StripFigures:
-    """The page's figures (the models' tie differences as report.json has them)."""
-    return draw_figures(result, model_records(result), calibration=calibration)
