@@ -11,12 +11,13 @@ import sys
 import textwrap
 import threading
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from strip_aerotri.report.aside import FORK_ENV, aside, fork_allowed
+from strip_aerotri.report.aside import FORK_ENV, Standby, aside, fork_allowed
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
 
@@ -186,3 +187,154 @@ def test_the_page_drawn_aside_equals_the_page_drawn_here(monkeypatch):
     for name in here:
         assert stamp.sub(b"", forked[name]) == stamp.sub(b"", here[name]), name
     assert forked["report.html"].count(b"data:image/png;base64,") == 4
+
+
+def _prepare() -> None:
+    os.environ["STRIPAERO_TEST_PREPARED"] = str(os.getpid())
+
+
+def _job(scale: float, values: np.ndarray) -> tuple[int, str | None, np.ndarray]:
+    return os.getpid(), os.environ.get("STRIPAERO_TEST_PREPARED"), scale * values
+
+
+def test_a_standby_prepares_then_does_the_job_sent_to_it(monkeypatch):
+    monkeypatch.delenv(FORK_ENV, raising=False)
+    values = np.linspace(0.0, 1.0, 50_001)
+    with Standby(_prepare) as standby:
+        with standby.submit(_job, 2.0, values) as pending:
+            pid, prepared, doubled = pending.result()
+    assert pid != PARENT and prepared == str(pid)  # prepared in the child that did the job
+    assert "STRIPAERO_TEST_PREPARED" not in os.environ
+    assert np.array_equal(doubled, 2.0 * values)
+
+
+def test_a_standby_without_fork_or_with_a_job_that_does_not_pickle_calls_here(monkeypatch):
+    monkeypatch.setenv(FORK_ENV, "0")
+    with Standby(_prepare) as standby, standby.submit(_job, 1.0, np.ones(3)) as pending:
+        assert pending.result()[0] == PARENT
+    monkeypatch.delenv(FORK_ENV)
+    with Standby(_prepare) as standby:
+        local = lambda: PARENT  # noqa: E731  # a lambda does not pickle
+        with standby.submit(local) as pending:
+            assert pending.result() == PARENT
+
+
+def _names_itself(path: str) -> None:
+    Path(path).write_text(str(os.getpid()))
+
+
+def test_a_standby_given_no_job_is_killed_and_reaped(tmp_path):
+    note = tmp_path / "pid"
+    with Standby(partial(_names_itself, str(note))):
+        deadline = time.monotonic() + 30
+        while not (note.exists() and note.read_text()) and time.monotonic() < deadline:
+            time.sleep(0.01)
+    assert not _alive(int(note.read_text()))
+
+
+_STANDBY_SCRIPT = """
+import os, sys, time
+from functools import partial
+from pathlib import Path
+from strip_aerotri.report.aside import Standby
+
+def prepare():
+    Path(sys.argv[1]).write_text(str(os.getpid()))
+
+with Standby(prepare):
+    time.sleep(60)  # the adjustment
+"""
+
+
+@pytest.mark.parametrize("whom", ["group", "parent"])
+def test_ctrl_c_during_the_adjustment_ends_the_standby_too(tmp_path, whom):
+    note = tmp_path / "pid"
+    script = tmp_path / "run.py"
+    script.write_text(textwrap.dedent(_STANDBY_SCRIPT))
+    proc = subprocess.Popen(
+        [sys.executable, str(script), str(note)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 60
+    while not (note.exists() and note.read_text()) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    child = int(note.read_text())
+    sent = time.monotonic()
+    if whom == "group":
+        os.killpg(proc.pid, signal.SIGINT)
+    else:
+        proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert time.monotonic() - sent < 1.0
+    assert b"KeyboardInterrupt" in err
+    deadline = time.monotonic() + 5
+    while _alive(child) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert not _alive(child)
+
+
+def test_stripaero_run_writes_the_same_folder_with_and_without_its_second_process(
+    tmp_path, monkeypatch
+):
+    from click.testing import CliRunner
+
+    from strip_aerotri import simulate_strip
+    from strip_aerotri.cli.main import cli
+
+    toml = simulate_strip(12, preset="drone", seed=4).write_project(tmp_path / "p")
+    folders = {}
+    for fork in ("1", "0"):
+        monkeypatch.setenv(FORK_ENV, fork)
+        out = tmp_path / f"out-{fork}"
+        done = CliRunner().invoke(cli, ["-q", "run", str(toml), "--out", str(out)])
+        assert done.exit_code == 0, done.output
+        folders[fork] = out
+    names = sorted(p.name for p in folders["1"].iterdir())
+    assert names == sorted(p.name for p in folders["0"].iterdir())
+    assert "report.html" in names
+    stamp = re.compile(rb"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00")
+    import json
+
+    stages = json.loads((folders["1"] / "report.json").read_text())["timings_s"]
+    assert stages
+    # the stages' seconds: in report.json and in the page's table of timings
+    words = b"|".join(re.escape(k.encode()) for k in stages)
+    timing = re.compile(
+        rb'("timings_s": \{[^}]*\})|(<td class=.l.>(' + words + rb")</td><td>[\d.]+)"
+    )
+    for name in names:
+        a, b = ((folders[f] / name).read_bytes() for f in ("1", "0"))
+        if name == ".stripaero-result":
+            continue
+        assert timing.sub(b"", stamp.sub(b"", a)) == timing.sub(b"", stamp.sub(b"", b)), name
+
+
+_AT_FORK_SCRIPT = """
+import os, signal, sys, time
+from strip_aerotri.report.aside import Standby
+
+def ctrl_c_inside_the_fork():
+    os.register_at_fork(after_in_parent=lambda: os.kill(os.getpid(), signal.SIGINT))
+
+ctrl_c_inside_the_fork()
+try:
+    with Standby(lambda: time.sleep(60)) as standby:
+        time.sleep(5)  # the adjustment: must not be reached
+        print("went on")
+except KeyboardInterrupt:
+    print("interrupted")
+"""
+
+
+def test_a_ctrl_c_during_the_fork_is_not_lost(tmp_path):
+    """A SIGINT that lands in Python's at-fork hooks is raised after the
+    fork, not printed as "Exception ignored" and dropped."""
+    script = tmp_path / "run.py"
+    script.write_text(textwrap.dedent(_AT_FORK_SCRIPT))
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert done.stdout.strip() == "interrupted", (done.stdout, done.stderr)
+    assert "Exception ignored" not in done.stderr

@@ -87,6 +87,15 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     return html_page(report, draw_figures(data))
 
 
+def prepare_drawing() -> None:
+    """Import what :func:`draw_figures` needs (matplotlib, its Agg canvas),
+    so that a process waiting to draw has it loaded (:class:`.aside.Standby`)."""
+    import matplotlib.collections
+    import matplotlib.colors
+    import matplotlib.figure  # noqa: F401
+    from matplotlib.backends import backend_agg  # noqa: F401
+
+
 def draw_figures(data: StripFigureData) -> StripFigures:
     """The page's figures of :func:`.figures.figure_data`'s inputs."""
     import matplotlib

@@ -11,14 +11,14 @@ described in ``docs/outputs.md``.
 from __future__ import annotations
 
 import json
-from contextlib import nullcontext
+from contextlib import AbstractContextManager, nullcontext
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
-from .aside import aside
+from .aside import Aside, Standby, aside
 from .calibration import calibration_outputs
 from .figures import figure_data
-from .html import build_html, draw_figures, html_page
+from .html import StripFigures, build_html, draw_figures, html_page
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, build_report, model_records
 from .tables import photos_csv, points_csv, points_geojson
 from .values import point_roles
@@ -44,6 +44,7 @@ def build_outputs(
     project: Project | None = None,
     map_scale: float | None = None,
     html: bool = True,
+    standby: Standby | None = None,
 ) -> dict[str, bytes]:
     """Every file of a result folder, name -> content (UTF-8 bytes).
 
@@ -57,6 +58,10 @@ def build_outputs(
         project's ``[report] map_scale``).
     html : bool
         Also build ``report.html`` (matplotlib figures; the slowest part).
+    standby : Standby, optional
+        A process started before the adjustment (:class:`.aside.Standby`
+        with :func:`.html.prepare_drawing`) that draws the figures; without
+        one they are drawn in a process forked now (:func:`.aside.aside`).
 
     Returns
     -------
@@ -66,7 +71,9 @@ def build_outputs(
         docs/outputs.md).  When the GeoJSON is left out, ``report.json``
         says so under ``warnings``.
     """
-    return strip_outputs(result, project=project, map_scale=map_scale, html=html)[0]
+    return strip_outputs(result, project=project, map_scale=map_scale, html=html, standby=standby)[
+        0
+    ]
 
 
 def strip_outputs(
@@ -75,6 +82,7 @@ def strip_outputs(
     project: Project | None = None,
     map_scale: float | None = None,
     html: bool = True,
+    standby: Standby | None = None,
 ) -> tuple[dict[str, bytes], dict[str, Any]]:
     """:func:`build_outputs` and the content of ``report.json`` it wrote.
 
@@ -83,11 +91,14 @@ def strip_outputs(
     """
     refined = getattr(result, "refined", None)
     outcome = None if refined is None else refined.self_calibration
-    drawing = (
-        aside(partial(draw_figures, figure_data(result, model_records(result), calibration=True)))
-        if html  # calibration: the outcome's figures if the refinement has one
-        else nullcontext()
-    )
+    drawing: AbstractContextManager[Aside[StripFigures] | None] = nullcontext()
+    if html:  # calibration: the outcome's figures if the refinement has one
+        data = figure_data(result, model_records(result), calibration=True)
+        drawing = (
+            aside(partial(draw_figures, data))
+            if standby is None
+            else standby.submit(draw_figures, data)
+        )
     with drawing as figures:
         notes: list[str] = []
         geojson = points_geojson(result)
