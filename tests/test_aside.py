@@ -33,6 +33,23 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
+def _started(tmp_path: Path, source: str, note: Path) -> tuple[subprocess.Popen[bytes], int]:
+    """Run ``source`` as a script in its own process group (as a terminal's
+    job) and wait until its child has written its pid to ``note``."""
+    script = tmp_path / "run.py"
+    script.write_text(textwrap.dedent(source))
+    proc = subprocess.Popen(
+        [sys.executable, str(script), str(note)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 60
+    while not (note.exists() and note.read_text()) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return proc, int(note.read_text())
+
+
 def _where() -> tuple[int, np.ndarray]:
     return os.getpid(), np.arange(100_000, dtype=np.float64) ** 0.5
 
@@ -127,18 +144,7 @@ with aside(work) as pending:
 
 def test_ctrl_c_stops_both_processes_at_once(tmp_path):
     note = tmp_path / "pid"
-    script = tmp_path / "run.py"
-    script.write_text(textwrap.dedent(_SCRIPT))
-    proc = subprocess.Popen(
-        [sys.executable, str(script), str(note)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        start_new_session=True,  # its own process group, as a terminal's job
-    )
-    deadline = time.monotonic() + 60
-    while not (note.exists() and note.read_text()) and time.monotonic() < deadline:
-        time.sleep(0.02)
-    child = int(note.read_text())
+    proc, child = _started(tmp_path, _SCRIPT, note)
     sent = time.monotonic()
     os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C sends: the whole group
     out, err = proc.communicate(timeout=30)
@@ -150,18 +156,7 @@ def test_ctrl_c_stops_both_processes_at_once(tmp_path):
 
 def test_sigint_to_the_parent_alone_ends_the_child_too(tmp_path):
     note = tmp_path / "pid"
-    script = tmp_path / "run.py"
-    script.write_text(textwrap.dedent(_SCRIPT))
-    proc = subprocess.Popen(
-        [sys.executable, str(script), str(note)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        start_new_session=True,
-    )
-    deadline = time.monotonic() + 60
-    while not (note.exists() and note.read_text()) and time.monotonic() < deadline:
-        time.sleep(0.02)
-    child = int(note.read_text())
+    proc, child = _started(tmp_path, _SCRIPT, note)
     proc.send_signal(signal.SIGINT)
     proc.communicate(timeout=30)
     deadline = time.monotonic() + 5
@@ -249,18 +244,7 @@ with Standby(prepare):
 @pytest.mark.parametrize("whom", ["group", "parent"])
 def test_ctrl_c_during_the_adjustment_ends_the_standby_too(tmp_path, whom):
     note = tmp_path / "pid"
-    script = tmp_path / "run.py"
-    script.write_text(textwrap.dedent(_STANDBY_SCRIPT))
-    proc = subprocess.Popen(
-        [sys.executable, str(script), str(note)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        start_new_session=True,
-    )
-    deadline = time.monotonic() + 60
-    while not (note.exists() and note.read_text()) and time.monotonic() < deadline:
-        time.sleep(0.02)
-    child = int(note.read_text())
+    proc, child = _started(tmp_path, _STANDBY_SCRIPT, note)
     sent = time.monotonic()
     if whom == "group":
         os.killpg(proc.pid, signal.SIGINT)
