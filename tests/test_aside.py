@@ -322,3 +322,39 @@ def test_a_ctrl_c_during_the_fork_is_not_lost(tmp_path):
     )
     assert done.stdout.strip() == "interrupted", (done.stdout, done.stderr)
     assert "Exception ignored" not in done.stderr
+
+
+_MODULES_SCRIPT = """
+import sys
+from strip_aerotri.cli.main import cli
+try:
+    cli(["-q", "run", sys.argv[1], "--out", sys.argv[2]])
+except SystemExit as exc:
+    assert not exc.code, exc.code
+print(*(name in sys.modules for name in ("matplotlib", "scipy.stats")))
+"""
+
+
+@pytest.mark.parametrize(("fork", "matplotlib_here"), [("1", False), ("0", True)])
+def test_the_run_itself_imports_neither_matplotlib_nor_scipy_stats(
+    tmp_path, monkeypatch, fork, matplotlib_here
+):
+    """matplotlib is loaded by the drawing process only (in the run's own
+    process with STRIPAERO_FORK=0), scipy.stats by neither."""
+    from strip_aerotri import simulate_strip
+
+    toml = simulate_strip(10, preset="drone", seed=6).write_project(tmp_path / "p")
+    script = tmp_path / "modules.py"
+    script.write_text(textwrap.dedent(_MODULES_SCRIPT))
+    env = {**os.environ, FORK_ENV: fork}
+    done = subprocess.run(
+        [sys.executable, str(script), str(toml), str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split()[-2:] == [str(matplotlib_here), "False"]
+    assert (tmp_path / "out" / "report.html").read_text().count("data:image/png") == 4
