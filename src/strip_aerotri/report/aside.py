@@ -25,9 +25,10 @@ What it guarantees:
   exception while waiting, KeyboardInterrupt included;
 * nothing on disk: the child only writes to the pipe, and leaves by
   ``os._exit`` (no atexit handlers, no flushing of the parent's buffers);
-* where forking is not safe or not possible (no ``os.fork``: Windows; other
-  threads running in this process; ``STRIPAERO_FORK=0``), the function is
-  called here, when its value is asked for.
+* where forking is not safe or not possible (anywhere but Linux: Windows has
+  no fork, and macOS's system libraries are not safe in a forked child;
+  other threads running in this process; ``STRIPAERO_FORK=0``), the
+  function is called here, when its value is asked for.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import contextlib
 import os
 import pickle
 import signal
+import sys
 import threading
 from collections.abc import Callable
 from functools import partial
@@ -53,11 +55,13 @@ _VALUE, _FAILED = b"V", b"E"
 
 
 def fork_allowed() -> bool:
-    """Whether :func:`aside` forks: ``os.fork`` exists, this is the only
-    thread (a fork copies locks other threads may hold) and
-    ``STRIPAERO_FORK`` is not ``0``."""
+    """Whether :func:`aside` forks: on Linux (macOS's system libraries,
+    Accelerate's BLAS among them, are not safe to use in a forked child;
+    Windows has no fork), when this is the only thread (a fork copies locks
+    other threads may hold) and ``STRIPAERO_FORK`` is not ``0``."""
     return (
-        hasattr(os, "fork")
+        sys.platform.startswith("linux")
+        and hasattr(os, "fork")
         and os.environ.get(FORK_ENV, "1").strip() != "0"
         and threading.active_count() == 1
     )
@@ -74,8 +78,6 @@ def _fork(child: Callable[[], object], parent: Callable[[int], object]) -> None:
     the child takes SIGINT's default action (it ends at once) before it
     unblocks it.
     """
-    import sys
-
     for stream in (sys.stdout, sys.stderr):  # nothing buffered is written twice
         stream.flush()
     mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
