@@ -399,8 +399,9 @@ def chance_beyond(
     """
     # scipy.special, not scipy.stats (0.2-0.35 s to import, a tenth of a run):
     # P(X >= k) of X ~ B(n, p) is the regularised incomplete beta I_p(k, n - k + 1),
-    # the same Boost ibeta that ``binom.sf(k - 1, n, p)`` calls (bit for bit), and
-    # Φ(−x) is ``ndtr(-x)``, which ``norm.sf(x)`` returns.
+    # the same Boost ibeta that ``binom.sf(k - 1, n, p)`` calls (bit for bit from
+    # scipy 1.12; cephes's before, within 1e-10), and Φ(−x) is ``ndtr(-x)``,
+    # which ``norm.sf(x)`` returns.
     from scipy.special import betainc, ndtr
 
     if count <= 0:
