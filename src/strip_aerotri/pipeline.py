@@ -21,6 +21,7 @@ from .errors import GeometryError
 from .geodesy import GroundCRS
 from .ground.common import image_scale
 from .ground.polynomials import adjust_to_ground
+from .ground.systematic import self_calibration_follows
 from .observations import (
     ControlPoints,
     GnssCentres,
@@ -190,18 +191,22 @@ def triangulate(
     )
     timings["strip_formation"] = time.perf_counter() - t0
     t1 = time.perf_counter()
-    if ground_options.construction is Construction.MODELS:
-        from .ground.models import adjust_models_to_ground
+    # the stages' warnings name self-calibration as under way when the bundle does it
+    with self_calibration_follows(
+        self_calibration is not None and options.refine is Refine.BUNDLE
+    ):
+        if ground_options.construction is Construction.MODELS:
+            from .ground.models import adjust_models_to_ground
 
-        say("transforming the models onto the control")
-        ground = adjust_models_to_ground(
-            strip, control, crs, lines=lines, options=ground_options, blunders=blunders
-        )
-    else:
-        say("orienting the strip on the control")
-        ground = adjust_to_ground(
-            strip, control, crs, lines=lines, options=ground_options, blunders=blunders
-        )
+            say("transforming the models onto the control")
+            ground = adjust_models_to_ground(
+                strip, control, crs, lines=lines, options=ground_options, blunders=blunders
+            )
+        else:
+            say("orienting the strip on the control")
+            ground = adjust_to_ground(
+                strip, control, crs, lines=lines, options=ground_options, blunders=blunders
+            )
     timings["ground"] = time.perf_counter() - t1
     # the tie test's residuals, in model base lengths until now, in metres
     model_per_mm, _ = image_scale(strip)
@@ -262,7 +267,7 @@ def triangulate(
             refined=refined,
             warnings=result.warnings + tuple(refined.warnings),
         )
-    return result
+    return _without_weak_checks(result)
 
 
 @limit_blas_threads
@@ -336,22 +341,73 @@ def triangulate_block(
             f"forming {len(strips)} strips and transforming the block "
             f"({options.block.value})"
         )
-    result = adjust_block(
-        observations,
-        control,
-        crs,
-        strips,
-        strip_options=options.strip_options() if strip_options is None else strip_options,
-        construction=options.block,
-        route=route,
-        blunders=blunders,
-        max_iterations=options.max_iterations,
-        refine=options.refine is Refine.BUNDLE,
-        gnss=gnss,
-        imu=imu,
-        polynomial=int(options.polynomial),
-        self_calibration=self_calibration,
-    )
-    return dataclasses.replace(
+    with self_calibration_follows(
+        self_calibration is not None and options.refine is Refine.BUNDLE
+    ):
+        result = adjust_block(
+            observations,
+            control,
+            crs,
+            strips,
+            strip_options=options.strip_options() if strip_options is None else strip_options,
+            construction=options.block,
+            route=route,
+            blunders=blunders,
+            max_iterations=options.max_iterations,
+            refine=options.refine is Refine.BUNDLE,
+            gnss=gnss,
+            imu=imu,
+            polynomial=int(options.polynomial),
+            self_calibration=self_calibration,
+        )
+    result = dataclasses.replace(
         result, warnings=tuple(warnings) + result.warnings, options=options
+    )
+    return _block_without_weak_checks(result, crs)
+
+
+def _without_weak_checks(result: StripResult) -> StripResult:
+    """The check statistics without the weakly determined check points, and a
+    warning naming each (:mod:`strip_aerotri.ground.check_precision`)."""
+    from .ground.check_precision import (
+        check_statistics_without,
+        weak_check_message,
+        weak_checks_of,
+    )
+
+    ground, refined = result.ground, result.refined
+    final = ground if refined is None else refined  # the photos as delivered
+    weak = weak_checks_of(result.strip.observations, result.control, ground.crs, ground, final)
+    if not weak:
+        return result
+    if refined is not None:
+        refined = dataclasses.replace(
+            refined, check_statistics=check_statistics_without(refined, result.control, weak)
+        )
+    return dataclasses.replace(
+        result,
+        check_statistics=check_statistics_without(ground, result.control, weak),
+        refined=refined,
+        warnings=result.warnings + tuple(weak_check_message(w) for w in weak),
+        weak_checks=tuple(w.point for w in weak),
+    )
+
+
+def _block_without_weak_checks(result: BlockResult, crs: GroundCRS | str) -> BlockResult:
+    """:func:`_without_weak_checks` of a block."""
+    from .ground.check_precision import (
+        check_statistics_without,
+        weak_check_message,
+        weak_checks_of,
+    )
+
+    ground_crs = crs if isinstance(crs, GroundCRS) else GroundCRS.from_user_input(crs)
+    weak = weak_checks_of(result.observations, result.control, ground_crs, result, result)
+    if not weak:
+        return result
+    return dataclasses.replace(
+        result,
+        check_statistics=check_statistics_without(result, result.control, weak),
+        warnings=result.warnings + tuple(weak_check_message(w) for w in weak),
+        weak_checks=tuple(w.point for w in weak),
     )

@@ -56,8 +56,9 @@ from ..results import (
     Rejection,
     StripResult,
 )
+from .photo_tests import _directional_tests
 from .selfcal import final_outcome
-from .snooping import GNSS_STAGE, IMU_STAGE, _directional_tests, refine_frame
+from .snooping import GNSS_STAGE, IMU_STAGE, refine_frame
 
 __all__ = [
     "FrameRefinement",
@@ -573,6 +574,7 @@ def _passes(
     control_frame_prev: FloatArray | None = None
     notes: list[str] = []
     spec, chosen = self_calibration, None
+    control_tested = True
     for _ in range(_MAX_PASSES):
         t0 = time.perf_counter()
         filled = np.where(np.isnan(given_crs), adjusted_crs[idx], given_crs)
@@ -606,7 +608,9 @@ def _passes(
             gnss_used=gnss_used,
             imu_used=imu_used,
             self_calibration=spec,
+            control_tested=control_tested,
         )
+        control_tested = fr.control_tested  # kept for failing alike: kept in later passes
         t_bundle += time.perf_counter() - t0
         if self_calibration is not None and fr.self_calibration is not None:
             # later passes estimate what the first kept; the outcome keeps its reasons

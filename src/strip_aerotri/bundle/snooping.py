@@ -12,6 +12,7 @@ records (:func:`describe`) and the rejection itself (:meth:`_Sets.reject`).
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -20,13 +21,15 @@ import numpy as np
 from .._stats import leading_failures
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
-from ..errors import GeometryError
+from ..errors import GeometryError, StripAerotriWarning
 from ..geometry.camera_model import CameraModel
 from ..geometry.collinearity import image_jacobian, image_vectors
+from ..ground.systematic import kept_control, systematic_message, systematic_pattern
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
 from .adjust import bundle_adjust, observed_with_sigma
+from .photo_tests import _photo_flags, _photo_tests
 from .selfcal import ebner_base_mm, final_outcome, residual_cells, start_model
 
 __all__ = ["CONTROL_STAGE", "GNSS_STAGE", "IMAGE_STAGE", "IMU_STAGE", "refine_frame"]
@@ -63,6 +66,7 @@ def refine_frame(
     gnss_used: ArrayLike | None = None,
     imu_used: ArrayLike | None = None,
     self_calibration: SelfCalibration | None = None,
+    control_tested: bool = True,
 ) -> FrameRefinement:
     """Bundle adjustment in a Cartesian frame with data snooping.
 
@@ -109,6 +113,9 @@ def refine_frame(
         Estimate the camera with the block (:mod:`strip_aerotri.bundle.selfcal`);
         ``"auto"`` chooses the parameters before the blunder tests, which
         then run with the chosen camera.
+    control_tested : bool
+        False: the control is not tested (an earlier call kept it for
+        failing alike).
 
     Returns
     -------
@@ -118,8 +125,10 @@ def refine_frame(
     ------
     GeometryError
         As :func:`~strip_aerotri.bundle.bundle_adjust`, or more than
-        ``max_fraction`` of the image observations, of the control, of the
-        GNSS centres or of the IMU attitudes fail.
+        ``max_fraction`` of the image observations, of the control (unless
+        the first adjustment's control fails at many points alike: then it
+        is all kept, untested, with a warning), of the GNSS centres or of
+        the IMU attitudes fail.
 
     Notes
     -----
@@ -167,24 +176,17 @@ def refine_frame(
     blunders = blunders or BlunderOptions()
     obs = observations
     inp = _inputs(
-        obs,
-        centres0,
-        rotations0,
-        points0,
-        control_xyz,
-        control_sigma,
-        gnss_centres,
-        gnss_sigma,
-        imu_rotations,
-        imu_sigma,
-        gnss_axes,
-    )
+        obs, centres0, rotations0, points0, control_xyz, control_sigma,
+        gnss_centres, gnss_sigma, imu_rotations, imu_sigma, gnss_axes,
+    )  # fmt: skip
     sets = _Sets.start(inp, blunders, observation_used, control_used, gnss_used, imu_used)
+    sets.control_tested = control_tested
     rejections: list[Rejection] = []
     rounds = iterations = 0
     previous_effect: int | None = None
     state = (inp.centres0, inp.rotations0, inp.points0)
     camera = _Camera.start(inp, sets, self_calibration, max_iterations)
+    first_control: tuple[FloatArray, float] | None = None
     while True:
         pt_used = sets.used_points(inp)
         sub, rows, pts = _compact(obs, sets.keep, pt_used)
@@ -206,68 +208,141 @@ def refine_frame(
         new_points[pts] = res.points
         # keep initial values of dropped points for a possible later round
         state = (res.centres, res.rotations, np.where(pt_used[:, None], new_points, inp.points0))
-        if previous_effect is not None:
-            rejections[previous_effect:] = [
-                dataclasses.replace(r, effect=f"{r.effect}, sigma0 {res.sigma0:.4g} after")
-                for r in rejections[previous_effect:]
-            ]
+        _sigma0_after(rejections, previous_effect, res.sigma0)
         stats = _round_statistics(
             inp, sets, res, new_points, pt_used, sub, rows, pts, compute_precision
         )
-        result = FrameRefinement(
-            centres=res.centres,
-            rotations=res.rotations,
-            points=new_points,
-            point_used=pt_used,
-            observation_used=sets.keep & stats.tested,
-            control_used=sets.ctrl_on & pt_used[:, None],
-            observation_rejected=sets.obs_rejected.copy(),
-            control_rejected=sets.ctrl_rejected.copy(),
-            image_residuals_mm=stats.v_img,
-            image_w=stats.w_img,
-            image_redundancy=stats.r_img,
-            control_residuals=stats.ctrl_res,
-            control_w=stats.w_ctrl,
-            point_std=_expand(res.point_std, pts, inp.n_points),
-            centre_std=res.centre_std,
-            rotation_std=res.rotation_std,
-            sigma0=res.sigma0,
-            redundancy=res.redundancy,
-            iterations=iterations,
-            rounds=rounds,
-            converged=res.converged,
-            rejections=tuple(rejections),
-            bundle=res,
-            gnss_used=sets.g_on.copy(),
-            gnss_rejected=sets.g_rejected.copy(),
-            imu_used=sets.i_on.copy(),
-            imu_rejected=sets.i_rejected.copy(),
-            self_calibration=camera.outcome(
-                res, obs.xy, np.where(sets.keep[:, None], stats.v_img, np.nan)
-            ),
+        result = _refinement(
+            _RoundOutcome(res, stats, new_points, pt_used, iterations, rounds),
+            sets,
+            camera,
+            obs,
+            rejections,
         )
         if not blunders.testing:
             return result
         failures = _failures(inp, sets, res, stats, blunders)
+        if first_control is None:
+            first_control = (_control_w(sets, stats), failures.crit_ctrl)
         if not failures.found:
             return result
-        worst = max(failures.found)
-        if not blunders.rejecting:
-            picks = [(f[1], f[2]) for f in sorted(failures.found, reverse=True)]
-        elif worst[1] == "image":
-            # every failing ray that leads its point and its photo: none is the
-            # echo of another rejection of the round
-            leaders = leading_failures(failures.ray_w, failures.crit_img, obs.point, obs.photo)
-            picks = [("image", int(k)) for k in leaders]
-        else:
-            picks = [(worst[1], worst[2])]
+        picks = _picks(failures, blunders, obs)
         new_rejections = describe(obs, picks, failures, stats, res.sigma0, blunders)
         if not blunders.rejecting:
             return dataclasses.replace(result, rejections=tuple(rejections + new_rejections))
         previous_effect = len(rejections)
         rejections.extend(new_rejections)
         sets.reject(picks)
+        if sets.control_over_limit(blunders) and _keep_systematic(
+            first_control, camera.model is not None
+        ):
+            rejections = kept_control(rejections)
+            sets.keep_control()
+            previous_effect = None
         sets.check_fractions(inp, blunders)
+
+
+def _sigma0_after(rejections: list[Rejection], since: int | None, sigma0: float) -> None:
+    """The last round's rejections (from ``since``) told the sigma0 they led to."""
+    if since is not None:
+        rejections[since:] = [
+            dataclasses.replace(r, effect=f"{r.effect}, sigma0 {sigma0:.4g} after")
+            for r in rejections[since:]
+        ]
+
+
+class _RoundOutcome(NamedTuple):
+    """One round's adjustment and statistics, and the counts so far."""
+
+    res: BundleResult
+    stats: _RoundStatistics
+    points: FloatArray  # (P, 3), NaN where not used
+    point_used: BoolArray
+    iterations: int
+    rounds: int
+
+
+def _refinement(
+    rnd: _RoundOutcome,
+    sets: _Sets,
+    camera: _Camera,
+    obs: ImageObservations,
+    rejections: list[Rejection],
+) -> FrameRefinement:
+    """The result of a round, as :func:`refine_frame` returns it."""
+    res, stats, n_points = rnd.res, rnd.stats, rnd.point_used.shape[0]
+    return FrameRefinement(
+        centres=res.centres,
+        rotations=res.rotations,
+        points=rnd.points,
+        point_used=rnd.point_used,
+        observation_used=sets.keep & stats.tested,
+        control_used=sets.ctrl_on & rnd.point_used[:, None],
+        observation_rejected=sets.obs_rejected.copy(),
+        control_rejected=sets.ctrl_rejected.copy(),
+        image_residuals_mm=stats.v_img,
+        image_w=stats.w_img,
+        image_redundancy=stats.r_img,
+        control_residuals=stats.ctrl_res,
+        control_w=stats.w_ctrl,
+        point_std=_expand(res.point_std, np.flatnonzero(rnd.point_used), n_points),
+        centre_std=res.centre_std,
+        rotation_std=res.rotation_std,
+        sigma0=res.sigma0,
+        redundancy=res.redundancy,
+        iterations=rnd.iterations,
+        rounds=rnd.rounds,
+        converged=res.converged,
+        rejections=tuple(rejections),
+        bundle=res,
+        gnss_used=sets.g_on.copy(),
+        gnss_rejected=sets.g_rejected.copy(),
+        imu_used=sets.i_on.copy(),
+        imu_rejected=sets.i_rejected.copy(),
+        self_calibration=camera.outcome(
+            res, obs.xy, np.where(sets.keep[:, None], stats.v_img, np.nan)
+        ),
+        control_tested=sets.control_tested,
+    )
+
+
+def _picks(
+    failures: _Failures, blunders: BlunderOptions, obs: ImageObservations
+) -> list[tuple[str, int]]:
+    """What a round rejects: every failing ray that leads its point and its
+    photo (none is the echo of another rejection of the round), else the
+    worst control component, GNSS centre or IMU attitude; every failure when
+    the tests only flag."""
+    if not blunders.rejecting:
+        return [(f[1], f[2]) for f in sorted(failures.found, reverse=True)]
+    worst = max(failures.found)
+    if worst[1] == "image":
+        leaders = leading_failures(failures.ray_w, failures.crit_img, obs.point, obs.photo)
+        return [("image", int(k)) for k in leaders]
+    return [(worst[1], worst[2])]
+
+
+def _control_w(sets: _Sets, stats: _RoundStatistics) -> FloatArray:
+    """The control's test values (points with control, components; NaN where not tested)."""
+    rows = np.flatnonzero(np.any(sets.ctrl_on, axis=1))
+    return np.where(sets.ctrl_on[rows], stats.w_ctrl[rows], np.nan)
+
+
+def _keep_systematic(first: tuple[FloatArray, float], self_calibrating: bool) -> bool:
+    """True (and a warning) when the first adjustment's control fails at many
+    points alike (:mod:`strip_aerotri.ground.systematic`): camera errors, not
+    blunders, so the control is kept."""
+    w, critical = first
+    if not systematic_pattern(w, critical):
+        return False
+    warnings.warn(
+        systematic_message(
+            "bundle adjustment", w, critical, self_calibrating=self_calibrating
+        ),
+        StripAerotriWarning,
+        stacklevel=4,
+    )
+    return True
 
 
 def _adjust(
@@ -485,6 +560,8 @@ class _Sets:
     i_rejected: BoolArray
     n_img_start: int
     n_ctrl_start: int
+    #: False once the control is kept for failing alike: no more control tests
+    control_tested: bool = True
 
     @classmethod
     def start(
@@ -562,6 +639,17 @@ class _Sets:
                 self.i_on[k] = False
                 self.i_rejected[k] = True
 
+    def control_over_limit(self, blunders: BlunderOptions) -> bool:
+        """More than ``max_fraction`` of the control components rejected."""
+        n_ctrl_rej = self.n_ctrl_start - int(self.ctrl_on.sum())
+        return n_ctrl_rej > blunders.max_fraction * max(self.n_ctrl_start, 1)
+
+    def keep_control(self) -> None:
+        """Every rejected control component back in use, and no more control tests."""
+        self.ctrl_on |= self.ctrl_rejected
+        self.ctrl_rejected[:] = False
+        self.control_tested = False
+
     def check_fractions(self, inp: _Inputs, blunders: BlunderOptions) -> None:
         """GeometryError when a kind of observation lost more than
         ``max_fraction`` to the tests: the rest cannot be trusted either."""
@@ -573,8 +661,7 @@ class _Sets:
                 f"observations fail the blunder test ({n_img_rej} of {self.n_img_start}); the "
                 "observations cannot be trusted"
             )
-        n_ctrl_rej = self.n_ctrl_start - int(self.ctrl_on.sum())
-        if n_ctrl_rej > limit * max(self.n_ctrl_start, 1):
+        if self.control_over_limit(blunders):
             raise GeometryError(
                 f"bundle adjustment: more than {limit:.0%} of the control "
                 "observations fail the blunder test; the control cannot be trusted, or "
@@ -697,8 +784,8 @@ def _failures(
     crit_img = blunders.critical(IMAGE_STAGE, int(np.count_nonzero(used)) * 2)
     ray_w = np.fmax(np.abs(stats.w_img[:, 0]), np.abs(stats.w_img[:, 1]))
     ray_w = np.where(used, ray_w, np.nan)
-    ctrl_on, w_ctrl = sets.ctrl_on, stats.w_ctrl
-    crit_ctrl = blunders.critical(CONTROL_STAGE, int(np.count_nonzero(ctrl_on)))
+    ctrl_on, w_ctrl = sets.ctrl_on & sets.control_tested, stats.w_ctrl
+    crit_ctrl = blunders.critical(CONTROL_STAGE, int(np.count_nonzero(sets.ctrl_on)))
     plan_on = ctrl_on[:, 0] & ctrl_on[:, 1]
     plan_w = np.where(plan_on, np.fmax(np.abs(w_ctrl[:, 0]), np.abs(w_ctrl[:, 1])), np.nan)
     h_w = np.where(ctrl_on[:, 2], np.abs(w_ctrl[:, 2]), np.nan)
@@ -863,73 +950,7 @@ def _compact(
     return sub, rows, points
 
 
-def _photo_flags(values: ArrayLike | None, m: int, name: str) -> BoolArray:
-    """Per-photo booleans (M,), all True when not given."""
-    if values is None:
-        return np.ones(m, bool)
-    flags = np.array(values, dtype=bool)
-    if flags.shape != (m,):
-        raise ValueError(f"Expected `{name}` to have shape {(m,)}, got {flags.shape}")
-    return flags
-
-
-def _photo_tests(
-    v: FloatArray, q_vv: FloatArray, sigma: FloatArray, axes: FloatArray, on: BoolArray
-) -> tuple[FloatArray, FloatArray]:
-    """w-tests and residuals along ``axes`` of the direct photo observations in use.
-
-    ``v`` (M, 3) observed minus adjusted in the frame, ``q_vv`` (M, 3, 3)
-    residual cofactors, ``sigma`` (M, 3), ``axes`` (M, 3, 3) or (3, 3)
-    (columns: test directions in the frame), ``on`` (M,) the photos whose
-    observation is in the adjustment.  Returns ``w`` and the residuals along
-    the axes, both (M, 3), NaN for photos not in use.
-    """
-    m = v.shape[0]
-    w = np.full((m, 3), np.nan)
-    v_axes = np.full((m, 3), np.nan)
-    rows = np.flatnonzero(on)
-    if rows.size:
-        a = np.broadcast_to(axes, (m, 3, 3))[rows]
-        # unobserved components (weight 0) carry NaN: they take no part
-        v_rows = np.nan_to_num(v[rows], nan=0.0)
-        q_rows = np.nan_to_num(q_vv[rows], nan=0.0)  # all NaN without precision: w NaN
-        _, w[rows] = _directional_tests(v_rows, q_rows, 1.0 / sigma[rows] ** 2, a)
-        v_axes[rows] = np.einsum("gia,gi->ga", a, v_rows)
-    return w, v_axes
-
-
 def _expand(values: FloatArray, index: IntArray, n: int) -> FloatArray:
     out = np.full((n, *values.shape[1:]), np.nan)
     out[index] = values
     return out
-
-
-def _directional_tests(
-    v: FloatArray, q_vv: FloatArray, weight: FloatArray, axes: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Redundancy numbers and w-tests of direct observations along given axes.
-
-    Parameters
-    ----------
-    v : ndarray, shape (G, 3)
-        Observed minus adjusted, frame axes.
-    q_vv : ndarray, shape (G, 3, 3)
-        Cofactor matrices of the residuals, frame axes.
-    weight : ndarray, shape (G, 3)
-        Diagonal weights ``1 / sigma**2`` along the frame axes.
-    axes : ndarray, shape (G, 3, 3)
-        Columns: the test directions as unit vectors in the frame.
-
-    Returns
-    -------
-    redundancy, w : ndarray, shape (G, 3)
-        ``diag(Aᵀ Q_vv P A)`` and ``dᵀ P v / sqrt(dᵀ P Q_vv P d)`` per column
-        ``d`` of ``A``; w is NaN where the component has no redundancy.
-    """
-    pa = weight[:, :, None] * axes  # P A
-    redundancy = np.einsum("gia,gij,gja->ga", axes, q_vv, pa)
-    denominator = np.einsum("gia,gij,gja->ga", pa, q_vv, pa)
-    numerator = np.einsum("gia,gi->ga", pa, v)
-    ok = denominator > 1e-12 * np.einsum("gia,gia->ga", pa, axes)
-    w = np.where(ok, numerator / np.sqrt(np.where(ok, denominator, 1.0)), np.nan)
-    return redundancy, w

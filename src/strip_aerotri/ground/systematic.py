@@ -20,7 +20,9 @@ a pattern that changes sign from model to model.)
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import replace
 
 import numpy as np
@@ -35,6 +37,7 @@ __all__ = [
     "MIN_FAILING_POINTS",
     "MIN_FAILING_SHARE",
     "kept_control",
+    "self_calibration_follows",
     "systematic_message",
     "systematic_pattern",
 ]
@@ -63,13 +66,53 @@ def systematic_pattern(w: FloatArray, critical: float) -> bool:
     return bool(failing.max() <= MAX_DOMINANCE * float(np.median(failing)))
 
 
-def systematic_message(stage: str, w: FloatArray, critical: float) -> str:
-    """The warning of a stage that keeps control failing at many points alike."""
+#: True while a stage runs whose result the bundle refinement then
+#: self-calibrates (:func:`self_calibration_follows`): the remedy it names is
+#: already under way.
+_SELF_CALIBRATION_FOLLOWS: ContextVar[bool] = ContextVar("self_calibration_follows", default=False)
+
+
+@contextmanager
+def self_calibration_follows(follows: bool = True) -> Iterator[None]:
+    """Within: the stages' warnings know that a self-calibrating bundle follows."""
+    token = _SELF_CALIBRATION_FOLLOWS.set(follows)
+    try:
+        yield
+    finally:
+        _SELF_CALIBRATION_FOLLOWS.reset(token)
+
+
+def systematic_message(
+    stage: str, w: FloatArray, critical: float, *, self_calibrating: bool = False
+) -> str:
+    """The warning of a stage that keeps control failing at many points alike.
+
+    The remedy named depends on what the run already does: ``self_calibrating``
+    (the stage is a self-calibrating bundle) or a self-calibrating bundle
+    following the stage (:func:`self_calibration_follows`) do not suggest
+    self-calibration again.
+    """
     worst = np.max(np.nan_to_num(np.abs(w)), axis=1, initial=0.0)
     failing = worst[worst > critical]
-    return (
+    head = (
         f"{stage}: {failing.size} of {w.shape[0]} control points fail the blunder test alike "
         f"(|w| {failing.min():.1f} to {failing.max():.1f}, critical {critical:.2f}): "
+    )
+    if self_calibrating:
+        return head + (
+            "the camera is self-calibrated, so camera errors beyond its parameters (another "
+            'set: self_calibration = "ebner12" for film, or a list) or image coordinates '
+            "noisier than their sigma are likely rather than bad control, so the control is "
+            'kept; or follow the bending with block = "strips" and a polynomial'
+        )
+    if _SELF_CALIBRATION_FOLLOWS.get():
+        return head + (
+            "uncorrected camera errors (lens distortion, film or sensor affinity), or image "
+            "coordinates noisier than their sigma, are likely rather than bad control, so the "
+            "control is kept; the bundle refinement's self-calibration estimates the camera "
+            "from these photos next"
+        )
+    return head + (
         "uncorrected camera errors (lens distortion, film or sensor affinity), or image "
         "coordinates noisier than their sigma, are likely rather than bad control, so the "
         "control is kept; calibrate the camera with "

@@ -146,6 +146,7 @@ def build_block_report(
         "check": {
             "statistics": statistics(result.check_statistics),
             "points": _control_points(result, check=True),
+            "weakly_determined": list(getattr(result, "weak_checks", ())),
         },
         "bundle": (
             {

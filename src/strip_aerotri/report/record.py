@@ -407,6 +407,7 @@ def build_report(
         "check": {
             "statistics": statistics(result.check_statistics),
             "points": _control_points(result, check=True),
+            "weakly_determined": list(getattr(result, "weak_checks", ())),
         },
         "tolerances": _tolerances(result, map_scale),
         "bundle": _bundle(result),

@@ -121,6 +121,9 @@ class BlockResult:
     options : AdjustmentOptions or None
         The options the block ran with
         (:func:`strip_aerotri.pipeline.triangulate_block` sets them).
+    weak_checks : tuple of str
+        The check points weakly determined by their own rays, left out of
+        ``check_statistics`` (:mod:`strip_aerotri.ground.check_precision`).
     """
 
     specs: tuple[StripSpec, ...]
@@ -156,6 +159,7 @@ class BlockResult:
     imu: ImuResiduals | None = None
     self_calibration: SelfCalibrationOutcome | None = None
     options: AdjustmentOptions | None = None
+    weak_checks: tuple[str, ...] = ()
 
     @property
     def photo_ids(self) -> tuple[str, ...]:

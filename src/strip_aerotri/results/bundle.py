@@ -321,6 +321,9 @@ class FrameRefinement:
     self_calibration : SelfCalibrationOutcome or None
         The camera's parameters estimated, kept and held (None without
         self-calibration).
+    control_tested : bool
+        False when the control failed at many points alike and was kept
+        untested (:mod:`strip_aerotri.ground.systematic`).
     """
 
     centres: FloatArray
@@ -351,6 +354,7 @@ class FrameRefinement:
     imu_used: BoolArray = field(default_factory=lambda: np.zeros(0, bool))
     imu_rejected: BoolArray = field(default_factory=lambda: np.zeros(0, bool))
     self_calibration: SelfCalibrationOutcome | None = None
+    control_tested: bool = True
 
 
 def _rms(values: FloatArray) -> FloatArray:

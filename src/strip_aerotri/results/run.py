@@ -41,6 +41,9 @@ class StripResult:
         The options the run used (:func:`strip_aerotri.pipeline.triangulate`
         sets them): the route it took and ``photo_step = "auto"`` resolved to
         the step it chose.
+    weak_checks : tuple of str
+        The check points weakly determined by their own rays, left out of
+        ``check_statistics`` (:mod:`strip_aerotri.ground.check_precision`).
     """
 
     strip: StripModel
@@ -52,6 +55,7 @@ class StripResult:
     timings: dict[str, float] = field(default_factory=dict)
     refined: RefinedResult | None = None
     options: AdjustmentOptions | None = None
+    weak_checks: tuple[str, ...] = ()
 
     @property
     def photo_ids(self) -> tuple[str, ...]:
