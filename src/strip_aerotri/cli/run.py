@@ -6,6 +6,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable, Collection, Mapping, Sequence
+from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -322,21 +323,28 @@ def _adjust_and_report(
         f"{project.observations.n_points} points, {len(project.control.point_ids)} "
         f"control and check points, crs {project.crs}"
     )
-    try:
-        result = project_run.run_project(project, progress=echo_progress)
-    except (GeometryError, ConvergenceError) as exc:
-        if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
-            raise  # the message names its file already
-        raise type(exc)(f"{project.path}: {exc}") from exc
-    echo_progress("writing the report")
-    scale = map_scale if map_scale is not None else project.report.map_scale
-    if isinstance(result, BlockResult):
-        from ..report.block import build_block_outputs
+    from ..report.aside import Standby
+    from ..report.html import prepare_drawing
 
-        return result, build_block_outputs(result, project=project, map_scale=scale)
-    from ..report import outputs as report
+    # A strip's figures are drawn by a process that imports matplotlib on the
+    # second core while this one adjusts (report/aside.py).
+    with Standby(prepare_drawing) if not project.is_block else nullcontext() as standby:
+        try:
+            result = project_run.run_project(project, progress=echo_progress)
+        except (GeometryError, ConvergenceError) as exc:
+            if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
+                raise  # the message names its file already
+            raise type(exc)(f"{project.path}: {exc}") from exc
+        echo_progress("writing the report")
+        scale = map_scale if map_scale is not None else project.report.map_scale
+        if isinstance(result, BlockResult):
+            from ..report.block import build_block_outputs
 
-    return result, report.build_outputs(result, project=project, map_scale=scale)
+            return result, build_block_outputs(result, project=project, map_scale=scale)
+        from ..report import outputs as report
+
+        files = report.build_outputs(result, project=project, map_scale=scale, standby=standby)
+        return result, files
 
 
 def _folder_state(folder: ResultFolder) -> Callable[[], str]:

@@ -68,7 +68,8 @@ def _pairs(result: StripResult) -> list[dict[str, Any]]:
     ]
 
 
-def _models(result: StripResult) -> list[dict[str, Any]]:
+def model_records(result: StripResult) -> list[dict[str, Any]]:
+    """report.json's ``models``: each model's photos, points, scale and tie differences."""
     strip = result.strip
     scale = float(result.ground.similarity.transform.scale)
     n_pts = np.bincount(np.asarray(strip.model), minlength=strip.n_models)
@@ -384,7 +385,7 @@ def build_report(
             "max_parallax_history_um": np.asarray(result.strip.relative.history),
         },
         "pairs": _pairs(result),
-        "models": _models(result),
+        "models": model_records(result),
         "ground": {
             "route": ground.route,
             "construction": str(getattr(getattr(ground, "construction", None), "value", "strips")),
