@@ -171,6 +171,12 @@ def test_fc300x_report_lists_the_weak_check_points(tmp_path) -> None:  # type: i
     assert check["weakly_determined"] == ["14", "78"]
     assert check["statistics"]["n_plan"] == 13
     assert {"14", "78"} <= {p["point"] for p in check["points"]}
+    # nothing hidden: the statistics over all 15, from the per-point listing
+    every = check["statistics_with_weak"]
+    assert every["n_plan"] == 15
+    plan = [p["plan_m"] for p in check["points"]]
+    assert every["rmse_plan_m"] == pytest.approx(float(np.sqrt(np.mean(np.square(plan)))))
+    assert every["rmse_plan_m"] > check["statistics"]["rmse_plan_m"]
 
 
 def test_the_rule_needs_both_bounds() -> None:

@@ -411,6 +411,10 @@ def test_the_report_page_leads_with_the_refined_accuracy(refined_run):
     report = json.loads((out / "report.json").read_text())
     refined = report["bundle"]["check"]["rmse_plan_m"]
     strip = report["check"]["statistics"]["rmse_plan_m"]
+    # no weakly determined check point here: the statistics with them are the same
+    assert report["check"]["weakly_determined"] == []
+    assert report["bundle"]["check_with_weak"] == report["bundle"]["check"]
+    assert report["check"]["statistics_with_weak"] == report["check"]["statistics"]
     assert abs(refined - strip) > 5e-4  # the two differ at the page's 3 decimals
     page = (out / "report.html").read_text()
     plain = page[page.index("class='plain'") :].split("</p>")[0]

@@ -165,3 +165,20 @@ def test_a_pair_that_cannot_be_oriented_says_why():
     labels = ["pair A-B", "pair B-C", "pair C-D", "pair D-E", "pair E-F"]
     with pytest.raises((ConvergenceError, GeometryError), match=r"pair B-C.*points span"):
         relative_orientation(left, right, pair, n, labels=labels, max_iterations=30)
+
+
+def test_pair_medians_equal_numpys_median_per_pair():
+    """Medians per pair (the robust scale of the homography's reweighting)
+    against np.median of each pair's rows: odd and even counts, one row,
+    ties and infinite transfer errors."""
+    from strip_aerotri.strip.relative_starts import _pair_medians
+    from strip_aerotri.strip.relative_state import _segment_starts
+
+    rng = np.random.default_rng(2345)
+    counts = np.array([1, 2, 3, 7, 8, 50, 51, 4])
+    pair = np.repeat(np.arange(counts.size), counts)
+    values = rng.exponential(size=pair.size).round(1)  # ties
+    values[[3, 20, 21]] = np.inf
+    starts = _segment_starts(pair, counts.size)
+    want = [np.median(values[pair == k]) for k in range(counts.size)]
+    assert np.array_equal(_pair_medians(values, pair, starts), want)

@@ -6,6 +6,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable
+from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -168,14 +169,20 @@ def _adjust_and_report(project: Project, map_scale: float | None) -> RunOutputs:
         f"{project.observations.n_points} points, {len(project.control.point_ids)} "
         f"control and check points, crs {project.crs}"
     )
-    try:
-        result = project_run.run_project(project, progress=echo_progress)
-    except (GeometryError, ConvergenceError) as exc:
-        if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
-            raise  # the message names its file already
-        raise type(exc)(f"{project.path}: {exc}") from exc
-    echo_progress("writing the report")
-    return build_run(result, project=project, map_scale=map_scale)
+    from ..report.aside import Standby
+    from ..report.html import prepare_drawing
+
+    # A strip's figures are drawn by a process that imports matplotlib on the
+    # second core while this one adjusts (report/aside.py).
+    with Standby(prepare_drawing) if not project.is_block else nullcontext() as standby:
+        try:
+            result = project_run.run_project(project, progress=echo_progress)
+        except (GeometryError, ConvergenceError) as exc:
+            if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
+                raise  # the message names its file already
+            raise type(exc)(f"{project.path}: {exc}") from exc
+        echo_progress("writing the report")
+        return build_run(result, project=project, map_scale=map_scale, standby=standby)
 
 
 def _folder_state(folder: ResultFolder) -> Callable[[], str]:

@@ -406,7 +406,9 @@ def _snoop(
             use_xy, use_z = trial_xy, trial_z
             rejected_obs = n_control_obs - int(2 * use_xy.sum() + use_z.sum())
             if rejected_obs > blunders.max_fraction * max(n_control_obs, 1):
-                if start_sol is None or not _keep_systematic(p, start_sol, blunders):
+                if not _keep_systematic(
+                    p, start_sol, blunders, use_xy, use_z, sol, [*rejections, worst]
+                ):
                     raise GeometryError(
                         f"control: more than {blunders.max_fraction:.0%} of the control "
                         "observations fail the blunder test; the control cannot be trusted"
@@ -443,18 +445,40 @@ def _snoop(
 
 
 def _keep_systematic(
-    p: _ModelsProblem, first: _ModelsSolution, blunders: BlunderOptions
+    p: _ModelsProblem,
+    first: _ModelsSolution,
+    blunders: BlunderOptions,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    last: _ModelsSolution,
+    rejections: Sequence[Rejection],
 ) -> bool:
-    """True (and a warning) when the first solution's control fails at many
-    points alike (:mod:`strip_aerotri.ground.systematic`): camera errors, not
-    blunders."""
+    """True (and a warning) when the control fails at many points alike
+    (:mod:`strip_aerotri.ground.systematic`): camera errors, not blunders.
+
+    Judged on the first solution's test values, and on the test values met so
+    far: each rejected component at the value it was rejected with, the others
+    at the last solution's.  A bending the control follows fails a few points
+    at a time, a little over the critical value: rejecting them one by one
+    makes the next ones fail, which the first solution alone does not show."""
     rows = np.flatnonzero(p.use_xy | p.use_z)
     w = np.array(first.result.control_w, dtype=np.float64)
     w[~p.use_xy[rows], :2] = np.nan
     w[~p.use_z[rows], 2] = np.nan
     critical = blunders.critical("control", max(int(np.isfinite(w).sum()), 1))
     if not systematic_pattern(w, critical):
-        return False
+        seen = np.full((p.use_xy.size, 3), np.nan)
+        now = np.abs(np.array(last.result.control_w, dtype=np.float64))
+        seen[np.flatnonzero(last.active)] = now
+        seen[~use_xy, :2] = np.nan
+        seen[~use_z, 2] = np.nan
+        row_of = {pid: k for k, pid in enumerate(p.ids)}
+        for r in rejections:
+            if r.stage == "control" and r.applied:
+                seen[row_of[r.point], 2 if r.component == "height" else 0] = r.w
+        w = seen[rows]
+        if not systematic_pattern(w, critical):
+            return False
     warnings.warn(systematic_message("control", w, critical), StripAerotriWarning, stacklevel=4)
     return True
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 from collections.abc import Mapping, Sequence
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -13,6 +14,8 @@ import numpy as np
 from .._text import shorten
 from .._version import __version__
 from ..observations import ControlType
+from ..results import AccuracyStatistics
+from .aside import aside
 from .block_page import block_html
 from .calibration import calibration_figures, calibration_html, calibration_outputs
 from .files import format_photos_csv, format_points_csv
@@ -130,6 +133,11 @@ def build_block_report(
             "statistics": statistics(result.check_statistics),
             "points": _control_points(result, check=True),
             "weakly_determined": list(getattr(result, "weak_checks", ())),
+            "statistics_with_weak": statistics(
+                AccuracyStatistics.from_residuals(
+                    np.asarray(result.control_residuals)[np.asarray(result.is_check, dtype=bool)]
+                )
+            ),
         },
         "bundle": (
             {
@@ -263,6 +271,39 @@ def block_outputs(
     geographic = result.control is not None and bool(
         project is not None and not project.is_local and _geographic(project.crs)
     )
+    # the figures drawn in a second process while this one writes the tables
+    with aside(partial(_block_figures, result, geographic)) as drawing:
+        points_text, photos_text = _block_tables(result, geographic)
+        cal_record, cal_toml = calibration_outputs(
+            result.self_calibration, project, float(result.observations.principal_distance)
+        )
+        if cal_record is not None:
+            report["bundle"]["self_calibration"] = cal_record
+        text = json.dumps(report, indent=2, allow_nan=False) + "\n"
+        figure, calibration = drawing.result()
+    section = "" if cal_record is None else calibration_html(cal_record, calibration)
+    files = {
+        "points.csv": points_text.encode("utf-8"),
+        "photos.csv": photos_text.encode("utf-8"),
+        "report.json": text.encode("utf-8"),
+        "report.html": block_html(report, figure, calibration=section).encode("utf-8"),
+    }
+    if cal_toml is not None:
+        files["camera.toml"] = cal_toml
+    return files
+
+
+def _block_figures(
+    result: BlockResult, geographic: bool
+) -> tuple[str | None, tuple[str | None, str | None]]:
+    """The block's figure and the self-calibration's two (None without)."""
+    return block_figure(result, geographic=geographic), calibration_figures(
+        result.self_calibration
+    )
+
+
+def _block_tables(result: BlockResult, geographic: bool) -> tuple[str, str]:
+    """The text of points.csv and photos.csv of a block."""
     points = np.asarray(result.points, dtype=np.float64)
     ok = np.isfinite(points).all(axis=1)
     roles, n_strips = _roles_and_strips(result)
@@ -288,23 +329,7 @@ def block_outputs(
         extra={"strip": strip_names},
         geographic=geographic,
     )
-    cal_record, cal_toml = calibration_outputs(
-        result.self_calibration, project, float(result.observations.principal_distance)
-    )
-    section = ""
-    if cal_record is not None:
-        report["bundle"]["self_calibration"] = cal_record
-        section = calibration_html(cal_record, calibration_figures(result.self_calibration))
-    figure = block_figure(result, geographic=geographic)
-    files = {
-        "points.csv": points_text.encode("utf-8"),
-        "photos.csv": photos_text.encode("utf-8"),
-        "report.json": (json.dumps(report, indent=2, allow_nan=False) + "\n").encode("utf-8"),
-        "report.html": block_html(report, figure, calibration=section).encode("utf-8"),
-    }
-    if cal_toml is not None:
-        files["camera.toml"] = cal_toml
-    return files
+    return points_text, photos_text
 
 
 def _geographic(crs: str) -> bool:

@@ -5,12 +5,14 @@ y-parallaxes and the tie points per model.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .values import control_rows
+from ..results import SelfCalibrationOutcome
+from .values import control_rows, point_roles
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -65,7 +67,7 @@ class Plan:
 
     def __init__(self, result: StripResult) -> None:
         crs = result.ground.crs
-        self.crs = crs
+        self.projected = not (crs.is_local or crs.is_geographic)  # meridian convergence
         centres = np.asarray(result.photo_centres, dtype=np.float64)
         self.geographic = crs.is_geographic
         if self.geographic:
@@ -118,11 +120,13 @@ class Plan:
         u = d / (np.hypot(d[0], d[1]) or 1.0)
         return np.stack([de * u[0] + dn * u[1], -de * u[1] + dn * u[0]], axis=-1)
 
-    def convergence(self, xyh: np.ndarray) -> np.ndarray:
-        if self.crs.is_local or self.geographic:
+    def convergence(self, result: StripResult, xyh: np.ndarray) -> np.ndarray:
+        """Meridian convergence (radians) at ground points of ``result``'s CRS;
+        zero in a local or geographic CRS, or where pyproj cannot give it."""
+        if not self.projected:
             return np.zeros(len(xyh))
         try:
-            return np.asarray(self.crs.meridian_convergence(xyh), dtype=np.float64)
+            return np.asarray(result.ground.crs.meridian_convergence(xyh), dtype=np.float64)
         except Exception:  # display only: fall back to true north
             return np.zeros(len(xyh))
 
@@ -161,7 +165,7 @@ def _footprints(result: StripResult, plan: Plan) -> np.ndarray | None:
     with np.errstate(divide="ignore", invalid="ignore"):
         t = -depth[:, None] / rays[:, :, 2]
     en = rays[:, :, :2] * t[:, :, None]
-    gamma = plan.convergence(centres)
+    gamma = plan.convergence(result, centres)
     cg, sg = np.cos(gamma)[:, None], np.sin(gamma)[:, None]
     # true azimuth alpha -> grid azimuth alpha - gamma: turn counter-clockwise by gamma
     e = cg * en[:, :, 0] - sg * en[:, :, 1]
@@ -174,22 +178,99 @@ def _footprints(result: StripResult, plan: Plan) -> np.ndarray | None:
     return footprints
 
 
+@dataclass(frozen=True)
+class ControlFigureData:
+    """The control and check points of the residual figure: C rows."""
+
+    xy: FloatArray  # (C, 2) plan coordinates of the points
+    residuals: FloatArray  # (C, 3) given − adjusted E, N, H [m]
+    grid: FloatArray  # (C, 2) the plan residuals turned to grid east, north [m]
+    is_check: BoolArray  # (C,)
+    names: tuple[str, ...]  # (C,) point ids
+
+
+@dataclass(frozen=True)
+class StripFigureData:
+    """What the strip page's figures show, taken from a result as plain
+    arrays (:func:`figure_data`): a few MB that pickle without the result or
+    its CRS, for the process that draws them (:mod:`.aside`)."""
+
+    plan: Plan
+    points: FloatArray  # (P, 3) the result's points
+    roles: np.ndarray  # (P,) str, :func:`.values.point_roles`
+    footprints: FloatArray | None  # (M, 4, 2) plan corners of the photos
+    photo_ids: tuple[str, ...]  # the strip's photos in order
+    control: ControlFigureData | None  # None without control rows
+    n_pairs: int
+    sigma0_um: FloatArray  # (pairs,) relative orientation per pair
+    max_parallax_um: FloatArray  # (pairs,)
+    parallax_um: FloatArray  # every residual y-parallax
+    left_photos: tuple[str, ...]  # the left photo of each pair (model)
+    models: tuple[tuple[int, tuple[float | None, ...]], ...]  # report.json's index, tie_rms_m
+    calibration: SelfCalibrationOutcome | None = None
+
+
+def figure_data(
+    result: StripResult, models: Sequence[Mapping[str, Any]], *, calibration: bool = False
+) -> StripFigureData:
+    """The inputs of the strip's figures (``models``: report.json's
+    ``models``; ``calibration``: with the self-calibration's outcome)."""
+    plan = Plan(result)
+    points = np.asarray(result.points, dtype=np.float64)
+    finite = np.isfinite(points).all(axis=1)
+    plan.decide_long(np.vstack([plan.xy(plan.centres), plan.xy(points[finite])]))
+    idx, resid = control_rows(result)
+    control = None
+    if idx.size:
+        # residuals are along east/north; turn them to the grid like the footprints
+        gamma = plan.convergence(result, points[idx])
+        de = np.cos(gamma) * resid[:, 0] - np.sin(gamma) * resid[:, 1]
+        dn = np.sin(gamma) * resid[:, 0] + np.cos(gamma) * resid[:, 1]
+        names = np.asarray(result.point_ids, dtype=object)[idx]
+        control = ControlFigureData(
+            plan.xy(points[idx]),
+            resid,
+            np.column_stack([de, dn]),
+            np.asarray(result.ground.is_check, dtype=bool),
+            tuple(str(n) for n in names),
+        )
+    strip = result.strip
+    rel = strip.relative
+    ids = strip.photo_ids  # a property that builds the tuple: read once
+    refined = getattr(result, "refined", None)
+    return StripFigureData(
+        plan=plan,
+        points=points,
+        roles=point_roles(result),
+        footprints=_footprints(result, plan),
+        photo_ids=tuple(result.photo_ids),
+        control=control,
+        n_pairs=int(rel.n_pairs),
+        sigma0_um=np.asarray(rel.sigma0_um),
+        max_parallax_um=np.asarray(rel.max_parallax_um),
+        parallax_um=np.asarray(rel.parallax_um, dtype=np.float64),
+        left_photos=tuple(ids[i] for i in strip.model_photo_positions[:-1]),
+        models=tuple((int(m["index"]), tuple(m["tie_rms_m"])) for m in models),
+        calibration=refined.self_calibration if calibration and refined is not None else None,
+    )
+
+
 def _decimate(index: np.ndarray, limit: int) -> np.ndarray:
     if index.size <= limit:
         return index
     return index[np.linspace(0, index.size - 1, limit).astype(np.intp)]
 
 
-def figure_layout(result: StripResult, plan: Plan, roles: np.ndarray) -> str:
+def figure_layout(data: StripFigureData) -> str:
     from matplotlib.collections import PolyCollection
     from matplotlib.figure import Figure
 
-    points = np.asarray(result.points, dtype=np.float64)
+    plan, points, roles = data.plan, data.points, data.roles
     ok = np.isfinite(points).all(axis=1)
     pxy = np.full((len(points), 2), np.nan)
     pxy[ok] = plan.xy(points[ok])
     cxy = plan.xy(plan.centres)
-    feet = _footprints(result, plan)
+    feet = data.footprints
     if plan.long:
         pxy = plan.strip_axes(pxy)
         cxy = plan.strip_axes(cxy)
@@ -215,7 +296,7 @@ def figure_layout(result: StripResult, plan: Plan, roles: np.ndarray) -> str:
         cxy[:, 0], cxy[:, 1], "o", ms=3.5, color="#1b4f72", zorder=3, label="projection centres"
     )
     ax.annotate(
-        result.photo_ids[0],
+        data.photo_ids[0],
         cxy[0],
         textcoords="offset points",
         xytext=(4, 4),
@@ -223,7 +304,7 @@ def figure_layout(result: StripResult, plan: Plan, roles: np.ndarray) -> str:
         color="#1b4f72",
     )
     ax.annotate(
-        result.photo_ids[-1],
+        data.photo_ids[-1],
         cxy[-1],
         textcoords="offset points",
         xytext=(4, 4),
@@ -283,23 +364,19 @@ def _nice(value: float) -> float:
     return float(step * 10**exp)
 
 
-def figure_residuals(result: StripResult, plan: Plan) -> str | None:
+def figure_residuals(data: StripFigureData) -> str | None:
     from matplotlib.colors import TwoSlopeNorm
     from matplotlib.figure import Figure
 
-    idx, resid = control_rows(result)
-    if idx.size == 0:
+    control, plan = data.control, data.plan
+    if control is None:
         return None
-    is_check = np.asarray(result.ground.is_check, dtype=bool)
-    pxy = plan.xy(np.asarray(result.points, dtype=np.float64)[idx])
+    resid, is_check, pxy = control.residuals, control.is_check, control.xy
     cxy = plan.xy(plan.centres)
-    # residuals are along east/north; turn them to the grid like the footprints
-    gamma = plan.convergence(np.asarray(result.points, dtype=np.float64)[idx])
-    de = np.cos(gamma) * resid[:, 0] - np.sin(gamma) * resid[:, 1]
-    dn = np.sin(gamma) * resid[:, 0] + np.cos(gamma) * resid[:, 1]
+    de, dn = control.grid[:, 0], control.grid[:, 1]
     plan_len = np.hypot(de, dn)
     if plan.long:
-        return _figure_residuals_along(result, plan, idx, resid, pxy, de, dn, is_check)
+        return _figure_residuals_along(plan, resid, pxy, de, dn, is_check)
     fig = Figure(figsize=(10, 6.5))
     ax = fig.subplots()
     ax.plot(
@@ -368,9 +445,8 @@ def figure_residuals(result: StripResult, plan: Plan) -> str | None:
             zorder=5,
             label="no height residual",
         )
-    names = np.asarray(result.point_ids, dtype=object)[idx]
-    if idx.size <= 60:
-        for (x, y), name in zip(pxy, names, strict=True):
+    if len(control.names) <= 60:
+        for (x, y), name in zip(pxy, control.names, strict=True):
             ax.annotate(
                 str(name),
                 (x, y),
@@ -386,9 +462,7 @@ def figure_residuals(result: StripResult, plan: Plan) -> str | None:
 
 
 def _figure_residuals_along(
-    result: StripResult,
     plan: Plan,
-    idx: IntArray,
     resid: FloatArray,
     pxy: FloatArray,
     de: FloatArray,
@@ -402,7 +476,7 @@ def _figure_residuals_along(
     comp = plan.vectors_to_strip(de, dn)
     fig = Figure(figsize=(10, 7.5))
     axes = fig.subplots(3, 1, sharex=True)
-    few = len(idx) <= 300
+    few = len(resid) <= 300
     panels = (
         (comp[:, 0], "along-strip residual [m]"),
         (comp[:, 1], "across-strip residual [m]"),
@@ -472,10 +546,8 @@ def _bars_or_lines(
         ax.autoscale_view()
 
 
-def _left_photo_ticks(ax: Any, x: FloatArray | IntArray, result: StripResult) -> None:
-    """Tick the pairs (models) at ``x`` by their left photo's id, at most 16."""
-    strip = result.strip
-    left = [strip.photo_ids[i] for i in strip.model_photo_positions[:-1]]
+def _left_photo_ticks(ax: Any, x: FloatArray | IntArray, left: Sequence[str]) -> None:
+    """Tick the pairs (models) at ``x`` by their ``left`` photo's id, at most 16."""
     index = np.asarray(x, dtype=np.intp)
     if index.size == 0 or index.max() >= len(left):
         return
@@ -483,27 +555,26 @@ def _left_photo_ticks(ax: Any, x: FloatArray | IntArray, result: StripResult) ->
     ax.set_xticks(shown, [left[i] for i in shown], rotation=45 if shown.size > 6 else 0)
 
 
-def figure_parallax(result: StripResult) -> str:
+def figure_parallax(data: StripFigureData) -> str:
     from matplotlib.figure import Figure
 
-    rel = result.strip.relative
-    x = np.arange(rel.n_pairs)
+    x = np.arange(data.n_pairs)
     fig = Figure(figsize=(11, 3.8))
     (ax, hx) = fig.subplots(1, 2, gridspec_kw={"width_ratios": [2.3, 1]})
     _bars_or_lines(
         ax,
         x,
-        [np.asarray(rel.sigma0_um), np.asarray(rel.max_parallax_um)],
+        [data.sigma0_um, data.max_parallax_um],
         ["σ0 (one image coordinate)", "max |y-parallax|"],
         ["#2e86c1", "#e67e22"],
     )
-    _left_photo_ticks(ax, x, result)
+    _left_photo_ticks(ax, x, data.left_photos)
     ax.set_xlabel("pair (its left photo)")
     ax.set_ylabel("µm at image scale")
     ax.set_title("Relative orientation: residual y-parallax per pair")
     ax.grid(True, axis="y", lw=0.3)
     ax.legend(fontsize=8)
-    q = np.asarray(rel.parallax_um, dtype=np.float64)
+    q = data.parallax_um
     q = q[np.isfinite(q)]
     if q.size:
         rms = float(np.sqrt(np.mean(q**2)))
@@ -516,15 +587,14 @@ def figure_parallax(result: StripResult) -> str:
     return _png(fig)
 
 
-def figure_ties(result: StripResult, models: list[dict[str, Any]]) -> str | None:
+def figure_ties(data: StripFigureData) -> str | None:
     from matplotlib.figure import Figure
 
+    models = data.models
     if len(models) < 2:
         return None
-    x = np.array([m["index"] for m in models], dtype=np.float64)
-    rms = np.array(
-        [[np.nan if v is None else v for v in m["tie_rms_m"]] for m in models], dtype=np.float64
-    )
+    x = np.array([index for index, _ in models], dtype=np.float64)
+    rms = np.array([[np.nan if v is None else v for v in m] for _, m in models], dtype=np.float64)
     plan = np.hypot(rms[:, 0], rms[:, 1])
     fig = Figure(figsize=(11, 3.6))
     ax = fig.subplots()
@@ -535,7 +605,7 @@ def figure_ties(result: StripResult, models: list[dict[str, Any]]) -> str | None
         ["plan (X, Y)", "height (Z)"],
         ["#16a085", "#8e44ad"],
     )
-    _left_photo_ticks(ax, x[1:], result)
+    _left_photo_ticks(ax, x[1:], data.left_photos)
     ax.set_xlabel("model (its left photo)")
     ax.set_ylabel("RMS difference [m]")
     ax.set_title("Differences between the two determinations of tie points, per model")

@@ -5,14 +5,23 @@ from ``report.json``'s content and the figures.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..options import DEFAULT_SECTIONS
-from .figures import Plan, figure_layout, figure_parallax, figure_residuals, figure_ties
+from .calibration import calibration_figures, calibration_html
+from .figures import (
+    StripFigureData,
+    _png,
+    figure_data,
+    figure_layout,
+    figure_parallax,
+    figure_residuals,
+    figure_ties,
+)
 from .html_parts import _esc, _figure, _fmt, _table
-from .values import point_roles
 from .verdict import Verdict, criterion_label, overall_verdict
 
 if TYPE_CHECKING:
@@ -52,6 +61,19 @@ def _verdict_cell(passed: bool | None) -> tuple[str]:
     return ("<span class='pass'>PASS</span>",) if passed else ("<span class='fail'>FAIL</span>",)
 
 
+@dataclass(frozen=True)
+class StripFigures:
+    """The figures of a strip's page (PNG as base64; None where not drawn)."""
+
+    layout: str | None
+    residuals: str | None
+    parallax: str | None
+    ties: str | None
+    long_strip: bool = False
+    #: the self-calibration's distortion field and cells; None: no such section
+    calibration: tuple[str | None, str | None] | None = None
+
+
 def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     """Text of ``report.html``: one self-contained page (inline PNG figures, no scripts).
 
@@ -61,47 +83,72 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     report : mapping
         :func:`build_report` of the same result.
     """
+    calibration = (report.get("bundle") or {}).get("self_calibration") is not None
+    data = figure_data(result, report["models"], calibration=calibration)
+    return html_page(report, draw_figures(data))
+
+
+_STYLE: dict[str, Any] = {
+    "font.size": 9,
+    "axes.titlesize": 11,
+    # every figure laid out by matplotlib's constrained layout: labels,
+    # legends beside the axes and colour bars inside the canvas at any
+    # strip length (tests/test_report_figures.py)
+    "figure.constrained_layout.use": True,
+}
+
+
+def prepare_drawing() -> None:
+    """Load what :func:`draw_figures` needs, so that a process waiting to
+    draw has it ready (:class:`.aside.Standby`): matplotlib with its Agg
+    canvas, and what its first figure loads (the font, the PNG writer),
+    by drawing a small figure of the same kinds of artists and throwing it
+    away (about 0.3 s in all; nothing of it reaches the page)."""
+    import matplotlib
+    from matplotlib.figure import Figure
+
+    with matplotlib.rc_context(_STYLE):  # type: ignore[arg-type]  # typed as literal keys
+        fig = Figure(figsize=(3, 2))
+        ax = fig.subplots()
+        ax.plot([0.0, 1.0], [0.0, 1.0], "-", label="a")
+        ax.scatter([0.5], [0.5], c=[0.5], cmap="RdBu_r", marker="^", label="b")
+        ax.quiver([0.2], [0.2], [0.1], [0.1], angles="xy", scale_units="xy", scale=1.0)
+        ax.annotate("0", (0.5, 0.5), textcoords="offset points", xytext=(4, 4), fontsize=8)
+        ax.set_title("σ0 µm ±")
+        ax.set_xlabel("x")
+        ax.legend(fontsize=8)
+        _png(fig)
+
+
+def draw_figures(data: StripFigureData) -> StripFigures:
+    """The page's figures of :func:`.figures.figure_data`'s inputs."""
     import matplotlib
 
-    style: dict[str, Any] = {
-        "font.size": 9,
-        "axes.titlesize": 11,
-        # every figure laid out by matplotlib's constrained layout: labels,
-        # legends beside the axes and colour bars inside the canvas at any
-        # strip length (tests/test_report_figures.py)
-        "figure.constrained_layout.use": True,
-    }
-    with matplotlib.rc_context(style):  # type: ignore[arg-type]  # typed as literal keys
-        plan = Plan(result)
-        points = np.asarray(result.points, dtype=np.float64)
-        finite = np.isfinite(points).all(axis=1)
-        plan.decide_long(np.vstack([plan.xy(plan.centres), plan.xy(points[finite])]))
-        roles = point_roles(result)
-        fig_layout = figure_layout(result, plan, roles)
-        fig_resid = figure_residuals(result, plan)
-        fig_par = figure_parallax(result)
-        fig_ties = figure_ties(result, report["models"])
-        calibration = _calibration_section(result, report)
+    with matplotlib.rc_context(_STYLE):  # type: ignore[arg-type]  # typed as literal keys
+        return StripFigures(
+            figure_layout(data),
+            figure_residuals(data),
+            figure_parallax(data),
+            figure_ties(data),
+            data.plan.long,
+            None if data.calibration is None else calibration_figures(data.calibration),
+        )
+
+
+def html_page(report: Mapping[str, Any], figures: StripFigures) -> str:
+    """The page of ``report`` (report.json's content) with its ``figures``."""
+    record = (report.get("bundle") or {}).get("self_calibration")
     return _html_page(
         report,
-        fig_layout,
-        fig_resid,
-        fig_par,
-        fig_ties,
-        long_strip=plan.long,
-        calibration=calibration,
+        figures.layout,
+        figures.residuals,
+        figures.parallax,
+        figures.ties,
+        long_strip=figures.long_strip,
+        calibration=""
+        if figures.calibration is None or record is None
+        else calibration_html(record, figures.calibration),
     )
-
-
-def _calibration_section(result: StripResult, report: Mapping[str, Any]) -> str:
-    """The self-calibration's section with its figures ('' without one)."""
-    from .calibration import calibration_figures, calibration_html
-
-    refined = getattr(result, "refined", None)
-    record = (report.get("bundle") or {}).get("self_calibration")
-    if refined is None or record is None:
-        return ""
-    return calibration_html(record, calibration_figures(refined.self_calibration))
 
 
 #: The columns of an accuracy row (:func:`stat_row`).

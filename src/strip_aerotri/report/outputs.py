@@ -11,11 +11,15 @@ described in ``docs/outputs.md``.
 from __future__ import annotations
 
 import json
+from contextlib import AbstractContextManager, nullcontext
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
+from .aside import Aside, Standby, aside
 from .calibration import calibration_outputs
-from .html import build_html
-from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, build_report
+from .figures import figure_data
+from .html import StripFigures, build_html, draw_figures, html_page
+from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, build_report, model_records
 from .tables import photos_csv, points_csv, points_geojson
 from .values import point_roles
 
@@ -27,6 +31,7 @@ __all__ = [
     "GEOJSON_LOCAL_NOTE",
     "REPORT_FORMAT",
     "REPORT_FORMAT_VERSION",
+    "build_html",
     "build_outputs",
     "build_report",
     "point_roles",
@@ -43,6 +48,7 @@ def build_outputs(
     project: Project | None = None,
     map_scale: float | None = None,
     html: bool = True,
+    standby: Standby | None = None,
 ) -> dict[str, bytes]:
     """Every file of a result folder, name -> content (UTF-8 bytes).
 
@@ -56,6 +62,10 @@ def build_outputs(
         project's ``[report] map_scale``).
     html : bool
         Also build ``report.html`` (matplotlib figures; the slowest part).
+    standby : Standby, optional
+        A process started before the adjustment (:class:`.aside.Standby`
+        with :func:`.html.prepare_drawing`) that draws the figures; without
+        one they are drawn in a process forked now (:func:`.aside.aside`).
 
     Returns
     -------
@@ -65,7 +75,9 @@ def build_outputs(
         docs/outputs.md).  When the GeoJSON is left out, ``report.json``
         says so under ``warnings``.
     """
-    return strip_outputs(result, project=project, map_scale=map_scale, html=html)[0]
+    return strip_outputs(result, project=project, map_scale=map_scale, html=html, standby=standby)[
+        0
+    ]
 
 
 def strip_outputs(
@@ -74,36 +86,49 @@ def strip_outputs(
     project: Project | None = None,
     map_scale: float | None = None,
     html: bool = True,
+    standby: Standby | None = None,
 ) -> tuple[dict[str, bytes], dict[str, Any]]:
-    """:func:`build_outputs` and the content of ``report.json`` it wrote."""
-    notes: list[str] = []
-    geojson = points_geojson(result)
-    if geojson is None:
-        notes.append(GEOJSON_LOCAL_NOTE)
-    report = build_report(result, project=project, map_scale=map_scale, notes=notes)
+    """:func:`build_outputs` and the content of ``report.json`` it wrote.
+
+    The page's figures are drawn in a second process (:mod:`.aside`) while
+    this one makes report.json and the tables.
+    """
     refined = getattr(result, "refined", None)
     outcome = None if refined is None else refined.self_calibration
-    cal_record, cal_toml = calibration_outputs(
-        outcome, project, float(result.strip.observations.principal_distance)
-    )
-    if cal_record is not None:
-        report["bundle"]["self_calibration"] = cal_record
-    if geojson is not None:
-        report["outputs"]["points.geojson"] = {
-            "written": True,
-            "wgs84_operation": result.ground.crs.wgs84_operation,
+    drawing: AbstractContextManager[Aside[StripFigures] | None] = nullcontext()
+    if html:  # calibration: the outcome's figures if the refinement has one
+        data = figure_data(result, model_records(result), calibration=True)
+        drawing = (
+            aside(partial(draw_figures, data))
+            if standby is None
+            else standby.submit(draw_figures, data)
+        )
+    with drawing as figures:
+        notes: list[str] = []
+        geojson = points_geojson(result)
+        if geojson is None:
+            notes.append(GEOJSON_LOCAL_NOTE)
+        report = build_report(result, project=project, map_scale=map_scale, notes=notes)
+        cal_record, cal_toml = calibration_outputs(
+            outcome, project, float(result.strip.observations.principal_distance)
+        )
+        if cal_record is not None:
+            report["bundle"]["self_calibration"] = cal_record
+        if geojson is not None:
+            report["outputs"]["points.geojson"] = {
+                "written": True,
+                "wgs84_operation": result.ground.crs.wgs84_operation,
+            }
+        files = {
+            "points.csv": points_csv(result).encode("utf-8"),
+            "photos.csv": photos_csv(result).encode("utf-8"),
         }
-    files = {
-        "points.csv": points_csv(result).encode("utf-8"),
-        "photos.csv": photos_csv(result).encode("utf-8"),
-    }
-    if geojson is not None:
-        files["points.geojson"] = (geojson + "\n").encode("utf-8")
-    if cal_toml is not None:
-        files["camera.toml"] = cal_toml
-    if html:
-        files["report.html"] = build_html(result, report).encode("utf-8")
-    files["report.json"] = (
-        json.dumps(report, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
-    ).encode("utf-8")
+        if geojson is not None:
+            files["points.geojson"] = (geojson + "\n").encode("utf-8")
+        if cal_toml is not None:
+            files["camera.toml"] = cal_toml
+        text = json.dumps(report, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
+        if figures is not None:
+            files["report.html"] = html_page(report, figures.result()).encode("utf-8")
+    files["report.json"] = text.encode("utf-8")
     return files, report

@@ -14,7 +14,7 @@ import numpy as np
 from .._version import __version__
 from ..geometry.rotation import opk_from_matrix
 from ..observations import ControlType
-from ..results import StripResult
+from ..results import AccuracyStatistics, StripResult
 from .tolerances import plan_drift_warning, tolerance_verdicts
 from .values import clean, control_rows, json_float, options_record, statistics
 from .verdict import with_verdict
@@ -68,7 +68,8 @@ def _pairs(result: StripResult) -> list[dict[str, Any]]:
     ]
 
 
-def _models(result: StripResult) -> list[dict[str, Any]]:
+def model_records(result: StripResult) -> list[dict[str, Any]]:
+    """report.json's ``models``: each model's photos, points, scale and tie differences."""
     strip = result.strip
     scale = float(result.ground.similarity.transform.scale)
     n_pts = np.bincount(np.asarray(strip.model), minlength=strip.n_models)
@@ -201,6 +202,13 @@ def _lines(result: StripResult, weights: Mapping[str, float]) -> list[dict[str, 
             }
         )
     return out
+
+
+def _all_check_statistics(result: StripResult) -> AccuracyStatistics:
+    """The check statistics over every check point determined, the weakly
+    determined ones included (``statistics`` leaves them out)."""
+    _, resid = control_rows(result)
+    return AccuracyStatistics.from_residuals(resid[np.asarray(result.ground.is_check, dtype=bool)])
 
 
 def _control_points(result: StripResult, check: bool) -> list[dict[str, Any]]:
@@ -383,7 +391,7 @@ def build_report(
             "max_parallax_history_um": np.asarray(result.strip.relative.history),
         },
         "pairs": _pairs(result),
-        "models": _models(result),
+        "models": model_records(result),
         "ground": {
             "route": ground.route,
             "construction": str(getattr(getattr(ground, "construction", None), "value", "strips")),
@@ -413,6 +421,7 @@ def build_report(
             "statistics": statistics(result.check_statistics),
             "points": _control_points(result, check=True),
             "weakly_determined": list(getattr(result, "weak_checks", ())),
+            "statistics_with_weak": statistics(_all_check_statistics(result)),
         },
         "tolerances": tolerances_record(result, map_scale),
         "bundle": _bundle(result),
@@ -458,6 +467,11 @@ def _bundle(result: StripResult) -> dict[str, Any] | None:
         "n_observations": int(refined.n_observations),
         "control": statistics(refined.control_statistics),
         "check": statistics(refined.check_statistics),
+        "check_with_weak": statistics(
+            AccuracyStatistics.from_residuals(
+                np.asarray(refined.control_residuals)[np.asarray(refined.is_check, dtype=bool)]
+            )
+        ),
         "point_std_median_m": _column_medians(refined.point_std),
         "centre_std_median_m": _column_medians(refined.centre_std),
         "rejections": [r.describe() for r in refined.rejections],

@@ -31,6 +31,7 @@ from .verdict import Verdict
 
 if TYPE_CHECKING:
     from ..project import Project
+    from .aside import Standby
     from ..results import SelfCalibrationOutcome
 
 __all__ = [
@@ -500,10 +501,12 @@ def build_run(
     *,
     project: Project | None = None,
     map_scale: float | None = None,
+    standby: Standby | None = None,
 ) -> RunOutputs:
     """The files of the result folder of ``result`` and their summary.
 
-    ``map_scale`` overrides the project's ``[report] map_scale``.  The files
+    ``map_scale`` overrides the project's ``[report] map_scale``; ``standby``
+    draws a strip's figures (:func:`~.outputs.build_outputs`).  The files
     are those of :func:`~.outputs.build_outputs` (a block's, of
     :func:`~.block.build_block_outputs`), byte for byte.
     """
@@ -515,6 +518,8 @@ def build_run(
         record = build_block_report(result, project=project, map_scale=scale)
         files = block_outputs(result, record, project=project)
     else:
-        files, _ = outputs.strip_outputs(result, project=project, map_scale=scale)
+        files, _ = outputs.strip_outputs(
+            result, project=project, map_scale=scale, standby=standby
+        )
     summary = summarize(result, map_scale=scale, name=name, files=tuple(files))
     return RunOutputs(files, summary)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..export.geojson import GEOJSON_DECIMALS, geojson_text, point_feature
+from ..export.geojson import GEOJSON_DECIMALS, point_features_text
 from ..results import StripResult
 from .files import format_photos_csv, format_points_csv
 from .values import image_counts, point_roles, residual_columns
@@ -65,18 +65,11 @@ def points_geojson(result: StripResult) -> str | None:
     ok = np.isfinite(points).all(axis=1)
     lonlat = np.round(crs.to_wgs84_lonlat(points[ok]), GEOJSON_DECIMALS)
     ids = np.asarray(result.point_ids, dtype=object)[ok]
-    roles = point_roles(result)[ok]
-    heights = np.round(points[ok, 2], 4)
-    n_det = np.asarray(result.strip.n_determinations)[ok]
-    features = [
-        point_feature(
-            str(pid),
-            float(lon),
-            float(lat),
-            {"id": str(pid), "role": str(role), "H": float(h), "n_models": int(n)},
-        )
-        for pid, (lon, lat), role, h, n in zip(
-            ids, lonlat.tolist(), roles, heights.tolist(), n_det.tolist(), strict=True
-        )
-    ]
-    return geojson_text({"type": "FeatureCollection", "features": features})
+    properties = {
+        "id": ids,
+        "role": point_roles(result)[ok],
+        "H": np.round(points[ok, 2], 4),
+        "n_models": np.asarray(result.strip.n_determinations, dtype=np.int64)[ok],
+    }
+    features = point_features_text(ids, lonlat, properties)
+    return '{"type":"FeatureCollection","features":[' + ",".join(features) + "]}"

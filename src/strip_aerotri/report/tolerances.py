@@ -397,12 +397,19 @@ def chance_beyond(
     >>> chance_beyond(0, 40)
     1.0
     """
-    from scipy.stats import binom, norm
+    # scipy.special, not scipy.stats (0.2-0.35 s to import, a tenth of a run):
+    # P(X >= k) of X ~ B(n, p) is the regularised incomplete beta I_p(k, n - k + 1),
+    # the same Boost ibeta that ``binom.sf(k - 1, n, p)`` calls (bit for bit from
+    # scipy 1.12; cephes's before, within 1e-10), and Φ(−x) is ``ndtr(-x)``,
+    # which ``norm.sf(x)`` returns.
+    from scipy.special import betainc, ndtr
 
     if count <= 0:
         return 1.0
-    p = min(2.0 * float(norm.sf(factor)), float(at_most))
-    return float(binom.sf(count - 1, n, p))
+    if count > n:
+        return 0.0
+    p = min(2.0 * float(ndtr(-factor)), float(at_most))
+    return float(betainc(count, n - count + 1, p))
 
 
 def check_interval_decrease(

@@ -124,11 +124,19 @@ def similarity_start(
 
 
 def _pair_medians(values: FloatArray, pair: IntArray, starts: IntArray) -> FloatArray:
-    """Median of each pair's values (rows sorted by pair), (n_pairs,)."""
-    order = np.lexsort((values, pair))
-    ranked = values[order]
+    """Median of each pair's values (rows sorted by pair, no NaN), (n_pairs,).
+
+    Each pair's values are sorted in a row of their own, padded with +inf
+    beyond its count (a padding equal to a value +inf changes no rank below
+    the count): one sort along rows, not a lexsort of every value.
+    """
     counts = np.diff(np.append(starts, values.shape[0]))
-    medians: FloatArray = 0.5 * (ranked[starts + (counts - 1) // 2] + ranked[starts + counts // 2])
+    rank = np.arange(values.shape[0]) - np.repeat(starts, counts)
+    table = np.full((starts.shape[0], int(counts.max(initial=0))), np.inf)
+    table[pair, rank] = values
+    table.sort(axis=1)
+    rows = np.arange(starts.shape[0])
+    medians: FloatArray = 0.5 * (table[rows, (counts - 1) // 2] + table[rows, counts // 2])
     return medians
 
 
@@ -171,10 +179,16 @@ def homography_start(
     zero = np.zeros_like(a)
     rows1 = np.concatenate([zero, -b[:, 2:3] * a, b[:, 1:2] * a], axis=1)
     rows2 = np.concatenate([b[:, 2:3] * a, zero, -b[:, 0:1] * a], axis=1)
-    products = rows1[:, :, None] * rows1[:, None, :] + rows2[:, :, None] * rows2[:, None, :]
+    # the 45 entries on and above the diagonal of each row's product (the
+    # normal matrix is symmetric: the same sums, half the work)
+    upper, lower = np.triu_indices(9)
+    products = rows1[:, upper] * rows1[:, lower] + rows2[:, upper] * rows2[:, lower]
     weight = np.ones(pair.shape[0])
+    normal = np.empty((n_pairs, 9, 9))
     for _ in range(_HOMOGRAPHY_IRLS + 1):
-        normal = np.add.reduceat(weight[:, None, None] * products, starts, axis=0)
+        sums = np.add.reduceat(weight[:, None] * products, starts, axis=0)
+        normal[:, upper, lower] = sums
+        normal[:, lower, upper] = sums
         _, vec = np.linalg.eigh(normal)
         h = vec[:, :, 0].reshape(-1, 3, 3)
         # Transfer errors of the points (normalised image units) and Cauchy
