@@ -31,8 +31,8 @@ from .verdict import Verdict
 
 if TYPE_CHECKING:
     from ..project import Project
-    from .aside import Standby
     from ..results import SelfCalibrationOutcome
+    from .aside import Standby
 
 __all__ = [
     "Accuracy",
@@ -518,8 +518,6 @@ def build_run(
         record = build_block_report(result, project=project, map_scale=scale)
         files = block_outputs(result, record, project=project)
     else:
-        files, _ = outputs.strip_outputs(
-            result, project=project, map_scale=scale, standby=standby
-        )
+        files, _ = outputs.strip_outputs(result, project=project, map_scale=scale, standby=standby)
     summary = summarize(result, map_scale=scale, name=name, files=tuple(files))
     return RunOutputs(files, summary)
