@@ -92,3 +92,20 @@ def best_fit_similarity(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     r = u @ d @ vt
     scale = np.trace(np.diag(s) @ d) / np.sum(a * a)
     return ct + scale * a @ r.T
+
+
+def without_ties(obs: ImageObservations, model: int) -> ImageObservations:
+    """The observations with every point of the triple overlap of photos
+    model - 1, model, model + 1 taken off photo model + 1: model ``model``
+    shares no tie point with the one before."""
+    on = [set(obs.point[obs.photo == k].tolist()) for k in range(obs.n_photos)]
+    triple = on[model - 1] & on[model] & on[model + 1]
+    keep = ~((obs.photo == model + 1) & np.isin(obs.point, list(triple)))
+    return ImageObservations.from_ids(
+        np.asarray(obs.photo_ids)[obs.photo[keep]],
+        np.asarray(obs.point_ids)[obs.point[keep]],
+        obs.xy[keep],
+        obs.principal_distance,
+        photo_ids=obs.photo_ids,
+        sigma=obs.sigma[keep],
+    )

@@ -227,7 +227,7 @@ def test_report_json_has_the_sections_with_the_numbers(local_run) -> None:
     rep = build_report(run)
     json.dumps(rep, allow_nan=False)
     bundle = rep["bundle"]
-    assert set(bundle) == OLD_BUNDLE_KEYS | {"gnss", "imu"}
+    assert set(bundle) == OLD_BUNDLE_KEYS | {"gnss", "imu", "check_with_weak"}
     g, i = bundle["gnss"], bundle["imu"]
     ids = list(sim.observations.photo_ids)
     assert (g["n_given"], g["n_used"], g["n_unmatched"], g["unmatched_photos"]) == (
@@ -278,7 +278,7 @@ def test_without_gnss_and_imu_nothing_is_added(local_run) -> None:
     assert refined.gnss is None and refined.imu is None
     assert not any("GNSS" in w or "IMU" in w for w in refined.warnings)
     rep = build_report(dataclasses.replace(result, refined=refined))
-    assert set(rep["bundle"]) == OLD_BUNDLE_KEYS | {"gnss", "imu"}
+    assert set(rep["bundle"]) == OLD_BUNDLE_KEYS | {"gnss", "imu", "check_with_weak"}
     assert rep["bundle"]["gnss"] is None and rep["bundle"]["imu"] is None
     html = "\n".join(_html_tables(rep))
     assert "GNSS" not in html and "IMU" not in html

@@ -22,6 +22,7 @@ from strip_aerotri.errors import GeometryError
 from strip_aerotri.observations import ImageObservations
 from strip_aerotri.simulate import simulate_strip
 from strip_aerotri.strip import relative as rel_module
+from strip_aerotri.strip import relative_iterate as rel_iterate
 from strip_aerotri.strip.chaining import StripOptions, form_strip, pair_rows, tie_rows
 
 # ----------------------------------------------------------------------------
@@ -397,7 +398,7 @@ def test_j7_fixed_linearisation_is_the_derivative_of_j5():
     # the left image frame.
     counts = np.bincount(model, minlength=2)
     starts = rel_module._segment_starts(model, 2)
-    blocks = rel_module._Blocks(left.T.copy(), right.T.copy(), starts, counts, np.arange(2))
+    blocks = rel_iterate._Blocks(left.T.copy(), right.T.copy(), starts, counts, np.arange(2))
     rows = np.empty((model.size, 5))
     q0 = np.empty(model.size)
     for block in blocks.items:

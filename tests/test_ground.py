@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import strip_aerotri as sa
+from _synthetic import without_ties
 from strip_aerotri.blunders import BlunderOptions
 from strip_aerotri.errors import GeometryError, StripAerotriWarning
 from strip_aerotri.geodesy import GroundCRS, enu_rotation
@@ -898,22 +899,8 @@ def test_re_solve_after_a_rejection_equals_a_fresh_solve_without_the_observation
 
 
 def _without_ties(sim, model):
-    """The observations with every point of the triple overlap of photos
-    model - 1, model, model + 1 taken off photo model + 1: model `model`
-    shares no tie point with the one before."""
-    obs = sim.observations
-    on = [set(obs.point[obs.photo == k]) for k in range(obs.n_photos)]
-    triple = on[model - 1] & on[model] & on[model + 1]
-    drop = (obs.photo == model + 1) & np.isin(obs.point, list(triple))
-    keep = ~drop
-    return ImageObservations.from_ids(
-        np.asarray(obs.photo_ids)[obs.photo[keep]],
-        np.asarray(obs.point_ids)[obs.point[keep]],
-        obs.xy[keep],
-        obs.principal_distance,
-        photo_ids=obs.photo_ids,
-        sigma=obs.sigma[keep],
-    )
+    """The simulated strip's observations without ties for model ``model``."""
+    return without_ties(sim.observations, model)
 
 
 def test_a_model_without_tie_points_is_a_break_the_models_take():

@@ -45,6 +45,7 @@ NAMES: dict[str, set[str]] = {
     "DEFAULT_MAX_FRACTION": {"max_fraction"},
     "DEFAULT_SCALE_TOLERANCE": {"scale_tolerance"},
     "DEFAULT_DIFFERENCE_TOLERANCE": {"difference_tolerance"},
+    "DEFAULT_DUPLICATE_TOL_MM": {"duplicate_tol_mm"},
 }
 
 

@@ -6,6 +6,7 @@ import pytest
 from _synthetic import make_strip
 from strip_aerotri.errors import GeometryError
 from strip_aerotri.strip import relative as rel_module
+from strip_aerotri.strip import relative_iterate as rel_iterate
 from strip_aerotri.strip import relative_state
 from strip_aerotri.strip.chaining import pair_rows
 from strip_aerotri.strip.relative import chain_rotations, essential_start, relative_orientation
@@ -95,12 +96,12 @@ def _first_pass_history(syn, factor, monkeypatch, iterations=30):
     state = rel_module._DependentState(n, np.eye(3))
     starts = rel_module._segment_starts(pair, n)
     counts = np.bincount(pair, minlength=n)
-    blocks = rel_module._Blocks(left.T.copy(), right.T.copy(), starts, counts, np.arange(n))
+    blocks = rel_iterate._Blocks(left.T.copy(), right.T.copy(), starts, counts, np.arange(n))
     history = []
     for _ in range(iterations + 1):
-        ev = rel_module._evaluate(state, blocks, np.ones(pair.size))
+        ev = rel_iterate._evaluate(state, blocks, np.ones(pair.size))
         history.append(1000.0 * ev.max_parallax_mm.max())
-        corr, *_ = rel_module._solve_normals(ev.normal, ev.gradient)
+        corr, *_ = rel_iterate._solve_normals(ev.normal, ev.gradient)
         state.update(corr)
     return np.array(history)
 
@@ -201,7 +202,7 @@ def test_batched_normal_solve_agrees_with_lapack_and_flags_singular_matrices():
     tied[:, 4] = 2.0 * tied[:, 3] + 1e-12 * rng.normal(size=40)
     normal[9] = tied.T @ tied
     normal[12, 0, 0] = np.nan
-    corr, singular, inverse = rel_module._solve_normals(normal, gradient)
+    corr, singular, inverse = rel_iterate._solve_normals(normal, gradient)
     bad = [3, 5, 9, 12]
     assert np.flatnonzero(singular).tolist() == bad
     assert np.all(corr[bad] == 0.0)

@@ -1,5 +1,5 @@
 """The chord check that confirms the convergence of the relative orientation
-(relative._chord): once a step is small, the y-parallaxes at the new state
+(relative_iterate._chord): once a step is small, the y-parallaxes at the new state
 with the previous design rows decide whether the pairs have converged,
 instead of a full evaluation."""
 
@@ -8,6 +8,7 @@ import pytest
 
 from _synthetic import make_strip
 from strip_aerotri.strip import relative as rel_module
+from strip_aerotri.strip import relative_iterate as rel_iterate
 from strip_aerotri.strip.chaining import pair_rows
 from strip_aerotri.strip.relative import relative_orientation
 
@@ -22,7 +23,7 @@ def _pairs(syn):
 def _run(monkeypatch, syn, *, chord: bool, method: str = "dependent"):
     """The orientation, the number of chord checks and of rows evaluated in full."""
     calls = {"chord": 0, "rows": 0}
-    evaluate, real_chord = rel_module._evaluate, rel_module._chord
+    evaluate, real_chord = rel_iterate._evaluate, rel_iterate._chord
 
     def counting_evaluate(state, blocks, weight, robust=False):
         calls["rows"] += blocks.n_rows
@@ -35,8 +36,8 @@ def _run(monkeypatch, syn, *, chord: bool, method: str = "dependent"):
         # pair goes on to the full evaluation as before
         return out, corr if chord else np.full_like(corr, np.nan)
 
-    monkeypatch.setattr(rel_module, "_evaluate", counting_evaluate)
-    monkeypatch.setattr(rel_module, "_chord", counting_chord)
+    monkeypatch.setattr(rel_iterate, "_evaluate", counting_evaluate)
+    monkeypatch.setattr(rel_iterate, "_chord", counting_chord)
     left, right, pair, n = _pairs(syn)
     res = relative_orientation(left, right, pair, n, method=method)
     monkeypatch.undo()

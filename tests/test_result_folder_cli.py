@@ -179,7 +179,7 @@ def test_ctrl_c_after_the_new_result_is_in_place_says_so(
     def interrupted(*args: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(run_module, "_echo_details", interrupted)
+    monkeypatch.setattr(run_module, "_echo_strip", interrupted)
     toml = _fresh(project, tmp_path)
     result = CliRunner().invoke(cli, ["run", str(toml)])
     assert result.exit_code == 130

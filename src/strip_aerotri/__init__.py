@@ -113,6 +113,7 @@ from .pipeline import triangulate
 from .project import Project, load_project, run_project
 from .report.files import OutputError, ResultFolder, write_result_folder
 from .report.outputs import build_outputs, build_report
+from .report.summary import RunOutputs, RunSummary, build_run, summarize
 from .report.tolerances import Criterion, chance_beyond, tolerance_verdicts
 from .report.verdict import Verdict, overall_verdict
 from .results import (
@@ -196,6 +197,8 @@ __all__ = [
     "RelativeOrientation",
     "RelativeOrientationMethod",
     "ResultFolder",
+    "RunOutputs",
+    "RunSummary",
     "Route",
     "ScaleTransfer",
     "SimilarityResult",
@@ -218,6 +221,7 @@ __all__ = [
     "adjust_to_ground",
     "azimuth_from_local_enu",
     "build_outputs",
+    "build_run",
     "build_report",
     "bundle_adjust",
     "cardan_from_matrix",
@@ -273,6 +277,7 @@ __all__ = [
     "simulate_block",
     "simulate_strip",
     "skew",
+    "summarize",
     "tolerance_verdicts",
     "triangulate",
     "write_result_folder",

@@ -13,11 +13,11 @@ from __future__ import annotations
 import os
 import shutil
 import uuid
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["atomic_file", "folder_beside", "swap_folder"]
+__all__ = ["atomic_file", "folder_beside", "input_inside", "swap_folder"]
 
 
 def _beside(target: Path, kind: str) -> Path:
@@ -76,3 +76,21 @@ def swap_folder(tmp: Path, target: Path) -> None:
         raise
     if moved:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def input_inside(
+    folder: Path, inputs: Iterable[os.PathLike[str] | str]
+) -> os.PathLike[str] | str | None:
+    """The first of ``inputs`` that is ``folder`` or lies inside it (paths
+    resolved), which replacing the folder would destroy; None when none does.
+
+    >>> import pathlib
+    >>> input_inside(pathlib.Path("/data/out"), ["/data/strip.toml", "/data/out/a.csv"])
+    '/data/out/a.csv'
+    """
+    resolved = folder.resolve()
+    for item in inputs:
+        path = Path(item).resolve()
+        if path == resolved or resolved in path.parents:
+            return item
+    return None

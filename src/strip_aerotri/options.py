@@ -64,6 +64,7 @@ __all__ = [
     "DEFAULT_ALPHA",
     "DEFAULT_BLOCK_POLYNOMIAL",
     "DEFAULT_DIFFERENCE_TOLERANCE",
+    "DEFAULT_DUPLICATE_TOL_MM",
     "DEFAULT_GNSS_SIGMA_XY_M",
     "DEFAULT_GNSS_SIGMA_Z_M",
     "DEFAULT_IMAGE_SIGMA_MM",
@@ -159,6 +160,9 @@ DEFAULT_SCALE_TOLERANCE = 5e-4
 #: R4 §1.7.7.1: its x and y coefficients may differ by "a few units of the
 #: fifth decimal"; read as at most 5.
 DEFAULT_DIFFERENCE_TOLERANCE = 5e-5
+#: ``stripaero import uav-fc300x``: observations of one photo closer than this
+#: (mm) are one point measured twice.
+DEFAULT_DUPLICATE_TOL_MM = 0.005
 
 #: The stages whose observations are tested for blunders (method.md §7).
 STAGES = (

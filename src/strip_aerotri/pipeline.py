@@ -45,7 +45,7 @@ from .options import (
     StripOptions,
 )
 from .plausibility import control_problems
-from .results import AccuracyStatistics, BlockResult, StripModel, StripResult
+from .results import AccuracyStatistics, BlockResult, GroundResult, StripModel, StripResult
 from .strip.densify import form_strip_stepped
 
 __all__ = [
@@ -156,28 +156,9 @@ def triangulate(
     """
     say = progress or (lambda message: None)
     timings: dict[str, float] = {}
-    if options is None:
-        ground_options = ground_options or GroundOptions()
-        options = AdjustmentOptions.of_stages(
-            strip_options or StripOptions(),
-            ground_options,
-            route=ground_options.route or Route.GEOCENTRIC,
-            photo_step=photo_step,
-            min_base_to_height=min_base_to_height,
-            refine=refine,
-        )
-    elif (
-        ground_options is not None
-        or photo_step != DEFAULT_PHOTO_STEP
-        or min_base_to_height != DEFAULT_MIN_BASE_TO_HEIGHT
-        or refine != Refine.NONE
-    ):
-        raise ValueError(
-            "Expected either `options` or `ground_options`, `photo_step`, `min_base_to_height` "
-            "and `refine`, not both"
-        )
-    else:
-        ground_options = options.ground_options()
+    options, ground_options = _run_options(
+        options, strip_options, ground_options, photo_step, min_base_to_height, refine
+    )
     t0 = time.perf_counter()
     mirrored = control_problems(observations, control, crs, file=control_name)
     if mirrored:
@@ -211,27 +192,7 @@ def triangulate(
     # the tie test's residuals, in model base lengths until now, in metres
     model_per_mm, _ = image_scale(strip)
     strip = strip.with_rejections_in_metres(ground.image_scale / model_per_mm)
-    notes = list(warnings) + list(strip.break_warnings)
-    notes += [r.describe() for r in strip.rejections + ground.rejections]
-    failed_ties = set(strip.rejected_points)
-    notes += [
-        f"control point {p!r} is not triangulated ("
-        + (
-            "every determination of it failed the tie-point test, see the tie_points rejections"
-            if p in failed_ties
-            else "seen on fewer than two photos of a model"
-        )
-        + "): left out"
-        for p in ground.left_out
-    ]
-    not_seen = np.flatnonzero(~np.isfinite(ground.points).all(axis=1))
-    if not_seen.size:
-        names = ", ".join(repr(observations.point_ids[i]) for i in not_seen[:5])
-        more = f" and {not_seen.size - 5} more" if not_seen.size > 5 else ""
-        notes.append(
-            f"{not_seen.size} point(s) not triangulated (seen on fewer than two photos): "
-            f"{names}{more}"
-        )
+    notes = _strip_warnings(observations, strip, ground, warnings)
     resid = ground.control_residuals
     used = resid[~ground.is_check].copy()
     # statistics at the control actually used: rejected coordinates left out
@@ -268,6 +229,73 @@ def triangulate(
             warnings=result.warnings + tuple(refined.warnings),
         )
     return _without_weak_checks(result)
+
+
+def _run_options(
+    options: AdjustmentOptions | None,
+    strip_options: StripOptions | None,
+    ground_options: GroundOptions | None,
+    photo_step: int | Literal["auto"],
+    min_base_to_height: float,
+    refine: Refine | str,
+) -> tuple[AdjustmentOptions, GroundOptions]:
+    """The options of a run of :func:`triangulate`: ``options``, or the
+    stages' options and the keywords made into one (giving both is an
+    error); and its ground stage's options."""
+    if options is None:
+        ground_options = ground_options or GroundOptions()
+        options = AdjustmentOptions.of_stages(
+            strip_options or StripOptions(),
+            ground_options,
+            route=ground_options.route or Route.GEOCENTRIC,
+            photo_step=photo_step,
+            min_base_to_height=min_base_to_height,
+            refine=refine,
+        )
+        return options, ground_options
+    if (
+        ground_options is not None
+        or photo_step != DEFAULT_PHOTO_STEP
+        or min_base_to_height != DEFAULT_MIN_BASE_TO_HEIGHT
+        or refine != Refine.NONE
+    ):
+        raise ValueError(
+            "Expected either `options` or `ground_options`, `photo_step`, `min_base_to_height` "
+            "and `refine`, not both"
+        )
+    return options, options.ground_options()
+
+
+def _strip_warnings(
+    observations: ImageObservations,
+    strip: StripModel,
+    ground: GroundResult,
+    warnings: Sequence[str],
+) -> list[str]:
+    """The warnings of a strip's run: those given, the breaks, every
+    rejection, the control points left out and the points not triangulated."""
+    notes = list(warnings) + list(strip.break_warnings)
+    notes += [r.describe() for r in strip.rejections + ground.rejections]
+    failed_ties = set(strip.rejected_points)
+    notes += [
+        f"control point {p!r} is not triangulated ("
+        + (
+            "every determination of it failed the tie-point test, see the tie_points rejections"
+            if p in failed_ties
+            else "seen on fewer than two photos of a model"
+        )
+        + "): left out"
+        for p in ground.left_out
+    ]
+    not_seen = np.flatnonzero(~np.isfinite(ground.points).all(axis=1))
+    if not_seen.size:
+        names = ", ".join(repr(observations.point_ids[i]) for i in not_seen[:5])
+        more = f" and {not_seen.size - 5} more" if not_seen.size > 5 else ""
+        notes.append(
+            f"{not_seen.size} point(s) not triangulated (seen on fewer than two photos): "
+            f"{names}{more}"
+        )
+    return notes
 
 
 @limit_blas_threads

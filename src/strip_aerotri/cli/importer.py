@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, Literal, overload
 
 import click
 
-from ..options import FlightDirection
+from ..options import DEFAULT_DUPLICATE_TOL_MM, FlightDirection
 from .options import F, common_options, echo_result, echo_warning
 
 if TYPE_CHECKING:  # the formats are imported when a command runs (a fast --help)
@@ -251,7 +251,7 @@ def import_group() -> None:
 @click.option(
     "--duplicate-tol-mm",
     type=click.FloatRange(min=0.0),
-    default=0.005,
+    default=DEFAULT_DUPLICATE_TOL_MM,
     show_default=True,
     help="Observations closer than this on one photo are one point.",
 )

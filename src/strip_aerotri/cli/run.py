@@ -5,10 +5,10 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Callable, Collection, Mapping, Sequence
+from collections.abc import Callable
 from contextlib import nullcontext
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import click
 
@@ -23,157 +23,15 @@ from .options import (
 )
 
 if TYPE_CHECKING:  # the numerical modules are imported when the command runs
-    from .._typing import ArrayLike
     from ..project import Project
     from ..report.files import ResultFolder
-    from ..results import BlockResult, Rejection, StripResult
+    from ..report.summary import RunOutputs, RunSummary
 
 __all__ = ["run"]
 
 
 def _fmt_m(value: float) -> str:
     return "n/a" if not math.isfinite(value) else f"{value:.3f} m"
-
-
-def _tolerance_verdict(report_json: bytes | None) -> str | None:
-    """The overall tolerance verdict of report.json, in the words of the report's
-    banner and plain summary."""
-    import json
-
-    try:
-        verdict = json.loads(report_json or b"{}")["tolerances"]["verdict"]["text"]
-    except (ValueError, KeyError, TypeError):
-        return None
-    return f"tolerances (R4 §1.7.7): {verdict}"
-
-
-def _echo_details(result: StripResult) -> None:
-    """Per-pair and per-model figures and the timings on stderr with ``-v``;
-    with ``-vv`` also every control and check point's residual (``-v`` lists
-    every rejection among the warnings)."""
-    strip = result.strip
-    rel = strip.relative
-    for m, label in enumerate(strip.model_labels):
-        tie = (
-            ""
-            if m == 0
-            else f", {int(strip.tie_count[m])} tie points, scale ratio {strip.scale_ratio[m]:.5f}"
-        )
-        echo_progress(
-            f"{label}: {int(rel.n_points[m])} points, sigma0 {rel.sigma0_um[m]:.1f} µm, "
-            f"largest y-parallax {rel.max_parallax_um[m]:.1f} µm, "
-            f"{int(rel.iterations[m])} iterations{tie}",
-            level=1,
-        )
-    # -vv: every control and check point's residual, and every rejection
-    ground = result.refined if result.refined is not None else result.ground
-    _echo_timings_and_residuals(
-        result.timings,
-        result.control.point_ids,
-        ground.control_index,
-        ground.control_residuals,
-        ground.is_check,
-    )
-
-
-def _echo_timings_and_residuals(
-    timings: dict[str, float],
-    ids: Sequence[str],
-    rows: ArrayLike,
-    residuals: ArrayLike,
-    is_check: ArrayLike,
-) -> None:
-    """The stages' times with ``-v``; every control and check point's
-    residual (given − adjusted, metres) with ``-vv``."""
-    for stage, seconds in timings.items():
-        echo_progress(f"{stage}: {seconds:.2f} s", level=1)
-    import numpy as np
-
-    for row, resid, check in zip(
-        np.asarray(rows), np.asarray(residuals), np.asarray(is_check), strict=True
-    ):
-        what = "check" if check else "control"
-        values = ", ".join("-" if v != v else f"{v:+.3f}" for v in resid)
-        echo_progress(f"{what} {ids[row]}: dE, dN, dH {values} m", level=2)
-
-
-#: What each stage's blunder test rejects, for the summary line.
-_REJECTED_WHAT = {
-    "relative_orientation": "y-parallaxes",
-    "tie_points": "tie-point determinations",
-    "models": "model point determinations",
-    "control": "control coordinates",
-    "straight_line": "straight-line conditions",
-}
-
-
-def _rejections(result: StripResult | BlockResult) -> tuple[Rejection, ...]:
-    """Every rejection of a run, the bundle refinement's included."""
-    refined = getattr(result, "refined", None)
-    more = tuple(getattr(refined, "rejections", ()))
-    # a block's strips: the rejections of forming each (a strip's are in its own)
-    formed = tuple(r for strip in getattr(result, "strips", ()) for r in strip.rejections)
-    return formed + tuple(result.rejections) + more
-
-
-def _warning_lines(
-    texts: list[str], rejections: Sequence[Rejection], files: Collection[str]
-) -> list[str]:
-    """The warnings to print: with ``-v`` all of them; by default each stage's
-    blunder rejections (two or more) summed up in one line, at the place of
-    its first, and every other warning as it is."""
-    from .options import settings
-
-    described = {r.describe(): r for r in rejections}
-    if settings().level >= 1 or not any(t in described for t in texts):
-        return texts
-    by_stage: dict[str, list[Rejection]] = {}
-    lines: list[str | tuple[str]] = []
-    for text in texts:
-        rejection = described.get(text)
-        if rejection is None:
-            lines.append(text)
-            continue
-        if rejection.stage not in by_stage:
-            lines.append((rejection.stage,))
-        by_stage.setdefault(rejection.stage, []).append(rejection)
-    names = dict.fromkeys(n for n in ("report.json", _report_name(files)) if n and n in files)
-    listed = " / ".join(names)
-    where = f"listed in {listed}; " if listed else ""
-    out = []
-    for line in lines:
-        if isinstance(line, str):
-            out.append(line)
-            continue
-        group = by_stage[line[0]]
-        if len(group) == 1:
-            out.append(group[0].describe())
-            continue
-        what = _REJECTED_WHAT.get(line[0], "observations")
-        applied = sum(r.applied for r in group)
-        counts = [f"{applied} {what} rejected as blunders"] if applied else []
-        if applied < len(group):
-            kept = len(group) - applied
-            effects = {r.effect for r in group if not r.applied}
-            why = (
-                effects.pop().removeprefix("kept: ")
-                if len(effects) == 1 and next(iter(effects)).startswith("kept: ")
-                else 'action = "report"'
-            )
-            counts.append(f"{kept} {what} fail the blunder test, kept ({why})")
-        out.append(f"{line[0]}: {'; '.join(counts)} ({where}-v lists them here)")
-    return out
-
-
-def _report_name(names: Collection[str]) -> str | None:
-    """The human-readable report among the output file names."""
-    for preferred in ("report.html", "report.md"):
-        if preferred in names:
-            return preferred
-    for name in names:
-        if name.startswith("report.") and not name.endswith(".json"):
-            return name
-    return "report.json" if "report.json" in names else None
 
 
 @click.command(
@@ -219,7 +77,6 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     from ..project import load_project, output_folder
     from ..report.files import ResultFolder
     from ..report.lock import FolderLock
-    from ..results import BlockResult
 
     started = time.perf_counter()
     echo_progress(f"loading {project_file}")
@@ -232,91 +89,80 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
         # before the lock is taken, so that a Ctrl-C as soon as it exists is told too
         settings().interrupted = _folder_state(folder)
         with lock:
-            result, files = _adjust_and_report(project, map_scale)
+            outputs = _adjust_and_report(project, map_scale)
+            summary, files = outputs.summary, outputs.files
             # Warnings only once the run has succeeded: a failed run prints its one
             # error line.
             texts = (
                 *project.warnings,
-                *result.warnings,
+                *summary.warnings,
                 *(str(w.message) for w in caught),
-                *_report_warnings(files.get("report.json")),
+                *summary.output_warnings,
             )
-            for text in _warning_lines(list(dict.fromkeys(texts)), _rejections(result), files):
+            for text in summary.warning_lines(texts, every=settings().level >= 1):
                 echo_warning(text)
             echo_progress(f"writing {len(files)} files to {target}")
             with folder:
                 for name, data in files.items():
-                    folder.write_bytes(
-                        name, data if isinstance(data, bytes) else str(data).encode()
-                    )
+                    folder.write_bytes(name, data)
     _echo_kept(folder)
-
-    if isinstance(result, BlockResult):
-        _echo_block_details(result)
-        _echo_block(result, project.name, files, target, project.adjustment.block.value)
+    for level, line in summary.details:
+        echo_progress(line, level=level)
+    if summary.kind == "block":
+        _echo_block(summary, target)
         return
-    _echo_details(result)
-    elapsed = time.perf_counter() - started
-    n_done = int(result.strip.triangulated.sum())
-    # With a bundle refinement the written points come from it: so do the figures.
-    final = result.refined if result.refined is not None else result
-    control = final.control_statistics
-    check = final.check_statistics
-    echo_result(f"strip '{project.name}': {len(result.photo_ids)} photos, {n_done} points")
-    if result.refined is not None:
-        echo_result("bundle refinement: accuracy below is the refined solution's")
-        _echo_calibration(result.refined.self_calibration, target, files)
+    _echo_strip(summary, target)
+    echo_progress(f"done in {time.perf_counter() - started:.1f} s", level=1)
+
+
+def _echo_accuracy(summary: RunSummary, own: str = "") -> None:
+    """The control's and the check points' lines (``own``: a block's fit)."""
+    control, check = summary.control, summary.check
     echo_result(
         f"control: {control.n_plan} plan, {control.n_height} height; "
-        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}"
+        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(control.rmse_height)}{own}"
     )
     if check.n_plan or check.n_height:
         echo_result(
             f"check points: {check.n_plan} plan, {check.n_height} height; "
-            f"RMSE plan {_fmt_m(check.rmse_plan)}, height {_fmt_m(float(check.rmse[2]))}"
+            f"RMSE plan {_fmt_m(check.rmse_plan)}, height {_fmt_m(check.rmse_height)}"
         )
     else:
         echo_result("check points: none")
-    verdict = _tolerance_verdict(files.get("report.json"))
-    if verdict:
-        echo_result(verdict)
-    report_name = _report_name(files)
-    if report_name is not None:
-        echo_result(f"report: {target / report_name}")
+
+
+def _echo_strip(summary: RunSummary, target: Path) -> None:
+    """The summary of a strip's run."""
+    echo_result(f"strip '{summary.name}': {summary.n_photos} photos, {summary.n_points} points")
+    if summary.refined:
+        # the written points come from the refinement: so do the figures
+        echo_result("bundle refinement: accuracy below is the refined solution's")
+        _echo_calibration(summary, target)
+    _echo_accuracy(summary)
+    echo_result(f"tolerances (R4 §1.7.7): {summary.verdict.text}")
+    if summary.report_name is not None:
+        echo_result(f"report: {target / summary.report_name}")
     echo_result(f"results: {target}")
-    echo_progress(f"done in {elapsed:.1f} s", level=1)
 
 
-def _echo_calibration(outcome: Any, target: Path, files: Mapping[str, bytes]) -> None:
+def _echo_calibration(summary: RunSummary, target: Path) -> None:
     """One line on a self-calibration: the kept parameters and camera.toml."""
-    if outcome is None:
+    calibration = summary.calibration
+    if calibration is None:
         return
-    kept = ", ".join(outcome.kept) or "none"
-    sigma = "" if outcome.estimate is None else f", sigma0 {outcome.estimate.sigma0:.3g}"
-    without = outcome.sigma0_without
+    kept = ", ".join(calibration.kept) or "none"
+    sigma = "" if calibration.sigma0 is None else f", sigma0 {calibration.sigma0:.3g}"
+    without = calibration.sigma0_without
     sigma += f" (without: {without:.3g})" if math.isfinite(without) else ""
-    written = f"; camera: {target / 'camera.toml'}" if "camera.toml" in files else ""
+    written = f"; camera: {target / 'camera.toml'}" if calibration.camera_written else ""
     echo_result(f"self-calibration: kept {kept}{sigma}{written}")
 
 
-def _report_warnings(report_json: bytes | None) -> list[str]:
-    """The warnings report.json adds to the run's (the plan drift at the map scale)."""
-    import json
-
-    try:
-        listed = json.loads(report_json or b"{}").get("warnings") or []
-    except ValueError:
-        return []
-    return [str(w) for w in listed]
-
-
-def _adjust_and_report(
-    project: Project, map_scale: float | None
-) -> tuple[StripResult | BlockResult, dict[str, bytes]]:
-    """Adjust the project and make the result folder's files."""
+def _adjust_and_report(project: Project, map_scale: float | None) -> RunOutputs:
+    """Adjust the project and make the result folder's files and their summary."""
     from ..errors import ConvergenceError, GeometryError
     from ..project import run as project_run
-    from ..results import BlockResult
+    from ..report.summary import build_run
 
     echo_progress(
         f"project '{project.name}': {len(project.photo_ids)} photos, "
@@ -336,15 +182,7 @@ def _adjust_and_report(
                 raise  # the message names its file already
             raise type(exc)(f"{project.path}: {exc}") from exc
         echo_progress("writing the report")
-        scale = map_scale if map_scale is not None else project.report.map_scale
-        if isinstance(result, BlockResult):
-            from ..report.block import build_block_outputs
-
-            return result, build_block_outputs(result, project=project, map_scale=scale)
-        from ..report import outputs as report
-
-        files = report.build_outputs(result, project=project, map_scale=scale, standby=standby)
-        return result, files
+        return build_run(result, project=project, map_scale=map_scale, standby=standby)
 
 
 def _folder_state(folder: ResultFolder) -> Callable[[], str]:
@@ -376,91 +214,35 @@ def _echo_kept(folder: ResultFolder) -> None:
         )
 
 
-def _echo_block_details(result: BlockResult) -> None:
-    """With ``-v`` every strip's models and tie points, the joins and the
-    timings; with ``-vv`` also every control and check point's residual."""
-    import numpy as np
-
-    for spec, strip in zip(result.specs, result.strips, strict=True):
-        rel = strip.relative
-        echo_progress(
-            f"strip {spec.name}: {strip.n_models} models, y-parallax sigma0 "
-            f"{float(np.median(rel.sigma0_um)):.1f} µm (median of its pairs), "
-            f"{len(strip.rejections)} rejections",
-            level=1,
-        )
-    for join in result.joins:
-        a, b = (result.specs[i].name for i in join.strips)
-        echo_progress(
-            f"strips {a} / {b}: {join.n_points} common points, mean plan "
-            f"{join.mean_plan_m:.3f} m, largest {join.max_plan_m:.3f} m, transfer "
-            f"{join.mean_transfer_um:.0f} µm",
-            level=1,
-        )
-    _echo_timings_and_residuals(
-        result.timings,
-        result.control.point_ids,
-        result.control_index,
-        result.control_residuals,
-        result.is_check,
-    )
-
-
-def _echo_block(
-    result: BlockResult,
-    name: str,
-    files: dict[str, bytes],
-    target: Path,
-    construction: str = "model",
-) -> None:
+def _echo_block(summary: RunSummary, target: Path) -> None:
     """The summary of a block's run."""
-    import numpy as np
-
-    n_done = int(np.isfinite(result.points).all(axis=1).sum())
     echo_result(
-        f"block '{name}': {len(result.specs)} strips, {len(result.photo_ids)} photos, "
-        f"{n_done} points"
+        f"block '{summary.name}': {summary.n_strips} strips, {summary.n_photos} photos, "
+        f"{summary.n_points} points"
     )
-    control, check = result.control_statistics, result.check_statistics
-    fit = result.control_fit_statistics
+    fit = summary.control_fit
     own = (
         ""
-        if fit is None or result.refined
-        else f" (the {construction.rstrip('s')}s' own determinations: {_fmt_m(fit.rmse_plan)}, "
-        f"{_fmt_m(float(fit.rmse[2]))})"
+        if fit is None
+        else f" (the {summary.construction.rstrip('s')}s' own determinations: "
+        f"{_fmt_m(fit.rmse_plan)}, {_fmt_m(fit.rmse_height)})"
     )
-    echo_result(
-        f"control: {control.n_plan} plan, {control.n_height} height; "
-        f"RMSE plan {_fmt_m(control.rmse_plan)}, height {_fmt_m(float(control.rmse[2]))}{own}"
-    )
-    if check.n_plan or check.n_height:
+    _echo_accuracy(summary, own)
+    _echo_calibration(summary, target)
+    join = summary.join
+    if join is not None:
+        a, b = join.strips
         echo_result(
-            f"check points: {check.n_plan} plan, {check.n_height} height; "
-            f"RMSE plan {_fmt_m(check.rmse_plan)}, height {_fmt_m(float(check.rmse[2]))}"
+            f"common points of the strips: largest mean discrepancy {_fmt_m(join.mean_plan_m)} "
+            f"plan, {_fmt_m(join.mean_height_m)} height (strips {a} / {b})"
         )
-    else:
-        echo_result("check points: none")
-    _echo_calibration(result.self_calibration, target, files)
-    worst = max(result.joins, key=lambda j: j.mean_plan_m, default=None)
-    if worst is not None:
-        a, b = (result.specs[i].name for i in worst.strips)
-        echo_result(
-            f"common points of the strips: largest mean discrepancy {_fmt_m(worst.mean_plan_m)} "
-            f"plan, {_fmt_m(worst.mean_height_m)} height (strips {a} / {b})"
-        )
-    transfer = [j for j in result.joins if math.isfinite(j.mean_transfer_um)]
-    if transfer:
-        from ..report.block import TRANSFER_UM
-
-        worst = max(transfer, key=lambda j: j.mean_transfer_um)
-        a, b = (result.specs[i].name for i in worst.strips)
-        verdict = "within" if worst.mean_transfer_um <= TRANSFER_UM else "above"
-        echo_result(
-            f"transfer errors of the free block: largest mean {worst.mean_transfer_um:.0f} µm "
-            f"(strips {a} / {b}), {verdict} R4's {TRANSFER_UM:.0f} µm"
-        )
-    tolerance = _tolerance_verdict(files.get("report.json"))
-    if tolerance is not None:
-        echo_result(tolerance)
+        if join.transfer_strips is not None:
+            a, b = join.transfer_strips
+            verdict = "within" if join.transfer_passed else "above"
+            echo_result(
+                f"transfer errors of the free block: largest mean {join.mean_transfer_um:.0f} "
+                f"µm (strips {a} / {b}), {verdict} R4's {join.transfer_limit_um:.0f} µm"
+            )
+    echo_result(f"tolerances (R4 §1.7.7): {summary.verdict.text}")
     echo_result(f"report: {target / 'report.html'}")
     echo_result(f"results: {target}")

@@ -242,20 +242,10 @@ def simulate(
       stripaero simulate drone --strips 4 --photos 15 --side-overlap 40 --out block
       stripaero run demo/strip.toml
     """
-    existing = [name for name in PROJECT_FILES if (out / name).exists()]
-    if existing and not force:
-        from ..report.files import OutputError
-
-        raise OutputError(
-            f"{out / existing[0]} already exists; give another --out or --force to overwrite"
-        )
-    if out.exists() and not out.is_dir():
-        from ..report.files import OutputError
-
-        raise OutputError(f"--out: '{out}' is a file, not a folder")
+    _check_out(out, force)
 
     from ..errors import ConfigError
-    from ..simulate import SimulatedBlock, camera_preset, simulate_block, simulate_strip
+    from ..simulate import camera_preset, simulate_block, simulate_strip
 
     camera_flight = {
         "--overlap": overlap,
@@ -270,19 +260,7 @@ def simulate(
         given = next(k for k, v in camera_flight.items() if v is not None)
         raise click.UsageError(f"{given} describes the flight of --camera, not of a preset")
     block = strips >= 2
-    if not block:
-        for given, value in (("--side-overlap", side_overlap), ("--flight", flight)):
-            if value is not None:
-                raise click.UsageError(f"{given} describes a block: give --strips 2 or more")
-        if control_layout in BLOCK_CONTROL_LAYOUTS:
-            raise click.UsageError(
-                f"--control {control_layout} is for a block: give --strips 2 or more"
-            )
-    elif line or (preset is not None and preset.lower() == "corridor" and line is None):
-        raise click.UsageError(
-            "a block has no straight road: --line and the corridor preset are for one "
-            "strip (--no-line turns the corridor's road off)"
-        )
+    _check_block_flags(block, preset, line, control_layout, side_overlap, flight)
     layout = control_layout or ("perimeter" if block else "ends")
     what = preset.lower() if preset is not None else f"{camera} ({long_side})"
     if block:
@@ -341,15 +319,60 @@ def simulate(
             sim = simulate_strip(photos, line=line if camera is None else None, **common)
     except ValueError as exc:
         raise ConfigError(f"simulate {what}: {exc}") from exc
-    toml_path = _write(sim, out, polynomial)
+    _echo_written(sim, _write(sim, out, polynomial))
+
+
+def _check_out(out: Path, force: bool) -> None:
+    """--out may be written: no project there unless --force, not a file."""
+    from ..report.files import OutputError
+
+    existing = [name for name in PROJECT_FILES if (out / name).exists()]
+    if existing and not force:
+        raise OutputError(
+            f"{out / existing[0]} already exists; give another --out or --force to overwrite"
+        )
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out: '{out}' is a file, not a folder")
+
+
+def _check_block_flags(
+    block: bool,
+    preset: str | None,
+    line: bool | None,
+    control_layout: str | None,
+    side_overlap: float | None,
+    flight: str | None,
+) -> None:
+    """The options of a block given only with --strips 2 or more, and a
+    straight road only for one strip."""
+    if not block:
+        for given, value in (("--side-overlap", side_overlap), ("--flight", flight)):
+            if value is not None:
+                raise click.UsageError(f"{given} describes a block: give --strips 2 or more")
+        if control_layout in BLOCK_CONTROL_LAYOUTS:
+            raise click.UsageError(
+                f"--control {control_layout} is for a block: give --strips 2 or more"
+            )
+    elif line or (preset is not None and preset.lower() == "corridor" and line is None):
+        raise click.UsageError(
+            "a block has no straight road: --line and the corridor preset are for one "
+            "strip (--no-line turns the corridor's road off)"
+        )
+
+
+def _echo_written(sim: SimulatedStrip | SimulatedBlock, toml_path: Path) -> None:
+    """What was written, and how to run it."""
+    from ..simulate import SimulatedBlock
+
     obs = sim.observations
     kinds = [k.value for k in sim.control.kind]
     counts = f"{len(kinds) - kinds.count('check')} control and {kinds.count('check')} check points"
     if isinstance(sim, SimulatedBlock):
-        shared = min(len(sim.common_points(s, s + 1)) for s in range(strips - 1))
+        shared = min(len(sim.common_points(s, s + 1)) for s in range(len(sim.strips) - 1))
         echo_result(
-            f"wrote {toml_path}: {strips} strips, {obs.n_photos} photos, {obs.n_points} points "
-            f"(at least {shared} common to each pair of adjacent strips), {counts}"
+            f"wrote {toml_path}: {len(sim.strips)} strips, {obs.n_photos} photos, "
+            f"{obs.n_points} points (at least {shared} common to each pair of adjacent "
+            f"strips), {counts}"
         )
     else:
         echo_result(

@@ -59,6 +59,7 @@ from ..errors import GeometryError, StripAerotriWarning
 from ..observations import LineSpec
 from ..options import DEFAULT_LINE_WEIGHT, DEFAULT_SECTIONS, check_sections
 from ._banded import BandedNormals
+from .control_geometry import _quote
 from .similarity import (
     RowSupport,
     _check_ids,
@@ -67,7 +68,6 @@ from .similarity import (
     _check_sigma,
     _normal_inverse,
     _normalized,
-    _quote,
     _redundancy_numbers,
     row_support,
 )

@@ -14,7 +14,7 @@ import numpy as np
 from .._typing import ArrayLike, FloatArray
 from ..errors import GeometryError, StripAerotriWarning
 from ..options import DEFAULT_SECTIONS
-from .deformation import StraightLine, fit_deformation
+from .deformation import DeformationResult, StraightLine, fit_deformation
 from .deformation_basis import _check_kind
 from .similarity import _check_sigma
 
@@ -128,8 +128,6 @@ def select_kind_auto(
     kinds_tried = tuple(_check_kind(k) for k in kinds)
     if not kinds_tried:
         raise ValueError("Expected at least one kind in `kinds`")
-    from scipy.stats import chi2  # deferred: scipy.stats is slow to import
-
     alpha = (1.0 - float(confidence)) / 3.0
     table: list[KindSummary] = []
     nan3 = np.full(3, np.nan)
@@ -175,31 +173,9 @@ def select_kind_auto(
                 )
             )
             continue
-        n = res.residuals.shape[0]
-        sig = np.column_stack(
-            [
-                _check_sigma(expected_sigma_xy, n, "expected_sigma_xy"),
-                _check_sigma(expected_sigma_xy, n, "expected_sigma_xy"),
-                _check_sigma(expected_sigma_z, n, "expected_sigma_z"),
-            ]
+        rms, stat, dof, crit, ok = _variance_tests(
+            res, (expected_sigma_xy, expected_sigma_z), alpha
         )
-        observed = np.isfinite(res.residuals)
-        rms = np.full(3, np.nan)
-        stat = np.full(3, np.nan)
-        dof = np.full(3, np.nan)
-        crit = np.full(3, np.nan)
-        ok = True
-        for c in range(3):
-            o = observed[:, c]
-            if not np.any(o):
-                continue
-            v = res.residuals[o, c]
-            rms[c] = np.sqrt(np.mean(v**2))
-            stat[c] = np.sum((v / sig[o, c]) ** 2)
-            dof[c] = np.sum(res.redundancy_numbers[o, c])
-            if dof[c] > 1e-9:
-                crit[c] = chi2.ppf(1.0 - alpha, dof[c])
-                ok = ok and bool(stat[c] <= crit[c])
         table.append(
             KindSummary(
                 k,
@@ -223,3 +199,43 @@ def select_kind_auto(
     passed = [row for row in feasible if row.passed]
     chosen = passed[0].kind if passed else feasible[-1].kind
     return KindSelection(chosen, tuple(table))
+
+
+def _variance_tests(
+    res: DeformationResult,
+    expected_sigmas: tuple[ArrayLike, ArrayLike],
+    alpha: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, bool]:
+    """The variance factor of a fitted kind tested per coordinate X, Y, Z
+    (rule 2 of :func:`select_kind_auto`): the RMS residual, ``T = sum(v² /
+    sigma²)``, its degrees of freedom (the sum of the redundancy numbers),
+    the chi-square quantile at ``1 - alpha`` (NaN where untested) and
+    whether every tested coordinate passes."""
+    from scipy.stats import chi2  # deferred: scipy.stats is slow to import
+
+    n = res.residuals.shape[0]
+    sig = np.column_stack(
+        [
+            _check_sigma(expected_sigmas[0], n, "expected_sigma_xy"),
+            _check_sigma(expected_sigmas[0], n, "expected_sigma_xy"),
+            _check_sigma(expected_sigmas[1], n, "expected_sigma_z"),
+        ]
+    )
+    observed = np.isfinite(res.residuals)
+    rms = np.full(3, np.nan)
+    stat = np.full(3, np.nan)
+    dof = np.full(3, np.nan)
+    crit = np.full(3, np.nan)
+    ok = True
+    for c in range(3):
+        o = observed[:, c]
+        if not np.any(o):
+            continue
+        v = res.residuals[o, c]
+        rms[c] = np.sqrt(np.mean(v**2))
+        stat[c] = np.sum((v / sig[o, c]) ** 2)
+        dof[c] = np.sum(res.redundancy_numbers[o, c])
+        if dof[c] > 1e-9:
+            crit[c] = chi2.ppf(1.0 - alpha, dof[c])
+            ok = ok and bool(stat[c] <= crit[c])
+    return rms, stat, dof, crit, ok

@@ -26,7 +26,6 @@ units.
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -35,45 +34,39 @@ import numpy as np
 
 from .._rows import add_to_columns
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
-from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
+from ..errors import ConvergenceError, GeometryError
 from ..options import DEFAULT_MAX_ITERATIONS
+from .control_geometry import (
+    COINCIDENT_RTOL,
+    COLLINEAR_MAGNIFICATION,
+    COLLINEAR_RTOL,
+    WEAK_COLLINEAR_MAGNIFICATION,
+    WEAK_COLLINEAR_RTOL,
+    _quote,
+    control_count_problems,
+    cross_tilt,
+    height_plane_verdict,
+)
+from .control_geometry import (
+    _validate_control_geometry as _validate_control_geometry,
+)
 from .rotation import matrix_from_rotvec, skew
 
 __all__ = [
+    "COINCIDENT_RTOL",
+    "COLLINEAR_MAGNIFICATION",
+    "COLLINEAR_RTOL",
+    "WEAK_COLLINEAR_MAGNIFICATION",
+    "WEAK_COLLINEAR_RTOL",
     "SimilarityResult",
     "SimilarityTransform",
     "control_count_problems",
+    "cross_tilt",
     "fit_similarity",
     "height_plane_verdict",
     "similarity_from_points",
 ]
 
-#: Relative size (against the extent of the control) below which plan points
-#: are taken as coincident.
-COINCIDENT_RTOL = 1e-6
-#: Ratio of the smallest to the largest singular value of the centred plan
-#: coordinates of the height points below which they are taken as collinear in
-#: plan (all in one vertical plane): the tilt across that plane is undetermined.
-COLLINEAR_RTOL = 1e-3
-#: Same ratio below which the configuration is accepted but a warning is issued
-#: (when the points served are not known, see ``WEAK_COLLINEAR_MAGNIFICATION``).
-WEAK_COLLINEAR_RTOL = 1e-2
-#: With the points the transformation serves known (``served``), the warning
-#: instead asks how far the cross tilt carries the heights' errors: it is
-#: determined to ``σ_h / s₁`` (s₁ the smaller singular value of the height
-#: points' centred plan coordinates), so a height error reaches the served
-#: point farthest from their best vertical plane (distance r) magnified
-#: r / s₁ times.  The ratio above warns about every strip a few hundred
-#: photos long, however well both its edges are controlled (r / s₁ 0.07-0.09
-#: for the benchmarks' 1000-photo strips with control on both edges, 5600
-#: for height control on one road).
-WEAK_COLLINEAR_MAGNIFICATION = 10.0
-#: With the points served known, height control in nearly one vertical plane
-#: (singular value ratio below ``COLLINEAR_RTOL``) is refused only when its
-#: errors reach them more than this many times magnified: a strip thousands
-#: of photos long has the ratio of a line (7.7e-4 at 5000 photos with both
-#: edges controlled) but a cross tilt as firm as a short one's (r / s₁ 0.1).
-COLLINEAR_MAGNIFICATION = 100.0
 #: Condition number of the column-equilibrated normal matrix treated as singular.
 SINGULAR_COND = 1e12
 #: Fraction of its standard deviation below which a step of a linearly
@@ -249,14 +242,6 @@ def _check_ids(point_ids: Sequence[str] | None, n: int) -> tuple[str, ...]:
     if len(ids) != n:
         raise ValueError(f"Expected `point_ids` to have length {n}, got {len(ids)}")
     return ids
-
-
-def _quote(ids: Sequence[str], limit: int = 12) -> str:
-    """``'A', 'B', 'C'`` (shortened with ``...`` beyond `limit` ids)."""
-    quoted = [repr(str(i)) for i in ids]
-    if len(quoted) > limit:
-        quoted = [*quoted[:limit], "..."]
-    return ", ".join(quoted)
 
 
 #: Unknowns up to which the condition number is computed exactly (eigenvalues);
@@ -503,140 +488,121 @@ class SimilarityResult:
     point_ids: tuple[str, ...]
 
 
-def _validate_control_geometry(
-    src: FloatArray,
-    tgt: FloatArray,
-    use_xy: BoolArray,
-    use_z: BoolArray,
-    ids: tuple[str, ...],
-    served: FloatArray | None = None,
-) -> None:
-    """Check J's rules for a 3D similarity; raise GeometryError naming the points."""
-    used = use_xy | use_z
-    bad_src = used & ~np.all(np.isfinite(src), axis=1)
-    bad_xy = use_xy & ~np.all(np.isfinite(tgt[:, :2]), axis=1)
-    bad_z = use_z & ~np.isfinite(tgt[:, 2])
-    if np.any(bad_src):
-        raise GeometryError(
-            "control points have non-finite model coordinates: "
-            f"{_quote([ids[i] for i in np.flatnonzero(bad_src)])}"
-        )
-    if np.any(bad_xy):
-        raise GeometryError(
-            "control points used for plan have non-finite target X or Y: "
-            f"{_quote([ids[i] for i in np.flatnonzero(bad_xy)])}"
-        )
-    if np.any(bad_z):
-        raise GeometryError(
-            "control points used for height have non-finite target H: "
-            f"{_quote([ids[i] for i in np.flatnonzero(bad_z)])}"
-        )
-    plan = np.flatnonzero(use_xy)
-    height = np.flatnonzero(use_z)
-    plan_ids = [ids[i] for i in plan]
-    height_ids = [ids[i] for i in height]
-    problems = control_count_problems(plan_ids, height_ids)
-    if problems:
-        raise GeometryError(problems[0])
-    extent_src = float(np.max(np.ptp(src[used], axis=0)))
-    ranges_tgt = [np.ptp(tgt[plan, 0]), np.ptp(tgt[plan, 1]), np.ptp(tgt[height, 2])]
-    extent_tgt = float(max(ranges_tgt))
-    for frame, xy, extent in (
-        ("model", src[plan, :2], extent_src),
-        ("control", tgt[plan, :2], extent_tgt),
-    ):
-        spread = float(np.max(np.ptp(xy, axis=0)))
-        if spread == 0.0 or spread <= COINCIDENT_RTOL * extent:
-            raise GeometryError(
-                f"plan control points coincide in the {frame} (scale and azimuth are "
-                f"undetermined): {_quote(plan_ids)}"
-            )
-    error, warning = height_plane_verdict(
-        src[height, :2], None if served is None else served[:, :2], height_ids
+def _checked_control(
+    source: ArrayLike,
+    target: ArrayLike,
+    use_xy: ArrayLike,
+    use_z: ArrayLike,
+    sigmas: tuple[ArrayLike | None, ArrayLike | None],
+    point_ids: Sequence[str] | None,
+) -> tuple[FloatArray, FloatArray, BoolArray, BoolArray, FloatArray, FloatArray, tuple[str, ...]]:
+    """:func:`fit_similarity`'s arrays checked: source and target points,
+    the plan and height masks, the sigmas and the ids."""
+    src = _check_points(source, "source")
+    n = src.shape[0]
+    return (
+        src,
+        _check_points(target, "target", n),
+        _check_mask(use_xy, n, "use_xy"),
+        _check_mask(use_z, n, "use_z"),
+        _check_sigma(sigmas[0], n, "sigma_xy"),
+        _check_sigma(sigmas[1], n, "sigma_z"),
+        _check_ids(point_ids, n),
     )
-    if error is not None:
-        raise GeometryError(error)
-    if warning is not None:
-        warnings.warn(warning, StripAerotriWarning, stacklevel=3)
 
 
-def height_plane_verdict(
-    height_xy: FloatArray, served_xy: FloatArray | None, height_ids: Sequence[str]
-) -> tuple[str | None, str | None]:
-    """J's rule on height control nearly in one vertical plane: (error, warning).
+def _weighted_rows(
+    centred: tuple[FloatArray, FloatArray],
+    obs: BoolArray,
+    sigma: FloatArray,
+    transform: tuple[float, FloatArray, FloatArray],
+) -> tuple[FloatArray, FloatArray]:
+    """The design rows and misclosures of the observed target coordinates,
+    each divided by its sigma, at ``transform`` (scale, rotation, shift) of
+    the centred source and target (``centred``); unknowns: shift, scale,
+    small rotation vector."""
+    src_c, tgt_c = centred
+    scale, rotation, shift = transform
+    u = src_c @ rotation.T  # (N, 3)
+    misclosure = (tgt_c - (shift + scale * u))[obs]
+    jac = np.zeros((src_c.shape[0], 3, 7))
+    jac[:, :, 0:3] = np.eye(3)
+    jac[:, :, 3] = u
+    jac[:, :, 4:7] = -scale * skew(u)
+    a = jac[obs]
+    w = 1.0 / sigma[obs]
+    return a * w[:, None], misclosure * w
 
-    The error when the points are collinear in plan (singular value ratio
-    below :data:`COLLINEAR_RTOL`) and an error of their heights reaches the
-    farthest served point more than :data:`COLLINEAR_MAGNIFICATION` times
-    magnified (:func:`cross_tilt`; always without served points); else a
-    warning when the tilt across is weak.  Plan coordinates of the height
-    points and of the served points in any one Cartesian frame (the strip
-    model's too: the ratio and the magnification do not depend on scale).
-    The similarity applies it, and ``stripaero check`` on the formed strip.
-    """
-    ratio, magnified = cross_tilt(height_xy, served_xy)
-    if ratio < COLLINEAR_RTOL and (magnified is None or magnified > COLLINEAR_MAGNIFICATION):
-        reach = (
-            ""
-            if magnified is None
-            else f"; an error of their heights reaches the farthest point {magnified:.0f} "
-            "times magnified"
+
+def _given_start(
+    start: SimilarityTransform, c_src: FloatArray, c_tgt: FloatArray
+) -> tuple[float, FloatArray, FloatArray]:
+    """A given start in the centred frames: scale, rotation and the shift of
+    ``target_c = shift + s R source_c``."""
+    if not isinstance(start, SimilarityTransform):
+        raise TypeError(
+            f"Expected `start` to be a SimilarityTransform, got {type(start).__name__}"
         )
-        return (
-            "height control points all lie in one vertical plane (collinear in plan, "
-            f"singular value ratio {ratio:.1e}{reach}); the tilt across it is undetermined: "
-            f"{_quote(height_ids)}",
-            None,
-        )
-    if magnified is not None:
-        if magnified > WEAK_COLLINEAR_MAGNIFICATION:
-            return None, (
-                "height control points lie nearly in one vertical plane (an error of their "
-                f"heights reaches the farthest point {magnified:.0f} times magnified); the "
-                f"cross tilt is weak: {_quote(height_ids)}"
-            )
-    elif ratio < WEAK_COLLINEAR_RTOL:
-        return None, (
-            "height control points lie nearly in one vertical plane (singular value ratio "
-            f"{ratio:.1e}); the cross tilt is weak: {_quote(height_ids)}"
-        )
-    return None, None
+    # target = t + s R source  <=>  target_c = (t + s R c_src - c_tgt) + s R source_c
+    scale, rotation = float(start.scale), start.rotation.copy()
+    return scale, rotation, start.translation + scale * (rotation @ c_src) - c_tgt
 
 
-def cross_tilt(
-    height_xy: FloatArray, served_xy: FloatArray | None = None, margin: float = 0.0
-) -> tuple[float, float | None]:
-    """How well height control points fix the tilt across their best vertical plane.
+def _solution(
+    weighted: tuple[FloatArray, FloatArray],
+    solved: tuple[float, FloatArray, FloatArray, int],
+    centres: tuple[FloatArray, FloatArray],
+    obs: BoolArray,
+    sigma: FloatArray,
+    ids: tuple[str, ...],
+) -> SimilarityResult:
+    """The result of :func:`fit_similarity` at the solution: the weighted
+    design and misclosures there (``weighted``), the centred solution
+    (scale, rotation, shift, iterations) and the centres of the source and
+    target (``centres``); residuals, sigma0, the redundancy numbers, the
+    normalised residuals and the covariance of the transform."""
+    a_w, l_w = weighted
+    scale, rotation, shift, iterations = solved
+    c_src, c_tgt = centres
+    n = obs.shape[0]
+    used = obs.any(axis=1)
+    q = _regular_inverse(a_w, [ids[i] for i in np.flatnonzero(used)])
+    m = a_w.shape[0]
+    redundancy = m - 7
+    v_obs = l_w * sigma[obs]  # target - fitted, target units
+    residuals = np.full((n, 3), np.nan)
+    residuals[obs] = v_obs
+    if redundancy > 0:
+        sigma0 = float(np.sqrt(np.sum(l_w**2) / redundancy))
+        var_factor = sigma0**2
+    else:
+        sigma0 = float("nan")
+        var_factor = 1.0
+    r_obs = _redundancy_numbers(a_w, q)
+    red = np.full((n, 3), np.nan)
+    red[obs] = r_obs
+    normalized = np.full((n, 3), np.nan)
+    normalized[obs] = _normalized(v_obs, sigma[obs], r_obs)
 
-    Parameters
-    ----------
-    height_xy : ndarray, shape (N, 2)
-        Plan coordinates of the height control points (any Cartesian unit).
-    served_xy : ndarray, shape (M, 2), optional
-        Plan coordinates of the points the transformation serves, same unit.
-    margin : float
-        Distance added to the farthest served point's, same unit (an estimate
-        of how far beyond `served_xy` the points served reach).
+    translation = c_tgt + shift - scale * (rotation @ c_src)
+    # Covariance of the true translation: t = c_tgt + shift - s R c_src.
+    rc = rotation @ c_src
+    jac = np.eye(7)
+    jac[0:3, 3] = -rc
+    jac[0:3, 4:7] = scale * skew(rc)
+    covariance = var_factor * (jac @ q @ jac.T)
 
-    Returns
-    -------
-    ratio : float
-        Smaller over larger singular value of the centred ``height_xy`` (0 when
-        they coincide or lie on one line).
-    magnified : float or None
-        ``r / s₁``: r the distance of the served point farthest from the
-        height points' best vertical plane, s₁ the smaller singular value.
-        The tilt is determined to ``σ_h / s₁``, so an error of the heights
-        reaches that point magnified this many times (inf when s₁ is 0, None
-        without served points).
-    """
-    centre = height_xy.mean(axis=0)
-    _, sv, vt = np.linalg.svd(height_xy - centre, full_matrices=False)
-    ratio = 0.0 if sv[0] == 0.0 else float(sv[1] / sv[0])
-    if served_xy is None or served_xy.shape[0] == 0:
-        return ratio, None
-    reach = float(np.max(np.abs((served_xy - centre) @ vt[1]))) + margin
-    return ratio, (np.inf if sv[1] == 0.0 else reach / float(sv[1]))
+    return SimilarityResult(
+        transform=SimilarityTransform(scale, rotation, translation),
+        residuals=residuals,
+        sigma0=sigma0,
+        redundancy=int(redundancy),
+        iterations=int(iterations),
+        covariance=covariance,
+        redundancy_numbers=red,
+        normalized_residuals=normalized,
+        point_ids=ids,
+    )
 
 
 def _start_values(
@@ -682,25 +648,17 @@ def _start_values(
     return scale, rotation, translation
 
 
-def control_count_problems(plan_ids: Sequence[str], height_ids: Sequence[str]) -> list[str]:
-    """J's counting rule for the similarity (J(14)), one line per shortfall.
-
-    At least two full or plan points (``plan_ids``) and three full or height
-    points (``height_ids``); :func:`fit_similarity` raises the first line,
-    ``stripaero check`` lists them all.
-    """
-    problems = []
-    if len(plan_ids) < 2:
-        problems.append(
-            "similarity transformation needs at least two full or plan control points, "
-            f"got {len(plan_ids)}" + (f": {_quote(plan_ids)}" if plan_ids else "")
+def _regular_inverse(a_w: FloatArray, used_ids: Sequence[str]) -> FloatArray:
+    """The inverse of the normal matrix of the weighted design ``a_w``; an
+    error naming the control points when it is singular."""
+    q, cond = _normal_inverse(a_w)
+    if not np.isfinite(cond) or cond > SINGULAR_COND:
+        raise GeometryError(
+            "similarity transformation: the normal matrix is singular (condition "
+            f"{cond:.1e}); the control does not determine the 7 parameters: "
+            f"{_quote(used_ids)}"
         )
-    if len(height_ids) < 3:
-        problems.append(
-            "similarity transformation needs at least three full or height control points, "
-            f"got {len(height_ids)}" + (f": {_quote(height_ids)}" if height_ids else "")
-        )
-    return problems
+    return q
 
 
 def _gauss_newton(
@@ -724,13 +682,7 @@ def _gauss_newton(
     converged = False
     for iterations in range(1, max_iterations + 1):
         a_w, l_w = linearise(scale, rotation, shift)
-        q, cond = _normal_inverse(a_w)
-        if not np.isfinite(cond) or cond > SINGULAR_COND:
-            raise GeometryError(
-                "similarity transformation: the normal matrix is singular (condition "
-                f"{cond:.1e}); the control does not determine the 7 parameters: "
-                f"{_quote(used_ids)}"
-            )
+        q = _regular_inverse(a_w, used_ids)
         dx = q @ (a_w.T @ l_w)
         shift = shift + dx[0:3]
         scale = scale + dx[3]
@@ -861,19 +813,13 @@ def fit_similarity(
     the null hypothesis each ``w_i`` is standard normal when the a priori
     sigmas are right.
     """
-    src = _check_points(source, "source")
-    n = src.shape[0]
-    tgt = _check_points(target, "target", n)
-    mask_xy = _check_mask(use_xy, n, "use_xy")
-    mask_z = _check_mask(use_z, n, "use_z")
-    sxy = _check_sigma(sigma_xy, n, "sigma_xy")
-    sz = _check_sigma(sigma_z, n, "sigma_z")
-    ids = _check_ids(point_ids, n)
+    src, tgt, mask_xy, mask_z, sxy, sz, ids = _checked_control(
+        source, target, use_xy, use_z, (sigma_xy, sigma_z), point_ids
+    )
     if int(max_iterations) < 1:
         raise ValueError(f"Expected `max_iterations` >= 1, got {max_iterations!r}")
     if not (np.isfinite(tolerance) and tolerance > 0.0):
         raise ValueError(f"Expected `tolerance` > 0, got {tolerance!r}")
-
     served_xyz = None
     if served is not None:
         served_xyz = np.asarray(served, dtype=np.float64).reshape(-1, 3)
@@ -894,26 +840,12 @@ def fit_similarity(
     if start is None:
         scale, rotation, shift = _start_values(src_c, tgt_c, mask_xy, mask_z)
     else:
-        if not isinstance(start, SimilarityTransform):
-            raise TypeError(
-                f"Expected `start` to be a SimilarityTransform, got {type(start).__name__}"
-            )
-        # target = t + s R source  <=>  target_c = (t + s R c_src - c_tgt) + s R source_c
-        scale, rotation = float(start.scale), start.rotation.copy()
-        shift = start.translation + scale * (rotation @ c_src) - c_tgt
+        scale, rotation, shift = _given_start(start, c_src, c_tgt)
 
     def linearise(
         scale: float, rotation: FloatArray, shift: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
-        u = src_c @ rotation.T  # (N, 3)
-        misclosure = (tgt_c - (shift + scale * u))[obs]
-        jac = np.zeros((n, 3, 7))
-        jac[:, :, 0:3] = np.eye(3)
-        jac[:, :, 3] = u
-        jac[:, :, 4:7] = -scale * skew(u)
-        a = jac[obs]
-        w = 1.0 / sigma[obs]
-        return a * w[:, None], misclosure * w
+        return _weighted_rows((src_c, tgt_c), obs, sigma, (scale, rotation, shift))
 
     scale, rotation, shift, iterations = _gauss_newton(
         linearise,
@@ -929,47 +861,11 @@ def fit_similarity(
     u_svd, _, vt_svd = np.linalg.svd(rotation)
     rotation = u_svd @ vt_svd
 
-    a_w, l_w = linearise(scale, rotation, shift)
-    q, cond = _normal_inverse(a_w)
-    if not np.isfinite(cond) or cond > SINGULAR_COND:
-        raise GeometryError(
-            "similarity transformation: the normal matrix is singular (condition "
-            f"{cond:.1e}); the control does not determine the 7 parameters: "
-            f"{_quote([ids[i] for i in np.flatnonzero(used)])}"
-        )
-    m = a_w.shape[0]
-    redundancy = m - 7
-    v_obs = l_w * sigma[obs]  # target - fitted, target units
-    residuals = np.full((n, 3), np.nan)
-    residuals[obs] = v_obs
-    if redundancy > 0:
-        sigma0 = float(np.sqrt(np.sum(l_w**2) / redundancy))
-        var_factor = sigma0**2
-    else:
-        sigma0 = float("nan")
-        var_factor = 1.0
-    r_obs = _redundancy_numbers(a_w, q)
-    red = np.full((n, 3), np.nan)
-    red[obs] = r_obs
-    normalized = np.full((n, 3), np.nan)
-    normalized[obs] = _normalized(v_obs, sigma[obs], r_obs)
-
-    translation = c_tgt + shift - scale * (rotation @ c_src)
-    # Covariance of the true translation: t = c_tgt + shift - s R c_src.
-    rc = rotation @ c_src
-    jac = np.eye(7)
-    jac[0:3, 3] = -rc
-    jac[0:3, 4:7] = scale * skew(rc)
-    covariance = var_factor * (jac @ q @ jac.T)
-
-    return SimilarityResult(
-        transform=SimilarityTransform(scale, rotation, translation),
-        residuals=residuals,
-        sigma0=sigma0,
-        redundancy=int(redundancy),
-        iterations=int(iterations),
-        covariance=covariance,
-        redundancy_numbers=red,
-        normalized_residuals=normalized,
-        point_ids=ids,
+    return _solution(
+        linearise(scale, rotation, shift),
+        (scale, rotation, shift, int(iterations)),
+        (c_src, c_tgt),
+        obs,
+        sigma,
+        ids,
     )

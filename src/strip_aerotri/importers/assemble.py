@@ -22,8 +22,8 @@ from .tables import (
     Distortion,
     ImageFrame,
     ImageTable,
-    ImportOptions,
     ImportedProject,
+    ImportOptions,
     PhotoAttitudes,
     PhotoPositions,
     Strip,
@@ -69,10 +69,6 @@ def assemble(
 ) -> ImportedProject:
     """Decide strips, photo order, flight direction and control types; keep what they use.
 
-    Length: every importer's decisions in the order they depend on each
-    other (ids, strips, order, direction, control types, what is kept), each
-    one a call or a few lines, written once for all formats.
-
     Parameters
     ----------
     source : str
@@ -107,6 +103,54 @@ def assemble(
     """
     notes = list(notes)
     warnings = list(warnings)
+    _check_unique(source, images, control)
+    observed = np.unique(images.photo)
+    strip_list, turn_photos = _find_strips(
+        source, observed, options, strips, (track, track_crs), notes, warnings
+    )
+    strip_list = _chosen_strips(strip_list, observed, options, warnings)
+    in_strips = np.asarray([p for s in strip_list for p in s.photos], dtype=str)
+    left_out = np.setdiff1d(observed, in_strips)
+    left_out = left_out[~np.isin(left_out, sorted(turn_photos))]
+    if left_out.size and options.strips is None:
+        warnings.append(
+            f"observations of {left_out.size} photo(s) in no strip left out: "
+            f"{', '.join(left_out[:10].tolist())}{', ...' if left_out.size > 10 else ''}"
+        )
+    images = images.take(np.isin(images.photo, in_strips))
+
+    direction, strip_list, more_notes, more_warnings = decide_flight_direction(
+        images, frame, strip_list, options.flight_direction
+    )
+    notes += more_notes
+    warnings += more_warnings
+    control = _observed_control(source, control, images, strip_list, options, notes)
+    gnss, imu_opk = _gnss_and_imu(gnss, imu, in_strips, direction, notes, warnings)
+    if options.sigma_mm is not None:
+        frame = ImageFrame(
+            frame.units, frame.pixel_size_mm, frame.principal_point_px, options.sigma_mm
+        )
+    return ImportedProject(
+        source=source,
+        name=options.name or default_name,
+        strips=tuple(strip_list),
+        camera=camera,
+        frame=frame,
+        flight_direction=direction,
+        images=images,
+        control=control,
+        crs=crs,
+        distortion=distortion,
+        gnss=gnss,
+        imu_opk_deg=imu_opk,
+        notes=tuple(notes),
+        warnings=tuple(warnings),
+        inputs=tuple(Path(p) for p in inputs),
+    )
+
+
+def _check_unique(source: str, images: ImageTable, control: ControlTable) -> None:
+    """No empty id, no point observed twice on a photo, no control point listed twice."""
     _check_ids(images.photo, "photo", source)
     _check_ids(images.point, "point", source)
     _check_ids(control.point, "control point", source)
@@ -123,8 +167,21 @@ def assemble(
             f"{source}: control point '{names[np.flatnonzero(counts > 1)[0]]}' is listed twice"
         )
 
-    observed = np.unique(images.photo)
-    turn_photos: set[str] = set()
+
+def _find_strips(
+    source: str,
+    observed: StrArray,
+    options: ImportOptions,
+    strips: Sequence[Strip] | None,
+    track: tuple[PhotoPositions | None, str | None],
+    notes: list[str],
+    warnings: list[str],
+) -> tuple[list[Strip], set[str]]:
+    """The strips and their photo order: ``--photo-order``, else the source's
+    own ``strips``, else from the photo positions (``track`` and its CRS),
+    else one strip in photo-name order; and the photos taken in turns.
+    Notes and warnings are appended to the lists given."""
+    positions, track_crs = track
     if options.photo_order is not None:
         listed = [p for s in options.photo_order for p in s]
         unknown = np.asarray(listed, dtype=str)[~np.isin(listed, observed)]
@@ -132,33 +189,37 @@ def assemble(
             raise ConfigError(
                 f"--photo-order: photo '{unknown[0]}' has no image observations in {source}"
             )
-        strip_list = [Strip(str(k + 1), tuple(s)) for k, s in enumerate(options.photo_order)]
         notes.append("strips and photo order as given by --photo-order")
-    elif strips is not None:
-        strip_list = list(strips)
-    elif track is not None and np.isin(observed, track.photo).all():
-        rows = np.searchsorted(track.photo, observed, sorter=np.argsort(track.photo))
-        xyz = track.xyz[np.argsort(track.photo)[rows]]
+        return [Strip(str(k + 1), tuple(s)) for k, s in enumerate(options.photo_order)], set()
+    if strips is not None:
+        return list(strips), set()
+    if positions is not None and np.isin(observed, positions.photo).all():
+        rows = np.searchsorted(positions.photo, observed, sorter=np.argsort(positions.photo))
+        xyz = positions.xyz[np.argsort(positions.photo)[rows]]
         if track_crs is not None and _is_geographic(track_crs):
             xyz = _equirectangular(xyz)
         found, dropped = strips_from_positions(observed.tolist(), xyz, turn_deg=options.turn_deg)
-        strip_list = [Strip(str(k + 1), s) for k, s in enumerate(found)]
         notes.append(
-            f"{len(strip_list)} strip(s) from the photo positions: the track (photos in "
+            f"{len(found)} strip(s) from the photo positions: the track (photos in "
             f"name order) split where its heading turns by more than {options.turn_deg:g} deg"
         )
         if dropped:
-            turn_photos = set(dropped)
             warnings.append(
                 f"photo(s) taken in turns left out (a strip needs 2 photos): {', '.join(dropped)}"
             )
-    else:
-        if track is not None:
-            warnings.append("not every photo has a position: strips not found from positions")
-        ordered = tuple(sorted(observed.tolist(), key=natural_key))
-        strip_list = [Strip("1", ordered)]
-        notes.append("one strip, photos in photo-name order (no positions to order them)")
+        return [Strip(str(k + 1), s) for k, s in enumerate(found)], set(dropped)
+    if positions is not None:
+        warnings.append("not every photo has a position: strips not found from positions")
+    notes.append("one strip, photos in photo-name order (no positions to order them)")
+    return [Strip("1", tuple(sorted(observed.tolist(), key=natural_key)))], set()
 
+
+def _chosen_strips(
+    strip_list: list[Strip], observed: StrArray, options: ImportOptions, warnings: list[str]
+) -> list[Strip]:
+    """The strips kept: each photo in one strip, the photos without
+    observations left out (a warning), the strips ``--strips`` names, each
+    with two photos or more."""
     seen: dict[str, str] = {}
     for strip in strip_list:
         for p in strip.photos:
@@ -172,7 +233,6 @@ def assemble(
         strip_list = [
             Strip(s.name, tuple(p for p in s.photos if p in has_obs)) for s in strip_list
         ]
-
     if options.strips is not None:
         bad = [n for n in options.strips if not 1 <= n <= len(strip_list)]
         if bad:
@@ -184,25 +244,20 @@ def assemble(
     short = [s.name for s in strip_list if len(s.photos) < 2]
     if short:
         raise ConfigError(f"strip {short[0]} has fewer than 2 photos with image observations")
+    return strip_list
 
-    in_strips = np.asarray([p for s in strip_list for p in s.photos], dtype=str)
-    left_out = np.setdiff1d(observed, in_strips)
-    left_out = left_out[~np.isin(left_out, sorted(turn_photos))]
-    if left_out.size and options.strips is None:
-        warnings.append(
-            f"observations of {left_out.size} photo(s) in no strip left out: "
-            f"{', '.join(left_out[:10].tolist())}{', ...' if left_out.size > 10 else ''}"
-        )
-    images = images.take(np.isin(images.photo, in_strips))
 
-    direction, strip_list, more_notes, more_warnings = decide_flight_direction(
-        images, frame, strip_list, options.flight_direction
-    )
-    notes += more_notes
-    warnings += more_warnings
-
-    seen_points = np.unique(images.point)
-    observed_control = np.isin(control.point, seen_points)
+def _observed_control(
+    source: str,
+    control: ControlTable,
+    images: ImageTable,
+    strip_list: list[Strip],
+    options: ImportOptions,
+    notes: list[str],
+) -> ControlTable:
+    """The control points observed on the imported photos, split into
+    control and check points (:func:`~.control.split_control`)."""
+    observed_control = np.isin(control.point, np.unique(images.point))
     if not observed_control.any():
         raise ConfigError(
             f"{source}: none of the {len(control)} control point(s) is observed on the "
@@ -225,42 +280,33 @@ def assemble(
             "default) needs two in plan and three in height and tests them only with more; "
             'J\'s polynomials (block = "strips") need more still (docs/ground.md)'
         )
+    return control
 
+
+def _gnss_and_imu(
+    gnss: PhotoPositions | None,
+    imu: PhotoAttitudes | None,
+    in_strips: StrArray,
+    direction: str,
+    notes: list[str],
+    warnings: list[str],
+) -> tuple[PhotoPositions | None, tuple[StrArray, FloatArray] | None]:
+    """The GNSS centres of the imported photos, and their IMU attitudes as
+    ω, φ, κ (degrees) of the flight axes (None where none is left)."""
     if gnss is not None:
         gnss = gnss.take(np.isin(gnss.photo, in_strips))
         if len(gnss.photo) == 0:
             warnings.append("no GNSS centre belongs to an imported photo: gnss.csv not written")
             gnss = None
-    imu_opk = None
-    if imu is not None:
-        imu = imu.take(np.isin(imu.photo, in_strips))
-        if len(imu.photo) == 0:
-            warnings.append("no attitude belongs to an imported photo: imu.csv not written")
-        else:
-            flight = flight_matrix(direction)
-            imu_opk = (imu.photo, opk_from_matrix(imu.matrix @ flight.T, degrees=True))
-            notes.append(
-                "IMU attitudes: R = Rx(omega) Ry(phi) Rz(kappa) mapping image vectors in the "
-                "flight axes to local east-north-up (docs/conventions.md)"
-            )
-    if options.sigma_mm is not None:
-        frame = ImageFrame(
-            frame.units, frame.pixel_size_mm, frame.principal_point_px, options.sigma_mm
-        )
-    return ImportedProject(
-        source=source,
-        name=options.name or default_name,
-        strips=tuple(strip_list),
-        camera=camera,
-        frame=frame,
-        flight_direction=direction,
-        images=images,
-        control=control,
-        crs=crs,
-        distortion=distortion,
-        gnss=gnss,
-        imu_opk_deg=imu_opk,
-        notes=tuple(notes),
-        warnings=tuple(warnings),
-        inputs=tuple(Path(p) for p in inputs),
+    if imu is None:
+        return gnss, None
+    imu = imu.take(np.isin(imu.photo, in_strips))
+    if len(imu.photo) == 0:
+        warnings.append("no attitude belongs to an imported photo: imu.csv not written")
+        return gnss, None
+    flight = flight_matrix(direction)
+    notes.append(
+        "IMU attitudes: R = Rx(omega) Ry(phi) Rz(kappa) mapping image vectors in the "
+        "flight axes to local east-north-up (docs/conventions.md)"
     )
+    return gnss, (imu.photo, opk_from_matrix(imu.matrix @ flight.T, degrees=True))

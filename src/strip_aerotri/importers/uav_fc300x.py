@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError
+from ..options import DEFAULT_DUPLICATE_TOL_MM
 from .common import (
     Camera,
     ControlTable,
@@ -66,7 +67,6 @@ __all__ = [
 #: zone of GCP_UTM.txt is not stated, so E, N are used as a local site system.
 DEFAULT_CRS = "local"
 #: Observations closer than this on one photo are one measurement (mm; about 3 px).
-DEFAULT_DUPLICATE_TOL_MM = 0.005
 #: Tangential, affinity and non-orthogonality terms of cal.cal larger than this
 #: are refused: their definition in this layout is not documented.
 NEGLIGIBLE = 1e-9

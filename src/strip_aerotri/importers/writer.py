@@ -11,11 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._atomic import folder_beside
-from .._atomic import swap_folder
+from .._atomic import folder_beside, input_inside, swap_folder
 from .._toml import toml_id_list as _toml_id_list
-from .._toml import toml_string
-from .._toml import toml_value
+from .._toml import toml_string, toml_value
 from .._typing import FloatArray, StrArray
 from ..errors import ConfigError
 from .tables import ImportedProject
@@ -195,15 +193,12 @@ def project_files(project: ImportedProject) -> dict[str, str]:
 def _check_target(out: Path, inputs: Sequence[Path], force: bool) -> None:
     if out.is_symlink():
         raise ConfigError(f"output folder '{out}' is a symbolic link; give the real folder")
-    target = out.resolve()
-    for item in inputs:
-        path = Path(item).resolve()
-        if path == target or target in path.parents:
-            raise ConfigError(
-                f"output folder '{out}' contains the input file '{item}'; choose another --out"
-            )
-    cwd = Path.cwd().resolve()
-    if cwd == target or target in cwd.parents:
+    item = input_inside(out, inputs)
+    if item is not None:
+        raise ConfigError(
+            f"output folder '{out}' contains the input file '{item}'; choose another --out"
+        )
+    if input_inside(out, [Path.cwd()]) is not None:
         raise ConfigError(
             f"output folder '{out}' contains the current folder; choose another --out"
         )

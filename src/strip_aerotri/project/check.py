@@ -8,7 +8,9 @@ follow list every problem, each by the rule of the stage that applies it
 * each consecutive pair has at least five points measured on both photos
   (:func:`strip_aerotri.strip.relative.pair_count_problems`, J(5)-(10));
 * each model after the first shares at least one tie point with the previous
-  model (a point measured on all three photos; scale transfer, J(15));
+  model (a point measured on all three photos; scale transfer, J(15)); with
+  ``block = "models"`` a model without one is the break the run takes, and
+  each run of models between breaks carries itself on its own control;
 * enough control for the similarity
   (:func:`strip_aerotri.geometry.similarity.control_count_problems`, J(14)),
   the plan points not coinciding and the height points not all in one
@@ -23,21 +25,23 @@ follow list every problem, each by the rule of the stage that applies it
 When the counts allow it, the strip is then formed as the run forms it
 (relative orientation of every pair, the photos' order, scale transfer), so
 that a pair that cannot be oriented or photos listed against the flight are
-found here too; the ground stage is not run.
+found here too, and a block's strips are placed on the control as the run
+places them; the ground stage is not run.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from itertools import pairwise
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from ..errors import StripAerotriError
-from ..options import DEFAULT_PHOTO_STEP
 from ..geometry.deformation import n_terms, polynomial_count_problems
 from ..geometry.similarity import (
     COINCIDENT_RTOL,
@@ -46,6 +50,7 @@ from ..geometry.similarity import (
     control_count_problems,
     cross_tilt,
 )
+from ..options import DEFAULT_PHOTO_STEP
 from ..plausibility import control_problems
 from ..strip.chaining import pair_rows
 from ..strip.relative import pair_count_problems
@@ -96,13 +101,14 @@ def _plan_metres(xy: np.ndarray, geographic: bool) -> np.ndarray:
     return np.column_stack([xy[:, 0] * np.cos(lat), xy[:, 1]])
 
 
-#: When the strip cannot be formed (a block's control, or other problems), the
-#: check estimates how far the strip reaches from the control and check points
-#: widened by a photo's footprint, which exceeds the run's reach by up to this
-#: factor: it then refuses height control in nearly one plane only when it is
-#: magnified more than this times COLLINEAR_MAGNIFICATION, and warns between 1
-#: and this times.  A formed strip is judged by the run's own rule instead
-#: (:func:`_check_height_plane`).
+#: When a strip cannot be formed (other problems), the check estimates how far
+#: the strip reaches from the control and check points widened by a photo's
+#: footprint, which exceeds the run's reach by up to this factor: it then
+#: refuses height control in nearly one plane only when it is magnified more
+#: than this times COLLINEAR_MAGNIFICATION, and warns between 1 and this times.
+#: A formed strip is judged by the run's own rule instead
+#: (:func:`_check_height_plane`), and a block by the run's placement of its
+#: strips (:func:`_check_placement`).
 _CHECK_MARGIN = 3.0
 
 
@@ -177,6 +183,8 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
         _check_height_plane(rep, project, formed, height_ids)  # as the run judges it
     else:
         _add_plane(rep, plane)
+    if formed is not None:
+        _check_breaks(rep, project, formed)
     _check_lines(rep, project, facts.triangulable)
     _check_polynomial(rep, project, plan_ids, height_ids)
     # Output folder.
@@ -199,6 +207,7 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
     triangulable = np.zeros(project.observations.n_points, dtype=bool)
     per_strip: list[str] = []
     seen_by = []
+    formed: list[StripModel | None] = []
     for spec in project.strips:
         sub = dataclasses.replace(
             project,
@@ -210,7 +219,7 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
         seen_by.append(np.unique(sub.observations.point))
         facts = _check_pairs(own, sub)
         if not own.problems:
-            _check_formation(own, sub, spec.name)
+            formed.append(_check_formation(own, sub, spec.name))
         triangulable |= facts.triangulable
         if facts.n_models:
             ties = (
@@ -223,12 +232,15 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
                 f"{int(facts.counts.min())}..{int(facts.counts.max())} common points{ties}"
             )
         rep.problems += [f"strip '{spec.name}': {p}" for p in own.problems]
+        rep.warnings += [f"strip '{spec.name}': {w}" for w in own.warnings]
         rep.details += [f"strip '{spec.name}': {d}" for d in own.details]
     rep.problems += control_problems(
         project.observations, project.control, project.crs, str(project.control_file)
     )
-    plan_ids, height_ids, plane = _check_control(rep, project, triangulable)
-    _add_plane(rep, plane)
+    plan_ids, height_ids, _ = _check_control(rep, project, triangulable)
+    strips = tuple(s for s in formed if s is not None)
+    if not rep.problems and len(strips) == len(project.strips):
+        _check_placement(rep, project, strips)  # the run's own rule
     _check_lines(rep, project, triangulable)
     try:
         target = output_folder(project, out)
@@ -312,12 +324,21 @@ def _check_pairs(rep: CheckReport, project: Project) -> _PairFacts:
     key_prev = (model.astype(np.int64) + 1) * n_pts + point
     _, i_now, _ = np.intersect1d(key_now, key_prev, assume_unique=True, return_indices=True)
     ties = np.bincount(model[i_now], minlength=n_models)
-    rep.problems += [
+    # With every model transformed on its own (block = "models") a model
+    # without ties is a break the run takes, each side on its own control
+    # (_check_breaks); J's chain cannot transfer the scale across it.
+    breaks = project.adjustment.allow_breaks
+    (rep.warnings if breaks else rep.problems).extend(
         f"{images}: {labels[m]} shares no tie point with {labels[m - 1]} (no point is "
         f"measured on all three photos {ids[m - 1]}, {ids[m]}, {ids[m + 1]}): the scale "
-        "cannot be transferred"
+        + (
+            'is not carried across it: with block = "models" the models after it take '
+            "theirs from the control (in a block, also from the neighbouring strips)"
+            if breaks
+            else "cannot be transferred"
+        )
         for m in np.flatnonzero(ties[1:] == 0) + 1
-    ]
+    )
     rep.details += [
         f"{labels[m]}: {int(counts[m])} common points, "
         + ("first model" if m == 0 else f"{ties[m]} tie points with the previous model")
@@ -487,6 +508,74 @@ def _check_formation(
         except StripAerotriError as exc:
             rep.problems.append(f"{images}: {exc}")
     return None
+
+
+def _check_placement(rep: CheckReport, project: Project, strips: tuple[StripModel, ...]) -> None:
+    """A block's strips placed on the control as the run places them
+    (:mod:`strip_aerotri.block.problem`): a strip by its own similarity
+    (J's rules for its control, height points in one vertical plane judged
+    over the strip's points), the others by their common points with the
+    strips placed."""
+    from ..block.problem import _start_in_crs
+    from ..errors import GeometryError
+    from ..geodesy import GroundCRS
+
+    try:
+        _start_in_crs(
+            project.observations,
+            project.control,
+            GroundCRS.from_user_input(project.crs),
+            project.strips,
+            strips,
+        )
+    except GeometryError as exc:
+        rep.problems.append(f"{project.control_file}: {exc}")
+
+
+def _check_breaks(rep: CheckReport, project: Project, strip: StripModel) -> None:
+    """Each run of models between breaks (a model sharing no tie point with
+    the one before, which ``block = "models"`` takes) carries itself on its
+    own control, by J's rules for a similarity as the run applies them
+    (:func:`~strip_aerotri.geometry.control_geometry._validate_control_geometry`
+    on the run's control, in the strip and in the control's frames)."""
+    from ..errors import GeometryError, StripAerotriWarning
+    from ..geometry.control_geometry import _validate_control_geometry
+
+    breaks = np.asarray(strip.breaks, dtype=np.intp)
+    if breaks.size == 0:
+        return
+    ctrl = project.control
+    lookup = {pid: i for i, pid in enumerate(project.observations.point_ids)}
+    point = np.array([lookup.get(p, -1) for p in ctrl.point_ids], dtype=np.intp)
+    src = np.where((point >= 0)[:, None], strip.points[np.maximum(point, 0)], np.nan)
+    known = np.isfinite(src).all(axis=1)
+    geographic = not project.is_local and _is_geographic(project.crs)
+    target = np.column_stack([_plan_metres(ctrl.xyz[:, :2], geographic), ctrl.xyz[:, 2]])
+    labels = strip.model_labels or tuple(f"model {m + 1}" for m in range(strip.n_models))
+    edges = [0, *breaks.tolist(), strip.n_models]
+    for lo, hi in pairwise(edges):
+        in_run = np.zeros(project.observations.n_points, dtype=bool)
+        in_run[strip.model_point[(strip.model >= lo) & (strip.model < hi)]] = True
+        here = known & in_run[np.maximum(point, 0)] & (point >= 0) & ~ctrl.is_check
+        ids = tuple(np.asarray(ctrl.point_ids)[here].tolist())
+        try:
+            with warnings.catch_warnings():  # the run's warnings are the ground stage's
+                warnings.simplefilter("ignore", StripAerotriWarning)
+                _validate_control_geometry(
+                    src[here], target[here], ctrl.uses_xy[here], ctrl.uses_h[here], ids
+                )
+        except GeometryError as exc:
+            rep.problems.append(
+                f"{project.control_file}: the models {labels[lo]} to {labels[hi - 1]}, between "
+                f"breaks (no tie point to carry the scale across), have too little control "
+                f"of their own: {exc}"
+            )
+
+
+def _is_geographic(crs: str) -> bool:
+    import pyproj
+
+    return bool(pyproj.CRS.from_user_input(crs).is_geographic)
 
 
 def _strip_free(exc: Exception) -> str:

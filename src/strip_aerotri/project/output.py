@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .._atomic import input_inside
 from ..errors import ConfigError
 
 if TYPE_CHECKING:
@@ -95,14 +96,11 @@ def _check_replaceable(target: Path, inputs: Sequence[Path]) -> None:
             f"(no {RESULT_MARKER} file); refusing to replace it: choose another --out or "
             "empty it"
         )
-    resolved = target.resolve()
-    for item in inputs:
-        item_path = Path(item).resolve()
-        if item_path == resolved or resolved in item_path.parents:
-            raise OutputError(
-                f"output folder '{target}' contains the input file '{item}'; refusing to "
-                "replace it"
-            )
+    item = input_inside(target, inputs)
+    if item is not None:
+        raise OutputError(
+            f"output folder '{target}' contains the input file '{item}'; refusing to replace it"
+        )
 
 
 def _is_within(path: Path, folder: Path) -> bool:

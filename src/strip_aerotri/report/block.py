@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+from collections.abc import Mapping, Sequence
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
@@ -31,8 +32,10 @@ __all__ = [
     "JOIN_PLAN_MM",
     "TRANSFER_UM",
     "block_outputs",
+    "block_tolerances_record",
     "build_block_outputs",
     "build_block_report",
+    "joins_record",
 ]
 
 JOIN_PLAN_MM = 0.5
@@ -75,25 +78,7 @@ def build_block_report(
     result: BlockResult, *, project: Project | None = None, map_scale: float | None = None
 ) -> dict[str, Any]:
     """Content of a block's ``report.json`` (plain JSON types, NaN as None)."""
-    limit = None if map_scale is None else JOIN_PLAN_MM * 1e-3 * map_scale
-    joins = [
-        {
-            "strips": [result.specs[i].name, result.specs[j].name],
-            "n_points": join.n_points,
-            "mean_plan_m": json_float(join.mean_plan_m),
-            "max_plan_m": json_float(join.max_plan_m),
-            "mean_height_m": json_float(join.mean_height_m),
-            "max_height_m": json_float(join.max_height_m),
-            "plan_limit_m": limit,
-            "passed": None if limit is None else bool(join.mean_plan_m <= limit),
-            "mean_transfer_um": json_float(join.mean_transfer_um),
-            "max_transfer_um": json_float(join.max_transfer_um),
-            "transfer_limit_um": TRANSFER_UM,
-            "transfer_passed": transfer_passed(join.mean_transfer_um),
-        }
-        for join in result.joins
-        for i, j in [join.strips]
-    ]
+    joins = joins_record(result, map_scale)
     created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     report = {
         "format": REPORT_FORMAT,
@@ -166,13 +151,46 @@ def build_block_report(
             if result.refined
             else None
         ),
-        "tolerances": with_verdict(_tolerances(result, map_scale), joins),
+        "tolerances": block_tolerances_record(result, map_scale, joins),
         "rejections": [r.describe() for r in result.rejections],
         "warnings": list(result.warnings),
         "timings_s": dict(result.timings),
     }
     cleaned: dict[str, Any] = clean(report)
     return cleaned
+
+
+def joins_record(result: BlockResult, map_scale: float | None) -> list[dict[str, Any]]:
+    """report.json's ``block.joins``: every two strips' common points, their
+    discrepancies and transfer errors against R4's limits."""
+    limit = None if map_scale is None else JOIN_PLAN_MM * 1e-3 * map_scale
+    return [
+        {
+            "strips": [result.specs[i].name, result.specs[j].name],
+            "n_points": join.n_points,
+            "mean_plan_m": json_float(join.mean_plan_m),
+            "max_plan_m": json_float(join.max_plan_m),
+            "mean_height_m": json_float(join.mean_height_m),
+            "max_height_m": json_float(join.max_height_m),
+            "plan_limit_m": limit,
+            "passed": None if limit is None else bool(join.mean_plan_m <= limit),
+            "mean_transfer_um": json_float(join.mean_transfer_um),
+            "max_transfer_um": json_float(join.max_transfer_um),
+            "transfer_limit_um": TRANSFER_UM,
+            "transfer_passed": transfer_passed(join.mean_transfer_um),
+        }
+        for join in result.joins
+        for i, j in [join.strips]
+    ]
+
+
+def block_tolerances_record(
+    result: BlockResult, map_scale: float | None, joins: Sequence[Mapping[str, Any]]
+) -> dict[str, Any]:
+    """report.json's ``tolerances`` of a block, with its verdict over the
+    check points and the ``joins`` (:func:`joins_record`; the run's summary
+    takes its verdict from here too)."""
+    return with_verdict(_tolerances(result, map_scale), joins)
 
 
 def _tolerances(result: BlockResult, map_scale: float | None) -> dict[str, Any]:

@@ -28,7 +28,7 @@ from types import TracebackType
 
 import numpy as np
 
-from .._atomic import folder_beside, swap_folder
+from .._atomic import folder_beside, input_inside, swap_folder
 from .._typing import ArrayLike
 from ..errors import StripAerotriError
 
@@ -330,14 +330,11 @@ def _check_target(target: Path, protect: Iterable[os.PathLike[str] | str]) -> No
                 f"output folder '{target}' is not empty and is not a stripaero result folder "
                 f"(no {RESULT_MARKER} file); refusing to replace it"
             )
-    resolved = target.resolve()
-    for item in protect:
-        item_path = Path(item).resolve()
-        if item_path == resolved or resolved in item_path.parents:
-            raise OutputError(
-                f"output folder '{target}' contains the input file '{item}'; refusing to "
-                "replace it"
-            )
+    item = input_inside(target, protect)
+    if item is not None:
+        raise OutputError(
+            f"output folder '{target}' contains the input file '{item}'; refusing to replace it"
+        )
 
 
 def _marker_lists(folder: Path) -> tuple[frozenset[str], frozenset[str]] | None:

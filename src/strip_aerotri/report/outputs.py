@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     from ..results import StripResult
 
 __all__ = [
+    "GEOJSON_LOCAL_NOTE",
     "REPORT_FORMAT",
     "REPORT_FORMAT_VERSION",
     "build_html",
@@ -36,6 +37,9 @@ __all__ = [
     "point_roles",
     "strip_outputs",
 ]
+
+#: The note of report.json's ``warnings`` when points.geojson is not written.
+GEOJSON_LOCAL_NOTE = 'points.geojson not written: crs is "local" (no geodesy to WGS 84)'
 
 
 def build_outputs(
@@ -103,7 +107,7 @@ def strip_outputs(
         notes: list[str] = []
         geojson = points_geojson(result)
         if geojson is None:
-            notes.append('points.geojson not written: crs is "local" (no geodesy to WGS 84)')
+            notes.append(GEOJSON_LOCAL_NOTE)
         report = build_report(result, project=project, map_scale=map_scale, notes=notes)
         cal_record, cal_toml = calibration_outputs(
             outcome, project, float(result.strip.observations.principal_distance)

@@ -288,8 +288,9 @@ def _model_adjustment(result: StripResult) -> dict[str, Any] | None:
     }
 
 
-def _tolerances(result: StripResult, map_scale: float | None) -> dict[str, Any]:
-    """report.json's ``tolerances``: the criteria, their verdicts and the words."""
+def tolerances_record(result: StripResult, map_scale: float | None) -> dict[str, Any]:
+    """report.json's ``tolerances``: the criteria, their verdicts and the words
+    (the run's summary takes its verdict from here too)."""
     criteria = tolerance_verdicts(result, map_scale)
     judged = [c.passed for c in criteria if c.passed is not None]
     return with_verdict(
@@ -299,6 +300,12 @@ def _tolerances(result: StripResult, map_scale: float | None) -> dict[str, Any]:
             "criteria": [c.as_dict() for c in criteria],
         }
     )
+
+
+def drift_warnings(result: StripResult, map_scale: float | None) -> list[str]:
+    """The warnings the report adds at the map scale (the plan drift between
+    the control, :func:`~.tolerances.plan_drift_warning`)."""
+    return [w for w in (plan_drift_warning(result, map_scale),) if w is not None]
 
 
 def build_report(
@@ -338,7 +345,6 @@ def build_report(
     weights: dict[str, float] = {}
     if project is not None:
         weights = {spec.name: float(spec.weight) for spec in project.straight_lines}
-    drift = [w for w in (plan_drift_warning(result, map_scale),) if w is not None]
     frame = ground.frame
     options = options_record(result.options)
     if options is None:
@@ -417,7 +423,7 @@ def build_report(
             "weakly_determined": list(getattr(result, "weak_checks", ())),
             "statistics_with_weak": statistics(_all_check_statistics(result)),
         },
-        "tolerances": _tolerances(result, map_scale),
+        "tolerances": tolerances_record(result, map_scale),
         "bundle": _bundle(result),
         "rejections": [
             {
@@ -434,7 +440,7 @@ def build_report(
             }
             for r in getattr(result, "rejections", ())
         ],
-        "warnings": [*result.warnings, *notes, *drift],
+        "warnings": [*result.warnings, *notes, *drift_warnings(result, map_scale)],
         "timings_s": dict(result.timings),
         "outputs": {
             "points.geojson": {

@@ -1,11 +1,15 @@
 """What a run gives, in short: :class:`RunSummary`, the typed summary that
-``stripaero run`` prints (the command computes nothing itself).
+``stripaero run`` prints (the command computes nothing itself and reads no
+file back).
 
 :func:`build_run` adjusts nothing: it takes a finished result (one strip or
-a block) and writes the files of its result folder (:mod:`.outputs`,
-:mod:`.block`) and their summary: the accuracy at the control and check
-points, the tolerance verdicts at the map scale, a block's joins and R4's
-transfer verdict, the warnings and the timings.
+a block) and makes the files of its result folder (:mod:`.outputs`,
+:mod:`.block`) and their summary.  :func:`summarize` makes the summary from
+the result alone, by the rules that write ``report.json``: the accuracy at
+the control and check points, the overall tolerance verdict at the map
+scale (:mod:`.verdict`, the sentence of the page's banner), a block's joins
+and R4's transfer verdict, the self-calibration, the warnings, the
+rejections, the timings and the figures ``-v`` shows.
 """
 
 from __future__ import annotations
@@ -15,16 +19,24 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from ..results import AccuracyStatistics, BlockResult, StripResult
+import numpy as np
+
+from ..results import AccuracyStatistics, BlockResult, Rejection, StripResult
 from . import outputs
-from .block import block_outputs, build_block_report
+from .block import block_outputs, block_tolerances_record, build_block_report, joins_record
+from .outputs import GEOJSON_LOCAL_NOTE
+from .record import drift_warnings, tolerances_record
 from .tolerances import TRANSFER_UM, transfer_passed
+from .verdict import Verdict
 
 if TYPE_CHECKING:
     from ..project import Project
+    from ..results import SelfCalibrationOutcome
+    from .aside import Standby
 
 __all__ = [
     "Accuracy",
+    "Calibration",
     "JoinVerdict",
     "RunOutputs",
     "RunSummary",
@@ -32,6 +44,7 @@ __all__ = [
     "build_run",
     "summarize",
 ]
+
 
 @dataclass(frozen=True)
 class Accuracy:
@@ -54,7 +67,9 @@ class Accuracy:
 
 @dataclass(frozen=True)
 class ToleranceVerdict:
-    """The tolerance criteria at the map scale 1:``map_scale`` (method.md §7)."""
+    """The tolerance criteria at the map scale 1:``map_scale`` (method.md §7):
+    how many were judged, how many could not be, and the names of those
+    not met."""
 
     map_scale: float
     n_judged: int
@@ -68,8 +83,23 @@ class ToleranceVerdict:
 
 @dataclass(frozen=True)
 class JoinVerdict:
-    """The join of two strips that fits worst: its mean discrepancies (m) and
-    the largest mean transfer error (µm) against R4's limit."""
+    """The join of two strips that fits worst, and the largest mean transfer
+    error against R4's limit.
+
+    Attributes
+    ----------
+    strips : (str, str)
+        The two strips whose common points disagree most (mean plan).
+    mean_plan_m, mean_height_m : float
+        Their mean discrepancies, metres.
+    transfer_strips : (str, str) or None
+        The two strips with the largest mean transfer error (None when no
+        join has one).
+    mean_transfer_um : float
+        That error, µm in the image (NaN when none).
+    transfer_limit_um : float
+        R4's limit (:data:`~.tolerances.TRANSFER_UM`).
+    """
 
     strips: tuple[str, str]
     mean_plan_m: float
@@ -80,7 +110,34 @@ class JoinVerdict:
 
     @property
     def transfer_passed(self) -> bool | None:
+        """Within R4's limit (None when no transfer error was computed)."""
         return transfer_passed(self.mean_transfer_um)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A self-calibration in short: the parameters kept, sigma0 with them
+    (None when every parameter was held) and without (NaN when not
+    computed), and whether ``camera.toml`` was written."""
+
+    kept: tuple[str, ...]
+    sigma0: float | None
+    sigma0_without: float
+    camera_written: bool
+
+    @classmethod
+    def of(
+        cls, outcome: SelfCalibrationOutcome | None, files: Sequence[str]
+    ) -> Calibration | None:
+        if outcome is None:
+            return None
+        estimate = outcome.estimate
+        return cls(
+            tuple(outcome.kept),
+            None if estimate is None else float(estimate.sigma0),
+            float(outcome.sigma0_without),
+            "camera.toml" in files,
+        )
 
 
 @dataclass(frozen=True)
@@ -101,13 +158,29 @@ class RunSummary:
     control_fit : Accuracy or None
         A block's strips (or models) against the control by their own
         determinations (None for a strip, or after a refinement).
+    verdict : Verdict
+        The overall tolerance verdict, the sentence of the report's banner
+        (what was judged at the map scale, what was not and why).
     tolerances : ToleranceVerdict or None
-        None without a map scale.
+        The criteria at the map scale (None without a map scale).
     join : JoinVerdict or None
-        A block's worst join (None for a strip).
+        A block's worst join and R4's transfer verdict (None for a strip).
+    calibration : Calibration or None
+        The self-calibration (None without one).
     warnings : tuple of str
+        The run's warnings.
+    output_warnings : tuple of str
+        The warnings the outputs add (the plan drift at the map scale,
+        points.geojson not written); report.json lists both.
+    rejections : tuple of Rejection
+        Every rejection of the run: a block's strips', the adjustment's and
+        the bundle refinement's.
     timings : dict of str to float
         Seconds per stage.
+    details : tuple of (int, str)
+        The figures per pair (or strip and join), the timings and the control
+        and check points' residuals, each with the verbosity that shows it
+        (1 for ``-v``, 2 for ``-vv``).
     files : tuple of str
         The result folder's files.
     """
@@ -121,20 +194,42 @@ class RunSummary:
     construction: str
     control: Accuracy
     check: Accuracy
+    verdict: Verdict
     control_fit: Accuracy | None = None
     tolerances: ToleranceVerdict | None = None
     join: JoinVerdict | None = None
+    calibration: Calibration | None = None
     warnings: tuple[str, ...] = ()
+    output_warnings: tuple[str, ...] = ()
+    rejections: tuple[Rejection, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
+    details: tuple[tuple[int, str], ...] = ()
     files: tuple[str, ...] = ()
 
     @property
     def report_name(self) -> str | None:
-        """The report to open (``report.html``, else ``report.json``)."""
-        for name in ("report.html", "report.json"):
-            if name in self.files:
+        """The human-readable report among the files (``report.html``, else
+        another ``report.*`` that is not JSON, else ``report.json``)."""
+        for preferred in ("report.html", "report.md"):
+            if preferred in self.files:
+                return preferred
+        for name in self.files:
+            if name.startswith("report.") and not name.endswith(".json"):
                 return name
-        return None
+        return "report.json" if "report.json" in self.files else None
+
+    def warning_lines(self, texts: Sequence[str], *, every: bool = False) -> list[str]:
+        """The warnings to print, each once in the order given: with ``every``
+        (``-v``) all of them; else each stage's blunder rejections (two or
+        more) summed up in one line, at the place of its first, naming the
+        files that list them."""
+        unique = list(dict.fromkeys(texts))
+        if every:
+            return unique
+        names = dict.fromkeys(
+            n for n in ("report.json", self.report_name) if n and n in self.files
+        )
+        return _grouped(unique, self.rejections, " / ".join(names))
 
 
 @dataclass(frozen=True)
@@ -145,18 +240,57 @@ class RunOutputs:
     summary: RunSummary
 
 
-def _tolerances(record: Mapping[str, Any]) -> ToleranceVerdict | None:
-    tolerances = record.get("tolerances") or {}
-    if tolerances.get("map_scale") is None:
-        return None
-    criteria: Sequence[Mapping[str, Any]] = tolerances.get("criteria") or ()
-    judged = [c for c in criteria if c.get("passed") is not None]
-    return ToleranceVerdict(
-        map_scale=float(tolerances["map_scale"]),
-        n_judged=len(judged),
-        n_unjudged=len(criteria) - len(judged),
-        failed=tuple(str(c["name"]) for c in judged if c["passed"] is False),
-    )
+#: What each stage's blunder test rejects, for the summary line.
+_REJECTED_WHAT = {
+    "relative_orientation": "y-parallaxes",
+    "tie_points": "tie-point determinations",
+    "models": "model point determinations",
+    "control": "control coordinates",
+    "straight_line": "straight-line conditions",
+}
+
+
+def _grouped(texts: list[str], rejections: Sequence[Rejection], listed: str) -> list[str]:
+    """Each stage's blunder rejections (two or more) among ``texts`` summed up
+    in one line at the place of its first (``listed``: the files that list
+    them); every other warning as it is."""
+    described = {r.describe(): r for r in rejections}
+    if not any(t in described for t in texts):
+        return texts
+    by_stage: dict[str, list[Rejection]] = {}
+    lines: list[str | tuple[str]] = []
+    for text in texts:
+        rejection = described.get(text)
+        if rejection is None:
+            lines.append(text)
+            continue
+        if rejection.stage not in by_stage:
+            lines.append((rejection.stage,))
+        by_stage.setdefault(rejection.stage, []).append(rejection)
+    where = f"listed in {listed}; " if listed else ""
+    out = []
+    for line in lines:
+        if isinstance(line, str):
+            out.append(line)
+            continue
+        group = by_stage[line[0]]
+        if len(group) == 1:
+            out.append(group[0].describe())
+            continue
+        what = _REJECTED_WHAT.get(line[0], "observations")
+        applied = sum(r.applied for r in group)
+        counts = [f"{applied} {what} rejected as blunders"] if applied else []
+        if applied < len(group):
+            kept = len(group) - applied
+            effects = {r.effect for r in group if not r.applied}
+            why = (
+                effects.pop().removeprefix("kept: ")
+                if len(effects) == 1 and next(iter(effects)).startswith("kept: ")
+                else 'action = "report"'
+            )
+            counts.append(f"{kept} {what} fail the blunder test, kept ({why})")
+        out.append(f"{line[0]}: {'; '.join(counts)} ({where}-v lists them here)")
+    return out
 
 
 def _join(result: BlockResult) -> JoinVerdict | None:
@@ -178,51 +312,186 @@ def _join(result: BlockResult) -> JoinVerdict | None:
     )
 
 
+def _verdicts(tolerances: Mapping[str, Any]) -> tuple[Verdict, ToleranceVerdict | None]:
+    """The overall verdict that :func:`~.verdict.with_verdict` wrote into
+    report.json's ``tolerances``, and its criteria (None without a map
+    scale)."""
+    verdict = Verdict(str(tolerances["verdict"]["status"]), str(tolerances["verdict"]["text"]))
+    if tolerances.get("map_scale") is None:
+        return verdict, None
+    criteria: Sequence[Mapping[str, Any]] = tolerances.get("criteria") or ()
+    judged = [c for c in criteria if c.get("passed") is not None]
+    return verdict, ToleranceVerdict(
+        map_scale=float(tolerances["map_scale"]),
+        n_judged=len(judged),
+        n_unjudged=len(criteria) - len(judged),
+        failed=tuple(str(c["name"]) for c in judged if c["passed"] is False),
+    )
+
+
+def _residual_details(
+    timings: dict[str, float],
+    ids: Sequence[str],
+    rows: np.ndarray,
+    residuals: np.ndarray,
+    is_check: np.ndarray,
+) -> list[tuple[int, str]]:
+    """The stages' times (``-v``); every control and check point's residual,
+    given − adjusted, metres (``-vv``)."""
+    lines = [(1, f"{stage}: {seconds:.2f} s") for stage, seconds in timings.items()]
+    for row, resid, check in zip(
+        np.asarray(rows), np.asarray(residuals), np.asarray(is_check), strict=True
+    ):
+        what = "check" if check else "control"
+        values = ", ".join("-" if v != v else f"{v:+.3f}" for v in resid)
+        lines.append((2, f"{what} {ids[row]}: dE, dN, dH {values} m"))
+    return lines
+
+
+def _strip_details(result: StripResult) -> tuple[tuple[int, str], ...]:
+    """Per pair and model: points, sigma0, largest y-parallax, iterations, ties."""
+    strip = result.strip
+    rel = strip.relative
+    lines = []
+    for m, label in enumerate(strip.model_labels):
+        tie = (
+            ""
+            if m == 0
+            else f", {int(strip.tie_count[m])} tie points, scale ratio {strip.scale_ratio[m]:.5f}"
+        )
+        lines.append(
+            (
+                1,
+                f"{label}: {int(rel.n_points[m])} points, sigma0 {rel.sigma0_um[m]:.1f} µm, "
+                f"largest y-parallax {rel.max_parallax_um[m]:.1f} µm, "
+                f"{int(rel.iterations[m])} iterations{tie}",
+            )
+        )
+    ground = result.refined if result.refined is not None else result.ground
+    lines += _residual_details(
+        result.timings,
+        result.control.point_ids,
+        ground.control_index,
+        ground.control_residuals,
+        ground.is_check,
+    )
+    return tuple(lines)
+
+
+def _block_details(result: BlockResult) -> tuple[tuple[int, str], ...]:
+    """Per strip and per join of two strips, then the timings and residuals."""
+    lines = [
+        (
+            1,
+            f"strip {spec.name}: {strip.n_models} models, y-parallax sigma0 "
+            f"{float(np.median(strip.relative.sigma0_um)):.1f} µm (median of its pairs), "
+            f"{len(strip.rejections)} rejections",
+        )
+        for spec, strip in zip(result.specs, result.strips, strict=True)
+    ]
+    for join in result.joins:
+        a, b = (result.specs[i].name for i in join.strips)
+        lines.append(
+            (
+                1,
+                f"strips {a} / {b}: {join.n_points} common points, mean plan "
+                f"{join.mean_plan_m:.3f} m, largest {join.max_plan_m:.3f} m, transfer "
+                f"{join.mean_transfer_um:.0f} µm",
+            )
+        )
+    lines += _residual_details(
+        result.timings,
+        result.control.point_ids,
+        result.control_index,
+        result.control_residuals,
+        result.is_check,
+    )
+    return tuple(lines)
+
+
+def _rejections(result: StripResult | BlockResult) -> tuple[Rejection, ...]:
+    """Every rejection of a run: a block's strips' (a strip's are in its own),
+    the adjustment's, then the bundle refinement's."""
+    refined = getattr(result, "refined", None)
+    more = tuple(getattr(refined, "rejections", ()))
+    formed = tuple(r for strip in getattr(result, "strips", ()) for r in strip.rejections)
+    return formed + tuple(result.rejections) + more
+
+
+def _block_summary(
+    result: BlockResult, map_scale: float | None, name: str, files: Sequence[str]
+) -> RunSummary:
+    fit = result.control_fit_statistics
+    verdict, tolerances = _verdicts(
+        block_tolerances_record(result, map_scale, joins_record(result, map_scale))
+    )
+    return RunSummary(
+        kind="block",
+        name=name,
+        n_strips=len(result.specs),
+        n_photos=len(result.photo_ids),
+        n_points=int(np.isfinite(result.points).all(axis=1).sum()),
+        refined=bool(result.refined),
+        construction="" if result.options is None else result.options.block.value,
+        control=Accuracy.of(result.control_statistics),
+        check=Accuracy.of(result.check_statistics),
+        verdict=verdict,
+        tolerances=tolerances,
+        control_fit=None if fit is None or result.refined else Accuracy.of(fit),
+        join=_join(result),
+        calibration=Calibration.of(result.self_calibration, files),
+        warnings=tuple(result.warnings),
+        rejections=_rejections(result),
+        timings=dict(result.timings),
+        details=_block_details(result),
+        files=tuple(files),
+    )
+
+
 def summarize(
     result: StripResult | BlockResult,
-    record: Mapping[str, Any],
     *,
-    name: str,
+    map_scale: float | None = None,
+    name: str = "",
     files: Sequence[str] = (),
 ) -> RunSummary:
-    """The summary of a run from its result and its ``report.json`` content."""
-    import numpy as np
+    """The summary of a run, from its result alone.
 
-    options = result.options
-    construction = "" if options is None else options.block.value
+    Parameters
+    ----------
+    result : StripResult or BlockResult
+    map_scale : float, optional
+        Map scale denominator of the tolerance verdicts (as given to the
+        report).
+    name : str
+        The project's name.
+    files : sequence of str
+        The result folder's files (what was written).
+    """
     if isinstance(result, BlockResult):
-        fit = result.control_fit_statistics
-        return RunSummary(
-            kind="block",
-            name=name,
-            n_strips=len(result.specs),
-            n_photos=len(result.photo_ids),
-            n_points=int(np.isfinite(result.points).all(axis=1).sum()),
-            refined=bool(result.refined),
-            construction=construction,
-            control=Accuracy.of(result.control_statistics),
-            check=Accuracy.of(result.check_statistics),
-            control_fit=None if fit is None or result.refined else Accuracy.of(fit),
-            tolerances=_tolerances(record),
-            join=_join(result),
-            warnings=tuple(result.warnings),
-            timings=dict(result.timings),
-            files=tuple(files),
-        )
+        return _block_summary(result, map_scale, name, files)
     final = result.refined if result.refined is not None else result
+    refined = result.refined
+    local = (GEOJSON_LOCAL_NOTE,) if result.ground.crs.is_local else ()
+    verdict, tolerances = _verdicts(tolerances_record(result, map_scale))
     return RunSummary(
         kind="strip",
         name=name,
         n_strips=1,
         n_photos=len(result.photo_ids),
         n_points=int(result.strip.triangulated.sum()),
-        refined=result.refined is not None,
-        construction=construction,
+        refined=refined is not None,
+        construction="" if result.options is None else result.options.block.value,
         control=Accuracy.of(final.control_statistics),
         check=Accuracy.of(final.check_statistics),
-        tolerances=_tolerances(record),
+        verdict=verdict,
+        tolerances=tolerances,
+        calibration=None if refined is None else Calibration.of(refined.self_calibration, files),
         warnings=tuple(result.warnings),
+        output_warnings=(*local, *drift_warnings(result, map_scale)),
+        rejections=_rejections(result),
         timings=dict(result.timings),
+        details=_strip_details(result),
         files=tuple(files),
     )
 
@@ -232,10 +501,14 @@ def build_run(
     *,
     project: Project | None = None,
     map_scale: float | None = None,
+    standby: Standby | None = None,
 ) -> RunOutputs:
     """The files of the result folder of ``result`` and their summary.
 
-    ``map_scale`` overrides the project's ``[report] map_scale``.
+    ``map_scale`` overrides the project's ``[report] map_scale``; ``standby``
+    draws a strip's figures (:func:`~.outputs.build_outputs`).  The files
+    are those of :func:`~.outputs.build_outputs` (a block's, of
+    :func:`~.block.build_block_outputs`), byte for byte.
     """
     scale = map_scale
     if scale is None and project is not None:
@@ -245,5 +518,6 @@ def build_run(
         record = build_block_report(result, project=project, map_scale=scale)
         files = block_outputs(result, record, project=project)
     else:
-        files, record = outputs.strip_outputs(result, project=project, map_scale=scale)
-    return RunOutputs(files, summarize(result, record, name=name, files=tuple(files)))
+        files, _ = outputs.strip_outputs(result, project=project, map_scale=scale, standby=standby)
+    summary = summarize(result, map_scale=scale, name=name, files=tuple(files))
+    return RunOutputs(files, summary)

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ._geodesy import _Geodesy
+from ._geodesy import _ecef2enu_matrix, _Geodesy
 from .cameras import StripPreset
 
 if TYPE_CHECKING:
@@ -296,3 +296,28 @@ def _road_points(
         enh = geo.local2plan(enu)
         enu[:, 2] += terrain.height(enh[:, :2]) - enh[:, 2]
     return enu
+
+
+def _attitudes_about(
+    rng: np.random.Generator, geo: _Geodesy, pre: StripPreset, plan_xy: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Photos over the plan positions ``plan_xy`` (N, 2): the flying height
+    wandering, ω and φ, κ as truncated normals.  Returns the centres in plan
+    with heights (N, 3), in the local frame (N, 3), ω-φ-κ (N, 3, radians)
+    and the rotations (N, 3, 3) from each centre's east-north-up to the
+    local frame."""
+    count = plan_xy.shape[0]
+    hw = pre.height_wander_m
+    centre_plan = np.column_stack(
+        [plan_xy, pre.terrain_height_m + pre.flying_height_m + rng.uniform(-hw, hw, count)]
+    )
+    centres = geo.plan2local(centre_plan)
+    opk = np.column_stack(
+        [
+            _truncated_normal(rng, math.radians(pre.attitude_sigma_deg), (count, 2)),
+            _truncated_normal(rng, math.radians(pre.kappa_sigma_deg), (count, 1)),
+        ]
+    )
+    llh = geo.local2geodetic(centres)
+    tilt = geo.frame.ecef2enu @ np.swapaxes(_ecef2enu_matrix(llh[:, 0], llh[:, 1]), -1, -2)
+    return centre_plan, centres, opk, tilt

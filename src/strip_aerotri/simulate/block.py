@@ -70,23 +70,30 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..observations import ControlPoints, ControlType, ImageObservations
-from ._control import _CONTROL_LAYOUTS, _blunders, _control_points, _strip_roles, _zone_points
-from ._geodesy import LocalFrame, _ecef2enu_matrix, _Geodesy
+from ._control import _CONTROL_LAYOUTS, _control_points, _strip_roles, _zone_points
+from ._geodesy import _Geodesy
 from ._scene import (
-    camera_error_values,
     _EXTRA,
     _GRUBER,
+    _attitudes_about,
     _frozen,
     _image2terrain_plan,
     _matrix_from_opk,
     _projection_reach,
     _Terrain,
     _triple_overlap_centre_x,
-    _truncated_normal,
     _visible_pairs,
 )
-from .cameras import StripPreset, _resolve_preset
-from .strip import SimulationTruth
+from .cameras import StripPreset
+from .strip import (
+    SimulationTruth,
+    _Arguments,
+    _Blunders,
+    _observe,
+    _preset_and_errors,
+    _seen_twice,
+    _with_blunders_and_truth,
+)
 from .writer import write_block_project
 
 __all__ = ["BlockStrip", "SimulatedBlock", "simulate_block"]
@@ -283,10 +290,8 @@ def simulate_block(
 ) -> SimulatedBlock:
     """Simulate a block of parallel strips of vertical photos with a known truth.
 
-    Length: the block is built in the order a flight happens (strips,
-    photos, points with the side overlaps, images, control, blunders), each
-    step a few lines of array code in one local frame; apart, the steps
-    would pass a dozen arrays each.
+    Length: two dozen documented parameters; the code is the flight's steps
+    in order (strips, photos, points, images, control, blunders).
 
     Parameters
     ----------
@@ -302,41 +307,22 @@ def simulate_block(
     flight : {"serpentine", "same"}
         "serpentine": every other strip flown the other way; "same": all
         strips along ``heading_deg``.
-    crs : str
-        CRS of the control (any horizontal projected or geographic CRS
-        pyproj understands), or "local" for the local ENU frame itself.
-    centre_lonlat : (float, float), optional
-        Block centre, longitude and latitude in degrees on the CRS's datum;
-        default: the centre of the CRS's area of use ((21, 52) for "local").
+    crs, centre_lonlat, seed, image_noise_mm, control_noise_m, n_check
+        As for :func:`~strip_aerotri.simulate.simulate_strip` (the block's
+        centre; equal arguments give equal blocks).
     heading_deg : float
         Azimuth of the first strip's flight, degrees clockwise from north.
-    seed : int
-        Seed of ``np.random.default_rng``; equal arguments give equal blocks.
-    image_noise_mm : float, optional
-        Image noise standard deviation in mm; default: the preset's.
     control : {"perimeter", "corners", "ends", "every_k_models", "dense", "fig4", "weak"}
         Control layout (module notes): a block layout, or a strip layout
         applied to every strip.
     control_every : int
         Spacing in stations (bases) of the perimeter's full points and
         height chains, or of a strip layout's "every_k_models" points.
-    control_noise_m : float, optional
-        Control noise standard deviation in metres; default the preset's.
-    n_check : int, optional
-        Number of check points (a random subset); default all candidates.
     side_points_per_zone : int
         Common points per station in every side overlap (>= 1).
-    systematic_k1 : float
-        Radial distortion added to the images and not modelled, mm^-2.
-    film_shrink_y : float
-        Scale applied to the image y coordinates (1 = none).
-    camera_errors : mapping of str to float, optional
-        Uncorrected camera errors: Brown/Fraser values by name (``c, x0, y0,
-        k1, k2, k3, p1, p2, b1, b2``; units and formula in
-        :mod:`strip_aerotri.geometry.camera_model`), given as the correction
-        that the simulated measurements need: measured ``m`` with ``m +
-        Δ(m) = ideal``.  A self-calibration estimating them finds these
-        values.  Default none (the images are unchanged).
+    systematic_k1, film_shrink_y, camera_errors
+        Errors of the images not modelled by a plain adjustment, as for
+        :func:`~strip_aerotri.simulate.simulate_strip`.
     image_blunders, image_blunder_mm, control_blunders, control_blunder_m
         Gross errors, as for :func:`~strip_aerotri.simulate.simulate_strip`
         (rows in ``truth.blunder_observations`` and ``truth.blunder_control``).
@@ -367,33 +353,16 @@ def simulate_block(
         _check_count("n_strips", n_strips),
         _check_count("n_photos_per_strip", n_photos_per_strip),
     )
-    side_overlap = float(side_overlap)
-    if not _SIDE_OVERLAP[0] <= side_overlap <= _SIDE_OVERLAP[1]:
-        raise ValueError(
-            f"Expected `side_overlap` within {list(_SIDE_OVERLAP)}, got {side_overlap!r}"
-        )
-    if flight not in _FLIGHTS:
-        raise ValueError(f"Expected `flight` to be one of {_FLIGHTS}, got {flight!r}")
-    layouts = _BLOCK_LAYOUTS + _CONTROL_LAYOUTS
-    if control not in layouts:
-        raise ValueError(f"Expected `control` to be one of {layouts}, got {control!r}")
-    if int(control_every) < 1:
-        raise ValueError(f"Expected `control_every` >= 1, got {control_every!r}")
-    if n_check is not None and int(n_check) < 0:
-        raise ValueError(f"Expected `n_check` >= 0 or None, got {n_check!r}")
-    if isinstance(side_points_per_zone, bool) or int(side_points_per_zone) < 1:
-        raise ValueError(f"Expected `side_points_per_zone` >= 1, got {side_points_per_zone!r}")
-    if not isinstance(crs, str):
-        raise ValueError(f"Expected `crs` to be a string, got {type(crs).__name__}")
-    if not (math.isfinite(heading_deg) and math.isfinite(systematic_k1)) or film_shrink_y <= 0:
-        raise ValueError("Expected finite `heading_deg`, `systematic_k1` and `film_shrink_y` > 0")
-    errors = camera_error_values(camera_errors)
-    extra: dict[str, object] = dict(overrides)
-    if image_noise_mm is not None:
-        extra["image_noise_mm"] = float(image_noise_mm)
-    if control_noise_m is not None:
-        extra["control_noise_m"] = float(control_noise_m)
-    pre = _resolve_preset(preset, extra)
+    side_overlap = _check_block_arguments(side_overlap, flight, control, side_points_per_zone)
+    pre, errors = _preset_and_errors(
+        preset,
+        dict(overrides),
+        _Arguments(
+            crs, heading_deg, systematic_k1, film_shrink_y, control_every, n_check, camera_errors
+        ),
+        image_noise_mm,
+        control_noise_m,
+    )
     if pre.line:
         raise ValueError(
             f"preset {pre.name!r} has a straight road (line=True); a block has none: "
@@ -408,8 +377,6 @@ def simulate_block(
     centre_plan, centres, rotations, opk = _photos(rng, geo, pre, lay)
     points = _points(rng, geo, terrain, pre, lay, centres, rotations, int(side_points_per_zone))
 
-    # Collinearity and visibility, strip by strip; each strip's photos see
-    # only the points within reach across the flight of its axis.
     ground = points.ground
     reach = _projection_reach(
         pre,
@@ -422,66 +389,17 @@ def simulate_block(
         film_shrink_y,
         margin=1.0 if errors is None else 1.05,
     )
-    right_local = np.array([lay.right[0], lay.right[1], 0.0])
-    ahead_local = np.array([lay.ahead[0], lay.ahead[1], 0.0])
-    point_cross = ground @ right_local
-    pairs = []
-    for s in range(n):
-        rows = slice(s * m, (s + 1) * m)
-        if math.isfinite(reach):
-            photo_cross = centres[rows] @ right_local
-            near = (point_cross >= photo_cross.min() - reach) & (
-                point_cross <= photo_cross.max() + reach
-            )
-            candidates = np.flatnonzero(near)
-        else:
-            candidates = np.arange(ground.shape[0])
-        photo, point, xy = _visible_pairs(
-            ground[candidates],
-            centres[rows],
-            rotations[rows],
-            pre,
-            reach,
-            ahead_local,
-            systematic_k1,
-            film_shrink_y,
-            errors,
-        )
-        pairs.append((photo + s * m, candidates[point], xy))
-    pair_photo = np.concatenate([p[0] for p in pairs])
-    pair_point = np.concatenate([p[1] for p in pairs])
-    pair_xy = np.concatenate([p[2] for p in pairs])
-    keep = np.bincount(pair_point, minlength=ground.shape[0]) >= 2
-    if keep.sum() < 3:
-        raise ValueError("Too few points are seen on two or more photos; check the parameters")
-
+    pairs = _block_pairs(
+        ground, centres, rotations, pre, lay, reach, (systematic_k1, film_shrink_y, errors)
+    )
+    keep = _seen_twice(pairs[1], ground.shape[0])
     # Number the kept points strip by strip and side overlap by side overlap
     # (bands across the block), along the block's heading.
     kept = np.flatnonzero(keep)
     band = np.rint(2.0 * (points.cross[kept] - lay.offsets[0]) / lay.spacing)
     kept = kept[np.lexsort((points.along[kept], band))]
-    width = max(5, len(str(kept.size)))
-    point_names = np.char.add("P", np.char.zfill(np.arange(1, kept.size + 1).astype(str), width))
     photo_names = np.asarray(lay.photo_names)
-
-    number = np.full(ground.shape[0], -1)
-    number[kept] = np.arange(kept.size)
-    seen = keep[pair_point]
-    obs_photo, obs_point, xy = pair_photo[seen], number[pair_point[seen]], pair_xy[seen]
-    order = np.lexsort((obs_point, obs_photo))
-    obs_photo, obs_point, xy = obs_photo[order], obs_point[order], xy[order]
-    if pre.image_noise_mm > 0:
-        xy = xy + rng.normal(0.0, pre.image_noise_mm, xy.shape)
-    sigma = pre.image_noise_mm if pre.image_noise_mm > 0 else 0.005
-    observations = ImageObservations.from_ids(
-        photo_names[obs_photo],
-        point_names[obs_point],
-        xy,
-        pre.principal_distance_mm,
-        photo_ids=photo_names,
-        sigma=sigma,
-    )
-    kept = kept[np.searchsorted(point_names, np.asarray(observations.point_ids))]
+    observations, kept = _observe(rng, pre, pairs, keep, kept, photo_names, min_width=5)
     _check_side_overlaps(observations, lay)
 
     points_local = ground[kept]
@@ -499,32 +417,16 @@ def simulate_block(
         n_check,
     )
 
-    blunder_obs: tuple[int, ...] = ()
-    blunder_ctrl: tuple[int, ...] = ()
-    if image_blunders or control_blunders:
-        observations, control_points, blunder_obs, blunder_ctrl = _blunders(
-            np.random.default_rng([seed, 7]),
-            observations,
-            control_points,
-            pre,
-            int(image_blunders),
-            image_blunder_mm,
-            int(control_blunders),
-            control_blunder_m,
-        )
-    truth = SimulationTruth(
-        photo_centres_local=_frozen(centres),
-        photo_rotations_local=_frozen(rotations),
-        points_local=_frozen(points_local),
-        points_crs=_frozen(points_crs),
-        photo_centres_crs=_frozen(geo.local2crs(centres)),
-        origin_lonlat_h=(geo.centre_lonlat[0], geo.centre_lonlat[1], pre.terrain_height_m),
-        local_to_ecef=LocalFrame(_frozen(geo.frame.origin_ecef), _frozen(geo.frame.ecef2enu)),
-        ellipsoid=geo.ellipsoid,
-        heading_deg=float(heading_deg),
-        flying_height_m=pre.flying_height_m,
-        blunder_observations=blunder_obs,
-        blunder_control=blunder_ctrl,
+    observations, control_points, truth = _with_blunders_and_truth(
+        _Blunders(seed, image_blunders, image_blunder_mm, control_blunders, control_blunder_m),
+        observations,
+        control_points,
+        pre,
+        geo,
+        centres,
+        rotations,
+        (points_local, points_crs),
+        heading_deg,
     )
     strips = tuple(
         BlockStrip(
@@ -548,6 +450,73 @@ def simulate_block(
         crs=crs,
         truth=truth,
     )
+
+
+def _block_pairs(
+    ground: FloatArray,
+    centres: FloatArray,
+    rotations: FloatArray,
+    pre: StripPreset,
+    lay: _Layout,
+    reach: float,
+    camera: tuple[float, float, FloatArray | None],
+) -> tuple[IntArray, IntArray, FloatArray]:
+    """Collinearity and visibility, strip by strip: the (photo, point, xy)
+    of every point a photo sees; each strip's photos see only the points
+    within ``reach`` across the flight of its axis.  ``camera``: the
+    simulated radial distortion, film shrinkage and camera errors."""
+    systematic_k1, film_shrink_y, errors = camera
+    right_local = np.array([lay.right[0], lay.right[1], 0.0])
+    ahead_local = np.array([lay.ahead[0], lay.ahead[1], 0.0])
+    point_cross = ground @ right_local
+    n, m = len(lay.strip_names), centres.shape[0] // len(lay.strip_names)
+    pairs = []
+    for s in range(n):
+        rows = slice(s * m, (s + 1) * m)
+        if math.isfinite(reach):
+            photo_cross = centres[rows] @ right_local
+            near = (point_cross >= photo_cross.min() - reach) & (
+                point_cross <= photo_cross.max() + reach
+            )
+            candidates = np.flatnonzero(near)
+        else:
+            candidates = np.arange(ground.shape[0])
+        photo, point, xy = _visible_pairs(
+            ground[candidates],
+            centres[rows],
+            rotations[rows],
+            pre,
+            reach,
+            ahead_local,
+            systematic_k1,
+            film_shrink_y,
+            errors,
+        )
+        pairs.append((photo + s * m, candidates[point], xy))
+    return (
+        np.concatenate([p[0] for p in pairs]),
+        np.concatenate([p[1] for p in pairs]),
+        np.concatenate([p[2] for p in pairs]),
+    )
+
+
+def _check_block_arguments(
+    side_overlap: float, flight: str, control: str, side_points_per_zone: int
+) -> float:
+    """The arguments only a block has, checked; the side overlap as a float."""
+    side_overlap = float(side_overlap)
+    if not _SIDE_OVERLAP[0] <= side_overlap <= _SIDE_OVERLAP[1]:
+        raise ValueError(
+            f"Expected `side_overlap` within {list(_SIDE_OVERLAP)}, got {side_overlap!r}"
+        )
+    if flight not in _FLIGHTS:
+        raise ValueError(f"Expected `flight` to be one of {_FLIGHTS}, got {flight!r}")
+    layouts = _BLOCK_LAYOUTS + _CONTROL_LAYOUTS
+    if control not in layouts:
+        raise ValueError(f"Expected `control` to be one of {layouts}, got {control!r}")
+    if isinstance(side_points_per_zone, bool) or int(side_points_per_zone) < 1:
+        raise ValueError(f"Expected `side_points_per_zone` >= 1, got {side_points_per_zone!r}")
+    return side_overlap
 
 
 def _check_count(name: str, value: object) -> int:
@@ -620,24 +589,12 @@ def _photos(
     plan (N, 3), local centres (N, 3), rotations (N, 3, 3), opk (N, 3).
     """
     count = lay.n * lay.m
-    w, hw = pre.position_wander_m, pre.height_wander_m
+    w = pre.position_wander_m
     along = lay.stations[lay.photo_station] + rng.uniform(-w, w, count)
     across = lay.offsets[lay.photo_strip] + rng.uniform(-w, w, count)
-    centre_plan = np.column_stack(
-        [
-            along[:, None] * lay.ahead + across[:, None] * lay.right,
-            pre.terrain_height_m + pre.flying_height_m + rng.uniform(-hw, hw, count),
-        ]
+    centre_plan, centres, opk, tilt = _attitudes_about(
+        rng, geo, pre, along[:, None] * lay.ahead + across[:, None] * lay.right
     )
-    centres = geo.plan2local(centre_plan)
-    opk = np.column_stack(
-        [
-            _truncated_normal(rng, math.radians(pre.attitude_sigma_deg), (count, 2)),
-            _truncated_normal(rng, math.radians(pre.kappa_sigma_deg), (count, 1)),
-        ]
-    )
-    llh = geo.local2geodetic(centres)
-    tilt = geo.frame.ecef2enu @ np.swapaxes(_ecef2enu_matrix(llh[:, 0], llh[:, 1]), -1, -2)
     swing = math.pi / 2.0 - lay.heading - math.pi * lay.reversed[lay.photo_strip]
     cos, sin = np.cos(swing), np.sin(swing)
     zero, one = np.zeros(count), np.ones(count)

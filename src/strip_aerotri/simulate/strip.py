@@ -72,18 +72,20 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
-from .._typing import FloatArray
+from .._typing import BoolArray, FloatArray, IntArray
 from ..observations import ControlPoints, ImageObservations
+from ..options import DEFAULT_IMAGE_SIGMA_MM
 from ._control import _CONTROL_LAYOUTS, _blunders, _control
-from ._geodesy import LocalFrame, _ecef2enu_matrix, _Geodesy
+from ._geodesy import LocalFrame, _Geodesy
 from ._scene import (
-    camera_error_values,
     _EXTRA,
     _GRUBER,
     _LINE,
+    _attitudes_about,
     _frozen,
     _image2terrain_plan,
     _matrix_from_opk,
@@ -92,8 +94,8 @@ from ._scene import (
     _rz,
     _Terrain,
     _triple_overlap_centre_x,
-    _truncated_normal,
     _visible_pairs,
+    camera_error_values,
 )
 from .cameras import StripPreset, _resolve_preset
 from .writer import write_strip_project
@@ -254,10 +256,8 @@ def simulate_strip(
 ) -> SimulatedStrip:
     """Simulate one strip of vertical photos with a known truth.
 
-    Length: the scene is built in the order a flight happens (camera,
-    terrain, flight line, photos, points, images, control, blunders), each
-    step a few lines of array code in one local frame; apart, the steps
-    would pass a dozen arrays each.
+    Length: twenty documented parameters; the code is the flight's steps
+    in order (photos, points, images, control, blunders).
 
     Parameters
     ----------
@@ -279,7 +279,7 @@ def simulate_strip(
     image_noise_mm : float, optional
         Image noise standard deviation in mm; default: the preset's (film
         5 µm). With 0 the observations are exact; their ``sigma`` is then
-        0.005 mm.
+        the default image sigma (``DEFAULT_IMAGE_SIGMA_MM``).
     control : {"ends", "every_k_models", "dense", "fig4", "weak"}
         Control layout (see the module notes).
     control_every : int
@@ -303,17 +303,15 @@ def simulate_strip(
         that the simulated measurements need: measured ``m`` with ``m +
         Δ(m) = ideal``.  A self-calibration estimating them finds these
         values.  Default none (the images are unchanged).
-    image_blunders : int
+    image_blunders, image_blunder_mm : int, float or None
         Observations of points seen on three or more photos given a gross
         error: a shift in a random direction of ``image_blunder_mm`` (default
         15-40 times the image noise, at least 0.05 mm); their rows are in
         ``truth.blunder_observations``.
-    image_blunder_mm : float, optional
-    control_blunders : int
+    control_blunders, control_blunder_m : int, (float, float)
         Control rows (full, plan or height) given a gross error of one given
         coordinate, a random size in ``control_blunder_m`` with a random
         sign; their rows are in ``truth.blunder_control``.
-    control_blunder_m : (float, float)
     **overrides
         Any :class:`StripPreset` field except ``name``, e.g.
         ``extra_points_per_photo=10``.
@@ -340,157 +338,58 @@ def simulate_strip(
         raise ValueError(f"Expected `n_photos` to be an integer >= 2, got {n_photos!r}")
     if control not in _CONTROL_LAYOUTS:
         raise ValueError(f"Expected `control` to be one of {_CONTROL_LAYOUTS}, got {control!r}")
-    if int(control_every) < 1:
-        raise ValueError(f"Expected `control_every` >= 1, got {control_every!r}")
-    if n_check is not None and int(n_check) < 0:
-        raise ValueError(f"Expected `n_check` >= 0 or None, got {n_check!r}")
-    if not isinstance(crs, str):
-        raise ValueError(f"Expected `crs` to be a string, got {type(crs).__name__}")
-    if not (math.isfinite(heading_deg) and math.isfinite(systematic_k1)) or film_shrink_y <= 0:
-        raise ValueError("Expected finite `heading_deg`, `systematic_k1` and `film_shrink_y` > 0")
-    errors = camera_error_values(camera_errors)
-    extra: dict[str, object] = dict(overrides)
-    if image_noise_mm is not None:
-        extra["image_noise_mm"] = float(image_noise_mm)
-    if control_noise_m is not None:
-        extra["control_noise_m"] = float(control_noise_m)
-    if line is not None:
-        extra["line"] = bool(line)
-    pre = _resolve_preset(preset, extra)
+    extra: dict[str, object] = {**overrides, **({} if line is None else {"line": bool(line)})}
+    pre, errors = _preset_and_errors(
+        preset,
+        extra,
+        _Arguments(
+            crs, heading_deg, systematic_k1, film_shrink_y, control_every, n_check, camera_errors
+        ),
+        image_noise_mm,
+        control_noise_m,
+    )
 
     m = int(n_photos)
     rng = np.random.default_rng(seed)
     geo = _Geodesy.build(crs, centre_lonlat, pre.terrain_height_m)
     terrain = _Terrain.random(rng, pre)
-
-    heading = math.radians(float(heading_deg))
-    ahead = np.array([math.sin(heading), math.cos(heading)])  # plan (east, north)
-    left = np.array([-math.cos(heading), math.sin(heading)])
-    scale = pre.scale_m_per_mm
-    base = pre.base_m
-    along = np.asarray((np.arange(m) - 0.5 * (m - 1)) * base, dtype=np.float64)  # nadirs, m
-
-    # Photo centres and rotations.
-    w, hw = pre.position_wander_m, pre.height_wander_m
-    d_along = along + rng.uniform(-w, w, m)
-    d_across = rng.uniform(-w, w, m)
-    centre_plan = np.column_stack(
-        [
-            d_along[:, None] * ahead + d_across[:, None] * left,
-            pre.terrain_height_m + pre.flying_height_m + rng.uniform(-hw, hw, m),
-        ]
-    )
-    centres = geo.plan2local(centre_plan)
-    opk = np.column_stack(
-        [
-            _truncated_normal(rng, math.radians(pre.attitude_sigma_deg), (m, 2)),
-            _truncated_normal(rng, math.radians(pre.kappa_sigma_deg), (m, 1)),
-        ]
-    )
-    llh = geo.local2geodetic(centres)
-    tilt = geo.frame.ecef2enu @ np.swapaxes(_ecef2enu_matrix(llh[:, 0], llh[:, 1]), -1, -2)
-    rotations = tilt @ _rz(math.pi / 2.0 - heading) @ _matrix_from_opk(opk)
-
-    # Ground points: Gruber zones picked on each photo's image near its
-    # principal point (so they lie in the triple overlap whatever the photo's
-    # tilt), then random points per model.
-    c = pre.principal_distance_mm
-    n_rows, per_zone = len(pre.gruber_y_mm), pre.gruber_points_per_zone
-    zone_nadir = np.repeat(np.arange(m), n_rows * per_zone)
-    zone_row = np.tile(np.repeat(np.arange(n_rows), per_zone), m)
-    zone_rank = np.tile(np.arange(per_zone), m * n_rows)
-    spread = pre.gruber_spread_mm
-    k_g = zone_nadir.size
-    zone_x = _triple_overlap_centre_x(geo, terrain, centres, rotations, c)
-    zone_xy = np.column_stack(
-        [
-            zone_x[zone_nadir] + rng.uniform(-spread, spread, k_g),
-            np.asarray(pre.gruber_y_mm, dtype=np.float64)[zone_row]
-            + rng.uniform(-spread, spread, k_g),
-        ]
-    )
-    g_plan = _image2terrain_plan(geo, terrain, centres, rotations, zone_nadir, zone_xy, c)
-    n_extra = pre.extra_points_per_photo * (m - 1)
-    half_width = 0.45 * pre.format_mm[1] * scale
-    e_model = np.repeat(np.arange(m - 1), pre.extra_points_per_photo)
-    e_along = along[e_model] + rng.uniform(0.0, base, n_extra)
-    e_across = rng.uniform(-half_width, half_width, n_extra)
-    e_plan = e_along[:, None] * ahead + e_across[:, None] * left
-    plan = np.vstack([g_plan, e_plan])
-    ground = geo.plan2local(np.column_stack([plan, terrain.height(plan)]))
-    kind = np.concatenate([np.full(k_g, _GRUBER), np.full(n_extra, _EXTRA)])
-    nadir = np.concatenate([zone_nadir, np.full(n_extra, -1)])
-    row = np.concatenate([zone_row, np.full(n_extra, -1)])
-    rank = np.concatenate([zone_rank, np.full(n_extra, -1)])
-
-    if pre.line and pre.line_points_per_model > 0:
-        road = _road_points(geo, terrain, pre, heading, along)
-        ground = np.vstack([ground, road])
-        n_road = road.shape[0]
-        kind = np.concatenate([kind, np.full(n_road, _LINE)])
-        nadir, row, rank = (np.concatenate([a, np.full(n_road, -1)]) for a in (nadir, row, rank))
+    flight = _Flight.fly(rng, geo, pre, m, math.radians(float(heading_deg)))
+    scene = _scene_points(rng, geo, terrain, pre, flight)
 
     # Collinearity and visibility, each point only in the photos that can
     # reach it (a dense (photos, points) projection is quadratic in the strip).
-    ahead_local = np.array([ahead[0], ahead[1], 0.0])
+    ground = scene.ground
     reach = _projection_reach(
         pre,
         geo,
-        opk,
-        centre_plan[:, 2],
+        flight.opk,
+        flight.centre_plan[:, 2],
         ground,
-        centres,
+        flight.centres,
         systematic_k1,
         film_shrink_y,
         margin=1.0 if errors is None else 1.05,
     )
-    pair_photo, pair_point, pair_xy = _visible_pairs(
+    pairs = _visible_pairs(
         ground,
-        centres,
-        rotations,
+        flight.centres,
+        flight.rotations,
         pre,
         reach,
-        ahead_local,
+        flight.ahead_local,
         systematic_k1,
         film_shrink_y,
         errors,
     )
-    keep = np.bincount(pair_point, minlength=ground.shape[0]) >= 2
-    if keep.sum() < 3:
-        raise ValueError("Too few points are seen on two or more photos; check the parameters")
-
+    keep = _seen_twice(pairs[1], ground.shape[0])
     # Number the kept points along the flight.
     kept = np.flatnonzero(keep)
-    kept = kept[np.argsort(ground[kept] @ ahead_local, kind="stable")]
-    width = max(4, len(str(kept.size)))
-    point_names = np.char.add("P", np.char.zfill(np.arange(1, kept.size + 1).astype(str), width))
+    kept = kept[np.argsort(ground[kept] @ flight.ahead_local, kind="stable")]
     photo_names = np.arange(1001, 1001 + m).astype(str)
-
-    # Observations photo by photo, each photo's points in numbering order.
-    number = np.full(ground.shape[0], -1)
-    number[kept] = np.arange(kept.size)
-    seen = keep[pair_point]
-    obs_photo, obs_point, xy = pair_photo[seen], number[pair_point[seen]], pair_xy[seen]
-    order = np.lexsort((obs_point, obs_photo))
-    obs_photo, obs_point, xy = obs_photo[order], obs_point[order], xy[order]
-    if pre.image_noise_mm > 0:
-        xy = xy + rng.normal(0.0, pre.image_noise_mm, xy.shape)
-    sigma = pre.image_noise_mm if pre.image_noise_mm > 0 else 0.005
-    observations = ImageObservations.from_ids(
-        photo_names[obs_photo],
-        point_names[obs_point],
-        xy,
-        c,
-        photo_ids=photo_names,
-        sigma=sigma,
-    )
-    # ``from_ids`` orders points by id; the ids (sorted, zero-padded) were
-    # assigned in ``kept`` order.
-    kept = kept[np.searchsorted(point_names, np.asarray(observations.point_ids))]
+    observations, kept = _observe(rng, pre, pairs, keep, kept, photo_names, min_width=4)
 
     points_local = ground[kept]
     points_crs = geo.local2crs(points_local)
-
     control_points = _control(
         rng,
         geo,
@@ -498,10 +397,10 @@ def simulate_strip(
         observations.point_ids,
         points_local,
         points_crs,
-        kind=kind[kept],
-        nadir=nadir[kept],
-        row=row[kept],
-        rank=rank[kept],
+        kind=scene.kind[kept],
+        nadir=scene.nadir[kept],
+        row=scene.row[kept],
+        rank=scene.rank[kept],
         m=m,
         layout=control,
         every=int(control_every),
@@ -509,22 +408,253 @@ def simulate_strip(
     )
 
     line_ids = tuple(
-        p for p, k in zip(observations.point_ids, kind[kept], strict=True) if k == _LINE
+        p for p, k in zip(observations.point_ids, scene.kind[kept], strict=True) if k == _LINE
     )
     lines = ((line_ids, float(pre.line_weight)),) if len(line_ids) >= 3 else ()
+    observations, control_points, truth = _with_blunders_and_truth(
+        _Blunders(seed, image_blunders, image_blunder_mm, control_blunders, control_blunder_m),
+        observations,
+        control_points,
+        pre,
+        geo,
+        flight.centres,
+        flight.rotations,
+        (points_local, points_crs),
+        heading_deg,
+    )
+    return SimulatedStrip(
+        preset=pre,
+        observations=observations,
+        control=control_points,
+        crs=crs,
+        lines=lines,
+        truth=truth,
+    )
 
+
+class _Arguments(NamedTuple):
+    """The arguments a strip and a block check alike."""
+
+    crs: object
+    heading_deg: float
+    systematic_k1: float
+    film_shrink_y: float
+    control_every: int
+    n_check: int | None
+    camera_errors: Mapping[str, float] | None
+
+
+def _preset_and_errors(
+    preset: str | StripPreset,
+    extra: dict[str, object],
+    args: _Arguments,
+    image_noise_mm: float | None,
+    control_noise_m: float | None,
+) -> tuple[StripPreset, FloatArray | None]:
+    """The arguments of a strip or a block checked, the preset with the
+    noises and ``extra`` fields given, and the camera errors' values."""
+    if int(args.control_every) < 1:
+        raise ValueError(f"Expected `control_every` >= 1, got {args.control_every!r}")
+    if args.n_check is not None and int(args.n_check) < 0:
+        raise ValueError(f"Expected `n_check` >= 0 or None, got {args.n_check!r}")
+    if not isinstance(args.crs, str):
+        raise ValueError(f"Expected `crs` to be a string, got {type(args.crs).__name__}")
+    finite = math.isfinite(args.heading_deg) and math.isfinite(args.systematic_k1)
+    if not finite or args.film_shrink_y <= 0:
+        raise ValueError("Expected finite `heading_deg`, `systematic_k1` and `film_shrink_y` > 0")
+    errors = camera_error_values(args.camera_errors)
+    if image_noise_mm is not None:
+        extra["image_noise_mm"] = float(image_noise_mm)
+    if control_noise_m is not None:
+        extra["control_noise_m"] = float(control_noise_m)
+    return _resolve_preset(preset, extra), errors
+
+
+@dataclass(frozen=True)
+class _Flight:
+    """A strip's photos: the flight axes in plan (east, north), the nadirs
+    along the axis (m), the centres in plan and height, in the local frame,
+    and the attitudes (ω, φ, κ and image -> local rotations); ``heading``
+    the azimuth of the axis, radians."""
+
+    heading: float
+    ahead: FloatArray
+    left: FloatArray
+    along: FloatArray
+    centre_plan: FloatArray
+    centres: FloatArray
+    opk: FloatArray
+    rotations: FloatArray
+
+    @property
+    def ahead_local(self) -> FloatArray:
+        return np.array([self.ahead[0], self.ahead[1], 0.0])
+
+    @classmethod
+    def fly(
+        cls, rng: np.random.Generator, geo: _Geodesy, pre: StripPreset, m: int, heading: float
+    ) -> _Flight:
+        """``m`` photos on the axis of azimuth ``heading`` (radians), one base
+        apart, wandering in position, height and attitude."""
+        ahead = np.array([math.sin(heading), math.cos(heading)])  # plan (east, north)
+        left = np.array([-math.cos(heading), math.sin(heading)])
+        along = np.asarray((np.arange(m) - 0.5 * (m - 1)) * pre.base_m, dtype=np.float64)
+        w = pre.position_wander_m
+        d_along = along + rng.uniform(-w, w, m)
+        d_across = rng.uniform(-w, w, m)
+        centre_plan, centres, opk, tilt = _attitudes_about(
+            rng, geo, pre, d_along[:, None] * ahead + d_across[:, None] * left
+        )
+        rotations = tilt @ _rz(math.pi / 2.0 - heading) @ _matrix_from_opk(opk)
+        return cls(heading, ahead, left, along, centre_plan, centres, opk, rotations)
+
+
+class _ScenePoints(NamedTuple):
+    """The ground points (local frame) and what each is: its kind, and for a
+    Gruber point its photo (nadir), zone row and rank in the zone (-1 else)."""
+
+    ground: FloatArray
+    kind: IntArray
+    nadir: IntArray
+    row: IntArray
+    rank: IntArray
+
+
+def _scene_points(
+    rng: np.random.Generator,
+    geo: _Geodesy,
+    terrain: _Terrain,
+    pre: StripPreset,
+    flight: _Flight,
+) -> _ScenePoints:
+    """Gruber zones picked on each photo's image near its principal point (so
+    they lie in the triple overlap whatever the photo's tilt), random points
+    per model, and the road's points when the preset has one."""
+    m = flight.centres.shape[0]
+    c = pre.principal_distance_mm
+    n_rows, per_zone = len(pre.gruber_y_mm), pre.gruber_points_per_zone
+    zone_nadir = np.repeat(np.arange(m), n_rows * per_zone)
+    zone_row = np.tile(np.repeat(np.arange(n_rows), per_zone), m)
+    zone_rank = np.tile(np.arange(per_zone), m * n_rows)
+    spread = pre.gruber_spread_mm
+    k_g = zone_nadir.size
+    zone_x = _triple_overlap_centre_x(geo, terrain, flight.centres, flight.rotations, c)
+    zone_xy = np.column_stack(
+        [
+            zone_x[zone_nadir] + rng.uniform(-spread, spread, k_g),
+            np.asarray(pre.gruber_y_mm, dtype=np.float64)[zone_row]
+            + rng.uniform(-spread, spread, k_g),
+        ]
+    )
+    g_plan = _image2terrain_plan(
+        geo, terrain, flight.centres, flight.rotations, zone_nadir, zone_xy, c
+    )
+    n_extra = pre.extra_points_per_photo * (m - 1)
+    half_width = 0.45 * pre.format_mm[1] * pre.scale_m_per_mm
+    e_model = np.repeat(np.arange(m - 1), pre.extra_points_per_photo)
+    e_along = flight.along[e_model] + rng.uniform(0.0, pre.base_m, n_extra)
+    e_across = rng.uniform(-half_width, half_width, n_extra)
+    e_plan = e_along[:, None] * flight.ahead + e_across[:, None] * flight.left
+    plan = np.vstack([g_plan, e_plan])
+    ground = geo.plan2local(np.column_stack([plan, terrain.height(plan)]))
+    kind = np.concatenate([np.full(k_g, _GRUBER), np.full(n_extra, _EXTRA)])
+    nadir = np.concatenate([zone_nadir, np.full(n_extra, -1)])
+    row = np.concatenate([zone_row, np.full(n_extra, -1)])
+    rank = np.concatenate([zone_rank, np.full(n_extra, -1)])
+    if pre.line and pre.line_points_per_model > 0:
+        road = _road_points(geo, terrain, pre, flight.heading, flight.along)
+        ground = np.vstack([ground, road])
+        n_road = road.shape[0]
+        kind = np.concatenate([kind, np.full(n_road, _LINE)])
+        nadir, row, rank = (np.concatenate([a, np.full(n_road, -1)]) for a in (nadir, row, rank))
+    return _ScenePoints(ground, kind, nadir, row, rank)
+
+
+def _seen_twice(pair_point: IntArray, n_points: int) -> BoolArray:
+    """The points seen on two or more photos (an error when fewer than three are)."""
+    keep = np.bincount(pair_point, minlength=n_points) >= 2
+    if keep.sum() < 3:
+        raise ValueError("Too few points are seen on two or more photos; check the parameters")
+    return np.asarray(keep, dtype=bool)
+
+
+def _observe(
+    rng: np.random.Generator,
+    pre: StripPreset,
+    pairs: tuple[IntArray, IntArray, FloatArray],
+    keep: BoolArray,
+    kept: IntArray,
+    photo_names: np.ndarray,
+    *,
+    min_width: int,
+) -> tuple[ImageObservations, IntArray]:
+    """The image observations of the visible (photo, point, xy) ``pairs`` of
+    the points ``keep``: the points named ``P0001``... in the order ``kept``
+    (zero-padded to ``min_width`` digits at least), photo by photo, with the
+    preset's image noise; and ``kept`` in the observations' point order."""
+    pair_photo, pair_point, pair_xy = pairs
+    width = max(min_width, len(str(kept.size)))
+    point_names = np.char.add("P", np.char.zfill(np.arange(1, kept.size + 1).astype(str), width))
+    # Observations photo by photo, each photo's points in numbering order.
+    number = np.full(keep.size, -1)
+    number[kept] = np.arange(kept.size)
+    seen = keep[pair_point]
+    obs_photo, obs_point, xy = pair_photo[seen], number[pair_point[seen]], pair_xy[seen]
+    order = np.lexsort((obs_point, obs_photo))
+    obs_photo, obs_point, xy = obs_photo[order], obs_point[order], xy[order]
+    if pre.image_noise_mm > 0:
+        xy = xy + rng.normal(0.0, pre.image_noise_mm, xy.shape)
+    sigma = pre.image_noise_mm if pre.image_noise_mm > 0 else DEFAULT_IMAGE_SIGMA_MM
+    observations = ImageObservations.from_ids(
+        photo_names[obs_photo],
+        point_names[obs_point],
+        xy,
+        pre.principal_distance_mm,
+        photo_ids=photo_names,
+        sigma=sigma,
+    )
+    # ``from_ids`` orders points by id; the ids (sorted, zero-padded) were
+    # assigned in ``kept`` order.
+    return observations, kept[np.searchsorted(point_names, np.asarray(observations.point_ids))]
+
+
+class _Blunders(NamedTuple):
+    """The gross errors asked for (``simulate_strip``'s arguments)."""
+
+    seed: int
+    image: int
+    image_mm: float | None
+    control: int
+    control_m: tuple[float, float]
+
+
+def _with_blunders_and_truth(
+    blunders: _Blunders,
+    observations: ImageObservations,
+    control_points: ControlPoints,
+    pre: StripPreset,
+    geo: _Geodesy,
+    centres: FloatArray,
+    rotations: FloatArray,
+    points: tuple[FloatArray, FloatArray],
+    heading_deg: float,
+) -> tuple[ImageObservations, ControlPoints, SimulationTruth]:
+    """The observations and control with their gross errors (drawn from a
+    generator of their own, so that the rest is the same with and without
+    them), and the truth (``points``: in the local frame and in the CRS)."""
+    points_local, points_crs = points
     blunder_obs: tuple[int, ...] = ()
     blunder_ctrl: tuple[int, ...] = ()
-    if image_blunders or control_blunders:
+    if blunders.image or blunders.control:
         observations, control_points, blunder_obs, blunder_ctrl = _blunders(
-            np.random.default_rng([seed, 7]),
+            np.random.default_rng([blunders.seed, 7]),
             observations,
             control_points,
             pre,
-            int(image_blunders),
-            image_blunder_mm,
-            int(control_blunders),
-            control_blunder_m,
+            int(blunders.image),
+            blunders.image_mm,
+            int(blunders.control),
+            blunders.control_m,
         )
     truth = SimulationTruth(
         photo_centres_local=_frozen(centres),
@@ -540,11 +670,4 @@ def simulate_strip(
         blunder_observations=blunder_obs,
         blunder_control=blunder_ctrl,
     )
-    return SimulatedStrip(
-        preset=pre,
-        observations=observations,
-        control=control_points,
-        crs=crs,
-        lines=lines,
-        truth=truth,
-    )
+    return observations, control_points, truth
