@@ -16,12 +16,34 @@ the frame, so with ``v = R.T @ (X - S)``
 
 Unknowns per photo are a shift of the centre ``dS`` (m) and a small rotation
 ``delta`` (rad) applied on the right, ``R <- R @ exp([delta]x)``, i.e. about
-the axes of the photo's own image system; three per point.  The normal
-equations are formed, reduced to the photos by the Schur complement on the
-3 x 3 point blocks and solved by the structured engine of method.md 6B
-(:mod:`strip_aerotri.geometry.normals`: the photos along the strip or in a
-bandwidth-reducing order, LAPACK's banded Cholesky); the cofactors come from
-its selected inverse.
+the axes of the photo's own image system; three per point.
+
+Each iteration forms the normal blocks ``U`` (6 x 6 per photo), ``V`` (3 x 3
+per point) and ``W`` (6 x 3 per observation) as whole arrays and reduces
+to the photos, ``S = U - W V^-1 W.T``, with the structured engine
+:mod:`strip_aerotri.geometry.normals` (method.md 6B): the photos along the
+strip (in a block along the main axis of the centres, or by reverse
+Cuthill-McKee where narrower), ``S`` a block band scaled to unit diagonal
+and factorised by LAPACK's banded Cholesky; the points follow by
+back-substitution.
+Levenberg-Marquardt damping (diagonals times ``1 + lambda``) is used only
+when a Gauss-Newton step fails to reduce the objective.
+
+The datum must come from the observations: before iterating, the seven
+similarity motions of the net are tested against the control, GNSS and
+IMU observations; a pivot of the scaled reduced matrix below 1e-11
+likewise means a singular system.
+
+Precision: ``Q = N^-1`` at the solution (undamped), on its pattern only:
+the band of ``S^-1`` by Takahashi's recursion on the banded factor, the
+3 x 3 point blocks ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1`` and every image
+coordinate's redundancy number ``1 - (A Q A.T P)_ii``
+(``BundleResult.image_redundancy``), about the cost of one more
+iteration.  Standard deviations are
+``sigma0 * sqrt(diag(Q))``.  The cofactors of the GNSS and IMU residuals
+follow from the photos' own 6 x 6 blocks of ``Q`` at no further cost:
+``Q_vv = P^-1 - A Q A.T`` with ``A`` the identity (GNSS) or ``Jr^-1``
+(IMU).
 """
 
 from __future__ import annotations
@@ -563,6 +585,9 @@ def bundle_adjust(
 ) -> BundleResult:
     """Least-squares bundle adjustment of a strip by the collinearity equations.
 
+    Length: the documentation of its fifteen parameters, what it raises and
+    warns, and a worked example; the code is about fifty lines of steps.
+
     Parameters
     ----------
     observations : ImageObservations
@@ -641,32 +666,8 @@ def bundle_adjust(
     rotation about the photo's own image axes; ``dv/d(delta) = [v]x`` with
     ``v = R.T (X - S)``.
 
-    Each iteration forms the normal blocks ``U`` (6 x 6 per photo), ``V`` (3 x 3
-    per point) and ``W`` (6 x 3 per observation) as whole arrays and reduces
-    to the photos, ``S = U - W V^-1 W.T``, with the structured engine
-    :mod:`strip_aerotri.geometry.normals` (method.md 6B): the photos along the
-    strip (in a block along the main axis of the centres, or by reverse
-    Cuthill-McKee where narrower), ``S`` a block band scaled to unit diagonal
-    and factorised by LAPACK's banded Cholesky; the points follow by
-    back-substitution.
-    Levenberg-Marquardt damping (diagonals times ``1 + lambda``) is used only
-    when a Gauss-Newton step fails to reduce the objective.
-
-    The datum must come from the observations: before iterating, the seven
-    similarity motions of the net are tested against the control, GNSS and
-    IMU observations; a pivot of the scaled reduced matrix below 1e-11
-    likewise means a singular system.
-
-    Precision: ``Q = N^-1`` at the solution (undamped), on its pattern only:
-    the band of ``S^-1`` by Takahashi's recursion on the banded factor, the
-    3 x 3 point blocks ``Q_pp = V^-1 + V^-1 W.T S^-1 W V^-1`` and every image
-    coordinate's redundancy number ``1 - (A Q A.T P)_ii``
-    (``BundleResult.image_redundancy``), about the cost of one more
-    iteration.  Standard deviations are
-    ``sigma0 * sqrt(diag(Q))``.  The cofactors of the GNSS and IMU residuals
-    follow from the photos' own 6 x 6 blocks of ``Q`` at no further cost:
-    ``Q_vv = P^-1 - A Q A.T`` with ``A`` the identity (GNSS) or ``Jr^-1``
-    (IMU).
+    How each iteration is solved, the datum test and the precision: the
+    module notes.
 
     Examples
     --------

@@ -251,6 +251,9 @@ def refine_bundle(
 ) -> RefinedResult:
     """Refine a strip-method result by a rigorous bundle adjustment.
 
+    Length: the documentation of its parameters and of what it returns; the
+    code runs the bundle in the tangent frame and maps the result back.
+
     Parameters
     ----------
     result : StripResult

@@ -70,6 +70,9 @@ def refine_frame(
 ) -> FrameRefinement:
     """Bundle adjustment in a Cartesian frame with data snooping.
 
+    Length: the documentation of its many parameters (the bundle's own and
+    the snooping's); the rounds themselves are a short loop over named steps.
+
     Parameters
     ----------
     observations : ImageObservations
