@@ -21,10 +21,8 @@ slope of CPU time against photos.  ``--keep DIR`` keeps the formed strips
 from __future__ import annotations
 
 import argparse
-import math
 import pickle
 import resource
-import statistics
 import sys
 import tempfile
 import time
@@ -34,7 +32,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_scale import write_case
+from bench_scale import slope, write_case
 
 import strip_aerotri.ground.models as ground_models
 from strip_aerotri import load_project
@@ -104,16 +102,6 @@ def run(photos: int, folder: Path) -> dict[str, float]:
         "passes": ground.passes,
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
     }
-
-
-def slope(photos: list[int], seconds: list[float]) -> float:
-    """Least-squares slope of log(seconds) against log(photos)."""
-    x = [math.log(p) for p in photos]
-    y = [math.log(s) for s in seconds]
-    mx, my = statistics.fmean(x), statistics.fmean(y)
-    return sum((a - mx) * (b - my) for a, b in zip(x, y, strict=True)) / sum(
-        (a - mx) ** 2 for a in x
-    )
 
 
 def main(argv: list[str] | None = None) -> None:
