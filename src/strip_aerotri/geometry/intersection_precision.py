@@ -21,7 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from .collinearity import collinearity_jacobians
+from ._normal_assembly import sum_into
+from .precision import ray_information
 
 __all__ = ["intersection_angles", "intersection_covariances"]
 
@@ -56,17 +57,17 @@ def intersection_covariances(
     ok = np.all(np.isfinite(points[point]), axis=1)
     if not ok.any():
         return out
-    _, _, _, jac = collinearity_jacobians(
-        centres, rotations, points, photo[ok], point[ok], principal_distance
-    )
-    weighted = jac / np.asarray(sigma_mm, dtype=np.float64)[ok, None, None]
-    normal_k = np.einsum("kai,kaj->kij", weighted, weighted)  # (K, 3, 3) per ray
-    sums = np.zeros((n_points, 9))
-    for entry in range(9):  # nine sums over the rays, not a loop over points
-        sums[:, entry] = np.bincount(
-            point[ok], weights=normal_k.reshape(-1, 9)[:, entry], minlength=n_points
-        )
-    normal = sums.reshape(n_points, 3, 3)
+    normal = sum_into(
+        point[ok],
+        ray_information(
+            points[point[ok]],
+            centres[photo[ok]],
+            rotations[photo[ok]],
+            principal_distance,
+            np.asarray(sigma_mm, dtype=np.float64)[ok],
+        ),
+        n_points,
+    )  # a forward intersection adds the information of its rays
     rays = np.bincount(point[ok], minlength=n_points)
     # a determinant far below the product of the diagonal: parallel rays
     scale = np.prod(np.diagonal(normal, axis1=1, axis2=2), axis=1)
