@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from ..ground.common import index_of
 from ..observations import ControlType
 from ..options import AdjustmentOptions, Construction
 from ..results import AccuracyStatistics, StripResult
@@ -93,9 +94,8 @@ def point_roles(result: StripResult) -> np.ndarray:
 def control_rows(result: StripResult) -> tuple[np.ndarray, np.ndarray]:
     """Point index (C,) of each row of ``ground.control_residuals`` and the residuals (C, 3)."""
     ground = result.ground
-    lookup = {pid: i for i, pid in enumerate(result.point_ids)}
     rows = np.asarray(ground.control_index, dtype=np.intp)
-    idx = np.array([lookup[result.control.point_ids[r]] for r in rows], dtype=np.intp)
+    idx = index_of(result.point_ids, [result.control.point_ids[r] for r in rows])
     return idx, np.asarray(ground.control_residuals, dtype=np.float64).reshape(-1, 3)
 
 
