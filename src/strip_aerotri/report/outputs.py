@@ -10,11 +10,11 @@ described in ``docs/outputs.md``.
 
 from __future__ import annotations
 
-import json
 from contextlib import AbstractContextManager, nullcontext
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
+from . import json_text
 from .aside import Aside, Standby, aside
 from .calibration import calibration_outputs
 from .figures import figure_data
@@ -127,7 +127,7 @@ def strip_outputs(
             files["points.geojson"] = (geojson + "\n").encode("utf-8")
         if cal_toml is not None:
             files["camera.toml"] = cal_toml
-        text = json.dumps(report, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
+        text = json_text.dumps(report, indent=1) + "\n"
         if figures is not None:
             files["report.html"] = html_page(report, figures.result()).encode("utf-8")
     files["report.json"] = text.encode("utf-8")
