@@ -67,3 +67,10 @@ def test_a_single_column_of_empty_text_is_quoted_as_csv_does() -> None:
 
 def test_no_rows_is_the_header_line() -> None:
     assert format_csv(["a", "b"], [np.zeros(0), np.zeros(0, dtype=np.int64)]) == "a,b\n"
+
+
+def test_a_row_of_empty_cells_as_the_csv_module_writes_it() -> None:
+    ids = np.array(["", "a"], dtype=object)
+    values = np.array([np.nan, 1.0])
+    expected = _reference(["id", "X"], [ids, values], [0, 4])
+    assert format_csv(["id", "X"], [ids, values]) == expected == "id,X\n,\na,1.0000\n"

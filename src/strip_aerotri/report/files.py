@@ -102,12 +102,9 @@ def _format_column(values: ArrayLike, decimals: int | None, name: str) -> tuple[
 
 
 def _plain_text(cells: list[str]) -> bool:
-    """Whether no cell needs the quotes of CSV (a comma, quote or line end) or
-    is empty (a lone empty field is written ``""``)."""
-    joined = "\x00".join(cells)
-    return not any(c in joined for c in ',"\r\n') and "\x00\x00" not in joined and all(
-        cells[:1] + cells[-1:]
-    )
+    """Whether no cell needs the quotes of CSV (a comma, a quote or a line end)."""
+    joined = "".join(cells)
+    return not any(c in joined for c in ',"\r\n')
 
 
 def format_csv(
@@ -171,7 +168,8 @@ def format_csv(
             "Expected columns of equal length, got "
             + ", ".join(f"{n}: {len(v)}" for n, (_, v) in zip(header, formatted, strict=True))
         )
-    if all(spec != "%s" or _plain_text(values) for spec, values in formatted):
+    lone_empty = len(formatted) == 1 and not all(formatted[0][1])  # written ""
+    if not lone_empty and all(spec != "%s" or _plain_text(values) for spec, values in formatted):
         # one % per row: nothing to quote
         row = ",".join(spec for spec, _ in formatted).__mod__
         rows = map(row, zip(*(values for _, values in formatted), strict=True))
