@@ -6,6 +6,7 @@ Python (dict, list, str, int, float, bool, None; never NaN), described in
 from __future__ import annotations
 
 import datetime as _dt
+import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -211,48 +212,51 @@ def _all_check_statistics(result: StripResult) -> AccuracyStatistics:
     return AccuracyStatistics.from_residuals(resid[np.asarray(result.ground.is_check, dtype=bool)])
 
 
+def _json_floats(values: np.ndarray) -> list[Any]:
+    """:func:`.values.json_float` of every value of a column (N,) or table (N, k)."""
+    table = np.asarray(values, dtype=np.float64)
+    finite = math.isfinite
+    if table.ndim == 1:
+        return [v if finite(v) else None for v in table.tolist()]
+    return [[v if finite(v) else None for v in row] for row in table.tolist()]
+
+
 def _control_points(result: StripResult, check: bool) -> list[dict[str, Any]]:
+    """report.json's control or check points: every row's columns at once."""
     ground = result.ground
     idx, resid = control_rows(result)
     is_check = np.asarray(ground.is_check, dtype=bool)
     rows = np.asarray(ground.control_index, dtype=np.intp)
-    out = []
     red = np.asarray(getattr(ground, "control_redundancy", np.zeros((0, 3))), dtype=np.float64)
     mde = np.asarray(getattr(ground, "control_mde", np.zeros((0, 3))), dtype=np.float64)
     have = red.shape[0] == rows.shape[0]
-    for k in np.flatnonzero(is_check == check):
-        r = resid[k]
-        kind = result.control.kind[rows[k]]
-        row: dict[str, Any] = {
-            "point": result.point_ids[idx[k]],
-            "type": str(getattr(kind, "value", kind)),
-            "dE_m": json_float(r[0]),
-            "dN_m": json_float(r[1]),
-            "dH_m": json_float(r[2]),
-            "plan_m": json_float(np.hypot(r[0], r[1])),
-        }
-        if not check:
-            used = [bool(ground.used_xy[k])] * 2 + [bool(ground.used_h[k])]
-            row["redundancy"] = (
-                [json_float(v) if u else None for v, u in zip(red[k], used, strict=True)]
-                if have
-                else [None] * 3
-            )
-            row["mde_m"] = (
-                [
-                    json_float(v) if u and np.isfinite(v) else None
-                    for v, u in zip(mde[k], used, strict=True)
-                ]
-                if have
-                else [None] * 3
-            )
-            row["detectable"] = (
-                [bool(np.isfinite(v)) if u else None for v, u in zip(mde[k], used, strict=True)]
-                if have
-                else [None] * 3
-            )
-        out.append(row)
-    return out
+    ks = np.flatnonzero(is_check == check)
+    kinds = [result.control.kind[r] for r in rows[ks].tolist()]
+    columns: dict[str, list[Any]] = {
+        "point": [result.point_ids[i] for i in idx[ks].tolist()],
+        "type": [str(getattr(kind, "value", kind)) for kind in kinds],
+        "dE_m": _json_floats(resid[ks, 0]),
+        "dN_m": _json_floats(resid[ks, 1]),
+        "dH_m": _json_floats(resid[ks, 2]),
+        "plan_m": _json_floats(np.hypot(resid[ks, 0], resid[ks, 1])),
+    }
+    if not check:
+        xy = np.asarray(ground.used_xy, dtype=bool)[ks]
+        used = np.column_stack([xy, xy, np.asarray(ground.used_h, dtype=bool)[ks]])
+        if have:
+            off = ~used
+            columns["redundancy"] = _json_floats(np.where(off, np.nan, red[ks]))
+            columns["mde_m"] = _json_floats(np.where(off, np.nan, mde[ks]))
+            detectable = np.isfinite(mde[ks]).tolist()
+            columns["detectable"] = [
+                [d if u else None for d, u in zip(row, use, strict=True)]
+                for row, use in zip(detectable, used.tolist(), strict=True)
+            ]
+        else:
+            for name in ("redundancy", "mde_m", "detectable"):
+                columns[name] = [[None] * 3 for _ in range(ks.size)]
+    names = list(columns)
+    return [dict(zip(names, values, strict=True)) for values in zip(*columns.values())]
 
 
 def _model_adjustment(result: StripResult) -> dict[str, Any] | None:
