@@ -6,11 +6,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..options import DEFAULT_SECTIONS
+from .aside import aside
 from .calibration import calibration_figures, calibration_html
 from .figures import (
     StripFigureData,
@@ -121,18 +123,26 @@ def prepare_drawing() -> None:
 
 
 def draw_figures(data: StripFigureData) -> StripFigures:
-    """The page's figures of :func:`.figures.figure_data`'s inputs."""
+    """The page's figures of :func:`.figures.figure_data`'s inputs.
+
+    Half of them are drawn in a process forked for them (:func:`.aside.aside`;
+    where forking is not allowed, here after the others): the figures are
+    the costliest part of the report, and the process that waits for them
+    (the run, writing the tables) leaves the machine's other core to them.
+    """
     import matplotlib
 
     with matplotlib.rc_context(_STYLE):  # type: ignore[arg-type]  # typed as literal keys
-        return StripFigures(
-            figure_layout(data),
-            figure_residuals(data),
-            figure_parallax(data),
-            figure_ties(data),
-            data.plan.long,
-            None if data.calibration is None else calibration_figures(data.calibration),
-        )
+        with aside(partial(_parallax_and_ties, data)) as other:
+            layout, residuals = figure_layout(data), figure_residuals(data)
+            parallax, ties = other.result()
+        calibration = None if data.calibration is None else calibration_figures(data.calibration)
+        return StripFigures(layout, residuals, parallax, ties, data.plan.long, calibration)
+
+
+def _parallax_and_ties(data: StripFigureData) -> tuple[str, str | None]:
+    """The figures of :func:`draw_figures` drawn by its second process."""
+    return figure_parallax(data), figure_ties(data)
 
 
 def html_page(report: Mapping[str, Any], figures: StripFigures) -> str:
