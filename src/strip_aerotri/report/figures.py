@@ -211,10 +211,15 @@ class StripFigureData:
 
 
 def figure_data(
-    result: StripResult, models: Sequence[Mapping[str, Any]], *, calibration: bool = False
+    result: StripResult,
+    models: Sequence[Mapping[str, Any]],
+    *,
+    calibration: bool = False,
+    roles: np.ndarray | None = None,
 ) -> StripFigureData:
     """The inputs of the strip's figures (``models``: report.json's
-    ``models``; ``calibration``: with the self-calibration's outcome)."""
+    ``models``; ``calibration``: with the self-calibration's outcome;
+    ``roles``: :func:`.values.point_roles` of the result, if known)."""
     plan = Plan(result)
     points = np.asarray(result.points, dtype=np.float64)
     finite = np.isfinite(points).all(axis=1)
@@ -241,7 +246,7 @@ def figure_data(
     return StripFigureData(
         plan=plan,
         points=points,
-        roles=point_roles(result),
+        roles=point_roles(result) if roles is None else roles,
         footprints=_footprints(result, plan),
         photo_ids=tuple(result.photo_ids),
         control=control,

@@ -96,8 +96,9 @@ def strip_outputs(
     refined = getattr(result, "refined", None)
     outcome = None if refined is None else refined.self_calibration
     drawing: AbstractContextManager[Aside[StripFigures] | None] = nullcontext()
+    roles = point_roles(result)
     if html:  # calibration: the outcome's figures if the refinement has one
-        data = figure_data(result, model_records(result), calibration=True)
+        data = figure_data(result, model_records(result), calibration=True, roles=roles)
         drawing = (
             aside(partial(draw_figures, data))
             if standby is None
@@ -105,7 +106,7 @@ def strip_outputs(
         )
     with drawing as figures:
         notes: list[str] = []
-        geojson = points_geojson(result)
+        geojson = points_geojson(result, roles=roles)
         if geojson is None:
             notes.append(GEOJSON_LOCAL_NOTE)
         report = build_report(result, project=project, map_scale=map_scale, notes=notes)
@@ -120,7 +121,7 @@ def strip_outputs(
                 "wgs84_operation": result.ground.crs.wgs84_operation,
             }
         files = {
-            "points.csv": points_csv(result).encode("utf-8"),
+            "points.csv": points_csv(result, roles=roles).encode("utf-8"),
             "photos.csv": photos_csv(result).encode("utf-8"),
         }
         if geojson is not None:
