@@ -15,7 +15,9 @@ def _type_checking_imports() -> dict[str, str]:
     """Name -> module (".x.y") of the imports under ``if TYPE_CHECKING:`` in
     the package's __init__.py: what editors and type checkers see."""
     tree = ast.parse(Path(strip_aerotri.__file__).read_text(encoding="utf-8"))
-    (block,) = [n for n in tree.body if isinstance(n, ast.If) and "TYPE_CHECKING" in ast.unparse(n.test)]
+    (block,) = [
+        n for n in tree.body if isinstance(n, ast.If) and "TYPE_CHECKING" in ast.unparse(n.test)
+    ]
     return {
         alias.name: "." * node.level + (node.module or "")
         for node in block.body
@@ -49,7 +51,8 @@ def test_import_of_the_package_loads_only_what_is_used():
         "numpy = 'numpy' in sys.modules\n"
         "sa.critical_value\n"
         "after = sorted(m for m in sys.modules if m.startswith('strip_aerotri.'))\n"
-        "print(before, numpy, 'strip_aerotri.blunders' in after, 'strip_aerotri.simulate' in after)\n"
+        "print(before, numpy, 'strip_aerotri.blunders' in after,\n"
+        "      'strip_aerotri.simulate' in after)\n"
         "print(sa.report.__name__, hasattr(sa, 'no_such_name'))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

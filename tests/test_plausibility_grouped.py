@@ -58,7 +58,9 @@ def _photos(seed: int, n_photos: int = 40) -> tuple[np.ndarray, np.ndarray, np.n
     kind = rng.integers(0, 4, n_photos)[group]
     z = np.where(kind == 1, z.conj(), z)  # mirrored photos
     z = np.where(kind == 2, rng.normal(size=group.size) * 100 + 0j, z)  # on one line
-    z = np.where(kind == 3, rng.normal(size=group.size) * 100 + 1j * rng.normal(size=group.size) * 100, z)
+    z = np.where(
+        kind == 3, rng.normal(size=group.size) * 100 + 1j * rng.normal(size=group.size) * 100, z
+    )
     ground = np.column_stack([z.real, z.imag]) + rng.normal(scale=0.01, size=(group.size, 2))
     return image, ground + 5e5, group
 
@@ -121,7 +123,9 @@ def test_pairs_within_runs_are_triu_indices_run_by_run(labels: list[int]) -> Non
     lab = np.asarray(labels, dtype=np.intp)
     expected: list[np.ndarray] = []
     start = 0
-    for size in np.diff(np.r_[0, np.flatnonzero(np.r_[lab[1:] != lab[:-1], True]) + 1]) if lab.size else []:
+    for size in (
+        np.diff(np.r_[0, np.flatnonzero(np.r_[lab[1:] != lab[:-1], True]) + 1]) if lab.size else []
+    ):
         expected.append(start + np.stack(np.triu_indices(int(size), 1)))
         start += int(size)
     a, b = _pairs_within_runs(lab)

@@ -108,7 +108,7 @@ def point_features_text(
     lon = list(map(float.__repr__, lonlat[:, 0].tolist()))
     lat = list(map(float.__repr__, lonlat[:, 1].tolist()))
     point = '{"type":"Point","coordinates":[%s,%s]}'.__mod__
-    geometry = list(map(point, zip(lon, lat)))
+    geometry = list(map(point, zip(lon, lat, strict=True)))
     for k in np.flatnonzero(~np.isfinite(lonlat).all(axis=1)).tolist():
         geometry[k] = "null"
     keys = [json.encoder.encode_basestring(str(k)).replace("%", "%%") for k in properties]
@@ -118,7 +118,7 @@ def point_features_text(
         + "}}"
     )
     columns = [_json_tokens(np.asarray(column)) for column in properties.values()]
-    return list(map(template.__mod__, zip(_json_tokens(ids), geometry, *columns)))
+    return list(map(template.__mod__, zip(_json_tokens(ids), geometry, *columns, strict=True)))
 
 
 def _features(

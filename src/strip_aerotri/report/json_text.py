@@ -55,9 +55,7 @@ def dumps(value: Any, *, indent: int = 1, ensure_ascii: bool = False) -> str:
             if not item:
                 return "[]"
             # scalars encoded here, containers one level down
-            values = [
-                encode(v, depth + 1) if (f := get(type(v))) is None else f(v) for v in item
-            ]
+            values = [encode(v, depth + 1) if (f := get(type(v))) is None else f(v) for v in item]
             return "[" + inner + ("," + inner).join(values) + close + "]"
         if kind is dict and all(type(key) is str for key in item):
             if not item:
