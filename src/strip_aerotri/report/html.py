@@ -125,10 +125,11 @@ def prepare_drawing() -> None:
 def draw_figures(data: StripFigureData) -> StripFigures:
     """The page's figures of :func:`.figures.figure_data`'s inputs.
 
-    Half of them are drawn in a process forked for them (:func:`.aside.aside`;
-    where forking is not allowed, here after the others): the figures are
-    the costliest part of the report, and the process that waits for them
-    (the run, writing the tables) leaves the machine's other core to them.
+    The layout and the residuals are drawn here, the parallaxes and the ties
+    meanwhile by a process forked for them (:func:`.aside.aside`; where
+    forking is not allowed, here afterwards, in the order of the page): the
+    figures are the costliest part of the report, and the run that waits
+    for them has its own writing to do on the other core (docs/scaling.md).
     """
     import matplotlib
 
