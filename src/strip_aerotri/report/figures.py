@@ -65,7 +65,9 @@ def _png(fig: Figure) -> str:
     canvas.draw()  # type: ignore[no-untyped-call]  # matplotlib's Agg canvas is untyped
     pixels = canvas.buffer_rgba()  # type: ignore[no-untyped-call]  # as draw
     buffer = _bio.BytesIO()
-    imsave(buffer, pixels, format="png", dpi=_DPI, pil_kwargs={"compress_level": 1})
+    imsave(  # savefig's own call, whatever the rc's image.origin
+        buffer, pixels, format="png", origin="upper", dpi=_DPI, pil_kwargs={"compress_level": 1}
+    )
     return base64.b64encode(buffer.getvalue()).decode("ascii")
 
 
