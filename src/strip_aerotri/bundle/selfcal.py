@@ -25,6 +25,7 @@ worse").  Every held parameter is named in a note with its reason.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
@@ -40,6 +41,7 @@ from ..options import FlightDirection, SelfCalibration
 from ..results import (
     BundleResult,
     CameraEstimate,
+    FrameRefinement,
     ParameterOutcome,
     ResidualCells,
     SelfCalibrationOutcome,
@@ -53,6 +55,7 @@ __all__ = [
     "T_CRITICAL",
     "SelfCalibration",
     "camera_model",
+    "carried_choice",
     "ebner_base_mm",
     "final_outcome",
     "residual_cells",
@@ -335,3 +338,30 @@ def residual_cells(
             for v in (after, before)
         ]
     return ResidualCells(x_edges, y_edges, means[0], means[1], count.reshape(n_cells, n_cells))
+
+
+def carried_choice(
+    spec: SelfCalibration, chosen: SelfCalibrationOutcome | None, fr: FrameRefinement
+) -> tuple[FrameRefinement, SelfCalibrationOutcome | None, SelfCalibration | None]:
+    """A refinement adjusted again (another pass, other weights) keeps the first
+    one's choice of parameters and its reasons.
+
+    ``chosen`` is the first adjustment's outcome (None: ``fr`` is the first).
+    Returns ``fr`` with its outcome told the first one's reasons, the first
+    outcome, and the self-calibration the next adjustment runs with: the kept
+    parameters as a list (None when none was kept).
+    """
+    if fr.self_calibration is None:
+        return fr, chosen, None
+    chosen = chosen or fr.self_calibration
+    fr = dataclasses.replace(
+        fr,
+        self_calibration=dataclasses.replace(
+            final_outcome(spec, chosen, fr.bundle.camera), cells=fr.self_calibration.cells
+        ),
+    )
+    kept = chosen.kept
+    if not kept:
+        return fr, chosen, None
+    family = "ebner12" if chosen.family == "ebner" else kept
+    return fr, chosen, SelfCalibration(family, spec.flight_direction)
