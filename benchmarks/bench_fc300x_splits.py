@@ -57,25 +57,49 @@ def _splits(control_csv: Path) -> dict[str, dict[str, str]]:
 def _write_case(toml: Path, types: dict[str, str], settings: list[str], folder: Path) -> Path:
     text = toml.read_text()
     adjustment = []
+    images = toml.parent / "image_points.csv"
     for s in settings:
         key, _, value = s.partition("=")
-        if key == "distortion" and value == "none":
+        if key == "min_rays":
+            images = _tie_points_on(images, types, int(value), folder)
+        elif key == "control_sigma":
+            sigma_xy, _, sigma_h = value.partition("/")
+            types = {p: f"{t},{sigma_xy},{sigma_h}" for p, t in types.items()}
+        elif key == "distortion" and value == "none":
             text = re.sub(r"\n\[distortion\]\n(?:[^\[\n].*\n|\n)*", "\n", text)
         else:
             adjustment.append(f"{key} = {value}")
     if adjustment:
         text += "\n[adjustment]\n" + "\n".join(adjustment) + "\n"
-    text = text.replace('file = "image_points.csv"', f'file = "{toml.parent}/image_points.csv"')
+    text = text.replace('file = "image_points.csv"', f'file = "{images}"')
     with (toml.parent / "control.csv").open() as f:
-        rows = list(csv.DictReader(f))
-    with (folder / "control.csv").open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
+        lines = [line for line in f if not line.startswith("#")]
+    rows = list(csv.DictReader(lines))
+    sigmas = any("," in t for t in types.values())
+    with (folder / "control.csv").open("w") as f:
+        f.write("point,X,Y,H,type" + (",sigma_xy,sigma_h\n" if sigmas else "\n"))
         for r in rows:
-            w.writerow({**r, "type": types[r["point"]]})
+            f.write(f"{r['point']},{r['X']},{r['Y']},{r['H']},{types[r['point']]}\n")
     path = folder / "strip.toml"
     path.write_text(text)
     return path
+
+
+def _tie_points_on(images: Path, types: dict[str, str], n: int, folder: Path) -> Path:
+    """The image points without the tie points seen on fewer than ``n`` photos."""
+    with images.open() as f:
+        lines = [line for line in f if not line.startswith("#")]
+    rows = list(csv.DictReader(lines))
+    count: dict[str, int] = {}
+    for r in rows:
+        count[r["point"]] = count.get(r["point"], 0) + 1
+    out = folder / "image_points.csv"
+    with out.open("w") as f:
+        f.write(lines[0])
+        for line, r in zip(lines[1:], rows, strict=True):
+            if r["point"] in types or count[r["point"]] >= n:
+                f.write(line)
+    return out
 
 
 def run_case(path: Path) -> tuple[float, float, object]:

@@ -139,3 +139,59 @@ def test_estimated_only_reports_without_moving_the_solution():
     # one step from the stated 5 µm moves most of the way to the true 2 µm (the
     # control, stated far too precise, still bends the rays: iterating ends it)
     assert TRUE[IMAGE_TIES] * 1000.0 < ties.sigma < 0.6 * STATED_IMAGE_MM * 1000.0
+
+
+def test_report_gives_every_group_and_the_page_its_section(tmp_path):
+    """``weights = "estimated"`` on a strip project: report.json's
+    ``bundle.variance_components`` lists the groups with their given and
+    estimated sigmas and redundancies (adding up to the adjustment's), and
+    the page has the section; without the key neither appears."""
+    import json
+    import re
+    import warnings
+
+    from strip_aerotri.errors import StripAerotriWarning
+    from strip_aerotri.project import load_project
+    from strip_aerotri.project.run import run_project
+    from strip_aerotri.report.outputs import build_outputs
+    from strip_aerotri.simulate.writer import write_strip_project
+
+    sim = simulate_strip(10, seed=2, crs="local", control="dense")
+    toml = write_strip_project(tmp_path / "a", sim.observations, sim.control, sim.crs, name="a")
+    plain = toml.read_text()
+    pages = {}
+    for label, extra in (("given", ""), ("estimated", 'weights = "estimated"\n')):
+        toml.write_text(re.sub(r"\[adjustment\]\n", f'[adjustment]\nrefine = "bundle"\n{extra}', plain))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", StripAerotriWarning)
+            project = load_project(toml)
+            result = run_project(project)
+            pages[label] = (result, build_outputs(result, project=project, html=True))
+    result, files = pages["estimated"]
+    record = json.loads(files["report.json"])["bundle"]["variance_components"]
+    names = [g["group"] for g in record["groups"]]
+    assert names == [IMAGE_TIES, IMAGE_MARKS, CONTROL_PLAN, CONTROL_HEIGHT]
+    assert record["applied"] and record["converged"]
+    total = sum(g["redundancy"] for g in record["groups"])
+    assert total == pytest.approx(result.refined.redundancy, rel=1e-6)
+    ties = record["groups"][0]
+    assert ties["unit"] == "µm" and ties["sigma_apriori"] == pytest.approx(5.0)
+    # the control heights of this strip (stated 2 cm, true 2 cm) have almost no
+    # redundancy beside their rays: held at their given sigma, not estimated
+    height = record["groups"][3]
+    assert not height["estimated"] and height["redundancy"] < MIN_REDUNDANCY
+    assert height["sigma"] == pytest.approx(height["sigma_apriori"])
+    assert "Observation weights from the data" in files["report.html"].decode()
+    _, given_files = pages["given"]
+    assert "variance_components" not in json.loads(given_files["report.json"])["bundle"]
+    assert "Observation weights" not in given_files["report.html"].decode()
+
+
+def test_weights_need_the_bundle():
+    from strip_aerotri.options import OptionError, adjustment_options
+
+    with pytest.raises(OptionError, match='refine = "bundle"'):
+        adjustment_options({"weights": "estimated"})
+    with pytest.raises(OptionError, match="estimated"):
+        adjustment_options({"weights": "guessed", "refine": "bundle"})
+    assert adjustment_options({"weights": "Estimated", "refine": "bundle"}).weights == "estimated"

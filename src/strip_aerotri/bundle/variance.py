@@ -31,11 +31,12 @@ converges to Helmert's / the best invariant quadratic unbiased one).
 sum of squares, so the groups split sigma0**2 exactly.  Each group's sigmas
 are multiplied by ``s_g`` and the bundle is adjusted again, until every
 factor is within :data:`TOLERANCE` of 1 (at most :data:`MAX_ITERATIONS`).
-A group's redundancy depends on the weights (a group stated far too
-precise starts with almost none), so every group takes part until the
-factors settle; a group whose redundancy is then below
-:data:`MIN_REDUNDANCY` rests on too few degrees of freedom to be estimated:
-its sigma goes back to the given one and the others settle again.
+A group's redundancy depends on the weights: a group stated far too
+precise starts with almost none, and gains it as its sigma grows.  A group
+whose redundancy is below :data:`MIN_REDUNDANCY` and whose estimate does not
+ask for a larger sigma rests on too few degrees of freedom (its estimate
+would run towards zero with its redundancy): its sigma goes back to the
+given one, held there, and the others settle again.
 """
 
 from __future__ import annotations
@@ -322,12 +323,15 @@ def refine_frame_weighted(
             stats = group_statistics(fr, obs.point, sigmas)
             factors = _factors(stats, held)
             marks = _marks(fr, obs.point)
-            if all(abs(f - 1.0) <= TOLERANCE for f in factors.values()):
-                weak = frozenset(n for n in factors if stats[n].r < MIN_REDUNDANCY)
-                if not weak:
-                    break
+            # too little redundancy, and not asking for the larger sigma that gives more
+            weak = frozenset(
+                n for n, f in factors.items() if stats[n].r < MIN_REDUNDANCY and f <= 1 + TOLERANCE
+            )
+            if weak:
                 held |= weak
                 sigmas = _reset(sigmas, apriori, weak, marks)
+            elif all(abs(f - 1.0) <= TOLERANCE for f in factors.values()):
+                break
             else:
                 sigmas = _scaled(sigmas, factors, marks)
             iterations += 1
