@@ -4,9 +4,14 @@ Uncorrected camera errors (lens distortion, film affinity) deform a strip or a
 block everywhere; the control then fails the blunder tests at many points at
 once, at similar test values, while a bad control point fails alone, or
 drags a few neighbours over the limit at test values well below its own.
-When more than ``max_fraction`` of the control fails, :func:`systematic_pattern`
-tells the two apart on the first solution's test values, and the stages keep
-the control and warn (:func:`systematic_message`) instead of stopping.
+When more than ``max_fraction`` of the control fails, :func:`fails_alike`
+tells the two apart (:func:`systematic_pattern`) on the first solution's test
+values and on every test value met so far, and the stages (the construction
+by models, by strips with polynomials, the block and the bundle) keep the
+control and warn (:func:`systematic_message`) instead of stopping.  The test
+values met so far matter: a bending the control follows fails a few points
+at a time, a little over the critical value, and rejecting them one by one
+makes the next ones fail, which the first solution alone does not show.
 
 The rule: at least :data:`MIN_CONTROL_POINTS` control points; at least
 :data:`MIN_FAILING_POINTS` of them, and at least :data:`MIN_FAILING_SHARE` of
@@ -37,6 +42,7 @@ __all__ = [
     "MIN_FAILING_POINTS",
     "MIN_FAILING_SHARE",
     "kept_control",
+    "fails_alike",
     "self_calibration_follows",
     "systematic_message",
     "systematic_pattern",
@@ -64,6 +70,47 @@ def systematic_pattern(w: FloatArray, critical: float) -> bool:
     if n < MIN_CONTROL_POINTS or failing.size < max(MIN_FAILING_POINTS, MIN_FAILING_SHARE * n):
         return False
     return bool(failing.max() <= MAX_DOMINANCE * float(np.median(failing)))
+
+
+def fails_alike(
+    first: FloatArray,
+    critical: float,
+    *,
+    last: FloatArray | None = None,
+    rejected: Sequence[tuple[int, int, float]] = (),
+) -> FloatArray | None:
+    """The stages' one judgement of control that fails beyond ``max_fraction``:
+    the test values on which it fails at many points alike, or None (blunders).
+
+    Parameters
+    ----------
+    first : ndarray, shape (n, 3)
+        The first solution's test values of the n control points (components;
+        NaN where not tested).
+    critical : float
+        The critical value they are judged against.
+    last : ndarray, shape (n, 3), optional
+        The last solution's, on the same rows (NaN where not tested, rejected
+        components included).
+    rejected : sequence of (row, column, w)
+        The components rejected so far, each at the test value it was rejected
+        with (row of ``first``, column 0-2).
+
+    Returns
+    -------
+    ndarray or None
+        ``first`` when its pattern is systematic; else every test value met so
+        far (``last`` with each rejected component at its rejection's value)
+        when that pattern is; else None.
+    """
+    if systematic_pattern(first, critical):
+        return first
+    if last is None:
+        return None
+    seen = np.abs(np.asarray(last, dtype=np.float64))
+    for row, column, w in rejected:
+        seen[row, column] = abs(w)
+    return seen if systematic_pattern(seen, critical) else None
 
 
 #: True while a stage runs whose result the bundle refinement then
