@@ -21,7 +21,12 @@ from ..geometry.simultaneous import (
     adjust_units,
 )
 from ..ground.control_passes import ControlPasses
-from ..ground.systematic import fails_alike, kept_control, systematic_message
+from ..ground.systematic import (
+    fails_alike,
+    kept_control,
+    rejected_components,
+    systematic_message,
+)
 from ..options import BlunderOptions, Construction
 from ..results import Rejection
 from .problem import _Problem
@@ -208,11 +213,7 @@ def _keep_systematic(
     position = {
         p.control.point_ids[p.control_rows[k]]: j for j, k in enumerate(rows.tolist())
     }
-    rejected = [
-        (position[r.point], 2 if r.component == "H" else 0, r.w)
-        for r in rejections
-        if r.stage == "control" and r.applied and r.point in position
-    ]
+    rejected = rejected_components(rejections, position)
     judged = fails_alike(w[active], critical, last=last_w[active], rejected=rejected)
     if judged is None:
         return False

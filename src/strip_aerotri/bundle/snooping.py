@@ -24,7 +24,12 @@ from ..blunders import robust_variance_factor
 from ..errors import GeometryError, StripAerotriWarning
 from ..geometry.camera_model import CameraModel
 from ..geometry.collinearity import image_jacobian, image_vectors
-from ..ground.systematic import fails_alike, kept_control, systematic_message
+from ..ground.systematic import (
+    fails_alike,
+    kept_control,
+    rejected_components,
+    systematic_message,
+)
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
@@ -346,11 +351,7 @@ def _keep_systematic(
     component at the value it was rejected with)."""
     rows, w, critical = first
     position = {obs.point_ids[k]: j for j, k in enumerate(rows.tolist())}
-    rejected = [
-        (position[r.point], 2 if r.component == "height" else 0, r.w)
-        for r in rejections
-        if r.stage == CONTROL_STAGE and r.applied and r.point in position
-    ]
+    rejected = rejected_components(rejections, position)
     judged = fails_alike(w, critical, last=stats.w_ctrl[rows], rejected=rejected)
     if judged is None:
         return False

@@ -59,7 +59,7 @@ from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .common import control_detectability, index_of, intersect_unmodelled
 from .control_passes import ControlPasses
 from .polynomials import adjust_to_ground
-from .systematic import fails_alike, kept_control, systematic_message
+from .systematic import fails_alike, kept_control, rejected_components, systematic_message
 
 __all__ = ["ModelAdjustment", "adjust_models_to_ground", "model_weights"]
 
@@ -471,11 +471,7 @@ def _keep_systematic(
     now[~use_xy, :2] = np.nan
     now[~use_z, 2] = np.nan
     row_of = {pid: int(np.searchsorted(rows, k)) for k, pid in enumerate(p.ids)}
-    rejected = [
-        (row_of[r.point], 2 if r.component == "height" else 0, r.w)
-        for r in rejections
-        if r.stage == "control" and r.applied
-    ]
+    rejected = rejected_components(rejections, row_of)
     judged = fails_alike(w, critical, last=now[rows], rejected=rejected)
     if judged is None:
         return False

@@ -54,7 +54,7 @@ from .common import (
     resolve_route,
 )
 from .passes import Solution, StripProblem, _plan_scale, solve_passes
-from .systematic import fails_alike, kept_control, systematic_message
+from .systematic import fails_alike, kept_control, rejected_components, systematic_message
 
 __all__ = [
     "Construction",
@@ -321,11 +321,7 @@ def _keep_systematic(
     w_last, _ = _control_test_values(last, len(ids), blunders)
     rows = np.flatnonzero(np.any(np.isfinite(w_first), axis=1))
     position = {ids[int(k)]: j for j, k in enumerate(rows)}
-    rejected = [
-        (position[r.point], 2 if r.component == "height" else 0, r.w)
-        for r in rejections
-        if r.stage == "control" and r.applied and r.point in position
-    ]
+    rejected = rejected_components(rejections, position)
     judged = fails_alike(w_first[rows], critical, last=w_last[rows], rejected=rejected)
     if judged is None:
         return False

@@ -25,7 +25,7 @@ a pattern that changes sign from model to model.)
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import replace
@@ -42,6 +42,7 @@ __all__ = [
     "MIN_FAILING_POINTS",
     "MIN_FAILING_SHARE",
     "kept_control",
+    "rejected_components",
     "fails_alike",
     "self_calibration_follows",
     "systematic_message",
@@ -111,6 +112,19 @@ def fails_alike(
     for row, column, w in rejected:
         seen[row, column] = abs(w)
     return seen if systematic_pattern(seen, critical) else None
+
+
+def rejected_components(
+    rejections: Sequence[Rejection], row_of: Mapping[str, int]
+) -> list[tuple[int, int, float]]:
+    """The control components rejected so far as :func:`fails_alike` takes
+    them: (row, column, w) of every applied control rejection whose point has
+    a row in ``row_of`` (a height's column 2, a plan's 0)."""
+    return [
+        (row_of[r.point], 2 if r.component in ("height", "H") else 0, r.w)
+        for r in rejections
+        if r.stage == "control" and r.applied and r.point in row_of
+    ]
 
 
 #: True while a stage runs whose result the bundle refinement then
