@@ -195,3 +195,36 @@ def test_weights_need_the_bundle():
     with pytest.raises(OptionError, match="estimated"):
         adjustment_options({"weights": "guessed", "refine": "bundle"})
     assert adjustment_options({"weights": "Estimated", "refine": "bundle"}).weights == "estimated"
+
+
+def test_gnss_group_of_a_block_is_estimated():
+    """A drone block with control at its corners and GNSS centres whose noise
+    (6 cm in plan and height) is three times the stated 2 cm: the block's
+    refinement estimates the GNSS group within three of its standard
+    deviations of the truth, and the block's result carries the record."""
+    from strip_aerotri.block.strips import adjust_block
+    from strip_aerotri.bundle.variance import GNSS
+    from strip_aerotri.observations import GnssCentres, StripSpec
+    from strip_aerotri.simulate import simulate_block
+
+    sim = simulate_block(3, 10, preset="drone", side_overlap=0.4, seed=4, control="corners")
+    truth = sim.truth.photo_centres_crs
+    noise = np.random.default_rng(3).normal(0.0, 0.06, truth.shape)
+    gnss = GnssCentres(
+        sim.observations.photo_ids,
+        truth + noise,
+        np.full(len(truth), 0.02),
+        np.full(len(truth), 0.02),
+    )
+    specs = [StripSpec(s.name, s.photo_ids) for s in sim.strips]
+    result = adjust_block(
+        sim.observations, sim.control, sim.crs, specs, refine=True, gnss=gnss,
+        variance_components=True,
+    )  # fmt: skip
+    vc = result.variance_components
+    assert vc is not None and vc.converged
+    g = {x.name: x for x in vc.groups}[GNSS]
+    assert g.n == 3 * len(truth) and g.estimated and g.sigma_apriori == pytest.approx(0.02)
+    assert abs(g.sigma / 0.06 - 1.0) < 3.0 / np.sqrt(2.0 * g.redundancy), g
+    plain = adjust_block(sim.observations, sim.control, sim.crs, specs, refine=True, gnss=gnss)
+    assert plain.variance_components is None
