@@ -228,6 +228,15 @@ def test_gnss_group_of_a_block_is_estimated():
     assert abs(g.sigma / 0.06 - 1.0) < 3.0 / np.sqrt(2.0 * g.redundancy), g
     plain = adjust_block(sim.observations, sim.control, sim.crs, specs, refine=True, gnss=gnss)
     assert plain.variance_components is None
+    # the block's report.json and page carry them too
+    import json
+
+    from strip_aerotri.report.block import block_outputs, build_block_report
+
+    files = block_outputs(result, build_block_report(result))
+    record = json.loads(files["report.json"])["bundle"]["variance_components"]
+    assert [g["group"] for g in record["groups"]][-1] == GNSS
+    assert "Observation weights from the data" in files["report.html"].decode()
 
 
 def test_a_control_blunder_is_still_found_and_leaves_the_estimate():
