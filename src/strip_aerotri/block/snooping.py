@@ -14,19 +14,14 @@ import numpy as np
 
 from .._stats import leading_failures
 from .._typing import BoolArray, FloatArray, IntArray
-from ..errors import GeometryError, StripAerotriWarning
+from ..errors import GeometryError
 from ..geometry.simultaneous import (
     SimultaneousResult,
     UnitObservations,
     adjust_units,
 )
 from ..ground.control_passes import ControlPasses
-from ..ground.systematic import (
-    fails_alike,
-    kept_control,
-    rejected_components,
-    systematic_message,
-)
+from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..options import BlunderOptions, Construction
 from ..results import Rejection
 from .problem import _Problem
@@ -204,8 +199,6 @@ def _keep_systematic(
     blunders.  Judged on the first solution's test values and on every one
     met so far (``last_w``, the last solution's, with each rejected
     component at the value it was rejected with)."""
-    import warnings
-
     active = p.use_xy | p.use_z
     w = _control_w(p, first, p.use_xy, p.use_z)
     critical = blunders.critical("control", max(int(np.isfinite(w).sum()), 1))
@@ -214,11 +207,7 @@ def _keep_systematic(
         p.control.point_ids[p.control_rows[k]]: j for j, k in enumerate(rows.tolist())
     }
     rejected = rejected_components(rejections, position)
-    judged = fails_alike(w[active], critical, last=last_w[active], rejected=rejected)
-    if judged is None:
-        return False
-    warnings.warn(systematic_message("block", judged, critical), StripAerotriWarning, stacklevel=4)
-    return True
+    return kept_if_alike("block", w[active], critical, last=last_w[active], rejected=rejected)
 
 
 def _control_w(p: _Problem, sol: _Solution, use_xy: BoolArray, use_z: BoolArray) -> FloatArray:

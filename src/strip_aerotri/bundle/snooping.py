@@ -12,7 +12,6 @@ records (:func:`describe`) and the rejection itself (:meth:`_Sets.reject`).
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -21,15 +20,10 @@ import numpy as np
 from .._stats import leading_failures
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
-from ..errors import GeometryError, StripAerotriWarning
+from ..errors import GeometryError
 from ..geometry.camera_model import CameraModel
 from ..geometry.collinearity import image_jacobian, image_vectors
-from ..ground.systematic import (
-    fails_alike,
-    kept_control,
-    rejected_components,
-    systematic_message,
-)
+from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
@@ -352,17 +346,14 @@ def _keep_systematic(
     rows, w, critical = first
     position = {obs.point_ids[k]: j for j, k in enumerate(rows.tolist())}
     rejected = rejected_components(rejections, position)
-    judged = fails_alike(w, critical, last=stats.w_ctrl[rows], rejected=rejected)
-    if judged is None:
-        return False
-    warnings.warn(
-        systematic_message(
-            "bundle adjustment", judged, critical, self_calibrating=self_calibrating
-        ),
-        StripAerotriWarning,
-        stacklevel=4,
+    return kept_if_alike(
+        "bundle adjustment",
+        w,
+        critical,
+        last=stats.w_ctrl[rows],
+        rejected=rejected,
+        self_calibrating=self_calibrating,
     )
-    return True
 
 
 def _adjust(

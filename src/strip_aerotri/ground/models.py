@@ -59,7 +59,7 @@ from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .common import control_detectability, index_of, intersect_unmodelled
 from .control_passes import ControlPasses
 from .polynomials import adjust_to_ground
-from .systematic import fails_alike, kept_control, rejected_components, systematic_message
+from .systematic import kept_control, kept_if_alike, rejected_components
 
 __all__ = ["ModelAdjustment", "adjust_models_to_ground", "model_weights"]
 
@@ -472,13 +472,7 @@ def _keep_systematic(
     now[~use_z, 2] = np.nan
     row_of = {pid: int(np.searchsorted(rows, k)) for k, pid in enumerate(p.ids)}
     rejected = rejected_components(rejections, row_of)
-    judged = fails_alike(w, critical, last=now[rows], rejected=rejected)
-    if judged is None:
-        return False
-    warnings.warn(
-        systematic_message("control", judged, critical), StripAerotriWarning, stacklevel=4
-    )
-    return True
+    return kept_if_alike("control", w, critical, last=now[rows], rejected=rejected)
 
 
 def _check_breaks(

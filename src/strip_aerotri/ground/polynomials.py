@@ -54,7 +54,7 @@ from .common import (
     resolve_route,
 )
 from .passes import Solution, StripProblem, _plan_scale, solve_passes
-from .systematic import fails_alike, kept_control, rejected_components, systematic_message
+from .systematic import kept_control, kept_if_alike, rejected_components
 
 __all__ = [
     "Construction",
@@ -322,13 +322,9 @@ def _keep_systematic(
     rows = np.flatnonzero(np.any(np.isfinite(w_first), axis=1))
     position = {ids[int(k)]: j for j, k in enumerate(rows)}
     rejected = rejected_components(rejections, position)
-    judged = fails_alike(w_first[rows], critical, last=w_last[rows], rejected=rejected)
-    if judged is None:
-        return False
-    warnings.warn(
-        systematic_message("control", judged, critical), StripAerotriWarning, stacklevel=4
+    return kept_if_alike(
+        "control", w_first[rows], critical, last=w_last[rows], rejected=rejected
     )
-    return True
 
 
 def _control_test_values(

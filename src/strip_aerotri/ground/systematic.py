@@ -25,6 +25,7 @@ a pattern that changes sign from model to model.)
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -33,6 +34,7 @@ from dataclasses import replace
 import numpy as np
 
 from .._typing import FloatArray
+from ..errors import StripAerotriWarning
 from ..results import Rejection
 
 __all__ = [
@@ -42,6 +44,7 @@ __all__ = [
     "MIN_FAILING_POINTS",
     "MIN_FAILING_SHARE",
     "kept_control",
+    "kept_if_alike",
     "rejected_components",
     "fails_alike",
     "self_calibration_follows",
@@ -112,6 +115,29 @@ def fails_alike(
     for row, column, w in rejected:
         seen[row, column] = abs(w)
     return seen if systematic_pattern(seen, critical) else None
+
+
+def kept_if_alike(
+    stage: str,
+    first: FloatArray,
+    critical: float,
+    *,
+    last: FloatArray | None = None,
+    rejected: Sequence[tuple[int, int, float]] = (),
+    self_calibrating: bool = False,
+) -> bool:
+    """:func:`fails_alike`, and when it does, the stage's warning
+    (:func:`systematic_message`, attributed to the stage's caller): True when
+    the stage keeps its control."""
+    judged = fails_alike(first, critical, last=last, rejected=rejected)
+    if judged is None:
+        return False
+    warnings.warn(
+        systematic_message(stage, judged, critical, self_calibrating=self_calibrating),
+        StripAerotriWarning,
+        stacklevel=5,
+    )
+    return True
 
 
 def rejected_components(
