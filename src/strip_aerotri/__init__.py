@@ -114,6 +114,7 @@ if TYPE_CHECKING:  # the public names, for type checkers; at run time see __geta
         ScaleTransfer,
         StripOptions,
         SelfCalibration,
+        Weights,
     )
     from .pipeline import triangulate
     from .project import Project, load_project, run_project
@@ -135,6 +136,8 @@ if TYPE_CHECKING:  # the public names, for type checkers; at run time see __geta
         StripResult,
         CameraEstimate,
         SelfCalibrationOutcome,
+        VarianceComponents,
+        VarianceGroup,
     )
     from .simulate import (
         PRESETS,
@@ -252,6 +255,7 @@ _MODULES: dict[str, tuple[str, ...]] = {
         "ScaleTransfer",
         "StripOptions",
         "SelfCalibration",
+        "Weights",
     ),
     ".pipeline": ("triangulate",),
     ".project": ("Project", "load_project", "run_project"),
@@ -273,6 +277,8 @@ _MODULES: dict[str, tuple[str, ...]] = {
         "StripResult",
         "CameraEstimate",
         "SelfCalibrationOutcome",
+        "VarianceComponents",
+        "VarianceGroup",
     ),
     ".simulate": (
         "PRESETS",
@@ -335,6 +341,9 @@ __all__ = [
     "CameraModel",
     "SelfCalibration",
     "SelfCalibrationOutcome",
+    "VarianceComponents",
+    "VarianceGroup",
+    "Weights",
     "Cofactors",
     "ConfigError",
     "ControlPoints",

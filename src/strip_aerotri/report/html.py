@@ -13,7 +13,7 @@ import numpy as np
 
 from ..options import DEFAULT_SECTIONS
 from .aside import aside
-from .calibration import calibration_figures, calibration_html
+from .calibration import calibration_figures, calibration_html, with_variance_html
 from .figures import (
     StripFigureData,
     _png,
@@ -156,9 +156,12 @@ def html_page(report: Mapping[str, Any], figures: StripFigures) -> str:
         figures.parallax,
         figures.ties,
         long_strip=figures.long_strip,
-        calibration=""
-        if figures.calibration is None or record is None
-        else calibration_html(record, figures.calibration),
+        calibration=with_variance_html(
+            ""
+            if figures.calibration is None or record is None
+            else calibration_html(record, figures.calibration),
+            report,
+        ),
     )
 
 
