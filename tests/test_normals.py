@@ -505,3 +505,36 @@ def test_random_shapes_equal_the_dense_solution(seed: int, monkeypatch: pytest.M
     all_rows = [*prob.upr, *prob.ur, *prob.pr, *prob.br]
     r = np.concatenate([cof.redundancy(rows).ravel() for rows in all_rows])
     np.testing.assert_allclose(r, 1.0 - np.einsum("ij,jk,ik->i", a, q, a), atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "n, d, w",
+    [(1, 6, 0), (5, 6, 1), (14, 6, 6), (23, 7, 4), (40, 1, 9), (9, 36, 2), (50, 6, 13), (8, 6, 7)],
+)
+def test_selected_inverse_of_a_block_band_is_the_dense_inverse(n: int, d: int, w: int) -> None:
+    # S = L Lᵀ with L lower within the block band: the band of
+    # S⁻¹ from Takahashi's recursion (run on blocks of several units) against
+    # the dense inverse, every block within w of the diagonal and zero beyond
+    from strip_aerotri.geometry._blockband import factor_band, selected_inverse
+
+    rng = np.random.default_rng(n * 100 + d * 10 + w)
+    size = n * d
+    i, j = np.indices((size, size))
+    inside = (i >= j) & (i // d - j // d <= w)
+    lower = rng.normal(size=(size, size)) * inside / np.sqrt((w + 1) * d)
+    lower[np.arange(size), np.arange(size)] = rng.uniform(2.0, 4.0, size)
+    s = lower @ lower.T
+    band = np.zeros((n, w + 1, d, d))
+    for jj in range(n):
+        for o in range(min(w + 1, n - jj)):
+            band[jj, o] = s[(jj + o) * d : (jj + o + 1) * d, jj * d : (jj + 1) * d]
+    z = selected_inverse(factor_band(band))
+    q = np.linalg.inv(s)
+    for jj in range(n):
+        for o in range(w + 1):
+            expected = (
+                q[(jj + o) * d : (jj + o + 1) * d, jj * d : (jj + 1) * d]
+                if jj + o < n
+                else np.zeros((d, d))
+            )
+            np.testing.assert_allclose(z[jj, o], expected, atol=1e-10 * np.abs(q).max())

@@ -136,13 +136,48 @@ def factor_band(band: FloatArray) -> BandFactor:
     return BandFactor(factor, scale, n, d, float(pivots[j]), j)
 
 
+#: Units joined into one block of the recursion: about this many scalars a
+#: block, so that a step is a few products of matrices of some size rather
+#: than many of 6 x 6 blocks (the Python loop then runs n d / 36 times).
+_RECURSION_BLOCK = 36
+
+
 def selected_inverse(bf: BandFactor) -> FloatArray:
     """The block band of ``S⁻¹`` (n, w+1, d, d), ``[J, o] = (S⁻¹)[J + o, J]``,
-    by Takahashi's recursion on the factor (see the module docstring)."""
+    by Takahashi's recursion on the factor (see the module docstring).
+
+    The recursion runs on blocks of ``m`` units at a time (``m d`` about
+    :data:`_RECURSION_BLOCK`; the factor padded with identity rows to a
+    whole number of blocks, which leaves Z's band unchanged), and the units'
+    blocks are taken out of its band at the end."""
     n, d = bf.n, bf.d
     w1 = bf.factor.shape[0] // d
+    m = max(1, min(w1, _RECURSION_BLOCK // d))
+    big, wide = m * d, -(-(w1 - 1) // m) + 1  # block size and band blocks of the recursion
+    n_big = -(-n // m)
+    ab = np.zeros((wide * big, n_big * big))
+    ab[: w1 * d, : n * d] = bf.factor
+    ab[0, n * d :] = 1.0  # identity rows: Z is the identity there, decoupled
+    zb = _takahashi(lapack_to_band(ab, n_big, big))  # (n_big, wide, big, big)
+    # unit block (J m + a, o) lies in zb[J, (a + o) // m] at rows (a + o) % m, column a
+    a, o = np.meshgrid(np.arange(m), np.arange(w1), indexing="ij")
+    units = zb.reshape(n_big, wide, m, d, m, d)[:, (a + o) // m, (a + o) % m, :, a, :]
+    z: FloatArray = np.ascontiguousarray(
+        units.transpose(2, 0, 1, 3, 4).reshape(n_big * m, w1, d, d)[:n]
+    )
+    # undo the equilibration: S⁻¹ = D Z̃ D
+    s = bf.scale.reshape(n, d)
+    rows = np.arange(n)[:, None] + np.arange(w1)[None, :]
+    s_rows = np.where((rows < n)[:, :, None], s[np.minimum(rows, n - 1)], 0.0)
+    z *= s_rows[:, :, :, None] * s[:, None, None, :]
+    return z
+
+
+def _takahashi(lf: FloatArray) -> FloatArray:
+    """Takahashi's recursion on the block band of L (n, w+1, d, d), ``[J, o] =
+    L[J + o, J]``: the block band of ``(L Lᵀ)⁻¹``, unscaled."""
+    n, w1, d, _ = lf.shape
     w = w1 - 1
-    lf = lapack_to_band(bf.factor, n, d)  # L's blocks: [J, o] = L[J + o, J]
     lf[:, 0] = np.tril(lf[:, 0])
     l_inv = np.linalg.inv(lf[:, 0])  # (n, d, d) lower
     # panel[J]: L[J+1 .. J+w, J] stacked (w d, d); zero beyond the last row
@@ -172,9 +207,4 @@ def selected_inverse(bf: BandFactor) -> FloatArray:
         buf[top : top + d, top : top + d] = diag
         buf[top + d : top + d + wd, top : top + d] = col
         buf[top : top + d, top + d : top + d + wd] = col.T
-    # undo the equilibration: S⁻¹ = D Z̃ D
-    s = bf.scale.reshape(n, d)
-    rows = np.arange(n)[:, None] + np.arange(w1)[None, :]
-    s_rows = np.where((rows < n)[:, :, None], s[np.minimum(rows, n - 1)], 0.0)
-    z *= s_rows[:, :, :, None] * s[:, None, None, :]
     return z

@@ -454,17 +454,16 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
             z[: n - o, o] += xt[o:] @ np.swapaxes(xb[: n - o], 1, 2)
         q_ub = -xt
     q_bb = red.t_inv
-    v_inv, y, y_border = red.v_inv, red.y(), red.y_border
-    point = v_inv.copy()
+    y, y_border = red.y(), red.y_border
     pair = np.zeros((d, 3, pat.pair_unit.size))
     point_border = np.zeros((p, 3, k))
-    zflat = z.reshape(-1, d, d)
+    # the band's blocks and their transposes, for the blocks above the diagonal
+    both = np.concatenate([z.reshape(-1, d, d), np.swapaxes(z.reshape(-1, d, d), 1, 2)])
     for c in pat.chunks:
         q, n_g, groups = c.q, c.size, c.groups
         qd = q * d
         span = slice(c.pair_start, c.pair_start + groups * n_g * q)
-        blocks = zflat[c.gather]  # (G, q, q, d, d): the same for all points of a group
-        blocks = np.where(c.upper[None, :, :, None, None], np.swapaxes(blocks, -1, -2), blocks)
+        blocks = both[c.gather + c.upper * (n * w1)]  # (G, q, q, d, d), one per group
         q_rr = blocks.transpose(0, 1, 3, 2, 4).reshape(groups, qd, qd)
         y_r = _group_major(y, c, d)  # (G, qd, 3 n_g)
         if k:
@@ -477,20 +476,17 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
             q_rr = np.concatenate([top, bottom], axis=1)
             yb = y_border[c.points].reshape(groups, n_g, k, 3).transpose(0, 2, 1, 3)
             y_r = np.concatenate([y_r, yb.reshape(groups, k, n_g * 3)], axis=1)
-        t = q_rr @ y_r  # (G, qd + k, 3 n_g)
-        # Q_pp = V⁻¹ + Yᵀ Q_RR Y per point: the 3 x 3 diagonal blocks of y_rᵀ t
-        yt = np.einsum("gmpi,gmpj->gpij", y_r.reshape(groups, -1, n_g, 3),
-                       t.reshape(groups, -1, n_g, 3))
-        point[c.points] += yt.reshape(-1, 3, 3)
+        t = q_rr @ y_r  # (G, qd + k, 3 n_g): -Q_Rp
         pair[:, :, span] = -_pair_major(t[:, :qd], c, d)
         if k:
             tb = t[:, qd:].reshape(groups, k, n_g, 3).transpose(0, 2, 3, 1)  # (G, n_g, 3, k)
             point_border[c.points] = -tb.reshape(-1, 3, k)
+    # Q_pp = V⁻¹ + Yᵀ Q_RR Y = V⁻¹ - Σ_pairs Yᵀ Q_up - Y_bᵀ Q_pbᵀ
+    point = red.v_inv - run_sums(np.einsum("aik,ajk->ijk", y, pair), pat.point_runs, p)
     if k:
         alone = np.bincount(pat.pair_point, minlength=p) == 0
-        t = q_bb @ y_border[alone]  # (a, k, 3)
-        point[alone] += np.swapaxes(y_border[alone], 1, 2) @ t
-        point_border[alone] = -np.swapaxes(t, 1, 2)
+        point_border[alone] = -np.swapaxes(q_bb @ y_border[alone], 1, 2)
+        point -= np.einsum("pki,pjk->pij", y_border, point_border)
     return Cofactors(
         structure=st,
         unit=z[pat.position, 0],

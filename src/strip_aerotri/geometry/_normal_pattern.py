@@ -256,10 +256,18 @@ def runs_of(index: IntArray) -> tuple[IntArray | None, IntArray, IntArray]:
         return None, np.zeros(0, np.intp), np.zeros(0, np.intp)
     starts = np.flatnonzero(np.r_[True, index[1:] != index[:-1]]).astype(np.intp)
     values = index[starts]
-    if np.unique(values).size == values.size:
+    if np.all(values[1:] > values[:-1]) or np.bincount(values - values.min()).max() == 1:
         return None, starts, values
     order = np.argsort(index, kind="stable").astype(np.intp)
     return (order, *runs_of(index[order])[1:])
+
+
+def sorted_unique(values: IntArray) -> IntArray:
+    """``np.unique(values)`` by a sort (numpy's own hashes, which is slower on
+    the index arrays here)."""
+    flat = np.sort(np.asarray(values).reshape(-1))
+    out: IntArray = flat[np.r_[True, flat[1:] != flat[:-1]]] if flat.size else flat
+    return out
 
 
 def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray,
