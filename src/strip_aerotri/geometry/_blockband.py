@@ -33,26 +33,18 @@ from .._typing import FloatArray, IntArray
 __all__ = ["BandFactor", "band_to_lapack", "factor_band", "selected_inverse"]
 
 
-def _band_entries(w1: int, d: int) -> list[tuple[int, int, int, int]]:
-    """(o, a, b, row) of every entry of the lower block band kept in LAPACK's
-    storage: block offset o, entry (a, b) of the block, row ``o d + a - b``
-    of ab (the diagonal blocks' lower triangles and the blocks below)."""
-    return [
-        (o, a, b, o * d + a - b)
-        for o in range(w1)
-        for a in range(d)
-        for b in range(d)
-        if o > 0 or a >= b
-    ]
-
-
 def band_to_lapack(band: FloatArray) -> FloatArray:
-    """LAPACK lower band storage ((w+1) d, n d) of a block band (n, w+1, d, d);
-    a copy per entry of a block (strided over the n blocks)."""
+    """LAPACK lower band storage ((w+1) d, n d) of a block band (n, w+1, d, d).
+
+    Entry (a, b) of block [J, o] is S[(J + o) d + a, J d + b], row
+    ``o d + a - b`` of column ``J d + b``: for each b the rows ``o d + a``
+    of the blocks' column b, shifted up by b (the rows above the diagonal
+    of the diagonal blocks fall off)."""
     n, w1, d, _ = band.shape
+    by_row = band.transpose(1, 2, 0, 3).reshape(w1 * d, n, d)  # [o d + a, J, b]
     ab = np.zeros((w1 * d, n, d))  # column J d + b as (J, b)
-    for o, a, b, row in _band_entries(w1, d):
-        ab[row, :, b] = band[:, o, a, b]
+    for b in range(d):
+        ab[: w1 * d - b, :, b] = by_row[b:, :, b]
     return ab.reshape(w1 * d, n * d)
 
 
@@ -60,12 +52,13 @@ def lapack_to_band(ab: FloatArray, n: int, d: int) -> FloatArray:
     """The inverse of :func:`band_to_lapack` (upper triangles of diagonal blocks 0)."""
     w1 = ab.shape[0] // d
     view = ab.reshape(w1 * d, n, d)
-    band = np.zeros((n, w1, d, d))
-    for o, a, b, row in _band_entries(w1, d):
-        band[:, o, a, b] = view[row, :, b]
+    by_row = np.zeros((w1 * d, n, d))
+    for b in range(d):
+        by_row[b:, :, b] = view[: w1 * d - b, :, b]
+    band = np.ascontiguousarray(by_row.reshape(w1, d, n, d).transpose(2, 0, 1, 3))
     # entries past the last row (J + o >= n) are not the matrix's
-    for o in range(1, w1):
-        band[max(n - o, 0) :, o] = 0.0
+    for off in range(1, w1):
+        band[max(n - off, 0) :, off] = 0.0
     return band
 
 

@@ -15,6 +15,7 @@ import numpy as np
 from .._typing import ArrayLike, FloatArray, IntArray
 from ._blockband import BandFactor, NotPositiveDefinite, factor_band, selected_inverse
 from ._normal_entries import (
+    BLOCK,
     PairBlocks,
     PointFactor,
     entry_major,
@@ -299,9 +300,12 @@ def _schur_band(st: NormalStructure, band: FloatArray, z: FloatArray) -> FloatAr
         zc = _group_major(z, c, d)
         sums = zc @ np.swapaxes(zc, 1, 2)  # (G, qd, qd)
         blocks = sums.reshape(c.groups, c.q, d, c.q, d)[c.block_group, c.block_a, :, c.block_b]
-        flat_blocks[c.block_targets] -= np.add.reduceat(
-            blocks.reshape(-1, dd), c.block_starts, axis=0
-        )
+        if c.block_starts.size == c.block_group.size:  # each target once: no sums
+            flat_blocks[c.block_targets] -= blocks.reshape(-1, dd)
+        else:
+            flat_blocks[c.block_targets] -= np.add.reduceat(
+                blocks.reshape(-1, dd), c.block_starts, axis=0
+            )
     return flat_blocks.reshape(n, w1, d, d)
 
 
@@ -368,7 +372,7 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     unit_step[order] = x_pos.reshape(n, d)
     # points: V⁻¹ (b_p - Σ Wᵀ δu - Vb δb)
     t_p = b_point - run_sums(
-        np.einsum("abk,ak->bk", normals.w, unit_step[pat.pair_unit].T), pat.point_runs,
+        np.einsum("abk,ak->bk", normals.w, take(unit_step.T, pat.pair_unit)), pat.point_runs,
         st.n_points,
     )
     if k:
@@ -523,22 +527,27 @@ def _pair_leverage(cof: Cofactors, rows: UnitPointRows) -> FloatArray:
     same = np.array_equal(unit, pat.row_unit) and np.array_equal(point, pat.row_point)
     pairs = pat.row_pair if same else pat.pair_of(unit, point)
     a_u, a_p = entry_major(au), entry_major(ap)
+    a_b = entry_major(ab) if k else None
+    q_unit, q_point = entry_major(cof.unit), entry_major(cof.point)
+    q_ub, q_pb = entry_major(cof.unit_border), entry_major(cof.point_border)
 
     def form(a: FloatArray, q: FloatArray, b: FloatArray) -> FloatArray:
-        # Σ_ij a[r, i] q[i, j] b[r, j] per row: (r, g)
+        # Σ_ij a[r, i] q[i, j] b[r, j] per row: (r, m)
         out: FloatArray = np.einsum("rik,rik->rk", a, np.einsum("ijk,rjk->rik", q, b))
         return out
 
-    def rows_of(blocks: FloatArray, index: IntArray) -> FloatArray:
-        return take(entry_major(blocks), index)
-
-    h = form(a_u, rows_of(cof.unit, unit), a_u) + 2.0 * form(a_u, take(cof.pair, pairs), a_p)
-    h += form(a_p, rows_of(cof.point, point), a_p)
-    if k:
-        a_b = entry_major(ab)
-        h += 2.0 * form(a_u, rows_of(cof.unit_border, unit), a_b)
-        h += 2.0 * form(a_p, rows_of(cof.point_border, point), a_b)
-        h += np.einsum("rik,ij,rjk->rk", a_b, cof.border, a_b)
+    h = np.empty((a_u.shape[0], a_u.shape[2]))  # (r, g)
+    for lo in range(0, h.shape[1], BLOCK):  # blocks of rows: the gathered blocks stay small
+        at = slice(lo, lo + BLOCK)
+        u, pt = unit[at], point[at]
+        bu, bp = a_u[..., at], a_p[..., at]
+        part = form(bu, take(q_unit, u), bu) + 2.0 * form(bu, take(cof.pair, pairs[at]), bp)
+        part += form(bp, take(q_point, pt), bp)
+        if a_b is not None:
+            bb = a_b[..., at]
+            part += 2.0 * form(bu, take(q_ub, u), bb) + 2.0 * form(bp, take(q_pb, pt), bb)
+            part += np.einsum("rik,ij,rjk->rk", bb, cof.border, bb)
+        h[:, at] = part
     return h.T
 
 
