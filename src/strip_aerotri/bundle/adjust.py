@@ -74,6 +74,7 @@ from ..geometry.rotation import matrix_from_rotvec, rotvec_from_matrix, skew
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
 from ..results import BundleResult, CameraEstimate
+from ._structures import structure_for
 
 __all__ = ["BundleResult", "CameraUndetermined", "bundle_adjust"]
 
@@ -297,17 +298,15 @@ def _make_problem(
             raise ValueError("Expected positive standard deviations for `imu_rotations`")
         iw = np.zeros((m, 3))
         iw[used] = 1.0 / sig[used] ** 2
-    structure = NormalStructure.from_indices(
-        m,
-        6,
-        p,
-        photo,
-        point,
-        candidates=[_along_axis_order(centres)],
-        unit_names=tuple(obs.photo_ids),
-        point_names=tuple(obs.point_ids),
-        parameter_names=_PHOTO_PARAMETER_NAMES,
-        n_border=0 if camera is None else len(camera.estimated),
+    along = _along_axis_order(centres)
+    n_border = 0 if camera is None else len(camera.estimated)
+    structure = structure_for(
+        (m, p, photo, point, along, n_border, obs.photo_ids, obs.point_ids),
+        lambda: NormalStructure.from_indices(
+            m, 6, p, photo, point, candidates=[along], unit_names=tuple(obs.photo_ids),
+            point_names=tuple(obs.point_ids), parameter_names=_PHOTO_PARAMETER_NAMES,
+            n_border=n_border,
+        ),
     )
     return _Problem(
         photo_ids=tuple(obs.photo_ids),

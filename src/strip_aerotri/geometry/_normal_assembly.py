@@ -319,7 +319,10 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     pat = st.pattern
     n, d, k = st.n_units, st.unit_size, st.n_border
     band, v, border = _damped(normals, damping)
-    pf = _point_factor(st, v) if v.shape[0] else PointFactor(np.zeros((6, 0)), v.copy(), v[:, 0, 0])
+    pf = (
+        _point_factor(st, v) if v.shape[0]
+        else PointFactor(np.zeros((6, 0)), v.copy(), v[:, 0, 0])
+    )
     m_pair = take(pf.m, pat.pair_point)
     z = times_lower_t(normals.w, m_pair)  # (d, 3, n_pairs)
     s_band = _schur_band(st, band, z)

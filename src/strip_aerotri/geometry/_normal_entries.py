@@ -17,6 +17,7 @@ parameters, k border parameters.
 
 from __future__ import annotations
 
+import itertools
 from typing import NamedTuple
 
 import numpy as np
@@ -37,8 +38,9 @@ __all__ = [
 
 def entry_major(a: FloatArray) -> FloatArray:
     """``(m, *block) -> (*block, m)``, C-contiguous (no copy when the memory of
-    `a` is already laid out so, as :func:`~strip_aerotri.geometry.collinearity.collinearity_jacobians`
-    lays out its Jacobians)."""
+    `a` is already laid out so, as
+    :func:`~strip_aerotri.geometry.collinearity.collinearity_jacobians` lays
+    out its Jacobians)."""
     t = np.moveaxis(a, 0, -1)
     return t if t.flags.c_contiguous else np.ascontiguousarray(t)
 
@@ -102,7 +104,7 @@ def blocks_of(runs: tuple[IntArray | None, IntArray, IntArray],
     first = np.unique(np.searchsorted(starts, np.arange(0, size, BLOCK), side="right") - 1)
     ends = np.r_[first[1:], starts.size]
     out = []
-    for i0, i1 in zip(first.tolist(), ends.tolist()):
+    for i0, i1 in zip(first.tolist(), ends.tolist(), strict=True):
         lo = int(starts[i0])
         hi = int(starts[i1]) if i1 < starts.size else size
         places = np.arange(lo, hi) if order is None else order[lo:hi]
@@ -137,12 +139,13 @@ def pair_blocks(
     parts = [a_u, a_p, res[:, None]] + ([] if a_b is None else [a_b])
     sizes = np.cumsum([0] + [x.shape[0] * x.shape[1] for x in parts])
     records = np.empty((rows.size, int(sizes[-1])))
-    for x, lo, hi in zip(parts, sizes[:-1], sizes[1:]):
+    bounds = list(itertools.pairwise(sizes.tolist()))
+    for x, (lo, hi) in zip(parts, bounds, strict=True):
         records[:, lo:hi] = x.reshape(hi - lo, -1).T
     r = res.shape[0]
     for span, places, starts, seen in blocks_of(pat.point_runs, rows.size):
         blk = np.ascontiguousarray(np.take(records, rows[places], axis=0).T)
-        pieces = [blk[lo:hi].reshape(r, -1, blk.shape[1]) for lo, hi in zip(sizes[:-1], sizes[1:])]
+        pieces = [blk[lo:hi].reshape(r, -1, blk.shape[1]) for lo, hi in bounds]
         pu, pp, pf = pieces[0], pieces[1], pieces[2][:, 0]
         pb = pieces[3] if a_b is not None else None
         np.einsum("rak,rbk->abk", pu, pp, out=w[..., span])
