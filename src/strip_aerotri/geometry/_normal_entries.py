@@ -93,23 +93,30 @@ BLOCK = 16384
 
 
 def blocks_of(runs: tuple[IntArray | None, IntArray, IntArray],
-              size: int) -> list[tuple[slice, IntArray, IntArray, IntArray]]:
+              size: int) -> list[tuple[slice, slice | IntArray, IntArray, IntArray]]:
     """Blocks of about :data:`BLOCK` places of an index of `size` places, cut
-    between runs: per block (its places in the runs' order, the places of
-    the original order there (None: the same), its runs' starts within the
-    block, their values)."""
+    between its runs (``runs`` as :func:`run_sums` takes them).  Per block:
+    its span in the runs' order, the index's places there (the span itself
+    when the runs need no order), the starts of its runs within the block
+    and their values."""
     order, starts, seen = runs
     if starts.size == 0:
         return []
     first = np.unique(np.searchsorted(starts, np.arange(0, size, BLOCK), side="right") - 1)
     ends = np.r_[first[1:], starts.size]
-    out = []
+    out: list[tuple[slice, slice | IntArray, IntArray, IntArray]] = []
     for i0, i1 in zip(first.tolist(), ends.tolist(), strict=True):
         lo = int(starts[i0])
         hi = int(starts[i1]) if i1 < starts.size else size
-        places = np.arange(lo, hi) if order is None else order[lo:hi]
-        out.append((slice(lo, hi), places, starts[i0:i1] - lo, seen[i0:i1]))
+        span = slice(lo, hi)
+        out.append((span, span if order is None else order[span], starts[i0:i1] - lo,
+                    seen[i0:i1]))
     return out
+
+
+def _at(values: FloatArray, places: slice | IntArray) -> FloatArray:
+    """Entry-major values at some places: a view of a span, a copy of an index."""
+    return values[..., places] if isinstance(places, slice) else take(values, places)
 
 
 def pair_blocks(
@@ -126,11 +133,11 @@ def pair_blocks(
     u, g_unit = np.zeros((n, d, d)), np.zeros((n, d))
     unit_border, point_border = np.zeros((n, d, k)), np.zeros((p, 3, k))
     for _, places, starts, seen in blocks_of(pat.row_unit_runs, res.shape[-1]):
-        bu, bf = take(a_u, places), take(res, places)
+        bu, bf = _at(a_u, places), _at(res, places)
         u[seen] = _summed(np.einsum("rak,rbk->abk", bu, bu), starts)
         g_unit[seen] = _summed(np.einsum("rak,rk->ak", bu, bf), starts)
         if a_b is not None:
-            unit_border[seen] = _summed(np.einsum("rak,rbk->abk", bu, take(a_b, places)), starts)
+            unit_border[seen] = _summed(np.einsum("rak,rbk->abk", bu, _at(a_b, places)), starts)
     w = np.empty((d, 3, rows.size))
     v, g_point = np.zeros((p, 3, 3)), np.zeros((p, 3))
     # the rows' entries side by side, one record a row: gathering records in
