@@ -538,3 +538,44 @@ def test_selected_inverse_of_a_block_band_is_the_dense_inverse(n: int, d: int, w
                 else np.zeros((d, d))
             )
             np.testing.assert_allclose(z[jj, o], expected, atol=1e-10 * np.abs(q).max())
+
+
+@pytest.mark.parametrize("kind", ["sorted", "contiguous", "scattered", "one"])
+def test_run_sums_and_blocks_equal_a_plain_scatter(
+    kind: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # the entry-major sums per unit or point (runs of an index, in its own
+    # order, in contiguous runs out of order, or scattered) against np.add.at;
+    # the blocks of the blocked products cover every place once, cut between runs
+    from strip_aerotri.geometry import _normal_entries as ne
+    from strip_aerotri.geometry._normal_pattern import runs_of
+
+    rng = np.random.default_rng(7)
+    n = 40
+    index = np.sort(rng.integers(0, n, 3000))
+    if kind == "contiguous":  # runs kept together, their values shuffled
+        values = np.unique(index)
+        index = np.repeat(rng.permutation(values), rng.integers(1, 9, values.size))
+    elif kind == "scattered":
+        index = rng.permutation(index)
+    elif kind == "one":
+        index = np.full(3000, 5)
+    runs = runs_of(index)
+    assert (runs[0] is None) == (kind != "scattered")
+    x = rng.normal(size=(2, 3, index.size))
+    expected = np.zeros((n, 2, 3))
+    np.add.at(expected, index, np.moveaxis(x, -1, 0))
+    np.testing.assert_allclose(ne.run_sums(x, runs, n), expected, atol=1e-12)
+    monkeypatch.setattr(ne, "BLOCK", 100)
+    blocks = ne.blocks_of(runs, index.size)
+    assert len(blocks) > 1 or kind == "one"
+    got = np.zeros((n, 2, 3))
+    covered = np.zeros(index.size, int)
+    for span, places, starts, seen in blocks:
+        part = x[..., places]
+        covered[np.arange(index.size)[places]] += 1
+        got[seen] += np.moveaxis(np.add.reduceat(part, starts, axis=-1), -1, 0)
+        ordered = index if runs[0] is None else index[runs[0]]
+        assert np.all(ordered[span][starts] == seen)
+    assert np.all(covered == 1)
+    np.testing.assert_allclose(got, expected, atol=1e-12)

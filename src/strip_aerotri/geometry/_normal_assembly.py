@@ -299,12 +299,12 @@ def _schur_band(st: NormalStructure, band: FloatArray, z: FloatArray) -> FloatAr
     for c in pat.chunks:
         zc = _group_major(z, c, d)
         sums = zc @ np.swapaxes(zc, 1, 2)  # (G, qd, qd)
-        blocks = sums.reshape(c.groups, c.q, d, c.q, d)[c.block_group, c.block_a, :, c.block_b]
-        if c.block_starts.size == c.block_group.size:  # each target once: no sums
-            flat_blocks[c.block_targets] -= blocks.reshape(-1, dd)
-        else:
-            flat_blocks[c.block_targets] -= np.add.reduceat(
-                blocks.reshape(-1, dd), c.block_starts, axis=0
+        blocks = sums.reshape(-1, c.q, d, c.q, d).transpose(0, 1, 3, 2, 4)[:, c.lower_a, c.lower_b]
+        if c.scatter_unique is None or c.scatter_inverse is None:  # every target once
+            flat_blocks[c.scatter.reshape(-1)] -= blocks.reshape(-1, dd)
+        else:  # summed over the chunk's blocks with the same target first
+            flat_blocks[c.scatter_unique] -= sum_into(
+                c.scatter_inverse, blocks.reshape(-1, dd), c.scatter_unique.size
             )
     return flat_blocks.reshape(n, w1, d, d)
 

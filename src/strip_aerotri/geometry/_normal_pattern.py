@@ -39,11 +39,11 @@ class Chunk:
     ``gather`` (G, q, q) that of every pair (a, b) and ``upper`` (q, q) where
     that block is the transpose of the stored one (a < b).
 
-    The lower blocks of the groups' Schur products are summed into the band
-    by their target: ``block_group``, ``block_a``, ``block_b`` (m,) the
-    group and the two slots of each lower block, sorted by the band block
-    it adds into, ``block_starts`` the first of each run of equal targets
-    and ``block_targets`` the target (band block index) of each run."""
+    The lower blocks ``(lower_a, lower_b)`` of the groups' Schur products go
+    into the band at ``scatter``; where several of a chunk's blocks add into
+    one band block, ``scatter_unique`` are the distinct targets and
+    ``scatter_inverse`` (G q(q+1)/2,) the place of each block among them
+    (None when every target is distinct)."""
 
     q: int
     size: int
@@ -52,11 +52,10 @@ class Chunk:
     scatter: IntArray
     gather: IntArray
     upper: BoolArray
-    block_group: IntArray
-    block_a: IntArray
-    block_b: IntArray
-    block_starts: IntArray
-    block_targets: IntArray
+    lower_a: IntArray
+    lower_b: IntArray
+    scatter_unique: IntArray | None
+    scatter_inverse: IntArray | None
 
     @property
     def groups(self) -> int:
@@ -291,13 +290,14 @@ def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray
         gs = gs_all[g0:g1]
         scatter = gs[:, b_idx] * w1 + (gs[:, a_idx] - gs[:, b_idx])
         gather = gs[:, lo] * w1 + (gs[:, hi] - gs[:, lo])
-        by_target, starts, targets = runs_of(scatter.reshape(-1))
-        placed = np.arange(scatter.size) if by_target is None else by_target
-        nl = a_idx.size
+        flat = scatter.reshape(-1)
+        uniq, inverse = np.unique(flat, return_inverse=True)
+        distinct = uniq.size == flat.size
         out.append(
             Chunk(q, n_g, pts[g0 * n_g : g1 * n_g], int(pairs[g0 * n_g, 0]),
-                  scatter.astype(np.intp), gather.astype(np.intp), upper, placed // nl,
-                  a_idx[placed % nl].astype(np.intp), b_idx[placed % nl].astype(np.intp),
-                  starts, targets)
+                  scatter.astype(np.intp), gather.astype(np.intp), upper,
+                  a_idx.astype(np.intp), b_idx.astype(np.intp),
+                  None if distinct else uniq.astype(np.intp),
+                  None if distinct else inverse.astype(np.intp).reshape(-1))
         )
     return out
