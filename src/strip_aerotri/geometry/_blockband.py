@@ -33,6 +33,11 @@ from .._typing import FloatArray, IntArray
 __all__ = ["BandFactor", "band_to_lapack", "factor_band", "selected_inverse"]
 
 
+#: Units moved at a time between the block band and LAPACK's storage: the
+#: reordered copy of a few hundred units, not of the whole band.
+_MOVE_UNITS = 256
+
+
 def band_to_lapack(band: FloatArray) -> FloatArray:
     """LAPACK lower band storage ((w+1) d, n d) of a block band (n, w+1, d, d).
 
@@ -41,10 +46,12 @@ def band_to_lapack(band: FloatArray) -> FloatArray:
     of the blocks' column b, shifted up by b (the rows above the diagonal
     of the diagonal blocks fall off)."""
     n, w1, d, _ = band.shape
-    by_row = band.transpose(1, 2, 0, 3).reshape(w1 * d, n, d)  # [o d + a, J, b]
     ab = np.zeros((w1 * d, n, d))  # column J d + b as (J, b)
-    for b in range(d):
-        ab[: w1 * d - b, :, b] = by_row[b:, :, b]
+    for j0 in range(0, n, _MOVE_UNITS):
+        part = band[j0 : j0 + _MOVE_UNITS]
+        by_row = part.transpose(1, 2, 0, 3).reshape(w1 * d, part.shape[0], d)  # [o d + a, J, b]
+        for b in range(d):
+            ab[: w1 * d - b, j0 : j0 + part.shape[0], b] = by_row[b:, :, b]
     return ab.reshape(w1 * d, n * d)
 
 
@@ -52,10 +59,13 @@ def lapack_to_band(ab: FloatArray, n: int, d: int) -> FloatArray:
     """The inverse of :func:`band_to_lapack` (upper triangles of diagonal blocks 0)."""
     w1 = ab.shape[0] // d
     view = ab.reshape(w1 * d, n, d)
-    by_row = np.zeros((w1 * d, n, d))
-    for b in range(d):
-        by_row[b:, :, b] = view[: w1 * d - b, :, b]
-    band = np.ascontiguousarray(by_row.reshape(w1, d, n, d).transpose(2, 0, 1, 3))
+    band = np.empty((n, w1, d, d))
+    for j0 in range(0, n, _MOVE_UNITS):
+        j1 = min(n, j0 + _MOVE_UNITS)
+        by_row = np.zeros((w1 * d, j1 - j0, d))
+        for b in range(d):
+            by_row[b:, :, b] = view[: w1 * d - b, j0:j1, b]
+        band[j0:j1] = by_row.reshape(w1, d, j1 - j0, d).transpose(2, 0, 1, 3)
     # entries past the last row (J + o >= n) are not the matrix's
     for off in range(1, w1):
         band[max(n - off, 0) :, off] = 0.0
@@ -118,9 +128,11 @@ def factor_band(band: FloatArray) -> BandFactor:
         ab[i, : n * d - i] *= scale[i:] * scale[: n * d - i]
     try:
         if ab.size * ab.shape[0] > _LONG_FACTOR:  # seconds on a wide block: Ctrl-C acts
-            factor = interruptible(cholesky_banded, ab, lower=True, check_finite=False)
-        else:
-            factor = cholesky_banded(ab, lower=True, check_finite=False)
+            factor = interruptible(
+                cholesky_banded, ab, lower=True, overwrite_ab=True, check_finite=False
+            )
+        else:  # ab is this function's own: factorised in place
+            factor = cholesky_banded(ab, lower=True, overwrite_ab=True, check_finite=False)
     except LinAlgError as exc:
         found = re.search(r"(\d+)", str(exc))
         raise NotPositiveDefinite(int(found.group(1)) - 1 if found else 0) from exc
@@ -151,18 +163,23 @@ def selected_inverse(bf: BandFactor) -> FloatArray:
     ab = np.zeros((wide * big, n_big * big))
     ab[: w1 * d, : n * d] = bf.factor
     ab[0, n * d :] = 1.0  # identity rows: Z is the identity there, decoupled
-    zb = _takahashi(lapack_to_band(ab, n_big, big))  # (n_big, wide, big, big)
+    lf = lapack_to_band(ab, n_big, big)
+    del ab
+    zb = _takahashi(lf).reshape(n_big, wide, m, d, m, d)  # (n_big, wide, big, big)
+    del lf
     # unit block (J m + a, o) lies in zb[J, (a + o) // m] at rows (a + o) % m, column a
-    a, o = np.meshgrid(np.arange(m), np.arange(w1), indexing="ij")
-    units = zb.reshape(n_big, wide, m, d, m, d)[:, (a + o) // m, (a + o) % m, :, a, :]
-    z: FloatArray = np.ascontiguousarray(
-        units.transpose(2, 0, 1, 3, 4).reshape(n_big * m, w1, d, d)[:n]
-    )
+    out = np.empty((n_big, m, w1, d, d))
+    for a in range(m):
+        for o in range(w1):
+            out[:, a, o] = zb[:, (a + o) // m, (a + o) % m, :, a, :]
+    del zb
+    z: FloatArray = out.reshape(n_big * m, w1, d, d)[:n]
     # undo the equilibration: S⁻¹ = D Z̃ D
     s = bf.scale.reshape(n, d)
     rows = np.arange(n)[:, None] + np.arange(w1)[None, :]
     s_rows = np.where((rows < n)[:, :, None], s[np.minimum(rows, n - 1)], 0.0)
-    z *= s_rows[:, :, :, None] * s[:, None, None, :]
+    z *= s_rows[:, :, :, None]
+    z *= s[:, None, None, :]
     return z
 
 

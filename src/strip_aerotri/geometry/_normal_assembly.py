@@ -464,13 +464,13 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     y, y_border = red.y(), red.y_border
     pair = np.zeros((d, 3, pat.pair_unit.size))
     point_border = np.zeros((p, 3, k))
-    # the band's blocks and their transposes, for the blocks above the diagonal
-    both = np.concatenate([z.reshape(-1, d, d), np.swapaxes(z.reshape(-1, d, d), 1, 2)])
+    zflat = z.reshape(-1, d, d)
     for c in pat.chunks:
         q, n_g, groups = c.q, c.size, c.groups
         qd = q * d
         span = slice(c.pair_start, c.pair_start + groups * n_g * q)
-        blocks = both[c.gather + c.upper * (n * w1)]  # (G, q, q, d, d), one per group
+        blocks = zflat[c.gather]  # (G, q, q, d, d): the same for all points of a group
+        blocks = np.where(c.upper[None, :, :, None, None], np.swapaxes(blocks, -1, -2), blocks)
         q_rr = blocks.transpose(0, 1, 3, 2, 4).reshape(groups, qd, qd)
         y_r = _group_major(y, c, d)  # (G, qd, 3 n_g)
         if k:

@@ -114,59 +114,58 @@ def blocks_of(runs: tuple[IntArray | None, IntArray, IntArray],
     return out
 
 
-def _at(values: FloatArray, places: slice | IntArray) -> FloatArray:
-    """Entry-major values at some places: a view of a span, a copy of an index."""
-    return values[..., places] if isinstance(places, slice) else take(values, places)
-
-
 def pair_blocks(
     pat: Pattern, rows: IntArray, n: int, d: int, p: int, k: int,
     au: FloatArray, ap: FloatArray, f: FloatArray, ab: FloatArray,
 ) -> PairBlocks:
     """The normal blocks of whitened rows given in the structure's row order:
-    ``au`` (G, r, d), ``ap`` (G, r, 3), ``f`` (G, r), ``ab`` (G, r, k);
-    ``rows`` (G,) the row of each pair (``pat.pair_row``).  Block by block
-    (:func:`blocks_of`): per unit the rows in their own order, per pair and
-    per point the rows in the pairs' order."""
-    a_u, a_p, res = entry_major(au), entry_major(ap), entry_major(f)
-    a_b = entry_major(ab) if k else None
+    ``au`` (G, r, d), ``ap`` (G, r, 3), ``f`` (G, r), ``ab`` (G, r, k), in
+    any memory layout; ``rows`` (G,) the row of each pair (``pat.pair_row``).
+
+    The rows' entries are put side by side, one record a row, and read back
+    block by block (:func:`blocks_of`), each block entry-major while in cache:
+    per unit the rows in their own order, per pair and per point the rows in
+    the pairs' order (gathering records moves whole rows, six times faster
+    than gathering each entry's array).  Besides the blocks, one copy of the
+    rows is held at a time."""
+    g, r = f.shape
+    parts = [au, ap, f[:, :, None]] + ([ab] if k else [])
+    bounds = list(itertools.pairwise(np.cumsum([0] + [r * x.shape[2] for x in parts]).tolist()))
+    records = np.empty((g, bounds[-1][1]))
+    for x, (lo, _) in zip(parts, bounds, strict=True):
+        m = x.shape[2]
+        for i in range(r):
+            records[:, lo + i * m : lo + (i + 1) * m] = x[:, i]
+
+    def entries(block: FloatArray) -> list[FloatArray]:
+        # a block of records (b, width) -> entry-major pieces (r, m, b)
+        em = np.ascontiguousarray(block.T)
+        return [em[lo:hi].reshape(r, -1, em.shape[1]) for lo, hi in bounds]
+
     u, g_unit = np.zeros((n, d, d)), np.zeros((n, d))
     unit_border, point_border = np.zeros((n, d, k)), np.zeros((p, 3, k))
-    for _, places, starts, seen in blocks_of(pat.row_unit_runs, res.shape[-1]):
-        bu, bf = _at(a_u, places), _at(res, places)
+    for _, places, starts, seen in blocks_of(pat.row_unit_runs, g):
+        bu, _, bf, *bb = entries(records[places])
         u[seen] = _summed(np.einsum("rak,rbk->abk", bu, bu), starts)
-        g_unit[seen] = _summed(np.einsum("rak,rk->ak", bu, bf), starts)
-        if a_b is not None:
-            unit_border[seen] = _summed(np.einsum("rak,rbk->abk", bu, _at(a_b, places)), starts)
+        g_unit[seen] = _summed(np.einsum("rak,rk->ak", bu, bf[:, 0]), starts)
+        if bb:
+            unit_border[seen] = _summed(np.einsum("rak,rbk->abk", bu, bb[0]), starts)
     w = np.empty((d, 3, rows.size))
     v, g_point = np.zeros((p, 3, 3)), np.zeros((p, 3))
-    # the rows' entries side by side, one record a row: gathering records in
-    # the pairs' order moves whole rows (six times faster than gathering each
-    # entry's array); each block goes back to entry-major while in cache
-    parts = [a_u, a_p, res[:, None]] + ([] if a_b is None else [a_b])
-    sizes = np.cumsum([0] + [x.shape[0] * x.shape[1] for x in parts])
-    records = np.empty((rows.size, int(sizes[-1])))
-    bounds = list(itertools.pairwise(sizes.tolist()))
-    for x, (lo, hi) in zip(parts, bounds, strict=True):
-        records[:, lo:hi] = x.reshape(hi - lo, -1).T
-    r = res.shape[0]
     for span, places, starts, seen in blocks_of(pat.point_runs, rows.size):
-        blk = np.ascontiguousarray(np.take(records, rows[places], axis=0).T)
-        pieces = [blk[lo:hi].reshape(r, -1, blk.shape[1]) for lo, hi in bounds]
-        pu, pp, pf = pieces[0], pieces[1], pieces[2][:, 0]
-        pb = pieces[3] if a_b is not None else None
+        pu, pp, pf, *pb = entries(np.take(records, rows[places], axis=0))
         np.einsum("rak,rbk->abk", pu, pp, out=w[..., span])
         v[seen] = _summed(np.einsum("rak,rbk->abk", pp, pp), starts)
-        g_point[seen] = _summed(np.einsum("rak,rk->ak", pp, pf), starts)
-        if pb is not None:
-            point_border[seen] = _summed(np.einsum("rak,rbk->abk", pp, pb), starts)
-    cost = float(np.einsum("rk,rk->", res, res))
-    if a_b is None:
+        g_point[seen] = _summed(np.einsum("rak,rk->ak", pp, pf[:, 0]), starts)
+        if pb:
+            point_border[seen] = _summed(np.einsum("rak,rbk->abk", pp, pb[0]), starts)
+    cost = float(np.einsum("gr,gr->", f, f))
+    if not k:
         return PairBlocks(u, w, v, g_unit, g_point, unit_border, point_border,
                           np.zeros((0, 0)), np.zeros(0), cost)
     return PairBlocks(
         u, w, v, g_unit, g_point, unit_border, point_border,
-        np.einsum("rak,rbk->ab", a_b, a_b), np.einsum("rak,rk->a", a_b, res), cost,
+        np.einsum("gra,grb->ab", ab, ab), np.einsum("gra,gr->a", ab, f), cost,
     )
 
 
