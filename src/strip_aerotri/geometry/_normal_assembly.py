@@ -200,11 +200,13 @@ def _pair_blocks(
                        au, ap, f, ab)
 
 
-def _group_major(x: FloatArray, c: Chunk, d: int) -> FloatArray:
-    """A chunk's pairs of entry-major X (d, c, g) as (G, q d, n_g c): per group
-    of points, the points' blocks side by side, a row per unit parameter."""
+def _group_major(x: FloatArray, c: Chunk, d: int, start: int | None = None) -> FloatArray:
+    """A chunk's pairs of entry-major X (d, e, g) as (G, q d, n_g e): per group
+    of points, the points' blocks side by side, a row per unit parameter;
+    the chunk's pairs from `start` in X (default: the chunk's own place)."""
     e = x.shape[1]
-    span = x[:, :, c.pair_start : c.pair_start + c.groups * c.size * c.q]
+    lo = c.pair_start if start is None else start
+    span = x[:, :, lo : lo + c.groups * c.size * c.q]
     out: FloatArray = (
         span.reshape(d, e, c.groups, c.size, c.q).transpose(2, 4, 0, 3, 1)
         .reshape(c.groups, c.q * d, c.size * e)
@@ -237,10 +239,6 @@ class Reduced:
     t_inv: FloatArray  # (k, k) (Sbb - Sbᵀ S⁻¹ Sb)⁻¹
     border_min_pivot: float
     normals: _Normals
-
-    def y(self) -> FloatArray:
-        """``W V⁻¹ = Z M`` (d, 3, n_pairs), entry-major."""
-        return times_lower(self.z, self.m_pair)
 
 
 def _damped(normals: _Normals, damping: float) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -461,8 +459,9 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
             z[: n - o, o] += xt[o:] @ np.swapaxes(xb[: n - o], 1, 2)
         q_ub = -xt
     q_bb = red.t_inv
-    y, y_border = red.y(), red.y_border
+    y_border = red.y_border
     pair = np.zeros((d, 3, pat.pair_unit.size))
+    point = red.v_inv.copy()
     point_border = np.zeros((p, 3, k))
     zflat = z.reshape(-1, d, d)
     for c in pat.chunks:
@@ -472,7 +471,8 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
         blocks = zflat[c.gather]  # (G, q, q, d, d): the same for all points of a group
         blocks = np.where(c.upper[None, :, :, None, None], np.swapaxes(blocks, -1, -2), blocks)
         q_rr = blocks.transpose(0, 1, 3, 2, 4).reshape(groups, qd, qd)
-        y_r = _group_major(y, c, d)  # (G, qd, 3 n_g)
+        y = times_lower(red.z[..., span], red.m_pair[..., span])  # W V⁻¹ = Z M of the chunk
+        y_r = _group_major(y, c, d, 0)  # (G, qd, 3 n_g)
         if k:
             units = pat.pair_unit[span].reshape(groups, n_g, q)[:, 0]  # (G, q)
             ub = q_ub[pat.position[units]].reshape(groups, qd, k)
@@ -485,12 +485,13 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
             y_r = np.concatenate([y_r, yb.reshape(groups, k, n_g * 3)], axis=1)
         t = q_rr @ y_r  # (G, qd + k, 3 n_g): -Q_Rp
         pair[:, :, span] = -_pair_major(t[:, :qd], c, d)
+        # Q_pp = V⁻¹ + Yᵀ Q_RR Y = V⁻¹ - Σ_pairs Yᵀ Q_up (the border's share below)
+        yq = np.einsum("aik,ajk->ijk", y, pair[:, :, span])  # (3, 3, pairs of the chunk)
+        point[c.points] -= np.moveaxis(yq.reshape(3, 3, -1, q).sum(axis=-1), -1, 0)
         if k:
             tb = t[:, qd:].reshape(groups, k, n_g, 3).transpose(0, 2, 3, 1)  # (G, n_g, 3, k)
             point_border[c.points] = -tb.reshape(-1, 3, k)
-    # Q_pp = V⁻¹ + Yᵀ Q_RR Y = V⁻¹ - Σ_pairs Yᵀ Q_up - Y_bᵀ Q_pbᵀ
-    point = red.v_inv - run_sums(np.einsum("aik,ajk->ijk", y, pair), pat.point_runs, p)
-    if k:
+    if k:  # and - Y_bᵀ Q_pbᵀ
         alone = np.bincount(pat.pair_point, minlength=p) == 0
         point_border[alone] = -np.swapaxes(q_bb @ y_border[alone], 1, 2)
         point -= np.einsum("pki,pjk->pij", y_border, point_border)
