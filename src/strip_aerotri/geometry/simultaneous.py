@@ -303,7 +303,7 @@ class _Problem:
                 w_c = np.where(given, 1.0 / np.where(given, self.control_sigma, 1.0) ** 2, 0.0)
                 v += sum_into(self.control_point, w_c[:, :, None] * np.eye(3), self.n_points)
             try:
-                inverse = np.linalg.inv(v[self.points_used])
+                inverse = np.asarray(np.linalg.inv(v[self.points_used]), dtype=np.float64)
             except np.linalg.LinAlgError:
                 self._projection[control] = None
             else:
