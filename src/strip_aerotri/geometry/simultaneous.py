@@ -37,7 +37,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
-from typing import TYPE_CHECKING, Any, Literal, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -219,7 +219,6 @@ class _Problem:
         self.whiten = self.whiten0
         self.weight_rotation = weight_rotation
         self.turned_at: FloatArray | None = None
-        self._projection: dict[bool, tuple[FloatArray, FloatArray] | None] = {}
         self.control_point = control_point
         self.control_xyz = control_xyz
         self.control_sigma = control_sigma
@@ -284,31 +283,7 @@ class _Problem:
         delta_t = np.swapaxes(rotation @ np.swapaxes(self.weight_rotation, 1, 2), 1, 2)
         self.whiten = self.whiten0 @ delta_t[self.obs.unit]
         self.point_jacobian = -self.whiten
-        self._projection = {}
         return True
-
-    def projection(self, control: bool) -> tuple[FloatArray, FloatArray] | None:
-        """The rows' weights ``W = L Lᵀ`` as turned (n, 3, 3) and the inverse
-        of each observed point's summed weights (its rows', and its
-        control's with ``control``; in the order of :attr:`points_used`),
-        kept until the weights turn; None when a point's are singular."""
-        from ._normal_assembly import sum_into
-
-        if control not in self._projection:
-            lt = self.whiten
-            weight = np.swapaxes(lt, 1, 2) @ lt
-            v = sum_into(self.obs.point, weight, self.n_points)
-            if control:
-                given = self.control_given
-                w_c = np.where(given, 1.0 / np.where(given, self.control_sigma, 1.0) ** 2, 0.0)
-                v += sum_into(self.control_point, w_c[:, :, None] * np.eye(3), self.n_points)
-            try:
-                inverse = np.asarray(np.linalg.inv(v[self.points_used]), dtype=np.float64)
-            except np.linalg.LinAlgError:
-                self._projection[control] = None
-            else:
-                self._projection[control] = (weight, inverse)
-        return self._projection[control]
 
     @property
     def n_observations(self) -> int:
@@ -482,12 +457,21 @@ def _line_rows(prob: _Problem, st: _State, k: int) -> Any:
     )
 
 
-class _Step(NamedTuple):
+class _Step:
     """The engine's solution of one linearisation (unit, point and border
-    steps, the cofactors) and its points' 3 x 3 normal blocks ``V``."""
+    steps, the cofactors) and its points' 3 x 3 normal blocks ``V`` (the
+    points the rows observe, in the order of :attr:`_Problem.points_used`)."""
 
-    solution: NormalSolution
-    point_normals: FloatArray
+    def __init__(self, solution: NormalSolution, point_normals: FloatArray) -> None:
+        self.solution = solution
+        self.point_normals = point_normals
+        self._inverse: FloatArray | None = None
+
+    def point_inverse(self) -> FloatArray:
+        """``V⁻¹`` of every point (computed once)."""
+        if self._inverse is None:
+            self._inverse = np.asarray(np.linalg.inv(self.point_normals), dtype=np.float64)
+        return self._inverse
 
 
 def _solve(prob: _Problem, st: _State) -> _Step:
@@ -631,7 +615,7 @@ def adjust_units(
     st = _start_state(prob, start, points0)
     prob.turn_weights(st.rotation)
     if project_points:  # the points where the units put them, not yet the control
-        st = _projected(prob, st, control=False)
+        st = _projected(prob, st)
     points = st.points
     extent = (
         float(np.nanmax(np.ptp(points[prob.observed], axis=0))) if prob.observed.any() else 1.0
@@ -654,7 +638,7 @@ def adjust_units(
         for _ in range(30):
             trial = _step(prob, st, sol.solution, dp, step)
             if project_points:
-                trial = _projected(prob, trial)
+                trial = _projected(prob, trial, sol.point_inverse())
             trial_cost = _cost(prob, trial)
             if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
                 break
@@ -770,10 +754,13 @@ def _start_state(prob: _Problem, start: UnitTransforms, points0: ArrayLike) -> _
     return _State(s0, r0, t0, points, line_ab, coefficients)
 
 
-def _projected(prob: _Problem, st: _State, control: bool = True) -> _State:
+def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) -> _State:
     """``st`` with every observed point at its least-squares position for the
-    units as they are (its rows, and its control with ``control``; nothing
-    when there are lines: they tie the points to each other)."""
+    units as they are: its rows only, or with ``inverse``, the ``V⁻¹`` of the
+    points of the step's normal equations (their rows' and their control's
+    weights, in the order of :attr:`_Problem.points_used`), its rows and its
+    control.  Nothing when there are lines (they tie the points to each
+    other), or when a point's rows do not fix it."""
     from ._normal_assembly import sum_into
 
     if prob.n_lines:
@@ -781,18 +768,23 @@ def _projected(prob: _Problem, st: _State, control: bool = True) -> _State:
     obs = prob.obs
     y, _ = _predict(prob, st)
     placed = st.translation[obs.unit] + y  # T_u(x) of every row
-    projection = prob.projection(control)
-    if projection is None:  # a point its rows do not fix: the step's own
-        return st
-    weight, inverse = projection
+    lt = prob.whiten
     n = prob.n_points
-    rhs = sum_into(obs.point, np.einsum("nij,nj->ni", weight, placed), n)
-    if control:
+    # Σ W x of each point's rows, W = L Lᵀ
+    rhs = sum_into(obs.point, np.einsum("nji,nj->ni", lt, np.einsum("nij,nj->ni", lt, placed)), n)
+    used = prob.points_used
+    if inverse is None:
+        v = sum_into(obs.point, np.swapaxes(lt, 1, 2) @ lt, n)[used]
+        try:
+            inverse = np.asarray(np.linalg.inv(v), dtype=np.float64)
+        except np.linalg.LinAlgError:  # a point its rows do not fix: the step's own
+            return st
+    else:
         cp, given = prob.control_point, prob.control_given
         w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma, 1.0) ** 2, 0.0)
         rhs += sum_into(cp, w_c * np.where(given, prob.control_xyz, 0.0), n)
-    used = prob.points_used
     points = st.points.copy()
+    assert inverse is not None  # computed above when not given
     points[used] = np.einsum("pij,pj->pi", inverse, rhs[used])
     return st.with_points(points)
 
@@ -854,7 +846,7 @@ def _result(
     # fixed, h = W^(1/2) V⁻¹ W^(1/2); the units' 7 U parameters spread evenly.
     lt = prob.whiten
     wv = np.einsum("nij,nj->ni", lt, v)
-    v_inv = np.linalg.inv(sol.point_normals)  # V⁻¹ of the points the rows observe
+    v_inv = sol.point_inverse()  # V⁻¹ of the points the rows observe
     h = lt @ v_inv[prob.engine_point[obs.point]] @ np.swapaxes(lt, 1, 2)
     free = 3.0 - np.einsum("nii->n", h)
     share = max(1.0 - prob.width * prob.n_units / max(float(free.sum()), 1e-300), 0.0)
