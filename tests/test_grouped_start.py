@@ -102,17 +102,24 @@ def test_grouped_start_reaches_the_same_solution_in_fewer_iterations():
     assert np.max(np.abs(direct.points[used] - ground[used])) < 0.5
 
 
-def test_ground_stage_from_the_groups_gives_the_solution_from_one_similarity(monkeypatch):
+@pytest.mark.parametrize("line", [False, True], ids=["control", "control-and-line"])
+def test_ground_stage_from_the_groups_gives_the_solution_from_one_similarity(
+    monkeypatch, line
+):
     """The ground stage of a 100-photo drone strip (99 models, 6 groups)
     starts from its groups; started from J's similarity of the whole strip
-    instead, it ends at the same points (to 1e-6 m), rejections and passes."""
+    instead, it ends at the same points (to 1e-6 m), rejections and passes;
+    with a straight line along the strip too (its points kept in the
+    groups, its a, b in their adjustment)."""
     import warnings
 
     import strip_aerotri as sa
     import strip_aerotri.ground.models as ground_models
 
-    sim = sa.simulate_strip(100, preset="drone", seed=3)
+    sim = sa.simulate_strip(100, preset="drone", seed=3, line=line)
     strip = sa.form_strip(sim.observations)
+    lines = tuple(sa.LineSpec(tuple(ids), weight) for ids, weight in sim.lines) if line else ()
+    assert len(lines) == int(line)
     starts = []
     real = ground_models.grouped_start
 
@@ -123,10 +130,10 @@ def test_ground_stage_from_the_groups_gives_the_solution_from_one_similarity(mon
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sa.StripAerotriWarning)
         monkeypatch.setattr(ground_models, "grouped_start", counted)
-        grouped = ground_models.adjust_models_to_ground(strip, sim.control, sim.crs)
+        grouped = ground_models.adjust_models_to_ground(strip, sim.control, sim.crs, lines=lines)
         assert starts == [1]
         monkeypatch.setattr(ground_models, "_GROUPS_FROM", 10**9)
-        one = ground_models.adjust_models_to_ground(strip, sim.control, sim.crs)
+        one = ground_models.adjust_models_to_ground(strip, sim.control, sim.crs, lines=lines)
     assert starts == [1]
     np.testing.assert_allclose(grouped.points, one.points, rtol=0, atol=1e-6)
     np.testing.assert_allclose(grouped.photo_centres, one.photo_centres, rtol=0, atol=1e-6)

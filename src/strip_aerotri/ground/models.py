@@ -343,7 +343,7 @@ def _grouped_start(
             control_update=passes.update if passes.guessed else None,
             max_iterations=p.max_iterations,
         )
-    except (GeometryError, ConvergenceError):
+    except (GeometryError, ConvergenceError, np.linalg.LinAlgError):
         return p.guess.copy(), p.start_units, p.points0
     return passes.guess, grouped.transforms, grouped.points
 
