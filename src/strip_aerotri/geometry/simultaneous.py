@@ -562,8 +562,9 @@ def adjust_units(
         with it, ``W = Δ W₀ Δᵀ`` with ``Δ = R_u R₀ᵀ`` (a model point is weak
         along its rays wherever the model is turned to).  They are turned at
         the start of every iteration (iteratively reweighted: the step of an
-        iteration holds them).  None: the weights are fixed in the work
-        frame.
+        iteration holds them), ahead to where the units are heading when two
+        steps turn them the same way (:class:`_WeightLead`).  None: the
+        weights are fixed in the work frame.
     control_update : callable, optional
         Called after every iteration with the points (P, 3, work frame) and
         whether the iteration met the tolerance; returns the control
