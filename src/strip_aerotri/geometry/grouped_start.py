@@ -13,13 +13,13 @@ Here consecutive units are taken together in groups (a few dozen models),
 each group one similarity: the adjustment of :func:`adjust_units` on the
 groups, with every point's determinations in a group merged into one
 (their weighted mean, with the sum of their weights) and only the points
-that tie two groups or carry control or a line kept.  It has a few hundred
-rows per group boundary and converges in as many iterations as the
-adjustment of the units would from the same start, at a small part of the
+that tie two groups or carry control or a line kept: a tenth of the rows
+with groups of 16 models (8 339 of 84 824 on a 1000-photo drone strip).
+It converges from the one similarity in 4-10 iterations (4 at 1000
+photos, 10 at 10 000; the units took 5 and 24), at a small part of the
 cost; each unit then starts at its group's similarity, off only by the
-drift within a group, and the adjustment of the units needs a few
-iterations, whatever the strip's length.  It is a start: the solution is
-that of the units.
+drift within a group, and the adjustment of the units needs 3-9
+iterations.  It is a start: the solution is that of the units.
 
 The units of a group must have their coordinates in one frame (the models
 of a chained strip do); a group never spans a break of the chain (the
