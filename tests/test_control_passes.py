@@ -34,13 +34,13 @@ def _passes():
 
 
 def test_a_guess_that_moves_the_targets_by_nothing_that_counts_has_settled():
-    """The height point's plan guess moving 1 mm moves its work-frame height
-    by 1e-6 m (6 km from the origin: 1e-3 of it): settled, the guess
+    """The height point's plan guess moving 0.1 mm moves its work-frame
+    height by 1e-7 m (6 km from the origin: 1e-3 of it): settled, the guess
     taken; 1 m moves it by 1 mm: not settled, the control follows."""
     passes, work, guess = _passes()
     assert passes.guessed
     moved = guess.copy()
-    moved[1, 0] += 1e-3
+    moved[1, 0] += 1e-4
     before = passes.target()
     assert passes.update(work.to_work(moved), converged=False) is None
     assert passes.settled
