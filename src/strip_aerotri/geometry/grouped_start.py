@@ -34,6 +34,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
+from ..options import DEFAULT_MAX_ITERATIONS
 from ._normal_assembly import sum_into
 from .simultaneous import LineCondition, adjust_units
 from .units import UnitObservations, UnitTransforms
@@ -131,7 +132,7 @@ def grouped_start(
     lines: Sequence[LineCondition] = (),
     weight_rotation: FloatArray | None = None,
     control_update: Callable[[FloatArray, bool], FloatArray | None] | None = None,
-    max_iterations: int = 50,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
     tolerance: float = 1e-8,
     order: Literal["auto", "given", "rcm"] = "given",
 ) -> GroupedStart:
