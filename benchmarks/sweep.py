@@ -404,9 +404,16 @@ class Outcome:
 
 
 def run_case(
-    case: Case, *, refine: bool = True, models: str = "dependent", auto: bool = False
+    case: Case,
+    *,
+    refine: bool = True,
+    models: str = "dependent",
+    auto: bool = False,
+    weights: str = "given",
 ) -> Outcome:
-    """Strip method, its bundle refinement and the reference on one case."""
+    """Strip method, its bundle refinement and the reference on one case
+    (``weights = "estimated"``: the refinements estimate the groups' weights)."""
+    vce = weights == "estimated"
     out = Outcome(case)
     sim = simulate(case)
     try:
@@ -436,7 +443,7 @@ def run_case(
             errors = case.camera_errors()
             if refine:
                 try:
-                    refined = refine_bundle(result)  # as refine = "bundle" runs it
+                    refined = refine_bundle(result, variance_components=vce)  # as the run does
                     stats = refined.check_statistics
                     out.refined = (stats.rmse_plan, float(stats.rmse[2]))
                 except GeometryError:  # its control tests may stop on camera errors
@@ -446,7 +453,9 @@ def run_case(
                 out.true_camera = (
                     out.refined if errors is None else reference_bundle(sim, camera=errors)
                 )
-                calibrated = refine_bundle(result, self_calibration=SelfCalibration("auto"))
+                calibrated = refine_bundle(
+                    result, self_calibration=SelfCalibration("auto"), variance_components=vce
+                )
                 stats = calibrated.check_statistics
                 out.selfcal = (stats.rmse_plan, stats.rmse[2])
         out.ok = True
@@ -558,6 +567,12 @@ def main(argv: list[str] | None = None) -> int:
         help='also refine every case with self_calibration = "auto" (against without)',
     )
     parser.add_argument(
+        "--weights",
+        choices=["given", "estimated"],
+        default="given",
+        help="the refinements' observation weights ([adjustment] weights)",
+    )
+    parser.add_argument(
         "-v", "--verbose", action="store_true", help="print invalid draws and tracebacks"
     )
     args = parser.parse_args(argv)
@@ -576,7 +591,13 @@ def main(argv: list[str] | None = None) -> int:
             if args.verbose:
                 print(f"    invalid draw {case.label}: {why}")
             continue
-        out = run_case(case, refine=not args.no_refine, models=args.models, auto=args.auto)
+        out = run_case(
+            case,
+            refine=not args.no_refine,
+            models=args.models,
+            auto=args.auto,
+            weights=args.weights,
+        )
         outcomes.append(out)
         status = _f(out.ratio) if out.ok else "FAILED"
         print(

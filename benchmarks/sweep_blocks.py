@@ -63,6 +63,9 @@ def draw(family: str, seed: int) -> Case:
     return Case(family, seed, {**kwargs, **common})
 
 
+#: The bundle's weights estimated by group (``--weights estimated``).
+ESTIMATED_WEIGHTS = [False]
+
 def run(case: Case) -> tuple[float, float, float, float, float, float, float] | str:
     """(models plan, models height, strips plan, strips height ratios to the
     bundle, bundle plan, bundle height, seconds of the block) or the error."""
@@ -80,7 +83,10 @@ def run(case: Case) -> tuple[float, float, float, float, float, float, float] | 
             strips = adjust_block(
                 sim.observations, sim.control, sim.crs, specs, construction="strips"
             )
-            bundle = adjust_block(sim.observations, sim.control, sim.crs, specs, refine=True)
+            bundle = adjust_block(
+                sim.observations, sim.control, sim.crs, specs, refine=True,
+                variance_components=ESTIMATED_WEIGHTS[0],
+            )
         except Exception as exc:  # a failure is a finding of the sweep
             return f"{type(exc).__name__}: {exc}"
     b = bundle.check_statistics
@@ -99,7 +105,14 @@ def run(case: Case) -> tuple[float, float, float, float, float, float, float] | 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="4 blocks instead of 16")
+    parser.add_argument(
+        "--weights",
+        choices=["given", "estimated"],
+        default="given",
+        help="the bundle's observation weights ([adjustment] weights)",
+    )
     args = parser.parse_args()
+    ESTIMATED_WEIGHTS[0] = args.weights == "estimated"
     per_family = 2 if args.quick else 8
     rows: dict[str, list[tuple[float, ...]]] = {"film": [], "drone": []}
     failures = 0

@@ -173,6 +173,12 @@ def test_auto_keeps_the_true_set_and_holds_the_rest() -> None:
     held = {p.name: p.reason for p in sc.parameters if not p.kept}
     assert "flying height" in held["c"] and "exterior orientation" in held["x0"]
     assert any("self-calibration held" in w for w in auto.warnings)
+    # the principal point is absorbed, yet the decentring is kept: here the
+    # data separate it (multiple correlation below the bound it is then held to)
+    from strip_aerotri.bundle.selfcal import INTERIOR_CORRELATION
+
+    r_eo = {p.name: p.orientation_correlation for p in sc.parameters}
+    assert r_eo["p1"] < INTERIOR_CORRELATION and r_eo["p2"] < INTERIOR_CORRELATION
     # as good as the explicit list of the true parameters
     given = _run(sim, specs, tuple(_DRONE_ERRORS))
     assert auto.check_statistics.rmse_plan <= 1.02 * given.check_statistics.rmse_plan
@@ -464,3 +470,26 @@ def test_a_block_writes_its_camera() -> None:
     assert "[distortion]" in files["camera.toml"].decode()
     page = files["report.html"].decode()
     assert "Self-calibration of the camera" in page and page.count("data:image/png") >= 3
+
+
+def test_auto_with_estimated_weights_keeps_its_choice_and_reasons() -> None:
+    """With the weights estimated the later adjustments estimate the set the
+    first one chose, and the outcome keeps the reasons of the held ones."""
+    from strip_aerotri.block.strips import adjust_block
+
+    sim, specs = _drone_block(_DRONE_ERRORS)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = adjust_block(
+            sim.observations, sim.control, sim.crs, specs, route="projected", refine=True,
+            self_calibration=SelfCalibration("auto"), variance_components=True,
+        )  # fmt: skip
+    sc = res.self_calibration
+    assert sc is not None and set(sc.kept) == set(_DRONE_ERRORS)
+    held = {p.name: p.reason for p in sc.parameters if not p.kept}
+    assert "flying height" in held["c"] and "exterior orientation" in held["x0"]
+    assert res.variance_components is not None and res.variance_components.iterations >= 1
+    assert sc.estimate is not None
+    for par in sc.parameters:
+        if par.kept:
+            assert abs(par.value - _DRONE_ERRORS[par.name]) < 3.0 * par.std, par

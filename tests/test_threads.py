@@ -29,7 +29,7 @@ _PROBE = textwrap.dedent(
 
     import strip_aerotri as sa
     import strip_aerotri.block.strips as block_strips
-    import strip_aerotri.bundle.refine as refine
+    import strip_aerotri.bundle.variance as variance
     import strip_aerotri.ground.models as ground_models
     from strip_aerotri.observations import StripSpec
     from strip_aerotri.pipeline import triangulate_block
@@ -49,7 +49,7 @@ _PROBE = textwrap.dedent(
         setattr(module, name, recorded)
 
     probe(ground_models, "adjust_models_to_ground")
-    probe(refine, "refine_frame")
+    probe(variance, "refine_frame")  # what the bundle refinement runs
     probe(block_strips, "adjust_block")
     before = blas()
     warnings.simplefilter("ignore")

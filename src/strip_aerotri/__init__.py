@@ -108,6 +108,7 @@ from .options import (
     ScaleTransfer,
     StripOptions,
     SelfCalibration,
+    Weights,
 )
 from .pipeline import triangulate
 from .project import Project, load_project, run_project
@@ -129,6 +130,8 @@ from .results import (
     StripResult,
     CameraEstimate,
     SelfCalibrationOutcome,
+    VarianceComponents,
+    VarianceGroup,
 )
 from .simulate import (
     PRESETS,
@@ -164,6 +167,9 @@ __all__ = [
     "CameraModel",
     "SelfCalibration",
     "SelfCalibrationOutcome",
+    "VarianceComponents",
+    "VarianceGroup",
+    "Weights",
     "Cofactors",
     "ConfigError",
     "ControlPoints",

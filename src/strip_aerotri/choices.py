@@ -25,6 +25,7 @@ __all__ = [
     "RelativeOrientationMethod",
     "Route",
     "ScaleTransfer",
+    "Weights",
 ]
 
 
@@ -185,3 +186,13 @@ class FiducialTransform(OptionEnum):
     """4 parameters: shift, rotation, one scale (2 marks at least)."""
     AFFINE = "affine"
     """6 parameters: shift, rotation, two scales, non-orthogonality (3 marks at least)."""
+
+
+class Weights(OptionEnum):
+    """The observation weights of the bundle refinement (``[adjustment] weights``)."""
+
+    GIVEN = "given"
+    """The stated sigmas of the image coordinates, control, GNSS and IMU."""
+    ESTIMATED = "estimated"
+    """Each group's sigma estimated from its residuals (variance components,
+    :mod:`strip_aerotri.bundle.variance`)."""

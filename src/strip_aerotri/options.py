@@ -56,6 +56,7 @@ from .choices import (
     RelativeOrientationMethod,
     Route,
     ScaleTransfer,
+    Weights,
 )
 
 __all__ = [
@@ -102,6 +103,7 @@ __all__ = [
     "ReportOptions",
     "Route",
     "ScaleTransfer",
+    "Weights",
     "StripOptions",
     "adjustment_options",
     "check_alpha",
@@ -712,6 +714,10 @@ class AdjustmentOptions:
         ``"none"``, ``"auto"``, ``"ebner12"`` or the Brown/Fraser parameters
         to estimate (:data:`SELF_CALIBRATION_PARAMETERS`); with ``refine =
         "bundle"`` only.
+    weights : Weights
+        The bundle refinement's observation weights: as given, or estimated
+        by group from the residuals (variance components); with ``refine =
+        "bundle"`` only.
     """
 
     route: Route = Route.GEOCENTRIC
@@ -727,6 +733,7 @@ class AdjustmentOptions:
     block: Construction = Construction.MODELS
     models: ModelFormation = ModelFormation.DEPENDENT
     self_calibration: str | tuple[str, ...] = "none"
+    weights: Weights = Weights.GIVEN
 
     def calibration(self, flight_direction: FlightDirection | str) -> SelfCalibration | None:
         """The self-calibration asked for (None for "none")."""
@@ -811,6 +818,7 @@ _ADJUSTMENT_RULES: dict[str, Callable[[object], object]] = {
     "block": Construction.create,
     "models": ModelFormation.create,
     "self_calibration": check_self_calibration,
+    "weights": Weights.create,
 }
 
 
@@ -888,6 +896,14 @@ def adjustment_options(
             "self_calibration",
             'the camera is calibrated in the bundle refinement only; add refine = "bundle" '
             "to [adjustment], or remove self_calibration",
+        )
+    if values.get("weights", Weights.GIVEN) is not Weights.GIVEN and values.get(
+        "refine"
+    ) is not Refine.BUNDLE:
+        raise OptionError(
+            "weights",
+            'the weights are estimated in the bundle refinement only; add refine = "bundle" '
+            "to [adjustment], or remove weights",
         )
     if route is not None:
         values["route"] = route

@@ -43,6 +43,7 @@ from .options import (
     Route,
     SelfCalibration,
     StripOptions,
+    Weights,
 )
 from .plausibility import control_problems
 from .results import AccuracyStatistics, BlockResult, GroundResult, StripModel, StripResult
@@ -221,6 +222,7 @@ def triangulate(
             blunders=blunders,
             max_iterations=ground_options.max_iterations,
             self_calibration=self_calibration,
+            variance_components=options.weights is Weights.ESTIMATED,
         )
         timings["bundle"] = time.perf_counter() - t2
         result = dataclasses.replace(
@@ -387,6 +389,7 @@ def triangulate_block(
             imu=imu,
             polynomial=int(options.polynomial),
             self_calibration=self_calibration,
+            variance_components=options.weights is Weights.ESTIMATED,
         )
     result = dataclasses.replace(
         result, warnings=tuple(warnings) + result.warnings, options=options

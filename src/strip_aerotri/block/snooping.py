@@ -6,7 +6,7 @@ determination that leads its point and its unit, in one round)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Literal
 
@@ -14,14 +14,14 @@ import numpy as np
 
 from .._stats import leading_failures
 from .._typing import BoolArray, FloatArray, IntArray
-from ..errors import GeometryError, StripAerotriWarning
+from ..errors import GeometryError
 from ..geometry.simultaneous import (
     SimultaneousResult,
     UnitObservations,
     adjust_units,
 )
 from ..ground.control_passes import ControlPasses
-from ..ground.systematic import kept_control, systematic_message, systematic_pattern
+from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..options import BlunderOptions, Construction
 from ..results import Rejection
 from .problem import _Problem
@@ -169,10 +169,11 @@ def _snoop(
             if not blunders.rejecting:
                 break
             continue
+        last_w = _control_w(p, sol, use_xy, use_z)  # the test values met in this solution
         for _, apply in found:
             apply(use_xy, use_z, keep_rows)
         if n_control - int(2 * use_xy.sum() + use_z.sum()) > blunders.max_fraction * n_control:
-            if not _keep_systematic(p, first, blunders):
+            if not _keep_systematic(p, first, blunders, last_w, rejections):
                 raise GeometryError(_too_much_control_fails(p, blunders, sigma0))
             # a pattern of many points failing alike: the camera, not the control; keep it all
             use_xy, use_z, control_kept = p.use_xy.copy(), p.use_z.copy(), True
@@ -186,24 +187,37 @@ def _snoop(
     return sol, use_xy, use_z, keep_rows, tuple(rejections)
 
 
-def _keep_systematic(p: _Problem, first: _Solution, blunders: BlunderOptions) -> bool:
-    """True (and a warning) when the first solution's control fails at many
-    points alike (:mod:`strip_aerotri.ground.systematic`): camera errors, not
-    blunders."""
-    import warnings
-
+def _keep_systematic(
+    p: _Problem,
+    first: _Solution,
+    blunders: BlunderOptions,
+    last_w: FloatArray,
+    rejections: Sequence[Rejection],
+) -> bool:
+    """True (and a warning) when the control fails at many points alike
+    (:func:`strip_aerotri.ground.systematic.fails_alike`): camera errors, not
+    blunders.  Judged on the first solution's test values and on every one
+    met so far (``last_w``, the last solution's, with each rejected
+    component at the value it was rejected with)."""
     active = p.use_xy | p.use_z
-    w = np.full((p.idx.shape[0], 3), np.nan)
-    w[active] = first.result.control_w
-    w[~p.use_xy, :2] = np.nan
-    w[~p.use_z, 2] = np.nan
+    w = _control_w(p, first, p.use_xy, p.use_z)
     critical = blunders.critical("control", max(int(np.isfinite(w).sum()), 1))
-    if not systematic_pattern(w[active], critical):
-        return False
-    warnings.warn(
-        systematic_message("block", w[active], critical), StripAerotriWarning, stacklevel=4
-    )
-    return True
+    rows = np.flatnonzero(active)
+    position = {
+        p.control.point_ids[p.control_rows[k]]: j for j, k in enumerate(rows.tolist())
+    }
+    rejected = rejected_components(rejections, position)
+    return kept_if_alike("block", w[active], critical, last=last_w[active], rejected=rejected)
+
+
+def _control_w(p: _Problem, sol: _Solution, use_xy: BoolArray, use_z: BoolArray) -> FloatArray:
+    """The control's test values of a solution (control rows, components; NaN
+    where not in use)."""
+    w = np.full((p.idx.shape[0], 3), np.nan)
+    w[use_xy | use_z] = sol.result.control_w
+    w[~use_xy, :2] = np.nan
+    w[~use_z, 2] = np.nan
+    return w
 
 
 def _too_much_control_fails(p: _Problem, blunders: BlunderOptions, sigma0: float) -> str:
@@ -238,10 +252,7 @@ def _control_test(
 ) -> tuple[Rejection, _Apply] | None:
     """The control component with the largest |w| beyond the critical value."""
     active = use_xy | use_z
-    w = np.full((p.idx.shape[0], 3), np.nan)
-    w[active] = sol.result.control_w
-    w[~use_xy, :2] = np.nan
-    w[~use_z, 2] = np.nan
+    w = _control_w(p, sol, use_xy, use_z)
     n_tests = int(np.isfinite(w).sum())
     critical = blunders.critical("control", max(n_tests, 1))
     score = np.where(np.isfinite(w), np.abs(w), -np.inf)

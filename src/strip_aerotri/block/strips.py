@@ -100,6 +100,7 @@ def adjust_block(
     imu: ImuAttitudes | None = None,
     polynomial: int | None = None,
     self_calibration: SelfCalibration | None = None,
+    variance_components: bool = False,
 ) -> BlockResult:
     """Form every strip, then transform all strips at once to the control.
 
@@ -135,6 +136,11 @@ def adjust_block(
         for similarities only; default
         :data:`~strip_aerotri.options.DEFAULT_BLOCK_POLYNOMIAL` (2).  Not
         used with ``"models"``.
+    self_calibration : SelfCalibration, optional
+        The refinement calibrates the camera (:mod:`strip_aerotri.bundle.selfcal`).
+    variance_components : bool
+        The refinement estimates its observation groups' weights
+        (:mod:`strip_aerotri.bundle.variance`).
 
     Raises
     ------
@@ -185,6 +191,7 @@ def adjust_block(
             gnss,
             imu,
             self_calibration,
+            variance_components,
         )
         timings["bundle"] = time.perf_counter() - t1
     return _with_timings(result, timings)
@@ -314,12 +321,13 @@ def _refine(
     gnss: GnssCentres | None = None,
     imu: ImuAttitudes | None = None,
     self_calibration: SelfCalibration | None = None,
+    variance_components: bool = False,
 ) -> BlockResult:
     """The bundle adjustment of the whole block from its solution, in the work
     frame (plan-only and height-only control keep the block's value of their
     other coordinate)."""
     from ..bundle.refine import gnss_imu_in_frame, gnss_imu_outcomes
-    from ..bundle.snooping import refine_frame
+    from ..bundle.variance import refine_frame_weighted
 
     points0, centres0, rot0 = _in_work_frame(p, sol)
     n_points = p.observations.n_points
@@ -330,7 +338,7 @@ def _refine(
     control_xyz[p.idx] = np.where(use, target, np.nan)
     control_sigma[p.idx] = np.where(use, p.sigma, np.inf)
     aux = gnss_imu_in_frame(p.observations.photo_ids, block.photo_centres, p.work, gnss, imu)
-    fr = refine_frame(
+    fr = refine_frame_weighted(
         p.observations,
         centres0,
         rot0,
@@ -346,6 +354,7 @@ def _refine(
         max_iterations=max_iterations,
         compute_precision=False,
         self_calibration=self_calibration,
+        variance_components=variance_components,
     )
     work = p.work
     points_work = np.where(fr.point_used[:, None], fr.points, np.nan)
@@ -393,6 +402,7 @@ def _refine(
         gnss=gnss_out,
         imu=imu_out,
         self_calibration=fr.self_calibration,
+        variance_components=fr.variance_components,
     )
 
 

@@ -57,8 +57,9 @@ from ..results import (
     StripResult,
 )
 from .photo_tests import _directional_tests
-from .selfcal import final_outcome
+from .selfcal import carried_choice
 from .snooping import GNSS_STAGE, IMU_STAGE, refine_frame
+from .variance import refine_frame_weighted
 
 __all__ = [
     "FrameRefinement",
@@ -248,6 +249,7 @@ def refine_bundle(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     compute_precision: bool = True,
     self_calibration: SelfCalibration | None = None,
+    variance_components: bool = False,
 ) -> RefinedResult:
     """Refine a strip-method result by a rigorous bundle adjustment.
 
@@ -285,6 +287,10 @@ def refine_bundle(
     self_calibration : SelfCalibration, optional
         Estimate the camera with the photos and points
         (:mod:`strip_aerotri.bundle.selfcal`).
+    variance_components : bool
+        Estimate the weights of the observation groups (image tie points,
+        control points' marks, control plan and height, GNSS, IMU) from the
+        residuals and adjust with them (:mod:`strip_aerotri.bundle.variance`).
 
     Returns
     -------
@@ -348,6 +354,7 @@ def refine_bundle(
         max_iterations=max_iterations,
         compute_precision=compute_precision,
         self_calibration=self_calibration,
+        variance_components=variance_components,
     )
     fr, adjusted_crs, rejections, notes = (
         passes.last,
@@ -414,6 +421,7 @@ def refine_bundle(
         gnss=gnss_out,
         imu=imu_out,
         self_calibration=fr.self_calibration,
+        variance_components=fr.variance_components,
     )
 
 
@@ -552,6 +560,7 @@ def _passes(
     max_iterations: int,
     compute_precision: bool,
     self_calibration: SelfCalibration | None = None,
+    variance_components: bool = False,
 ) -> _Passes:
     """Bundle adjustments in the frame until the control settles.
 
@@ -591,7 +600,7 @@ def _passes(
                 break
         control_frame_prev = control_xyz
         t0 = time.perf_counter()
-        fr = refine_frame(
+        fr = refine_frame_weighted(
             obs,
             state[0],
             state[1],
@@ -612,35 +621,21 @@ def _passes(
             imu_used=imu_used,
             self_calibration=spec,
             control_tested=control_tested,
+            variance_components=variance_components,
         )
         control_tested = fr.control_tested  # kept for failing alike: kept in later passes
         t_bundle += time.perf_counter() - t0
         if self_calibration is not None and fr.self_calibration is not None:
             # later passes estimate what the first kept; the outcome keeps its reasons
-            chosen = chosen or fr.self_calibration
-            fr = dataclasses.replace(
-                fr,
-                self_calibration=dataclasses.replace(
-                    final_outcome(self_calibration, chosen, fr.bundle.camera),
-                    cells=fr.self_calibration.cells,
-                ),
-            )
-            kept = chosen.kept
-            spec = (
-                None
-                if not kept
-                else SelfCalibration(
-                    "ebner12" if chosen.family == "ebner" else kept,
-                    self_calibration.flight_direction,
-                )
-            )
+            fr, chosen, spec = carried_choice(self_calibration, chosen, fr)
         iterations += fr.iterations
         rejections.extend(r for r in fr.rejections if r.applied)
         # what would be rejected ("report"): as found in the last pass only
         reported = tuple(r for r in fr.rejections if not r.applied)
         # rejections of this pass stay rejected in the next
-        obs_used = ~fr.observation_rejected
-        ctrl_used = ~fr.control_rejected
+        # (a pass's record holds its own rejections: the earlier passes' stay out too)
+        obs_used = ~fr.observation_rejected & (True if obs_used is None else obs_used)
+        ctrl_used = ~fr.control_rejected & (True if ctrl_used is None else ctrl_used)
         gnss_used = ~fr.gnss_rejected
         imu_used = ~fr.imu_rejected
         state = (

@@ -12,7 +12,14 @@ set is stable:
    GNSS centres or oblique photos separate them: a confusion the geometry
    makes exact) or :data:`MAX_ORIENTATION_CORRELATION` (0.9999) for the
    others; the correlation does not depend on the other camera parameters,
-   so all such are held at once;
+   so all such are held at once.  While x0 or y0 is held so, the decentring
+   terms p1, p2 are judged by the bound of c, x0, y0: over a small format
+   the decentring field is mostly a shift of the principal point and a tilt
+   of the image (Fraser 1997, the projective coupling of p1, p2 with x0,
+   y0), so with the principal point absorbed by the orientation they stand
+   in for its remainder rather than for the lens (on the real FC300X block
+   they are held at a multiple correlation of 0.9995, and the check points
+   gain 3 mm in plan over six control splits; docs/bundle.md);
 2. of the most correlated pair of parameters above :data:`MAX_CORRELATION`,
    the one with the smaller t value;
 3. the parameter with the smallest t value, if below :data:`T_CRITICAL`.
@@ -25,6 +32,7 @@ worse").  Every held parameter is named in a note with its reason.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
@@ -40,6 +48,7 @@ from ..options import FlightDirection, SelfCalibration
 from ..results import (
     BundleResult,
     CameraEstimate,
+    FrameRefinement,
     ParameterOutcome,
     ResidualCells,
     SelfCalibrationOutcome,
@@ -53,6 +62,7 @@ __all__ = [
     "T_CRITICAL",
     "SelfCalibration",
     "camera_model",
+    "carried_choice",
     "ebner_base_mm",
     "final_outcome",
     "residual_cells",
@@ -91,6 +101,12 @@ _ABSORBED_BY = {
     "x0": "the centres and rotations",
     "y0": "the centres and rotations",
 }
+#: The decentring terms, and what they stand in for while the orientation
+#: absorbs the principal point (module notes).
+_COUPLED_WITH_PRINCIPAL_POINT = {
+    "p1": "decentring, coupled with the principal point the orientation absorbs",
+    "p2": "decentring, coupled with the principal point the orientation absorbs",
+}
 
 Adjust = Callable[[CameraModel | None, FloatArray | None], BundleResult]
 
@@ -121,6 +137,7 @@ def _auto(
     """``"auto"``: hold parameters until the set is stable (module notes)."""
     active = list(BROWN_PARAMETERS)
     held: dict[str, str] = {}
+    absorbed: set[str] = set()  # held because the orientation absorbs them
     last: dict[str, tuple[float, float, float, float]] = {}
     res: BundleResult | None = None
     for _ in range(len(BROWN_PARAMETERS) + 1):
@@ -131,6 +148,7 @@ def _auto(
         except CameraUndetermined as exc:
             name = exc.name or active[-1]
             held[name] = "not determined by the data"
+            absorbed.add(name)
             active.remove(name)
             res = None
             continue
@@ -143,12 +161,14 @@ def _auto(
                 float(cam.t_values[i]),
                 float(cam.orientation_correlation[i]),
             )
-        hold = _next_to_hold(cam)
+        hold = _next_to_hold(cam, absorbed)
         if not hold:
             break
-        for name, reason in hold:
+        for name, reason, by_orientation in hold:
             held[name] = reason
             active.remove(name)
+            if by_orientation:
+                absorbed.add(name)
     none = adjust(None, None)
     notes: list[str] = []
     if res is None or not active:
@@ -173,14 +193,20 @@ def _auto(
     return res, outcome
 
 
-def _next_to_hold(cam: CameraEstimate) -> list[tuple[str, str]]:
-    """The parameters to hold after one adjustment, with reasons (empty: stable)."""
+def _next_to_hold(cam: CameraEstimate, absorbed: set[str]) -> list[tuple[str, str, bool]]:
+    """The parameters to hold after one adjustment, with reasons and whether
+    the orientation absorbs them (empty: stable); ``absorbed`` the parameters
+    held so far because it does."""
     r_eo = cam.orientation_correlation
+    over_interior = {
+        n
+        for n, r in zip(cam.names, r_eo, strict=True)
+        if n in _ABSORBED_BY and r > INTERIOR_CORRELATION
+    }
+    coupled = bool((absorbed | over_interior) & {"x0", "y0"})
+    why = dict(_ABSORBED_BY, **(_COUPLED_WITH_PRINCIPAL_POINT if coupled else {}))
     bound = np.array(
-        [
-            INTERIOR_CORRELATION if n in _ABSORBED_BY else MAX_ORIENTATION_CORRELATION
-            for n in cam.names
-        ]
+        [INTERIOR_CORRELATION if n in why else MAX_ORIENTATION_CORRELATION for n in cam.names]
     )
     over = np.flatnonzero(r_eo > bound)
     if over.size:
@@ -188,7 +214,8 @@ def _next_to_hold(cam: CameraEstimate) -> list[tuple[str, str]]:
             (
                 cam.names[i],
                 f"correlation {r_eo[i]:.4f} with the exterior orientation"
-                + (f": {_ABSORBED_BY[cam.names[i]]}" if cam.names[i] in _ABSORBED_BY else ""),
+                + (f": {why[cam.names[i]]}" if cam.names[i] in why else ""),
+                True,
             )
             for i in over
         ]
@@ -201,11 +228,12 @@ def _next_to_hold(cam: CameraEstimate) -> list[tuple[str, str]]:
             (
                 cam.names[weak],
                 f"correlation {corr[i, j]:.3f} with {cam.names[strong]}",
+                False,
             )
         ]
     worst = int(np.argmin(t))
     if t[worst] < T_CRITICAL:
-        return [(cam.names[worst], f"t = {t[worst]:.2f}, below {T_CRITICAL:g}")]
+        return [(cam.names[worst], f"t = {t[worst]:.2f}, below {T_CRITICAL:g}", False)]
     return []
 
 
@@ -335,3 +363,30 @@ def residual_cells(
             for v in (after, before)
         ]
     return ResidualCells(x_edges, y_edges, means[0], means[1], count.reshape(n_cells, n_cells))
+
+
+def carried_choice(
+    spec: SelfCalibration, chosen: SelfCalibrationOutcome | None, fr: FrameRefinement
+) -> tuple[FrameRefinement, SelfCalibrationOutcome | None, SelfCalibration | None]:
+    """A refinement adjusted again (another pass, other weights) keeps the first
+    one's choice of parameters and its reasons.
+
+    ``chosen`` is the first adjustment's outcome (None: ``fr`` is the first).
+    Returns ``fr`` with its outcome told the first one's reasons, the first
+    outcome, and the self-calibration the next adjustment runs with: the kept
+    parameters as a list (None when none was kept).
+    """
+    if fr.self_calibration is None:
+        return fr, chosen, None
+    chosen = chosen or fr.self_calibration
+    fr = dataclasses.replace(
+        fr,
+        self_calibration=dataclasses.replace(
+            final_outcome(spec, chosen, fr.bundle.camera), cells=fr.self_calibration.cells
+        ),
+    )
+    kept = chosen.kept
+    if not kept:
+        return fr, chosen, None
+    family = "ebner12" if chosen.family == "ebner" else kept
+    return fr, chosen, SelfCalibration(family, spec.flight_direction)

@@ -12,7 +12,6 @@ records (:func:`describe`) and the rejection itself (:meth:`_Sets.reject`).
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -21,10 +20,10 @@ import numpy as np
 from .._stats import leading_failures
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
-from ..errors import GeometryError, StripAerotriWarning
+from ..errors import GeometryError
 from ..geometry.camera_model import CameraModel
 from ..geometry.collinearity import image_jacobian, image_vectors
-from ..ground.systematic import kept_control, systematic_message, systematic_pattern
+from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
@@ -189,7 +188,7 @@ def refine_frame(
     previous_effect: int | None = None
     state = (inp.centres0, inp.rotations0, inp.points0)
     camera = _Camera.start(inp, sets, self_calibration, max_iterations)
-    first_control: tuple[FloatArray, float] | None = None
+    first_control: tuple[IntArray, FloatArray, float] | None = None
     while True:
         pt_used = sets.used_points(inp)
         sub, rows, pts = _compact(obs, sets.keep, pt_used)
@@ -226,7 +225,7 @@ def refine_frame(
             return result
         failures = _failures(inp, sets, res, stats, blunders)
         if first_control is None:
-            first_control = (_control_w(sets, stats), failures.crit_ctrl)
+            first_control = (*_control_w(sets, stats), failures.crit_ctrl)
         if not failures.found:
             return result
         picks = _picks(failures, blunders, obs)
@@ -237,7 +236,7 @@ def refine_frame(
         rejections.extend(new_rejections)
         sets.reject(picks)
         if sets.control_over_limit(blunders) and _keep_systematic(
-            first_control, camera.model is not None
+            first_control, stats, rejections, obs, camera.model is not None
         ):
             rejections = kept_control(rejections)
             sets.keep_control()
@@ -325,27 +324,36 @@ def _picks(
     return [(worst[1], worst[2])]
 
 
-def _control_w(sets: _Sets, stats: _RoundStatistics) -> FloatArray:
-    """The control's test values (points with control, components; NaN where not tested)."""
+def _control_w(sets: _Sets, stats: _RoundStatistics) -> tuple[IntArray, FloatArray]:
+    """The points with control and their test values (components; NaN where
+    not tested)."""
     rows = np.flatnonzero(np.any(sets.ctrl_on, axis=1))
-    return np.where(sets.ctrl_on[rows], stats.w_ctrl[rows], np.nan)
+    return rows, np.where(sets.ctrl_on[rows], stats.w_ctrl[rows], np.nan)
 
 
-def _keep_systematic(first: tuple[FloatArray, float], self_calibrating: bool) -> bool:
-    """True (and a warning) when the first adjustment's control fails at many
-    points alike (:mod:`strip_aerotri.ground.systematic`): camera errors, not
-    blunders, so the control is kept."""
-    w, critical = first
-    if not systematic_pattern(w, critical):
-        return False
-    warnings.warn(
-        systematic_message(
-            "bundle adjustment", w, critical, self_calibrating=self_calibrating
-        ),
-        StripAerotriWarning,
-        stacklevel=4,
+def _keep_systematic(
+    first: tuple[IntArray, FloatArray, float],
+    stats: _RoundStatistics,
+    rejections: list[Rejection],
+    obs: ImageObservations,
+    self_calibrating: bool,
+) -> bool:
+    """True (and a warning) when the control fails at many points alike
+    (:func:`strip_aerotri.ground.systematic.fails_alike`): camera errors, not
+    blunders, so the control is kept.  Judged on the first adjustment's test
+    values and on every one met so far (this round's, each rejected
+    component at the value it was rejected with)."""
+    rows, w, critical = first
+    position = {obs.point_ids[k]: j for j, k in enumerate(rows.tolist())}
+    rejected = rejected_components(rejections, position)
+    return kept_if_alike(
+        "bundle adjustment",
+        w,
+        critical,
+        last=stats.w_ctrl[rows],
+        rejected=rejected,
+        self_calibrating=self_calibrating,
     )
-    return True
 
 
 def _adjust(

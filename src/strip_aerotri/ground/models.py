@@ -60,7 +60,7 @@ from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .common import control_detectability, index_of, intersect_unmodelled
 from .control_passes import ControlPasses
 from .polynomials import adjust_to_ground
-from .systematic import kept_control, systematic_message, systematic_pattern
+from .systematic import kept_control, kept_if_alike, rejected_components
 
 __all__ = ["ModelAdjustment", "adjust_models_to_ground", "model_weights"]
 
@@ -515,21 +515,13 @@ def _keep_systematic(
     w[~p.use_xy[rows], :2] = np.nan
     w[~p.use_z[rows], 2] = np.nan
     critical = blunders.critical("control", max(int(np.isfinite(w).sum()), 1))
-    if not systematic_pattern(w, critical):
-        seen = np.full((p.use_xy.size, 3), np.nan)
-        now = np.abs(np.array(last.result.control_w, dtype=np.float64))
-        seen[np.flatnonzero(last.active)] = now
-        seen[~use_xy, :2] = np.nan
-        seen[~use_z, 2] = np.nan
-        row_of = {pid: k for k, pid in enumerate(p.ids)}
-        for r in rejections:
-            if r.stage == "control" and r.applied:
-                seen[row_of[r.point], 2 if r.component == "height" else 0] = r.w
-        w = seen[rows]
-        if not systematic_pattern(w, critical):
-            return False
-    warnings.warn(systematic_message("control", w, critical), StripAerotriWarning, stacklevel=4)
-    return True
+    now = np.full((p.use_xy.size, 3), np.nan)
+    now[np.flatnonzero(last.active)] = np.array(last.result.control_w, dtype=np.float64)
+    now[~use_xy, :2] = np.nan
+    now[~use_z, 2] = np.nan
+    row_of = {pid: int(np.searchsorted(rows, k)) for k, pid in enumerate(p.ids)}
+    rejected = rejected_components(rejections, row_of)
+    return kept_if_alike("control", w, critical, last=now[rows], rejected=rejected)
 
 
 def _check_breaks(

@@ -54,6 +54,7 @@ from .common import (
     resolve_route,
 )
 from .passes import Solution, StripProblem, _plan_scale, solve_passes
+from .systematic import kept_control, kept_if_alike, rejected_components
 
 __all__ = [
     "Construction",
@@ -235,12 +236,14 @@ def _snoop(
     polynomial = options.polynomial
     assert polynomial is not None  # GroundOptions puts the default for None
     sol = solve_passes(problem, use_xy, use_z, line_keep, None, polynomial)
+    first, control_kept = sol, False
     while blunders.testing:
         flagged = {(k.point, k.component) for k in kept}
         found = [
             r
             for r in _ground_tests(sol, ids, lines, line_keep, blunders)
             if (r.point, r.component) not in flagged
+            and not (control_kept and r.stage == "control")
         ]
         if not found:
             break
@@ -287,14 +290,66 @@ def _snoop(
             )
             polynomial = lowered
         rejections.append(worst)
+        last = sol
         use_xy, use_z, line_keep, sol = trial_xy, trial_z, trial_lines, trial
         rejected_obs = n_control_obs - int(2 * use_xy.sum() + use_z.sum())
         if rejected_obs > blunders.max_fraction * max(n_control_obs, 1):
-            raise GeometryError(
-                f"control: more than {blunders.max_fraction:.0%} of the control observations "
-                "fail the blunder test; the control cannot be trusted"
-            )
+            if not _keep_systematic(ids, first, last, rejections, blunders):
+                raise GeometryError(
+                    f"control: more than {blunders.max_fraction:.0%} of the control "
+                    "observations fail the blunder test; the control cannot be trusted"
+                )
+            # failing alike: the camera, not the control; all of it kept, untested
+            use_xy, use_z, control_kept = picked.use_xy.copy(), picked.use_z.copy(), True
+            rejections = kept_control(rejections)
+            sol = solve_passes(problem, use_xy, use_z, line_keep, sol, polynomial)
     return sol, use_xy, use_z, line_keep, rejections + kept
+
+
+def _keep_systematic(
+    ids: Sequence[str],
+    first: Solution,
+    last: Solution,
+    rejections: Sequence[Rejection],
+    blunders: BlunderOptions,
+) -> bool:
+    """True (and a warning) when the control fails at many points alike
+    (:func:`strip_aerotri.ground.systematic.fails_alike`): on the first
+    solution's test values, or on every one met so far (``last``'s, each
+    rejected component at the value it was rejected with)."""
+    w_first, critical = _control_test_values(first, len(ids), blunders)
+    w_last, _ = _control_test_values(last, len(ids), blunders)
+    rows = np.flatnonzero(np.any(np.isfinite(w_first), axis=1))
+    position = {ids[int(k)]: j for j, k in enumerate(rows)}
+    rejected = rejected_components(rejections, position)
+    return kept_if_alike(
+        "control", w_first[rows], critical, last=w_last[rows], rejected=rejected
+    )
+
+
+def _control_test_values(
+    sol: Solution, n_ids: int, blunders: BlunderOptions
+) -> tuple[FloatArray, float]:
+    """The control's test values of a solution (n_ids, 3; NaN where not
+    tested), as :func:`_ground_tests` computes them, and their critical value."""
+    fit = sol.sim if sol.deformation is None else sol.deformation
+    w, crit = _scaled_w(fit, blunders)
+    out = np.full((n_ids, 3), np.nan)
+    out[np.flatnonzero(sol.active)] = w
+    return out, crit
+
+
+def _scaled_w(
+    fit: SimilarityResult | DeformationResult, blunders: BlunderOptions
+) -> tuple[FloatArray, float]:
+    """A fit's normalised control residuals scaled by their robust variance
+    factor, and the critical value of their count."""
+    w = np.asarray(fit.normalized_residuals, dtype=float)
+    # The expected sigmas leave out the error the chain accumulates along
+    # the strip; the robust variance factor scales them to the data
+    # (blunders hardly move the median).
+    w = w / np.sqrt(robust_variance_factor(w))
+    return w, blunders.critical("control", int(np.isfinite(w).sum()))
 
 
 def _products(
@@ -458,13 +513,8 @@ def _ground_tests(
     )
     seen: set[tuple[str, str]] = set()
     for label, fit in fits:
-        w = np.asarray(fit.normalized_residuals, dtype=float)
-        # The expected sigmas leave out the error the chain accumulates along
-        # the strip; the robust variance factor scales them to the data
-        # (blunders hardly move the median).
-        w = w / np.sqrt(robust_variance_factor(w))
+        w, crit = _scaled_w(fit, blunders)
         resid = np.asarray(fit.residuals, dtype=float)
-        crit = blunders.critical("control", int(np.isfinite(w).sum()))
         plan_w = np.fmax(np.abs(w[:, 0]), np.abs(w[:, 1]))
         plan_r = np.hypot(np.nan_to_num(resid[:, 0]), np.nan_to_num(resid[:, 1]))
         height_w = np.abs(w[:, 2])

@@ -4,9 +4,14 @@ Uncorrected camera errors (lens distortion, film affinity) deform a strip or a
 block everywhere; the control then fails the blunder tests at many points at
 once, at similar test values, while a bad control point fails alone, or
 drags a few neighbours over the limit at test values well below its own.
-When more than ``max_fraction`` of the control fails, :func:`systematic_pattern`
-tells the two apart on the first solution's test values, and the stages keep
-the control and warn (:func:`systematic_message`) instead of stopping.
+When more than ``max_fraction`` of the control fails, :func:`fails_alike`
+tells the two apart (:func:`systematic_pattern`) on the first solution's test
+values and on every test value met so far, and the stages (the construction
+by models, by strips with polynomials, the block and the bundle) keep the
+control and warn (:func:`systematic_message`) instead of stopping.  The test
+values met so far matter: a bending the control follows fails a few points
+at a time, a little over the critical value, and rejecting them one by one
+makes the next ones fail, which the first solution alone does not show.
 
 The rule: at least :data:`MIN_CONTROL_POINTS` control points; at least
 :data:`MIN_FAILING_POINTS` of them, and at least :data:`MIN_FAILING_SHARE` of
@@ -20,7 +25,8 @@ a pattern that changes sign from model to model.)
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+import warnings
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import replace
@@ -28,6 +34,7 @@ from dataclasses import replace
 import numpy as np
 
 from .._typing import FloatArray
+from ..errors import StripAerotriWarning
 from ..results import Rejection
 
 __all__ = [
@@ -37,6 +44,9 @@ __all__ = [
     "MIN_FAILING_POINTS",
     "MIN_FAILING_SHARE",
     "kept_control",
+    "kept_if_alike",
+    "rejected_components",
+    "fails_alike",
     "self_calibration_follows",
     "systematic_message",
     "systematic_pattern",
@@ -64,6 +74,83 @@ def systematic_pattern(w: FloatArray, critical: float) -> bool:
     if n < MIN_CONTROL_POINTS or failing.size < max(MIN_FAILING_POINTS, MIN_FAILING_SHARE * n):
         return False
     return bool(failing.max() <= MAX_DOMINANCE * float(np.median(failing)))
+
+
+def fails_alike(
+    first: FloatArray,
+    critical: float,
+    *,
+    last: FloatArray | None = None,
+    rejected: Sequence[tuple[int, int, float]] = (),
+) -> FloatArray | None:
+    """The stages' one judgement of control that fails beyond ``max_fraction``:
+    the test values on which it fails at many points alike, or None (blunders).
+
+    Parameters
+    ----------
+    first : ndarray, shape (n, 3)
+        The first solution's test values of the n control points (components;
+        NaN where not tested).
+    critical : float
+        The critical value they are judged against.
+    last : ndarray, shape (n, 3), optional
+        The last solution's, on the same rows (NaN where not tested, rejected
+        components included).
+    rejected : sequence of (row, column, w)
+        The components rejected so far, each at the test value it was rejected
+        with (row of ``first``, column 0-2).
+
+    Returns
+    -------
+    ndarray or None
+        ``first`` when its pattern is systematic; else every test value met so
+        far (``last`` with each rejected component at its rejection's value)
+        when that pattern is; else None.
+    """
+    if systematic_pattern(first, critical):
+        return first
+    if last is None:
+        return None
+    seen = np.abs(np.asarray(last, dtype=np.float64))
+    for row, column, w in rejected:
+        seen[row, column] = abs(w)
+    return seen if systematic_pattern(seen, critical) else None
+
+
+def kept_if_alike(
+    stage: str,
+    first: FloatArray,
+    critical: float,
+    *,
+    last: FloatArray | None = None,
+    rejected: Sequence[tuple[int, int, float]] = (),
+    self_calibrating: bool = False,
+) -> bool:
+    """:func:`fails_alike`, and when it does, the stage's warning
+    (:func:`systematic_message`, attributed to the stage's caller): True when
+    the stage keeps its control."""
+    judged = fails_alike(first, critical, last=last, rejected=rejected)
+    if judged is None:
+        return False
+    warnings.warn(
+        systematic_message(stage, judged, critical, self_calibrating=self_calibrating),
+        StripAerotriWarning,
+        stacklevel=5,
+    )
+    return True
+
+
+def rejected_components(
+    rejections: Sequence[Rejection], row_of: Mapping[str, int]
+) -> list[tuple[int, int, float]]:
+    """The control components rejected so far as :func:`fails_alike` takes
+    them: (row, column, w) of every applied control rejection whose point has
+    a row in ``row_of`` (a height's column 2, a plan's 0)."""
+    return [
+        (row_of[r.point], 2 if r.component in ("height", "H") else 0, r.w)
+        for r in rejections
+        if r.stage == "control" and r.applied and r.point in row_of
+    ]
 
 
 #: True while a stage runs whose result the bundle refinement then

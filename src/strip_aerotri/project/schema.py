@@ -54,6 +54,7 @@ from ..options import (
     RelativeOrientationMethod,
     Route,
     ScaleTransfer,
+    Weights,
     describe,
 )
 
@@ -473,6 +474,14 @@ PROJECT_KEYS: tuple[KeySpec, ...] = (
         default_text='"none"',
     ),
     KeySpec(
+        "adjustment", "weights", "choice", required=False, default=Weights.GIVEN, unit="",
+        description='With refine = "bundle" only: "given" (the stated sigmas of the image '
+        'coordinates, control, GNSS and IMU) or "estimated" (each group\'s sigma estimated '
+        "from its residuals by variance components and the bundle adjusted with them; "
+        "report.json bundle.variance_components).",
+        default_text='"given"',
+    ),
+    KeySpec(
         "adjustment", "min_base_to_height", "positive number", required=False,
         default=DEFAULT_MIN_BASE_TO_HEIGHT, unit="",
         description='Smallest base-to-height ratio of a model for photo_step = "auto".',
@@ -609,6 +618,7 @@ _ENUM_OF_KEY: dict[tuple[str, str], type[OptionEnum]] = {
     ("adjustment", "relative_orientation"): RelativeOrientationMethod,
     ("adjustment", "intersection"): IntersectionMethod,
     ("adjustment", "scale_transfer"): ScaleTransfer,
+    ("adjustment", "weights"): Weights,
     ("images", "units"): ImageUnits,
     ("images", "flight_direction"): FlightDirection,
     ("distortion", "units"): DistortionUnits,

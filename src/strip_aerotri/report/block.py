@@ -17,7 +17,13 @@ from ..observations import ControlType
 from ..results import AccuracyStatistics
 from .aside import aside
 from .block_page import block_html
-from .calibration import calibration_figures, calibration_html, calibration_outputs
+from .calibration import (
+    calibration_figures,
+    calibration_html,
+    calibration_outputs,
+    variance_record,
+    with_variance_html,
+)
 from .files import format_photos_csv, format_points_csv
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, _bundle_gnss, _bundle_imu
 from .tolerances import TRANSFER_UM, transfer_passed
@@ -279,9 +285,13 @@ def block_outputs(
         )
         if cal_record is not None:
             report["bundle"]["self_calibration"] = cal_record
+        weights = variance_record(result.variance_components)
+        if weights is not None:
+            report["bundle"]["variance_components"] = weights
         text = json.dumps(report, indent=2, allow_nan=False) + "\n"
         figure, calibration = drawing.result()
     section = "" if cal_record is None else calibration_html(cal_record, calibration)
+    section = with_variance_html(section, report)
     files = {
         "points.csv": points_text.encode("utf-8"),
         "photos.csv": photos_text.encode("utf-8"),

@@ -21,7 +21,7 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..interior import BrownDistortion, correct_distortion
-from ..results import SelfCalibrationOutcome
+from ..results import SelfCalibrationOutcome, VarianceComponents
 from .values import json_float
 
 __all__ = [
@@ -31,6 +31,9 @@ __all__ = [
     "calibration_record",
     "camera_toml",
     "fitted_camera",
+    "variance_html",
+    "variance_record",
+    "with_variance_html",
 ]
 
 _DISTORTION_NAMES = ("k1", "k2", "k3", "p1", "p2", "b1", "b2")
@@ -271,3 +274,75 @@ def calibration_outputs(
     c, pp, dist = start_camera(project, principal_distance_mm)
     text = camera_toml(outcome, c, pp, dist)
     return calibration_record(outcome, c, pp, dist), None if text is None else text.encode()
+
+
+def variance_record(vc: VarianceComponents | None) -> dict[str, Any] | None:
+    """``bundle.variance_components`` of report.json (docs/outputs.md): each
+    observation group's a-priori and estimated sigma and its redundancy."""
+    if vc is None:
+        return None
+    return {
+        "applied": vc.applied,
+        "iterations": vc.iterations,
+        "converged": vc.converged,
+        "sigma0_apriori": json_float(vc.sigma0_apriori),
+        "groups": [
+            {
+                "group": g.name,
+                "unit": g.unit,
+                "n": g.n,
+                "sigma_apriori": json_float(g.sigma_apriori),
+                "sigma": json_float(g.sigma),
+                "redundancy": json_float(g.redundancy),
+                "factor": json_float(g.factor),
+                "estimated": g.estimated,
+            }
+            for g in vc.groups
+        ],
+    }
+
+
+def variance_html(record: dict[str, Any] | None) -> str:
+    """The page's section on the observation groups' weights ('' without)."""
+    if record is None:
+        return ""
+    from .html_parts import _esc, _fmt, _table
+
+    rows = [
+        [
+            g["group"],
+            (_esc(g["unit"]),),
+            str(g["n"]),
+            _fmt(g["sigma_apriori"], 4),
+            _fmt(g["sigma"], 4),
+            _fmt(g["redundancy"], 1),
+            "estimated" if g["estimated"] else "as given (too little redundancy)",
+        ]
+        for g in record["groups"]
+    ]
+    how = (
+        f"adjusted with the estimated weights ({record['iterations']} more adjustment(s), "
+        + ("settled" if record["converged"] else "not settled")
+        + ")"
+        if record["applied"]
+        else "estimated from the adjustment at the given weights, not applied"
+    )
+    return "\n".join(
+        [
+            "<h2>Observation weights from the data</h2>",
+            "<p>Each group's sigma estimated from its residuals (variance components: "
+            "v'Pv / r of the group, r the sum of its redundancy numbers); "
+            f"{_esc(how)}. sigma0 at the given weights {_fmt(record['sigma0_apriori'])}.</p>",
+            _table(
+                ["group", "unit", "n", "sigma given", "sigma estimated", "redundancy", ""], rows
+            ),
+        ]
+    )
+
+
+def with_variance_html(calibration: str, report: dict[str, Any] | Any) -> str:
+    """The page's self-calibration section followed by the weights' section of
+    ``report`` (report.json's content), if it has one."""
+    record = (report.get("bundle") or {}).get("variance_components")
+    section = variance_html(record)
+    return calibration if not section else (calibration + "\n" + section if calibration else section)

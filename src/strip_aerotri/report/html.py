@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..options import DEFAULT_SECTIONS
-from .calibration import calibration_figures, calibration_html
+from .calibration import calibration_figures, calibration_html, with_variance_html
 from .figures import (
     StripFigureData,
     _png,
@@ -145,9 +145,12 @@ def html_page(report: Mapping[str, Any], figures: StripFigures) -> str:
         figures.parallax,
         figures.ties,
         long_strip=figures.long_strip,
-        calibration=""
-        if figures.calibration is None or record is None
-        else calibration_html(record, figures.calibration),
+        calibration=with_variance_html(
+            ""
+            if figures.calibration is None or record is None
+            else calibration_html(record, figures.calibration),
+            report,
+        ),
     )
 
 

@@ -16,7 +16,7 @@ from functools import partial
 from typing import TYPE_CHECKING, Any
 
 from .aside import Aside, Standby, aside
-from .calibration import calibration_outputs
+from .calibration import calibration_outputs, variance_record
 from .figures import figure_data
 from .html import StripFigures, build_html, draw_figures, html_page
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, build_report, model_records
@@ -114,6 +114,9 @@ def strip_outputs(
         )
         if cal_record is not None:
             report["bundle"]["self_calibration"] = cal_record
+        weights = variance_record(None if refined is None else refined.variance_components)
+        if weights is not None:
+            report["bundle"]["variance_components"] = weights
         if geojson is not None:
             report["outputs"]["points.geojson"] = {
                 "written": True,

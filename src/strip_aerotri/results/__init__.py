@@ -17,6 +17,8 @@ from .bundle import (
     RefinedResult,
     ResidualCells,
     SelfCalibrationOutcome,
+    VarianceComponents,
+    VarianceGroup,
 )
 from .common import AccuracyStatistics, Rejection
 from .ground import GroundResult, ModelAdjustment
@@ -42,4 +44,6 @@ __all__ = [
     "StripJoin",
     "StripModel",
     "StripResult",
+    "VarianceComponents",
+    "VarianceGroup",
 ]

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from .._typing import BoolArray, FloatArray, IntArray
 from ..observations import ControlPoints, ImageObservations, StripSpec
 from ..options import AdjustmentOptions
-from .bundle import GnssResiduals, ImuResiduals, SelfCalibrationOutcome
+from .bundle import GnssResiduals, ImuResiduals, SelfCalibrationOutcome, VarianceComponents
 from .common import AccuracyStatistics, Rejection
 from .strip import StripModel
 
@@ -124,6 +124,9 @@ class BlockResult:
     weak_checks : tuple of str
         The check points weakly determined by their own rays, left out of
         ``check_statistics`` (:mod:`strip_aerotri.ground.check_precision`).
+    variance_components : VarianceComponents or None
+        The refinement's observation weights estimated from its residuals
+        (None unless asked for).
     """
 
     specs: tuple[StripSpec, ...]
@@ -160,6 +163,7 @@ class BlockResult:
     self_calibration: SelfCalibrationOutcome | None = None
     options: AdjustmentOptions | None = None
     weak_checks: tuple[str, ...] = ()
+    variance_components: VarianceComponents | None = None
 
     @property
     def photo_ids(self) -> tuple[str, ...]:

@@ -21,6 +21,8 @@ __all__ = [
     "RefinedResult",
     "ResidualCells",
     "SelfCalibrationOutcome",
+    "VarianceComponents",
+    "VarianceGroup",
 ]
 
 
@@ -264,6 +266,73 @@ class BundleResult:
 
 
 @dataclass(frozen=True)
+class VarianceGroup:
+    """One observation group's variance component (:mod:`strip_aerotri.bundle.variance`).
+
+    Attributes
+    ----------
+    name : str
+        ``"image, tie points"``, ``"image, control points"``, ``"control plan"``,
+        ``"control height"``, ``"GNSS centres"`` or ``"IMU attitudes"``.
+    unit : str
+        Unit of the sigmas: ``"µm"`` (image), ``"m"`` (control, GNSS) or
+        ``"deg"`` (IMU).
+    n : int
+        Scalar observations of the group in the final adjustment.
+    sigma_apriori : float
+        The group's median a-priori standard deviation, as given.
+    sigma : float
+        The estimated standard deviation, ``sigma_apriori`` times the
+        product of the factors of all iterations (the a-priori value when not
+        estimated).
+    redundancy : float
+        The group's share of the redundancy, the sum of its redundancy
+        numbers in the final adjustment.
+    factor : float
+        ``sqrt(v'Pv / r)`` of the group in the final adjustment, at the
+        weights it ran with: 1 once the estimate has settled.
+    estimated : bool
+        False when the group's redundancy is too small to estimate its
+        variance (its sigma is kept as given).
+    """
+
+    name: str
+    unit: str
+    n: int
+    sigma_apriori: float
+    sigma: float
+    redundancy: float
+    factor: float
+    estimated: bool
+
+
+@dataclass(frozen=True)
+class VarianceComponents:
+    """The observation weights a bundle estimated from its own residuals.
+
+    Attributes
+    ----------
+    groups : tuple of VarianceGroup
+    iterations : int
+        Adjustments run with re-estimated weights (after the first).
+    converged : bool
+        Every estimated group's factor within the tolerance at the end.
+    sigma0_apriori : float
+        sigma0 of the first adjustment, at the a-priori weights.
+    applied : bool
+        The estimated weights are those of the delivered adjustment (False:
+        only estimated and reported, the adjustment ran at the a-priori
+        weights).
+    """
+
+    groups: tuple[VarianceGroup, ...]
+    iterations: int
+    converged: bool
+    sigma0_apriori: float
+    applied: bool = True
+
+
+@dataclass(frozen=True)
 class FrameRefinement:
     """Result of :func:`refine_frame` (all arrays in the adjustment frame).
 
@@ -324,6 +393,9 @@ class FrameRefinement:
     control_tested : bool
         False when the control failed at many points alike and was kept
         untested (:mod:`strip_aerotri.ground.systematic`).
+    variance_components : VarianceComponents or None
+        The groups' weights estimated from the residuals (None unless asked
+        for, :mod:`strip_aerotri.bundle.variance`).
     """
 
     centres: FloatArray
@@ -355,6 +427,7 @@ class FrameRefinement:
     imu_rejected: BoolArray = field(default_factory=lambda: np.zeros(0, bool))
     self_calibration: SelfCalibrationOutcome | None = None
     control_tested: bool = True
+    variance_components: VarianceComponents | None = None
 
 
 def _rms(values: FloatArray) -> FloatArray:
@@ -659,6 +732,9 @@ class RefinedResult:
         deviation, t value, whether it was kept and why not.
     imu : ImuResiduals or None
         Counts, residuals and tests of the IMU attitudes (None without them).
+    variance_components : VarianceComponents or None
+        The observation groups' weights estimated from the residuals (None
+        unless asked for).
     """
 
     photo_ids: tuple[str, ...]
@@ -693,6 +769,7 @@ class RefinedResult:
     gnss: GnssResiduals | None = None
     imu: ImuResiduals | None = None
     self_calibration: SelfCalibrationOutcome | None = None
+    variance_components: VarianceComponents | None = None
 
     @property
     def photo_opk_degrees(self) -> FloatArray:

@@ -1,0 +1,151 @@
+"""Check-point RMSE of the real FC300X block over six control/check splits.
+
+The 33 GCPs of ``../shared/data/uav-block-fc300x`` (docs/block.md) split into
+16 full control and the rest check points six ways: the importer's split, the
+importer's swapped (its check points as control, its control as check), and
+four random draws of 16 (``numpy.random.default_rng(seed)``, seeds 1-4).  Each
+configuration given on the command line (``key=value`` pairs of
+``[adjustment]``, ``distortion=none`` to remove the ``[distortion]`` table,
+``variance_components=...``) runs on all six; the table gives the check RMSE
+plan / height (m) without the weakly determined check points, and the medians.
+
+    python benchmarks/bench_fc300x_splits.py ../shared/data/uav-block-fc300x \\
+        'block="strips"' 'refine="bundle"' 'refine="bundle" self_calibration="auto"'
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import re
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+SPLIT_NAMES = ("importer", "swapped", "random1", "random2", "random3", "random4")
+
+
+def _import(data: Path, out: Path) -> Path:
+    from click.testing import CliRunner
+
+    from strip_aerotri.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["import", "uav-fc300x", str(data), "-o", str(out)])
+    if res.exit_code != 0:
+        raise SystemExit(res.output)
+    return out / "strip.toml"
+
+
+def _splits(control_csv: Path) -> dict[str, dict[str, str]]:
+    """Point id -> type ("full" / "check") for each split."""
+    with control_csv.open() as f:
+        rows = [r for r in csv.DictReader(f)]
+    ids = [r["point"] for r in rows]
+    given = {r["point"]: r["type"] for r in rows}
+    out = {"importer": given}
+    out["swapped"] = {p: ("check" if t == "full" else "full") for p, t in given.items()}
+    n_full = sum(t == "full" for t in given.values())
+    for seed in range(1, 5):
+        pick = set(np.random.default_rng(seed).choice(ids, size=n_full, replace=False))
+        out[f"random{seed}"] = {p: ("full" if p in pick else "check") for p in ids}
+    return out
+
+
+def _write_case(toml: Path, types: dict[str, str], settings: list[str], folder: Path) -> Path:
+    text = toml.read_text()
+    adjustment = []
+    images = toml.parent / "image_points.csv"
+    for s in settings:
+        key, _, value = s.partition("=")
+        if key == "min_rays":
+            images = _tie_points_on(images, types, int(value), folder)
+        elif key == "control_sigma":
+            sigma_xy, _, sigma_h = value.partition("/")
+            types = {p: f"{t},{sigma_xy},{sigma_h}" for p, t in types.items()}
+        elif key == "distortion" and value == "none":
+            text = re.sub(r"\n\[distortion\]\n(?:[^\[\n].*\n|\n)*", "\n", text)
+        else:
+            adjustment.append(f"{key} = {value}")
+    if adjustment:
+        text += "\n[adjustment]\n" + "\n".join(adjustment) + "\n"
+    text = text.replace('file = "image_points.csv"', f'file = "{images}"')
+    with (toml.parent / "control.csv").open() as f:
+        lines = [line for line in f if not line.startswith("#")]
+    rows = list(csv.DictReader(lines))
+    sigmas = any("," in t for t in types.values())
+    with (folder / "control.csv").open("w") as f:
+        f.write("point,X,Y,H,type" + (",sigma_xy,sigma_h\n" if sigmas else "\n"))
+        for r in rows:
+            f.write(f"{r['point']},{r['X']},{r['Y']},{r['H']},{types[r['point']]}\n")
+    path = folder / "strip.toml"
+    path.write_text(text)
+    return path
+
+
+def _tie_points_on(images: Path, types: dict[str, str], n: int, folder: Path) -> Path:
+    """The image points without the tie points seen on fewer than ``n`` photos."""
+    with images.open() as f:
+        lines = [line for line in f if not line.startswith("#")]
+    rows = list(csv.DictReader(lines))
+    count: dict[str, int] = {}
+    for r in rows:
+        count[r["point"]] = count.get(r["point"], 0) + 1
+    out = folder / "image_points.csv"
+    with out.open("w") as f:
+        f.write(lines[0])
+        for line, r in zip(lines[1:], rows, strict=True):
+            if r["point"] in types or count[r["point"]] >= n:
+                f.write(line)
+    return out
+
+
+def run_case(path: Path) -> tuple[float, float, object]:
+    from strip_aerotri.project import load_project
+    from strip_aerotri.project.run import run_project
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = run_project(load_project(path))
+    stats = result.check_statistics
+    refined = getattr(result, "refined", None)  # a block's is a flag: its statistics are
+    if refined is not None and not isinstance(refined, bool):
+        stats = refined.check_statistics
+    return float(stats.rmse_plan), float(stats.rmse[2]), result
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("data", type=Path)
+    parser.add_argument("configs", nargs="+", help="space-separated key=value settings")
+    parser.add_argument("--splits", default=",".join(SPLIT_NAMES))
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        toml = _import(args.data, Path(tmp) / "imported")
+        splits = _splits(toml.parent / "control.csv")
+        names = args.splits.split(",")
+        print("config".ljust(50), " ".join(n.rjust(13) for n in names), "  median")
+        for config in args.configs:
+            settings = config.split()
+            cells, plan, height = [], [], []
+            for name in names:
+                folder = Path(tmp) / f"case_{name}"
+                folder.mkdir(exist_ok=True)
+                try:
+                    p, h, _ = run_case(_write_case(toml, splits[name], settings, folder))
+                    cells.append(f"{p:.4f}/{h:.4f}")
+                    plan.append(p)
+                    height.append(h)
+                except Exception as exc:  # noqa: BLE001 - a failing case is a result too
+                    cells.append("failed".rjust(13))
+                    print(f"  {name}: {exc}", file=sys.stderr)
+            med = f"{np.median(plan):.4f}/{np.median(height):.4f}" if plan else "-"
+            print(config[:50].ljust(50), " ".join(c.rjust(13) for c in cells), " ", med)
+            sys.stdout.flush()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
