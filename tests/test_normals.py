@@ -505,3 +505,77 @@ def test_random_shapes_equal_the_dense_solution(seed: int, monkeypatch: pytest.M
     all_rows = [*prob.upr, *prob.ur, *prob.pr, *prob.br]
     r = np.concatenate([cof.redundancy(rows).ravel() for rows in all_rows])
     np.testing.assert_allclose(r, 1.0 - np.einsum("ij,jk,ik->i", a, q, a), atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "n, d, w",
+    [(1, 6, 0), (5, 6, 1), (14, 6, 6), (23, 7, 4), (40, 1, 9), (9, 36, 2), (50, 6, 13), (8, 6, 7)],
+)
+def test_selected_inverse_of_a_block_band_is_the_dense_inverse(n: int, d: int, w: int) -> None:
+    # S = L Lᵀ with L lower within the block band: the band of
+    # S⁻¹ from Takahashi's recursion (run on blocks of several units) against
+    # the dense inverse, every block within w of the diagonal and zero beyond
+    from strip_aerotri.geometry._blockband import factor_band, selected_inverse
+
+    rng = np.random.default_rng(n * 100 + d * 10 + w)
+    size = n * d
+    i, j = np.indices((size, size))
+    inside = (i >= j) & (i // d - j // d <= w)
+    lower = rng.normal(size=(size, size)) * inside / np.sqrt((w + 1) * d)
+    lower[np.arange(size), np.arange(size)] = rng.uniform(2.0, 4.0, size)
+    s = lower @ lower.T
+    band = np.zeros((n, w + 1, d, d))
+    for jj in range(n):
+        for o in range(min(w + 1, n - jj)):
+            band[jj, o] = s[(jj + o) * d : (jj + o + 1) * d, jj * d : (jj + 1) * d]
+    z = selected_inverse(factor_band(band))
+    q = np.linalg.inv(s)
+    for jj in range(n):
+        for o in range(w + 1):
+            expected = (
+                q[(jj + o) * d : (jj + o + 1) * d, jj * d : (jj + 1) * d]
+                if jj + o < n
+                else np.zeros((d, d))
+            )
+            np.testing.assert_allclose(z[jj, o], expected, atol=1e-10 * np.abs(q).max())
+
+
+@pytest.mark.parametrize("kind", ["sorted", "contiguous", "scattered", "one"])
+def test_run_sums_and_blocks_equal_a_plain_scatter(
+    kind: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # the entry-major sums per unit or point (runs of an index, in its own
+    # order, in contiguous runs out of order, or scattered) against np.add.at;
+    # the blocks of the blocked products cover every place once, cut between runs
+    from strip_aerotri.geometry import _normal_entries as ne
+    from strip_aerotri.geometry._normal_pattern import runs_of
+
+    rng = np.random.default_rng(7)
+    n = 40
+    index = np.sort(rng.integers(0, n, 3000))
+    if kind == "contiguous":  # runs kept together, their values shuffled
+        values = np.unique(index)
+        index = np.repeat(rng.permutation(values), rng.integers(1, 9, values.size))
+    elif kind == "scattered":
+        index = rng.permutation(index)
+    elif kind == "one":
+        index = np.full(3000, 5)
+    runs = runs_of(index)
+    assert (runs[0] is None) == (kind != "scattered")
+    x = rng.normal(size=(2, 3, index.size))
+    expected = np.zeros((n, 2, 3))
+    np.add.at(expected, index, np.moveaxis(x, -1, 0))
+    np.testing.assert_allclose(ne.run_sums(x, runs, n), expected, atol=1e-12)
+    monkeypatch.setattr(ne, "BLOCK", 100)
+    blocks = ne.blocks_of(runs, index.size)
+    assert len(blocks) > 1 or kind == "one"
+    got = np.zeros((n, 2, 3))
+    covered = np.zeros(index.size, int)
+    for span, places, starts, seen in blocks:
+        part = x[..., places]
+        covered[np.arange(index.size)[places]] += 1
+        got[seen] += np.moveaxis(np.add.reduceat(part, starts, axis=-1), -1, 0)
+        ordered = index if runs[0] is None else index[runs[0]]
+        assert np.all(ordered[span][starts] == seen)
+    assert np.all(covered == 1)
+    np.testing.assert_allclose(got, expected, atol=1e-12)

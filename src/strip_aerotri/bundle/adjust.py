@@ -74,6 +74,7 @@ from ..geometry.rotation import matrix_from_rotvec, rotvec_from_matrix, skew
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
 from ..results import BundleResult, CameraEstimate
+from ._structures import structure_for
 
 __all__ = ["BundleResult", "CameraUndetermined", "bundle_adjust"]
 
@@ -297,17 +298,15 @@ def _make_problem(
             raise ValueError("Expected positive standard deviations for `imu_rotations`")
         iw = np.zeros((m, 3))
         iw[used] = 1.0 / sig[used] ** 2
-    structure = NormalStructure.from_indices(
-        m,
-        6,
-        p,
-        photo,
-        point,
-        candidates=[_along_axis_order(centres)],
-        unit_names=tuple(obs.photo_ids),
-        point_names=tuple(obs.point_ids),
-        parameter_names=_PHOTO_PARAMETER_NAMES,
-        n_border=0 if camera is None else len(camera.estimated),
+    along = _along_axis_order(centres)
+    n_border = 0 if camera is None else len(camera.estimated)
+    structure = structure_for(
+        (m, p, photo, point, along, n_border, obs.photo_ids, obs.point_ids),
+        lambda: NormalStructure.from_indices(
+            m, 6, p, photo, point, candidates=[along], unit_names=tuple(obs.photo_ids),
+            point_names=tuple(obs.point_ids), parameter_names=_PHOTO_PARAMETER_NAMES,
+            n_border=n_border,
+        ),
     )
     return _Problem(
         photo_ids=tuple(obs.photo_ids),
@@ -366,23 +365,6 @@ class _Reduced:
     min_pivot_index: int  # 6 * photo + parameter
 
 
-def _cost(prob: _Problem, state: _State) -> float:
-    """Weighted sum of squared residuals; inf when a point lies behind a photo."""
-    xy, v = project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
-    if not np.all(v[:, 2] < 0.0) or not np.all(np.isfinite(xy)):
-        return float("inf")
-    e_img = (xy - _observed(prob, state)) / prob.sigma[:, None]
-    e_ctrl = state.points - prob.control_xyz
-    e_gnss = state.centres - prob.gnss_xyz
-    e_imu = _imu_residual(state.rotations, prob.imu_rot)
-    return float(
-        np.sum(e_img**2)
-        + np.sum(prob.control_weight * e_ctrl**2)
-        + np.sum(prob.gnss_weight * e_gnss**2)
-        + np.sum(prob.imu_weight * e_imu**2)
-    )
-
-
 def _observed(prob: _Problem, state: _State) -> FloatArray:
     """The image observations corrected by the camera's parameters (mm)."""
     if prob.camera is None:
@@ -391,16 +373,19 @@ def _observed(prob: _Problem, state: _State) -> FloatArray:
     return out
 
 
-def _normals(prob: _Problem, state: _State) -> _Normals:
-    """Linearise all observation equations at ``state`` and form the normal blocks.
+def _normals(prob: _Problem, state: _State) -> _Normals | None:
+    """Linearise all observation equations at ``state`` and form the normal
+    blocks; None when a point lies behind a photo.
 
     Rows (residual computed minus observed): image ``x - x_obs`` whitened by
     its sigma; control ``X - X_c`` (m, design identity); GNSS ``S - S_g`` (m,
     design identity on the centre); IMU ``log(R_imu.T R)`` (rad, design
     ``Jr^-1(e)`` on the rotation)."""
-    xy, _, jac_photo, jac_point = collinearity_jacobians(
+    xy, v, jac_photo, jac_point = collinearity_jacobians(
         state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c
     )
+    if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
+        return None  # a point behind a photo: no linearisation (the cost is infinite)
     res = xy - _observed(prob, state)
     inv_s = 1.0 / prob.sigma
     border = None
@@ -721,6 +706,8 @@ def bundle_adjust(
         return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
 
     normals = _normals(prob, state)
+    if normals is None:  # _check_datum_and_sides found every point in front
+        raise GeometryError("the collinearity equations are not defined at the initial values")
     _check_points(prob, normals, observations.point_ids)
     state, normals, history, iterations, converged = _iterate(
         prob, state, normals, depth, int(max_iterations), tolerance, observations, sigma0_of
@@ -881,7 +868,10 @@ def _iterate(
                     f"bundle adjustment failed: non-finite correction after {iterations} step(s)"
                 )
             trial = _apply(state, step)
-            trial_cost = _cost(prob, trial)
+            # the trial's normal equations at once: its cost decides, and an
+            # accepted step (the rule) needs them next
+            trial_normals = _normals(prob, trial)
+            trial_cost = float("inf") if trial_normals is None else trial_normals.cost
             if trial_cost <= cost:
                 break
             if max_step < tolerance or trial_cost - cost <= tolerance * cost:
@@ -894,10 +884,9 @@ def _iterate(
                     f"{iterations} step(s) (sigma0 {history[-1]:.3g}); check the initial "
                     "values and the observations for blunders"
                 )
-        if trial is not state:
+        if trial is not state and trial_normals is not None:
             iterations += 1
-            state = trial
-            normals = _normals(prob, state)
+            state, normals = trial, trial_normals
             history.append(sigma0_of(normals.cost))
         # A damped step may be small or gain little without being at the minimum:
         # only an undamped (Gauss-Newton) step can end the iteration.

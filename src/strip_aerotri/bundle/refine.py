@@ -56,6 +56,7 @@ from ..results import (
     Rejection,
     StripResult,
 )
+from ._structures import reusing_structures
 from .photo_tests import _directional_tests
 from .selfcal import carried_choice
 from .snooping import GNSS_STAGE, IMU_STAGE, refine_frame
@@ -344,18 +345,19 @@ def refine_bundle(
     aux = gnss_imu_in_frame(obs.photo_ids, result.photo_centres, frame, gnss, imu)
     t_frame = time.perf_counter() - t_start
 
-    passes = _passes(
-        result,
-        frame,
-        start,
-        ctrl,
-        aux,
-        blunders=blunders,
-        max_iterations=max_iterations,
-        compute_precision=compute_precision,
-        self_calibration=self_calibration,
-        variance_components=variance_components,
-    )
+    with reusing_structures():  # the passes adjust the same rays again
+        passes = _passes(
+            result,
+            frame,
+            start,
+            ctrl,
+            aux,
+            blunders=blunders,
+            max_iterations=max_iterations,
+            compute_precision=compute_precision,
+            self_calibration=self_calibration,
+            variance_components=variance_components,
+        )
     fr, adjusted_crs, rejections, notes = (
         passes.last,
         passes.adjusted_crs,

@@ -33,26 +33,25 @@ from .._typing import FloatArray, IntArray
 __all__ = ["BandFactor", "band_to_lapack", "factor_band", "selected_inverse"]
 
 
-def _band_entries(w1: int, d: int) -> list[tuple[int, int, int, int]]:
-    """(o, a, b, row) of every entry of the lower block band kept in LAPACK's
-    storage: block offset o, entry (a, b) of the block, row ``o d + a - b``
-    of ab (the diagonal blocks' lower triangles and the blocks below)."""
-    return [
-        (o, a, b, o * d + a - b)
-        for o in range(w1)
-        for a in range(d)
-        for b in range(d)
-        if o > 0 or a >= b
-    ]
+#: Units moved at a time between the block band and LAPACK's storage: the
+#: reordered copy of a few hundred units, not of the whole band.
+_MOVE_UNITS = 256
 
 
 def band_to_lapack(band: FloatArray) -> FloatArray:
-    """LAPACK lower band storage ((w+1) d, n d) of a block band (n, w+1, d, d);
-    a copy per entry of a block (strided over the n blocks)."""
+    """LAPACK lower band storage ((w+1) d, n d) of a block band (n, w+1, d, d).
+
+    Entry (a, b) of block [J, o] is S[(J + o) d + a, J d + b], row
+    ``o d + a - b`` of column ``J d + b``: for each b the rows ``o d + a``
+    of the blocks' column b, shifted up by b (the rows above the diagonal
+    of the diagonal blocks fall off)."""
     n, w1, d, _ = band.shape
     ab = np.zeros((w1 * d, n, d))  # column J d + b as (J, b)
-    for o, a, b, row in _band_entries(w1, d):
-        ab[row, :, b] = band[:, o, a, b]
+    for j0 in range(0, n, _MOVE_UNITS):
+        part = band[j0 : j0 + _MOVE_UNITS]
+        by_row = part.transpose(1, 2, 0, 3).reshape(w1 * d, part.shape[0], d)  # [o d + a, J, b]
+        for b in range(d):
+            ab[: w1 * d - b, j0 : j0 + part.shape[0], b] = by_row[b:, :, b]
     return ab.reshape(w1 * d, n * d)
 
 
@@ -60,12 +59,16 @@ def lapack_to_band(ab: FloatArray, n: int, d: int) -> FloatArray:
     """The inverse of :func:`band_to_lapack` (upper triangles of diagonal blocks 0)."""
     w1 = ab.shape[0] // d
     view = ab.reshape(w1 * d, n, d)
-    band = np.zeros((n, w1, d, d))
-    for o, a, b, row in _band_entries(w1, d):
-        band[:, o, a, b] = view[row, :, b]
+    band = np.empty((n, w1, d, d))
+    for j0 in range(0, n, _MOVE_UNITS):
+        j1 = min(n, j0 + _MOVE_UNITS)
+        by_row = np.zeros((w1 * d, j1 - j0, d))
+        for b in range(d):
+            by_row[b:, :, b] = view[: w1 * d - b, j0:j1, b]
+        band[j0:j1] = by_row.reshape(w1, d, j1 - j0, d).transpose(2, 0, 1, 3)
     # entries past the last row (J + o >= n) are not the matrix's
-    for o in range(1, w1):
-        band[max(n - o, 0) :, o] = 0.0
+    for off in range(1, w1):
+        band[max(n - off, 0) :, off] = 0.0
     return band
 
 
@@ -125,9 +128,11 @@ def factor_band(band: FloatArray) -> BandFactor:
         ab[i, : n * d - i] *= scale[i:] * scale[: n * d - i]
     try:
         if ab.size * ab.shape[0] > _LONG_FACTOR:  # seconds on a wide block: Ctrl-C acts
-            factor = interruptible(cholesky_banded, ab, lower=True, check_finite=False)
-        else:
-            factor = cholesky_banded(ab, lower=True, check_finite=False)
+            factor = interruptible(
+                cholesky_banded, ab, lower=True, overwrite_ab=True, check_finite=False
+            )
+        else:  # ab is this function's own: factorised in place
+            factor = cholesky_banded(ab, lower=True, overwrite_ab=True, check_finite=False)
     except LinAlgError as exc:
         found = re.search(r"(\d+)", str(exc))
         raise NotPositiveDefinite(int(found.group(1)) - 1 if found else 0) from exc
@@ -136,13 +141,53 @@ def factor_band(band: FloatArray) -> BandFactor:
     return BandFactor(factor, scale, n, d, float(pivots[j]), j)
 
 
+#: Units joined into one block of the recursion: about this many scalars a
+#: block, so that a step is a few products of matrices of some size rather
+#: than many of 6 x 6 blocks (the Python loop then runs n d / 36 times).
+_RECURSION_BLOCK = 36
+
+
 def selected_inverse(bf: BandFactor) -> FloatArray:
     """The block band of ``S⁻¹`` (n, w+1, d, d), ``[J, o] = (S⁻¹)[J + o, J]``,
-    by Takahashi's recursion on the factor (see the module docstring)."""
+    by Takahashi's recursion on the factor (see the module docstring).
+
+    The recursion runs on blocks of ``m`` units at a time (``m d`` about
+    :data:`_RECURSION_BLOCK`; the factor padded with identity rows to a
+    whole number of blocks, which leaves Z's band unchanged), and the units'
+    blocks are taken out of its band at the end."""
     n, d = bf.n, bf.d
     w1 = bf.factor.shape[0] // d
+    m = max(1, min(w1, _RECURSION_BLOCK // d))
+    big, wide = m * d, -(-(w1 - 1) // m) + 1  # block size and band blocks of the recursion
+    n_big = -(-n // m)
+    ab = np.zeros((wide * big, n_big * big))
+    ab[: w1 * d, : n * d] = bf.factor
+    ab[0, n * d :] = 1.0  # identity rows: Z is the identity there, decoupled
+    lf = lapack_to_band(ab, n_big, big)
+    del ab
+    zb = _takahashi(lf).reshape(n_big, wide, m, d, m, d)  # (n_big, wide, big, big)
+    del lf
+    # unit block (J m + a, o) lies in zb[J, (a + o) // m] at rows (a + o) % m, column a
+    out = np.empty((n_big, m, w1, d, d))
+    for a in range(m):
+        for o in range(w1):
+            out[:, a, o] = zb[:, (a + o) // m, (a + o) % m, :, a, :]
+    del zb
+    z: FloatArray = out.reshape(n_big * m, w1, d, d)[:n]
+    # undo the equilibration: S⁻¹ = D Z̃ D
+    s = bf.scale.reshape(n, d)
+    rows = np.arange(n)[:, None] + np.arange(w1)[None, :]
+    s_rows = np.where((rows < n)[:, :, None], s[np.minimum(rows, n - 1)], 0.0)
+    z *= s_rows[:, :, :, None]
+    z *= s[:, None, None, :]
+    return z
+
+
+def _takahashi(lf: FloatArray) -> FloatArray:
+    """Takahashi's recursion on the block band of L (n, w+1, d, d), ``[J, o] =
+    L[J + o, J]``: the block band of ``(L Lᵀ)⁻¹``, unscaled."""
+    n, w1, d, _ = lf.shape
     w = w1 - 1
-    lf = lapack_to_band(bf.factor, n, d)  # L's blocks: [J, o] = L[J + o, J]
     lf[:, 0] = np.tril(lf[:, 0])
     l_inv = np.linalg.inv(lf[:, 0])  # (n, d, d) lower
     # panel[J]: L[J+1 .. J+w, J] stacked (w d, d); zero beyond the last row
@@ -172,9 +217,4 @@ def selected_inverse(bf: BandFactor) -> FloatArray:
         buf[top : top + d, top : top + d] = diag
         buf[top + d : top + d + wd, top : top + d] = col
         buf[top : top + d, top + d : top + d + wd] = col.T
-    # undo the equilibration: S⁻¹ = D Z̃ D
-    s = bf.scale.reshape(n, d)
-    rows = np.arange(n)[:, None] + np.arange(w1)[None, :]
-    s_rows = np.where((rows < n)[:, :, None], s[np.minimum(rows, n - 1)], 0.0)
-    z *= s_rows[:, :, :, None] * s[:, None, None, :]
     return z

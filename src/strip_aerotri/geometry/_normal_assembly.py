@@ -14,6 +14,21 @@ import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ._blockband import BandFactor, NotPositiveDefinite, factor_band, selected_inverse
+from ._normal_entries import (
+    BLOCK,
+    PairBlocks,
+    PointFactor,
+    entry_major,
+    lower_t_times,
+    lower_times,
+    pair_blocks,
+    point_factor,
+    run_sums,
+    take,
+    times_lower,
+    times_lower_t,
+)
+from ._normal_pattern import Chunk
 from ._normal_rows import (
     POINT_RANK_TOL,
     BorderRows,
@@ -78,7 +93,7 @@ def assemble(
     g_unit = np.zeros((n, d))
     v = np.zeros((p, 3, 3))
     g_point = np.zeros((p, 3))
-    w = np.zeros((n_pairs, d, 3))
+    w = np.zeros((n_pairs, d, 3))  # the general rows' W, pair-major
     unit_border = np.zeros((n, d, k))
     point_border = np.zeros((p, 3, k))
     border = np.zeros((k, k))
@@ -86,10 +101,15 @@ def assemble(
     cost = 0.0
     diag_block = pat.position * w1  # band block of each unit's diagonal
     whitened = [rows.whitened(k, d) for rows in unit_point_rows]
-    fast = _fast_unit_point(st, unit_point_rows, whitened)
+    fast = _pair_blocks(st, unit_point_rows, whitened)
+    w_entries: FloatArray | None = None
     if fast is not None:
-        u_blocks, w, v, g_unit, g_point, unit_border, point_border, border, g_border, cost = fast
-        band.reshape(n * w1, d, d)[diag_block] += u_blocks  # one block per unit
+        band.reshape(n * w1, d, d)[diag_block] += fast.u  # one block per unit
+        w_entries, v, g_unit, g_point = fast.w, fast.v, fast.g_unit, fast.g_point
+        unit_border, point_border, border, g_border = (
+            fast.unit_border, fast.point_border, fast.border, fast.g_border
+        )
+        cost = fast.cost
     offset = 0
     for rows, (au, ap, f, ab) in zip(unit_point_rows, whitened):
         if fast is not None:
@@ -149,34 +169,10 @@ def assemble(
         g_border += np.einsum("gra,gr->a", a, f)
         cost += float(np.sum(f * f))
     return _Normals(
-        band.reshape(n, w1, d, d), g_unit, v, g_point, w, unit_border, point_border, border,
-        g_border, cost,
+        band.reshape(n, w1, d, d), g_unit, v, g_point,
+        entry_major(w) if w_entries is None else w_entries,
+        unit_border, point_border, border, g_border, cost,
     )
-
-
-def _by_group(blocks: FloatArray, groups: int, n_g: int, q: int, d: int) -> FloatArray:
-    """Pair blocks (G n_g q, d, c) of a chunk as (G, q d, c n_g): per group,
-    the blocks of its points side by side, a row per unit parameter."""
-    c = blocks.shape[-1]
-    out: FloatArray = (
-        blocks.reshape(groups, n_g, q, d, c).transpose(0, 2, 3, 1, 4).reshape(groups, q * d, n_g * c)
-    )
-    return out
-
-
-def _by_point(blocks: FloatArray, groups: int, n_g: int, q: int, d: int) -> FloatArray:
-    """The inverse of :func:`_by_group`: (G, q d, c n_g) -> (G n_g q, d, c)."""
-    c = blocks.shape[-1] // n_g
-    out: FloatArray = (
-        blocks.reshape(groups, q, d, n_g, c).transpose(0, 3, 1, 2, 4).reshape(-1, d, c)
-    )
-    return out
-
-
-_Blocks = tuple[
-    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray,
-    FloatArray, FloatArray, float,
-]
 
 
 def _joined(arrays: list[_A]) -> _A:
@@ -184,15 +180,14 @@ def _joined(arrays: list[_A]) -> _A:
     return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
 
 
-def _fast_unit_point(
+def _pair_blocks(
     st: NormalStructure,
     unit_point_rows: Sequence[UnitPointRows],
     whitened: list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]],
-) -> _Blocks | None:
-    """The unit-point rows' blocks when they are the structure's own rows with
-    one row group per (unit, point) pair and the same r (the common case):
-    U (and U_b) per unit as one product of its rows stacked (zero-padded to
-    the most rows of a unit), W per pair, V per point.  None otherwise."""
+) -> PairBlocks | None:
+    """The unit-point rows' blocks by the entry-major kernels when they are the
+    structure's own rows with one row group per (unit, point) pair and the
+    same r (the common case); None otherwise."""
     pat = st.pattern
     if pat.pair_row is None or not whitened or len({a[0].shape[1] for a in whitened}) != 1:
         return None
@@ -200,33 +195,32 @@ def _fast_unit_point(
     point = _joined([np.asarray(r.point, np.intp) for r in unit_point_rows])
     if not (np.array_equal(unit, pat.row_unit) and np.array_equal(point, pat.row_point)):
         return None
-    n, d, p, k = st.n_units, st.unit_size, st.n_points, st.n_border
     au, ap, f, ab = (_joined([a[i] for a in whitened]) for i in range(4))
-    g, r = f.shape
-    padded = np.zeros((n, pat.rows_per_unit, r, d + k))
-    padded[unit, pat.unit_slot, :, :d] = au
-    if k:
-        padded[unit, pat.unit_slot, :, d:] = ab
-    stacked = padded.reshape(n, -1, d + k)
-    uu = np.swapaxes(stacked, 1, 2) @ stacked  # (n, d + k, d + k)
-    rows = pat.pair_row
-    ap_pairs = ap[rows]
-    w = np.swapaxes(au[rows], 1, 2) @ ap_pairs  # (n_pairs, d, 3)
-    # V, V_b and the points' gradients: the pairs of a point are contiguous
-    apb = np.concatenate([ap_pairs, ab[rows]], axis=2) if k else ap_pairs
-    starts, seen = pat.point_runs
-    vv = np.zeros((p, 3, 3 + k))
-    g_point = np.zeros((p, 3))
-    if starts.size:
-        vv[seen] = np.add.reduceat(np.swapaxes(ap_pairs, 1, 2) @ apb, starts, axis=0)
-        g_point[seen] = np.add.reduceat(np.einsum("gra,gr->ga", ap_pairs, f[rows]), starts, axis=0)
-    g_unit = sum_into(unit, np.einsum("gra,gr->ga", au, f), n)
-    border = uu[:, d:, d:].sum(axis=0)
-    g_border = np.einsum("gra,gr->a", ab, f) if k else np.zeros(0)
-    return (
-        uu[:, :d, :d], w, vv[:, :, :3].copy(), g_unit, g_point, uu[:, :d, d:].copy(),
-        vv[:, :, 3:].copy(), border, g_border, float(np.sum(f * f)),
+    return pair_blocks(pat, pat.pair_row, st.n_units, st.unit_size, st.n_points, st.n_border,
+                       au, ap, f, ab)
+
+
+def _group_major(x: FloatArray, c: Chunk, d: int, start: int | None = None) -> FloatArray:
+    """A chunk's pairs of entry-major X (d, e, g) as (G, q d, n_g e): per group
+    of points, the points' blocks side by side, a row per unit parameter;
+    the chunk's pairs from `start` in X (default: the chunk's own place)."""
+    e = x.shape[1]
+    lo = c.pair_start if start is None else start
+    span = x[:, :, lo : lo + c.groups * c.size * c.q]
+    out: FloatArray = (
+        span.reshape(d, e, c.groups, c.size, c.q).transpose(2, 4, 0, 3, 1)
+        .reshape(c.groups, c.q * d, c.size * e)
     )
+    return out
+
+
+def _pair_major(blocks: FloatArray, c: Chunk, d: int) -> FloatArray:
+    """The inverse of :func:`_group_major`: (G, q d, n_g e) -> (d, e, G n_g q)."""
+    e = blocks.shape[-1] // c.size
+    out: FloatArray = (
+        blocks.reshape(c.groups, c.q, d, c.size, e).transpose(2, 4, 0, 3, 1).reshape(d, e, -1)
+    )
+    return out
 
 
 @dataclass
@@ -238,7 +232,8 @@ class Reduced:
     point_step: FloatArray
     border_step: FloatArray
     v_inv: FloatArray  # (p, 3, 3), undamped when damping == 0
-    y: FloatArray  # (n_pairs, d, 3) W V⁻¹
+    z: FloatArray  # (d, 3, n_pairs) W Mᵀ, entry-major (M = L⁻¹, V = L Lᵀ)
+    m_pair: FloatArray  # (6, n_pairs) M of each pair's point
     y_border: FloatArray  # (p, k, 3) Vbᵀ V⁻¹
     x: FloatArray  # (n d, k) S⁻¹ Sb, position order
     t_inv: FloatArray  # (k, k) (Sbb - Sbᵀ S⁻¹ Sb)⁻¹
@@ -261,42 +256,55 @@ def _damped(normals: _Normals, damping: float) -> tuple[FloatArray, FloatArray, 
     return band, v, border
 
 
-def undetermined_points(v: FloatArray, tol: float) -> tuple[IntArray, FloatArray | None]:
-    """Points whose 3 x 3 block has ``λmin <= tol λmax`` and ``V⁻¹`` (None when
-    a block is exactly singular).  ``λmin / λmax >= 1 / (trace V⁻¹ trace V)``:
-    eigenvalues are computed only for the blocks below that bound."""
-    v_inv: FloatArray | None
-    try:
-        with np.errstate(all="ignore"):
-            inv: FloatArray = np.linalg.inv(v)  # type: ignore[assignment]
-        bound = 1.0 / (np.trace(inv, axis1=1, axis2=2) * np.trace(v, axis1=1, axis2=2))
-        near = np.flatnonzero(~(bound > tol))
-        v_inv = inv
-    except np.linalg.LinAlgError:  # an exactly singular block
-        v_inv = None
-        near = np.arange(v.shape[0])
+def undetermined_points(v: FloatArray, tol: float) -> tuple[IntArray, PointFactor]:
+    """Points whose 3 x 3 block has ``λmin <= tol λmax``, and the blocks'
+    Cholesky factors.  ``λmin / λmax >= 1 / (trace V⁻¹ trace V)``:
+    eigenvalues are computed only for the blocks below that bound (and those
+    whose factor failed)."""
+    pf = point_factor(v)
+    near = np.flatnonzero(~(pf.bound > tol))
     if near.size == 0:
-        return near, v_inv
+        return near, pf
     ev = np.linalg.eigvalsh(v[near])
-    return near[~(ev[:, 0] > tol * ev[:, 2])], v_inv
+    return near[~(ev[:, 0] > tol * ev[:, 2])], pf
 
 
-def _point_inverse(st: NormalStructure, v: FloatArray) -> FloatArray:
-    """V⁻¹ of every point; SingularNormalsError naming the first undetermined one."""
+def _point_factor(st: NormalStructure, v: FloatArray) -> PointFactor:
+    """V = L Lᵀ of every point; SingularNormalsError naming the first undetermined one."""
 
-    if v.shape[0] == 0:
-        return v.copy()
-    bad, v_inv = undetermined_points(v, POINT_RANK_TOL)
-    if bad.size or v_inv is None:
-        i = int(bad[0]) if bad.size else 0
+    bad, pf = undetermined_points(v, POINT_RANK_TOL)
+    if bad.size or not np.all(np.isfinite(pf.m)):
+        i = int(bad[0]) if bad.size else int(np.flatnonzero(~np.isfinite(pf.m).all(axis=0))[0])
         raise SingularNormalsError(
-            f"{bad.size} point(s) not determined, the first {st.point_name(i)}: "
+            f"{max(bad.size, 1)} point(s) not determined, the first {st.point_name(i)}: "
             "its 3 x 3 normal block is singular (a point needs rays from two units, or "
             "control that fixes it)",
             "point",
             i,
         )
-    return v_inv
+    return pf
+
+
+def _schur_band(st: NormalStructure, band: FloatArray, z: FloatArray) -> FloatArray:
+    """``U - Σ_points Z Zᵀ`` in the band (n, w+1, d, d), Z = W L⁻ᵀ per pair:
+    per group of points with the same units one product (q d, 3 n_g) x
+    (3 n_g, q d), its lower blocks summed into the band by their targets."""
+    pat = st.pattern
+    n, d = st.n_units, st.unit_size
+    w1 = pat.width + 1
+    dd = d * d
+    flat_blocks = band.reshape(n * w1, dd).copy()
+    for c in pat.chunks:
+        zc = _group_major(z, c, d)
+        sums = zc @ np.swapaxes(zc, 1, 2)  # (G, qd, qd)
+        blocks = sums.reshape(-1, c.q, d, c.q, d).transpose(0, 1, 3, 2, 4)[:, c.lower_a, c.lower_b]
+        if c.scatter_unique is None or c.scatter_inverse is None:  # every target once
+            flat_blocks[c.scatter.reshape(-1)] -= blocks.reshape(-1, dd)
+        else:  # summed over the chunk's blocks with the same target first
+            flat_blocks[c.scatter_unique] -= sum_into(
+                c.scatter_inverse, blocks.reshape(-1, dd), c.scatter_unique.size
+            )
+    return flat_blocks.reshape(n, w1, d, d)
 
 
 def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Reduced:
@@ -308,30 +316,19 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
 
     pat = st.pattern
     n, d, k = st.n_units, st.unit_size, st.n_border
-    w1 = pat.width + 1
     band, v, border = _damped(normals, damping)
-    v_inv = _point_inverse(st, v)
-    y = normals.w @ v_inv[pat.pair_point]  # (n_pairs, d, 3)
-    flat = band.reshape(-1).copy()
-    dd = d * d
-    flat_blocks = flat.reshape(n * w1, dd)
-    for c in pat.chunks:
-        q, n_g, groups = c.q, c.size, c.groups
-        span = slice(c.pair_start, c.pair_start + groups * n_g * q)
-        # per group: [Y of its points side by side] (qd, 3 n_g) times the same of W
-        yc = _by_group(y[span], groups, n_g, q, d)
-        wc = _by_group(normals.w[span], groups, n_g, q, d)
-        sums = yc @ np.swapaxes(wc, 1, 2)  # (G, qd, qd)
-        blocks = sums.reshape(-1, q, d, q, d).transpose(0, 1, 3, 2, 4)[:, c.lower_a, c.lower_b]
-        # summed over the distinct blocks of the chunk (several groups add
-        # into one block of the band)
-        flat_blocks[c.scatter_unique] -= sum_into(
-            c.scatter_inverse, blocks.reshape(-1, dd), c.scatter_unique.size
-        )
-    s_band = flat.reshape(n, w1, d, d)
+    pf = (
+        _point_factor(st, v) if v.shape[0]
+        else PointFactor(np.zeros((6, 0)), v.copy(), v[:, 0, 0])
+    )
+    m_pair = take(pf.m, pat.pair_point)
+    z = times_lower_t(normals.w, m_pair)  # (d, 3, n_pairs)
+    s_band = _schur_band(st, band, z)
     b_point = -normals.g_point
-    rhs_unit = -normals.g_unit - sum_into(
-        pat.pair_unit, np.einsum("pij,pj->pi", y, b_point[pat.pair_point]), n
+    mb = lower_times(pf.m, b_point.T)  # (3, p): M b_p
+    # Σ_pairs W V⁻¹ b_p = Σ Z (M b_p), by unit
+    rhs_unit = -normals.g_unit - run_sums(
+        np.einsum("ack,ck->ak", z, take(mb, pat.pair_point)), pat.pair_unit_runs, n
     )
     try:
         factor = factor_band(s_band)
@@ -353,33 +350,37 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     border_step = np.zeros(k)
     border_min_pivot = np.inf
     if k:
-        # Sb = Ub - Σ Y Vb ; Sbb = C - Σ Vbᵀ V⁻¹ Vb ; rb = b_b - Σ Vbᵀ V⁻¹ b_p
+        # Sb = Ub - Σ W V⁻¹ Vb ; Sbb = C - Σ Vbᵀ V⁻¹ Vb ; rb = b_b - Σ Vbᵀ V⁻¹ b_p,
+        # with V⁻¹ = Mᵀ M
         vb = normals.point_border
-        s_b = normals.unit_border - sum_into(pat.pair_unit, y @ vb[pat.pair_point], n)
-        y_border = np.swapaxes(vb, 1, 2) @ v_inv  # (p, k, 3)
-        s_bb = border - np.einsum("pki,pil->kl", y_border, vb)
-        r_b = -normals.g_border - np.einsum("pki,pi->k", y_border, b_point)
-        x = factor.solve(s_b[order].reshape(n * d, k))
-        t = s_bb - s_b[order].reshape(n * d, k).T @ x
+        mvb = lower_times(pf.m, np.moveaxis(vb, 0, -1))  # (3, k, p)
+        s_b = normals.unit_border - run_sums(
+            np.einsum("ack,cbk->abk", z, take(mvb, pat.pair_point)), pat.pair_unit_runs, n
+        )
+        y_border = np.moveaxis(lower_t_times(pf.m, mvb), -1, 0).transpose(0, 2, 1)  # (p, k, 3)
+        s_bb = border - np.einsum("cap,cbp->ab", mvb, mvb)
+        r_b = -normals.g_border - np.einsum("cap,cp->a", mvb, mb)
+        s_b_pos = s_b[order].reshape(n * d, k)
+        x = factor.solve(s_b_pos)
+        t = s_bb - s_b_pos.T @ x
         t_inv, border_min_pivot = _border_inverse(st, t)
         u0 = factor.solve(rhs_pos)
-        border_step = t_inv @ (r_b - s_b[order].reshape(n * d, k).T @ u0)
+        border_step = t_inv @ (r_b - s_b_pos.T @ u0)
         x_pos = u0 - x @ border_step
     else:
         x_pos = factor.solve(rhs_pos)
     unit_step = np.empty((n, d))
     unit_step[order] = x_pos.reshape(n, d)
     # points: V⁻¹ (b_p - Σ Wᵀ δu - Vb δb)
-    t_p = b_point - sum_into(
-        pat.pair_point,
-        np.einsum("pij,pi->pj", normals.w, unit_step[pat.pair_unit]),
+    t_p = b_point - run_sums(
+        np.einsum("abk,ak->bk", normals.w, take(unit_step.T, pat.pair_unit)), pat.point_runs,
         st.n_points,
     )
     if k:
         t_p -= normals.point_border @ border_step
-    point_step = np.einsum("pij,pj->pi", v_inv, t_p)
+    point_step = np.ascontiguousarray(lower_t_times(pf.m, lower_times(pf.m, t_p.T)).T)
     return Reduced(
-        factor, unit_step, point_step, border_step, v_inv, y, y_border, x, t_inv,
+        factor, unit_step, point_step, border_step, pf.v_inv, z, m_pair, y_border, x, t_inv,
         border_min_pivot, normals,
     )
 
@@ -427,7 +428,9 @@ def predicted_cost(st: NormalStructure, red: Reduced) -> float:
         val = float(np.einsum("ja,jab,jb->", x[o:], band[: n - o, o], x[: n - o]))
         quad += val if o == 0 else 2.0 * val
     quad += float(np.einsum("pa,pab,pb->", dp, normals.v, dp))
-    quad += 2.0 * float(np.einsum("pa,pab,pb->", du[pat.pair_unit], normals.w, dp[pat.pair_point]))
+    quad += 2.0 * float(
+        np.einsum("ak,abk,bk->", du[pat.pair_unit].T, normals.w, dp[pat.pair_point].T)
+    )
     if db.size:
         quad += float(db @ normals.border @ db)
         quad += 2.0 * float(np.einsum("na,nab,b->", du, normals.unit_border, db))
@@ -456,9 +459,9 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
             z[: n - o, o] += xt[o:] @ np.swapaxes(xb[: n - o], 1, 2)
         q_ub = -xt
     q_bb = red.t_inv
-    v_inv, y, y_border = red.v_inv, red.y, red.y_border
-    point = v_inv.copy()
-    pair = np.zeros((pat.pair_unit.size, d, 3))
+    y_border = red.y_border
+    pair = np.zeros((d, 3, pat.pair_unit.size))
+    point = red.v_inv.copy()
     point_border = np.zeros((p, 3, k))
     zflat = z.reshape(-1, d, d)
     for c in pat.chunks:
@@ -468,7 +471,8 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
         blocks = zflat[c.gather]  # (G, q, q, d, d): the same for all points of a group
         blocks = np.where(c.upper[None, :, :, None, None], np.swapaxes(blocks, -1, -2), blocks)
         q_rr = blocks.transpose(0, 1, 3, 2, 4).reshape(groups, qd, qd)
-        y_r = _by_group(y[span], groups, n_g, q, d)  # (G, qd, 3 n_g)
+        y = times_lower(red.z[..., span], red.m_pair[..., span])  # W V⁻¹ = Z M of the chunk
+        y_r = _group_major(y, c, d, 0)  # (G, qd, 3 n_g)
         if k:
             units = pat.pair_unit[span].reshape(groups, n_g, q)[:, 0]  # (G, q)
             ub = q_ub[pat.position[units]].reshape(groups, qd, k)
@@ -479,20 +483,18 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
             q_rr = np.concatenate([top, bottom], axis=1)
             yb = y_border[c.points].reshape(groups, n_g, k, 3).transpose(0, 2, 1, 3)
             y_r = np.concatenate([y_r, yb.reshape(groups, k, n_g * 3)], axis=1)
-        t = q_rr @ y_r  # (G, qd + k, 3 n_g)
-        # Q_pp = V⁻¹ + Yᵀ Q_RR Y per point: the 3 x 3 diagonal blocks of y_rᵀ t
-        yt = np.einsum("gmpi,gmpj->gpij", y_r.reshape(groups, -1, n_g, 3),
-                       t.reshape(groups, -1, n_g, 3))
-        point[c.points] += yt.reshape(-1, 3, 3)
-        pair[span] = -_by_point(t[:, :qd], groups, n_g, q, d)
+        t = q_rr @ y_r  # (G, qd + k, 3 n_g): -Q_Rp
+        pair[:, :, span] = -_pair_major(t[:, :qd], c, d)
+        # Q_pp = V⁻¹ + Yᵀ Q_RR Y = V⁻¹ - Σ_pairs Yᵀ Q_up (the border's share below)
+        yq = np.einsum("aik,ajk->ijk", y, pair[:, :, span])  # (3, 3, pairs of the chunk)
+        point[c.points] -= np.moveaxis(yq.reshape(3, 3, -1, q).sum(axis=-1), -1, 0)
         if k:
             tb = t[:, qd:].reshape(groups, k, n_g, 3).transpose(0, 2, 3, 1)  # (G, n_g, 3, k)
             point_border[c.points] = -tb.reshape(-1, 3, k)
-    if k:
+    if k:  # and - Y_bᵀ Q_pbᵀ
         alone = np.bincount(pat.pair_point, minlength=p) == 0
-        t = q_bb @ y_border[alone]  # (a, k, 3)
-        point[alone] += np.swapaxes(y_border[alone], 1, 2) @ t
-        point_border[alone] = -np.swapaxes(t, 1, 2)
+        point_border[alone] = -np.swapaxes(q_bb @ y_border[alone], 1, 2)
+        point -= np.einsum("pki,pjk->pij", y_border, point_border)
     return Cofactors(
         structure=st,
         unit=z[pat.position, 0],
@@ -516,28 +518,50 @@ def _quadratic(a: FloatArray, c: FloatArray) -> FloatArray:
     return out
 
 
+def _pair_leverage(cof: Cofactors, rows: UnitPointRows) -> FloatArray:
+    """``diag(T A Q Aᵀ Tᵀ)`` (g, r) of unit-point rows, entry-major: per row
+    ``a_u Q_uu a_uᵀ + 2 a_u Q_up a_pᵀ + a_p Q_pp a_pᵀ`` (and the border's terms),
+    each block gathered per row as (…, g)."""
+    st = cof.structure
+    pat = st.pattern
+    k = st.n_border
+    au, ap, _, ab = rows.whitened(k, st.unit_size)
+    unit = np.asarray(rows.unit, np.intp)
+    point = np.asarray(rows.point, np.intp)
+    same = np.array_equal(unit, pat.row_unit) and np.array_equal(point, pat.row_point)
+    pairs = pat.row_pair if same else pat.pair_of(unit, point)
+    a_u, a_p = entry_major(au), entry_major(ap)
+    a_b = entry_major(ab) if k else None
+    q_unit, q_point = entry_major(cof.unit), entry_major(cof.point)
+    q_ub, q_pb = entry_major(cof.unit_border), entry_major(cof.point_border)
+
+    def form(a: FloatArray, q: FloatArray, b: FloatArray) -> FloatArray:
+        # Σ_ij a[r, i] q[i, j] b[r, j] per row: (r, m)
+        out: FloatArray = np.einsum("rik,rik->rk", a, np.einsum("ijk,rjk->rik", q, b))
+        return out
+
+    h = np.empty((a_u.shape[0], a_u.shape[2]))  # (r, g)
+    for lo in range(0, h.shape[1], BLOCK):  # blocks of rows: the gathered blocks stay small
+        at = slice(lo, lo + BLOCK)
+        u, pt = unit[at], point[at]
+        bu, bp = a_u[..., at], a_p[..., at]
+        part = form(bu, take(q_unit, u), bu) + 2.0 * form(bu, take(cof.pair, pairs[at]), bp)
+        part += form(bp, take(q_point, pt), bp)
+        if a_b is not None:
+            bb = a_b[..., at]
+            part += 2.0 * form(bu, take(q_ub, u), bb) + 2.0 * form(bp, take(q_pb, pt), bb)
+            part += np.einsum("rik,ij,rjk->rk", bb, cof.border, bb)
+        h[:, at] = part
+    return h.T
+
+
 def leverage(cof: Cofactors, rows: Rows) -> FloatArray:
     """``diag(T A Q Aᵀ Tᵀ)`` (g, r) of rows of any kind."""
 
     st = cof.structure
     k = st.n_border
     if isinstance(rows, UnitPointRows):
-        au, ap, _, ab = rows.whitened(k, st.unit_size)
-        unit = np.asarray(rows.unit, np.intp)
-        point = np.asarray(rows.point, np.intp)
-        q_up = cof.unit_point(unit, point)
-
-        def form(a: FloatArray, q: FloatArray, b: FloatArray) -> FloatArray:
-            out: FloatArray = np.sum((a @ q) * b, axis=2)
-            return out
-
-        h = form(au, cof.unit[unit], au) + 2.0 * form(au, q_up, ap)
-        h += form(ap, cof.point[point], ap)
-        if k:
-            h += 2.0 * form(au, cof.unit_border[unit], ab)
-            h += 2.0 * form(ap, cof.point_border[point], ab)
-            h += np.sum((ab @ cof.border) * ab, axis=2)
-        return h
+        return _pair_leverage(cof, rows)
     if isinstance(rows, UnitRows):
         a, _, ab = rows.whitened(k, st.unit_size)
         units = np.asarray(rows.units, np.intp)
@@ -570,8 +594,8 @@ class Cofactors:
     ``unit`` (n, d, d), ``point`` (p, 3, 3), ``border`` (k, k),
     ``unit_border`` (n, d, k), ``point_border`` (p, 3, k); ``band`` (n, w+1,
     d, d) the band in the structure's order (``band[J, o] = Q[order[J + o],
-    order[J]]``), ``pair`` (n_pairs, d, 3) the unit-point blocks of the
-    pattern's pairs."""
+    order[J]]``), ``pair`` (d, 3, n_pairs) the unit-point blocks of the
+    pattern's pairs, entry-major."""
 
     structure: NormalStructure  # the structure the blocks follow
     unit: FloatArray
@@ -596,7 +620,8 @@ class Cofactors:
         pairs = self.structure.pattern.pair_of(
             np.asarray(unit, dtype=np.intp), np.asarray(point, dtype=np.intp)
         )
-        return self.pair[pairs]
+        out: FloatArray = np.moveaxis(self.pair[..., pairs], -1, 0)
+        return out
 
     def redundancy(self, rows: Rows) -> FloatArray:
         """Redundancy numbers ``1 - (T A Q Aᵀ Tᵀ)ᵢᵢ`` (g, r) of rows (with the

@@ -15,6 +15,7 @@ the band together.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +37,13 @@ class Chunk:
     position).  ``scatter`` (G, q(q+1)/2) is the band block index
     ``J (w + 1) + o`` of each lower pair (a >= b) of a group's units,
     ``gather`` (G, q, q) that of every pair (a, b) and ``upper`` (q, q) where
-    that block is the transpose of the stored one (a < b)."""
+    that block is the transpose of the stored one (a < b).
+
+    The lower blocks ``(lower_a, lower_b)`` of the groups' Schur products go
+    into the band at ``scatter``; where several of a chunk's blocks add into
+    one band block, ``scatter_unique`` are the distinct targets and
+    ``scatter_inverse`` (G q(q+1)/2,) the place of each block among them
+    (None when every target is distinct)."""
 
     q: int
     size: int
@@ -47,10 +54,8 @@ class Chunk:
     upper: BoolArray
     lower_a: IntArray
     lower_b: IntArray
-    #: the distinct band blocks of ``scatter`` and the place of each entry
-    #: of ``scatter`` (flattened) among them
-    scatter_unique: IntArray
-    scatter_inverse: IntArray
+    scatter_unique: IntArray | None
+    scatter_inverse: IntArray | None
 
     @property
     def groups(self) -> int:
@@ -75,8 +80,12 @@ class Pattern:
     unit_slot: IntArray  # (G,) place of each row among its unit's rows
     rows_per_unit: int  # the most rows of one unit
     pair_row: IntArray | None  # (n_pairs,) the row of each pair when there is one each
-    #: the first pair of each point's run of pairs, and those points
-    point_runs: tuple[IntArray, IntArray]
+    #: runs of the pairs by point (contiguous: no order), of the pairs by
+    #: unit and of the rows by unit (None: the rows are sorted by unit), each
+    #: (order, first of each run, its point or unit), for entry_major.run_sums
+    point_runs: tuple[IntArray | None, IntArray, IntArray]
+    pair_unit_runs: tuple[IntArray | None, IntArray, IntArray]
+    row_unit_runs: tuple[IntArray | None, IntArray, IntArray]
     pair_by_key: IntArray  # the pair of each sorted key
 
     def pair_of(self, unit: IntArray, point: IntArray) -> IntArray:
@@ -200,9 +209,7 @@ def build_pattern(
     renum = np.empty_like(old)
     renum[old] = np.arange(old.size)
     chunks = [
-        Chunk(c.q, c.size, c.points, int(renum[c.pair_start]), c.scatter, c.gather, c.upper,
-              c.lower_a, c.lower_b, c.scatter_unique, c.scatter_inverse)
-        for c in chunks
+        dataclasses.replace(c, pair_start=int(renum[c.pair_start])) for c in chunks
     ]
     pair_key = pp[old] * n + position[pu[old]]
     key_order = np.argsort(pair_key)
@@ -233,22 +240,33 @@ def build_pattern(
         unit_slot=unit_slot,
         rows_per_unit=int(counts.max(initial=0)),
         pair_row=pair_row,
-        point_runs=_runs(pp[old]),
+        point_runs=runs_of(pp[old]),
+        pair_unit_runs=runs_of(pu[old]),
+        row_unit_runs=runs_of(row_unit),
     )
 
 
-def _runs(pair_point: IntArray) -> tuple[IntArray, IntArray]:
-    """Starts of the runs of equal points in the pairs' order, and their points."""
-    if pair_point.size == 0:
-        return np.zeros(0, np.intp), np.zeros(0, np.intp)
-    starts = np.flatnonzero(np.r_[True, pair_point[1:] != pair_point[:-1]]).astype(np.intp)
-    return starts, pair_point[starts].astype(np.intp)
+def runs_of(index: IntArray) -> tuple[IntArray | None, IntArray, IntArray]:
+    """The runs of equal values of `index`: (the stable order that makes each
+    value's places contiguous, None when they already are; the first place of
+    each run in that order; the value of each run)."""
+    index = np.asarray(index, np.intp)
+    if index.size == 0:
+        return None, np.zeros(0, np.intp), np.zeros(0, np.intp)
+    starts = np.flatnonzero(np.r_[True, index[1:] != index[:-1]]).astype(np.intp)
+    values = index[starts]
+    if np.all(values[1:] > values[:-1]) or np.bincount(values - values.min()).max() == 1:
+        return None, starts, values
+    order = np.argsort(index, kind="stable").astype(np.intp)
+    return (order, *runs_of(index[order])[1:])
 
 
-def _compressed(index: list[IntArray]) -> tuple[IntArray, IntArray]:
-    flat = np.concatenate(index) if index else np.zeros(0, np.intp)
-    uniq, inverse = np.unique(flat, return_inverse=True)
-    return uniq.astype(np.intp), inverse.astype(np.intp).reshape(-1)
+def sorted_unique(values: IntArray) -> IntArray:
+    """``np.unique(values)`` by a sort (numpy's own hashes, which is slower on
+    the index arrays here)."""
+    flat = np.sort(np.asarray(values).reshape(-1))
+    out: IntArray = flat[np.r_[True, flat[1:] != flat[:-1]]] if flat.size else flat
+    return out
 
 
 def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray,
@@ -272,10 +290,14 @@ def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray
         gs = gs_all[g0:g1]
         scatter = gs[:, b_idx] * w1 + (gs[:, a_idx] - gs[:, b_idx])
         gather = gs[:, lo] * w1 + (gs[:, hi] - gs[:, lo])
-        uniq, inverse = _compressed([scatter.reshape(-1)])
+        flat = scatter.reshape(-1)
+        uniq, inverse = np.unique(flat, return_inverse=True)
+        distinct = uniq.size == flat.size
         out.append(
             Chunk(q, n_g, pts[g0 * n_g : g1 * n_g], int(pairs[g0 * n_g, 0]),
                   scatter.astype(np.intp), gather.astype(np.intp), upper,
-                  a_idx.astype(np.intp), b_idx.astype(np.intp), uniq, inverse)
+                  a_idx.astype(np.intp), b_idx.astype(np.intp),
+                  None if distinct else uniq.astype(np.intp),
+                  None if distinct else inverse.astype(np.intp).reshape(-1))
         )
     return out

@@ -182,11 +182,11 @@ def _border(a: FloatArray | None, g: int, r: int, k: int) -> FloatArray:
 class _Normals:
     """The normal blocks at one linearisation (position order for the band)."""
 
-    band: FloatArray  # (n, w+1, d, d) U - W V⁻¹ Wᵀ, position order
+    band: FloatArray  # (n, w+1, d, d) U alone, position order
     g_unit: FloatArray  # (n, d) Aᵀ T f by unit
     v: FloatArray  # (p, 3, 3)
     g_point: FloatArray  # (p, 3)
-    w: FloatArray  # (n_pairs, d, 3)
+    w: FloatArray  # (d, 3, n_pairs), entry-major (the pairs last)
     unit_border: FloatArray  # (n, d, k)
     point_border: FloatArray  # (p, 3, k)
     border: FloatArray  # (k, k)

@@ -53,10 +53,34 @@ def project(
         Computed image coordinates, mm.
     v : ndarray, shape (K, 3)
         ``Rᵀ (X − S)`` (``v_z < 0`` for a point in front of the photo).
+
+    Both are views of arrays laid out coordinate by coordinate (the K
+    observations contiguous), as the normal equations read them.
     """
-    v = image_vectors(centres[photo], rotations[photo], points[point])
-    xy = -principal_distance * v[:, :2] / v[:, 2:3]
-    return xy, v
+    v = _vectors(centres, rotations, points, photo, point)[0]
+    xy = np.empty((2, v.shape[1]))
+    np.multiply(v[:2], -principal_distance / v[2], out=xy)
+    return xy.T, v.T
+
+
+def _vectors(
+    centres: FloatArray,
+    rotations: FloatArray,
+    points: FloatArray,
+    photo: IntArray,
+    point: IntArray,
+) -> tuple[FloatArray, FloatArray]:
+    """``v = Rᵀ (X − S)`` (3, K) and the rays' rotations R (9, K) (entry
+    ``3 j + a`` is ``R[j, a]``), coordinate-major."""
+    rot = np.take(np.asarray(rotations, np.float64).reshape(-1, 9).T, photo, axis=1)
+    diff = np.take(np.asarray(points, np.float64).T, point, axis=1)
+    diff -= np.take(np.asarray(centres, np.float64).T, photo, axis=1)
+    v = np.empty((3, diff.shape[1]))
+    for a in range(3):  # v_a = Σ_j R[j, a] (X − S)_j
+        np.multiply(rot[a], diff[0], out=v[a])
+        v[a] += rot[3 + a] * diff[1]
+        v[a] += rot[6 + a] * diff[2]
+    return v, rot
 
 
 def image_jacobian(v: FloatArray, principal_distance: float) -> FloatArray:
@@ -90,25 +114,35 @@ def collinearity_jacobians(
         ``S <- S + dS``, ``R <- R @ exp([δ]×)`` (δ about the image axes).
     jac_point : ndarray, shape (K, 2, 3)
         d(x, y) / dX, mm per unit.
+
+    Views of arrays laid out entry by entry, the K observations contiguous
+    (``np.moveaxis(jac_photo, 0, -1)`` is C-contiguous), as
+    :mod:`strip_aerotri.geometry.normals` reads them.
     """
-    xy, v = project(centres, rotations, points, photo, point, principal_distance)
+    v, rot = _vectors(centres, rotations, points, photo, point)
     # d(x, y)/dv = f [[1, 0, -v_x/v_z], [0, 1, -v_y/v_z]] with f = -c / v_z;
     # dv/dX = Rᵀ, dv/dS = −Rᵀ, dv/dδ = [v]×  (Rᵀ <- (I − [δ]×) Rᵀ), written
-    # out term by term (the 2 x 3 factor has four nonzeros)
-    f = -principal_distance / v[:, 2]
-    ux, uy = v[:, 0] / v[:, 2], v[:, 1] / v[:, 2]
-    rot = rotations[photo]  # (K, 3, 3); row a of Rᵀ is column a of R
-    jac_point = np.empty((v.shape[0], 2, 3))
-    jac_point[:, 0] = f[:, None] * (rot[:, :, 0] - ux[:, None] * rot[:, :, 2])
-    jac_point[:, 1] = f[:, None] * (rot[:, :, 1] - uy[:, None] * rot[:, :, 2])
-    vx, vy, vz = v[:, 0], v[:, 1], v[:, 2]
-    jac_photo = np.empty((v.shape[0], 2, 6))
-    jac_photo[:, :, :3] = -jac_point
+    # out term by term (the 2 x 3 factor has four nonzeros), each entry an
+    # array over the K observations
+    vx, vy, vz = v
+    f = -principal_distance / vz
+    ux, uy = vx / vz, vy / vz
+    k = vz.size
+    xy = np.stack([f * vx, f * vy])
+    jac_point = np.empty((2, 3, k))
+    for b in range(3):  # row b of Rᵀ ... column b of R: R[b, 0], R[b, 1], R[b, 2]
+        np.multiply(f, rot[3 * b] - ux * rot[3 * b + 2], out=jac_point[0, b])
+        np.multiply(f, rot[3 * b + 1] - uy * rot[3 * b + 2], out=jac_point[1, b])
+    jac_photo = np.empty((2, 6, k))
+    np.negative(jac_point, out=jac_photo[:, :3])
     # rows of d_v times [v]× = [[0, -vz, vy], [vz, 0, -vx], [-vy, vx, 0]]
-    jac_photo[:, 0, 3] = f * ux * vy
-    jac_photo[:, 0, 4] = -f * (vz + ux * vx)
-    jac_photo[:, 0, 5] = f * vy
-    jac_photo[:, 1, 3] = f * (vz + uy * vy)
-    jac_photo[:, 1, 4] = -f * uy * vx
-    jac_photo[:, 1, 5] = -f * vx
-    return xy, v, jac_photo, jac_point
+    fu, fv = f * ux, f * uy
+    jac_photo[0, 3] = fu * vy
+    jac_photo[0, 4] = -(f * vz + fu * vx)
+    jac_photo[0, 5] = f * vy
+    jac_photo[1, 3] = f * vz + fv * vy
+    jac_photo[1, 4] = -fv * vx
+    jac_photo[1, 5] = -f * vx
+    return (
+        xy.T, v.T, np.moveaxis(jac_photo, -1, 0), np.moveaxis(jac_point, -1, 0)
+    )

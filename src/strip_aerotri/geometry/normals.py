@@ -97,7 +97,7 @@ from ._normal_assembly import (
     reduce_points,
     undetermined_points,
 )
-from ._normal_pattern import Pattern, bandwidth, build_pattern, unit_graph_order
+from ._normal_pattern import Pattern, bandwidth, build_pattern, sorted_unique, unit_graph_order
 from ._normal_rows import (
     POINT_RANK_TOL,
     BorderRows,
@@ -209,7 +209,7 @@ class NormalStructure:
             given = np.arange(n, dtype=np.intp)
             if order == "given":
                 return given
-            pairs = np.unique(row_point * n + row_unit)
+            pairs = sorted_unique(row_point * n + row_unit)
             point_pairs = (pairs // n, pairs % n)
             if order == "rcm":
                 return unit_graph_order(n, point_pairs, sets)

@@ -1,0 +1,262 @@
+"""Entry-major kernels of the structured normal equations (method.md 6B).
+
+The small blocks of the problem (a pair's r x d Jacobian, its d x 3 coupling
+W, a point's 3 x 3 V) are held one array per entry, the pairs or points last
+and contiguous: shape ``(*block, m)``.  A product of blocks is then an
+``einsum`` over long vectors and a sum per unit or point an
+``np.add.reduceat`` over its run, where the same products as batches of
+(m, r, d) matrices spend most of their time per tiny matrix (a 2 x 6 times
+2 x 3 product per image ray).
+
+Used by :mod:`strip_aerotri.geometry._normal_assembly` for the common case:
+unit-point rows that are the structure's own rows, one group of r rows per
+(unit, point) pair.  Shapes: g pairs (in the pattern's order: by point, and
+within a point by the unit's place along the band), p points, n units of d
+parameters, k border parameters.
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import NamedTuple
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+from ._normal_pattern import Pattern
+
+__all__ = [
+    "PairBlocks",
+    "PointFactor",
+    "entry_major",
+    "pair_blocks",
+    "point_factor",
+    "run_sums",
+    "take",
+]
+
+
+def entry_major(a: FloatArray) -> FloatArray:
+    """``(m, *block) -> (*block, m)``, C-contiguous (no copy when the memory of
+    `a` is already laid out so, as
+    :func:`~strip_aerotri.geometry.collinearity.collinearity_jacobians` lays
+    out its Jacobians)."""
+    t = np.moveaxis(a, 0, -1)
+    return t if t.flags.c_contiguous else np.ascontiguousarray(t)
+
+
+def take(values: FloatArray, index: IntArray) -> FloatArray:
+    """``values[..., index]`` of entry-major values, entry-major (C order;
+    numpy's own ``values[..., index]`` puts the indexed axis first in memory)."""
+    out: FloatArray = np.take(values, index, axis=-1)
+    return out
+
+
+def run_sums(values: FloatArray, runs: tuple[IntArray | None, IntArray, IntArray],
+             n: int) -> FloatArray:
+    """Sums of entry-major `values` (*block, m) over the runs of an index:
+    ``runs`` = (the order that makes the index's equal values contiguous, or
+    None when it already is; the start of each run in that order; the value of
+    each run).  Returns (n, *block), zero where the index has no entry."""
+    order, starts, seen = runs
+    out = np.zeros((n, *values.shape[:-1]))
+    if starts.size:
+        ordered = values if order is None else take(values, order)
+        out[seen] = np.moveaxis(np.add.reduceat(ordered, starts, axis=-1), -1, 0)
+    return out
+
+
+class PairBlocks(NamedTuple):
+    """The normal blocks of the pairs' rows: ``u`` (n, d, d) per unit, ``w``
+    (d, 3, g) per pair (entry-major), ``v`` (p, 3, 3) per point, the
+    gradients ``g_unit`` (n, d) and ``g_point`` (p, 3), the border's blocks
+    ``unit_border`` (n, d, k), ``point_border`` (p, 3, k), ``border`` (k, k),
+    ``g_border`` (k,), and the cost ``Σ‖T f‖²``."""
+
+    u: FloatArray
+    w: FloatArray
+    v: FloatArray
+    g_unit: FloatArray
+    g_point: FloatArray
+    unit_border: FloatArray
+    point_border: FloatArray
+    border: FloatArray
+    g_border: FloatArray
+    cost: float
+
+
+#: Places (rows or pairs) per block of the blocked products: a block's
+#: products stay in the processor's cache until they are summed, where the
+#: products of all rows at once (30 MB for the 6 x 6 blocks of 100 000 rows)
+#: would go through memory.
+BLOCK = 16384
+
+
+def blocks_of(runs: tuple[IntArray | None, IntArray, IntArray],
+              size: int) -> list[tuple[slice, slice | IntArray, IntArray, IntArray]]:
+    """Blocks of about :data:`BLOCK` places of an index of `size` places, cut
+    between its runs (``runs`` as :func:`run_sums` takes them).  Per block:
+    its span in the runs' order, the index's places there (the span itself
+    when the runs need no order), the starts of its runs within the block
+    and their values."""
+    order, starts, seen = runs
+    if starts.size == 0:
+        return []
+    first = np.unique(np.searchsorted(starts, np.arange(0, size, BLOCK), side="right") - 1)
+    ends = np.r_[first[1:], starts.size]
+    out: list[tuple[slice, slice | IntArray, IntArray, IntArray]] = []
+    for i0, i1 in zip(first.tolist(), ends.tolist(), strict=True):
+        lo = int(starts[i0])
+        hi = int(starts[i1]) if i1 < starts.size else size
+        span = slice(lo, hi)
+        out.append((span, span if order is None else order[span], starts[i0:i1] - lo,
+                    seen[i0:i1]))
+    return out
+
+
+def pair_blocks(
+    pat: Pattern, rows: IntArray, n: int, d: int, p: int, k: int,
+    au: FloatArray, ap: FloatArray, f: FloatArray, ab: FloatArray,
+) -> PairBlocks:
+    """The normal blocks of whitened rows given in the structure's row order:
+    ``au`` (G, r, d), ``ap`` (G, r, 3), ``f`` (G, r), ``ab`` (G, r, k), in
+    any memory layout; ``rows`` (G,) the row of each pair (``pat.pair_row``).
+
+    The rows' entries are put side by side, one record a row, and read back
+    block by block (:func:`blocks_of`), each block entry-major while in cache:
+    per unit the rows in their own order, per pair and per point the rows in
+    the pairs' order (gathering records moves whole rows, six times faster
+    than gathering each entry's array).  Besides the blocks, one copy of the
+    rows is held at a time."""
+    g, r = f.shape
+    parts = [au, ap, f[:, :, None]] + ([ab] if k else [])
+    bounds = list(itertools.pairwise(np.cumsum([0] + [r * x.shape[2] for x in parts]).tolist()))
+    records = np.empty((g, bounds[-1][1]))
+    for x, (lo, _) in zip(parts, bounds, strict=True):
+        m = x.shape[2]
+        for i in range(r):
+            records[:, lo + i * m : lo + (i + 1) * m] = x[:, i]
+
+    def entries(block: FloatArray) -> list[FloatArray]:
+        # a block of records (b, width) -> entry-major pieces (r, m, b)
+        em = np.ascontiguousarray(block.T)
+        return [em[lo:hi].reshape(r, -1, em.shape[1]) for lo, hi in bounds]
+
+    u, g_unit = np.zeros((n, d, d)), np.zeros((n, d))
+    unit_border, point_border = np.zeros((n, d, k)), np.zeros((p, 3, k))
+    for _, places, starts, seen in blocks_of(pat.row_unit_runs, g):
+        bu, _, bf, *bb = entries(records[places])
+        u[seen] = _summed(np.einsum("rak,rbk->abk", bu, bu), starts)
+        g_unit[seen] = _summed(np.einsum("rak,rk->ak", bu, bf[:, 0]), starts)
+        if bb:
+            unit_border[seen] = _summed(np.einsum("rak,rbk->abk", bu, bb[0]), starts)
+    w = np.empty((d, 3, rows.size))
+    v, g_point = np.zeros((p, 3, 3)), np.zeros((p, 3))
+    for span, places, starts, seen in blocks_of(pat.point_runs, rows.size):
+        pu, pp, pf, *pb = entries(np.take(records, rows[places], axis=0))
+        np.einsum("rak,rbk->abk", pu, pp, out=w[..., span])
+        v[seen] = _summed(np.einsum("rak,rbk->abk", pp, pp), starts)
+        g_point[seen] = _summed(np.einsum("rak,rk->ak", pp, pf[:, 0]), starts)
+        if pb:
+            point_border[seen] = _summed(np.einsum("rak,rbk->abk", pp, pb[0]), starts)
+    cost = float(np.einsum("gr,gr->", f, f))
+    if not k:
+        return PairBlocks(u, w, v, g_unit, g_point, unit_border, point_border,
+                          np.zeros((0, 0)), np.zeros(0), cost)
+    return PairBlocks(
+        u, w, v, g_unit, g_point, unit_border, point_border,
+        np.einsum("gra,grb->ab", ab, ab), np.einsum("gra,gr->a", ab, f), cost,
+    )
+
+
+def _summed(products: FloatArray, starts: IntArray) -> FloatArray:
+    """Sums over the runs starting at `starts` of entry-major products (…, m):
+    (runs, …)."""
+    out: FloatArray = np.moveaxis(np.add.reduceat(products, starts, axis=-1), -1, 0)
+    return out
+
+
+class PointFactor(NamedTuple):
+    """Per point ``V = L Lᵀ`` and ``M = L⁻¹`` (lower), entry-major: ``m`` (6, p)
+    the entries m00, m10, m11, m20, m21, m22 of M (NaN where V is not
+    positive definite); ``v_inv`` (p, 3, 3) ``V⁻¹ = Mᵀ M``; ``bound`` (p,)
+    ``1 / (trace V⁻¹ trace V)``, a lower bound of ``λmin / λmax``."""
+
+    m: FloatArray
+    v_inv: FloatArray
+    bound: FloatArray
+
+
+def point_factor(v: FloatArray) -> PointFactor:
+    """Cholesky factors of the points' 3 x 3 blocks V (p, 3, 3), in closed form."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        l00 = np.sqrt(v[:, 0, 0])
+        l10 = v[:, 1, 0] / l00
+        l20 = v[:, 2, 0] / l00
+        l11 = np.sqrt(v[:, 1, 1] - l10 * l10)
+        l21 = (v[:, 2, 1] - l20 * l10) / l11
+        l22 = np.sqrt(v[:, 2, 2] - l20 * l20 - l21 * l21)
+        m00, m11, m22 = 1.0 / l00, 1.0 / l11, 1.0 / l22
+        m10 = -l10 * m00 * m11
+        m21 = -l21 * m11 * m22
+        m20 = -(l20 * m00 + l21 * m10) * m22
+        m = np.stack([m00, m10, m11, m20, m21, m22])
+        v_inv = lower_gram(m)
+        trace = v[:, 0, 0] + v[:, 1, 1] + v[:, 2, 2]
+        bound = 1.0 / ((v_inv[:, 0, 0] + v_inv[:, 1, 1] + v_inv[:, 2, 2]) * trace)
+    return PointFactor(m, v_inv, bound)
+
+
+def lower_gram(m: FloatArray) -> FloatArray:
+    """``Mᵀ M`` (p, 3, 3) of lower-triangular M given as its six entries (6, p)."""
+    m00, m10, m11, m20, m21, m22 = m
+    out = np.empty((m.shape[1], 3, 3))
+    out[:, 0, 0] = m00 * m00 + m10 * m10 + m20 * m20
+    out[:, 1, 1] = m11 * m11 + m21 * m21
+    out[:, 2, 2] = m22 * m22
+    out[:, 0, 1] = out[:, 1, 0] = m10 * m11 + m20 * m21
+    out[:, 0, 2] = out[:, 2, 0] = m20 * m22
+    out[:, 1, 2] = out[:, 2, 1] = m21 * m22
+    return out
+
+
+def times_lower_t(x: FloatArray, m: FloatArray) -> FloatArray:
+    """``X Mᵀ`` for entry-major X (a, 3, g) and lower M (6, g) per entry:
+    (a, 3, g); with ``M = L⁻¹`` of V, ``(X Mᵀ)(X Mᵀ)ᵀ = X V⁻¹ Xᵀ``."""
+    m00, m10, m11, m20, m21, m22 = m
+    x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
+    out = np.empty_like(x)
+    np.multiply(x0, m00, out=out[:, 0])
+    np.multiply(x0, m10, out=out[:, 1])
+    out[:, 1] += x1 * m11
+    np.multiply(x0, m20, out=out[:, 2])
+    out[:, 2] += x1 * m21
+    out[:, 2] += x2 * m22
+    return out
+
+
+def times_lower(x: FloatArray, m: FloatArray) -> FloatArray:
+    """``X M`` for entry-major X (a, 3, g) and lower M (6, g): (a, 3, g)."""
+    m00, m10, m11, m20, m21, m22 = m
+    x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
+    out = np.empty_like(x)
+    np.multiply(x0, m00, out=out[:, 0])
+    out[:, 0] += x1 * m10
+    out[:, 0] += x2 * m20
+    np.multiply(x1, m11, out=out[:, 1])
+    out[:, 1] += x2 * m21
+    np.multiply(x2, m22, out=out[:, 2])
+    return out
+
+
+def lower_times(m: FloatArray, x: FloatArray) -> FloatArray:
+    """``M x`` for lower M (6, g) and entry-major x (3, ..., g): (3, ..., g),
+    the leading axis of x the one M acts on."""
+    m00, m10, m11, m20, m21, m22 = m
+    return np.stack([m00 * x[0], m10 * x[0] + m11 * x[1], m20 * x[0] + m21 * x[1] + m22 * x[2]])
+
+
+def lower_t_times(m: FloatArray, x: FloatArray) -> FloatArray:
+    """``Mᵀ x`` for lower M (6, g) and entry-major x (3, ..., g): (3, ..., g)."""
+    m00, m10, m11, m20, m21, m22 = m
+    return np.stack([m00 * x[0] + m10 * x[1] + m20 * x[2], m11 * x[1] + m21 * x[2], m22 * x[2]])
