@@ -126,6 +126,32 @@ def test_fc300x_weak_check_points_are_named_and_left_out(tmp_path, adjustment: s
     assert stats.n_plan == 13 == keep.sum()
     assert stats.rmse_plan == pytest.approx(np.sqrt(np.mean(np.sum(r[:, :2] ** 2, axis=1))))
     assert stats.rmse[2] == pytest.approx(np.sqrt(np.mean(r[:, 2] ** 2)))
+    if result.refined:
+        _block_s_own_check_leaves_them_out_too(result, keep)
+
+
+def _block_s_own_check_leaves_them_out_too(result, keep) -> None:  # type: ignore[no-untyped-def]
+    """After the refinement the block's own transformation at the check
+    points (``bundle.block_check``) leaves the weak points out as the
+    refinement's statistics do; ``block_check_with_weak`` keeps all 15."""
+    import json
+
+    from strip_aerotri.report.block import build_block_report
+
+    own = np.asarray(result.block_control_residuals)
+    assert own.shape == result.control_residuals.shape
+    assert not np.allclose(own[keep], result.control_residuals[keep])  # not the refinement's
+    stats = result.block_check_statistics
+    assert stats.n_plan == 13
+    assert stats.rmse_plan == pytest.approx(np.sqrt(np.mean(np.sum(own[keep, :2] ** 2, axis=1))))
+    assert stats.rmse[2] == pytest.approx(np.sqrt(np.mean(own[keep, 2] ** 2)))
+    bundle = json.loads(json.dumps(build_block_report(result)))["bundle"]
+    assert bundle["block_check"]["n_plan"] == 13
+    every = own[result.is_check]
+    assert bundle["block_check_with_weak"]["n_plan"] == 15 == every.shape[0]
+    assert bundle["block_check_with_weak"]["rmse_plan_m"] == pytest.approx(
+        np.sqrt(np.mean(np.sum(every[:, :2] ** 2, axis=1)))
+    )
 
 
 def test_check_points_of_one_geometry_are_never_left_out(tmp_path) -> None:  # type: ignore[no-untyped-def]

@@ -399,6 +399,7 @@ def _refine(
         refined=True,
         refined_sigma0=float(fr.bundle.sigma0),
         block_check_statistics=block.check_statistics,
+        block_control_residuals=block.control_residuals,
         gnss=gnss_out,
         imu=imu_out,
         self_calibration=fr.self_calibration,

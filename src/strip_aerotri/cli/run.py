@@ -138,6 +138,7 @@ def _echo_strip(summary: RunSummary, target: Path) -> None:
         # the written points come from the refinement: so do the figures
         echo_result("bundle refinement: accuracy below is the refined solution's")
         _echo_calibration(summary, target)
+        _echo_weights(summary)
     _echo_accuracy(summary)
     echo_result(f"tolerances (R4 §1.7.7): {summary.verdict.text}")
     if summary.report_name is not None:
@@ -156,6 +157,28 @@ def _echo_calibration(summary: RunSummary, target: Path) -> None:
     sigma += f" (without: {without:.3g})" if math.isfinite(without) else ""
     written = f"; camera: {target / 'camera.toml'}" if calibration.camera_written else ""
     echo_result(f"self-calibration: kept {kept}{sigma}{written}")
+
+
+def _echo_weights(summary: RunSummary) -> None:
+    """One line on the observation weights estimated from the data: each
+    group's sigma as estimated and as given, with its unit."""
+    weights = summary.weights
+    if weights is None:
+        return
+    how = (
+        f"applied ({weights.iterations} more adjustment(s), "
+        + ("settled" if weights.converged else "not settled")
+        + ")"
+        if weights.applied
+        else "not applied"
+    )
+    groups = "; ".join(
+        f"{name} {sigma:.3g} {unit} (given {given:.3g})"
+        if estimated
+        else f"{name} {given:.3g} {unit} as given (too little redundancy)"
+        for name, unit, given, sigma, estimated in weights.groups
+    )
+    echo_result(f"observation weights estimated from the data, {how}: {groups}")
 
 
 def _adjust_and_report(project: Project, map_scale: float | None) -> RunOutputs:
@@ -229,6 +252,7 @@ def _echo_block(summary: RunSummary, target: Path) -> None:
     )
     _echo_accuracy(summary, own)
     _echo_calibration(summary, target)
+    _echo_weights(summary)
     join = summary.join
     if join is not None:
         a, b = join.strips
