@@ -115,6 +115,10 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     echo_progress(f"done in {time.perf_counter() - started:.1f} s", level=1)
 
 
+#: The line saying that the accuracy printed is the bundle refinement's.
+_REFINED_LINE = "bundle refinement: accuracy below is the refined solution's"
+
+
 def _echo_accuracy(summary: RunSummary, own: str = "") -> None:
     """The control's and the check points' lines (``own``: a block's fit)."""
     control, check = summary.control, summary.check
@@ -136,7 +140,7 @@ def _echo_strip(summary: RunSummary, target: Path) -> None:
     echo_result(f"strip '{summary.name}': {summary.n_photos} photos, {summary.n_points} points")
     if summary.refined:
         # the written points come from the refinement: so do the figures
-        echo_result("bundle refinement: accuracy below is the refined solution's")
+        echo_result(_REFINED_LINE)
         _echo_calibration(summary, target)
         _echo_weights(summary)
     _echo_accuracy(summary)
@@ -243,6 +247,8 @@ def _echo_block(summary: RunSummary, target: Path) -> None:
         f"block '{summary.name}': {summary.n_strips} strips, {summary.n_photos} photos, "
         f"{summary.n_points} points"
     )
+    if summary.refined:
+        echo_result(_REFINED_LINE)
     fit = summary.control_fit
     own = (
         ""

@@ -235,7 +235,7 @@ def calibration_html(record: dict[str, Any] | None, figures: tuple[str | None, s
         "start camera; r(EO) is the multiple correlation with the photos' orientation and "
         "the points.</p>",
         _table(["parameter", "unit", "estimate", "sd", "t", "r(EO)", "kept / why not"], rows),
-        "<p>Correlations above 0.9: "
+        "<p>Correlations above 0.9 between the kept parameters: "
         + (_esc(", ".join(f"{c['a']}-{c['b']} {c['r']:.3f}" for c in corr)) or "none")
         + "</p>",
         _figure(
