@@ -128,6 +128,14 @@ def test_fc300x_weak_check_points_are_named_and_left_out(tmp_path, adjustment: s
     assert stats.rmse[2] == pytest.approx(np.sqrt(np.mean(r[:, 2] ** 2)))
     if result.refined:
         _block_s_own_check_leaves_them_out_too(result, keep)
+    # R4's check-point criteria judge the same 13 points (26 dE, dN)
+    from strip_aerotri.report.block import block_tolerances_record
+
+    criteria = {c["name"]: c for c in block_tolerances_record(result, 1000.0, [])["criteria"]}
+    mean_plan = criteria["check_mean_plan"]
+    assert mean_plan["n"] == 13
+    assert mean_plan["value"] == pytest.approx(np.mean(np.hypot(r[:, 0], r[:, 1])), rel=1e-3)
+    assert criteria["check_en_limit_share"]["n"] == 26
 
 
 def _block_s_own_check_leaves_them_out_too(result, keep) -> None:  # type: ignore[no-untyped-def]
@@ -268,3 +276,35 @@ def test_precision_in_a_map_projection_is_that_of_the_bundle_frame(tmp_path) -> 
     )[index]  # fmt: skip
     np.testing.assert_allclose(prec.sigma_plan_m, np.sqrt(cov[:, 0, 0] + cov[:, 1, 1]), rtol=1e-3)
     np.testing.assert_allclose(prec.sigma_height_m, np.sqrt(cov[:, 2, 2]), rtol=1e-3)
+
+
+def test_a_strip_s_criteria_leave_the_weak_check_points_out() -> None:
+    """R4's check-point criteria of a strip judge the check points of its
+    statistics: naming one weakly determined leaves it out of their count
+    and of the mean plan discrepancy."""
+    import dataclasses
+    import warnings
+
+    from strip_aerotri.errors import StripAerotriWarning
+    from strip_aerotri.pipeline import triangulate
+    from strip_aerotri.report.tolerances import tolerance_verdicts
+    from strip_aerotri.simulate import simulate_strip
+
+    sim = simulate_strip(8, seed=4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        result = triangulate(sim.observations, sim.control, sim.crs)
+    ground = result.ground
+    rows = np.flatnonzero(ground.is_check)
+    assert rows.size >= 3
+    weak = result.control.point_ids[int(ground.control_index[rows[0]])]
+    before = {c.name: c for c in tolerance_verdicts(result, 1000.0)}
+    after = {
+        c.name: c
+        for c in tolerance_verdicts(dataclasses.replace(result, weak_checks=(weak,)), 1000.0)
+    }
+    assert before["check_mean_plan"].n == rows.size
+    assert after["check_mean_plan"].n == rows.size - 1
+    r = np.asarray(ground.control_residuals)[rows[1:]]
+    assert after["check_mean_plan"].value == pytest.approx(np.mean(np.hypot(r[:, 0], r[:, 1])))
+    assert after["check_en_limit_share"].n == 2 * (rows.size - 1)

@@ -212,8 +212,11 @@ def _tolerances(result: BlockResult, map_scale: float | None) -> dict[str, Any]:
     the joins carry the criteria of the common points."""
     from .tolerances import check_mean_plan, residual_distribution
 
+    from ..ground.check_precision import strong_checks
+
     resid = np.asarray(result.control_residuals, dtype=np.float64).reshape(-1, 3)
-    check = np.asarray(result.is_check, dtype=bool)
+    # the check points of the statistics: without the weakly determined ones
+    check = strong_checks(result, result.control, result.weak_checks)
     criteria = (
         check_mean_plan(np.hypot(resid[check, 0], resid[check, 1]), map_scale),
         *residual_distribution(
