@@ -12,9 +12,11 @@ simulator, about 100 image points per photo), loaded and formed as
 report.json's ``timings_s.ground`` times) then runs in this process with one
 BLAS thread.  Printed per case: photos, determinations (model points),
 wall and CPU seconds of the stage, the solutions (one per snooping round),
-the Gauss-Newton iterations over all of them, the rejections, the passes of
-the plan/height iteration and the process's peak memory; then the log-log
-slope of CPU time against photos.  ``--keep DIR`` keeps the formed strips
+the Gauss-Newton iterations over all of them, the groups of models of the
+start of a long strip (:mod:`strip_aerotri.geometry.grouped_start`; 0 when
+the strip starts from J's similarity) and the iterations of their
+adjustment, the rejections, the passes of the plan/height iteration and the
+process's peak memory; then the log-log slope of CPU time against photos.  ``--keep DIR`` keeps the formed strips
 (pickled) for the next run: strip formation is not what is timed.
 """
 
@@ -55,6 +57,21 @@ class _Counted:
         return result
 
 
+class _Grouped:
+    """``grouped_start`` as the ground stage calls it: its groups and iterations."""
+
+    def __init__(self) -> None:
+        self.inner = ground_models.grouped_start
+        self.groups = 0
+        self.iterations = 0
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        result = self.inner(*args, **kwargs)
+        self.groups += result.groups
+        self.iterations += result.iterations
+        return result
+
+
 def _strip(photos: int, folder: Path) -> tuple[Any, ...]:
     """(control, crs, lines, options, blunders, strip) of the case, formed once."""
     cached = folder / f"strip-{photos}.pkl"
@@ -79,7 +96,9 @@ def run(photos: int, folder: Path) -> dict[str, float]:
     """One case; its figures (see the module docstring)."""
     control, crs, lines, adjustment, blunders, strip = _strip(photos, folder)
     counted = _Counted()
+    grouped = _Grouped()
     ground_models.adjust_units = counted  # type: ignore[assignment]
+    ground_models.grouped_start = grouped  # type: ignore[assignment]
     try:
         t0, c0 = time.perf_counter(), time.process_time()
         with warnings.catch_warnings():
@@ -91,6 +110,7 @@ def run(photos: int, folder: Path) -> dict[str, float]:
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     finally:
         ground_models.adjust_units = counted.inner
+        ground_models.grouped_start = grouped.inner
     return {
         "photos": photos,
         "determinations": int(strip.model.shape[0]),
@@ -98,6 +118,8 @@ def run(photos: int, folder: Path) -> dict[str, float]:
         "cpu": cpu,
         "solutions": counted.solutions,
         "iterations": counted.iterations,
+        "groups": grouped.groups,
+        "group_iterations": grouped.iterations,
         "rejections": len(ground.rejections),
         "passes": ground.passes,
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
@@ -111,7 +133,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     print(
         f"{'photos':>6s} {'determ.':>8s} {'wall s':>7s} {'CPU s':>7s} {'solutions':>9s} "
-        f"{'iterations':>10s} {'rejected':>8s} {'passes':>6s} {'peak MB':>7s}"
+        f"{'iterations':>10s} {'groups':>6s} {'(iter.)':>7s} {'rejected':>8s} {'passes':>6s} "
+        f"{'peak MB':>7s}"
     )
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
@@ -122,7 +145,8 @@ def main(argv: list[str] | None = None) -> None:
             rows.append(r)
             print(
                 f"{photos:6d} {r['determinations']:8d} {r['wall']:7.2f} {r['cpu']:7.2f} "
-                f"{r['solutions']:9d} {r['iterations']:10d} {r['rejections']:8d} "
+                f"{r['solutions']:9d} {r['iterations']:10d} {r['groups']:6d} "
+                f"{r['group_iterations']:7d} {r['rejections']:8d} "
                 f"{r['passes']:6d} {r['peak_mb']:7.0f}",
                 flush=True,
             )

@@ -115,18 +115,22 @@ def test_a_run_past_the_timeout_is_shown_without_a_result(tmp_path: Path) -> Non
 def test_the_ground_benchmark_counts_solutions_and_iterations(tmp_path: Path) -> None:
     """benchmarks/bench_ground.py on two small strips: one row per strip with
     its determinations, one solution (a clean strip: nothing rejected) of a
-    few iterations, then the slope."""
+    few iterations, no groups (a strip this short starts from J's
+    similarity), then the slope."""
     done = _bench("bench_ground.py", "--photos", "15", "30", "--keep", str(tmp_path))
     assert done.returncode == 0, done.stderr
     number, seconds = r"\s+(\d+)", r"\s+[\d.]+"
     row = re.compile(
-        rf"^\s*(\d+){number}{seconds}{seconds}{number}{number}{number}\s+\d+\s+\d+$", re.M
+        rf"^\s*(\d+){number}{seconds}{seconds}{number}{number}{number}{number}{number}"
+        r"\s+\d+\s+\d+$",
+        re.M,
     )
     rows = {int(m[1]): [int(g) for g in m.groups()[1:]] for m in row.finditer(done.stdout)}
     assert sorted(rows) == [15, 30], done.stdout
-    for determinations, solutions, iterations, rejected in rows.values():
+    for determinations, solutions, iterations, groups, group_iterations, rejected in rows.values():
         assert determinations > 0 and solutions == 1 and rejected == 0
         assert 1 <= iterations <= 10
+        assert groups == 0 and group_iterations == 0
     assert rows[30][0] > rows[15][0]
     assert "slope log(CPU) / log(photos): " in done.stdout
     assert (tmp_path / "strip-30.pkl").exists()  # kept for the next run

@@ -171,3 +171,35 @@ def test_projected_points_change_the_path_not_the_solution():
     np.testing.assert_allclose(projected.points, plain.points, rtol=0, atol=1e-7)
     np.testing.assert_allclose(projected.control_w, plain.control_w, rtol=1e-6, atol=1e-9)
     assert projected.iterations <= plain.iterations
+
+
+def test_weight_lead_extrapolates_a_geometric_series_of_turns():
+    """Two steps turning the units the same way, the second half the first:
+    the weights are turned ahead by the rest of the series (once as much as
+    the last step, rho / (1 - rho) = 1), then two plain steps again; steps
+    that disagree are not led."""
+    from strip_aerotri.geometry.simultaneous import _WeightLead
+
+    rng = np.random.default_rng(8)
+    rotation = matrix_from_rotvec(rng.normal(0.0, 0.3, (5, 3)))
+    step = rng.normal(0.0, 1e-3, (5, 3))
+    lead = _WeightLead()
+    lead.record(step)
+    assert lead.ahead(rotation) is rotation  # one step: nothing to measure
+    lead.record(0.5 * step)
+    ahead = lead.ahead(rotation)
+    np.testing.assert_allclose(ahead, matrix_from_rotvec(0.5 * step) @ rotation, atol=1e-15)
+    # just led: the next two steps are plain
+    lead.record(0.25 * step)
+    assert lead.ahead(rotation) is rotation
+    lead.record(0.125 * step)
+    assert lead.ahead(rotation) is not rotation
+    # turns that disagree (cosine below 0.9), or grow, are not led
+    lead = _WeightLead()
+    lead.record(step)
+    lead.record(rng.normal(0.0, 1e-3, (5, 3)))
+    assert lead.ahead(rotation) is rotation
+    lead = _WeightLead()
+    lead.record(step)
+    lead.record(1.5 * step)
+    assert lead.ahead(rotation) is rotation

@@ -37,14 +37,14 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
-from typing import TYPE_CHECKING, Any, Literal, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError
 from ..options import DEFAULT_MAX_ITERATIONS
-from .rotation import matrix_from_rotvec, skew
+from .rotation import matrix_from_rotvec
 from .units import (
     N_UNIT,
     LineCondition,
@@ -76,9 +76,12 @@ __all__ = [
 #: error (σ δ0 / √r, more than 150 σ) is reported instead.
 _MIN_TESTED_REDUNDANCY = 1e-3
 #: Radians a unit must turn before its rows' weights are turned with it
-#: (``weight_rotation``): a weight turned 1e-6 rad off moves a point by
-#: 1e-6 of its residual's share across the weight's axes.
-_WEIGHT_TURN = 1e-6
+#: (``weight_rotation``).  Where the solution is weakly held (the middle of
+#: a long strip between plan points) a weight turned off moves the points by
+#: far more than that share of their residuals: at 1e-6 rad the solution of
+#: a 3000-photo strip depended on the path to it by 0.8 mm (two starts);
+#: at 1e-10 rad by 1.3e-6 m.
+_WEIGHT_TURN = 1e-10
 
 
 @dataclass(frozen=True)
@@ -312,16 +315,28 @@ class _State:
         self.points = points
         self.line_ab = line_ab
         self.coefficients = coefficients
+        self.turned: FloatArray | None = None  # s R (x − c) of the rows, once computed
+
+    def with_points(self, points: FloatArray) -> _State:
+        """The same units (and their rows as turned) with other points."""
+        moved = _State(
+            self.scale, self.rotation, self.translation, points, self.line_ab, self.coefficients
+        )
+        moved.turned = self.turned
+        return moved
 
 
 def _predict(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
     """Rows in the work frame relative to their unit's translation
     (``s R (x − c)``, n × 3) and their residuals ``T_u(x) − X_p``."""
     u = prob.obs.unit
-    offset = prob.offset
-    if prob.basis is not None:
-        offset = offset + np.einsum("nik,nk->ni", prob.basis, st.coefficients[u])
-    y = st.scale[u, None] * np.einsum("nij,nj->ni", st.rotation[u], offset)
+    y = st.turned
+    if y is None:
+        offset = prob.offset
+        if prob.basis is not None:
+            offset = offset + np.einsum("nik,nk->ni", prob.basis, st.coefficients[u])
+        y = st.scale[u, None] * np.einsum("nij,nj->ni", st.rotation[u], offset)
+        st.turned = y
     v = st.translation[u] + y - st.points[prob.obs.point]
     return y, v
 
@@ -356,36 +371,47 @@ def _engine_rows(prob: _Problem, st: _State) -> tuple[list[Any], list[Any], list
     from .normals import UnitPointRows, UnitRows
 
     obs = prob.obs
-    n = obs.unit.shape[0]
     y, v = _predict(prob, st)
-    # Design of a row in its unit's parameters: dt, dω (R <- exp(ω) R),
-    # ds / s, then its polynomial's coefficients (s R B); its point's is -I.
-    width = prob.width
-    a_u = np.zeros((n, 3, width))
-    a_u[:, 0, 0] = a_u[:, 1, 1] = a_u[:, 2, 2] = 1.0
-    a_u[:, :, 3:6] = -skew(y)  # d(ω × y)/dω
-    a_u[:, :, 6] = y
-    if prob.basis is not None:
-        u = obs.unit
-        a_u[:, :, N_UNIT:] = st.scale[u, None, None] * (st.rotation[u] @ prob.basis)
     lt = prob.whiten
     unit_point = [
         UnitPointRows(
             obs.unit,
             prob.engine_point[obs.point],
-            lt @ a_u,
+            _whitened_design(prob, st, y),
             prob.point_jacobian,
             np.einsum("nij,nj->ni", lt, v),
         )
     ]
     unit_rows = []
     if prob.n_extra:  # the coefficients' priors a = 0
-        jac = np.zeros((prob.n_units, prob.n_extra, 1, width))
+        jac = np.zeros((prob.n_units, prob.n_extra, 1, prob.width))
         jac[:, np.arange(prob.n_extra), 0, N_UNIT + np.arange(prob.n_extra)] = 1.0
         unit_rows.append(
             UnitRows(prob.unit_index, jac, st.coefficients.copy(), prob.prior_weights)
         )
     return unit_point, unit_rows, _point_rows(prob, st)
+
+
+def _whitened_design(prob: _Problem, st: _State, y: FloatArray) -> FloatArray:
+    """``Lᵀ A`` of every row (n, 3, width): the design ``A`` of a row in its
+    unit's parameters is ``[I | -[y]× | y | s R B]`` (dt, dω with
+    ``R <- exp(ω) R``, ds / s, then its polynomial's coefficients; its
+    point's is -I), so ``Lᵀ A = [Lᵀ | rows y × l_i | Lᵀ y | Lᵀ s R B]``
+    with ``l_i`` the rows of ``Lᵀ`` (written out: a batched product of
+    3 × 3 by 3 × 7 matrices costs three times as much)."""
+    lt = prob.whiten
+    out = np.empty((lt.shape[0], 3, prob.width))
+    out[:, :, 0:3] = lt
+    l0, l1, l2 = lt[:, :, 0], lt[:, :, 1], lt[:, :, 2]
+    y0, y1, y2 = y[:, 0, None], y[:, 1, None], y[:, 2, None]
+    out[:, :, 3] = y1 * l2 - y2 * l1  # (y × l_i), the rows of -Lᵀ [y]×
+    out[:, :, 4] = y2 * l0 - y0 * l2
+    out[:, :, 5] = y0 * l1 - y1 * l0
+    out[:, :, 6] = l0 * y0 + l1 * y1 + l2 * y2
+    if prob.basis is not None:
+        u = prob.obs.unit
+        out[:, :, N_UNIT:] = lt @ (st.scale[u, None, None] * (st.rotation[u] @ prob.basis))
+    return out
 
 
 def _point_rows(prob: _Problem, st: _State) -> list[Any]:
@@ -431,12 +457,21 @@ def _line_rows(prob: _Problem, st: _State, k: int) -> Any:
     )
 
 
-class _Step(NamedTuple):
+class _Step:
     """The engine's solution of one linearisation (unit, point and border
-    steps, the cofactors) and its points' 3 x 3 normal blocks ``V``."""
+    steps, the cofactors) and its points' 3 x 3 normal blocks ``V`` (the
+    points the rows observe, in the order of :attr:`_Problem.points_used`)."""
 
-    solution: NormalSolution
-    point_normals: FloatArray
+    def __init__(self, solution: NormalSolution, point_normals: FloatArray) -> None:
+        self.solution = solution
+        self.point_normals = point_normals
+        self._inverse: FloatArray | None = None
+
+    def point_inverse(self) -> FloatArray:
+        """``V⁻¹`` of every point (computed once)."""
+        if self._inverse is None:
+            self._inverse = np.asarray(np.linalg.inv(self.point_normals), dtype=np.float64)
+        return self._inverse
 
 
 def _solve(prob: _Problem, st: _State) -> _Step:
@@ -527,8 +562,9 @@ def adjust_units(
         with it, ``W = Δ W₀ Δᵀ`` with ``Δ = R_u R₀ᵀ`` (a model point is weak
         along its rays wherever the model is turned to).  They are turned at
         the start of every iteration (iteratively reweighted: the step of an
-        iteration holds them).  None: the weights are fixed in the work
-        frame.
+        iteration holds them), ahead to where the units are heading when two
+        steps turn them the same way (:class:`_WeightLead`).  None: the
+        weights are fixed in the work frame.
     control_update : callable, optional
         Called after every iteration with the points (P, 3, work frame) and
         whether the iteration met the tolerance; returns the control
@@ -580,7 +616,7 @@ def adjust_units(
     st = _start_state(prob, start, points0)
     prob.turn_weights(st.rotation)
     if project_points:  # the points where the units put them, not yet the control
-        st = _projected(prob, st, control=False)
+        st = _projected(prob, st)
     points = st.points
     extent = (
         float(np.nanmax(np.ptp(points[prob.observed], axis=0))) if prob.observed.any() else 1.0
@@ -591,9 +627,10 @@ def adjust_units(
     converged = False
     iterations = 0
     sol = None
+    lead = _WeightLead()
     for iterations in range(1, max_iterations + 1):
         sol = None  # the last step's factor goes before the next is formed
-        if iterations > 1 and prob.turn_weights(st.rotation):
+        if iterations > 1 and prob.turn_weights(lead.ahead(st.rotation)):
             cost = _cost(prob, st)
         sol = _solve(prob, st)
         dp = np.zeros((n_points, 3))
@@ -602,7 +639,7 @@ def adjust_units(
         for _ in range(30):
             trial = _step(prob, st, sol.solution, dp, step)
             if project_points:
-                trial = _projected(prob, trial)
+                trial = _projected(prob, trial, sol.point_inverse())
             trial_cost = _cost(prob, trial)
             if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
                 break
@@ -613,6 +650,7 @@ def adjust_units(
                 "sum of squares (start values too far off)"
             )
         du = sol.solution.unit_step * step
+        lead.record(du[:, 3:6])
         largest = max(
             float(np.max(np.abs(du[:, :3]), initial=0.0)) / extent,
             float(np.max(np.abs(du[:, 3:]), initial=0.0)),
@@ -643,6 +681,56 @@ def adjust_units(
     return replace(result, statistics_later=later)
 
 
+class _WeightLead:
+    """Where to turn the weights for the next iteration (``weight_rotation``).
+
+    Turning the weights to the units' rotations after every step is a
+    fixed-point iteration: the step taken with the weights of one rotation
+    turns the units on, by a share ``rho`` of the step before, where the
+    solution is weakly held (the middle of a long strip between plan
+    points: ``rho`` 0.5 at 10 000 photos, one halving per iteration).
+    When two steps in a row turn the units the same way, the rest of that
+    geometric series, ``rho / (1 - rho)`` times the last turn, is where
+    they are heading: the weights are turned there at once (Aitken's
+    extrapolation of the rotations; then two plain steps again to measure
+    ``rho``).  The fixed point is the same: the lead vanishes with the
+    steps."""
+
+    def __init__(self) -> None:
+        self.turns: list[FloatArray] = []
+        self.led = False
+
+    def record(self, turn: FloatArray) -> None:
+        """The rotation vectors (U, 3) of the step just taken."""
+        self.turns = [*self.turns[-1:], turn.copy()]
+
+    def ahead(self, rotation: FloatArray) -> FloatArray:
+        """The rotations (U, 3, 3) to turn the weights to, from the units' now."""
+        if self.led or len(self.turns) < 2:
+            self.led = False
+            return rotation
+        before, last = self.turns
+        dot = float(np.vdot(before, last))
+        norms = float(np.linalg.norm(before) * np.linalg.norm(last))
+        if not norms > 0.0:
+            return rotation
+        rho = dot / float(np.vdot(before, before))
+        if dot < _LEAD_COSINE * norms or not 0.0 < rho < _LEAD_MAX_RHO:
+            return rotation
+        self.led = True
+        self.turns = []
+        ahead: FloatArray = matrix_from_rotvec(last * (rho / (1.0 - rho))) @ rotation
+        return ahead
+
+
+#: Two steps turn the units "the same way" when their rotation vectors'
+#: cosine is above this; the share ``rho`` of one step in the next is led
+#: only below :data:`_LEAD_MAX_RHO` (above it the series is not geometric
+#: enough to trust a lead of ``rho / (1 - rho)`` = 9 steps).
+_LEAD_COSINE = 0.9
+_LEAD_MAX_RHO = 0.9
+
+
 def _start_state(prob: _Problem, start: UnitTransforms, points0: ArrayLike) -> _State:
     """The start: its similarities re-expressed about each unit's own
     centroid (the deformation, if any, kept as it is), the points, and each
@@ -667,10 +755,13 @@ def _start_state(prob: _Problem, start: UnitTransforms, points0: ArrayLike) -> _
     return _State(s0, r0, t0, points, line_ab, coefficients)
 
 
-def _projected(prob: _Problem, st: _State, control: bool = True) -> _State:
+def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) -> _State:
     """``st`` with every observed point at its least-squares position for the
-    units as they are (its rows, and its control with ``control``; nothing
-    when there are lines: they tie the points to each other)."""
+    units as they are: its rows only, or with ``inverse``, the ``V⁻¹`` of the
+    points of the step's normal equations (their rows' and their control's
+    weights, in the order of :attr:`_Problem.points_used`), its rows and its
+    control.  Nothing when there are lines (they tie the points to each
+    other), or when a point's rows do not fix it."""
     from ._normal_assembly import sum_into
 
     if prob.n_lines:
@@ -679,22 +770,24 @@ def _projected(prob: _Problem, st: _State, control: bool = True) -> _State:
     y, _ = _predict(prob, st)
     placed = st.translation[obs.unit] + y  # T_u(x) of every row
     lt = prob.whiten
-    weight = np.swapaxes(lt, 1, 2) @ lt  # W = L Lᵀ of the rows as turned
     n = prob.n_points
-    v = sum_into(obs.point, weight, n)
-    rhs = sum_into(obs.point, np.einsum("nij,nj->ni", weight, placed), n)
-    if control:
+    # Σ W x of each point's rows, W = L Lᵀ
+    rhs = sum_into(obs.point, np.einsum("nji,nj->ni", lt, np.einsum("nij,nj->ni", lt, placed)), n)
+    used = prob.points_used
+    if inverse is None:
+        v = sum_into(obs.point, np.swapaxes(lt, 1, 2) @ lt, n)[used]
+        try:
+            inverse = np.asarray(np.linalg.inv(v), dtype=np.float64)
+        except np.linalg.LinAlgError:  # a point its rows do not fix: the step's own
+            return st
+    else:
         cp, given = prob.control_point, prob.control_given
         w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma, 1.0) ** 2, 0.0)
-        v += sum_into(cp, w_c[:, :, None] * np.eye(3), n)
         rhs += sum_into(cp, w_c * np.where(given, prob.control_xyz, 0.0), n)
-    used = prob.points_used
     points = st.points.copy()
-    try:
-        points[used] = np.linalg.solve(v[used], rhs[used][:, :, None])[:, :, 0]
-    except np.linalg.LinAlgError:  # a point its rows do not fix: the step's own
-        return st
-    return _State(st.scale, st.rotation, st.translation, points, st.line_ab, st.coefficients)
+    assert inverse is not None  # computed above when not given
+    points[used] = np.einsum("pij,pj->pi", inverse, rhs[used])
+    return st.with_points(points)
 
 
 def _step(
@@ -754,7 +847,7 @@ def _result(
     # fixed, h = W^(1/2) V⁻¹ W^(1/2); the units' 7 U parameters spread evenly.
     lt = prob.whiten
     wv = np.einsum("nij,nj->ni", lt, v)
-    v_inv = np.linalg.inv(sol.point_normals)  # V⁻¹ of the points the rows observe
+    v_inv = sol.point_inverse()  # V⁻¹ of the points the rows observe
     h = lt @ v_inv[prob.engine_point[obs.point]] @ np.swapaxes(lt, 1, 2)
     free = 3.0 - np.einsum("nii->n", h)
     share = max(1.0 - prob.width * prob.n_units / max(float(free.sum()), 1e-300), 0.0)

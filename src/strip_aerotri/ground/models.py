@@ -40,9 +40,10 @@ import numpy as np
 
 from .._stats import leading_failures
 from .._typing import BoolArray, FloatArray, IntArray
-from ..errors import GeometryError, StripAerotriWarning
+from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..frames import WorkFrame, make_work_frame
 from ..geodesy import GroundCRS
+from ..geometry.grouped_start import grouped_start, groups_along
 from ..geometry.precision import centre_information, ray_information
 from ..geometry.rotation import opk_from_matrix
 from ..geometry.similarity import SimilarityTransform, _validate_control_geometry
@@ -65,6 +66,12 @@ __all__ = ["ModelAdjustment", "adjust_models_to_ground", "model_weights"]
 
 _MAX_PASSES = 8
 _CHI2_3_MEDIAN = 2.365973884375338  # median of chi-square with 3 degrees of freedom
+#: Models taken together for the start of a long strip (the chain's drift
+#: over so many models is far below what Gauss-Newton takes in one step).
+_GROUP_MODELS = 16
+#: A strip of at least so many groups starts from the groups' adjustment;
+#: a shorter one from J's similarity.
+_GROUPS_FROM = 4
 
 
 def model_weights(
@@ -299,6 +306,48 @@ def _adjust(
     )
 
 
+def _grouped_start(
+    p: _ModelsProblem,
+    keep_rows: BoolArray,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    conditions: list[LineCondition],
+) -> tuple[FloatArray, UnitTransforms, FloatArray]:
+    """The control's guess, the models' start and the points' start of the
+    first solution: J's similarity for every model on a strip of fewer than
+    :data:`_GROUPS_FROM` groups of :data:`_GROUP_MODELS` models, else each
+    model at its group's similarity from the adjustment of the groups
+    (:func:`~strip_aerotri.geometry.grouped_start.grouped_start`; J's
+    similarity where that fails: it is only a start)."""
+    strip = p.strip
+    group = groups_along(strip.n_models, _GROUP_MODELS, getattr(strip, "breaks", ()))
+    if int(group.max(initial=0)) + 1 < _GROUPS_FROM:
+        return p.guess.copy(), p.start_units, p.points0
+    active = use_xy | use_z
+    passes = ControlPasses(p.work, p.idx, p.given, p.guess.copy(), use_xy, use_z, _MAX_PASSES)
+    r = p.rows
+    try:
+        grouped = grouped_start(
+            UnitObservations(
+                r.unit[keep_rows], r.point[keep_rows], r.xyz[keep_rows], r.weight[keep_rows]
+            ),
+            group,
+            p.n_unknown_points,
+            start=p.start_units,
+            points0=p.points0,
+            control_point=p.idx[active],
+            control_xyz=passes.target(),
+            control_sigma=p.sigma[active],
+            lines=conditions,
+            weight_rotation=p.start_units.rotation,
+            control_update=passes.update if passes.guessed else None,
+            max_iterations=p.max_iterations,
+        )
+    except (GeometryError, ConvergenceError, np.linalg.LinAlgError):
+        return p.guess.copy(), p.start_units, p.points0
+    return passes.guess, grouped.transforms, grouped.points
+
+
 def _solve(
     p: _ModelsProblem,
     keep_rows: BoolArray,
@@ -321,7 +370,7 @@ def _solve(
         for line, li, keep in zip(p.lines, p.line_index, line_keep, strict=True)
     ]
     if previous is None:
-        guess, starts, points0 = p.guess.copy(), p.start_units, p.points0
+        guess, starts, points0 = _grouped_start(p, keep_rows, use_xy, use_z, conditions)
     else:
         guess, starts = previous.guess, previous.result.transforms
         points0 = np.where(np.isfinite(previous.result.points), previous.result.points, p.points0)
