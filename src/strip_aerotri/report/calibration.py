@@ -178,7 +178,7 @@ def camera_toml(
     c_new, pp_new, dist, rms = fitted_camera(outcome, c_mm, principal_point_mm, start)
     lines = head + [
         f"# Estimated: {', '.join(outcome.kept)}; [distortion] fitted over the observed area "
-        f"within {rms:.3g} µm RMS.",
+        f"within {rms:.3f} µm RMS.",
     ]
     return _tables(lines, c_new, pp_new, dist)
 
