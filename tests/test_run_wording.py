@@ -60,3 +60,40 @@ def test_the_page_s_correlations_are_between_the_kept_parameters():
     page = calibration_html(record, (None, None))
     assert "correlation 0.981 with k1" in page
     assert "<p>Correlations above 0.9 between the kept parameters: none</p>" in page
+
+
+def test_a_refined_strip_s_summary_table_gives_the_delivered_check(tmp_path):
+    """The page's summary table gives the check RMSE of the delivered
+    solution, the bundle refinement's, and says so; without a refinement
+    the strip method's, unlabelled."""
+    import json
+    import re
+    import warnings
+
+    from strip_aerotri.errors import StripAerotriWarning
+    from strip_aerotri.project import load_project, run_project
+    from strip_aerotri.report.outputs import build_outputs
+    from strip_aerotri.simulate import simulate_strip
+
+    simulate_strip(8, seed=4).write_project(tmp_path)
+    toml = tmp_path / "strip.toml"
+    plain = toml.read_text(encoding="utf-8")
+    rows = {}
+    for label, extra in (("plain", ""), ("bundle", 'refine = "bundle"\n')):
+        toml.write_text(plain.replace("[adjustment]\n", f"[adjustment]\n{extra}"), "utf-8")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", StripAerotriWarning)
+            project = load_project(toml)
+            files = build_outputs(run_project(project), project=project, html=True)
+        page, record = files["report.html"].decode(), json.loads(files["report.json"])
+        found = re.search(r"check RMSE plan / mean plan \[m\]([^<]*)</td><td[^>]*>([^<]*)<", page)
+        assert found is not None
+        rows[label] = (found.group(1), found.group(2), record)
+    suffix, value, record = rows["bundle"]
+    chk = record["bundle"]["check"]
+    assert suffix == " (bundle refinement)"
+    assert value == f"{chk['rmse_plan_m']:.3f} / {chk['mean_plan_m']:.3f}"
+    assert chk["rmse_plan_m"] != record["check"]["statistics"]["rmse_plan_m"]
+    suffix, value, record = rows["plain"]
+    chk = record["check"]["statistics"]
+    assert suffix == "" and value == f"{chk['rmse_plan_m']:.3f} / {chk['mean_plan_m']:.3f}"
