@@ -103,6 +103,8 @@ def test_fc300x_weak_check_points_are_named_and_left_out(tmp_path, adjustment: s
     78 (two photos, 7°) are weak; the statistics are those of the other 13."""
     import warnings
 
+    import json
+
     from strip_aerotri.errors import StripAerotriWarning
     from strip_aerotri.importers.uav_fc300x import import_uav_fc300x
     from strip_aerotri.importers.writer import write_project
@@ -136,6 +138,13 @@ def test_fc300x_weak_check_points_are_named_and_left_out(tmp_path, adjustment: s
     assert mean_plan["n"] == 13
     assert mean_plan["value"] == pytest.approx(np.mean(np.hypot(r[:, 0], r[:, 1])), rel=1e-3)
     assert criteria["check_en_limit_share"]["n"] == 26
+    # the page's plain summary names them: figures at 13, the 2 listed
+    from strip_aerotri.report.block import build_block_report
+    from strip_aerotri.report.block_page import _plain
+
+    plain = _plain(json.loads(json.dumps(build_block_report(result))))
+    assert "At 13 independent check points" in plain
+    assert "2 more check point(s) (14, 78) are listed below but left out of these figures" in plain
 
 
 def _block_s_own_check_leaves_them_out_too(result, keep) -> None:  # type: ignore[no-untyped-def]
@@ -308,3 +317,26 @@ def test_a_strip_s_criteria_leave_the_weak_check_points_out() -> None:
     r = np.asarray(ground.control_residuals)[rows[1:]]
     assert after["check_mean_plan"].value == pytest.approx(np.mean(np.hypot(r[:, 0], r[:, 1])))
     assert after["check_en_limit_share"].n == 2 * (rows.size - 1)
+
+
+def test_a_strip_s_plain_summary_counts_the_weak_check_points_apart() -> None:
+    """A strip with 17 check points given, 15 compared and 2 of them weak:
+    the plain summary gives the figures at 13 of 15 (2 not compared) and
+    names the 2 weak ones, not "13 of the 17 (the other 4 could not be
+    triangulated or compared)"."""
+    from strip_aerotri.report.html import _plain_summary
+
+    stats = {"n_plan": 13, "n_height": 13, "rmse_plan_m": 0.03, "rmse_h_m": 0.04}
+    report = {
+        "inputs": {"n_photos": 10, "n_points_triangulated": 100, "control": {"check": 17}},
+        "control": {"statistics": stats},
+        "check": {"statistics": stats, "weakly_determined": ["14", "78"]},
+        "project": {"crs_name": "local"},
+    }
+    text = _plain_summary(report, "met")
+    assert "At 13 of the 15 independent check points (the other 2 could not be" in text
+    assert "2 more check point(s) (14, 78) are listed below but left out" in text
+    report["check"]["weakly_determined"] = []
+    text = _plain_summary(report, "met")
+    assert "At 13 of the 17 independent check points (the other 4 could not be" in text
+    assert "left out of these figures" not in text

@@ -21,7 +21,7 @@ from .figures import (
     figure_residuals,
     figure_ties,
 )
-from .html_parts import _esc, _figure, _fmt, _table
+from .html_parts import _esc, _figure, _fmt, _table, weak_check_sentence
 from .verdict import Verdict, criterion_label, overall_verdict
 
 if TYPE_CHECKING:
@@ -233,7 +233,8 @@ def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
         chk = bundle["check"]
     compared = max(chk["n_plan"], chk["n_height"])
     if compared:
-        given = ctrl["check"]
+        weak = len(report["check"].get("weakly_determined") or ())
+        given = ctrl["check"] - weak
         at = (
             f"At {compared} independent check points"
             if compared >= given
@@ -253,6 +254,7 @@ def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
             )
             + "). "
         )
+        text += weak_check_sentence(report["check"])
     else:
         text += "There were no independent check points, so the accuracy is not proven. "
     text += f"Against the tolerances of the production rules: {verdict}."
