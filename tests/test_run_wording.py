@@ -97,3 +97,62 @@ def test_a_refined_strip_s_summary_table_gives_the_delivered_check(tmp_path):
     suffix, value, record = rows["plain"]
     chk = record["check"]["statistics"]
     assert suffix == "" and value == f"{chk['rmse_plan_m']:.3f} / {chk['mean_plan_m']:.3f}"
+
+
+def test_the_points_a_refinement_loses_are_named():
+    """A point whose rays the refinement rejects down to one is no longer
+    determined: the warning counts and names such points (the first five),
+    and only those the start had."""
+    import numpy as np
+
+    from strip_aerotri.bundle.refine import lost_points_note
+
+    ids = [f"p{i}" for i in range(9)]
+    start = np.zeros((9, 3))
+    start[8] = np.nan  # never determined: not lost
+    used = np.ones(9, dtype=bool)
+    assert lost_points_note(ids, start, used) == []
+    used[[1, 2, 3, 4, 5, 6, 8]] = False
+    (note,) = lost_points_note(ids, start, used)
+    assert note.startswith("bundle: 6 point(s) ")
+    assert note.endswith(": 'p1', 'p2', 'p3', 'p4', 'p5' and 1 more")
+
+
+def test_a_block_s_refinement_names_the_points_it_loses(tmp_path):
+    """The FC300X block with estimated weights: the refinement's rejections
+    leave some points with one ray; the warning's count is the difference
+    between the points of the block's transformation and the refinement's,
+    and each named point is missing from the refinement."""
+    import re
+    import warnings
+    from pathlib import Path
+
+    import numpy as np
+    import pytest
+
+    from strip_aerotri.errors import StripAerotriWarning
+    from strip_aerotri.importers.uav_fc300x import import_uav_fc300x
+    from strip_aerotri.importers.writer import write_project
+    from strip_aerotri.project import load_project, run_project
+
+    data = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "uav-block-fc300x"
+    if not data.is_dir():
+        pytest.skip("needs ../shared/data/uav-block-fc300x")
+    write_project(import_uav_fc300x(data), tmp_path, force=True)
+    toml = tmp_path / "strip.toml"
+    plain = toml.read_text()
+    counts, results = [], []
+    for extra in ("", 'refine = "bundle"\nweights = "estimated"\n'):
+        toml.write_text(plain + f"\n[adjustment]\n{extra}")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", StripAerotriWarning)
+            result = run_project(load_project(toml))
+        counts.append(int(np.isfinite(result.points).all(axis=1).sum()))
+        results.append(result)
+    notes = [w for w in results[1].warnings if "no longer determined" in w]
+    assert counts[0] > counts[1] and len(notes) == 1, (counts, notes)
+    assert notes[0].startswith(f"bundle: {counts[0] - counts[1]} point(s) ")
+    named = re.findall(r"'([^']+)'", notes[0])
+    index = [results[1].observations.point_ids.index(n) for n in named]
+    assert len(named) == 5 and not np.isfinite(results[1].points[index]).all(axis=1).any()
+    assert np.isfinite(results[0].points[index]).all()
