@@ -321,3 +321,22 @@ def test_a_block_s_summary_carries_its_estimated_weights(tmp_path):
     vc = result.variance_components
     assert vc is not None and weights is not None
     assert [(g[0], g[3]) for g in weights.groups] == [(g.name, g.sigma) for g in vc.groups]
+
+
+def test_a_refined_strip_counts_the_delivered_points(tmp_path):
+    """After a refinement the summary's points are those of points.csv, the
+    refinement's: a point it no longer determines is not counted."""
+    project = _with_weights(_project(tmp_path, simulate_strip(8, seed=4)), False)
+    result = run_project(project)
+    refined = result.refined
+    assert refined is not None
+    tie = ~np.isin(np.array(result.point_ids), np.array(result.control.point_ids))
+    lost = int(np.flatnonzero(np.isfinite(refined.points).all(axis=1) & tie)[0])
+    points = np.array(refined.points)
+    points[lost] = np.nan
+    result = dataclasses.replace(result, refined=dataclasses.replace(refined, points=points))
+    outputs = build_run(result, project=project)
+    rows = outputs.files["points.csv"].decode().strip().splitlines()
+    n_header = sum(1 for r in rows if not r[:1].isalnum() or r.startswith("point,"))
+    assert outputs.summary.n_points == len(rows) - n_header
+    assert outputs.summary.n_points == int(result.strip.triangulated.sum()) - 1
