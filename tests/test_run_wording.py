@@ -22,6 +22,7 @@ def test_a_refined_block_says_its_accuracy_is_the_refinement_s(tmp_path):
     ran = CliRunner().invoke(cli, ["run", str(toml)])
     assert ran.exit_code == 0, ran.output
     assert REFINED not in ran.output
+    assert "in the block's transformation" not in ran.output
     toml.write_text(plain.replace("[adjustment]\n", '[adjustment]\nrefine = "bundle"\n'), "utf-8")
     ran = CliRunner().invoke(cli, ["run", str(toml)])
     assert ran.exit_code == 0, ran.output
@@ -29,6 +30,9 @@ def test_a_refined_block_says_its_accuracy_is_the_refinement_s(tmp_path):
     block = next(i for i, x in enumerate(lines) if x.startswith("block "))
     assert lines[block + 1] == REFINED
     assert lines[block + 2].startswith("control: ")
+    # the joins are the block transformation's, not the refinement's: said
+    (join,) = [x for x in lines if x.startswith("common points of the strips")]
+    assert join.endswith("), in the block's transformation")
 
 
 def _parameter(name: str, kept: bool, why_not: str | None = None) -> dict[str, object]:

@@ -265,6 +265,8 @@ def _echo_block(summary: RunSummary, target: Path) -> None:
         echo_result(
             f"common points of the strips: largest mean discrepancy {_fmt_m(join.mean_plan_m)} "
             f"plan, {_fmt_m(join.mean_height_m)} height (strips {a} / {b})"
+            # the joins are the block transformation's, also after a refinement
+            + (", in the block's transformation" if summary.refined else "")
         )
         if join.transfer_strips is not None:
             a, b = join.transfer_strips
