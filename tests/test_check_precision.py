@@ -103,6 +103,8 @@ def test_fc300x_weak_check_points_are_named_and_left_out(tmp_path, adjustment: s
     78 (two photos, 7°) are weak; the statistics are those of the other 13."""
     import warnings
 
+    import json
+
     from strip_aerotri.errors import StripAerotriWarning
     from strip_aerotri.importers.uav_fc300x import import_uav_fc300x
     from strip_aerotri.importers.writer import write_project
@@ -126,6 +128,47 @@ def test_fc300x_weak_check_points_are_named_and_left_out(tmp_path, adjustment: s
     assert stats.n_plan == 13 == keep.sum()
     assert stats.rmse_plan == pytest.approx(np.sqrt(np.mean(np.sum(r[:, :2] ** 2, axis=1))))
     assert stats.rmse[2] == pytest.approx(np.sqrt(np.mean(r[:, 2] ** 2)))
+    if result.refined:
+        _block_s_own_check_leaves_them_out_too(result, keep)
+    # R4's check-point criteria judge the same 13 points (26 dE, dN)
+    from strip_aerotri.report.block import block_tolerances_record
+
+    criteria = {c["name"]: c for c in block_tolerances_record(result, 1000.0, [])["criteria"]}
+    mean_plan = criteria["check_mean_plan"]
+    assert mean_plan["n"] == 13
+    assert mean_plan["value"] == pytest.approx(np.mean(np.hypot(r[:, 0], r[:, 1])), rel=1e-3)
+    assert criteria["check_en_limit_share"]["n"] == 26
+    # the page's plain summary names them: figures at 13, the 2 listed
+    from strip_aerotri.report.block import build_block_report
+    from strip_aerotri.report.block_page import _plain
+
+    plain = _plain(json.loads(json.dumps(build_block_report(result))))
+    assert "At 13 independent check points" in plain
+    assert "2 more check point(s) (14, 78) are listed below but left out of these figures" in plain
+
+
+def _block_s_own_check_leaves_them_out_too(result, keep) -> None:  # type: ignore[no-untyped-def]
+    """After the refinement the block's own transformation at the check
+    points (``bundle.block_check``) leaves the weak points out as the
+    refinement's statistics do; ``block_check_with_weak`` keeps all 15."""
+    import json
+
+    from strip_aerotri.report.block import build_block_report
+
+    own = np.asarray(result.block_control_residuals)
+    assert own.shape == result.control_residuals.shape
+    assert not np.allclose(own[keep], result.control_residuals[keep])  # not the refinement's
+    stats = result.block_check_statistics
+    assert stats.n_plan == 13
+    assert stats.rmse_plan == pytest.approx(np.sqrt(np.mean(np.sum(own[keep, :2] ** 2, axis=1))))
+    assert stats.rmse[2] == pytest.approx(np.sqrt(np.mean(own[keep, 2] ** 2)))
+    bundle = json.loads(json.dumps(build_block_report(result)))["bundle"]
+    assert bundle["block_check"]["n_plan"] == 13
+    every = own[result.is_check]
+    assert bundle["block_check_with_weak"]["n_plan"] == 15 == every.shape[0]
+    assert bundle["block_check_with_weak"]["rmse_plan_m"] == pytest.approx(
+        np.sqrt(np.mean(np.sum(every[:, :2] ** 2, axis=1)))
+    )
 
 
 def test_check_points_of_one_geometry_are_never_left_out(tmp_path) -> None:  # type: ignore[no-untyped-def]
@@ -242,3 +285,58 @@ def test_precision_in_a_map_projection_is_that_of_the_bundle_frame(tmp_path) -> 
     )[index]  # fmt: skip
     np.testing.assert_allclose(prec.sigma_plan_m, np.sqrt(cov[:, 0, 0] + cov[:, 1, 1]), rtol=1e-3)
     np.testing.assert_allclose(prec.sigma_height_m, np.sqrt(cov[:, 2, 2]), rtol=1e-3)
+
+
+def test_a_strip_s_criteria_leave_the_weak_check_points_out() -> None:
+    """R4's check-point criteria of a strip judge the check points of its
+    statistics: naming one weakly determined leaves it out of their count
+    and of the mean plan discrepancy."""
+    import dataclasses
+    import warnings
+
+    from strip_aerotri.errors import StripAerotriWarning
+    from strip_aerotri.pipeline import triangulate
+    from strip_aerotri.report.tolerances import tolerance_verdicts
+    from strip_aerotri.simulate import simulate_strip
+
+    sim = simulate_strip(8, seed=4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        result = triangulate(sim.observations, sim.control, sim.crs)
+    ground = result.ground
+    rows = np.flatnonzero(ground.is_check)
+    assert rows.size >= 3
+    weak = result.control.point_ids[int(ground.control_index[rows[0]])]
+    before = {c.name: c for c in tolerance_verdicts(result, 1000.0)}
+    after = {
+        c.name: c
+        for c in tolerance_verdicts(dataclasses.replace(result, weak_checks=(weak,)), 1000.0)
+    }
+    assert before["check_mean_plan"].n == rows.size
+    assert after["check_mean_plan"].n == rows.size - 1
+    r = np.asarray(ground.control_residuals)[rows[1:]]
+    assert after["check_mean_plan"].value == pytest.approx(np.mean(np.hypot(r[:, 0], r[:, 1])))
+    assert after["check_en_limit_share"].n == 2 * (rows.size - 1)
+
+
+def test_a_strip_s_plain_summary_counts_the_weak_check_points_apart() -> None:
+    """A strip with 17 check points given, 15 compared and 2 of them weak:
+    the plain summary gives the figures at 13 of 15 (2 not compared) and
+    names the 2 weak ones, not "13 of the 17 (the other 4 could not be
+    triangulated or compared)"."""
+    from strip_aerotri.report.html import _plain_summary
+
+    stats = {"n_plan": 13, "n_height": 13, "rmse_plan_m": 0.03, "rmse_h_m": 0.04}
+    report = {
+        "inputs": {"n_photos": 10, "n_points_triangulated": 100, "control": {"check": 17}},
+        "control": {"statistics": stats},
+        "check": {"statistics": stats, "weakly_determined": ["14", "78"]},
+        "project": {"crs_name": "local"},
+    }
+    text = _plain_summary(report, "met")
+    assert "At 13 of the 15 independent check points (the other 2 could not be" in text
+    assert "2 more check point(s) (14, 78) are listed below but left out" in text
+    report["check"]["weakly_determined"] = []
+    text = _plain_summary(report, "met")
+    assert "At 13 of the 17 independent check points (the other 4 could not be" in text
+    assert "left out of these figures" not in text

@@ -332,6 +332,10 @@ def test_camera_toml_calibrates_the_next_project(tmp_path) -> None:  # type: ign
     k1 = next(p for p in record["parameters"] if p["name"] == "k1")
     assert abs(k1["estimate"] + 3e-8) < 3 * k1["sd"]  # the simulated 30 µm at 100 mm
     camera = files["camera.toml"].decode()
+    # the fit's RMS in plain figures (it read "within 8.28e-15 µm RMS")
+    fit = re.search(r"within (\S+) µm RMS", camera)
+    assert fit is not None and re.fullmatch(r"\d+\.\d{3}", fit.group(1)), camera
+    assert float(fit.group(1)) == pytest.approx(record["camera"]["distortion_fit_rms_um"], abs=5e-4)
     # the next project: the same data with camera.toml's tables, the strip method
     nxt = tmp_path / "b" / "strip.toml"
     nxt.parent.mkdir()

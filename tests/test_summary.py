@@ -269,3 +269,74 @@ def test_a_refined_strip_s_summary_is_the_bundle_s(tmp_path):
     assert summary.calibration is not None and summary.calibration.kept == outcome.kept
     assert "k1" in summary.calibration.kept
     assert summary.calibration.camera_written == ("camera.toml" in outputs.files) is True
+
+
+def _with_weights(project, weights=True):
+    """``project`` again with ``refine = "bundle"`` (and ``weights =
+    "estimated"``)."""
+    extra = 'refine = "bundle"\n' + ('weights = "estimated"\n' if weights else "")
+    text = project.path.read_text(encoding="utf-8")
+    project.path.write_text(text.replace("[adjustment]\n", f"[adjustment]\n{extra}"), "utf-8")
+    return load_project(project.path)
+
+
+def test_the_run_prints_the_estimated_weights_as_report_json(tmp_path):
+    """``weights = "estimated"``: the summary carries each group's given and
+    estimated sigma as report.json's ``bundle.variance_components``, and
+    ``stripaero run`` prints them on one line with their units; without the
+    key there is neither."""
+    from click.testing import CliRunner
+
+    from strip_aerotri.cli.main import cli
+
+    project = _with_weights(_project(tmp_path, simulate_strip(10, seed=2, crs="local")))
+    result = run_project(project)
+    outputs = build_run(result, project=project)
+    record = json.loads(outputs.files["report.json"])["bundle"]["variance_components"]
+    weights = outputs.summary.weights
+    assert weights is not None and weights.applied == record["applied"]
+    assert [g[0] for g in weights.groups] == [g["group"] for g in record["groups"]]
+    for (_, unit, given, sigma, estimated), g in zip(weights.groups, record["groups"], strict=True):
+        assert (unit, estimated) == (g["unit"], g["estimated"])
+        assert (given, sigma) == pytest.approx((g["sigma_apriori"], g["sigma"]), rel=1e-9)
+    ran = CliRunner().invoke(cli, ["run", str(project.path)])
+    assert ran.exit_code == 0, ran.output
+    lines = [x for x in ran.output.splitlines() if "observation weights estimated" in x]
+    assert len(lines) == 1, ran.output
+    ties = record["groups"][0]
+    assert ties["estimated"] and ties["unit"] == "µm"
+    assert f"{ties['group']} {ties['sigma']:.3g} µm (given {ties['sigma_apriori']:.3g})" in lines[0]
+    held = [g for g in record["groups"] if not g["estimated"]]
+    assert held and all(f"{g['group']} {g['sigma_apriori']:.3g} {g['unit']} as given" in lines[0] for g in held)
+    plain = _with_weights(_project(tmp_path / "plain", simulate_strip(10, seed=2, crs="local")), False)
+    assert build_run(run_project(plain), project=plain).summary.weights is None
+    ran = CliRunner().invoke(cli, ["run", str(plain.path)])
+    assert ran.exit_code == 0 and "observation weights" not in ran.output
+
+
+def test_a_block_s_summary_carries_its_estimated_weights(tmp_path):
+    project = _with_weights(_project(tmp_path, simulate_block(2, 6, seed=2)))
+    result = run_project(project)
+    weights = build_run(result, project=project).summary.weights
+    vc = result.variance_components
+    assert vc is not None and weights is not None
+    assert [(g[0], g[3]) for g in weights.groups] == [(g.name, g.sigma) for g in vc.groups]
+
+
+def test_a_refined_strip_counts_the_delivered_points(tmp_path):
+    """After a refinement the summary's points are those of points.csv, the
+    refinement's: a point it no longer determines is not counted."""
+    project = _with_weights(_project(tmp_path, simulate_strip(8, seed=4)), False)
+    result = run_project(project)
+    refined = result.refined
+    assert refined is not None
+    tie = ~np.isin(np.array(result.point_ids), np.array(result.control.point_ids))
+    lost = int(np.flatnonzero(np.isfinite(refined.points).all(axis=1) & tie)[0])
+    points = np.array(refined.points)
+    points[lost] = np.nan
+    result = dataclasses.replace(result, refined=dataclasses.replace(refined, points=points))
+    outputs = build_run(result, project=project)
+    rows = outputs.files["points.csv"].decode().strip().splitlines()
+    n_header = sum(1 for r in rows if not r[:1].isalnum() or r.startswith("point,"))
+    assert outputs.summary.n_points == len(rows) - n_header
+    assert outputs.summary.n_points == int(result.strip.triangulated.sum()) - 1

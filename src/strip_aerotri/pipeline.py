@@ -438,9 +438,14 @@ def _block_without_weak_checks(result: BlockResult, crs: GroundCRS | str) -> Blo
     weak = weak_checks_of(result.observations, result.control, ground_crs, result, result)
     if not weak:
         return result
+    own = result.block_check_statistics
+    if result.block_control_residuals is not None:  # refined: the block's own, alike
+        before = dataclasses.replace(result, control_residuals=result.block_control_residuals)
+        own = check_statistics_without(before, result.control, weak)
     return dataclasses.replace(
         result,
         check_statistics=check_statistics_without(result, result.control, weak),
+        block_check_statistics=own,
         warnings=result.warnings + tuple(weak_check_message(w) for w in weak),
         weak_checks=tuple(w.point for w in weak),
     )

@@ -326,7 +326,7 @@ def _refine(
     """The bundle adjustment of the whole block from its solution, in the work
     frame (plan-only and height-only control keep the block's value of their
     other coordinate)."""
-    from ..bundle.refine import gnss_imu_in_frame, gnss_imu_outcomes
+    from ..bundle.refine import gnss_imu_in_frame, gnss_imu_outcomes, lost_points_note
     from ..bundle.variance import refine_frame_weighted
 
     points0, centres0, rot0 = _in_work_frame(p, sol)
@@ -382,6 +382,7 @@ def _refine(
     used[~used_xy, :2] = np.nan
     used[~used_z, 2] = np.nan
     notes = tuple(r.describe() for r in fr.rejections)
+    notes += tuple(lost_points_note(p.observations.point_ids, points0, fr.point_used))
     if fr.self_calibration is not None:
         notes = fr.self_calibration.notes + notes
     return replace(
@@ -399,6 +400,7 @@ def _refine(
         refined=True,
         refined_sigma0=float(fr.bundle.sigma0),
         block_check_statistics=block.check_statistics,
+        block_control_residuals=block.control_residuals,
         gnss=gnss_out,
         imu=imu_out,
         self_calibration=fr.self_calibration,

@@ -41,7 +41,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._threads import limit_blas_threads
-from .._typing import BoolArray, FloatArray, IntArray
+from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import StripAerotriWarning
 from ..frames import LocalTangentFrame, TangentWorkFrame, WorkFrame, enu_residuals
 from ..geometry.rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
@@ -384,6 +384,7 @@ def refine_bundle(
         dropped = [control.point_ids[r] for r in ctrl.rows[~keep_rows & ~check]]
         notes.append(f"control point(s) {', '.join(map(repr, dropped[:5]))} left out")
     notes += [r.describe() for r in rejections]
+    notes += lost_points_note(obs.point_ids, start.points, fr.point_used)
     if fr.self_calibration is not None:
         notes += list(fr.self_calibration.notes)
     return RefinedResult(
@@ -425,6 +426,23 @@ def refine_bundle(
         self_calibration=fr.self_calibration,
         variance_components=fr.variance_components,
     )
+
+
+def lost_points_note(point_ids: Sequence[str], start: ArrayLike, used: ArrayLike) -> list[str]:
+    """The warning naming the points that the refinement started from and
+    did not determine (their rays rejected down to one): left out of
+    points.csv.  ``start`` (P, 3) the start points, NaN where none; ``used``
+    (P,) the points the refinement determined."""
+    had = np.isfinite(np.asarray(start, dtype=np.float64)).all(axis=1)
+    lost = np.flatnonzero(had & ~np.asarray(used, dtype=bool))
+    if not lost.size:
+        return []
+    names = ", ".join(repr(point_ids[i]) for i in lost[:5])
+    more = f" and {lost.size - 5} more" if lost.size > 5 else ""
+    return [
+        f"bundle: {lost.size} point(s) kept fewer than two rays after the rejections and are "
+        f"no longer determined (left out of points.csv): {names}{more}"
+    ]
 
 
 class _Start(NamedTuple):

@@ -115,6 +115,10 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     echo_progress(f"done in {time.perf_counter() - started:.1f} s", level=1)
 
 
+#: The line saying that the accuracy printed is the bundle refinement's.
+_REFINED_LINE = "bundle refinement: accuracy below is the refined solution's"
+
+
 def _echo_accuracy(summary: RunSummary, own: str = "") -> None:
     """The control's and the check points' lines (``own``: a block's fit)."""
     control, check = summary.control, summary.check
@@ -136,8 +140,9 @@ def _echo_strip(summary: RunSummary, target: Path) -> None:
     echo_result(f"strip '{summary.name}': {summary.n_photos} photos, {summary.n_points} points")
     if summary.refined:
         # the written points come from the refinement: so do the figures
-        echo_result("bundle refinement: accuracy below is the refined solution's")
+        echo_result(_REFINED_LINE)
         _echo_calibration(summary, target)
+        _echo_weights(summary)
     _echo_accuracy(summary)
     echo_result(f"tolerances (R4 §1.7.7): {summary.verdict.text}")
     if summary.report_name is not None:
@@ -156,6 +161,28 @@ def _echo_calibration(summary: RunSummary, target: Path) -> None:
     sigma += f" (without: {without:.3g})" if math.isfinite(without) else ""
     written = f"; camera: {target / 'camera.toml'}" if calibration.camera_written else ""
     echo_result(f"self-calibration: kept {kept}{sigma}{written}")
+
+
+def _echo_weights(summary: RunSummary) -> None:
+    """One line on the observation weights estimated from the data: each
+    group's sigma as estimated and as given, with its unit."""
+    weights = summary.weights
+    if weights is None:
+        return
+    how = (
+        f"applied ({weights.iterations} more adjustment(s), "
+        + ("settled" if weights.converged else "not settled")
+        + ")"
+        if weights.applied
+        else "not applied"
+    )
+    groups = "; ".join(
+        f"{name} {sigma:.3g} {unit} (given {given:.3g})"
+        if estimated
+        else f"{name} {given:.3g} {unit} as given (too little redundancy)"
+        for name, unit, given, sigma, estimated in weights.groups
+    )
+    echo_result(f"observation weights estimated from the data, {how}: {groups}")
 
 
 def _adjust_and_report(project: Project, map_scale: float | None) -> RunOutputs:
@@ -220,6 +247,8 @@ def _echo_block(summary: RunSummary, target: Path) -> None:
         f"block '{summary.name}': {summary.n_strips} strips, {summary.n_photos} photos, "
         f"{summary.n_points} points"
     )
+    if summary.refined:
+        echo_result(_REFINED_LINE)
     fit = summary.control_fit
     own = (
         ""
@@ -229,12 +258,15 @@ def _echo_block(summary: RunSummary, target: Path) -> None:
     )
     _echo_accuracy(summary, own)
     _echo_calibration(summary, target)
+    _echo_weights(summary)
     join = summary.join
     if join is not None:
         a, b = join.strips
         echo_result(
             f"common points of the strips: largest mean discrepancy {_fmt_m(join.mean_plan_m)} "
             f"plan, {_fmt_m(join.mean_height_m)} height (strips {a} / {b})"
+            # the joins are the block transformation's, also after a refinement
+            + (", in the block's transformation" if summary.refined else "")
         )
         if join.transfer_strips is not None:
             a, b = join.transfer_strips

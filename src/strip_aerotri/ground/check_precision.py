@@ -34,6 +34,7 @@ drone corridor) no check point is beyond 1.9 times the median.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
@@ -54,6 +55,7 @@ __all__ = [
     "WeakCheck",
     "check_point_precision",
     "check_statistics_without",
+    "strong_checks",
     "weak_check_message",
     "weak_check_points",
     "weak_checks_of",
@@ -249,10 +251,16 @@ def check_statistics_without(
 ) -> AccuracyStatistics:
     """The check statistics of ``adjusted``'s residuals (its rows of
     ``control``) without the weak points."""
+    keep = strong_checks(adjusted, control, [w.point for w in weak])
+    return AccuracyStatistics.from_residuals(np.asarray(adjusted.control_residuals)[keep])
+
+
+def strong_checks(adjusted: Adjusted, control: ControlPoints, weak: Sequence[str]) -> BoolArray:
+    """The rows of ``adjusted`` (its rows of ``control``) that are check
+    points, and not among the weakly determined ``weak`` (point ids)."""
     index = np.asarray(adjusted.control_index, dtype=np.intp)
     names = np.array(control.point_ids, dtype=object)[index]
-    keep = np.asarray(adjusted.is_check, dtype=bool) & ~np.isin(names, [w.point for w in weak])
-    return AccuracyStatistics.from_residuals(np.asarray(adjusted.control_residuals)[keep])
+    return np.asarray(adjusted.is_check, dtype=bool) & ~np.isin(names, list(weak))
 
 
 def weak_check_message(weak: WeakCheck) -> str:

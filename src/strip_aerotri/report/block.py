@@ -80,6 +80,14 @@ def _residuals(result: BlockResult) -> np.ndarray:
     return out
 
 
+def _check_rows(result: BlockResult, residuals: np.ndarray) -> AccuracyStatistics:
+    """The statistics of ``residuals`` (rows of ``result.control_index``) at
+    every check point determined, the weakly determined ones included."""
+    return AccuracyStatistics.from_residuals(
+        np.asarray(residuals)[np.asarray(result.is_check, dtype=bool)]
+    )
+
+
 def build_block_report(
     result: BlockResult, *, project: Project | None = None, map_scale: float | None = None
 ) -> dict[str, Any]:
@@ -139,11 +147,7 @@ def build_block_report(
             "statistics": statistics(result.check_statistics),
             "points": _control_points(result, check=True),
             "weakly_determined": list(getattr(result, "weak_checks", ())),
-            "statistics_with_weak": statistics(
-                AccuracyStatistics.from_residuals(
-                    np.asarray(result.control_residuals)[np.asarray(result.is_check, dtype=bool)]
-                )
-            ),
+            "statistics_with_weak": statistics(_check_rows(result, result.control_residuals)),
         },
         "bundle": (
             {
@@ -151,6 +155,9 @@ def build_block_report(
                 "block_check": None
                 if result.block_check_statistics is None
                 else statistics(result.block_check_statistics),
+                "block_check_with_weak": None
+                if result.block_control_residuals is None
+                else statistics(_check_rows(result, result.block_control_residuals)),
                 "gnss": _bundle_gnss(result.gnss),
                 "imu": _bundle_imu(result.imu),
             }
@@ -205,8 +212,11 @@ def _tolerances(result: BlockResult, map_scale: float | None) -> dict[str, Any]:
     the joins carry the criteria of the common points."""
     from .tolerances import check_mean_plan, residual_distribution
 
+    from ..ground.check_precision import strong_checks
+
     resid = np.asarray(result.control_residuals, dtype=np.float64).reshape(-1, 3)
-    check = np.asarray(result.is_check, dtype=bool)
+    # the check points of the statistics: without the weakly determined ones
+    check = strong_checks(result, result.control, result.weak_checks)
     criteria = (
         check_mean_plan(np.hypot(resid[check, 0], resid[check, 1]), map_scale),
         *residual_distribution(

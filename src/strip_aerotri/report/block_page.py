@@ -20,7 +20,7 @@ from .html import (
     stat_row,
     verdict_banner,
 )
-from .html_parts import _esc, _figure, _fmt, _table
+from .html_parts import _esc, _figure, _fmt, _table, weak_check_sentence
 from .verdict import overall_verdict
 
 __all__ = ["block_html"]
@@ -52,6 +52,7 @@ def _plain(report: Mapping[str, Any]) -> str:
             )
             + "). "
         )
+        text += weak_check_sentence(report["check"])
     else:
         text += "There were no independent check points, so the accuracy is not proven. "
     joins = block["joins"]

@@ -178,7 +178,7 @@ def camera_toml(
     c_new, pp_new, dist, rms = fitted_camera(outcome, c_mm, principal_point_mm, start)
     lines = head + [
         f"# Estimated: {', '.join(outcome.kept)}; [distortion] fitted over the observed area "
-        f"within {rms:.3g} µm RMS.",
+        f"within {rms:.3f} µm RMS.",
     ]
     return _tables(lines, c_new, pp_new, dist)
 
@@ -235,7 +235,7 @@ def calibration_html(record: dict[str, Any] | None, figures: tuple[str | None, s
         "start camera; r(EO) is the multiple correlation with the photos' orientation and "
         "the points.</p>",
         _table(["parameter", "unit", "estimate", "sd", "t", "r(EO)", "kept / why not"], rows),
-        "<p>Correlations above 0.9: "
+        "<p>Correlations above 0.9 between the kept parameters: "
         + (_esc(", ".join(f"{c['a']}-{c['b']} {c['r']:.3f}" for c in corr)) or "none")
         + "</p>",
         _figure(

@@ -23,7 +23,7 @@ from .figures import (
     figure_residuals,
     figure_ties,
 )
-from .html_parts import _esc, _figure, _fmt, _table
+from .html_parts import _esc, _figure, _fmt, _table, weak_check_sentence
 from .verdict import Verdict, criterion_label, overall_verdict
 
 if TYPE_CHECKING:
@@ -244,7 +244,8 @@ def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
         chk = bundle["check"]
     compared = max(chk["n_plan"], chk["n_height"])
     if compared:
-        given = ctrl["check"]
+        weak = len(report["check"].get("weakly_determined") or ())
+        given = ctrl["check"] - weak
         at = (
             f"At {compared} independent check points"
             if compared >= given
@@ -264,6 +265,7 @@ def _plain_summary(report: Mapping[str, Any], verdict: str) -> str:
             )
             + "). "
         )
+        text += weak_check_sentence(report["check"])
     else:
         text += "There were no independent check points, so the accuracy is not proven. "
     text += f"Against the tolerances of the production rules: {verdict}."
@@ -303,7 +305,9 @@ def _html_page(
     ctrl = inp["control"]
     verdict = overall_verdict(tol)
     overall_cls, overall_text = verdict.status, verdict.text
-    chk = report["check"]["statistics"]
+    # the delivered solution's check points: the refinement's when there is one
+    chk = report["bundle"]["check"] if report.get("bundle") else report["check"]["statistics"]
+    of = " (bundle refinement)" if report.get("bundle") else ""
     pairs = report["pairs"]
     sig = [p["sigma0_um"] for p in pairs if p["sigma0_um"] is not None]
     mx = [p["max_parallax_um"] for p in pairs if p["max_parallax_um"] is not None]
@@ -339,11 +343,11 @@ def _html_page(
         ["y-parallax σ0, median of pairs [µm]", float(np.median(sig)) if sig else None],
         ["largest y-parallax [µm]", float(np.max(mx)) if mx else None],
         [
-            "check RMSE E / N / H [m]",
+            f"check RMSE E / N / H [m]{of}",
             (" / ".join(_fmt(chk[k]) for k in ("rmse_e_m", "rmse_n_m", "rmse_h_m")),),
         ],
         [
-            "check RMSE plan / mean plan [m]",
+            f"check RMSE plan / mean plan [m]{of}",
             (f"{_fmt(chk['rmse_plan_m'])} / {_fmt(chk['mean_plan_m'])}",),
         ],
         [

@@ -5,6 +5,7 @@ section can use them without importing a page)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -72,4 +73,17 @@ def _figure(b64: str | None, caption: str, alt: str) -> str:
     return (
         f"<figure><img alt='{_esc(alt)}' src='data:image/png;base64,{b64}'>"
         f"<figcaption>{_esc(caption)}</figcaption></figure>"
+    )
+
+
+def weak_check_sentence(check: Mapping[str, Any]) -> str:
+    """The plain summary's sentence on the weakly determined check points of
+    report.json's ``check`` ('' when none is): named, listed with the check
+    points, left out of the figures."""
+    weak = list(check.get("weakly_determined") or ())
+    if not weak:
+        return ""
+    return (
+        f"{len(weak)} more check point(s) ({', '.join(weak)}) are listed below but left out of "
+        "these figures: their own rays fix them too loosely to check the adjustment. "
     )

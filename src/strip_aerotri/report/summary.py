@@ -8,7 +8,8 @@ a block) and makes the files of its result folder (:mod:`.outputs`,
 the result alone, by the rules that write ``report.json``: the accuracy at
 the control and check points, the overall tolerance verdict at the map
 scale (:mod:`.verdict`, the sentence of the page's banner), a block's joins
-and R4's transfer verdict, the self-calibration, the warnings, the
+and R4's transfer verdict, the self-calibration, the estimated observation
+weights, the warnings, the
 rejections, the timings and the figures ``-v`` shows.
 """
 
@@ -31,12 +32,13 @@ from .verdict import Verdict
 
 if TYPE_CHECKING:
     from ..project import Project
-    from ..results import SelfCalibrationOutcome
+    from ..results import SelfCalibrationOutcome, VarianceComponents
     from .aside import Standby
 
 __all__ = [
     "Accuracy",
     "Calibration",
+    "EstimatedWeights",
     "JoinVerdict",
     "RunOutputs",
     "RunSummary",
@@ -141,6 +143,48 @@ class Calibration:
 
 
 @dataclass(frozen=True)
+class EstimatedWeights:
+    """The refinement's observation weights estimated from the data
+    (``[adjustment] weights = "estimated"``, report.json
+    ``bundle.variance_components``).
+
+    Attributes
+    ----------
+    applied : bool
+        The delivered adjustment ran with the estimated weights (False: they
+        were only estimated, the adjustment kept the given ones).
+    iterations : int
+        Adjustments run with re-estimated weights after the first.
+    converged : bool
+        The estimates settled.
+    groups : tuple of (str, str, float, float, bool)
+        Each observation group's name, the unit of its sigmas (``"µm"``,
+        ``"m"`` or ``"deg"``), its sigma as given and as estimated, and
+        whether it was estimated (False: too little redundancy, kept as
+        given).
+    """
+
+    applied: bool
+    iterations: int
+    converged: bool
+    groups: tuple[tuple[str, str, float, float, bool], ...]
+
+    @classmethod
+    def of(cls, vc: VarianceComponents | None) -> EstimatedWeights | None:
+        if vc is None:
+            return None
+        return cls(
+            bool(vc.applied),
+            int(vc.iterations),
+            bool(vc.converged),
+            tuple(
+                (g.name, g.unit, float(g.sigma_apriori), float(g.sigma), bool(g.estimated))
+                for g in vc.groups
+            ),
+        )
+
+
+@dataclass(frozen=True)
 class RunSummary:
     """A run in short, for the command line and for callers.
 
@@ -167,6 +211,9 @@ class RunSummary:
         A block's worst join and R4's transfer verdict (None for a strip).
     calibration : Calibration or None
         The self-calibration (None without one).
+    weights : EstimatedWeights or None
+        The observation weights estimated from the data (None unless asked
+        for).
     warnings : tuple of str
         The run's warnings.
     output_warnings : tuple of str
@@ -199,6 +246,7 @@ class RunSummary:
     tolerances: ToleranceVerdict | None = None
     join: JoinVerdict | None = None
     calibration: Calibration | None = None
+    weights: EstimatedWeights | None = None
     warnings: tuple[str, ...] = ()
     output_warnings: tuple[str, ...] = ()
     rejections: tuple[Rejection, ...] = ()
@@ -451,6 +499,7 @@ def _block_summary(
         control_fit=None if fit is None or result.refined else Accuracy.of(fit),
         join=_join(result),
         calibration=Calibration.of(result.self_calibration, files),
+        weights=EstimatedWeights.of(result.variance_components),
         warnings=tuple(result.warnings),
         rejections=_rejections(result),
         timings=dict(result.timings),
@@ -490,7 +539,12 @@ def summarize(
         name=name,
         n_strips=1,
         n_photos=len(result.photo_ids),
-        n_points=int(result.strip.triangulated.sum()),
+        # the delivered points (points.csv): the refinement's when there is one
+        n_points=int(
+            result.strip.triangulated.sum()
+            if refined is None
+            else np.isfinite(refined.points).all(axis=1).sum()
+        ),
         refined=refined is not None,
         construction="" if result.options is None else result.options.block.value,
         control=Accuracy.of(final.control_statistics),
@@ -498,6 +552,7 @@ def summarize(
         verdict=verdict,
         tolerances=tolerances,
         calibration=None if refined is None else Calibration.of(refined.self_calibration, files),
+        weights=None if refined is None else EstimatedWeights.of(refined.variance_components),
         warnings=tuple(result.warnings),
         output_warnings=(*local, *drift_warnings(result, map_scale)),
         rejections=_rejections(result),

@@ -489,7 +489,8 @@ def tolerance_verdicts(result: StripResult, map_scale: float | None) -> tuple[Cr
 
     The check-point criteria judge the final points: those of the bundle
     refinement when the run refined them (``result.refined``), else those
-    of the ground stage.  The y-parallax criteria judge the relative
+    of the ground stage; at the check points of the statistics, without the
+    weakly determined ones (``result.weak_checks``).  The y-parallax criteria judge the relative
     orientation, which the refinement does not change.
 
     Parameters
@@ -506,10 +507,13 @@ def tolerance_verdicts(result: StripResult, map_scale: float | None) -> tuple[Cr
         image scale) of all pairs (``y_parallax_*``) and of the check-point
         discrepancies dE and dN taken together (``check_en_*``, metres).
     """
+    from ..ground.check_precision import strong_checks
+
     scale = _check_scale(map_scale)
     final = result.ground if result.refined is None else result.refined
     resid = np.asarray(final.control_residuals, dtype=np.float64).reshape(-1, 3)
-    check = np.asarray(final.is_check, dtype=bool)
+    # the check points of the statistics: without the weakly determined ones
+    check = strong_checks(final, result.control, result.weak_checks)
     check_plan = np.hypot(resid[check, 0], resid[check, 1])
     check_en = resid[check, :2].reshape(-1)
     parallax = np.asarray(result.strip.relative.parallax_um, dtype=np.float64)

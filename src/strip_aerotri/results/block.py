@@ -117,7 +117,12 @@ class BlockResult:
         common points determine); empty without a polynomial.
     block_check_statistics : AccuracyStatistics or None
         After a bundle refinement: the check points of the block's own
-        transformation, for comparison (None without a refinement).
+        transformation, for comparison, without the weakly determined ones
+        as ``check_statistics`` (None without a refinement).
+    block_control_residuals : ndarray, shape (N, 3), or None
+        After a bundle refinement: the block transformation's own
+        ``control_residuals`` (the same rows), metres east, north, up (None
+        without a refinement).
     options : AdjustmentOptions or None
         The options the block ran with
         (:func:`strip_aerotri.pipeline.triangulate_block` sets them).
@@ -158,6 +163,7 @@ class BlockResult:
     polynomial_terms: tuple[int, ...] = ()
     control_fit_statistics: AccuracyStatistics | None = None
     block_check_statistics: AccuracyStatistics | None = None
+    block_control_residuals: FloatArray | None = None
     gnss: GnssResiduals | None = None
     imu: ImuResiduals | None = None
     self_calibration: SelfCalibrationOutcome | None = None
