@@ -358,3 +358,26 @@ def test_the_run_itself_imports_neither_matplotlib_nor_scipy_stats(
     assert done.returncode == 0, done.stderr
     assert done.stdout.split()[-2:] == [str(matplotlib_here), "False"]
     assert (tmp_path / "out" / "report.html").read_text().count("data:image/png") == 4
+
+
+def test_the_figures_are_drawn_half_in_a_second_process(monkeypatch):
+    """draw_figures hands the parallaxes and the ties to a forked process
+    (one figure each, their drawer's pid here) and draws them itself when
+    forking is off; the page is the same (the test above)."""
+    import strip_aerotri.report.html as html
+    from strip_aerotri import simulate_strip, triangulate
+    from strip_aerotri.report.figures import figure_data
+    from strip_aerotri.report.record import model_records
+
+    sim = simulate_strip(9, preset="drone", seed=3)
+    result = triangulate(sim.observations, sim.control, sim.crs)
+    data = figure_data(result, model_records(result))
+    for name in ("figure_layout", "figure_residuals", "figure_parallax", "figure_ties"):
+        monkeypatch.setattr(html, name, lambda _data: str(os.getpid()))
+    monkeypatch.delenv(FORK_ENV, raising=False)
+    drawn = html.draw_figures(data)
+    assert drawn.layout == drawn.residuals == str(os.getpid())
+    assert drawn.parallax == drawn.ties != str(os.getpid())
+    monkeypatch.setenv(FORK_ENV, "0")
+    here = html.draw_figures(data)
+    assert {here.layout, here.residuals, here.parallax, here.ties} == {str(os.getpid())}

@@ -212,13 +212,13 @@ def test_gpkg_without_pyogrio_names_the_extra(
 
 def test_point_features_text_equals_one_feature_at_a_time() -> None:
     """The column-wise writer gives what json gives for each feature dict:
-    escaped and non-ASCII ids, a key with braces, floats of every size, NaN
+    escaped and non-ASCII ids, a key with braces and a percent sign, floats of every size, NaN
     properties (null) and a row without a geometry (null)."""
     from strip_aerotri.export.geojson import geojson_text, point_feature, point_features_text
 
     rng = np.random.default_rng(2345)
     n = 200
-    ids = np.array([f'p"{k}\\é{{' if k % 7 == 0 else f"P{k}" for k in range(n)], dtype=object)
+    ids = np.array([f'p"{k}\\é{{%s' if k % 7 == 0 else f"P{k}" for k in range(n)], dtype=object)
     lonlat = np.round(rng.uniform(-180, 180, (n, 2)), 8)
     lonlat[3] = (np.nan, 1.0)
     lonlat[5, 1] = np.inf
@@ -226,7 +226,7 @@ def test_point_features_text_equals_one_feature_at_a_time() -> None:
     heights[[1, 9]] = (np.nan, -np.inf)
     counts = rng.integers(0, 1000, n)
     roles = np.array(["tie", "check", "control-full"] * 67)[:n]
-    props = {"id": ids, "role": roles, "H {x}": heights, "n_models": counts}
+    props = {"id": ids, "role": roles, "H {x} %s": heights, "n_models": counts}
     got = point_features_text(ids, lonlat, props)
     want = [
         geojson_text(
@@ -237,7 +237,7 @@ def test_point_features_text_equals_one_feature_at_a_time() -> None:
                 {
                     "id": str(ids[k]),
                     "role": str(roles[k]),
-                    "H {x}": float(heights[k]) if np.isfinite(heights[k]) else None,
+                    "H {x} %s": float(heights[k]) if np.isfinite(heights[k]) else None,
                     "n_models": int(counts[k]),
                 },
             )
@@ -247,7 +247,7 @@ def test_point_features_text_equals_one_feature_at_a_time() -> None:
     assert got == want
     assert (
         json.loads(got[3])["geometry"] is None
-        and json.loads(got[9])["properties"]["H {x}"] is None
+        and json.loads(got[9])["properties"]["H {x} %s"] is None
     )
     assert point_features_text(ids[:0], lonlat[:0], {"id": ids[:0]}) == []
     with pytest.raises(ValueError, match="property 'H'"):

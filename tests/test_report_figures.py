@@ -62,7 +62,10 @@ def outside_canvas(fig: Figure, tolerance_px: float = 1.0) -> list[str]:
 
 @pytest.fixture
 def caught(monkeypatch) -> list[Figure]:
-    """Every figure the report makes, in order."""
+    """Every figure the report makes, in order (all drawn in this process)."""
+    from strip_aerotri.report.aside import FORK_ENV
+
+    monkeypatch.setenv(FORK_ENV, "0")
     made: list[Figure] = []
     real = figures._png
 

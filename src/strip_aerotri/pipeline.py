@@ -161,6 +161,7 @@ def triangulate(
         options, strip_options, ground_options, photo_step, min_base_to_height, refine
     )
     t0 = time.perf_counter()
+    crs = GroundCRS.from_user_input(crs)  # once: pyproj's CRS and transformers are shared
     mirrored = control_problems(observations, control, crs, file=control_name)
     if mirrored:
         raise GeometryError(mirrored[0])
@@ -363,6 +364,7 @@ def triangulate_block(
         route = options.route
     # degrees under a projected CRS, or control mirrored against the photos
     # (X and Y swapped): a block's run stops on them as one strip's does
+    crs = GroundCRS.from_user_input(crs)  # once: pyproj's CRS and transformers are shared
     implausible = control_problems(observations, control, crs, file=control_name)
     if implausible:
         raise GeometryError(implausible[0])

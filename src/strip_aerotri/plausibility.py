@@ -289,16 +289,49 @@ def flight_axis_message(
     )
 
 
-def _plan_fit_residual(image_xy: FloatArray, ground_xy: FloatArray) -> float:
-    """Sum of squared residuals of the best 2D similarity image -> ground
-    (a rotation, no reflection), relative to the ground spread."""
-    a = image_xy - image_xy.mean(axis=0)
-    b = ground_xy - ground_xy.mean(axis=0)
+def _group_sums(group: IntArray, n: int, *values: FloatArray) -> list[FloatArray]:
+    """Sum of each value over the rows of each group (``np.bincount``)."""
+    return [np.bincount(group, weights=v, minlength=n).astype(np.float64) for v in values]
+
+
+def _plan_fit_residuals(
+    group: IntArray, n: int, image: FloatArray, ground: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The best 2D similarity image -> ground of every group of rows (a photo),
+    without and with a reflection of the image: each fit's sum of squared
+    residuals relative to the ground spread, and the ground's smaller over
+    larger principal variance (0: the points on one line).
+
+    ``group`` numbers the rows' groups 0..n-1.  In complex numbers z = x + iy
+    of the centred coordinates the similarity is z_ground = s z_image with
+    s = Σ conj(z_image) z_ground / Σ |z_image|²; the reflected image is
+    conj(z_image).
+    """
+    count = np.bincount(group, minlength=n).astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        means = np.stack(_group_sums(group, n, *image.T, *ground.T), axis=1) / count[:, None]
+    a = image - means[group, :2]
+    b = ground - means[group, 2:]
     za = a[:, 0] + 1j * a[:, 1]
     zb = b[:, 0] + 1j * b[:, 1]
-    scale = np.vdot(za, zb) / np.vdot(za, za)
-    resid = zb - scale * za
-    return float(np.vdot(resid, resid).real / max(np.vdot(zb, zb).real, 1e-300))
+    saa, sbb, bxx, byy, bxy = _group_sums(
+        group, n, (za * za.conj()).real, (zb * zb.conj()).real, b[:, 0] ** 2, b[:, 1] ** 2,
+        b[:, 0] * b[:, 1],
+    )
+    fits = []
+    for image_z in (za, za.conj()):  # proper, mirrored
+        cross = image_z.conj() * zb
+        re, im = _group_sums(group, n, cross.real, cross.imag)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = (re + 1j * im) / saa
+            resid = zb - scale[group] * image_z
+            (ss,) = _group_sums(group, n, (resid * resid.conj()).real)
+            fits.append(ss / np.maximum(sbb, 1e-300))
+    half_trace = 0.5 * (bxx + byy)
+    root = np.hypot(0.5 * (bxx - byy), bxy)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        spread = (half_trace - root) / (half_trace + root)
+    return fits[0], fits[1], spread
 
 
 def control_handedness_problems(
@@ -343,25 +376,17 @@ def control_handedness_problems(
     row_of[control_point[ok]] = np.arange(int(ok.sum()))
     rows = row_of[obs.point]
     on = np.flatnonzero(rows >= 0)
-    votes_mirror = votes_proper = 0
-    ratios = []
-    for photo in np.unique(obs.photo[on]):
-        sel = on[obs.photo[on] == photo]
-        if sel.size < 3:
-            continue
-        ground = xy[rows[sel]]
-        centred = ground - ground.mean(axis=0)
-        sv = np.linalg.svd(centred, compute_uv=False)
-        if not sv[1] > 0.1 * sv[0]:
-            continue  # on one line: a reflection about it fits as well
-        image = obs.xy[sel]
-        proper = _plan_fit_residual(image, ground)
-        mirrored = _plan_fit_residual(image * np.array([1.0, -1.0]), ground)
-        if mirrored < _MIRROR_RATIO * proper:
-            votes_mirror += 1
-            ratios.append(proper / max(mirrored, 1e-300))
-        elif proper < _MIRROR_RATIO * mirrored:
-            votes_proper += 1
+    photos, group = np.unique(obs.photo[on], return_inverse=True)
+    proper, mirrored, spread = _plan_fit_residuals(
+        group, photos.size, np.asarray(obs.xy, dtype=np.float64)[on], xy[rows[on]]
+    )
+    # three points or more, not on one line (singular values 10:1, variances
+    # 100:1): a reflection about the line fits as well
+    tells = (np.bincount(group, minlength=photos.size) >= 3) & (spread > 0.01)
+    mirror = tells & (mirrored < _MIRROR_RATIO * proper)
+    votes_mirror = int(np.count_nonzero(mirror))
+    votes_proper = int(np.count_nonzero(tells & ~mirror & (proper < _MIRROR_RATIO * mirrored)))
+    ratios = proper[mirror] / np.maximum(mirrored[mirror], 1e-300)
     if votes_mirror > votes_proper:
         return [
             f"{file}: the control is mirrored against the photos: on {votes_mirror} of "
@@ -409,6 +434,20 @@ def control_problems(
 _DISTANCE_FACTOR = 20.0
 
 
+def _pairs_within_runs(labels: IntArray) -> tuple[IntArray, IntArray]:
+    """Every pair of rows (i < j) with the same label, the labels in runs:
+    run by run, in the order of ``np.triu_indices`` (0-1, 0-2, ..., 1-2, ...)."""
+    n = labels.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+    run_end = np.flatnonzero(np.r_[labels[1:] != labels[:-1], True]) + 1
+    sizes = np.diff(np.r_[0, run_end])
+    partners = np.repeat(run_end, sizes) - np.arange(n) - 1  # rows after each in its run
+    first = np.repeat(np.arange(n), partners)
+    offset = np.arange(first.shape[0]) - np.repeat(np.cumsum(partners) - partners, partners)
+    return first, first + 1 + offset
+
+
 def control_distance_problems(
     observations: ImageObservations,
     point: IntArray,
@@ -449,16 +488,9 @@ def control_distance_problems(
     row = row_of[observations.point]
     keep = np.flatnonzero(row >= 0)  # observations of plan points, sorted by photo
     photo, row, image = observations.photo[keep], row[keep], observations.xy[keep]
-    starts = np.flatnonzero(np.r_[True, photo[1:] != photo[:-1]])
-    sizes = np.diff(np.r_[starts, photo.shape[0]])
-    pairs = [  # every pair of plan points on each photo (a few points per photo)
-        start + np.stack(np.triu_indices(size, 1))
-        for start, size in zip(starts, sizes, strict=True)
-        if size >= 2
-    ]
-    if not pairs:
+    a, b = _pairs_within_runs(photo)  # every pair of plan points on each photo
+    if not a.size:
         return []
-    a, b = np.concatenate(pairs, axis=1)
     with np.errstate(all="ignore"):
         on_photo = np.hypot(*(image[a] - image[b]).T)
         on_photo = np.maximum(on_photo, 0.05 * float(np.median(on_photo)))

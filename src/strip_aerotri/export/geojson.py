@@ -107,21 +107,18 @@ def point_features_text(
             )
     lon = list(map(float.__repr__, lonlat[:, 0].tolist()))
     lat = list(map(float.__repr__, lonlat[:, 1].tolist()))
-    point = '{{"type":"Point","coordinates":[{},{}]}}'.format
-    geometry = list(map(point, lon, lat))
+    point = '{"type":"Point","coordinates":[%s,%s]}'.__mod__
+    geometry = list(map(point, zip(lon, lat, strict=True)))
     for k in np.flatnonzero(~np.isfinite(lonlat).all(axis=1)).tolist():
         geometry[k] = "null"
-    keys = [
-        json.encoder.encode_basestring(str(k)).replace("{", "{{").replace("}", "}}")
-        for k in properties
-    ]
+    keys = [json.encoder.encode_basestring(str(k)).replace("%", "%%") for k in properties]
     template = (
-        '{{"type":"Feature","id":{},"geometry":{},"properties":{{'
-        + ",".join(f"{key}:{{}}" for key in keys)
-        + "}}}}"
+        '{"type":"Feature","id":%s,"geometry":%s,"properties":{'
+        + ",".join(f"{key}:%s" for key in keys)
+        + "}}"
     )
     columns = [_json_tokens(np.asarray(column)) for column in properties.values()]
-    return list(map(template.format, _json_tokens(ids), geometry, *columns))
+    return list(map(template.__mod__, zip(_json_tokens(ids), geometry, *columns, strict=True)))
 
 
 def _features(

@@ -259,7 +259,8 @@ def load_project(path: str | Path) -> Project:
         float(control["sigma_h_m"]),  # type: ignore[arg-type]
     )
     given_route: Route | None = adjustment["route"]  # type: ignore[assignment]
-    observed = np.isin(ids, np.asarray(observations.point_ids))
+    seen = frozenset(observations.point_ids)  # a set: np.isin would sort every id
+    observed = np.fromiter(map(seen.__contains__, ids.tolist()), dtype=bool, count=len(ids))
     route, crs_warnings = check_crs(toml_path, crs, given_route, table_c, xyz, observed)
     warnings += crs_warnings
     gnss = (

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import datetime as _dt
-import json
 from collections.abc import Mapping, Sequence
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -15,6 +14,7 @@ from .._text import shorten
 from .._version import __version__
 from ..observations import ControlType
 from ..results import AccuracyStatistics
+from . import json_text
 from .aside import aside
 from .block_page import block_html
 from .calibration import (
@@ -298,7 +298,7 @@ def block_outputs(
         weights = variance_record(result.variance_components)
         if weights is not None:
             report["bundle"]["variance_components"] = weights
-        text = json.dumps(report, indent=2, allow_nan=False) + "\n"
+        text = json_text.dumps(report, indent=2, ensure_ascii=True) + "\n"
         figure, calibration = drawing.result()
     section = "" if cal_record is None else calibration_html(cal_record, calibration)
     section = with_variance_html(section, report)

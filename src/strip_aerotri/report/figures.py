@@ -43,17 +43,36 @@ _ROLE_STYLE = {
 
 
 def _png(fig: Figure) -> str:
+    """The figure as a PNG at 96 dpi, base64 (for an inline ``<img>``).
+
+    Drawn once on an Agg canvas and encoded as matplotlib's ``savefig``
+    encodes it, byte for byte: ``savefig`` with a layout engine draws the
+    figure twice (once without rendering, to lay it out), ``canvas.draw``
+    once, the layout done inside it.  Constrained layout (rc in build_html;
+    layout="constrained" for the block) keeps every label inside the canvas;
+    bbox_inches="tight" would change the figure's size and draw it again.
+    Fast PNG compression: the figures dominate the time of a run on large
+    strips.
+    """
+    import base64
     import io as _bio
 
-    buffer = _bio.BytesIO()
-    # Constrained layout (rc in build_html; layout="constrained" for the
-    # block) keeps every label inside the canvas; bbox_inches="tight" would
-    # change the figure's size and draw it twice.  Fast PNG compression: the
-    # figures dominate the time of a run on large strips.
-    fig.savefig(buffer, format="png", dpi=96, pil_kwargs={"compress_level": 1})
-    import base64
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.image import imsave
 
+    fig.set_dpi(_DPI)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()  # type: ignore[no-untyped-call]  # matplotlib's Agg canvas is untyped
+    pixels = canvas.buffer_rgba()  # type: ignore[no-untyped-call]  # as draw
+    buffer = _bio.BytesIO()
+    imsave(  # savefig's own call, whatever the rc's image.origin
+        buffer, pixels, format="png", origin="upper", dpi=_DPI, pil_kwargs={"compress_level": 1}
+    )
     return base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+#: Resolution of the report's figures (pixels per inch).
+_DPI = 96
 
 
 class Plan:
@@ -211,10 +230,15 @@ class StripFigureData:
 
 
 def figure_data(
-    result: StripResult, models: Sequence[Mapping[str, Any]], *, calibration: bool = False
+    result: StripResult,
+    models: Sequence[Mapping[str, Any]],
+    *,
+    calibration: bool = False,
+    roles: np.ndarray | None = None,
 ) -> StripFigureData:
     """The inputs of the strip's figures (``models``: report.json's
-    ``models``; ``calibration``: with the self-calibration's outcome)."""
+    ``models``; ``calibration``: with the self-calibration's outcome;
+    ``roles``: :func:`.values.point_roles` of the result, if known)."""
     plan = Plan(result)
     points = np.asarray(result.points, dtype=np.float64)
     finite = np.isfinite(points).all(axis=1)
@@ -241,7 +265,7 @@ def figure_data(
     return StripFigureData(
         plan=plan,
         points=points,
-        roles=point_roles(result),
+        roles=point_roles(result) if roles is None else roles,
         footprints=_footprints(result, plan),
         photo_ids=tuple(result.photo_ids),
         control=control,

@@ -25,6 +25,7 @@ import shutil
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path, PurePosixPath
 from types import TracebackType
+from typing import Any
 
 import numpy as np
 
@@ -72,29 +73,38 @@ class OutputError(StripAerotriError, OSError):
 Column = ArrayLike | tuple[ArrayLike, int]
 
 
-def _format_column(values: ArrayLike, decimals: int | None, name: str) -> list[str]:
-    """One column as strings: floats with ``decimals`` (NaN empty), ints, bools, text."""
+def _format_column(values: ArrayLike, decimals: int | None, name: str) -> tuple[str, list[Any]]:
+    """One column as a ``%`` conversion and its values: floats with ``decimals``
+    (``%.4f``; NaN an empty cell), ints, bools (``true``/``false``) and text
+    (``%s``)."""
     arr = np.asarray(values)
     if arr.ndim != 1:
         raise ValueError(f"Expected column `{name}` to have shape (N,), got {arr.shape}")
     if arr.dtype.kind == "b":
-        return ["true" if v else "false" for v in arr.tolist()]
+        return "%s", ["true" if v else "false" for v in arr.tolist()]
     if arr.dtype.kind in "iu":
-        return [str(v) for v in arr.tolist()]
+        return "%d", arr.tolist()
     if arr.dtype.kind == "f":
         digits = METRE_DECIMALS if decimals is None else int(decimals)
         # round first and add 0.0 so that -0.00001 is written 0.0000, not -0.0000
         rounded = np.round(arr.astype(np.float64), digits) + 0.0
-        fmt = f"{{:.{digits}f}}".format
         finite = np.isfinite(rounded)
+        if finite.all():
+            return f"%.{digits}f", rounded.tolist()
+        fmt = f"{{:.{digits}f}}".format
         text = [fmt(v) for v in rounded.tolist()]
-        if not finite.all():
-            for i in np.flatnonzero(~finite):
-                text[i] = ""
-        return text
+        for i in np.flatnonzero(~finite):
+            text[i] = ""
+        return "%s", text
     if arr.dtype.kind in "UO":
-        return [str(v) for v in arr.tolist()]
+        return "%s", [str(v) for v in arr.tolist()]
     raise ValueError(f"Expected column `{name}` of numbers or strings, got dtype {arr.dtype}")
+
+
+def _plain_text(cells: list[str]) -> bool:
+    """Whether no cell needs the quotes of CSV (a comma, a quote or a line end)."""
+    joined = "".join(cells)
+    return not any(c in joined for c in ',"\r\n')
 
 
 def format_csv(
@@ -147,20 +157,27 @@ def format_csv(
         per_column = list(decimals)
         if len(per_column) != len(columns):
             raise ValueError(f"Expected {len(columns)} decimals entries, got {len(per_column)}")
-    texts = []
+    formatted = []
     for name, column, digits in zip(header, columns, per_column, strict=True):
         if isinstance(column, tuple) and len(column) == 2 and isinstance(column[1], int):
             column, digits = column
-        texts.append(_format_column(column, digits, name))
-    lengths = {len(t) for t in texts}
+        formatted.append(_format_column(column, digits, name))
+    lengths = {len(values) for _, values in formatted}
     if len(lengths) > 1:
         raise ValueError(
             "Expected columns of equal length, got "
-            + ", ".join(f"{n}: {len(t)}" for n, t in zip(header, texts, strict=True))
+            + ", ".join(f"{n}: {len(v)}" for n, (_, v) in zip(header, formatted, strict=True))
         )
+    lone_empty = len(formatted) == 1 and not all(formatted[0][1])  # written ""
+    if not lone_empty and all(spec != "%s" or _plain_text(values) for spec, values in formatted):
+        # one % per row: nothing to quote
+        row = ",".join(spec for spec, _ in formatted).__mod__
+        rows = map(row, zip(*(values for _, values in formatted), strict=True))
+        return ",".join(header) + "\n" + "".join(line + "\n" for line in rows)
     buffer = _io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(header)
+    texts = [values if spec == "%s" else [spec % v for v in values] for spec, values in formatted]
     writer.writerows(zip(*texts, strict=True))
     return buffer.getvalue()
 

@@ -6,11 +6,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..options import DEFAULT_SECTIONS
+from .aside import aside
 from .calibration import calibration_figures, calibration_html, with_variance_html
 from .figures import (
     StripFigureData,
@@ -121,18 +123,27 @@ def prepare_drawing() -> None:
 
 
 def draw_figures(data: StripFigureData) -> StripFigures:
-    """The page's figures of :func:`.figures.figure_data`'s inputs."""
+    """The page's figures of :func:`.figures.figure_data`'s inputs.
+
+    The layout and the residuals are drawn here, the parallaxes and the ties
+    meanwhile by a process forked for them (:func:`.aside.aside`; where
+    forking is not allowed, here afterwards, in the order of the page): the
+    figures are the costliest part of the report, and the run that waits
+    for them has its own writing to do on the other core (docs/scaling.md).
+    """
     import matplotlib
 
     with matplotlib.rc_context(_STYLE):  # type: ignore[arg-type]  # typed as literal keys
-        return StripFigures(
-            figure_layout(data),
-            figure_residuals(data),
-            figure_parallax(data),
-            figure_ties(data),
-            data.plan.long,
-            None if data.calibration is None else calibration_figures(data.calibration),
-        )
+        with aside(partial(_parallax_and_ties, data)) as other:
+            layout, residuals = figure_layout(data), figure_residuals(data)
+            parallax, ties = other.result()
+        calibration = None if data.calibration is None else calibration_figures(data.calibration)
+        return StripFigures(layout, residuals, parallax, ties, data.plan.long, calibration)
+
+
+def _parallax_and_ties(data: StripFigureData) -> tuple[str, str | None]:
+    """The figures of :func:`draw_figures` drawn by its second process."""
+    return figure_parallax(data), figure_ties(data)
 
 
 def html_page(report: Mapping[str, Any], figures: StripFigures) -> str:

@@ -18,6 +18,13 @@ def _esc(value: Any) -> str:
 
 
 def _fmt(value: Any, digits: int = 3) -> str:
+    kind = type(value)  # the exact built-in types first: most cells of a page
+    if kind is float:
+        return f"{value:.{digits}f}" if math.isfinite(value) else "–"
+    if kind is int:
+        return str(value)
+    if kind is str:
+        return _esc(value)
     if value is None:
         return "–"
     if isinstance(value, bool):

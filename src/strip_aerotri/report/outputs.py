@@ -10,11 +10,11 @@ described in ``docs/outputs.md``.
 
 from __future__ import annotations
 
-import json
 from contextlib import AbstractContextManager, nullcontext
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
+from . import json_text
 from .aside import Aside, Standby, aside
 from .calibration import calibration_outputs, variance_record
 from .figures import figure_data
@@ -96,8 +96,9 @@ def strip_outputs(
     refined = getattr(result, "refined", None)
     outcome = None if refined is None else refined.self_calibration
     drawing: AbstractContextManager[Aside[StripFigures] | None] = nullcontext()
+    roles = point_roles(result)
     if html:  # calibration: the outcome's figures if the refinement has one
-        data = figure_data(result, model_records(result), calibration=True)
+        data = figure_data(result, model_records(result), calibration=True, roles=roles)
         drawing = (
             aside(partial(draw_figures, data))
             if standby is None
@@ -105,7 +106,7 @@ def strip_outputs(
         )
     with drawing as figures:
         notes: list[str] = []
-        geojson = points_geojson(result)
+        geojson = points_geojson(result, roles=roles)
         if geojson is None:
             notes.append(GEOJSON_LOCAL_NOTE)
         report = build_report(result, project=project, map_scale=map_scale, notes=notes)
@@ -123,14 +124,14 @@ def strip_outputs(
                 "wgs84_operation": result.ground.crs.wgs84_operation,
             }
         files = {
-            "points.csv": points_csv(result).encode("utf-8"),
+            "points.csv": points_csv(result, roles=roles).encode("utf-8"),
             "photos.csv": photos_csv(result).encode("utf-8"),
         }
         if geojson is not None:
             files["points.geojson"] = (geojson + "\n").encode("utf-8")
         if cal_toml is not None:
             files["camera.toml"] = cal_toml
-        text = json.dumps(report, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
+        text = json_text.dumps(report, indent=1) + "\n"
         if figures is not None:
             files["report.html"] = html_page(report, figures.result()).encode("utf-8")
     files["report.json"] = text.encode("utf-8")

@@ -6,6 +6,7 @@ Python (dict, list, str, int, float, bool, None; never NaN), described in
 from __future__ import annotations
 
 import datetime as _dt
+import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -52,17 +53,23 @@ def _pairs(result: StripResult) -> list[dict[str, Any]]:
     if method == "base":
         elements = np.degrees(elements)
     left, right = _model_photos(result)
+    n_points = np.asarray(rel.n_points).astype(np.int64).tolist()
+    iterations = np.asarray(rel.iterations).astype(np.int64).tolist()
+    sigma0 = _json_floats(rel.sigma0_um)
+    rms = _json_floats(rel.rms_parallax_um)
+    largest = _json_floats(rel.max_parallax_um)
+    values = _json_floats(elements.reshape(-1, len(names)))
     return [
         {
             "index": m,
             "left": left[m],
             "right": right[m],
-            "n_points": int(rel.n_points[m]),
-            "iterations": int(rel.iterations[m]),
-            "sigma0_um": json_float(rel.sigma0_um[m]),
-            "rms_parallax_um": json_float(rel.rms_parallax_um[m]),
-            "max_parallax_um": json_float(rel.max_parallax_um[m]),
-            "elements": {n: json_float(v) for n, v in zip(names, elements[m], strict=True)},
+            "n_points": n_points[m],
+            "iterations": iterations[m],
+            "sigma0_um": sigma0[m],
+            "rms_parallax_um": rms[m],
+            "max_parallax_um": largest[m],
+            "elements": dict(zip(names, values[m], strict=True)),
         }
         for m in range(rel.n_pairs)
     ]
@@ -75,25 +82,32 @@ def model_records(result: StripResult) -> list[dict[str, Any]]:
     n_pts = np.bincount(np.asarray(strip.model), minlength=strip.n_models)
     tie_rms = np.asarray(strip.tie_rms, dtype=np.float64).reshape(-1, 3)
     left, right = _model_photos(result)
-    out = []
-    for m in range(strip.n_models):
-        rms = tie_rms[m]
-        plan = float(np.hypot(rms[0], rms[1]))
-        out.append(
-            {
-                "index": m,
-                "left": left[m],
-                "right": right[m],
-                "n_points": int(n_pts[m]),
-                "scale": json_float(strip.scale[m]),
-                "scale_ratio": json_float(strip.scale_ratio[m]),
-                "tie_points": int(strip.tie_count[m]),
-                "tie_rms_strip": [json_float(v) for v in rms],
-                "tie_rms_m": [json_float(v * scale) for v in rms],
-                "tie_rms_plan_m": json_float(plan * scale),
-            }
-        )
-    return out
+    plan = np.hypot(tie_rms[:, 0], tie_rms[:, 1]) * scale
+    columns = zip(
+        n_pts.tolist(),
+        _json_floats(strip.scale),
+        _json_floats(strip.scale_ratio),
+        np.asarray(strip.tie_count).astype(np.int64).tolist(),
+        _json_floats(tie_rms),
+        _json_floats(tie_rms * scale),
+        _json_floats(plan),
+        strict=True,
+    )
+    return [
+        {
+            "index": m,
+            "left": left[m],
+            "right": right[m],
+            "n_points": points,
+            "scale": model_scale,
+            "scale_ratio": ratio,
+            "tie_points": ties,
+            "tie_rms_strip": rms_strip,
+            "tie_rms_m": rms_m,
+            "tie_rms_plan_m": plan_m,
+        }
+        for m, (points, model_scale, ratio, ties, rms_strip, rms_m, plan_m) in enumerate(columns)
+    ]
 
 
 def _similarity(result: StripResult) -> dict[str, Any]:
@@ -211,48 +225,52 @@ def _all_check_statistics(result: StripResult) -> AccuracyStatistics:
     return AccuracyStatistics.from_residuals(resid[np.asarray(result.ground.is_check, dtype=bool)])
 
 
+def _json_floats(values: np.ndarray) -> list[Any]:
+    """:func:`.values.json_float` of every value of a column (N,) or table (N, k)."""
+    table = np.asarray(values, dtype=np.float64)
+    finite = math.isfinite
+    if table.ndim == 1:
+        return [v if finite(v) else None for v in table.tolist()]
+    return [[v if finite(v) else None for v in row] for row in table.tolist()]
+
+
 def _control_points(result: StripResult, check: bool) -> list[dict[str, Any]]:
+    """report.json's control or check points: every row's columns at once."""
     ground = result.ground
     idx, resid = control_rows(result)
     is_check = np.asarray(ground.is_check, dtype=bool)
     rows = np.asarray(ground.control_index, dtype=np.intp)
-    out = []
     red = np.asarray(getattr(ground, "control_redundancy", np.zeros((0, 3))), dtype=np.float64)
     mde = np.asarray(getattr(ground, "control_mde", np.zeros((0, 3))), dtype=np.float64)
     have = red.shape[0] == rows.shape[0]
-    for k in np.flatnonzero(is_check == check):
-        r = resid[k]
-        kind = result.control.kind[rows[k]]
-        row: dict[str, Any] = {
-            "point": result.point_ids[idx[k]],
-            "type": str(getattr(kind, "value", kind)),
-            "dE_m": json_float(r[0]),
-            "dN_m": json_float(r[1]),
-            "dH_m": json_float(r[2]),
-            "plan_m": json_float(np.hypot(r[0], r[1])),
-        }
-        if not check:
-            used = [bool(ground.used_xy[k])] * 2 + [bool(ground.used_h[k])]
-            row["redundancy"] = (
-                [json_float(v) if u else None for v, u in zip(red[k], used, strict=True)]
-                if have
-                else [None] * 3
-            )
-            row["mde_m"] = (
-                [
-                    json_float(v) if u and np.isfinite(v) else None
-                    for v, u in zip(mde[k], used, strict=True)
-                ]
-                if have
-                else [None] * 3
-            )
-            row["detectable"] = (
-                [bool(np.isfinite(v)) if u else None for v, u in zip(mde[k], used, strict=True)]
-                if have
-                else [None] * 3
-            )
-        out.append(row)
-    return out
+    ks = np.flatnonzero(is_check == check)
+    kinds = [result.control.kind[r] for r in rows[ks].tolist()]
+    columns: dict[str, list[Any]] = {
+        "point": [result.point_ids[i] for i in idx[ks].tolist()],
+        "type": [str(getattr(kind, "value", kind)) for kind in kinds],
+        "dE_m": _json_floats(resid[ks, 0]),
+        "dN_m": _json_floats(resid[ks, 1]),
+        "dH_m": _json_floats(resid[ks, 2]),
+        "plan_m": _json_floats(np.hypot(resid[ks, 0], resid[ks, 1])),
+    }
+    if not check:
+        xy = np.asarray(ground.used_xy, dtype=bool)[ks]
+        used = np.column_stack([xy, xy, np.asarray(ground.used_h, dtype=bool)[ks]])
+        if have:
+            off = ~used
+            columns["redundancy"] = _json_floats(np.where(off, np.nan, red[ks]))
+            columns["mde_m"] = _json_floats(np.where(off, np.nan, mde[ks]))
+            detectable = np.isfinite(mde[ks]).tolist()
+            columns["detectable"] = [
+                [d if u else None for d, u in zip(row, use, strict=True)]
+                for row, use in zip(detectable, used.tolist(), strict=True)
+            ]
+        else:
+            for name in ("redundancy", "mde_m", "detectable"):
+                columns[name] = [[None] * 3 for _ in range(ks.size)]
+    names = list(columns)
+    records = zip(*columns.values(), strict=True)
+    return [dict(zip(names, values, strict=True)) for values in records]
 
 
 def _model_adjustment(result: StripResult) -> dict[str, Any] | None:
@@ -277,12 +295,20 @@ def _model_adjustment(result: StripResult) -> dict[str, Any] | None:
             {
                 "index": m,
                 "label": labels[m] if m < len(labels) else str(m),
-                "scale": json_float(res.transforms.scale[m]),
-                "discrepancy_rms_m": [json_float(v) for v in rms[m]],
-                "left_centre_m": [json_float(v) for v in centres[m, 0]],
-                "right_centre_m": [json_float(v) for v in centres[m, 1]],
+                "scale": model_scale,
+                "discrepancy_rms_m": model_rms,
+                "left_centre_m": left,
+                "right_centre_m": right,
             }
-            for m in range(rms.shape[0])
+            for m, (model_scale, model_rms, left, right) in enumerate(
+                zip(
+                    _json_floats(np.asarray(res.transforms.scale)[: rms.shape[0]]),
+                    _json_floats(rms),
+                    _json_floats(centres[:, 0]),
+                    _json_floats(centres[:, 1]),
+                    strict=True,
+                )
+            )
         ],
         "rejected": [{"model": m, "point": p} for m, p in models.rejected],
     }

@@ -387,8 +387,11 @@ def _residual_details(
     """The stages' times (``-v``); every control and check point's residual,
     given − adjusted, metres (``-vv``)."""
     lines = [(1, f"{stage}: {seconds:.2f} s") for stage, seconds in timings.items()]
-    for row, resid, check in zip(
-        np.asarray(rows), np.asarray(residuals), np.asarray(is_check), strict=True
+    for row, resid, check in zip(  # Python numbers: formatted faster than numpy's
+        np.asarray(rows).tolist(),
+        np.asarray(residuals, dtype=np.float64).tolist(),
+        np.asarray(is_check).tolist(),
+        strict=True,
     ):
         what = "check" if check else "control"
         values = ", ".join("-" if v != v else f"{v:+.3f}" for v in resid)
@@ -401,18 +404,26 @@ def _strip_details(result: StripResult) -> tuple[tuple[int, str], ...]:
     strip = result.strip
     rel = strip.relative
     lines = []
-    for m, label in enumerate(strip.model_labels):
-        tie = (
-            ""
-            if m == 0
-            else f", {int(strip.tie_count[m])} tie points, scale ratio {strip.scale_ratio[m]:.5f}"
+    columns = (  # Python numbers: formatted faster than numpy's
+        np.asarray(a).tolist()
+        for a in (
+            strip.tie_count,
+            strip.scale_ratio,
+            rel.n_points,
+            rel.sigma0_um,
+            rel.max_parallax_um,
+            rel.iterations,
         )
+    )
+    ties, ratios, points, sigma0, largest, iterations = columns
+    for m, label in enumerate(strip.model_labels):
+        tie = "" if m == 0 else f", {int(ties[m])} tie points, scale ratio {ratios[m]:.5f}"
         lines.append(
             (
                 1,
-                f"{label}: {int(rel.n_points[m])} points, sigma0 {rel.sigma0_um[m]:.1f} µm, "
-                f"largest y-parallax {rel.max_parallax_um[m]:.1f} µm, "
-                f"{int(rel.iterations[m])} iterations{tie}",
+                f"{label}: {int(points[m])} points, sigma0 {sigma0[m]:.1f} µm, "
+                f"largest y-parallax {largest[m]:.1f} µm, "
+                f"{int(iterations[m])} iterations{tie}",
             )
         )
     ground = result.refined if result.refined is not None else result.ground

@@ -10,12 +10,13 @@ from .files import format_photos_csv, format_points_csv
 from .values import image_counts, point_roles, residual_columns
 
 
-def points_csv(result: StripResult) -> str:
-    """Text of ``points.csv`` (triangulated points only; see docs/outputs.md)."""
+def points_csv(result: StripResult, *, roles: np.ndarray | None = None) -> str:
+    """Text of ``points.csv`` (triangulated points only; see docs/outputs.md);
+    ``roles``: :func:`.values.point_roles` of the result, if known."""
     points = np.asarray(result.points, dtype=np.float64)
     ok = np.isfinite(points).all(axis=1)
     ids = np.asarray(result.point_ids, dtype=str)
-    roles = point_roles(result)
+    roles = point_roles(result) if roles is None else roles
     n_det = np.asarray(result.strip.n_determinations, dtype=np.int64)
     n_img, _ = image_counts(result)
     resid = residual_columns(result)
@@ -49,7 +50,7 @@ def photos_csv(result: StripResult) -> str:
     )
 
 
-def points_geojson(result: StripResult) -> str | None:
+def points_geojson(result: StripResult, *, roles: np.ndarray | None = None) -> str | None:
     """Text of ``points.geojson``: RFC 7946 FeatureCollection in WGS 84 lon/lat.
 
     One Point feature per triangulated point, converted with
@@ -57,6 +58,7 @@ def points_geojson(result: StripResult) -> str | None:
     operation to WGS 84; display accuracy).  Properties: ``id``, ``role``,
     ``H`` (ellipsoidal height in metres on the control CRS's datum, as in
     points.csv), ``n_models``.  None for ``crs = "local"`` (no geodesy).
+    ``roles``: :func:`.values.point_roles` of the result, if known.
     """
     crs = result.ground.crs
     if crs.is_local:
@@ -67,7 +69,7 @@ def points_geojson(result: StripResult) -> str | None:
     ids = np.asarray(result.point_ids, dtype=object)[ok]
     properties = {
         "id": ids,
-        "role": point_roles(result)[ok],
+        "role": (point_roles(result) if roles is None else roles)[ok],
         "H": np.round(points[ok, 2], 4),
         "n_models": np.asarray(result.strip.n_determinations, dtype=np.int64)[ok],
     }

@@ -26,6 +26,15 @@ _ROLE_OF_KIND = {
 
 def clean(value: Any) -> Any:
     """Plain JSON types: numpy scalars and arrays converted, NaN/inf -> None."""
+    kind = type(value)  # the exact built-in types first: most of a report's values
+    if kind is float:
+        return value if math.isfinite(value) else None
+    if kind is str or kind is int or value is None:
+        return value
+    if kind is dict:
+        return {str(k): clean(v) for k, v in value.items()}
+    if kind is list:
+        return [clean(v) for v in value]
     if isinstance(value, Enum):
         return clean(value.value)
     if isinstance(value, Mapping):
