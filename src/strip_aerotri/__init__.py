@@ -120,7 +120,13 @@ if TYPE_CHECKING:  # the public names, for type checkers; at run time see __geta
     from .project import Project, load_project, run_project
     from .report.files import OutputError, ResultFolder, write_result_folder
     from .report.outputs import build_outputs, build_report
-    from .report.summary import RunOutputs, RunSummary, build_run, summarize
+    from .report.summary import (
+        EstimatedWeights,
+        RunOutputs,
+        RunSummary,
+        build_run,
+        summarize,
+    )
     from .report.tolerances import Criterion, chance_beyond, tolerance_verdicts
     from .report.verdict import Verdict, overall_verdict
     from .results import (
@@ -261,7 +267,13 @@ _MODULES: dict[str, tuple[str, ...]] = {
     ".project": ("Project", "load_project", "run_project"),
     ".report.files": ("OutputError", "ResultFolder", "write_result_folder"),
     ".report.outputs": ("build_outputs", "build_report"),
-    ".report.summary": ("RunOutputs", "RunSummary", "build_run", "summarize"),
+    ".report.summary": (
+        "EstimatedWeights",
+        "RunOutputs",
+        "RunSummary",
+        "build_run",
+        "summarize",
+    ),
     ".report.tolerances": ("Criterion", "chance_beyond", "tolerance_verdicts"),
     ".report.verdict": ("Verdict", "overall_verdict"),
     ".results": (
@@ -377,6 +389,7 @@ __all__ = [
     "RelativeOrientation",
     "RelativeOrientationMethod",
     "ResultFolder",
+    "EstimatedWeights",
     "RunOutputs",
     "RunSummary",
     "Route",
