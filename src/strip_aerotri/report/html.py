@@ -496,9 +496,9 @@ def _relative_section(report: Mapping[str, Any]) -> list[str]:
         out.append(
             "<p class='sub'>q: the residual y-parallax, the vertical mismatch of a point "
             "between the two photos. b_y, b_z: the base from the left to the right photo, "
-            "across and up, in units of its length along the strip; a, b, c: the turn of the "
-            "right photo against the left (the rotation axis times tan(angle/2), about "
-            "x, y, z).</p>"
+            "across and up, in units of its length along the strip; a, b, c (no unit): the "
+            "turn of the right photo against the left (the rotation axis times tan(angle/2), "
+            "about x, y, z).</p>"
         )
     return out
 
