@@ -283,7 +283,7 @@ def _components(
         )
         for name, s in stats.items()
     )
-    converged = all(abs(f - 1.0) <= TOLERANCE for f in factors.values()) if applied else False
+    converged = _settled(factors) if applied else False
     return VarianceComponents(groups, iterations, converged, sigma0_apriori, applied)
 
 
@@ -363,7 +363,7 @@ def refine_frame_weighted(
             if robust:
                 factors = _robust_factors(_group_rows(fr, obs.point, sigmas), held)
                 robust_steps += 1
-                settled = all(abs(f - 1.0) <= TOLERANCE for f in factors.values())
+                settled = _settled(factors)
                 robust = not settled and robust_steps < MAX_ITERATIONS
                 if not settled:
                     sigmas = _scaled(sigmas, factors, marks)
@@ -379,7 +379,7 @@ def refine_frame_weighted(
                 if weak:
                     held |= weak
                     sigmas = _reset(sigmas, apriori, weak, marks)
-                elif all(abs(f - 1.0) <= TOLERANCE for f in factors.values()):
+                elif _settled(factors):
                     break
                 else:
                     sigmas = _scaled(sigmas, factors, marks)
@@ -427,6 +427,11 @@ def refine_frame_weighted(
         fr, obs.point, apriori, sigmas, iterations, sigma0_apriori, apply, held
     )
     return dataclasses.replace(fr, variance_components=record)
+
+
+def _settled(factors: dict[str, float]) -> bool:
+    """Every group's factor within :data:`TOLERANCE` of one."""
+    return all(abs(f - 1.0) <= TOLERANCE for f in factors.values())
 
 
 def _broadcast(sigma: ArrayLike | None, shape: tuple[int, int]) -> FloatArray:
