@@ -171,7 +171,7 @@ def test_pair_medians_equal_numpys_median_per_pair():
     """Medians per pair (the robust scale of the homography's reweighting)
     against np.median of each pair's rows: odd and even counts, one row,
     ties and infinite transfer errors."""
-    from strip_aerotri.strip.relative_starts import _pair_medians
+    from strip_aerotri.strip.relative_starts import _PairTable
     from strip_aerotri.strip.relative_state import _segment_starts
 
     rng = np.random.default_rng(2345)
@@ -179,6 +179,36 @@ def test_pair_medians_equal_numpys_median_per_pair():
     pair = np.repeat(np.arange(counts.size), counts)
     values = rng.exponential(size=pair.size).round(1)  # ties
     values[[3, 20, 21]] = np.inf
-    starts = _segment_starts(pair, counts.size)
+    table = _PairTable.of(pair, _segment_starts(pair, counts.size))
     want = [np.median(values[pair == k]) for k in range(counts.size)]
-    assert np.array_equal(_pair_medians(values, pair, starts), want)
+    assert np.array_equal(table.medians(table.take(values, np.inf)), want)
+
+
+def test_homography_normals_equal_the_sum_of_the_rows_products():
+    """The DLT's 9 x 9 normal matrices formed from their 3 x 3 blocks against
+    the sum of w (r1 r1' + r2 r2') over each pair's rows, the two rows of
+    p x (H l) = 0 written out (l = (u, v, -1), p = (x, y, -1))."""
+    from strip_aerotri.strip.relative_starts import _homography_normals, _PairTable
+    from strip_aerotri.strip.relative_state import _segment_starts
+
+    rng = np.random.default_rng(77)
+    counts = np.array([4, 9, 1, 30])
+    pair = np.repeat(np.arange(counts.size), counts)
+    n = pair.size
+    a = np.column_stack([rng.normal(size=(n, 2)), -np.ones(n)])
+    b = np.column_stack([rng.normal(size=(n, 2)), -np.ones(n)])
+    w = rng.uniform(0.1, 1.0, n)
+    zero = np.zeros_like(a)
+    r1 = np.concatenate([zero, -b[:, 2:3] * a, b[:, 1:2] * a], axis=1)
+    r2 = np.concatenate([b[:, 2:3] * a, zero, -b[:, 0:1] * a], axis=1)
+    products = w[:, None, None] * (
+        r1[:, :, None] * r1[:, None, :] + r2[:, :, None] * r2[:, None, :]
+    )
+    want = np.stack([products[pair == k].sum(axis=0) for k in range(counts.size)])
+
+    table = _PairTable.of(pair, _segment_starts(pair, counts.size))
+    u, v, x, y = (table.take(c) for c in (a[:, 0], a[:, 1], b[:, 0], b[:, 1]))
+    moments = np.stack([u * u, u * v, u, v * v, v, table.valid.astype(float)], axis=2)
+    factors = np.stack([np.ones_like(x), x, y, x * x + y * y], axis=2) * table.take(w)[:, :, None]
+    got = _homography_normals(moments, factors)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())

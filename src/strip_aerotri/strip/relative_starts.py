@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._typing import ArrayLike, FloatArray, IntArray
+from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from .relative_state import _EX, _segment_starts
 
 __all__ = ["SimilarityStart", "essential_start", "homography_start", "similarity_start"]
@@ -123,21 +123,71 @@ def similarity_start(
     return SimilarityStart(relative, base, np.column_stack([t.real, t.imag]), kappa, np.abs(a))
 
 
-def _pair_medians(values: FloatArray, pair: IntArray, starts: IntArray) -> FloatArray:
-    """Median of each pair's values (rows sorted by pair, no NaN), (n_pairs,).
+class _PairTable(NamedTuple):
+    """Rows of every pair side by side in a padded (n_pairs, width) table.
 
-    Each pair's values are sorted in a row of their own, padded with +inf
-    beyond its count (a padding equal to a value +inf changes no rank below
-    the count): one sort along rows, not a lexsort of every value.
+    ``take(values)`` lays the flat (pair-sorted) values out in it, ``fill``
+    in the cells beyond a pair's count.  Per-pair sums become products of
+    (n_pairs, width, k) arrays: a few small tables instead of (n, k) arrays
+    as long as the rows (their page faults cost more than the arithmetic).
     """
-    counts = np.diff(np.append(starts, values.shape[0]))
-    rank = np.arange(values.shape[0]) - np.repeat(starts, counts)
-    table = np.full((starts.shape[0], int(counts.max(initial=0))), np.inf)
-    table[pair, rank] = values
-    table.sort(axis=1)
-    rows = np.arange(starts.shape[0])
-    medians: FloatArray = 0.5 * (table[rows, (counts - 1) // 2] + table[rows, counts // 2])
-    return medians
+
+    pair: IntArray
+    rank: IntArray
+    counts: IntArray
+    valid: BoolArray
+
+    @classmethod
+    def of(cls, pair: IntArray, starts: IntArray) -> _PairTable:
+        counts = np.diff(np.append(starts, pair.shape[0]))
+        rank = np.arange(pair.shape[0]) - np.repeat(starts, counts)
+        valid = np.arange(int(counts.max(initial=0)))[None, :] < counts[:, None]
+        return cls(pair, rank, counts, valid)
+
+    def take(self, values: FloatArray, fill: float = 0.0) -> FloatArray:
+        table = np.full(self.valid.shape, fill)
+        table[self.pair, self.rank] = values
+        return table
+
+    def medians(self, table: FloatArray) -> FloatArray:
+        """Median of each pair's cells, (n_pairs,): ``table`` holds no NaN and
+        +inf beyond each count (a padding equal to a value, +inf, changes no
+        rank below the count), so one sort along the rows does it."""
+        ordered = np.sort(table, axis=1)
+        rows = np.arange(ordered.shape[0])
+        counts = self.counts
+        medians: FloatArray = 0.5 * (ordered[rows, (counts - 1) // 2] + ordered[rows, counts // 2])
+        return medians
+
+
+def _homography_normals(moments: FloatArray, factors: FloatArray) -> FloatArray:
+    """The 9 × 9 normal matrix of every pair's DLT of the homography.
+
+    With ``l = (u, v, -1)`` and ``p = (x, y, -1)`` the two rows of a point in
+    the entries of H (row-major) are ``[0, l, y l]`` and ``[-l, 0, -x l]``,
+    so the normal matrix is made of 3 × 3 blocks ``S_f = Σ w f l lᵀ`` for
+    ``f`` in ``1, x, y, x² + y²``::
+
+        [[S_1, 0,   S_x], [0, S_1, S_y], [S_x, S_y, S_xx+yy]]
+
+    ``moments`` (n_pairs, width, 6): ``u², uv, u, v², v, 1`` of each cell;
+    ``factors`` (n_pairs, width, 4): ``w, w x, w y, w (x² + y²)``, zero in
+    the padding.
+    """
+    m = np.matmul(np.swapaxes(factors, 1, 2), moments)  # (n_pairs, 4, 6) sums
+    blocks = np.empty((m.shape[0], 4, 3, 3))
+    blocks[:, :, 0, 0], blocks[:, :, 1, 1], blocks[:, :, 2, 2] = m[..., 0], m[..., 3], m[..., 5]
+    blocks[:, :, 0, 1] = blocks[:, :, 1, 0] = m[..., 1]
+    blocks[:, :, 0, 2] = blocks[:, :, 2, 0] = -m[..., 2]
+    blocks[:, :, 1, 2] = blocks[:, :, 2, 1] = -m[..., 4]
+    normal = np.zeros((m.shape[0], 9, 9))
+    normal[:, 0:3, 0:3] = normal[:, 3:6, 3:6] = blocks[:, 0]
+    normal[:, 0:3, 6:9] = blocks[:, 1]
+    normal[:, 6:9, 0:3] = blocks[:, 1]
+    normal[:, 3:6, 6:9] = blocks[:, 2]
+    normal[:, 6:9, 3:6] = blocks[:, 2]
+    normal[:, 6:9, 6:9] = blocks[:, 3]
+    return normal
 
 
 def homography_start(
@@ -154,7 +204,8 @@ def homography_start(
     and ``t = -Qᵀ b`` for the right photo, ``n`` the plane's normal and
     ``d`` its distance in the left image system).  H is the eigenvector of
     the smallest eigenvalue of each pair's 9 × 9 normal matrix (the DLT on
-    normalised image coordinates), and its decomposition (Malis & Vargas,
+    normalised image coordinates, formed from its 3 × 3 blocks:
+    :func:`_homography_normals`), and its decomposition (Malis & Vargas,
     "Deeper understanding of the homography decomposition for vision-based
     control", INRIA RR-6303, 2007, §3.1) gives two candidates with the
     points in front of both photos; the one whose plane normal is nearest
@@ -172,35 +223,27 @@ def homography_start(
     pair = np.asarray(pair, dtype=np.intp)
     if starts is None:
         starts = _segment_starts(pair, n_pairs)
-    # image vectors scaled to z = -1: (u, v, -1)
-    a = l / -l[:, 2:3]
-    b = p / -p[:, 2:3]
-    # p × (H l) = 0: two rows per point in the nine entries of H (row-major)
-    zero = np.zeros_like(a)
-    rows1 = np.concatenate([zero, -b[:, 2:3] * a, b[:, 1:2] * a], axis=1)
-    rows2 = np.concatenate([b[:, 2:3] * a, zero, -b[:, 0:1] * a], axis=1)
-    # the 45 entries on and above the diagonal of each row's product (the
-    # normal matrix is symmetric: the same sums, half the work)
-    upper, lower = np.triu_indices(9)
-    products = rows1[:, upper] * rows1[:, lower] + rows2[:, upper] * rows2[:, lower]
-    weight = np.ones(pair.shape[0])
-    normal = np.empty((n_pairs, 9, 9))
+    table = _PairTable.of(pair, starts)
+    # image vectors scaled to z = -1, (u, v, -1) and (x, y, -1), per pair
+    lu, lv = (table.take(l[:, k] / -l[:, 2]) for k in (0, 1))
+    px, py = (table.take(p[:, k] / -p[:, 2]) for k in (0, 1))
+    moments = np.stack([lu * lu, lu * lv, lu, lv * lv, lv, table.valid.astype(np.float64)], axis=2)
+    basis = np.stack([np.ones_like(px), px, py, px * px + py * py], axis=2)
+    weight = table.valid.astype(np.float64)
     for _ in range(_HOMOGRAPHY_IRLS + 1):
-        sums = np.add.reduceat(weight[:, None] * products, starts, axis=0)
-        normal[:, upper, lower] = sums
-        normal[:, lower, upper] = sums
-        _, vec = np.linalg.eigh(normal)
+        _, vec = np.linalg.eigh(_homography_normals(moments, basis * weight[:, :, None]))
         h = vec[:, :, 0].reshape(-1, 3, 3)
         # Transfer errors of the points (normalised image units) and Cauchy
         # weights at 2.385 robust sigmas of the pair: a few gross errors (a
         # swapped id) must not turn the start, nor the flight-direction check
         # that uses it.
-        mapped = np.einsum("nij,nj->ni", h[pair], a)
+        hu, hv, hw = (h[:, :, k, None] for k in range(3))
+        mapped = hu * lu[:, None] + hv * lv[:, None] - hw  # (n_pairs, 3, width)
         with np.errstate(invalid="ignore", divide="ignore"):
-            error = np.hypot(*(mapped[:, :2] / -mapped[:, 2:3] - b[:, :2]).T)
-        error = np.where(np.isfinite(error), error, np.inf)
-        scale = np.maximum(1.4826 * _pair_medians(error, pair, starts), 1e-12)
-        weight = 1.0 / (1.0 + (error / (2.385 * scale[pair])) ** 2)
+            error = np.hypot(mapped[:, 0] / -mapped[:, 2] - px, mapped[:, 1] / -mapped[:, 2] - py)
+        error = np.where(np.isfinite(error) & table.valid, error, np.inf)
+        scale = np.maximum(1.4826 * table.medians(error), 1e-12)
+        weight = 1.0 / (1.0 + (error / (2.385 * scale[:, None])) ** 2)
     # Scale so that the middle singular value is 1 and det(H) > 0.
     sv = np.linalg.svd(h, compute_uv=False)
     h = h / (sv[:, 1] * np.sign(np.linalg.det(h)))[:, None, None]
@@ -228,9 +271,10 @@ def homography_start(
     best_q = np.broadcast_to(np.eye(3), (n_pairs, 3, 3)).copy()
     best_b = np.tile(_EX, (n_pairs, 1))
     best_score = np.full(n_pairs, -np.inf)
-    counts = np.bincount(pair, minlength=n_pairs)
+    counts = table.counts
     for rot, t, n in candidates:
-        in_front = np.bincount(pair, np.einsum("ij,ij->i", n[pair], a) > 0, minlength=n_pairs)
+        facing = n[:, 0, None] * lu + n[:, 1, None] * lv - n[:, 2, None]  # nᵀ l, (n_pairs, width)
+        in_front = np.count_nonzero((facing > 0) & table.valid, axis=1)
         norm = np.linalg.norm(n, axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
             score = np.where(in_front == counts, -n[:, 2] / norm, -np.inf)
