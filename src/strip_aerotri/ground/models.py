@@ -44,7 +44,7 @@ from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..frames import WorkFrame, make_work_frame
 from ..geodesy import GroundCRS
 from ..geometry.grouped_start import grouped_start, groups_along
-from ..geometry.precision import centre_information, ray_information
+from ..geometry.precision import rays_information
 from ..geometry.rotation import opk_from_matrix
 from ..geometry.similarity import SimilarityTransform, _validate_control_geometry
 from ..geometry.simultaneous import (
@@ -93,10 +93,9 @@ def model_weights(
     else:
         sig_l = sig_r = np.full(m.shape[0], sigma_fallback)
     n_models = strip.n_models
-    info = ray_information(points, centres[left], rot[left], c, sig_l)
-    info += ray_information(points, centres[right], rot[right], c, sig_r)
-    c_left = centre_information(points, centres[left], rot[left], c, sig_l, m, n_models)
-    c_right = centre_information(points, centres[right], rot[right], c, sig_r, m, n_models)
+    info, c_left = rays_information(points, left, centres, rot, c, sig_l, m, n_models)
+    info_right, c_right = rays_information(points, right, centres, rot, c, sig_r, m, n_models)
+    info += info_right
     # A model whose points cannot fix a centre (too few, degenerate): the
     # centre gets the weight of one of the model's points, isotropic.
     typical = np.median(np.einsum("nii->n", info)) / 3.0
