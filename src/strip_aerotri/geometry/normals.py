@@ -387,6 +387,15 @@ class NormalSolution:
         )
 
     @property
+    def point_inverse(self) -> FloatArray:
+        """``V⁻¹`` (p, 3, 3) of the points' normal blocks, as the elimination
+        of the points formed it (from their closed-form Cholesky factors);
+        damped when the solution is."""
+
+        assert isinstance(self._state, Reduced)
+        return self._state.v_inv
+
+    @property
     def predicted_cost(self) -> float:
         """``Σ‖T (f + A δ)‖²`` of the step with the undamped normal matrix."""
 

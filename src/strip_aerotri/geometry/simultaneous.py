@@ -176,12 +176,26 @@ class SimultaneousResult:
 
 
 def _rows_whitening(weight: FloatArray) -> FloatArray:
-    """``Lᵀ`` of each row's weight ``W = L Lᵀ`` (n, 3, 3): ``‖Lᵀ v‖² = vᵀ W v``."""
-    try:
-        low = np.linalg.cholesky(weight)
-    except np.linalg.LinAlgError as exc:
-        raise ValueError("Expected positive definite row weights") from exc
-    return np.swapaxes(low, 1, 2)
+    """``Lᵀ`` of each row's weight ``W = L Lᵀ`` (n, 3, 3): ``‖Lᵀ v‖² = vᵀ W v``.
+
+    The Cholesky factor in closed form (LAPACK's unblocked order of
+    operations; a call per 3 × 3 matrix costs several times as much), from
+    the lower triangle of ``W``."""
+    w = weight
+    with np.errstate(invalid="ignore", divide="ignore"):
+        l00 = np.sqrt(w[:, 0, 0])
+        l10 = w[:, 1, 0] / l00
+        l20 = w[:, 2, 0] / l00
+        l11 = np.sqrt(w[:, 1, 1] - l10 * l10)
+        l21 = (w[:, 2, 1] - l20 * l10) / l11
+        l22 = np.sqrt(w[:, 2, 2] - l20 * l20 - l21 * l21)
+    diagonal = np.stack([l00, l11, l22])
+    if not np.all(diagonal > 0.0) or not np.all(np.isfinite(diagonal)):
+        raise ValueError("Expected positive definite row weights")
+    upper = np.zeros(w.shape)  # Lᵀ
+    upper[:, 0, 0], upper[:, 1, 1], upper[:, 2, 2] = l00, l11, l22
+    upper[:, 0, 1], upper[:, 0, 2], upper[:, 1, 2] = l10, l20, l21
+    return upper
 
 
 class _Problem:
@@ -296,7 +310,6 @@ class _Problem:
     def n_unknowns(self) -> int:
         n_blocks = self.width * self.n_units
         return n_blocks + 2 * self.n_lines + 3 * int(self.observed.sum())
-
 
 
 class _State:
@@ -459,19 +472,16 @@ def _line_rows(prob: _Problem, st: _State, k: int) -> Any:
 
 class _Step:
     """The engine's solution of one linearisation (unit, point and border
-    steps, the cofactors) and its points' 3 x 3 normal blocks ``V`` (the
-    points the rows observe, in the order of :attr:`_Problem.points_used`)."""
+    steps, the cofactors); its points are those the rows observe, in the
+    order of :attr:`_Problem.points_used`."""
 
-    def __init__(self, solution: NormalSolution, point_normals: FloatArray) -> None:
+    def __init__(self, solution: NormalSolution) -> None:
         self.solution = solution
-        self.point_normals = point_normals
-        self._inverse: FloatArray | None = None
 
     def point_inverse(self) -> FloatArray:
-        """``V⁻¹`` of every point (computed once)."""
-        if self._inverse is None:
-            self._inverse = np.asarray(np.linalg.inv(self.point_normals), dtype=np.float64)
-        return self._inverse
+        """``V⁻¹`` of every point's 3 x 3 normal block (the engine's, formed
+        when it eliminated the points: the steps are undamped)."""
+        return self.solution.point_inverse
 
 
 def _solve(prob: _Problem, st: _State) -> _Step:
@@ -480,8 +490,7 @@ def _solve(prob: _Problem, st: _State) -> _Step:
 
     unit_point, unit_rows, point_rows = _engine_rows(prob, st)
     try:
-        formed = prob.structure.form(unit_point, unit_rows, point_rows)
-        return _Step(formed.solve(), formed.point_blocks)
+        return _Step(prob.structure.form(unit_point, unit_rows, point_rows).solve())
     except SingularNormalsError as exc:
         if exc.kind == "unit":
             what = f"unit {exc.index} shares too few points with the others and the control"
@@ -790,9 +799,7 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     return st.with_points(points)
 
 
-def _step(
-    prob: _Problem, st: _State, sol: NormalSolution, dp: FloatArray, step: float
-) -> _State:
+def _step(prob: _Problem, st: _State, sol: NormalSolution, dp: FloatArray, step: float) -> _State:
     du = sol.unit_step * step
     dl = sol.border_step.reshape(-1, 2) * step
     rotation = matrix_from_rotvec(du[:, 3:6]) @ st.rotation
@@ -908,6 +915,8 @@ def _result(
         probe_points=probe,
         probe_plan_sigma=probe_sigma,
     )
+
+
 _PROBES = 24
 """Units whose plan precision :func:`_probe_plan_sigma` gives, at most."""
 
