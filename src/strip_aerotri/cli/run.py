@@ -77,9 +77,11 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     from ..project import load_project, output_folder
     from ..report.files import ResultFolder
     from ..report.lock import FolderLock
+    from .imports import defer_numpy_submodules
     from .memory import keep_freed_memory
 
     keep_freed_memory()  # this process's arrays come and go by the hundred
+    defer_numpy_submodules()  # those scipy touches and a run does not use
     started = time.perf_counter()
     echo_progress(f"loading {project_file}")
     with warnings.catch_warnings(record=True) as caught:
