@@ -781,7 +781,8 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     lt = prob.whiten
     n = prob.n_points
     # Σ W x of each point's rows, W = L Lᵀ
-    rhs = sum_into(obs.point, np.einsum("nji,nj->ni", lt, np.einsum("nij,nj->ni", lt, placed)), n)
+    weighted = np.einsum("nji,nj->ni", lt, np.einsum("nij,nj->ni", lt, placed))
+    rhs = np.column_stack([np.bincount(obs.point, weighted[:, k], minlength=n) for k in range(3)])
     used = prob.points_used
     if inverse is None:
         v = sum_into(obs.point, np.swapaxes(lt, 1, 2) @ lt, n)[used]
@@ -855,8 +856,9 @@ def _result(
     lt = prob.whiten
     wv = np.einsum("nij,nj->ni", lt, v)
     v_inv = sol.point_inverse()  # V⁻¹ of the points the rows observe
-    h = lt @ v_inv[prob.engine_point[obs.point]] @ np.swapaxes(lt, 1, 2)
-    free = 3.0 - np.einsum("nii->n", h)
+    # trace(Lᵀ V⁻¹ L), row by row of Lᵀ: Σ_i l_i V⁻¹ l_iᵀ
+    leverage = np.einsum("nij,nij->n", lt @ v_inv[prob.engine_point[obs.point]], lt)
+    free = 3.0 - leverage
     share = max(1.0 - prob.width * prob.n_units / max(float(free.sum()), 1e-300), 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         stat = np.einsum("ni,ni->n", wv, wv) / (free * share)

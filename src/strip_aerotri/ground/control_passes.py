@@ -57,6 +57,7 @@ class ControlPasses:
         self.settled = False
         self.done = False
         self.last_change = np.inf
+        self._target: tuple[FloatArray, FloatArray] | None = None  # (guess, its target)
 
     @property
     def guessed(self) -> bool:
@@ -64,8 +65,10 @@ class ControlPasses:
         return bool(np.isnan(self.given[self.active]).any())
 
     def target(self) -> FloatArray:
-        """Work-frame control of the active rows, NaN where not used."""
-        return self._target_of(self.guess)
+        """Work-frame control of the active rows, NaN where not used (a copy)."""
+        if self._target is None or self._target[0] is not self.guess:
+            self._target = (self.guess, self._target_of(self.guess))
+        return self._target[1].copy()
 
     def _target_of(self, guess: FloatArray) -> FloatArray:
         target = self.work.to_work(guess)
@@ -102,5 +105,6 @@ class ControlPasses:
         elif not following:
             return None
         self.guess = new_guess
+        self._target = (new_guess, target)
         self.last_change = np.inf
         return self.target()
