@@ -782,7 +782,9 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     n = prob.n_points
     # Σ W x of each point's rows, W = L Lᵀ
     weighted = np.einsum("nji,nj->ni", lt, np.einsum("nij,nj->ni", lt, placed))
-    rhs = np.column_stack([np.bincount(obs.point, weighted[:, k], minlength=n) for k in range(3)])
+    rhs: FloatArray = np.column_stack(
+        [np.bincount(obs.point, weighted[:, k], minlength=n) for k in range(3)]
+    )
     used = prob.points_used
     if inverse is None:
         v = sum_into(obs.point, np.swapaxes(lt, 1, 2) @ lt, n)[used]
