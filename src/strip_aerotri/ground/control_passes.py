@@ -71,10 +71,11 @@ class ControlPasses:
         return self._target[1].copy()
 
     def _target_of(self, guess: FloatArray) -> FloatArray:
-        target = self.work.to_work(guess)
-        target[~self.use_xy, :2] = np.nan
-        target[~self.use_z, 2] = np.nan
-        return target[self.active]
+        # only the active rows are converted (the transformation is point by point)
+        target = self.work.to_work(guess[self.active])
+        target[~self.use_xy[self.active], :2] = np.nan
+        target[~self.use_z[self.active], 2] = np.nan
+        return target
 
     def update(self, points: FloatArray, converged: bool) -> FloatArray | None:
         """The control for the next iteration from the adjusted ``points``
@@ -82,10 +83,14 @@ class ControlPasses:
         waiting for the adjustment to settle)."""
         if self.done:
             return None
-        adjusted = self.work.from_work(points[self.idx])
         missing = np.isnan(self.given)
         new_guess = self.given.copy()
-        new_guess[missing] = adjusted[missing]
+        # only the rows that lack a coordinate are converted (point by point;
+        # on a strip most control rows are full check points)
+        rows = np.flatnonzero(missing.any(axis=1))
+        if rows.size:
+            adjusted = self.work.from_work(points[self.idx[rows]])
+            new_guess[rows] = np.where(missing[rows], adjusted, self.given[rows])
         # what the adjustment sees: the used components in the work frame (a
         # plan point's height moves its X, Y there by a share of the distance
         # from the frame's origin over the earth's radius, 1e-3 at 6 km)

@@ -184,9 +184,14 @@ def solve_passes(
             p, sim, roll, target, use_xy, use_z, line_keep, polynomial, act_ids
         )
         corrected = model_xyz if deformation is None else deformation.correct(model_xyz)
-        adjusted = work.from_work(corrected)
         new_guess = p.given.copy()
         fill_h, fill_xy = ~use_z & ~p.check, ~use_xy & ~p.check
+        # only the rows filled are converted (point by point; most rows of a
+        # strip are full check points)
+        adjusted = np.full(corrected.shape, np.nan)
+        filled = fill_h | fill_xy
+        if filled.any():
+            adjusted[filled] = work.from_work(corrected[filled])
         new_guess[fill_h, 2] = adjusted[fill_h, 2]
         new_guess[fill_xy, :2] = adjusted[fill_xy, :2]
         # The pass's input guess came back unchanged (always so when every
