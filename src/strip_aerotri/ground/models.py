@@ -55,11 +55,11 @@ from ..geometry.simultaneous import (
     adjust_units,
 )
 from ..observations import ControlPoints, LineSpec
-from ..options import BlunderAction, BlunderOptions, GroundOptions
+from ..options import BlunderOptions, GroundOptions
 from ..results import GroundResult, ModelAdjustment, Rejection, StripModel
 from .common import control_detectability, index_of, intersect_unmodelled
 from .control_passes import ControlPasses
-from .polynomials import adjust_to_ground
+from .polynomials import similarity_start
 from .systematic import kept_control, kept_if_alike, rejected_components
 
 __all__ = ["ModelAdjustment", "adjust_models_to_ground", "model_weights"]
@@ -201,16 +201,8 @@ def _prepare(
     # warnings concern the similarity alone, which the models replace).
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StripAerotriWarning)
-        start = adjust_to_ground(
-            strip,
-            control,
-            crs,
-            options=GroundOptions(
-                route=options.route,
-                polynomial=0,
-                max_iterations=options.max_iterations,
-            ),
-            blunders=BlunderOptions(action=BlunderAction.OFF),
+        start = similarity_start(
+            strip, control, crs, route=options.route, max_iterations=options.max_iterations
         )
     rows = start.control_index
     check = start.is_check
