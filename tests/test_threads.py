@@ -277,3 +277,54 @@ def test_a_wide_band_is_factored_through_interruptible(monkeypatch: pytest.Monke
     with pytest.raises(blockband.NotPositiveDefinite):
         blockband.factor_band(_wide_band(50, 2, 6, positive=False))
     assert calls == ["cholesky_banded", "cholesky_banded"]
+
+
+def test_a_block_inside_one_of_the_same_limit_changes_nothing(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Nested entry points (a run enters eight) set the limit once: the inner
+    blocks of the same limit leave BLAS alone, another limit inside is set
+    and restored, and another thread sets its own."""
+    import threading
+
+    import scipy.linalg  # noqa: F401  (both BLAS libraries loaded)
+    import threadpoolctl
+    from threadpoolctl import threadpool_info
+
+    from strip_aerotri._threads import blas_threads
+
+    def blas() -> set[int]:
+        return {d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"}
+
+    monkeypatch.delenv(BLAS_THREADS_VARIABLE, raising=False)
+    if not blas():
+        pytest.skip("no BLAS library that threadpoolctl knows")
+    calls: list[int] = []
+    real = threadpoolctl.threadpool_limits
+
+    def counted(limits: int, user_api: str) -> object:
+        calls.append(limits)
+        return real(limits=limits, user_api=user_api)
+
+    monkeypatch.setattr(threadpoolctl, "threadpool_limits", counted)
+    with threadpoolctl.threadpool_limits(2, "blas"):
+        calls.clear()
+        with blas_threads():
+            with blas_threads(), blas_threads(1):
+                assert blas() == {1}
+                with blas_threads(3):
+                    assert blas() == {3}
+                assert blas() == {1}
+            seen: list[set[int]] = []
+            worker = threading.Thread(target=lambda: seen.append(_in_limit(blas_threads, blas)))
+            worker.start()
+            worker.join()
+            assert blas() == {1}
+        assert blas() == {2}
+    assert calls == [1, 3, 1]
+    assert seen == [{1}]
+
+
+def _in_limit(blas_threads, blas):  # type: ignore[no-untyped-def]
+    with blas_threads():
+        return blas()

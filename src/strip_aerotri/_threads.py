@@ -97,13 +97,36 @@ def blas_threads(limit: int | None | Literal["env"] = "env") -> Iterator[None]:
     if n is None:
         yield
         return
+    entered = _entered_limits()
+    if entered and entered[-1] == n:
+        # an enclosing block of this thread set this very limit (the entry
+        # points call each other: a run enters eight): nothing to set or
+        # restore, and threadpoolctl's look at every loaded library and
+        # OpenBLAS's resetting of its threads are saved
+        yield
+        return
     # scipy brings its own BLAS, loaded by scipy.linalg: load it first, or the
     # limit would miss it (threadpoolctl limits the libraries loaded so far).
     import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=n, user_api="blas"):
-        yield
+        entered.append(n)
+        try:
+            yield
+        finally:
+            entered.pop()
+
+
+_local = threading.local()
+
+
+def _entered_limits() -> list[int]:
+    """The limits of the :func:`blas_threads` blocks this thread is in, innermost last."""
+    limits: list[int] | None = getattr(_local, "limits", None)
+    if limits is None:
+        limits = _local.limits = []
+    return limits
 
 
 def limit_blas_threads(function: Callable[_P, _R]) -> Callable[_P, _R]:
