@@ -22,3 +22,19 @@ def cli_subprocess(*args: str | Path, timeout: float = 60.0) -> subprocess.Compl
         env=env,
         check=False,
     )
+
+
+def python_subprocess(
+    code: str, *args: str, env: dict[str, str] | None = None, timeout: float = 120.0
+) -> subprocess.CompletedProcess[str]:
+    """``python -c CODE ARGS`` in a fresh interpreter (with this one's
+    sys.path), ``env`` added to the environment."""
+    full = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p), **(env or {})}
+    return subprocess.run(
+        [sys.executable, "-c", code, *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=full,
+        check=False,
+    )

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from _cli_process import python_subprocess
 from strip_aerotri.cli import main as cli_main
 
 
@@ -21,15 +22,7 @@ def _main(*args: str, prelude: str = "") -> subprocess.CompletedProcess[str]:
     code = f"import sys; {prelude}sys.argv = ['stripaero', *sys.argv[1:]]; " + (
         "from strip_aerotri.cli.main import main; main()"
     )
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-    return subprocess.run(
-        [sys.executable, "-c", code, *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        env=env,
-        check=False,
-    )
+    return python_subprocess(code, *args)
 
 
 def test_statuses_and_messages_are_those_of_the_command(tmp_path: Path) -> None:

@@ -3,9 +3,7 @@ scipy.linalg touches are not run by it, and work as before when used."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
+from _cli_process import python_subprocess
 
 _CODE = """
 import sys
@@ -25,15 +23,9 @@ print(callable(numpy.f2py.run_main))
 
 
 def test_deferred_submodules_wait_for_their_first_use() -> None:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-    out = subprocess.run(
-        [sys.executable, "-c", _CODE],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        env=env,
-        check=True,
-    ).stdout.splitlines()
+    done = python_subprocess(_CODE)
+    assert done.returncode == 0, done.stderr
+    out = done.stdout.splitlines()
     deferred, untouched = out[0].split(" ")
     assert {"f2py", "testing"} <= set(deferred.split(","))
     assert untouched.split(",") == ["f2py", "testing"]

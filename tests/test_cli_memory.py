@@ -4,10 +4,11 @@ process, so that arrays freed and allocated again are not fresh pages."""
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 
 import pytest
+
+from _cli_process import python_subprocess
 
 _FAULTS = """
 import resource, sys
@@ -24,14 +25,9 @@ print(faults() - before)
 
 
 def _run(env: dict[str, str]) -> tuple[bool, int]:
-    out = subprocess.run(
-        [sys.executable, "-c", _FAULTS],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=True,
-        env={**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p), **env},
-    ).stdout.split()
+    done = python_subprocess(_FAULTS, env=env)
+    assert done.returncode == 0, done.stderr
+    out = done.stdout.split()
     return out[0] == "True", int(out[1])
 
 

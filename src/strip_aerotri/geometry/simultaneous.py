@@ -176,26 +176,12 @@ class SimultaneousResult:
 
 
 def _rows_whitening(weight: FloatArray) -> FloatArray:
-    """``Lᵀ`` of each row's weight ``W = L Lᵀ`` (n, 3, 3): ``‖Lᵀ v‖² = vᵀ W v``.
-
-    The Cholesky factor in closed form (LAPACK's unblocked order of
-    operations; a call per 3 × 3 matrix costs several times as much), from
-    the lower triangle of ``W``."""
-    w = weight
-    with np.errstate(invalid="ignore", divide="ignore"):
-        l00 = np.sqrt(w[:, 0, 0])
-        l10 = w[:, 1, 0] / l00
-        l20 = w[:, 2, 0] / l00
-        l11 = np.sqrt(w[:, 1, 1] - l10 * l10)
-        l21 = (w[:, 2, 1] - l20 * l10) / l11
-        l22 = np.sqrt(w[:, 2, 2] - l20 * l20 - l21 * l21)
-    diagonal = np.stack([l00, l11, l22])
-    if not np.all(diagonal > 0.0) or not np.all(np.isfinite(diagonal)):
-        raise ValueError("Expected positive definite row weights")
-    upper = np.zeros(w.shape)  # Lᵀ
-    upper[:, 0, 0], upper[:, 1, 1], upper[:, 2, 2] = l00, l11, l22
-    upper[:, 0, 1], upper[:, 0, 2], upper[:, 1, 2] = l10, l20, l21
-    return upper
+    """``Lᵀ`` of each row's weight ``W = L Lᵀ`` (n, 3, 3): ``‖Lᵀ v‖² = vᵀ W v``."""
+    try:
+        low = np.linalg.cholesky(weight)
+    except np.linalg.LinAlgError as exc:
+        raise ValueError("Expected positive definite row weights") from exc
+    return np.swapaxes(low, 1, 2)
 
 
 class _Problem:
