@@ -27,7 +27,8 @@ from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
-from .adjust import bundle_adjust, observed_with_sigma
+from ._given import observed_with_sigma
+from .adjust import bundle_adjust
 from .photo_tests import _photo_flags, _photo_tests
 from .selfcal import ebner_base_mm, final_outcome, residual_cells, start_model
 
@@ -720,10 +721,14 @@ def _round_statistics(
     tested = pt_used[obs.point]
     v_all = np.full((k_all, 2), np.nan)
     rows_t = np.flatnonzero(tested)
+    ray_points = new_points[obs.point[rows_t]]
+    if res.motion is not None:  # a rolling shutter: each ray from its moved centre
+        shutter = res.motion.model
+        ray_points = ray_points - shutter.centre_shift(
+            res.motion.values, obs.photo[rows_t], shutter.fractions(obs.xy[rows_t])
+        )
     vv = image_vectors(
-        res.centres[obs.photo[rows_t]],
-        res.rotations[obs.photo[rows_t]],
-        new_points[obs.point[rows_t]],
+        res.centres[obs.photo[rows_t]], res.rotations[obs.photo[rows_t]], ray_points
     )
     v_all[rows_t] = -obs.principal_distance * vv[:, :2] / vv[:, 2:3] - obs.xy[rows_t]
     if res.camera is not None:  # computed minus corrected observed
@@ -743,6 +748,7 @@ def _round_statistics(
         )
         free = float(np.sum(1.0 - h_sub))
         n_photo = 6.0 * m + (0 if res.camera is None else len(res.camera.names))
+        n_photo += 0 if res.motion is None else res.motion.values.size
         rho = max(_MIN_PHOTO_FACTOR, 1.0 - n_photo / free) if free > 0 else _MIN_PHOTO_FACTOR
         r_img[rows] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
     w_img = np.full((k_all, 2), np.nan)
