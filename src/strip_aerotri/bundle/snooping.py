@@ -21,7 +21,7 @@ from .._stats import leading_failures
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
 from ..errors import GeometryError
-from ..geometry.camera_model import CameraModel
+from ..geometry.camera_model import CameraModel, ShutterMotion
 from ..geometry.collinearity import image_jacobian, image_vectors
 from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..observations import ImageObservations
@@ -67,6 +67,7 @@ def refine_frame(
     imu_used: ArrayLike | None = None,
     self_calibration: SelfCalibration | None = None,
     control_tested: bool = True,
+    motion: ShutterMotion | None = None,
 ) -> FrameRefinement:
     """Bundle adjustment in a Cartesian frame with data snooping.
 
@@ -119,6 +120,10 @@ def refine_frame(
     control_tested : bool
         False: the control is not tested (an earlier call kept it for
         failing alike).
+    motion : ShutterMotion, optional
+        A rolling shutter's motion per group of photos, estimated in every
+        adjustment (``bundle_adjust``'s ``motion``); the image residuals
+        tested are those of the moved centres.
 
     Returns
     -------
@@ -181,7 +186,7 @@ def refine_frame(
     inp = _inputs(
         obs, centres0, rotations0, points0, control_xyz, control_sigma,
         gnss_centres, gnss_sigma, imu_rotations, imu_sigma, gnss_axes,
-    )  # fmt: skip
+    )._replace(motion=motion)  # fmt: skip
     sets = _Sets.start(inp, blunders, observation_used, control_used, gnss_used, imu_used)
     sets.control_tested = control_tested
     rejections: list[Rejection] = []
@@ -194,16 +199,9 @@ def refine_frame(
         pt_used = sets.used_points(inp)
         sub, rows, pts = _compact(obs, sets.keep, pt_used)
         res = _adjust(
-            inp,
-            sets,
-            sub,
-            pts,
-            state,
-            max_iterations=max_iterations,
-            compute_precision=compute_precision,
-            camera=camera.model,
-            camera0=camera.values,
-        )
+            inp, sets, sub, pts, state, max_iterations=max_iterations,
+            compute_precision=compute_precision, camera=camera.model, camera0=camera.values,
+        )  # fmt: skip
         rounds += 1
         iterations += res.iterations
         camera = camera.moved(res)
@@ -377,6 +375,7 @@ def _adjust(
         state[2][pts],
         camera=camera,
         camera0=camera0,
+        motion=inp.motion,
         control_xyz=np.where(sets.ctrl_on[pts], inp.c_xyz[pts], np.nan),
         control_sigma=np.where(sets.ctrl_on[pts], inp.c_sig[pts], np.inf),
         gnss_centres=None
@@ -479,6 +478,7 @@ class _Inputs(NamedTuple):
     i_rot: FloatArray | None
     i_sig: FloatArray
     i_given: BoolArray
+    motion: ShutterMotion | None = None  # a rolling shutter's groups, if estimated
 
 
 def _inputs(
