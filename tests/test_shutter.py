@@ -200,3 +200,77 @@ def test_data_snooping_with_a_moving_camera_finds_the_blunders() -> None:
     assert fr.bundle.motion is not None
     dev = (fr.bundle.motion.values - TRUTH) / fr.bundle.motion.std
     assert np.all(np.abs(dev) < 3.0), dev
+
+
+def test_camera_and_motion_share_the_border() -> None:
+    """With camera parameters and motions in one border, each block of the
+    cofactor matrix equals the dense inverse's, and both are recovered."""
+    from strip_aerotri.geometry.camera_model import CameraModel, brown_correction
+
+    obs, shutter, centres, rotations, points = _network(TRUTH, seed=6)
+    keep = obs.point < 80
+    truth_cam = np.zeros(10)
+    truth_cam[[3, 8]] = [-3e-6, 2e-4]  # k1 (mm^-2), b1
+    measured = obs.xy[keep].copy()
+    for _ in range(20):  # m + Δ(m) = the image of the moving camera
+        measured = obs.xy[keep] - brown_correction(measured, truth_cam, C)
+    obs = ImageObservations(
+        obs.photo_ids, obs.point_ids[:80], obs.photo[keep], obs.point[keep], measured,
+        obs.sigma[keep], C,
+    )
+    points = points[:80]
+    control = _control(points)
+    model = CameraModel("brown", ("k1", "b1"), C)
+    res = bundle_adjust(
+        obs, centres, rotations, points, control_xyz=control, control_sigma=0.05,
+        camera=model, motion=shutter,
+    )
+    assert res.camera is not None and res.motion is not None
+    m, p = centres.shape[0], points.shape[0]
+    s = shutter.fractions(obs.xy)
+    rays = np.arange(obs.photo.size)
+
+    def f(x: np.ndarray) -> np.ndarray:
+        d = x[: 6 * m].reshape(m, 6)
+        cen = res.centres + d[:, :3]
+        rot = res.rotations @ matrix_from_rotvec(d[:, 3:])
+        pts = x[6 * m : 6 * m + 3 * p].reshape(p, 3)
+        cam = x[6 * m + 3 * p : 6 * m + 3 * p + 2]
+        shift = shutter.centre_shift(x[6 * m + 3 * p + 2 :].reshape(2, 3), obs.photo, s)
+        xy, _ = project(cen[obs.photo] + shift, rot[obs.photo], pts[obs.point], rays, rays, C)
+        img = (xy - (obs.xy + model.correction(obs.xy, cam))) / obs.sigma[:, None]
+        ctrl = (pts - control) / 0.05
+        return np.concatenate([img.ravel(), ctrl[np.isfinite(ctrl)]])
+
+    x0 = np.concatenate(
+        [np.zeros(6 * m), res.points.ravel(), res.camera.values, res.motion.values.ravel()]
+    )
+    jac = np.empty((f(x0).size, x0.size))
+    for i in range(x0.size):
+        h = 1e-6 * max(1.0, abs(x0[i])) if i < 6 * m + 3 * p else 1e-4 * abs(x0[i]) + 1e-10
+        e = np.zeros_like(x0)
+        e[i] = h
+        jac[:, i] = (f(x0 + e) - f(x0 - e)) / (2 * h)
+    q = np.linalg.inv(jac.T @ jac)[6 * m + 3 * p :, 6 * m + 3 * p :]
+    assert np.allclose(res.camera.cofactor, q[:2, :2], rtol=2e-3)
+    assert np.allclose(res.motion.cofactor, q[2:, 2:], rtol=2e-3)
+    assert np.all(np.abs((res.camera.values - truth_cam[[3, 8]]) / res.camera.std) < 3.0)
+    assert np.all(np.abs((res.motion.values - TRUTH) / res.motion.std) < 3.0)
+
+
+def test_an_undetermined_motion_is_named() -> None:
+    """A group whose rows are all read at the middle (every image point at
+    y = 0) has no motion to estimate: one GeometryError naming it."""
+    from strip_aerotri.errors import GeometryError
+
+    obs, shutter, centres, rotations, points = _network(None, seed=1)
+    middle = ImageObservations(
+        obs.photo_ids, obs.point_ids, obs.photo, obs.point,
+        np.where((shutter.group[obs.photo] == 1)[:, None], obs.xy * [1.0, 0.0], obs.xy),
+        obs.sigma, C,
+    )
+    with pytest.raises(GeometryError, match="motion along [XYZ] of 'two' is not determined"):
+        bundle_adjust(
+            middle, centres, rotations, points, control_xyz=_control(points),
+            control_sigma=0.05, motion=shutter,
+        )
