@@ -427,7 +427,8 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
             assert prob.motion is not None
             raise GeometryError(
                 f"the rolling shutter's motion along {'XYZ'[axis]} of "
-                f"'{prob.motion.group_names[g]}' is not determined by the observations"
+                f"'{prob.motion.group_names[g]}' is not determined by the observations: its "
+                "photos' image points must spread over the rows read (leave the motion out)"
             ) from None
         if exc.kind == "border" and prob.camera is not None:
             name = prob.camera.estimated[exc.index]
