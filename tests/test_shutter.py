@@ -274,3 +274,14 @@ def test_an_undetermined_motion_is_named() -> None:
             middle, centres, rotations, points, control_xyz=_control(points),
             control_sigma=0.05, motion=shutter,
         )
+
+
+def test_rows_are_read_from_the_sensor_top() -> None:
+    """s = t - 1/2 is -1/2 at the sensor's top row (y up) and +1/2 at its
+    bottom, whatever the flight axes the coordinates come in."""
+    top_bottom_sensor = np.array([[0.3, READOUT / 2], [-0.2, -READOUT / 2], [5.0, 0.0]])
+    plus_y = np.array([[0.0, 1.0], [-1.0, 0.0]])  # [images] flight_direction = "+y"
+    for turn in (np.eye(2), plus_y, -np.eye(2)):
+        shutter = ShutterMotion(np.array([0]), ("a",), READOUT, turn)
+        flight = top_bottom_sensor @ turn.T  # f = M s
+        assert np.allclose(shutter.fractions(flight), [-0.5, 0.5, 0.0])
