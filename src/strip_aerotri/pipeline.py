@@ -279,25 +279,21 @@ def _strip_warnings(
     rejection, the control points left out and the points not triangulated."""
     notes = list(warnings) + list(strip.break_warnings)
     notes += [r.describe() for r in strip.rejections + ground.rejections]
-    failed_ties = set(strip.rejected_points)
+    why = strip.lost_to_blunder_tests()
     notes += [
         f"control point {p!r} is not triangulated ("
-        + (
-            "every determination of it failed the tie-point test, see the tie_points rejections"
-            if p in failed_ties
-            else "seen on fewer than two photos of a model"
-        )
+        + why.get(p, "seen on fewer than two photos of a model")
         + "): left out"
         for p in ground.left_out
     ]
-    not_seen = np.flatnonzero(~np.isfinite(ground.points).all(axis=1))
-    if not_seen.size:
-        names = ", ".join(repr(observations.point_ids[i]) for i in not_seen[:5])
-        more = f" and {not_seen.size - 5} more" if not_seen.size > 5 else ""
-        notes.append(
-            f"{not_seen.size} point(s) not triangulated (seen on fewer than two photos): "
-            f"{names}{more}"
-        )
+    lost = np.flatnonzero(~np.isfinite(ground.points).all(axis=1))
+    ids = [observations.point_ids[i] for i in lost]
+    for cause in ("seen on fewer than two photos", "their observations failed the blunder tests"):
+        group = [p for p in ids if (p in why) == cause.startswith("their")]
+        if group:
+            names = ", ".join(map(repr, group[:5]))
+            more = f" and {len(group) - 5} more" if len(group) > 5 else ""
+            notes.append(f"{len(group)} point(s) not triangulated ({cause}): {names}{more}")
     return notes
 
 
