@@ -57,3 +57,55 @@ def test_block_points_lost_to_blunder_tests_are_not_said_unmeasured() -> None:
         res = adjust_block(sim.observations, sim.control, sim.crs, specs, construction="models")
     (line,) = [w for w in res.warnings if w.startswith("check point 'P00055' is not triangulated")]
     assert "see the relative_orientation rejections" in line, line
+
+
+def _keep_control(control, keep):  # type: ignore[no-untyped-def]
+    """``control`` with only its check points and the points of ``keep``."""
+    import dataclasses
+
+    import numpy as np
+
+    rows = np.flatnonzero(control.is_check | np.isin(control.point_ids, list(keep)))
+    return dataclasses.replace(
+        control,
+        point_ids=tuple(control.point_ids[i] for i in rows),
+        xyz=control.xyz[rows],
+        kind=tuple(control.kind[i] for i in rows),
+        sigma_xy=control.sigma_xy[rows],
+        sigma_h=control.sigma_h[rows],
+        source_line=control.source_line[rows] if control.source_line.size else control.source_line,
+    )
+
+
+def test_control_at_one_end_is_warned_of() -> None:
+    """A 12-photo film strip with its control at the first end only (two
+    full and two height points on photos 1001-1005) runs, and warns, naming
+    the control file, that the plan and the height control stop short of
+    the strip's far end; its check heights are indeed off by decimetres."""
+    from strip_aerotri.plausibility import control_coverage_problems
+
+    sim = simulate_strip(12, preset="film", seed=0, crs="EPSG:32634")
+    one_end = _keep_control(sim.control, {"P0002", "P0003", "P0039", "P0043"})
+    found = control_coverage_problems(sim.observations, one_end, file="control.csv")
+    assert [m.split(" control ")[0] for m in found] == [
+        "control.csv: the plan", "control.csv: the height",
+    ]  # fmt: skip
+    assert "photos 1001 to 1002 of the strip's 1001 to 1012: the 10 photos beyond" in found[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        res = triangulate(sim.observations, one_end, sim.crs, control_name="control.csv")
+    assert found[0] in res.warnings and found[1] in res.warnings
+    assert res.check_statistics.rmse[2] > 0.3  # m: what the warning is about
+
+
+def test_the_simulator_layouts_are_not_warned_of() -> None:
+    """Every strip layout of the simulator puts control at both ends: no
+    coverage warning on film or drone strips, short or long."""
+    from strip_aerotri.plausibility import control_coverage_problems
+
+    for preset, n in (("film", 6), ("film", 30), ("drone", 12), ("drone", 60)):
+        for layout in ("ends", "fig4", "every_k_models", "dense", "weak"):
+            sim = simulate_strip(n, preset=preset, seed=1, crs="local", control=layout)
+            assert control_coverage_problems(sim.observations, sim.control) == [], (
+                preset, n, layout,
+            )  # fmt: skip

@@ -45,7 +45,7 @@ from .options import (
     StripOptions,
     Weights,
 )
-from .plausibility import control_problems
+from .plausibility import control_coverage_problems, control_problems
 from .results import AccuracyStatistics, BlockResult, GroundResult, StripModel, StripResult
 from .strip.densify import form_strip_stepped
 
@@ -165,6 +165,7 @@ def triangulate(
     mirrored = control_problems(observations, control, crs, file=control_name)
     if mirrored:
         raise GeometryError(mirrored[0])
+    warnings = [*warnings, *control_coverage_problems(observations, control, file=control_name)]
     say(
         f"forming the strip: {observations.n_photos} photos, "
         f"{len(observations.photo)} observations"

@@ -19,6 +19,9 @@ messages (``stripaero check`` lists them all; a run stops at the first):
   reflection than without.  A near-vertical photo maps its image (x along
   the flight, y to the left, right-handed with z up) onto east-north-up by
   a rotation, never by a reflection;
+* :func:`control_coverage_problems` — a warning, not a stop: strip ends
+  beyond the outermost plan or height control, where the strip is
+  extrapolated;
 * :func:`control_degree_problems` — control given in degrees (longitude,
   latitude) under a projected CRS: every plan coordinate within ±180, ±90,
   spanning less than a few units (a few metres: no strip's control), and
@@ -47,6 +50,7 @@ __all__ = [
     "MAX_IMAGE_RADIUS_MM",
     "control_degree_problems",
     "control_distance_problems",
+    "control_coverage_problems",
     "control_handedness_problems",
     "flight_axis_message",
     "image_coordinate_problems",
@@ -588,4 +592,52 @@ def control_degree_problems(
         f"projected, in metres: as metres the plan control spans {span:.3g} m{where}; give "
         f"X, Y as {given} eastings and northings, or set [control] crs to the geographic "
         'CRS of the degrees (e.g. "EPSG:4326", WGS 84 longitude and latitude)'
+    ]
+
+
+#: A strip may run this many photos, or this fraction of its photos, beyond
+#: its outermost plan or height control before the run warns (R4's layout
+#: has full points in the first and the last model).
+_END_PHOTOS = 2
+_END_FRACTION = 0.1
+
+
+def control_coverage_problems(
+    observations: ImageObservations, control: ControlPoints, file: str = "control"
+) -> list[str]:
+    """Warnings for a strip's ends that its plan or its height control does
+    not reach (photos in flight order, ``observations.photo_ids``).
+
+    A control point reaches the photos it is measured on; an end is
+    extrapolated when more than ``max(_END_PHOTOS, _END_FRACTION (M - 1))``
+    photos lie beyond the outermost control of a kind.  Errors grow fast
+    beyond the last control (with the square to the cube of the distance
+    along a strip), which a check point there shows but nothing else does.
+    """
+    m = observations.n_photos
+    lookup = {pid: i for i, pid in enumerate(observations.point_ids)}
+    point = np.array([lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
+    first = np.full(observations.n_points, m, dtype=np.intp)
+    last = np.full(observations.n_points, -1, dtype=np.intp)
+    np.minimum.at(first, observations.point, observations.photo)
+    np.maximum.at(last, observations.point, observations.photo)
+    seen = point >= 0
+    seen[seen] = first[point[seen]] < last[point[seen]]  # on two photos at least
+    slack = max(_END_PHOTOS, _END_FRACTION * (m - 1))
+    reach: dict[tuple[int, int], list[str]] = {}
+    for kind, uses in (("plan", control.uses_xy), ("height", control.uses_h)):
+        rows = point[seen & uses]
+        if rows.size == 0:
+            continue  # no control of this kind at all: the adjustment says so
+        lo, hi = int(first[rows].min()), int(last[rows].max())
+        if lo > slack or m - 1 - hi > slack:
+            reach.setdefault((lo, hi), []).append(kind)
+    ids = observations.photo_ids
+    return [
+        f"{file}: the {' and '.join(kinds)} control "
+        f"{'reach' if len(kinds) > 1 else 'reaches'} photos {ids[lo]} to {ids[hi]} "
+        f"of the strip's {ids[0]} to {ids[-1]}: the {lo + m - 1 - hi} photos beyond are "
+        "extrapolated, and a strip's errors grow fast beyond its last control; add full "
+        "control points at both ends of the strip (R4: in the first and the last model)"
+        for (lo, hi), kinds in reach.items()
     ]
