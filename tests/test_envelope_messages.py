@@ -109,3 +109,19 @@ def test_the_simulator_layouts_are_not_warned_of() -> None:
             assert control_coverage_problems(sim.observations, sim.control) == [], (
                 preset, n, layout,
             )  # fmt: skip
+
+
+def test_check_points_only_say_no_control_is_given() -> None:
+    """Control of check points only: the error says that no control point is
+    given (and how many check points there are), not that none is observed
+    on two photos."""
+    import pytest
+
+    from strip_aerotri.errors import GeometryError
+
+    sim = simulate_strip(6, preset="film", seed=0, crs="EPSG:32634")
+    checks = _keep_control(sim.control, set())
+    n = int(checks.is_check.sum())
+    given = rf"no full, plan or height control point is given \({n} check point"
+    with pytest.raises(GeometryError, match=given):
+        triangulate(sim.observations, checks, sim.crs)

@@ -247,10 +247,10 @@ class StripModel:
             for r in self.rejections
             if r.applied and r.point
         }
-        why.update(
-            (p, "every determination of it failed the tie-point test, see the tie_points rejections")
-            for p in self.rejected_points
+        failed = (
+            "every determination of it failed the tie-point test, see the tie_points rejections"
         )
+        why.update((p, failed) for p in self.rejected_points)
         return why
 
     @property
