@@ -125,3 +125,36 @@ def test_check_points_only_say_no_control_is_given() -> None:
     given = rf"no full, plan or height control point is given \({n} check point"
     with pytest.raises(GeometryError, match=given):
         triangulate(sim.observations, checks, sim.crs)
+
+
+def test_weak_check_points_are_one_line_unless_verbose() -> None:
+    """A drone block flags many check points at its edges as weakly
+    determined (16 on a simulated 3 x 15 block): two or more are one line at
+    the place of the first, naming five and the count of the others; one
+    stays as it is; ``-v`` prints every one."""
+    import math
+
+    from strip_aerotri.ground.check_precision import WeakCheck, weak_check_message
+    from strip_aerotri.report.summary import Accuracy, RunSummary
+    from strip_aerotri.report.verdict import Verdict
+
+    weak = [
+        weak_check_message(WeakCheck(f"P{i}", 4, 33.0, 0.015, 0.045, 0.01, 0.01))
+        for i in range(7)
+    ]
+    none = Accuracy(0, 0, math.nan, math.nan)
+    summary = RunSummary(
+        "block", "b", 45, 44, 500, False, "models", none, none, Verdict("na", "nothing"),
+        files=("report.json", "report.html"),
+    )  # fmt: skip
+    texts = ["first", weak[0], "second", *weak[1:], "third"]
+    assert summary.warning_lines(texts) == [
+        "first",
+        "7 check points are weakly determined by their own rays ('P0', 'P1', 'P2', 'P3', "
+        "'P4' and 2 more) and left out of the check statistics; measure them on more photos, "
+        "farther apart (listed in report.json / report.html; -v lists them here)",
+        "second",
+        "third",
+    ]
+    assert summary.warning_lines(["first", weak[0], "second"]) == ["first", weak[0], "second"]
+    assert summary.warning_lines(texts, every=True) == texts

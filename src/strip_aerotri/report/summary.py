@@ -16,6 +16,7 @@ rejections, the timings and the figures ``-v`` shows.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -277,7 +278,8 @@ class RunSummary:
         names = dict.fromkeys(
             n for n in ("report.json", self.report_name) if n and n in self.files
         )
-        return _grouped(unique, self.rejections, " / ".join(names))
+        listed = " / ".join(names)
+        return _grouped_weak_checks(_grouped(unique, self.rejections, listed), listed)
 
 
 @dataclass(frozen=True)
@@ -339,6 +341,31 @@ def _grouped(texts: list[str], rejections: Sequence[Rejection], listed: str) -> 
             counts.append(f"{kept} {what} fail the blunder test, kept ({why})")
         out.append(f"{line[0]}: {'; '.join(counts)} ({where}-v lists them here)")
     return out
+
+
+#: How the warning of a weakly determined check point begins
+#: (:func:`strip_aerotri.ground.check_precision.weak_check_message`).
+_WEAK_CHECK = re.compile(r"check point ('.*?') is weakly determined: ")
+
+
+def _grouped_weak_checks(texts: list[str], listed: str) -> list[str]:
+    """Two or more weakly determined check points among ``texts`` summed up
+    in one line at the place of the first, naming them (five at most) and the
+    files that list them; every other warning as it is."""
+    named = [m.group(1) for m in map(_WEAK_CHECK.match, texts) if m]
+    if len(named) < 2:
+        return texts
+    more = f" and {len(named) - 5} more" if len(named) > 5 else ""
+    where = f"listed in {listed}; " if listed else ""
+    line = (
+        f"{len(named)} check points are weakly determined by their own rays ("
+        + ", ".join(named[:5])
+        + f"{more}) and left out of the check statistics; measure them on more photos, "
+        f"farther apart ({where}-v lists them here)"
+    )
+    first = next(i for i, t in enumerate(texts) if _WEAK_CHECK.match(t))
+    rest = [t for t in texts if not _WEAK_CHECK.match(t)]
+    return [*rest[:first], line, *rest[first:]]
 
 
 def _join(result: BlockResult) -> JoinVerdict | None:
