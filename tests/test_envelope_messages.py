@@ -158,3 +158,49 @@ def test_weak_check_points_are_one_line_unless_verbose() -> None:
     ]
     assert summary.warning_lines(["first", weak[0], "second"]) == ["first", weak[0], "second"]
     assert summary.warning_lines(texts, every=True) == texts
+
+
+def _with_sigma(sim, sigma_mm: float):  # type: ignore[no-untyped-def]
+    import dataclasses
+
+    import numpy as np
+
+    obs = sim.observations
+    return dataclasses.replace(obs, sigma=np.full(obs.sigma.shape, sigma_mm))
+
+
+def test_an_image_sigma_in_micrometres_is_warned_of() -> None:
+    """A sigma column of 5 meant as µm is read as 5 mm: 1000 times the pairs'
+    own scatter of about 5 µm. The run warns, naming the unit of the
+    column; the images then weigh nothing against the control (its RMSE
+    falls to the millimetre). The given 5 µm raises no warning."""
+    from strip_aerotri.plausibility import image_sigma_problems
+
+    sim = simulate_strip(12, preset="film", seed=0, crs="EPSG:32634")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        right = triangulate(sim.observations, sim.control, sim.crs)
+        wrong = triangulate(_with_sigma(sim, 5.0), sim.control, sim.crs)
+    assert not [w for w in right.warnings if w.startswith("image sigma")]
+    (line,) = [w for w in wrong.warnings if w.startswith("image sigma")]
+    assert "(5000 µm, median) is 1003 times the scatter" in line
+    assert "millimetres whatever [images] units" in line
+    assert wrong.control_statistics.rmse_plan < 0.2 * right.control_statistics.rmse_plan
+    pairs = right.strip.relative.sigma0_um
+    assert image_sigma_problems(pairs, sim.observations.sigma * 4.9) == []
+    assert image_sigma_problems(pairs, sim.observations.sigma / 4.9) == []
+
+
+def test_an_image_sigma_far_too_small_is_named_as_the_likely_cause() -> None:
+    """5e-6 mm (metres written as mm): the control tests fail at most of
+    the control and the run stops; the error names the image sigma as the
+    likely cause."""
+    import pytest
+
+    from strip_aerotri.errors import GeometryError
+
+    sim = simulate_strip(12, preset="film", seed=0, crs="EPSG:32634")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        with pytest.raises(GeometryError, match=r"; likely cause: image sigma: .* is 1/997 of"):
+            triangulate(_with_sigma(sim, 5e-6), sim.control, sim.crs)

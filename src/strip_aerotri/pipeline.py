@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any, Literal
 
 import numpy as np
@@ -45,7 +46,7 @@ from .options import (
     StripOptions,
     Weights,
 )
-from .plausibility import control_coverage_problems, control_problems
+from .plausibility import control_coverage_problems, control_problems, image_sigma_problems
 from .results import AccuracyStatistics, BlockResult, GroundResult, StripModel, StripResult
 from .strip.densify import form_strip_stepped
 
@@ -175,10 +176,12 @@ def triangulate(
     )
     timings["strip_formation"] = time.perf_counter() - t0
     t1 = time.perf_counter()
+    sigma_notes = image_sigma_problems(strip.relative.sigma0_um, observations.sigma)
+    warnings = [*warnings, *sigma_notes]
     # the stages' warnings name self-calibration as under way when the bundle does it
     with self_calibration_follows(
         self_calibration is not None and options.refine is Refine.BUNDLE
-    ):
+    ), _likely_cause(sigma_notes):
         if ground_options.construction is Construction.MODELS:
             from .ground.models import adjust_models_to_ground
 
@@ -268,6 +271,18 @@ def _run_options(
             "and `refine`, not both"
         )
     return options, options.ground_options()
+
+
+@contextmanager
+def _likely_cause(notes: Sequence[str]) -> Iterator[None]:
+    """A geometry error raised within names the first of ``notes`` (a doubt
+    about the input found earlier) as its likely cause."""
+    try:
+        yield
+    except GeometryError as exc:
+        if not notes or type(exc) is not GeometryError:
+            raise
+        raise GeometryError(f"{exc}; likely cause: {notes[0]}") from exc
 
 
 def _strip_warnings(
@@ -390,8 +405,11 @@ def triangulate_block(
             self_calibration=self_calibration,
             variance_components=options.weights is Weights.ESTIMATED,
         )
+    sigma = image_sigma_problems(
+        np.concatenate([strip.relative.sigma0_um for strip in result.strips]), observations.sigma
+    )
     result = dataclasses.replace(
-        result, warnings=tuple(warnings) + result.warnings, options=options
+        result, warnings=(*warnings, *sigma, *result.warnings), options=options
     )
     return _block_without_weak_checks(result, crs)
 

@@ -22,6 +22,9 @@ messages (``stripaero check`` lists them all; a run stops at the first):
 * :func:`control_coverage_problems` — a warning, not a stop: strip ends
   beyond the outermost plan or height control, where the strip is
   extrapolated;
+* :func:`image_sigma_problems` — a warning, not a stop: an image sigma
+  far from the scatter of the pairs' own y-parallaxes (micrometres or
+  pixels written where millimetres are read);
 * :func:`control_degree_problems` — control given in degrees (longitude,
   latitude) under a projected CRS: every plan coordinate within ±180, ±90,
   spanning less than a few units (a few metres: no strip's control), and
@@ -54,6 +57,7 @@ __all__ = [
     "control_handedness_problems",
     "flight_axis_message",
     "image_coordinate_problems",
+    "image_sigma_problems",
     "photo_order_message",
     "ray_direction_problems",
 ]
@@ -640,4 +644,48 @@ def control_coverage_problems(
         "extrapolated, and a strip's errors grow fast beyond its last control; add full "
         "control points at both ends of the strip (R4: in the first and the last model)"
         for (lo, hi), kinds in reach.items()
+    ]
+
+
+#: The image sigma given may be this many times the scatter of the pairs'
+#: y-parallaxes, or this many times smaller, before the run warns: the
+#: weights, sigma0 and every blunder test rest on it.
+_SIGMA_FACTOR = 5.0
+
+
+def image_sigma_problems(pair_sigma_um: ArrayLike, sigma_mm: ArrayLike) -> list[str]:
+    """A warning when the image sigma given (``sigma_mm``, every
+    observation's, mm) is far from what the relative orientations measured
+    (``pair_sigma_um``: each pair's a-posteriori sigma of an image coordinate
+    from its residual y-parallaxes, µm), medians against each other.
+
+    Given far too large (e.g. 5 written for 5 µm, or a sigma in pixels with
+    ``units = "pixel"``: the column is millimetres whatever the units), the
+    images weigh nothing against the control and no blunder test can fail;
+    far too small, the tests reject good observations.
+    """
+    measured = np.asarray(pair_sigma_um, dtype=np.float64)
+    measured = measured[np.isfinite(measured) & (measured > 0)]
+    given_mm = np.asarray(sigma_mm, dtype=np.float64)
+    if measured.size == 0 or given_mm.size == 0:
+        return []
+    scatter, given = float(np.median(measured)), 1000.0 * float(np.median(given_mm))
+    ratio = given / scatter
+    if 1.0 / _SIGMA_FACTOR <= ratio <= _SIGMA_FACTOR:
+        return []
+    times = f"{ratio:.0f} times" if ratio >= 1.0 else f"1/{1.0 / ratio:.0f} of"
+    head = (
+        f"image sigma: the sigma given to the image coordinates ({given:.4g} µm, median) is "
+        f"{times} the scatter of the pairs' own y-parallaxes ({scatter:.3g} µm, median of "
+        "the relative orientations' sigma0): "
+    )
+    if ratio > _SIGMA_FACTOR:
+        return [
+            head + "the images weigh too little against the control and the blunder tests "
+            "cannot find their errors; the sigma column and [images] sigma_mm are in "
+            "millimetres whatever [images] units (micrometres or pixels written there?)"
+        ]
+    return [
+        head + "the blunder tests will reject good observations; the sigma column and "
+        "[images] sigma_mm are in millimetres (metres written there?)"
     ]
