@@ -204,3 +204,36 @@ def test_an_image_sigma_far_too_small_is_named_as_the_likely_cause() -> None:
         warnings.simplefilter("ignore", StripAerotriWarning)
         with pytest.raises(GeometryError, match=r"; likely cause: image sigma: .* is 1/997 of"):
             triangulate(_with_sigma(sim, 5e-6), sim.control, sim.crs)
+
+
+def test_stripaero_check_gives_the_same_doubts(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """`stripaero check` warns as the run does: the control at one end only
+    and a sigma column of 5 meant as µm; a project without either has no
+    such warning."""
+    import csv
+
+    from strip_aerotri.project import check_project, load_project
+
+    sim = simulate_strip(12, preset="film", seed=0, crs="EPSG:32634")
+    toml = sim.write_project(tmp_path)
+    rep = check_project(load_project(toml))
+    assert not rep.problems and not [w for w in rep.warnings if "control reach" in w]
+    assert not [w for w in rep.warnings if w.startswith("image sigma")]
+
+    control = tmp_path / "control.csv"
+    rows = list(csv.DictReader(control.open()))
+    keep = {"P0002", "P0003", "P0039", "P0043"}
+    with control.open("w", newline="") as f:
+        out = csv.DictWriter(f, fieldnames=list(rows[0]))
+        out.writeheader()
+        out.writerows(r for r in rows if r["type"] == "check" or r["point"] in keep)
+    images = tmp_path / "image_points.csv"
+    rows = list(csv.DictReader(images.open()))
+    with images.open("w", newline="") as f:
+        out = csv.DictWriter(f, fieldnames=list(rows[0]))
+        out.writeheader()
+        out.writerows(dict(r, sigma="5") for r in rows)
+    rep = check_project(load_project(toml))
+    assert not rep.problems
+    assert len([w for w in rep.warnings if "control reaches photos 1001 to" in w]) == 2
+    assert [w for w in rep.warnings if w.startswith("image sigma") and "1003 times" in w]
