@@ -237,3 +237,39 @@ def test_stripaero_check_gives_the_same_doubts(tmp_path) -> None:  # type: ignor
     assert not rep.problems
     assert len([w for w in rep.warnings if "control reaches photos 1001 to" in w]) == 2
     assert [w for w in rep.warnings if w.startswith("image sigma") and "1003 times" in w]
+
+
+def test_a_control_blunder_rejected_by_two_stages_is_one() -> None:
+    """A 1.6 m height blunder at P0218 is rejected by the ground stage and
+    again by the bundle (both of stage "control"): the summary names the one
+    rejection, not "2 control coordinates rejected"; two different
+    coordinates are still two."""
+    import dataclasses
+    import math
+
+    from strip_aerotri.report.summary import Accuracy, RunSummary
+    from strip_aerotri.report.verdict import Verdict
+    from strip_aerotri.results import Rejection
+
+    def control(point: str, component: str) -> Rejection:
+        return Rejection("control", point, (), component, -0.06, "m", 15.8, 4.16, True, "")
+
+    ground = control("P0218", "height")
+    bundle = dataclasses.replace(ground, w=14.5, effect="bundle adjustment")
+    assert bundle.describe() != ground.describe()
+    none = Accuracy(0, 0, math.nan, math.nan)
+    other = control("P0300", "plan")
+
+    def summary(*rejections: Rejection) -> RunSummary:
+        return RunSummary(
+            "strip", "s", 20, 19, 200, False, "models", none, none, Verdict("na", "n"),
+            rejections=rejections, files=("report.json",),
+        )  # fmt: skip
+
+    texts = [ground.describe(), "between", bundle.describe()]
+    assert summary(ground, bundle).warning_lines(texts) == [ground.describe(), "between"]
+    texts = [ground.describe(), other.describe()]
+    assert summary(ground, other).warning_lines(texts) == [
+        "control: 2 control coordinates rejected as blunders (listed in report.json; "
+        "-v lists them here)"
+    ]

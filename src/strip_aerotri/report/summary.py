@@ -300,6 +300,11 @@ _REJECTED_WHAT = {
 }
 
 
+def _observed(r: Rejection) -> tuple[str, tuple[str, ...], str]:
+    """What a rejection is of: its point, photos and component."""
+    return r.point, tuple(r.photos), r.component
+
+
 def _grouped(texts: list[str], rejections: Sequence[Rejection], listed: str) -> list[str]:
     """Each stage's blunder rejections (two or more) among ``texts`` summed up
     in one line at the place of its first (``listed``: the files that list
@@ -324,14 +329,16 @@ def _grouped(texts: list[str], rejections: Sequence[Rejection], listed: str) -> 
             out.append(line)
             continue
         group = by_stage[line[0]]
-        if len(group) == 1:
+        if len({_observed(r) for r in group}) == 1:
             out.append(group[0].describe())
             continue
         what = _REJECTED_WHAT.get(line[0], "observations")
-        applied = sum(r.applied for r in group)
+        # an observation rejected by two stages of one name (the ground
+        # stage's control test and the bundle's) counts once
+        applied = len({_observed(r) for r in group if r.applied})
         counts = [f"{applied} {what} rejected as blunders"] if applied else []
-        if applied < len(group):
-            kept = len(group) - applied
+        kept = len({_observed(r) for r in group if not r.applied})
+        if kept:
             effects = {r.effect for r in group if not r.applied}
             why = (
                 effects.pop().removeprefix("kept: ")
