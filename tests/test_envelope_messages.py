@@ -5,6 +5,9 @@ the true cause."""
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
+
+import pytest
 
 from strip_aerotri.errors import StripAerotriWarning
 from strip_aerotri.pipeline import triangulate
@@ -115,8 +118,6 @@ def test_check_points_only_say_no_control_is_given() -> None:
     """Control of check points only: the error says that no control point is
     given (and how many check points there are), not that none is observed
     on two photos."""
-    import pytest
-
     from strip_aerotri.errors import GeometryError
 
     sim = simulate_strip(6, preset="film", seed=0, crs="EPSG:32634")
@@ -195,8 +196,6 @@ def test_an_image_sigma_far_too_small_is_named_as_the_likely_cause() -> None:
     """5e-6 mm (metres written as mm): the control tests fail at most of
     the control and the run stops; the error names the image sigma as the
     likely cause."""
-    import pytest
-
     from strip_aerotri.errors import GeometryError
 
     sim = simulate_strip(12, preset="film", seed=0, crs="EPSG:32634")
@@ -273,3 +272,19 @@ def test_a_control_blunder_rejected_by_two_stages_is_one() -> None:
         "control: 2 control coordinates rejected as blunders (listed in report.json; "
         "-v lists them here)"
     ]
+
+
+EXTERNAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "external-strips"
+
+
+@pytest.mark.skipif(not EXTERNAL.is_dir(), reason="needs ../shared/data/external-strips")
+@pytest.mark.parametrize("name", ["drone-80pct", "one-inch-75pct"])
+def test_the_external_strips_raise_no_doubt(name: str) -> None:
+    """The two strips of an independent simulator (control at both ends, the
+    image sigma the file's default of 5 µm against 5 µm and 1.2 µm of
+    noise): neither the coverage nor the image sigma warning."""
+    from strip_aerotri.project import check_project, load_project
+
+    rep = check_project(load_project(EXTERNAL / name / "strip.toml"))
+    assert not rep.problems
+    assert not [w for w in rep.warnings if "control reach" in w or w.startswith("image sigma")]
