@@ -288,3 +288,31 @@ def test_the_external_strips_raise_no_doubt(name: str) -> None:
     rep = check_project(load_project(EXTERNAL / name / "strip.toml"))
     assert not rep.problems
     assert not [w for w in rep.warnings if "control reach" in w or w.startswith("image sigma")]
+
+
+def test_control_points_lost_alike_are_one_line_unless_verbose() -> None:
+    """Seven control points of a tilted ff35 strip seen on one photo of a
+    model each: one line per cause naming five and the count of the others;
+    a cause met once keeps its own line; ``-v`` prints each."""
+    import math
+
+    from strip_aerotri.report.summary import Accuracy, RunSummary
+    from strip_aerotri.report.verdict import Verdict
+
+    unseen = "seen on fewer than two photos of a model"
+    failed = "its observations failed the blunder tests, see the relative_orientation rejections"
+    lost = [f"control point 'P{i}' is not triangulated ({unseen}): left out" for i in range(7)]
+    odd = f"control point 'Q' is not triangulated ({failed}): left out"
+    none = Accuracy(0, 0, math.nan, math.nan)
+    summary = RunSummary(
+        "strip", "s", 40, 39, 800, False, "models", none, none, Verdict("na", "n"),
+        files=("report.json", "report.html"),
+    )  # fmt: skip
+    texts = [lost[0], odd, *lost[1:], "last"]
+    assert summary.warning_lines(texts) == [
+        "7 control points are not triangulated ('P0', 'P1', 'P2', 'P3', 'P4' and 2 more) and "
+        f"left out (each: {unseen}) (listed in report.json / report.html; -v lists them here)",
+        odd,
+        "last",
+    ]
+    assert summary.warning_lines(texts, every=True) == texts

@@ -279,7 +279,7 @@ class RunSummary:
             n for n in ("report.json", self.report_name) if n and n in self.files
         )
         listed = " / ".join(names)
-        return _grouped_weak_checks(_grouped(unique, self.rejections, listed), listed)
+        return _grouped_per_point(_grouped(unique, self.rejections, listed), listed)
 
 
 @dataclass(frozen=True)
@@ -350,29 +350,50 @@ def _grouped(texts: list[str], rejections: Sequence[Rejection], listed: str) -> 
     return out
 
 
-#: How the warning of a weakly determined check point begins
-#: (:func:`strip_aerotri.ground.check_precision.weak_check_message`).
-_WEAK_CHECK = re.compile(r"check point ('.*?') is weakly determined: ")
+#: Warnings about one point each that two or more of a kind sum up in one
+#: line: the pattern (group 1 the point's quoted id, group 2, if any, the
+#: cause the line keeps) and the summing line's text before and after the
+#: names (with the cause for ``{cause}``).
+_PER_POINT = (
+    (
+        # strip_aerotri.ground.check_precision.weak_check_message
+        re.compile(r"check point ('.*?') is weakly determined: "),
+        "check points are weakly determined by their own rays",
+        "and left out of the check statistics; measure them on more photos, farther apart",
+    ),
+    (
+        # strip_aerotri.pipeline._strip_warnings
+        re.compile(r"control point ('.*?') is not triangulated \((.*)\): left out$"),
+        "control points are not triangulated",
+        "and left out (each: {cause})",
+    ),
+)
 
 
-def _grouped_weak_checks(texts: list[str], listed: str) -> list[str]:
-    """Two or more weakly determined check points among ``texts`` summed up
-    in one line at the place of the first, naming them (five at most) and the
-    files that list them; every other warning as it is."""
-    named = [m.group(1) for m in map(_WEAK_CHECK.match, texts) if m]
-    if len(named) < 2:
-        return texts
-    more = f" and {len(named) - 5} more" if len(named) > 5 else ""
+def _grouped_per_point(texts: list[str], listed: str) -> list[str]:
+    """Two or more warnings of a kind of :data:`_PER_POINT` (and cause) among
+    ``texts`` summed up in one line at the place of the first, naming five
+    points and the files that list them; every other warning as it is."""
     where = f"listed in {listed}; " if listed else ""
-    line = (
-        f"{len(named)} check points are weakly determined by their own rays ("
-        + ", ".join(named[:5])
-        + f"{more}) and left out of the check statistics; measure them on more photos, "
-        f"farther apart ({where}-v lists them here)"
-    )
-    first = next(i for i, t in enumerate(texts) if _WEAK_CHECK.match(t))
-    rest = [t for t in texts if not _WEAK_CHECK.match(t)]
-    return [*rest[:first], line, *rest[first:]]
+    for pattern, head, tail in _PER_POINT:
+        found = [(i, m) for i, m in enumerate(map(pattern.match, texts)) if m]
+        causes: dict[str, list[tuple[int, re.Match[str]]]] = {}
+        for i, m in found:
+            causes.setdefault(m.group(2) if pattern.groups > 1 else "", []).append((i, m))
+        gone: set[int] = set()
+        summed: dict[int, str] = {}
+        for cause, group in causes.items():
+            if len(group) < 2:
+                continue
+            names = [m.group(1) for _, m in group]
+            more = f" and {len(names) - 5} more" if len(names) > 5 else ""
+            summed[group[0][0]] = (
+                f"{len(names)} {head} ({', '.join(names[:5])}{more}) "
+                f"{tail.format(cause=cause)} ({where}-v lists them here)"
+            )
+            gone.update(i for i, _ in group[1:])
+        texts = [summed.get(i, t) for i, t in enumerate(texts) if i not in gone]
+    return texts
 
 
 def _join(result: BlockResult) -> JoinVerdict | None:
