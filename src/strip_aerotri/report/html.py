@@ -16,7 +16,7 @@ from .aside import aside
 from .calibration import calibration_figures, calibration_html, with_variance_html
 from .figures import (
     StripFigureData,
-    _png,
+    _fitted_png,
     figure_data,
     figure_layout,
     figure_parallax,
@@ -90,14 +90,10 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     return html_page(report, draw_figures(data))
 
 
-_STYLE: dict[str, Any] = {
-    "font.size": 9,
-    "axes.titlesize": 11,
-    # every figure laid out by matplotlib's constrained layout: labels,
-    # legends beside the axes and colour bars inside the canvas at any
-    # strip length (tests/test_report_figures.py)
-    "figure.constrained_layout.use": True,
-}
+#: The figures' rc (no layout engine: each figure's axes are placed once by
+#: figures_frame.fit, every label inside the canvas at any strip length,
+#: tests/test_report_figures.py).
+_STYLE: dict[str, Any] = {"font.size": 9, "axes.titlesize": 11}
 
 
 def prepare_drawing() -> None:
@@ -118,8 +114,7 @@ def prepare_drawing() -> None:
         ax.annotate("0", (0.5, 0.5), textcoords="offset points", xytext=(4, 4), fontsize=8)
         ax.set_title("σ0 µm ±")
         ax.set_xlabel("x")
-        ax.legend(fontsize=8)
-        _png(fig)
+        _fitted_png(fig, beside=ax.legend(fontsize=8))
 
 
 def draw_figures(data: StripFigureData) -> StripFigures:
