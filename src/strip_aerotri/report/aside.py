@@ -1,7 +1,7 @@
 """Work of the report done in a second process while this one goes on.
 
 The report's figures cost more than everything else a run writes (matplotlib
-is imported, then every figure laid out and drawn twice).  They depend only
+is imported, then every figure placed, drawn and encoded).  They depend only
 on the result, which a forked process already holds (the memory is shared
 copy-on-write, nothing is pickled on the way in), so :func:`aside` forks,
 draws them there on the machine's second core and sends the PNGs back

@@ -68,17 +68,22 @@ def _png(fig: Figure) -> str:
 
 
 def _fitted_png(
-    fig: Figure, *, beside: Legend | None = None, colorbar: Colorbar | None = None
+    fig: Figure,
+    *,
+    beside: Legend | None = None,
+    colorbar: Colorbar | None = None,
+    best: Legend | None = None,
 ) -> str:
     """:func:`_png` of ``fig`` with its axes placed by :func:`.figures_frame.fit`
-    (``beside``: a legend beside the axes; ``colorbar``: one right of them)."""
+    (``beside``: a legend beside the axes; ``colorbar``: one right of them;
+    ``best``: a legend inside the axes at matplotlib's "best" place)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     from .figures_frame import fit
 
     fig.set_dpi(_DPI)
     FigureCanvasAgg(fig)
-    fit(fig, beside=beside, colorbar=colorbar)
+    fit(fig, beside=beside, colorbar=colorbar, best=best)
     return _png(fig)
 
 
@@ -373,8 +378,7 @@ def figure_layout(data: StripFigureData) -> str:
     if plan.long:
         beside = ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
         return _fitted_png(fig, beside=beside)
-    ax.legend(loc="best", fontsize=8, framealpha=0.85)
-    return _fitted_png(fig)
+    return _fitted_png(fig, best=ax.legend(loc="best", fontsize=8, framealpha=0.85))
 
 
 def _plan_axes(ax: Axes, plan: Plan) -> None:
@@ -616,7 +620,7 @@ def figure_parallax(data: StripFigureData) -> str:
     ax.set_ylabel("µm at image scale")
     fixed_title(ax, "Relative orientation: residual y-parallax per pair")
     ax.grid(True, axis="y", lw=0.3)
-    ax.legend(fontsize=8)
+    best = ax.legend(loc="best", fontsize=8)
     q = data.parallax_um
     q = q[np.isfinite(q)]
     if q.size:
@@ -627,7 +631,7 @@ def figure_parallax(data: StripFigureData) -> str:
             hx.axvline(sign * 3 * rms, color="#c0392b", lw=1.0, ls="--")
         fixed_title(hx, f"All {q.size} y-parallaxes; ±3 RMS dashed", fontsize=10)
         hx.set_xlabel("µm")
-    return _fitted_png(fig)
+    return _fitted_png(fig, best=best)
 
 
 def figure_ties(data: StripFigureData) -> str | None:
@@ -653,5 +657,4 @@ def figure_ties(data: StripFigureData) -> str | None:
     ax.set_ylabel("RMS difference [m]")
     fixed_title(ax, "Differences between the two determinations of tie points, per model")
     ax.grid(True, axis="y", lw=0.3)
-    ax.legend(fontsize=8)
-    return _fitted_png(fig)
+    return _fitted_png(fig, best=ax.legend(loc="best", fontsize=8))

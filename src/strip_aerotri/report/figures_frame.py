@@ -82,10 +82,21 @@ class _Frame:
         )
 
 
-def fit(fig: Figure, *, beside: Legend | None = None, colorbar: Colorbar | None = None) -> None:
+def fit(
+    fig: Figure,
+    *,
+    beside: Legend | None = None,
+    colorbar: Colorbar | None = None,
+    best: Legend | None = None,
+) -> None:
     """Set ``fig``'s subplot parameters so that every label, tick label,
     title, the legend ``beside`` the axes and the ``colorbar`` are inside
-    its canvas, with :data:`PAD_PT` to spare, and fix the axes' ticks.
+    its canvas, with :data:`PAD_PT` to spare, and fix the axes' ticks
+    (drawn by :func:`.figures_ticks.draw_light`).
+
+    ``best``: a legend at matplotlib's "best" place inside its axes, found
+    once here and fixed there (the draw would search for it two or three
+    times over every vertex of the axes' data).
 
     ``fig`` must have its Agg canvas and its final dpi: the sizes are
     measured in its pixels.
@@ -104,6 +115,8 @@ def fit(fig: Figure, *, beside: Legend | None = None, colorbar: Colorbar | None 
         frame = needed
     assert needed.found is not None  # set by _measure
     _pin(needed.found.stacks, renderer)
+    if best is not None:  # before the light ticks, which would count as data
+        _settle(best, renderer)
     from .figures_ticks import draw_light
 
     for axis, locs, labels in needed.found.ticks:
@@ -138,6 +151,17 @@ def _pin(stacks: list[tuple[Axis, float]], renderer: RendererAgg) -> None:
         if ax.get_title() and offset.get_visible() and offset.get_text():
             lift = _text_size(offset.get_text(), offset, renderer, 0.0)[1] + 3.0 * _points(ax)
             ax.title.set_y(1.0 + lift / ax.bbox.height)
+
+
+def _settle(legend: Legend, renderer: RendererAgg) -> None:
+    """Fix ``legend`` where its location puts it now (its lower left corner
+    in axes fraction), where matplotlib has ``Legend.set_loc`` (3.8)."""
+    ax = legend.axes
+    set_loc = getattr(legend, "set_loc", None)
+    if ax is None or set_loc is None:
+        return
+    extent, box = legend.get_window_extent(renderer), ax.bbox
+    set_loc(((extent.x0 - box.x0) / box.width, (extent.y0 - box.y0) / box.height))
 
 
 def _points(ax: Axes) -> float:
