@@ -234,3 +234,32 @@ def test_png_refuses_what_is_not_an_rgba_image():
         png_bytes(np.zeros((4, 4, 3), dtype=np.uint8), 96)
     with pytest.raises(ValueError, match="Expected an"):
         png_bytes(np.zeros((4, 4, 4), dtype=np.float64), 96)
+
+
+def _best_legend() -> tuple[Figure, dict]:
+    """Data in three corners: matplotlib's "best" place is the fourth."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8, 4))
+    ax = fig.subplots()
+    x = np.linspace(0.0, 1.0, 400)
+    ax.plot(x, np.where(x < 0.5, 1.0, 0.9 - x), label="a line through three corners")
+    ax.scatter(x[::20], 1.0 - x[::20] ** 3, label="markers", s=8)
+    ax.grid(True, lw=0.3)
+    fixed_title(ax, "A legend at the best place")
+    return fig, {"best": ax.legend(loc="best")}
+
+
+def test_a_best_legend_is_fixed_where_matplotlib_puts_it(monkeypatch):
+    """Found once by fit (before the light ticks, which would count as the
+    axes' data) and fixed: the pixels of matplotlib's own search at each draw."""
+    from strip_aerotri.report import figures_frame
+
+    fig, kwargs = _best_legend()
+    settled = _pixels(figures._fitted_png(fig, **kwargs))
+    assert isinstance(kwargs["best"]._loc, tuple)  # fixed by fit
+    monkeypatch.setattr(figures_frame, "_settle", lambda *args: None)
+    monkeypatch.setattr(figures_ticks, "draw_light", lambda *args: False)
+    fig, kwargs = _best_legend()
+    searched = _pixels(figures._fitted_png(fig, **kwargs))
+    assert np.array_equal(settled, searched)

@@ -597,7 +597,7 @@ def _left_photo_ticks(ax: Any, x: FloatArray | IntArray, left: Sequence[str]) ->
     shown = index[:: max(1, int(np.ceil(index.size / 16)))]
     # as ax.set_xticks(shown, labels, rotation=...), without making a tick
     # object per label (figures_ticks draws them)
-    ax.xaxis.set_major_locator(FixedLocator(shown.astype(np.float64)))
+    ax.xaxis.set_major_locator(FixedLocator(shown.astype(np.float64).tolist()))
     ax.xaxis.set_major_formatter(FixedFormatter([left[i] for i in shown]))
     ax.tick_params(axis="x", labelrotation=45 if shown.size > 6 else 0)
 

@@ -140,11 +140,11 @@ def _pin(stacks: list[tuple[Axis, float]], renderer: RendererAgg) -> None:
         box = axis.axes.bbox
         px = _points(axis.axes)
         beyond = depth + axis.labelpad * px
-        if axis.axis_name == "x":
+        if _horizontal(axis):
             low = axis.get_label_position() == "bottom"
             axis.set_label_coords(0.5, -beyond / box.height if low else 1.0 + beyond / box.height)
         else:
-            low = axis.get_label_position() == "left"
+            low = str(axis.get_label_position()) == "left"
             axis.set_label_coords(-beyond / box.width if low else 1.0 + beyond / box.width, 0.5)
     for ax in {id(axis.axes): axis.axes for axis, _ in stacks}.values():
         offset = ax.yaxis.get_offset_text()
@@ -162,6 +162,11 @@ def _settle(legend: Legend, renderer: RendererAgg) -> None:
         return
     extent, box = legend.get_window_extent(renderer), ax.bbox
     set_loc(((extent.x0 - box.x0) / box.width, (extent.y0 - box.y0) / box.height))
+
+
+def _horizontal(axis: Axis) -> bool:
+    """Whether ``axis`` is its axes' x axis."""
+    return axis is axis.axes.xaxis
 
 
 def _points(ax: Axes) -> float:
@@ -221,7 +226,7 @@ def _fix_ticks(axes: list[Axes], locators: dict[int, Locator]) -> None:
             done.add(key)
             own = locators.setdefault(key, axis.get_major_locator())
             axis.set_major_locator(own)
-            axis.set_major_locator(FixedLocator(np.asarray(axis.get_majorticklocs())))
+            axis.set_major_locator(FixedLocator(np.asarray(axis.get_majorticklocs()).tolist()))
 
 
 def _largest(values: FloatArray) -> float:
@@ -315,7 +320,7 @@ def _axis_needs(axis: Axis, renderer: RendererAgg, px: float, found: _Found) -> 
     need = np.zeros(4)
     if not axis.get_visible():
         return need
-    horizontal = axis.axis_name == "x"
+    horizontal = _horizontal(axis)
     tick = axis.get_major_ticks(1)[0]
     low = bool(tick.tick1line.get_visible() or tick.label1.get_visible())
     side = (1 if horizontal else 0) if low else (3 if horizontal else 2)
@@ -326,7 +331,8 @@ def _axis_needs(axis: Axis, renderer: RendererAgg, px: float, found: _Found) -> 
     if labelled.get_visible() and labels:
         rotation = float(labelled.get_rotation())
         sizes = np.array([_text_size(s, labelled, renderer, rotation) for s in labels])
-        across += tick.get_pad() * px + _largest(sizes[:, 1 if horizontal else 0])
+        pad = float(tick.get_pad())  # type: ignore[func-returns-value,arg-type]  # stub: None; points
+        across += pad * px + _largest(sizes[:, 1 if horizontal else 0])
         # the labels of the end ticks reach past the axes' ends
         lo, hi = _along_span(axis, pixels, sizes[:, 0 if horizontal else 1], labelled)
         need[[0, 2] if horizontal else [1, 3]] = lo, hi
@@ -351,11 +357,11 @@ def _tick_labels(axis: Axis) -> tuple[FloatArray, FloatArray, list[str]]:
     locs = np.asarray(axis.get_majorticklocs(), dtype=np.float64)
     if locs.size == 0:
         return locs, locs, []
-    labels = axis.get_major_formatter().format_ticks(locs)
+    labels = axis.get_major_formatter().format_ticks(locs.tolist())
     lo, hi = sorted(axis.get_view_interval())
     tolerance = 1e-10 * max(abs(hi - lo), 1e-300)
     keep = (locs >= lo - tolerance) & (locs <= hi + tolerance)
-    horizontal = axis.axis_name == "x"
+    horizontal = _horizontal(axis)
     other = np.full(int(keep.sum()), ax.get_ylim()[0] if horizontal else ax.get_xlim()[0])
     points = np.column_stack([locs[keep], other] if horizontal else [other, locs[keep]])
     pixels = np.asarray(ax.transData.transform(points), dtype=np.float64)[:, 0 if horizontal else 1]
@@ -366,7 +372,7 @@ def _along_span(axis: Axis, pixels: FloatArray, sizes: FloatArray, like: Text) -
     """How far tick labels (``sizes`` along the axis, at ``pixels``) reach
     beyond the axes' two ends: x labels as aligned, y labels centred."""
     box = axis.axes.bbox
-    if axis.axis_name == "x":
+    if _horizontal(axis):
         start, end = box.x0, box.x1
         share = {"left": 0.0, "right": 1.0}.get(like.get_horizontalalignment(), 0.5)
     else:
@@ -405,5 +411,7 @@ def _metrics(
     if cached is not None:
         w, h, d = cached(renderer, text, prop, math, dpi)
     else:  # pragma: no cover - every matplotlib from 3.7 to 3.11 has it
-        w, h, d = renderer.get_text_width_height_descent(text, prop, ismath=math)
+        w, h, d = renderer.get_text_width_height_descent(  # type: ignore[no-untyped-call]
+            text, prop, ismath=math
+        )
     return float(w), float(h), float(d)

@@ -45,7 +45,7 @@ def draw_light(axis: Axis, locs: FloatArray, labels: list[str]) -> bool:
     if low == high:
         return False
     mark, label = (tick.tick1line, tick.label1) if low else (tick.tick2line, tick.label2)
-    x = axis.axis_name == "x"
+    x = axis is ax.xaxis
     z = axis.get_zorder()
     locs = np.asarray(locs, dtype=np.float64)
     edge = np.zeros_like(locs) if low else np.ones_like(locs)
@@ -68,8 +68,8 @@ def draw_light(axis: Axis, locs: FloatArray, labels: list[str]) -> bool:
 
     if label.get_visible():
         for loc, text in zip(locs, labels, strict=True):
-            where = (loc, 0.0 if low else 1.0) if x else (0.0 if low else 1.0, loc)
-            artist = Text(*where, text)
+            edge_at = 0.0 if low else 1.0
+            artist = Text(x=loc if x else edge_at, y=edge_at if x else loc, text=text)
             artist.update_from(label)
             artist.set(transform=label.get_transform(), clip_on=False, zorder=z)
             ax.add_artist(artist)
