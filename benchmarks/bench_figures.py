@@ -149,13 +149,14 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  {'total':18s} {1000 * total:7.1f} ms   floor {1000 * FLOOR_S:.0f} ms: {verdict}")
     if args.figures_only:
         return 0 if total <= FLOOR_S else 1
-    plain, paged = run_wait(result, project, max(3, args.repeats // 3))
+    plain, paged = run_wait(result, project, max(1, min(3, args.repeats // 3)))
     print(f"writing the files: {plain:.3f} s without the page, {paged:.3f} s with it "
           f"(figures drawn aside): the run waits {paged - plain:+.3f} s for them")
+    runs = max(1, min(3, args.repeats))
     figure_import = _import_time(
-        "import matplotlib.figure, matplotlib.backends.backend_agg"
+        "import matplotlib.figure, matplotlib.backends.backend_agg", runs
     )
-    pyplot_import = _import_time("import matplotlib.pyplot")
+    pyplot_import = _import_time("import matplotlib.pyplot", runs)
     print(f"imports: matplotlib Figure + Agg {figure_import:.3f} s, "
           f"pyplot {pyplot_import:.3f} s (fresh interpreter, not in the totals)")
     print(f"load average after: {_load()}")

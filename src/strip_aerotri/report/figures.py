@@ -355,6 +355,7 @@ def figure_layout(data: StripFigureData) -> str:
         sel = np.flatnonzero(ok & (roles == role))
         if sel.size == 0:
             continue
+        count = sel.size
         sel = _decimate(sel, _MAX_PLOT_POINTS)
         crowded = sel.size > 400 and marker not in (".", "x")
         ax.scatter(
@@ -364,7 +365,7 @@ def figure_layout(data: StripFigureData) -> str:
             marker=marker,
             c=colour,
             zorder=z,
-            label=f"{label} ({int(np.count_nonzero(ok & (roles == role)))})",
+            label=f"{label} ({count})",
             linewidths=1.0 if marker == "x" else 0.4,
             edgecolors=None if marker in (".", "x") or crowded else "black",
             # thousands of markers: one image in a vector export (the PNG is raster anyway)

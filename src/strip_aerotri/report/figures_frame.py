@@ -75,7 +75,7 @@ class _Frame:
     #: and tick labels [pixels], each axis's ticks in view
     found: _Found | None = None
 
-    def close_to(self, other: _Frame, tolerance_px: float = 1.0) -> bool:
+    def close_to(self, other: _Frame, tolerance_px: float = 2.0) -> bool:
         return bool(
             np.all(np.abs(self.margins - other.margins) <= tolerance_px)
             and np.all(np.abs(self.gaps - other.gaps) <= tolerance_px)
