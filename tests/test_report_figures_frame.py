@@ -257,8 +257,11 @@ def test_a_best_legend_is_fixed_where_matplotlib_puts_it(monkeypatch):
 
     fig, kwargs = _best_legend()
     settled = _pixels(figures._fitted_png(fig, **kwargs))
-    assert isinstance(kwargs["best"]._loc, tuple)  # fixed by fit
-    monkeypatch.setattr(figures_frame, "_settle", lambda *args: None)
+    if hasattr(kwargs["best"], "set_loc"):  # matplotlib 3.8 on: fixed by fit
+        assert isinstance(kwargs["best"]._loc, tuple)
+    else:  # before: searched at the draw, and the axes keep matplotlib's ticks
+        assert fig.axes[0].get_xticks().size > 0
+    monkeypatch.setattr(figures_frame, "_settle", lambda *args: False)
     monkeypatch.setattr(figures_ticks, "draw_light", lambda *args: False)
     fig, kwargs = _best_legend()
     searched = _pixels(figures._fitted_png(fig, **kwargs))

@@ -115,12 +115,14 @@ def fit(
         frame = needed
     assert needed.found is not None  # set by _measure
     _pin(needed.found.stacks, renderer)
-    if best is not None:  # before the light ticks, which would count as data
-        _settle(best, renderer)
+    own_ticks = {id(colorbar.ax)} if colorbar is not None else set()
+    # a best legend before the light ticks, which it would count as data
+    if best is not None and not _settle(best, renderer) and best.axes is not None:
+        own_ticks.add(id(best.axes))  # not fixed: its axes keep matplotlib's ticks
     from .figures_ticks import draw_light
 
     for axis, locs, labels in needed.found.ticks:
-        if colorbar is None or axis.axes is not colorbar.ax:
+        if id(axis.axes) not in own_ticks:
             draw_light(axis, locs, labels)
 
 
@@ -153,15 +155,17 @@ def _pin(stacks: list[tuple[Axis, float]], renderer: RendererAgg) -> None:
             ax.title.set_y(1.0 + lift / ax.bbox.height)
 
 
-def _settle(legend: Legend, renderer: RendererAgg) -> None:
+def _settle(legend: Legend, renderer: RendererAgg) -> bool:
     """Fix ``legend`` where its location puts it now (its lower left corner
-    in axes fraction), where matplotlib has ``Legend.set_loc`` (3.8)."""
+    in axes fraction); False where matplotlib has no ``Legend.set_loc``
+    (before 3.8)."""
     ax = legend.axes
     set_loc = getattr(legend, "set_loc", None)
     if ax is None or set_loc is None:
-        return
+        return False
     extent, box = legend.get_window_extent(renderer), ax.bbox
     set_loc(((extent.x0 - box.x0) / box.width, (extent.y0 - box.y0) / box.height))
+    return True
 
 
 def _horizontal(axis: Axis) -> bool:
