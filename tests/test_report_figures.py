@@ -147,3 +147,29 @@ def test_the_figures_artists_do_not_grow_with_the_strip(caught):
     # per bar would add 2 artists a pair, 160 from 20 to 100 photos), lines beyond
     for k in (2, 3):
         assert counts[100][k] - counts[20][k] <= 80, (k, counts)
+
+
+def test_long_photo_names_and_flat_values_stay_inside(caught):
+    """Camera file names as photo ids (the pairs' rotated tick labels reach
+    left of the axes), a y-parallax of exactly zero everywhere (an axis of
+    no range) and no control names: still inside the canvas."""
+    import dataclasses
+
+    from strip_aerotri.report.html import draw_figures
+    from strip_aerotri.report.record import build_report
+
+    result = _strip_result(14, seed=1, control="every_k_models", control_every=2)
+    data = figures.figure_data(result, build_report(result)["models"])
+    names = tuple(f"DJI_20240517_{k:06d}_W.JPG" for k in range(len(data.photo_ids)))
+    flat = dataclasses.replace(
+        data,
+        photo_ids=names,
+        left_photos=names[: len(data.left_photos)],
+        sigma0_um=np.zeros_like(data.sigma0_um),
+        max_parallax_um=np.zeros_like(data.max_parallax_um),
+    )
+    figures_drawn = draw_figures(flat)
+    assert figures_drawn.parallax is not None and figures_drawn.ties is not None
+    assert len(caught) == 4
+    for k, fig in enumerate(caught, start=1):
+        assert outside_canvas(fig) == [], f"figure {k}"

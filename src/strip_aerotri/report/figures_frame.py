@@ -50,6 +50,10 @@ PAD_PT = 5.0
 #: (matplotlib's ``pad``, ``shrink`` and ``aspect`` of ``Figure.colorbar``).
 COLORBAR_PAD, COLORBAR_SHRINK, COLORBAR_ASPECT = 0.02, 0.8, 20.0
 
+#: The share of the figure's width (height) that the left and right (bottom
+#: and top) margins may take together.
+MAX_MARGINS = 0.8
+
 #: Passes at most: the second one normally confirms the first.
 _PASSES = 4
 
@@ -191,7 +195,12 @@ def _place(fig: Figure, grid: list[Axes], frame: _Frame, colorbar: Colorbar | No
     """Subplot parameters from ``frame`` (pixels); the colour bar beside its axes."""
     width, height = fig.bbox.width, fig.bbox.height
     rows, cols = _geometry(grid)
-    left, bottom, right, top = np.minimum(frame.margins, 0.4 * np.array([width, height] * 2))
+    # margins of more than MAX_MARGINS of the figure shrink alike (the axes
+    # keep the rest): what does not fit then is cut, as by a layout engine
+    size = np.array([width, height] * 2)
+    across = frame.margins[:2] + frame.margins[2:]
+    shrink = np.minimum(1.0, MAX_MARGINS * size[:2] / np.maximum(across, 1e-9))
+    left, bottom, right, top = frame.margins * np.tile(shrink, 2)
     inner_w = width - left - right
     inner_h = height - bottom - top
     gap_w = min(float(frame.gaps[0]), 0.5 * inner_w / max(cols - 1, 1))
