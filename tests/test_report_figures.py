@@ -173,3 +173,22 @@ def test_long_photo_names_and_flat_values_stay_inside(caught):
     assert len(caught) == 4
     for k, fig in enumerate(caught, start=1):
         assert outside_canvas(fig) == [], f"figure {k}"
+
+
+def test_plan_residuals_without_heights_have_no_colour_bar(caught):
+    """Plan control only (no height residual anywhere): the residual figure
+    has no colour bar, its points drawn as open circles, inside the canvas."""
+    import dataclasses
+
+    from strip_aerotri.report.record import build_report
+
+    result = _strip_result(14, seed=1, control="every_k_models", control_every=2)
+    data = figures.figure_data(result, build_report(result)["models"])
+    assert data.control is not None and not data.plan.long
+    residuals = data.control.residuals.copy()
+    residuals[:, 2] = np.nan
+    plan_only = dataclasses.replace(data, control=dataclasses.replace(data.control, residuals=residuals))
+    assert figures.figure_residuals(plan_only) is not None
+    (fig,) = caught
+    assert len(fig.axes) == 1  # no colour bar
+    assert outside_canvas(fig) == []
