@@ -32,6 +32,7 @@ printed before and after.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import statistics
 import subprocess
@@ -84,8 +85,9 @@ def per_figure(data, repeats: int) -> dict[str, list[float]]:  # type: ignore[no
 
     html.prepare_drawing()
     times: dict[str, list[float]] = {name: [] for name in FIGURES}
+    paused = getattr(html, "_no_collection", contextlib.nullcontext)  # as draw_figures does
     for _ in range(repeats):
-        with matplotlib.rc_context(html._STYLE):
+        with paused(), matplotlib.rc_context(html._STYLE):
             for name in FIGURES:
                 start = time.process_time()
                 getattr(figures, name)(data)

@@ -322,7 +322,7 @@ def figure_layout(data: StripFigureData) -> str:
         step = max(1, len(feet) // 400)
         ax.add_collection(
             PolyCollection(
-                feet[::step],  # (n, 4, 2): one array, PolyCollection's fast path
+                feet[::step],  # type: ignore[arg-type]  # (n, 4, 2): PolyCollection's fast path
                 facecolors="#5dade2",
                 edgecolors="#2e86c1",
                 alpha=0.08,
@@ -580,7 +580,11 @@ def _bars_or_lines(
             axis=1,
         )
         bars = PolyCollection(
-            corners, facecolors=colour, edgecolors="none", linewidths=0, label=label
+            corners,  # type: ignore[arg-type]  # (n, 4, 2): PolyCollection's fast path
+            facecolors=colour,
+            edgecolors="none",
+            linewidths=0,
+            label=label,
         )
         bars.sticky_edges.y.append(0.0)  # as ax.bar: no margin below the bars' foot
         ax.add_collection(bars)

@@ -4,7 +4,9 @@ from ``report.json``'s content and the figures.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+import gc
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -128,12 +130,27 @@ def draw_figures(data: StripFigureData) -> StripFigures:
     """
     import matplotlib
 
-    with matplotlib.rc_context(_STYLE):  # type: ignore[arg-type]  # typed as literal keys
+    with _no_collection(), matplotlib.rc_context(_STYLE):  # type: ignore[arg-type]  # literal keys
         with aside(partial(_parallax_and_ties, data)) as other:
             layout, residuals = figure_layout(data), figure_residuals(data)
             parallax, ties = other.result()
         calibration = None if data.calibration is None else calibration_figures(data.calibration)
         return StripFigures(layout, residuals, parallax, ties, data.plan.long, calibration)
+
+
+@contextmanager
+def _no_collection() -> Iterator[None]:
+    """Python's garbage collector paused while the figures are drawn: they
+    make some 50 000 objects, and each collection of the oldest generation
+    would walk the run's whole heap (the result) as well; what they leave
+    is collected afterwards, as usual."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
 
 
 def _parallax_and_ties(data: StripFigureData) -> tuple[str, str | None]:
