@@ -59,7 +59,7 @@ import numpy as np
 from .._threads import limit_blas_threads
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
-from ..geometry.camera_model import CameraModel
+from ..geometry.camera_model import CameraModel, ShutterMotion
 from ..geometry.collinearity import collinearity_jacobians, project
 from ..geometry.normals import (
     FormedNormals,
@@ -73,7 +73,8 @@ from ..geometry.normals import (
 from ..geometry.rotation import matrix_from_rotvec, rotvec_from_matrix, skew
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
-from ..results import BundleResult, CameraEstimate
+from ..results import BundleResult, CameraEstimate, ShutterEstimate
+from ._given import along_axis_order, check_rotations, given_weights, observed_with_sigma
 from ._structures import structure_for
 
 __all__ = ["BundleResult", "CameraUndetermined", "bundle_adjust"]
@@ -176,10 +177,15 @@ class _Problem:
     gnss_photos: IntArray  # photos with a GNSS centre
     imu_photos: IntArray  # photos with an IMU attitude
     camera: CameraModel | None = None  # self-calibration: the border's parameters
+    motion: ShutterMotion | None = None  # rolling shutter: the border's last columns
 
     @property
     def n_camera(self) -> int:
         return 0 if self.camera is None else len(self.camera.estimated)
+
+    @property
+    def n_motion(self) -> int:
+        return 0 if self.motion is None else self.motion.n_unknowns
 
     @property
     def n_observations(self) -> int:
@@ -188,65 +194,6 @@ class _Problem:
             + np.count_nonzero(self.control_weight)
             + np.count_nonzero(self.gnss_weight)
             + np.count_nonzero(self.imu_weight)
-        )
-
-
-def _along_axis_order(centres: FloatArray) -> IntArray:
-    """The photos by their place along the main axis of their centres' plan:
-    along a strip the strip's order, in a block across the strips (the
-    classical numbering), so that the reduced normal matrix is narrow."""
-    xy = centres[:, :2] - centres[:, :2].mean(axis=0)
-    if xy.shape[0] < 2:
-        return np.arange(xy.shape[0], dtype=np.intp)
-    _, _, vt = np.linalg.svd(xy, full_matrices=False)
-    return np.argsort(xy @ vt[0], kind="stable").astype(np.intp)
-
-
-def observed_with_sigma(
-    values: ArrayLike,
-    sigma: ArrayLike | None,
-    shape: tuple[int, ...],
-    name: str,
-    sigma_name: str,
-) -> tuple[FloatArray, FloatArray]:
-    """Observations of ``shape`` (NaN where absent) and their standard
-    deviations, broadcast to (shape[0], 3): three per point or photo (the
-    coordinates of a point or centre, the angles of an attitude); `name` and
-    `sigma_name` are the arguments' names for the messages."""
-    vals = np.asarray(values, dtype=np.float64)
-    if vals.shape != shape:
-        raise ValueError(f"Expected `{name}` to have shape {shape}, got {vals.shape}")
-    if sigma is None:
-        raise ValueError(f"`{name}` given without its standard deviations (`{sigma_name}`)")
-    return vals, np.broadcast_to(np.asarray(sigma, dtype=np.float64), (shape[0], 3))
-
-
-def _weights(
-    values: ArrayLike | None,
-    sigma: ArrayLike | None,
-    shape: tuple[int, ...],
-    name: str,
-    sigma_name: str,
-) -> tuple[FloatArray, FloatArray]:
-    """Given values with NaN where absent and their sigmas -> (values 0-filled, weights)."""
-    if values is None:
-        return np.zeros(shape), np.zeros(shape)
-    vals, sig = observed_with_sigma(values, sigma, shape, name, sigma_name)
-    used = np.isfinite(vals) & np.isfinite(sig)
-    if np.any(sig[used] <= 0.0):
-        raise ValueError(f"Expected positive standard deviations for `{name}`")
-    weight = np.zeros(shape)
-    weight[used] = 1.0 / sig[used] ** 2
-    return np.where(used, vals, 0.0), weight
-
-
-def _check_rotations(rotations: FloatArray, name: str) -> None:
-    err = np.abs(np.einsum("...ji,...jk->...ik", rotations, rotations) - np.eye(3))
-    bad = ~np.all(err < 1e-6, axis=(-2, -1)) | ~(np.linalg.det(rotations) > 0.0)
-    if np.any(bad):
-        raise ValueError(
-            f"Expected `{name}` to hold proper rotation matrices, "
-            f"entry {int(np.flatnonzero(bad)[0])} is not"
         )
 
 
@@ -262,6 +209,7 @@ def _make_problem(
     imu_rotations: ArrayLike | None,
     imu_sigma: ArrayLike | None,
     camera: CameraModel | None = None,
+    motion: ShutterMotion | None = None,
 ) -> _Problem:
     m, p = centres.shape[0], points.shape[0]
     photo = np.asarray(obs.photo, dtype=np.intp)
@@ -281,8 +229,8 @@ def _make_problem(
     c = float(obs.principal_distance)
     if not (np.isfinite(c) and c > 0.0):
         raise ValueError(f"Expected a positive principal distance, got {c}")
-    cxyz, cw = _weights(control_xyz, control_sigma, (p, 3), "control_xyz", "control_sigma")
-    gxyz, gw = _weights(gnss_centres, gnss_sigma, (m, 3), "gnss_centres", "gnss_sigma")
+    cxyz, cw = given_weights(control_xyz, control_sigma, (p, 3), "control_xyz", "control_sigma")
+    gxyz, gw = given_weights(gnss_centres, gnss_sigma, (m, 3), "gnss_centres", "gnss_sigma")
     if imu_rotations is None:
         imu = np.broadcast_to(np.eye(3), (m, 3, 3)).copy()
         iw = np.zeros((m, 3))
@@ -292,14 +240,16 @@ def _make_problem(
         )
         present = np.all(np.isfinite(imu), axis=(1, 2))
         imu = np.where(present[:, None, None], imu, np.eye(3))
-        _check_rotations(imu, "imu_rotations")
+        check_rotations(imu, "imu_rotations")
         used = present[:, None] & np.isfinite(sig)
         if np.any(sig[used] <= 0.0):
             raise ValueError("Expected positive standard deviations for `imu_rotations`")
         iw = np.zeros((m, 3))
         iw[used] = 1.0 / sig[used] ** 2
-    along = _along_axis_order(centres)
-    n_border = 0 if camera is None else len(camera.estimated)
+    along = along_axis_order(centres)
+    n_border = (0 if camera is None else len(camera.estimated)) + (
+        0 if motion is None else motion.n_unknowns
+    )
     structure = structure_for(
         (m, p, photo, point, along, n_border, obs.photo_ids, obs.point_ids),
         lambda: NormalStructure.from_indices(
@@ -328,6 +278,7 @@ def _make_problem(
         gnss_photos=np.flatnonzero(np.any(gw > 0, axis=1)),
         imu_photos=np.flatnonzero(np.any(iw > 0, axis=1)),
         camera=camera,
+        motion=motion,
     )
 
 
@@ -342,6 +293,7 @@ class _State:
     rotations: FloatArray
     points: FloatArray
     camera: FloatArray = field(default_factory=lambda: np.zeros(0))  # (k,) increments
+    motion: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))  # (G, 3) m
 
 
 @dataclass(frozen=True)
@@ -381,16 +333,14 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     its sigma; control ``X - X_c`` (m, design identity); GNSS ``S - S_g`` (m,
     design identity on the centre); IMU ``log(R_imu.T R)`` (rad, design
     ``Jr^-1(e)`` on the rotation)."""
-    xy, v, jac_photo, jac_point = collinearity_jacobians(
-        state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c
-    )
+    xy, v, jac_photo, jac_point = _collinearity(prob, state)
     if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
         return None  # a point behind a photo: no linearisation (the cost is infinite)
     res = xy - _observed(prob, state)
     inv_s = 1.0 / prob.sigma
-    border = None
-    if prob.camera is not None:  # the camera's columns: d(x - (x_obs + Δ))/dθ = -dΔ/dθ
-        border = -prob.camera.partials(prob.xy, state.camera) * inv_s[:, None, None]
+    border = _border(prob, state, jac_photo)
+    if border is not None:
+        border *= inv_s[:, None, None]
     image = UnitPointRows(
         prob.photo,
         prob.point,
@@ -420,6 +370,36 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     return _Normals(image, control, photo_rows, formed, formed.cost, res)
 
 
+def _collinearity(
+    prob: _Problem, state: _State
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The collinearity equations and Jacobians; with a rolling shutter each
+    ray from its centre moved by ``s d_g`` (the point moved by the opposite,
+    which is the same ray)."""
+    if prob.motion is None:
+        return collinearity_jacobians(
+            state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c
+        )
+    shift = prob.motion.centre_shift(state.motion, prob.photo, prob.motion.fractions(prob.xy))
+    ray_points = state.points[prob.point] - shift
+    rays = np.arange(prob.photo.size, dtype=np.intp)
+    return collinearity_jacobians(
+        state.centres, state.rotations, ray_points, prob.photo, rays, prob.c
+    )
+
+
+def _border(prob: _Problem, state: _State, jac_photo: FloatArray) -> FloatArray | None:
+    """The border's design columns (K, 2, k) before weighting: the camera's
+    ``d(x - (x_obs + Δ))/dθ = -dΔ/dθ``, then the motions' ``s dx/dS``."""
+    parts = []
+    if prob.camera is not None:
+        parts.append(-prob.camera.partials(prob.xy, state.camera))
+    if prob.motion is not None:
+        s = prob.motion.fractions(prob.xy)
+        parts.append(prob.motion.border(jac_photo[:, :, :3], prob.photo, s))
+    return np.concatenate(parts, axis=2) if parts else None
+
+
 def _check_points(prob: _Problem, normals: _Normals, point_ids: tuple[str, ...]) -> None:
     """Raise GeometryError for points whose 3 x 3 normal block is (near) singular."""
     idx = normals.formed.undetermined_points(_POINT_RANK_TOL)
@@ -442,6 +422,14 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
     try:
         solution = normals.formed.solve(lam)
     except SingularNormalsError as exc:
+        if exc.kind == "border" and exc.index >= prob.n_camera:
+            g, axis = divmod(exc.index - prob.n_camera, 3)
+            assert prob.motion is not None
+            raise GeometryError(
+                f"the rolling shutter's motion along {'XYZ'[axis]} of "
+                f"'{prob.motion.group_names[g]}' is not determined by the observations: its "
+                "photos' image points must spread over the rows read (leave the motion out)"
+            ) from None
         if exc.kind == "border" and prob.camera is not None:
             name = prob.camera.estimated[exc.index]
             raise CameraUndetermined(
@@ -464,11 +452,14 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
 
 
 def _apply(state: _State, step: _Reduced) -> _State:
+    k = state.camera.size
+    border = step.solution.border_step
     return _State(
         centres=state.centres + step.d_photo[:, :3],
         rotations=state.rotations @ matrix_from_rotvec(step.d_photo[:, 3:]),
         points=state.points + step.d_point,
-        camera=state.camera + step.solution.border_step if state.camera.size else state.camera,
+        camera=state.camera + border[:k] if k else state.camera,
+        motion=state.motion + border[k:].reshape(-1, 3) if state.motion.size else state.motion,
     )
 
 
@@ -567,6 +558,7 @@ def bundle_adjust(
     compute_precision: bool = True,
     camera: CameraModel | None = None,
     camera0: ArrayLike | None = None,
+    motion: ShutterMotion | None = None,
 ) -> BundleResult:
     """Least-squares bundle adjustment of a strip by the collinearity equations.
 
@@ -617,6 +609,10 @@ def bundle_adjust(
         equation is ``x(S, R, X) - (x_obs + Δ(x_obs; θ))``.
     camera0 : array_like, shape (k,), optional
         Start values of the camera parameters (default 0: the start camera).
+    motion : ShutterMotion, optional
+        A rolling shutter: one motion of the centre over the readout per
+        group of photos, estimated in the border after the camera's
+        (:mod:`strip_aerotri.bundle.shutter`; start 0).
 
     Returns
     -------
@@ -683,24 +679,12 @@ def bundle_adjust(
     )
     m, p = centres.shape[0], points.shape[0]
     prob = _make_problem(
-        observations,
-        centres,
-        rotations,
-        points,
-        control_xyz,
-        control_sigma,
-        gnss_centres,
-        gnss_sigma,
-        imu_rotations,
-        imu_sigma,
-        camera,
+        observations, centres, rotations, points, control_xyz, control_sigma,
+        gnss_centres, gnss_sigma, imu_rotations, imu_sigma, camera, motion,
     )
-    start_camera = np.zeros(prob.n_camera) if camera0 is None else np.asarray(camera0, float)
-    if start_camera.shape != (prob.n_camera,):
-        raise ValueError(f"Expected `camera0` of shape ({prob.n_camera},), got {start_camera.shape}")
-    state = _State(centres.copy(), rotations.copy(), points.copy(), start_camera.copy())
+    state = _start_state(prob, centres, rotations, points, camera0)
     depth = _check_datum_and_sides(prob, state, observations)
-    redundancy = prob.n_observations - 6 * m - 3 * p - prob.n_camera
+    redundancy = prob.n_observations - 6 * m - 3 * p - prob.n_camera - prob.n_motion
 
     def sigma0_of(cost: float) -> float:
         return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
@@ -749,6 +733,28 @@ def bundle_adjust(
         imu_residual_cofactor=precision.imu_cofactor,
         image_redundancy=precision.image_redundancy,
         camera=precision.camera,
+        motion=precision.motion,
+    )
+
+
+def _start_state(
+    prob: _Problem,
+    centres: FloatArray,
+    rotations: FloatArray,
+    points: FloatArray,
+    camera0: ArrayLike | None,
+) -> _State:
+    """The first state: the given orientations and points, the camera at
+    ``camera0`` (default 0), no motion."""
+    start_camera = np.zeros(prob.n_camera) if camera0 is None else np.asarray(camera0, float)
+    if start_camera.shape != (prob.n_camera,):
+        raise ValueError(f"Expected `camera0` of shape ({prob.n_camera},), got {start_camera.shape}")
+    return _State(
+        centres.copy(),
+        rotations.copy(),
+        points.copy(),
+        start_camera.copy(),
+        np.zeros((prob.n_motion // 3, 3)),
     )
 
 
@@ -782,7 +788,7 @@ def _checked_start(
         )
     if not (np.all(np.isfinite(centres)) and np.all(np.isfinite(points))):
         raise ValueError("Expected finite `centres0` and `points0`")
-    _check_rotations(rotations, "rotations0")
+    check_rotations(rotations, "rotations0")
     if int(max_iterations) < 1:
         raise ValueError(f"Expected `max_iterations` >= 1, got {max_iterations}")
     if not tolerance > 0.0:
@@ -905,6 +911,7 @@ class _Precision(NamedTuple):
     imu_cofactor: FloatArray  # (M, 3, 3)
     image_redundancy: FloatArray  # (K, 2)
     camera: CameraEstimate | None = None
+    motion: ShutterEstimate | None = None
 
 
 #: Share of a camera parameter's information left once photos and points are
@@ -942,21 +949,24 @@ def _precision_products(
     gnss_cofactor = np.full((m, 3, 3), np.nan)
     imu_cofactor = np.full((m, 3, 3), np.nan)
     image_redundancy = np.full((prob.photo.size, 2), np.nan)
-    camera = None
-    if compute_precision or prob.camera is not None:
+    camera, motion = None, None
+    if compute_precision or normals.image.border_jacobian is not None:
         cof = _solve(prob, normals, 0.0).solution.cofactors()
+    k = prob.n_camera
     if prob.camera is not None:
         border = normals.image.border_jacobian
         assert border is not None
         camera = CameraEstimate(
             model=prob.camera,
             values=state.camera,
-            cofactor=cof.border,
+            cofactor=cof.border[:k, :k],
             sigma0=sigma0,
-            information=np.einsum("kri,kri->i", border, border),
-            conditional_information=np.diag(np.linalg.inv(cof.border)),
+            information=np.einsum("kri,kri->i", border[:, :, :k], border[:, :, :k]),
+            conditional_information=np.diag(np.linalg.inv(cof.border[:k, :k])),
         )
         _check_camera(camera)
+    if prob.motion is not None:
+        motion = ShutterEstimate(prob.motion, state.motion, cof.border[k:, k:], sigma0)
     if compute_precision:
         q_blocks = cof.unit
         q_point = np.diagonal(cof.point, axis1=1, axis2=2)
@@ -982,4 +992,5 @@ def _precision_products(
         imu_cofactor,
         image_redundancy,
         camera,
+        motion,
     )
