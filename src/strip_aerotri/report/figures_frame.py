@@ -106,7 +106,12 @@ def fit(
     measured in its pixels.
     """
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # an Agg canvas
-    grid = [ax for ax in fig.axes if colorbar is None or ax is not colorbar.ax]
+    # the subplots; not the colour bar, nor axes placed otherwise (insets)
+    grid = [
+        ax
+        for ax in fig.axes
+        if ax.get_subplotspec() is not None and (colorbar is None or ax is not colorbar.ax)
+    ]
     locators: dict[int, Locator] = {}  # each ticker's own locator, by id
     frame = _Frame(np.array([0.7, 0.5, 0.25, 0.35]) * fig.dpi, np.array([0.7, 0.4]) * fig.dpi)
     for attempt in range(_PASSES):
