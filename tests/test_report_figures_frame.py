@@ -266,3 +266,20 @@ def test_a_best_legend_is_fixed_where_matplotlib_puts_it(monkeypatch):
     fig, kwargs = _best_legend()
     searched = _pixels(figures._fitted_png(fig, **kwargs))
     assert np.array_equal(settled, searched)
+
+
+@pytest.mark.parametrize("name", [n for n in FIGURES if n != "offset texts"])
+def test_pinned_labels_land_where_matplotlib_puts_them(name, monkeypatch):
+    """The axis labels pinned by fit (so that the draw does not measure the
+    tick labels again) and matplotlib's own placement at the draw, with
+    its own ticks: identical pixels.  (With an offset text fit lifts the
+    title over it, which matplotlib does at the draw otherwise.)"""
+    from strip_aerotri.report import figures_frame
+
+    fig, kwargs = FIGURES[name]()
+    pinned = _pixels(figures._fitted_png(fig, **kwargs))
+    monkeypatch.setattr(figures_frame, "_pin", lambda *args: None)
+    monkeypatch.setattr(figures_ticks, "draw_light", lambda *args: False)
+    fig, kwargs = FIGURES[name]()
+    placed = _pixels(figures._fitted_png(fig, **kwargs))
+    assert np.array_equal(pinned, placed)

@@ -5,11 +5,14 @@ A layout engine (matplotlib's constrained or tight layout) measures every
 axes with its ticks and labels through their artists, twice, before the
 draw lays them out again: about half of a figure's drawing time.  Here the
 ticks are fixed first (each axis's own locator, run at the axes' place), the
-text they and the labels carry is measured from the font metrics (cached
-for the draw that follows), and the subplot parameters are set from these
-sizes; a second pass at the new place confirms them (the ticks a locator
-picks depend a little on the axes' length).  The ticks stay fixed, so the
-draw writes the very labels that were measured.
+texts they and the labels carry are measured as a Text lays them out (the
+font's sizes cached for the draw that follows), and the subplot parameters
+are set from these sizes; a second pass at the new place confirms them (the
+ticks a locator picks depend a little on the axes' length).  The ticks stay
+fixed, so the draw writes the very labels that were measured; the axis
+labels and titles are pinned where the draw would put them (the same
+pixels, tests/test_report_figures_frame.py), so that it does not measure
+every tick label again to find the place.
 
 What it places: a grid of subplots (``Figure.subplots``, width ratios
 allowed, shared axes too) with x ticks at the bottom and y ticks on the
@@ -32,7 +35,6 @@ if TYPE_CHECKING:
     from matplotlib.backends.backend_agg import RendererAgg
     from matplotlib.colorbar import Colorbar
     from matplotlib.figure import Figure
-    from matplotlib.font_manager import FontProperties
     from matplotlib.legend import Legend
     from matplotlib.text import Text
     from matplotlib.ticker import Locator
@@ -160,7 +162,7 @@ def _pin(stacks: list[tuple[Axis, float]], renderer: RendererAgg) -> None:
     for ax in {id(axis.axes): axis.axes for axis, _ in stacks}.values():
         offset = ax.yaxis.get_offset_text()
         if ax.get_title() and offset.get_visible() and offset.get_text():
-            lift = _text_size(offset.get_text(), offset, renderer, 0.0)[1] + 3.0 * _points(ax)
+            lift = _label_sizes([offset.get_text()], offset, renderer)[0, 1] + 3.0 * _points(ax)
             ax.title.set_y(1.0 + lift / ax.bbox.height)
 
 
@@ -312,7 +314,7 @@ def _needs(ax: Axes, renderer: RendererAgg, found: _Found) -> FloatArray:
         need = np.maximum(need, _beyond(title.get_window_extent(renderer), ax))
         offset = ax.yaxis.get_offset_text()
         if offset.get_visible() and offset.get_text():  # the title goes above it
-            need[3] += _text_size(offset.get_text(), offset, renderer, 0.0)[1] + 3.0 * px
+            need[3] += _label_sizes([offset.get_text()], offset, renderer)[0, 1] + 3.0 * px
     for text in ax.texts:
         if text.get_visible() and text.get_text() and _anchored_inside(text, ax):
             need = np.maximum(need, _beyond(text.get_window_extent(renderer), ax))
@@ -347,8 +349,7 @@ def _axis_needs(axis: Axis, renderer: RendererAgg, px: float, found: _Found) -> 
     found.ticks.append((axis, locs, labels))
     across = tick.get_tick_padding() * px if len(labels) else 0.0  # tick marks outside
     if labelled.get_visible() and labels:
-        rotation = float(labelled.get_rotation())
-        sizes = np.array([_text_size(s, labelled, renderer, rotation) for s in labels])
+        sizes = _label_sizes(labels, labelled, renderer)
         pad = float(tick.get_pad())  # type: ignore[func-returns-value,arg-type]  # stub: None; points
         across += pad * px + _largest(sizes[:, 1 if horizontal else 0])
         # the labels of the end ticks reach past the axes' ends
@@ -362,7 +363,8 @@ def _axis_needs(axis: Axis, renderer: RendererAgg, px: float, found: _Found) -> 
         found.stacks.append((axis, across))
     offset = axis.get_offset_text()
     if horizontal and offset.get_visible() and offset.get_text():  # under the tick labels
-        stack = max(stack, across + 3.0 * px + _text_size(offset.get_text(), offset, renderer, 0.0)[1])
+        below = _label_sizes([offset.get_text()], offset, renderer)[0, 1]
+        stack = max(stack, across + 3.0 * px + below)
     need[side] = max(need[side], stack)
     return need
 
@@ -401,35 +403,20 @@ def _along_span(axis: Axis, pixels: FloatArray, sizes: FloatArray, like: Text) -
     )
 
 
-def _text_size(text: str, like: Text, renderer: RendererAgg, rotation: float) -> tuple[float, float]:
-    """Width and height [pixels] of ``text`` in the font of ``like``, turned
-    by ``rotation`` degrees: its box as a Text draws it (a line no lower
-    than "lp")."""
-    prop = like.get_fontproperties()
+def _label_sizes(labels: list[str], like: Text, renderer: RendererAgg) -> FloatArray:
+    """(n, 2) width and height [pixels] of the boxes of ``labels`` drawn as
+    ``like`` (its font, rotation and line spacing): each measured as a Text
+    lays it out (the text's own sizes from the cache the draw reads)."""
+    from matplotlib.text import Text
+
+    probe = Text()
+    probe.update_from(like)
     fig = like.get_figure()
-    dpi = float(fig.dpi) if fig is not None else 72.0
-    w, h, _ = _metrics(renderer, text, prop, dpi)
-    h = max(h, _metrics(renderer, "lp", prop, dpi)[1])
-    turn = np.radians(rotation)
-    c, s = abs(np.cos(turn)), abs(np.sin(turn))
-    return float(w * c + h * s), float(w * s + h * c)
-
-
-def _metrics(
-    renderer: RendererAgg, text: str, prop: FontProperties, dpi: float
-) -> tuple[float, float, float]:
-    """Width, height and descent of ``text`` [pixels] through the cache that
-    Text's layout reads (so that the draw finds the sizes measured here);
-    the renderer's own measure where matplotlib has no such cache."""
-    from matplotlib import text as mtext
-    from matplotlib.cbook import is_math_text
-
-    math = bool(is_math_text(text))
-    cached = getattr(mtext, "_get_text_metrics_with_cache", None)
-    if cached is not None:
-        w, h, d = cached(renderer, text, prop, math, dpi)
-    else:  # pragma: no cover - every matplotlib from 3.7 to 3.11 has it
-        w, h, d = renderer.get_text_width_height_descent(  # type: ignore[no-untyped-call]
-            text, prop, ismath=math
-        )
-    return float(w), float(h), float(d)
+    if fig is not None:
+        probe.set_figure(fig)
+    sizes = np.empty((len(labels), 2))
+    for k, text in enumerate(labels):
+        probe.set_text(text)
+        extent = probe.get_window_extent(renderer)
+        sizes[k] = extent.width, extent.height
+    return sizes
