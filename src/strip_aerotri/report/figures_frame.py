@@ -68,6 +68,8 @@ class _Found:
     stacks: list[tuple[Axis, float]] = field(default_factory=list)
     #: each axis, its ticks in view (data coordinates) and their labels
     ticks: list[tuple[Axis, FloatArray, list[str]]] = field(default_factory=list)
+    #: the sizes of the labels measured so far (all passes): :func:`_label_sizes`
+    sizes: dict[tuple[str, int, float], tuple[float, float]] = field(default_factory=dict)
 
 
 @dataclass
@@ -115,12 +117,13 @@ def fit(
         if ax.get_subplotspec() is not None and (colorbar is None or ax is not colorbar.ax)
     ]
     locators: dict[int, Locator] = {}  # each ticker's own locator, by id
+    sizes: dict[tuple[str, int, float], tuple[float, float]] = {}  # labels measured
     frame = _Frame(np.array([0.7, 0.5, 0.25, 0.35]) * fig.dpi, np.array([0.7, 0.4]) * fig.dpi)
     for attempt in range(_PASSES):
         _place(fig, grid, frame, colorbar)
         if attempt < _PASSES - 1:  # the last pass keeps the ticks measured before
             _fix_ticks(fig.axes, locators)
-        needed = _measure(fig, grid, renderer, beside, colorbar)
+        needed = _measure(fig, grid, renderer, beside, colorbar, sizes)
         if needed.close_to(frame):
             break
         frame = needed
@@ -260,11 +263,13 @@ def _measure(
     renderer: RendererAgg,
     beside: Legend | None,
     colorbar: Colorbar | None,
+    sizes: dict[tuple[str, int, float], tuple[float, float]],
 ) -> _Frame:
-    """The blank each side of the grid and between its cells needs."""
+    """The blank each side of the grid and between its cells needs
+    (``sizes``: the labels measured in earlier passes)."""
     rows, cols = _geometry(grid)
     # needs[k]: pixels beyond axes k's box on the left, bottom, right, top
-    found = _Found()
+    found = _Found(sizes=sizes)
     needs = np.array([_needs(ax, renderer, found) for ax in grid]).reshape(len(grid), 4)
     spans = [ax.get_subplotspec() for ax in grid]
     col0 = np.array([s.colspan.start for s in spans if s is not None])
@@ -349,7 +354,7 @@ def _axis_needs(axis: Axis, renderer: RendererAgg, px: float, found: _Found) -> 
     found.ticks.append((axis, locs, labels))
     across = tick.get_tick_padding() * px if len(labels) else 0.0  # tick marks outside
     if labelled.get_visible() and labels:
-        sizes = _label_sizes(labels, labelled, renderer)
+        sizes = _label_sizes(labels, labelled, renderer, found.sizes)
         pad = float(tick.get_pad())  # type: ignore[func-returns-value,arg-type]  # stub: None; points
         across += pad * px + _largest(sizes[:, 1 if horizontal else 0])
         # the labels of the end ticks reach past the axes' ends
@@ -403,20 +408,30 @@ def _along_span(axis: Axis, pixels: FloatArray, sizes: FloatArray, like: Text) -
     )
 
 
-def _label_sizes(labels: list[str], like: Text, renderer: RendererAgg) -> FloatArray:
+def _label_sizes(
+    labels: list[str],
+    like: Text,
+    renderer: RendererAgg,
+    known: dict[tuple[str, int, float], tuple[float, float]] | None = None,
+) -> FloatArray:
     """(n, 2) width and height [pixels] of the boxes of ``labels`` drawn as
     ``like`` (its font, rotation and line spacing): each measured as a Text
-    lays it out (the text's own sizes from the cache the draw reads)."""
+    lays it out (the text's own sizes from the cache the draw reads), or
+    taken from ``known`` (by text, font and rotation), which gets them."""
     from matplotlib.text import Text
 
-    probe = Text()
-    probe.update_from(like)
-    fig = like.get_figure()
-    if fig is not None:
-        probe.set_figure(fig)
-    sizes = np.empty((len(labels), 2))
-    for k, text in enumerate(labels):
-        probe.set_text(text)
-        extent = probe.get_window_extent(renderer)
-        sizes[k] = extent.width, extent.height
-    return sizes
+    known = {} if known is None else known
+    font, turn = hash(like.get_fontproperties()), float(like.get_rotation())
+    keys = [(text, font, turn) for text in labels]
+    missing = [key for key in keys if key not in known]
+    if missing:
+        probe = Text()
+        probe.update_from(like)
+        fig = like.get_figure()
+        if fig is not None:
+            probe.set_figure(fig)
+        for key in missing:
+            probe.set_text(key[0])
+            extent = probe.get_window_extent(renderer)
+            known[key] = (float(extent.width), float(extent.height))
+    return np.array([known[key] for key in keys], dtype=np.float64).reshape(len(keys), 2)
