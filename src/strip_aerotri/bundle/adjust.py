@@ -56,7 +56,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._threads import limit_blas_threads
+from .._threads import compute_workers, limit_blas_threads
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..geometry.camera_model import CameraModel
@@ -681,52 +681,64 @@ def bundle_adjust(
     centres, rotations, points = _checked_start(
         observations, centres0, rotations0, points0, max_iterations, tolerance
     )
-    m, p = centres.shape[0], points.shape[0]
-    prob = _make_problem(
-        observations,
-        centres,
-        rotations,
-        points,
-        control_xyz,
-        control_sigma,
-        gnss_centres,
-        gnss_sigma,
-        imu_rotations,
-        imu_sigma,
-        camera,
-    )
-    start_camera = np.zeros(prob.n_camera) if camera0 is None else np.asarray(camera0, float)
-    if start_camera.shape != (prob.n_camera,):
-        raise ValueError(f"Expected `camera0` of shape ({prob.n_camera},), got {start_camera.shape}")
-    state = _State(centres.copy(), rotations.copy(), points.copy(), start_camera.copy())
-    depth = _check_datum_and_sides(prob, state, observations)
-    redundancy = prob.n_observations - 6 * m - 3 * p - prob.n_camera
-
-    def sigma0_of(cost: float) -> float:
-        return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
-
-    normals = _normals(prob, state)
-    if normals is None:  # _check_datum_and_sides found every point in front
-        raise GeometryError("the collinearity equations are not defined at the initial values")
-    _check_points(prob, normals, observations.point_ids)
-    state, normals, history, iterations, converged = _iterate(
-        prob, state, normals, depth, int(max_iterations), tolerance, observations, sigma0_of
-    )
-    if not converged:
-        warnings.warn(
-            f"bundle adjustment did not converge in {max_iterations} iterations "
-            f"(sigma0 {history[-1]:.4g})",
-            StripAerotriWarning,
-            stacklevel=2,
+    with compute_workers(int(np.asarray(observations.photo).size)):
+        m, p = centres.shape[0], points.shape[0]
+        prob = _make_problem(
+            observations,
+            centres,
+            rotations,
+            points,
+            control_xyz,
+            control_sigma,
+            gnss_centres,
+            gnss_sigma,
+            imu_rotations,
+            imu_sigma,
+            camera,
         )
-    sigma0 = sigma0_of(normals.cost)
-    if redundancy <= 0:
-        warnings.warn(
-            "bundle adjustment has no redundancy: sigma0 and precision are undefined",
-            StripAerotriWarning,
-            stacklevel=2,
+        start_camera = np.zeros(prob.n_camera) if camera0 is None else np.asarray(camera0, float)
+        if start_camera.shape != (prob.n_camera,):
+            raise ValueError(
+                f"Expected `camera0` of shape ({prob.n_camera},), got {start_camera.shape}"
+            )
+        state = _State(centres.copy(), rotations.copy(), points.copy(), start_camera.copy())
+        depth = _check_datum_and_sides(prob, state, observations)
+        redundancy = prob.n_observations - 6 * m - 3 * p - prob.n_camera
+
+        def sigma0_of(cost: float) -> float:
+            return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
+
+        normals = _normals(prob, state)
+        if normals is None:  # _check_datum_and_sides found every point in front
+            raise GeometryError("the collinearity equations are not defined at the initial values")
+        _check_points(prob, normals, observations.point_ids)
+        state, normals, history, iterations, converged = _iterate(
+            prob, state, normals, depth, int(max_iterations), tolerance, observations, sigma0_of
         )
-    precision = _precision_products(prob, state, normals, sigma0, compute_precision)
+        if not converged:
+            warnings.warn(
+                f"bundle adjustment did not converge in {max_iterations} iterations "
+                f"(sigma0 {history[-1]:.4g})",
+                StripAerotriWarning,
+                stacklevel=2,
+            )
+        sigma0 = sigma0_of(normals.cost)
+        if redundancy <= 0:
+            warnings.warn(
+                "bundle adjustment has no redundancy: sigma0 and precision are undefined",
+                StripAerotriWarning,
+                stacklevel=2,
+            )
+        precision = _precision_products(prob, state, normals, sigma0, compute_precision)
+        return _result(prob, state, normals, precision, sigma0, redundancy, history, iterations,
+                       converged)
+
+
+def _result(
+    prob: _Problem, state: _State, normals: _Normals, precision: _Precision, sigma0: float,
+    redundancy: int, history: list[float], iterations: int, converged: bool,
+) -> BundleResult:
+    """The adjustment's result from its last state, normals and precision."""
     control_used = prob.control_weight > 0
     return BundleResult(
         centres=state.centres,

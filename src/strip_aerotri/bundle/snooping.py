@@ -18,6 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._stats import leading_failures
+from .._threads import compute_workers
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
 from ..errors import GeometryError
@@ -175,6 +176,38 @@ def refine_frame(
     left with one ray (and no full control) is dropped.  The adjustment is
     then solved again from the last solution, until nothing fails.
     """
+    with compute_workers(int(np.asarray(observations.photo).size)):
+        return _refine_frame(
+            observations, centres0, rotations0, points0, control_xyz, control_sigma,
+            gnss_centres, gnss_sigma, imu_rotations, imu_sigma, blunders, max_iterations,
+            compute_precision, observation_used, control_used, gnss_axes, gnss_used,
+            imu_used, self_calibration, control_tested,
+        )  # fmt: skip
+
+
+def _refine_frame(
+    observations: ImageObservations,
+    centres0: ArrayLike,
+    rotations0: ArrayLike,
+    points0: ArrayLike,
+    control_xyz: ArrayLike | None,
+    control_sigma: ArrayLike | None,
+    gnss_centres: ArrayLike | None,
+    gnss_sigma: ArrayLike | None,
+    imu_rotations: ArrayLike | None,
+    imu_sigma: ArrayLike | None,
+    blunders: BlunderOptions | None,
+    max_iterations: int,
+    compute_precision: bool,
+    observation_used: ArrayLike | None,
+    control_used: ArrayLike | None,
+    gnss_axes: ArrayLike | None,
+    gnss_used: ArrayLike | None,
+    imu_used: ArrayLike | None,
+    self_calibration: SelfCalibration | None,
+    control_tested: bool,
+) -> FrameRefinement:
+    """The rounds of :func:`refine_frame` (its parameters, in order)."""
     blunders = blunders or BlunderOptions()
     obs = observations
     inp = _inputs(

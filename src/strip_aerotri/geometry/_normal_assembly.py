@@ -12,6 +12,7 @@ from typing import TypeVar
 
 import numpy as np
 
+from .._threads import split_map
 from .._typing import ArrayLike, FloatArray, IntArray
 from ._blockband import BandFactor, NotPositiveDefinite, factor_band, selected_inverse
 from ._normal_entries import (
@@ -294,16 +295,25 @@ def _schur_band(st: NormalStructure, band: FloatArray, z: FloatArray) -> FloatAr
     w1 = pat.width + 1
     dd = d * d
     flat_blocks = band.reshape(n * w1, dd).copy()
-    for c in pat.chunks:
+
+    def products(c: Chunk) -> tuple[Chunk, FloatArray]:
         zc = _group_major(z, c, d)
         sums = zc @ np.swapaxes(zc, 1, 2)  # (G, qd, qd)
         blocks = sums.reshape(-1, c.q, d, c.q, d).transpose(0, 1, 3, 2, 4)[:, c.lower_a, c.lower_b]
+        return c, blocks.reshape(-1, dd)
+
+    def subtract(chunk_blocks: tuple[Chunk, FloatArray]) -> None:
+        c, blocks = chunk_blocks
         if c.scatter_unique is None or c.scatter_inverse is None:  # every target once
-            flat_blocks[c.scatter.reshape(-1)] -= blocks.reshape(-1, dd)
+            flat_blocks[c.scatter.reshape(-1)] -= blocks
         else:  # summed over the chunk's blocks with the same target first
             flat_blocks[c.scatter_unique] -= sum_into(
-                c.scatter_inverse, blocks.reshape(-1, dd), c.scatter_unique.size
+                c.scatter_inverse, blocks, c.scatter_unique.size
             )
+
+    # the chunks' products on the threads of _threads.compute_workers, their
+    # sums into the band in the chunks' order (as in one thread)
+    split_map(products, pat.chunks, subtract)
     return flat_blocks.reshape(n, w1, d, d)
 
 
@@ -464,7 +474,8 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     point = red.v_inv.copy()
     point_border = np.zeros((p, 3, k))
     zflat = z.reshape(-1, d, d)
-    for c in pat.chunks:
+
+    def chunk(c: Chunk) -> None:  # writes the chunk's own pairs and points
         q, n_g, groups = c.q, c.size, c.groups
         qd = q * d
         span = slice(c.pair_start, c.pair_start + groups * n_g * q)
@@ -491,6 +502,8 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
         if k:
             tb = t[:, qd:].reshape(groups, k, n_g, 3).transpose(0, 2, 3, 1)  # (G, n_g, 3, k)
             point_border[c.points] = -tb.reshape(-1, 3, k)
+
+    split_map(chunk, pat.chunks)
     if k:  # and - Y_bᵀ Q_pbᵀ
         alone = np.bincount(pat.pair_point, minlength=p) == 0
         point_border[alone] = -np.swapaxes(q_bb @ y_border[alone], 1, 2)
@@ -541,8 +554,8 @@ def _pair_leverage(cof: Cofactors, rows: UnitPointRows) -> FloatArray:
         return out
 
     h = np.empty((a_u.shape[0], a_u.shape[2]))  # (r, g)
-    for lo in range(0, h.shape[1], BLOCK):  # blocks of rows: the gathered blocks stay small
-        at = slice(lo, lo + BLOCK)
+
+    def rows_block(at: slice) -> None:  # blocks of rows: the gathered blocks stay small
         u, pt = unit[at], point[at]
         bu, bp = a_u[..., at], a_p[..., at]
         part = form(bu, take(q_unit, u), bu) + 2.0 * form(bu, take(cof.pair, pairs[at]), bp)
@@ -552,6 +565,8 @@ def _pair_leverage(cof: Cofactors, rows: UnitPointRows) -> FloatArray:
             part += 2.0 * form(bu, take(q_ub, u), bb) + 2.0 * form(bp, take(q_pb, pt), bb)
             part += np.einsum("rik,ij,rjk->rk", bb, cof.border, bb)
         h[:, at] = part
+
+    split_map(rows_block, [slice(lo, lo + BLOCK) for lo in range(0, h.shape[1], BLOCK)])
     return h.T
 
 

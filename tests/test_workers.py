@@ -1,0 +1,235 @@
+"""Worker threads of the engine's kernels (``_threads.compute_workers``,
+``split_map``): the pieces are shared, the results are bit for bit those of
+one thread, errors and Ctrl-C end both threads, no thread outlives a block.
+
+The bundle's pieces are made small here (blocks of 64 rows) so that a
+small strip splits into many of them, as a 1000-photo strip does at the
+default size."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import threading
+
+import numpy as np
+import pytest
+
+from strip_aerotri import _threads
+from strip_aerotri._threads import (
+    WORKERS_VARIABLE,
+    compute_workers,
+    split_map,
+    worker_count,
+)
+from strip_aerotri.blunders import BlunderOptions
+from strip_aerotri.bundle.snooping import refine_frame
+from strip_aerotri.errors import ConfigError
+from strip_aerotri.geometry import _normal_entries, collinearity
+from strip_aerotri.options import SelfCalibration
+from strip_aerotri.pipeline import triangulate
+from strip_aerotri.simulate import simulate_strip
+
+
+@pytest.fixture
+def two_workers(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two threads whatever the machine's cores and load, and small pieces."""
+    monkeypatch.setattr(_threads, "_usable_cores", lambda: 2)
+    monkeypatch.setattr(_threads, "MIN_PARALLEL_SIZE", 0)
+    monkeypatch.setattr(_normal_entries, "BLOCK", 64)
+    monkeypatch.setattr(collinearity, "_BLOCK", 64)
+    monkeypatch.setenv(WORKERS_VARIABLE, "2")
+
+
+# ---------------------------------------------------------------- the rules
+
+
+@pytest.mark.parametrize(
+    ("text", "cores", "load", "size", "expected"),
+    [
+        ("", 2, 0.0, 100_000, 2),
+        ("", 8, 0.0, 100_000, 2),  # two at most
+        ("", 1, 0.0, 100_000, 1),  # one CPU for this process
+        ("", 2, 0.0, 1_000, 1),  # small: the hand-over would not pay
+        ("", 2, 3.0, 100_000, 1),  # loaded: no core idle
+        ("1", 2, 0.0, 100_000, 1),
+        ("2", 2, 3.0, 100_000, 2),  # asked for: the load is not read
+        ("4", 1, 0.0, 100_000, 1),  # never more than the CPUs
+    ],
+)
+def test_the_number_of_threads(
+    monkeypatch: pytest.MonkeyPatch, text: str, cores: int, load: float, size: int,
+    expected: int,
+) -> None:  # fmt: skip
+    monkeypatch.setenv(WORKERS_VARIABLE, text)
+    monkeypatch.setattr(_threads, "_usable_cores", lambda: cores)
+    monkeypatch.setattr(_threads, "_busy_cores", lambda: load)
+    assert worker_count(size) == expected
+
+
+@pytest.mark.parametrize("text", ["0", "-1", "two", "1.5"])
+def test_a_bad_number_of_threads_is_one_line_naming_the_variable(
+    monkeypatch: pytest.MonkeyPatch, text: str
+) -> None:
+    monkeypatch.setenv(WORKERS_VARIABLE, text)
+    with pytest.raises(ConfigError, match=f"^environment variable {WORKERS_VARIABLE}="):
+        worker_count(100_000)
+
+
+# ---------------------------------------------------------------- split_map
+
+
+def test_split_map_keeps_the_order_and_uses_both_threads(two_workers: None) -> None:
+    names: set[str] = set()
+
+    def square(i: int) -> int:
+        names.add(threading.current_thread().name)
+        np.linalg.qr(np.ones((60, 60)))  # work that releases the interpreter
+        return i * i
+
+    before = threading.active_count()
+    with compute_workers(10**6) as n:
+        assert n == 2
+        assert split_map(square, list(range(200))) == [i * i for i in range(200)]
+    assert threading.active_count() == before  # the worker ended with the block
+    assert threading.main_thread().name in names
+    assert any(name.startswith("strip_aerotri-worker") for name in names)
+
+
+def test_split_map_combines_in_the_items_order(two_workers: None) -> None:
+    seen: list[int] = []
+    with compute_workers(10**6):
+        out = split_map(lambda i: i, list(range(300)), seen.append)
+    assert out == []
+    assert seen == list(range(300))
+
+
+def test_split_map_without_a_block_is_the_loop() -> None:
+    assert split_map(str, [1, 2, 3]) == ["1", "2", "3"]
+    seen: list[str] = []
+    split_map(str, [1, 2], seen.append)
+    assert seen == ["1", "2"]
+
+
+def test_nested_blocks_share_the_outer_worker(two_workers: None) -> None:
+    before = threading.active_count()
+    with compute_workers(10**6) as outer, compute_workers(10**6) as inner:
+        assert (outer, inner) == (2, 2)
+        split_map(abs, [-1, -2, -3])
+        assert threading.active_count() <= before + 1
+    assert threading.active_count() == before
+
+
+@pytest.mark.parametrize("combine", [False, True])
+def test_an_error_in_either_thread_is_raised_and_stops_both(
+    two_workers: None, combine: bool
+) -> None:
+    calls = itertools.count()
+    taken: list[int] = []
+
+    def fail_at(i: int) -> int:
+        next(calls)
+        taken.append(i)
+        if i == 7:
+            raise ValueError("item 7")
+        np.linalg.qr(np.ones((40, 40)))
+        return i
+
+    before = threading.active_count()
+    with pytest.raises(ValueError, match="item 7"), compute_workers(10**6):
+        split_map(fail_at, list(range(10_000)), (lambda r: None) if combine else None)
+    assert threading.active_count() == before
+    assert max(taken) < 100  # neither thread went on through the items
+
+
+def test_a_keyboard_interrupt_in_the_calling_thread_stops_the_worker(two_workers: None) -> None:
+    taken: list[int] = []
+
+    def item(i: int) -> int:
+        taken.append(i)
+        if threading.current_thread() is threading.main_thread() and i > 20:
+            raise KeyboardInterrupt
+        np.linalg.qr(np.ones((40, 40)))
+        return i
+
+    with pytest.raises(KeyboardInterrupt), compute_workers(10**6):
+        split_map(item, list(range(10_000)))
+    assert len(taken) < 200
+
+
+# ------------------------------------------------------- the same results
+
+
+def _frames(sim, result):  # type: ignore[no-untyped-def]
+    obs, c = sim.observations, sim.control
+    lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
+    cx = np.full((obs.n_points, 3), np.nan)
+    cs = np.full((obs.n_points, 3), np.inf)
+    for i, pid in enumerate(c.point_ids):
+        j = lookup[pid]
+        if c.uses_xy[i]:
+            cx[j, :2], cs[j, :2] = c.xyz[i, :2], c.sigma_xy[i]
+        if c.uses_h[i]:
+            cx[j, 2], cs[j, 2] = c.xyz[i, 2], c.sigma_h[i]
+    g = result.ground
+    return obs, g.photo_centres_work, g.photo_rotations_enu, result.points, cx, cs
+
+
+def _assert_identical(a: object, b: object, where: str = "") -> None:
+    if dataclasses.is_dataclass(a) and not isinstance(a, type):
+        for f in dataclasses.fields(a):
+            _assert_identical(getattr(a, f.name), getattr(b, f.name), f"{where}.{f.name}")
+    elif isinstance(a, np.ndarray):
+        np.testing.assert_array_equal(a, b, err_msg=where)  # NaN == NaN, bit for bit
+    elif isinstance(a, float) and np.isnan(a):
+        assert isinstance(b, float) and np.isnan(b), where
+    elif isinstance(a, (tuple, list)) and a and not isinstance(a[0], str):
+        assert len(a) == len(b), where  # type: ignore[arg-type]
+        for i, (x, y) in enumerate(zip(a, b)):  # type: ignore[call-overload]
+            _assert_identical(x, y, f"{where}[{i}]")
+    else:
+        assert a == b, where
+
+
+@pytest.mark.parametrize(
+    "case", ["blunders", "self-calibration"]
+)
+def test_two_threads_give_the_results_of_one_bit_for_bit(
+    monkeypatch: pytest.MonkeyPatch, two_workers: None, case: str
+) -> None:
+    """Rejections over several rounds (the snooping), and a border of camera
+    parameters (the self-calibration's dense rows): every array of the
+    result equal to the last bit."""
+    sim = simulate_strip(
+        30, preset="drone", crs="local", seed=2, control="every_k_models", control_every=10,
+        image_blunders=4 if case == "blunders" else 0,
+    )  # fmt: skip
+    result = triangulate(
+        sim.observations, sim.control, sim.crs, blunders=BlunderOptions(action="off")
+    )
+    obs, centres, rotations, points, cx, cs = _frames(sim, result)
+    spec = SelfCalibration(("k1", "k2", "p1")) if case == "self-calibration" else None
+
+    def run():  # type: ignore[no-untyped-def]
+        return refine_frame(
+            obs, centres, rotations, points, control_xyz=cx, control_sigma=cs,
+            self_calibration=spec,
+        )  # fmt: skip
+
+    names: set[str] = set()
+    products = _normal_entries._summed
+
+    def summed(*args):  # type: ignore[no-untyped-def]
+        names.add(threading.current_thread().name)
+        return products(*args)
+
+    monkeypatch.setattr(_normal_entries, "_summed", summed)
+    two = run()
+    assert any(name.startswith("strip_aerotri-worker") for name in names)
+    monkeypatch.setenv(WORKERS_VARIABLE, "1")
+    one = run()
+    if case == "blunders":
+        assert one.rounds >= 2 and one.observation_rejected.sum() >= 4
+    else:
+        assert one.self_calibration is not None
+    _assert_identical(two, one)
