@@ -56,7 +56,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._threads import compute_workers, limit_blas_threads
+from .._threads import compute_workers, limit_blas_threads, split_map
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..geometry.camera_model import CameraModel
@@ -373,6 +373,22 @@ def _observed(prob: _Problem, state: _State) -> FloatArray:
     return out
 
 
+#: Rows per block of :func:`_rows_scaled`.
+_ROWS = 16384
+
+
+def _rows_scaled(a: FloatArray, scale: FloatArray) -> FloatArray:
+    """``a * scale[:, None, None]`` (K, r, c) in `a`'s memory layout, by blocks
+    of rows on the threads of ``_threads.compute_workers``."""
+    out = np.empty_like(a)
+
+    def block(at: slice) -> None:
+        np.multiply(a[at], scale[at, None, None], out=out[at])
+
+    split_map(block, [slice(lo, lo + _ROWS) for lo in range(0, a.shape[0], _ROWS)])
+    return out
+
+
 def _normals(prob: _Problem, state: _State) -> _Normals | None:
     """Linearise all observation equations at ``state`` and form the normal
     blocks; None when a point lies behind a photo.
@@ -394,8 +410,8 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     image = UnitPointRows(
         prob.photo,
         prob.point,
-        jac_photo * inv_s[:, None, None],
-        jac_point * inv_s[:, None, None],
+        _rows_scaled(jac_photo, inv_s),
+        _rows_scaled(jac_point, inv_s),
         res * inv_s[:, None],
         border_jacobian=border,
     )

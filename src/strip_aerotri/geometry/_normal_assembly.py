@@ -25,6 +25,7 @@ from ._normal_entries import (
     pair_blocks,
     point_factor,
     run_sums,
+    spans,
     take,
     times_lower,
     times_lower_t,
@@ -331,8 +332,15 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
         _point_factor(st, v) if v.shape[0]
         else PointFactor(np.zeros((6, 0)), v.copy(), v[:, 0, 0])
     )
-    m_pair = take(pf.m, pat.pair_point)
-    z = times_lower_t(normals.w, m_pair)  # (d, 3, n_pairs)
+    n_pairs = pat.pair_point.size
+    m_pair = np.empty((6, n_pairs))
+    z = np.empty((d, 3, n_pairs))  # W Mᵀ
+
+    def pairs_block(at: slice) -> None:
+        m_pair[:, at] = take(pf.m, pat.pair_point[at])
+        z[..., at] = times_lower_t(normals.w[..., at], m_pair[:, at])
+
+    split_map(pairs_block, spans(n_pairs))
     s_band = _schur_band(st, band, z)
     b_point = -normals.g_point
     mb = lower_times(pf.m, b_point.T)  # (3, p): M b_p
@@ -566,7 +574,7 @@ def _pair_leverage(cof: Cofactors, rows: UnitPointRows) -> FloatArray:
             part += np.einsum("rik,ij,rjk->rk", bb, cof.border, bb)
         h[:, at] = part
 
-    split_map(rows_block, [slice(lo, lo + BLOCK) for lo in range(0, h.shape[1], BLOCK)])
+    split_map(rows_block, spans(h.shape[1]))
     return h.T
 
 

@@ -35,6 +35,7 @@ __all__ = [
     "pair_blocks",
     "point_factor",
     "run_sums",
+    "spans",
     "take",
 ]
 
@@ -95,6 +96,11 @@ class PairBlocks(NamedTuple):
 BLOCK = 16384
 
 
+def spans(size: int) -> list[slice]:
+    """Consecutive slices of :data:`BLOCK` places covering ``range(size)``."""
+    return [slice(lo, lo + BLOCK) for lo in range(0, size, BLOCK)]
+
+
 def blocks_of(runs: tuple[IntArray | None, IntArray, IntArray],
               size: int) -> list[tuple[slice, slice | IntArray, IntArray, IntArray]]:
     """Blocks of about :data:`BLOCK` places of an index of `size` places, cut
@@ -142,7 +148,7 @@ def pair_blocks(
             for i in range(r):
                 records[span, lo + i * m : lo + (i + 1) * m] = x[span, i]
 
-    split_map(fill, [slice(lo, lo + BLOCK) for lo in range(0, g, BLOCK)])
+    split_map(fill, spans(g))
 
     def entries(block: FloatArray) -> list[FloatArray]:
         # a block of records (b, width) -> entry-major pieces (r, m, b)
