@@ -332,22 +332,22 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
         _point_factor(st, v) if v.shape[0]
         else PointFactor(np.zeros((6, 0)), v.copy(), v[:, 0, 0])
     )
+    b_point = -normals.g_point
+    mb = lower_times(pf.m, b_point.T)  # (3, p): M b_p
     n_pairs = pat.pair_point.size
     m_pair = np.empty((6, n_pairs))
     z = np.empty((d, 3, n_pairs))  # W Mᵀ
+    zmb = np.empty((d, n_pairs))  # Z (M b_p)
 
     def pairs_block(at: slice) -> None:
         m_pair[:, at] = take(pf.m, pat.pair_point[at])
         z[..., at] = times_lower_t(normals.w[..., at], m_pair[:, at])
+        np.einsum("ack,ck->ak", z[..., at], take(mb, pat.pair_point[at]), out=zmb[:, at])
 
     split_map(pairs_block, spans(n_pairs))
     s_band = _schur_band(st, band, z)
-    b_point = -normals.g_point
-    mb = lower_times(pf.m, b_point.T)  # (3, p): M b_p
     # Σ_pairs W V⁻¹ b_p = Σ Z (M b_p), by unit
-    rhs_unit = -normals.g_unit - run_sums(
-        np.einsum("ack,ck->ak", z, take(mb, pat.pair_point)), pat.pair_unit_runs, n
-    )
+    rhs_unit = -normals.g_unit - run_sums(zmb, pat.pair_unit_runs, n)
     try:
         factor = factor_band(s_band)
     except NotPositiveDefinite as exc:
@@ -390,10 +390,14 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     unit_step = np.empty((n, d))
     unit_step[order] = x_pos.reshape(n, d)
     # points: V⁻¹ (b_p - Σ Wᵀ δu - Vb δb)
-    t_p = b_point - run_sums(
-        np.einsum("abk,ak->bk", normals.w, take(unit_step.T, pat.pair_unit)), pat.point_runs,
-        st.n_points,
-    )
+    wu = np.empty((3, n_pairs))  # Wᵀ δu per pair
+
+    def back_block(at: slice) -> None:
+        np.einsum("abk,ak->bk", normals.w[..., at], take(unit_step.T, pat.pair_unit[at]),
+                  out=wu[:, at])
+
+    split_map(back_block, spans(n_pairs))
+    t_p = b_point - run_sums(wu, pat.point_runs, st.n_points)
     if k:
         t_p -= normals.point_border @ border_step
     point_step = np.ascontiguousarray(lower_t_times(pf.m, lower_times(pf.m, t_p.T)).T)
