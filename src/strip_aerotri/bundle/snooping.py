@@ -752,7 +752,8 @@ def _round_statistics(
     k_all = obs.photo.shape[0]
     tested = pt_used[obs.point]
     v_all = np.full((k_all, 2), np.nan)
-    rows_t = np.flatnonzero(tested)
+    rows_t = _every_or(np.flatnonzero(tested), k_all)
+    rows = _every_or(rows, k_all)
     vv = image_vectors(
         res.centres[obs.photo[rows_t]],
         res.rotations[obs.photo[rows_t]],
@@ -763,14 +764,15 @@ def _round_statistics(
         v_all[rows_t] -= res.camera.model.correction(obs.xy[rows_t], res.camera.values)
 
     ctrl_on, c_sig, given = sets.ctrl_on, inp.c_sig, inp.c_given
-    weight_sub = np.where(ctrl_on[pts], 1.0 / np.where(ctrl_on[pts], c_sig[pts], 1.0) ** 2, 0)
     r_img = np.full((k_all, 2), np.nan)
     exact = res.image_redundancy
     precise = compute_precision and np.isfinite(res.sigma0) and res.sigma0 > 0
-    if precise and exact.shape == (rows.size, 2) and np.all(np.isfinite(exact)):
+    n_rows = k_all if isinstance(rows, slice) else rows.size
+    if precise and exact.shape == (n_rows, 2) and np.all(np.isfinite(exact)):
         r_img[rows] = np.clip(exact, 1e-12, 1.0)
         vinv_diag = np.full((pts.size, 3), np.nan)  # not needed: the cofactors are exact
     else:
+        weight_sub = np.where(ctrl_on[pts], 1.0 / np.where(ctrl_on[pts], c_sig[pts], 1.0) ** 2, 0)
         h_sub, vinv_diag = _point_leverage(
             sub, res.centres, res.rotations, res.points, weight_sub
         )
@@ -941,6 +943,12 @@ def describe(
                 )
             )
     return out
+
+
+def _every_or(index: IntArray, n: int) -> IntArray | slice:
+    """`index` (ascending, distinct places in ``range(n)``), or the slice of
+    every place when it holds them all (the same values, read without a copy)."""
+    return slice(None) if index.size == n else index
 
 
 def _point_leverage(
