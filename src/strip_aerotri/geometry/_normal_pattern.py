@@ -16,6 +16,7 @@ the band together.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -269,6 +270,21 @@ def sorted_unique(values: IntArray) -> IntArray:
     return out
 
 
+@functools.lru_cache(maxsize=64)
+def _pair_tables(q: int) -> tuple[IntArray, IntArray, BoolArray, IntArray, IntArray]:
+    """For q units of a group: the lower pairs (a >= b; positions ascending,
+    so pos_a >= pos_b) as two index arrays, and for every pair (a, b) of the
+    q x q grid whether it is above the diagonal and its smaller and larger
+    index; read-only, shared by the chunks of every pattern."""
+    a_idx, b_idx = np.tril_indices(q)
+    aa, bb = np.meshgrid(np.arange(q), np.arange(q), indexing="ij")
+    out = (a_idx.astype(np.intp), b_idx.astype(np.intp), aa < bb, np.minimum(aa, bb),
+           np.maximum(aa, bb))
+    for x in out:
+        x.flags.writeable = False
+    return out
+
+
 def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray,
             sig: IntArray) -> list[Chunk]:
     """Groups of n_g points with the same q units (consecutive runs of n_g in
@@ -278,11 +294,7 @@ def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray
     groups = pts.size // n_g
     size = max(1, CHUNK_ENTRIES // per_group)
     w1 = width + 1
-    a_idx, b_idx = np.tril_indices(q)  # a >= b: positions ascending, so pos_a >= pos_b
-    aa, bb = np.meshgrid(np.arange(q), np.arange(q), indexing="ij")
-    upper = aa < bb
-    lo = np.minimum(aa, bb)
-    hi = np.maximum(aa, bb)
+    a_idx, b_idx, upper, lo, hi = _pair_tables(q)
     gs_all = sig[::n_g]  # (groups, q)
     out = []
     for g0 in range(0, groups, size):
@@ -295,8 +307,7 @@ def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray
         distinct = uniq.size == flat.size
         out.append(
             Chunk(q, n_g, pts[g0 * n_g : g1 * n_g], int(pairs[g0 * n_g, 0]),
-                  scatter.astype(np.intp), gather.astype(np.intp), upper,
-                  a_idx.astype(np.intp), b_idx.astype(np.intp),
+                  scatter.astype(np.intp), gather.astype(np.intp), upper, a_idx, b_idx,
                   None if distinct else uniq.astype(np.intp),
                   None if distinct else inverse.astype(np.intp).reshape(-1))
         )
