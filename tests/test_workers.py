@@ -47,26 +47,35 @@ def two_workers(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 @pytest.mark.parametrize(
-    ("text", "cores", "load", "size", "expected"),
+    ("text", "cores", "load", "others", "size", "expected"),
     [
-        ("", 2, 0.0, 100_000, 2),
-        ("", 8, 0.0, 100_000, 2),  # two at most
-        ("", 1, 0.0, 100_000, 1),  # one CPU for this process
-        ("", 2, 0.0, 1_000, 1),  # small: the hand-over would not pay
-        ("", 2, 3.0, 100_000, 1),  # loaded: no core idle
-        ("1", 2, 0.0, 100_000, 1),
-        ("2", 2, 3.0, 100_000, 2),  # asked for: the load is not read
-        ("4", 1, 0.0, 100_000, 1),  # never more than the CPUs
+        ("", 2, 0.0, 0, 100_000, 2),
+        ("", 8, 0.0, 0, 100_000, 2),  # two at most
+        ("", 1, 0.0, 0, 100_000, 1),  # one CPU for this process
+        ("", 2, 0.0, 0, 1_000, 1),  # small: the hand-over would not pay
+        ("", 2, 3.0, 2, 100_000, 1),  # loaded: the other core is taken
+        ("", 2, 3.0, None, 100_000, 1),  # loaded, and the moment unknown
+        ("", 2, 1.9, 0, 100_000, 2),  # the load of this process's own past work
+        ("", 2, 1.2, 3, 100_000, 2),  # a burst of others: the load average is low
+        ("1", 2, 0.0, 0, 100_000, 1),
+        ("2", 2, 3.0, 2, 100_000, 2),  # asked for: the load is not read
+        ("4", 1, 0.0, 0, 100_000, 1),  # never more than the CPUs
     ],
 )
 def test_the_number_of_threads(
-    monkeypatch: pytest.MonkeyPatch, text: str, cores: int, load: float, size: int,
-    expected: int,
+    monkeypatch: pytest.MonkeyPatch, text: str, cores: int, load: float, others: int | None,
+    size: int, expected: int,
 ) -> None:  # fmt: skip
     monkeypatch.setenv(WORKERS_VARIABLE, text)
     monkeypatch.setattr(_threads, "_usable_cores", lambda: cores)
     monkeypatch.setattr(_threads, "_busy_cores", lambda: load)
+    monkeypatch.setattr(_threads, "_others_running", lambda: others)
     assert worker_count(size) == expected
+
+
+def test_the_moments_count_is_read_from_the_system() -> None:
+    others = _threads._others_running()
+    assert others is None or others >= 0
 
 
 @pytest.mark.parametrize("text", ["0", "-1", "two", "1.5"])

@@ -31,8 +31,9 @@ pieces run at once.  Each piece's result is computed whole by one thread
 and the caller combines them in their order: the results are bit for bit
 those of one thread.  Workers: ``min(2, os.cpu_count(), CPUs this process
 may run on)``; one when the problem is small (the threads' hand-over, about
-0.1 ms a call, would not pay), when the machine's load average already
-fills its cores, or when ``STRIPAERO_WORKERS`` says so (a positive integer:
+0.1 ms a call, would not pay), when the machine's other work already
+takes the other core (:func:`machine_busy`: a second thread then only
+splits this process's share, and waits for the other), or when ``STRIPAERO_WORKERS`` says so (a positive integer:
 at most that many, ``1`` one thread as before).  The worker lives only as
 long as the block, so no thread outlives an adjustment (a run forks its
 report process only when it is the only thread).
@@ -77,9 +78,6 @@ BLAS_THREADS_VARIABLE = "STRIPAERO_BLAS_THREADS"
 
 WORKERS_VARIABLE = "STRIPAERO_WORKERS"
 """Environment variable: most threads of the engine's kernels (default 2, ``1``: one)."""
-
-#: Load average from which the second thread is not used (two cores).
-LOADED = 2.5
 
 #: Fewest image observations (or rows) for which a second thread pays.
 MIN_PARALLEL_SIZE = 20_000
@@ -167,11 +165,34 @@ def _busy_cores() -> float:
         return 0.0
 
 
+def _others_running() -> int | None:
+    """Threads of the whole machine runnable at this moment besides the
+    caller (``/proc/loadavg``'s fourth field, less one); None where the
+    system does not say."""
+    try:
+        with open("/proc/loadavg", encoding="ascii") as f:
+            running = int(f.read().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return None
+    return max(running - 1, 0)
+
+
+def machine_busy(cores: int) -> bool:
+    """True when the other cores are taken: the one-minute load average above
+    ``cores - 0.5`` and, where the system says, another thread runnable at
+    this moment.  The moment's count keeps the load of this process's own
+    earlier work (a benchmark's loop) from counting as the others'."""
+    if _busy_cores() <= cores - 0.5:
+        return False
+    others = _others_running()
+    return others is None or others >= cores - 1
+
+
 def worker_count(size: int) -> int:
     """Threads for the kernels of a problem of `size` image observations:
     ``min(2, os.cpu_count(), CPUs of this process)``; 1 below
-    :data:`MIN_PARALLEL_SIZE`, or when the load average leaves no core idle
-    (unless ``STRIPAERO_WORKERS`` sets the number: then that many, at most
+    :data:`MIN_PARALLEL_SIZE`, or when the machine's other work takes the
+    other core (:func:`machine_busy`; unless ``STRIPAERO_WORKERS`` sets the number: then that many, at most
     the CPUs of this process).
 
     Raises
@@ -192,7 +213,7 @@ def worker_count(size: int) -> int:
                 "number of threads (unset it for the default: two where a second core is free)"
             )
         cores = min(cores, wanted)
-    elif _busy_cores() > LOADED:
+    elif cores > 1 and machine_busy(cores):
         return 1
     return 1 if size < MIN_PARALLEL_SIZE else cores
 
