@@ -753,7 +753,7 @@ def _round_statistics(
     tested = pt_used[obs.point]
     v_all = np.full((k_all, 2), np.nan)
     rows_t = _every_or(np.flatnonzero(tested), k_all)
-    rows = _every_or(rows, k_all)
+    sel = _every_or(rows, k_all)
     vv = image_vectors(
         res.centres[obs.photo[rows_t]],
         res.rotations[obs.photo[rows_t]],
@@ -767,9 +767,8 @@ def _round_statistics(
     r_img = np.full((k_all, 2), np.nan)
     exact = res.image_redundancy
     precise = compute_precision and np.isfinite(res.sigma0) and res.sigma0 > 0
-    n_rows = k_all if isinstance(rows, slice) else rows.size
-    if precise and exact.shape == (n_rows, 2) and np.all(np.isfinite(exact)):
-        r_img[rows] = np.clip(exact, 1e-12, 1.0)
+    if precise and exact.shape == (rows.size, 2) and np.all(np.isfinite(exact)):
+        r_img[sel] = np.clip(exact, 1e-12, 1.0)
         vinv_diag = np.full((pts.size, 3), np.nan)  # not needed: the cofactors are exact
     else:
         weight_sub = np.where(ctrl_on[pts], 1.0 / np.where(ctrl_on[pts], c_sig[pts], 1.0) ** 2, 0)
@@ -779,10 +778,10 @@ def _round_statistics(
         free = float(np.sum(1.0 - h_sub))
         n_photo = 6.0 * m + (0 if res.camera is None else len(res.camera.names))
         rho = max(_MIN_PHOTO_FACTOR, 1.0 - n_photo / free) if free > 0 else _MIN_PHOTO_FACTOR
-        r_img[rows] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
+        r_img[sel] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
     w_img = np.full((k_all, 2), np.nan)
-    w_img[rows] = v_all[rows] / (inp.sigma_img[rows, None] * np.sqrt(r_img[rows]))
-    w_img /= np.sqrt(robust_variance_factor(w_img[rows].ravel()))
+    w_img[sel] = v_all[sel] / (inp.sigma_img[sel, None] * np.sqrt(r_img[sel]))
+    w_img /= np.sqrt(robust_variance_factor(w_img[sel].ravel()))
 
     ctrl_res = np.full((p, 3), np.nan)
     ctrl_res[given] = np.where(pt_used[:, None], new_points, np.nan)[given] - inp.c_xyz[given]
