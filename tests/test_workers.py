@@ -23,7 +23,6 @@ from strip_aerotri._threads import (
     worker_count,
 )
 from strip_aerotri.blunders import BlunderOptions
-from strip_aerotri.bundle import adjust
 from strip_aerotri.bundle.snooping import refine_frame
 from strip_aerotri.errors import ConfigError
 from strip_aerotri.geometry import _normal_entries, collinearity
@@ -39,7 +38,6 @@ def two_workers(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(_threads, "MIN_PARALLEL_SIZE", 0)
     monkeypatch.setattr(_normal_entries, "BLOCK", 64)
     monkeypatch.setattr(collinearity, "_BLOCK", 64)
-    monkeypatch.setattr(adjust, "_ROWS", 64)
     monkeypatch.setenv(WORKERS_VARIABLE, "2")
 
 

@@ -33,8 +33,9 @@ those of one thread.  Workers: ``min(2, os.cpu_count(), CPUs this process
 may run on)``; one when the problem is small (the threads' hand-over, about
 0.1 ms a call, would not pay), when the machine's other work already
 takes the other core (:func:`machine_busy`: a second thread then only
-splits this process's share, and waits for the other), or when ``STRIPAERO_WORKERS`` says so (a positive integer:
-at most that many, ``1`` one thread as before).  The worker lives only as
+splits this process's share, and waits for the other), or when
+``STRIPAERO_WORKERS`` says so (a positive integer N: N threads at most two
+and the CPUs, whatever the load; ``1`` one thread).  The worker lives only as
 long as the block, so no thread outlives an adjustment (a run forks its
 report process only when it is the only thread).
 
@@ -192,8 +193,8 @@ def worker_count(size: int) -> int:
     """Threads for the kernels of a problem of `size` image observations:
     ``min(2, os.cpu_count(), CPUs of this process)``; 1 below
     :data:`MIN_PARALLEL_SIZE`, or when the machine's other work takes the
-    other core (:func:`machine_busy`; unless ``STRIPAERO_WORKERS`` sets the number: then that many, at most
-    the CPUs of this process).
+    other core (:func:`machine_busy`); ``STRIPAERO_WORKERS`` sets the number
+    instead (at most two and the CPUs of this process, whatever the load).
 
     Raises
     ------

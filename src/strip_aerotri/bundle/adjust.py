@@ -56,7 +56,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._threads import compute_workers, limit_blas_threads, split_map
+from .._threads import compute_workers, limit_blas_threads
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..geometry.camera_model import CameraModel
@@ -373,22 +373,6 @@ def _observed(prob: _Problem, state: _State) -> FloatArray:
     return out
 
 
-#: Rows per block of :func:`_rows_scaled`.
-_ROWS = 16384
-
-
-def _rows_scaled(a: FloatArray, scale: FloatArray) -> FloatArray:
-    """``a * scale[:, None, None]`` (K, r, c) in `a`'s memory layout, by blocks
-    of rows on the threads of ``_threads.compute_workers``."""
-    out = np.empty_like(a)
-
-    def block(at: slice) -> None:
-        np.multiply(a[at], scale[at, None, None], out=out[at])
-
-    split_map(block, [slice(lo, lo + _ROWS) for lo in range(0, a.shape[0], _ROWS)])
-    return out
-
-
 def _normals(prob: _Problem, state: _State) -> _Normals | None:
     """Linearise all observation equations at ``state`` and form the normal
     blocks; None when a point lies behind a photo.
@@ -397,21 +381,21 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     its sigma; control ``X - X_c`` (m, design identity); GNSS ``S - S_g`` (m,
     design identity on the centre); IMU ``log(R_imu.T R)`` (rad, design
     ``Jr^-1(e)`` on the rotation)."""
+    inv_s = 1.0 / prob.sigma
     xy, v, jac_photo, jac_point = collinearity_jacobians(
-        state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c
-    )
+        state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c, inv_s
+    )  # the Jacobians whitened
     if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
         return None  # a point behind a photo: no linearisation (the cost is infinite)
     res = xy - _observed(prob, state)
-    inv_s = 1.0 / prob.sigma
     border = None
     if prob.camera is not None:  # the camera's columns: d(x - (x_obs + Δ))/dθ = -dΔ/dθ
         border = -prob.camera.partials(prob.xy, state.camera) * inv_s[:, None, None]
     image = UnitPointRows(
         prob.photo,
         prob.point,
-        _rows_scaled(jac_photo, inv_s),
-        _rows_scaled(jac_point, inv_s),
+        jac_photo,
+        jac_point,
         res * inv_s[:, None],
         border_jacobian=border,
     )

@@ -177,104 +177,74 @@ def refine_frame(
     then solved again from the last solution, until nothing fails.
     """
     with compute_workers(int(np.asarray(observations.photo).size)):
-        return _refine_frame(
-            observations, centres0, rotations0, points0, control_xyz, control_sigma,
-            gnss_centres, gnss_sigma, imu_rotations, imu_sigma, blunders, max_iterations,
-            compute_precision, observation_used, control_used, gnss_axes, gnss_used,
-            imu_used, self_calibration, control_tested,
+        blunders = blunders or BlunderOptions()
+        obs = observations
+        inp = _inputs(
+            obs, centres0, rotations0, points0, control_xyz, control_sigma,
+            gnss_centres, gnss_sigma, imu_rotations, imu_sigma, gnss_axes,
         )  # fmt: skip
-
-
-def _refine_frame(
-    observations: ImageObservations,
-    centres0: ArrayLike,
-    rotations0: ArrayLike,
-    points0: ArrayLike,
-    control_xyz: ArrayLike | None,
-    control_sigma: ArrayLike | None,
-    gnss_centres: ArrayLike | None,
-    gnss_sigma: ArrayLike | None,
-    imu_rotations: ArrayLike | None,
-    imu_sigma: ArrayLike | None,
-    blunders: BlunderOptions | None,
-    max_iterations: int,
-    compute_precision: bool,
-    observation_used: ArrayLike | None,
-    control_used: ArrayLike | None,
-    gnss_axes: ArrayLike | None,
-    gnss_used: ArrayLike | None,
-    imu_used: ArrayLike | None,
-    self_calibration: SelfCalibration | None,
-    control_tested: bool,
-) -> FrameRefinement:
-    """The rounds of :func:`refine_frame` (its parameters, in order)."""
-    blunders = blunders or BlunderOptions()
-    obs = observations
-    inp = _inputs(
-        obs, centres0, rotations0, points0, control_xyz, control_sigma,
-        gnss_centres, gnss_sigma, imu_rotations, imu_sigma, gnss_axes,
-    )  # fmt: skip
-    sets = _Sets.start(inp, blunders, observation_used, control_used, gnss_used, imu_used)
-    sets.control_tested = control_tested
-    rejections: list[Rejection] = []
-    rounds = iterations = 0
-    previous_effect: int | None = None
-    state = (inp.centres0, inp.rotations0, inp.points0)
-    camera = _Camera.start(inp, sets, self_calibration, max_iterations)
-    first_control: tuple[IntArray, FloatArray, float] | None = None
-    while True:
-        pt_used = sets.used_points(inp)
-        sub, rows, pts = _compact(obs, sets.keep, pt_used)
-        res = _adjust(
-            inp,
-            sets,
-            sub,
-            pts,
-            state,
-            max_iterations=max_iterations,
-            compute_precision=compute_precision,
-            camera=camera.model,
-            camera0=camera.values,
-        )
-        rounds += 1
-        iterations += res.iterations
-        camera = camera.moved(res)
-        new_points = np.full((inp.n_points, 3), np.nan)
-        new_points[pts] = res.points
-        # keep initial values of dropped points for a possible later round
-        state = (res.centres, res.rotations, np.where(pt_used[:, None], new_points, inp.points0))
-        _sigma0_after(rejections, previous_effect, res.sigma0)
-        stats = _round_statistics(
-            inp, sets, res, new_points, pt_used, sub, rows, pts, compute_precision
-        )
-        result = _refinement(
-            _RoundOutcome(res, stats, new_points, pt_used, iterations, rounds),
-            sets,
-            camera,
-            obs,
-            rejections,
-        )
-        if not blunders.testing:
-            return result
-        failures = _failures(inp, sets, res, stats, blunders)
-        if first_control is None:
-            first_control = (*_control_w(sets, stats), failures.crit_ctrl)
-        if not failures.found:
-            return result
-        picks = _picks(failures, blunders, obs)
-        new_rejections = describe(obs, picks, failures, stats, res.sigma0, blunders)
-        if not blunders.rejecting:
-            return dataclasses.replace(result, rejections=tuple(rejections + new_rejections))
-        previous_effect = len(rejections)
-        rejections.extend(new_rejections)
-        sets.reject(picks)
-        if sets.control_over_limit(blunders) and _keep_systematic(
-            first_control, stats, rejections, obs, camera.model is not None
-        ):
-            rejections = kept_control(rejections)
-            sets.keep_control()
-            previous_effect = None
-        sets.check_fractions(inp, blunders)
+        sets = _Sets.start(inp, blunders, observation_used, control_used, gnss_used, imu_used)
+        sets.control_tested = control_tested
+        rejections: list[Rejection] = []
+        rounds = iterations = 0
+        previous_effect: int | None = None
+        state = (inp.centres0, inp.rotations0, inp.points0)
+        camera = _Camera.start(inp, sets, self_calibration, max_iterations)
+        first_control: tuple[IntArray, FloatArray, float] | None = None
+        while True:
+            pt_used = sets.used_points(inp)
+            sub, rows, pts = _compact(obs, sets.keep, pt_used)
+            res = _adjust(
+                inp,
+                sets,
+                sub,
+                pts,
+                state,
+                max_iterations=max_iterations,
+                compute_precision=compute_precision,
+                camera=camera.model,
+                camera0=camera.values,
+            )
+            rounds += 1
+            iterations += res.iterations
+            camera = camera.moved(res)
+            new_points = np.full((inp.n_points, 3), np.nan)
+            new_points[pts] = res.points
+            # keep initial values of dropped points for a possible later round
+            kept = np.where(pt_used[:, None], new_points, inp.points0)
+            state = (res.centres, res.rotations, kept)
+            _sigma0_after(rejections, previous_effect, res.sigma0)
+            stats = _round_statistics(
+                inp, sets, res, new_points, pt_used, sub, rows, pts, compute_precision
+            )
+            result = _refinement(
+                _RoundOutcome(res, stats, new_points, pt_used, iterations, rounds),
+                sets,
+                camera,
+                obs,
+                rejections,
+            )
+            if not blunders.testing:
+                return result
+            failures = _failures(inp, sets, res, stats, blunders)
+            if first_control is None:
+                first_control = (*_control_w(sets, stats), failures.crit_ctrl)
+            if not failures.found:
+                return result
+            picks = _picks(failures, blunders, obs)
+            new_rejections = describe(obs, picks, failures, stats, res.sigma0, blunders)
+            if not blunders.rejecting:
+                return dataclasses.replace(result, rejections=tuple(rejections + new_rejections))
+            previous_effect = len(rejections)
+            rejections.extend(new_rejections)
+            sets.reject(picks)
+            if sets.control_over_limit(blunders) and _keep_systematic(
+                first_control, stats, rejections, obs, camera.model is not None
+            ):
+                rejections = kept_control(rejections)
+                sets.keep_control()
+                previous_effect = None
+            sets.check_fractions(inp, blunders)
 
 
 def _sigma0_after(rejections: list[Rejection], since: int | None, sigma0: float) -> None:

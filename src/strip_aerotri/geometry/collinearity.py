@@ -107,8 +107,11 @@ def collinearity_jacobians(
     photo: IntArray,
     point: IntArray,
     principal_distance: float,
+    scale: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """The collinearity equations and their Jacobians (arguments as :func:`project`).
+    """The collinearity equations and their Jacobians (arguments as :func:`project`;
+    `scale` (K,), optional, multiplies each observation's two Jacobians, e.g.
+    ``1 / sigma`` to whiten them).
 
     Returns
     -------
@@ -154,6 +157,9 @@ def collinearity_jacobians(
         jo[1, 3] = f * vz + fv * vy
         jo[1, 4] = -fv * vx
         jo[1, 5] = -f * vx
+        if scale is not None:
+            jp *= scale[at]
+            jo *= scale[at]
 
     # blocks of observations on the threads of _threads.compute_workers
     split_map(block, [slice(lo, lo + _BLOCK) for lo in range(0, k, _BLOCK)])
