@@ -78,8 +78,6 @@ class Pattern:
     pair_keys: IntArray  # sorted keys point * n + position of the pairs
     row_unit: IntArray  # (G,) the unit-point rows' units, as given
     row_point: IntArray  # (G,) and points
-    unit_slot: IntArray  # (G,) place of each row among its unit's rows
-    rows_per_unit: int  # the most rows of one unit
     pair_row: IntArray | None  # (n_pairs,) the row of each pair when there is one each
     #: runs of the pairs by point (contiguous: no order), of the pairs by
     #: unit and of the rows by unit (None: the rows are sorted by unit), each
@@ -214,10 +212,6 @@ def build_pattern(
     ]
     pair_key = pp[old] * n + position[pu[old]]
     key_order = np.argsort(pair_key)
-    by_unit = np.argsort(row_unit, kind="stable")
-    counts = np.bincount(row_unit, minlength=n)
-    unit_slot = np.empty(row_unit.size, dtype=np.intp)
-    unit_slot[by_unit] = np.arange(row_unit.size) - np.repeat(np.cumsum(counts) - counts, counts)
     new_row_pair = renum[row_pair]
     pair_row: IntArray | None = None
     if row_pair.size == old.size:  # one row per pair
@@ -238,8 +232,6 @@ def build_pattern(
         pair_by_key=key_order.astype(np.intp),
         row_unit=row_unit,
         row_point=row_point,
-        unit_slot=unit_slot,
-        rows_per_unit=int(counts.max(initial=0)),
         pair_row=pair_row,
         point_runs=runs_of(pp[old]),
         pair_unit_runs=runs_of(pu[old]),
