@@ -10,7 +10,11 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import os
+import subprocess
+import sys
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -242,3 +246,26 @@ def test_two_threads_give_the_results_of_one_bit_for_bit(
     else:
         assert one.self_calibration is not None
     _assert_identical(two, one)
+
+
+def test_a_bad_number_of_threads_stops_a_refined_run_in_one_line(tmp_path: Path) -> None:
+    from strip_aerotri import simulate_strip
+
+    toml = simulate_strip(4, seed=1).write_project(tmp_path / "p")
+    text = toml.read_text(encoding="utf-8")
+    toml.write_text(text.replace("[adjustment]\n", '[adjustment]\nrefine = "bundle"\n', 1))
+    code = "import sys; from strip_aerotri.cli.main import cli; sys.exit(cli())"
+    done = subprocess.run(
+        [sys.executable, "-c", code, "run", str(toml)],
+        capture_output=True,
+        text=True,
+        env={**os.environ, WORKERS_VARIABLE: "two"},
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 1, done.stderr
+    assert done.stderr.strip() == (
+        f"stripaero: error: environment variable {WORKERS_VARIABLE}='two': expected a positive "
+        "number of threads (unset it for the default: two where a second core is free)"
+    )
+    assert not (toml.parent / "out").exists()
