@@ -118,9 +118,7 @@ _PHOTO_PARAMETER_NAMES = (
 )
 
 
-# ----------------------------------------------------------------------------
-# SO(3) kernels
-# ----------------------------------------------------------------------------
+# --- SO(3) kernels -----------------------------------------------------------
 
 
 def _right_jacobian_inv(e: FloatArray) -> FloatArray:
@@ -137,9 +135,7 @@ def _right_jacobian_inv(e: FloatArray) -> FloatArray:
     return np.eye(3) + 0.5 * k + coef[..., None, None] * (k @ k)
 
 
-# ----------------------------------------------------------------------------
-# Observation equations
-# ----------------------------------------------------------------------------
+# --- Observation equations ---------------------------------------------------
 
 
 def _imu_residual(rotations: FloatArray, imu_rotations: FloatArray) -> FloatArray:
@@ -150,9 +146,7 @@ def _imu_residual(rotations: FloatArray, imu_rotations: FloatArray) -> FloatArra
     return rotvec_from_matrix(np.einsum("mji,mjk->mik", imu_rotations, rotations))
 
 
-# ----------------------------------------------------------------------------
-# Problem data
-# ----------------------------------------------------------------------------
+# --- Problem data ------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -331,9 +325,7 @@ def _make_problem(
     )
 
 
-# ----------------------------------------------------------------------------
-# Normal equations
-# ----------------------------------------------------------------------------
+# --- Normal equations --------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -354,6 +346,7 @@ class _Normals:
     formed: FormedNormals
     cost: float
     residuals_mm: FloatArray  # (K, 2), computed - observed
+    depth: FloatArray  # (K,) -v_z of the rays: the points' depth below their photos
 
 
 @dataclass(frozen=True)
@@ -417,7 +410,7 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
         UnitRows(ip[:, None], imu_jac, e_imu, prob.imu_weight[ip]),
     )
     formed = prob.structure.form([image], photo_rows, [control])
-    return _Normals(image, control, photo_rows, formed, formed.cost, res)
+    return _Normals(image, control, photo_rows, formed, formed.cost, res, -v[:, 2])
 
 
 def _check_points(prob: _Problem, normals: _Normals, point_ids: tuple[str, ...]) -> None:
@@ -472,9 +465,7 @@ def _apply(state: _State, step: _Reduced) -> _State:
     )
 
 
-# ----------------------------------------------------------------------------
-# Datum
-# ----------------------------------------------------------------------------
+# --- Datum -------------------------------------------------------------------
 
 
 def _free_motions(prob: _Problem, state: _State) -> list[str]:
@@ -527,9 +518,7 @@ def _free_motions(prob: _Problem, state: _State) -> list[str]:
     return free
 
 
-# ----------------------------------------------------------------------------
-# Precision
-# ----------------------------------------------------------------------------
+# --- Precision ---------------------------------------------------------------
 
 
 def _residual_cofactor(weight: FloatArray, q_hat: FloatArray) -> FloatArray:
@@ -544,9 +533,7 @@ def _residual_cofactor(weight: FloatArray, q_hat: FloatArray) -> FloatArray:
     return np.where(used[:, :, None] & used[:, None, :], out, np.nan)
 
 
-# ----------------------------------------------------------------------------
-# Driver
-# ----------------------------------------------------------------------------
+# --- Driver ------------------------------------------------------------------
 
 
 @limit_blas_threads
@@ -702,15 +689,16 @@ def bundle_adjust(
                 f"Expected `camera0` of shape ({prob.n_camera},), got {start_camera.shape}"
             )
         state = _State(centres.copy(), rotations.copy(), points.copy(), start_camera.copy())
-        depth = _check_datum_and_sides(prob, state, observations)
+        _check_datum(prob, state)
+        with np.errstate(divide="ignore", invalid="ignore"):  # a point behind: told below
+            first = _normals(prob, state)
+        normals = _check_sides(prob, state, observations, first)
+        depth = float(np.median(normals.depth)) if normals.depth.size else 1.0
         redundancy = prob.n_observations - 6 * m - 3 * p - prob.n_camera
 
         def sigma0_of(cost: float) -> float:
             return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
 
-        normals = _normals(prob, state)
-        if normals is None:  # _check_datum_and_sides found every point in front
-            raise GeometryError("the collinearity equations are not defined at the initial values")
         _check_points(prob, normals, observations.point_ids)
         state, normals, history, iterations, converged = _iterate(
             prob, state, normals, depth, int(max_iterations), tolerance, observations, sigma0_of
@@ -734,10 +722,9 @@ def bundle_adjust(
                        converged)
 
 
-def _result(
-    prob: _Problem, state: _State, normals: _Normals, precision: _Precision, sigma0: float,
-    redundancy: int, history: list[float], iterations: int, converged: bool,
-) -> BundleResult:
+def _result(prob: _Problem, state: _State, normals: _Normals, precision: _Precision,
+            sigma0: float, redundancy: int, history: list[float], iterations: int,
+            converged: bool) -> BundleResult:
     """The adjustment's result from its last state, normals and precision."""
     control_used = prob.control_weight > 0
     return BundleResult(
@@ -802,12 +789,8 @@ def _checked_start(
     return centres, rotations, points
 
 
-def _check_datum_and_sides(
-    prob: _Problem, state: _State, observations: ImageObservations
-) -> float:
-    """GeometryError when the control, GNSS and IMU leave the datum free or a
-    point lies behind a photo at the start values; returns the median depth
-    of the points below their photos (the scale of the steps' test)."""
+def _check_datum(prob: _Problem, state: _State) -> None:
+    """GeometryError when the control, GNSS and IMU leave the datum free."""
     free = _free_motions(prob, state)
     if free:
         counts = (
@@ -821,15 +804,23 @@ def _check_datum_and_sides(
             "point, not all in one vertical plane (or GNSS centres plus control that fixes "
             "the roll about the strip axis)"
         )
+
+
+def _check_sides(
+    prob: _Problem, state: _State, observations: ImageObservations, normals: _Normals | None
+) -> _Normals:
+    """The normals at the start values, or GeometryError naming a point that
+    lies behind a photo there (or saying that the equations are not defined)."""
+    if normals is not None:
+        return normals
     _, v0 = project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
-    behind = ~(v0[:, 2] < 0.0)
-    if np.any(behind):
+    if np.any(behind := ~(v0[:, 2] < 0.0)):
         kk = int(np.flatnonzero(behind)[0])
         raise GeometryError(
             f"point '{observations.point_ids[prob.point[kk]]}' lies behind photo "
             f"'{observations.photo_ids[prob.photo[kk]]}' at the initial values"
         )
-    return float(np.median(-v0[:, 2])) if v0.size else 1.0
+    raise GeometryError("the collinearity equations are not defined at the initial values")
 
 
 def _iterate(
