@@ -210,8 +210,8 @@ def build_pattern(
     chunks = [
         dataclasses.replace(c, pair_start=int(renum[c.pair_start])) for c in chunks
     ]
-    pair_key = pp[old] * n + position[pu[old]]
-    key_order = np.argsort(pair_key)
+    # the pairs' keys point * n + position, sorted, are `upair` (the old
+    # numbering); the new number of each is `renum`
     new_row_pair = renum[row_pair]
     pair_row: IntArray | None = None
     if row_pair.size == old.size:  # one row per pair
@@ -228,8 +228,8 @@ def build_pattern(
         pair_point=pp[old],
         row_pair=new_row_pair,
         chunks=tuple(chunks),
-        pair_keys=pair_key[key_order],
-        pair_by_key=key_order.astype(np.intp),
+        pair_keys=upair.astype(np.intp),
+        pair_by_key=renum.astype(np.intp),
         row_unit=row_unit,
         row_point=row_point,
         pair_row=pair_row,
