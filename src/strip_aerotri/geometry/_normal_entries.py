@@ -62,12 +62,20 @@ def run_sums(values: FloatArray, runs: tuple[IntArray | None, IntArray, IntArray
     ``runs`` = (the order that makes the index's equal values contiguous, or
     None when it already is; the start of each run in that order; the value of
     each run).  Returns (n, *block), zero where the index has no entry."""
-    order, starts, seen = runs
     out = np.zeros((n, *values.shape[:-1]))
-    if starts.size:
-        ordered = values if order is None else take(values, order)
-        out[seen] = np.moveaxis(np.add.reduceat(ordered, starts, axis=-1), -1, 0)
+
+    def block(span: slice, places: slice | IntArray, first: IntArray, which: IntArray) -> None:
+        # a block of whole runs (blocks_of): each run summed as in one call
+        part = values[..., span] if isinstance(places, slice) else take(values, places)
+        out[which] = np.moveaxis(np.add.reduceat(part, first, axis=-1), -1, 0)
+
+    split_map(_star(block), blocks_of(runs, values.shape[-1]))
     return out
+
+
+def _star(function: Callable[..., None]) -> Callable[[tuple[object, ...]], None]:
+    """``function(*args)`` of one tuple ``args`` (for :func:`split_map`)."""
+    return lambda args: function(*args)
 
 
 class PairBlocks(NamedTuple):
