@@ -117,6 +117,32 @@ def test_split_map_combines_in_the_items_order(two_workers: None) -> None:
     assert seen == list(range(300))
 
 
+def test_a_sum_in_turn_is_the_same_whichever_thread_is_late(two_workers: None) -> None:
+    """Floating-point sums into one array, combined in the items' order: the
+    same bits as one thread's loop, with either thread held back at random."""
+    import time
+
+    rng = np.random.default_rng(2345)
+    parts = [rng.normal(size=500) * 10.0 ** rng.integers(-8, 8) for _ in range(60)]
+    delays = rng.uniform(0.0, 0.004, size=60)
+    serial = np.zeros(500)
+    for x in parts:
+        serial += x
+
+    def late(i: int) -> np.ndarray:
+        time.sleep(float(delays[i]))
+        return parts[i]
+
+    total = np.zeros(500)
+
+    def add(x: np.ndarray) -> None:
+        total[:] += x
+
+    with compute_workers(10**6):
+        split_map(late, list(range(60)), add)
+    np.testing.assert_array_equal(total, serial)
+
+
 def test_split_map_without_a_block_is_the_loop() -> None:
     assert split_map(str, [1, 2, 3]) == ["1", "2", "3"]
     seen: list[str] = []
