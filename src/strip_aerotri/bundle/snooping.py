@@ -961,7 +961,9 @@ def _compact(
     new_index[points] = np.arange(points.size)
     sub = ImageObservations(
         photo_ids=obs.photo_ids,
-        point_ids=tuple(obs.point_ids[i] for i in points),
+        point_ids=tuple(obs.point_ids)
+        if points.size == len(obs.point_ids)
+        else tuple(obs.point_ids[i] for i in points),
         photo=obs.photo[rows],
         point=new_index[obs.point[rows]],
         xy=obs.xy[rows],
