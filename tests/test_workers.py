@@ -14,6 +14,7 @@ import os
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -120,8 +121,6 @@ def test_split_map_combines_in_the_items_order(two_workers: None) -> None:
 def test_a_sum_in_turn_is_the_same_whichever_thread_is_late(two_workers: None) -> None:
     """Floating-point sums into one array, combined in the items' order: the
     same bits as one thread's loop, with either thread held back at random."""
-    import time
-
     rng = np.random.default_rng(2345)
     parts = [rng.normal(size=500) * 10.0 ** rng.integers(-8, 8) for _ in range(60)]
     delays = rng.uniform(0.0, 0.004, size=60)
@@ -243,6 +242,7 @@ def test_two_threads_give_the_results_of_one_bit_for_bit(
 
     def summed(*args):  # type: ignore[no-untyped-def]
         names.add(threading.current_thread().name)
+        time.sleep(0.0005)  # pieces long enough for the worker to start and take some
         return products(*args)
 
     monkeypatch.setattr(_normal_entries, "_summed", summed)
@@ -278,3 +278,30 @@ def test_a_bad_number_of_threads_stops_a_refined_run_in_one_line(tmp_path: Path)
         "number of threads (unset it for the default: two where a second core is free)"
     )
     assert not (toml.parent / "out").exists()
+
+
+def test_the_ground_stage_on_two_threads_gives_the_results_of_one(
+    monkeypatch: pytest.MonkeyPatch, two_workers: None
+) -> None:
+    """The engine's kernels open the threads themselves outside the bundle
+    (every model at once): the strip method's result to the last bit."""
+    sim = simulate_strip(
+        30, preset="drone", crs="local", seed=2, control="every_k_models", control_every=10,
+        image_blunders=2,
+    )  # fmt: skip
+    names: set[str] = set()
+    products = _normal_entries._summed
+
+    def summed(*args):  # type: ignore[no-untyped-def]
+        names.add(threading.current_thread().name)
+        time.sleep(0.0005)  # pieces long enough for the worker to start and take some
+        return products(*args)
+
+    monkeypatch.setattr(_normal_entries, "_summed", summed)
+    two = triangulate(sim.observations, sim.control, sim.crs)
+    assert any(name.startswith("strip_aerotri-worker") for name in names)
+    monkeypatch.setenv(WORKERS_VARIABLE, "1")
+    one = triangulate(sim.observations, sim.control, sim.crs)
+    for name in ("points", "photo_centres", "photo_opk"):
+        np.testing.assert_array_equal(getattr(two, name), getattr(one, name), err_msg=name)
+    assert [r.describe() for r in two.rejections] == [r.describe() for r in one.rejections]

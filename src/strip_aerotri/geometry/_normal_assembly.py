@@ -6,13 +6,14 @@ the band in the structure's order (position J holds unit ``order[J]``)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import functools
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TypeVar
+from typing import Concatenate, ParamSpec, TypeVar
 
 import numpy as np
 
-from .._threads import split_map
+from .._threads import compute_workers, split_map
 from .._typing import ArrayLike, FloatArray, IntArray
 from ._blockband import BandFactor, NotPositiveDefinite, factor_band, selected_inverse
 from ._normal_entries import (
@@ -45,6 +46,24 @@ from ._normal_rows import StructureLike as NormalStructure
 
 
 _A = TypeVar("_A", FloatArray, IntArray)
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _in_workers(
+    kernel: Callable[Concatenate[NormalStructure, _P], _R],
+) -> Callable[Concatenate[NormalStructure, _P], _R]:
+    """Run a kernel of structure `st` inside ``_threads.compute_workers``: the
+    bundle has it open already (its threads are used); elsewhere (the ground
+    stage, the block) the kernel opens its own for the call, by the same
+    rule, sized by the structure's unit-point rows."""
+
+    @functools.wraps(kernel)
+    def wrapped(st: NormalStructure, /, *args: _P.args, **kwargs: _P.kwargs) -> _R:
+        with compute_workers(st.pattern.row_unit.size):
+            return kernel(st, *args, **kwargs)
+
+    return wrapped
 
 
 def sum_into(index: IntArray, values: FloatArray, n: int) -> FloatArray:
@@ -74,6 +93,7 @@ def _add_blocks(
     blocks[uniq] += sum_into(inverse, values, uniq.size)
 
 
+@_in_workers
 def assemble(
     st: NormalStructure,
     unit_point_rows: Sequence[UnitPointRows],
@@ -297,20 +317,20 @@ def _schur_band(st: NormalStructure, band: FloatArray, z: FloatArray) -> FloatAr
     dd = d * d
     flat_blocks = band.reshape(n * w1, dd).copy()
 
-    def products(c: Chunk) -> tuple[Chunk, FloatArray]:
+    def products(c: Chunk) -> tuple[IntArray, FloatArray]:
         zc = _group_major(z, c, d)
         sums = zc @ np.swapaxes(zc, 1, 2)  # (G, qd, qd)
         blocks = sums.reshape(-1, c.q, d, c.q, d).transpose(0, 1, 3, 2, 4)[:, c.lower_a, c.lower_b]
-        return c, blocks.reshape(-1, dd)
-
-    def subtract(chunk_blocks: tuple[Chunk, FloatArray]) -> None:
-        c, blocks = chunk_blocks
         if c.scatter_unique is None or c.scatter_inverse is None:  # every target once
-            flat_blocks[c.scatter.reshape(-1)] -= blocks
-        else:  # summed over the chunk's blocks with the same target first
-            flat_blocks[c.scatter_unique] -= sum_into(
-                c.scatter_inverse, blocks, c.scatter_unique.size
-            )
+            return c.scatter.reshape(-1), blocks.reshape(-1, dd)
+        # summed over the chunk's blocks with the same target first
+        return c.scatter_unique, sum_into(
+            c.scatter_inverse, blocks.reshape(-1, dd), c.scatter_unique.size
+        )
+
+    def subtract(target_blocks: tuple[IntArray, FloatArray]) -> None:
+        target, blocks = target_blocks
+        flat_blocks[target] -= blocks
 
     # the chunks' products on the threads of _threads.compute_workers, their
     # sums into the band in the chunks' order (as in one thread)
@@ -318,6 +338,7 @@ def _schur_band(st: NormalStructure, band: FloatArray, z: FloatArray) -> FloatAr
     return flat_blocks.reshape(n, w1, d, d)
 
 
+@_in_workers
 def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Reduced:
     """Schur complement on the points, the banded factor, the border after
     the band, the step (units, points, border) and its predicted cost.
@@ -462,6 +483,7 @@ def predicted_cost(st: NormalStructure, red: Reduced) -> float:
     return normals.cost + 2.0 * lin + quad
 
 
+@_in_workers
 def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     """The selected inverse: the band of the units' block (with the border's
     share ``X T⁻¹ Xᵀ``), the border's blocks and per point
@@ -588,7 +610,8 @@ def leverage(cof: Cofactors, rows: Rows) -> FloatArray:
     st = cof.structure
     k = st.n_border
     if isinstance(rows, UnitPointRows):
-        return _pair_leverage(cof, rows)
+        with compute_workers(st.pattern.row_unit.size):
+            return _pair_leverage(cof, rows)
     if isinstance(rows, UnitRows):
         a, _, ab = rows.whitened(k, st.unit_size)
         units = np.asarray(rows.units, np.intp)
