@@ -59,7 +59,8 @@ def two_workers(monkeypatch: pytest.MonkeyPatch) -> None:
         ("", 2, 3.0, 2, 100_000, 1),  # loaded: the other core is taken
         ("", 2, 3.0, None, 100_000, 1),  # loaded, and the moment unknown
         ("", 2, 1.9, 0, 100_000, 2),  # the load of this process's own past work
-        ("", 2, 1.2, 3, 100_000, 2),  # a burst of others: the load average is low
+        ("", 2, 0.5, 3, 100_000, 2),  # a burst of others: the load average is low
+        ("", 2, 1.0, 1, 100_000, 1),  # one CPU-bound process beside this one
         ("1", 2, 0.0, 0, 100_000, 1),
         ("2", 2, 3.0, 2, 100_000, 2),  # asked for: the load is not read
         ("4", 1, 0.0, 0, 100_000, 1),  # never more than the CPUs

@@ -180,10 +180,12 @@ def _others_running() -> int | None:
 
 def machine_busy(cores: int) -> bool:
     """True when the other cores are taken: the one-minute load average above
-    ``cores - 0.5`` and, where the system says, another thread runnable at
-    this moment.  The moment's count keeps the load of this process's own
-    earlier work (a benchmark's loop) from counting as the others'."""
-    if _busy_cores() <= cores - 0.5:
+    ``cores - 1.25`` and, where the system says, another thread runnable at
+    this moment (one CPU-bound process beside this one is enough).  The
+    moment's count keeps the load of this process's own earlier work (a
+    benchmark's loop) from counting as the others', and the load average a
+    short process that happens to run at the moment."""
+    if _busy_cores() <= cores - 1.25:
         return False
     others = _others_running()
     return others is None or others >= cores - 1
