@@ -350,6 +350,30 @@ def test_control_blunders_in_a_block_are_found():
     assert result.check_statistics.rmse[2] < 1.5 * reference.check_statistics.rmse[2]
 
 
+def test_rejected_control_in_a_block_keeps_its_residual():
+    """A control point the block's tests reject is listed with its residual
+    (given - adjusted, about the planted error), as a strip's is; the control
+    statistics leave it out."""
+    kw: dict[str, Any] = {"preset": "film", "side_overlap": 0.2, "seed": 8}
+    sim = simulate_block(3, 10, **kw, control_blunders=2)
+    result = adjust_block(sim.observations, sim.control, sim.crs, specs(sim))
+    rejected = {r.point for r in result.rejections if r.stage == "control"}
+    assert rejected
+    ids = list(sim.observations.point_ids)
+    rows = result.control_index
+    for k, row in enumerate(rows):
+        pid = sim.control.point_ids[row]
+        if pid not in rejected:
+            continue
+        planted = sim.control.xyz[row] - sim.truth.points_crs[ids.index(pid)]
+        resid = result.control_residuals[k]
+        assert np.all(np.isfinite(resid[:2])), pid
+        assert np.hypot(*(resid[:2] - planted[:2])) < 0.3, (pid, resid, planted)
+    used = ~np.isin([sim.control.point_ids[r] for r in rows], sorted(rejected))
+    n_control = int(np.sum(used & ~result.is_check & result.used_xy))
+    assert result.control_statistics.n_plan == n_control
+
+
 def test_long_strips_by_one_similarity_stop_instead_of_rejecting_good_control():
     """Two drone strips of 100 photos: one similarity per strip cannot follow
     their bending, and a quarter of the (error-free) control would fail its

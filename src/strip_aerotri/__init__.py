@@ -48,7 +48,7 @@ if TYPE_CHECKING:  # the public names, for type checkers; at run time see __geta
         fit_deformation,
         polynomial_terms,
     )
-    from .geometry.camera_model import CameraModel
+    from .geometry.camera_model import CameraModel, ShutterMotion
     from .geometry.deformation_auto import KindSelection, select_kind_auto
     from .geometry.intersection import intersect, intersect_midpoint, intersect_normal
     from .geometry.normals import (
@@ -142,6 +142,7 @@ if TYPE_CHECKING:  # the public names, for type checkers; at run time see __geta
         StripResult,
         CameraEstimate,
         SelfCalibrationOutcome,
+        ShutterEstimate,
         VarianceComponents,
         VarianceGroup,
     )
@@ -195,7 +196,7 @@ _MODULES: dict[str, tuple[str, ...]] = {
         "fit_deformation",
         "polynomial_terms",
     ),
-    ".geometry.camera_model": ("CameraModel",),
+    ".geometry.camera_model": ("CameraModel", "ShutterMotion"),
     ".geometry.deformation_auto": ("KindSelection", "select_kind_auto"),
     ".geometry.intersection": ("intersect", "intersect_midpoint", "intersect_normal"),
     ".geometry.normals": (
@@ -289,6 +290,7 @@ _MODULES: dict[str, tuple[str, ...]] = {
         "StripResult",
         "CameraEstimate",
         "SelfCalibrationOutcome",
+        "ShutterEstimate",
         "VarianceComponents",
         "VarianceGroup",
     ),
@@ -353,6 +355,8 @@ __all__ = [
     "CameraModel",
     "SelfCalibration",
     "SelfCalibrationOutcome",
+    "ShutterEstimate",
+    "ShutterMotion",
     "VarianceComponents",
     "VarianceGroup",
     "Weights",

@@ -310,6 +310,18 @@ def _in_work_frame(p: _Problem, sol: _Solution) -> tuple[FloatArray, FloatArray,
     return res.points[:n_points], res.points[n_points:], rot_work
 
 
+def _keep_given(resid: FloatArray, p: _Problem) -> None:
+    """Blank the residuals (in place) of the coordinates the control does not
+    give (a plan point's dH, a height point's dE, dN); a rejected control
+    component keeps its residual, as a strip's does (``used_xy``, ``used_h``
+    say what was used)."""
+    given_xy = p.check | p.control.uses_xy[p.control_rows]
+    given_h = p.check | p.control.uses_h[p.control_rows]
+    resid[~given_xy, :2] = np.nan
+    resid[~given_h, 2] = np.nan
+    resid[np.isnan(p.given)] = np.nan
+
+
 def _refine(
     p: _Problem,
     sol: _Solution,
@@ -375,9 +387,7 @@ def _refine(
     resid = work.enu_from_work(given_work - points_work[p.idx])
     used_xy = use_xy & fr.control_used[p.idx, 0]
     used_z = use_z & fr.control_used[p.idx, 2]
-    resid[~(use_xy | p.check), :2] = np.nan
-    resid[~(use_z | p.check), 2] = np.nan
-    resid[np.isnan(p.given)] = np.nan
+    _keep_given(resid, p)
     used = resid.copy()
     used[~used_xy, :2] = np.nan
     used[~used_z, 2] = np.nan
@@ -424,9 +434,7 @@ def _products(
     rot_enu = work.rotations_to_enu(rot_work, centres)
     given_work = work.to_work(np.where(np.isnan(p.given), sol.guess, p.given))
     resid = work.enu_from_work(given_work - points_work[p.idx])
-    resid[~(use_xy | p.check), :2] = np.nan
-    resid[~(use_z | p.check), 2] = np.nan
-    resid[np.isnan(p.given)] = np.nan
+    _keep_given(resid, p)
     used = resid.copy()
     used[~use_xy, :2] = np.nan
     used[~use_z, 2] = np.nan

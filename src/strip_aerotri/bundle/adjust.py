@@ -59,7 +59,7 @@ import numpy as np
 from .._threads import compute_workers, limit_blas_threads
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
-from ..geometry.camera_model import CameraModel
+from ..geometry.camera_model import CameraModel, ShutterMotion
 from ..geometry.collinearity import collinearity_jacobians, project
 from ..geometry.normals import (
     FormedNormals,
@@ -73,7 +73,8 @@ from ..geometry.normals import (
 from ..geometry.rotation import matrix_from_rotvec, rotvec_from_matrix, skew
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
-from ..results import BundleResult, CameraEstimate
+from ..results import BundleResult, CameraEstimate, ShutterEstimate
+from ._given import along_axis_order, check_rotations, given_weights, observed_with_sigma
 from ._structures import structure_for
 
 __all__ = ["BundleResult", "CameraUndetermined", "bundle_adjust"]
@@ -170,10 +171,15 @@ class _Problem:
     gnss_photos: IntArray  # photos with a GNSS centre
     imu_photos: IntArray  # photos with an IMU attitude
     camera: CameraModel | None = None  # self-calibration: the border's parameters
+    motion: ShutterMotion | None = None  # rolling shutter: the border's last columns
 
     @property
     def n_camera(self) -> int:
         return 0 if self.camera is None else len(self.camera.estimated)
+
+    @property
+    def n_motion(self) -> int:
+        return 0 if self.motion is None else self.motion.n_unknowns
 
     @property
     def n_observations(self) -> int:
@@ -182,65 +188,6 @@ class _Problem:
             + np.count_nonzero(self.control_weight)
             + np.count_nonzero(self.gnss_weight)
             + np.count_nonzero(self.imu_weight)
-        )
-
-
-def _along_axis_order(centres: FloatArray) -> IntArray:
-    """The photos by their place along the main axis of their centres' plan:
-    along a strip the strip's order, in a block across the strips (the
-    classical numbering), so that the reduced normal matrix is narrow."""
-    xy = centres[:, :2] - centres[:, :2].mean(axis=0)
-    if xy.shape[0] < 2:
-        return np.arange(xy.shape[0], dtype=np.intp)
-    _, _, vt = np.linalg.svd(xy, full_matrices=False)
-    return np.argsort(xy @ vt[0], kind="stable").astype(np.intp)
-
-
-def observed_with_sigma(
-    values: ArrayLike,
-    sigma: ArrayLike | None,
-    shape: tuple[int, ...],
-    name: str,
-    sigma_name: str,
-) -> tuple[FloatArray, FloatArray]:
-    """Observations of ``shape`` (NaN where absent) and their standard
-    deviations, broadcast to (shape[0], 3): three per point or photo (the
-    coordinates of a point or centre, the angles of an attitude); `name` and
-    `sigma_name` are the arguments' names for the messages."""
-    vals = np.asarray(values, dtype=np.float64)
-    if vals.shape != shape:
-        raise ValueError(f"Expected `{name}` to have shape {shape}, got {vals.shape}")
-    if sigma is None:
-        raise ValueError(f"`{name}` given without its standard deviations (`{sigma_name}`)")
-    return vals, np.broadcast_to(np.asarray(sigma, dtype=np.float64), (shape[0], 3))
-
-
-def _weights(
-    values: ArrayLike | None,
-    sigma: ArrayLike | None,
-    shape: tuple[int, ...],
-    name: str,
-    sigma_name: str,
-) -> tuple[FloatArray, FloatArray]:
-    """Given values with NaN where absent and their sigmas -> (values 0-filled, weights)."""
-    if values is None:
-        return np.zeros(shape), np.zeros(shape)
-    vals, sig = observed_with_sigma(values, sigma, shape, name, sigma_name)
-    used = np.isfinite(vals) & np.isfinite(sig)
-    if np.any(sig[used] <= 0.0):
-        raise ValueError(f"Expected positive standard deviations for `{name}`")
-    weight = np.zeros(shape)
-    weight[used] = 1.0 / sig[used] ** 2
-    return np.where(used, vals, 0.0), weight
-
-
-def _check_rotations(rotations: FloatArray, name: str) -> None:
-    err = np.abs(np.einsum("...ji,...jk->...ik", rotations, rotations) - np.eye(3))
-    bad = ~np.all(err < 1e-6, axis=(-2, -1)) | ~(np.linalg.det(rotations) > 0.0)
-    if np.any(bad):
-        raise ValueError(
-            f"Expected `{name}` to hold proper rotation matrices, "
-            f"entry {int(np.flatnonzero(bad)[0])} is not"
         )
 
 
@@ -256,6 +203,7 @@ def _make_problem(
     imu_rotations: ArrayLike | None,
     imu_sigma: ArrayLike | None,
     camera: CameraModel | None = None,
+    motion: ShutterMotion | None = None,
 ) -> _Problem:
     m, p = centres.shape[0], points.shape[0]
     photo = np.asarray(obs.photo, dtype=np.intp)
@@ -275,8 +223,8 @@ def _make_problem(
     c = float(obs.principal_distance)
     if not (np.isfinite(c) and c > 0.0):
         raise ValueError(f"Expected a positive principal distance, got {c}")
-    cxyz, cw = _weights(control_xyz, control_sigma, (p, 3), "control_xyz", "control_sigma")
-    gxyz, gw = _weights(gnss_centres, gnss_sigma, (m, 3), "gnss_centres", "gnss_sigma")
+    cxyz, cw = given_weights(control_xyz, control_sigma, (p, 3), "control_xyz", "control_sigma")
+    gxyz, gw = given_weights(gnss_centres, gnss_sigma, (m, 3), "gnss_centres", "gnss_sigma")
     if imu_rotations is None:
         imu = np.broadcast_to(np.eye(3), (m, 3, 3)).copy()
         iw = np.zeros((m, 3))
@@ -286,14 +234,16 @@ def _make_problem(
         )
         present = np.all(np.isfinite(imu), axis=(1, 2))
         imu = np.where(present[:, None, None], imu, np.eye(3))
-        _check_rotations(imu, "imu_rotations")
+        check_rotations(imu, "imu_rotations")
         used = present[:, None] & np.isfinite(sig)
         if np.any(sig[used] <= 0.0):
             raise ValueError("Expected positive standard deviations for `imu_rotations`")
         iw = np.zeros((m, 3))
         iw[used] = 1.0 / sig[used] ** 2
-    along = _along_axis_order(centres)
-    n_border = 0 if camera is None else len(camera.estimated)
+    along = along_axis_order(centres)
+    n_border = (0 if camera is None else len(camera.estimated)) + (
+        0 if motion is None else motion.n_unknowns
+    )
     structure = structure_for(
         (m, p, photo, point, along, n_border, obs.photo_ids, obs.point_ids),
         lambda: NormalStructure.from_indices(
@@ -322,6 +272,7 @@ def _make_problem(
         gnss_photos=np.flatnonzero(np.any(gw > 0, axis=1)),
         imu_photos=np.flatnonzero(np.any(iw > 0, axis=1)),
         camera=camera,
+        motion=motion,
     )
 
 
@@ -334,6 +285,7 @@ class _State:
     rotations: FloatArray
     points: FloatArray
     camera: FloatArray = field(default_factory=lambda: np.zeros(0))  # (k,) increments
+    motion: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))  # (G, 3) m
 
 
 @dataclass(frozen=True)
@@ -346,7 +298,6 @@ class _Normals:
     formed: FormedNormals
     cost: float
     residuals_mm: FloatArray  # (K, 2), computed - observed
-    depth: FloatArray  # (K,) -v_z of the rays: the points' depth below their photos
 
 
 @dataclass(frozen=True)
@@ -375,23 +326,20 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     design identity on the centre); IMU ``log(R_imu.T R)`` (rad, design
     ``Jr^-1(e)`` on the rotation)."""
     inv_s = 1.0 / prob.sigma
-    xy, v, jac_photo, jac_point = collinearity_jacobians(
-        state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c, inv_s
-    )  # the Jacobians whitened
+    whitened = prob.motion is None  # the Jacobians whitened in the collinearity's blocks
+    xy, v, jac_photo, jac_point = _collinearity(prob, state, inv_s if whitened else None)
     if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
         return None  # a point behind a photo: no linearisation (the cost is infinite)
     res = xy - _observed(prob, state)
-    border = None
-    if prob.camera is not None:  # the camera's columns: d(x - (x_obs + Δ))/dθ = -dΔ/dθ
-        border = -prob.camera.partials(prob.xy, state.camera) * inv_s[:, None, None]
+    border = _border(prob, state, jac_photo)  # the motion's columns from unwhitened ones
+    if border is not None:
+        border *= inv_s[:, None, None]
+    if not whitened:
+        jac_photo, jac_point = jac_photo * inv_s[:, None, None], jac_point * inv_s[:, None, None]
     image = UnitPointRows(
-        prob.photo,
-        prob.point,
-        jac_photo,
-        jac_point,
-        res * inv_s[:, None],
+        prob.photo, prob.point, jac_photo, jac_point, res * inv_s[:, None],
         border_jacobian=border,
-    )
+    )  # fmt: skip
     cp = prob.control_points
     control = PointRows(
         cp,
@@ -410,7 +358,38 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
         UnitRows(ip[:, None], imu_jac, e_imu, prob.imu_weight[ip]),
     )
     formed = prob.structure.form([image], photo_rows, [control])
-    return _Normals(image, control, photo_rows, formed, formed.cost, res, -v[:, 2])
+    return _Normals(image, control, photo_rows, formed, formed.cost, res)
+
+
+def _collinearity(
+    prob: _Problem, state: _State, scale: FloatArray | None = None
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The collinearity equations and Jacobians (times `scale` per ray, if
+    given, without a shutter's motion); with a rolling shutter each ray from
+    its centre moved by ``s d_g`` (the point moved by the opposite, which is
+    the same ray)."""
+    if prob.motion is None:
+        return collinearity_jacobians(
+            state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c, scale
+        )
+    shift = prob.motion.centre_shift(state.motion, prob.photo, prob.motion.fractions(prob.xy))
+    ray_points = state.points[prob.point] - shift
+    rays = np.arange(prob.photo.size, dtype=np.intp)
+    return collinearity_jacobians(
+        state.centres, state.rotations, ray_points, prob.photo, rays, prob.c
+    )
+
+
+def _border(prob: _Problem, state: _State, jac_photo: FloatArray) -> FloatArray | None:
+    """The border's design columns (K, 2, k) before weighting: the camera's
+    ``d(x - (x_obs + Δ))/dθ = -dΔ/dθ``, then the motions' ``s dx/dS``."""
+    parts = []
+    if prob.camera is not None:
+        parts.append(-prob.camera.partials(prob.xy, state.camera))
+    if prob.motion is not None:
+        s = prob.motion.fractions(prob.xy)
+        parts.append(prob.motion.border(jac_photo[:, :, :3], prob.photo, s))
+    return np.concatenate(parts, axis=2) if parts else None
 
 
 def _check_points(prob: _Problem, normals: _Normals, point_ids: tuple[str, ...]) -> None:
@@ -435,6 +414,14 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
     try:
         solution = normals.formed.solve(lam)
     except SingularNormalsError as exc:
+        if exc.kind == "border" and exc.index >= prob.n_camera:
+            g, axis = divmod(exc.index - prob.n_camera, 3)
+            assert prob.motion is not None
+            raise GeometryError(
+                f"the rolling shutter's motion along {'XYZ'[axis]} of "
+                f"'{prob.motion.group_names[g]}' is not determined by the observations: its "
+                "photos' image points must spread over the rows read (leave the motion out)"
+            ) from None
         if exc.kind == "border" and prob.camera is not None:
             name = prob.camera.estimated[exc.index]
             raise CameraUndetermined(
@@ -457,11 +444,14 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
 
 
 def _apply(state: _State, step: _Reduced) -> _State:
+    k = state.camera.size
+    border = step.solution.border_step
     return _State(
         centres=state.centres + step.d_photo[:, :3],
         rotations=state.rotations @ matrix_from_rotvec(step.d_photo[:, 3:]),
         points=state.points + step.d_point,
-        camera=state.camera + step.solution.border_step if state.camera.size else state.camera,
+        camera=state.camera + border[:k] if k else state.camera,
+        motion=state.motion + border[k:].reshape(-1, 3) if state.motion.size else state.motion,
     )
 
 
@@ -554,6 +544,7 @@ def bundle_adjust(
     compute_precision: bool = True,
     camera: CameraModel | None = None,
     camera0: ArrayLike | None = None,
+    motion: ShutterMotion | None = None,
 ) -> BundleResult:
     """Least-squares bundle adjustment of a strip by the collinearity equations.
 
@@ -604,6 +595,10 @@ def bundle_adjust(
         equation is ``x(S, R, X) - (x_obs + Δ(x_obs; θ))``.
     camera0 : array_like, shape (k,), optional
         Start values of the camera parameters (default 0: the start camera).
+    motion : ShutterMotion, optional
+        A rolling shutter: one motion of the centre over the readout per
+        group of photos, estimated in the border after the camera's
+        (:mod:`strip_aerotri.bundle.shutter`; start 0).
 
     Returns
     -------
@@ -671,34 +666,19 @@ def bundle_adjust(
     with compute_workers(int(np.asarray(observations.photo).size)):
         m, p = centres.shape[0], points.shape[0]
         prob = _make_problem(
-            observations,
-            centres,
-            rotations,
-            points,
-            control_xyz,
-            control_sigma,
-            gnss_centres,
-            gnss_sigma,
-            imu_rotations,
-            imu_sigma,
-            camera,
+            observations, centres, rotations, points, control_xyz, control_sigma,
+            gnss_centres, gnss_sigma, imu_rotations, imu_sigma, camera, motion,
         )
-        start_camera = np.zeros(prob.n_camera) if camera0 is None else np.asarray(camera0, float)
-        if start_camera.shape != (prob.n_camera,):
-            raise ValueError(
-                f"Expected `camera0` of shape ({prob.n_camera},), got {start_camera.shape}"
-            )
-        state = _State(centres.copy(), rotations.copy(), points.copy(), start_camera.copy())
-        _check_datum(prob, state)
-        with np.errstate(divide="ignore", invalid="ignore"):  # a point behind: told below
-            first = _normals(prob, state)
-        normals = _check_sides(prob, state, observations, first)
-        depth = float(np.median(normals.depth)) if normals.depth.size else 1.0
-        redundancy = prob.n_observations - 6 * m - 3 * p - prob.n_camera
+        state = _start_state(prob, centres, rotations, points, camera0)
+        depth = _check_datum_and_sides(prob, state, observations)
+        redundancy = prob.n_observations - 6 * m - 3 * p - prob.n_camera - prob.n_motion
 
         def sigma0_of(cost: float) -> float:
             return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
 
+        normals = _normals(prob, state)
+        if normals is None:  # _check_datum_and_sides found every point in front
+            raise GeometryError("the collinearity equations are not defined at the initial values")
         _check_points(prob, normals, observations.point_ids)
         state, normals, history, iterations, converged = _iterate(
             prob, state, normals, depth, int(max_iterations), tolerance, observations, sigma0_of
@@ -718,36 +698,50 @@ def bundle_adjust(
                 stacklevel=2,
             )
         precision = _precision_products(prob, state, normals, sigma0, compute_precision)
-        return _result(prob, state, normals, precision, sigma0, redundancy, history, iterations,
-                       converged)
+        control_used = prob.control_weight > 0
+        return BundleResult(
+            centres=state.centres,
+            rotations=state.rotations,
+            points=state.points,
+            sigma0=sigma0,
+            redundancy=int(redundancy),
+            iterations=iterations,
+            converged=converged,
+            residuals_mm=normals.residuals_mm,
+            control_residuals=np.where(control_used, state.points - prob.control_xyz, np.nan),
+            point_std=precision.point_std,
+            centre_std=precision.centre_std,
+            rotation_std=precision.rotation_std,
+            history=np.asarray(history),
+            n_observations=prob.n_observations,
+            gnss_residuals=np.where(prob.gnss_weight > 0, state.centres - prob.gnss_xyz, np.nan),
+            imu_residuals=np.where(prob.imu_weight > 0, precision.imu_residuals, np.nan),
+            gnss_residual_cofactor=precision.gnss_cofactor,
+            imu_residual_cofactor=precision.imu_cofactor,
+            image_redundancy=precision.image_redundancy,
+            camera=precision.camera,
+            motion=precision.motion,
+        )
 
 
-def _result(prob: _Problem, state: _State, normals: _Normals, precision: _Precision,
-            sigma0: float, redundancy: int, history: list[float], iterations: int,
-            converged: bool) -> BundleResult:
-    """The adjustment's result from its last state, normals and precision."""
-    control_used = prob.control_weight > 0
-    return BundleResult(
-        centres=state.centres,
-        rotations=state.rotations,
-        points=state.points,
-        sigma0=sigma0,
-        redundancy=int(redundancy),
-        iterations=iterations,
-        converged=converged,
-        residuals_mm=normals.residuals_mm,
-        control_residuals=np.where(control_used, state.points - prob.control_xyz, np.nan),
-        point_std=precision.point_std,
-        centre_std=precision.centre_std,
-        rotation_std=precision.rotation_std,
-        history=np.asarray(history),
-        n_observations=prob.n_observations,
-        gnss_residuals=np.where(prob.gnss_weight > 0, state.centres - prob.gnss_xyz, np.nan),
-        imu_residuals=np.where(prob.imu_weight > 0, precision.imu_residuals, np.nan),
-        gnss_residual_cofactor=precision.gnss_cofactor,
-        imu_residual_cofactor=precision.imu_cofactor,
-        image_redundancy=precision.image_redundancy,
-        camera=precision.camera,
+def _start_state(
+    prob: _Problem,
+    centres: FloatArray,
+    rotations: FloatArray,
+    points: FloatArray,
+    camera0: ArrayLike | None,
+) -> _State:
+    """The first state: the given orientations and points, the camera at
+    ``camera0`` (default 0), no motion."""
+    start_camera = np.zeros(prob.n_camera) if camera0 is None else np.asarray(camera0, float)
+    if start_camera.shape != (prob.n_camera,):
+        raise ValueError(f"Expected `camera0` of shape ({prob.n_camera},), got {start_camera.shape}")
+    return _State(
+        centres.copy(),
+        rotations.copy(),
+        points.copy(),
+        start_camera.copy(),
+        np.zeros((prob.n_motion // 3, 3)),
     )
 
 
@@ -781,7 +775,7 @@ def _checked_start(
         )
     if not (np.all(np.isfinite(centres)) and np.all(np.isfinite(points))):
         raise ValueError("Expected finite `centres0` and `points0`")
-    _check_rotations(rotations, "rotations0")
+    check_rotations(rotations, "rotations0")
     if int(max_iterations) < 1:
         raise ValueError(f"Expected `max_iterations` >= 1, got {max_iterations}")
     if not tolerance > 0.0:
@@ -789,8 +783,12 @@ def _checked_start(
     return centres, rotations, points
 
 
-def _check_datum(prob: _Problem, state: _State) -> None:
-    """GeometryError when the control, GNSS and IMU leave the datum free."""
+def _check_datum_and_sides(
+    prob: _Problem, state: _State, observations: ImageObservations
+) -> float:
+    """GeometryError when the control, GNSS and IMU leave the datum free or a
+    point lies behind a photo at the start values; returns the median depth
+    of the points below their photos (the scale of the steps' test)."""
     free = _free_motions(prob, state)
     if free:
         counts = (
@@ -804,23 +802,15 @@ def _check_datum(prob: _Problem, state: _State) -> None:
             "point, not all in one vertical plane (or GNSS centres plus control that fixes "
             "the roll about the strip axis)"
         )
-
-
-def _check_sides(
-    prob: _Problem, state: _State, observations: ImageObservations, normals: _Normals | None
-) -> _Normals:
-    """The normals at the start values, or GeometryError naming a point that
-    lies behind a photo there (or saying that the equations are not defined)."""
-    if normals is not None:
-        return normals
     _, v0 = project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
-    if np.any(behind := ~(v0[:, 2] < 0.0)):
+    behind = ~(v0[:, 2] < 0.0)
+    if np.any(behind):
         kk = int(np.flatnonzero(behind)[0])
         raise GeometryError(
             f"point '{observations.point_ids[prob.point[kk]]}' lies behind photo "
             f"'{observations.photo_ids[prob.photo[kk]]}' at the initial values"
         )
-    raise GeometryError("the collinearity equations are not defined at the initial values")
+    return float(np.median(-v0[:, 2])) if v0.size else 1.0
 
 
 def _iterate(
@@ -908,6 +898,7 @@ class _Precision(NamedTuple):
     imu_cofactor: FloatArray  # (M, 3, 3)
     image_redundancy: FloatArray  # (K, 2)
     camera: CameraEstimate | None = None
+    motion: ShutterEstimate | None = None
 
 
 #: Share of a camera parameter's information left once photos and points are
@@ -945,21 +936,24 @@ def _precision_products(
     gnss_cofactor = np.full((m, 3, 3), np.nan)
     imu_cofactor = np.full((m, 3, 3), np.nan)
     image_redundancy = np.full((prob.photo.size, 2), np.nan)
-    camera = None
-    if compute_precision or prob.camera is not None:
+    camera, motion = None, None
+    if compute_precision or normals.image.border_jacobian is not None:
         cof = _solve(prob, normals, 0.0).solution.cofactors()
+    k = prob.n_camera
     if prob.camera is not None:
         border = normals.image.border_jacobian
         assert border is not None
         camera = CameraEstimate(
             model=prob.camera,
             values=state.camera,
-            cofactor=cof.border,
+            cofactor=cof.border[:k, :k],
             sigma0=sigma0,
-            information=np.einsum("kri,kri->i", border, border),
-            conditional_information=np.diag(np.linalg.inv(cof.border)),
+            information=np.einsum("kri,kri->i", border[:, :, :k], border[:, :, :k]),
+            conditional_information=np.diag(np.linalg.inv(cof.border[:k, :k])),
         )
         _check_camera(camera)
+    if prob.motion is not None:
+        motion = ShutterEstimate(prob.motion, state.motion, cof.border[k:, k:], sigma0)
     if compute_precision:
         q_blocks = cof.unit
         q_point = np.diagonal(cof.point, axis1=1, axis2=2)
@@ -985,4 +979,5 @@ def _precision_products(
         imu_cofactor,
         image_redundancy,
         camera,
+        motion,
     )

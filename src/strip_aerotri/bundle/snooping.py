@@ -22,13 +22,14 @@ from .._threads import compute_workers
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
 from ..errors import GeometryError
-from ..geometry.camera_model import CameraModel
+from ..geometry.camera_model import CameraModel, ShutterMotion
 from ..geometry.collinearity import image_jacobian, image_vectors
 from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
-from .adjust import bundle_adjust, observed_with_sigma
+from ._given import observed_with_sigma
+from .adjust import bundle_adjust
 from .photo_tests import _photo_flags, _photo_tests
 from .selfcal import ebner_base_mm, final_outcome, residual_cells, start_model
 
@@ -67,6 +68,7 @@ def refine_frame(
     imu_used: ArrayLike | None = None,
     self_calibration: SelfCalibration | None = None,
     control_tested: bool = True,
+    motion: ShutterMotion | None = None,
 ) -> FrameRefinement:
     """Bundle adjustment in a Cartesian frame with data snooping.
 
@@ -119,6 +121,10 @@ def refine_frame(
     control_tested : bool
         False: the control is not tested (an earlier call kept it for
         failing alike).
+    motion : ShutterMotion, optional
+        A rolling shutter's motion per group of photos, estimated in every
+        adjustment (``bundle_adjust``'s ``motion``); the image residuals
+        tested are those of the moved centres.
 
     Returns
     -------
@@ -182,7 +188,7 @@ def refine_frame(
         inp = _inputs(
             obs, centres0, rotations0, points0, control_xyz, control_sigma,
             gnss_centres, gnss_sigma, imu_rotations, imu_sigma, gnss_axes,
-        )  # fmt: skip
+        )._replace(motion=motion)  # fmt: skip
         sets = _Sets.start(inp, blunders, observation_used, control_used, gnss_used, imu_used)
         sets.control_tested = control_tested
         rejections: list[Rejection] = []
@@ -195,16 +201,9 @@ def refine_frame(
             pt_used = sets.used_points(inp)
             sub, rows, pts = _compact(obs, sets.keep, pt_used)
             res = _adjust(
-                inp,
-                sets,
-                sub,
-                pts,
-                state,
-                max_iterations=max_iterations,
-                compute_precision=compute_precision,
-                camera=camera.model,
-                camera0=camera.values,
-            )
+                inp, sets, sub, pts, state, max_iterations=max_iterations,
+                compute_precision=compute_precision, camera=camera.model, camera0=camera.values,
+            )  # fmt: skip
             rounds += 1
             iterations += res.iterations
             camera = camera.moved(res)
@@ -379,6 +378,7 @@ def _adjust(
         state[2][pts],
         camera=camera,
         camera0=camera0,
+        motion=inp.motion,
         control_xyz=np.where(sets.ctrl_on[pts], inp.c_xyz[pts], np.nan),
         control_sigma=np.where(sets.ctrl_on[pts], inp.c_sig[pts], np.inf),
         gnss_centres=None
@@ -481,6 +481,7 @@ class _Inputs(NamedTuple):
     i_rot: FloatArray | None
     i_sig: FloatArray
     i_given: BoolArray
+    motion: ShutterMotion | None = None  # a rolling shutter's groups, if estimated
 
 
 def _inputs(
@@ -724,10 +725,14 @@ def _round_statistics(
     v_all = np.full((k_all, 2), np.nan)
     rows_t = _every_or(np.flatnonzero(tested), k_all)
     sel = _every_or(rows, k_all)
+    ray_points = new_points[obs.point[rows_t]]
+    if res.motion is not None:  # a rolling shutter: each ray from its moved centre
+        shutter = res.motion.model
+        ray_points = ray_points - shutter.centre_shift(
+            res.motion.values, obs.photo[rows_t], shutter.fractions(obs.xy[rows_t])
+        )
     vv = image_vectors(
-        res.centres[obs.photo[rows_t]],
-        res.rotations[obs.photo[rows_t]],
-        new_points[obs.point[rows_t]],
+        res.centres[obs.photo[rows_t]], res.rotations[obs.photo[rows_t]], ray_points
     )
     v_all[rows_t] = -obs.principal_distance * vv[:, :2] / vv[:, 2:3] - obs.xy[rows_t]
     if res.camera is not None:  # computed minus corrected observed
@@ -747,6 +752,7 @@ def _round_statistics(
         )
         free = float(np.sum(1.0 - h_sub))
         n_photo = 6.0 * m + (0 if res.camera is None else len(res.camera.names))
+        n_photo += 0 if res.motion is None else res.motion.values.size
         rho = max(_MIN_PHOTO_FACTOR, 1.0 - n_photo / free) if free > 0 else _MIN_PHOTO_FACTOR
         r_img[sel] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
     w_img = np.full((k_all, 2), np.nan)

@@ -42,6 +42,25 @@ coordinates:
   defining property of the set (tested).  The parameters are dimensionless
   (e1, e2), mm^-1 (e3-e6), mm^-2 (e7-e10) and mm^-3 (e11, e12).
 
+* **Rolling shutter** (:class:`ShutterMotion`; Vautherin et al. 2016): a
+  rolling-shutter sensor reads its rows one after the other, and the row read
+  at the fraction ``t`` of the readout (0 the first row, 1 the last) sees the
+  projection centre moved by ``d (t - 1/2)`` from where it is at the middle
+  row, ``d`` (metres, frame axes) the centre's displacement over the whole
+  readout (speed times readout time).  Vautherin et al. model it per photo
+  with a translation and a small rotation; here one ``d`` per group of
+  photos (a strip, flown at a steady speed and heading), translation only.
+  The collinearity equation of an observation on photo ``j`` of group ``g``
+  is ``x(S_j + s d_g, R_j, X)`` with ``s = t - 1/2``, so ``dx/dd_g = s
+  dx/dS_j``: the centre's columns of the collinearity Jacobian times ``s``,
+  three columns per group in the dense border of the normal equations
+  (method.md 6B).  Rows are read along the sensor's y axis from the top (y
+  up, so ``s = -ȳ / h``, ``ȳ`` the image y from the principal point and
+  ``h`` the extent of the rows read, mm).  Over flat ground a motion along
+  the rows (forward, when the flight runs along image y) acts on the image
+  as an affinity, which b1 also takes; lateral and vertical motion, and
+  speeds that differ per strip, do not.
+
 Coordinates are in the sensor axes (x right, y up, mm, reduced to the start
 principal point); :class:`CameraModel` takes and returns the method's
 flight axes and turns them into the sensor's and back.
@@ -52,6 +71,9 @@ Fraser, C. S. (1997). Digital camera self-calibration. ISPRS Journal of
 Photogrammetry and Remote Sensing 52(4), 149-159.
 Ebner, H. (1976). Self calibrating block adjustment. Bildmessung und
 Luftbildwesen 44, 128-139.
+Vautherin, J., Rutishauser, S., Schneider-Zapp, K., Choi, H. F.,
+Chovancova, V., Glass, A., Strecha, C. (2016). Photogrammetric accuracy and
+modeling of rolling shutter cameras. ISPRS Annals III-3, 139-146.
 """
 
 from __future__ import annotations
@@ -60,13 +82,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._typing import ArrayLike, FloatArray
+from .._typing import ArrayLike, FloatArray, IntArray
 
 __all__ = [
     "BROWN_PARAMETERS",
     "EBNER_PARAMETERS",
     "PARAMETER_UNITS",
     "CameraModel",
+    "ShutterMotion",
     "brown_correction",
     "brown_partials",
     "brown_xy_partials",
@@ -332,3 +355,69 @@ class CameraModel:
             jac = ebner_xy_partials(s, full, self.base_mm)
         out: FloatArray = self.flight_matrix @ jac @ self.flight_matrix.T
         return out
+
+
+@dataclass(frozen=True)
+class ShutterMotion:
+    """Which photos share a readout motion, and how the rows are read.
+
+    Attributes
+    ----------
+    group : ndarray of int, shape (M,)
+        The group (strip) of each photo, ``0 .. len(group_names) - 1``.
+    group_names : tuple of str
+        A name per group (the strips' names).
+    readout_mm : float
+        The extent of the rows read (mm along the sensor's y axis: the
+        format's height).
+    flight_matrix : ndarray, shape (2, 2)
+        The image coordinates the bundle takes (flight axes) as combinations
+        of the sensor's (as :class:`strip_aerotri.geometry.camera_model.CameraModel`).
+    """
+
+    group: IntArray
+    group_names: tuple[str, ...]
+    readout_mm: float
+    flight_matrix: FloatArray = field(default_factory=lambda: np.eye(2))
+
+    def __post_init__(self) -> None:
+        group = np.asarray(self.group, dtype=np.intp)
+        n = len(self.group_names)
+        if group.ndim != 1 or (group.size and (group.min() < 0 or group.max() >= n)):
+            raise ValueError(f"Expected photo groups in 0..{n - 1}, got {group!r}")
+        if not (np.isfinite(self.readout_mm) and self.readout_mm > 0.0):
+            raise ValueError(f"Expected a positive readout extent, got {self.readout_mm!r}")
+        object.__setattr__(self, "group", group)
+
+    @property
+    def n_groups(self) -> int:
+        """The number of groups."""
+        return len(self.group_names)
+
+    @property
+    def n_unknowns(self) -> int:
+        """Three per group."""
+        return 3 * self.n_groups
+
+    def fractions(self, xy: FloatArray) -> FloatArray:
+        """``s = t - 1/2`` (K,) of image observations ``xy`` (K, 2; flight
+        axes, mm from the principal point): -1/2 at the first row, +1/2 at the
+        last."""
+        sensor_y = (np.asarray(xy, dtype=np.float64) @ self.flight_matrix)[:, 1]
+        out: FloatArray = -sensor_y / self.readout_mm
+        return out
+
+    def centre_shift(self, motion: FloatArray, photo: IntArray, s: FloatArray) -> FloatArray:
+        """The centre's displacement ``s d_g`` (K, 3), m, at each observation
+        (``motion`` (G, 3), ``photo`` (K,) its photo, ``s`` its fraction)."""
+        out: FloatArray = s[:, None] * np.asarray(motion, dtype=np.float64)[self.group[photo]]
+        return out
+
+    def border(self, jac_centre: FloatArray, photo: IntArray, s: FloatArray) -> FloatArray:
+        """The design columns (K, 2, 3 G) of the motions: ``s dx/dS`` in the
+        three columns of the observation's group, zero elsewhere
+        (``jac_centre`` (K, 2, 3) the collinearity Jacobian by the centre)."""
+        k = photo.size
+        out = np.zeros((k, 2, self.n_groups, 3))
+        out[np.arange(k), :, self.group[photo], :] = jac_centre * s[:, None, None]
+        return out.reshape(k, 2, self.n_unknowns)

@@ -17,6 +17,7 @@ from .bundle import (
     RefinedResult,
     ResidualCells,
     SelfCalibrationOutcome,
+    ShutterEstimate,
     VarianceComponents,
     VarianceGroup,
 )
@@ -39,6 +40,7 @@ __all__ = [
     "RefinedResult",
     "ResidualCells",
     "SelfCalibrationOutcome",
+    "ShutterEstimate",
     "Rejection",
     "RelativeOrientation",
     "StripJoin",

@@ -8,7 +8,7 @@ import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..frames import LocalTangentFrame
-from ..geometry.camera_model import CameraModel
+from ..geometry.camera_model import CameraModel, ShutterMotion
 from .common import AccuracyStatistics, Rejection
 
 __all__ = [
@@ -21,6 +21,7 @@ __all__ = [
     "RefinedResult",
     "ResidualCells",
     "SelfCalibrationOutcome",
+    "ShutterEstimate",
     "VarianceComponents",
     "VarianceGroup",
 ]
@@ -176,6 +177,41 @@ class SelfCalibrationOutcome:
 
 
 @dataclass(frozen=True)
+class ShutterEstimate:
+    """The rolling shutter's motion estimated with the block (bundle/shutter.py).
+
+    Attributes
+    ----------
+    model : ShutterMotion
+        The groups of photos (strips) sharing one motion, and how the rows
+        are read.
+    values : ndarray, shape (G, 3)
+        The projection centre's displacement over the whole readout of a
+        photo, metres along the adjustment frame's X, Y, Z.
+    cofactor : ndarray, shape (3 G, 3 G)
+        Their cofactor matrix (the block of ``N^-1``), group by group.
+    sigma0 : float
+        The adjustment's sigma0.
+    """
+
+    model: ShutterMotion
+    values: FloatArray
+    cofactor: FloatArray
+    sigma0: float
+
+    @property
+    def group_names(self) -> tuple[str, ...]:
+        """The groups' names."""
+        return self.model.group_names
+
+    @property
+    def std(self) -> FloatArray:
+        """Standard deviations (G, 3), metres."""
+        out: FloatArray = self.sigma0 * np.sqrt(np.diag(self.cofactor)).reshape(-1, 3)
+        return out
+
+
+@dataclass(frozen=True)
 class BundleResult:
     """Result of :func:`bundle_adjust`.
 
@@ -241,6 +277,8 @@ class BundleResult:
         precision is not computed.
     camera : CameraEstimate or None
         The self-calibrated camera (None without self-calibration).
+    motion : ShutterEstimate or None
+        The rolling shutter's motion per group of photos (None without it).
     """
 
     centres: FloatArray
@@ -263,6 +301,7 @@ class BundleResult:
     imu_residual_cofactor: FloatArray
     image_redundancy: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
     camera: CameraEstimate | None = None
+    motion: ShutterEstimate | None = None
 
 
 @dataclass(frozen=True)
