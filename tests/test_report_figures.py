@@ -183,3 +183,28 @@ def test_the_figures_artists_do_not_grow_with_the_strip(caught):
     # per bar would add 2 artists a pair, 160 from 20 to 100 photos), lines beyond
     for k in (2, 3):
         assert counts[100][k] - counts[20][k] <= 80, (k, counts)
+
+
+def test_control_point_not_determined_is_drawn_without_numpy_warnings():
+    """A control point the adjustment left undetermined (NaN, e.g. a bundle
+    that rejected its rays) has no meridian convergence: the figures' data
+    are built without numpy's "invalid value" warnings reaching the user,
+    and the determined points keep pyproj's convergence."""
+    import dataclasses
+
+    from strip_aerotri.report.figures import Plan, figure_data
+    from strip_aerotri.report.record import model_records
+
+    result = _strip_result(6, seed=0, crs="EPSG:2180")
+    idx, _ = figures.control_rows(result)
+    points = np.array(result.ground.points)
+    points[idx[0]] = np.nan
+    lost = dataclasses.replace(result, ground=dataclasses.replace(result.ground, points=points))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        data = figure_data(lost, model_records(lost))
+        gamma = Plan(lost).convergence(lost, points[idx])
+    assert data.control is not None
+    assert gamma[0] == 0.0
+    expected = result.ground.crs.meridian_convergence(points[idx[1:]])
+    assert np.allclose(gamma[1:], expected) and np.all(np.abs(expected) > 1e-3)

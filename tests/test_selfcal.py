@@ -497,3 +497,49 @@ def test_auto_with_estimated_weights_keeps_its_choice_and_reasons() -> None:
     for par in sc.parameters:
         if par.kept:
             assert abs(par.value - _DRONE_ERRORS[par.name]) < 3.0 * par.std, par
+
+
+def test_auto_that_keeps_nothing_still_reports_its_choice() -> None:
+    """An error-free 6-photo film strip in a projected CRS: "auto" holds every
+    parameter and the second plan/height pass adjusts without a camera; the
+    outcome still names every candidate held, with its reason, and the
+    warning says so (the second pass used to drop the outcome: no
+    self-calibration section, no camera.toml)."""
+    from strip_aerotri.pipeline import triangulate
+    from strip_aerotri.simulate import simulate_strip
+
+    sim = simulate_strip(6, preset="film", crs="EPSG:32634", seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = triangulate(
+            sim.observations, sim.control, sim.crs, refine="bundle",
+            self_calibration=SelfCalibration("auto"),
+        )  # fmt: skip
+    assert res.refined is not None
+    sc = res.refined.self_calibration
+    assert sc is not None and sc.kept == ()
+    held = {p.name: p.reason for p in sc.parameters}
+    assert set(held) == set(BROWN_PARAMETERS)
+    assert "flying height" in held["c"] and all(held.values())
+    assert any("self-calibration held" in w for w in res.warnings)
+
+
+def test_auto_trials_do_not_warn_of_their_convergence() -> None:
+    """The trials of "auto" with c, x0 and y0 (correlation 1 with the
+    orientation on a flat drone strip) run out of iterations; that is what
+    holds them, and the delivered adjustment converges: no warning of a
+    bundle adjustment that did not converge reaches the user."""
+    from strip_aerotri.pipeline import triangulate
+    from strip_aerotri.simulate import simulate_strip
+
+    sim = simulate_strip(12, preset="drone", crs="EPSG:32634", seed=0)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        res = triangulate(
+            sim.observations, sim.control, sim.crs, refine="bundle",
+            self_calibration=SelfCalibration("auto"),
+        )  # fmt: skip
+    assert res.refined is not None and res.refined.converged
+    assert res.refined.self_calibration is not None
+    assert not [w for w in seen if "did not converge" in str(w.message)]
+    assert not [w for w in res.warnings if "did not converge" in w]

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any, Literal
 
 import numpy as np
@@ -45,7 +46,7 @@ from .options import (
     StripOptions,
     Weights,
 )
-from .plausibility import control_problems
+from .plausibility import control_coverage_problems, control_problems, image_sigma_problems
 from .results import AccuracyStatistics, BlockResult, GroundResult, StripModel, StripResult
 from .strip.densify import form_strip_stepped
 
@@ -165,6 +166,7 @@ def triangulate(
     mirrored = control_problems(observations, control, crs, file=control_name)
     if mirrored:
         raise GeometryError(mirrored[0])
+    warnings = [*warnings, *control_coverage_problems(observations, control, file=control_name)]
     say(
         f"forming the strip: {observations.n_photos} photos, "
         f"{len(observations.photo)} observations"
@@ -174,10 +176,12 @@ def triangulate(
     )
     timings["strip_formation"] = time.perf_counter() - t0
     t1 = time.perf_counter()
+    sigma_notes = image_sigma_problems(strip.relative.sigma0_um, observations.sigma)
+    warnings = [*warnings, *sigma_notes]
     # the stages' warnings name self-calibration as under way when the bundle does it
     with self_calibration_follows(
         self_calibration is not None and options.refine is Refine.BUNDLE
-    ):
+    ), _likely_cause(sigma_notes):
         if ground_options.construction is Construction.MODELS:
             from .ground.models import adjust_models_to_ground
 
@@ -269,6 +273,18 @@ def _run_options(
     return options, options.ground_options()
 
 
+@contextmanager
+def _likely_cause(notes: Sequence[str]) -> Iterator[None]:
+    """A geometry error raised within names the first of ``notes`` (a doubt
+    about the input found earlier) as its likely cause."""
+    try:
+        yield
+    except GeometryError as exc:
+        if not notes or type(exc) is not GeometryError:
+            raise
+        raise GeometryError(f"{exc}; likely cause: {notes[0]}") from exc
+
+
 def _strip_warnings(
     observations: ImageObservations,
     strip: StripModel,
@@ -279,25 +295,21 @@ def _strip_warnings(
     rejection, the control points left out and the points not triangulated."""
     notes = list(warnings) + list(strip.break_warnings)
     notes += [r.describe() for r in strip.rejections + ground.rejections]
-    failed_ties = set(strip.rejected_points)
+    why = strip.lost_to_blunder_tests()
     notes += [
         f"control point {p!r} is not triangulated ("
-        + (
-            "every determination of it failed the tie-point test, see the tie_points rejections"
-            if p in failed_ties
-            else "seen on fewer than two photos of a model"
-        )
+        + why.get(p, "seen on fewer than two photos of a model")
         + "): left out"
         for p in ground.left_out
     ]
-    not_seen = np.flatnonzero(~np.isfinite(ground.points).all(axis=1))
-    if not_seen.size:
-        names = ", ".join(repr(observations.point_ids[i]) for i in not_seen[:5])
-        more = f" and {not_seen.size - 5} more" if not_seen.size > 5 else ""
-        notes.append(
-            f"{not_seen.size} point(s) not triangulated (seen on fewer than two photos): "
-            f"{names}{more}"
-        )
+    lost = np.flatnonzero(~np.isfinite(ground.points).all(axis=1))
+    ids = [observations.point_ids[i] for i in lost]
+    for cause in ("seen on fewer than two photos", "their observations failed the blunder tests"):
+        group = [p for p in ids if (p in why) == cause.startswith("their")]
+        if group:
+            names = ", ".join(map(repr, group[:5]))
+            more = f" and {len(group) - 5} more" if len(group) > 5 else ""
+            notes.append(f"{len(group)} point(s) not triangulated ({cause}): {names}{more}")
     return notes
 
 
@@ -393,8 +405,11 @@ def triangulate_block(
             self_calibration=self_calibration,
             variance_components=options.weights is Weights.ESTIMATED,
         )
+    sigma = image_sigma_problems(
+        np.concatenate([strip.relative.sigma0_um for strip in result.strips]), observations.sigma
+    )
     result = dataclasses.replace(
-        result, warnings=tuple(warnings) + result.warnings, options=options
+        result, warnings=(*warnings, *sigma, *result.warnings), options=options
     )
     return _block_without_weak_checks(result, crs)
 

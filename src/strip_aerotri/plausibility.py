@@ -19,6 +19,12 @@ messages (``stripaero check`` lists them all; a run stops at the first):
   reflection than without.  A near-vertical photo maps its image (x along
   the flight, y to the left, right-handed with z up) onto east-north-up by
   a rotation, never by a reflection;
+* :func:`control_coverage_problems` — a warning, not a stop: strip ends
+  beyond the outermost plan or height control, where the strip is
+  extrapolated;
+* :func:`image_sigma_problems` — a warning, not a stop: an image sigma
+  far from the scatter of the pairs' own y-parallaxes (micrometres or
+  pixels written where millimetres are read);
 * :func:`control_degree_problems` — control given in degrees (longitude,
   latitude) under a projected CRS: every plan coordinate within ±180, ±90,
   spanning less than a few units (a few metres: no strip's control), and
@@ -47,9 +53,11 @@ __all__ = [
     "MAX_IMAGE_RADIUS_MM",
     "control_degree_problems",
     "control_distance_problems",
+    "control_coverage_problems",
     "control_handedness_problems",
     "flight_axis_message",
     "image_coordinate_problems",
+    "image_sigma_problems",
     "photo_order_message",
     "ray_direction_problems",
 ]
@@ -588,4 +596,96 @@ def control_degree_problems(
         f"projected, in metres: as metres the plan control spans {span:.3g} m{where}; give "
         f"X, Y as {given} eastings and northings, or set [control] crs to the geographic "
         'CRS of the degrees (e.g. "EPSG:4326", WGS 84 longitude and latitude)'
+    ]
+
+
+#: A strip may run this many photos, or this fraction of its photos, beyond
+#: its outermost plan or height control before the run warns (R4's layout
+#: has full points in the first and the last model).
+_END_PHOTOS = 2
+_END_FRACTION = 0.1
+
+
+def control_coverage_problems(
+    observations: ImageObservations, control: ControlPoints, file: str = "control"
+) -> list[str]:
+    """Warnings for a strip's ends that its plan or its height control does
+    not reach (photos in flight order, ``observations.photo_ids``).
+
+    A control point reaches the photos it is measured on; an end is
+    extrapolated when more than ``max(_END_PHOTOS, _END_FRACTION (M - 1))``
+    photos lie beyond the outermost control of a kind.  Errors grow fast
+    beyond the last control (with the square to the cube of the distance
+    along a strip), which a check point there shows but nothing else does.
+    """
+    m = observations.n_photos
+    lookup = {pid: i for i, pid in enumerate(observations.point_ids)}
+    point = np.array([lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
+    first = np.full(observations.n_points, m, dtype=np.intp)
+    last = np.full(observations.n_points, -1, dtype=np.intp)
+    np.minimum.at(first, observations.point, observations.photo)
+    np.maximum.at(last, observations.point, observations.photo)
+    seen = point >= 0
+    seen[seen] = first[point[seen]] < last[point[seen]]  # on two photos at least
+    slack = max(_END_PHOTOS, _END_FRACTION * (m - 1))
+    reach: dict[tuple[int, int], list[str]] = {}
+    for kind, uses in (("plan", control.uses_xy), ("height", control.uses_h)):
+        rows = point[seen & uses]
+        if rows.size == 0:
+            continue  # no control of this kind at all: the adjustment says so
+        lo, hi = int(first[rows].min()), int(last[rows].max())
+        if lo > slack or m - 1 - hi > slack:
+            reach.setdefault((lo, hi), []).append(kind)
+    ids = observations.photo_ids
+    return [
+        f"{file}: the {' and '.join(kinds)} control "
+        f"{'reach' if len(kinds) > 1 else 'reaches'} photos {ids[lo]} to {ids[hi]} "
+        f"of the strip's {ids[0]} to {ids[-1]}: the {lo + m - 1 - hi} photos beyond are "
+        "extrapolated, and a strip's errors grow fast beyond its last control; add full "
+        "control points at both ends of the strip (R4: in the first and the last model)"
+        for (lo, hi), kinds in reach.items()
+    ]
+
+
+#: The image sigma given may be this many times the scatter of the pairs'
+#: y-parallaxes, or this many times smaller, before the run warns: the
+#: weights, sigma0 and every blunder test rest on it.
+_SIGMA_FACTOR = 5.0
+
+
+def image_sigma_problems(pair_sigma_um: ArrayLike, sigma_mm: ArrayLike) -> list[str]:
+    """A warning when the image sigma given (``sigma_mm``, every
+    observation's, mm) is far from what the relative orientations measured
+    (``pair_sigma_um``: each pair's a-posteriori sigma of an image coordinate
+    from its residual y-parallaxes, µm), medians against each other.
+
+    Given far too large (e.g. 5 written for 5 µm, or a sigma in pixels with
+    ``units = "pixel"``: the column is millimetres whatever the units), the
+    images weigh nothing against the control and no blunder test can fail;
+    far too small, the tests reject good observations.
+    """
+    measured = np.asarray(pair_sigma_um, dtype=np.float64)
+    measured = measured[np.isfinite(measured) & (measured > 0)]
+    given_mm = np.asarray(sigma_mm, dtype=np.float64)
+    if measured.size == 0 or given_mm.size == 0:
+        return []
+    scatter, given = float(np.median(measured)), 1000.0 * float(np.median(given_mm))
+    ratio = given / scatter
+    if 1.0 / _SIGMA_FACTOR <= ratio <= _SIGMA_FACTOR:
+        return []
+    times = f"{ratio:.0f} times" if ratio >= 1.0 else f"1/{1.0 / ratio:.0f} of"
+    head = (
+        f"image sigma: the sigma given to the image coordinates ({given:.4g} µm, median) is "
+        f"{times} the scatter of the pairs' own y-parallaxes ({scatter:.3g} µm, median of "
+        "the relative orientations' sigma0): "
+    )
+    if ratio > _SIGMA_FACTOR:
+        return [
+            head + "the images weigh too little against the control and the blunder tests "
+            "cannot find their errors; the sigma column and [images] sigma_mm are in "
+            "millimetres whatever [images] units (micrometres or pixels written there?)"
+        ]
+    return [
+        head + "the blunder tests will reject good observations; the sigma column and "
+        "[images] sigma_mm are in millimetres (metres written there?)"
     ]

@@ -278,15 +278,13 @@ def _formation_notes(p: _Problem, result: BlockResult) -> tuple[str, ...]:
     # points on one photo only: the loader has said so, once for all of them
     n_photos = np.bincount(obs.point, minlength=obs.n_points)
     on_pairs = {pid for pid, n in zip(obs.point_ids, n_photos, strict=True) if n >= 2}
-    failed = {pid for strip in p.strips for pid in strip.rejected_points}
+    failed: dict[str, str] = {}
+    for strip in p.strips:
+        failed.update(strip.lost_to_blunder_tests())
     for row, pid in enumerate(p.control.point_ids):
         if row in determined or pid not in on_pairs:
             continue
-        why = (
-            "every determination of it failed the tie-point test"
-            if pid in failed
-            else "not measured on both photos of any pair"
-        )
+        why = failed.get(pid, "not measured on both photos of any pair")
         kind = "check point" if p.control.is_check[row] else "control point"
         notes.append(f"{kind} {pid!r} is not triangulated ({why}): left out")
     return tuple(notes)

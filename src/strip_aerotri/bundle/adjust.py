@@ -77,7 +77,7 @@ from ..results import BundleResult, CameraEstimate, ShutterEstimate
 from ._given import along_axis_order, check_rotations, given_weights, observed_with_sigma
 from ._structures import structure_for
 
-__all__ = ["BundleResult", "CameraUndetermined", "bundle_adjust"]
+__all__ = ["NOT_CONVERGED", "BundleResult", "CameraUndetermined", "bundle_adjust"]
 
 
 class CameraUndetermined(GeometryError):
@@ -96,6 +96,9 @@ _WEAK_PIVOT = 1e-8
 #: weights, coordinates reduced to the centroid and scaled by the net's size)
 #: below which a similarity degree of freedom counts as free.
 _DATUM_RANK_TOL = 1e-9
+#: How the warning of an adjustment out of iterations begins (callers that run
+#: trial adjustments filter it by this text).
+NOT_CONVERGED = "bundle adjustment did not converge"
 #: Ratio of smallest to largest eigenvalue of a point's 3 x 3 normal block
 #: below which the point counts as undetermined (e.g. seen on one photo only).
 _POINT_RANK_TOL = 1e-10
@@ -685,7 +688,7 @@ def bundle_adjust(
         )
         if not converged:
             warnings.warn(
-                f"bundle adjustment did not converge in {max_iterations} iterations "
+                f"{NOT_CONVERGED} in {max_iterations} iterations "
                 f"(sigma0 {history[-1]:.4g})",
                 StripAerotriWarning,
                 stacklevel=2,

@@ -645,7 +645,7 @@ def _passes(
         )
         control_tested = fr.control_tested  # kept for failing alike: kept in later passes
         t_bundle += time.perf_counter() - t0
-        if self_calibration is not None and fr.self_calibration is not None:
+        if self_calibration is not None:
             # later passes estimate what the first kept; the outcome keeps its reasons
             fr, chosen, spec = carried_choice(self_calibration, chosen, fr)
         iterations += fr.iterations

@@ -377,7 +377,12 @@ def carried_choice(
     parameters as a list (None when none was kept).
     """
     if fr.self_calibration is None:
-        return fr, chosen, None
+        if chosen is None:
+            return fr, None, None
+        # nothing was kept, so this adjustment estimated no camera: the first's
+        # choice and its reasons are still what the user asked to see
+        held = dataclasses.replace(fr, self_calibration=final_outcome(spec, chosen, None))
+        return held, chosen, None
     chosen = chosen or fr.self_calibration
     fr = dataclasses.replace(
         fr,

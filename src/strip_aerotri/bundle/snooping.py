@@ -12,6 +12,7 @@ records (:func:`describe`) and the rejection itself (:meth:`_Sets.reject`).
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -21,7 +22,7 @@ from .._stats import leading_failures
 from .._threads import compute_workers
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
-from ..errors import GeometryError
+from ..errors import GeometryError, StripAerotriWarning
 from ..geometry.camera_model import CameraModel, ShutterMotion
 from ..geometry.collinearity import image_jacobian, image_vectors
 from ..ground.systematic import kept_control, kept_if_alike, rejected_components
@@ -29,7 +30,7 @@ from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
 from ._given import observed_with_sigma
-from .adjust import bundle_adjust
+from .adjust import NOT_CONVERGED, bundle_adjust
 from .photo_tests import _photo_flags, _photo_tests
 from .selfcal import ebner_base_mm, final_outcome, residual_cells, start_model
 
@@ -423,17 +424,24 @@ class _Camera:
         last = [(inp.centres0, inp.rotations0, inp.points0.copy())]
 
         def adjust(model: CameraModel | None, start: FloatArray | None) -> BundleResult:
-            res = _adjust(
-                inp,
-                sets,
-                sub,
-                pts,
-                last[0],
-                max_iterations=max_iterations,
-                compute_precision=False,
-                camera=model,
-                camera0=start,
-            )
+            with warnings.catch_warnings():
+                # a trial may estimate parameters the data cannot separate (the
+                # choice then holds them); only the delivered adjustment's
+                # convergence is the user's concern, and it warns on its own
+                warnings.filterwarnings(
+                    "ignore", NOT_CONVERGED, category=StripAerotriWarning
+                )
+                res = _adjust(
+                    inp,
+                    sets,
+                    sub,
+                    pts,
+                    last[0],
+                    max_iterations=max_iterations,
+                    compute_precision=False,
+                    camera=model,
+                    camera0=start,
+                )
             points = last[0][2].copy()
             points[pts] = res.points
             last[0] = (res.centres, res.rotations, points)

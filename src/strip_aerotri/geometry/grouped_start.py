@@ -57,6 +57,9 @@ class GroupedStart(NamedTuple):
         Number of groups.
     rows : int
         Rows of the groups' adjustment (merged determinations).
+    converged : bool
+        Whether the groups' adjustment converged (a start from groups that
+        did not settle is no start).
     """
 
     transforms: UnitTransforms
@@ -64,6 +67,7 @@ class GroupedStart(NamedTuple):
     iterations: int
     groups: int
     rows: int
+    converged: bool = True
 
 
 def groups_along(n_units: int, size: int, breaks: Sequence[int] | IntArray = ()) -> IntArray:
@@ -218,4 +222,5 @@ def grouped_start(
         result.iterations,
         n_groups,
         int(rows.unit.shape[0]),
+        bool(result.converged),
     )

@@ -141,8 +141,19 @@ def control_rows(strip: StripModel, control: ControlPoints) -> ControlRows:
         left_out=left_out,
     )
     if not (picked.use_xy | picked.use_z).any():
-        raise GeometryError("no control point is observed on two photos of a model")
+        raise GeometryError(_no_control_message(control))
     return picked
+
+
+def _no_control_message(control: ControlPoints) -> str:
+    """Why no control point takes part: none is given, or none is triangulated."""
+    if (control.uses_xy | control.uses_h).any():
+        return "no control point is observed on two photos of a model"
+    return (
+        f"no full, plan or height control point is given ({int(control.is_check.sum())} check "
+        "point(s) only): the strip needs at least two plan and three height control points; "
+        "give some points the type full, plan or height"
+    )
 
 
 def line_indices(strip: StripModel, lines: Sequence[LineSpec]) -> list[IntArray]:

@@ -318,7 +318,7 @@ def _grouped_start(
     :data:`_GROUPS_FROM` groups of :data:`_GROUP_MODELS` models, else each
     model at its group's similarity from the adjustment of the groups
     (:func:`~strip_aerotri.geometry.grouped_start.grouped_start`; J's
-    similarity where that fails: it is only a start)."""
+    similarity where that fails or does not converge: it is only a start)."""
     strip = p.strip
     group = groups_along(strip.n_models, _GROUP_MODELS, getattr(strip, "breaks", ()))
     if int(group.max(initial=0)) + 1 < _GROUPS_FROM:
@@ -344,6 +344,8 @@ def _grouped_start(
             max_iterations=p.max_iterations,
         )
     except (GeometryError, ConvergenceError, np.linalg.LinAlgError):
+        return p.guess.copy(), p.start_units, p.points0
+    if not grouped.converged:  # groups that did not settle are no start
         return p.guess.copy(), p.start_units, p.points0
     return passes.guess, grouped.transforms, grouped.points
 

@@ -51,7 +51,7 @@ from ..geometry.similarity import (
     cross_tilt,
 )
 from ..options import DEFAULT_PHOTO_STEP
-from ..plausibility import control_problems
+from ..plausibility import control_coverage_problems, control_problems, image_sigma_problems
 from ..strip.chaining import pair_rows
 from ..strip.relative import pair_count_problems
 from .output import output_folder
@@ -185,6 +185,7 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
         _add_plane(rep, plane)
     if formed is not None:
         _check_breaks(rep, project, formed)
+    _doubts(rep, project, formed)
     _check_lines(rep, project, facts.triangulable)
     _check_polynomial(rep, project, plan_ids, height_ids)
     # Output folder.
@@ -196,6 +197,17 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
 
     _summarize(rep, project, facts, plan_ids, height_ids, target)
     return rep
+
+
+def _doubts(rep: CheckReport, project: Project, formed: StripModel | None) -> None:
+    """The run's warnings about a strip's input that need no adjustment: its
+    ends beyond the control, an image sigma far from the pairs' scatter
+    (:mod:`strip_aerotri.plausibility`)."""
+    rep.warnings += control_coverage_problems(
+        project.observations, project.control, str(project.control_file)
+    )
+    if formed is not None:
+        rep.warnings += image_sigma_problems(formed.relative.sigma0_um, project.observations.sigma)
 
 
 def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckReport:

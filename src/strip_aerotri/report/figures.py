@@ -141,13 +141,17 @@ class Plan:
 
     def convergence(self, result: StripResult, xyh: np.ndarray) -> np.ndarray:
         """Meridian convergence (radians) at ground points of ``result``'s CRS;
-        zero in a local or geographic CRS, or where pyproj cannot give it."""
-        if not self.projected:
-            return np.zeros(len(xyh))
+        zero in a local or geographic CRS, at points not determined (NaN), or
+        where pyproj cannot give it."""
+        gamma = np.zeros(len(xyh))
+        known = np.isfinite(xyh).all(axis=1)
+        if not self.projected or not known.any():
+            return gamma
         try:
-            return np.asarray(result.ground.crs.meridian_convergence(xyh), dtype=np.float64)
+            gamma[known] = result.ground.crs.meridian_convergence(xyh[known])
         except Exception:  # display only: fall back to true north
-            return np.zeros(len(xyh))
+            gamma[:] = 0.0
+        return gamma
 
 
 def _footprints(result: StripResult, plan: Plan) -> np.ndarray | None:

@@ -16,6 +16,7 @@ rejections, the timings and the figures ``-v`` shows.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -277,7 +278,8 @@ class RunSummary:
         names = dict.fromkeys(
             n for n in ("report.json", self.report_name) if n and n in self.files
         )
-        return _grouped(unique, self.rejections, " / ".join(names))
+        listed = " / ".join(names)
+        return _grouped_per_point(_grouped(unique, self.rejections, listed), listed)
 
 
 @dataclass(frozen=True)
@@ -296,6 +298,11 @@ _REJECTED_WHAT = {
     "control": "control coordinates",
     "straight_line": "straight-line conditions",
 }
+
+
+def _observed(r: Rejection) -> tuple[str, tuple[str, ...], str]:
+    """What a rejection is of: its point, photos and component."""
+    return r.point, tuple(r.photos), r.component
 
 
 def _grouped(texts: list[str], rejections: Sequence[Rejection], listed: str) -> list[str]:
@@ -322,14 +329,16 @@ def _grouped(texts: list[str], rejections: Sequence[Rejection], listed: str) -> 
             out.append(line)
             continue
         group = by_stage[line[0]]
-        if len(group) == 1:
+        if len({_observed(r) for r in group}) == 1:
             out.append(group[0].describe())
             continue
         what = _REJECTED_WHAT.get(line[0], "observations")
-        applied = sum(r.applied for r in group)
+        # an observation rejected by two stages of one name (the ground
+        # stage's control test and the bundle's) counts once
+        applied = len({_observed(r) for r in group if r.applied})
         counts = [f"{applied} {what} rejected as blunders"] if applied else []
-        if applied < len(group):
-            kept = len(group) - applied
+        kept = len({_observed(r) for r in group if not r.applied})
+        if kept:
             effects = {r.effect for r in group if not r.applied}
             why = (
                 effects.pop().removeprefix("kept: ")
@@ -339,6 +348,52 @@ def _grouped(texts: list[str], rejections: Sequence[Rejection], listed: str) -> 
             counts.append(f"{kept} {what} fail the blunder test, kept ({why})")
         out.append(f"{line[0]}: {'; '.join(counts)} ({where}-v lists them here)")
     return out
+
+
+#: Warnings about one point each that two or more of a kind sum up in one
+#: line: the pattern (group 1 the point's quoted id, group 2, if any, the
+#: cause the line keeps) and the summing line's text before and after the
+#: names (with the cause for ``{cause}``).
+_PER_POINT = (
+    (
+        # strip_aerotri.ground.check_precision.weak_check_message
+        re.compile(r"check point ('.*?') is weakly determined: "),
+        "check points are weakly determined by their own rays",
+        "and left out of the check statistics; measure them on more photos, farther apart",
+    ),
+    (
+        # strip_aerotri.pipeline._strip_warnings
+        re.compile(r"control point ('.*?') is not triangulated \((.*)\): left out$"),
+        "control points are not triangulated",
+        "and left out (each: {cause})",
+    ),
+)
+
+
+def _grouped_per_point(texts: list[str], listed: str) -> list[str]:
+    """Two or more warnings of a kind of :data:`_PER_POINT` (and cause) among
+    ``texts`` summed up in one line at the place of the first, naming five
+    points and the files that list them; every other warning as it is."""
+    where = f"listed in {listed}; " if listed else ""
+    for pattern, head, tail in _PER_POINT:
+        found = [(i, m) for i, m in enumerate(map(pattern.match, texts)) if m]
+        causes: dict[str, list[tuple[int, re.Match[str]]]] = {}
+        for i, m in found:
+            causes.setdefault(m.group(2) if pattern.groups > 1 else "", []).append((i, m))
+        gone: set[int] = set()
+        summed: dict[int, str] = {}
+        for cause, group in causes.items():
+            if len(group) < 2:
+                continue
+            names = [m.group(1) for _, m in group]
+            more = f" and {len(names) - 5} more" if len(names) > 5 else ""
+            summed[group[0][0]] = (
+                f"{len(names)} {head} ({', '.join(names[:5])}{more}) "
+                f"{tail.format(cause=cause)} ({where}-v lists them here)"
+            )
+            gone.update(i for i, _ in group[1:])
+        texts = [summed.get(i, t) for i, t in enumerate(texts) if i not in gone]
+    return texts
 
 
 def _join(result: BlockResult) -> JoinVerdict | None:

@@ -237,6 +237,22 @@ class StripModel:
         names = np.asarray(self.observations.point_ids)[self.model_point]
         return ~np.isin(names, list(self.rejected_points))
 
+    def lost_to_blunder_tests(self) -> dict[str, str]:
+        """Why a point may have no ground position, for the points whose
+        observations failed a blunder test of the strip's formation (point id
+        -> the cause, naming the stage); the others were seen on fewer than
+        two photos of a model."""
+        why = {
+            r.point: f"its observations failed the blunder tests, see the {r.stage} rejections"
+            for r in self.rejections
+            if r.applied and r.point
+        }
+        failed = (
+            "every determination of it failed the tie-point test, see the tie_points rejections"
+        )
+        why.update((p, failed) for p in self.rejected_points)
+        return why
+
     @property
     def model_photo_positions(self) -> IntArray:
         """Positions in the photo arrays of the photos that form the models:
