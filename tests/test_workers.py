@@ -9,7 +9,6 @@ default size."""
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import os
 import subprocess
 import sys
@@ -163,13 +162,13 @@ def test_nested_blocks_share_the_outer_worker(two_workers: None) -> None:
 def test_an_error_in_either_thread_is_raised_and_stops_both(
     two_workers: None, combine: bool
 ) -> None:
-    calls = itertools.count()
     taken: list[int] = []
+    at_error: list[int] = []  # items taken when the error was raised
 
     def fail_at(i: int) -> int:
-        next(calls)
         taken.append(i)
         if i == 7:
+            at_error.append(len(taken))
             raise ValueError("item 7")
         np.linalg.qr(np.ones((40, 40)))
         return i
@@ -178,22 +177,28 @@ def test_an_error_in_either_thread_is_raised_and_stops_both(
     with pytest.raises(ValueError, match="item 7"), compute_workers(10**6):
         split_map(fail_at, list(range(10_000)), (lambda r: None) if combine else None)
     assert threading.active_count() == before
-    assert max(taken) < 100  # neither thread went on through the items
+    # after the error the other thread ends its current item and takes no other
+    # (a margin for the failing thread held back by the system before it says so)
+    assert len(taken) < at_error[0] + 500 < 10_000
 
 
 def test_a_keyboard_interrupt_in_the_calling_thread_stops_the_worker(two_workers: None) -> None:
     taken: list[int] = []
+    at_interrupt: list[int] = []
 
     def item(i: int) -> int:
         taken.append(i)
         if threading.current_thread() is threading.main_thread() and i > 20:
+            at_interrupt.append(len(taken))
             raise KeyboardInterrupt
         np.linalg.qr(np.ones((40, 40)))
         return i
 
     with pytest.raises(KeyboardInterrupt), compute_workers(10**6):
         split_map(item, list(range(10_000)))
-    assert len(taken) < 200
+    # the worker ends its current item (a margin for this thread held back by
+    # the system before it says so)
+    assert len(taken) < at_interrupt[0] + 500 < 10_000
 
 
 # ------------------------------------------------------- the same results
