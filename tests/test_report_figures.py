@@ -18,46 +18,10 @@ import pytest
 from strip_aerotri.errors import StripAerotriWarning
 from strip_aerotri.report import figures
 
+from _figures import outside_canvas
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
-
-
-def outside_canvas(fig: Figure, tolerance_px: float = 1.0) -> list[str]:
-    """The artists of ``fig`` that reach beyond its canvas, drawn at 96 dpi.
-
-    Every axes with its ticks, labels, title and legend, every colour bar,
-    every text and legend of the figure: their extents (clipped where the
-    artist is clipped) must lie inside the figure's box.
-    """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    FigureCanvasAgg(fig)
-    fig.set_dpi(96)
-    fig.canvas.draw()
-    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
-    box = fig.bbox
-    found = []
-    artists = [*fig.texts, *fig.legends]
-    for ax in fig.axes:
-        artists += [ax, *ax.get_default_bbox_extra_artists()]
-    for artist in artists:
-        if not artist.get_visible():
-            continue
-        extent = artist.get_tightbbox(renderer)
-        if extent is None or extent.width == 0 or extent.height == 0:
-            continue
-        if (
-            extent.x0 < box.x0 - tolerance_px
-            or extent.y0 < box.y0 - tolerance_px
-            or extent.x1 > box.x1 + tolerance_px
-            or extent.y1 > box.y1 + tolerance_px
-        ):
-            label = getattr(artist, "get_label", lambda: "")() or ""
-            found.append(
-                f"{type(artist).__name__} {label!r}: {np.round(extent.extents)} "
-                f"outside {np.round(box.extents)}"
-            )
-    return found
 
 
 @pytest.fixture
@@ -183,6 +147,51 @@ def test_the_figures_artists_do_not_grow_with_the_strip(caught):
     # per bar would add 2 artists a pair, 160 from 20 to 100 photos), lines beyond
     for k in (2, 3):
         assert counts[100][k] - counts[20][k] <= 80, (k, counts)
+
+
+def test_long_photo_names_and_flat_values_stay_inside(caught):
+    """Camera file names as photo ids (the pairs' rotated tick labels reach
+    left of the axes), a y-parallax of exactly zero everywhere (an axis of
+    no range) and no control names: still inside the canvas."""
+    import dataclasses
+
+    from strip_aerotri.report.html import draw_figures
+    from strip_aerotri.report.record import build_report
+
+    result = _strip_result(14, seed=1, control="every_k_models", control_every=2)
+    data = figures.figure_data(result, build_report(result)["models"])
+    names = tuple(f"DJI_20240517_{k:06d}_W.JPG" for k in range(len(data.photo_ids)))
+    flat = dataclasses.replace(
+        data,
+        photo_ids=names,
+        left_photos=names[: len(data.left_photos)],
+        sigma0_um=np.zeros_like(data.sigma0_um),
+        max_parallax_um=np.zeros_like(data.max_parallax_um),
+    )
+    figures_drawn = draw_figures(flat)
+    assert figures_drawn.parallax is not None and figures_drawn.ties is not None
+    assert len(caught) == 4
+    for k, fig in enumerate(caught, start=1):
+        assert outside_canvas(fig) == [], f"figure {k}"
+
+
+def test_plan_residuals_without_heights_have_no_colour_bar(caught):
+    """Plan control only (no height residual anywhere): the residual figure
+    has no colour bar, its points drawn as open circles, inside the canvas."""
+    import dataclasses
+
+    from strip_aerotri.report.record import build_report
+
+    result = _strip_result(14, seed=1, control="every_k_models", control_every=2)
+    data = figures.figure_data(result, build_report(result)["models"])
+    assert data.control is not None and not data.plan.long
+    residuals = data.control.residuals.copy()
+    residuals[:, 2] = np.nan
+    plan_only = dataclasses.replace(data, control=dataclasses.replace(data.control, residuals=residuals))
+    assert figures.figure_residuals(plan_only) is not None
+    (fig,) = caught
+    assert len(fig.axes) == 1  # no colour bar
+    assert outside_canvas(fig) == []
 
 
 def test_control_point_not_determined_is_drawn_without_numpy_warnings():

@@ -368,7 +368,7 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
     matplotlib.use("Agg", force=False)
     from matplotlib.figure import Figure
 
-    from .figures import _nice, _png
+    from .figures import _fitted_png, _nice
 
     centres = np.asarray(result.photo_centres, dtype=np.float64)
     if not np.isfinite(centres).all():
@@ -384,7 +384,7 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
         out: np.ndarray = (xyh[:, :2] - origin) * factor
         return out
 
-    fig = Figure(figsize=(10.5, 6.5), layout="constrained")
+    fig = Figure(figsize=(10.5, 6.5))
     ax = fig.subplots()
     for k, spec in enumerate(result.specs):
         xy = plan(centres[result.photo_strip == k])
@@ -436,6 +436,6 @@ def block_figure(result: BlockResult, *, geographic: bool = False) -> str | None
     ax.set_xlabel("east from the block centre (m)")
     ax.set_ylabel("north from the block centre (m)")
     ax.grid(alpha=0.3)
-    # beside the axes, not over the points (constrained layout makes room)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
-    return _png(fig)
+    # beside the axes, not over the points (figures_frame.fit makes room)
+    beside = ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
+    return _fitted_png(fig, beside=beside)

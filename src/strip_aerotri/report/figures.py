@@ -12,11 +12,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..results import SelfCalibrationOutcome
+from .figures_frame import fixed_title
 from .values import control_rows, point_roles
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
+    from matplotlib.colorbar import Colorbar
     from matplotlib.figure import Figure
+    from matplotlib.legend import Legend
 
     from .._typing import BoolArray, FloatArray, IntArray
     from ..results import StripResult
@@ -43,32 +46,45 @@ _ROLE_STYLE = {
 
 
 def _png(fig: Figure) -> str:
-    """The figure as a PNG at 96 dpi, base64 (for an inline ``<img>``).
+    """The figure as a PNG at :data:`_DPI`, base64 (for an inline ``<img>``).
 
-    Drawn once on an Agg canvas and encoded as matplotlib's ``savefig``
-    encodes it, byte for byte: ``savefig`` with a layout engine draws the
-    figure twice (once without rendering, to lay it out), ``canvas.draw``
-    once, the layout done inside it.  Constrained layout (rc in build_html;
-    layout="constrained" for the block) keeps every label inside the canvas;
-    bbox_inches="tight" would change the figure's size and draw it again.
-    Fast PNG compression: the figures dominate the time of a run on large
-    strips.
+    Drawn once on its Agg canvas (the one :func:`_fitted_png` measured it
+    on, whose font metrics are cached; ``savefig`` would draw it again on a
+    canvas of its own), the pixels written by :func:`.figures_png.png_bytes`.
     """
     import base64
-    import io as _bio
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.image import imsave
+
+    from .figures_png import png_bytes
+
+    canvas = fig.canvas
+    if not isinstance(canvas, FigureCanvasAgg) or fig.dpi != _DPI:
+        fig.set_dpi(_DPI)
+        canvas = FigureCanvasAgg(fig)
+    canvas.draw()  # type: ignore[no-untyped-call]  # matplotlib's Agg canvas is untyped
+    pixels = np.asarray(canvas.buffer_rgba())  # type: ignore[no-untyped-call]  # as draw
+    return base64.b64encode(png_bytes(pixels, _DPI)).decode("ascii")
+
+
+def _fitted_png(
+    fig: Figure,
+    *,
+    beside: Legend | None = None,
+    colorbar: Colorbar | None = None,
+    best: Legend | None = None,
+) -> str:
+    """:func:`_png` of ``fig`` with its axes placed by :func:`.figures_frame.fit`
+    (``beside``: a legend beside the axes; ``colorbar``: one right of them;
+    ``best``: a legend inside the axes at matplotlib's "best" place)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from .figures_frame import fit
 
     fig.set_dpi(_DPI)
-    canvas = FigureCanvasAgg(fig)
-    canvas.draw()  # type: ignore[no-untyped-call]  # matplotlib's Agg canvas is untyped
-    pixels = canvas.buffer_rgba()  # type: ignore[no-untyped-call]  # as draw
-    buffer = _bio.BytesIO()
-    imsave(  # savefig's own call, whatever the rc's image.origin
-        buffer, pixels, format="png", origin="upper", dpi=_DPI, pil_kwargs={"compress_level": 1}
-    )
-    return base64.b64encode(buffer.getvalue()).decode("ascii")
+    FigureCanvasAgg(fig)
+    fit(fig, beside=beside, colorbar=colorbar, best=best)
+    return _png(fig)
 
 
 #: Resolution of the report's figures (pixels per inch).
@@ -310,7 +326,7 @@ def figure_layout(data: StripFigureData) -> str:
         step = max(1, len(feet) // 400)
         ax.add_collection(
             PolyCollection(
-                list(feet[::step]),
+                feet[::step],  # type: ignore[arg-type]  # (n, 4, 2): PolyCollection's fast path
                 facecolors="#5dade2",
                 edgecolors="#2e86c1",
                 alpha=0.08,
@@ -343,6 +359,7 @@ def figure_layout(data: StripFigureData) -> str:
         sel = np.flatnonzero(ok & (roles == role))
         if sel.size == 0:
             continue
+        count = sel.size
         sel = _decimate(sel, _MAX_PLOT_POINTS)
         crowded = sel.size > 400 and marker not in (".", "x")
         ax.scatter(
@@ -352,7 +369,7 @@ def figure_layout(data: StripFigureData) -> str:
             marker=marker,
             c=colour,
             zorder=z,
-            label=f"{label} ({int(np.count_nonzero(ok & (roles == role)))})",
+            label=f"{label} ({count})",
             linewidths=1.0 if marker == "x" else 0.4,
             edgecolors=None if marker in (".", "x") or crowded else "black",
             # thousands of markers: one image in a vector export (the PNG is raster anyway)
@@ -360,14 +377,13 @@ def figure_layout(data: StripFigureData) -> str:
         )
     ax.autoscale_view()
     _plan_axes(ax, plan)
-    if plan.long:
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
-    else:
-        ax.legend(loc="best", fontsize=8, framealpha=0.85)
-    ax.set_title(
+    fixed_title(ax, 
         "Strip layout along the strip axis (not to scale)" if plan.long else "Strip layout"
     )
-    return _png(fig)
+    if plan.long:
+        beside = ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+        return _fitted_png(fig, beside=beside)
+    return _fitted_png(fig, best=ax.legend(loc="best", fontsize=8, framealpha=0.85))
 
 
 def _plan_axes(ax: Axes, plan: Plan) -> None:
@@ -441,6 +457,7 @@ def figure_residuals(data: StripFigureData) -> str | None:
         )
     dh = resid[:, 2]
     has_h = np.isfinite(dh)
+    bar: Colorbar | None = None
     if has_h.any():
         lim = float(np.nanmax(np.abs(dh))) or 1.0
         norm = TwoSlopeNorm(vcenter=0.0, vmin=-lim, vmax=lim)
@@ -459,7 +476,8 @@ def figure_residuals(data: StripFigureData) -> str | None:
                     linewidths=0.5,
                     zorder=5,
                 )
-        bar = fig.colorbar(sc, ax=ax, shrink=0.8, pad=0.02)
+        # beside the axes, placed by figures_frame.fit
+        bar = fig.colorbar(sc, cax=fig.add_axes((0.9, 0.1, 0.02, 0.8)))
         bar.set_label("height residual dH [m] (given − adjusted)")
     no_h = ~has_h
     if no_h.any():
@@ -485,8 +503,8 @@ def figure_residuals(data: StripFigureData) -> str | None:
             )
     _plan_axes(ax, plan)
     ax.legend(loc="upper left", fontsize=8, framealpha=0.85)
-    ax.set_title("Residuals at control (▲) and check (■) points: arrows plan, colour height")
-    return _png(fig)
+    fixed_title(ax, "Residuals at control (▲) and check (■) points: arrows plan, colour height")
+    return _fitted_png(fig, colorbar=bar)
 
 
 def _figure_residuals_along(
@@ -533,8 +551,8 @@ def _figure_residuals_along(
         ax.grid(True, lw=0.3, alpha=0.5)
     axes[0].legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel(f"along the strip from the first photo [{plan.unit}]")
-    axes[0].set_title("Residuals (given − adjusted) at control and check points along the strip")
-    return _png(fig)
+    fixed_title(axes[0], "Residuals (given − adjusted) at control and check points along the strip")
+    return _fitted_png(fig)
 
 
 def _bars_or_lines(
@@ -566,7 +584,11 @@ def _bars_or_lines(
             axis=1,
         )
         bars = PolyCollection(
-            list(corners), facecolors=colour, edgecolors="none", linewidths=0, label=label
+            corners,  # type: ignore[arg-type]  # (n, 4, 2): PolyCollection's fast path
+            facecolors=colour,
+            edgecolors="none",
+            linewidths=0,
+            label=label,
         )
         bars.sticky_edges.y.append(0.0)  # as ax.bar: no margin below the bars' foot
         ax.add_collection(bars)
@@ -579,8 +601,14 @@ def _left_photo_ticks(ax: Any, x: FloatArray | IntArray, left: Sequence[str]) ->
     index = np.asarray(x, dtype=np.intp)
     if index.size == 0 or index.max() >= len(left):
         return
+    from matplotlib.ticker import FixedFormatter, FixedLocator
+
     shown = index[:: max(1, int(np.ceil(index.size / 16)))]
-    ax.set_xticks(shown, [left[i] for i in shown], rotation=45 if shown.size > 6 else 0)
+    # as ax.set_xticks(shown, labels, rotation=...), without making a tick
+    # object per label (figures_ticks draws them)
+    ax.xaxis.set_major_locator(FixedLocator(shown.astype(np.float64).tolist()))
+    ax.xaxis.set_major_formatter(FixedFormatter([left[i] for i in shown]))
+    ax.tick_params(axis="x", labelrotation=45 if shown.size > 6 else 0)
 
 
 def figure_parallax(data: StripFigureData) -> str:
@@ -599,9 +627,9 @@ def figure_parallax(data: StripFigureData) -> str:
     _left_photo_ticks(ax, x, data.left_photos)
     ax.set_xlabel("pair (its left photo)")
     ax.set_ylabel("µm at image scale")
-    ax.set_title("Relative orientation: residual y-parallax per pair")
+    fixed_title(ax, "Relative orientation: residual y-parallax per pair")
     ax.grid(True, axis="y", lw=0.3)
-    ax.legend(fontsize=8)
+    best = ax.legend(loc="best", fontsize=8)
     q = data.parallax_um
     q = q[np.isfinite(q)]
     if q.size:
@@ -610,9 +638,9 @@ def figure_parallax(data: StripFigureData) -> str:
         hx.stairs(counts, edges, fill=True, color="#5d6d7e")  # one artist, as hist's bars
         for sign in (-1, 1):
             hx.axvline(sign * 3 * rms, color="#c0392b", lw=1.0, ls="--")
-        hx.set_title(f"All {q.size} y-parallaxes; ±3 RMS dashed", fontsize=10)
+        fixed_title(hx, f"All {q.size} y-parallaxes; ±3 RMS dashed", fontsize=10)
         hx.set_xlabel("µm")
-    return _png(fig)
+    return _fitted_png(fig, best=best)
 
 
 def figure_ties(data: StripFigureData) -> str | None:
@@ -636,7 +664,6 @@ def figure_ties(data: StripFigureData) -> str | None:
     _left_photo_ticks(ax, x[1:], data.left_photos)
     ax.set_xlabel("model (its left photo)")
     ax.set_ylabel("RMS difference [m]")
-    ax.set_title("Differences between the two determinations of tie points, per model")
+    fixed_title(ax, "Differences between the two determinations of tie points, per model")
     ax.grid(True, axis="y", lw=0.3)
-    ax.legend(fontsize=8)
-    return _png(fig)
+    return _fitted_png(fig, best=ax.legend(loc="best", fontsize=8))

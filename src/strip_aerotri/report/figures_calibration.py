@@ -7,7 +7,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .figures import _png
+from .figures import _fitted_png
+from .figures_frame import fixed_title
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -53,11 +54,11 @@ def figure_distortion(outcome: SelfCalibrationOutcome) -> str | None:
     grid = np.column_stack([gx.ravel(), gy.ravel()])
     d_um = distortion_field(outcome, grid) * 1000.0
     largest = float(np.max(np.hypot(d_um[:, 0], d_um[:, 1]), initial=0.0))
-    fig = Figure(figsize=(9.0, 3.8), layout="constrained")
+    fig = Figure(figsize=(9.0, 3.8))
     ax1, ax2 = fig.subplots(1, 2)
     step = float(hi[0] - lo[0]) / 14.0
     _quiver(ax1, grid[:, 0], grid[:, 1], d_um, max(largest, 1e-9) / (0.9 * step))
-    ax1.set_title(f"correction, largest {largest:.1f} µm")
+    fixed_title(ax1, f"correction, largest {largest:.1f} µm")
     r_max = float(np.max(np.hypot(*np.abs(np.vstack([lo, hi])).max(axis=0)), initial=1.0))
     radii = np.linspace(0.0, r_max, 60)
     angles = np.linspace(0.0, 2 * np.pi, 36, endpoint=False)
@@ -68,8 +69,8 @@ def figure_distortion(outcome: SelfCalibrationOutcome) -> str | None:
     ax2.axhline(0.0, color="0.6", lw=0.8)
     ax2.set_xlabel("r (mm)")
     ax2.set_ylabel("radial correction (µm)")
-    ax2.set_title("radial profile (mean over directions)")
-    return _png(fig)
+    fixed_title(ax2, "radial profile (mean over directions)")
+    return _fitted_png(fig)
 
 
 def figure_cells(cells: ResidualCells) -> str | None:
@@ -86,7 +87,7 @@ def figure_cells(cells: ResidualCells) -> str | None:
     )
     step = float(xc[1] - xc[0]) if xc.size > 1 else 1.0
     scale = max(largest, 1e-9) / (0.9 * step)
-    fig = Figure(figsize=(9.0, 3.8), layout="constrained")
+    fig = Figure(figsize=(9.0, 3.8))
     for ax, field, title in zip(
         fig.subplots(1, 2),
         (cells.before, cells.after),
@@ -95,5 +96,5 @@ def figure_cells(cells: ResidualCells) -> str | None:
     ):
         _quiver(ax, gx, gy, np.nan_to_num(field), scale)
         rms = float(np.sqrt(np.nanmean(np.sum(field**2, axis=-1))))
-        ax.set_title(f"{title}: RMS {rms:.2f} µm")
-    return _png(fig)
+        fixed_title(ax, f"{title}: RMS {rms:.2f} µm")
+    return _fitted_png(fig)

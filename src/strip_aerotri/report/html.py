@@ -4,7 +4,9 @@ from ``report.json``'s content and the figures.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+import gc
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -16,7 +18,7 @@ from .aside import aside
 from .calibration import calibration_figures, calibration_html, with_variance_html
 from .figures import (
     StripFigureData,
-    _png,
+    _fitted_png,
     figure_data,
     figure_layout,
     figure_parallax,
@@ -90,14 +92,10 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     return html_page(report, draw_figures(data))
 
 
-_STYLE: dict[str, Any] = {
-    "font.size": 9,
-    "axes.titlesize": 11,
-    # every figure laid out by matplotlib's constrained layout: labels,
-    # legends beside the axes and colour bars inside the canvas at any
-    # strip length (tests/test_report_figures.py)
-    "figure.constrained_layout.use": True,
-}
+#: The figures' rc (no layout engine: each figure's axes are placed once by
+#: figures_frame.fit, every label inside the canvas at any strip length,
+#: tests/test_report_figures.py).
+_STYLE: dict[str, Any] = {"font.size": 9, "axes.titlesize": 11}
 
 
 def prepare_drawing() -> None:
@@ -118,8 +116,7 @@ def prepare_drawing() -> None:
         ax.annotate("0", (0.5, 0.5), textcoords="offset points", xytext=(4, 4), fontsize=8)
         ax.set_title("σ0 µm ±")
         ax.set_xlabel("x")
-        ax.legend(fontsize=8)
-        _png(fig)
+        _fitted_png(fig, beside=ax.legend(fontsize=8))
 
 
 def draw_figures(data: StripFigureData) -> StripFigures:
@@ -133,12 +130,27 @@ def draw_figures(data: StripFigureData) -> StripFigures:
     """
     import matplotlib
 
-    with matplotlib.rc_context(_STYLE):  # type: ignore[arg-type]  # typed as literal keys
+    with _no_collection(), matplotlib.rc_context(_STYLE):  # type: ignore[arg-type]  # literal keys
         with aside(partial(_parallax_and_ties, data)) as other:
             layout, residuals = figure_layout(data), figure_residuals(data)
             parallax, ties = other.result()
         calibration = None if data.calibration is None else calibration_figures(data.calibration)
         return StripFigures(layout, residuals, parallax, ties, data.plan.long, calibration)
+
+
+@contextmanager
+def _no_collection() -> Iterator[None]:
+    """Python's garbage collector paused while the figures are drawn: they
+    make some 50 000 objects, and each collection of the oldest generation
+    would walk the run's whole heap (the result) as well; what they leave
+    is collected afterwards, as usual."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
 
 
 def _parallax_and_ties(data: StripFigureData) -> tuple[str, str | None]:
