@@ -24,7 +24,8 @@ The cases:
 * ``block-20x500``: twenty strips of 500 photos, about a million
   observations (floor 60 s / 4 GB);
 * the curve: strips of ``--curve`` photos (default 100 to 10 000), with the
-  least-squares slope of log(time) against log(photos) (floor 1.1).
+  least-squares slope of log(time) against log(photos) (floor 1.1), of the
+  wall time and of the CPU time.
 
 ``--quick`` runs a 30-photo strip with its refinement, a 2 x 10 block and
 a curve of 15 and 30 photos, with one BLAS thread: it shows that the script
@@ -340,11 +341,16 @@ def main(argv: list[str] | None = None) -> None:
                     print(f"slope, BLAS {t}: not computed (a run gave no result)")
                     continue
                 secs = [float(r["wall_s"]) for r in runs]
-                s = slope(list(curve), secs)
-                curves[t] = {"photos": list(curve), "wall_s": secs, "slope": s}
+                cpus = [float(r["cpu_s"]) for r in runs]
+                s, s_cpu = slope(list(curve), secs), slope(list(curve), cpus)
+                curves[t] = {
+                    "photos": list(curve), "wall_s": secs, "slope": s, "cpu_s": cpus,
+                    "slope_cpu": s_cpu,
+                }
                 print(
                     f"slope log(time) / log(photos), BLAS {t}: {s:.2f} over "
-                    f"{curve[0]}-{curve[-1]} photos (floor {SLOPE_FLOOR})"
+                    f"{curve[0]}-{curve[-1]} photos (floor {SLOPE_FLOOR}); "
+                    f"of the CPU time {s_cpu:.2f}"
                 )
     print(
         f"load average at end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}; "

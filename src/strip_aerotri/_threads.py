@@ -20,6 +20,25 @@ positive integer N lets BLAS use N threads during the adjustments, and
 ``auto`` leaves BLAS its own setting (``OPENBLAS_NUM_THREADS`` and the
 like, or one thread per core).
 
+Worker threads: inside :func:`compute_workers` (the bundle adjustment and
+refinement open it), the engine's kernels split work that falls into
+independent pieces (blocks of rows, groups of points) over two threads
+with :func:`split_map`: the calling thread and one worker, each taking the
+next piece as it finishes the last, so that a thread the system holds back
+takes fewer pieces and never holds the other up for more than one piece.
+numpy releases the interpreter in its loops and BLAS in its products, so the
+pieces run at once.  Each piece's result is computed whole by one thread
+and the caller combines them in their order: the results are bit for bit
+those of one thread.  Workers: ``min(2, os.cpu_count(), CPUs this process
+may run on)``; one when the problem is small (the threads' hand-over, about
+0.1 ms a call, would not pay), when the machine's other work already
+takes the other core (:func:`machine_busy`: a second thread then only
+splits this process's share, and waits for the other), or when
+``STRIPAERO_WORKERS`` says so (a positive integer N: N threads at most two
+and the CPUs, whatever the load; ``1`` one thread).  The worker lives only as
+long as the block, so no thread outlives an adjustment (a run forks its
+report process only when it is the only thread).
+
 Ctrl-C: Python runs its SIGINT handler (KeyboardInterrupt) in the main
 thread between two of its own steps, so one long LAPACK call (the banded
 Cholesky of a wide block takes seconds) delays it to the call's end.
@@ -35,26 +54,38 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import itertools
 import os
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import Literal, ParamSpec, TypeVar
 
 from .errors import ConfigError
 
 __all__ = [
     "BLAS_THREADS_VARIABLE",
+    "WORKERS_VARIABLE",
     "blas_thread_limit",
     "blas_threads",
+    "compute_workers",
     "interruptible",
     "limit_blas_threads",
+    "split_map",
+    "worker_count",
 ]
 
 BLAS_THREADS_VARIABLE = "STRIPAERO_BLAS_THREADS"
 """Environment variable: BLAS threads during the adjustments (default 1; ``auto``: no limit)."""
 
+WORKERS_VARIABLE = "STRIPAERO_WORKERS"
+"""Environment variable: most threads of the engine's kernels (default 2, ``1``: one)."""
+
+#: Fewest image observations (or rows) for which a second thread pays.
+MIN_PARALLEL_SIZE = 20_000
+
 _P = ParamSpec("_P")
 _R = TypeVar("_R")
+_T = TypeVar("_T")
 
 
 def blas_thread_limit() -> int | None:
@@ -138,6 +169,173 @@ def limit_blas_threads(function: Callable[_P, _R]) -> Callable[_P, _R]:
             return function(*args, **kwargs)
 
     return limited
+
+
+def _usable_cores() -> int:
+    """CPUs this process may run on (its affinity), at most ``os.cpu_count()``."""
+    count = os.cpu_count() or 1
+    affinity = getattr(os, "sched_getaffinity", None)
+    if affinity is not None:
+        with contextlib.suppress(OSError):
+            count = min(count, len(affinity(0)))
+    return max(count, 1)
+
+
+def _busy_cores() -> float:
+    """The machine's one-minute load average (0 where the system has none)."""
+    try:
+        return float(os.getloadavg()[0])
+    except (AttributeError, OSError):
+        return 0.0
+
+
+def _others_running() -> int | None:
+    """Threads of the whole machine runnable at this moment besides the
+    caller (``/proc/loadavg``'s fourth field, less one); None where the
+    system does not say."""
+    try:
+        with open("/proc/loadavg", encoding="ascii") as f:
+            running = int(f.read().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return None
+    return max(running - 1, 0)
+
+
+def machine_busy(cores: int) -> bool:
+    """True when the other cores are taken: the one-minute load average above
+    ``cores - 1.25`` and, where the system says, another thread runnable at
+    this moment (one CPU-bound process beside this one is enough).  The
+    moment's count keeps the load of this process's own earlier work (a
+    benchmark's loop) from counting as the others', and the load average a
+    short process that happens to run at the moment."""
+    if _busy_cores() <= cores - 1.25:
+        return False
+    others = _others_running()
+    return others is None or others >= cores - 1
+
+
+def worker_count(size: int) -> int:
+    """Threads for the kernels of a problem of `size` image observations:
+    ``min(2, os.cpu_count(), CPUs of this process)``; 1 below
+    :data:`MIN_PARALLEL_SIZE`, or when the machine's other work takes the
+    other core (:func:`machine_busy`); ``STRIPAERO_WORKERS`` sets the number
+    instead (at most two and the CPUs of this process, whatever the load).
+
+    Raises
+    ------
+    ConfigError
+        When ``STRIPAERO_WORKERS`` is not a positive integer.
+    """
+    text = os.environ.get(WORKERS_VARIABLE, "").strip()
+    cores = min(2, _usable_cores())
+    if text:
+        try:
+            wanted = int(text)
+        except ValueError:
+            wanted = 0
+        if wanted < 1:
+            raise ConfigError(
+                f"environment variable {WORKERS_VARIABLE}={text!r}: expected a positive "
+                "number of threads (unset it for the default: two where a second core is free)"
+            )
+        cores = min(cores, wanted)
+    elif cores > 1 and machine_busy(cores):
+        return 1
+    return 1 if size < MIN_PARALLEL_SIZE else cores
+
+
+_local = threading.local()
+
+
+@contextlib.contextmanager
+def compute_workers(size: int) -> Iterator[int]:
+    """Worker threads for :func:`split_map` inside the block (see the module
+    docstring); yields the number of threads.  Nested blocks use the
+    outermost's; the worker ends with the block."""
+    pool = getattr(_local, "pool", None)
+    if pool is not None or getattr(_local, "open", False):
+        yield 1 if pool is None else 2
+        return
+    n = worker_count(size)
+    if n < 2:
+        _local.open = True
+        try:
+            yield 1
+        finally:
+            _local.open = False
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = ThreadPoolExecutor(max_workers=n - 1, thread_name_prefix="strip_aerotri-worker")
+    _local.pool = pool
+    try:
+        yield n
+    finally:
+        _local.pool = None
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def split_map(
+    function: Callable[[_T], _R],
+    items: Sequence[_T],
+    combine: Callable[[_R], None] | None = None,
+) -> list[_R]:
+    """``[function(x) for x in items]``, the items shared between this thread
+    and the worker of :func:`compute_workers` (if one is open here), each
+    thread taking the next item when it has done its last.
+
+    With `combine`, ``combine(function(x))`` is called for every item, one
+    call at a time and in the items' order (a sum into one array is then
+    the same as in one thread), and the list returned is empty: no result is
+    held longer than its turn.  `function` must not write where another
+    item's call reads or writes.  An exception is raised as from the loop
+    (the other thread takes no further item).
+    """
+    pool = getattr(_local, "pool", None)
+    n = len(items)
+    if pool is None or n < 2:
+        if combine is None:
+            return [function(x) for x in items]
+        for x in items:
+            combine(function(x))
+        return []
+    results: list[_R | None] = [None] * n
+    counter = itertools.count()  # next() is atomic: each item is taken once
+    stop = threading.Event()
+    turn = threading.Condition()
+    done = [0]  # items combined so far
+
+    def drain() -> None:
+        try:
+            for i in counter:
+                if i >= n or stop.is_set():
+                    return
+                result = function(items[i])
+                if combine is None:
+                    results[i] = result
+                    continue
+                with turn:  # the items before this one are combined first
+                    while done[0] != i:
+                        if stop.is_set():
+                            return
+                        turn.wait()
+                    combine(result)
+                    done[0] += 1
+                    turn.notify_all()
+        except BaseException:
+            with turn:
+                stop.set()  # the other thread takes no further item
+                turn.notify_all()
+            raise
+
+    future = pool.submit(drain)
+    try:
+        drain()
+        future.result()
+    except BaseException:  # Ctrl-C while waiting for the worker: it stops too
+        stop.set()
+        raise
+    return [] if combine is not None else results  # type: ignore[return-value]
 
 
 def interruptible(function: Callable[_P, _R], *args: _P.args, **kwargs: _P.kwargs) -> _R:

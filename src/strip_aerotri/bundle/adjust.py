@@ -56,7 +56,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._threads import limit_blas_threads
+from .._threads import compute_workers, limit_blas_threads
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..geometry.camera_model import CameraModel, ShutterMotion
@@ -122,9 +122,7 @@ _PHOTO_PARAMETER_NAMES = (
 )
 
 
-# ----------------------------------------------------------------------------
-# SO(3) kernels
-# ----------------------------------------------------------------------------
+# --- SO(3) kernels -----------------------------------------------------------
 
 
 def _right_jacobian_inv(e: FloatArray) -> FloatArray:
@@ -141,9 +139,7 @@ def _right_jacobian_inv(e: FloatArray) -> FloatArray:
     return np.eye(3) + 0.5 * k + coef[..., None, None] * (k @ k)
 
 
-# ----------------------------------------------------------------------------
-# Observation equations
-# ----------------------------------------------------------------------------
+# --- Observation equations ---------------------------------------------------
 
 
 def _imu_residual(rotations: FloatArray, imu_rotations: FloatArray) -> FloatArray:
@@ -154,9 +150,7 @@ def _imu_residual(rotations: FloatArray, imu_rotations: FloatArray) -> FloatArra
     return rotvec_from_matrix(np.einsum("mji,mjk->mik", imu_rotations, rotations))
 
 
-# ----------------------------------------------------------------------------
-# Problem data
-# ----------------------------------------------------------------------------
+# --- Problem data ------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -285,9 +279,7 @@ def _make_problem(
     )
 
 
-# ----------------------------------------------------------------------------
-# Normal equations
-# ----------------------------------------------------------------------------
+# --- Normal equations --------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -336,22 +328,21 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     its sigma; control ``X - X_c`` (m, design identity); GNSS ``S - S_g`` (m,
     design identity on the centre); IMU ``log(R_imu.T R)`` (rad, design
     ``Jr^-1(e)`` on the rotation)."""
-    xy, v, jac_photo, jac_point = _collinearity(prob, state)
+    inv_s = 1.0 / prob.sigma
+    whitened = prob.motion is None  # the Jacobians whitened in the collinearity's blocks
+    xy, v, jac_photo, jac_point = _collinearity(prob, state, inv_s if whitened else None)
     if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
         return None  # a point behind a photo: no linearisation (the cost is infinite)
     res = xy - _observed(prob, state)
-    inv_s = 1.0 / prob.sigma
-    border = _border(prob, state, jac_photo)
+    border = _border(prob, state, jac_photo)  # the motion's columns from unwhitened ones
     if border is not None:
         border *= inv_s[:, None, None]
+    if not whitened:
+        jac_photo, jac_point = jac_photo * inv_s[:, None, None], jac_point * inv_s[:, None, None]
     image = UnitPointRows(
-        prob.photo,
-        prob.point,
-        jac_photo * inv_s[:, None, None],
-        jac_point * inv_s[:, None, None],
-        res * inv_s[:, None],
+        prob.photo, prob.point, jac_photo, jac_point, res * inv_s[:, None],
         border_jacobian=border,
-    )
+    )  # fmt: skip
     cp = prob.control_points
     control = PointRows(
         cp,
@@ -374,14 +365,15 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
 
 
 def _collinearity(
-    prob: _Problem, state: _State
+    prob: _Problem, state: _State, scale: FloatArray | None = None
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """The collinearity equations and Jacobians; with a rolling shutter each
-    ray from its centre moved by ``s d_g`` (the point moved by the opposite,
-    which is the same ray)."""
+    """The collinearity equations and Jacobians (times `scale` per ray, if
+    given, without a shutter's motion); with a rolling shutter each ray from
+    its centre moved by ``s d_g`` (the point moved by the opposite, which is
+    the same ray)."""
     if prob.motion is None:
         return collinearity_jacobians(
-            state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c
+            state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c, scale
         )
     shift = prob.motion.centre_shift(state.motion, prob.photo, prob.motion.fractions(prob.xy))
     ray_points = state.points[prob.point] - shift
@@ -466,9 +458,7 @@ def _apply(state: _State, step: _Reduced) -> _State:
     )
 
 
-# ----------------------------------------------------------------------------
-# Datum
-# ----------------------------------------------------------------------------
+# --- Datum -------------------------------------------------------------------
 
 
 def _free_motions(prob: _Problem, state: _State) -> list[str]:
@@ -521,9 +511,7 @@ def _free_motions(prob: _Problem, state: _State) -> list[str]:
     return free
 
 
-# ----------------------------------------------------------------------------
-# Precision
-# ----------------------------------------------------------------------------
+# --- Precision ---------------------------------------------------------------
 
 
 def _residual_cofactor(weight: FloatArray, q_hat: FloatArray) -> FloatArray:
@@ -538,9 +526,7 @@ def _residual_cofactor(weight: FloatArray, q_hat: FloatArray) -> FloatArray:
     return np.where(used[:, :, None] & used[:, None, :], out, np.nan)
 
 
-# ----------------------------------------------------------------------------
-# Driver
-# ----------------------------------------------------------------------------
+# --- Driver ------------------------------------------------------------------
 
 
 @limit_blas_threads
@@ -680,64 +666,65 @@ def bundle_adjust(
     centres, rotations, points = _checked_start(
         observations, centres0, rotations0, points0, max_iterations, tolerance
     )
-    m, p = centres.shape[0], points.shape[0]
-    prob = _make_problem(
-        observations, centres, rotations, points, control_xyz, control_sigma,
-        gnss_centres, gnss_sigma, imu_rotations, imu_sigma, camera, motion,
-    )
-    state = _start_state(prob, centres, rotations, points, camera0)
-    depth = _check_datum_and_sides(prob, state, observations)
-    redundancy = prob.n_observations - 6 * m - 3 * p - prob.n_camera - prob.n_motion
-
-    def sigma0_of(cost: float) -> float:
-        return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
-
-    normals = _normals(prob, state)
-    if normals is None:  # _check_datum_and_sides found every point in front
-        raise GeometryError("the collinearity equations are not defined at the initial values")
-    _check_points(prob, normals, observations.point_ids)
-    state, normals, history, iterations, converged = _iterate(
-        prob, state, normals, depth, int(max_iterations), tolerance, observations, sigma0_of
-    )
-    if not converged:
-        warnings.warn(
-            f"{NOT_CONVERGED} in {max_iterations} iterations "
-            f"(sigma0 {history[-1]:.4g})",
-            StripAerotriWarning,
-            stacklevel=2,
+    with compute_workers(int(np.asarray(observations.photo).size)):
+        m, p = centres.shape[0], points.shape[0]
+        prob = _make_problem(
+            observations, centres, rotations, points, control_xyz, control_sigma,
+            gnss_centres, gnss_sigma, imu_rotations, imu_sigma, camera, motion,
         )
-    sigma0 = sigma0_of(normals.cost)
-    if redundancy <= 0:
-        warnings.warn(
-            "bundle adjustment has no redundancy: sigma0 and precision are undefined",
-            StripAerotriWarning,
-            stacklevel=2,
+        state = _start_state(prob, centres, rotations, points, camera0)
+        depth = _check_datum_and_sides(prob, state, observations)
+        redundancy = prob.n_observations - 6 * m - 3 * p - prob.n_camera - prob.n_motion
+
+        def sigma0_of(cost: float) -> float:
+            return float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
+
+        normals = _normals(prob, state)
+        if normals is None:  # _check_datum_and_sides found every point in front
+            raise GeometryError("the collinearity equations are not defined at the initial values")
+        _check_points(prob, normals, observations.point_ids)
+        state, normals, history, iterations, converged = _iterate(
+            prob, state, normals, depth, int(max_iterations), tolerance, observations, sigma0_of
         )
-    precision = _precision_products(prob, state, normals, sigma0, compute_precision)
-    control_used = prob.control_weight > 0
-    return BundleResult(
-        centres=state.centres,
-        rotations=state.rotations,
-        points=state.points,
-        sigma0=sigma0,
-        redundancy=int(redundancy),
-        iterations=iterations,
-        converged=converged,
-        residuals_mm=normals.residuals_mm,
-        control_residuals=np.where(control_used, state.points - prob.control_xyz, np.nan),
-        point_std=precision.point_std,
-        centre_std=precision.centre_std,
-        rotation_std=precision.rotation_std,
-        history=np.asarray(history),
-        n_observations=prob.n_observations,
-        gnss_residuals=np.where(prob.gnss_weight > 0, state.centres - prob.gnss_xyz, np.nan),
-        imu_residuals=np.where(prob.imu_weight > 0, precision.imu_residuals, np.nan),
-        gnss_residual_cofactor=precision.gnss_cofactor,
-        imu_residual_cofactor=precision.imu_cofactor,
-        image_redundancy=precision.image_redundancy,
-        camera=precision.camera,
-        motion=precision.motion,
-    )
+        if not converged:
+            warnings.warn(
+                f"{NOT_CONVERGED} in {max_iterations} iterations "
+                f"(sigma0 {history[-1]:.4g})",
+                StripAerotriWarning,
+                stacklevel=2,
+            )
+        sigma0 = sigma0_of(normals.cost)
+        if redundancy <= 0:
+            warnings.warn(
+                "bundle adjustment has no redundancy: sigma0 and precision are undefined",
+                StripAerotriWarning,
+                stacklevel=2,
+            )
+        precision = _precision_products(prob, state, normals, sigma0, compute_precision)
+        control_used = prob.control_weight > 0
+        return BundleResult(
+            centres=state.centres,
+            rotations=state.rotations,
+            points=state.points,
+            sigma0=sigma0,
+            redundancy=int(redundancy),
+            iterations=iterations,
+            converged=converged,
+            residuals_mm=normals.residuals_mm,
+            control_residuals=np.where(control_used, state.points - prob.control_xyz, np.nan),
+            point_std=precision.point_std,
+            centre_std=precision.centre_std,
+            rotation_std=precision.rotation_std,
+            history=np.asarray(history),
+            n_observations=prob.n_observations,
+            gnss_residuals=np.where(prob.gnss_weight > 0, state.centres - prob.gnss_xyz, np.nan),
+            imu_residuals=np.where(prob.imu_weight > 0, precision.imu_residuals, np.nan),
+            gnss_residual_cofactor=precision.gnss_cofactor,
+            imu_residual_cofactor=precision.imu_cofactor,
+            image_redundancy=precision.image_redundancy,
+            camera=precision.camera,
+            motion=precision.motion,
+        )
 
 
 def _start_state(

@@ -19,6 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._stats import leading_failures
+from .._threads import compute_workers
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
 from ..errors import GeometryError, StripAerotriWarning
@@ -182,66 +183,68 @@ def refine_frame(
     left with one ray (and no full control) is dropped.  The adjustment is
     then solved again from the last solution, until nothing fails.
     """
-    blunders = blunders or BlunderOptions()
-    obs = observations
-    inp = _inputs(
-        obs, centres0, rotations0, points0, control_xyz, control_sigma,
-        gnss_centres, gnss_sigma, imu_rotations, imu_sigma, gnss_axes,
-    )._replace(motion=motion)  # fmt: skip
-    sets = _Sets.start(inp, blunders, observation_used, control_used, gnss_used, imu_used)
-    sets.control_tested = control_tested
-    rejections: list[Rejection] = []
-    rounds = iterations = 0
-    previous_effect: int | None = None
-    state = (inp.centres0, inp.rotations0, inp.points0)
-    camera = _Camera.start(inp, sets, self_calibration, max_iterations)
-    first_control: tuple[IntArray, FloatArray, float] | None = None
-    while True:
-        pt_used = sets.used_points(inp)
-        sub, rows, pts = _compact(obs, sets.keep, pt_used)
-        res = _adjust(
-            inp, sets, sub, pts, state, max_iterations=max_iterations,
-            compute_precision=compute_precision, camera=camera.model, camera0=camera.values,
-        )  # fmt: skip
-        rounds += 1
-        iterations += res.iterations
-        camera = camera.moved(res)
-        new_points = np.full((inp.n_points, 3), np.nan)
-        new_points[pts] = res.points
-        # keep initial values of dropped points for a possible later round
-        state = (res.centres, res.rotations, np.where(pt_used[:, None], new_points, inp.points0))
-        _sigma0_after(rejections, previous_effect, res.sigma0)
-        stats = _round_statistics(
-            inp, sets, res, new_points, pt_used, sub, rows, pts, compute_precision
-        )
-        result = _refinement(
-            _RoundOutcome(res, stats, new_points, pt_used, iterations, rounds),
-            sets,
-            camera,
-            obs,
-            rejections,
-        )
-        if not blunders.testing:
-            return result
-        failures = _failures(inp, sets, res, stats, blunders)
-        if first_control is None:
-            first_control = (*_control_w(sets, stats), failures.crit_ctrl)
-        if not failures.found:
-            return result
-        picks = _picks(failures, blunders, obs)
-        new_rejections = describe(obs, picks, failures, stats, res.sigma0, blunders)
-        if not blunders.rejecting:
-            return dataclasses.replace(result, rejections=tuple(rejections + new_rejections))
-        previous_effect = len(rejections)
-        rejections.extend(new_rejections)
-        sets.reject(picks)
-        if sets.control_over_limit(blunders) and _keep_systematic(
-            first_control, stats, rejections, obs, camera.model is not None
-        ):
-            rejections = kept_control(rejections)
-            sets.keep_control()
-            previous_effect = None
-        sets.check_fractions(inp, blunders)
+    with compute_workers(int(np.asarray(observations.photo).size)):
+        blunders = blunders or BlunderOptions()
+        obs = observations
+        inp = _inputs(
+            obs, centres0, rotations0, points0, control_xyz, control_sigma,
+            gnss_centres, gnss_sigma, imu_rotations, imu_sigma, gnss_axes,
+        )._replace(motion=motion)  # fmt: skip
+        sets = _Sets.start(inp, blunders, observation_used, control_used, gnss_used, imu_used)
+        sets.control_tested = control_tested
+        rejections: list[Rejection] = []
+        rounds = iterations = 0
+        previous_effect: int | None = None
+        state = (inp.centres0, inp.rotations0, inp.points0)
+        camera = _Camera.start(inp, sets, self_calibration, max_iterations)
+        first_control: tuple[IntArray, FloatArray, float] | None = None
+        while True:
+            pt_used = sets.used_points(inp)
+            sub, rows, pts = _compact(obs, sets.keep, pt_used)
+            res = _adjust(
+                inp, sets, sub, pts, state, max_iterations=max_iterations,
+                compute_precision=compute_precision, camera=camera.model, camera0=camera.values,
+            )  # fmt: skip
+            rounds += 1
+            iterations += res.iterations
+            camera = camera.moved(res)
+            new_points = np.full((inp.n_points, 3), np.nan)
+            new_points[pts] = res.points
+            # keep initial values of dropped points for a possible later round
+            kept = np.where(pt_used[:, None], new_points, inp.points0)
+            state = (res.centres, res.rotations, kept)
+            _sigma0_after(rejections, previous_effect, res.sigma0)
+            stats = _round_statistics(
+                inp, sets, res, new_points, pt_used, sub, rows, pts, compute_precision
+            )
+            result = _refinement(
+                _RoundOutcome(res, stats, new_points, pt_used, iterations, rounds),
+                sets,
+                camera,
+                obs,
+                rejections,
+            )
+            if not blunders.testing:
+                return result
+            failures = _failures(inp, sets, res, stats, blunders)
+            if first_control is None:
+                first_control = (*_control_w(sets, stats), failures.crit_ctrl)
+            if not failures.found:
+                return result
+            picks = _picks(failures, blunders, obs)
+            new_rejections = describe(obs, picks, failures, stats, res.sigma0, blunders)
+            if not blunders.rejecting:
+                return dataclasses.replace(result, rejections=tuple(rejections + new_rejections))
+            previous_effect = len(rejections)
+            rejections.extend(new_rejections)
+            sets.reject(picks)
+            if sets.control_over_limit(blunders) and _keep_systematic(
+                first_control, stats, rejections, obs, camera.model is not None
+            ):
+                rejections = kept_control(rejections)
+                sets.keep_control()
+                previous_effect = None
+            sets.check_fractions(inp, blunders)
 
 
 def _sigma0_after(rejections: list[Rejection], since: int | None, sigma0: float) -> None:
@@ -728,7 +731,8 @@ def _round_statistics(
     k_all = obs.photo.shape[0]
     tested = pt_used[obs.point]
     v_all = np.full((k_all, 2), np.nan)
-    rows_t = np.flatnonzero(tested)
+    rows_t = _every_or(np.flatnonzero(tested), k_all)
+    sel = _every_or(rows, k_all)
     ray_points = new_points[obs.point[rows_t]]
     if res.motion is not None:  # a rolling shutter: each ray from its moved centre
         shutter = res.motion.model
@@ -743,14 +747,14 @@ def _round_statistics(
         v_all[rows_t] -= res.camera.model.correction(obs.xy[rows_t], res.camera.values)
 
     ctrl_on, c_sig, given = sets.ctrl_on, inp.c_sig, inp.c_given
-    weight_sub = np.where(ctrl_on[pts], 1.0 / np.where(ctrl_on[pts], c_sig[pts], 1.0) ** 2, 0)
     r_img = np.full((k_all, 2), np.nan)
     exact = res.image_redundancy
     precise = compute_precision and np.isfinite(res.sigma0) and res.sigma0 > 0
     if precise and exact.shape == (rows.size, 2) and np.all(np.isfinite(exact)):
-        r_img[rows] = np.clip(exact, 1e-12, 1.0)
+        r_img[sel] = np.clip(exact, 1e-12, 1.0)
         vinv_diag = np.full((pts.size, 3), np.nan)  # not needed: the cofactors are exact
     else:
+        weight_sub = np.where(ctrl_on[pts], 1.0 / np.where(ctrl_on[pts], c_sig[pts], 1.0) ** 2, 0)
         h_sub, vinv_diag = _point_leverage(
             sub, res.centres, res.rotations, res.points, weight_sub
         )
@@ -758,10 +762,10 @@ def _round_statistics(
         n_photo = 6.0 * m + (0 if res.camera is None else len(res.camera.names))
         n_photo += 0 if res.motion is None else res.motion.values.size
         rho = max(_MIN_PHOTO_FACTOR, 1.0 - n_photo / free) if free > 0 else _MIN_PHOTO_FACTOR
-        r_img[rows] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
+        r_img[sel] = np.clip((1.0 - h_sub) * rho, 1e-12, 1.0)
     w_img = np.full((k_all, 2), np.nan)
-    w_img[rows] = v_all[rows] / (inp.sigma_img[rows, None] * np.sqrt(r_img[rows]))
-    w_img /= np.sqrt(robust_variance_factor(w_img[rows].ravel()))
+    w_img[sel] = v_all[sel] / (inp.sigma_img[sel, None] * np.sqrt(r_img[sel]))
+    w_img /= np.sqrt(robust_variance_factor(w_img[sel].ravel()))
 
     ctrl_res = np.full((p, 3), np.nan)
     ctrl_res[given] = np.where(pt_used[:, None], new_points, np.nan)[given] - inp.c_xyz[given]
@@ -924,6 +928,12 @@ def describe(
     return out
 
 
+def _every_or(index: IntArray, n: int) -> IntArray | slice:
+    """`index` (ascending, distinct places in ``range(n)``), or the slice of
+    every place when it holds them all (the same values, read without a copy)."""
+    return slice(None) if index.size == n else index
+
+
 def _point_leverage(
     obs: ImageObservations,
     centres: FloatArray,
@@ -965,7 +975,9 @@ def _compact(
     new_index[points] = np.arange(points.size)
     sub = ImageObservations(
         photo_ids=obs.photo_ids,
-        point_ids=tuple(obs.point_ids[i] for i in points),
+        point_ids=tuple(obs.point_ids)
+        if points.size == len(obs.point_ids)
+        else tuple(obs.point_ids[i] for i in points),
         photo=obs.photo[rows],
         point=new_index[obs.point[rows]],
         xy=obs.xy[rows],

@@ -6,12 +6,14 @@ the band in the structure's order (position J holds unit ``order[J]``)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import functools
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TypeVar
+from typing import Concatenate, ParamSpec, TypeVar
 
 import numpy as np
 
+from .._threads import compute_workers, split_map
 from .._typing import ArrayLike, FloatArray, IntArray
 from ._blockband import BandFactor, NotPositiveDefinite, factor_band, selected_inverse
 from ._normal_entries import (
@@ -24,6 +26,7 @@ from ._normal_entries import (
     pair_blocks,
     point_factor,
     run_sums,
+    spans,
     take,
     times_lower,
     times_lower_t,
@@ -43,6 +46,24 @@ from ._normal_rows import StructureLike as NormalStructure
 
 
 _A = TypeVar("_A", FloatArray, IntArray)
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _in_workers(
+    kernel: Callable[Concatenate[NormalStructure, _P], _R],
+) -> Callable[Concatenate[NormalStructure, _P], _R]:
+    """Run a kernel of structure `st` inside ``_threads.compute_workers``: the
+    bundle has it open already (its threads are used); elsewhere (the ground
+    stage, the block) the kernel opens its own for the call, by the same
+    rule, sized by the structure's unit-point rows."""
+
+    @functools.wraps(kernel)
+    def wrapped(st: NormalStructure, /, *args: _P.args, **kwargs: _P.kwargs) -> _R:
+        with compute_workers(st.pattern.row_unit.size):
+            return kernel(st, *args, **kwargs)
+
+    return wrapped
 
 
 def sum_into(index: IntArray, values: FloatArray, n: int) -> FloatArray:
@@ -72,6 +93,7 @@ def _add_blocks(
     blocks[uniq] += sum_into(inverse, values, uniq.size)
 
 
+@_in_workers
 def assemble(
     st: NormalStructure,
     unit_point_rows: Sequence[UnitPointRows],
@@ -294,19 +316,29 @@ def _schur_band(st: NormalStructure, band: FloatArray, z: FloatArray) -> FloatAr
     w1 = pat.width + 1
     dd = d * d
     flat_blocks = band.reshape(n * w1, dd).copy()
-    for c in pat.chunks:
+
+    def products(c: Chunk) -> tuple[IntArray, FloatArray]:
         zc = _group_major(z, c, d)
         sums = zc @ np.swapaxes(zc, 1, 2)  # (G, qd, qd)
         blocks = sums.reshape(-1, c.q, d, c.q, d).transpose(0, 1, 3, 2, 4)[:, c.lower_a, c.lower_b]
         if c.scatter_unique is None or c.scatter_inverse is None:  # every target once
-            flat_blocks[c.scatter.reshape(-1)] -= blocks.reshape(-1, dd)
-        else:  # summed over the chunk's blocks with the same target first
-            flat_blocks[c.scatter_unique] -= sum_into(
-                c.scatter_inverse, blocks.reshape(-1, dd), c.scatter_unique.size
-            )
+            return c.scatter.reshape(-1), blocks.reshape(-1, dd)
+        # summed over the chunk's blocks with the same target first
+        return c.scatter_unique, sum_into(
+            c.scatter_inverse, blocks.reshape(-1, dd), c.scatter_unique.size
+        )
+
+    def subtract(target_blocks: tuple[IntArray, FloatArray]) -> None:
+        target, blocks = target_blocks
+        flat_blocks[target] -= blocks
+
+    # the chunks' products on the threads of _threads.compute_workers, their
+    # sums into the band in the chunks' order (as in one thread)
+    split_map(products, pat.chunks, subtract)
     return flat_blocks.reshape(n, w1, d, d)
 
 
+@_in_workers
 def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Reduced:
     """Schur complement on the points, the banded factor, the border after
     the band, the step (units, points, border) and its predicted cost.
@@ -321,15 +353,22 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
         _point_factor(st, v) if v.shape[0]
         else PointFactor(np.zeros((6, 0)), v.copy(), v[:, 0, 0])
     )
-    m_pair = take(pf.m, pat.pair_point)
-    z = times_lower_t(normals.w, m_pair)  # (d, 3, n_pairs)
-    s_band = _schur_band(st, band, z)
     b_point = -normals.g_point
     mb = lower_times(pf.m, b_point.T)  # (3, p): M b_p
+    n_pairs = pat.pair_point.size
+    m_pair = np.empty((6, n_pairs))
+    z = np.empty((d, 3, n_pairs))  # W Mᵀ
+    zmb = np.empty((d, n_pairs))  # Z (M b_p)
+
+    def pairs_block(at: slice) -> None:
+        m_pair[:, at] = take(pf.m, pat.pair_point[at])
+        z[..., at] = times_lower_t(normals.w[..., at], m_pair[:, at])
+        np.einsum("ack,ck->ak", z[..., at], take(mb, pat.pair_point[at]), out=zmb[:, at])
+
+    split_map(pairs_block, spans(n_pairs))
+    s_band = _schur_band(st, band, z)
     # Σ_pairs W V⁻¹ b_p = Σ Z (M b_p), by unit
-    rhs_unit = -normals.g_unit - run_sums(
-        np.einsum("ack,ck->ak", z, take(mb, pat.pair_point)), pat.pair_unit_runs, n
-    )
+    rhs_unit = -normals.g_unit - run_sums(zmb, pat.pair_unit_runs, n)
     try:
         factor = factor_band(s_band)
     except NotPositiveDefinite as exc:
@@ -372,10 +411,14 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     unit_step = np.empty((n, d))
     unit_step[order] = x_pos.reshape(n, d)
     # points: V⁻¹ (b_p - Σ Wᵀ δu - Vb δb)
-    t_p = b_point - run_sums(
-        np.einsum("abk,ak->bk", normals.w, take(unit_step.T, pat.pair_unit)), pat.point_runs,
-        st.n_points,
-    )
+    wu = np.empty((3, n_pairs))  # Wᵀ δu per pair
+
+    def back_block(at: slice) -> None:
+        np.einsum("abk,ak->bk", normals.w[..., at], take(unit_step.T, pat.pair_unit[at]),
+                  out=wu[:, at])
+
+    split_map(back_block, spans(n_pairs))
+    t_p = b_point - run_sums(wu, pat.point_runs, st.n_points)
     if k:
         t_p -= normals.point_border @ border_step
     point_step = np.ascontiguousarray(lower_t_times(pf.m, lower_times(pf.m, t_p.T)).T)
@@ -440,6 +483,7 @@ def predicted_cost(st: NormalStructure, red: Reduced) -> float:
     return normals.cost + 2.0 * lin + quad
 
 
+@_in_workers
 def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     """The selected inverse: the band of the units' block (with the border's
     share ``X T⁻¹ Xᵀ``), the border's blocks and per point
@@ -464,7 +508,8 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     point = red.v_inv.copy()
     point_border = np.zeros((p, 3, k))
     zflat = z.reshape(-1, d, d)
-    for c in pat.chunks:
+
+    def chunk(c: Chunk) -> None:  # writes the chunk's own pairs and points
         q, n_g, groups = c.q, c.size, c.groups
         qd = q * d
         span = slice(c.pair_start, c.pair_start + groups * n_g * q)
@@ -491,6 +536,8 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
         if k:
             tb = t[:, qd:].reshape(groups, k, n_g, 3).transpose(0, 2, 3, 1)  # (G, n_g, 3, k)
             point_border[c.points] = -tb.reshape(-1, 3, k)
+
+    split_map(chunk, pat.chunks)
     if k:  # and - Y_bᵀ Q_pbᵀ
         alone = np.bincount(pat.pair_point, minlength=p) == 0
         point_border[alone] = -np.swapaxes(q_bb @ y_border[alone], 1, 2)
@@ -541,8 +588,8 @@ def _pair_leverage(cof: Cofactors, rows: UnitPointRows) -> FloatArray:
         return out
 
     h = np.empty((a_u.shape[0], a_u.shape[2]))  # (r, g)
-    for lo in range(0, h.shape[1], BLOCK):  # blocks of rows: the gathered blocks stay small
-        at = slice(lo, lo + BLOCK)
+
+    def rows_block(at: slice) -> None:  # blocks of rows: the gathered blocks stay small
         u, pt = unit[at], point[at]
         bu, bp = a_u[..., at], a_p[..., at]
         part = form(bu, take(q_unit, u), bu) + 2.0 * form(bu, take(cof.pair, pairs[at]), bp)
@@ -552,6 +599,8 @@ def _pair_leverage(cof: Cofactors, rows: UnitPointRows) -> FloatArray:
             part += 2.0 * form(bu, take(q_ub, u), bb) + 2.0 * form(bp, take(q_pb, pt), bb)
             part += np.einsum("rik,ij,rjk->rk", bb, cof.border, bb)
         h[:, at] = part
+
+    split_map(rows_block, spans(h.shape[1]))
     return h.T
 
 
@@ -561,7 +610,8 @@ def leverage(cof: Cofactors, rows: Rows) -> FloatArray:
     st = cof.structure
     k = st.n_border
     if isinstance(rows, UnitPointRows):
-        return _pair_leverage(cof, rows)
+        with compute_workers(st.pattern.row_unit.size):
+            return _pair_leverage(cof, rows)
     if isinstance(rows, UnitRows):
         a, _, ab = rows.whitened(k, st.unit_size)
         units = np.asarray(rows.units, np.intp)

@@ -17,11 +17,14 @@ parameters, k border parameters.
 
 from __future__ import annotations
 
+import functools
 import itertools
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 
+from .._threads import split_map
 from .._typing import FloatArray, IntArray
 from ._normal_pattern import Pattern
 
@@ -32,6 +35,7 @@ __all__ = [
     "pair_blocks",
     "point_factor",
     "run_sums",
+    "spans",
     "take",
 ]
 
@@ -58,12 +62,20 @@ def run_sums(values: FloatArray, runs: tuple[IntArray | None, IntArray, IntArray
     ``runs`` = (the order that makes the index's equal values contiguous, or
     None when it already is; the start of each run in that order; the value of
     each run).  Returns (n, *block), zero where the index has no entry."""
-    order, starts, seen = runs
     out = np.zeros((n, *values.shape[:-1]))
-    if starts.size:
-        ordered = values if order is None else take(values, order)
-        out[seen] = np.moveaxis(np.add.reduceat(ordered, starts, axis=-1), -1, 0)
+
+    def block(span: slice, places: slice | IntArray, first: IntArray, which: IntArray) -> None:
+        # a block of whole runs (blocks_of): each run summed as in one call
+        part = values[..., span] if isinstance(places, slice) else take(values, places)
+        out[which] = np.moveaxis(np.add.reduceat(part, first, axis=-1), -1, 0)
+
+    split_map(_star(block), blocks_of(runs, values.shape[-1]))
     return out
+
+
+def _star(function: Callable[..., None]) -> Callable[[tuple[object, ...]], None]:
+    """``function(*args)`` of one tuple ``args`` (for :func:`split_map`)."""
+    return lambda args: function(*args)
 
 
 class PairBlocks(NamedTuple):
@@ -90,6 +102,11 @@ class PairBlocks(NamedTuple):
 #: products of all rows at once (30 MB for the 6 x 6 blocks of 100 000 rows)
 #: would go through memory.
 BLOCK = 16384
+
+
+def spans(size: int) -> list[slice]:
+    """Consecutive slices of :data:`BLOCK` places covering ``range(size)``."""
+    return [slice(lo, lo + BLOCK) for lo in range(0, size, BLOCK)]
 
 
 def blocks_of(runs: tuple[IntArray | None, IntArray, IntArray],
@@ -132,10 +149,14 @@ def pair_blocks(
     parts = [au, ap, f[:, :, None]] + ([ab] if k else [])
     bounds = list(itertools.pairwise(np.cumsum([0] + [r * x.shape[2] for x in parts]).tolist()))
     records = np.empty((g, bounds[-1][1]))
-    for x, (lo, _) in zip(parts, bounds, strict=True):
-        m = x.shape[2]
-        for i in range(r):
-            records[:, lo + i * m : lo + (i + 1) * m] = x[:, i]
+
+    def fill(span: slice) -> None:
+        for x, (lo, _) in zip(parts, bounds, strict=True):
+            m = x.shape[2]
+            for i in range(r):
+                records[span, lo + i * m : lo + (i + 1) * m] = x[span, i]
+
+    split_map(fill, spans(g))
 
     def entries(block: FloatArray) -> list[FloatArray]:
         # a block of records (b, width) -> entry-major pieces (r, m, b)
@@ -144,21 +165,31 @@ def pair_blocks(
 
     u, g_unit = np.zeros((n, d, d)), np.zeros((n, d))
     unit_border, point_border = np.zeros((n, d, k)), np.zeros((p, 3, k))
-    for _, places, starts, seen in blocks_of(pat.row_unit_runs, g):
+    w = np.empty((d, 3, rows.size))
+    v, g_point = np.zeros((p, 3, 3)), np.zeros((p, 3))
+
+    def unit_block(places: slice | IntArray, starts: IntArray, seen: IntArray) -> None:
         bu, _, bf, *bb = entries(records[places])
         u[seen] = _summed(np.einsum("rak,rbk->abk", bu, bu), starts)
         g_unit[seen] = _summed(np.einsum("rak,rk->ak", bu, bf[:, 0]), starts)
         if bb:
             unit_border[seen] = _summed(np.einsum("rak,rbk->abk", bu, bb[0]), starts)
-    w = np.empty((d, 3, rows.size))
-    v, g_point = np.zeros((p, 3, 3)), np.zeros((p, 3))
-    for span, places, starts, seen in blocks_of(pat.point_runs, rows.size):
+
+    def point_block(span: slice, places: slice | IntArray, starts: IntArray,
+                    seen: IntArray) -> None:
         pu, pp, pf, *pb = entries(np.take(records, rows[places], axis=0))
         np.einsum("rak,rbk->abk", pu, pp, out=w[..., span])
         v[seen] = _summed(np.einsum("rak,rbk->abk", pp, pp), starts)
         g_point[seen] = _summed(np.einsum("rak,rk->ak", pp, pf[:, 0]), starts)
         if pb:
             point_border[seen] = _summed(np.einsum("rak,rbk->abk", pp, pb[0]), starts)
+
+    # each block writes its own units' and points' blocks: the blocks run on
+    # the threads of _threads.compute_workers, the results as in one thread
+    tasks: list[Callable[[], None]] = []
+    tasks += [functools.partial(point_block, *b) for b in blocks_of(pat.point_runs, rows.size)]
+    tasks += [functools.partial(unit_block, *b[1:]) for b in blocks_of(pat.row_unit_runs, g)]
+    split_map(_call, tasks)
     cost = float(np.einsum("gr,gr->", f, f))
     if not k:
         return PairBlocks(u, w, v, g_unit, g_point, unit_border, point_border,
@@ -167,6 +198,10 @@ def pair_blocks(
         u, w, v, g_unit, g_point, unit_border, point_border,
         np.einsum("gra,grb->ab", ab, ab), np.einsum("gra,gr->a", ab, f), cost,
     )
+
+
+def _call(task: Callable[[], None]) -> None:
+    task()
 
 
 def _summed(products: FloatArray, starts: IntArray) -> FloatArray:

@@ -16,6 +16,7 @@ the band together.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,8 +78,6 @@ class Pattern:
     pair_keys: IntArray  # sorted keys point * n + position of the pairs
     row_unit: IntArray  # (G,) the unit-point rows' units, as given
     row_point: IntArray  # (G,) and points
-    unit_slot: IntArray  # (G,) place of each row among its unit's rows
-    rows_per_unit: int  # the most rows of one unit
     pair_row: IntArray | None  # (n_pairs,) the row of each pair when there is one each
     #: runs of the pairs by point (contiguous: no order), of the pairs by
     #: unit and of the rows by unit (None: the rows are sorted by unit), each
@@ -211,12 +210,8 @@ def build_pattern(
     chunks = [
         dataclasses.replace(c, pair_start=int(renum[c.pair_start])) for c in chunks
     ]
-    pair_key = pp[old] * n + position[pu[old]]
-    key_order = np.argsort(pair_key)
-    by_unit = np.argsort(row_unit, kind="stable")
-    counts = np.bincount(row_unit, minlength=n)
-    unit_slot = np.empty(row_unit.size, dtype=np.intp)
-    unit_slot[by_unit] = np.arange(row_unit.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    # the pairs' keys point * n + position, sorted, are `upair` (the old
+    # numbering); the new number of each is `renum`
     new_row_pair = renum[row_pair]
     pair_row: IntArray | None = None
     if row_pair.size == old.size:  # one row per pair
@@ -233,12 +228,10 @@ def build_pattern(
         pair_point=pp[old],
         row_pair=new_row_pair,
         chunks=tuple(chunks),
-        pair_keys=pair_key[key_order],
-        pair_by_key=key_order.astype(np.intp),
+        pair_keys=upair.astype(np.intp),
+        pair_by_key=renum.astype(np.intp),
         row_unit=row_unit,
         row_point=row_point,
-        unit_slot=unit_slot,
-        rows_per_unit=int(counts.max(initial=0)),
         pair_row=pair_row,
         point_runs=runs_of(pp[old]),
         pair_unit_runs=runs_of(pu[old]),
@@ -269,6 +262,21 @@ def sorted_unique(values: IntArray) -> IntArray:
     return out
 
 
+@functools.lru_cache(maxsize=64)
+def _pair_tables(q: int) -> tuple[IntArray, IntArray, BoolArray, IntArray, IntArray]:
+    """For q units of a group: the lower pairs (a >= b; positions ascending,
+    so pos_a >= pos_b) as two index arrays, and for every pair (a, b) of the
+    q x q grid whether it is above the diagonal and its smaller and larger
+    index; read-only, shared by the chunks of every pattern."""
+    a_idx, b_idx = np.tril_indices(q)
+    aa, bb = np.meshgrid(np.arange(q), np.arange(q), indexing="ij")
+    out = (a_idx.astype(np.intp), b_idx.astype(np.intp), aa < bb, np.minimum(aa, bb),
+           np.maximum(aa, bb))
+    for x in out:
+        x.flags.writeable = False
+    return out
+
+
 def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray,
             sig: IntArray) -> list[Chunk]:
     """Groups of n_g points with the same q units (consecutive runs of n_g in
@@ -278,11 +286,7 @@ def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray
     groups = pts.size // n_g
     size = max(1, CHUNK_ENTRIES // per_group)
     w1 = width + 1
-    a_idx, b_idx = np.tril_indices(q)  # a >= b: positions ascending, so pos_a >= pos_b
-    aa, bb = np.meshgrid(np.arange(q), np.arange(q), indexing="ij")
-    upper = aa < bb
-    lo = np.minimum(aa, bb)
-    hi = np.maximum(aa, bb)
+    a_idx, b_idx, upper, lo, hi = _pair_tables(q)
     gs_all = sig[::n_g]  # (groups, q)
     out = []
     for g0 in range(0, groups, size):
@@ -295,8 +299,7 @@ def _chunks(q: int, n_g: int, d: int, width: int, pts: IntArray, pairs: IntArray
         distinct = uniq.size == flat.size
         out.append(
             Chunk(q, n_g, pts[g0 * n_g : g1 * n_g], int(pairs[g0 * n_g, 0]),
-                  scatter.astype(np.intp), gather.astype(np.intp), upper,
-                  a_idx.astype(np.intp), b_idx.astype(np.intp),
+                  scatter.astype(np.intp), gather.astype(np.intp), upper, a_idx, b_idx,
                   None if distinct else uniq.astype(np.intp),
                   None if distinct else inverse.astype(np.intp).reshape(-1))
         )

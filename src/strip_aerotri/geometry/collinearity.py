@@ -12,9 +12,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._threads import split_map
 from .._typing import FloatArray, IntArray
 
 __all__ = ["collinearity_jacobians", "image_jacobian", "image_vectors", "project"]
+
+#: Observations per block of :func:`collinearity_jacobians` (the blocks run on
+#: the threads of ``_threads.compute_workers`` where one is open).
+_BLOCK = 16384
 
 
 def image_vectors(centres: FloatArray, rotations: FloatArray, points: FloatArray) -> FloatArray:
@@ -102,8 +107,11 @@ def collinearity_jacobians(
     photo: IntArray,
     point: IntArray,
     principal_distance: float,
+    scale: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """The collinearity equations and their Jacobians (arguments as :func:`project`).
+    """The collinearity equations and their Jacobians (arguments as :func:`project`;
+    `scale` (K,), optional, multiplies each observation's two Jacobians, e.g.
+    ``1 / sigma`` to whiten them).
 
     Returns
     -------
@@ -119,30 +127,43 @@ def collinearity_jacobians(
     (``np.moveaxis(jac_photo, 0, -1)`` is C-contiguous), as
     :mod:`strip_aerotri.geometry.normals` reads them.
     """
-    v, rot = _vectors(centres, rotations, points, photo, point)
-    # d(x, y)/dv = f [[1, 0, -v_x/v_z], [0, 1, -v_y/v_z]] with f = -c / v_z;
-    # dv/dX = Rᵀ, dv/dS = −Rᵀ, dv/dδ = [v]×  (Rᵀ <- (I − [δ]×) Rᵀ), written
-    # out term by term (the 2 x 3 factor has four nonzeros), each entry an
-    # array over the K observations
-    vx, vy, vz = v
-    f = -principal_distance / vz
-    ux, uy = vx / vz, vy / vz
-    k = vz.size
-    xy = np.stack([f * vx, f * vy])
-    jac_point = np.empty((2, 3, k))
-    for b in range(3):  # row b of Rᵀ ... column b of R: R[b, 0], R[b, 1], R[b, 2]
-        np.multiply(f, rot[3 * b] - ux * rot[3 * b + 2], out=jac_point[0, b])
-        np.multiply(f, rot[3 * b + 1] - uy * rot[3 * b + 2], out=jac_point[1, b])
-    jac_photo = np.empty((2, 6, k))
-    np.negative(jac_point, out=jac_photo[:, :3])
-    # rows of d_v times [v]× = [[0, -vz, vy], [vz, 0, -vx], [-vy, vx, 0]]
-    fu, fv = f * ux, f * uy
-    jac_photo[0, 3] = fu * vy
-    jac_photo[0, 4] = -(f * vz + fu * vx)
-    jac_photo[0, 5] = f * vy
-    jac_photo[1, 3] = f * vz + fv * vy
-    jac_photo[1, 4] = -fv * vx
-    jac_photo[1, 5] = -f * vx
+    photo, point = np.asarray(photo, np.intp), np.asarray(point, np.intp)
+    k = photo.size
+    xy, v_all = np.empty((2, k)), np.empty((3, k))
+    jac_point, jac_photo = np.empty((2, 3, k)), np.empty((2, 6, k))
+
+    def block(at: slice) -> None:
+        v, rot = _vectors(centres, rotations, points, photo[at], point[at])
+        v_all[:, at] = v
+        # d(x, y)/dv = f [[1, 0, -v_x/v_z], [0, 1, -v_y/v_z]] with f = -c / v_z;
+        # dv/dX = Rᵀ, dv/dS = −Rᵀ, dv/dδ = [v]×  (Rᵀ <- (I − [δ]×) Rᵀ), written
+        # out term by term (the 2 x 3 factor has four nonzeros), each entry an
+        # array over the observations
+        vx, vy, vz = v
+        f = -principal_distance / vz
+        ux, uy = vx / vz, vy / vz
+        np.multiply(f, vx, out=xy[0, at])
+        np.multiply(f, vy, out=xy[1, at])
+        jp, jo = jac_point[..., at], jac_photo[..., at]
+        for b in range(3):  # row b of Rᵀ ... column b of R: R[b, 0], R[b, 1], R[b, 2]
+            np.multiply(f, rot[3 * b] - ux * rot[3 * b + 2], out=jp[0, b])
+            np.multiply(f, rot[3 * b + 1] - uy * rot[3 * b + 2], out=jp[1, b])
+        np.negative(jp, out=jo[:, :3])
+        # rows of d_v times [v]× = [[0, -vz, vy], [vz, 0, -vx], [-vy, vx, 0]]
+        fu, fv = f * ux, f * uy
+        jo[0, 3] = fu * vy
+        jo[0, 4] = -(f * vz + fu * vx)
+        jo[0, 5] = f * vy
+        jo[1, 3] = f * vz + fv * vy
+        jo[1, 4] = -fv * vx
+        jo[1, 5] = -f * vx
+        if scale is not None:
+            jp *= scale[at]
+            jo *= scale[at]
+
+    # blocks of observations on the threads of _threads.compute_workers
+    split_map(block, [slice(lo, lo + _BLOCK) for lo in range(0, k, _BLOCK)])
+    v = v_all
     return (
         xy.T, v.T, np.moveaxis(jac_photo, -1, 0), np.moveaxis(jac_point, -1, 0)
     )
