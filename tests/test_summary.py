@@ -340,3 +340,6 @@ def test_a_refined_strip_counts_the_delivered_points(tmp_path):
     n_header = sum(1 for r in rows if not r[:1].isalnum() or r.startswith("point,"))
     assert outputs.summary.n_points == len(rows) - n_header
     assert outputs.summary.n_points == int(result.strip.triangulated.sum()) - 1
+    # report.json and the page say the same count as the command line
+    record = json.loads(outputs.files["report.json"])
+    assert record["inputs"]["n_points_triangulated"] == outputs.summary.n_points

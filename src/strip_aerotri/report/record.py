@@ -392,7 +392,7 @@ def build_report(
             "n_photos": len(result.photo_ids),
             "photos": list(result.photo_ids),
             "n_points": len(result.point_ids),
-            "n_points_triangulated": int(np.count_nonzero(result.strip.triangulated)),
+            "n_points_triangulated": int(np.isfinite(result.points).all(axis=1).sum()),
             "n_observations": len(obs.photo),
             "principal_distance_mm": json_float(obs.principal_distance),
             "principal_point_mm": None

@@ -595,11 +595,7 @@ def summarize(
         n_strips=1,
         n_photos=len(result.photo_ids),
         # the delivered points (points.csv): the refinement's when there is one
-        n_points=int(
-            result.strip.triangulated.sum()
-            if refined is None
-            else np.isfinite(refined.points).all(axis=1).sum()
-        ),
+        n_points=int(np.isfinite(result.points).all(axis=1).sum()),
         refined=refined is not None,
         construction="" if result.options is None else result.options.block.value,
         control=Accuracy.of(final.control_statistics),
