@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -58,3 +59,36 @@ def test_nothing_elsewhere(monkeypatch: pytest.MonkeyPatch) -> None:
 
     monkeypatch.setattr(memory.sys, "platform", "darwin")
     assert memory.keep_freed_memory() is False
+
+
+@pytest.mark.parametrize("owns_process", [False, True])
+def test_only_the_stripaero_script_changes_what_is_process_wide(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, owns_process: bool
+) -> None:
+    """A run called in another program's process (click's CliRunner, a test)
+    leaves the allocator and numpy's submodules alone; the script's run
+    (``cli.main.main`` sets ``OWNS_PROCESS``) tunes them."""
+    from click.testing import CliRunner
+
+    import strip_aerotri as sa
+    from strip_aerotri.cli import imports, memory
+    from strip_aerotri.cli import run as run_module
+    from strip_aerotri.cli.main import cli
+
+    called: list[str] = []
+
+    def kept() -> bool:
+        called.append("memory")
+        return True
+
+    def deferred() -> tuple[str, ...]:
+        called.append("numpy")
+        return ()
+
+    monkeypatch.setattr(memory, "keep_freed_memory", kept)
+    monkeypatch.setattr(imports, "defer_numpy_submodules", deferred)
+    monkeypatch.setattr(run_module, "OWNS_PROCESS", owns_process)
+    toml = sa.simulate_strip(6, preset="film", seed=3).write_project(tmp_path / "p")
+    done = CliRunner().invoke(cli, ["-q", "run", str(toml), "--out", str(tmp_path / "out")])
+    assert done.exit_code == 0, done.output
+    assert called == (["memory", "numpy"] if owns_process else [])

@@ -23,6 +23,7 @@ from .docs import docs
 from .export import export
 from .importer import import_group
 from .options import DOCS_EPILOG, Settings, common_options, echo_error, settings
+from . import run as run_module  # the module; `run` below is its command
 from .run import run
 from .simulate import simulate
 
@@ -165,6 +166,7 @@ def main() -> None:
     and the process ends by ``os._exit``.  Under a tracer or profiler, or
     while another non-daemon thread runs, it ends the ordinary way.
     """
+    run_module.OWNS_PROCESS = True
     try:
         cli(prog_name="stripaero")
     except SystemExit as exc:

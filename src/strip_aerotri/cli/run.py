@@ -22,6 +22,12 @@ from .options import (
     settings,
 )
 
+#: True in the ``stripaero`` script (:func:`.main.main` sets it): a run then owns
+#: its process and tunes what is process-wide (glibc's allocator, numpy's
+#: unused submodules deferred); a run called in another program's process
+#: (click's CliRunner, a test) leaves those alone.
+OWNS_PROCESS = False
+
 if TYPE_CHECKING:  # the numerical modules are imported when the command runs
     from ..project import Project
     from ..report.files import ResultFolder
@@ -80,8 +86,9 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     from .imports import defer_numpy_submodules
     from .memory import keep_freed_memory
 
-    keep_freed_memory()  # this process's arrays come and go by the hundred
-    defer_numpy_submodules()  # those scipy touches and a run does not use
+    if OWNS_PROCESS:  # what is process-wide, only where the run owns the process
+        keep_freed_memory()  # this process's arrays come and go by the hundred
+        defer_numpy_submodules()  # those scipy touches and a run does not use
     started = time.perf_counter()
     echo_progress(f"loading {project_file}")
     with warnings.catch_warnings(record=True) as caught:
