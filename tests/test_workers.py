@@ -149,6 +149,32 @@ def test_split_map_without_a_block_is_the_loop() -> None:
     assert seen == ["1", "2"]
 
 
+def test_a_split_map_inside_an_item_runs_serially_and_ends(two_workers: None) -> None:
+    """An item that calls split_map itself (in the calling thread) must not
+    wait for the one worker, which waits for that item's turn to combine."""
+    seen: list[int] = []
+    failures: list[BaseException] = []
+
+    def item(i: int) -> int:
+        inner = split_map(lambda j: j * i, list(range(4)))
+        time.sleep(0.001)
+        return sum(inner)
+
+    def outer() -> None:
+        try:
+            with compute_workers(10**6):
+                split_map(item, list(range(40)), seen.append)
+        except BaseException as exc:  # raised in the test's thread below
+            failures.append(exc)
+
+    thread = threading.Thread(target=outer, daemon=True)
+    thread.start()
+    thread.join(timeout=20.0)
+    assert not thread.is_alive(), "split_map inside an item did not end"
+    assert not failures
+    assert seen == [6 * i for i in range(40)]
+
+
 def test_nested_blocks_share_the_outer_worker(two_workers: None) -> None:
     before = threading.active_count()
     with compute_workers(10**6) as outer, compute_workers(10**6) as inner:

@@ -239,12 +239,11 @@ def worker_count(size: int) -> int:
                 "number of threads (unset it for the default: two where a second core is free)"
             )
         cores = min(cores, wanted)
-    elif cores > 1 and machine_busy(cores):
+    if size < MIN_PARALLEL_SIZE:
         return 1
-    return 1 if size < MIN_PARALLEL_SIZE else cores
-
-
-_local = threading.local()
+    if not text and cores > 1 and machine_busy(cores):
+        return 1
+    return cores
 
 
 @contextlib.contextmanager
@@ -329,12 +328,17 @@ def split_map(
             raise
 
     future = pool.submit(drain)
+    # A split_map inside an item runs serially here, as it does in the worker
+    # (the pool is this thread's): queued behind this one it would never start.
+    _local.pool = None
     try:
         drain()
         future.result()
     except BaseException:  # Ctrl-C while waiting for the worker: it stops too
         stop.set()
         raise
+    finally:
+        _local.pool = pool
     return [] if combine is not None else results  # type: ignore[return-value]
 
 
