@@ -601,7 +601,7 @@ def bundle_adjust(
     motion : ShutterMotion, optional
         A rolling shutter: one motion of the centre over the readout per
         group of photos, estimated in the border after the camera's
-        (:mod:`strip_aerotri.bundle.shutter`; start 0).
+        (:class:`strip_aerotri.geometry.camera_model.ShutterMotion`; start 0).
 
     Returns
     -------

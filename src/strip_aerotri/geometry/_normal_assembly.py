@@ -17,7 +17,6 @@ from .._threads import compute_workers, split_map
 from .._typing import ArrayLike, FloatArray, IntArray
 from ._blockband import BandFactor, NotPositiveDefinite, factor_band, selected_inverse
 from ._normal_entries import (
-    BLOCK,
     PairBlocks,
     PointFactor,
     entry_major,
@@ -115,7 +114,6 @@ def assemble(
     g_unit = np.zeros((n, d))
     v = np.zeros((p, 3, 3))
     g_point = np.zeros((p, 3))
-    w = np.zeros((n_pairs, d, 3))  # the general rows' W, pair-major
     unit_border = np.zeros((n, d, k))
     point_border = np.zeros((p, 3, k))
     border = np.zeros((k, k))
@@ -132,10 +130,11 @@ def assemble(
             fast.unit_border, fast.point_border, fast.border, fast.g_border
         )
         cost = fast.cost
+    # the general rows' W, pair-major (the entry-major path has its own)
+    w = np.zeros((0 if fast is not None else n_pairs, d, 3))
+    general = zip(unit_point_rows, whitened) if fast is None else ()
     offset = 0
-    for rows, (au, ap, f, ab) in zip(unit_point_rows, whitened):
-        if fast is not None:
-            break
+    for rows, (au, ap, f, ab) in general:
         unit = np.asarray(rows.unit, np.intp)
         point = np.asarray(rows.point, np.intp)
         g = unit.size

@@ -104,9 +104,7 @@ def _merged_rows(
     turns each unit's weights to its group's reference rotation."""
     group = unit_group[obs.unit]
     key = group * n_points + obs.point
-    uniq, first = np.unique(key, return_index=True)
-    point_of = uniq % n_points
-    in_groups = np.bincount(point_of, minlength=n_points)
+    in_groups = np.bincount(np.unique(key) % n_points, minlength=n_points)
     wanted = (in_groups >= 2) | keep_points
     rows = np.flatnonzero(wanted[obs.point])
     key = key[rows]
@@ -177,8 +175,9 @@ def grouped_start(
     """
     group = np.asarray(group, dtype=np.intp)
     n_groups = int(group.max()) + 1 if group.size else 0
-    first_unit = np.full(n_groups, -1, dtype=np.intp)
-    first_unit[group[::-1]] = np.arange(group.size)[::-1]  # the first unit of each group
+    _, first_unit = np.unique(group, return_index=True)  # the first unit of each group
+    if first_unit.size != n_groups:
+        raise ValueError(f"Expected groups numbered 0..{n_groups - 1}, each with a unit")
     keep = np.zeros(n_points, dtype=bool)
     keep[np.asarray(control_point, dtype=np.intp)] = True
     for line in lines:

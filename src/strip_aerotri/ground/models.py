@@ -311,7 +311,7 @@ def _grouped_start(
     (:func:`~strip_aerotri.geometry.grouped_start.grouped_start`; J's
     similarity where that fails or does not converge: it is only a start)."""
     strip = p.strip
-    group = groups_along(strip.n_models, _GROUP_MODELS, getattr(strip, "breaks", ()))
+    group = groups_along(strip.n_models, _GROUP_MODELS, strip.breaks)
     if int(group.max(initial=0)) + 1 < _GROUPS_FROM:
         return p.guess.copy(), p.start_units, p.points0
     active = use_xy | use_z
@@ -530,7 +530,7 @@ def _check_breaks(
     own control, J's rules for a similarity (two plan and three height
     points, not degenerate); the shared projection centre holds only the
     position across a break."""
-    breaks = np.asarray(getattr(strip, "breaks", ()), dtype=np.intp)
+    breaks = np.asarray(strip.breaks, dtype=np.intp)
     if breaks.size == 0:
         return
     edges = [0, *breaks.tolist(), strip.n_models]

@@ -127,6 +127,7 @@ def adjust_to_ground(
     return _adjusted(strip, control, crs, tuple(lines), options, blunders, all_points=True)
 
 
+@limit_blas_threads
 def similarity_start(
     strip: StripModel,
     control: ControlPoints,

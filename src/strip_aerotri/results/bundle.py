@@ -178,7 +178,7 @@ class SelfCalibrationOutcome:
 
 @dataclass(frozen=True)
 class ShutterEstimate:
-    """The rolling shutter's motion estimated with the block (bundle/shutter.py).
+    """The rolling shutter's motion estimated with the block (geometry/camera_model.py, ``ShutterMotion``).
 
     Attributes
     ----------
