@@ -377,8 +377,8 @@ def figure_layout(data: StripFigureData) -> str:
         )
     ax.autoscale_view()
     _plan_axes(ax, plan)
-    fixed_title(ax, 
-        "Strip layout along the strip axis (not to scale)" if plan.long else "Strip layout"
+    fixed_title(
+        ax, "Strip layout along the strip axis (not to scale)" if plan.long else "Strip layout"
     )
     if plan.long:
         beside = ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
@@ -551,7 +551,9 @@ def _figure_residuals_along(
         ax.grid(True, lw=0.3, alpha=0.5)
     axes[0].legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel(f"along the strip from the first photo [{plan.unit}]")
-    fixed_title(axes[0], "Residuals (given − adjusted) at control and check points along the strip")
+    fixed_title(
+        axes[0], "Residuals (given − adjusted) at control and check points along the strip"
+    )
     return _fitted_png(fig)
 
 

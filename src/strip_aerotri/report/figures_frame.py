@@ -303,7 +303,9 @@ def _measure(
 def _beyond(extent: Bbox, ax: Axes) -> FloatArray:
     """How far ``extent`` (pixels) reaches beyond ``ax``'s box: left, bottom, right, top."""
     box = ax.bbox
-    return np.array([box.x0 - extent.x0, box.y0 - extent.y0, extent.x1 - box.x1, extent.y1 - box.y1])
+    return np.array(
+        [box.x0 - extent.x0, box.y0 - extent.y0, extent.x1 - box.x1, extent.y1 - box.y1]
+    )
 
 
 def _needs(ax: Axes, renderer: RendererAgg, found: _Found) -> FloatArray:
@@ -389,11 +391,15 @@ def _tick_labels(axis: Axis) -> tuple[FloatArray, FloatArray, list[str]]:
     horizontal = _horizontal(axis)
     other = np.full(int(keep.sum()), ax.get_ylim()[0] if horizontal else ax.get_xlim()[0])
     points = np.column_stack([locs[keep], other] if horizontal else [other, locs[keep]])
-    pixels = np.asarray(ax.transData.transform(points), dtype=np.float64)[:, 0 if horizontal else 1]
+    pixels = np.asarray(ax.transData.transform(points), dtype=np.float64)[
+        :, 0 if horizontal else 1
+    ]
     return locs[keep], pixels, [s for s, k in zip(labels, keep, strict=True) if k]
 
 
-def _along_span(axis: Axis, pixels: FloatArray, sizes: FloatArray, like: Text) -> tuple[float, float]:
+def _along_span(
+    axis: Axis, pixels: FloatArray, sizes: FloatArray, like: Text
+) -> tuple[float, float]:
     """How far tick labels (``sizes`` along the axis, at ``pixels``) reach
     beyond the axes' two ends: x labels as aligned, y labels centred."""
     box = axis.axes.bbox
