@@ -456,35 +456,16 @@ def _line_rows(prob: _Problem, st: _State, k: int) -> Any:
     )
 
 
-class _Step:
-    """The engine's solution of one linearisation (unit, point and border
-    steps, the cofactors) and its points' 3 x 3 normal blocks ``V`` (the
-    points the rows observe, in the order of :attr:`_Problem.points_used`)."""
-
-    def __init__(self, solution: NormalSolution, point_normals: FloatArray) -> None:
-        self.solution = solution
-        self.point_normals = point_normals
-        self._inverse: FloatArray | None = None
-
-    def point_inverse(self) -> FloatArray:
-        """``V⁻¹`` of every point by LAPACK (computed once), for the points'
-        projection after a step: the path of the iterations.  (The engine's
-        own V⁻¹, from its closed-form factors, differs in the last bits, and
-        the solutions reached from two starts then differ by up to 1.1e-9
-        rad instead of 1e-9: tests/test_grouped_start.py.)"""
-        if self._inverse is None:
-            self._inverse = np.asarray(np.linalg.inv(self.point_normals), dtype=np.float64)
-        return self._inverse
-
-
-def _solve(prob: _Problem, st: _State) -> _Step:
-    """The step of one Gauss-Newton iteration at ``st``."""
+def _solve(prob: _Problem, st: _State) -> NormalSolution:
+    """The step of one Gauss-Newton iteration at ``st``, with the points'
+    ``V⁻¹`` of its normal equations (their rows' and their control's
+    weights: :attr:`NormalSolution.point_inverse`, in the order of
+    :attr:`_Problem.points_used`) and its cofactors."""
     from .normals import SingularNormalsError
 
     unit_point, unit_rows, point_rows = _engine_rows(prob, st)
     try:
-        formed = prob.structure.form(unit_point, unit_rows, point_rows)
-        return _Step(formed.solve(), formed.point_blocks)
+        return prob.structure.solve(unit_point, unit_rows, point_rows)
     except SingularNormalsError as exc:
         if exc.kind == "unit":
             what = f"unit {exc.index} shares too few points with the others and the control"
@@ -637,12 +618,12 @@ def adjust_units(
             cost = _cost(prob, st)
         sol = _solve(prob, st)
         dp = np.zeros((n_points, 3))
-        dp[prob.points_used] = sol.solution.point_step
+        dp[prob.points_used] = sol.point_step
         step = 1.0
         for _ in range(30):
-            trial = _step(prob, st, sol.solution, dp, step)
+            trial = _step(prob, st, sol, dp, step)
             if project_points:
-                trial = _projected(prob, trial, sol.point_inverse())
+                trial = _projected(prob, trial, sol.point_inverse)
             trial_cost = _cost(prob, trial)
             if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
                 break
@@ -652,7 +633,7 @@ def adjust_units(
                 "the simultaneous transformation of the units diverges: no step lowers the "
                 "sum of squares (start values too far off)"
             )
-        du = sol.solution.unit_step * step
+        du = sol.unit_step * step
         lead.record(du[:, 3:6])
         largest = max(
             float(np.max(np.abs(du[:, :3]), initial=0.0)) / extent,
@@ -814,7 +795,7 @@ def _step(prob: _Problem, st: _State, sol: NormalSolution, dp: FloatArray, step:
 def _result(
     prob: _Problem,
     st: _State,
-    sol: _Step,
+    sol: NormalSolution,
     cost: float,
     iterations: int,
     converged: bool,
@@ -826,7 +807,7 @@ def _result(
     _, v = _predict(prob, st)
     redundancy = prob.n_observations - prob.n_unknowns
     sigma0 = float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
-    cof = sol.solution.cofactors() if statistics or prob.polynomial is not None else None
+    cof = sol.cofactors() if statistics or prob.polynomial is not None else None
 
     # Cofactors of the control points (the selected inverse's point blocks):
     # the diagonal of the given components, which the tests need.
@@ -852,7 +833,7 @@ def _result(
     lt = prob.whiten
     wv = np.einsum("nij,nj->ni", lt, v)
     # V⁻¹ of the points the rows observe: the engine's (statistics only)
-    v_inv = sol.solution.point_inverse
+    v_inv = sol.point_inverse
     # trace(Lᵀ V⁻¹ L), row by row of Lᵀ: Σ_i l_i V⁻¹ l_iᵀ
     leverage = np.einsum("nij,nij->n", lt @ v_inv[prob.engine_point[obs.point]], lt)
     free = 3.0 - leverage
