@@ -476,6 +476,29 @@ def _solve(prob: _Problem, st: _State) -> NormalSolution:
         raise GeometryError(f"the units are not determined: {what}") from exc
 
 
+def _gradients(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
+    """``Aᵀ P f`` of the units (U, width) and of the engine's points (p, 3) at
+    ``st``: the right-hand side :meth:`NormalStructure.form` would form for
+    a chord step (no lines, no polynomial)."""
+    from ._normal_assembly import sum_into
+
+    obs = prob.obs
+    y, v = _predict(prob, st)
+    lt = prob.whiten
+    r = np.einsum("nij,nj->ni", lt, v)  # the whitened residuals
+    design = _whitened_design(prob, st, y)
+    g_unit = sum_into(obs.unit, np.einsum("nik,ni->nk", design, r), prob.n_units)
+    n_used = prob.points_used.size
+    # the point's whitened Jacobian is -Lᵀ: (-Lᵀ)ᵀ r
+    g_point = -sum_into(prob.engine_point[obs.point], np.einsum("nij,ni->nj", lt, r), n_used)
+    used = prob.control_used
+    cp, given = prob.control_point[used], prob.control_given[used]
+    f = np.where(given, st.points[cp] - np.where(given, prob.control_xyz[used], 0.0), 0.0)
+    w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma[used], 1.0) ** 2, 0.0)
+    g_point += sum_into(prob.engine_point[cp], w_c * f, n_used)
+    return g_unit, g_point
+
+
 def adjust_units(
     observations: UnitObservations,
     n_units: int,
@@ -612,34 +635,24 @@ def adjust_units(
     iterations = 0
     sol = None
     lead = _WeightLead()
+    # chord steps on the last factor once a full step was below chord_from
+    chords = _Chords(prob, tolerance)
     for iterations in range(1, max_iterations + 1):
-        sol = None  # the last step's factor goes before the next is formed
         if iterations > 1 and prob.turn_weights(lead.ahead(st.rotation)):
             cost = _cost(prob, st)
-        sol = _solve(prob, st)
-        dp = np.zeros((n_points, 3))
-        dp[prob.points_used] = sol.point_step
-        step = 1.0
-        for _ in range(30):
-            trial = _step(prob, st, sol, dp, step)
-            if project_points:
-                trial = _projected(prob, trial, sol.point_inverse)
-            trial_cost = _cost(prob, trial)
-            if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
-                break
-            step *= 0.5
-        else:
-            raise ConvergenceError(
-                "the simultaneous transformation of the units diverges: no step lowers the "
-                "sum of squares (start values too far off)"
-            )
-        du = sol.unit_step * step
+        taken = chords.step(st, sol, cost)
+        if taken is None:
+            sol = None  # the last step's factor goes before the next is formed
+            sol = _solve(prob, st)
+            taken = _full_step(prob, st, sol, cost, project_points)
+        trial, trial_cost, du, dp = taken
         lead.record(du[:, 3:6])
         largest = max(
             float(np.max(np.abs(du[:, :3]), initial=0.0)) / extent,
             float(np.max(np.abs(du[:, 3:]), initial=0.0)),
-            float(np.max(np.abs(dp[prob.observed]), initial=0.0)) * step / extent,
+            float(np.max(np.abs(dp[prob.observed]), initial=0.0)) / extent,
         )
+        chords.record(largest)
         change = abs(cost - trial_cost) / max(cost, 1e-300)
         settled = largest < tolerance or change < tolerance
         st, cost = trial, trial_cost
@@ -656,13 +669,99 @@ def adjust_units(
             cost = _cost(prob, st)
         sol = _solve(prob, st)
     assert sol is not None  # set in the loop, or just above
-    # Converged: the normal equations of the last step serve the statistics
-    # (the state moved by less than the tolerance since).
+    # Converged: the normal equations of the last full step serve the
+    # statistics (the state moved by less than the chords' threshold since).
     result = _result(prob, st, sol, cost, iterations, converged, statistics)
     if statistics:
         return result
     later = partial(_result, prob, st, sol, cost, iterations, converged, True)
     return replace(result, statistics_later=later)
+
+
+def _full_step(
+    prob: _Problem, st: _State, sol: NormalSolution, cost: float, project_points: bool
+) -> tuple[_State, float, FloatArray, FloatArray]:
+    """The Gauss-Newton step of ``sol`` from ``st``, halved until the sum of
+    squares does not grow (the points projected after it, with
+    ``project_points``): the state, its cost and the unit and point steps
+    taken (U, width), (P, 3)."""
+    dp = np.zeros((prob.n_points, 3))
+    dp[prob.points_used] = sol.point_step
+    step = 1.0
+    for _ in range(30):
+        trial = _step(prob, st, sol.unit_step, sol.border_step, dp, step)
+        if project_points:
+            trial = _projected(prob, trial, sol.point_inverse)
+        trial_cost = _cost(prob, trial)
+        if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
+            return trial, trial_cost, sol.unit_step * step, dp * step
+        step *= 0.5
+    raise ConvergenceError(
+        "the simultaneous transformation of the units diverges: no step lowers the "
+        "sum of squares (start values too far off)"
+    )
+
+
+#: A full step below this many times the tolerance (relative, as the
+#: convergence test measures it) is followed by chord steps (:class:`_Chords`).
+_CHORD_FROM = 1e3
+
+
+class _Chords:
+    """Chord (simplified Gauss-Newton) steps near the solution.
+
+    Once a full step has moved the unknowns by less than :data:`_CHORD_FROM`
+    times the tolerance, the normal matrix hardly changes any more (the
+    units turn by 1e-7 rad and less): the next steps solve the new
+    right-hand side ``Aᵀ P f`` (:func:`_gradients`) with the factor of that
+    last full step (:meth:`NormalSolution.chord_step`), a fifth of a full
+    step's cost, and the points follow their own step (no projection).
+    They converge to the same solution (the one where the gradient
+    vanishes, the weights turned with the units), as fast as full steps
+    do there, where the weights' turning sets the pace.  A chord step
+    that does not lower the sum of squares, or that is not below half the
+    step before it, gives way to full steps again.  Without lines or
+    polynomials only (their border and priors are not in the chord's
+    right-hand side); the statistics then come from the last full factor.
+    """
+
+    def __init__(self, prob: _Problem, tolerance: float) -> None:
+        self.prob = prob
+        self.allowed = prob.n_lines == 0 and prob.polynomial is None
+        self.threshold = _CHORD_FROM * tolerance
+        self.last_full = np.inf  # largest (relative) move of the last full step
+        self.previous = np.inf  # of the step before the last
+        self.last = np.inf  # of the last step
+        self.was_chord = False
+        self.chord = False  # the step being taken is a chord
+
+    def step(
+        self, st: _State, sol: NormalSolution | None, cost: float
+    ) -> tuple[_State, float, FloatArray, FloatArray] | None:
+        """A chord step from ``st`` with the factor of ``sol`` (state, cost,
+        unit and point steps), or None where a full step is due."""
+        self.chord = False
+        ready = self.allowed and sol is not None and self.last_full < self.threshold
+        if not ready or (self.was_chord and not self.last < 0.5 * self.previous):
+            return None
+        assert sol is not None  # ready
+        prob = self.prob
+        du, dp_used = sol.chord_step(*_gradients(prob, st))
+        dp = np.zeros((prob.n_points, 3))
+        dp[prob.points_used] = dp_used
+        trial = _step(prob, st, du, sol.border_step, dp, 1.0)
+        trial_cost = _cost(prob, trial)
+        if not trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
+            return None
+        self.chord = True
+        return trial, trial_cost, du, dp
+
+    def record(self, largest: float) -> None:
+        """The largest move (relative) of the step just taken."""
+        self.previous, self.last = self.last, largest
+        self.was_chord = self.chord
+        if not self.chord:
+            self.last_full = largest
 
 
 class _WeightLead:
@@ -777,9 +876,16 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     return st.with_points(points)
 
 
-def _step(prob: _Problem, st: _State, sol: NormalSolution, dp: FloatArray, step: float) -> _State:
-    du = sol.unit_step * step
-    dl = sol.border_step.reshape(-1, 2) * step
+def _step(
+    prob: _Problem,
+    st: _State,
+    unit_step: FloatArray,
+    border_step: FloatArray,
+    dp: FloatArray,
+    step: float,
+) -> _State:
+    du = unit_step * step
+    dl = border_step.reshape(-1, 2) * step
     rotation = matrix_from_rotvec(du[:, 3:6]) @ st.rotation
     points = st.points + step * dp
     return _State(
