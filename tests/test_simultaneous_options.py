@@ -178,7 +178,7 @@ def test_weight_lead_extrapolates_a_geometric_series_of_turns():
     the weights are turned ahead by the rest of the series (once as much as
     the last step, rho / (1 - rho) = 1), then two plain steps again; steps
     that disagree are not led."""
-    from strip_aerotri.geometry.simultaneous import _WeightLead
+    from strip_aerotri.geometry.units import WeightLead as _WeightLead
 
     rng = np.random.default_rng(8)
     rotation = matrix_from_rotvec(rng.normal(0.0, 0.3, (5, 3)))

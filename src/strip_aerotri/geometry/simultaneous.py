@@ -51,6 +51,7 @@ from .units import (
     UnitObservations,
     UnitPolynomial,
     UnitTransforms,
+    WeightLead,
     baarda_delta,
 )
 
@@ -570,7 +571,7 @@ def adjust_units(
         along its rays wherever the model is turned to).  They are turned at
         the start of every iteration (iteratively reweighted: the step of an
         iteration holds them), ahead to where the units are heading when two
-        steps turn them the same way (:class:`_WeightLead`).  None: the
+        steps turn them the same way (:class:`~strip_aerotri.geometry.units.WeightLead`).  None: the
         weights are fixed in the work frame.
     control_update : callable, optional
         Called after every iteration with the points (P, 3, work frame) and
@@ -634,7 +635,7 @@ def adjust_units(
     converged = False
     iterations = 0
     sol = None
-    lead = _WeightLead()
+    lead = WeightLead()
     # chord steps on the last factor once a full step was below chord_from
     chords = _Chords(prob, tolerance)
     for iterations in range(1, max_iterations + 1):
@@ -762,56 +763,6 @@ class _Chords:
         self.was_chord = self.chord
         if not self.chord:
             self.last_full = largest
-
-
-class _WeightLead:
-    """Where to turn the weights for the next iteration (``weight_rotation``).
-
-    Turning the weights to the units' rotations after every step is a
-    fixed-point iteration: the step taken with the weights of one rotation
-    turns the units on, by a share ``rho`` of the step before, where the
-    solution is weakly held (the middle of a long strip between plan
-    points: ``rho`` 0.5 at 10 000 photos, one halving per iteration).
-    When two steps in a row turn the units the same way, the rest of that
-    geometric series, ``rho / (1 - rho)`` times the last turn, is where
-    they are heading: the weights are turned there at once (Aitken's
-    extrapolation of the rotations; then two plain steps again to measure
-    ``rho``).  The fixed point is the same: the lead vanishes with the
-    steps."""
-
-    def __init__(self) -> None:
-        self.turns: list[FloatArray] = []
-        self.led = False
-
-    def record(self, turn: FloatArray) -> None:
-        """The rotation vectors (U, 3) of the step just taken."""
-        self.turns = [*self.turns[-1:], turn.copy()]
-
-    def ahead(self, rotation: FloatArray) -> FloatArray:
-        """The rotations (U, 3, 3) to turn the weights to, from the units' now."""
-        if self.led or len(self.turns) < 2:
-            self.led = False
-            return rotation
-        before, last = self.turns
-        dot = float(np.vdot(before, last))
-        norms = float(np.linalg.norm(before) * np.linalg.norm(last))
-        if not norms > 0.0:
-            return rotation
-        rho = dot / float(np.vdot(before, before))
-        if dot < _LEAD_COSINE * norms or not 0.0 < rho < _LEAD_MAX_RHO:
-            return rotation
-        self.led = True
-        self.turns = []
-        ahead: FloatArray = matrix_from_rotvec(last * (rho / (1.0 - rho))) @ rotation
-        return ahead
-
-
-#: Two steps turn the units "the same way" when their rotation vectors'
-#: cosine is above this; the share ``rho`` of one step in the next is led
-#: only below :data:`_LEAD_MAX_RHO` (above it the series is not geometric
-#: enough to trust a lead of ``rho / (1 - rho)`` = 9 steps).
-_LEAD_COSINE = 0.9
-_LEAD_MAX_RHO = 0.9
 
 
 def _start_state(prob: _Problem, start: UnitTransforms, points0: ArrayLike) -> _State:

@@ -1,7 +1,8 @@
 """The units of a simultaneous transformation (:mod:`strip_aerotri.geometry.simultaneous`):
 their similarity transforms, their deformation polynomials, the coordinates of
-points in them with their weights, the straight-line conditions, and Baarda's
-non-centrality for their tests.
+points in them with their weights, the straight-line conditions, Baarda's
+non-centrality for their tests, and where to turn the rows' weights ahead of
+the units (:class:`WeightLead`).
 
 A unit (a model of a strip, or a whole strip of a block) has coordinates of its
 points in its own system; ``X = t_u + s_u R_u (x − c_u)`` takes them to the
@@ -17,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
+from .rotation import matrix_from_rotvec
 
 __all__ = [
     "N_UNIT",
@@ -24,6 +26,7 @@ __all__ = [
     "UnitObservations",
     "UnitPolynomial",
     "UnitTransforms",
+    "WeightLead",
     "baarda_delta",
 ]
 
@@ -263,3 +266,53 @@ class LineCondition:
 
     point: IntArray
     sigma: float
+
+
+class WeightLead:
+    """Where to turn the weights for the next iteration (``weight_rotation``).
+
+    Turning the weights to the units' rotations after every step is a
+    fixed-point iteration: the step taken with the weights of one rotation
+    turns the units on, by a share ``rho`` of the step before, where the
+    solution is weakly held (the middle of a long strip between plan
+    points: ``rho`` 0.5 at 10 000 photos, one halving per iteration).
+    When two steps in a row turn the units the same way, the rest of that
+    geometric series, ``rho / (1 - rho)`` times the last turn, is where
+    they are heading: the weights are turned there at once (Aitken's
+    extrapolation of the rotations; then two plain steps again to measure
+    ``rho``).  The fixed point is the same: the lead vanishes with the
+    steps."""
+
+    def __init__(self) -> None:
+        self.turns: list[FloatArray] = []
+        self.led = False
+
+    def record(self, turn: FloatArray) -> None:
+        """The rotation vectors (U, 3) of the step just taken."""
+        self.turns = [*self.turns[-1:], turn.copy()]
+
+    def ahead(self, rotation: FloatArray) -> FloatArray:
+        """The rotations (U, 3, 3) to turn the weights to, from the units' now."""
+        if self.led or len(self.turns) < 2:
+            self.led = False
+            return rotation
+        before, last = self.turns
+        dot = float(np.vdot(before, last))
+        norms = float(np.linalg.norm(before) * np.linalg.norm(last))
+        if not norms > 0.0:
+            return rotation
+        rho = dot / float(np.vdot(before, before))
+        if dot < _LEAD_COSINE * norms or not 0.0 < rho < _LEAD_MAX_RHO:
+            return rotation
+        self.led = True
+        self.turns = []
+        ahead: FloatArray = matrix_from_rotvec(last * (rho / (1.0 - rho))) @ rotation
+        return ahead
+
+
+#: Two steps turn the units "the same way" when their rotation vectors'
+#: cosine is above this; the share ``rho`` of one step in the next is led
+#: only below :data:`_LEAD_MAX_RHO` (above it the series is not geometric
+#: enough to trust a lead of ``rho / (1 - rho)`` = 9 steps).
+_LEAD_COSINE = 0.9
+_LEAD_MAX_RHO = 0.9
