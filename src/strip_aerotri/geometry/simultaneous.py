@@ -35,7 +35,7 @@ independent models", Photogrammetric Engineering 36; R4 §2.2-§3.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from functools import partial
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -48,6 +48,7 @@ from .rotation import matrix_from_rotvec
 from .units import (
     N_UNIT,
     LineCondition,
+    SimultaneousResult,
     UnitObservations,
     UnitPolynomial,
     UnitTransforms,
@@ -85,95 +86,16 @@ _MIN_TESTED_REDUNDANCY = 1e-3
 _WEIGHT_TURN = 1e-10
 
 
-@dataclass(frozen=True)
-class SimultaneousResult:
-    """Result of :func:`adjust_units`.
+def _by_rows(n_rows: int, block: Callable[[slice], object]) -> None:
+    """``block(rows)`` for consecutive blocks of the ``n_rows`` rows, shared
+    with the worker thread of :func:`~strip_aerotri._threads.compute_workers`
+    where one is open (:func:`adjust_units` opens it): each block reads and
+    writes its own rows only, so the result is that of one call on all rows,
+    bit for bit."""
+    from .._threads import split_map
+    from ._normal_entries import spans
 
-    Attributes
-    ----------
-    transforms : UnitTransforms
-    points : ndarray, shape (P, 3)
-        Adjusted points, work frame (NaN for points no row determines).
-    residuals : ndarray, shape (n, 3)
-        ``T_u(x) − X_p`` of every row at the solution, metres.
-    row_statistic : ndarray, shape (n,)
-        ``v̄ᵀ W v̄`` of each row's residual over its redundancy share (about
-        chi-square with 3 degrees of freedom when the weights are right;
-        the share is estimated with the units held fixed and spread evenly
-        over the units' parameters).
-    control_residuals : ndarray, shape (C, 3)
-        Given minus adjusted control coordinates (NaN where not given).
-    control_cofactor : ndarray, shape (C, 3, 3)
-        Cofactor (covariance at σ0 = 1) of the adjusted control points: the
-        diagonal entries of their given components (NaN elsewhere).
-    control_redundancy : ndarray, shape (C, 3)
-        Redundancy numbers ``1 − q_kk / σ_k²`` of the given components.
-    control_w : ndarray, shape (C, 3)
-        Baarda's w of the given components at their a priori sigmas (NaN
-        where the redundancy is below 1e-3: too little of an error shows to
-        tell it from the model's imperfections).
-    line_parameters : ndarray, shape (L, 2)
-        ``a, b`` of each line.
-    line_residuals : tuple of ndarray
-        ``Y − a − b X`` of each line's points, metres.
-    line_w : tuple of ndarray
-        Baarda's w of each line equation at its sigma, with its exact
-        redundancy number ``1 − q_ee / σ²`` (``q_ee`` the cofactor of the
-        adjusted ``Y − a − b X``, the line's ``a, b`` included); NaN where r
-        is below 1e-3.
-    line_redundancy : tuple of ndarray
-        Those redundancy numbers.
-    sigma0 : float
-        A posteriori standard deviation of unit weight (NaN without
-        redundancy).
-    redundancy : int
-    iterations : int
-    converged : bool
-    coefficient_variance : ndarray, shape (U, n_terms), optional
-        With a polynomial: the cofactor (variance at σ0 = 1) of every
-        coefficient, its prior included; near the prior's variance, the
-        data say little of that term.
-    probe_points : ndarray of int, shape (U,), optional
-        One point of each of at most 24 units evenly along the block (the
-        point the most units share; -1 for the other units), whose plan
-        precision :attr:`probe_plan_sigma` gives: how well the adjustment
-        holds the plan position along the block of units.
-    probe_plan_sigma : ndarray, shape (U,), optional
-        A priori plan standard deviation ``sqrt(q_xx + q_yy)`` of the probe
-        points (metres at σ0 = 1; NaN for -1). None without statistics.
-    statistics_later : callable, optional
-        Without the statistics (``statistics=False``): what computes them
-        (:meth:`with_statistics`).
-    """
-
-    transforms: UnitTransforms
-    points: FloatArray
-    residuals: FloatArray
-    row_statistic: FloatArray
-    control_residuals: FloatArray
-    control_cofactor: FloatArray
-    control_redundancy: FloatArray
-    control_w: FloatArray
-    line_parameters: FloatArray
-    line_residuals: tuple[FloatArray, ...]
-    line_w: tuple[FloatArray, ...]
-    line_redundancy: tuple[FloatArray, ...]
-    sigma0: float
-    redundancy: int
-    iterations: int
-    converged: bool
-    coefficient_variance: FloatArray | None = None
-    probe_points: IntArray | None = None
-    probe_plan_sigma: FloatArray | None = None
-    statistics_later: Callable[[], SimultaneousResult] | None = field(
-        default=None, repr=False, compare=False
-    )
-
-    def with_statistics(self) -> SimultaneousResult:
-        """This result with the statistics of the control and lines, from the
-        factor of its last step (a result of ``statistics=False``; the
-        adjustment is not solved again)."""
-        return self if self.statistics_later is None else self.statistics_later()
+    split_map(block, spans(n_rows))
 
 
 def _rows_whitening(weight: FloatArray) -> FloatArray:
@@ -282,8 +204,17 @@ class _Problem:
                 return False
         self.turned_at = rotation.copy()
         delta_t = np.swapaxes(rotation @ np.swapaxes(self.weight_rotation, 1, 2), 1, 2)
-        self.whiten = self.whiten0 @ delta_t[self.obs.unit]
-        self.point_jacobian = -self.whiten
+        unit, whiten0 = self.obs.unit, self.whiten0
+        # C order, as the product on all rows at once gives them (whiten0 is
+        # a transposed view; other strides change the later products' last bits)
+        whiten, point_jacobian = np.empty(whiten0.shape), np.empty(whiten0.shape)
+
+        def block(rows: slice) -> None:
+            np.matmul(whiten0[rows], delta_t[unit[rows]], out=whiten[rows])
+            np.negative(whiten[rows], out=point_jacobian[rows])
+
+        _by_rows(unit.size, block)
+        self.whiten, self.point_jacobian = whiten, point_jacobian
         return True
 
     @property
@@ -332,11 +263,18 @@ def _predict(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
     u = prob.obs.unit
     y = st.turned
     if y is None:
-        offset = prob.offset
-        if prob.basis is not None:
-            offset = offset + np.einsum("nik,nk->ni", prob.basis, st.coefficients[u])
-        y = st.scale[u, None] * np.einsum("nij,nj->ni", st.rotation[u], offset)
-        st.turned = y
+        basis, coefficients = prob.basis, st.coefficients
+        turned = np.empty(prob.offset.shape)
+
+        def block(rows: slice) -> None:
+            offset = prob.offset[rows]
+            if basis is not None:
+                offset = offset + np.einsum("nik,nk->ni", basis[rows], coefficients[u[rows]])
+            ur = u[rows]
+            turned[rows] = st.scale[ur, None] * np.einsum("nij,nj->ni", st.rotation[ur], offset)
+
+        _by_rows(u.size, block)
+        st.turned = y = turned
     v = st.translation[u] + y - st.points[prob.obs.point]
     return y, v
 
@@ -399,18 +337,24 @@ def _whitened_design(prob: _Problem, st: _State, y: FloatArray) -> FloatArray:
     point's is -I), so ``Lᵀ A = [Lᵀ | rows y × l_i | Lᵀ y | Lᵀ s R B]``
     with ``l_i`` the rows of ``Lᵀ`` (written out: a batched product of
     3 × 3 by 3 × 7 matrices costs three times as much)."""
-    lt = prob.whiten
-    out = np.empty((lt.shape[0], 3, prob.width))
-    out[:, :, 0:3] = lt
-    l0, l1, l2 = lt[:, :, 0], lt[:, :, 1], lt[:, :, 2]
-    y0, y1, y2 = y[:, 0, None], y[:, 1, None], y[:, 2, None]
-    out[:, :, 3] = y1 * l2 - y2 * l1  # (y × l_i), the rows of -Lᵀ [y]×
-    out[:, :, 4] = y2 * l0 - y0 * l2
-    out[:, :, 5] = y0 * l1 - y1 * l0
-    out[:, :, 6] = l0 * y0 + l1 * y1 + l2 * y2
-    if prob.basis is not None:
-        u = prob.obs.unit
-        out[:, :, N_UNIT:] = lt @ (st.scale[u, None, None] * (st.rotation[u] @ prob.basis))
+    whiten = prob.whiten
+    out = np.empty((whiten.shape[0], 3, prob.width))
+    u, basis = prob.obs.unit, prob.basis
+
+    def block(rows: slice) -> None:
+        lt, yr, o = whiten[rows], y[rows], out[rows]
+        o[:, :, 0:3] = lt
+        l0, l1, l2 = lt[:, :, 0], lt[:, :, 1], lt[:, :, 2]
+        y0, y1, y2 = yr[:, 0, None], yr[:, 1, None], yr[:, 2, None]
+        o[:, :, 3] = y1 * l2 - y2 * l1  # (y × l_i), the rows of -Lᵀ [y]×
+        o[:, :, 4] = y2 * l0 - y0 * l2
+        o[:, :, 5] = y0 * l1 - y1 * l0
+        o[:, :, 6] = l0 * y0 + l1 * y1 + l2 * y2
+        if basis is not None:
+            ur = u[rows]
+            o[:, :, N_UNIT:] = lt @ (st.scale[ur, None, None] * (st.rotation[ur] @ basis[rows]))
+
+    _by_rows(whiten.shape[0], block)
     return out
 
 
@@ -523,7 +467,7 @@ def adjust_units(
     """Transform all units at once to the control and to each other.
 
     Length: most of it is the documentation of its eighteen parameters; the
-    iteration itself is about sixty lines, its pieces in the functions below.
+    iteration is :func:`_iterate`, its pieces in the functions below.
 
     Parameters
     ----------
@@ -621,6 +565,30 @@ def adjust_units(
         None if weight_rotation is None
         else np.asarray(weight_rotation, dtype=np.float64).reshape(n_units, 3, 3),
     )  # fmt: skip
+    from .._threads import compute_workers
+
+    # the rows' own work (turning weights, the design, the residuals) shared
+    # with the engine's worker thread where a second core is free
+    with compute_workers(int(obs.unit.shape[0])):
+        return _iterate(
+            prob, start, points0, max_iterations, tolerance, statistics, control_update,
+            project_points,
+        )  # fmt: skip
+
+
+def _iterate(
+    prob: _Problem,
+    start: UnitTransforms,
+    points0: ArrayLike,
+    max_iterations: int,
+    tolerance: float,
+    statistics: bool,
+    control_update: Callable[[FloatArray, bool], FloatArray | None] | None,
+    project_points: bool,
+) -> SimultaneousResult:
+    """:func:`adjust_units`' Gauss-Newton iterations from the start, and its
+    result (Length: the loop of full and chord steps with the control's
+    passes and the convergence test, in one place)."""
     st = _start_state(prob, start, points0)
     prob.turn_weights(st.rotation)
     if project_points:  # the points where the units put them, not yet the control
