@@ -407,6 +407,6 @@ class SimultaneousResult:
 
     def with_statistics(self) -> SimultaneousResult:
         """This result with the statistics of the control and lines, from the
-        factor of its last step (a result of ``statistics=False``; the
+        factor of its last full step (a result of ``statistics=False``; the
         adjustment is not solved again)."""
         return self if self.statistics_later is None else self.statistics_later()
