@@ -279,6 +279,18 @@ def _predict(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
     return y, v
 
 
+def _whitened(prob: _Problem, v: FloatArray) -> FloatArray:
+    """``Lᵀ v`` of every row (n, 3), by blocks of rows (:func:`_by_rows`)."""
+    whiten = prob.whiten
+    out = np.empty(v.shape)
+
+    def block(rows: slice) -> None:
+        out[rows] = np.einsum("nij,nj->ni", whiten[rows], v[rows])
+
+    _by_rows(v.shape[0], block)
+    return out
+
+
 def _line_terms(prob: _Problem, st: _State, k: int) -> tuple[FloatArray, FloatArray, float]:
     line = prob.lines[k]
     xyz = st.points[line.point]
@@ -289,7 +301,7 @@ def _line_terms(prob: _Problem, st: _State, k: int) -> tuple[FloatArray, FloatAr
 
 def _cost(prob: _Problem, st: _State) -> float:
     _, v = _predict(prob, st)
-    wv = np.einsum("nij,nj->ni", prob.whiten, v)
+    wv = _whitened(prob, v)
     total = float(np.einsum("ij,ij->", wv, wv))
     c = st.points[prob.control_point] - prob.control_xyz
     g = prob.control_given
@@ -310,14 +322,13 @@ def _engine_rows(prob: _Problem, st: _State) -> tuple[list[Any], list[Any], list
 
     obs = prob.obs
     y, v = _predict(prob, st)
-    lt = prob.whiten
     unit_point = [
         UnitPointRows(
             obs.unit,
             prob.engine_point[obs.point],
             _whitened_design(prob, st, y),
             prob.point_jacobian,
-            np.einsum("nij,nj->ni", lt, v),
+            _whitened(prob, v),
         )
     ]
     unit_rows = []
@@ -430,7 +441,7 @@ def _gradients(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
     obs = prob.obs
     y, v = _predict(prob, st)
     lt = prob.whiten
-    r = np.einsum("nij,nj->ni", lt, v)  # the whitened residuals
+    r = _whitened(prob, v)  # the whitened residuals
     design = _whitened_design(prob, st, y)
     g_unit = sum_into(obs.unit, np.einsum("nik,ni->nk", design, r), prob.n_units)
     n_used = prob.points_used.size
@@ -515,7 +526,8 @@ def adjust_units(
         along its rays wherever the model is turned to).  They are turned at
         the start of every iteration (iteratively reweighted: the step of an
         iteration holds them), ahead to where the units are heading when two
-        steps turn them the same way (:class:`~strip_aerotri.geometry.units.WeightLead`).  None: the
+        steps turn them the same way
+        (:class:`~strip_aerotri.geometry.units.WeightLead`).  None: the
         weights are fixed in the work frame.
     control_update : callable, optional
         Called after every iteration with the points (P, 3, work frame) and
@@ -770,11 +782,17 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
         return st
     obs = prob.obs
     y, _ = _predict(prob, st)
-    placed = st.translation[obs.unit] + y  # T_u(x) of every row
     lt = prob.whiten
     n = prob.n_points
-    # Σ W x of each point's rows, W = L Lᵀ
-    weighted = np.einsum("nji,nj->ni", lt, np.einsum("nij,nj->ni", lt, placed))
+    weighted = np.empty(y.shape)
+
+    def block(rows: slice) -> None:
+        placed = st.translation[obs.unit[rows]] + y[rows]  # T_u(x) of the rows
+        # W x of each row, W = L Lᵀ (summed per point below)
+        lr = lt[rows]
+        weighted[rows] = np.einsum("nji,nj->ni", lr, np.einsum("nij,nj->ni", lr, placed))
+
+    _by_rows(y.shape[0], block)
     rhs: FloatArray = np.column_stack(
         [np.bincount(obs.point, weighted[:, k], minlength=n) for k in range(3)]
     )
@@ -856,11 +874,18 @@ def _result(
     # Row statistics: the row's leverage on its own point with the units
     # fixed, h = W^(1/2) V⁻¹ W^(1/2); the units' 7 U parameters spread evenly.
     lt = prob.whiten
-    wv = np.einsum("nij,nj->ni", lt, v)
+    wv = _whitened(prob, v)
     # V⁻¹ of the points the rows observe: the engine's (statistics only)
     v_inv = sol.point_inverse
-    # trace(Lᵀ V⁻¹ L), row by row of Lᵀ: Σ_i l_i V⁻¹ l_iᵀ
-    leverage = np.einsum("nij,nij->n", lt @ v_inv[prob.engine_point[obs.point]], lt)
+    row_point = prob.engine_point[obs.point]
+    leverage = np.empty(v.shape[0])
+
+    def block(rows: slice) -> None:
+        # trace(Lᵀ V⁻¹ L), row by row of Lᵀ: Σ_i l_i V⁻¹ l_iᵀ
+        lr = lt[rows]
+        leverage[rows] = np.einsum("nij,nij->n", lr @ v_inv[row_point[rows]], lr)
+
+    _by_rows(v.shape[0], block)
     free = 3.0 - leverage
     share = max(1.0 - prob.width * prob.n_units / max(float(free.sum()), 1e-300), 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
