@@ -11,6 +11,17 @@ steps Gauss-Newton on the sparse normal equations (SuperLU), from the
 engine's solution.  Optional camera terms (c, x0, y0, k1, k2, k3, p1, p2, b1,
 b2 in the correction form, mm, in the reduced axes) are extra unknowns.
 
+With ``--external`` it takes strips with a ``truth/`` folder instead (the
+independent simulator's, ``../shared/data/external-strips/*``): our
+refinement's check points against control.csv and against the truth, all
+points and centres against the truth divided by their own standard
+deviations, and a reference solved by Gauss-Newton from the truth to 1e-12
+on the same rays, control and sigmas in the refinement's tangent frame, its
+weighted sum of squares against ours (docs/bundle.md, "Against a reference
+bundle on strips from another simulator")::
+
+    python benchmarks/bench_reference_bundle.py - --external ../shared/data/external-strips/*
+
 Run on the real FC300X block (data in ``../shared/data/uav-block-fc300x``)::
 
     python benchmarks/bench_reference_bundle.py ../shared/data/uav-block-fc300x
@@ -224,6 +235,110 @@ def _used_rays(result: Any) -> np.ndarray:
     return used
 
 
+def _read_rows(path: Path) -> dict[str, dict[str, str]]:
+    import csv
+
+    with open(path, newline="") as f:
+        return {r[next(iter(r))]: r for r in csv.DictReader(f)}
+
+
+def _table(rows: dict[str, dict[str, str]], ids: list[str], cols: tuple[str, ...]) -> np.ndarray:
+    return np.array([[float(rows[i][c] or "nan") for c in cols] for i in ids])
+
+
+def _rmse(errors: np.ndarray) -> str:
+    """Plan / height RMSE (m) of E, N, H errors (N, 3)."""
+    plan = np.sqrt(np.mean(errors[:, 0] ** 2 + errors[:, 1] ** 2))
+    return f"{plan:.4f} / {np.sqrt(np.mean(errors[:, 2] ** 2)):.4f}"
+
+
+def external(folder: Path) -> None:
+    """Our refinement of an external strip (a folder with strip.toml and
+    ``truth/``) against the truth, and a reference bundle solved from the
+    truth in the refinement's own tangent frame on the same observations."""
+    from strip_aerotri.frames import TangentWorkFrame, enu_residuals
+    from strip_aerotri.project import load_project
+    from strip_aerotri.project.run import run_project
+
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in ("strip.toml", "control.csv", "image_points.csv"):
+            (Path(tmp) / name).write_bytes((folder / name).read_bytes())
+        toml = Path(tmp) / "strip.toml"
+        toml.write_text(toml.read_text() + '\n[adjustment]\nrefine = "bundle"\n')
+        result = run_project(load_project(toml))
+    refined, obs = result.refined, result.strip.observations
+    frame = TangentWorkFrame(result.ground.crs, refined.frame)
+    truth_pts = _read_rows(folder / "truth" / "points_truth.csv")
+    truth_photos = _read_rows(folder / "truth" / "photos_truth.csv")
+    control = _read_rows(folder / "control.csv")
+    ids = list(obs.point_ids)
+    pts_true = frame.to_work(_table(truth_pts, ids, ("X", "Y", "H")))
+    photos = list(obs.photo_ids)
+    centres_crs = _table(truth_photos, photos, ("X", "Y", "Z"))
+    centres_true = frame.to_work(centres_crs)
+    opk = np.radians(_table(truth_photos, photos, ("omega", "phi", "kappa")))
+    rot_true = frame.work_from_enu(centres_crs) @ matrix_from_opk(opk)
+    used = refined.image_used
+    print(f"{folder.name}: {used.sum()} of {used.size} rays used, {len(refined.rejections)} "
+          f"rejections, sigma0 {refined.sigma0:.4f}, redundancy {refined.redundancy}")  # fmt: skip
+
+    # check points: against the control file and against the truth (E, N, H)
+    check = [i for i, pid in enumerate(ids) if control.get(pid, {}).get("type") == "check"]
+    ours = refined.points[check]
+    given = _table(control, [ids[i] for i in check], ("X", "Y", "H"))
+    true_crs = _table(truth_pts, [ids[i] for i in check], ("X", "Y", "H"))
+    crs = result.ground.crs
+    print(f"  check RMSE plan / height (m): against control.csv {_rmse(enu_residuals(crs, given, ours))}, "
+          f"against the truth {_rmse(enu_residuals(crs, true_crs, ours))}; "
+          f"control.csv's own error (given - truth) {_rmse(enu_residuals(crs, given, true_crs))}")  # fmt: skip
+    err = refined.points_frame - pts_true
+    z = err / refined.point_std
+    print(f"  all points - truth, frame X / Y / Z: mean {np.round(np.mean(err, 0), 4)}, "
+          f"RMS {np.round(np.sqrt(np.mean(err**2, 0)), 4)} m; divided by their own sigma: "
+          f"RMS {np.round(np.sqrt(np.mean(z**2, 0)), 2)}")  # fmt: skip
+    dc = refined.photo_centres_frame - centres_true
+    zc = dc / refined.centre_std
+    print(f"  centres - truth: RMS {np.round(np.sqrt(np.mean(dc**2, 0)), 4)} m, "
+          f"divided by their own sigma: RMS {np.round(np.sqrt(np.mean(zc**2, 0)), 2)}")  # fmt: skip
+    # a reference bundle on the same observations, solved from the truth
+    kinds = {pid: control[pid]["type"] for pid in control}
+    full = [i for i, pid in enumerate(ids) if kinds.get(pid) in ("full", "plan", "height")]
+    filled = refined.points_frame[full].copy()
+    given_crs = _table(control, [ids[i] for i in full], ("X", "Y", "H"))
+    adjusted_crs = frame.from_work(filled)
+    target = frame.to_work(np.where(np.isnan(given_crs), adjusted_crs, given_crs))
+    target[[kinds[ids[i]] == "height" for i in full], :2] = np.nan
+    target[[kinds[ids[i]] == "plan" for i in full], 2] = np.nan
+    sig = _table(control, [ids[i] for i in full], ("sigma_xy", "sigma_xy", "sigma_h"))
+    origin = np.mean(centres_true, axis=0)
+    ref = ReferenceBundle(
+        xy=obs.xy[used], sigma=obs.sigma[used], photo=obs.photo[used], point=obs.point[used],
+        c=obs.principal_distance, centres0=centres_true - origin, rotations0=rot_true,
+        points0=pts_true - origin, control_point=np.array(full, dtype=np.intp),
+        control_xyz=target - origin, control_sigma=sig,
+    )  # fmt: skip
+    cost_truth = float(np.sum(ref.residuals(np.zeros(ref.n_unknowns)) ** 2))
+    ref.solve(iterations=20, tolerance=1e-12)
+    _, _, pts_ref, _ = ref.unpack(ref.solution)
+    ours_v = ref.solution.copy()
+    m, p = len(photos), len(ids)
+    # our solution in the reference's unknowns: rotation vectors of R_ours R_trueᵀ
+    ours_v[: 3 * m] = Rotation.from_matrix(
+        refined.photo_rotations_frame @ np.swapaxes(rot_true, 1, 2)
+    ).as_rotvec().ravel()
+    ours_v[3 * m : 6 * m] = (refined.photo_centres_frame - centres_true).ravel()
+    ours_v[6 * m : 6 * m + 3 * p] = (refined.points_frame - pts_true).ravel()
+    cost_ours = float(np.sum(ref.residuals(ours_v) ** 2))
+    cost_ref = float(ref.sigma0**2 * ref.redundancy)
+    diff = refined.points_frame - (pts_ref + origin)
+    print(f"  cost (weighted sum of squares): truth {cost_truth:.3f}, ours {cost_ours:.6f}, "
+          f"Gauss-Newton from the truth to 1e-12 {cost_ref:.6f} (sigma0 {ref.sigma0:.4f}); "
+          f"ours - that solution: largest point difference {np.max(np.abs(diff)) * 1e6:.3f} µm")  # fmt: skip
+    ref_check = frame.from_work(pts_ref[check] + origin)
+    print(f"  the reference's check RMSE: against control.csv {_rmse(enu_residuals(crs, given, ref_check))}, "
+          f"against the truth {_rmse(enu_residuals(crs, true_crs, ref_check))}")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> None:
     from strip_aerotri.importers.uav_fc300x import import_uav_fc300x
     from strip_aerotri.importers.writer import write_project
@@ -232,8 +347,17 @@ def main(argv: list[str] | None = None) -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("data", type=Path, help="the FC300X data folder")
+    parser.add_argument(
+        "--external", nargs="+", type=Path, default=(),
+        help="strips with a truth/ folder (../shared/data/external-strips/*): compare "
+        "the refinement with the truth and a reference solved from the truth instead",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     warnings.simplefilter("ignore")
+    if args.external:
+        for folder in args.external:
+            external(folder)
+        return
     with tempfile.TemporaryDirectory() as tmp:
         write_project(import_uav_fc300x(args.data), tmp, force=True)
         toml = Path(tmp) / "strip.toml"
