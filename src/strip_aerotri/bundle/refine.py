@@ -60,6 +60,7 @@ from ._structures import reusing_structures
 from .photo_tests import _directional_tests
 from .selfcal import carried_choice
 from .snooping import GNSS_STAGE, IMU_STAGE, refine_frame
+from .start_points import restore_points, restored_points_note
 from .variance import refine_frame_weighted
 
 __all__ = [
@@ -340,6 +341,10 @@ def refine_bundle(
     has_point[seen] = np.all(np.isfinite(result.points[row_point[seen]]), axis=1)
     frame = _frame_for(result, np.flatnonzero(has_point), row_point)
     start = _start_values(result, frame)
+    strip_points = start.points
+    # points the strip method left out, intersected from its photos (start_points.py)
+    restored = restore_points(obs, start.centres, start.rotations, start.points, blunders=blunders)
+    start = start._replace(points=restored.points)
     rows = np.flatnonzero(has_point)
     ctrl = _control_rows(control, rows, row_point[rows], obs.n_points)
     aux = gnss_imu_in_frame(obs.photo_ids, result.photo_centres, frame, gnss, imu)
@@ -384,7 +389,8 @@ def refine_bundle(
         dropped = [control.point_ids[r] for r in ctrl.rows[~keep_rows & ~check]]
         notes.append(f"control point(s) {', '.join(map(repr, dropped[:5]))} left out")
     notes += [r.describe() for r in rejections]
-    notes += lost_points_note(obs.point_ids, start.points, fr.point_used)
+    notes += lost_points_note(obs.point_ids, strip_points, fr.point_used)
+    notes += restored_points_note(obs.point_ids, restored.restored, fr.point_used)
     if fr.self_calibration is not None:
         notes += list(fr.self_calibration.notes)
     return RefinedResult(

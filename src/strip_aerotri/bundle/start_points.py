@@ -1,0 +1,286 @@
+"""Start values for the points the strip method left out.
+
+The strip method drops a point whose determinations fail its tie test: one
+wrong ray on the middle photo of a point spoils both models that photo
+belongs to, and the point goes with all its good rays.  The bundle
+refinement can test each ray on its own, so before it starts,
+:func:`restore_points` intersects every such point from the strip method's
+photos and gives it a start value when its rays agree, all of them or all
+but one; the bundle's data snooping then finds the wrong ray itself.
+
+Agreement is judged at the start photos.  A ray agrees with an intersection
+when both image residuals (mm), divided by the ray's sigma and by the
+robust scale ``s`` of the same residuals of the points the strip method did
+determine (the start photos' own error, 1.4826 times the median absolute
+value), stay within the critical value of the image tests.  Each point's
+rays are intersected all together and leaving each one out in turn (for
+three rays or more); the point is restored when one of these intersections
+makes every ray it uses agree: all rays if they do, otherwise the one that
+leaves out the ray with the worst fit.  Intersections minimise the rays'
+distances weighted by the inverse square of their length (image-scale
+residuals), as in :func:`strip_aerotri.strip.densify.intersect_rays`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
+from ..observations import ImageObservations
+from ..options import BlunderOptions
+from .snooping import IMAGE_STAGE
+
+__all__ = ["RestoredPoints", "restore_points", "restored_points_note"]
+
+#: Fewer rays of determined points than this: the start photos' scale is taken as 1.
+_MIN_RAYS_FOR_SCALE = 20
+
+
+class RestoredPoints(NamedTuple):
+    """Start values with the restored points filled in.
+
+    Attributes
+    ----------
+    points : ndarray, shape (P, 3)
+        The start points (frame, m); NaN where still none.
+    restored : ndarray of bool, shape (P,)
+        The points that had no start value and now have one.
+    scale : float
+        Robust scale of the determined points' normalised residuals at the
+        start photos (1 when too few).
+    """
+
+    points: FloatArray
+    restored: BoolArray
+    scale: float
+
+
+def restore_points(
+    observations: ImageObservations,
+    centres: ArrayLike,
+    rotations: ArrayLike,
+    points: ArrayLike,
+    *,
+    blunders: BlunderOptions | None = None,
+) -> RestoredPoints:
+    """Start values for points without one whose rays agree (module notes).
+
+    Parameters
+    ----------
+    observations : ImageObservations
+        Reduced image coordinates (mm), their sigmas, photo and point of
+        each ray.
+    centres : array_like, shape (M, 3)
+        Projection centres (frame, m).
+    rotations : array_like, shape (M, 3, 3)
+        Image -> frame rotations (``l = R @ (x, y, -c)``).
+    points : array_like, shape (P, 3)
+        Start points (frame, m), NaN where the strip method gave none.
+    blunders : BlunderOptions, optional
+        Nothing is restored unless it rejects (the default does): without
+        rejections a wrong ray would stay in.  Its excluded points and
+        observations are left out, and its ``alpha`` sets the critical value.
+
+    Returns
+    -------
+    RestoredPoints
+    """
+    blunders = blunders or BlunderOptions()
+    obs = observations
+    pts = np.array(points, dtype=np.float64, copy=True)
+    c = np.asarray(centres, dtype=np.float64)
+    rot = np.asarray(rotations, dtype=np.float64)
+    p = obs.n_points
+    have = np.all(np.isfinite(pts), axis=1)
+    restored = np.zeros(p, dtype=bool)
+    if have.all() or not blunders.rejecting:
+        return RestoredPoints(pts, restored, 1.0)
+    photo_ok = np.all(np.isfinite(c), axis=1) & np.all(np.isfinite(rot), axis=(1, 2))
+    excluded_points, excluded_obs = blunders.excluded(obs)
+    ray_ok = photo_ok[obs.photo] & ~excluded_obs
+    wanted = ~have & ~excluded_points
+    rows = np.flatnonzero(wanted[obs.point] & ray_ok)
+    n_rays = np.bincount(obs.point[rows], minlength=p)
+    rows = rows[n_rays[obs.point[rows]] >= 2]
+    if not rows.size:
+        return RestoredPoints(pts, restored, 1.0)
+    scale = _start_scale(obs, c, rot, pts, np.flatnonzero(have[obs.point] & ray_ok))
+    tolerance = blunders.critical(IMAGE_STAGE, 2 * obs.photo.shape[0]) * scale
+    fill, chosen = _agreeing_intersections(obs, c, rot, rows, tolerance)
+    pts[fill] = chosen
+    restored[fill] = True
+    return RestoredPoints(pts, restored, scale)
+
+
+def _normalised_residuals(
+    obs: ImageObservations, c: FloatArray, rot: FloatArray, rows: IntArray, xyz: FloatArray
+) -> FloatArray:
+    """|image residual| / sigma of rays ``rows`` at points ``xyz`` (len(rows), 3):
+    the larger of x and y; inf for a point not in front of the photo."""
+    ph = obs.photo[rows]
+    u = np.einsum("kji,kj->ki", rot[ph], xyz - c[ph])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xy = -obs.principal_distance * u[:, :2] / u[:, 2:3]
+        w = np.max(np.abs(xy - obs.xy[rows]), axis=1) / obs.sigma[rows]
+    out: FloatArray = np.where((u[:, 2] < 0) & np.isfinite(w), w, np.inf)
+    return out
+
+
+def _start_scale(
+    obs: ImageObservations, c: FloatArray, rot: FloatArray, pts: FloatArray, rows: IntArray
+) -> float:
+    """1.4826 median |v / sigma| of the rays ``rows`` (of determined points)
+    at the start, not below 1; 1 with fewer than :data:`_MIN_RAYS_FOR_SCALE`."""
+    if rows.size < _MIN_RAYS_FOR_SCALE:
+        return 1.0
+    ph = obs.photo[rows]
+    u = np.einsum("kji,kj->ki", rot[ph], pts[obs.point[rows]] - c[ph])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = (-obs.principal_distance * u[:, :2] / u[:, 2:3] - obs.xy[rows]) / obs.sigma[
+            rows, None
+        ]
+    v = v[np.all(np.isfinite(v), axis=1)]
+    if v.size < _MIN_RAYS_FOR_SCALE:
+        return 1.0
+    return max(1.0, 1.4826 * float(np.median(np.abs(v))))
+
+
+def _solve(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Batched 3 x 3 solves; NaN rows where ``a`` is (nearly) singular."""
+    out = np.full(b.shape, np.nan)
+    eig = np.linalg.eigvalsh(a)
+    ok = eig[:, 0] > 1e-10 * np.maximum(eig[:, 2], np.finfo(float).tiny)
+    out[ok] = np.linalg.solve(a[ok], b[ok, :, None])[:, :, 0]
+    return out
+
+
+class _Rays(NamedTuple):
+    """The rays of the points to restore, sorted by point: ``rows`` into the
+    observations, ``group`` (R,) the point's rank among ``labels``, each
+    ray's weighted projector ``a`` (R, 3, 3) and ``b = a @ centre`` (R, 3)."""
+
+    rows: IntArray
+    group: IntArray
+    labels: IntArray
+    a: FloatArray
+    b: FloatArray
+
+
+def _rays(obs: ImageObservations, c: FloatArray, rot: FloatArray, rows: IntArray) -> _Rays:
+    """Each ray's share of its point's intersection: ``(I - d dᵀ) / t²`` with
+    ``t`` its length to the unweighted intersection of all the point's rays."""
+    rows = rows[np.argsort(obs.point[rows], kind="stable")]
+    labels, group = np.unique(obs.point[rows], return_inverse=True)
+    ph = obs.photo[rows]
+    image = np.column_stack([obs.xy[rows], np.full(rows.size, -obs.principal_distance)])
+    d = np.einsum("kij,kj->ki", rot[ph], image)
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    proj = np.eye(3) - d[:, :, None] * d[:, None, :]
+    first = _solve(*_sums(group, labels.size, proj, np.einsum("kij,kj->ki", proj, c[ph])))
+    t = np.einsum("ki,ki->k", first[group] - c[ph], d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        weight = np.where(np.isfinite(t) & (t > 0), 1.0 / t**2, 0.0)
+    a = proj * weight[:, None, None]
+    return _Rays(rows, group.astype(np.intp), labels, a, np.einsum("kij,kj->ki", a, c[ph]))
+
+
+def _sums(group: IntArray, n: int, a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
+    a_sum, b_sum = np.zeros((n, 3, 3)), np.zeros((n, 3))
+    np.add.at(a_sum, group, a)
+    np.add.at(b_sum, group, b)
+    return a_sum, b_sum
+
+
+def _agreeing_intersections(
+    obs: ImageObservations, c: FloatArray, rot: FloatArray, rows: IntArray, tolerance: float
+) -> tuple[IntArray, FloatArray]:
+    """The points of ``rows`` (rays of points without a start, two or more
+    each) whose rays agree within ``tolerance`` (module notes), and their
+    intersections.
+
+    Each round intersects every point from its active rays; a point whose
+    rays do not all agree and that has four or more left gives up the ray
+    whose leaving out fits the others best.  A point is restored when its
+    active rays agree, three or more, or both rays of a two-ray point."""
+    rays = _rays(obs, c, rot, rows)
+    g_count = rays.labels.size
+    sizes = np.bincount(rays.group, minlength=g_count)
+    active = np.ones(rays.rows.size, dtype=bool)
+    while True:  # at most (largest number of rays - 3) rounds
+        xyz, agree, drop = _round(obs, c, rot, rays, active, tolerance)
+        left = np.bincount(rays.group[active], minlength=g_count)
+        drop = drop[~agree & (left >= 4) & (drop >= 0)]
+        if not drop.size:
+            break
+        active[drop] = False
+    left = np.bincount(rays.group[active], minlength=g_count)
+    ok = agree & ((left >= 3) | (sizes == 2)) & np.all(np.isfinite(xyz), axis=1)
+    return rays.labels[ok].astype(np.intp), xyz[ok]
+
+
+def _round(
+    obs: ImageObservations,
+    c: FloatArray,
+    rot: FloatArray,
+    rays: _Rays,
+    active: BoolArray,
+    tolerance: float,
+) -> tuple[FloatArray, BoolArray, IntArray]:
+    """One round over the active rays: each point's intersection (G, 3),
+    whether all its active rays agree with it (G,), and the ray (index into
+    ``rays``) whose leaving out fits the others best, -1 where none.
+
+    Length: the candidate table (all active rays and each one left out, the
+    rays each candidate is judged on) is built in one vectorised pass."""
+    g_count = rays.labels.size
+    on = np.flatnonzero(active)
+    group = rays.group[on]
+    sizes = np.bincount(group, minlength=g_count)
+    a_all, b_all = _sums(group, g_count, rays.a[on], rays.b[on])
+    # candidates: every point with its active rays, then each active ray left out
+    loo = np.flatnonzero(sizes[group] >= 3)
+    cand_group = np.concatenate([np.arange(g_count), group[loo]])
+    cand_out = np.concatenate([np.full(g_count, -1), loo])
+    cand_xyz = np.concatenate([
+        _solve(a_all, b_all),
+        _solve(a_all[group[loo]] - rays.a[on[loo]], b_all[group[loo]] - rays.b[on[loo]]),
+    ])  # fmt: skip
+    # each candidate judged on the active rays it uses (rays are sorted by point)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    counts = sizes[cand_group]
+    pair_cand = np.repeat(np.arange(cand_group.size), counts)
+    within = np.arange(pair_cand.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    pair_ray = starts[cand_group[pair_cand]] + within
+    used = pair_ray != cand_out[pair_cand]
+    pair_cand, pair_ray = pair_cand[used], pair_ray[used]
+    w = _normalised_residuals(obs, c, rot, rays.rows[on[pair_ray]], cand_xyz[pair_cand])
+    score = np.zeros(cand_group.size)
+    np.maximum.at(score, pair_cand, w)
+    score[~np.all(np.isfinite(cand_xyz), axis=1)] = np.inf
+    agree = score[:g_count] <= tolerance
+    # of each point's leave-one-out candidates, the best fit
+    drop = np.full(g_count, -1, dtype=np.intp)
+    if loo.size:
+        l_score, l_group = score[g_count:], cand_group[g_count:]
+        order = np.lexsort((l_score, l_group))
+        first = order[np.unique(l_group[order], return_index=True)[1]]
+        finite = np.isfinite(l_score[first])
+        drop[l_group[first[finite]]] = on[loo[first[finite]]]
+    return cand_xyz[:g_count], agree, drop
+
+
+def restored_points_note(point_ids: Sequence[str], restored: ArrayLike, used: ArrayLike) -> list[str]:
+    """The note naming the points the strip method left out that the
+    refinement restored and determined (``restored``, ``used``: (P,) bool)."""
+    back = np.flatnonzero(np.asarray(restored, dtype=bool) & np.asarray(used, dtype=bool))
+    if not back.size:
+        return []
+    names = ", ".join(repr(point_ids[i]) for i in back[:5])
+    more = f" and {back.size - 5} more" if back.size > 5 else ""
+    return [
+        f"bundle: {back.size} point(s) the strip method left out were intersected from its "
+        f"photos and determined, their rays tested one by one: {names}{more}"
+    ]
