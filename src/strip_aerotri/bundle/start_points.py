@@ -15,8 +15,9 @@ determine (the start photos' own error, 1.4826 times the median absolute
 value), stay within the critical value of the image tests.  Each point's
 rays are intersected all together and leaving each one out in turn (for
 three rays or more); the point is restored when one of these intersections
-makes every ray it uses agree: all rays if they do, otherwise the one that
-leaves out the ray with the worst fit.  Intersections minimise the rays'
+makes every ray it uses agree: all rays if they do; otherwise the ray that
+fits the intersection of the others worst is given up, one at a time, while
+four or more are left.  Intersections minimise the rays'
 distances weighted by the inverse square of their length (image-scale
 residuals), as in :func:`strip_aerotri.strip.densify.intersect_rays`.
 """
@@ -203,7 +204,7 @@ def _agreeing_intersections(
 
     Each round intersects every point from its active rays; a point whose
     rays do not all agree and that has four or more left gives up the ray
-    whose leaving out fits the others best.  A point is restored when its
+    that fits the intersection of its other rays worst.  A point is restored when its
     active rays agree, three or more, or both rays of a two-ray point."""
     rays = _rays(obs, c, rot, rows)
     g_count = rays.labels.size
@@ -231,45 +232,31 @@ def _round(
 ) -> tuple[FloatArray, BoolArray, IntArray]:
     """One round over the active rays: each point's intersection (G, 3),
     whether all its active rays agree with it (G,), and the ray (index into
-    ``rays``) whose leaving out fits the others best, -1 where none.
-
-    Length: the candidate table (all active rays and each one left out, the
-    rays each candidate is judged on) is built in one vectorised pass."""
+    ``rays``) that fits worst the intersection of the point's other rays
+    (its deleted residual: a wrong ray cannot pull that intersection
+    towards itself), -1 for a point with fewer than three."""
     g_count = rays.labels.size
     on = np.flatnonzero(active)
     group = rays.group[on]
     sizes = np.bincount(group, minlength=g_count)
     a_all, b_all = _sums(group, g_count, rays.a[on], rays.b[on])
-    # candidates: every point with its active rays, then each active ray left out
+    xyz = _solve(a_all, b_all)
+    w = _normalised_residuals(obs, c, rot, rays.rows[on], xyz[group])
+    score = np.zeros(g_count)
+    np.maximum.at(score, group, w)
+    agree = (score <= tolerance) & np.all(np.isfinite(xyz), axis=1)
+    # each ray of a point with three or more against the others' intersection
     loo = np.flatnonzero(sizes[group] >= 3)
-    cand_group = np.concatenate([np.arange(g_count), group[loo]])
-    cand_out = np.concatenate([np.full(g_count, -1), loo])
-    cand_xyz = np.concatenate([
-        _solve(a_all, b_all),
-        _solve(a_all[group[loo]] - rays.a[on[loo]], b_all[group[loo]] - rays.b[on[loo]]),
-    ])  # fmt: skip
-    # each candidate judged on the active rays it uses (rays are sorted by point)
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    counts = sizes[cand_group]
-    pair_cand = np.repeat(np.arange(cand_group.size), counts)
-    within = np.arange(pair_cand.size) - np.repeat(np.cumsum(counts) - counts, counts)
-    pair_ray = starts[cand_group[pair_cand]] + within
-    used = pair_ray != cand_out[pair_cand]
-    pair_cand, pair_ray = pair_cand[used], pair_ray[used]
-    w = _normalised_residuals(obs, c, rot, rays.rows[on[pair_ray]], cand_xyz[pair_cand])
-    score = np.zeros(cand_group.size)
-    np.maximum.at(score, pair_cand, w)
-    score[~np.all(np.isfinite(cand_xyz), axis=1)] = np.inf
-    agree = score[:g_count] <= tolerance
-    # of each point's leave-one-out candidates, the best fit
     drop = np.full(g_count, -1, dtype=np.intp)
     if loo.size:
-        l_score, l_group = score[g_count:], cand_group[g_count:]
-        order = np.lexsort((l_score, l_group))
-        first = order[np.unique(l_group[order], return_index=True)[1]]
-        finite = np.isfinite(l_score[first])
-        drop[l_group[first[finite]]] = on[loo[first[finite]]]
-    return cand_xyz[:g_count], agree, drop
+        g = group[loo]
+        others = _solve(a_all[g] - rays.a[on[loo]], b_all[g] - rays.b[on[loo]])
+        deleted = _normalised_residuals(obs, c, rot, rays.rows[on[loo]], others)
+        deleted[~np.all(np.isfinite(others), axis=1)] = -1.0
+        order = np.lexsort((-deleted, g))
+        first = order[np.unique(g[order], return_index=True)[1]]
+        drop[g[first]] = on[loo[first]]
+    return xyz, agree, drop
 
 
 def restored_points_note(point_ids: Sequence[str], restored: ArrayLike, used: ArrayLike) -> list[str]:

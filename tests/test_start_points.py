@@ -1,0 +1,140 @@
+"""Start values of the points the strip method left out (bundle/start_points.py)."""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import numpy as np
+import pytest
+
+from strip_aerotri.bundle.refine import refine_bundle
+from strip_aerotri.bundle.start_points import restore_points
+from strip_aerotri.options import BlunderOptions
+from strip_aerotri.pipeline import triangulate
+from strip_aerotri.simulate import simulate_strip
+
+
+@pytest.fixture(scope="module")
+def truth_strip():
+    """A 12-photo drone strip in the local frame: its observations and truth."""
+    return simulate_strip(12, preset="drone", seed=3, crs="local")
+
+
+def _rays_of(obs, point):
+    return np.flatnonzero(obs.point == point)
+
+
+def _with_shift(obs, rows, shift_mm):
+    xy = obs.xy.copy()
+    xy[rows] += np.asarray(shift_mm)
+    return dataclasses.replace(obs, xy=xy)
+
+
+def _without(obs, rows):
+    """The observations without ``rows`` (same ids and point indices)."""
+    keep = np.ones(obs.photo.size, bool)
+    keep[rows] = False
+    return dataclasses.replace(
+        obs, photo=obs.photo[keep], point=obs.point[keep], xy=obs.xy[keep],
+        sigma=obs.sigma[keep], source_line=np.zeros(0, np.intp),
+    )  # fmt: skip
+
+
+def _points_with(obs, n_rays, count):
+    rays = np.bincount(obs.point, minlength=obs.n_points)
+    return np.flatnonzero(rays == n_rays)[:count]
+
+
+def test_points_restored_from_their_agreeing_rays(truth_strip):
+    obs, t = truth_strip.observations, truth_strip.truth
+    rays = np.bincount(obs.point, minlength=obs.n_points)
+    clean = _points_with(obs, 4, 3)
+    one_wrong = np.flatnonzero(rays == 5)[:2]
+    two_wrong = np.flatnonzero(rays >= 6)[:1]
+    two_rays = _points_with(obs, 4, 5)[3:]
+    assert clean.size == 3 and one_wrong.size == 2 and two_wrong.size == 1 and two_rays.size == 2
+    # a wrong middle ray (0.05-0.07 mm, 30-50 times the noise) on each; two on the last
+    bad = [_rays_of(obs, p)[2] for p in one_wrong] + list(_rays_of(obs, two_wrong[0])[[1, 3]])
+    shifts = [[0.06, -0.03], [-0.02, 0.05], [0.04, 0.04], [-0.05, -0.02]]
+    obs = _with_shift(obs, bad, shifts)
+    # two points seen twice only: their first and last rays
+    obs = _without(obs, np.concatenate([_rays_of(obs, p)[1:3] for p in two_rays]))
+    gone = np.concatenate([clean, one_wrong, two_wrong, two_rays])
+    start = t.points_local.copy()
+    start[gone] = np.nan
+    out = restore_points(obs, t.photo_centres_local, t.photo_rotations_local, start)
+    assert np.array_equal(np.flatnonzero(out.restored), np.sort(gone))
+    keep = np.ones(obs.n_points, bool)
+    keep[gone] = False
+    assert np.array_equal(out.points[keep], t.points_local[keep])  # the others untouched
+    # started from the good rays: within a few image-noise footprints of the truth
+    # (1.5 µm at 1:13 600 is 2 cm in plan; a wrong ray kept would move it by decimetres)
+    err = np.linalg.norm(out.points[gone] - t.points_local[gone], axis=1)
+    assert np.all(err < 0.15), err
+    assert out.scale >= 1.0
+
+
+def test_points_whose_rays_disagree_stay_out(truth_strip):
+    obs, t = truth_strip.observations, truth_strip.truth
+    three = _points_with(obs, 3, 1)[0]
+    split = _points_with(obs, 4, 1)[0]
+    two = _points_with(obs, 4, 2)[1]
+    # three rays, one wrong: the two left cannot tell which is wrong
+    rows = [_rays_of(obs, three)[1]]
+    # four rays, two and two: another point's image on two photos (a mismatch)
+    rows += list(_rays_of(obs, split)[2:])
+    rows += [_rays_of(obs, two)[0]]  # two rays that do not intersect
+    obs = _with_shift(obs, rows, [0.05, 0.08])
+    obs = _without(obs, _rays_of(obs, two)[1:3])
+    start = t.points_local.copy()
+    start[[three, split, two]] = np.nan
+    out = restore_points(obs, t.photo_centres_local, t.photo_rotations_local, start)
+    assert not out.restored.any()
+    assert np.all(np.isnan(out.points[[three, split, two]]))
+
+
+def test_nothing_restored_unless_the_tests_reject(truth_strip):
+    obs, t = truth_strip.observations, truth_strip.truth
+    gone = _points_with(obs, 4, 2)
+    start = t.points_local.copy()
+    start[gone] = np.nan
+    args = (obs, t.photo_centres_local, t.photo_rotations_local, start)
+    for action in ("report", "off"):
+        out = restore_points(*args, blunders=BlunderOptions(action=action))
+        assert not out.restored.any()
+    excluded = BlunderOptions(exclude_points=(obs.point_ids[gone[0]],))
+    out = restore_points(*args, blunders=excluded)
+    assert np.array_equal(np.flatnonzero(out.restored), gone[1:])
+    # and a ray the user excluded does not count: three left still agree
+    drop = BlunderOptions(
+        exclude_observations=((obs.photo_ids[obs.photo[_rays_of(obs, gone[0])[0]]],
+                               obs.point_ids[gone[0]]),)
+    )  # fmt: skip
+    assert restore_points(*args, blunders=drop).restored[gone].all()
+
+
+def test_the_refinement_keeps_the_good_rays_of_points_the_strip_method_dropped():
+    """A blunder on a point's middle photo made the strip method drop the
+    point; the refinement used to leave it out with its good rays."""
+    sim = simulate_strip(20, preset="drone", seed=0, image_blunders=12, control="fig4")
+    obs = sim.observations
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        strip = triangulate(obs, sim.control, sim.crs)
+        refined = refine_bundle(strip)
+    blunder = np.zeros(obs.photo.size, bool)
+    blunder[list(sim.truth.blunder_observations)] = True
+    dropped = np.flatnonzero(~np.all(np.isfinite(strip.points), axis=1))
+    good_rays = np.bincount(obs.point[~blunder], minlength=obs.n_points)
+    wanted = dropped[good_rays[dropped] >= 3]
+    assert wanted.size, "the strip method should drop a point with a wrong ray here"
+    assert np.all(np.isfinite(refined.points[wanted]))
+    # exactly the blunders rejected: every good ray of those points kept
+    assert np.array_equal(~refined.image_used, blunder)
+    assert any("intersected from its photos" in w and obs.point_ids[wanted[0]] in w
+               for w in refined.warnings)  # fmt: skip
+    # and as well determined as the rest (CRS metres, plan and height)
+    err = np.abs(refined.points - sim.truth.points_crs)
+    typical = np.sqrt(np.nanmean(err**2, axis=0))
+    assert np.all(err[wanted] < 4 * typical), (err[wanted], typical)
