@@ -337,9 +337,13 @@ def _refine(
     frame (plan-only and height-only control keep the block's value of their
     other coordinate)."""
     from ..bundle.refine import gnss_imu_in_frame, gnss_imu_outcomes, lost_points_note
+    from ..bundle.start_points import restore_points, restored_points_note
     from ..bundle.variance import refine_frame_weighted
 
-    points0, centres0, rot0 = _in_work_frame(p, sol)
+    block_points, centres0, rot0 = _in_work_frame(p, sol)
+    # points the block left out, intersected from its photos (bundle/start_points.py)
+    restored = restore_points(p.observations, centres0, rot0, block_points, blunders=blunders)
+    points0 = restored.points
     n_points = p.observations.n_points
     target = p.work.to_work(sol.guess)
     control_xyz = np.full((n_points, 3), np.nan)
@@ -390,7 +394,8 @@ def _refine(
     used[~used_xy, :2] = np.nan
     used[~used_z, 2] = np.nan
     notes = tuple(r.describe() for r in fr.rejections)
-    notes += tuple(lost_points_note(p.observations.point_ids, points0, fr.point_used))
+    notes += tuple(lost_points_note(p.observations.point_ids, block_points, fr.point_used))
+    notes += tuple(restored_points_note(p.observations.point_ids, restored.restored, fr.point_used))
     if fr.self_calibration is not None:
         notes = fr.self_calibration.notes + notes
     return replace(
