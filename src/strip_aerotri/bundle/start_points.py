@@ -15,9 +15,12 @@ determine (the start photos' own error, 1.4826 times the median absolute
 value), stay within the critical value of the image tests.  Each point's
 rays are intersected all together and leaving each one out in turn (for
 three rays or more); the point is restored when one of these intersections
-makes every ray it uses agree: all rays if they do; otherwise the ray that
-fits the intersection of the others worst is given up, one at a time, while
-four or more are left.  Intersections minimise the rays'
+makes every ray it uses agree: all rays if they do; otherwise the ray whose
+leaving out makes the others fit their own intersection best is given up,
+one at a time, while four or more are left.  (The ray that fits the others'
+intersection worst is not a safe choice: a wrong ray pulls that
+intersection, and a good ray at the end of a long base can then fit it
+worse than the wrong one.)  Intersections minimise the rays'
 distances weighted by the inverse square of their length (image-scale
 residuals), as in :func:`strip_aerotri.strip.densify.intersect_rays`.
 """
@@ -204,7 +207,7 @@ def _agreeing_intersections(
 
     Each round intersects every point from its active rays; a point whose
     rays do not all agree and that has four or more left gives up the ray
-    that fits the intersection of its other rays worst.  A point is restored when its
+    whose leaving out makes the others fit best.  A point is restored when its
     active rays agree, three or more, or both rays of a two-ray point."""
     rays = _rays(obs, c, rot, rows)
     g_count = rays.labels.size
@@ -232,9 +235,12 @@ def _round(
 ) -> tuple[FloatArray, BoolArray, IntArray]:
     """One round over the active rays: each point's intersection (G, 3),
     whether all its active rays agree with it (G,), and the ray (index into
-    ``rays``) that fits worst the intersection of the point's other rays
-    (its deleted residual: a wrong ray cannot pull that intersection
-    towards itself), -1 for a point with fewer than three."""
+    ``rays``) whose leaving out makes the point's other rays fit their own
+    intersection best (the largest of their residuals the smallest), -1 for
+    a point with fewer than three.
+
+    Length: the table of the leave-one-out intersections and the rays each
+    is judged on is built in one vectorised pass."""
     g_count = rays.labels.size
     on = np.flatnonzero(active)
     group = rays.group[on]
@@ -245,17 +251,30 @@ def _round(
     score = np.zeros(g_count)
     np.maximum.at(score, group, w)
     agree = (score <= tolerance) & np.all(np.isfinite(xyz), axis=1)
-    # each ray of a point with three or more against the others' intersection
-    loo = np.flatnonzero(sizes[group] >= 3)
     drop = np.full(g_count, -1, dtype=np.intp)
-    if loo.size:
-        g = group[loo]
-        others = _solve(a_all[g] - rays.a[on[loo]], b_all[g] - rays.b[on[loo]])
-        deleted = _normalised_residuals(obs, c, rot, rays.rows[on[loo]], others)
-        deleted[~np.all(np.isfinite(others), axis=1)] = -1.0
-        order = np.lexsort((-deleted, g))
-        first = order[np.unique(g[order], return_index=True)[1]]
-        drop[g[first]] = on[loo[first]]
+    loo = np.flatnonzero(sizes[group] >= 3)  # positions in ``on``
+    if not loo.size:
+        return xyz, agree, drop
+    g = group[loo]
+    others = _solve(a_all[g] - rays.a[on[loo]], b_all[g] - rays.b[on[loo]])
+    # pairs (leave-one-out candidate, another active ray of its point); the
+    # active rays are sorted by point, so a point's rays are contiguous in ``on``
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    counts = sizes[g]
+    pair_cand = np.repeat(np.arange(loo.size), counts)
+    within = np.arange(pair_cand.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    pair_ray = starts[g[pair_cand]] + within
+    keep = pair_ray != loo[pair_cand]
+    pair_cand, pair_ray = pair_cand[keep], pair_ray[keep]
+    fit = np.zeros(loo.size)
+    np.maximum.at(
+        fit, pair_cand, _normalised_residuals(obs, c, rot, rays.rows[on[pair_ray]], others[pair_cand])
+    )
+    fit[~np.all(np.isfinite(others), axis=1)] = np.inf
+    order = np.lexsort((fit, g))
+    first = order[np.unique(g[order], return_index=True)[1]]
+    first = first[np.isfinite(fit[first])]
+    drop[g[first]] = on[loo[first]]
     return xyz, agree, drop
 
 
