@@ -167,3 +167,37 @@ def test_the_block_refinement_keeps_the_good_rays_of_points_the_block_dropped():
         out = np.array([(obs.photo[k], obs.point_ids[i]) in rejected for k in rows])
         assert np.array_equal(out, blunder[rows])
         assert np.count_nonzero(~out) >= 3
+
+
+def test_a_control_point_the_strip_method_dropped_is_control_again():
+    """A wrong ray on the middle photo of every control point seen four
+    times or more: the strip method drops two of them; the refinement
+    restores them and uses their control, and it rejects exactly the wrong
+    rays."""
+    sim = simulate_strip(20, preset="drone", seed=2, control="fig4")
+    obs, ctl = sim.observations, sim.control
+    lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
+    rays = np.bincount(obs.point, minlength=obs.n_points)
+    used_rows = [
+        i for i, pid in enumerate(ctl.point_ids)
+        if not ctl.is_check[i] and pid in lookup and rays[lookup[pid]] >= 4
+    ]  # fmt: skip
+    bad = [np.flatnonzero(obs.point == lookup[ctl.point_ids[i]])[2] for i in used_rows]
+    obs = _with_shift(obs, bad, [0.05, 0.03])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        strip = triangulate(obs, ctl, sim.crs)
+        refined = refine_bundle(strip)
+    dropped = [
+        i for i in used_rows if not np.all(np.isfinite(strip.points[lookup[ctl.point_ids[i]]]))
+    ]
+    assert len(dropped) >= 2
+    blunder = np.zeros(obs.photo.size, bool)
+    blunder[bad] = True
+    assert np.array_equal(~refined.image_used, blunder)
+    index = list(refined.control_index)
+    for i in dropped:
+        j = index.index(i)  # ValueError before: the row was left out
+        assert refined.used_xy[j] == ctl.uses_xy[i] and refined.used_h[j] == ctl.uses_h[i]
+        given = ~np.isnan(refined.control_residuals[j])
+        assert np.all(np.abs(refined.control_residuals[j][given]) < 0.05)

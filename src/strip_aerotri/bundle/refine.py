@@ -345,6 +345,7 @@ def refine_bundle(
     # points the strip method left out, intersected from its photos (start_points.py)
     restored = restore_points(obs, start.centres, start.rotations, start.points, blunders=blunders)
     start = start._replace(points=restored.points)
+    has_point[seen] |= restored.restored[row_point[seen]]  # their control and checks too
     rows = np.flatnonzero(has_point)
     ctrl = _control_rows(control, rows, row_point[rows], obs.n_points)
     aux = gnss_imu_in_frame(obs.photo_ids, result.photo_centres, frame, gnss, imu)
@@ -601,6 +602,8 @@ def _passes(
     idx, given_crs = ctrl.idx, ctrl.given_crs
     t_frame = t_bundle = 0.0
     adjusted_crs = np.array(result.points)
+    missing = ~np.all(np.isfinite(adjusted_crs), axis=1) & np.all(np.isfinite(start.points), axis=1)
+    adjusted_crs[missing] = frame.from_work(start.points[missing])  # points restored
     state = (start.centres, start.rotations, start.points)
     obs_used: BoolArray | None = None
     ctrl_used: BoolArray | None = None
