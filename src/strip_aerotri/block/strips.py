@@ -341,8 +341,12 @@ def _refine(
     from ..bundle.variance import refine_frame_weighted
 
     block_points, centres0, rot0 = _in_work_frame(p, sol)
-    # points the block left out, intersected from its photos (bundle/start_points.py)
-    restored = restore_points(p.observations, centres0, rot0, block_points, blunders=blunders)
+    # points the block left out, intersected from its photos (bundle/start_points.py);
+    # not its control and check points: its tables hold the rows it determined
+    control_points = np.isin(p.observations.point_ids, p.control.point_ids)
+    restored = restore_points(
+        p.observations, centres0, rot0, block_points, blunders=blunders, keep_out=control_points
+    )
     points0 = restored.points
     n_points = p.observations.n_points
     target = p.work.to_work(sol.guess)

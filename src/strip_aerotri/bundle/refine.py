@@ -314,8 +314,10 @@ def refine_bundle(
     components are completed from the adjusted point and iterated (passes)
     in a curved frame.  Photo centres and attitudes observed by GNSS and IMU
     are converted into the frame (attitudes through east-north-up at the
-    centre).  Points the strip method did not triangulate have no initial
-    value and are left out (NaN).
+    centre).  Points the strip method left out after its tie tests are
+    intersected from its photos when three or more of their rays agree
+    (:mod:`strip_aerotri.bundle.start_points`), so that the snooping tests
+    each ray; points without agreeing rays stay out (NaN).
 
     Examples
     --------

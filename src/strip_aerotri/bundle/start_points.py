@@ -69,6 +69,7 @@ def restore_points(
     points: ArrayLike,
     *,
     blunders: BlunderOptions | None = None,
+    keep_out: ArrayLike | None = None,
 ) -> RestoredPoints:
     """Start values for points without one whose rays agree (module notes).
 
@@ -87,6 +88,8 @@ def restore_points(
         Nothing is restored unless it rejects (the default does): without
         rejections a wrong ray would stay in.  Its excluded points and
         observations are left out, and its ``alpha`` sets the critical value.
+    keep_out : array_like of bool, shape (P,), optional
+        Points not to restore (e.g. control rows a caller cannot take any more).
 
     Returns
     -------
@@ -106,6 +109,8 @@ def restore_points(
     excluded_points, excluded_obs = blunders.excluded(obs)
     ray_ok = photo_ok[obs.photo] & ~excluded_obs
     wanted = ~have & ~excluded_points
+    if keep_out is not None:
+        wanted &= ~np.asarray(keep_out, dtype=bool)
     rows = np.flatnonzero(wanted[obs.point] & ray_ok)
     n_rays = np.bincount(obs.point[rows], minlength=p)
     rows = rows[n_rays[obs.point[rows]] >= 2]
@@ -287,6 +292,6 @@ def restored_points_note(point_ids: Sequence[str], restored: ArrayLike, used: Ar
     names = ", ".join(repr(point_ids[i]) for i in back[:5])
     more = f" and {back.size - 5} more" if back.size > 5 else ""
     return [
-        f"bundle: {back.size} point(s) the strip method left out were intersected from its "
-        f"photos and determined, their rays tested one by one: {names}{more}"
+        f"bundle: {back.size} point(s) left out before the refinement were intersected from "
+        f"the photos and determined, their rays tested one by one: {names}{more}"
     ]
