@@ -52,15 +52,12 @@ def test_points_restored_from_their_agreeing_rays(truth_strip):
     clean = _points_with(obs, 4, 3)
     one_wrong = np.flatnonzero(rays == 5)[:2]
     two_wrong = np.flatnonzero(rays >= 6)[:1]
-    two_rays = _points_with(obs, 4, 5)[3:]
-    assert clean.size == 3 and one_wrong.size == 2 and two_wrong.size == 1 and two_rays.size == 2
+    assert clean.size == 3 and one_wrong.size == 2 and two_wrong.size == 1
     # a wrong middle ray (0.05-0.07 mm, 30-50 times the noise) on each; two on the last
     bad = [_rays_of(obs, p)[2] for p in one_wrong] + list(_rays_of(obs, two_wrong[0])[[1, 3]])
     shifts = [[0.06, -0.03], [-0.02, 0.05], [0.04, 0.04], [-0.05, -0.02]]
     obs = _with_shift(obs, bad, shifts)
-    # two points seen twice only: their first and last rays
-    obs = _without(obs, np.concatenate([_rays_of(obs, p)[1:3] for p in two_rays]))
-    gone = np.concatenate([clean, one_wrong, two_wrong, two_rays])
+    gone = np.concatenate([clean, one_wrong, two_wrong])
     start = t.points_local.copy()
     start[gone] = np.nan
     out = restore_points(obs, t.photo_centres_local, t.photo_rotations_local, start)
@@ -79,19 +76,22 @@ def test_points_whose_rays_disagree_stay_out(truth_strip):
     obs, t = truth_strip.observations, truth_strip.truth
     three = _points_with(obs, 3, 1)[0]
     split = _points_with(obs, 4, 1)[0]
-    two = _points_with(obs, 4, 2)[1]
+    two, three_of_four = _points_with(obs, 4, 3)[1:]
     # three rays, one wrong: the two left cannot tell which is wrong
     rows = [_rays_of(obs, three)[1]]
     # four rays, two and two: another point's image on two photos (a mismatch)
     rows += list(_rays_of(obs, split)[2:])
-    rows += [_rays_of(obs, two)[0]]  # two rays that do not intersect
+    # a point seen on two photos: no check of a ray of its own, however well
+    # the two agree; and three of four rays, one wrong: two left agree
+    rows += [_rays_of(obs, three_of_four)[1]]
     obs = _with_shift(obs, rows, [0.05, 0.08])
-    obs = _without(obs, _rays_of(obs, two)[1:3])
+    obs = _without(obs, np.concatenate([_rays_of(obs, two)[1:3], _rays_of(obs, three_of_four)[:1]]))
+    gone = [three, split, two, three_of_four]
     start = t.points_local.copy()
-    start[[three, split, two]] = np.nan
+    start[gone] = np.nan
     out = restore_points(obs, t.photo_centres_local, t.photo_rotations_local, start)
     assert not out.restored.any()
-    assert np.all(np.isnan(out.points[[three, split, two]]))
+    assert np.all(np.isnan(out.points[gone]))
 
 
 def test_nothing_restored_unless_the_tests_reject(truth_strip):
