@@ -40,6 +40,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._text import named
 from .._threads import limit_blas_threads
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import StripAerotriWarning
@@ -446,11 +447,9 @@ def lost_points_note(point_ids: Sequence[str], start: ArrayLike, used: ArrayLike
     lost = np.flatnonzero(had & ~np.asarray(used, dtype=bool))
     if not lost.size:
         return []
-    names = ", ".join(repr(point_ids[i]) for i in lost[:5])
-    more = f" and {lost.size - 5} more" if lost.size > 5 else ""
     return [
         f"bundle: {lost.size} point(s) kept fewer than two rays after the rejections and are "
-        f"no longer determined (left out of points.csv): {names}{more}"
+        f"no longer determined (left out of points.csv): {named([point_ids[i] for i in lost.tolist()])}"
     ]
 
 

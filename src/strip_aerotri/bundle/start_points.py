@@ -36,6 +36,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._text import named
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..observations import ImageObservations
 from ..options import BlunderOptions
@@ -292,9 +293,8 @@ def restored_points_note(point_ids: Sequence[str], restored: ArrayLike, used: Ar
     back = np.flatnonzero(np.asarray(restored, dtype=bool) & np.asarray(used, dtype=bool))
     if not back.size:
         return []
-    names = ", ".join(repr(point_ids[i]) for i in back[:5])
-    more = f" and {back.size - 5} more" if back.size > 5 else ""
     return [
         f"bundle: {back.size} point(s) left out before the refinement were intersected from "
-        f"the photos and determined, their rays tested one by one: {names}{more}"
+        f"the photos and determined, their rays tested one by one: "
+        f"{named([point_ids[i] for i in back.tolist()])}"
     ]
