@@ -367,21 +367,24 @@ def external(folder: Path) -> None:
     given = _table(control, [ids[i] for i in check], ("X", "Y", "H"))
     true_crs = _table(truth_pts, [ids[i] for i in check], ("X", "Y", "H"))
     crs = result.ground.crs
-    print(f"  check RMSE plan / height (m): against control.csv {_rmse(enu_residuals(crs, given, ours))}, "
-          f"against the truth {_rmse(enu_residuals(crs, true_crs, ours))}; "
-          f"control.csv's own error (given - truth) {_rmse(enu_residuals(crs, given, true_crs))}")  # fmt: skip
+    against = (enu_residuals(crs, given, ours), enu_residuals(crs, true_crs, ours))
+    own = enu_residuals(crs, given, true_crs)
+    print(f"  check RMSE plan / height (m): against control.csv {_rmse(against[0])}, "
+          f"against the truth {_rmse(against[1])}; "
+          f"control.csv's own error (given - truth) {_rmse(own)}")  # fmt: skip
     err = cmp.point_error
     print(f"  all points - truth, frame X / Y / Z: mean {np.round(np.mean(err, 0), 4)}, "
           f"RMS {np.round(np.sqrt(np.mean(err**2, 0)), 4)} m; divided by their own sigma: "
           f"RMS {np.round(cmp.point_z_rms, 2)}; centres divided by their own sigma: RMS "
           f"{np.round(cmp.centre_z_rms, 2)}")  # fmt: skip
-    print(f"  cost (weighted sum of squares): truth {cmp.cost_truth:.3f}, ours {cmp.cost_ours:.6f}, "
-          f"Gauss-Newton from the truth to 1e-12 {cmp.cost_reference:.6f} (sigma0 "
-          f"{cmp.reference.sigma0:.4f}); ours - that solution: largest point difference "
+    print(f"  cost (weighted sum of squares): truth {cmp.cost_truth:.3f}, "
+          f"ours {cmp.cost_ours:.6f}, Gauss-Newton from the truth to 1e-12 "
+          f"{cmp.cost_reference:.6f} (sigma0 {cmp.reference.sigma0:.4f}); ours - that solution: largest point difference "
           f"{cmp.largest_point_difference_m * 1e6:.3f} µm")  # fmt: skip
     _, _, pts_ref, _ = cmp.reference.unpack(cmp.reference.solution)
     ref_check = frame.from_work(pts_ref[check] + np.mean(frame.to_work(centres_crs), axis=0))
-    print(f"  the reference's check RMSE: against control.csv {_rmse(enu_residuals(crs, given, ref_check))}, "
+    print(f"  the reference's check RMSE: against control.csv "
+          f"{_rmse(enu_residuals(crs, given, ref_check))}, "
           f"against the truth {_rmse(enu_residuals(crs, true_crs, ref_check))}")  # fmt: skip
 
 

@@ -85,7 +85,9 @@ def test_points_whose_rays_disagree_stay_out(truth_strip):
     # the two agree; and three of four rays, one wrong: two left agree
     rows += [_rays_of(obs, three_of_four)[1]]
     obs = _with_shift(obs, rows, [0.05, 0.08])
-    obs = _without(obs, np.concatenate([_rays_of(obs, two)[1:3], _rays_of(obs, three_of_four)[:1]]))
+    obs = _without(
+        obs, np.concatenate([_rays_of(obs, two)[1:3], _rays_of(obs, three_of_four)[:1]])
+    )
     gone = [three, split, two, three_of_four]
     start = t.points_local.copy()
     start[gone] = np.nan

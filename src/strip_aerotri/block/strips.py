@@ -399,7 +399,9 @@ def _refine(
     used[~used_z, 2] = np.nan
     notes = tuple(r.describe() for r in fr.rejections)
     notes += tuple(lost_points_note(p.observations.point_ids, block_points, fr.point_used))
-    notes += tuple(restored_points_note(p.observations.point_ids, restored.restored, fr.point_used))
+    notes += tuple(
+        restored_points_note(p.observations.point_ids, restored.restored, fr.point_used)
+    )
     if fr.self_calibration is not None:
         notes = fr.self_calibration.notes + notes
     return replace(

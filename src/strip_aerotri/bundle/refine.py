@@ -447,9 +447,10 @@ def lost_points_note(point_ids: Sequence[str], start: ArrayLike, used: ArrayLike
     lost = np.flatnonzero(had & ~np.asarray(used, dtype=bool))
     if not lost.size:
         return []
+    names = named([point_ids[i] for i in lost.tolist()])
     return [
         f"bundle: {lost.size} point(s) kept fewer than two rays after the rejections and are "
-        f"no longer determined (left out of points.csv): {named([point_ids[i] for i in lost.tolist()])}"
+        f"no longer determined (left out of points.csv): {names}"
     ]
 
 
@@ -603,7 +604,9 @@ def _passes(
     idx, given_crs = ctrl.idx, ctrl.given_crs
     t_frame = t_bundle = 0.0
     adjusted_crs = np.array(result.points)
-    missing = ~np.all(np.isfinite(adjusted_crs), axis=1) & np.all(np.isfinite(start.points), axis=1)
+    missing = ~np.all(np.isfinite(adjusted_crs), axis=1) & np.all(
+        np.isfinite(start.points), axis=1
+    )
     adjusted_crs[missing] = frame.from_work(start.points[missing])  # points restored
     state = (start.centres, start.rotations, start.points)
     obs_used: BoolArray | None = None

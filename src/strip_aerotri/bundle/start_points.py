@@ -15,9 +15,10 @@ check RMSE up by 0.1-0.3 mm in plan on every one of six splits).
 Agreement is judged at the start photos.  A ray agrees with an intersection
 when both image residuals (mm), divided by the ray's sigma and by the
 robust scale ``s`` of the same residuals of the points the strip method did
-determine (the start photos' own error, 1.4826 times the median absolute
-value), stay within the critical value of the image tests.  Each point's
-rays are intersected all together and leaving each one out in turn (for
+determine on the same photos (the start photos' own error, 1.4826 times the
+median absolute value, at least 1), stay within the critical value of the
+image tests.  Each point's rays are intersected all together and leaving
+each one out in turn (for
 three rays or more); the point is restored when one of these intersections
 makes three or more rays agree: all rays if they do; otherwise the ray whose
 leaving out makes the others fit their own intersection best is given up,
@@ -121,7 +122,12 @@ def restore_points(
     rows = rows[n_rays[obs.point[rows]] >= 3]
     if not rows.size:
         return RestoredPoints(pts, restored, 1.0)
-    scale = _start_scale(obs, c, rot, pts, np.flatnonzero(have[obs.point] & ray_ok))
+    # the start photos' own error, on the photos that see the points to restore
+    near = np.zeros(c.shape[0], dtype=bool)
+    near[obs.photo[rows]] = True
+    scale = _start_scale(
+        obs, c, rot, pts, np.flatnonzero(have[obs.point] & ray_ok & near[obs.photo])
+    )
     tolerance = blunders.critical(IMAGE_STAGE, 2 * obs.photo.shape[0]) * scale
     fill, chosen = _agreeing_intersections(obs, c, rot, rows, tolerance)
     pts[fill] = chosen
@@ -153,9 +159,7 @@ def _start_scale(
     ph = obs.photo[rows]
     u = np.einsum("kji,kj->ki", rot[ph], pts[obs.point[rows]] - c[ph])
     with np.errstate(divide="ignore", invalid="ignore"):
-        v = (-obs.principal_distance * u[:, :2] / u[:, 2:3] - obs.xy[rows]) / obs.sigma[
-            rows, None
-        ]
+        v = (-obs.principal_distance * u[:, :2] / u[:, 2:3] - obs.xy[rows]) / obs.sigma[rows, None]
     v = v[np.all(np.isfinite(v), axis=1)]
     if v.size < _MIN_RAYS_FOR_SCALE:
         return 1.0
@@ -277,7 +281,9 @@ def _round(
     pair_cand, pair_ray = pair_cand[keep], pair_ray[keep]
     fit = np.zeros(loo.size)
     np.maximum.at(
-        fit, pair_cand, _normalised_residuals(obs, c, rot, rays.rows[on[pair_ray]], others[pair_cand])
+        fit,
+        pair_cand,
+        _normalised_residuals(obs, c, rot, rays.rows[on[pair_ray]], others[pair_cand]),
     )
     fit[~np.all(np.isfinite(others), axis=1)] = np.inf
     order = np.lexsort((fit, g))
@@ -287,7 +293,9 @@ def _round(
     return xyz, agree, drop
 
 
-def restored_points_note(point_ids: Sequence[str], restored: ArrayLike, used: ArrayLike) -> list[str]:
+def restored_points_note(
+    point_ids: Sequence[str], restored: ArrayLike, used: ArrayLike
+) -> list[str]:
     """The note naming the points the strip method left out that the
     refinement restored and determined (``restored``, ``used``: (P,) bool)."""
     back = np.flatnonzero(np.asarray(restored, dtype=bool) & np.asarray(used, dtype=bool))
