@@ -379,7 +379,8 @@ def external(folder: Path) -> None:
           f"{np.round(cmp.centre_z_rms, 2)}")  # fmt: skip
     print(f"  cost (weighted sum of squares): truth {cmp.cost_truth:.3f}, "
           f"ours {cmp.cost_ours:.6f}, Gauss-Newton from the truth to 1e-12 "
-          f"{cmp.cost_reference:.6f} (sigma0 {cmp.reference.sigma0:.4f}); ours - that solution: largest point difference "
+          f"{cmp.cost_reference:.6f} (sigma0 {cmp.reference.sigma0:.4f}); "
+          f"ours - that solution: largest point difference "
           f"{cmp.largest_point_difference_m * 1e6:.3f} µm")  # fmt: skip
     _, _, pts_ref, _ = cmp.reference.unpack(cmp.reference.solution)
     ref_check = frame.from_work(pts_ref[check] + np.mean(frame.to_work(centres_crs), axis=0))
