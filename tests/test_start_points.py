@@ -203,3 +203,47 @@ def test_a_control_point_the_strip_method_dropped_is_control_again():
         assert refined.used_xy[j] == ctl.uses_xy[i] and refined.used_h[j] == ctl.uses_h[i]
         given = ~np.isnan(refined.control_residuals[j])
         assert np.all(np.abs(refined.control_residuals[j][given]) < 0.05)
+
+
+def test_a_round_matches_a_point_by_point_computation(truth_strip):
+    """The vectorised round (intersections, agreement, the ray to give up)
+    against a plain loop over the points on a strip with wrong rays on a
+    third of its points and some rays already given up."""
+    from strip_aerotri.bundle import start_points as sp
+
+    obs, t = truth_strip.observations, truth_strip.truth
+    rng = np.random.default_rng(2345)
+    rays_per_point = np.bincount(obs.point, minlength=obs.n_points)
+    rows = np.flatnonzero(rays_per_point[obs.point] >= 3)
+    wrong = rng.choice(rows, rows.size // 8, replace=False)
+    obs = _with_shift(obs, wrong, rng.normal(0.0, 0.04, (wrong.size, 2)))
+    c, rot = t.photo_centres_local, t.photo_rotations_local
+    rays = sp._rays(obs, c, rot, rows)
+    active = rng.random(rays.rows.size) > 0.15
+    tolerance = 6.0
+    xyz, agree, drop = sp._round(obs, c, rot, rays, active, tolerance)
+    assert agree.any() and not agree.all() and np.any(drop >= 0)  # every branch is met
+    for g in range(rays.labels.size):  # the oracle: one point at a time
+        mine = np.flatnonzero((rays.group == g) & active)
+        if not mine.size:
+            continue
+        a, b = rays.a[mine].sum(axis=0), rays.b[mine].sum(axis=0)
+        if np.linalg.matrix_rank(a) < 3:
+            assert not agree[g]
+            continue
+        x = np.linalg.solve(a, b)
+        np.testing.assert_allclose(xyz[g], x, rtol=0, atol=1e-9)
+        w = sp._normalised_residuals(obs, c, rot, rays.rows[mine], np.tile(x, (mine.size, 1)))
+        assert agree[g] == (w.max() <= tolerance)
+        if mine.size < 3:
+            assert drop[g] == -1
+            continue
+        fits = []
+        for k in mine:
+            others = mine[mine != k]
+            xk = np.linalg.solve(rays.a[others].sum(axis=0), rays.b[others].sum(axis=0))
+            wk = sp._normalised_residuals(
+                obs, c, rot, rays.rows[others], np.tile(xk, (others.size, 1))
+            )
+            fits.append(wk.max())
+        assert drop[g] == mine[int(np.argmin(fits))]
