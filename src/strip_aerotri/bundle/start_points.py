@@ -18,15 +18,14 @@ robust scale ``s`` of the same residuals of the points the strip method did
 determine on the same photos (the start photos' own error, 1.4826 times the
 median absolute value, at least 1), stay within the critical value of the
 image tests.  Each point's rays are intersected all together and leaving
-each one out in turn (for
-three rays or more); the point is restored when one of these intersections
-makes three or more rays agree: all rays if they do; otherwise the ray whose
-leaving out makes the others fit their own intersection best is given up,
-one at a time, while four or more are left.  (The ray that fits the others'
-intersection worst is not a safe choice: a wrong ray pulls that
-intersection, and a good ray at the end of a long base can then fit it
-worse than the wrong one.)  Intersections minimise the rays'
-distances weighted by the inverse square of their length (image-scale
+each one out in turn; the point is restored when one of these
+intersections makes three or more rays agree: all rays if they do;
+otherwise the ray whose leaving out makes the others fit their own
+intersection best is given up, one at a time, while four or more are left.
+(The ray that fits the others' intersection worst is not a safe choice: a
+wrong ray pulls that intersection, and a good ray at the end of a long base
+can then fit it worse than the wrong one.)  Intersections minimise the
+rays' distances weighted by the inverse square of their length (image-scale
 residuals), as in :func:`strip_aerotri.strip.densify.intersect_rays`.
 """
 
