@@ -247,3 +247,31 @@ def test_a_round_matches_a_point_by_point_computation(truth_strip):
             )
             fits.append(wk.max())
         assert drop[g] == mine[int(np.argmin(fits))]
+
+
+def test_stripaero_run_delivers_a_restored_control_point(tmp_path):
+    """``stripaero run`` with ``refine = "bundle"`` on a strip whose strip
+    method dropped height point P0043 (a wrong ray): points.csv has it as
+    height control with its residual, no model behind it (n_models 0), and
+    the warning names it."""
+    import csv
+
+    from click.testing import CliRunner
+
+    from strip_aerotri.cli.main import cli
+
+    sim = simulate_strip(40, preset="drone", seed=0, image_blunders=20, control="fig4")
+    toml = sim.write_project(tmp_path / "p")
+    toml.write_text(
+        toml.read_text().replace("[adjustment]\n", '[adjustment]\nrefine = "bundle"\n')
+    )
+    result = CliRunner().invoke(cli, ["run", str(toml), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output
+    assert "not triangulated" in result.output  # the strip method's own warning
+    assert "intersected from the photos and determined" in result.output
+    assert "'P0043'" in result.output.split("intersected from the photos")[1]
+    with open(tmp_path / "out" / "points.csv", newline="") as f:
+        rows = {r["point"]: r for r in csv.DictReader(f)}
+    row = rows["P0043"]
+    assert row["role"] == "control-height" and row["n_models"] == "0"
+    assert abs(float(row["dH"])) < 0.01 and row["dE"] == ""
