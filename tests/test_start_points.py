@@ -142,14 +142,16 @@ def test_the_refinement_keeps_the_good_rays_of_points_the_strip_method_dropped()
     assert np.all(err[wanted] < 4 * typical), (err[wanted], typical)
 
 
-def test_the_block_refinement_keeps_the_good_rays_of_points_the_block_dropped():
+@pytest.mark.parametrize(("seed", "kind"), [(2, "check"), (5, "full")])
+def test_the_block_refinement_keeps_the_good_rays_of_points_the_block_dropped(seed, kind):
     """The same for a block: 120 blunders on a 3 x 15 drone block drop 7
-    points in the block's own tests; the refinement used to lose all 7 with
-    23 good rays."""
+    points (seed 2) in the block's own tests; the refinement used to lose all
+    7 with 23 good rays.  Among those restored, check points (seed 2) and a
+    full control point (seed 5) take their control rows again."""
     from strip_aerotri.pipeline import triangulate_block
     from strip_aerotri.simulate import simulate_block
 
-    sim = simulate_block(3, 15, preset="drone", seed=2, image_blunders=120)
+    sim = simulate_block(3, 15, preset="drone", seed=seed, image_blunders=120)
     obs = sim.observations
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -169,6 +171,21 @@ def test_the_block_refinement_keeps_the_good_rays_of_points_the_block_dropped():
         out = np.array([(obs.photo[k], obs.point_ids[i]) in rejected for k in rows])
         assert np.array_equal(out, blunder[rows])
         assert np.count_nonzero(~out) >= 3
+    # a restored check point is compared, a restored control point used
+    index = list(block.control_index)
+    rows = [
+        r for r, pid in enumerate(sim.control.point_ids) if pid in {obs.point_ids[i] for i in back}
+    ]
+    assert kind in {sim.control.kind[r].value for r in rows}
+    assert all(r in index for r in rows)
+    for r in rows:
+        j = index.index(r)
+        assert np.all(np.isfinite(block.control_residuals[j][~np.isnan(sim.control.xyz[r])]))
+        assert block.is_check[j] == sim.control.is_check[r]
+        if not sim.control.is_check[r]:
+            assert block.used_xy[j] == sim.control.uses_xy[r]
+            assert block.used_h[j] == sim.control.uses_h[r]
+        assert np.all(np.isnan(block.block_control_residuals[j]))  # the block had none
 
 
 def test_a_control_point_the_strip_method_dropped_is_control_again():

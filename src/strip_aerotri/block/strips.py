@@ -320,6 +320,53 @@ def _keep_given(resid: FloatArray, p: _Problem) -> None:
     resid[np.isnan(p.given)] = np.nan
 
 
+def _with_restored_control(
+    p: _Problem,
+    sol: _Solution,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    block: BlockResult,
+    restored: BoolArray,
+    points_work: FloatArray,
+) -> tuple[_Problem, _Solution, BoolArray, BoolArray, BlockResult]:
+    """The control rows of the points the block left out and the refinement
+    restored (``restored`` (P,), start values ``points_work``), appended to
+    the problem, to its solution's guesses (a missing component from the
+    start value, as the block's own rows take the block's) and to the block's
+    tables, where their residuals are NaN: the block had none."""
+    lookup = {pid: i for i, pid in enumerate(p.observations.point_ids)}
+    point_of = np.array([lookup.get(pid, -1) for pid in p.control.point_ids], dtype=np.intp)
+    new = np.flatnonzero((point_of >= 0) & restored[np.maximum(point_of, 0)])
+    new = new[~np.isin(new, p.control_rows)]
+    if not new.size:
+        return p, sol, use_xy, use_z, block
+    ctrl, idx = p.control, point_of[new]
+    check = ctrl.is_check[new]
+    new_xy, new_z = ctrl.uses_xy[new] & ~check, ctrl.uses_h[new] & ~check
+    given = ctrl.xyz[new]
+    p = replace(
+        p,
+        control_rows=np.concatenate([p.control_rows, new]),
+        idx=np.concatenate([p.idx, idx]),
+        given=np.vstack([p.given, given]),
+        sigma=np.vstack(
+            [p.sigma, np.column_stack([ctrl.sigma_xy[new], ctrl.sigma_xy[new], ctrl.sigma_h[new]])]
+        ),
+        use_xy=np.concatenate([p.use_xy, new_xy]),
+        use_z=np.concatenate([p.use_z, new_z]),
+        check=np.concatenate([p.check, check]),
+    )
+    guess = np.where(np.isnan(given), p.work.from_work(points_work[idx]), given)
+    sol = replace(sol, guess=np.vstack([sol.guess, guess]))
+    block = replace(
+        block,
+        control_index=p.control_rows,
+        is_check=p.check,
+        control_residuals=np.vstack([block.control_residuals, np.full((new.size, 3), np.nan)]),
+    )
+    return p, sol, np.concatenate([use_xy, new_xy]), np.concatenate([use_z, new_z]), block
+
+
 def _refine(
     p: _Problem,
     sol: _Solution,
@@ -342,12 +389,12 @@ def _refine(
 
     block_points, centres0, rot0 = _in_work_frame(p, sol)
     # points the block left out, intersected from its photos (bundle/start_points.py);
-    # not its control and check points: its tables hold the rows it determined
-    control_points = np.isin(p.observations.point_ids, p.control.point_ids)
-    restored = restore_points(
-        p.observations, centres0, rot0, block_points, blunders=blunders, keep_out=control_points
-    )
+    # a control or check point among them takes its control row again
+    restored = restore_points(p.observations, centres0, rot0, block_points, blunders=blunders)
     points0 = restored.points
+    p, sol, use_xy, use_z, block = _with_restored_control(
+        p, sol, use_xy, use_z, block, restored.restored, points0
+    )
     n_points = p.observations.n_points
     target = p.work.to_work(sol.guess)
     control_xyz = np.full((n_points, 3), np.nan)

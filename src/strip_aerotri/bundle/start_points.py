@@ -74,7 +74,6 @@ def restore_points(
     points: ArrayLike,
     *,
     blunders: BlunderOptions | None = None,
-    keep_out: ArrayLike | None = None,
 ) -> RestoredPoints:
     """Start values for points without one whose rays agree (module notes).
 
@@ -93,8 +92,6 @@ def restore_points(
         Nothing is restored unless it rejects (the default does): without
         rejections a wrong ray would stay in.  Its excluded points and
         observations are left out, and its ``alpha`` sets the critical value.
-    keep_out : array_like of bool, shape (P,), optional
-        Points not to restore (e.g. control rows a caller cannot take any more).
 
     Returns
     -------
@@ -114,8 +111,6 @@ def restore_points(
     excluded_points, excluded_obs = blunders.excluded(obs)
     ray_ok = photo_ok[obs.photo] & ~excluded_obs
     wanted = ~have & ~excluded_points
-    if keep_out is not None:
-        wanted &= ~np.asarray(keep_out, dtype=bool)
     rows = np.flatnonzero(wanted[obs.point] & ray_ok)
     n_rays = np.bincount(obs.point[rows], minlength=p)
     rows = rows[n_rays[obs.point[rows]] >= 3]
