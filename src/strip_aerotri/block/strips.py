@@ -334,6 +334,8 @@ def _with_restored_control(
     the problem, to its solution's guesses (a missing component from the
     start value, as the block's own rows take the block's) and to the block's
     tables, where their residuals are NaN: the block had none."""
+    if not restored.any():
+        return p, sol, use_xy, use_z, block
     lookup = {pid: i for i, pid in enumerate(p.observations.point_ids)}
     point_of = np.array([lookup.get(pid, -1) for pid in p.control.point_ids], dtype=np.intp)
     new = np.flatnonzero((point_of >= 0) & restored[np.maximum(point_of, 0)])
