@@ -7,6 +7,10 @@ given at its final value, or no projection."""
 
 from __future__ import annotations
 
+import functools
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -205,6 +209,7 @@ def test_weight_lead_extrapolates_a_geometric_series_of_turns():
     assert lead.ahead(rotation) is rotation
 
 
+@functools.cache
 def _long_problem():
     """A 300-photo drone strip's models as the ground stage poses them
     (the rows, the control and the start of the groups' adjustment)."""
@@ -294,3 +299,38 @@ def test_chord_steps_change_the_cost_not_the_solution(monkeypatch):
     np.testing.assert_allclose(
         with_chords.row_statistic[finite], full.row_statistic[finite], rtol=1e-6
     )
+
+
+def test_the_rows_work_on_two_threads_gives_the_result_of_one(monkeypatch):
+    """The work row by row (weights turned, design, residuals, projection,
+    leverage) in blocks over two threads: the worker takes blocks, and the
+    result is that of one thread to the last bit."""
+    from strip_aerotri import _threads
+    from strip_aerotri.geometry import _normal_entries
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    args, kwargs = _long_problem()
+    monkeypatch.setenv(_threads.WORKERS_VARIABLE, "1")
+    one = sim_module.adjust_units(*args, **kwargs)
+    monkeypatch.setattr(_threads, "_usable_cores", lambda: 2)
+    monkeypatch.setattr(_threads, "MIN_PARALLEL_SIZE", 0)
+    monkeypatch.setattr(_normal_entries, "BLOCK", 512)
+    monkeypatch.setenv(_threads.WORKERS_VARIABLE, "2")
+    names: set[str] = set()
+    real = sim_module._by_rows
+
+    def by_rows(n_rows, block):
+        def recorded(rows):
+            names.add(threading.current_thread().name)
+            time.sleep(0.0002)  # blocks long enough for the worker to take some
+            return block(rows)
+
+        return real(n_rows, recorded)
+
+    monkeypatch.setattr(sim_module, "_by_rows", by_rows)
+    two = sim_module.adjust_units(*args, **kwargs)
+    assert any(name.startswith("strip_aerotri-worker") for name in names)
+    for name in ("points", "residuals", "row_statistic", "control_w", "control_redundancy"):
+        np.testing.assert_array_equal(getattr(two, name), getattr(one, name), err_msg=name)
+    np.testing.assert_array_equal(two.transforms.rotation, one.transforms.rotation)
+    assert two.iterations == one.iterations and two.sigma0 == one.sigma0
