@@ -62,9 +62,7 @@ def test_registered_geocentric_gives_the_pipeline_of_the_projjson_one(code):
         assert a.definition == b.definition
         assert "cart" in a.definition and "helmert" not in a.definition  # no datum shift
     xyz = _sample(crs3d)
-    a = np.column_stack(
-        Transformer.from_crs(crs3d, chosen, always_xy=True).transform(*xyz.T)
-    )
+    a = np.column_stack(Transformer.from_crs(crs3d, chosen, always_xy=True).transform(*xyz.T))
     b = np.column_stack(Transformer.from_crs(crs3d, built, always_xy=True).transform(*xyz.T))
     assert np.all(np.isfinite(a))
     np.testing.assert_array_equal(a, b)
@@ -72,7 +70,11 @@ def test_registered_geocentric_gives_the_pipeline_of_the_projjson_one(code):
 
 @pytest.mark.parametrize(
     ("code", "expected"),
-    [("EPSG:32634", ("EPSG", "4978")), ("EPSG:4326", ("EPSG", "4978")), ("EPSG:25832", ("EPSG", "4936"))],
+    [
+        ("EPSG:32634", ("EPSG", "4978")),
+        ("EPSG:4326", ("EPSG", "4978")),
+        ("EPSG:25832", ("EPSG", "4936")),
+    ],
 )
 def test_registered_geocentric_is_the_datum_s_own(code, expected):
     _, geodetic3d = _crs3d(code)

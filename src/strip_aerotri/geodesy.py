@@ -167,9 +167,11 @@ def _registered_geocentric(geodetic: CRS) -> CRS | None:
 def _is_geocentric_metres(crs: CRS) -> bool:
     """Whether ``crs`` is geocentric with the axes X, Y, Z in metres."""
     axes = crs.axis_info
-    return crs.is_geocentric and [
-        (a.direction.lower(), a.unit_name) for a in axes
-    ] == [("geocentricx", "metre"), ("geocentricy", "metre"), ("geocentricz", "metre")]
+    return crs.is_geocentric and [(a.direction.lower(), a.unit_name) for a in axes] == [
+        ("geocentricx", "metre"),
+        ("geocentricy", "metre"),
+        ("geocentricz", "metre"),
+    ]
 
 
 def _geocentric_from_json(geodetic: CRS) -> CRS:
