@@ -62,6 +62,7 @@ from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..geometry.camera_model import CameraModel, ShutterMotion
 from ..geometry.collinearity import collinearity_jacobians, project
 from ..geometry.normals import (
+    Cofactors,
     FormedNormals,
     NormalSolution,
     NormalStructure,
@@ -247,14 +248,13 @@ def _make_problem(
     n_border = (0 if camera is None else len(camera.estimated)) + (
         0 if motion is None else motion.n_unknowns
     )
-    structure = structure_for(
-        (m, p, photo, point, along, n_border, obs.photo_ids, obs.point_ids),
+    structure = structure_for(  # one for every border: "auto"'s trials share it
+        (m, p, photo, point, along, obs.photo_ids, obs.point_ids),
         lambda: NormalStructure.from_indices(
             m, 6, p, photo, point, candidates=[along], unit_names=tuple(obs.photo_ids),
             point_names=tuple(obs.point_ids), parameter_names=_PHOTO_PARAMETER_NAMES,
-            n_border=n_border,
         ),
-    )
+    ).with_border(n_border)
     return _Problem(
         photo_ids=tuple(obs.photo_ids),
         photo=photo,
@@ -583,7 +583,8 @@ def bundle_adjust(
     imu_sigma : float or array_like, shape (M, 3), optional
         Standard deviations of those rotation components in radians.
     max_iterations : int
-        Largest number of accepted steps.
+        Largest number of accepted steps; 0 evaluates the start values
+        (residuals, sigma0, cofactors there; not converged).
     tolerance : float
         Stop when the objective changes by less than ``tolerance`` relative,
         or when the largest correction is below ``tolerance`` (radians, and
@@ -779,8 +780,8 @@ def _checked_start(
     if not (np.all(np.isfinite(centres)) and np.all(np.isfinite(points))):
         raise ValueError("Expected finite `centres0` and `points0`")
     check_rotations(rotations, "rotations0")
-    if int(max_iterations) < 1:
-        raise ValueError(f"Expected `max_iterations` >= 1, got {max_iterations}")
+    if int(max_iterations) < 0:
+        raise ValueError(f"Expected `max_iterations` >= 0, got {max_iterations}")
     if not tolerance > 0.0:
         raise ValueError(f"Expected a positive `tolerance`, got {tolerance}")
     return centres, rotations, points
@@ -940,8 +941,13 @@ def _precision_products(
     imu_cofactor = np.full((m, 3, 3), np.nan)
     image_redundancy = np.full((prob.photo.size, 2), np.nan)
     camera, motion = None, None
+    border_q = np.zeros((0, 0))
+    cof: Cofactors | None = None
     if compute_precision or normals.image.border_jacobian is not None:
-        cof = _solve(prob, normals, 0.0).solution.cofactors()
+        solution = _solve(prob, normals, 0.0).solution
+        # the border's own cofactors need no selected inverse of the band
+        cof = solution.cofactors() if compute_precision else None
+        border_q = solution.border_cofactor
     k = prob.n_camera
     if prob.camera is not None:
         border = normals.image.border_jacobian
@@ -949,15 +955,15 @@ def _precision_products(
         camera = CameraEstimate(
             model=prob.camera,
             values=state.camera,
-            cofactor=cof.border[:k, :k],
+            cofactor=border_q[:k, :k],
             sigma0=sigma0,
             information=np.einsum("kri,kri->i", border[:, :, :k], border[:, :, :k]),
-            conditional_information=np.diag(np.linalg.inv(cof.border[:k, :k])),
+            conditional_information=np.diag(np.linalg.inv(border_q[:k, :k])),
         )
         _check_camera(camera)
     if prob.motion is not None:
-        motion = ShutterEstimate(prob.motion, state.motion, cof.border[k:, k:], sigma0)
-    if compute_precision:
+        motion = ShutterEstimate(prob.motion, state.motion, border_q[k:, k:], sigma0)
+    if cof is not None:
         q_blocks = cof.unit
         q_point = np.diagonal(cof.point, axis1=1, axis2=2)
         image_redundancy = cof.redundancy(normals.image)

@@ -1,0 +1,188 @@
+"""The camera subsets of "auto" from one adjustment's border, against
+adjusting each subset for real; the choice they make, against the choice
+made by adjusting every subset; the screening's correlations."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from strip_aerotri.bundle import selfcal
+from strip_aerotri.bundle.adjust import NOT_CONVERGED, bundle_adjust
+from strip_aerotri.bundle.camera_subsets import LinearisedCamera
+from strip_aerotri.errors import StripAerotriWarning
+from strip_aerotri.geometry.camera_model import CameraModel
+from strip_aerotri.options import SelfCalibration
+from strip_aerotri.results import BundleResult
+from strip_aerotri.simulate import simulate_strip
+
+#: about 25 µm at the corner of the drone format: radial, decentring, affinity
+_ERRORS = {"k1": -5.0e-5, "p2": -8.0e-5, "b1": 1.0e-3}
+_SET = ("k1", "k2", "p1", "p2", "b1", "b2")
+
+
+class _Frame:
+    """A simulated drone strip in its local frame, started from the truth,
+    control at the simulated points (5 cm), as bundle_adjust takes it."""
+
+    def __init__(self, errors: dict[str, float] | None, seed: int = 4) -> None:
+        sim = simulate_strip(16, preset="drone", seed=seed, crs="local", camera_errors=errors)
+        t = sim.truth
+        self.obs = sim.observations
+        self.start = (t.photo_centres_local, t.photo_rotations_local, t.points_local)
+        kinds = np.array([k.value for k in sim.control.kind])
+        index = np.array([self.obs.point_ids.index(p) for p in sim.control.point_ids])
+        used = index[kinds != "check"]
+        self.control = np.full((self.obs.n_points, 3), np.nan)
+        self.control[used] = t.points_local[used]
+        self.c_mm = float(self.obs.principal_distance)
+
+    def model(self, names: tuple[str, ...] | list[str]) -> CameraModel:
+        return CameraModel("brown", tuple(names), self.c_mm)
+
+    def adjust(
+        self, names: tuple[str, ...] | list[str] | None, iterations: int = 50
+    ) -> BundleResult:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", NOT_CONVERGED, category=StripAerotriWarning)
+            return bundle_adjust(
+                self.obs, *self.start, control_xyz=self.control, control_sigma=0.05,
+                camera=None if names is None else self.model(names),
+                compute_precision=False, max_iterations=iterations,
+            )  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def frame() -> _Frame:
+    return _Frame(_ERRORS)
+
+
+def test_the_whole_set_is_its_own_subset(frame: _Frame) -> None:
+    fit = LinearisedCamera.of(frame.adjust(_SET))
+    same = fit.subset(_SET, frame.model(_SET))
+    assert np.allclose(same.estimate.values, fit.estimate.values, rtol=1e-9, atol=0)
+    assert np.allclose(same.estimate.cofactor, fit.estimate.cofactor, rtol=1e-9, atol=0)
+    assert same.cost == pytest.approx(fit.cost, rel=1e-12)
+    assert same.redundancy == fit.redundancy
+
+
+@pytest.mark.parametrize("names", [("k1", "p2", "b1"), ("k1",), ("b1", "b2")])
+def test_a_subset_from_the_border_matches_its_own_adjustment(
+    frame: _Frame, names: tuple[str, ...]
+) -> None:
+    """Estimates, standard deviations, t values, correlations, sigma0 and
+    redundancy of a subset predicted from the whole set's border agree with
+    an adjustment of that subset (the rest held at zero)."""
+    fit = LinearisedCamera.of(frame.adjust(_SET))
+    predicted = fit.subset(names, frame.model(names))
+    real = frame.adjust(names)
+    assert real.camera is not None
+    p, r = predicted.estimate, real.camera
+    assert predicted.redundancy == real.redundancy
+    # what the linearisation leaves out is the nonlinearity of the camera's
+    # change: within 1 % of the change of the sum of squares the subset makes
+    # (0.34 of 70 when the significant k1 and p2 are held, t -5.6 and -6.1)
+    real_cost = r.sigma0**2 * real.redundancy
+    assert abs(predicted.cost - real_cost) <= 0.01 * (real_cost - fit.cost) + 1e-3
+    assert np.all(np.abs(p.values - r.values) < 0.03 * r.std)
+    assert np.allclose(p.std, r.std, rtol=3e-3)
+    assert np.all(np.abs(p.t_values - r.t_values) < 0.02)
+    assert np.allclose(p.correlations, r.correlations, atol=1e-3)
+    assert np.allclose(p.orientation_correlation, r.orientation_correlation, atol=1e-4)
+    # the same subset from another superset agrees too
+    other = LinearisedCamera.of(frame.adjust(("k1", "p2", "b1", "b2")))
+    if set(names) <= {"k1", "p2", "b1", "b2"}:
+        again = other.subset(names, frame.model(names)).estimate
+        assert np.all(np.abs(again.values - r.values) < 0.03 * r.std)
+
+
+def test_the_cost_without_a_camera_matches_that_adjustment(frame: _Frame) -> None:
+    fit = LinearisedCamera.of(frame.adjust(_SET))
+    none = frame.adjust(None)
+    k = len(_SET)
+    assert none.redundancy == fit.redundancy + k
+    cost = none.sigma0**2 * none.redundancy
+    assert abs(fit.cost_without - cost) <= 0.01 * (cost - fit.cost)
+    # the simulated errors are far from negligible here: the camera matters
+    assert none.sigma0 > 1.15 * fit.estimate.sigma0
+
+
+def test_a_subset_must_be_ordered_as_the_set(frame: _Frame) -> None:
+    fit = LinearisedCamera.of(frame.adjust(("k1", "b1")))
+    with pytest.raises(ValueError, match="in the order of"):
+        fit.subset(("k1", "b1"), frame.model(("k1", "p2")))
+
+
+def test_the_screening_sees_the_design_correlations_of_the_converged_adjustment(
+    frame: _Frame,
+) -> None:
+    """The multiple correlations with the orientation from the start values,
+    no step taken, agree with those of the adjustment to convergence: they
+    are the design's, and hold c, x0 and y0 alike."""
+    names = ("c", "x0", "y0", "k1", "b1")
+    start = frame.adjust(names, iterations=0).camera
+    end = frame.adjust(("k1", "b1")).camera
+    assert start is not None and end is not None
+    r0 = dict(zip(start.names, start.orientation_correlation, strict=True))
+    r1 = dict(zip(end.names, end.orientation_correlation, strict=True))
+    assert all(r0[n] > selfcal.INTERIOR_CORRELATION for n in ("c", "x0", "y0"))
+    for n in ("k1", "b1"):
+        assert r0[n] == pytest.approx(r1[n], abs=1e-4)
+    assert np.all(start.values == 0.0)
+
+
+class _RealTrials:
+    """Trials as ``refine_frame`` gives them, on the frame (and counted)."""
+
+    def __init__(self, frame: _Frame) -> None:
+        self.frame = frame
+        self.screens = 0
+        self.adjustments = 0
+
+    def screen(self, model: CameraModel) -> BundleResult:
+        self.screens += 1
+        return self.frame.adjust(model.estimated, iterations=0)
+
+    def adjust(self, model: CameraModel | None, start: np.ndarray | None) -> BundleResult:
+        self.adjustments += 1
+        return self.frame.adjust(None if model is None else model.estimated)
+
+
+def _adjusting_every_subset(frame: _Frame) -> tuple[tuple[str, ...], dict[str, str]]:
+    """The rules of "auto" with every subset adjusted for real (what the choice
+    did before the border's algebra): the kept set and the held reasons."""
+    from strip_aerotri.geometry.camera_model import BROWN_PARAMETERS
+
+    active = list(BROWN_PARAMETERS)
+    held: dict[str, str] = {}
+    absorbed: set[str] = set()
+    while active:
+        cam = frame.adjust(active, iterations=50 if len(active) < 10 else 0).camera
+        assert cam is not None
+        hold = selfcal._next_to_hold(cam, absorbed)
+        if not hold:
+            break
+        for name, reason, by_orientation in hold:
+            held[name] = reason
+            active.remove(name)
+            if by_orientation:
+                absorbed.add(name)
+    return tuple(active), held
+
+
+@pytest.mark.parametrize("errors", [_ERRORS, None])
+def test_the_choice_equals_adjusting_every_subset(errors: dict[str, float] | None) -> None:
+    frame = _Frame(errors)
+    trials = _RealTrials(frame)
+    cam, outcome = selfcal._auto(SelfCalibration("auto"), trials, frame.c_mm, 0.0)
+    kept, held = _adjusting_every_subset(frame)
+    reasons = {p.name: p.reason for p in outcome.parameters if not p.kept}
+    # the same decisions, told with the same values (t and correlations to
+    # the printed digits)
+    assert set(outcome.kept) == set(kept) == set(errors or ())
+    assert reasons == held
+    assert (cam is None) == (errors is None)
+    # one screening and one or two adjustments, not one per decision
+    assert trials.screens == 1 and trials.adjustments <= 2
