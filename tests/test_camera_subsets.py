@@ -186,3 +186,65 @@ def test_the_choice_equals_adjusting_every_subset(errors: dict[str, float] | Non
     assert (cam is None) == (errors is None)
     # one screening and one or two adjustments, not one per decision
     assert trials.screens == 1 and trials.adjustments <= 2
+
+
+# ---------------------------------------------------------------- after the blunder tests
+
+
+def _strip_with_blunders(n_blunders: int):  # type: ignore[no-untyped-def]
+    from strip_aerotri.pipeline import triangulate
+
+    sim = simulate_strip(
+        20, preset="drone", seed=2, camera_errors={"k1": -4e-5, "b1": 8e-4},
+        image_blunders=n_blunders,
+    )  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return sim, triangulate(sim.observations, sim.control, sim.crs)
+
+
+def test_the_set_is_chosen_again_without_the_blunders() -> None:
+    """A drone strip with 20 µm of radial distortion and affinity and five
+    image blunders: on the data as given the blunders inflate sigma0 and the
+    affinity's t falls to 2.3 (held); chosen again without the observations
+    the tests rejected, it is kept (t 4.7), as on the data without the
+    blunders, and the check points are those of the blunder-free data."""
+    from strip_aerotri.bundle.refine import refine_bundle
+    from strip_aerotri.options import BlunderOptions
+
+    sim, strip = _strip_with_blunders(5)
+    obs = sim.observations
+    truth = tuple(
+        (obs.photo_ids[obs.photo[k]], obs.point_ids[obs.point[k]])
+        for k in sim.truth.blunder_observations
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        auto = refine_bundle(strip, self_calibration=SelfCalibration("auto"))
+        clean = refine_bundle(
+            strip, self_calibration=SelfCalibration("auto"),
+            blunders=BlunderOptions(exclude_observations=truth),
+        )  # fmt: skip
+    assert auto.self_calibration is not None and clean.self_calibration is not None
+    assert set(auto.self_calibration.kept) == set(clean.self_calibration.kept) == {"k1", "b1"}
+    assert any("chosen again" in n and "k1 became" in n for n in auto.self_calibration.notes)
+    assert any("chosen again" in w for w in auto.warnings)
+    plan, clean_plan = auto.check_statistics.rmse_plan, clean.check_statistics.rmse_plan
+    assert plan == pytest.approx(clean_plan, rel=0.01)
+    # the rejections are those of the tests with the new set, from the start:
+    # no record of the first set's rounds is left
+    rejected = {(r.photos[0], r.point) for r in auto.rejections if r.stage == "bundle"}
+    assert len(rejected & set(truth)) >= 4 and len(rejected) <= 5
+
+
+def test_nothing_rejected_nothing_chosen_again() -> None:
+    """Without blunders nothing is rejected and the choice is not made again."""
+    from strip_aerotri.bundle.refine import refine_bundle
+
+    _, strip = _strip_with_blunders(0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        auto = refine_bundle(strip, self_calibration=SelfCalibration("auto"))
+    assert auto.self_calibration is not None
+    assert set(auto.self_calibration.kept) == {"k1", "b1"}
+    assert not any("chosen again" in n for n in auto.self_calibration.notes)
