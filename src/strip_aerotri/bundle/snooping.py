@@ -6,14 +6,14 @@ attitude by Baarda's w, rejects the worst (or a few well-separated image
 rays) and solves again from the last solution, until nothing fails.  A round
 is: the adjustment (:func:`refine_frame`'s loop), the test values
 (:func:`_round_statistics`), the failures (:func:`_failures`), their
-records (:func:`describe`) and the rejection itself (:meth:`_Sets.reject`).
+records (:func:`describe`) and the rejection itself (`_Sets.reject`, in
+``_snoop_sets.py``); the self-calibration's camera and choice are in
+``_snoop_camera.py``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import warnings
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -22,36 +22,29 @@ from .._stats import leading_failures
 from .._threads import compute_workers
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
-from ..errors import GeometryError, StripAerotriWarning
-from ..geometry.camera_model import CameraModel, ShutterMotion
+from ..geometry.camera_model import ShutterMotion
 from ..geometry.collinearity import image_jacobian, image_vectors
 from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
-from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
-from ._given import observed_with_sigma
-from .adjust import NOT_CONVERGED, bundle_adjust
-from .photo_tests import _photo_flags, _photo_tests
-from .selfcal import ebner_base_mm, final_outcome, residual_cells, start_model
+from ..results import BundleResult, FrameRefinement, Rejection
+from ._snoop_camera import _adjust, _Camera
+from ._snoop_sets import (
+    CONTROL_STAGE,
+    GNSS_STAGE,
+    IMAGE_STAGE,
+    IMU_STAGE,
+    _compact,
+    _Inputs,
+    _inputs,
+    _Sets,
+)
+from .photo_tests import _photo_tests
 
 __all__ = ["CONTROL_STAGE", "GNSS_STAGE", "IMAGE_STAGE", "IMU_STAGE", "refine_frame"]
 
-#: Stage name of the image-coordinate tests in :class:`Rejection` records.
-IMAGE_STAGE = "bundle"
-#: Stage name of the control tests (shared with the ground stage's options).
-CONTROL_STAGE = "control"
-#: Stage names of the GNSS centre and IMU attitude tests.
-GNSS_STAGE = "gnss"
-IMU_STAGE = "imu"
 #: Smallest value the photo-unknowns factor of the redundancy numbers may take.
 _MIN_PHOTO_FACTOR = 0.05
-#: Relative change of the sum of squares below which a trial adjustment of
-#: ``"auto"``'s choice stops (the delivered one's is 1e-10).  Gauss-Newton
-#: converges quadratically: the step that changes the sum of squares by less
-#: than 1e-6 of itself leaves the t values within about 1e-3 of the converged
-#: ones (tests/test_camera_subsets.py), and the first round of the data
-#: snooping goes on from there.
-_TRIAL_TOLERANCE = 1e-6
 
 
 def refine_frame(
@@ -210,31 +203,15 @@ def refine_frame(
         state = camera.state or state  # from where the choice's adjustments ended
         first_control: tuple[IntArray, FloatArray, float] | None = None
         while True:
-            pt_used = sets.used_points(inp)
-            sub, rows, pts = _compact(obs, sets.keep, pt_used)
-            res = _adjust(
-                inp, sets, sub, pts, state, max_iterations=max_iterations,
-                compute_precision=compute_precision, camera=camera.model, camera0=camera.values,
-            )  # fmt: skip
+            res, stats, new_points, pt_used, state = _round(
+                inp, sets, state, camera, max_iterations, compute_precision
+            )
             rounds += 1
             iterations += res.iterations
             camera = camera.moved(res)
-            new_points = np.full((inp.n_points, 3), np.nan)
-            new_points[pts] = res.points
-            # keep initial values of dropped points for a possible later round
-            kept = np.where(pt_used[:, None], new_points, inp.points0)
-            state = (res.centres, res.rotations, kept)
             _sigma0_after(rejections, previous_effect, res.sigma0)
-            stats = _round_statistics(
-                inp, sets, res, new_points, pt_used, sub, rows, pts, compute_precision
-            )
-            result = _refinement(
-                _RoundOutcome(res, stats, new_points, pt_used, iterations, rounds),
-                sets,
-                camera,
-                obs,
-                rejections,
-            )
+            outcome = _RoundOutcome(res, stats, new_points, pt_used, iterations, rounds)
+            result = _refinement(outcome, sets, camera, obs, rejections)
             if not blunders.testing:
                 return result
             failures = _failures(inp, sets, res, stats, blunders)
@@ -245,14 +222,8 @@ def refine_frame(
                     inp, initial.with_images_of(sets), max_iterations, state,
                     int(np.count_nonzero(sets.obs_rejected)),
                 )  # fmt: skip
-                if again is None:
-                    return result
-                if again.estimated == camera.estimated:
-                    return dataclasses.replace(
-                        result, self_calibration=again.outcome(
-                            res, obs.xy, np.where(sets.keep[:, None], stats.v_img, np.nan)
-                        )
-                    )  # fmt: skip
+                if again is None or again.estimated == camera.estimated:
+                    return result if again is None else again.told(result, sets, obs)
                 # another set: the tests start over with it, from this solution
                 camera, state = again, again.state or state
                 sets, rejections = initial.copy(), []
@@ -272,6 +243,34 @@ def refine_frame(
                 sets.keep_control()
                 previous_effect = None
             sets.check_fractions(inp, blunders)
+
+
+def _round(
+    inp: _Inputs,
+    sets: _Sets,
+    state: tuple[FloatArray, FloatArray, FloatArray],
+    camera: _Camera,
+    max_iterations: int,
+    compute_precision: bool,
+) -> tuple[
+    BundleResult, _RoundStatistics, FloatArray, BoolArray, tuple[FloatArray, FloatArray, FloatArray]
+]:
+    """One adjustment of the data in use from ``state``: the adjustment, its
+    test statistics, the points (P, 3; NaN where not used), the points used
+    and the next round's start (dropped points keep their initial values)."""
+    pt_used = sets.used_points(inp)
+    sub, rows, pts = _compact(inp.obs, sets.keep, pt_used)
+    res = _adjust(
+        inp, sets, sub, pts, state, max_iterations=max_iterations,
+        compute_precision=compute_precision, camera=camera.model, camera0=camera.values,
+    )  # fmt: skip
+    new_points = np.full((inp.n_points, 3), np.nan)
+    new_points[pts] = res.points
+    kept = np.where(pt_used[:, None], new_points, inp.points0)
+    stats = _round_statistics(
+        inp, sets, res, new_points, pt_used, sub, rows, pts, compute_precision
+    )
+    return res, stats, new_points, pt_used, (res.centres, res.rotations, kept)
 
 
 def _sigma0_after(rejections: list[Rejection], since: int | None, sigma0: float) -> None:
@@ -384,434 +383,6 @@ def _keep_systematic(
         rejected=rejected,
         self_calibrating=self_calibrating,
     )
-
-
-def _adjust(
-    inp: _Inputs,
-    sets: _Sets,
-    sub: ImageObservations,
-    pts: IntArray,
-    state: tuple[FloatArray, FloatArray, FloatArray],
-    *,
-    max_iterations: int,
-    compute_precision: bool,
-    camera: CameraModel | None,
-    camera0: FloatArray | None,
-    tolerance: float = 1e-10,
-) -> BundleResult:
-    """One bundle adjustment of the observations, control, GNSS and IMU in use
-    (``tolerance`` :func:`bundle_adjust`'s)."""
-    return bundle_adjust(
-        sub,
-        state[0],
-        state[1],
-        state[2][pts],
-        camera=camera,
-        camera0=camera0,
-        motion=inp.motion,
-        control_xyz=np.where(sets.ctrl_on[pts], inp.c_xyz[pts], np.nan),
-        control_sigma=np.where(sets.ctrl_on[pts], inp.c_sig[pts], np.inf),
-        gnss_centres=None
-        if inp.g_xyz is None
-        else np.where(sets.g_on[:, None], inp.g_xyz, np.nan),
-        gnss_sigma=None if inp.g_xyz is None else inp.g_sig,
-        imu_rotations=None
-        if inp.i_rot is None
-        else np.where(sets.i_on[:, None, None], inp.i_rot, np.nan),
-        imu_sigma=None if inp.i_rot is None else inp.i_sig,
-        max_iterations=max_iterations,
-        compute_precision=compute_precision,
-        tolerance=tolerance,
-    )
-
-
-@dataclass
-class _Trials:
-    """The adjustments of ``"auto"``'s choice (:class:`~strip_aerotri.bundle.selfcal.Trials`):
-    on the data as given, without tests, each from the last one's photos and
-    points; ``state`` the last one's (the start of the first round)."""
-
-    inp: _Inputs
-    sets: _Sets
-    sub: ImageObservations
-    pts: IntArray
-    max_iterations: int
-    state: tuple[FloatArray, FloatArray, FloatArray]
-
-    def _run(self, model: CameraModel | None, start: FloatArray | None, iterations: int
-             ) -> BundleResult:
-        with warnings.catch_warnings():
-            # a trial may estimate parameters the data cannot separate (the
-            # choice then holds them), and a screening takes no step; only the
-            # delivered adjustment's convergence is the user's concern
-            warnings.filterwarnings("ignore", NOT_CONVERGED, category=StripAerotriWarning)
-            return _adjust(
-                self.inp, self.sets, self.sub, self.pts, self.state,
-                max_iterations=iterations, compute_precision=False, camera=model,
-                camera0=start, tolerance=_TRIAL_TOLERANCE,
-            )  # fmt: skip
-
-    def screen(self, model: CameraModel) -> BundleResult:
-        return self._run(model, None, 0)
-
-    def adjust(self, model: CameraModel | None, start: FloatArray | None) -> BundleResult:
-        res = self._run(model, start, self.max_iterations)
-        points = self.state[2].copy()
-        points[self.pts] = res.points
-        self.state = (res.centres, res.rotations, points)
-        return res
-
-
-@dataclass(frozen=True)
-class _Camera:
-    """The self-calibration of a refinement: its model, current values and choice;
-    ``state`` the photos and points of the choice's adjustment of the kept set
-    (None: none kept, or no choice)."""
-
-    spec: SelfCalibration | None
-    model: CameraModel | None
-    values: FloatArray | None
-    chosen: SelfCalibrationOutcome | None
-    state: tuple[FloatArray, FloatArray, FloatArray] | None = None
-    rechecked: bool = False  # "auto" chose again after the blunder tests
-
-    @classmethod
-    def start(
-        cls,
-        inp: _Inputs,
-        sets: _Sets,
-        spec: SelfCalibration | None,
-        max_iterations: int,
-        state: tuple[FloatArray, FloatArray, FloatArray] | None = None,
-    ) -> _Camera:
-        """The model to start with; ``"auto"`` chooses it on the data in use
-        (``sets``), its adjustments from ``state`` (default the start values)."""
-        if spec is None:
-            return cls(None, None, None, None)
-        obs = inp.obs
-        pt_used = sets.used_points(inp)
-        sub, _, pts = _compact(obs, sets.keep, pt_used)
-        c_mm = float(obs.principal_distance)
-        trials = _Trials(
-            inp, sets, sub, pts, max_iterations,
-            state or (inp.centres0, inp.rotations0, inp.points0),
-        )  # fmt: skip
-        base = ebner_base_mm(inp.centres0, inp.points0[pts], c_mm)
-        model, values, chosen = start_model(spec, trials, c_mm, base)
-        # a kept set starts where its own trial converged; none starts where the
-        # refinement without self-calibration does (and ends as it does)
-        return cls(spec, model, values, chosen, trials.state if model is not None else None)
-
-    def checked_again(
-        self,
-        inp: _Inputs,
-        sets: _Sets,
-        max_iterations: int,
-        state: tuple[FloatArray, FloatArray, FloatArray],
-        rejected: int,
-    ) -> _Camera | None:
-        """``"auto"``'s choice made again, once, on ``sets``: the image
-        observations the blunder tests kept (``rejected`` of them rejected),
-        the control, GNSS and IMU as given (a control point the unmodelled
-        camera bent may have failed); None when there is nothing to check
-        (another choice, checked already, no image observation rejected).
-
-        A blunder inflates sigma0 and so deflates every t value (or lends a
-        parameter a t of its own): on simulated drone strips with 5-15
-        blunders and a camera error the set chosen before the tests missed
-        the affinity that the blunder-free data keep, and the check points
-        lost half their plan accuracy (docs/bundle.md)."""
-        if self.spec is None or self.spec.choice != "auto" or self.rechecked or not rejected:
-            return None
-        again = _Camera.start(inp, sets, self.spec, max_iterations, state)
-        again = dataclasses.replace(again, rechecked=True)
-        old = self.chosen.kept if self.chosen is not None else ()
-        new = again.chosen.kept if again.chosen is not None else ()
-        if set(old) == set(new) or again.chosen is None:
-            # the same set: this round's adjustment stands, told the reasons
-            # and values of the choice on the data kept
-            return dataclasses.replace(self, chosen=again.chosen or self.chosen, rechecked=True)
-        note = (
-            f"self-calibration chosen again without the {rejected} image observation(s) the "
-            f"blunder tests rejected: {', '.join(old) or 'none'} became "
-            f"{', '.join(new) or 'none'}, and the tests started over with it"
-        )
-        chosen = dataclasses.replace(again.chosen, notes=(*again.chosen.notes, note))
-        return dataclasses.replace(again, chosen=chosen)
-
-    @property
-    def estimated(self) -> tuple[str, ...]:
-        """The parameters the next adjustment estimates."""
-        return () if self.model is None else self.model.estimated
-
-    def moved(self, res: BundleResult) -> _Camera:
-        """The camera of the next round starts from this round's estimate."""
-        if res.camera is None:
-            return self
-        return dataclasses.replace(self, values=res.camera.values)
-
-    def outcome(
-        self, res: BundleResult, xy: FloatArray, residuals_mm: FloatArray
-    ) -> SelfCalibrationOutcome | None:
-        """What was estimated, kept and held, with the residuals over the format."""
-        if self.spec is None:
-            return None
-        out = final_outcome(self.spec, self.chosen, res.camera)
-        if res.camera is None:
-            return out
-        return dataclasses.replace(out, cells=residual_cells(res.camera, xy, residuals_mm))
-
-
-class _Inputs(NamedTuple):
-    """The validated inputs of :func:`refine_frame` (frame units: m, rad)."""
-
-    obs: ImageObservations
-    n_photos: int
-    n_points: int
-    centres0: FloatArray
-    rotations0: FloatArray
-    points0: FloatArray
-    sigma_img: FloatArray  # (K,) mm
-    c_xyz: FloatArray  # (P, 3), NaN where not given
-    c_sig: FloatArray  # (P, 3), inf where not given
-    c_given: BoolArray  # (P, 3)
-    g_xyz: FloatArray | None
-    g_sig: FloatArray
-    g_given: BoolArray
-    g_axes: FloatArray
-    i_rot: FloatArray | None
-    i_sig: FloatArray
-    i_given: BoolArray
-    motion: ShutterMotion | None = None  # a rolling shutter's groups, if estimated
-
-
-def _inputs(
-    obs: ImageObservations,
-    centres0: ArrayLike,
-    rotations0: ArrayLike,
-    points0: ArrayLike,
-    control_xyz: ArrayLike | None,
-    control_sigma: ArrayLike | None,
-    gnss_centres: ArrayLike | None,
-    gnss_sigma: ArrayLike | None,
-    imu_rotations: ArrayLike | None,
-    imu_sigma: ArrayLike | None,
-    gnss_axes: ArrayLike | None,
-) -> _Inputs:
-    """Shapes checked, control, GNSS and IMU with their sigmas; ValueError naming
-    the argument otherwise."""
-    k_all, m, p = obs.photo.shape[0], len(obs.photo_ids), len(obs.point_ids)
-    centres = np.array(centres0, dtype=np.float64)
-    rotations = np.array(rotations0, dtype=np.float64)
-    points = np.array(points0, dtype=np.float64)
-    if points.shape != (p, 3):
-        raise ValueError(f"Expected `points0` to have shape {(p, 3)}, got {points.shape}")
-    if centres.shape != (m, 3) or rotations.shape != (m, 3, 3):
-        raise ValueError(
-            f"Expected `centres0` (M, 3) and `rotations0` (M, 3, 3) with M = {m}, got "
-            f"{centres.shape}, {rotations.shape}"
-        )
-    if control_xyz is None:
-        c_xyz, c_sig = np.full((p, 3), np.nan), np.full((p, 3), np.inf)
-    else:
-        c_xyz, c_sig = observed_with_sigma(
-            control_xyz, control_sigma, (p, 3), "control_xyz", "control_sigma"
-        )
-    c_given = np.isfinite(c_xyz) & np.isfinite(c_sig)
-    if np.any(c_sig[c_given] <= 0):
-        raise ValueError("Expected positive standard deviations for `control_xyz`")
-    g_xyz = i_rot = None
-    g_sig = i_sig = np.full((m, 3), np.inf)
-    g_given = np.zeros(m, bool)
-    i_given = np.zeros(m, bool)
-    if gnss_centres is not None:
-        g_xyz, g_sig = observed_with_sigma(
-            gnss_centres, gnss_sigma, (m, 3), "gnss_centres", "gnss_sigma"
-        )
-        g_given = np.any(np.isfinite(g_xyz) & np.isfinite(g_sig), axis=1)
-    if imu_rotations is not None:
-        i_rot, i_sig = observed_with_sigma(
-            imu_rotations, imu_sigma, (m, 3, 3), "imu_rotations", "imu_sigma"
-        )
-        i_given = np.all(np.isfinite(i_rot), axis=(1, 2)) & np.any(np.isfinite(i_sig), axis=1)
-    if gnss_axes is None:
-        g_axes = np.broadcast_to(np.eye(3), (m, 3, 3))
-    else:
-        g_axes = np.asarray(gnss_axes, dtype=np.float64)
-        if g_axes.shape != (m, 3, 3):
-            raise ValueError(f"Expected `gnss_axes` to have shape {(m, 3, 3)}, got {g_axes.shape}")
-    return _Inputs(
-        obs,
-        m,
-        p,
-        centres,
-        rotations,
-        points,
-        np.broadcast_to(np.asarray(obs.sigma, dtype=np.float64), (k_all,)),
-        c_xyz,
-        c_sig,
-        c_given,
-        g_xyz,
-        g_sig,
-        g_given,
-        g_axes,
-        i_rot,
-        i_sig,
-        i_given,
-    )
-
-
-@dataclass
-class _Sets:
-    """What is in use and what was rejected; changed by each round's rejections."""
-
-    keep: BoolArray  # (K,) image observations in use
-    rejected_before: BoolArray  # (K,) rejected by an earlier call's tests
-    obs_rejected: BoolArray  # (K,)
-    ctrl_on: BoolArray  # (P, 3)
-    ctrl_rejected: BoolArray  # (P, 3)
-    g_on: BoolArray  # (M,)
-    g_rejected: BoolArray
-    i_on: BoolArray
-    i_rejected: BoolArray
-    n_img_start: int
-    n_ctrl_start: int
-    #: False once the control is kept for failing alike: no more control tests
-    control_tested: bool = True
-
-    @classmethod
-    def start(
-        cls,
-        inp: _Inputs,
-        blunders: BlunderOptions,
-        observation_used: ArrayLike | None,
-        control_used: ArrayLike | None,
-        gnss_used: ArrayLike | None,
-        imu_used: ArrayLike | None,
-    ) -> _Sets:
-        obs, m, p = inp.obs, inp.n_photos, inp.n_points
-        k_all = obs.photo.shape[0]
-        keep = (
-            np.ones(k_all, bool) if observation_used is None else np.array(observation_used, bool)
-        )
-        if keep.shape != (k_all,):
-            raise ValueError(f"Expected `observation_used` to have shape {(k_all,)}")
-        ctrl_on = (
-            inp.c_given.copy()
-            if control_used is None
-            else np.array(control_used, bool) & inp.c_given
-        )
-        excluded_points, excluded_obs = blunders.excluded(obs)
-        rejected_before = ~keep & ~excluded_obs
-        keep &= ~excluded_obs
-        ctrl_on[excluded_points] = False
-        g_on = inp.g_given & _photo_flags(gnss_used, m, "gnss_used")
-        i_on = inp.i_given & _photo_flags(imu_used, m, "imu_used")
-        return cls(
-            keep=keep,
-            rejected_before=rejected_before,
-            obs_rejected=np.zeros(k_all, bool),
-            ctrl_on=ctrl_on,
-            ctrl_rejected=np.zeros((p, 3), bool),
-            g_on=g_on,
-            g_rejected=inp.g_given & ~g_on,
-            i_on=i_on,
-            i_rejected=inp.i_given & ~i_on,
-            n_img_start=int(keep.sum()),
-            n_ctrl_start=int(ctrl_on.sum()),
-        )
-
-    def copy(self) -> _Sets:
-        """A copy that later rejections leave alone."""
-        arrays = {
-            f.name: getattr(self, f.name).copy()
-            for f in dataclasses.fields(self)
-            if isinstance(getattr(self, f.name), np.ndarray)
-        }
-        return dataclasses.replace(self, **arrays)
-
-    def with_images_of(self, other: _Sets) -> _Sets:
-        """A copy with ``other``'s image observations in use and rejected (and
-        this one's control, GNSS and IMU)."""
-        return dataclasses.replace(
-            self.copy(), keep=other.keep.copy(), obs_rejected=other.obs_rejected.copy()
-        )
-
-    def used_points(self, inp: _Inputs) -> BoolArray:
-        """Points with a start value and enough rays.
-
-        A point that lost a ray to a rejection keeps a check on the rest only
-        with three rays left: with two, the ray rejected may have been the
-        good one (a wrong ray pulls the point towards itself, and a good
-        neighbour can show the larger w) and nothing would show it."""
-        obs, p = inp.obs, inp.n_points
-        rays = np.bincount(obs.point[self.keep], minlength=p)
-        full = np.all(self.ctrl_on, axis=1)
-        lost = np.bincount(obs.point[self.obs_rejected | self.rejected_before], minlength=p) > 0
-        need = np.where(lost, 3, 2)
-        has_start = np.all(np.isfinite(inp.points0), axis=1)
-        used: BoolArray = has_start & ((rays >= need) | ((rays >= need - 1) & full))
-        return used
-
-    def reject(self, picks: list[tuple[str, int]]) -> None:
-        for kind, k in picks:
-            if kind == "image":
-                self.keep[k] = False
-                self.obs_rejected[k] = True
-            elif kind == "plan":
-                self.ctrl_on[k, :2] = False
-                self.ctrl_rejected[k, :2] = True
-            elif kind == "height":
-                self.ctrl_on[k, 2] = False
-                self.ctrl_rejected[k, 2] = True
-            elif kind == "gnss":
-                self.g_on[k] = False
-                self.g_rejected[k] = True
-            else:
-                self.i_on[k] = False
-                self.i_rejected[k] = True
-
-    def control_over_limit(self, blunders: BlunderOptions) -> bool:
-        """More than ``max_fraction`` of the control components rejected."""
-        n_ctrl_rej = self.n_ctrl_start - int(self.ctrl_on.sum())
-        return n_ctrl_rej > blunders.max_fraction * max(self.n_ctrl_start, 1)
-
-    def keep_control(self) -> None:
-        """Every rejected control component back in use, and no more control tests."""
-        self.ctrl_on |= self.ctrl_rejected
-        self.ctrl_rejected[:] = False
-        self.control_tested = False
-
-    def check_fractions(self, inp: _Inputs, blunders: BlunderOptions) -> None:
-        """GeometryError when a kind of observation lost more than
-        ``max_fraction`` to the tests: the rest cannot be trusted either."""
-        limit = blunders.max_fraction
-        n_img_rej = self.n_img_start - int(self.keep.sum())
-        if n_img_rej > limit * max(self.n_img_start, 1):
-            raise GeometryError(
-                f"bundle adjustment: more than {limit:.0%} of the image "
-                f"observations fail the blunder test ({n_img_rej} of {self.n_img_start}); the "
-                "observations cannot be trusted"
-            )
-        if self.control_over_limit(blunders):
-            raise GeometryError(
-                f"bundle adjustment: more than {limit:.0%} of the control "
-                "observations fail the blunder test; the control cannot be trusted, or "
-                "uncorrected camera errors bend the block (when many points fail together, "
-                'add [adjustment] self_calibration = "auto")'
-            )
-        for stage, what, given_k, rejected_k in (
-            (GNSS_STAGE, "GNSS centres", inp.g_given, self.g_rejected),
-            (IMU_STAGE, "IMU attitudes", inp.i_given, self.i_rejected),
-        ):
-            n_given_k = int(np.count_nonzero(given_k))
-            n_rej_k = int(np.count_nonzero(rejected_k))
-            if n_rej_k > limit * max(n_given_k, 1):
-                raise GeometryError(
-                    f"bundle adjustment, stage {stage!r}: more than {limit:.0%} "
-                    f"of the {what} fail the blunder test ({n_rej_k} of {n_given_k} photos); "
-                    f"the {what} cannot be trusted"
-                )
 
 
 class _RoundStatistics(NamedTuple):
@@ -1068,32 +639,6 @@ def _point_leverage(
     v_inv = np.linalg.inv(normal)
     h = np.einsum("kai,kij,kaj->ka", b, v_inv[point], b)
     return h, np.diagonal(v_inv, axis1=1, axis2=2)
-
-
-def _compact(
-    obs: ImageObservations, keep_obs: BoolArray, point_used: BoolArray
-) -> tuple[ImageObservations, IntArray, IntArray]:
-    """Observations of the used points only, points renumbered.
-
-    Returns the sub-observations, the rows of ``obs`` they came from and the
-    original point index of each new point.
-    """
-    rows = np.flatnonzero(keep_obs & point_used[obs.point])
-    points = np.flatnonzero(point_used)
-    new_index = np.full(point_used.shape[0], -1, dtype=np.intp)
-    new_index[points] = np.arange(points.size)
-    sub = ImageObservations(
-        photo_ids=obs.photo_ids,
-        point_ids=tuple(obs.point_ids)
-        if points.size == len(obs.point_ids)
-        else tuple(obs.point_ids[i] for i in points),
-        photo=obs.photo[rows],
-        point=new_index[obs.point[rows]],
-        xy=obs.xy[rows],
-        sigma=np.broadcast_to(np.asarray(obs.sigma, dtype=np.float64), obs.photo.shape)[rows],
-        principal_distance=obs.principal_distance,
-    )
-    return sub, rows, points
 
 
 def _expand(values: FloatArray, index: IntArray, n: int) -> FloatArray:
