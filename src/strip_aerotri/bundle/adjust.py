@@ -584,7 +584,8 @@ def bundle_adjust(
         Standard deviations of those rotation components in radians.
     max_iterations : int
         Largest number of accepted steps; 0 evaluates the start values
-        (residuals, sigma0, cofactors there; not converged).
+        (residuals, sigma0 and cofactors there, not converged; the camera's
+        values are then those of one Gauss-Newton step from the start).
     tolerance : float
         Stop when the objective changes by less than ``tolerance`` relative,
         or when the largest correction is below ``tolerance`` (radians, and
@@ -701,7 +702,9 @@ def bundle_adjust(
                 StripAerotriWarning,
                 stacklevel=2,
             )
-        precision = _precision_products(prob, state, normals, sigma0, compute_precision)
+        precision = _precision_products(
+            prob, state, normals, sigma0, compute_precision, linearised=iterations == 0
+        )
         control_used = prob.control_weight > 0
         return BundleResult(
             centres=state.centres,
@@ -930,9 +933,12 @@ def _precision_products(
     normals: _Normals,
     sigma0: float,
     compute_precision: bool,
+    linearised: bool = False,
 ) -> _Precision:
     """Standard deviations of points and photos and the cofactors of the GNSS
-    and IMU residuals (NaN without ``compute_precision``)."""
+    and IMU residuals (NaN without ``compute_precision``); ``linearised``: the
+    camera's values are those of one Gauss-Newton step from ``state`` (no step
+    was taken)."""
     m, p = prob.n_photos, prob.n_points
     nan_p, nan_m = np.full((p, 3), np.nan), np.full((m, 3), np.nan)
     point_std, centre_std, rotation_std = nan_p, nan_m, nan_m.copy()
@@ -952,9 +958,10 @@ def _precision_products(
     if prob.camera is not None:
         border = normals.image.border_jacobian
         assert border is not None
+        step = solution.border_step[:k] if linearised else 0.0
         camera = CameraEstimate(
             model=prob.camera,
-            values=state.camera,
+            values=state.camera + step,
             cofactor=border_q[:k, :k],
             sigma0=sigma0,
             information=np.einsum("kri,kri->i", border[:, :, :k], border[:, :, :k]),

@@ -153,7 +153,8 @@ class Trials(Protocol):
 
     def screen(self, model: CameraModel) -> BundleResult:
         """``model`` evaluated at the start values, without a step: the
-        design's correlations (the camera's values are the start's, 0)."""
+        design's correlations (the camera's values are one linearised step's,
+        ``bundle_adjust(max_iterations=0)``)."""
 
     def adjust(self, model: CameraModel | None, start: FloatArray | None) -> BundleResult:
         """An adjustment to convergence from the last one's photos and points,
@@ -256,9 +257,8 @@ def _screened(
             active.remove(name)
             continue
         assert cam is not None
+        choice.seen(cam)  # one linearised step's estimates, for the held ones' record
         r_eo = dict(zip(cam.names, cam.orientation_correlation, strict=True))
-        nan = float("nan")  # nothing estimated yet: the design's correlations alone
-        choice.last.update({n: (nan, nan, nan, float(r)) for n, r in r_eo.items()})
         while hold := _absorbed(active, [r_eo[n] for n in active], choice.absorbed):
             for name, reason in hold:
                 choice.hold(name, reason, True)
