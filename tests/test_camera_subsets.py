@@ -252,3 +252,35 @@ def test_nothing_rejected_nothing_chosen_again() -> None:
     assert auto.self_calibration is not None
     assert set(auto.self_calibration.kept) == {"k1", "b1"}
     assert not any("chosen again" in n for n in auto.self_calibration.notes)
+
+
+def test_a_parameter_the_data_cannot_determine_is_held_and_named(frame: _Frame) -> None:
+    """When the engine finds a parameter not determined at all (a singular
+    border, ``CameraUndetermined``), in the screening or in the adjustment,
+    "auto" holds it with that reason and goes on without it; the rest is
+    chosen as before."""
+    from strip_aerotri.bundle.adjust import CameraUndetermined
+
+    class Refusing(_RealTrials):
+        def __init__(self, frame: _Frame, name: str, where: str) -> None:
+            super().__init__(frame)
+            self.name, self.where = name, where
+
+        def screen(self, model: CameraModel) -> BundleResult:
+            if self.where == "screen" and self.name in model.estimated:
+                raise CameraUndetermined("not determined", self.name)
+            return super().screen(model)
+
+        def adjust(self, model: CameraModel | None, start: np.ndarray | None) -> BundleResult:
+            if self.where == "adjust" and model is not None and self.name in model.estimated:
+                raise CameraUndetermined("not determined", self.name)
+            return super().adjust(model, start)
+
+    for name, where in (("c", "screen"), ("b2", "adjust")):
+        trials = Refusing(frame, name, where)
+        cam, outcome = selfcal._auto(SelfCalibration("auto"), trials, frame.c_mm, 0.0)
+        reasons = {p.name: p.reason for p in outcome.parameters}
+        assert reasons[name] == "not determined by the data"
+        assert cam is not None and set(outcome.kept) == set(_ERRORS)
+        # (the refused calls are not counted)
+        assert trials.screens == 1 and trials.adjustments <= 2
