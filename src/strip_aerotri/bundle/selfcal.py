@@ -188,10 +188,11 @@ class _Choice:
 def _auto(
     spec: SelfCalibration, trials: Trials, c_mm: float, base_mm: float
 ) -> tuple[CameraEstimate | None, SelfCalibrationOutcome]:
-    """``"auto"`` (module notes): the orientation's correlations from one step
-    of every candidate; then an adjustment of the rest, whose border the rules
-    walk down (:class:`LinearisedCamera`), until an adjustment of the set they
-    end with holds nothing more."""
+    """``"auto"`` (module notes): the orientation's correlations from the
+    normal equations of every candidate at the start values; then an
+    adjustment of the rest, whose border the rules walk down
+    (:class:`LinearisedCamera`), until an adjustment of the set they end with
+    holds nothing more."""
 
     def model(names: Sequence[str]) -> CameraModel:
         return camera_model(spec, tuple(names), c_mm, base_mm)
