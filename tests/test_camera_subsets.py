@@ -284,3 +284,20 @@ def test_a_parameter_the_data_cannot_determine_is_held_and_named(frame: _Frame) 
         assert cam is not None and set(outcome.kept) == set(_ERRORS)
         # (the refused calls are not counted)
         assert trials.screens == 1 and trials.adjustments <= 2
+
+
+def test_auto_keeping_nothing_is_the_plain_refinement() -> None:
+    """When "auto" keeps nothing, the delivered adjustment starts where the
+    refinement without self-calibration starts: the same points, to the bit."""
+    from strip_aerotri.bundle.refine import refine_bundle
+    from strip_aerotri.pipeline import triangulate
+
+    sim = simulate_strip(14, preset="drone", seed=6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        strip = triangulate(sim.observations, sim.control, sim.crs)
+        plain = refine_bundle(strip)
+        auto = refine_bundle(strip, self_calibration=SelfCalibration("auto"))
+    assert auto.self_calibration is not None and auto.self_calibration.kept == ()
+    assert np.array_equal(auto.points, plain.points, equal_nan=True)
+    assert np.array_equal(auto.photo_centres, plain.photo_centres)
