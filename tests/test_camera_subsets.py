@@ -301,3 +301,40 @@ def test_auto_keeping_nothing_is_the_plain_refinement() -> None:
     assert auto.self_calibration is not None and auto.self_calibration.kept == ()
     assert np.array_equal(auto.points, plain.points, equal_nan=True)
     assert np.array_equal(auto.photo_centres, plain.photo_centres)
+
+
+def test_the_trials_tolerance_leaves_the_t_values() -> None:
+    """A trial stops at a relative change of the sum of squares of 1e-6: its
+    t values are those of the adjustment run to 1e-10 within 1e-3, from the
+    strip method's start values (a real first step, not the truth)."""
+    from strip_aerotri.bundle._snoop_camera import _TRIAL_TOLERANCE
+    from strip_aerotri.bundle.refine import refine_bundle
+
+    _, strip = _strip_with_blunders(0)
+    seen: list[BundleResult] = []
+    import strip_aerotri.bundle._snoop_camera as snoop_camera
+
+    original = snoop_camera.bundle_adjust
+
+    def recording(*args, **kwargs):  # type: ignore[no-untyped-def]
+        res = original(*args, **kwargs)
+        if kwargs.get("tolerance") == _TRIAL_TOLERANCE and kwargs.get("max_iterations", 1) > 0:
+            seen.append(res)
+            tight = original(*args, **{**kwargs, "tolerance": 1e-10})
+            seen.append(tight)
+        return res
+
+    snoop_camera.bundle_adjust = recording  # type: ignore[assignment]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            refine_bundle(strip, self_calibration=SelfCalibration("auto"))
+    finally:
+        snoop_camera.bundle_adjust = original  # type: ignore[assignment]
+    assert seen
+    # the tolerance saves an iteration (2 against 3 on this strip's second trial)
+    assert any(lo.iterations < ti.iterations for lo, ti in zip(seen[::2], seen[1::2], strict=True))
+    for loose, tight in zip(seen[::2], seen[1::2], strict=True):
+        assert loose.camera is not None and tight.camera is not None
+        assert loose.iterations <= tight.iterations
+        assert np.all(np.abs(loose.camera.t_values - tight.camera.t_values) < 1e-3)
