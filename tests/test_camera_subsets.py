@@ -338,3 +338,25 @@ def test_the_trials_tolerance_leaves_the_t_values() -> None:
         assert loose.camera is not None and tight.camera is not None
         assert loose.iterations <= tight.iterations
         assert np.all(np.abs(loose.camera.t_values - tight.camera.t_values) < 1e-3)
+
+
+def test_an_error_free_block_with_blunders_keeps_no_camera() -> None:
+    """The envelope's error-free 3 x 12 drone block with 6 image blunders and a
+    control blunder (docs/ground.md 7.7): chosen on the data as given,
+    "auto" kept p1; chosen again without the blunders, nothing."""
+    from strip_aerotri.observations import StripSpec
+    from strip_aerotri.pipeline import triangulate_block
+    from strip_aerotri.simulate import simulate_block
+
+    block = simulate_block(3, 12, preset="drone", seed=0, image_blunders=6, control_blunders=1)
+    specs = [StripSpec(s.name, s.photo_ids) for s in block.strips]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = triangulate_block(
+            block.observations, block.control, block.crs, specs, refine="bundle",
+            self_calibration=SelfCalibration("auto"),
+        )  # fmt: skip
+    sc = res.self_calibration
+    assert sc is not None and sc.kept == ()
+    assert any("p1 became none" in n for n in sc.notes)
+    assert res.check_statistics.rmse_plan < 0.02 and res.check_statistics.rmse[2] < 0.025

@@ -29,6 +29,7 @@ from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection
 from ._snoop_camera import _adjust, _Camera
+from ._structures import reusing_structures
 from ._snoop_sets import (
     CONTROL_STAGE,
     GNSS_STAGE,
@@ -185,7 +186,8 @@ def refine_frame(
     left with one ray (and no full control) is dropped.  The adjustment is
     then solved again from the last solution, until nothing fails.
     """
-    with compute_workers(int(np.asarray(observations.photo).size)):
+    # one normal-equation structure for the choice's trials and every round
+    with compute_workers(int(np.asarray(observations.photo).size)), reusing_structures():
         blunders = blunders or BlunderOptions()
         obs = observations
         inp = _inputs(
