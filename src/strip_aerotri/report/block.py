@@ -166,7 +166,7 @@ def build_block_report(
         ),
         "tolerances": block_tolerances_record(result, map_scale, joins),
         "rejections": [r.describe() for r in result.rejections],
-        "warnings": list(result.warnings),
+        "warnings": [str(w) for w in result.warnings],  # plain strings
         "timings_s": dict(result.timings),
     }
     cleaned: dict[str, Any] = clean(report)

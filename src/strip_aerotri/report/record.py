@@ -466,7 +466,10 @@ def build_report(
             }
             for r in getattr(result, "rejections", ())
         ],
-        "warnings": [*result.warnings, *notes, *drift_warnings(result, map_scale)],
+        # plain strings (a PointWarning is a str with its point's id as data)
+        "warnings": [
+            str(w) for w in (*result.warnings, *notes, *drift_warnings(result, map_scale))
+        ],
         "timings_s": dict(result.timings),
         "outputs": {
             "points.geojson": {
