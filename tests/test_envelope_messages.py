@@ -402,3 +402,38 @@ def test_a_point_warning_is_its_text_and_keeps_its_data() -> None:
         assert (again.kind, again.point, again.cause) == ("check not triangulated", "A'b, c", "why")
     with pytest.raises(AttributeError, match="immutable"):
         w.point = "other"  # type: ignore[misc]
+
+
+def _sigma_column(images: Path, sigma: str) -> None:
+    """Every row of ``image_points.csv`` given the ``sigma`` column's text."""
+    import csv
+
+    rows = list(csv.DictReader(images.open()))
+    with images.open("w", newline="") as f:
+        out = csv.DictWriter(f, fieldnames=list(rows[0]))
+        out.writeheader()
+        out.writerows(dict(r, sigma=sigma) for r in rows)
+
+
+@pytest.mark.parametrize("kind", ["strip", "block"])
+def test_check_warns_of_the_image_sigma_as_the_run_does(tmp_path, kind: str) -> None:  # type: ignore[no-untyped-def]
+    """A sigma column of 5 meant as µm, in a strip and in a 3 x 8 block:
+    `stripaero check` gives the run's image-sigma warning, word for word."""
+    from strip_aerotri.project import check_project, load_project
+    from strip_aerotri.project.run import run_project
+    from strip_aerotri.simulate import simulate_block
+
+    if kind == "strip":
+        toml = simulate_strip(12, preset="film", seed=0, crs="EPSG:32634").write_project(tmp_path)
+    else:
+        toml = simulate_block(3, 8, preset="film", seed=5).write_project(tmp_path)
+    _sigma_column(tmp_path / "image_points.csv", "5")
+    project = load_project(toml)
+    assert project.is_block is (kind == "block")
+    rep = check_project(project)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        result = run_project(project)
+    said = [w for w in result.warnings if w.startswith("image sigma")]
+    assert len(said) == 1 and "times the scatter" in said[0]
+    assert [w for w in rep.warnings if w.startswith("image sigma")] == said
