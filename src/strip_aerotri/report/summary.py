@@ -28,6 +28,7 @@ from .block import block_outputs, block_tolerances_record, build_block_report, j
 from .outputs import GEOJSON_LOCAL_NOTE
 from .record import drift_warnings, tolerances_record
 from .tolerances import TRANSFER_UM, transfer_passed
+from .values import delivered_points
 from .verdict import Verdict
 
 if TYPE_CHECKING:
@@ -538,7 +539,7 @@ def _block_summary(
         name=name,
         n_strips=len(result.specs),
         n_photos=len(result.photo_ids),
-        n_points=int(np.isfinite(result.points).all(axis=1).sum()),
+        n_points=delivered_points(result),
         refined=bool(result.refined),
         construction="" if result.options is None else result.options.block.value,
         control=Accuracy.of(result.control_statistics),
@@ -589,7 +590,7 @@ def summarize(
         n_strips=1,
         n_photos=len(result.photo_ids),
         # the delivered points (points.csv): the refinement's when there is one
-        n_points=int(np.isfinite(result.points).all(axis=1).sum()),
+        n_points=delivered_points(result),
         refined=refined is not None,
         construction="" if result.options is None else result.options.block.value,
         control=Accuracy.of(final.control_statistics),
