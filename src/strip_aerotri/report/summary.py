@@ -216,7 +216,9 @@ class RunSummary:
         The observation weights estimated from the data (None unless asked
         for).
     warnings : tuple of str
-        The run's warnings.
+        The run's warnings (those about one point
+        :class:`~strip_aerotri.results.PointWarning`, which
+        :meth:`warning_lines` sums up by their data).
     output_warnings : tuple of str
         The warnings the outputs add (the plan drift at the map scale,
         points.geojson not written); report.json lists both.
