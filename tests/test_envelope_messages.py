@@ -60,9 +60,9 @@ def test_block_points_lost_to_blunder_tests_are_not_said_unmeasured() -> None:
         res = adjust_block(sim.observations, sim.control, sim.crs, specs, construction="models")
     (line,) = [w for w in res.warnings if w.startswith("check point 'P00055' is not triangulated")]
     assert "see the relative_orientation rejections" in line, line
-    assert (line.kind, line.point, line.cause) == (  # type: ignore[attr-defined]
-        "check not triangulated", "P00055", line[line.index("(") + 1 : line.rindex(")")]
-    )
+    cause = line[line.index("(") + 1 : line.rindex(")")]
+    data = (line.kind, line.point, line.cause)  # type: ignore[attr-defined]
+    assert data == ("check not triangulated", "P00055", cause)
 
 
 def _keep_control(control, keep):  # type: ignore[no-untyped-def]
@@ -395,11 +395,12 @@ def test_a_point_warning_is_its_text_and_keeps_its_data() -> None:
     from strip_aerotri.results import PointWarning
 
     w = PointWarning.not_triangulated("A'b, c", "why", check=True)
-    assert w == "check point \"A'b, c\" is not triangulated (why): left out"
+    assert w == 'check point "A\'b, c" is not triangulated (why): left out'
     assert isinstance(w, str)
     for again in (pickle.loads(pickle.dumps(w)), copy.deepcopy(w)):
         assert type(again) is PointWarning and again == w
-        assert (again.kind, again.point, again.cause) == ("check not triangulated", "A'b, c", "why")
+        data = (again.kind, again.point, again.cause)
+        assert data == ("check not triangulated", "A'b, c", "why")
     with pytest.raises(AttributeError, match="immutable"):
         w.point = "other"  # type: ignore[misc]
 

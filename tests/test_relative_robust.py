@@ -230,7 +230,7 @@ def _plane_pairs(counts, seed=7):
         rotations = matrix_from_rotvec(rng.normal(0, 0.03, (2, 3)))
         truth.append(rotations[0].T @ rotations[1])
         centres = [[0.0, 0.0, 150.0], [30.0, rng.normal(0, 2), 150 + rng.normal(0, 2)]]
-        for out, rot, centre in zip((left, right), rotations, centres):
+        for out, rot, centre in zip((left, right), rotations, centres, strict=True):
             v = (ground - centre) @ rot  # Rᵀ (X - S), R image -> ground
             v = v * (-35.0 / v[:, 2:3])
             v[:, :2] += rng.normal(0, 0.003, (n, 2))

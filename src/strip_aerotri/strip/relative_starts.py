@@ -237,9 +237,7 @@ def homography_start(
         rows = np.flatnonzero(np.isin(pair, group))  # pair-sorted, as pair is
         local = np.searchsorted(group, pair[rows])
         own = np.concatenate([[0], np.cumsum(counts[group])[:-1]]).astype(np.intp)
-        relative[group], base[group] = _homography_start(
-            l[rows], p[rows], local, group.size, own
-        )
+        relative[group], base[group] = _homography_start(l[rows], p[rows], local, group.size, own)
     return relative, base
 
 
