@@ -329,16 +329,12 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     design identity on the centre); IMU ``log(R_imu.T R)`` (rad, design
     ``Jr^-1(e)`` on the rotation)."""
     inv_s = 1.0 / prob.sigma
-    whitened = prob.motion is None  # the Jacobians whitened in the collinearity's blocks
-    xy, v, jac_photo, jac_point = _collinearity(prob, state, inv_s if whitened else None)
+    shutter = None if prob.motion is None else (prob.motion, prob.motion.fractions(prob.xy))
+    xy, v, jac_photo, jac_point = _collinearity(prob, state, inv_s, shutter)
     if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
         return None  # a point behind a photo: no linearisation (the cost is infinite)
     res = xy - _observed(prob, state)
-    border = _border(prob, state, jac_photo)  # the motion's columns from unwhitened ones
-    if border is not None:
-        border *= inv_s[:, None, None]
-    if not whitened:
-        jac_photo, jac_point = jac_photo * inv_s[:, None, None], jac_point * inv_s[:, None, None]
+    border = _border(prob, state, jac_photo, inv_s, shutter)
     image = UnitPointRows(
         prob.photo, prob.point, jac_photo, jac_point, res * inv_s[:, None],
         border_jacobian=border,
@@ -365,33 +361,44 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
 
 
 def _collinearity(
-    prob: _Problem, state: _State, scale: FloatArray | None = None
+    prob: _Problem,
+    state: _State,
+    inv_s: FloatArray,
+    shutter: tuple[ShutterMotion, FloatArray] | None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """The collinearity equations and Jacobians (times `scale` per ray, if
-    given, without a shutter's motion); with a rolling shutter each ray from
-    its centre moved by ``s d_g`` (the point moved by the opposite, which is
-    the same ray)."""
-    if prob.motion is None:
+    """The collinearity equations and their Jacobians whitened by ``inv_s``
+    (K,) = 1/σ; with a rolling shutter (its motion and the rows' fractions
+    ``s`` (K,)) each ray from its centre moved by ``s d_g`` (the point moved
+    by the opposite, which is the same ray)."""
+    if shutter is None:
         return collinearity_jacobians(
-            state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c, scale
+            state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c, inv_s
         )
-    shift = prob.motion.centre_shift(state.motion, prob.photo, prob.motion.fractions(prob.xy))
-    ray_points = state.points[prob.point] - shift
+    motion, s = shutter
+    ray_points = state.points[prob.point] - motion.centre_shift(state.motion, prob.photo, s)
     rays = np.arange(prob.photo.size, dtype=np.intp)
     return collinearity_jacobians(
-        state.centres, state.rotations, ray_points, prob.photo, rays, prob.c
+        state.centres, state.rotations, ray_points, prob.photo, rays, prob.c, inv_s
     )
 
 
-def _border(prob: _Problem, state: _State, jac_photo: FloatArray) -> FloatArray | None:
-    """The border's design columns (K, 2, k) before weighting: the camera's
-    ``d(x - (x_obs + Δ))/dθ = -dΔ/dθ``, then the motions' ``s dx/dS``."""
+def _border(
+    prob: _Problem,
+    state: _State,
+    jac_photo: FloatArray,
+    inv_s: FloatArray,
+    shutter: tuple[ShutterMotion, FloatArray] | None,
+) -> FloatArray | None:
+    """The border's whitened design columns (K, 2, k): the camera's
+    ``d(x - (x_obs + Δ))/dθ = -dΔ/dθ`` times ``inv_s`` (K,) = 1/σ, then the
+    motions' ``s dx/dS`` from the centre columns of ``jac_photo``, which are
+    whitened already."""
     parts = []
     if prob.camera is not None:
-        parts.append(-prob.camera.partials(prob.xy, state.camera))
-    if prob.motion is not None:
-        s = prob.motion.fractions(prob.xy)
-        parts.append(prob.motion.border(jac_photo[:, :, :3], prob.photo, s))
+        parts.append(prob.camera.partials(prob.xy, state.camera) * -inv_s[:, None, None])
+    if shutter is not None:
+        motion, s = shutter
+        parts.append(motion.border(jac_photo[:, :, :3], prob.photo, s))
     return np.concatenate(parts, axis=2) if parts else None
 
 
