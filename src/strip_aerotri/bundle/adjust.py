@@ -62,7 +62,6 @@ from ..errors import ConvergenceError, GeometryError, StripAerotriWarning
 from ..geometry.camera_model import CameraModel, ShutterMotion
 from ..geometry.collinearity import collinearity_jacobians, project
 from ..geometry.normals import (
-    Cofactors,
     FormedNormals,
     NormalSolution,
     NormalStructure,
@@ -590,9 +589,8 @@ def bundle_adjust(
     imu_sigma : float or array_like, shape (M, 3), optional
         Standard deviations of those rotation components in radians.
     max_iterations : int
-        Largest number of accepted steps; 0 evaluates the start values
-        (residuals, sigma0 and cofactors there, not converged; the camera's
-        values are then those of one Gauss-Newton step from the start).
+        Largest number of accepted steps; 0: the start values evaluated, not
+        converged (the camera's values one Gauss-Newton step's from them).
     tolerance : float
         Stop when the objective changes by less than ``tolerance`` relative,
         or when the largest correction is below ``tolerance`` (radians, and
@@ -709,9 +707,8 @@ def bundle_adjust(
                 StripAerotriWarning,
                 stacklevel=2,
             )
-        precision = _precision_products(
-            prob, state, normals, sigma0, compute_precision, linearised=iterations == 0
-        )
+        at_start = iterations == 0  # no step: the camera's values are one step's
+        precision = _precision_products(prob, state, normals, sigma0, compute_precision, at_start)
         control_used = prob.control_weight > 0
         return BundleResult(
             centres=state.centres,
@@ -942,10 +939,9 @@ def _precision_products(
     compute_precision: bool,
     linearised: bool = False,
 ) -> _Precision:
-    """Standard deviations of points and photos and the cofactors of the GNSS
-    and IMU residuals (NaN without ``compute_precision``); ``linearised``: the
-    camera's values are those of one Gauss-Newton step from ``state`` (no step
-    was taken)."""
+    """Standard deviations of points and photos and the cofactors of the GNSS and IMU
+    residuals (NaN without ``compute_precision``); ``linearised``: the camera's values
+    are those of one Gauss-Newton step from ``state``."""
     m, p = prob.n_photos, prob.n_points
     nan_p, nan_m = np.full((p, 3), np.nan), np.full((m, 3), np.nan)
     point_std, centre_std, rotation_std = nan_p, nan_m, nan_m.copy()
@@ -955,20 +951,16 @@ def _precision_products(
     image_redundancy = np.full((prob.photo.size, 2), np.nan)
     camera, motion = None, None
     border_q = np.zeros((0, 0))
-    cof: Cofactors | None = None
     if compute_precision or normals.image.border_jacobian is not None:
         solution = _solve(prob, normals, 0.0).solution
-        # the border's own cofactors need no selected inverse of the band
-        cof = solution.cofactors() if compute_precision else None
-        border_q = solution.border_cofactor
+        border_q = solution.border_cofactor  # without the selected inverse of the band
     k = prob.n_camera
     if prob.camera is not None:
         border = normals.image.border_jacobian
         assert border is not None
-        step = solution.border_step[:k] if linearised else 0.0
         camera = CameraEstimate(
             model=prob.camera,
-            values=state.camera + step,
+            values=state.camera + (solution.border_step[:k] if linearised else 0.0),
             cofactor=border_q[:k, :k],
             sigma0=sigma0,
             information=np.einsum("kri,kri->i", border[:, :, :k], border[:, :, :k]),
@@ -977,7 +969,8 @@ def _precision_products(
         _check_camera(camera)
     if prob.motion is not None:
         motion = ShutterEstimate(prob.motion, state.motion, border_q[k:, k:], sigma0)
-    if cof is not None:
+    if compute_precision:
+        cof = solution.cofactors()
         q_blocks = cof.unit
         q_point = np.diagonal(cof.point, axis1=1, axis2=2)
         image_redundancy = cof.redundancy(normals.image)
