@@ -247,14 +247,13 @@ def _make_problem(
     n_border = (0 if camera is None else len(camera.estimated)) + (
         0 if motion is None else motion.n_unknowns
     )
-    structure = structure_for(
-        (m, p, photo, point, along, n_border, obs.photo_ids, obs.point_ids),
+    structure = structure_for(  # one for every border: "auto"'s trials share it
+        (m, p, photo, point, along, obs.photo_ids, obs.point_ids),
         lambda: NormalStructure.from_indices(
             m, 6, p, photo, point, candidates=[along], unit_names=tuple(obs.photo_ids),
             point_names=tuple(obs.point_ids), parameter_names=_PHOTO_PARAMETER_NAMES,
-            n_border=n_border,
         ),
-    )
+    ).with_border(n_border)
     return _Problem(
         photo_ids=tuple(obs.photo_ids),
         photo=photo,
@@ -590,7 +589,8 @@ def bundle_adjust(
     imu_sigma : float or array_like, shape (M, 3), optional
         Standard deviations of those rotation components in radians.
     max_iterations : int
-        Largest number of accepted steps.
+        Largest number of accepted steps; 0: the start values evaluated, not
+        converged (the camera's values one Gauss-Newton step's from them).
     tolerance : float
         Stop when the objective changes by less than ``tolerance`` relative,
         or when the largest correction is below ``tolerance`` (radians, and
@@ -707,7 +707,8 @@ def bundle_adjust(
                 StripAerotriWarning,
                 stacklevel=2,
             )
-        precision = _precision_products(prob, state, normals, sigma0, compute_precision)
+        at_start = iterations == 0  # no step: the camera's values are one step's
+        precision = _precision_products(prob, state, normals, sigma0, compute_precision, at_start)
         control_used = prob.control_weight > 0
         return BundleResult(
             centres=state.centres,
@@ -786,8 +787,8 @@ def _checked_start(
     if not (np.all(np.isfinite(centres)) and np.all(np.isfinite(points))):
         raise ValueError("Expected finite `centres0` and `points0`")
     check_rotations(rotations, "rotations0")
-    if int(max_iterations) < 1:
-        raise ValueError(f"Expected `max_iterations` >= 1, got {max_iterations}")
+    if int(max_iterations) < 0:
+        raise ValueError(f"Expected `max_iterations` >= 0, got {max_iterations}")
     if not tolerance > 0.0:
         raise ValueError(f"Expected a positive `tolerance`, got {tolerance}")
     return centres, rotations, points
@@ -936,9 +937,11 @@ def _precision_products(
     normals: _Normals,
     sigma0: float,
     compute_precision: bool,
+    linearised: bool = False,
 ) -> _Precision:
-    """Standard deviations of points and photos and the cofactors of the GNSS
-    and IMU residuals (NaN without ``compute_precision``)."""
+    """Standard deviations of points and photos and the cofactors of the GNSS and IMU
+    residuals (NaN without ``compute_precision``); ``linearised``: the camera's values
+    are those of one Gauss-Newton step from ``state``."""
     m, p = prob.n_photos, prob.n_points
     nan_p, nan_m = np.full((p, 3), np.nan), np.full((m, 3), np.nan)
     point_std, centre_std, rotation_std = nan_p, nan_m, nan_m.copy()
@@ -947,24 +950,27 @@ def _precision_products(
     imu_cofactor = np.full((m, 3, 3), np.nan)
     image_redundancy = np.full((prob.photo.size, 2), np.nan)
     camera, motion = None, None
+    border_q = np.zeros((0, 0))
     if compute_precision or normals.image.border_jacobian is not None:
-        cof = _solve(prob, normals, 0.0).solution.cofactors()
+        solution = _solve(prob, normals, 0.0).solution
+        border_q = solution.border_cofactor  # without the selected inverse of the band
     k = prob.n_camera
     if prob.camera is not None:
         border = normals.image.border_jacobian
         assert border is not None
         camera = CameraEstimate(
             model=prob.camera,
-            values=state.camera,
-            cofactor=cof.border[:k, :k],
+            values=state.camera + (solution.border_step[:k] if linearised else 0.0),
+            cofactor=border_q[:k, :k],
             sigma0=sigma0,
             information=np.einsum("kri,kri->i", border[:, :, :k], border[:, :, :k]),
-            conditional_information=np.diag(np.linalg.inv(cof.border[:k, :k])),
+            conditional_information=np.diag(np.linalg.inv(border_q[:k, :k])),
         )
         _check_camera(camera)
     if prob.motion is not None:
-        motion = ShutterEstimate(prob.motion, state.motion, cof.border[k:, k:], sigma0)
+        motion = ShutterEstimate(prob.motion, state.motion, border_q[k:, k:], sigma0)
     if compute_precision:
+        cof = solution.cofactors()
         q_blocks = cof.unit
         q_point = np.diagonal(cof.point, axis1=1, axis2=2)
         image_redundancy = cof.redundancy(normals.image)
