@@ -74,3 +74,25 @@ def test_a_row_of_empty_cells_as_the_csv_module_writes_it() -> None:
     values = np.array([np.nan, 1.0])
     expected = _reference(["id", "X"], [ids, values], [0, 4])
     assert format_csv(["id", "X"], [ids, values]) == expected == "id,X\n,\na,1.0000\n"
+
+
+@pytest.mark.parametrize("finite", ["none", "one", "some", "all"])
+def test_float_columns_with_empty_cells_and_text_ids(finite: str) -> None:
+    # residual columns: empty for most rows (tie points), inf empty too;
+    # ids as numpy text (dtype U) and as objects
+    rng = np.random.default_rng(5)
+    n = 40
+    values = rng.normal(size=n) * 10.0 ** rng.integers(-6, 6, n)
+    keep = {
+        "none": np.zeros(n, bool),
+        "one": np.arange(n) == 7,
+        "some": rng.random(n) < 0.2,
+        "all": np.ones(n, bool),
+    }[finite]
+    values[~keep] = np.where(rng.random((~keep).sum()) < 0.5, np.nan, np.inf)
+    values[keep & (np.arange(n) % 5 == 0)] = -0.00001  # written 0.0000
+    ids = np.array([f"P{k:03d}" for k in range(n)])
+    for id_column in (ids, ids.astype(object)):
+        columns = [id_column, values, values * -3.0]
+        text = format_csv(["id", "dE", "dN"], [id_column, (values, 4), (values * -3.0, 6)])
+        assert text == _reference(["id", "dE", "dN"], columns, [0, 4, 6])

@@ -77,3 +77,37 @@ def test_a_report_is_written_as_json_dumps_writes_it() -> None:
     text = json.dumps(report, indent=1, ensure_ascii=False, allow_nan=False)
     assert len(text) > 10_000
     assert dumps(report) == text
+
+
+_records = st.lists(
+    st.fixed_dictionaries({"a%s": _values, "b": _scalars, "%d": st.lists(_scalars, max_size=3)}),
+    min_size=1,
+    max_size=6,
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(rows=_records, indent=st.sampled_from([1, 2, 3]))
+def test_tables_of_records_as_json_dumps(rows: list[dict[str, Any]], indent: int) -> None:
+    # rows with the same keys in the same order (written through one template)
+    # and the same rows mixed with ones that break the pattern
+    variants: list[Any] = [
+        rows,
+        {"t": rows},
+        [rows],
+        [*rows, {"b": 1, "a%s": 2, "%d": []}],  # the same keys in another order
+        [*rows, {"a%s": 1}],  # fewer keys
+        [*rows, {**rows[0], "c": 1}],  # more keys
+        [*rows, [1, 2]],  # not an object
+        [*rows, {}],
+        [{}, *rows],
+        [*rows, _Dict(rows[0])],  # a subclass of dict
+        [{1: "int key"}] * 2,
+    ]
+    for value in variants:
+        expected = json.dumps(value, indent=indent, ensure_ascii=False, allow_nan=False)
+        assert dumps(value, indent=indent) == expected
+
+
+class _Dict(dict):  # type: ignore[type-arg]
+    pass

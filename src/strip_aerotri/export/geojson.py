@@ -105,20 +105,26 @@ def point_features_text(
             raise ValueError(
                 f"Expected property {name!r} of shape {ids.shape}, got {np.shape(column)}"
             )
-    lon = list(map(float.__repr__, lonlat[:, 0].tolist()))
-    lat = list(map(float.__repr__, lonlat[:, 1].tolist()))
-    point = '{"type":"Point","coordinates":[%s,%s]}'.__mod__
-    geometry = list(map(point, zip(lon, lat, strict=True)))
-    for k in np.flatnonzero(~np.isfinite(lonlat).all(axis=1)).tolist():
-        geometry[k] = "null"
+    lon = map(float.__repr__, lonlat[:, 0].tolist())
+    lat = map(float.__repr__, lonlat[:, 1].tolist())
     keys = [json.encoder.encode_basestring(str(k)).replace("%", "%%") for k in properties]
-    template = (
-        '{"type":"Feature","id":%s,"geometry":%s,"properties":{'
-        + ",".join(f"{key}:%s" for key in keys)
-        + "}}"
-    )
-    columns = [_json_tokens(np.asarray(column)) for column in properties.values()]
-    return list(map(template.__mod__, zip(_json_tokens(ids), geometry, *columns, strict=True)))
+    head = '{"type":"Feature","id":%s,"geometry":'
+    tail = ',"properties":{' + ",".join(f"{key}:%s" for key in keys) + "}}"
+    # one % per row; the same array (the ids as a property) encoded once
+    tokens: dict[int, list[str]] = {}
+    for column in (ids, *properties.values()):
+        if id(column) not in tokens:
+            tokens[id(column)] = _json_tokens(np.asarray(column))
+    id_tokens = tokens[id(ids)]
+    columns = [tokens[id(column)] for column in properties.values()]
+    point = (head + '{"type":"Point","coordinates":[%s,%s]}' + tail).__mod__
+    rows = list(map(point, zip(id_tokens, lon, lat, *columns, strict=True)))
+    unplaced = np.flatnonzero(~np.isfinite(lonlat).all(axis=1)).tolist()
+    if unplaced:  # a null geometry
+        null = (head + "null" + tail).__mod__
+        for k in unplaced:
+            rows[k] = null((id_tokens[k], *(column[k] for column in columns)))
+    return rows
 
 
 def _features(

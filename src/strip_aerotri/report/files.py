@@ -91,12 +91,13 @@ def _format_column(values: ArrayLike, decimals: int | None, name: str) -> tuple[
         finite = np.isfinite(rounded)
         if finite.all():
             return f"%.{digits}f", rounded.tolist()
-        fmt = f"{{:.{digits}f}}".format
-        text = [fmt(v) for v in rounded.tolist()]
-        for i in np.flatnonzero(~finite):
-            text[i] = ""
-        return "%s", text
-    if arr.dtype.kind in "UO":
+        # only the finite values formatted (a tie point's residuals are empty)
+        text = np.full(arr.shape, "", dtype=object)
+        text[finite] = list(map(f"%.{digits}f".__mod__, rounded[finite].tolist()))
+        return "%s", text.tolist()
+    if arr.dtype.kind == "U":
+        return "%s", arr.tolist()
+    if arr.dtype.kind == "O":
         return "%s", [str(v) for v in arr.tolist()]
     raise ValueError(f"Expected column `{name}` of numbers or strings, got dtype {arr.dtype}")
 

@@ -54,6 +54,10 @@ def dumps(value: Any, *, indent: int = 1, ensure_ascii: bool = False) -> str:
         if kind is list:
             if not item:
                 return "[]"
+            if type(item[0]) is dict:
+                records = table(item, depth)
+                if records is not None:
+                    return records
             # scalars encoded here, containers one level down
             values = [encode(v, depth + 1) if (f := get(type(v))) is None else f(v) for v in item]
             return "[" + inner + ("," + inner).join(values) + close + "]"
@@ -66,5 +70,37 @@ def dumps(value: Any, *, indent: int = 1, ensure_ascii: bool = False) -> str:
             ]
             return "{" + inner + ("," + inner).join(members) + close + "}"
         return fallback(item, depth)
+
+    def table(rows: list[Any], depth: int) -> str | None:
+        """A list of objects with the same keys in the same order (the report's
+        tables: a record per pair, model, point): the keys written once into a
+        ``%`` template that takes each row's encoded values; None otherwise."""
+        keys = tuple(rows[0])
+        if not keys or not all(type(k) is str for k in keys):
+            return None
+        if not all(type(row) is dict and tuple(row) == keys for row in rows):
+            return None
+        row_inner = "\n" + " " * (indent * (depth + 2))
+        template = (
+            "{"
+            + row_inner
+            + ("," + row_inner).join(text(k).replace("%", "%%") + ": %s" for k in keys)
+            + "\n"
+            + " " * (indent * (depth + 1))
+            + "}"
+        ).__mod__
+        encoded = [
+            template(
+                tuple(
+                    [
+                        encode(v, depth + 2) if (f := get(type(v))) is None else f(v)
+                        for v in row.values()
+                    ]
+                )
+            )
+            for row in rows
+        ]
+        inner = "\n" + " " * (indent * (depth + 1))
+        return "[" + inner + ("," + inner).join(encoded) + "\n" + " " * (indent * depth) + "]"
 
     return encode(value, 0)
