@@ -19,6 +19,9 @@ messages (``stripaero check`` lists them all; a run stops at the first):
   reflection than without.  A near-vertical photo maps its image (x along
   the flight, y to the left, right-handed with z up) onto east-north-up by
   a rotation, never by a reflection;
+* :func:`control_relief_problems` — plan coordinates and heights in
+  different units (X, Y in km with H in m): the control heights on a photo
+  span more than the flying height the plan control's scale gives;
 * :func:`control_coverage_problems` — a warning, not a stop: strip ends
   beyond the outermost plan or height control, where the strip is
   extrapolated;
@@ -55,6 +58,7 @@ __all__ = [
     "control_distance_problems",
     "control_coverage_problems",
     "control_handedness_problems",
+    "control_relief_problems",
     "flight_axis_message",
     "image_coordinate_problems",
     "image_sigma_problems",
@@ -412,7 +416,8 @@ def control_problems(
     crs: str | GroundCRS,
     file: str = "control",
 ) -> list[str]:
-    """:func:`control_degree_problems`, :func:`control_distance_problems`, then
+    """:func:`control_degree_problems`, :func:`control_distance_problems`,
+    :func:`control_relief_problems` (a projected or local CRS), then
     :func:`control_handedness_problems`, for a project's control.
 
     Every control and check point with plan coordinates takes part (check
@@ -430,6 +435,10 @@ def control_problems(
     distant = control_distance_problems(observations, point, xy, control.point_ids, file=file)
     if distant:
         return distant
+    if not crs.is_geographic:
+        units = control_relief_problems(observations, point, control.xyz, file=file)
+        if units:
+            return units
     return control_handedness_problems(
         observations, point, xy, geographic=crs.is_geographic, file=file
     )
@@ -454,6 +463,30 @@ def _pairs_within_runs(labels: IntArray) -> tuple[IntArray, IntArray]:
     first = np.repeat(np.arange(n), partners)
     offset = np.arange(first.shape[0]) - np.repeat(np.cumsum(partners) - partners, partners)
     return first, first + 1 + offset
+
+
+def _plan_pairs(
+    observations: ImageObservations, point: IntArray, plan: FloatArray
+) -> tuple[IntArray, IntArray, IntArray, FloatArray, FloatArray]:
+    """Every pair of plan control points on each photo: the control row of
+    each observation kept, the pairs' two observations ``a``, ``b`` (into
+    the kept ones), their distance on the photo (mm, at least 5 % of the
+    median) and on the ground (plan units)."""
+    row_of = np.full(observations.n_points, -1, dtype=np.intp)
+    usable = (np.asarray(point) >= 0) & np.isfinite(plan).all(axis=1)
+    row_of[np.asarray(point)[usable]] = np.flatnonzero(usable)
+    row = row_of[observations.point]
+    keep = np.flatnonzero(row >= 0)  # observations of plan points, sorted by photo
+    photo, row, image = observations.photo[keep], row[keep], observations.xy[keep]
+    a, b = _pairs_within_runs(photo)  # every pair of plan points on each photo
+    if not a.size:
+        empty = np.zeros(0, dtype=np.float64)
+        return row, a, b, empty, empty
+    with np.errstate(all="ignore"):
+        on_photo = np.hypot(*(image[a] - image[b]).T)
+        on_photo = np.maximum(on_photo, 0.05 * float(np.median(on_photo)))
+        ground = np.hypot(*(plan[row[a]] - plan[row[b]]).T)
+    return row, a, b, on_photo, ground
 
 
 def control_distance_problems(
@@ -490,19 +523,10 @@ def control_distance_problems(
         One message naming the farthest such point (empty when none).
     """
     plan = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-    row_of = np.full(observations.n_points, -1, dtype=np.intp)
-    usable = (np.asarray(point) >= 0) & np.isfinite(plan).all(axis=1)
-    row_of[np.asarray(point)[usable]] = np.flatnonzero(usable)
-    row = row_of[observations.point]
-    keep = np.flatnonzero(row >= 0)  # observations of plan points, sorted by photo
-    photo, row, image = observations.photo[keep], row[keep], observations.xy[keep]
-    a, b = _pairs_within_runs(photo)  # every pair of plan points on each photo
+    row, a, b, on_photo, ground = _plan_pairs(observations, point, plan)
     if not a.size:
         return []
     with np.errstate(all="ignore"):
-        on_photo = np.hypot(*(image[a] - image[b]).T)
-        on_photo = np.maximum(on_photo, 0.05 * float(np.median(on_photo)))
-        ground = np.hypot(*(plan[row[a]] - plan[row[b]]).T)
         scale = float(np.median(ground / on_photo))
         ratio = ground / (scale * on_photo)
     if not np.isfinite(scale) or scale <= 0.0:
@@ -519,6 +543,81 @@ def control_distance_problems(
         f"coordinates: it lies at least {best[k]:.3g} times farther from every plan point it "
         f"shares a photo with than the photos show at the strip's scale ({bad.size} such "
         "point(s)); a typing or export error in its X or Y?"
+    ]
+
+
+#: The control heights on one photo span at most about the flying height
+#: above the ground (every point lies below the camera); the median photo
+#: spanning more than this many flying heights, as the plan control's
+#: scale gives it, means plan and heights in different units.
+_RELIEF_FACTOR = 1.0
+
+
+def control_relief_problems(
+    observations: ImageObservations,
+    point: IntArray,
+    xyz: ArrayLike,
+    file: str = "control",
+) -> list[str]:
+    """Plan coordinates and heights of the control in different units.
+
+    The plan control gives the photo scale: the median ratio of ground to
+    image distance over every pair of plan points on a photo, s (plan units
+    per mm); the camera is then about s c above the ground.  Every point a
+    photo shows lies below its camera, so the heights of the control points
+    on one photo span less than that.  When, on the median photo with two
+    or more height points, they span more than :data:`_RELIEF_FACTOR` times
+    s c, X, Y and H are not in one unit (X, Y in km with H in m, or H in mm
+    or feet with X, Y in much smaller numbers).  Units are only comparable
+    in a projected or local CRS: nothing is found when the plan coordinates
+    are degrees (the caller leaves a geographic CRS out).
+
+    Parameters
+    ----------
+    observations : ImageObservations
+    point : ndarray of int, shape (m,)
+        Observation point index of each control row (-1: not observed).
+    xyz : array_like, shape (m, 3)
+        X, Y, H of the control rows (NaN where a row has none).
+    file : str
+        The control file, for the message.
+
+    Returns
+    -------
+    list of str
+        One message when the units disagree (empty otherwise).
+    """
+    xyz = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
+    _, a, _, on_photo, ground = _plan_pairs(observations, point, xyz[:, :2])
+    if not a.size:
+        return []
+    with np.errstate(all="ignore"):
+        scale = float(np.median(ground / on_photo))  # plan units per mm
+    height_above = scale * observations.principal_distance
+    if not np.isfinite(height_above) or height_above <= 0.0:
+        return []
+    row_of = np.full(observations.n_points, -1, dtype=np.intp)
+    usable = (np.asarray(point) >= 0) & np.isfinite(xyz[:, 2])
+    row_of[np.asarray(point)[usable]] = np.flatnonzero(usable)
+    row = row_of[observations.point]
+    keep = row >= 0
+    photo, height = observations.photo[keep], xyz[row[keep], 2]
+    n = observations.n_photos
+    low, high = np.full(n, np.inf), np.full(n, -np.inf)
+    np.minimum.at(low, photo, height)
+    np.maximum.at(high, photo, height)
+    shown = np.bincount(photo, minlength=n) >= 2
+    if not shown.any():
+        return []
+    span = float(np.median((high - low)[shown]))
+    if span <= _RELIEF_FACTOR * height_above:
+        return []
+    return [
+        f"{file}: the control heights on a photo span {span:.4g} m (the median of "
+        f"{int(shown.sum())} photos) while the plan control puts the camera about "
+        f"{height_above:.4g} m above the ground (the photos' scale with c = "
+        f"{observations.principal_distance:.6g} mm); every point lies below the camera: "
+        "are X, Y and H in different units (X, Y in km, or H in mm or feet)?"
     ]
 
 
