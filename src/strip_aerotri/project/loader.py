@@ -51,6 +51,7 @@ from .schema import (
     PROJECT_KEYS,
     PROJECT_TABLES,
     TABLES_BY_NAME,
+    IdHints,
     check_table,
     suggest,
 )
@@ -327,10 +328,19 @@ def _observed_control(
     row left out (docs/project-file.md, "Errors": a warning, not an error)."""
     observed = set(observations.point_ids)
     is_observed = np.fromiter((i in observed for i in ids.tolist()), bool, count=ids.shape[0])
+    missing = np.flatnonzero(~is_observed)
+    hint = IdHints(observations.point_ids) if missing.size else None
+    if ids.shape[0] and not is_observed.any() and hint is not None:
+        raise ConfigError(
+            f"{table.path}: none of its {ids.shape[0]} points is observed on any photo: the "
+            f"point ids of the control and image files do not match (control '{ids[0]}'"
+            f"{hint(str(ids[0]))}; the images name points such as "
+            f"{', '.join(repr(p) for p in observations.point_ids[:3])})"
+        )
     warnings.extend(
         f"{table.where(int(row))}: control point '{ids[row]}' ({kinds[row].value}) is "
-        "not observed on any photo; left out"
-        for row in np.flatnonzero(~is_observed)
+        f"not observed on any photo{hint(str(ids[row])) if hint else ''}; left out"
+        for row in missing
     )
     keep = np.flatnonzero(is_observed)
     control_points = ControlPoints(
