@@ -90,6 +90,37 @@ _KEY_PART = r"(?:(?<![A-Za-z0-9_-])[A-Za-z0-9_-]+|\"[^\"\n]*\"|'[^'\n]*')"
 _DOTTED_KEY = re.compile(rf"{_KEY_PART}(?:[ \t]*\.[ \t]*{_KEY_PART}){{{MAX_KEY_PARTS},}}")
 
 
+_BARE_WORD = re.compile(r"[^\s,\[\]{}\"'#=]+")
+
+
+def _toml_hint(text: str, message: str, line: int, column: int) -> str:
+    """The likely cause of tomllib's ``message`` at ``line``, ``column``
+    (1-based) among the mistakes of users of spreadsheets and other formats:
+    an id written as a number with leading zeros, a string without quotes, a
+    decimal comma."""
+    lines = text.splitlines()
+    if not 1 <= line <= len(lines):
+        return ""
+    row = lines[line - 1]
+    at = min(max(column - 1, 0), len(row))
+    start = at
+    while start > 0 and _BARE_WORD.fullmatch(row[start - 1]):
+        start -= 1
+    word = _BARE_WORD.match(row, start)
+    token = word.group() if word else ""
+    if re.fullmatch(r"0\d+", token):
+        return f' (a TOML number cannot start with 0: write ids as strings, "{token}")'
+    if message.startswith("Expected newline") and re.fullmatch(
+        r"\d,\d", row[max(at - 1, 0) : at + 2]
+    ):
+        return " (a decimal comma: write numbers with a point, e.g. 152.87)"
+    if message == "Invalid value" and token:
+        in_array = row[:start].rstrip().endswith(("[", ","))
+        value = token if in_array else row[start:].split("#")[0].strip()
+        return f' (a string must be in quotes: "{shorten(value, 40)}")'
+    return ""
+
+
 def _read_toml(path: Path) -> dict[str, Any]:
     text = decode(path, read_bytes(path, "project file", MAX_TOML_BYTES))
     dotted = _DOTTED_KEY.search(text)
@@ -107,8 +138,10 @@ def _read_toml(path: Path) -> dict[str, Any]:
         match = _TOML_POSITION.search(message)
         if match:
             message = message[: match.start()]
+            line, column = int(match.group(1)), int(match.group(2))
             raise ConfigError(
-                f"{path}:{match.group(1)}:{match.group(2)}: TOML syntax error: {message}"
+                f"{path}:{line}:{column}: TOML syntax error: {message}"
+                f"{_toml_hint(text, message.strip(), line, column)}"
             ) from None
         raise ConfigError(f"{path}: TOML syntax error: {message}") from None
     except (RecursionError, MemoryError):
