@@ -383,7 +383,7 @@ def _photo_zeros(p: Project) -> None:
     p.set_photos(new)
     header, rows = p.rows(p.images)
     number = {old: str(int(n)) for old, n in zip(photos, new, strict=True)}
-    p.write_rows(p.images, header, [[number[r[0]], *r[1:]] for r in rows])
+    p.write_rows(p.images, header, [[number.get(r[0], r[0]), *r[1:]] for r in rows])
 
 
 def _photos_as_numbers(p: Project) -> None:
@@ -582,7 +582,7 @@ MUTATIONS: tuple[Mutation, ...] = (
         "strip.toml: photos as numbers",
         FAIL,
         _photos_as_numbers,
-        (("photos", "cannot start with 0"),),
+        (("photos", "cannot start with 0", "must be in quotes"),),
     ),
     Mutation(
         "strip.toml: c as a string", FAIL, lambda p: _set_c_text(p), (("principal_distance_mm",),)
@@ -595,9 +595,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation("strip.toml: crs local", EITHER, lambda p: _set_crs(p, "local")),
     Mutation("control: every point a check point", FAIL, lambda p: _control_types(p, "check")),
     Mutation("control: two full points only", FAIL, lambda p: _control_types(p, "check", 2)),
-    Mutation(
-        "control: sigma_xy 0", FAIL, lambda p: p.map_column(p.control, "sigma_xy", lambda v: "0")
-    ),
+    Mutation("control: sigma_xy 0", FAIL, _cell("control", "sigma_xy", "0"), (("sigma_xy",),)),
 )
 
 
