@@ -38,10 +38,24 @@ NFD = unicodedata.normalize("NFD", NFC)
         (" 7 ", ["007"], "did you mean '007'?"),
         ("0301", ["301"], "did you mean '301'?"),
         ("P0301", ["P301"], ""),  # letters before the digits: not a number a spreadsheet made
+        ("p0301", ["P0301"], "did you mean 'P0301'? ids are case-sensitive"),
+        ("GCP01", ["gcp01", "GCP02"], "did you mean 'gcp01'? ids are case-sensitive"),
         ("9999", ["0301"], ""),
         ("0301", ["0301"], ""),  # the same id: nothing to say
     ],
-    ids=["nfd", "nfc", "zeros", "float", "spaces", "zeros-added", "letters", "none", "same"],
+    ids=[
+        "nfd",
+        "nfc",
+        "zeros",
+        "float",
+        "spaces",
+        "zeros-added",
+        "letters",
+        "case",
+        "case-gcp",
+        "none",
+        "same",
+    ],
 )
 def test_id_hints(word: str, candidates: list[str], expected: str) -> None:
     hint = IdHints(candidates)(word)

@@ -746,16 +746,19 @@ class IdHints:
     """For an id not found among ``candidates``, the candidate it differs
     from only in a way the eye does not see or a spreadsheet makes (the
     Unicode form, NFD against NFC; leading zeros dropped, or ``.0`` added to
-    a number), as `` (...)`` naming the cause, or empty.  The candidates'
-    forms are computed once, so that many ids can be asked about."""
+    a number) or in case, as `` (...)`` naming the cause, or empty.  The
+    candidates' forms are computed once, so that many ids can be asked
+    about."""
 
     def __init__(self, candidates: Sequence[str]) -> None:
         self._nfc: dict[str, str] = {}
         self._bare: dict[str, str] = {}
+        self._folded: dict[str, str] = {}
         for c in candidates:
             nfc, bare = _id_forms(c)
             self._nfc.setdefault(nfc, c)
             self._bare.setdefault(bare, c)
+            self._folded.setdefault(bare.casefold(), c)
 
     def __call__(self, word: str) -> str:
         if len(word) > 2 * MAX_ECHO:
@@ -773,6 +776,9 @@ class IdHints:
                 f" (did you mean '{c}'? a spreadsheet drops leading zeros or writes ids as "
                 "numbers: format the id column as text)"
             )
+        c = self._folded.get(bare.casefold())
+        if c is not None and c != word:
+            return f" (did you mean '{c}'? ids are case-sensitive)"
         return ""
 
 
