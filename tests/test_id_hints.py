@@ -144,3 +144,31 @@ def test_a_few_unobserved_control_points_are_warned_with_the_hint(tmp_path: Path
     (warning,) = load_project(folder / "strip.toml").warnings
     assert "control point '3' (full) is not observed on any photo" in warning
     assert "did you mean '0003'?" in warning
+
+
+def test_control_left_too_small_by_unmatched_ids_is_one_line_naming_them(tmp_path: Path) -> None:
+    """Most control ids lost their zeros, one did not: the run used to stop on
+    "similarity transformation needs at least two full or plan control
+    points, got 1" (and with -q without the warnings that named the rest)."""
+    folder = _copy(tmp_path)
+    _numeric_points(folder, control_zeros=False)
+    control = folder / "control.csv"
+    control.write_text(re.sub(r"^3,", "0003,", control.read_text("utf-8"), flags=re.M), "utf-8")
+    _one_error(
+        folder,
+        "control.csv:3: control point '8' (did you mean '0008'?",
+        "and 12 other(s) are not observed on any photo",
+        "two full or plan control points, got 1: '0003'",
+    )
+
+
+def test_unmatched_check_points_alone_stop_nothing(tmp_path: Path) -> None:
+    folder = _copy(tmp_path)
+    _numeric_points(folder, control_zeros=True)
+    control = folder / "control.csv"  # the check points' ids lose their zeros
+    text = re.sub(
+        r"^0+(\d+,[^,]*,[^,]*,[^,]*,check)", r"\1", control.read_text("utf-8"), flags=re.M
+    )
+    control.write_text(text, encoding="utf-8")
+    warnings = load_project(folder / "strip.toml").warnings
+    assert len(warnings) == 50 and all("(check) is not observed" in w for w in warnings)

@@ -19,6 +19,7 @@ import numpy as np
 from .._text import shorten
 from .._typing import FloatArray, IntArray
 from ..errors import ConfigError, ConvergenceError
+from ..geometry.control_geometry import control_count_problems
 from ..interior import (
     BrownDistortion,
     FiducialFit,
@@ -370,12 +371,24 @@ def _observed_control(
             f"{hint(str(ids[0]))}; the images name points such as "
             f"{', '.join(repr(p) for p in observations.point_ids[:3])})"
         )
+    keep = np.flatnonzero(is_observed)
+    lost = [int(r) for r in missing if kinds[r] is not ControlType.CHECK]
+    if lost and hint is not None:
+        plan = [str(ids[r]) for r in keep if kinds[r] in (ControlType.FULL, ControlType.PLAN)]
+        height = [str(ids[r]) for r in keep if kinds[r] in (ControlType.FULL, ControlType.HEIGHT)]
+        short = control_count_problems(plan, height)
+        if short:
+            raise ConfigError(
+                f"{table.path}:{table.line[lost[0]]}: control point '{ids[lost[0]]}'"
+                f"{hint(str(ids[lost[0]]))} and {len(lost) - 1} other(s) are not observed on "
+                f"any photo, which leaves too little control ({short[0]}): check the ids "
+                "against the image file's"
+            )
     warnings.extend(
         f"{table.where(int(row))}: control point '{ids[row]}' ({kinds[row].value}) is "
         f"not observed on any photo{hint(str(ids[row])) if hint else ''}; left out"
         for row in missing
     )
-    keep = np.flatnonzero(is_observed)
     control_points = ControlPoints(
         point_ids=tuple(ids[keep].tolist()),
         xyz=readonly(xyz[keep]),
