@@ -134,3 +134,27 @@ def test_control_in_km_is_one_line_in_check_and_run(tmp_path: Path, example: str
         assert "control.csv" in line and "X, Y in km" in line, line
         assert len(line) < 500
     assert not (folder / "out").exists()
+
+
+def test_a_reversed_image_axis_is_named_beside_swapped_control(tmp_path: Path) -> None:
+    """Image y measured downwards (as pixel rows run) mirrors the photos
+    against the control as swapped X and Y do: the message names both
+    causes (it named the control's columns only, whatever was wrong)."""
+    folder = tmp_path / "film"
+    shutil.copytree(EXAMPLES / "film-strip", folder, ignore=shutil.ignore_patterns("out"))
+    images = folder / "image_points.csv"
+    lines = images.read_text(encoding="utf-8").splitlines()
+    header = lines[0].split(",")
+    iy = header.index("y")
+    flipped = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        cells[iy] = repr(-float(cells[iy]))
+        flipped.append(",".join(cells))
+    images.write_text("\n".join(flipped) + "\n", encoding="utf-8")
+    result = CliRunner().invoke(cli, ["run", str(folder / "strip.toml")])
+    assert result.exit_code == 1
+    (line,) = result.stderr.splitlines()
+    assert "control is mirrored against the photos" in line, line
+    assert "X and Y columns swapped" in line and "one image axis reversed" in line, line
+    assert len(line) < 500

@@ -507,7 +507,8 @@ def control_handedness_problems(
             f"{votes_mirror + votes_proper} photos showing three or more plan control points, "
             "the image maps onto the control by a reflection (the fit with one is "
             f"{np.median(ratios):.0f} times closer); are the X and Y columns swapped "
-            "(easting and northing, or longitude and latitude)?"
+            "(easting and northing, or longitude and latitude), or, if the control is right, "
+            "one image axis reversed (y down, as pixel rows run)?"
         ]
     return []
 
