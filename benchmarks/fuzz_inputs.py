@@ -374,6 +374,9 @@ def _numeric_points(p: Project, control_zeros: bool) -> None:
     p.write_rows(p.control, header, [
         [number[r[0]] if control_zeros else str(int(number[r[0]])), *r[1:]] for r in rows
     ])  # fmt: skip
+    text = p.toml.read_text("utf-8")  # [[straight_line]] points name them too
+    text = re.sub(r'"([^"]*)"', lambda m: f'"{number.get(m[1], m[1])}"', text)
+    p.toml.write_text(text, encoding="utf-8")
 
 
 def _photo_zeros(p: Project) -> None:

@@ -172,3 +172,15 @@ def test_unmatched_check_points_alone_stop_nothing(tmp_path: Path) -> None:
     control.write_text(text, encoding="utf-8")
     warnings = load_project(folder / "strip.toml").warnings
     assert len(warnings) == 50 and all("(check) is not observed" in w for w in warnings)
+
+
+def test_a_straight_line_point_in_another_case(tmp_path: Path) -> None:
+    folder = tmp_path / "p"
+    shutil.copytree(FILM.parent / "drone-corridor", folder, ignore=shutil.ignore_patterns("out"))
+    toml = folder / "strip.toml"
+    toml.write_text(toml.read_text("utf-8").replace('"P0006"', '"p0006"', 1), encoding="utf-8")
+    _one_error(
+        folder,
+        "[[straight_line]] #1 points: point 'p0006' is not observed on any photo",
+        "(did you mean 'P0006'? ids are case-sensitive)",
+    )

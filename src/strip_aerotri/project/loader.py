@@ -55,6 +55,7 @@ from .schema import (
     IdHints,
     check_table,
     suggest,
+    suggest_id,
 )
 from .tables import (
     check_crs,
@@ -601,6 +602,7 @@ def _straight_lines(
             if pid not in observed:
                 raise ConfigError(
                     f"{label} points: point '{pid}' is not observed on any photo in {images_file}"
+                    f"{suggest_id(pid, observations.point_ids)}"
                 )
             if pid in control_ids:
                 raise ConfigError(
