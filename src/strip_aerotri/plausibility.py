@@ -674,9 +674,10 @@ def control_relief_problems(
     photo with two or more height points, they span more than
     :data:`_RELIEF_FACTOR` times s c, X, Y and H are not in one unit (X, Y
     in km with H in m, or H in mm with X, Y in m; heights in feet stay
-    within the bound unless the ground is as steep as the flight is low).  Units are only comparable
-    in a projected or local CRS: nothing is found when the plan coordinates
-    are degrees (the caller leaves a geographic CRS out).
+    within the bound unless the ground is as steep as the flight is low).
+    Units are only comparable in a projected or local CRS: nothing is found
+    when the plan coordinates are degrees (the caller leaves a geographic
+    CRS out).
 
     Parameters
     ----------
