@@ -415,6 +415,18 @@ def _from_the_corner(p: Project) -> None:
         p.map_column(p.images, c, lambda v: repr(float(v) + 115.0))
 
 
+def _from_the_format_corner(p: Project) -> None:
+    """x, y from the corner of the format: each shifted by half its range."""
+    header, rows = p.rows(p.images)
+    for c in ("x", "y"):
+        i = header.index(c)
+        values = [float(r[i]) for r in rows]
+        shift = 0.5 * (max(values) - min(values))
+        for r in rows:
+            r[i] = repr(float(r[i]) + shift)
+    p.write_rows(p.images, header, rows)
+
+
 def _pixels_top_left(p: Project) -> None:
     p.map_column(p.images, "x", lambda v: repr(float(v) / 0.005 + 23000.0))
     p.map_column(p.images, "y", lambda v: repr(-float(v) / 0.005 + 23000.0))
@@ -579,6 +591,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation("images: spaces around fields", OK, _spaces),
     Mutation("images: rows in reverse order", OK, _rows_reversed),
     Mutation("images: from the film corner", FAIL, _from_the_corner),
+    Mutation("images: from the format corner", FAIL, _from_the_format_corner, (("not centred",),)),
     Mutation("images: pixels from the top left", FAIL, _pixels_top_left),
     # strip.toml and the control
     Mutation(

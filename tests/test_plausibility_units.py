@@ -1,6 +1,9 @@
-"""Control plan coordinates and heights in different units (X, Y in km with
+"""Implausible input found by the catalogue fuzz (``benchmarks/fuzz_inputs.py``).
+
+Control plan coordinates and heights in different units (X, Y in km with
 H in m): ``plausibility.control_relief_problems``, against the same rule
-written photo by photo, and through ``stripaero check`` and ``run``.
+written photo by photo, and through ``stripaero check`` and ``run``; image
+coordinates from a corner of the format; a reversed image axis.
 
 Before this check, the film example with X and Y divided by 1000 passed
 ``stripaero check`` and stopped the run with "similarity transformation did
@@ -20,7 +23,13 @@ from click.testing import CliRunner
 
 import strip_aerotri as sa
 from strip_aerotri.cli.main import cli
-from strip_aerotri.plausibility import _RELIEF_FACTOR, control_problems, control_relief_problems
+from strip_aerotri.plausibility import (
+    _RELIEF_FACTOR,
+    control_problems,
+    control_relief_problems,
+    image_coordinate_problems,
+)
+from strip_aerotri.project import load_project
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -158,3 +167,53 @@ def test_a_reversed_image_axis_is_named_beside_swapped_control(tmp_path: Path) -
     assert "control is mirrored against the photos" in line, line
     assert "X and Y columns swapped" in line and "one image axis reversed" in line, line
     assert len(line) < 500
+
+
+def _shift_images(folder: Path, dx: float | None = None, dy: float | None = None) -> None:
+    """x, y moved by dx, dy (default: half their range, as from the format's corner)."""
+    images = folder / "image_points.csv"
+    lines = images.read_text(encoding="utf-8").splitlines()
+    header = lines[0].split(",")
+    ix, iy = header.index("x"), header.index("y")
+    rows = [line.split(",") for line in lines[1:]]
+    for i, d in ((ix, dx), (iy, dy)):
+        values = [float(r[i]) for r in rows]
+        shift = 0.5 * (max(values) - min(values)) if d is None else d
+        for r in rows:
+            r[i] = repr(float(r[i]) + shift)
+    images.write_text("\n".join([lines[0], *map(",".join, rows)]) + "\n", encoding="utf-8")
+
+
+def test_image_points_off_centre_by_the_rule_and_its_figures() -> None:
+    obs = load_project(EXAMPLES / "drone-corridor" / "strip.toml").observations
+    xy = np.asarray(obs.xy)
+    assert image_coordinate_problems(xy, obs.principal_distance) == []
+    moved = xy + 0.5 * np.ptp(xy, axis=0)
+    (message,) = image_coordinate_problems(moved, obs.principal_distance, file="i.csv")
+    low, high = moved.min(axis=0), moved.max(axis=0)
+    assert message.startswith("i.csv: the image points are not centred"), message
+    assert (
+        f"x from {low[0]:.4g} to {high[0]:.4g} mm, y from {low[1]:.4g} to {high[1]:.4g}" in message
+    )
+    # one axis is enough; a shift within the rule's half of the half range is not
+    half = 0.5 * np.ptp(xy, axis=0)
+    assert image_coordinate_problems(xy + np.array([0.0, 0.6 * half[1]]), obs.principal_distance)
+    assert image_coordinate_problems(xy + 0.4 * half, obs.principal_distance) == []
+    # too few points to tell
+    assert image_coordinate_problems(moved[:19], obs.principal_distance) == []
+
+
+@pytest.mark.parametrize("example", ["drone-corridor", "film-strip"])
+def test_image_points_from_the_format_corner_are_one_line(tmp_path: Path, example: str) -> None:
+    """The corridor's ran to exit 0 with check points at 10.9 m plan and
+    11.5 m height; the film's was called 'a typing error' of 35 points."""
+    folder = tmp_path / example
+    shutil.copytree(EXAMPLES / example, folder, ignore=shutil.ignore_patterns("out"))
+    _shift_images(folder)
+    for command in ("check", "run"):
+        result = CliRunner().invoke(cli, [command, str(folder / "strip.toml")])
+        assert result.exit_code == 1, result.output
+        (line,) = result.stderr.splitlines()
+        assert "image_points.csv: the image points are not centred" in line, line
+        assert "measured from a corner of the format" in line and len(line) < 500
+    assert not (folder / "out").exists()

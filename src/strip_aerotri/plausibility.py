@@ -6,8 +6,9 @@ one line naming the likely cause.  Each returns the problems it finds as
 messages (``stripaero check`` lists them all; a run stops at the first):
 
 * :func:`image_coordinate_problems` — image coordinates far outside any
-  film or sensor format (micrometres or pixels taken for millimetres), or
-  far inside it (metres);
+  film or sensor format (micrometres or pixels taken for millimetres), far
+  inside it (metres), or not centred on the principal point (measured from
+  a corner of the format);
 * :func:`ray_direction_problems` — photos listed against the flight, or a
   pair in the wrong order: after the relative orientation, the rays of such
   pairs meet behind the photos (a negative x-parallax); image x across the
@@ -54,9 +55,9 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MAX_IMAGE_RADIUS_MM",
+    "control_coverage_problems",
     "control_degree_problems",
     "control_distance_problems",
-    "control_coverage_problems",
     "control_handedness_problems",
     "control_relief_problems",
     "flight_axis_message",
@@ -140,7 +141,43 @@ def image_coordinate_problems(
             f"{_MIN_SPAN_OVER_C:g} of the principal distance c = {c:g} mm: are the "
             "coordinates in metres instead of millimetres?"
         )
-    return problems
+    # from a corner of the format, some points also lie beyond the radius:
+    # the origin is the cause, unless most do (then the unit is)
+    off = _off_centre_problems(xy, file)
+    most_out = outside.size > 0.5 * xy.shape[0]
+    return problems + off if most_out else off + problems
+
+
+#: Image points, measured over the whole format of every photo, lie about
+#: as far on each side of the principal point: their middle (half-way from
+#: the least to the greatest) beyond this fraction of their half range, on
+#: one axis, means another origin (a corner of the format).  Real projects
+#: stay under 0.04 (the examples, the external strips, the FC300X block,
+#: the import samples, tests/data).
+_OFF_CENTRE = 0.5
+#: Fewer image points than this say nothing about the format's middle.
+_OFF_CENTRE_MIN_POINTS = 20
+
+
+def _off_centre_problems(xy: FloatArray, file: str) -> list[str]:
+    """Image coordinates whose origin is not the principal point (a corner
+    of the format: pixels' columns and rows scaled to mm)."""
+    if xy.shape[0] < _OFF_CENTRE_MIN_POINTS:
+        return []
+    low, high = xy.min(axis=0), xy.max(axis=0)
+    middle, half = 0.5 * (low + high), 0.5 * (high - low)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off = np.abs(middle) / half
+    axes = [a for a in (0, 1) if half[a] > 0.0 and off[a] > _OFF_CENTRE]
+    if not axes:
+        return []
+    ranges = ", ".join(f"{'xy'[a]} from {low[a]:.4g} to {high[a]:.4g} mm" for a in (0, 1))
+    return [
+        f"{file}: the image points are not centred on the principal point ({ranges}, after "
+        "[camera] principal_point_mm): are they measured from a corner of the format? "
+        "Give the principal point's position in that system as principal_point_mm (or "
+        '[images] units = "pixel" with pixel_size_mm and principal_point_px)'
+    ]
 
 
 def ray_direction_problems(
@@ -429,7 +466,12 @@ def _plan_fit_residuals(
     za = a[:, 0] + 1j * a[:, 1]
     zb = b[:, 0] + 1j * b[:, 1]
     saa, sbb, bxx, byy, bxy = _group_sums(
-        group, n, (za * za.conj()).real, (zb * zb.conj()).real, b[:, 0] ** 2, b[:, 1] ** 2,
+        group,
+        n,
+        (za * za.conj()).real,
+        (zb * zb.conj()).real,
+        b[:, 0] ** 2,
+        b[:, 1] ** 2,
         b[:, 0] * b[:, 1],
     )
     fits = []
