@@ -11,6 +11,17 @@ steps Gauss-Newton on the sparse normal equations (SuperLU), from the
 engine's solution.  Optional camera terms (c, x0, y0, k1, k2, k3, p1, p2, b1,
 b2 in the correction form, mm, in the reduced axes) are extra unknowns.
 
+With ``--external`` it takes strips with a ``truth/`` folder instead (the
+independent simulator's, ``../shared/data/external-strips/*``): our
+refinement's check points against control.csv and against the truth, all
+points and centres against the truth divided by their own standard
+deviations, and a reference solved by Gauss-Newton from the truth to 1e-12
+on the same rays, control and sigmas in the refinement's tangent frame, its
+weighted sum of squares against ours (docs/bundle.md, "Against a reference
+bundle on strips from another simulator")::
+
+    python benchmarks/bench_reference_bundle.py - --external ../shared/data/external-strips/*
+
 Run on the real FC300X block (data in ``../shared/data/uav-block-fc300x``)::
 
     python benchmarks/bench_reference_bundle.py ../shared/data/uav-block-fc300x
@@ -224,6 +235,160 @@ def _used_rays(result: Any) -> np.ndarray:
     return used
 
 
+def _read_rows(path: Path) -> dict[str, dict[str, str]]:
+    import csv
+
+    with open(path, newline="") as f:
+        return {r[next(iter(r))]: r for r in csv.DictReader(f)}
+
+
+def _table(rows: dict[str, dict[str, str]], ids: list[str], cols: tuple[str, ...]) -> np.ndarray:
+    return np.array([[float(rows[i][c] or "nan") for c in cols] for i in ids])
+
+
+def _rmse(errors: np.ndarray) -> str:
+    """Plan / height RMSE (m) of E, N, H errors (N, 3)."""
+    plan = np.sqrt(np.mean(errors[:, 0] ** 2 + errors[:, 1] ** 2))
+    return f"{plan:.4f} / {np.sqrt(np.mean(errors[:, 2] ** 2)):.4f}"
+
+
+@dataclass
+class TruthComparison:
+    """A refinement against a simulation's truth (:func:`compare_with_truth`).
+
+    ``cost_*``: the weighted sum of squares of the refinement's rays and
+    control at the truth, at the refinement's solution and at the
+    reference's solution from the truth; ``largest_point_difference_m``
+    between the two solutions; ``point_z_rms``, ``centre_z_rms`` (3,) the RMS
+    over points and centres of (adjusted - true) / own sigma per frame axis;
+    ``point_error`` (P, 3) adjusted - true in the frame (m); ``reference``."""
+
+    cost_truth: float
+    cost_ours: float
+    cost_reference: float
+    largest_point_difference_m: float
+    point_z_rms: np.ndarray
+    centre_z_rms: np.ndarray
+    point_error: np.ndarray
+    reference: ReferenceBundle
+
+
+def compare_with_truth(
+    result: Any, points_true: np.ndarray, centres_true: np.ndarray, rotations_true: np.ndarray
+) -> TruthComparison:
+    """A run's refinement (``result.refined``, its frame) against the truth
+    given in that frame: points (P, 3), centres (M, 3), rotations image ->
+    frame (M, 3, 3); and a reference solved by Gauss-Newton from the truth to
+    1e-12 on the refinement's rays, control and sigmas (plan-only and
+    height-only control completed by the refinement's point, as it does)."""
+    from strip_aerotri.frames import TangentWorkFrame
+
+    refined, obs, ctrl = result.refined, result.strip.observations, result.control
+    frame = TangentWorkFrame(result.ground.crs, refined.frame)
+    lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
+    rows = [r for r in refined.control_index if not ctrl.is_check[r]]
+    idx = np.array([lookup[ctrl.point_ids[r]] for r in rows], dtype=np.intp)
+    given_crs = ctrl.xyz[rows]
+    adjusted_crs = frame.from_work(refined.points_frame[idx])
+    target = frame.to_work(np.where(np.isnan(given_crs), adjusted_crs, given_crs))
+    target[~ctrl.uses_xy[rows], :2] = np.nan
+    target[~ctrl.uses_h[rows], 2] = np.nan
+    sig = np.column_stack([ctrl.sigma_xy[rows], ctrl.sigma_xy[rows], ctrl.sigma_h[rows]])
+    used = refined.image_used
+    origin = np.mean(centres_true, axis=0)
+    ref = ReferenceBundle(
+        xy=obs.xy[used], sigma=obs.sigma[used], photo=obs.photo[used], point=obs.point[used],
+        c=obs.principal_distance, centres0=centres_true - origin, rotations0=rotations_true,
+        points0=points_true - origin, control_point=idx, control_xyz=target - origin,
+        control_sigma=sig,
+    )  # fmt: skip
+    cost_truth = float(np.sum(ref.residuals(np.zeros(ref.n_unknowns)) ** 2))
+    ref.solve(iterations=20, tolerance=1e-12)
+    _, _, pts_ref, _ = ref.unpack(ref.solution)
+    m, p = len(centres_true), len(points_true)
+    # our solution in the reference's unknowns: rotation vectors of R_ours R_trueᵀ
+    ours = ref.solution.copy()
+    turn = refined.photo_rotations_frame @ np.swapaxes(rotations_true, 1, 2)
+    ours[: 3 * m] = Rotation.from_matrix(turn).as_rotvec().ravel()
+    ours[3 * m : 6 * m] = (refined.photo_centres_frame - centres_true).ravel()
+    ours[6 * m : 6 * m + 3 * p] = np.nan_to_num(refined.points_frame - points_true).ravel()
+    seen = np.isin(np.arange(p), ref.point)
+    err = refined.points_frame - points_true
+    return TruthComparison(
+        cost_truth=cost_truth,
+        cost_ours=float(np.sum(ref.residuals(ours) ** 2)),
+        cost_reference=float(ref.sigma0**2 * ref.redundancy),
+        largest_point_difference_m=float(
+            np.max(np.abs(refined.points_frame[seen] - (pts_ref[seen] + origin)))
+        ),
+        point_z_rms=np.sqrt(np.mean((err[seen] / refined.point_std[seen]) ** 2, axis=0)),
+        centre_z_rms=np.sqrt(
+            np.mean(((refined.photo_centres_frame - centres_true) / refined.centre_std) ** 2, 0)
+        ),
+        point_error=err,
+        reference=ref,
+    )
+
+
+def external(folder: Path) -> None:
+    """Our refinement of an external strip (a folder with strip.toml and
+    ``truth/``) against the truth, and a reference bundle solved from the
+    truth in the refinement's own tangent frame on the same observations."""
+    from strip_aerotri.frames import TangentWorkFrame, enu_residuals
+    from strip_aerotri.project import load_project
+    from strip_aerotri.project.run import run_project
+
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in ("strip.toml", "control.csv", "image_points.csv"):
+            (Path(tmp) / name).write_bytes((folder / name).read_bytes())
+        toml = Path(tmp) / "strip.toml"
+        toml.write_text(toml.read_text() + '\n[adjustment]\nrefine = "bundle"\n')
+        result = run_project(load_project(toml))
+    refined, obs = result.refined, result.strip.observations
+    frame = TangentWorkFrame(result.ground.crs, refined.frame)
+    truth_pts = _read_rows(folder / "truth" / "points_truth.csv")
+    truth_photos = _read_rows(folder / "truth" / "photos_truth.csv")
+    control = _read_rows(folder / "control.csv")
+    ids = list(obs.point_ids)
+    centres_crs = _table(truth_photos, list(obs.photo_ids), ("X", "Y", "Z"))
+    opk = np.radians(_table(truth_photos, list(obs.photo_ids), ("omega", "phi", "kappa")))
+    cmp = compare_with_truth(
+        result,
+        frame.to_work(_table(truth_pts, ids, ("X", "Y", "H"))),
+        frame.to_work(centres_crs),
+        frame.work_from_enu(centres_crs) @ matrix_from_opk(opk),
+    )
+    used = refined.image_used
+    print(f"{folder.name}: {used.sum()} of {used.size} rays used, {len(refined.rejections)} "
+          f"rejections, sigma0 {refined.sigma0:.4f}, redundancy {refined.redundancy}")  # fmt: skip
+    # check points: against the control file and against the truth (E, N, H)
+    check = [i for i, pid in enumerate(ids) if control.get(pid, {}).get("type") == "check"]
+    ours = refined.points[check]
+    given = _table(control, [ids[i] for i in check], ("X", "Y", "H"))
+    true_crs = _table(truth_pts, [ids[i] for i in check], ("X", "Y", "H"))
+    crs = result.ground.crs
+    against = (enu_residuals(crs, given, ours), enu_residuals(crs, true_crs, ours))
+    own = enu_residuals(crs, given, true_crs)
+    print(f"  check RMSE plan / height (m): against control.csv {_rmse(against[0])}, "
+          f"against the truth {_rmse(against[1])}; "
+          f"control.csv's own error (given - truth) {_rmse(own)}")  # fmt: skip
+    err = cmp.point_error
+    print(f"  all points - truth, frame X / Y / Z: mean {np.round(np.mean(err, 0), 4)}, "
+          f"RMS {np.round(np.sqrt(np.mean(err**2, 0)), 4)} m; divided by their own sigma: "
+          f"RMS {np.round(cmp.point_z_rms, 2)}; centres divided by their own sigma: RMS "
+          f"{np.round(cmp.centre_z_rms, 2)}")  # fmt: skip
+    print(f"  cost (weighted sum of squares): truth {cmp.cost_truth:.3f}, "
+          f"ours {cmp.cost_ours:.6f}, Gauss-Newton from the truth to 1e-12 "
+          f"{cmp.cost_reference:.6f} (sigma0 {cmp.reference.sigma0:.4f}); "
+          f"ours - that solution: largest point difference "
+          f"{cmp.largest_point_difference_m * 1e6:.3f} µm")  # fmt: skip
+    _, _, pts_ref, _ = cmp.reference.unpack(cmp.reference.solution)
+    ref_check = frame.from_work(pts_ref[check] + np.mean(frame.to_work(centres_crs), axis=0))
+    print(f"  the reference's check RMSE: against control.csv "
+          f"{_rmse(enu_residuals(crs, given, ref_check))}, "
+          f"against the truth {_rmse(enu_residuals(crs, true_crs, ref_check))}")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> None:
     from strip_aerotri.importers.uav_fc300x import import_uav_fc300x
     from strip_aerotri.importers.writer import write_project
@@ -232,8 +397,17 @@ def main(argv: list[str] | None = None) -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("data", type=Path, help="the FC300X data folder")
+    parser.add_argument(
+        "--external", nargs="+", type=Path, default=(),
+        help="strips with a truth/ folder (../shared/data/external-strips/*): compare "
+        "the refinement with the truth and a reference solved from the truth instead",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     warnings.simplefilter("ignore")
+    if args.external:
+        for folder in args.external:
+            external(folder)
+        return
     with tempfile.TemporaryDirectory() as tmp:
         write_project(import_uav_fc300x(args.data), tmp, force=True)
         toml = Path(tmp) / "strip.toml"

@@ -56,13 +56,27 @@ def _bent_strip(seed: int):
     return obs, ground, control_point, control_xyz, n_points
 
 
-def test_grouped_start_reaches_the_same_solution_in_fewer_iterations():
+#: Rotations of the two paths' solutions agree to this (rad).  The adjustment
+#: stops when its step or its relative change of the cost is below its
+#: tolerance (1e-10), and the cost's change is flat near the solution: on
+#: seeds 1-7 the two paths ended 4e-11 to 1.9e-9 rad apart, with either
+#: inverse of the points' V in the projection after a step (LAPACK's: 1.5e-9
+#: at seed 1, 1.9e-9 at seed 5; the engine's: 1.7e-9 at seed 7), and both
+#: within 2e-9 rad of the solution iterated on to 1e-15.
+SAME_ROTATION = 2.5e-9
+#: Points agree to this (m): such a rotation over a unit's 100 m (seed 5,
+#: LAPACK's inverse: 1.1e-7 m; seed 7, the engine's: 9.8e-8 m).
+SAME_POINT = SAME_ROTATION * 100.0
+
+
+@pytest.mark.parametrize("seed", [1, 5, 7])
+def test_grouped_start_reaches_the_same_solution_in_fewer_iterations(seed):
     """From one similarity of the whole strip rolled 1.4 rad off (as J's
     similarity of a long strip bent by its chain is) the units must turn
     back; from the groups' adjustment they
-    start near their own similarities: the same solution (to 1e-7 m), in
+    start near their own similarities: the same solution (to 2.5e-7 m), in
     fewer iterations of the units' adjustment."""
-    obs, ground, control_point, control_xyz, n_points = _bent_strip(7)
+    obs, ground, control_point, control_xyz, n_points = _bent_strip(seed)
     one = UnitTransforms(
         np.ones(N_UNITS),
         np.broadcast_to(matrix_from_rotvec([1.4, 0.0, 0.0]), (N_UNITS, 3, 3)).copy(),
@@ -90,8 +104,10 @@ def test_grouped_start_reaches_the_same_solution_in_fewer_iterations():
         project_points=True, order="given", **common,
     )  # fmt: skip
     assert direct.converged and grouped.converged
-    np.testing.assert_allclose(grouped.points, direct.points, rtol=0, atol=1e-7)
-    np.testing.assert_allclose(grouped.transforms.rotation, direct.transforms.rotation, atol=1e-9)
+    np.testing.assert_allclose(grouped.points, direct.points, rtol=0, atol=SAME_POINT)
+    np.testing.assert_allclose(
+        grouped.transforms.rotation, direct.transforms.rotation, atol=SAME_ROTATION
+    )
     assert grouped.iterations < direct.iterations
     # the start is near each unit's own rotation: far nearer than the identity
     turn = start.transforms.rotation - direct.transforms.rotation

@@ -7,6 +7,10 @@ given at its final value, or no projection."""
 
 from __future__ import annotations
 
+import functools
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -178,7 +182,7 @@ def test_weight_lead_extrapolates_a_geometric_series_of_turns():
     the weights are turned ahead by the rest of the series (once as much as
     the last step, rho / (1 - rho) = 1), then two plain steps again; steps
     that disagree are not led."""
-    from strip_aerotri.geometry.simultaneous import _WeightLead
+    from strip_aerotri.geometry.units import WeightLead as _WeightLead
 
     rng = np.random.default_rng(8)
     rotation = matrix_from_rotvec(rng.normal(0.0, 0.3, (5, 3)))
@@ -203,3 +207,130 @@ def test_weight_lead_extrapolates_a_geometric_series_of_turns():
     lead.record(step)
     lead.record(1.5 * step)
     assert lead.ahead(rotation) is rotation
+
+
+@functools.cache
+def _long_problem():
+    """A 300-photo drone strip's models as the ground stage poses them
+    (the rows, the control and the start of the groups' adjustment)."""
+    import warnings
+
+    import strip_aerotri as sa
+    import strip_aerotri.ground.models as ground_models
+
+    sim = sa.simulate_strip(300, preset="drone", seed=5)
+    strip = sa.form_strip(sim.observations)
+    posed = {}
+    real = ground_models.adjust_units
+
+    def capture(*args, **kwargs):
+        posed.setdefault("call", (args, kwargs))
+        return real(*args, **kwargs)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sa.StripAerotriWarning)
+        ground_models.adjust_units = capture
+        try:
+            ground_models.adjust_models_to_ground(strip, sim.control, sim.crs)
+        finally:
+            ground_models.adjust_units = real
+    return posed["call"]
+
+
+def test_gradients_and_chord_step_are_the_engines_own():
+    """At one state, the right-hand side the chord steps form
+    (_gradients) is the one the engine forms with the full normal
+    equations, and the chord step on that state's own factor is its full
+    step (to rounding)."""
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    args, kwargs = _long_problem()
+    obs, n_units, n_points = args
+    prob = sim_module._Problem(
+        obs, n_units, n_points, kwargs["control_point"], np.asarray(kwargs["control_xyz"]),
+        np.asarray(kwargs["control_sigma"]), (), None, "given", kwargs["weight_rotation"],
+    )  # fmt: skip
+    st = sim_module._start_state(prob, kwargs["start"], kwargs["points0"])
+    prob.turn_weights(st.rotation)
+    st = sim_module._projected(prob, st)
+    formed = prob.structure.form(*sim_module._engine_rows(prob, st))
+    g_unit, g_point = sim_module._gradients(prob, st)
+    normals = formed._normals
+    scale = np.max(np.abs(normals.g_unit))
+    np.testing.assert_allclose(g_unit, normals.g_unit, rtol=0, atol=1e-12 * scale)
+    scale = np.max(np.abs(normals.g_point))
+    np.testing.assert_allclose(g_point, normals.g_point, rtol=0, atol=1e-12 * scale)
+    sol = formed.solve()
+    du, dp = sol.chord_step(g_unit, g_point)
+    for chord, full in ((du, sol.unit_step), (dp, sol.point_step)):
+        np.testing.assert_allclose(chord, full, rtol=0, atol=1e-9 * np.abs(full).max())
+
+
+def test_chord_steps_change_the_cost_not_the_solution(monkeypatch):
+    """The ground stage's adjustment of a 300-photo strip's models: with chord
+    steps near the solution it forms the normal equations fewer times and
+    ends where full steps all the way end (to 1e-8 m), its statistics
+    (from the last full factor, 1e-7 of the strip from the solution) within
+    1e-6 of theirs."""
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    args, kwargs = _long_problem()
+    solves = []
+    real_solve = sim_module._solve
+
+    def counted(prob, st):
+        solves.append(prob.n_units)
+        return real_solve(prob, st)
+
+    monkeypatch.setattr(sim_module, "_solve", counted)
+    with_chords = sim_module.adjust_units(*args, **kwargs)
+    n_chorded = len(solves)
+    monkeypatch.setattr(sim_module, "_CHORD_FROM", 0.0)
+    solves.clear()
+    full = sim_module.adjust_units(*args, **kwargs)
+    assert with_chords.converged and full.converged
+    assert n_chorded < len(solves)
+    np.testing.assert_allclose(with_chords.points, full.points, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(
+        with_chords.control_redundancy, full.control_redundancy, rtol=0, atol=1e-6
+    )
+    np.testing.assert_allclose(with_chords.control_w, full.control_w, rtol=0, atol=1e-5)
+    finite = np.isfinite(full.row_statistic)
+    np.testing.assert_allclose(
+        with_chords.row_statistic[finite], full.row_statistic[finite], rtol=1e-6
+    )
+
+
+def test_the_rows_work_on_two_threads_gives_the_result_of_one(monkeypatch):
+    """The work row by row (weights turned, design, residuals, projection,
+    leverage) in blocks over two threads: the worker takes blocks, and the
+    result is that of one thread to the last bit."""
+    from strip_aerotri import _threads
+    from strip_aerotri.geometry import _normal_entries
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    args, kwargs = _long_problem()
+    monkeypatch.setenv(_threads.WORKERS_VARIABLE, "1")
+    one = sim_module.adjust_units(*args, **kwargs)
+    monkeypatch.setattr(_threads, "_usable_cores", lambda: 2)
+    monkeypatch.setattr(_threads, "MIN_PARALLEL_SIZE", 0)
+    monkeypatch.setattr(_normal_entries, "BLOCK", 512)
+    monkeypatch.setenv(_threads.WORKERS_VARIABLE, "2")
+    names: set[str] = set()
+    real = sim_module._by_rows
+
+    def by_rows(n_rows, block):
+        def recorded(rows):
+            names.add(threading.current_thread().name)
+            time.sleep(0.0002)  # blocks long enough for the worker to take some
+            return block(rows)
+
+        return real(n_rows, recorded)
+
+    monkeypatch.setattr(sim_module, "_by_rows", by_rows)
+    two = sim_module.adjust_units(*args, **kwargs)
+    assert any(name.startswith("strip_aerotri-worker") for name in names)
+    for name in ("points", "residuals", "row_statistic", "control_w", "control_redundancy"):
+        np.testing.assert_array_equal(getattr(two, name), getattr(one, name), err_msg=name)
+    np.testing.assert_array_equal(two.transforms.rotation, one.transforms.rotation)
+    assert two.iterations == one.iterations and two.sigma0 == one.sigma0

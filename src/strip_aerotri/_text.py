@@ -11,8 +11,9 @@ that a message stays one readable line however large the value.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 
-__all__ = ["MAX_ECHO", "MAX_LINE", "clean", "shorten"]
+__all__ = ["MAX_ECHO", "MAX_LINE", "clean", "named", "shorten"]
 
 #: Characters of one echoed value (an id, a cell, a name) in a message.
 MAX_ECHO = 60
@@ -57,3 +58,13 @@ def shorten(text: object, limit: int = MAX_ECHO) -> str:
     keep = max(limit - marker_len, 2)
     head, tail = value[: (keep + 1) // 2], value[len(value) - keep // 2 :]
     return f"{head}…({total - len(head) - len(tail)} characters)…{tail}"
+
+
+def named(ids: Sequence[object], limit: int = 5) -> str:
+    """The first ``limit`` of ``ids`` quoted and joined, and how many more.
+
+    >>> named(["a", "b", "c"], 2)
+    "'a', 'b' and 1 more"
+    """
+    text = ", ".join(repr(i) for i in ids[:limit])
+    return text + (f" and {len(ids) - limit} more" if len(ids) > limit else "")

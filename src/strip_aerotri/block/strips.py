@@ -320,6 +320,55 @@ def _keep_given(resid: FloatArray, p: _Problem) -> None:
     resid[np.isnan(p.given)] = np.nan
 
 
+def _with_restored_control(
+    p: _Problem,
+    sol: _Solution,
+    use_xy: BoolArray,
+    use_z: BoolArray,
+    block: BlockResult,
+    restored: BoolArray,
+    points_work: FloatArray,
+) -> tuple[_Problem, _Solution, BoolArray, BoolArray, BlockResult]:
+    """The control rows of the points the block left out and the refinement
+    restored (``restored`` (P,), start values ``points_work``), appended to
+    the problem, to its solution's guesses (a missing component from the
+    start value, as the block's own rows take the block's) and to the block's
+    tables, where their residuals are NaN: the block had none."""
+    if not restored.any():
+        return p, sol, use_xy, use_z, block
+    lookup = {pid: i for i, pid in enumerate(p.observations.point_ids)}
+    point_of = np.array([lookup.get(pid, -1) for pid in p.control.point_ids], dtype=np.intp)
+    new = np.flatnonzero((point_of >= 0) & restored[np.maximum(point_of, 0)])
+    new = new[~np.isin(new, p.control_rows)]
+    if not new.size:
+        return p, sol, use_xy, use_z, block
+    ctrl, idx = p.control, point_of[new]
+    check = ctrl.is_check[new]
+    new_xy, new_z = ctrl.uses_xy[new] & ~check, ctrl.uses_h[new] & ~check
+    given = ctrl.xyz[new]
+    p = replace(
+        p,
+        control_rows=np.concatenate([p.control_rows, new]),
+        idx=np.concatenate([p.idx, idx]),
+        given=np.vstack([p.given, given]),
+        sigma=np.vstack(
+            [p.sigma, np.column_stack([ctrl.sigma_xy[new], ctrl.sigma_xy[new], ctrl.sigma_h[new]])]
+        ),
+        use_xy=np.concatenate([p.use_xy, new_xy]),
+        use_z=np.concatenate([p.use_z, new_z]),
+        check=np.concatenate([p.check, check]),
+    )
+    guess = np.where(np.isnan(given), p.work.from_work(points_work[idx]), given)
+    sol = replace(sol, guess=np.vstack([sol.guess, guess]))
+    block = replace(
+        block,
+        control_index=p.control_rows,
+        is_check=p.check,
+        control_residuals=np.vstack([block.control_residuals, np.full((new.size, 3), np.nan)]),
+    )
+    return p, sol, np.concatenate([use_xy, new_xy]), np.concatenate([use_z, new_z]), block
+
+
 def _refine(
     p: _Problem,
     sol: _Solution,
@@ -337,9 +386,17 @@ def _refine(
     frame (plan-only and height-only control keep the block's value of their
     other coordinate)."""
     from ..bundle.refine import gnss_imu_in_frame, gnss_imu_outcomes, lost_points_note
+    from ..bundle.start_points import restore_points, restored_points_note
     from ..bundle.variance import refine_frame_weighted
 
-    points0, centres0, rot0 = _in_work_frame(p, sol)
+    block_points, centres0, rot0 = _in_work_frame(p, sol)
+    # points the block left out, intersected from its photos (bundle/start_points.py);
+    # a control or check point among them takes its control row again
+    restored = restore_points(p.observations, centres0, rot0, block_points, blunders=blunders)
+    points0 = restored.points
+    p, sol, use_xy, use_z, block = _with_restored_control(
+        p, sol, use_xy, use_z, block, restored.restored, points0
+    )
     n_points = p.observations.n_points
     target = p.work.to_work(sol.guess)
     control_xyz = np.full((n_points, 3), np.nan)
@@ -390,7 +447,10 @@ def _refine(
     used[~used_xy, :2] = np.nan
     used[~used_z, 2] = np.nan
     notes = tuple(r.describe() for r in fr.rejections)
-    notes += tuple(lost_points_note(p.observations.point_ids, points0, fr.point_used))
+    notes += tuple(lost_points_note(p.observations.point_ids, block_points, fr.point_used))
+    notes += tuple(
+        restored_points_note(p.observations.point_ids, restored.restored, fr.point_used)
+    )
     if fr.self_calibration is not None:
         notes = fr.self_calibration.notes + notes
     return replace(

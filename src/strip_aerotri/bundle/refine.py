@@ -40,6 +40,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._text import named
 from .._threads import limit_blas_threads
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import StripAerotriWarning
@@ -60,6 +61,7 @@ from ._structures import reusing_structures
 from .photo_tests import _directional_tests
 from .selfcal import carried_choice
 from .snooping import GNSS_STAGE, IMU_STAGE, refine_frame
+from .start_points import restore_points, restored_points_note
 from .variance import refine_frame_weighted
 
 __all__ = [
@@ -313,8 +315,10 @@ def refine_bundle(
     components are completed from the adjusted point and iterated (passes)
     in a curved frame.  Photo centres and attitudes observed by GNSS and IMU
     are converted into the frame (attitudes through east-north-up at the
-    centre).  Points the strip method did not triangulate have no initial
-    value and are left out (NaN).
+    centre).  Points the strip method left out after its tie tests are
+    intersected from its photos when three or more of their rays agree
+    (:mod:`strip_aerotri.bundle.start_points`), so that the snooping tests
+    each ray; points without agreeing rays stay out (NaN).
 
     Examples
     --------
@@ -340,6 +344,11 @@ def refine_bundle(
     has_point[seen] = np.all(np.isfinite(result.points[row_point[seen]]), axis=1)
     frame = _frame_for(result, np.flatnonzero(has_point), row_point)
     start = _start_values(result, frame)
+    strip_points = start.points
+    # points the strip method left out, intersected from its photos (start_points.py)
+    restored = restore_points(obs, start.centres, start.rotations, start.points, blunders=blunders)
+    start = start._replace(points=restored.points)
+    has_point[seen] |= restored.restored[row_point[seen]]  # their control and checks too
     rows = np.flatnonzero(has_point)
     ctrl = _control_rows(control, rows, row_point[rows], obs.n_points)
     aux = gnss_imu_in_frame(obs.photo_ids, result.photo_centres, frame, gnss, imu)
@@ -384,7 +393,8 @@ def refine_bundle(
         dropped = [control.point_ids[r] for r in ctrl.rows[~keep_rows & ~check]]
         notes.append(f"control point(s) {', '.join(map(repr, dropped[:5]))} left out")
     notes += [r.describe() for r in rejections]
-    notes += lost_points_note(obs.point_ids, start.points, fr.point_used)
+    notes += lost_points_note(obs.point_ids, strip_points, fr.point_used)
+    notes += restored_points_note(obs.point_ids, restored.restored, fr.point_used)
     if fr.self_calibration is not None:
         notes += list(fr.self_calibration.notes)
     return RefinedResult(
@@ -437,11 +447,10 @@ def lost_points_note(point_ids: Sequence[str], start: ArrayLike, used: ArrayLike
     lost = np.flatnonzero(had & ~np.asarray(used, dtype=bool))
     if not lost.size:
         return []
-    names = ", ".join(repr(point_ids[i]) for i in lost[:5])
-    more = f" and {lost.size - 5} more" if lost.size > 5 else ""
+    names = named([point_ids[i] for i in lost.tolist()])
     return [
         f"bundle: {lost.size} point(s) kept fewer than two rays after the rejections and are "
-        f"no longer determined (left out of points.csv): {names}{more}"
+        f"no longer determined (left out of points.csv): {names}"
     ]
 
 
@@ -595,6 +604,10 @@ def _passes(
     idx, given_crs = ctrl.idx, ctrl.given_crs
     t_frame = t_bundle = 0.0
     adjusted_crs = np.array(result.points)
+    missing = ~np.all(np.isfinite(adjusted_crs), axis=1) & np.all(
+        np.isfinite(start.points), axis=1
+    )
+    adjusted_crs[missing] = frame.from_work(start.points[missing])  # points restored
     state = (start.centres, start.rotations, start.points)
     obs_used: BoolArray | None = None
     ctrl_used: BoolArray | None = None

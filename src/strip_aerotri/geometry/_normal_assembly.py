@@ -427,6 +427,32 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     )
 
 
+def chord_step(
+    st: NormalStructure, red: Reduced, g_unit: FloatArray, g_point: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The step (units (n, d), points (p, 3)) of other gradients ``g_unit``,
+    ``g_point`` with the normal matrix of `red` (its banded factor, its
+    points' ``V⁻¹`` and the pairs' ``W``): the elimination of
+    :func:`reduce_points` for a new right-hand side, without forming or
+    factoring again (a chord, or simplified Gauss-Newton, step).  Without a
+    border only."""
+
+    if st.n_border:
+        raise ValueError("Expected a structure without a border for a chord step")
+    pat = st.pattern
+    n, d = st.n_units, st.unit_size
+    b_point = -g_point
+    mb = lower_times(red.m_pair, take(b_point.T, pat.pair_point))  # M b_p of each pair
+    zmb = np.einsum("ack,ck->ak", red.z, mb)  # W V⁻¹ b_p of each pair
+    rhs_unit = -g_unit - run_sums(zmb, pat.pair_unit_runs, n)
+    unit_step = np.empty((n, d))
+    unit_step[pat.order] = red.factor.solve(rhs_unit[pat.order].reshape(-1)).reshape(n, d)
+    wu = np.einsum("abk,ak->bk", red.normals.w, take(unit_step.T, pat.pair_unit))
+    t_p = b_point - run_sums(wu, pat.point_runs, st.n_points)
+    point_step: FloatArray = np.einsum("pij,pj->pi", red.v_inv, t_p)
+    return unit_step, point_step
+
+
 def _border_inverse(st: NormalStructure, t: FloatArray) -> tuple[FloatArray, float]:
 
     diag = np.diag(t).copy()

@@ -92,6 +92,7 @@ from ._normal_assembly import (
     Cofactors,
     Reduced,
     assemble,
+    chord_step,
     cofactors,
     predicted_cost,
     reduce_points,
@@ -394,6 +395,17 @@ class NormalSolution:
 
         assert isinstance(self._state, Reduced)
         return self._state.v_inv
+
+    def chord_step(self, g_unit: FloatArray, g_point: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The step (units (n, d), points (p, 3)) of other gradients ``Aᵀ P f``
+        (units (n, d), points (p, 3), as :meth:`NormalStructure.form` forms
+        them) with this solution's normal matrix, factored already: a
+        simplified Gauss-Newton step at an unknown that moved little since.
+        Undamped solutions without a border only."""
+        if self.damping != 0.0:
+            raise ValueError("Expected an undamped solution for a chord step")
+        assert isinstance(self._state, Reduced)
+        return chord_step(self._structure, self._state, g_unit, g_point)
 
     @property
     def predicted_cost(self) -> float:

@@ -35,7 +35,7 @@ independent models", Photogrammetric Engineering 36; R4 §2.2-§3.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from functools import partial
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -48,9 +48,11 @@ from .rotation import matrix_from_rotvec
 from .units import (
     N_UNIT,
     LineCondition,
+    SimultaneousResult,
     UnitObservations,
     UnitPolynomial,
     UnitTransforms,
+    WeightLead,
     baarda_delta,
 )
 
@@ -84,95 +86,16 @@ _MIN_TESTED_REDUNDANCY = 1e-3
 _WEIGHT_TURN = 1e-10
 
 
-@dataclass(frozen=True)
-class SimultaneousResult:
-    """Result of :func:`adjust_units`.
+def _by_rows(n_rows: int, block: Callable[[slice], object]) -> None:
+    """``block(rows)`` for consecutive blocks of the ``n_rows`` rows, shared
+    with the worker thread of :func:`~strip_aerotri._threads.compute_workers`
+    where one is open (:func:`adjust_units` opens it): each block reads and
+    writes its own rows only, so the result is that of one call on all rows,
+    bit for bit."""
+    from .._threads import split_map
+    from ._normal_entries import spans
 
-    Attributes
-    ----------
-    transforms : UnitTransforms
-    points : ndarray, shape (P, 3)
-        Adjusted points, work frame (NaN for points no row determines).
-    residuals : ndarray, shape (n, 3)
-        ``T_u(x) − X_p`` of every row at the solution, metres.
-    row_statistic : ndarray, shape (n,)
-        ``v̄ᵀ W v̄`` of each row's residual over its redundancy share (about
-        chi-square with 3 degrees of freedom when the weights are right;
-        the share is estimated with the units held fixed and spread evenly
-        over the units' parameters).
-    control_residuals : ndarray, shape (C, 3)
-        Given minus adjusted control coordinates (NaN where not given).
-    control_cofactor : ndarray, shape (C, 3, 3)
-        Cofactor (covariance at σ0 = 1) of the adjusted control points: the
-        diagonal entries of their given components (NaN elsewhere).
-    control_redundancy : ndarray, shape (C, 3)
-        Redundancy numbers ``1 − q_kk / σ_k²`` of the given components.
-    control_w : ndarray, shape (C, 3)
-        Baarda's w of the given components at their a priori sigmas (NaN
-        where the redundancy is below 1e-3: too little of an error shows to
-        tell it from the model's imperfections).
-    line_parameters : ndarray, shape (L, 2)
-        ``a, b`` of each line.
-    line_residuals : tuple of ndarray
-        ``Y − a − b X`` of each line's points, metres.
-    line_w : tuple of ndarray
-        Baarda's w of each line equation at its sigma, with its exact
-        redundancy number ``1 − q_ee / σ²`` (``q_ee`` the cofactor of the
-        adjusted ``Y − a − b X``, the line's ``a, b`` included); NaN where r
-        is below 1e-3.
-    line_redundancy : tuple of ndarray
-        Those redundancy numbers.
-    sigma0 : float
-        A posteriori standard deviation of unit weight (NaN without
-        redundancy).
-    redundancy : int
-    iterations : int
-    converged : bool
-    coefficient_variance : ndarray, shape (U, n_terms), optional
-        With a polynomial: the cofactor (variance at σ0 = 1) of every
-        coefficient, its prior included; near the prior's variance, the
-        data say little of that term.
-    probe_points : ndarray of int, shape (U,), optional
-        One point of each of at most 24 units evenly along the block (the
-        point the most units share; -1 for the other units), whose plan
-        precision :attr:`probe_plan_sigma` gives: how well the adjustment
-        holds the plan position along the block of units.
-    probe_plan_sigma : ndarray, shape (U,), optional
-        A priori plan standard deviation ``sqrt(q_xx + q_yy)`` of the probe
-        points (metres at σ0 = 1; NaN for -1). None without statistics.
-    statistics_later : callable, optional
-        Without the statistics (``statistics=False``): what computes them
-        (:meth:`with_statistics`).
-    """
-
-    transforms: UnitTransforms
-    points: FloatArray
-    residuals: FloatArray
-    row_statistic: FloatArray
-    control_residuals: FloatArray
-    control_cofactor: FloatArray
-    control_redundancy: FloatArray
-    control_w: FloatArray
-    line_parameters: FloatArray
-    line_residuals: tuple[FloatArray, ...]
-    line_w: tuple[FloatArray, ...]
-    line_redundancy: tuple[FloatArray, ...]
-    sigma0: float
-    redundancy: int
-    iterations: int
-    converged: bool
-    coefficient_variance: FloatArray | None = None
-    probe_points: IntArray | None = None
-    probe_plan_sigma: FloatArray | None = None
-    statistics_later: Callable[[], SimultaneousResult] | None = field(
-        default=None, repr=False, compare=False
-    )
-
-    def with_statistics(self) -> SimultaneousResult:
-        """This result with the statistics of the control and lines, from the
-        factor of its last step (a result of ``statistics=False``; the
-        adjustment is not solved again)."""
-        return self if self.statistics_later is None else self.statistics_later()
+    split_map(block, spans(n_rows))
 
 
 def _rows_whitening(weight: FloatArray) -> FloatArray:
@@ -281,8 +204,17 @@ class _Problem:
                 return False
         self.turned_at = rotation.copy()
         delta_t = np.swapaxes(rotation @ np.swapaxes(self.weight_rotation, 1, 2), 1, 2)
-        self.whiten = self.whiten0 @ delta_t[self.obs.unit]
-        self.point_jacobian = -self.whiten
+        unit, whiten0 = self.obs.unit, self.whiten0
+        # C order, as the product on all rows at once gives them (whiten0 is
+        # a transposed view; other strides change the later products' last bits)
+        whiten, point_jacobian = np.empty(whiten0.shape), np.empty(whiten0.shape)
+
+        def block(rows: slice) -> None:
+            np.matmul(whiten0[rows], delta_t[unit[rows]], out=whiten[rows])
+            np.negative(whiten[rows], out=point_jacobian[rows])
+
+        _by_rows(unit.size, block)
+        self.whiten, self.point_jacobian = whiten, point_jacobian
         return True
 
     @property
@@ -331,13 +263,32 @@ def _predict(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
     u = prob.obs.unit
     y = st.turned
     if y is None:
-        offset = prob.offset
-        if prob.basis is not None:
-            offset = offset + np.einsum("nik,nk->ni", prob.basis, st.coefficients[u])
-        y = st.scale[u, None] * np.einsum("nij,nj->ni", st.rotation[u], offset)
-        st.turned = y
+        basis, coefficients = prob.basis, st.coefficients
+        turned = np.empty(prob.offset.shape)
+
+        def block(rows: slice) -> None:
+            offset = prob.offset[rows]
+            if basis is not None:
+                offset = offset + np.einsum("nik,nk->ni", basis[rows], coefficients[u[rows]])
+            ur = u[rows]
+            turned[rows] = st.scale[ur, None] * np.einsum("nij,nj->ni", st.rotation[ur], offset)
+
+        _by_rows(u.size, block)
+        st.turned = y = turned
     v = st.translation[u] + y - st.points[prob.obs.point]
     return y, v
+
+
+def _whitened(prob: _Problem, v: FloatArray) -> FloatArray:
+    """``Lᵀ v`` of every row (n, 3), by blocks of rows (:func:`_by_rows`)."""
+    whiten = prob.whiten
+    out = np.empty(v.shape)
+
+    def block(rows: slice) -> None:
+        out[rows] = np.einsum("nij,nj->ni", whiten[rows], v[rows])
+
+    _by_rows(v.shape[0], block)
+    return out
 
 
 def _line_terms(prob: _Problem, st: _State, k: int) -> tuple[FloatArray, FloatArray, float]:
@@ -350,7 +301,7 @@ def _line_terms(prob: _Problem, st: _State, k: int) -> tuple[FloatArray, FloatAr
 
 def _cost(prob: _Problem, st: _State) -> float:
     _, v = _predict(prob, st)
-    wv = np.einsum("nij,nj->ni", prob.whiten, v)
+    wv = _whitened(prob, v)
     total = float(np.einsum("ij,ij->", wv, wv))
     c = st.points[prob.control_point] - prob.control_xyz
     g = prob.control_given
@@ -371,14 +322,13 @@ def _engine_rows(prob: _Problem, st: _State) -> tuple[list[Any], list[Any], list
 
     obs = prob.obs
     y, v = _predict(prob, st)
-    lt = prob.whiten
     unit_point = [
         UnitPointRows(
             obs.unit,
             prob.engine_point[obs.point],
             _whitened_design(prob, st, y),
             prob.point_jacobian,
-            np.einsum("nij,nj->ni", lt, v),
+            _whitened(prob, v),
         )
     ]
     unit_rows = []
@@ -398,18 +348,24 @@ def _whitened_design(prob: _Problem, st: _State, y: FloatArray) -> FloatArray:
     point's is -I), so ``Lᵀ A = [Lᵀ | rows y × l_i | Lᵀ y | Lᵀ s R B]``
     with ``l_i`` the rows of ``Lᵀ`` (written out: a batched product of
     3 × 3 by 3 × 7 matrices costs three times as much)."""
-    lt = prob.whiten
-    out = np.empty((lt.shape[0], 3, prob.width))
-    out[:, :, 0:3] = lt
-    l0, l1, l2 = lt[:, :, 0], lt[:, :, 1], lt[:, :, 2]
-    y0, y1, y2 = y[:, 0, None], y[:, 1, None], y[:, 2, None]
-    out[:, :, 3] = y1 * l2 - y2 * l1  # (y × l_i), the rows of -Lᵀ [y]×
-    out[:, :, 4] = y2 * l0 - y0 * l2
-    out[:, :, 5] = y0 * l1 - y1 * l0
-    out[:, :, 6] = l0 * y0 + l1 * y1 + l2 * y2
-    if prob.basis is not None:
-        u = prob.obs.unit
-        out[:, :, N_UNIT:] = lt @ (st.scale[u, None, None] * (st.rotation[u] @ prob.basis))
+    whiten = prob.whiten
+    out = np.empty((whiten.shape[0], 3, prob.width))
+    u, basis = prob.obs.unit, prob.basis
+
+    def block(rows: slice) -> None:
+        lt, yr, o = whiten[rows], y[rows], out[rows]
+        o[:, :, 0:3] = lt
+        l0, l1, l2 = lt[:, :, 0], lt[:, :, 1], lt[:, :, 2]
+        y0, y1, y2 = yr[:, 0, None], yr[:, 1, None], yr[:, 2, None]
+        o[:, :, 3] = y1 * l2 - y2 * l1  # (y × l_i), the rows of -Lᵀ [y]×
+        o[:, :, 4] = y2 * l0 - y0 * l2
+        o[:, :, 5] = y0 * l1 - y1 * l0
+        o[:, :, 6] = l0 * y0 + l1 * y1 + l2 * y2
+        if basis is not None:
+            ur = u[rows]
+            o[:, :, N_UNIT:] = lt @ (st.scale[ur, None, None] * (st.rotation[ur] @ basis[rows]))
+
+    _by_rows(whiten.shape[0], block)
     return out
 
 
@@ -456,35 +412,16 @@ def _line_rows(prob: _Problem, st: _State, k: int) -> Any:
     )
 
 
-class _Step:
-    """The engine's solution of one linearisation (unit, point and border
-    steps, the cofactors) and its points' 3 x 3 normal blocks ``V`` (the
-    points the rows observe, in the order of :attr:`_Problem.points_used`)."""
-
-    def __init__(self, solution: NormalSolution, point_normals: FloatArray) -> None:
-        self.solution = solution
-        self.point_normals = point_normals
-        self._inverse: FloatArray | None = None
-
-    def point_inverse(self) -> FloatArray:
-        """``V⁻¹`` of every point by LAPACK (computed once), for the points'
-        projection after a step: the path of the iterations.  (The engine's
-        own V⁻¹, from its closed-form factors, differs in the last bits, and
-        the solutions reached from two starts then differ by up to 1.1e-9
-        rad instead of 1e-9: tests/test_grouped_start.py.)"""
-        if self._inverse is None:
-            self._inverse = np.asarray(np.linalg.inv(self.point_normals), dtype=np.float64)
-        return self._inverse
-
-
-def _solve(prob: _Problem, st: _State) -> _Step:
-    """The step of one Gauss-Newton iteration at ``st``."""
+def _solve(prob: _Problem, st: _State) -> NormalSolution:
+    """The step of one Gauss-Newton iteration at ``st``, with the points'
+    ``V⁻¹`` of its normal equations (their rows' and their control's
+    weights: :attr:`NormalSolution.point_inverse`, in the order of
+    :attr:`_Problem.points_used`) and its cofactors."""
     from .normals import SingularNormalsError
 
     unit_point, unit_rows, point_rows = _engine_rows(prob, st)
     try:
-        formed = prob.structure.form(unit_point, unit_rows, point_rows)
-        return _Step(formed.solve(), formed.point_blocks)
+        return prob.structure.solve(unit_point, unit_rows, point_rows)
     except SingularNormalsError as exc:
         if exc.kind == "unit":
             what = f"unit {exc.index} shares too few points with the others and the control"
@@ -493,6 +430,29 @@ def _solve(prob: _Problem, st: _State) -> _Step:
         else:  # the border: a line's a, b
             what = f"line {exc.index // 2} is not fixed by its points"
         raise GeometryError(f"the units are not determined: {what}") from exc
+
+
+def _gradients(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
+    """``Aᵀ P f`` of the units (U, width) and of the engine's points (p, 3) at
+    ``st``: the right-hand side :meth:`NormalStructure.form` would form for
+    a chord step (no lines, no polynomial)."""
+    from ._normal_assembly import sum_into
+
+    obs = prob.obs
+    y, v = _predict(prob, st)
+    lt = prob.whiten
+    r = _whitened(prob, v)  # the whitened residuals
+    design = _whitened_design(prob, st, y)
+    g_unit = sum_into(obs.unit, np.einsum("nik,ni->nk", design, r), prob.n_units)
+    n_used = prob.points_used.size
+    # the point's whitened Jacobian is -Lᵀ: (-Lᵀ)ᵀ r
+    g_point = -sum_into(prob.engine_point[obs.point], np.einsum("nij,ni->nj", lt, r), n_used)
+    used = prob.control_used
+    cp, given = prob.control_point[used], prob.control_given[used]
+    f = np.where(given, st.points[cp] - np.where(given, prob.control_xyz[used], 0.0), 0.0)
+    w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma[used], 1.0) ** 2, 0.0)
+    g_point += sum_into(prob.engine_point[cp], w_c * f, n_used)
+    return g_unit, g_point
 
 
 def adjust_units(
@@ -518,7 +478,7 @@ def adjust_units(
     """Transform all units at once to the control and to each other.
 
     Length: most of it is the documentation of its eighteen parameters; the
-    iteration itself is about sixty lines, its pieces in the functions below.
+    iteration is :func:`_iterate`, its pieces in the functions below.
 
     Parameters
     ----------
@@ -566,7 +526,8 @@ def adjust_units(
         along its rays wherever the model is turned to).  They are turned at
         the start of every iteration (iteratively reweighted: the step of an
         iteration holds them), ahead to where the units are heading when two
-        steps turn them the same way (:class:`_WeightLead`).  None: the
+        steps turn them the same way
+        (:class:`~strip_aerotri.geometry.units.WeightLead`).  None: the
         weights are fixed in the work frame.
     control_update : callable, optional
         Called after every iteration with the points (P, 3, work frame) and
@@ -616,6 +577,30 @@ def adjust_units(
         None if weight_rotation is None
         else np.asarray(weight_rotation, dtype=np.float64).reshape(n_units, 3, 3),
     )  # fmt: skip
+    from .._threads import compute_workers
+
+    # the rows' own work (turning weights, the design, the residuals) shared
+    # with the engine's worker thread where a second core is free
+    with compute_workers(int(obs.unit.shape[0])):
+        return _iterate(
+            prob, start, points0, max_iterations, tolerance, statistics, control_update,
+            project_points,
+        )  # fmt: skip
+
+
+def _iterate(
+    prob: _Problem,
+    start: UnitTransforms,
+    points0: ArrayLike,
+    max_iterations: int,
+    tolerance: float,
+    statistics: bool,
+    control_update: Callable[[FloatArray, bool], FloatArray | None] | None,
+    project_points: bool,
+) -> SimultaneousResult:
+    """:func:`adjust_units`' Gauss-Newton iterations from the start, and its
+    result (Length: the loop of full and chord steps with the control's
+    passes and the convergence test, in one place)."""
     st = _start_state(prob, start, points0)
     prob.turn_weights(st.rotation)
     if project_points:  # the points where the units put them, not yet the control
@@ -630,35 +615,25 @@ def adjust_units(
     converged = False
     iterations = 0
     sol = None
-    lead = _WeightLead()
+    lead = WeightLead()
+    # chord steps on the last factor once a full step was below chord_from
+    chords = _Chords(prob, tolerance)
     for iterations in range(1, max_iterations + 1):
-        sol = None  # the last step's factor goes before the next is formed
         if iterations > 1 and prob.turn_weights(lead.ahead(st.rotation)):
             cost = _cost(prob, st)
-        sol = _solve(prob, st)
-        dp = np.zeros((n_points, 3))
-        dp[prob.points_used] = sol.solution.point_step
-        step = 1.0
-        for _ in range(30):
-            trial = _step(prob, st, sol.solution, dp, step)
-            if project_points:
-                trial = _projected(prob, trial, sol.point_inverse())
-            trial_cost = _cost(prob, trial)
-            if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
-                break
-            step *= 0.5
-        else:
-            raise ConvergenceError(
-                "the simultaneous transformation of the units diverges: no step lowers the "
-                "sum of squares (start values too far off)"
-            )
-        du = sol.solution.unit_step * step
+        taken = chords.step(st, sol, cost)
+        if taken is None:
+            sol = None  # the last step's factor goes before the next is formed
+            sol = _solve(prob, st)
+            taken = _full_step(prob, st, sol, cost, project_points)
+        trial, trial_cost, du, dp = taken
         lead.record(du[:, 3:6])
         largest = max(
             float(np.max(np.abs(du[:, :3]), initial=0.0)) / extent,
             float(np.max(np.abs(du[:, 3:]), initial=0.0)),
-            float(np.max(np.abs(dp[prob.observed]), initial=0.0)) * step / extent,
+            float(np.max(np.abs(dp[prob.observed]), initial=0.0)) / extent,
         )
+        chords.record(largest)
         change = abs(cost - trial_cost) / max(cost, 1e-300)
         settled = largest < tolerance or change < tolerance
         st, cost = trial, trial_cost
@@ -675,8 +650,8 @@ def adjust_units(
             cost = _cost(prob, st)
         sol = _solve(prob, st)
     assert sol is not None  # set in the loop, or just above
-    # Converged: the normal equations of the last step serve the statistics
-    # (the state moved by less than the tolerance since).
+    # Converged: the normal equations of the last full step serve the
+    # statistics (the state moved by less than the chords' threshold since).
     result = _result(prob, st, sol, cost, iterations, converged, statistics)
     if statistics:
         return result
@@ -684,54 +659,90 @@ def adjust_units(
     return replace(result, statistics_later=later)
 
 
-class _WeightLead:
-    """Where to turn the weights for the next iteration (``weight_rotation``).
-
-    Turning the weights to the units' rotations after every step is a
-    fixed-point iteration: the step taken with the weights of one rotation
-    turns the units on, by a share ``rho`` of the step before, where the
-    solution is weakly held (the middle of a long strip between plan
-    points: ``rho`` 0.5 at 10 000 photos, one halving per iteration).
-    When two steps in a row turn the units the same way, the rest of that
-    geometric series, ``rho / (1 - rho)`` times the last turn, is where
-    they are heading: the weights are turned there at once (Aitken's
-    extrapolation of the rotations; then two plain steps again to measure
-    ``rho``).  The fixed point is the same: the lead vanishes with the
-    steps."""
-
-    def __init__(self) -> None:
-        self.turns: list[FloatArray] = []
-        self.led = False
-
-    def record(self, turn: FloatArray) -> None:
-        """The rotation vectors (U, 3) of the step just taken."""
-        self.turns = [*self.turns[-1:], turn.copy()]
-
-    def ahead(self, rotation: FloatArray) -> FloatArray:
-        """The rotations (U, 3, 3) to turn the weights to, from the units' now."""
-        if self.led or len(self.turns) < 2:
-            self.led = False
-            return rotation
-        before, last = self.turns
-        dot = float(np.vdot(before, last))
-        norms = float(np.linalg.norm(before) * np.linalg.norm(last))
-        if not norms > 0.0:
-            return rotation
-        rho = dot / float(np.vdot(before, before))
-        if dot < _LEAD_COSINE * norms or not 0.0 < rho < _LEAD_MAX_RHO:
-            return rotation
-        self.led = True
-        self.turns = []
-        ahead: FloatArray = matrix_from_rotvec(last * (rho / (1.0 - rho))) @ rotation
-        return ahead
+def _full_step(
+    prob: _Problem, st: _State, sol: NormalSolution, cost: float, project_points: bool
+) -> tuple[_State, float, FloatArray, FloatArray]:
+    """The Gauss-Newton step of ``sol`` from ``st``, halved until the sum of
+    squares does not grow (the points projected after it, with
+    ``project_points``): the state, its cost and the unit and point steps
+    taken (U, width), (P, 3)."""
+    dp = np.zeros((prob.n_points, 3))
+    dp[prob.points_used] = sol.point_step
+    step = 1.0
+    for _ in range(30):
+        trial = _step(prob, st, sol.unit_step, sol.border_step, dp, step)
+        if project_points:
+            trial = _projected(prob, trial, sol.point_inverse)
+        trial_cost = _cost(prob, trial)
+        if trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
+            return trial, trial_cost, sol.unit_step * step, dp * step
+        step *= 0.5
+    raise ConvergenceError(
+        "the simultaneous transformation of the units diverges: no step lowers the "
+        "sum of squares (start values too far off)"
+    )
 
 
-#: Two steps turn the units "the same way" when their rotation vectors'
-#: cosine is above this; the share ``rho`` of one step in the next is led
-#: only below :data:`_LEAD_MAX_RHO` (above it the series is not geometric
-#: enough to trust a lead of ``rho / (1 - rho)`` = 9 steps).
-_LEAD_COSINE = 0.9
-_LEAD_MAX_RHO = 0.9
+#: A full step below this many times the tolerance (relative, as the
+#: convergence test measures it) is followed by chord steps (:class:`_Chords`).
+_CHORD_FROM = 1e3
+
+
+class _Chords:
+    """Chord (simplified Gauss-Newton) steps near the solution.
+
+    Once a full step has moved the unknowns by less than :data:`_CHORD_FROM`
+    times the tolerance, the normal matrix hardly changes any more (the
+    units turn by 1e-7 rad and less): the next steps solve the new
+    right-hand side ``Aᵀ P f`` (:func:`_gradients`) with the factor of that
+    last full step (:meth:`NormalSolution.chord_step`), a fifth of a full
+    step's cost, and the points follow their own step (no projection).
+    They converge to the same solution (the one where the gradient
+    vanishes, the weights turned with the units), as fast as full steps
+    do there, where the weights' turning sets the pace.  A chord step
+    that does not lower the sum of squares, or that is not below half the
+    step before it, gives way to full steps again.  Without lines or
+    polynomials only (their border and priors are not in the chord's
+    right-hand side); the statistics then come from the last full factor.
+    """
+
+    def __init__(self, prob: _Problem, tolerance: float) -> None:
+        self.prob = prob
+        self.allowed = prob.n_lines == 0 and prob.polynomial is None
+        self.threshold = _CHORD_FROM * tolerance
+        self.last_full = np.inf  # largest (relative) move of the last full step
+        self.previous = np.inf  # of the step before the last
+        self.last = np.inf  # of the last step
+        self.was_chord = False
+        self.chord = False  # the step being taken is a chord
+
+    def step(
+        self, st: _State, sol: NormalSolution | None, cost: float
+    ) -> tuple[_State, float, FloatArray, FloatArray] | None:
+        """A chord step from ``st`` with the factor of ``sol`` (state, cost,
+        unit and point steps), or None where a full step is due."""
+        self.chord = False
+        ready = self.allowed and sol is not None and self.last_full < self.threshold
+        if not ready or (self.was_chord and not self.last < 0.5 * self.previous):
+            return None
+        assert sol is not None  # ready
+        prob = self.prob
+        du, dp_used = sol.chord_step(*_gradients(prob, st))
+        dp = np.zeros((prob.n_points, 3))
+        dp[prob.points_used] = dp_used
+        trial = _step(prob, st, du, sol.border_step, dp, 1.0)
+        trial_cost = _cost(prob, trial)
+        if not trial_cost <= cost * (1.0 + 1e-12) + 1e-300:
+            return None
+        self.chord = True
+        return trial, trial_cost, du, dp
+
+    def record(self, largest: float) -> None:
+        """The largest move (relative) of the step just taken."""
+        self.previous, self.last = self.last, largest
+        self.was_chord = self.chord
+        if not self.chord:
+            self.last_full = largest
 
 
 def _start_state(prob: _Problem, start: UnitTransforms, points0: ArrayLike) -> _State:
@@ -771,11 +782,17 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
         return st
     obs = prob.obs
     y, _ = _predict(prob, st)
-    placed = st.translation[obs.unit] + y  # T_u(x) of every row
     lt = prob.whiten
     n = prob.n_points
-    # Σ W x of each point's rows, W = L Lᵀ
-    weighted = np.einsum("nji,nj->ni", lt, np.einsum("nij,nj->ni", lt, placed))
+    weighted = np.empty(y.shape)
+
+    def block(rows: slice) -> None:
+        placed = st.translation[obs.unit[rows]] + y[rows]  # T_u(x) of the rows
+        # W x of each row, W = L Lᵀ (summed per point below)
+        lr = lt[rows]
+        weighted[rows] = np.einsum("nji,nj->ni", lr, np.einsum("nij,nj->ni", lr, placed))
+
+    _by_rows(y.shape[0], block)
     rhs: FloatArray = np.column_stack(
         [np.bincount(obs.point, weighted[:, k], minlength=n) for k in range(3)]
     )
@@ -796,9 +813,16 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     return st.with_points(points)
 
 
-def _step(prob: _Problem, st: _State, sol: NormalSolution, dp: FloatArray, step: float) -> _State:
-    du = sol.unit_step * step
-    dl = sol.border_step.reshape(-1, 2) * step
+def _step(
+    prob: _Problem,
+    st: _State,
+    unit_step: FloatArray,
+    border_step: FloatArray,
+    dp: FloatArray,
+    step: float,
+) -> _State:
+    du = unit_step * step
+    dl = border_step.reshape(-1, 2) * step
     rotation = matrix_from_rotvec(du[:, 3:6]) @ st.rotation
     points = st.points + step * dp
     return _State(
@@ -814,7 +838,7 @@ def _step(prob: _Problem, st: _State, sol: NormalSolution, dp: FloatArray, step:
 def _result(
     prob: _Problem,
     st: _State,
-    sol: _Step,
+    sol: NormalSolution,
     cost: float,
     iterations: int,
     converged: bool,
@@ -826,7 +850,7 @@ def _result(
     _, v = _predict(prob, st)
     redundancy = prob.n_observations - prob.n_unknowns
     sigma0 = float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
-    cof = sol.solution.cofactors() if statistics or prob.polynomial is not None else None
+    cof = sol.cofactors() if statistics or prob.polynomial is not None else None
 
     # Cofactors of the control points (the selected inverse's point blocks):
     # the diagonal of the given components, which the tests need.
@@ -850,11 +874,18 @@ def _result(
     # Row statistics: the row's leverage on its own point with the units
     # fixed, h = W^(1/2) V⁻¹ W^(1/2); the units' 7 U parameters spread evenly.
     lt = prob.whiten
-    wv = np.einsum("nij,nj->ni", lt, v)
+    wv = _whitened(prob, v)
     # V⁻¹ of the points the rows observe: the engine's (statistics only)
-    v_inv = sol.solution.point_inverse
-    # trace(Lᵀ V⁻¹ L), row by row of Lᵀ: Σ_i l_i V⁻¹ l_iᵀ
-    leverage = np.einsum("nij,nij->n", lt @ v_inv[prob.engine_point[obs.point]], lt)
+    v_inv = sol.point_inverse
+    row_point = prob.engine_point[obs.point]
+    leverage = np.empty(v.shape[0])
+
+    def block(rows: slice) -> None:
+        # trace(Lᵀ V⁻¹ L), row by row of Lᵀ: Σ_i l_i V⁻¹ l_iᵀ
+        lr = lt[rows]
+        leverage[rows] = np.einsum("nij,nij->n", lr @ v_inv[row_point[rows]], lr)
+
+    _by_rows(v.shape[0], block)
     free = 3.0 - leverage
     share = max(1.0 - prob.width * prob.n_units / max(float(free.sum()), 1e-300), 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):

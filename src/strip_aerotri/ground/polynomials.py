@@ -143,7 +143,11 @@ def similarity_start(
     :func:`adjust_to_ground` with ``polynomial=0`` and the blunder tests off,
     except that its ``points`` are taken to the CRS at the control points
     only (NaN elsewhere: the models' stage replaces them all; the inverse
-    projection of every point of a 1000-photo strip costs 15-30 ms).
+    projection of every point of a 1000-photo strip costs 15-30 ms), and
+    the points no model determined (seen only on photos between the model
+    photos) are left NaN instead of intersected from their rays: the models'
+    stage has no row on them (control and line points are triangulated
+    points) and intersects them itself at the end.
     """
     options = GroundOptions(route=route, polynomial=0, max_iterations=max_iterations)
     blunders = BlunderOptions(action=BlunderAction.OFF)
@@ -403,8 +407,9 @@ def _products(
     all_points: bool = True,
 ) -> GroundResult:
     """Every point and photo through the last solution, to the CRS (the
-    points at the control only unless ``all_points``), with the control's
-    residuals and detectability."""
+    points at the control only, and those no model determined not
+    intersected, unless ``all_points``), with the control's residuals and
+    detectability."""
     strip, work, sim, deformation = problem.strip, sol.work, sol.sim, sol.deformation
     transform = sim.transform
     lines, line_index, check = problem.lines, problem.line_index, picked.check
@@ -423,7 +428,8 @@ def _products(
     rot_work = transform.apply_to_rotation(strip.rotations)
     if deformation is not None:
         rot_work = deformation_rotation(deformation, centres_model) @ rot_work
-    points_work = intersect_unmodelled(strip, points_work, centres_work, rot_work)
+    if all_points:  # the models' stage starts from the triangulated points only
+        points_work = intersect_unmodelled(strip, points_work, centres_work, rot_work)
     centres = work.from_work(centres_work)
     rot_enu = work.rotations_to_enu(rot_work, centres)
 

@@ -226,7 +226,7 @@ def load_control(
         xyz[:, j] = values
         given[:, j] = ~empty
 
-    type_strings = np.char.lower(id_column(table, "type"))
+    type_strings = np.asarray([t.lower() for t in id_column(table, "type").tolist()], dtype=str)
     valid = [t.value for t in ControlType]
     type_names, type_first, type_inverse = np.unique(
         type_strings.reshape(-1), return_index=True, return_inverse=True
