@@ -217,3 +217,24 @@ def test_image_points_from_the_format_corner_are_one_line(tmp_path: Path, exampl
         assert "image_points.csv: the image points are not centred" in line, line
         assert "measured from a corner of the format" in line and len(line) < 500
     assert not (folder / "out").exists()
+
+
+def test_a_corner_origin_is_named_before_the_distortion_it_breaks(tmp_path: Path) -> None:
+    """With a [distortion] of the projection model (the FC300X block's
+    coefficients), coordinates from the format's corner broke its inversion
+    first: the run said 'check the coefficients and their units'."""
+    folder = tmp_path / "corridor"
+    shutil.copytree(EXAMPLES / "drone-corridor", folder, ignore=shutil.ignore_patterns("out"))
+    toml = folder / "strip.toml"
+    lens = (
+        '\n[distortion]\nunits = "normalized"\nmodel = "projection"\nk1 = -0.0114\nk2 = 0.0148\n'
+    )
+    toml.write_text(toml.read_text(encoding="utf-8") + lens, encoding="utf-8")
+    assert CliRunner().invoke(cli, ["check", str(toml)]).exit_code == 0
+    _shift_images(folder)
+    for command in ("check", "run"):
+        result = CliRunner().invoke(cli, [command, str(toml)])
+        assert result.exit_code == 1
+        (line,) = result.stderr.splitlines()
+        assert "image_points.csv: the image points are not centred" in line, line
+        assert "the [distortion] could not be removed from them" in line and len(line) < 500

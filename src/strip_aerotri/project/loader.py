@@ -45,6 +45,7 @@ from ..options import (
     adjustment_options,
     describe,
 )
+from ..plausibility import image_coordinate_problems
 from .csvfiles import MAX_TOML_BYTES, CsvTable, decode, read_bytes
 from .model import Camera, Project, readonly
 from .output import check_output
@@ -283,8 +284,9 @@ def load_project(path: str | Path) -> Project:
         toml_path, images, distortion_table, interior, fiducials_file, photo_ids
     )
     reduce = _image_reduction(
-        toml_path, principal_distance, principal_point, image_options, fiducials, distortion
-    )
+        toml_path, principal_distance, principal_point, image_options, fiducials, distortion,
+        images_file,
+    )  # fmt: skip
     sigma_mm = float(images["sigma_mm"])  # type: ignore[arg-type]
     observations = load_images(
         images_file, photo_ids, principal_distance, reduce, sigma_mm, block=bool(strips)
@@ -534,27 +536,40 @@ def _image_reduction(
     image_options: ImageOptions,
     fiducials: tuple[FiducialFit, ...],
     distortion: BrownDistortion | None,
+    images_file: Path,
 ) -> Callable[[FloatArray, IntArray], FloatArray]:
-    """The reduction of raw image coordinates to the photo system (mm) of this project."""
+    """The reduction of raw image coordinates to the photo system (mm) of this
+    project.  When the distortion cannot be removed, coordinates that no
+    camera gives (far outside the format, from its corner) are named as the
+    cause before the coefficients are."""
 
-    def reduce(xy: FloatArray, photo: IntArray) -> FloatArray:
+    def reduce(xy: FloatArray, photo: IntArray, lens: BrownDistortion | None) -> FloatArray:
+        return reduce_image_coordinates(
+            xy,
+            photo,
+            principal_distance,
+            units=image_options.units,
+            pixel_size_mm=image_options.pixel_size_mm,
+            principal_point_px=image_options.principal_point_px,
+            fiducials=fiducials or None,
+            principal_point_mm=principal_point,
+            distortion=lens,
+            flight_direction=image_options.flight_direction,
+        )
+
+    def reduce_all(xy: FloatArray, photo: IntArray) -> FloatArray:
         try:
-            return reduce_image_coordinates(
-                xy,
-                photo,
-                principal_distance,
-                units=image_options.units,
-                pixel_size_mm=image_options.pixel_size_mm,
-                principal_point_px=image_options.principal_point_px,
-                fiducials=fiducials or None,
-                principal_point_mm=principal_point,
-                distortion=distortion,
-                flight_direction=image_options.flight_direction,
-            )
+            return reduce(xy, photo, distortion)
         except ConvergenceError as exc:
-            raise ConfigError(f"{toml_path}: [distortion]: {exc}") from None
+            plain = reduce(xy, photo, None)
+            problems = image_coordinate_problems(plain, principal_distance, file=str(images_file))
+            raise ConfigError(
+                f"{problems[0]} (the [distortion] could not be removed from them)"
+                if problems
+                else f"{toml_path}: [distortion]: {exc}"
+            ) from None
 
-    return reduce
+    return reduce_all
 
 
 def _single_ray_warnings(images_file: Path, observations: ImageObservations) -> list[str]:
