@@ -6,7 +6,8 @@ importer's swapped (its check points as control, its control as check), and
 four random draws of 16 (``numpy.random.default_rng(seed)``, seeds 1-4).  Each
 configuration given on the command line (``key=value`` pairs of
 ``[adjustment]``, ``distortion=none`` to remove the ``[distortion]`` table,
-``variance_components=...``) runs on all six; the table gives the check RMSE
+``variance_components=...``; ``image_groups=manual|strips|manual+strips``
+with ``weights="estimated"``, the study of :data:`IMAGE_GROUPS`) runs on all six; the table gives the check RMSE
 plan / height (m) without the weakly determined check points, and the medians.
 
     python benchmarks/bench_fc300x_splits.py ../shared/data/uav-block-fc300x \\
@@ -28,6 +29,7 @@ import re
 import sys
 import tempfile
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -72,6 +74,8 @@ def _write_case(toml: Path, types: dict[str, str], settings: list[str], folder: 
         elif key == "control_sigma":
             sigma_xy, _, sigma_h = value.partition("/")
             types = {p: f"{t},{sigma_xy},{sigma_h}" for p, t in types.items()}
+        elif key == "image_groups":
+            continue  # run_case's, not the project file's
         elif key == "distortion" and value == "none":
             text = re.sub(r"\n\[distortion\]\n(?:[^\[\n].*\n|\n)*", "\n", text)
         else:
@@ -134,13 +138,58 @@ def rmse_difference(first: np.ndarray, second: np.ndarray, draws: int = 2000) ->
     return np.stack([rmse(b) - rmse(a), boot.std(axis=0)])
 
 
-def run_case(path: Path) -> tuple[float, float, object]:
+#: ``image_groups=...``: the image observations' variance groups with
+#: ``weights="estimated"`` (``refine_frame_weighted``'s ``image_groups``), a
+#: study not in the project file: "manual" the control and check points'
+#: marks (measured by hand) against the tie points (matched); "strips" the
+#: tie points per strip, the control points' marks one group; "manual+strips"
+#: both.
+IMAGE_GROUPS = ("manual", "strips", "manual+strips")
+
+
+def image_groups(project: object, how: str) -> Callable[[object], np.ndarray]:
+    """The label of each image observation of an adjustment's observations."""
+    strips = getattr(project, "strips", ())
+    strip_of = {photo: s.name for s in strips for photo in s.photo_ids}
+    control = getattr(project, "control")
+    manual = set(control.point_ids)
+    with_control = {
+        p for p, k in zip(control.point_ids, control.kind, strict=True) if k.value != "check"
+    }
+
+    def labels(obs: object) -> np.ndarray:
+        photo_ids = np.asarray(getattr(obs, "photo_ids"))[getattr(obs, "photo")]
+        point_ids = np.asarray(getattr(obs, "point_ids"))[getattr(obs, "point")]
+        marked = np.isin(point_ids, sorted(manual if "manual" in how else with_control))
+        ties = np.array(
+            ["image, tie points" + (f", {strip_of.get(p, '')}" if "strips" in how else "")
+             for p in photo_ids]
+        )
+        return np.where(marked, "image, marked points", ties)
+
+    return labels
+
+
+def run_case(path: Path, groups: str = "") -> tuple[float, float, object]:
+    from strip_aerotri.bundle import variance
     from strip_aerotri.project import load_project
     from strip_aerotri.project.run import run_project
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = run_project(load_project(path))
+    project = load_project(path)
+    original = variance.refine_frame_weighted
+    if groups:
+        labels = image_groups(project, groups)
+
+        def weighted(observations: object, *args: object, **kwargs: object) -> object:
+            return original(observations, *args, image_groups=labels(observations), **kwargs)
+
+        variance.refine_frame_weighted = weighted  # type: ignore[assignment]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = run_project(project)
+    finally:
+        variance.refine_frame_weighted = original
     stats = result.check_statistics
     refined = getattr(result, "refined", None)  # a block's is a flag: its statistics are
     if refined is not None and not isinstance(refined, bool):
@@ -170,7 +219,10 @@ def main(argv: list[str] | None = None) -> int:
                 folder = Path(tmp) / f"case_{name}"
                 folder.mkdir(exist_ok=True)
                 try:
-                    p, h, result = run_case(_write_case(toml, splits[name], settings, folder))
+                    groups = dict(x.partition("=")[::2] for x in settings).get("image_groups", "")
+                    p, h, result = run_case(
+                        _write_case(toml, splits[name], settings, folder), groups.strip('"')
+                    )
                     cells.append(f"{p:.4f}/{h:.4f}")
                     plan.append(p)
                     height.append(h)

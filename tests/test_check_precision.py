@@ -119,6 +119,7 @@ def test_fc300x_weak_check_points_are_named_and_left_out(tmp_path, adjustment: s
         result = run_project(load_project(toml))
     weak = [w for w in result.warnings if "is weakly determined" in w]
     assert [w.split("'")[1] for w in weak] == ["14", "78"]
+    assert [(w.kind, w.point) for w in weak] == [("weak check", "14"), ("weak check", "78")]
     assert result.weak_checks == ("14", "78")
     assert "meet at 2.5 deg" in weak[0]
     stats = result.check_statistics

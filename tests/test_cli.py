@@ -861,3 +861,30 @@ def test_run_very_verbose_shows_more_than_verbose(project):
     residuals = [ln for ln in very if "dE, dN, dH" in ln]
     assert len(residuals) > len([ln for ln in verbose if "dE, dN, dH" in ln]) == 0
     assert any(ln.startswith("stripaero: check ") for ln in residuals)
+
+
+def test_lost_control_with_quotes_and_commas_is_one_warning_line(project):
+    """Three control points each measured on one photo only, named with a
+    quote, a comma and double quotes (CSV-quoted in both files): `run`
+    prints one line naming the three, `-v` a line for each."""
+    ids = ["G'1", "G,2", '"G3"']
+    control = read_rows(project.parent / "control.csv")
+    first = control[1]
+    control += [[pid, *first[1:4], "full", *first[5:]] for pid in ids]
+    write_rows(project.parent / "control.csv", control)
+    images = read_rows(project.parent / "image_points.csv")
+    images += [[images[1][0], pid, *images[1][2:]] for pid in ids]
+    write_rows(project.parent / "image_points.csv", images)
+    lost = "is not triangulated (seen on fewer than two photos of a model): left out"
+
+    result = invoke("run", project)
+    assert result.exit_code == 0, result.output
+    summed = [ln for ln in result.stderr.splitlines() if "control point" in ln]
+    assert summed == [
+        "stripaero: warning: 3 control points are not triangulated "
+        "(\"G'1\", 'G,2', '\"G3\"') and left out (each: seen on fewer than two photos of a "
+        "model) (listed in report.json; -v lists them here)"
+    ]
+    result = invoke("run", project, "-v")
+    each = [ln for ln in result.stderr.splitlines() if "control point" in ln]
+    assert each == [f"stripaero: warning: control point {pid!r} {lost}" for pid in ids]

@@ -60,6 +60,9 @@ def test_block_points_lost_to_blunder_tests_are_not_said_unmeasured() -> None:
         res = adjust_block(sim.observations, sim.control, sim.crs, specs, construction="models")
     (line,) = [w for w in res.warnings if w.startswith("check point 'P00055' is not triangulated")]
     assert "see the relative_orientation rejections" in line, line
+    cause = line[line.index("(") + 1 : line.rindex(")")]
+    data = (line.kind, line.point, line.cause)  # type: ignore[attr-defined]
+    assert data == ("check not triangulated", "P00055", cause)
 
 
 def _keep_control(control, keep):  # type: ignore[no-untyped-def]
@@ -138,9 +141,12 @@ def test_weak_check_points_are_one_line_unless_verbose() -> None:
     from strip_aerotri.ground.check_precision import WeakCheck, weak_check_message
     from strip_aerotri.report.summary import Accuracy, RunSummary
     from strip_aerotri.report.verdict import Verdict
+    from strip_aerotri.results import PointWarning
 
     weak = [
-        weak_check_message(WeakCheck(f"P{i}", 4, 33.0, 0.015, 0.045, 0.01, 0.01))
+        PointWarning.weak_check(
+            f"P{i}", weak_check_message(WeakCheck(f"P{i}", 4, 33.0, 0.015, 0.045, 0.01, 0.01))
+        )
         for i in range(7)
     ]
     none = Accuracy(0, 0, math.nan, math.nan)
@@ -298,11 +304,13 @@ def test_control_points_lost_alike_are_one_line_unless_verbose() -> None:
 
     from strip_aerotri.report.summary import Accuracy, RunSummary
     from strip_aerotri.report.verdict import Verdict
+    from strip_aerotri.results import PointWarning
 
     unseen = "seen on fewer than two photos of a model"
     failed = "its observations failed the blunder tests, see the relative_orientation rejections"
-    lost = [f"control point 'P{i}' is not triangulated ({unseen}): left out" for i in range(7)]
-    odd = f"control point 'Q' is not triangulated ({failed}): left out"
+    lost = [PointWarning.not_triangulated(f"P{i}", unseen) for i in range(7)]
+    odd = PointWarning.not_triangulated("Q", failed)
+    assert lost[0] == f"control point 'P0' is not triangulated ({unseen}): left out"
     none = Accuracy(0, 0, math.nan, math.nan)
     summary = RunSummary(
         "strip", "s", 40, 39, 800, False, "models", none, none, Verdict("na", "n"),
@@ -316,3 +324,117 @@ def test_control_points_lost_alike_are_one_line_unless_verbose() -> None:
         "last",
     ]
     assert summary.warning_lines(texts, every=True) == texts
+
+
+def _lost_control(ids: list[str]):  # type: ignore[no-untyped-def]
+    """A 12-photo film strip's result whose control also holds full points
+    ``ids`` that no photo sees, and its summary."""
+    import dataclasses
+
+    import numpy as np
+
+    from strip_aerotri.observations import ControlType
+    from strip_aerotri.report.summary import summarize
+
+    sim = simulate_strip(12, preset="film", seed=0, crs="EPSG:32634")
+    c, n = sim.control, len(ids)
+    ghosts = dataclasses.replace(
+        c,
+        point_ids=(*c.point_ids, *ids),
+        xyz=np.vstack([c.xyz, np.repeat(c.xyz[:1], n, axis=0)]),
+        kind=(*c.kind, *[ControlType.FULL] * n),
+        sigma_xy=np.append(c.sigma_xy, [0.02] * n),
+        sigma_h=np.append(c.sigma_h, [0.02] * n),
+        source_line=np.zeros(len(c.point_ids) + n, dtype=np.intp),
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        result = triangulate(sim.observations, ghosts, sim.crs)
+    return result, summarize(result, files=("report.json",))
+
+
+def test_lost_control_with_quotes_and_commas_in_its_ids_is_one_line() -> None:
+    """Control points named ``G'1``, ``G,2`` and ``"G3"`` that no photo sees:
+    the warnings carry the ids as data, so the three are one line naming
+    each id as the single warnings do (``repr``), whatever the id holds."""
+    ids = ["G'1", "G,2", '"G3"']
+    result, summary = _lost_control(ids)
+    unseen = "seen on fewer than two photos of a model"
+    singles = [f"control point {p!r} is not triangulated ({unseen}): left out" for p in ids]
+    assert [w for w in result.warnings if "is not triangulated (" in w] == singles
+    lines = summary.warning_lines(summary.warnings)
+    assert [ln for ln in lines if "not triangulated" in ln] == [
+        f"3 control points are not triangulated (\"G'1\", 'G,2', '\"G3\"') and left out "
+        f"(each: {unseen}) (listed in report.json; -v lists them here)"
+    ]
+    assert summary.warning_lines(summary.warnings, every=True) == list(summary.warnings)
+
+
+def test_point_warnings_are_the_texts_in_report_json() -> None:
+    """report.json's ``warnings`` are the run's texts as before (plain JSON
+    strings), the point's id kept as data beside them."""
+    import json
+
+    from strip_aerotri.report.outputs import strip_outputs
+    from strip_aerotri.results import PointWarning
+
+    result, _ = _lost_control(["G'1"])
+    (lost,) = [w for w in result.warnings if isinstance(w, PointWarning)]
+    assert (lost.kind, lost.point) == ("control not triangulated", "G'1")
+    files, _ = strip_outputs(result, html=False)
+    record = json.loads(files["report.json"])
+    assert record["warnings"] == [str(w) for w in result.warnings]
+
+
+def test_a_point_warning_is_its_text_and_keeps_its_data() -> None:
+    """Equal to its text (the warnings stay strings), immutable, and the same
+    record after pickling (a forked figure child) or deep copying."""
+    import copy
+    import pickle
+
+    from strip_aerotri.results import PointWarning
+
+    w = PointWarning.not_triangulated("A'b, c", "why", check=True)
+    assert w == 'check point "A\'b, c" is not triangulated (why): left out'
+    assert isinstance(w, str)
+    for again in (pickle.loads(pickle.dumps(w)), copy.deepcopy(w)):
+        assert type(again) is PointWarning and again == w
+        data = (again.kind, again.point, again.cause)
+        assert data == ("check not triangulated", "A'b, c", "why")
+    with pytest.raises(AttributeError, match="immutable"):
+        w.point = "other"  # type: ignore[misc]
+
+
+def _sigma_column(images: Path, sigma: str) -> None:
+    """Every row of ``image_points.csv`` given the ``sigma`` column's text."""
+    import csv
+
+    rows = list(csv.DictReader(images.open()))
+    with images.open("w", newline="") as f:
+        out = csv.DictWriter(f, fieldnames=list(rows[0]))
+        out.writeheader()
+        out.writerows(dict(r, sigma=sigma) for r in rows)
+
+
+@pytest.mark.parametrize("kind", ["strip", "block"])
+def test_check_warns_of_the_image_sigma_as_the_run_does(tmp_path, kind: str) -> None:  # type: ignore[no-untyped-def]
+    """A sigma column of 5 meant as µm, in a strip and in a 3 x 8 block:
+    `stripaero check` gives the run's image-sigma warning, word for word."""
+    from strip_aerotri.project import check_project, load_project
+    from strip_aerotri.project.run import run_project
+    from strip_aerotri.simulate import simulate_block
+
+    if kind == "strip":
+        toml = simulate_strip(12, preset="film", seed=0, crs="EPSG:32634").write_project(tmp_path)
+    else:
+        toml = simulate_block(3, 8, preset="film", seed=5).write_project(tmp_path)
+    _sigma_column(tmp_path / "image_points.csv", "5")
+    project = load_project(toml)
+    assert project.is_block is (kind == "block")
+    rep = check_project(project)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StripAerotriWarning)
+        result = run_project(project)
+    said = [w for w in result.warnings if w.startswith("image sigma")]
+    assert len(said) == 1 and "times the scatter" in said[0]
+    assert [w for w in rep.warnings if w.startswith("image sigma")] == said

@@ -283,3 +283,27 @@ def test_pinned_labels_land_where_matplotlib_puts_them(name, monkeypatch):
     fig, kwargs = FIGURES[name]()
     placed = _pixels(figures._fitted_png(fig, **kwargs))
     assert np.array_equal(pinned, placed)
+
+
+def test_the_warm_up_takes_the_path_of_a_best_legend(monkeypatch):
+    """The small figure drawn ahead (``html.prepare_drawing``) fixes its
+    legend at matplotlib's "best" place, as three of the page's figures do,
+    rather than measuring it as a legend beside the axes."""
+    from strip_aerotri.report import figures_frame, html
+
+    settled, measured = [], []
+    settle, measure = figures_frame._settle, figures_frame._measure
+
+    def counted_settle(legend, renderer):  # type: ignore[no-untyped-def]
+        settled.append(legend)
+        return settle(legend, renderer)
+
+    def counted_measure(fig, grid, renderer, beside, *args):  # type: ignore[no-untyped-def]
+        measured.append(beside)
+        return measure(fig, grid, renderer, beside, *args)
+
+    monkeypatch.setattr(figures_frame, "_settle", counted_settle)
+    monkeypatch.setattr(figures_frame, "_measure", counted_measure)
+    html.prepare_drawing()
+    assert len(settled) == 1 and settled[0].get_texts()[0].get_text() == "a"
+    assert measured and all(beside is None for beside in measured)

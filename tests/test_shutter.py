@@ -285,3 +285,64 @@ def test_rows_are_read_from_the_sensor_top() -> None:
         shutter = ShutterMotion(np.array([0]), ("a",), READOUT, turn)
         flight = top_bottom_sensor @ turn.T  # f = M s
         assert np.allclose(shutter.fractions(flight), [-0.5, 0.5, 0.0])
+
+
+def _linearised(monkeypatch: pytest.MonkeyPatch) -> tuple[object, np.ndarray, int]:
+    """The bundle's image rows for seed 6's network with a camera of two
+    parameters (k1, b1 at -3e-6, 2e-4) and the simulated motion; the
+    camera's values; the number of times the rows' fractions were computed."""
+    from strip_aerotri.bundle import adjust
+    from strip_aerotri.geometry.camera_model import CameraModel
+
+    obs, shutter, centres, rotations, points = _network(TRUTH, seed=6)
+    prob = adjust._make_problem(
+        obs, centres, rotations, points, _control(points), 0.05, None, None, None, None,
+        camera=CameraModel("brown", ("k1", "b1"), C), motion=shutter,
+    )
+    camera = np.array([-3e-6, 2e-4])
+    calls = [0]
+    fractions = ShutterMotion.fractions
+
+    def counted(self: ShutterMotion, xy: np.ndarray) -> np.ndarray:
+        calls[0] += 1
+        return fractions(self, xy)
+
+    monkeypatch.setattr(ShutterMotion, "fractions", counted)
+    normals = adjust._normals(prob, adjust._State(centres, rotations, points, camera, TRUTH))
+    monkeypatch.undo()
+    assert normals is not None
+    return normals.image, camera, calls[0]
+
+
+def test_whitened_rows_equal_rows_whitened_after(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The image rows, border included, built from the Jacobians whitened in
+    the collinearity's blocks equal those of unwhitened Jacobians times 1/σ
+    (rtol 1e-12): the motion's columns s dx/dS are linear in dx/dS."""
+    from strip_aerotri.geometry.camera_model import CameraModel
+
+    image, camera, _ = _linearised(monkeypatch)
+    obs, shutter, centres, rotations, points = _network(TRUTH, seed=6)
+    model = CameraModel("brown", ("k1", "b1"), C)
+    s = shutter.fractions(obs.xy)
+    rays = np.arange(obs.photo.size)
+    moved = points[obs.point] - shutter.centre_shift(TRUTH, obs.photo, s)
+    xy, _, jac_photo, jac_point = collinearity_jacobians(
+        centres, rotations, moved, obs.photo, rays, C
+    )
+    border = np.concatenate(
+        [-model.partials(obs.xy, camera), shutter.border(jac_photo[:, :, :3], obs.photo, s)],
+        axis=2,
+    )
+    inv_s = 1.0 / obs.sigma
+    w = inv_s[:, None, None]
+    np.testing.assert_allclose(image.unit_jacobian, jac_photo * w, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(image.point_jacobian, jac_point * w, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(image.border_jacobian, border * w, rtol=1e-12, atol=0)
+    observed = obs.xy + model.correction(obs.xy, camera)
+    np.testing.assert_allclose(image.residual, (xy - observed) * inv_s[:, None], rtol=1e-12)
+    assert np.count_nonzero(border[:, :, 2:]) > 0  # the motion's columns are there
+
+
+def test_fractions_are_computed_once_per_linearisation(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One build of the normal equations reads the rows' fractions once."""
+    assert _linearised(monkeypatch)[2] == 1

@@ -58,6 +58,10 @@ def test_block_summary_judges_the_transfer_as_report_json(tmp_path):
     assert math.isfinite(summary.join.mean_transfer_um)
     assert summary.control.rmse_plan == result.control_statistics.rmse_plan
     assert np.isfinite(summary.control_fit.rmse_plan)
+    # one count of the delivered points: the command line's, report.json's, points.csv's
+    rows = outputs.files["points.csv"].decode().strip().splitlines()
+    n_header = sum(1 for r in rows if not r[:1].isalnum() or r.startswith("point,"))
+    assert summary.n_points == record["inputs"]["n_points_triangulated"] == len(rows) - n_header
 
 
 @pytest.mark.parametrize("map_scale", [None, 5000.0])

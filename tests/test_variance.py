@@ -260,3 +260,35 @@ def test_a_control_blunder_is_still_found_and_leaves_the_estimate():
     assert rejected == [(obs.point_ids[bad], "height")]
     g = {x.name: x for x in fr.variance_components.groups}[CONTROL_HEIGHT]
     assert abs(g.sigma / TRUE[CONTROL_HEIGHT] - 1.0) < 3.0 / np.sqrt(2.0 * g.redundancy), g
+
+
+def test_groups_of_the_callers_own_recover_their_sigmas():
+    """``image_groups`` names the groups of the image observations: the tie
+    rays of the first and the second half of the strip with 2 and 4 µm of
+    noise (stated 5 µm), the control marks with 6 µm; each estimate within
+    three of its standard deviations."""
+    _, control, sigma_c, start = _problem()
+    clean = simulate_strip(
+        14, seed=5, crs="local", control="dense", image_noise_mm=0.0, control_noise_m=0.0
+    ).observations  # the observations of _problem without their noise
+    half = clean.photo >= len(clean.photo_ids) // 2
+    marks = np.isin(clean.point, np.flatnonzero(np.any(np.isfinite(control), axis=1)))
+    true = np.where(marks, 0.006, np.where(half, 0.004, 0.002))
+    xy = clean.xy + np.random.default_rng(11).normal(size=clean.xy.shape) * true[:, None]
+    observed = dataclasses.replace(
+        clean, xy=xy, sigma=np.full(clean.photo.size, STATED_IMAGE_MM)
+    )
+    labels = np.where(marks, "marks", np.where(half, "ties, second half", "ties, first half"))
+    fr = refine_frame_weighted(
+        observed, *start, control_xyz=control, control_sigma=sigma_c,
+        blunders=BlunderOptions(action="off"), variance_components=True, image_groups=labels,
+    )  # fmt: skip
+    vc = fr.variance_components
+    assert vc is not None and vc.converged
+    groups = {g.name: g for g in vc.groups}
+    assert {"ties, first half", "ties, second half", "marks"} <= set(groups)
+    for name, sigma_um in (("ties, first half", 2.0), ("ties, second half", 4.0), ("marks", 6.0)):
+        g = groups[name]
+        assert g.unit == "µm" and g.estimated
+        assert abs(g.sigma / sigma_um - 1.0) < 3.0 / np.sqrt(2.0 * g.redundancy), (name, g)
+    assert fr.sigma0 == pytest.approx(1.0, abs=0.03)

@@ -95,9 +95,15 @@ def test_a_bad_number_of_threads_is_one_line_naming_the_variable(
 
 def test_split_map_keeps_the_order_and_uses_both_threads(two_workers: None) -> None:
     names: set[str] = set()
+    # The first two items meet: each thread holds one until the other has
+    # taken its own, so both threads work whatever the machine's load (a
+    # worker started first could otherwise take every item).
+    both_in = threading.Barrier(2, timeout=30.0)
 
     def square(i: int) -> int:
         names.add(threading.current_thread().name)
+        if i < 2:
+            both_in.wait()
         np.linalg.qr(np.ones((60, 60)))  # work that releases the interpreter
         return i * i
 

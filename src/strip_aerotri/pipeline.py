@@ -13,7 +13,7 @@ import dataclasses
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -47,8 +47,18 @@ from .options import (
     Weights,
 )
 from .plausibility import control_coverage_problems, control_problems, image_sigma_problems
-from .results import AccuracyStatistics, BlockResult, GroundResult, StripModel, StripResult
+from .results import (
+    AccuracyStatistics,
+    BlockResult,
+    GroundResult,
+    PointWarning,
+    StripModel,
+    StripResult,
+)
 from .strip.densify import form_strip_stepped
+
+if TYPE_CHECKING:
+    from .ground.check_precision import WeakCheck
 
 __all__ = [
     "AccuracyStatistics",
@@ -297,9 +307,7 @@ def _strip_warnings(
     notes += [r.describe() for r in strip.rejections + ground.rejections]
     why = strip.lost_to_blunder_tests()
     notes += [
-        f"control point {p!r} is not triangulated ("
-        + why.get(p, "seen on fewer than two photos of a model")
-        + "): left out"
+        PointWarning.not_triangulated(p, why.get(p, "seen on fewer than two photos of a model"))
         for p in ground.left_out
     ]
     lost = np.flatnonzero(~np.isfinite(ground.points).all(axis=1))
@@ -414,14 +422,17 @@ def triangulate_block(
     return _block_without_weak_checks(result, crs)
 
 
+def _weak_check_warnings(weak: Sequence[WeakCheck]) -> tuple[PointWarning, ...]:
+    """A warning naming each weakly determined check point and why."""
+    from .ground.check_precision import weak_check_message
+
+    return tuple(PointWarning.weak_check(w.point, weak_check_message(w)) for w in weak)
+
+
 def _without_weak_checks(result: StripResult) -> StripResult:
     """The check statistics without the weakly determined check points, and a
     warning naming each (:mod:`strip_aerotri.ground.check_precision`)."""
-    from .ground.check_precision import (
-        check_statistics_without,
-        weak_check_message,
-        weak_checks_of,
-    )
+    from .ground.check_precision import check_statistics_without, weak_checks_of
 
     ground, refined = result.ground, result.refined
     final = ground if refined is None else refined  # the photos as delivered
@@ -436,18 +447,14 @@ def _without_weak_checks(result: StripResult) -> StripResult:
         result,
         check_statistics=check_statistics_without(ground, result.control, weak),
         refined=refined,
-        warnings=result.warnings + tuple(weak_check_message(w) for w in weak),
+        warnings=result.warnings + _weak_check_warnings(weak),
         weak_checks=tuple(w.point for w in weak),
     )
 
 
 def _block_without_weak_checks(result: BlockResult, crs: GroundCRS | str) -> BlockResult:
     """:func:`_without_weak_checks` of a block."""
-    from .ground.check_precision import (
-        check_statistics_without,
-        weak_check_message,
-        weak_checks_of,
-    )
+    from .ground.check_precision import check_statistics_without, weak_checks_of
 
     ground_crs = crs if isinstance(crs, GroundCRS) else GroundCRS.from_user_input(crs)
     weak = weak_checks_of(result.observations, result.control, ground_crs, result, result)
@@ -461,6 +468,6 @@ def _block_without_weak_checks(result: BlockResult, crs: GroundCRS | str) -> Blo
         result,
         check_statistics=check_statistics_without(result, result.control, weak),
         block_check_statistics=own,
-        warnings=result.warnings + tuple(weak_check_message(w) for w in weak),
+        warnings=result.warnings + _weak_check_warnings(weak),
         weak_checks=tuple(w.point for w in weak),
     )

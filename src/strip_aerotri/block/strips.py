@@ -47,7 +47,14 @@ from ..options import (
     SelfCalibration,
     StripOptions,
 )
-from ..results import AccuracyStatistics, BlockResult, Rejection, StripJoin, StripModel
+from ..results import (
+    AccuracyStatistics,
+    BlockResult,
+    PointWarning,
+    Rejection,
+    StripJoin,
+    StripModel,
+)
 from ..strip.densify import form_strip_stepped
 from .problem import _prepare, _Problem
 from .snooping import _band_order, _determined_terms, _snoop, _Solution
@@ -285,8 +292,7 @@ def _formation_notes(p: _Problem, result: BlockResult) -> tuple[str, ...]:
         if row in determined or pid not in on_pairs:
             continue
         why = failed.get(pid, "not measured on both photos of any pair")
-        kind = "check point" if p.control.is_check[row] else "control point"
-        notes.append(f"{kind} {pid!r} is not triangulated ({why}): left out")
+        notes.append(PointWarning.not_triangulated(pid, why, check=bool(p.control.is_check[row])))
     return tuple(notes)
 
 

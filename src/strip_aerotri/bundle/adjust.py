@@ -247,14 +247,13 @@ def _make_problem(
     n_border = (0 if camera is None else len(camera.estimated)) + (
         0 if motion is None else motion.n_unknowns
     )
-    structure = structure_for(
-        (m, p, photo, point, along, n_border, obs.photo_ids, obs.point_ids),
+    structure = structure_for(  # one for every border: "auto"'s trials share it
+        (m, p, photo, point, along, obs.photo_ids, obs.point_ids),
         lambda: NormalStructure.from_indices(
             m, 6, p, photo, point, candidates=[along], unit_names=tuple(obs.photo_ids),
             point_names=tuple(obs.point_ids), parameter_names=_PHOTO_PARAMETER_NAMES,
-            n_border=n_border,
         ),
-    )
+    ).with_border(n_border)
     return _Problem(
         photo_ids=tuple(obs.photo_ids),
         photo=photo,
@@ -329,16 +328,12 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     design identity on the centre); IMU ``log(R_imu.T R)`` (rad, design
     ``Jr^-1(e)`` on the rotation)."""
     inv_s = 1.0 / prob.sigma
-    whitened = prob.motion is None  # the Jacobians whitened in the collinearity's blocks
-    xy, v, jac_photo, jac_point = _collinearity(prob, state, inv_s if whitened else None)
+    shutter = None if prob.motion is None else (prob.motion, prob.motion.fractions(prob.xy))
+    xy, v, jac_photo, jac_point = _collinearity(prob, state, inv_s, shutter)
     if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
         return None  # a point behind a photo: no linearisation (the cost is infinite)
     res = xy - _observed(prob, state)
-    border = _border(prob, state, jac_photo)  # the motion's columns from unwhitened ones
-    if border is not None:
-        border *= inv_s[:, None, None]
-    if not whitened:
-        jac_photo, jac_point = jac_photo * inv_s[:, None, None], jac_point * inv_s[:, None, None]
+    border = _border(prob, state, jac_photo, inv_s, shutter)
     image = UnitPointRows(
         prob.photo, prob.point, jac_photo, jac_point, res * inv_s[:, None],
         border_jacobian=border,
@@ -365,33 +360,44 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
 
 
 def _collinearity(
-    prob: _Problem, state: _State, scale: FloatArray | None = None
+    prob: _Problem,
+    state: _State,
+    inv_s: FloatArray,
+    shutter: tuple[ShutterMotion, FloatArray] | None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """The collinearity equations and Jacobians (times `scale` per ray, if
-    given, without a shutter's motion); with a rolling shutter each ray from
-    its centre moved by ``s d_g`` (the point moved by the opposite, which is
-    the same ray)."""
-    if prob.motion is None:
+    """The collinearity equations and their Jacobians whitened by ``inv_s``
+    (K,) = 1/σ; with a rolling shutter (its motion and the rows' fractions
+    ``s`` (K,)) each ray from its centre moved by ``s d_g`` (the point moved
+    by the opposite, which is the same ray)."""
+    if shutter is None:
         return collinearity_jacobians(
-            state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c, scale
+            state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c, inv_s
         )
-    shift = prob.motion.centre_shift(state.motion, prob.photo, prob.motion.fractions(prob.xy))
-    ray_points = state.points[prob.point] - shift
+    motion, s = shutter
+    ray_points = state.points[prob.point] - motion.centre_shift(state.motion, prob.photo, s)
     rays = np.arange(prob.photo.size, dtype=np.intp)
     return collinearity_jacobians(
-        state.centres, state.rotations, ray_points, prob.photo, rays, prob.c
+        state.centres, state.rotations, ray_points, prob.photo, rays, prob.c, inv_s
     )
 
 
-def _border(prob: _Problem, state: _State, jac_photo: FloatArray) -> FloatArray | None:
-    """The border's design columns (K, 2, k) before weighting: the camera's
-    ``d(x - (x_obs + Δ))/dθ = -dΔ/dθ``, then the motions' ``s dx/dS``."""
+def _border(
+    prob: _Problem,
+    state: _State,
+    jac_photo: FloatArray,
+    inv_s: FloatArray,
+    shutter: tuple[ShutterMotion, FloatArray] | None,
+) -> FloatArray | None:
+    """The border's whitened design columns (K, 2, k): the camera's
+    ``d(x - (x_obs + Δ))/dθ = -dΔ/dθ`` times ``inv_s`` (K,) = 1/σ, then the
+    motions' ``s dx/dS`` from the centre columns of ``jac_photo``, which are
+    whitened already."""
     parts = []
     if prob.camera is not None:
-        parts.append(-prob.camera.partials(prob.xy, state.camera))
-    if prob.motion is not None:
-        s = prob.motion.fractions(prob.xy)
-        parts.append(prob.motion.border(jac_photo[:, :, :3], prob.photo, s))
+        parts.append(prob.camera.partials(prob.xy, state.camera) * -inv_s[:, None, None])
+    if shutter is not None:
+        motion, s = shutter
+        parts.append(motion.border(jac_photo[:, :, :3], prob.photo, s))
     return np.concatenate(parts, axis=2) if parts else None
 
 
@@ -583,7 +589,8 @@ def bundle_adjust(
     imu_sigma : float or array_like, shape (M, 3), optional
         Standard deviations of those rotation components in radians.
     max_iterations : int
-        Largest number of accepted steps.
+        Largest number of accepted steps; 0: the start values evaluated, not
+        converged (the camera's values one Gauss-Newton step's from them).
     tolerance : float
         Stop when the objective changes by less than ``tolerance`` relative,
         or when the largest correction is below ``tolerance`` (radians, and
@@ -700,7 +707,8 @@ def bundle_adjust(
                 StripAerotriWarning,
                 stacklevel=2,
             )
-        precision = _precision_products(prob, state, normals, sigma0, compute_precision)
+        at_start = iterations == 0  # no step: the camera's values are one step's
+        precision = _precision_products(prob, state, normals, sigma0, compute_precision, at_start)
         control_used = prob.control_weight > 0
         return BundleResult(
             centres=state.centres,
@@ -779,8 +787,8 @@ def _checked_start(
     if not (np.all(np.isfinite(centres)) and np.all(np.isfinite(points))):
         raise ValueError("Expected finite `centres0` and `points0`")
     check_rotations(rotations, "rotations0")
-    if int(max_iterations) < 1:
-        raise ValueError(f"Expected `max_iterations` >= 1, got {max_iterations}")
+    if int(max_iterations) < 0:
+        raise ValueError(f"Expected `max_iterations` >= 0, got {max_iterations}")
     if not tolerance > 0.0:
         raise ValueError(f"Expected a positive `tolerance`, got {tolerance}")
     return centres, rotations, points
@@ -929,9 +937,11 @@ def _precision_products(
     normals: _Normals,
     sigma0: float,
     compute_precision: bool,
+    linearised: bool = False,
 ) -> _Precision:
-    """Standard deviations of points and photos and the cofactors of the GNSS
-    and IMU residuals (NaN without ``compute_precision``)."""
+    """Standard deviations of points and photos and the cofactors of the GNSS and IMU
+    residuals (NaN without ``compute_precision``); ``linearised``: the camera's values
+    are those of one Gauss-Newton step from ``state``."""
     m, p = prob.n_photos, prob.n_points
     nan_p, nan_m = np.full((p, 3), np.nan), np.full((m, 3), np.nan)
     point_std, centre_std, rotation_std = nan_p, nan_m, nan_m.copy()
@@ -940,24 +950,27 @@ def _precision_products(
     imu_cofactor = np.full((m, 3, 3), np.nan)
     image_redundancy = np.full((prob.photo.size, 2), np.nan)
     camera, motion = None, None
+    border_q = np.zeros((0, 0))
     if compute_precision or normals.image.border_jacobian is not None:
-        cof = _solve(prob, normals, 0.0).solution.cofactors()
+        solution = _solve(prob, normals, 0.0).solution
+        border_q = solution.border_cofactor  # without the selected inverse of the band
     k = prob.n_camera
     if prob.camera is not None:
         border = normals.image.border_jacobian
         assert border is not None
         camera = CameraEstimate(
             model=prob.camera,
-            values=state.camera,
-            cofactor=cof.border[:k, :k],
+            values=state.camera + (solution.border_step[:k] if linearised else 0.0),
+            cofactor=border_q[:k, :k],
             sigma0=sigma0,
             information=np.einsum("kri,kri->i", border[:, :, :k], border[:, :, :k]),
-            conditional_information=np.diag(np.linalg.inv(cof.border[:k, :k])),
+            conditional_information=np.diag(np.linalg.inv(border_q[:k, :k])),
         )
         _check_camera(camera)
     if prob.motion is not None:
-        motion = ShutterEstimate(prob.motion, state.motion, cof.border[k:, k:], sigma0)
+        motion = ShutterEstimate(prob.motion, state.motion, border_q[k:, k:], sigma0)
     if compute_precision:
+        cof = solution.cofactors()
         q_blocks = cof.unit
         q_point = np.diagonal(cof.point, axis1=1, axis2=2)
         image_redundancy = cof.redundancy(normals.image)

@@ -6,14 +6,14 @@ attitude by Baarda's w, rejects the worst (or a few well-separated image
 rays) and solves again from the last solution, until nothing fails.  A round
 is: the adjustment (:func:`refine_frame`'s loop), the test values
 (:func:`_round_statistics`), the failures (:func:`_failures`), their
-records (:func:`describe`) and the rejection itself (:meth:`_Sets.reject`).
+records (:func:`describe`) and the rejection itself (`_Sets.reject`, in
+``_snoop_sets.py``); the self-calibration's camera and choice are in
+``_snoop_camera.py``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import warnings
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -22,27 +22,28 @@ from .._stats import leading_failures
 from .._threads import compute_workers
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
-from ..errors import GeometryError, StripAerotriWarning
-from ..geometry.camera_model import CameraModel, ShutterMotion
+from ..geometry.camera_model import ShutterMotion
 from ..geometry.collinearity import image_jacobian, image_vectors
 from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
-from ..results import BundleResult, FrameRefinement, Rejection, SelfCalibrationOutcome
-from ._given import observed_with_sigma
-from .adjust import NOT_CONVERGED, bundle_adjust
-from .photo_tests import _photo_flags, _photo_tests
-from .selfcal import ebner_base_mm, final_outcome, residual_cells, start_model
+from ..results import BundleResult, FrameRefinement, Rejection
+from ._snoop_camera import _adjust, _Camera
+from ._structures import reusing_structures
+from ._snoop_sets import (
+    CONTROL_STAGE,
+    GNSS_STAGE,
+    IMAGE_STAGE,
+    IMU_STAGE,
+    _compact,
+    _Inputs,
+    _inputs,
+    _Sets,
+)
+from .photo_tests import _photo_tests
 
 __all__ = ["CONTROL_STAGE", "GNSS_STAGE", "IMAGE_STAGE", "IMU_STAGE", "refine_frame"]
 
-#: Stage name of the image-coordinate tests in :class:`Rejection` records.
-IMAGE_STAGE = "bundle"
-#: Stage name of the control tests (shared with the ground stage's options).
-CONTROL_STAGE = "control"
-#: Stage names of the GNSS centre and IMU attitude tests.
-GNSS_STAGE = "gnss"
-IMU_STAGE = "imu"
 #: Smallest value the photo-unknowns factor of the redundancy numbers may take.
 _MIN_PHOTO_FACTOR = 0.05
 
@@ -118,7 +119,9 @@ def refine_frame(
     self_calibration : SelfCalibration, optional
         Estimate the camera with the block (:mod:`strip_aerotri.bundle.selfcal`);
         ``"auto"`` chooses the parameters before the blunder tests, which
-        then run with the chosen camera.
+        then run with the chosen camera, and once more on the image
+        observations they kept (:meth:`_Camera.checked_again`): with another
+        set the tests start over.
     control_tested : bool
         False: the control is not tested (an earlier call kept it for
         failing alike).
@@ -183,7 +186,8 @@ def refine_frame(
     left with one ray (and no full control) is dropped.  The adjustment is
     then solved again from the last solution, until nothing fails.
     """
-    with compute_workers(int(np.asarray(observations.photo).size)):
+    # one normal-equation structure for the choice's trials and every round
+    with compute_workers(int(np.asarray(observations.photo).size)), reusing_structures():
         blunders = blunders or BlunderOptions()
         obs = observations
         inp = _inputs(
@@ -192,45 +196,41 @@ def refine_frame(
         )._replace(motion=motion)  # fmt: skip
         sets = _Sets.start(inp, blunders, observation_used, control_used, gnss_used, imu_used)
         sets.control_tested = control_tested
+        initial = sets.copy()
         rejections: list[Rejection] = []
         rounds = iterations = 0
         previous_effect: int | None = None
         state = (inp.centres0, inp.rotations0, inp.points0)
         camera = _Camera.start(inp, sets, self_calibration, max_iterations)
+        state = camera.state or state  # from where the choice's adjustments ended
         first_control: tuple[IntArray, FloatArray, float] | None = None
         while True:
-            pt_used = sets.used_points(inp)
-            sub, rows, pts = _compact(obs, sets.keep, pt_used)
-            res = _adjust(
-                inp, sets, sub, pts, state, max_iterations=max_iterations,
-                compute_precision=compute_precision, camera=camera.model, camera0=camera.values,
-            )  # fmt: skip
+            res, stats, new_points, pt_used, state = _round(
+                inp, sets, state, camera, max_iterations, compute_precision
+            )
             rounds += 1
             iterations += res.iterations
             camera = camera.moved(res)
-            new_points = np.full((inp.n_points, 3), np.nan)
-            new_points[pts] = res.points
-            # keep initial values of dropped points for a possible later round
-            kept = np.where(pt_used[:, None], new_points, inp.points0)
-            state = (res.centres, res.rotations, kept)
             _sigma0_after(rejections, previous_effect, res.sigma0)
-            stats = _round_statistics(
-                inp, sets, res, new_points, pt_used, sub, rows, pts, compute_precision
-            )
-            result = _refinement(
-                _RoundOutcome(res, stats, new_points, pt_used, iterations, rounds),
-                sets,
-                camera,
-                obs,
-                rejections,
-            )
+            outcome = _RoundOutcome(res, stats, new_points, pt_used, iterations, rounds)
+            result = _refinement(outcome, sets, camera, obs, rejections)
             if not blunders.testing:
                 return result
             failures = _failures(inp, sets, res, stats, blunders)
             if first_control is None:
                 first_control = (*_control_w(sets, stats), failures.crit_ctrl)
             if not failures.found:
-                return result
+                again = camera.checked_again(
+                    inp, initial.with_images_of(sets), max_iterations, state,
+                    int(np.count_nonzero(sets.obs_rejected)),
+                )  # fmt: skip
+                if again is None or again.estimated == camera.estimated:
+                    return result if again is None else again.told(result, sets, obs)
+                # another set: the tests start over with it, from this solution
+                camera, state = again, again.state or state
+                sets, rejections = initial.copy(), []
+                previous_effect, first_control = None, None
+                continue
             picks = _picks(failures, blunders, obs)
             new_rejections = describe(obs, picks, failures, stats, res.sigma0, blunders)
             if not blunders.rejecting:
@@ -245,6 +245,34 @@ def refine_frame(
                 sets.keep_control()
                 previous_effect = None
             sets.check_fractions(inp, blunders)
+
+
+def _round(
+    inp: _Inputs,
+    sets: _Sets,
+    state: tuple[FloatArray, FloatArray, FloatArray],
+    camera: _Camera,
+    max_iterations: int,
+    compute_precision: bool,
+) -> tuple[
+    BundleResult, _RoundStatistics, FloatArray, BoolArray, tuple[FloatArray, FloatArray, FloatArray]
+]:
+    """One adjustment of the data in use from ``state``: the adjustment, its
+    test statistics, the points (P, 3; NaN where not used), the points used
+    and the next round's start (dropped points keep their initial values)."""
+    pt_used = sets.used_points(inp)
+    sub, rows, pts = _compact(inp.obs, sets.keep, pt_used)
+    res = _adjust(
+        inp, sets, sub, pts, state, max_iterations=max_iterations,
+        compute_precision=compute_precision, camera=camera.model, camera0=camera.values,
+    )  # fmt: skip
+    new_points = np.full((inp.n_points, 3), np.nan)
+    new_points[pts] = res.points
+    kept = np.where(pt_used[:, None], new_points, inp.points0)
+    stats = _round_statistics(
+        inp, sets, res, new_points, pt_used, sub, rows, pts, compute_precision
+    )
+    return res, stats, new_points, pt_used, (res.centres, res.rotations, kept)
 
 
 def _sigma0_after(rejections: list[Rejection], since: int | None, sigma0: float) -> None:
@@ -357,352 +385,6 @@ def _keep_systematic(
         rejected=rejected,
         self_calibrating=self_calibrating,
     )
-
-
-def _adjust(
-    inp: _Inputs,
-    sets: _Sets,
-    sub: ImageObservations,
-    pts: IntArray,
-    state: tuple[FloatArray, FloatArray, FloatArray],
-    *,
-    max_iterations: int,
-    compute_precision: bool,
-    camera: CameraModel | None,
-    camera0: FloatArray | None,
-) -> BundleResult:
-    """One bundle adjustment of the observations, control, GNSS and IMU in use."""
-    return bundle_adjust(
-        sub,
-        state[0],
-        state[1],
-        state[2][pts],
-        camera=camera,
-        camera0=camera0,
-        motion=inp.motion,
-        control_xyz=np.where(sets.ctrl_on[pts], inp.c_xyz[pts], np.nan),
-        control_sigma=np.where(sets.ctrl_on[pts], inp.c_sig[pts], np.inf),
-        gnss_centres=None
-        if inp.g_xyz is None
-        else np.where(sets.g_on[:, None], inp.g_xyz, np.nan),
-        gnss_sigma=None if inp.g_xyz is None else inp.g_sig,
-        imu_rotations=None
-        if inp.i_rot is None
-        else np.where(sets.i_on[:, None, None], inp.i_rot, np.nan),
-        imu_sigma=None if inp.i_rot is None else inp.i_sig,
-        max_iterations=max_iterations,
-        compute_precision=compute_precision,
-    )
-
-
-@dataclass(frozen=True)
-class _Camera:
-    """The self-calibration of a refinement: its model, current values and choice."""
-
-    spec: SelfCalibration | None
-    model: CameraModel | None
-    values: FloatArray | None
-    chosen: SelfCalibrationOutcome | None
-
-    @classmethod
-    def start(
-        cls,
-        inp: _Inputs,
-        sets: _Sets,
-        spec: SelfCalibration | None,
-        max_iterations: int,
-    ) -> _Camera:
-        """The model to start with; ``"auto"`` chooses it on the data as given."""
-        if spec is None:
-            return cls(None, None, None, None)
-        obs = inp.obs
-        pt_used = sets.used_points(inp)
-        sub, _, pts = _compact(obs, sets.keep, pt_used)
-        c_mm = float(obs.principal_distance)
-
-        # each trial starts from the last one's photos and points (a few steps less)
-        last = [(inp.centres0, inp.rotations0, inp.points0.copy())]
-
-        def adjust(model: CameraModel | None, start: FloatArray | None) -> BundleResult:
-            with warnings.catch_warnings():
-                # a trial may estimate parameters the data cannot separate (the
-                # choice then holds them); only the delivered adjustment's
-                # convergence is the user's concern, and it warns on its own
-                warnings.filterwarnings(
-                    "ignore", NOT_CONVERGED, category=StripAerotriWarning
-                )
-                res = _adjust(
-                    inp,
-                    sets,
-                    sub,
-                    pts,
-                    last[0],
-                    max_iterations=max_iterations,
-                    compute_precision=False,
-                    camera=model,
-                    camera0=start,
-                )
-            points = last[0][2].copy()
-            points[pts] = res.points
-            last[0] = (res.centres, res.rotations, points)
-            return res
-
-        base = ebner_base_mm(inp.centres0, inp.points0[pts], c_mm)
-        model, values, chosen = start_model(spec, adjust, c_mm, base)
-        return cls(spec, model, values, chosen)
-
-    def moved(self, res: BundleResult) -> _Camera:
-        """The camera of the next round starts from this round's estimate."""
-        if res.camera is None:
-            return self
-        return dataclasses.replace(self, values=res.camera.values)
-
-    def outcome(
-        self, res: BundleResult, xy: FloatArray, residuals_mm: FloatArray
-    ) -> SelfCalibrationOutcome | None:
-        """What was estimated, kept and held, with the residuals over the format."""
-        if self.spec is None:
-            return None
-        out = final_outcome(self.spec, self.chosen, res.camera)
-        if res.camera is None:
-            return out
-        return dataclasses.replace(out, cells=residual_cells(res.camera, xy, residuals_mm))
-
-
-class _Inputs(NamedTuple):
-    """The validated inputs of :func:`refine_frame` (frame units: m, rad)."""
-
-    obs: ImageObservations
-    n_photos: int
-    n_points: int
-    centres0: FloatArray
-    rotations0: FloatArray
-    points0: FloatArray
-    sigma_img: FloatArray  # (K,) mm
-    c_xyz: FloatArray  # (P, 3), NaN where not given
-    c_sig: FloatArray  # (P, 3), inf where not given
-    c_given: BoolArray  # (P, 3)
-    g_xyz: FloatArray | None
-    g_sig: FloatArray
-    g_given: BoolArray
-    g_axes: FloatArray
-    i_rot: FloatArray | None
-    i_sig: FloatArray
-    i_given: BoolArray
-    motion: ShutterMotion | None = None  # a rolling shutter's groups, if estimated
-
-
-def _inputs(
-    obs: ImageObservations,
-    centres0: ArrayLike,
-    rotations0: ArrayLike,
-    points0: ArrayLike,
-    control_xyz: ArrayLike | None,
-    control_sigma: ArrayLike | None,
-    gnss_centres: ArrayLike | None,
-    gnss_sigma: ArrayLike | None,
-    imu_rotations: ArrayLike | None,
-    imu_sigma: ArrayLike | None,
-    gnss_axes: ArrayLike | None,
-) -> _Inputs:
-    """Shapes checked, control, GNSS and IMU with their sigmas; ValueError naming
-    the argument otherwise."""
-    k_all, m, p = obs.photo.shape[0], len(obs.photo_ids), len(obs.point_ids)
-    centres = np.array(centres0, dtype=np.float64)
-    rotations = np.array(rotations0, dtype=np.float64)
-    points = np.array(points0, dtype=np.float64)
-    if points.shape != (p, 3):
-        raise ValueError(f"Expected `points0` to have shape {(p, 3)}, got {points.shape}")
-    if centres.shape != (m, 3) or rotations.shape != (m, 3, 3):
-        raise ValueError(
-            f"Expected `centres0` (M, 3) and `rotations0` (M, 3, 3) with M = {m}, got "
-            f"{centres.shape}, {rotations.shape}"
-        )
-    if control_xyz is None:
-        c_xyz, c_sig = np.full((p, 3), np.nan), np.full((p, 3), np.inf)
-    else:
-        c_xyz, c_sig = observed_with_sigma(
-            control_xyz, control_sigma, (p, 3), "control_xyz", "control_sigma"
-        )
-    c_given = np.isfinite(c_xyz) & np.isfinite(c_sig)
-    if np.any(c_sig[c_given] <= 0):
-        raise ValueError("Expected positive standard deviations for `control_xyz`")
-    g_xyz = i_rot = None
-    g_sig = i_sig = np.full((m, 3), np.inf)
-    g_given = np.zeros(m, bool)
-    i_given = np.zeros(m, bool)
-    if gnss_centres is not None:
-        g_xyz, g_sig = observed_with_sigma(
-            gnss_centres, gnss_sigma, (m, 3), "gnss_centres", "gnss_sigma"
-        )
-        g_given = np.any(np.isfinite(g_xyz) & np.isfinite(g_sig), axis=1)
-    if imu_rotations is not None:
-        i_rot, i_sig = observed_with_sigma(
-            imu_rotations, imu_sigma, (m, 3, 3), "imu_rotations", "imu_sigma"
-        )
-        i_given = np.all(np.isfinite(i_rot), axis=(1, 2)) & np.any(np.isfinite(i_sig), axis=1)
-    if gnss_axes is None:
-        g_axes = np.broadcast_to(np.eye(3), (m, 3, 3))
-    else:
-        g_axes = np.asarray(gnss_axes, dtype=np.float64)
-        if g_axes.shape != (m, 3, 3):
-            raise ValueError(f"Expected `gnss_axes` to have shape {(m, 3, 3)}, got {g_axes.shape}")
-    return _Inputs(
-        obs,
-        m,
-        p,
-        centres,
-        rotations,
-        points,
-        np.broadcast_to(np.asarray(obs.sigma, dtype=np.float64), (k_all,)),
-        c_xyz,
-        c_sig,
-        c_given,
-        g_xyz,
-        g_sig,
-        g_given,
-        g_axes,
-        i_rot,
-        i_sig,
-        i_given,
-    )
-
-
-@dataclass
-class _Sets:
-    """What is in use and what was rejected; changed by each round's rejections."""
-
-    keep: BoolArray  # (K,) image observations in use
-    rejected_before: BoolArray  # (K,) rejected by an earlier call's tests
-    obs_rejected: BoolArray  # (K,)
-    ctrl_on: BoolArray  # (P, 3)
-    ctrl_rejected: BoolArray  # (P, 3)
-    g_on: BoolArray  # (M,)
-    g_rejected: BoolArray
-    i_on: BoolArray
-    i_rejected: BoolArray
-    n_img_start: int
-    n_ctrl_start: int
-    #: False once the control is kept for failing alike: no more control tests
-    control_tested: bool = True
-
-    @classmethod
-    def start(
-        cls,
-        inp: _Inputs,
-        blunders: BlunderOptions,
-        observation_used: ArrayLike | None,
-        control_used: ArrayLike | None,
-        gnss_used: ArrayLike | None,
-        imu_used: ArrayLike | None,
-    ) -> _Sets:
-        obs, m, p = inp.obs, inp.n_photos, inp.n_points
-        k_all = obs.photo.shape[0]
-        keep = (
-            np.ones(k_all, bool) if observation_used is None else np.array(observation_used, bool)
-        )
-        if keep.shape != (k_all,):
-            raise ValueError(f"Expected `observation_used` to have shape {(k_all,)}")
-        ctrl_on = (
-            inp.c_given.copy()
-            if control_used is None
-            else np.array(control_used, bool) & inp.c_given
-        )
-        excluded_points, excluded_obs = blunders.excluded(obs)
-        rejected_before = ~keep & ~excluded_obs
-        keep &= ~excluded_obs
-        ctrl_on[excluded_points] = False
-        g_on = inp.g_given & _photo_flags(gnss_used, m, "gnss_used")
-        i_on = inp.i_given & _photo_flags(imu_used, m, "imu_used")
-        return cls(
-            keep=keep,
-            rejected_before=rejected_before,
-            obs_rejected=np.zeros(k_all, bool),
-            ctrl_on=ctrl_on,
-            ctrl_rejected=np.zeros((p, 3), bool),
-            g_on=g_on,
-            g_rejected=inp.g_given & ~g_on,
-            i_on=i_on,
-            i_rejected=inp.i_given & ~i_on,
-            n_img_start=int(keep.sum()),
-            n_ctrl_start=int(ctrl_on.sum()),
-        )
-
-    def used_points(self, inp: _Inputs) -> BoolArray:
-        """Points with a start value and enough rays.
-
-        A point that lost a ray to a rejection keeps a check on the rest only
-        with three rays left: with two, the ray rejected may have been the
-        good one (a wrong ray pulls the point towards itself, and a good
-        neighbour can show the larger w) and nothing would show it."""
-        obs, p = inp.obs, inp.n_points
-        rays = np.bincount(obs.point[self.keep], minlength=p)
-        full = np.all(self.ctrl_on, axis=1)
-        lost = np.bincount(obs.point[self.obs_rejected | self.rejected_before], minlength=p) > 0
-        need = np.where(lost, 3, 2)
-        has_start = np.all(np.isfinite(inp.points0), axis=1)
-        used: BoolArray = has_start & ((rays >= need) | ((rays >= need - 1) & full))
-        return used
-
-    def reject(self, picks: list[tuple[str, int]]) -> None:
-        for kind, k in picks:
-            if kind == "image":
-                self.keep[k] = False
-                self.obs_rejected[k] = True
-            elif kind == "plan":
-                self.ctrl_on[k, :2] = False
-                self.ctrl_rejected[k, :2] = True
-            elif kind == "height":
-                self.ctrl_on[k, 2] = False
-                self.ctrl_rejected[k, 2] = True
-            elif kind == "gnss":
-                self.g_on[k] = False
-                self.g_rejected[k] = True
-            else:
-                self.i_on[k] = False
-                self.i_rejected[k] = True
-
-    def control_over_limit(self, blunders: BlunderOptions) -> bool:
-        """More than ``max_fraction`` of the control components rejected."""
-        n_ctrl_rej = self.n_ctrl_start - int(self.ctrl_on.sum())
-        return n_ctrl_rej > blunders.max_fraction * max(self.n_ctrl_start, 1)
-
-    def keep_control(self) -> None:
-        """Every rejected control component back in use, and no more control tests."""
-        self.ctrl_on |= self.ctrl_rejected
-        self.ctrl_rejected[:] = False
-        self.control_tested = False
-
-    def check_fractions(self, inp: _Inputs, blunders: BlunderOptions) -> None:
-        """GeometryError when a kind of observation lost more than
-        ``max_fraction`` to the tests: the rest cannot be trusted either."""
-        limit = blunders.max_fraction
-        n_img_rej = self.n_img_start - int(self.keep.sum())
-        if n_img_rej > limit * max(self.n_img_start, 1):
-            raise GeometryError(
-                f"bundle adjustment: more than {limit:.0%} of the image "
-                f"observations fail the blunder test ({n_img_rej} of {self.n_img_start}); the "
-                "observations cannot be trusted"
-            )
-        if self.control_over_limit(blunders):
-            raise GeometryError(
-                f"bundle adjustment: more than {limit:.0%} of the control "
-                "observations fail the blunder test; the control cannot be trusted, or "
-                "uncorrected camera errors bend the block (when many points fail together, "
-                'add [adjustment] self_calibration = "auto")'
-            )
-        for stage, what, given_k, rejected_k in (
-            (GNSS_STAGE, "GNSS centres", inp.g_given, self.g_rejected),
-            (IMU_STAGE, "IMU attitudes", inp.i_given, self.i_rejected),
-        ):
-            n_given_k = int(np.count_nonzero(given_k))
-            n_rej_k = int(np.count_nonzero(rejected_k))
-            if n_rej_k > limit * max(n_given_k, 1):
-                raise GeometryError(
-                    f"bundle adjustment, stage {stage!r}: more than {limit:.0%} "
-                    f"of the {what} fail the blunder test ({n_rej_k} of {n_given_k} photos); "
-                    f"the {what} cannot be trusted"
-                )
 
 
 class _RoundStatistics(NamedTuple):
@@ -959,32 +641,6 @@ def _point_leverage(
     v_inv = np.linalg.inv(normal)
     h = np.einsum("kai,kij,kaj->ka", b, v_inv[point], b)
     return h, np.diagonal(v_inv, axis1=1, axis2=2)
-
-
-def _compact(
-    obs: ImageObservations, keep_obs: BoolArray, point_used: BoolArray
-) -> tuple[ImageObservations, IntArray, IntArray]:
-    """Observations of the used points only, points renumbered.
-
-    Returns the sub-observations, the rows of ``obs`` they came from and the
-    original point index of each new point.
-    """
-    rows = np.flatnonzero(keep_obs & point_used[obs.point])
-    points = np.flatnonzero(point_used)
-    new_index = np.full(point_used.shape[0], -1, dtype=np.intp)
-    new_index[points] = np.arange(points.size)
-    sub = ImageObservations(
-        photo_ids=obs.photo_ids,
-        point_ids=tuple(obs.point_ids)
-        if points.size == len(obs.point_ids)
-        else tuple(obs.point_ids[i] for i in points),
-        photo=obs.photo[rows],
-        point=new_index[obs.point[rows]],
-        xy=obs.xy[rows],
-        sigma=np.broadcast_to(np.asarray(obs.sigma, dtype=np.float64), obs.photo.shape)[rows],
-        principal_distance=obs.principal_distance,
-    )
-    return sub, rows, points
 
 
 def _expand(values: FloatArray, index: IntArray, n: int) -> FloatArray:

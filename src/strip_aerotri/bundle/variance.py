@@ -55,7 +55,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._typing import ArrayLike, BoolArray, FloatArray
+from .._typing import ArrayLike, BoolArray, FloatArray, StrArray
 from ..choices import BlunderAction
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
@@ -116,28 +116,34 @@ class _Sigmas(NamedTuple):
 
 
 def group_statistics(
-    fr: FrameRefinement, observed_point: ArrayLike, sigmas: _Sigmas
+    fr: FrameRefinement,
+    observed_point: ArrayLike,
+    sigmas: _Sigmas,
+    image_groups: ArrayLike | None = None,
 ) -> dict[str, GroupStatistics]:
     """Each group's ``v'Pv``, redundancy and count in the adjustment ``fr``
     (which must carry exact redundancy numbers: ``compute_precision``);
     ``observed_point`` (K,) the point of each image observation, ``sigmas``
-    those ``fr`` ran with."""
+    those ``fr`` ran with, ``image_groups`` (K,) the image observations'
+    groups (default: tie points and control points, module notes)."""
+    labels = _image_labels(fr, observed_point, image_groups)
     return {
         name: GroupStatistics(float(np.sum(e**2)), float(np.sum(r)), int(e.size))
-        for name, (e, r) in _group_rows(fr, observed_point, sigmas).items()
+        for name, (e, r) in _group_rows(fr, labels, sigmas).items()
     }
 
 
 def _group_rows(
-    fr: FrameRefinement, observed_point: ArrayLike, sigmas: _Sigmas
+    fr: FrameRefinement, labels: StrArray, sigmas: _Sigmas
 ) -> dict[str, tuple[FloatArray, FloatArray]]:
     """Each group's whitened residuals ``v sqrt(p)`` and redundancy numbers,
-    one per scalar observation in the adjustment."""
+    one per scalar observation in the adjustment; ``labels`` (K,) the image
+    observations' groups."""
     out: dict[str, tuple[FloatArray, FloatArray]] = {}
     used = fr.observation_used
-    marks = _marks(fr, observed_point)
     v = fr.image_residuals_mm / sigmas.image[:, None]
-    for name, rows in ((IMAGE_TIES, used & ~marks), (IMAGE_MARKS, used & marks)):
+    for name in _image_names(labels):
+        rows = used & (labels == name)
         if rows.any():
             out[name] = (v[rows].ravel(), fr.image_redundancy[rows].ravel())
     s0 = fr.sigma0
@@ -190,6 +196,26 @@ def _marks(fr: FrameRefinement, observed_point: ArrayLike) -> BoolArray:
     return has_control
 
 
+def _image_labels(
+    fr: FrameRefinement, observed_point: ArrayLike, given: ArrayLike | None
+) -> StrArray:
+    """The group (K,) of each image observation: ``given``, or by default
+    :data:`IMAGE_MARKS` for the points with control in ``fr`` and
+    :data:`IMAGE_TIES` for the rest."""
+    if given is not None:
+        return np.asarray(given, dtype=str)
+    marks = _marks(fr, observed_point)
+    labels: StrArray = np.where(marks, IMAGE_MARKS, IMAGE_TIES)
+    return labels
+
+
+def _image_names(labels: StrArray) -> list[str]:
+    """The image groups present, the default ones in their order (ties first)."""
+    present = [str(n) for n in np.unique(labels)]
+    first = [n for n in (IMAGE_TIES, IMAGE_MARKS) if n in present]
+    return first + [n for n in present if n not in first]
+
+
 def _factors(stats: dict[str, GroupStatistics], held: frozenset[str]) -> dict[str, float]:
     """``sqrt(v'Pv / r)`` of every group not held at its given sigma."""
     return {
@@ -199,13 +225,9 @@ def _factors(stats: dict[str, GroupStatistics], held: frozenset[str]) -> dict[st
     }
 
 
-def _reset(sigmas: _Sigmas, apriori: _Sigmas, names: frozenset[str], marks: BoolArray) -> _Sigmas:
+def _reset(sigmas: _Sigmas, apriori: _Sigmas, names: frozenset[str], labels: StrArray) -> _Sigmas:
     """The sigmas with the groups ``names`` back at their given values."""
-    image = np.where(
-        (marks & (IMAGE_MARKS in names)) | (~marks & (IMAGE_TIES in names)),
-        apriori.image,
-        sigmas.image,
-    )
+    image = np.where(np.isin(labels, sorted(names)), apriori.image, sigmas.image)
     control = np.array(sigmas.control)
     if CONTROL_PLAN in names:
         control[:, :2] = apriori.control[:, :2]
@@ -217,11 +239,12 @@ def _reset(sigmas: _Sigmas, apriori: _Sigmas, names: frozenset[str], marks: Bool
 
 
 def _scaled(
-    sigmas: _Sigmas, factors: dict[str, float], marks: BoolArray
+    sigmas: _Sigmas, factors: dict[str, float], labels: StrArray
 ) -> _Sigmas:
     """The sigmas with each group's multiplied by its factor (bounded per step)."""
     f = {k: float(np.clip(v, *_FACTOR_BOUNDS)) for k, v in factors.items()}
-    image = sigmas.image * np.where(marks, f.get(IMAGE_MARKS, 1.0), f.get(IMAGE_TIES, 1.0))
+    names, group = np.unique(labels, return_inverse=True)
+    image = sigmas.image * np.array([f.get(str(n), 1.0) for n in names])[group]
     control = sigmas.control * np.array(
         [f.get(CONTROL_PLAN, 1.0), f.get(CONTROL_PLAN, 1.0), f.get(CONTROL_HEIGHT, 1.0)]
     )
@@ -241,10 +264,10 @@ _UNITS = {
 }
 
 
-def _median_sigma(sigmas: _Sigmas, name: str, marks: BoolArray, used: FrameRefinement) -> float:
+def _median_sigma(sigmas: _Sigmas, name: str, labels: StrArray, used: FrameRefinement) -> float:
     """The group's median sigma over its observations in the adjustment."""
-    if name in (IMAGE_TIES, IMAGE_MARKS):
-        rows = used.observation_used & (marks if name == IMAGE_MARKS else ~marks)
+    if name not in (CONTROL_PLAN, CONTROL_HEIGHT, GNSS, IMU):  # an image group
+        rows = used.observation_used & (labels == name)
         values = sigmas.image[rows]
     elif name in (CONTROL_PLAN, CONTROL_HEIGHT):
         comps = [0, 1] if name == CONTROL_PLAN else [2]
@@ -253,7 +276,12 @@ def _median_sigma(sigmas: _Sigmas, name: str, marks: BoolArray, used: FrameRefin
         sig = sigmas.gnss if name == GNSS else sigmas.imu
         on = used.gnss_used if name == GNSS else used.imu_used
         values = np.zeros(0) if sig is None else sig[on][np.isfinite(sig[on])]
-    return float(np.median(values)) * _UNITS[name][1] if values.size else float("nan")
+    return float(np.median(values)) * _unit(name)[1] if values.size else float("nan")
+
+
+def _unit(name: str) -> tuple[str, float]:
+    """The unit of a group and the factor from the adjustment's unit to it."""
+    return _UNITS.get(name, _UNITS[IMAGE_TIES])
 
 
 def _components(
@@ -265,18 +293,20 @@ def _components(
     sigma0_apriori: float,
     applied: bool,
     held: frozenset[str],
+    image_groups: ArrayLike | None = None,
 ) -> VarianceComponents:
     """The record of the estimate: each group's sigmas, redundancy and last factor."""
-    stats = group_statistics(fr, observed_point, sigmas)
+    stats = group_statistics(fr, observed_point, sigmas, image_groups)
     factors = _factors(stats, held)
-    marks = _marks(fr, observed_point)
+    labels = _image_labels(fr, observed_point, image_groups)
     groups = tuple(
         VarianceGroup(
             name=name,
-            unit=_UNITS[name][0],
+            unit=_unit(name)[0],
             n=s.n,
-            sigma_apriori=_median_sigma(apriori, name, marks, fr),
-            sigma=_median_sigma(sigmas, name, marks, fr) * (1.0 if applied else factors.get(name, 1.0)),
+            sigma_apriori=_median_sigma(apriori, name, labels, fr),
+            sigma=_median_sigma(sigmas, name, labels, fr)
+            * (1.0 if applied else factors.get(name, 1.0)),
             redundancy=s.r,
             factor=factors.get(name, float("nan")),
             estimated=name in factors and s.r >= MIN_REDUNDANCY,
@@ -311,6 +341,7 @@ def refine_frame_weighted(
     control_tested: bool = True,
     variance_components: bool = False,
     apply: bool = True,
+    image_groups: ArrayLike | None = None,
 ) -> FrameRefinement:
     """:func:`~strip_aerotri.bundle.snooping.refine_frame` with the groups'
     weights estimated from the residuals (module notes).
@@ -326,6 +357,9 @@ def refine_frame_weighted(
         Adjust again with the estimated weights until they settle (True), or
         only estimate and report them from the adjustment at the given
         weights (False, one adjustment).
+    image_groups : array_like of str, shape (K,), optional
+        The group of each image observation, by name (default: the tie
+        points' and the control points', module notes).
 
     Returns
     -------
@@ -359,16 +393,16 @@ def refine_frame_weighted(
     untested = dataclasses.replace(blunders, action=BlunderAction.OFF)
     for _ in range(1 + (2 * MAX_ITERATIONS + 1 if variance_components and apply else 0)):
         if fr is not None:
-            marks = _marks(fr, obs.point)
+            labels = _image_labels(fr, obs.point, image_groups)
             if robust:
-                factors = _robust_factors(_group_rows(fr, obs.point, sigmas), held)
+                factors = _robust_factors(_group_rows(fr, labels, sigmas), held)
                 robust_steps += 1
                 settled = _settled(factors)
                 robust = not settled and robust_steps < MAX_ITERATIONS
                 if not settled:
-                    sigmas = _scaled(sigmas, factors, marks)
+                    sigmas = _scaled(sigmas, factors, labels)
             else:
-                stats = group_statistics(fr, obs.point, sigmas)
+                stats = group_statistics(fr, obs.point, sigmas, image_groups)
                 factors = _factors(stats, held)
                 # too little redundancy, and not asking for the larger sigma that gives more
                 weak = frozenset(
@@ -378,11 +412,11 @@ def refine_frame_weighted(
                 )
                 if weak:
                     held |= weak
-                    sigmas = _reset(sigmas, apriori, weak, marks)
+                    sigmas = _reset(sigmas, apriori, weak, labels)
                 elif _settled(factors):
                     break
                 else:
-                    sigmas = _scaled(sigmas, factors, marks)
+                    sigmas = _scaled(sigmas, factors, labels)
             iterations += 1
         new = refine_frame(
             dataclasses.replace(obs, sigma=sigmas.image),
@@ -424,7 +458,7 @@ def refine_frame_weighted(
         state = (fr.centres, fr.rotations, np.where(fr.point_used[:, None], fr.points, state[2]))
     assert fr is not None
     record = _components(
-        fr, obs.point, apriori, sigmas, iterations, sigma0_apriori, apply, held
+        fr, obs.point, apriori, sigmas, iterations, sigma0_apriori, apply, held, image_groups
     )
     return dataclasses.replace(fr, variance_components=record)
 

@@ -80,6 +80,7 @@ inversion about the same, so linear in the number of units for a strip.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
@@ -194,6 +195,17 @@ class NormalStructure:
         self.pattern: Pattern = build_pattern(
             n_units, unit_size, n_points, row_unit, row_point, sets, self._order
         )
+
+    def with_border(self, n_border: int) -> NormalStructure:
+        """The same structure with ``n_border`` border parameters (the band's
+        order and the point groups do not depend on the border)."""
+        if n_border < 0:
+            raise ValueError(f"Expected n_border >= 0, got {n_border}")
+        if n_border == self.n_border:
+            return self
+        other = copy.copy(self)
+        other.n_border = n_border
+        return other
 
     def _choose_order(
         self,
@@ -413,6 +425,16 @@ class NormalSolution:
 
         assert isinstance(self._state, Reduced)
         return predicted_cost(self._structure, self._state)
+
+    @property
+    def border_cofactor(self) -> FloatArray:
+        """The border's block of ``N⁻¹`` (k x k), the inverse of its Schur
+        complement, without the rest of the selected inverse (undamped
+        solutions only)."""
+        if self.damping != 0.0:
+            raise ValueError("cofactors of a damped system are not those of the adjustment")
+        assert isinstance(self._state, Reduced)
+        return self._state.t_inv
 
     def cofactors(self) -> Cofactors:
         """The selected inverse of the normal matrix (undamped solutions only)."""

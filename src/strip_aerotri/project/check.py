@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
 from pathlib import Path
@@ -211,14 +211,23 @@ def _doubts(rep: CheckReport, project: Project, formed: StripModel | None) -> No
     rep.warnings += control_coverage_problems(
         project.observations, project.control, str(project.control_file)
     )
-    if formed is not None:
-        rep.warnings += image_sigma_problems(formed.relative.sigma0_um, project.observations.sigma)
+    rep.warnings += _sigma_doubt(project, () if formed is None else (formed,))
+
+
+def _sigma_doubt(project: Project, formed: Sequence[StripModel]) -> list[str]:
+    """The run's warning of an image sigma far from the scatter of the formed
+    strips' pairs (a block's over all its strips, as its run judges it)."""
+    if not formed:
+        return []
+    pairs = np.concatenate([strip.relative.sigma0_um for strip in formed])
+    return image_sigma_problems(pairs, project.observations.sigma)
 
 
 def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckReport:
     """A block: every strip's pairs, tie points and formation as a strip of its
     own (problems prefixed with the strip's name); the control over the whole
-    block (a strip may lean on its neighbours)."""
+    block (a strip may lean on its neighbours); the image sigma against the
+    pairs of every strip formed."""
     from ..block.strips import strip_observations
 
     triangulable = np.zeros(project.observations.n_points, dtype=bool)
@@ -258,6 +267,7 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
     strips = tuple(s for s in formed if s is not None)
     if not rep.problems and len(strips) == len(project.strips):
         _check_placement(rep, project, strips)  # the run's own rule
+    rep.warnings += _sigma_doubt(project, strips)
     _check_lines(rep, project, triangulable)
     try:
         target = output_folder(project, out)

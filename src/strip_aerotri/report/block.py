@@ -27,7 +27,7 @@ from .calibration import (
 from .files import format_photos_csv, format_points_csv
 from .record import REPORT_FORMAT, REPORT_FORMAT_VERSION, _bundle_gnss, _bundle_imu
 from .tolerances import TRANSFER_UM, transfer_passed
-from .values import clean, json_float, options_record, statistics
+from .values import clean, delivered_points, json_float, options_record, statistics
 from .verdict import with_verdict
 
 if TYPE_CHECKING:
@@ -166,7 +166,7 @@ def build_block_report(
         ),
         "tolerances": block_tolerances_record(result, map_scale, joins),
         "rejections": [r.describe() for r in result.rejections],
-        "warnings": list(result.warnings),
+        "warnings": [str(w) for w in result.warnings],  # plain strings
         "timings_s": dict(result.timings),
     }
     cleaned: dict[str, Any] = clean(report)
@@ -242,7 +242,7 @@ def _inputs(result: BlockResult) -> dict[str, Any]:
         "n_strips": len(result.specs),
         "n_photos": len(result.photo_ids),
         "n_points": len(result.point_ids),
-        "n_points_triangulated": int(np.isfinite(result.points).all(axis=1).sum()),
+        "n_points_triangulated": delivered_points(result),
         "n_observations": len(obs.photo),
         "principal_distance_mm": json_float(obs.principal_distance),
         "control": {k.value: kinds.count(k.value) for k in ControlType},

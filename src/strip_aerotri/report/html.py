@@ -116,7 +116,7 @@ def prepare_drawing() -> None:
         ax.annotate("0", (0.5, 0.5), textcoords="offset points", xytext=(4, 4), fontsize=8)
         ax.set_title("σ0 µm ±")
         ax.set_xlabel("x")
-        _fitted_png(fig, beside=ax.legend(fontsize=8))
+        _fitted_png(fig, best=ax.legend(loc="best", fontsize=8))
 
 
 def draw_figures(data: StripFigureData) -> StripFigures:

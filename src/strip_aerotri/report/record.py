@@ -17,7 +17,14 @@ from ..geometry.rotation import opk_from_matrix
 from ..observations import ControlType
 from ..results import AccuracyStatistics, StripResult
 from .tolerances import plan_drift_warning, tolerance_verdicts
-from .values import clean, control_rows, json_float, options_record, statistics
+from .values import (
+    clean,
+    control_rows,
+    delivered_points,
+    json_float,
+    options_record,
+    statistics,
+)
 from .verdict import with_verdict
 
 if TYPE_CHECKING:
@@ -392,7 +399,7 @@ def build_report(
             "n_photos": len(result.photo_ids),
             "photos": list(result.photo_ids),
             "n_points": len(result.point_ids),
-            "n_points_triangulated": int(np.isfinite(result.points).all(axis=1).sum()),
+            "n_points_triangulated": delivered_points(result),
             "n_observations": len(obs.photo),
             "principal_distance_mm": json_float(obs.principal_distance),
             "principal_point_mm": None
@@ -466,7 +473,10 @@ def build_report(
             }
             for r in getattr(result, "rejections", ())
         ],
-        "warnings": [*result.warnings, *notes, *drift_warnings(result, map_scale)],
+        # plain strings (a PointWarning is a str with its point's id as data)
+        "warnings": [
+            str(w) for w in (*result.warnings, *notes, *drift_warnings(result, map_scale))
+        ],
         "timings_s": dict(result.timings),
         "outputs": {
             "points.geojson": {

@@ -16,19 +16,19 @@ rejections, the timings and the figures ``-v`` shows.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..results import AccuracyStatistics, BlockResult, Rejection, StripResult
+from ..results import AccuracyStatistics, BlockResult, PointWarning, Rejection, StripResult
 from . import outputs
 from .block import block_outputs, block_tolerances_record, build_block_report, joins_record
 from .outputs import GEOJSON_LOCAL_NOTE
 from .record import drift_warnings, tolerances_record
 from .tolerances import TRANSFER_UM, transfer_passed
+from .values import delivered_points
 from .verdict import Verdict
 
 if TYPE_CHECKING:
@@ -216,7 +216,9 @@ class RunSummary:
         The observation weights estimated from the data (None unless asked
         for).
     warnings : tuple of str
-        The run's warnings.
+        The run's warnings (those about one point
+        :class:`~strip_aerotri.results.PointWarning`, which
+        :meth:`warning_lines` sums up by their data).
     output_warnings : tuple of str
         The warnings the outputs add (the plan drift at the map scale,
         points.geojson not written); report.json lists both.
@@ -350,50 +352,45 @@ def _grouped(texts: list[str], rejections: Sequence[Rejection], listed: str) -> 
     return out
 
 
-#: Warnings about one point each that two or more of a kind sum up in one
-#: line: the pattern (group 1 the point's quoted id, group 2, if any, the
-#: cause the line keeps) and the summing line's text before and after the
-#: names (with the cause for ``{cause}``).
-_PER_POINT = (
-    (
-        # strip_aerotri.ground.check_precision.weak_check_message
-        re.compile(r"check point ('.*?') is weakly determined: "),
+#: Warnings about one point each (:class:`~strip_aerotri.results.PointWarning`,
+#: by kind) that two or more of a kind and cause sum up in one line: the
+#: summing line's text before and after the names (with the cause for
+#: ``{cause}``).
+_PER_POINT = {
+    "weak check": (
         "check points are weakly determined by their own rays",
         "and left out of the check statistics; measure them on more photos, farther apart",
     ),
-    (
-        # strip_aerotri.pipeline._strip_warnings
-        re.compile(r"control point ('.*?') is not triangulated \((.*)\): left out$"),
+    "control not triangulated": (
         "control points are not triangulated",
         "and left out (each: {cause})",
     ),
-)
+}
 
 
 def _grouped_per_point(texts: list[str], listed: str) -> list[str]:
-    """Two or more warnings of a kind of :data:`_PER_POINT` (and cause) among
-    ``texts`` summed up in one line at the place of the first, naming five
-    points and the files that list them; every other warning as it is."""
+    """Two or more warnings of a kind of :data:`_PER_POINT` and one cause
+    among ``texts`` summed up in one line at the place of the first, naming
+    five points and the files that list them; every other warning as it is."""
+    groups: dict[tuple[str, str], list[tuple[int, PointWarning]]] = {}
+    for i, text in enumerate(texts):
+        if isinstance(text, PointWarning) and text.kind in _PER_POINT:
+            groups.setdefault((text.kind, text.cause), []).append((i, text))
     where = f"listed in {listed}; " if listed else ""
-    for pattern, head, tail in _PER_POINT:
-        found = [(i, m) for i, m in enumerate(map(pattern.match, texts)) if m]
-        causes: dict[str, list[tuple[int, re.Match[str]]]] = {}
-        for i, m in found:
-            causes.setdefault(m.group(2) if pattern.groups > 1 else "", []).append((i, m))
-        gone: set[int] = set()
-        summed: dict[int, str] = {}
-        for cause, group in causes.items():
-            if len(group) < 2:
-                continue
-            names = [m.group(1) for _, m in group]
-            more = f" and {len(names) - 5} more" if len(names) > 5 else ""
-            summed[group[0][0]] = (
-                f"{len(names)} {head} ({', '.join(names[:5])}{more}) "
-                f"{tail.format(cause=cause)} ({where}-v lists them here)"
-            )
-            gone.update(i for i, _ in group[1:])
-        texts = [summed.get(i, t) for i, t in enumerate(texts) if i not in gone]
-    return texts
+    gone: set[int] = set()
+    summed: dict[int, str] = {}
+    for (kind, cause), group in groups.items():
+        if len(group) < 2:
+            continue
+        head, tail = _PER_POINT[kind]
+        names = [repr(w.point) for _, w in group]
+        more = f" and {len(names) - 5} more" if len(names) > 5 else ""
+        summed[group[0][0]] = (
+            f"{len(names)} {head} ({', '.join(names[:5])}{more}) "
+            f"{tail.format(cause=cause)} ({where}-v lists them here)"
+        )
+        gone.update(i for i, _ in group[1:])
+    return [summed.get(i, t) for i, t in enumerate(texts) if i not in gone]
 
 
 def _join(result: BlockResult) -> JoinVerdict | None:
@@ -544,7 +541,7 @@ def _block_summary(
         name=name,
         n_strips=len(result.specs),
         n_photos=len(result.photo_ids),
-        n_points=int(np.isfinite(result.points).all(axis=1).sum()),
+        n_points=delivered_points(result),
         refined=bool(result.refined),
         construction="" if result.options is None else result.options.block.value,
         control=Accuracy.of(result.control_statistics),
@@ -595,7 +592,7 @@ def summarize(
         n_strips=1,
         n_photos=len(result.photo_ids),
         # the delivered points (points.csv): the refinement's when there is one
-        n_points=int(np.isfinite(result.points).all(axis=1).sum()),
+        n_points=delivered_points(result),
         refined=refined is not None,
         construction="" if result.options is None else result.options.block.value,
         control=Accuracy.of(final.control_statistics),

@@ -14,7 +14,7 @@ import numpy as np
 from ..ground.common import index_of
 from ..observations import ControlType
 from ..options import AdjustmentOptions, Construction
-from ..results import AccuracyStatistics, StripResult
+from ..results import AccuracyStatistics, BlockResult, StripResult
 
 _ROLE_OF_KIND = {
     ControlType.FULL: "control-full",
@@ -53,6 +53,13 @@ def clean(value: Any) -> Any:
     if value is None or isinstance(value, str):
         return value
     return str(value)
+
+
+def delivered_points(result: StripResult | BlockResult) -> int:
+    """The points delivered, one a row of points.csv: those with every
+    coordinate of ``result.points`` finite (the refinement's when there is
+    one), as the command line, report.json and the page count them."""
+    return int(np.isfinite(np.asarray(result.points, dtype=np.float64)).all(axis=1).sum())
 
 
 def json_float(value: Any) -> float | None:

@@ -21,7 +21,7 @@ from .bundle import (
     VarianceComponents,
     VarianceGroup,
 )
-from .common import AccuracyStatistics, Rejection
+from .common import AccuracyStatistics, PointWarning, Rejection
 from .ground import GroundResult, ModelAdjustment
 from .run import StripResult
 from .strip import RelativeOrientation, StripModel
@@ -37,6 +37,7 @@ __all__ = [
     "ImuResiduals",
     "ModelAdjustment",
     "ParameterOutcome",
+    "PointWarning",
     "RefinedResult",
     "ResidualCells",
     "SelfCalibrationOutcome",

@@ -91,6 +91,8 @@ class BlockResult:
     redundancy, iterations : int
     rejections : tuple of Rejection
     warnings : tuple of str
+        Doubtful but valid findings; those about one point are
+        :class:`~strip_aerotri.results.PointWarning`.
     timings : dict
         Seconds per stage.
     refined : bool

@@ -1,14 +1,16 @@
-"""Results every stage shares: blunder rejections and accuracy figures."""
+"""Results every stage shares: blunder rejections, warnings about one point
+and accuracy figures."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .._typing import FloatArray
 
-__all__ = ["AccuracyStatistics", "Rejection"]
+__all__ = ["AccuracyStatistics", "PointWarning", "Rejection"]
 
 
 @dataclass(frozen=True)
@@ -66,6 +68,65 @@ class Rejection:
             f"{self.residual:.4g} {self.unit}, w = {self.w:.2f} > {self.critical:.2f}"
             + (f" ({self.effect})" if self.effect else "")
         )
+
+
+class PointWarning(str):
+    """A warning about one point: the text (this string, as a run's
+    ``warnings`` list it) and, as data, what it is about.
+
+    It is a ``str``, so that the warnings stay a tuple of texts everywhere
+    (report.json, the page, the command line); the summary sums up warnings
+    of one ``kind`` and ``cause`` by these attributes, never by reading the
+    text.
+
+    Attributes
+    ----------
+    kind : str
+        ``"weak check"`` (a check point weakly determined by its own rays),
+        ``"control not triangulated"`` or ``"check not triangulated"`` (a
+        ground point left out).
+    point : str
+        The point's id, as given (any characters).
+    cause : str
+        Why, where the text names one (``""`` otherwise).
+    """
+
+    kind: str
+    point: str
+    cause: str
+
+    def __new__(cls, text: str, *, kind: str, point: str, cause: str = "") -> PointWarning:
+        self = super().__new__(cls, text)
+        for name, value in (("kind", kind), ("point", point), ("cause", cause)):
+            object.__setattr__(self, name, value)
+        return self
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"PointWarning is immutable (setting {name!r})")
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return _point_warning, (str(self), self.kind, self.point, self.cause)
+
+    @classmethod
+    def weak_check(cls, point: str, text: str) -> PointWarning:
+        """A check point weakly determined by its own rays, ``text`` saying
+        how (:func:`strip_aerotri.ground.check_precision.weak_check_message`)."""
+        return cls(text, kind="weak check", point=point)
+
+    @classmethod
+    def not_triangulated(cls, point: str, cause: str, *, check: bool = False) -> PointWarning:
+        """A control (or ``check``) point that no model determines, left out:
+        ``control point 'P' is not triangulated (cause): left out``."""
+        kind = "check" if check else "control"
+        return cls(
+            f"{kind} point {point!r} is not triangulated ({cause}): left out",
+            kind=f"{kind} not triangulated", point=point, cause=cause,
+        )  # fmt: skip
+
+
+def _point_warning(text: str, kind: str, point: str, cause: str) -> PointWarning:
+    """:class:`PointWarning` from its pickled fields."""
+    return PointWarning(text, kind=kind, point=point, cause=cause)
 
 
 @dataclass(frozen=True)

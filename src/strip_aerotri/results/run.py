@@ -31,7 +31,9 @@ class StripResult:
     control_statistics, check_statistics : AccuracyStatistics
         At the control actually used and at the check points.
     warnings : tuple of str
-        Doubtful but valid findings (control not triangulated, ...).
+        Doubtful but valid findings (control not triangulated, ...); those
+        about one point are :class:`~strip_aerotri.results.PointWarning`
+        (a str with the point's id and the cause as data).
     timings : dict
         Seconds per stage.
     refined : RefinedResult or None

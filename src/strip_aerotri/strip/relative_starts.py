@@ -216,6 +216,11 @@ def homography_start(
     reweighted (Cauchy weights of the points' transfer errors, three
     rounds), so that a few gross errors do not turn it.
 
+    The pairs' rows are laid out side by side in padded tables
+    (:class:`_PairTable`); pairs of very unequal sizes are taken in groups
+    of like size (:func:`_size_groups`), so that the tables stay within
+    twice the rows whatever the largest pair.
+
     Parameters and returns as :func:`essential_start`.
     """
     l = np.asarray(left, dtype=np.float64)
@@ -223,6 +228,39 @@ def homography_start(
     pair = np.asarray(pair, dtype=np.intp)
     if starts is None:
         starts = _segment_starts(pair, n_pairs)
+    counts = np.diff(np.append(starts, pair.shape[0]))
+    groups = _size_groups(counts)
+    if len(groups) == 1:
+        return _homography_start(l, p, pair, n_pairs, starts)
+    relative, base = np.empty((n_pairs, 3, 3)), np.empty((n_pairs, 3))
+    for group in groups:  # a few groups (sizes within a factor of two), not pairs
+        rows = np.flatnonzero(np.isin(pair, group))  # pair-sorted, as pair is
+        local = np.searchsorted(group, pair[rows])
+        own = np.concatenate([[0], np.cumsum(counts[group])[:-1]]).astype(np.intp)
+        relative[group], base[group] = _homography_start(l[rows], p[rows], local, group.size, own)
+    return relative, base
+
+
+#: Pairs are grouped by size when padding them all to the largest would
+#: need more than twice their rows and more than this many cells.
+_PADDING_CELLS = 1 << 16
+
+
+def _size_groups(counts: IntArray) -> list[IntArray]:
+    """The pairs (indices, ascending) to take together in one padded table:
+    all of them when the padding is cheap, else pairs whose row counts
+    (each at least one) have the same bit length, within a factor of two."""
+    n_cells = counts.size * int(counts.max(initial=0))
+    if n_cells <= max(2 * int(counts.sum()), _PADDING_CELLS):
+        return [np.arange(counts.size, dtype=np.intp)]
+    size = np.frexp(counts.astype(np.float64))[1]  # the bit length of each count
+    return [np.flatnonzero(size == k) for k in np.unique(size)]
+
+
+def _homography_start(
+    l: FloatArray, p: FloatArray, pair: IntArray, n_pairs: int, starts: IntArray
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`homography_start` of pairs in one padded table."""
     table = _PairTable.of(pair, starts)
     # image vectors scaled to z = -1, (u, v, -1) and (x, y, -1), per pair
     lu, lv = (table.take(l[:, k] / -l[:, 2]) for k in (0, 1))
