@@ -6,8 +6,9 @@ one line naming the likely cause.  Each returns the problems it finds as
 messages (``stripaero check`` lists them all; a run stops at the first):
 
 * :func:`image_coordinate_problems` — image coordinates far outside any
-  film or sensor format (micrometres or pixels taken for millimetres), or
-  far inside it (metres);
+  film or sensor format (micrometres or pixels taken for millimetres), far
+  inside it (metres), or not centred on the principal point (measured from
+  a corner of the format);
 * :func:`ray_direction_problems` — photos listed against the flight, or a
   pair in the wrong order: after the relative orientation, the rays of such
   pairs meet behind the photos (a negative x-parallax); image x across the
@@ -19,6 +20,9 @@ messages (``stripaero check`` lists them all; a run stops at the first):
   reflection than without.  A near-vertical photo maps its image (x along
   the flight, y to the left, right-handed with z up) onto east-north-up by
   a rotation, never by a reflection;
+* :func:`control_relief_problems` — plan coordinates and heights in
+  different units (X, Y in km with H in m): the control heights on a photo
+  span more than the flying height the plan control's scale gives;
 * :func:`control_coverage_problems` — a warning, not a stop: strip ends
   beyond the outermost plan or height control, where the strip is
   extrapolated;
@@ -51,13 +55,15 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MAX_IMAGE_RADIUS_MM",
+    "control_coverage_problems",
     "control_degree_problems",
     "control_distance_problems",
-    "control_coverage_problems",
     "control_handedness_problems",
+    "control_relief_problems",
     "flight_axis_message",
     "image_coordinate_problems",
     "image_sigma_problems",
+    "photo_order_hint",
     "photo_order_message",
     "ray_direction_problems",
 ]
@@ -135,7 +141,43 @@ def image_coordinate_problems(
             f"{_MIN_SPAN_OVER_C:g} of the principal distance c = {c:g} mm: are the "
             "coordinates in metres instead of millimetres?"
         )
-    return problems
+    # from a corner of the format, some points also lie beyond the radius:
+    # the origin is the cause, unless most do (then the unit is)
+    off = _off_centre_problems(xy, file)
+    most_out = outside.size > 0.5 * xy.shape[0]
+    return problems + off if most_out else off + problems
+
+
+#: Image points, measured over the whole format of every photo, lie about
+#: as far on each side of the principal point: their middle (half-way from
+#: the least to the greatest) beyond this fraction of their half range, on
+#: one axis, means another origin (a corner of the format).  Real projects
+#: stay under 0.04 (the examples, the external strips, the FC300X block,
+#: the import samples, tests/data).
+_OFF_CENTRE = 0.5
+#: Fewer image points than this say nothing about the format's middle.
+_OFF_CENTRE_MIN_POINTS = 20
+
+
+def _off_centre_problems(xy: FloatArray, file: str) -> list[str]:
+    """Image coordinates whose origin is not the principal point (a corner
+    of the format: pixels' columns and rows scaled to mm)."""
+    if xy.shape[0] < _OFF_CENTRE_MIN_POINTS:
+        return []
+    low, high = xy.min(axis=0), xy.max(axis=0)
+    middle, half = 0.5 * (low + high), 0.5 * (high - low)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off = np.abs(middle) / half
+    axes = [a for a in (0, 1) if half[a] > 0.0 and off[a] > _OFF_CENTRE]
+    if not axes:
+        return []
+    ranges = ", ".join(f"{'xy'[a]} from {low[a]:.4g} to {high[a]:.4g} mm" for a in (0, 1))
+    return [
+        f"{file}: the image points are not centred on the principal point ({ranges}, after "
+        "[camera] principal_point_mm): are they measured from a corner of the format? "
+        "Give the principal point's position in that system as principal_point_mm (or "
+        '[images] units = "pixel" with pixel_size_mm and principal_point_px)'
+    ]
 
 
 def ray_direction_problems(
@@ -258,6 +300,107 @@ def photo_order_message(
     )
 
 
+#: Above this many photos in a strip the order is not inferred (a dense
+#: eigen-decomposition of their n x n graph: 0.2 s at 1000).
+_ORDER_MAX_PHOTOS = 1000
+
+
+def photo_order_hint(
+    observations: ImageObservations,
+    sequence: ArrayLike,
+    failing: ArrayLike | None,
+    min_common: int,
+) -> tuple[int, str]:
+    """A strip's photos listed out of flight order, told by their common points.
+
+    The photos are put in order by their common points alone: the spectral
+    seriation of the graph whose edges weigh the points two photos share
+    (the Fiedler vector of its Laplacian; Atkins, Boman and Hendrickson
+    1998, SIAM J. Comput. 28(1), 297-310, doi:10.1137/S0097539795285771).
+    Along a strip the overlap falls with the distance between photos, so
+    that order is the flight's, or its reverse.  A pair that fails (too few
+    common points, no tie point with its neighbour) whose two photos are not
+    next to each other in that order is listed out of order; the hint names
+    the photos each belongs next to.  Nothing is said when the failing
+    pair's photos are neighbours by their points too (a photo with few
+    points), when the inferred order has a pair with too few common points
+    as well (the points cannot tell the order), when the photos fall apart
+    into groups that share no point, or for more than
+    :data:`_ORDER_MAX_PHOTOS` photos.
+
+    Parameters
+    ----------
+    observations : ImageObservations
+    sequence : array_like of int, shape (n,)
+        The strip's photos (indices into ``observations.photo_ids``) in the
+        listed order.
+    failing : array_like of int, or None
+        The failing pairs, each by its left photo's position in ``sequence``;
+        None: the consecutive photos with fewer than ``min_common`` common
+        points.
+    min_common : int
+        The fewest common points a pair needs.
+
+    Returns
+    -------
+    pair : int
+        The first failing pair so explained, -1 when none.
+    hint : str
+        The sentence naming where its photos belong, or "".
+    """
+    from scipy import sparse
+    from scipy.sparse.csgraph import connected_components, laplacian
+
+    seq = np.asarray(sequence, dtype=np.intp)
+    n = seq.shape[0]
+    if n < 3 or n > _ORDER_MAX_PHOTOS:
+        return -1, ""
+    position = np.full(observations.n_photos, -1, dtype=np.intp)
+    position[seq] = np.arange(n)
+    row = position[observations.photo]
+    keep = row >= 0
+    incidence = sparse.csr_matrix(
+        (np.ones(int(keep.sum())), (row[keep], observations.point[keep])),
+        shape=(n, max(observations.n_points, 1)),
+    )
+    if failing is None:
+        consecutive = np.asarray(incidence[:-1].multiply(incidence[1:]).sum(axis=1)).ravel()
+        failing = np.flatnonzero(consecutive < min_common)
+    pairs = np.unique(np.asarray(failing, dtype=np.intp))
+    pairs = pairs[(pairs >= 0) & (pairs < n - 1)]
+    if not pairs.size:
+        return -1, ""
+    common = (incidence @ incidence.T).toarray()
+    np.fill_diagonal(common, 0.0)
+    if connected_components(sparse.csr_matrix(common > 0), directed=False)[0] != 1:
+        return -1, ""
+    _, vectors = np.linalg.eigh(laplacian(common))
+    inferred = np.argsort(vectors[:, 1], kind="stable")  # photos in the inferred order
+    if (common[inferred[:-1], inferred[1:]] < min_common).any():
+        return -1, ""  # a weak pair in the inferred order too: the points cannot tell
+    rank = np.empty(n, dtype=np.intp)
+    rank[inferred] = np.arange(n)
+    ids = [observations.photo_ids[i] for i in seq]
+    for m in pairs.tolist():
+        if abs(int(rank[m]) - int(rank[m + 1])) <= 1:
+            continue
+        belongs = "; ".join(
+            f"'{ids[e]}' next to "
+            + " and ".join(
+                f"'{ids[k]}' ({int(common[e, k])})"
+                for k in inferred[max(rank[e] - 1, 0) : rank[e] + 2]
+                if k != e
+            )
+            for e in (m, m + 1)
+        )
+        return m, (
+            f"the photos seem listed out of flight order: by their common points (in "
+            f"brackets) {belongs}; list them in flight order ([strip] photos, or the "
+            "strip's [[strips]] photos)"
+        )
+    return -1, ""
+
+
 def flight_axis_message(
     pair: str,
     along: str,
@@ -323,7 +466,12 @@ def _plan_fit_residuals(
     za = a[:, 0] + 1j * a[:, 1]
     zb = b[:, 0] + 1j * b[:, 1]
     saa, sbb, bxx, byy, bxy = _group_sums(
-        group, n, (za * za.conj()).real, (zb * zb.conj()).real, b[:, 0] ** 2, b[:, 1] ** 2,
+        group,
+        n,
+        (za * za.conj()).real,
+        (zb * zb.conj()).real,
+        b[:, 0] ** 2,
+        b[:, 1] ** 2,
         b[:, 0] * b[:, 1],
     )
     fits = []
@@ -401,7 +549,8 @@ def control_handedness_problems(
             f"{votes_mirror + votes_proper} photos showing three or more plan control points, "
             "the image maps onto the control by a reflection (the fit with one is "
             f"{np.median(ratios):.0f} times closer); are the X and Y columns swapped "
-            "(easting and northing, or longitude and latitude)?"
+            "(easting and northing, or longitude and latitude), or, if the control is right, "
+            "one image axis reversed (y down, as pixel rows run)?"
         ]
     return []
 
@@ -412,7 +561,8 @@ def control_problems(
     crs: str | GroundCRS,
     file: str = "control",
 ) -> list[str]:
-    """:func:`control_degree_problems`, :func:`control_distance_problems`, then
+    """:func:`control_degree_problems`, :func:`control_distance_problems`,
+    :func:`control_relief_problems` (a projected or local CRS), then
     :func:`control_handedness_problems`, for a project's control.
 
     Every control and check point with plan coordinates takes part (check
@@ -430,6 +580,10 @@ def control_problems(
     distant = control_distance_problems(observations, point, xy, control.point_ids, file=file)
     if distant:
         return distant
+    if not crs.is_geographic:
+        units = control_relief_problems(observations, point, control.xyz, file=file)
+        if units:
+            return units
     return control_handedness_problems(
         observations, point, xy, geographic=crs.is_geographic, file=file
     )
@@ -454,6 +608,30 @@ def _pairs_within_runs(labels: IntArray) -> tuple[IntArray, IntArray]:
     first = np.repeat(np.arange(n), partners)
     offset = np.arange(first.shape[0]) - np.repeat(np.cumsum(partners) - partners, partners)
     return first, first + 1 + offset
+
+
+def _plan_pairs(
+    observations: ImageObservations, point: IntArray, plan: FloatArray
+) -> tuple[IntArray, IntArray, IntArray, FloatArray, FloatArray]:
+    """Every pair of plan control points on each photo: the control row of
+    each observation kept, the pairs' two observations ``a``, ``b`` (into
+    the kept ones), their distance on the photo (mm, at least 5 % of the
+    median) and on the ground (plan units)."""
+    row_of = np.full(observations.n_points, -1, dtype=np.intp)
+    usable = (np.asarray(point) >= 0) & np.isfinite(plan).all(axis=1)
+    row_of[np.asarray(point)[usable]] = np.flatnonzero(usable)
+    row = row_of[observations.point]
+    keep = np.flatnonzero(row >= 0)  # observations of plan points, sorted by photo
+    photo, row, image = observations.photo[keep], row[keep], observations.xy[keep]
+    a, b = _pairs_within_runs(photo)  # every pair of plan points on each photo
+    if not a.size:
+        empty = np.zeros(0, dtype=np.float64)
+        return row, a, b, empty, empty
+    with np.errstate(all="ignore"):
+        on_photo = np.hypot(*(image[a] - image[b]).T)
+        on_photo = np.maximum(on_photo, 0.05 * float(np.median(on_photo)))
+        ground = np.hypot(*(plan[row[a]] - plan[row[b]]).T)
+    return row, a, b, on_photo, ground
 
 
 def control_distance_problems(
@@ -490,19 +668,10 @@ def control_distance_problems(
         One message naming the farthest such point (empty when none).
     """
     plan = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-    row_of = np.full(observations.n_points, -1, dtype=np.intp)
-    usable = (np.asarray(point) >= 0) & np.isfinite(plan).all(axis=1)
-    row_of[np.asarray(point)[usable]] = np.flatnonzero(usable)
-    row = row_of[observations.point]
-    keep = np.flatnonzero(row >= 0)  # observations of plan points, sorted by photo
-    photo, row, image = observations.photo[keep], row[keep], observations.xy[keep]
-    a, b = _pairs_within_runs(photo)  # every pair of plan points on each photo
+    row, a, b, on_photo, ground = _plan_pairs(observations, point, plan)
     if not a.size:
         return []
     with np.errstate(all="ignore"):
-        on_photo = np.hypot(*(image[a] - image[b]).T)
-        on_photo = np.maximum(on_photo, 0.05 * float(np.median(on_photo)))
-        ground = np.hypot(*(plan[row[a]] - plan[row[b]]).T)
         scale = float(np.median(ground / on_photo))
         ratio = ground / (scale * on_photo)
     if not np.isfinite(scale) or scale <= 0.0:
@@ -519,6 +688,85 @@ def control_distance_problems(
         f"coordinates: it lies at least {best[k]:.3g} times farther from every plan point it "
         f"shares a photo with than the photos show at the strip's scale ({bad.size} such "
         "point(s)); a typing or export error in its X or Y?"
+    ]
+
+
+#: The control heights on one photo span less than twice the flying height
+#: above the mean ground (every point lies below the camera, the lowest at
+#: most as far below the mean as the camera is above it); the median photo
+#: spanning more than this many flying heights, as the plan control's scale
+#: gives it, means plan and heights in different units.  Real projects
+#: span 0.03-0.06 of it, the real FC300X block (steep ground at 45 m) 0.37.
+_RELIEF_FACTOR = 2.0
+
+
+def control_relief_problems(
+    observations: ImageObservations,
+    point: IntArray,
+    xyz: ArrayLike,
+    file: str = "control",
+) -> list[str]:
+    """Plan coordinates and heights of the control in different units.
+
+    The plan control gives the photo scale: the median ratio of ground to
+    image distance over every pair of plan points on a photo, s (plan units
+    per mm); the camera is then about s c above the mean ground.  Every
+    point a photo shows lies below its camera, so the heights of the control
+    points on one photo span less than twice that.  When, on the median
+    photo with two or more height points, they span more than
+    :data:`_RELIEF_FACTOR` times s c, X, Y and H are not in one unit (X, Y
+    in km with H in m, or H in mm with X, Y in m; heights in feet stay
+    within the bound unless the ground is as steep as the flight is low).
+    Units are only comparable in a projected or local CRS: nothing is found
+    when the plan coordinates are degrees (the caller leaves a geographic
+    CRS out).
+
+    Parameters
+    ----------
+    observations : ImageObservations
+    point : ndarray of int, shape (m,)
+        Observation point index of each control row (-1: not observed).
+    xyz : array_like, shape (m, 3)
+        X, Y, H of the control rows (NaN where a row has none).
+    file : str
+        The control file, for the message.
+
+    Returns
+    -------
+    list of str
+        One message when the units disagree (empty otherwise).
+    """
+    xyz = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
+    _, a, _, on_photo, ground = _plan_pairs(observations, point, xyz[:, :2])
+    if not a.size:
+        return []
+    with np.errstate(all="ignore"):
+        scale = float(np.median(ground / on_photo))  # plan units per mm
+    height_above = scale * observations.principal_distance
+    if not np.isfinite(height_above) or height_above <= 0.0:
+        return []
+    row_of = np.full(observations.n_points, -1, dtype=np.intp)
+    usable = (np.asarray(point) >= 0) & np.isfinite(xyz[:, 2])
+    row_of[np.asarray(point)[usable]] = np.flatnonzero(usable)
+    row = row_of[observations.point]
+    keep = row >= 0
+    photo, height = observations.photo[keep], xyz[row[keep], 2]
+    n = observations.n_photos
+    low, high = np.full(n, np.inf), np.full(n, -np.inf)
+    np.minimum.at(low, photo, height)
+    np.maximum.at(high, photo, height)
+    shown = np.bincount(photo, minlength=n) >= 2
+    if not shown.any():
+        return []
+    span = float(np.median((high - low)[shown]))
+    if span <= _RELIEF_FACTOR * height_above:
+        return []
+    return [
+        f"{file}: the control heights on a photo span {span:.4g} m (the median of "
+        f"{int(shown.sum())} photos) while the plan control puts the camera about "
+        f"{height_above:.4g} m above the ground (the photos' scale with c = "
+        f"{observations.principal_distance:.6g} mm); every point lies below the camera: "
+        "are X, Y and H in different units (X, Y in km, or H in mm or feet)?"
     ]
 
 

@@ -51,9 +51,14 @@ from ..geometry.similarity import (
     cross_tilt,
 )
 from ..options import DEFAULT_PHOTO_STEP
-from ..plausibility import control_coverage_problems, control_problems, image_sigma_problems
+from ..plausibility import (
+    control_coverage_problems,
+    control_problems,
+    image_sigma_problems,
+    photo_order_hint,
+)
 from ..strip.chaining import pair_rows
-from ..strip.relative import pair_count_problems
+from ..strip.relative import MIN_POINTS_PER_PAIR, pair_count_problems
 from .output import output_folder
 
 if TYPE_CHECKING:
@@ -361,6 +366,13 @@ def _check_pairs(rep: CheckReport, project: Project) -> _PairFacts:
         )
         for m in np.flatnonzero(ties[1:] == 0) + 1
     )
+    failing = np.flatnonzero(counts < MIN_POINTS_PER_PAIR)
+    if not breaks:  # a model without ties: its pair and the one before it
+        untied = np.flatnonzero(ties[1:] == 0) + 1
+        failing = np.concatenate([failing, untied, untied - 1])
+    _, order = photo_order_hint(obs, seq, failing, MIN_POINTS_PER_PAIR)
+    if order:
+        rep.problems.append(f"{images}: {order}")
     rep.details += [
         f"{labels[m]}: {int(counts[m])} common points, "
         + ("first model" if m == 0 else f"{ties[m]} tie points with the previous model")

@@ -163,6 +163,13 @@ def _split_fields(path: Path, lines: list[str], numbers: IntArray) -> list[list[
     raise ConfigError(f"{path}:{numbers[index]}: malformed CSV: {failure}")
 
 
+#: A unit written after a column name: ``x_mm``, ``X [m]``, ``sigma (mm)``.
+_UNIT_SUFFIX = re.compile(
+    r"[\s_-]*[\[(]?\s*(?:mm|m|um|µm|px|pixels?|deg|degrees|metres?|meters?)\s*[\])]?$",
+    re.IGNORECASE,
+)
+
+
 def read_csv(path: Path, columns: Sequence[ColumnSpec], named_by: str) -> CsvTable:
     """Read a comma-separated file into string columns (cells not yet stripped).
 
@@ -205,9 +212,16 @@ def read_csv(path: Path, columns: Sequence[ColumnSpec], named_by: str) -> CsvTab
             )
         if name.lower() not in canonical:
             allowed = ", ".join(c.name for c in columns)
+            bare = _UNIT_SUFFIX.sub("", name).lower()
+            hint = (
+                f" (did you mean '{canonical[bare]}'? the unit is not part of the name: "
+                "docs/project-file.md gives each column's)"
+                if bare in canonical
+                else suggest(name, [c.name for c in columns])
+            )
             raise ConfigError(
-                f"{path}:{header_line}: unknown column '{shorten(name)}'"
-                f"{suggest(name, [c.name for c in columns])}; allowed columns: {allowed}"
+                f"{path}:{header_line}: unknown column '{shorten(name)}'{hint}; "
+                f"allowed columns: {allowed}"
             )
         if canonical[name.lower()] in names:
             raise ConfigError(f"{path}:{header_line}: column '{shorten(name)}' appears twice")
@@ -275,6 +289,8 @@ def float_column(
             row = next(i for i, s in enumerate(filled) if not _is_float(s))
             comma = _is_float(stripped[row].replace(",", ".", 1))
             hint = " (a decimal comma: use a point, e.g. '12.5')" if comma else ""
+            if stripped[row].lower() == name.lower():
+                hint = " (the line repeats the header: two files joined? delete the line)"
             raise ConfigError(
                 f"{table.where(row)}: column '{name}': expected a number, got "
                 f"'{shorten(stripped[row])}'{hint}"

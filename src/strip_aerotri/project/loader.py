@@ -19,6 +19,7 @@ import numpy as np
 from .._text import shorten
 from .._typing import FloatArray, IntArray
 from ..errors import ConfigError, ConvergenceError
+from ..geometry.control_geometry import control_count_problems
 from ..interior import (
     BrownDistortion,
     FiducialFit,
@@ -44,6 +45,7 @@ from ..options import (
     adjustment_options,
     describe,
 )
+from ..plausibility import image_coordinate_problems
 from .csvfiles import MAX_TOML_BYTES, CsvTable, decode, read_bytes
 from .model import Camera, Project, readonly
 from .output import check_output
@@ -51,8 +53,10 @@ from .schema import (
     PROJECT_KEYS,
     PROJECT_TABLES,
     TABLES_BY_NAME,
+    IdHints,
     check_table,
     suggest,
+    suggest_id,
 )
 from .tables import (
     check_crs,
@@ -89,6 +93,37 @@ _KEY_PART = r"(?:(?<![A-Za-z0-9_-])[A-Za-z0-9_-]+|\"[^\"\n]*\"|'[^'\n]*')"
 _DOTTED_KEY = re.compile(rf"{_KEY_PART}(?:[ \t]*\.[ \t]*{_KEY_PART}){{{MAX_KEY_PARTS},}}")
 
 
+_BARE_WORD = re.compile(r"[^\s,\[\]{}\"'#=]+")
+
+
+def _toml_hint(text: str, message: str, line: int, column: int) -> str:
+    """The likely cause of tomllib's ``message`` at ``line``, ``column``
+    (1-based) among the mistakes of users of spreadsheets and other formats:
+    an id written as a number with leading zeros, a string without quotes, a
+    decimal comma."""
+    lines = text.splitlines()
+    if not 1 <= line <= len(lines):
+        return ""
+    row = lines[line - 1]
+    at = min(max(column - 1, 0), len(row))
+    start = at
+    while start > 0 and _BARE_WORD.fullmatch(row[start - 1]):
+        start -= 1
+    word = _BARE_WORD.match(row, start)
+    token = word.group() if word else ""
+    if re.fullmatch(r"0\d+", token):
+        return f' (a TOML number cannot start with 0: write ids as strings, "{token}")'
+    if message.startswith("Expected newline") and re.fullmatch(
+        r"\d,\d", row[max(at - 1, 0) : at + 2]
+    ):
+        return " (a decimal comma: write numbers with a point, e.g. 152.87)"
+    if message == "Invalid value" and token:
+        in_array = row[:start].rstrip().endswith(("[", ","))
+        value = token if in_array else row[start:].split("#")[0].strip()
+        return f' (a string must be in quotes: "{shorten(value, 40)}")'
+    return ""
+
+
 def _read_toml(path: Path) -> dict[str, Any]:
     text = decode(path, read_bytes(path, "project file", MAX_TOML_BYTES))
     dotted = _DOTTED_KEY.search(text)
@@ -106,8 +141,10 @@ def _read_toml(path: Path) -> dict[str, Any]:
         match = _TOML_POSITION.search(message)
         if match:
             message = message[: match.start()]
+            line, column = int(match.group(1)), int(match.group(2))
             raise ConfigError(
-                f"{path}:{match.group(1)}:{match.group(2)}: TOML syntax error: {message}"
+                f"{path}:{line}:{column}: TOML syntax error: {message}"
+                f"{_toml_hint(text, message.strip(), line, column)}"
             ) from None
         raise ConfigError(f"{path}: TOML syntax error: {message}") from None
     except (RecursionError, MemoryError):
@@ -247,8 +284,9 @@ def load_project(path: str | Path) -> Project:
         toml_path, images, distortion_table, interior, fiducials_file, photo_ids
     )
     reduce = _image_reduction(
-        toml_path, principal_distance, principal_point, image_options, fiducials, distortion
-    )
+        toml_path, principal_distance, principal_point, image_options, fiducials, distortion,
+        images_file,
+    )  # fmt: skip
     sigma_mm = float(images["sigma_mm"])  # type: ignore[arg-type]
     observations = load_images(
         images_file, photo_ids, principal_distance, reduce, sigma_mm, block=bool(strips)
@@ -327,12 +365,33 @@ def _observed_control(
     row left out (docs/project-file.md, "Errors": a warning, not an error)."""
     observed = set(observations.point_ids)
     is_observed = np.fromiter((i in observed for i in ids.tolist()), bool, count=ids.shape[0])
+    missing = np.flatnonzero(~is_observed)
+    hint = IdHints(observations.point_ids) if missing.size else None
+    if ids.shape[0] and not is_observed.any() and hint is not None:
+        raise ConfigError(
+            f"{table.path}: none of its {ids.shape[0]} points is observed on any photo: the "
+            f"point ids of the control and image files do not match (control '{ids[0]}'"
+            f"{hint(str(ids[0]))}; the images name points such as "
+            f"{', '.join(repr(p) for p in observations.point_ids[:3])})"
+        )
+    keep = np.flatnonzero(is_observed)
+    lost = [int(r) for r in missing if kinds[r] is not ControlType.CHECK]
+    if lost and hint is not None:
+        plan = [str(ids[r]) for r in keep if kinds[r] in (ControlType.FULL, ControlType.PLAN)]
+        height = [str(ids[r]) for r in keep if kinds[r] in (ControlType.FULL, ControlType.HEIGHT)]
+        short = control_count_problems(plan, height)
+        if short:
+            raise ConfigError(
+                f"{table.path}:{table.line[lost[0]]}: control point '{ids[lost[0]]}'"
+                f"{hint(str(ids[lost[0]]))} and {len(lost) - 1} other(s) are not observed on "
+                f"any photo, which leaves too little control ({short[0]}): check the ids "
+                "against the image file's"
+            )
     warnings.extend(
         f"{table.where(int(row))}: control point '{ids[row]}' ({kinds[row].value}) is "
-        "not observed on any photo; left out"
-        for row in np.flatnonzero(~is_observed)
+        f"not observed on any photo{hint(str(ids[row])) if hint else ''}; left out"
+        for row in missing
     )
-    keep = np.flatnonzero(is_observed)
     control_points = ControlPoints(
         point_ids=tuple(ids[keep].tolist()),
         xyz=readonly(xyz[keep]),
@@ -477,27 +536,40 @@ def _image_reduction(
     image_options: ImageOptions,
     fiducials: tuple[FiducialFit, ...],
     distortion: BrownDistortion | None,
+    images_file: Path,
 ) -> Callable[[FloatArray, IntArray], FloatArray]:
-    """The reduction of raw image coordinates to the photo system (mm) of this project."""
+    """The reduction of raw image coordinates to the photo system (mm) of this
+    project.  When the distortion cannot be removed, coordinates that no
+    camera gives (far outside the format, from its corner) are named as the
+    cause before the coefficients are."""
 
-    def reduce(xy: FloatArray, photo: IntArray) -> FloatArray:
+    def reduce(xy: FloatArray, photo: IntArray, lens: BrownDistortion | None) -> FloatArray:
+        return reduce_image_coordinates(
+            xy,
+            photo,
+            principal_distance,
+            units=image_options.units,
+            pixel_size_mm=image_options.pixel_size_mm,
+            principal_point_px=image_options.principal_point_px,
+            fiducials=fiducials or None,
+            principal_point_mm=principal_point,
+            distortion=lens,
+            flight_direction=image_options.flight_direction,
+        )
+
+    def reduce_all(xy: FloatArray, photo: IntArray) -> FloatArray:
         try:
-            return reduce_image_coordinates(
-                xy,
-                photo,
-                principal_distance,
-                units=image_options.units,
-                pixel_size_mm=image_options.pixel_size_mm,
-                principal_point_px=image_options.principal_point_px,
-                fiducials=fiducials or None,
-                principal_point_mm=principal_point,
-                distortion=distortion,
-                flight_direction=image_options.flight_direction,
-            )
+            return reduce(xy, photo, distortion)
         except ConvergenceError as exc:
-            raise ConfigError(f"{toml_path}: [distortion]: {exc}") from None
+            plain = reduce(xy, photo, None)
+            problems = image_coordinate_problems(plain, principal_distance, file=str(images_file))
+            raise ConfigError(
+                f"{problems[0]} (the [distortion] could not be removed from them)"
+                if problems
+                else f"{toml_path}: [distortion]: {exc}"
+            ) from None
 
-    return reduce
+    return reduce_all
 
 
 def _single_ray_warnings(images_file: Path, observations: ImageObservations) -> list[str]:
@@ -545,6 +617,7 @@ def _straight_lines(
             if pid not in observed:
                 raise ConfigError(
                     f"{label} points: point '{pid}' is not observed on any photo in {images_file}"
+                    f"{suggest_id(pid, observations.point_ids)}"
                 )
             if pid in control_ids:
                 raise ConfigError(

@@ -7,8 +7,9 @@ from .._threads import limit_blas_threads
 from ..errors import FlightAxisError, GeometryError, PhotoOrderError
 from ..options import BlunderOptions, GroundOptions, StripOptions
 from ..pipeline import Progress, triangulate, triangulate_block
-from ..plausibility import flight_axis_message, photo_order_message
+from ..plausibility import flight_axis_message, photo_order_hint, photo_order_message
 from ..results import BlockResult, StripResult
+from ..strip.relative import MIN_POINTS_PER_PAIR
 from .model import Project
 
 __all__ = ["explain", "project_options", "run_project"]
@@ -60,10 +61,36 @@ def run_project(
     GNSS centres and IMU attitudes (``[gnss]``, ``[imu]``), if any, are
     observations of the bundle refinement.
     """
+    order = _photo_order_problem(project)
+    if order:
+        raise GeometryError(order)
     try:
         return _run(project, progress, blunders)
     except (PhotoOrderError, FlightAxisError) as exc:
         raise explain(project, exc) from exc
+
+
+def _photo_order_problem(project: Project) -> str:
+    """Consecutive photos of a strip without enough common points for their
+    relative orientation, because the photos are listed out of flight order
+    (:func:`strip_aerotri.plausibility.photo_order_hint`): the pair's
+    failure, with its cause.  Empty when the order is not to blame or the
+    models are not formed on consecutive photos (``photo_step``)."""
+    if project.adjustment.photo_step != 1:
+        return ""
+    obs = project.observations
+    index = {pid: i for i, pid in enumerate(obs.photo_ids)}
+    for spec in project.strips or (None,):
+        ids = obs.photo_ids if spec is None else spec.photo_ids
+        m, hint = photo_order_hint(obs, [index[p] for p in ids], None, MIN_POINTS_PER_PAIR)
+        if hint:
+            where = "" if spec is None else f"strip '{spec.name}': "
+            return (
+                f"{project.images_file}: {where}pair {ids[m]}-{ids[m + 1]}: fewer than "
+                f"{MIN_POINTS_PER_PAIR} points measured on both photos (a relative "
+                f"orientation needs {MIN_POINTS_PER_PAIR}); {hint}"
+            )
+    return ""
 
 
 def _run(

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
+import unicodedata
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -730,6 +732,59 @@ def suggest(word: str, candidates: Sequence[str]) -> str:
         return f" (did you mean '{lower[word.lower()]}'?)"
     match = difflib.get_close_matches(word, list(candidates), n=1, cutoff=0.6)
     return f" (did you mean '{match[0]}'?)" if match else ""
+
+
+def _id_forms(word: str) -> tuple[str, str]:
+    """(Unicode NFC form, the form a spreadsheet leaves: NFC, stripped, no
+    leading zeros, no ``.0`` tail) of an id."""
+    nfc = unicodedata.normalize("NFC", word)
+    number = re.fullmatch(r"0*(\d+?)(?:\.0+)?", nfc.strip())
+    return nfc, number.group(1) if number else nfc.strip()
+
+
+class IdHints:
+    """For an id not found among ``candidates``, the candidate it differs
+    from only in a way the eye does not see or a spreadsheet makes (the
+    Unicode form, NFD against NFC; leading zeros dropped, or ``.0`` added to
+    a number) or in case, as `` (...)`` naming the cause, or empty.  The
+    candidates' forms are computed once, so that many ids can be asked
+    about."""
+
+    def __init__(self, candidates: Sequence[str]) -> None:
+        self._nfc: dict[str, str] = {}
+        self._bare: dict[str, str] = {}
+        self._folded: dict[str, str] = {}
+        for c in candidates:
+            nfc, bare = _id_forms(c)
+            self._nfc.setdefault(nfc, c)
+            self._bare.setdefault(bare, c)
+            self._folded.setdefault(bare.casefold(), c)
+
+    def __call__(self, word: str) -> str:
+        if len(word) > 2 * MAX_ECHO:
+            return ""
+        nfc, bare = _id_forms(word)
+        c = self._nfc.get(nfc)
+        if c is not None and c != word:
+            return (
+                f" (it differs from '{c}' only in its Unicode form, decomposed against "
+                "composed: save the files with the same normalization, NFC)"
+            )
+        c = self._bare.get(bare)
+        if c is not None and c != word:
+            return (
+                f" (did you mean '{c}'? a spreadsheet drops leading zeros or writes ids as "
+                "numbers: format the id column as text)"
+            )
+        c = self._folded.get(bare.casefold())
+        if c is not None and c != word:
+            return f" (did you mean '{c}'? ids are case-sensitive)"
+        return ""
+
+
+def suggest_id(word: str, candidates: Sequence[str]) -> str:
+    """:class:`IdHints` for one id, else :func:`suggest`."""
+    return IdHints(candidates)(word) or suggest(word, candidates)
 
 
 def _is_number(value: object) -> bool:

@@ -42,6 +42,7 @@ from .schema import (
     IMAGE_COLUMNS,
     IMU_COLUMNS,
     suggest,
+    suggest_id,
 )
 
 
@@ -79,6 +80,7 @@ def load_images(
         raise ConfigError(
             f"{table.where(row)}: photo '{photo[row]}' is not in "
             f"{'any ' if block else ''}{photos_key} of the project file"
+            f"{suggest_id(str(photo[row]), photo_ids)}"
         )
     present = set(name_index.tolist())
     for i, pid in enumerate(photo_ids):
@@ -166,7 +168,10 @@ def load_fiducials(
     seen: dict[tuple[str, str], int] = {}
     for row, (pid, mid) in enumerate(zip(photo.tolist(), mark.tolist(), strict=True)):
         if pid not in order_of:
-            raise ConfigError(f"{table.where(row)}: photo '{pid}' is not in [strip] photos")
+            raise ConfigError(
+                f"{table.where(row)}: photo '{pid}' is not in [strip] photos"
+                f"{suggest_id(pid, photo_ids)}"
+            )
         if mid not in calibrated:
             raise ConfigError(
                 f"{table.where(row)}: mark '{mid}' is not in [interior_orientation] calibrated"
