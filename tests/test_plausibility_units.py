@@ -195,12 +195,26 @@ def test_image_points_off_centre_by_the_rule_and_its_figures() -> None:
     assert (
         f"x from {low[0]:.4g} to {high[0]:.4g} mm, y from {low[1]:.4g} to {high[1]:.4g}" in message
     )
-    # one axis is enough; a shift within the rule's half of the half range is not
+    # both axes beyond the rule's half of the half range are needed
     half = 0.5 * np.ptp(xy, axis=0)
-    assert image_coordinate_problems(xy + np.array([0.0, 0.6 * half[1]]), obs.principal_distance)
+    assert image_coordinate_problems(xy + 0.6 * half, obs.principal_distance)
+    assert image_coordinate_problems(xy + np.array([0.0, 0.6 * half[1]]), obs.principal_distance) == []
     assert image_coordinate_problems(xy + 0.4 * half, obs.principal_distance) == []
     # too few points to tell
     assert image_coordinate_problems(moved[:19], obs.principal_distance) == []
+
+
+def test_a_strip_along_a_coast_is_not_off_centre() -> None:
+    """A strip flown along a shore sees land on one side of its flight line
+    only: its image points lie on one side across the flight (y), spread
+    along it (x) by the forward overlap.  That is a real project, not a
+    corner origin (the rule on one axis refused it)."""
+    obs = load_project(EXAMPLES / "drone-corridor" / "strip.toml").observations
+    xy = np.asarray(obs.xy)
+    land = xy[xy[:, 1] < -0.2 * np.ptp(xy[:, 1]) / 2]
+    low, high = land.min(axis=0), land.max(axis=0)
+    assert abs(0.5 * (low[1] + high[1])) > 0.5 * (0.5 * (high[1] - low[1]))  # y off-centre
+    assert image_coordinate_problems(land, obs.principal_distance) == []
 
 
 @pytest.mark.parametrize("example", ["drone-corridor", "film-strip"])

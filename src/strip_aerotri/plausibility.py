@@ -151,9 +151,12 @@ def image_coordinate_problems(
 #: Image points, measured over the whole format of every photo, lie about
 #: as far on each side of the principal point: their middle (half-way from
 #: the least to the greatest) beyond this fraction of their half range, on
-#: one axis, means another origin (a corner of the format).  Real projects
+#: both axes, means another origin (a corner of the format).  Real projects
 #: stay under 0.04 (the examples, the external strips, the FC300X block,
-#: the import samples, tests/data).
+#: the import samples, tests/data).  One axis alone is not enough: a strip
+#: flown along a coast or a river bank has its points on one side of the
+#: flight line, across it, while the forward overlap still spreads them
+#: along it.
 _OFF_CENTRE = 0.5
 #: Fewer image points than this say nothing about the format's middle.
 _OFF_CENTRE_MIN_POINTS = 20
@@ -168,8 +171,7 @@ def _off_centre_problems(xy: FloatArray, file: str) -> list[str]:
     middle, half = 0.5 * (low + high), 0.5 * (high - low)
     with np.errstate(divide="ignore", invalid="ignore"):
         off = np.abs(middle) / half
-    axes = [a for a in (0, 1) if half[a] > 0.0 and off[a] > _OFF_CENTRE]
-    if not axes:
+    if not all(half[a] > 0.0 and off[a] > _OFF_CENTRE for a in (0, 1)):
         return []
     ranges = ", ".join(f"{'xy'[a]} from {low[a]:.4g} to {high[a]:.4g} mm" for a in (0, 1))
     return [
