@@ -209,3 +209,14 @@ def test_a_block_in_feet_stops_naming_the_control(tmp_path: Path) -> None:
         assert len(errors) == 1, (command, result.stderr)
         assert f"{path}: the control heights" in errors[0] and "feet" in errors[0]
     assert not (out / "out").exists()
+
+
+def test_the_models_construction_stops_as_well(film_strip: tuple[Project, StripModel]) -> None:
+    from strip_aerotri.ground.models import adjust_models_to_ground
+
+    project, strip = film_strip
+    with pytest.raises(HeightUnitError, match=r"^c\.csv: .*H in feet") as caught:
+        adjust_models_to_ground(
+            strip, _scaled(project.control, US_FEET), project.crs, control_name="c.csv"
+        )
+    assert caught.value.detail.startswith("the control heights change 3.2")
