@@ -66,6 +66,27 @@ def test_the_page_s_correlations_are_between_the_kept_parameters():
     assert "<p>Correlations above 0.9 between the kept parameters: none</p>" in page
 
 
+def test_the_page_says_when_the_camera_is_left_as_given() -> None:
+    """The page's self-calibration paragraph speaks as the command line does:
+    with a kept set, sigma0 with the camera as given beside it; with none,
+    that the camera was left as given (it read "kept: none ... (without: X)")."""
+    base = {
+        "choice": "auto",
+        "sigma0": 0.38,
+        "sigma0_without": 0.40,
+        "parameters": [_parameter("k1", True)],
+        "correlations_above_0_9": [],
+    }
+    kept = calibration_html({**base, "kept": ["k1"]}, (None, None))
+    assert "kept: k1. sigma0 0.380 (with the camera as given: 0.400)." in kept
+    none = calibration_html(
+        {**base, "kept": [], "sigma0": 0.40, "parameters": [_parameter("k1", False, "t 1.2")]},
+        (None, None),
+    )
+    assert "no parameter kept: the camera is left as given (camera.toml holds it)." in none
+    assert "without" not in none and "kept: none" not in none
+
+
 def test_a_refined_strip_s_summary_table_gives_the_delivered_check(tmp_path):
     """The page's summary table gives the check RMSE of the delivered
     solution, the bundle refinement's, and says so; without a refinement

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
+from itertools import accumulate
 
-__all__ = ["MAX_ECHO", "MAX_LINE", "clean", "named", "shorten"]
+__all__ = ["MAX_ECHO", "MAX_LINE", "clean", "cut_at_items", "named", "shorten"]
 
 #: Characters of one echoed value (an id, a cell, a name) in a message.
 MAX_ECHO = 60
@@ -58,6 +59,29 @@ def shorten(text: object, limit: int = MAX_ECHO) -> str:
     keep = max(limit - marker_len, 2)
     head, tail = value[: (keep + 1) // 2], value[len(value) - keep // 2 :]
     return f"{head}…({total - len(head) - len(tail)} characters)…{tail}"
+
+
+def cut_at_items(text: object, limit: int = MAX_LINE, *, where: str = "") -> str:
+    """``text`` cleaned and, when longer than ``limit`` characters, cut after
+    the last whole item of its ``"; "``-separated list that fits, with how many
+    items were left out (``where``: the file that has them all).  A text whose
+    first item alone is too long loses its middle (:func:`shorten`).
+
+    >>> cut_at_items("held: a (t 1); b (t 2); c (t 3)", 28)
+    'held: a (t 1); … and 2 more'
+    """
+    if len(str(text)) > 40 * limit:  # never split megabytes to keep a few items
+        return shorten(text, limit)
+    value = clean(text)
+    if len(value) <= limit:
+        return value
+    items = value.split("; ")
+    ends = list(accumulate(len(i) + 2 for i in items))  # each item with its "; "
+    for kept in range(len(items) - 1, 0, -1):
+        more = f"… and {len(items) - kept} more" + (f" in {where}" if where else "")
+        if ends[kept - 1] + len(more) <= limit:
+            return "; ".join(items[:kept]) + "; " + more
+    return shorten(value, limit)
 
 
 def named(ids: Sequence[object], limit: int = 5) -> str:

@@ -234,7 +234,9 @@ def _auto(
     if choice.held:
         notes.insert(
             0,
-            "self-calibration held at their start values: "
+            # the names first: a message cut at a list item still names them all
+            f"self-calibration held {len(choice.held)} parameter(s) at their start values "
+            f"({', '.join(choice.held)}): "
             + "; ".join(f"{n} ({why})" for n, why in choice.held.items()),
         )
     cam = fit.estimate if active and fit is not None else None

@@ -144,13 +144,19 @@ project_arg = click.argument(
 )
 
 
-def one_line(text: object) -> str:
+def one_line(text: object, *, items: bool = False, where: str = "") -> str:
     """``text`` as one line (line breaks become ``"; "``) without control
     characters, its middle left out beyond :data:`~strip_aerotri._text.MAX_LINE`
-    characters (a message that echoes a huge value stays one readable line)."""
-    from .._text import MAX_LINE, shorten
+    characters (a message that echoes a huge value stays one readable line).
+
+    With ``items`` a longer text is a list: it is cut after its last whole
+    ``"; "``-separated item that fits, saying how many more ``where`` lists
+    (:func:`~strip_aerotri._text.cut_at_items`)."""
+    from .._text import MAX_LINE, cut_at_items, shorten
 
     parts = [part.strip() for part in str(text).splitlines() if part.strip()]
+    if items:
+        return cut_at_items("; ".join(parts), MAX_LINE, where=where)
     return shorten("; ".join(parts), MAX_LINE)
 
 
@@ -159,11 +165,13 @@ def echo_error(message: object) -> None:
     click.echo(f"{PROG}: error: {one_line(message)}", err=True)
 
 
-def echo_warning(message: object) -> None:
+def echo_warning(message: object, *, where: str = "") -> None:
     """``stripaero: warning: <message>`` on stderr unless ``-q`` (the
-    warnings stay in report.json and report.html)."""
+    warnings stay in report.json and report.html).  A long warning is a
+    list cut after a whole item, with how many more ``where`` (the file
+    that keeps the whole text) lists."""
     if settings().level >= 0:
-        click.echo(f"{PROG}: warning: {one_line(message)}", err=True)
+        click.echo(f"{PROG}: warning: {one_line(message, items=True, where=where)}", err=True)
 
 
 def echo_progress(message: object, *, level: int = 0) -> None:

@@ -111,7 +111,7 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
                 *summary.output_warnings,
             )
             for text in summary.warning_lines(texts, every=settings().level >= 1):
-                echo_warning(text)
+                echo_warning(text, where="report.json")
             echo_progress(f"writing {len(files)} files to {target}")
             with folder:
                 for name, data in files.items():
@@ -162,16 +162,27 @@ def _echo_strip(summary: RunSummary, target: Path) -> None:
 
 
 def _echo_calibration(summary: RunSummary, target: Path) -> None:
-    """One line on a self-calibration: the kept parameters and camera.toml."""
+    """One line on a self-calibration: the kept parameters, sigma0 with them and
+    with the camera as given, and camera.toml (the given camera when none is kept)."""
     calibration = summary.calibration
     if calibration is None:
         return
-    kept = ", ".join(calibration.kept) or "none"
-    sigma = "" if calibration.sigma0 is None else f", sigma0 {calibration.sigma0:.3g}"
     without = calibration.sigma0_without
-    sigma += f" (without: {without:.3g})" if math.isfinite(without) else ""
-    written = f"; camera: {target / 'camera.toml'}" if calibration.camera_written else ""
-    echo_result(f"self-calibration: kept {kept}{sigma}{written}")
+    given = f"{without:.3g}" if math.isfinite(without) else ""
+    camera = f"; camera: {target / 'camera.toml'}" if calibration.camera_written else ""
+    if not calibration.kept or calibration.sigma0 is None:
+        # camera.toml follows every self-calibration (docs/outputs.md): the given camera
+        echo_result(
+            "self-calibration: no parameter kept, the camera is left as given"
+            + (f" (sigma0 {given})" if given else "")
+            + (f"{camera} (the given camera)" if camera else "")
+        )
+        return
+    echo_result(
+        f"self-calibration: kept {', '.join(calibration.kept)}, sigma0 {calibration.sigma0:.3g}"
+        + (f" (with the camera as given: {given})" if given else "")
+        + camera
+    )
 
 
 def _echo_weights(summary: RunSummary) -> None:
@@ -260,6 +271,9 @@ def _echo_block(summary: RunSummary, target: Path) -> None:
     )
     if summary.refined:
         echo_result(_REFINED_LINE)
+    # as a strip's: the refinement's camera and weights, then its accuracy
+    _echo_calibration(summary, target)
+    _echo_weights(summary)
     fit = summary.control_fit
     own = (
         ""
@@ -268,8 +282,6 @@ def _echo_block(summary: RunSummary, target: Path) -> None:
         f"{_fmt_m(fit.rmse_plan)}, {_fmt_m(fit.rmse_height)})"
     )
     _echo_accuracy(summary, own)
-    _echo_calibration(summary, target)
-    _echo_weights(summary)
     join = summary.join
     if join is not None:
         a, b = join.strips

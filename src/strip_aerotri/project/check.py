@@ -261,9 +261,9 @@ def _check_block(rep: CheckReport, project: Project, out: Path | None) -> CheckR
                 f"strip '{spec.name}': {len(spec.photo_ids)} photos, {facts.n_models} pairs, "
                 f"{int(facts.counts.min())}..{int(facts.counts.max())} common points{ties}"
             )
-        rep.problems += [f"strip '{spec.name}': {p}" for p in own.problems]
-        rep.warnings += [f"strip '{spec.name}': {w}" for w in own.warnings]
-        rep.details += [f"strip '{spec.name}': {d}" for d in own.details]
+        rep.problems += [_in_strip(p, spec.name, project) for p in own.problems]
+        rep.warnings += [_in_strip(w, spec.name, project) for w in own.warnings]
+        rep.details += [_in_strip(d, spec.name, project) for d in own.details]
     rep.problems += control_problems(
         project.observations, project.control, project.crs, str(project.control_file)
     )
@@ -633,6 +633,15 @@ def _is_geographic(crs: str) -> bool:
     import pyproj
 
     return bool(pyproj.CRS.from_user_input(crs).is_geographic)
+
+
+def _in_strip(message: str, strip: str, project: Project) -> str:
+    """``message`` of one strip of a block with ``strip 'name': `` after the
+    input file it begins with, if any (as ``run`` and every message: file first)."""
+    for name in map(str, project.input_files):
+        if message.startswith(f"{name}: "):
+            return f"{name}: strip '{strip}': {message[len(name) + 2 :]}"
+    return f"strip '{strip}': {message}"
 
 
 def _strip_free(exc: Exception) -> str:

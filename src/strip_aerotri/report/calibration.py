@@ -229,9 +229,15 @@ def calibration_html(record: dict[str, Any] | None, figures: tuple[str | None, s
     corr = record["correlations_above_0_9"]
     parts = [
         "<h2>Self-calibration of the camera</h2>",
-        f"<p>Asked: {_esc(record['choice'])}; kept: "
-        f"{_esc(', '.join(record['kept']) or 'none')}. sigma0 {_fmt(record['sigma0'])} "
-        f"(without: {_fmt(record['sigma0_without'])}). Estimates are increments from the "
+        f"<p>Asked: {_esc(record['choice'])}; "
+        + (
+            f"kept: {_esc(', '.join(record['kept']))}. sigma0 {_fmt(record['sigma0'])} "
+            f"(with the camera as given: {_fmt(record['sigma0_without'])}). "
+            if record["kept"]
+            else "no parameter kept: the camera is left as given (camera.toml holds it). "
+            f"sigma0 {_fmt(record['sigma0'])}. "
+        )
+        + "Estimates are increments from the "
         "start camera; r(EO) is the multiple correlation with the photos' orientation and "
         "the points.</p>",
         _table(["parameter", "unit", "estimate", "sd", "t", "r(EO)", "kept / why not"], rows),
