@@ -90,7 +90,6 @@ def test_scatter_beyond_the_expected_error_widens_the_slope() -> None:
     [
         (FEET, "H in feet"),
         (US_FEET, "H in feet"),
-        (0.3048, "X, Y in feet"),
         (10.0, "H in decimetres"),
         (0.1, "X, Y in decimetres"),
     ],
@@ -105,7 +104,9 @@ def test_a_unit_factor_stops_with_the_file_and_the_unit(factor: float, named: st
     assert "\n" not in problems[0]
 
 
-@pytest.mark.parametrize("factor", [1.0, 0.6, 1.3, 2.0, 5.0])
+# 0.3048 (X, Y in feet) is let through: real strips reach 0.57 for their own
+# height deformation (the FC300X block), too near to refuse a project on
+@pytest.mark.parametrize("factor", [1.0, 0.3048, 0.6, 1.3, 2.0, 5.0])
 def test_slopes_away_from_every_unit_factor_pass(factor: float) -> None:
     model = _model(8, 80.0)
     assert height_unit_problems(model, _heights(model, factor), np.full(8, 0.1)) == []

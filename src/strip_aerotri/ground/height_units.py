@@ -21,10 +21,12 @@ __all__ = ["height_slope", "height_unit_problems"]
 #: Heights in another unit than the plan coordinates: the control heights
 #: against the strip model's heights (in plan units after the similarity in
 #: plan) have this slope.  Feet international (0.3048 m) and US survey
-#: (1200/3937 m) differ by 2e-6: one factor.
+#: (1200/3937 m) differ by 2e-6: one factor.  X, Y in feet with H in metres
+#: (a slope of 0.3048) is not stopped here: a real block's strips reach 0.57
+#: (below), where a strip's own height deformation, not its units, lowers
+#: the slope, and 0.35 would be too near to refuse a project on.
 _HEIGHT_UNIT_SLOPES = (
     (1.0 / 0.3048, "H in feet with X, Y in metres"),
-    (0.3048, "X, Y in feet with H in metres"),
     (10.0, "H in decimetres with X, Y in metres"),
     (0.1, "X, Y in decimetres with H in metres"),
 )
