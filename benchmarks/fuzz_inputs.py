@@ -538,7 +538,19 @@ MUTATIONS: tuple[Mutation, ...] = (
         FAIL,
         lambda p: [p.map_column(p.control, c, _scale(1e-3)) for c in ("X", "Y")] and None,
     ),
-    Mutation("control: heights in feet", EITHER, _heights_in_feet),
+    Mutation("control: heights in feet", FAIL, _heights_in_feet, (("control",), ("feet",))),
+    Mutation(
+        "control: heights in US survey feet",
+        FAIL,
+        lambda p: p.map_column(p.control, "H", _scale(3937 / 1200)),
+        (("control",), ("feet",)),
+    ),
+    Mutation(
+        "control: heights in decimetres",
+        FAIL,
+        lambda p: p.map_column(p.control, "H", _scale(10.0)),
+        (("control",), ("decimetres",)),
+    ),
     Mutation("control: H and X swapped", FAIL, _swap_columns("control", "X", "H")),
     # photos and points
     Mutation("strip.toml: photos reversed", FAIL, _reorder_photos("reversed"), (("photo",),)),

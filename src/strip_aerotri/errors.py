@@ -40,6 +40,23 @@ class PhotoOrderError(GeometryError):
         self.n_wrong, self.n_pairs, self.strip = n_wrong, n_pairs, strip
 
 
+class HeightUnitError(GeometryError):
+    """The control heights are in another unit than the plan control (feet or
+    decimetres with X, Y in metres): the strip scaled to the plan control
+    sees them change by the unit's factor
+    (:func:`strip_aerotri.ground.height_units.height_unit_problems`).
+
+    Attributes
+    ----------
+    detail : str
+        The message without the control's name (``"control: "`` before it).
+    """
+
+    def __init__(self, name: str, detail: str) -> None:
+        super().__init__(f"{name}: {detail}")
+        self.detail = detail
+
+
 class FlightAxisError(GeometryError):
     """Image x does not point along the flight: the photos of a pair move
     along another image axis.

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from ._threads import limit_blas_threads
-from .errors import GeometryError
+from .errors import GeometryError, HeightUnitError
 from .geodesy import GroundCRS
 from .ground.common import image_scale
 from .ground.polynomials import adjust_to_ground
@@ -192,18 +192,16 @@ def triangulate(
     with self_calibration_follows(
         self_calibration is not None and options.refine is Refine.BUNDLE
     ), _likely_cause(sigma_notes):
+        adjust, doing = adjust_to_ground, "orienting the strip on the control"
         if ground_options.construction is Construction.MODELS:
             from .ground.models import adjust_models_to_ground
 
-            say("transforming the models onto the control")
-            ground = adjust_models_to_ground(
-                strip, control, crs, lines=lines, options=ground_options, blunders=blunders
-            )
-        else:
-            say("orienting the strip on the control")
-            ground = adjust_to_ground(
-                strip, control, crs, lines=lines, options=ground_options, blunders=blunders
-            )
+            adjust, doing = adjust_models_to_ground, "transforming the models onto the control"
+        say(doing)
+        ground = adjust(
+            strip, control, crs, lines=lines, options=ground_options, blunders=blunders,
+            control_name=control_name,
+        )  # fmt: skip
     timings["ground"] = time.perf_counter() - t1
     # the tie test's residuals, in model base lengths until now, in metres
     model_per_mm, _ = image_scale(strip)
@@ -293,6 +291,16 @@ def _likely_cause(notes: Sequence[str]) -> Iterator[None]:
         if not notes or type(exc) is not GeometryError:
             raise
         raise GeometryError(f"{exc}; likely cause: {notes[0]}") from exc
+
+
+@contextmanager
+def _control_named(name: str) -> Iterator[None]:
+    """Control heights in another unit found within (a block's placement
+    does not know the control's file) name the control ``name``."""
+    try:
+        yield
+    except HeightUnitError as exc:
+        raise HeightUnitError(name, exc.detail) from None
 
 
 def _strip_warnings(
@@ -395,7 +403,7 @@ def triangulate_block(
         )
     with self_calibration_follows(
         self_calibration is not None and options.refine is Refine.BUNDLE
-    ):
+    ), _control_named(control_name):
         result = adjust_block(
             observations,
             control,

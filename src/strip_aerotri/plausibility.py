@@ -23,6 +23,11 @@ messages (``stripaero check`` lists them all; a run stops at the first):
 * :func:`control_relief_problems` — plan coordinates and heights in
   different units (X, Y in km with H in m): the control heights on a photo
   span more than the flying height the plan control's scale gives;
+* :func:`strip_aerotri.ground.height_units.height_unit_problems` (the
+  ground stage's, on the formed strip) — heights in feet (or decimetres) with X, Y
+  in metres, which the span cannot see: once the strip is formed and scaled
+  to the plan control (the ground stage), the control heights against the
+  strip's heights have a slope near the unit factor instead of 1;
 * :func:`control_coverage_problems` — a warning, not a stop: strip ends
   beyond the outermost plan or height control, where the strip is
   extrapolated;
@@ -939,3 +944,4 @@ def image_sigma_problems(pair_sigma_um: ArrayLike, sigma_mm: ArrayLike) -> list[
         head + "the blunder tests will reject good observations; the sigma column and "
         "[images] sigma_mm are in millimetres (metres written there?)"
     ]
+

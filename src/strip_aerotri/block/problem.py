@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
-from ..errors import GeometryError, StripAerotriWarning
+from ..errors import GeometryError, HeightUnitError, StripAerotriWarning
 from ..frames import WorkFrame, make_work_frame
 from ..geodesy import GroundCRS
 from ..geometry.similarity import SimilarityTransform, similarity_from_points
@@ -178,6 +178,8 @@ def _start_in_crs(
                     options=start_options,
                     blunders=_NO_TESTS,
                 )
+        except HeightUnitError:
+            raise  # the control's, not the strip's: no strip would do
         except GeometryError:
             continue
         fill = np.isnan(placed).any(axis=1) & np.isfinite(ground.points).all(axis=1)

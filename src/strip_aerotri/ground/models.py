@@ -153,6 +153,7 @@ def adjust_models_to_ground(
     lines: Sequence[LineSpec] = (),
     options: GroundOptions | None = None,
     blunders: BlunderOptions | None = None,
+    control_name: str = "control",
 ) -> GroundResult:
     """Transform every model of the strip at once onto the control.
 
@@ -171,7 +172,7 @@ def adjust_models_to_ground(
     blunders = blunders or BlunderOptions()
     if not isinstance(crs, GroundCRS):
         crs = GroundCRS.from_user_input(crs)
-    problem = _prepare(strip, control, crs, tuple(lines), options)
+    problem = _prepare(strip, control, crs, tuple(lines), options, control_name)
     sol, keep_rows, use_xy, use_z, line_keep, rejections, rejected_rows = _snoop(problem, blunders)
     if not sol.converged:
         warnings.warn(
@@ -192,6 +193,7 @@ def _prepare(
     crs: GroundCRS,
     lines: tuple[LineSpec, ...],
     options: GroundOptions,
+    control_name: str = "control",
 ) -> _ModelsProblem:
     """J's similarity of the whole strip, then the rows and weights of the
     simultaneous transformation and its start values."""
@@ -202,7 +204,12 @@ def _prepare(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StripAerotriWarning)
         start = similarity_start(
-            strip, control, crs, route=options.route, max_iterations=options.max_iterations
+            strip,
+            control,
+            crs,
+            route=options.route,
+            max_iterations=options.max_iterations,
+            control_name=control_name,
         )
     rows = start.control_index
     check = start.is_check

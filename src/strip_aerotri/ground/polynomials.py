@@ -25,7 +25,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 
@@ -33,7 +33,7 @@ from .._stats import exact_median
 from .._threads import limit_blas_threads
 from .._typing import BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
-from ..errors import GeometryError, StripAerotriWarning
+from ..errors import GeometryError, HeightUnitError, StripAerotriWarning
 from ..frames import WorkFrame, make_work_frame
 from ..geodesy import GroundCRS
 from ..geometry.deformation import DeformationResult
@@ -53,6 +53,7 @@ from .common import (
     line_residuals,
     resolve_route,
 )
+from .height_units import height_unit_problems
 from .passes import Solution, StripProblem, _plan_scale, solve_passes
 from .systematic import kept_control, kept_if_alike, rejected_components
 
@@ -64,6 +65,7 @@ __all__ = [
     "Route",
     "adjust_to_ground",
     "control_detectability",
+    "height_unit_check",
     "intersect_unmodelled",
     "similarity_start",
 ]
@@ -96,6 +98,7 @@ def adjust_to_ground(
     lines: Sequence[LineSpec] = (),
     options: GroundOptions | None = None,
     blunders: BlunderOptions | None = None,
+    control_name: str = "control",
 ) -> GroundResult:
     """Orient the strip model on the control and deliver it in the control CRS.
 
@@ -113,6 +116,8 @@ def adjust_to_ground(
     blunders : BlunderOptions, optional
         Tests of the control deviations and line points (data snooping, one
         rejection at a time; see :mod:`strip_aerotri.blunders`).
+    control_name : str
+        How messages name the control (its file in a project).
 
     Returns
     -------
@@ -122,9 +127,13 @@ def adjust_to_ground(
     ------
     GeometryError
         Insufficient or degenerate control (the rule and the points named),
-        too few points for the polynomial type, line points not triangulated.
+        too few points for the polynomial type, line points not triangulated,
+        control heights in another unit than the plan control
+        (:func:`strip_aerotri.ground.height_units.height_unit_problems`).
     """
-    return _adjusted(strip, control, crs, tuple(lines), options, blunders, all_points=True)
+    return _adjusted(
+        strip, control, crs, tuple(lines), options, blunders, all_points=True, name=control_name
+    )
 
 
 @limit_blas_threads
@@ -135,6 +144,7 @@ def similarity_start(
     *,
     route: Route | None,
     max_iterations: int,
+    control_name: str = "control",
 ) -> GroundResult:
     """J's similarity of the whole strip, untested, as the start of the
     models' ground stage (:mod:`strip_aerotri.ground.models`): the work
@@ -151,7 +161,9 @@ def similarity_start(
     """
     options = GroundOptions(route=route, polynomial=0, max_iterations=max_iterations)
     blunders = BlunderOptions(action=BlunderAction.OFF)
-    return _adjusted(strip, control, crs, (), options, blunders, all_points=False)
+    return _adjusted(
+        strip, control, crs, (), options, blunders, all_points=False, name=control_name
+    )
 
 
 def _adjusted(
@@ -163,16 +175,17 @@ def _adjusted(
     blunders: BlunderOptions | None,
     *,
     all_points: bool,
+    name: str = "control",
 ) -> GroundResult:
     """:func:`adjust_to_ground`; with ``all_points`` False its ``points`` in
-    the CRS at the control points only."""
+    the CRS at the control points only; ``name`` the control in messages."""
     options = options or GroundOptions()
     blunders = blunders or BlunderOptions()
     if not isinstance(crs, GroundCRS):
         crs = GroundCRS.from_user_input(crs)
     route = resolve_route(options.route, crs)
     picked = control_rows(strip, control)
-    problem = _prepare(strip, picked, crs, route, tuple(lines), options)
+    problem = _prepare(strip, picked, crs, route, tuple(lines), options, name)
     sol, use_xy, use_z, line_keep, rejections = _snoop(problem, picked, blunders, options)
     if not sol.converged:
         warnings.warn(
@@ -197,10 +210,67 @@ def _prepare(
     route: Route,
     lines: tuple[LineSpec, ...],
     options: GroundOptions,
+    name: str = "control",
 ) -> StripProblem:
     """The fixed data of the passes: start values of what the control does
-    not give, and the expected errors that weight it."""
+    not give, and the expected errors that weight it.
+
+    The strip scaled to the plan control meets the control heights here
+    first: heights in another unit than the plan stop (``name`` the control
+    in the message; :func:`strip_aerotri.ground.height_units.height_unit_problems`).
+    """
     line_index = line_indices(strip, lines)
+    first = _first_look(strip, picked, crs, route)
+    units = _unit_problems(first, picked, name)
+    if units:
+        raise HeightUnitError(name, units[0].removeprefix(f"{name}: "))
+    given, guess, strip_xyz = picked.given, first.guess, first.strip_xyz
+    metres_per_mm, sigma_plan = first.metres_per_mm, first.sigma_plan
+    sigma_height, exp_z = first.sigma_height, first.exp_z
+
+    served = served_points(strip)
+    return StripProblem(
+        strip=strip,
+        crs=crs,
+        route=route,
+        lines=lines,
+        line_index=line_index,
+        ids=picked.ids,
+        given=given,
+        guess=guess,
+        check=picked.check,
+        strip_xyz=strip_xyz,
+        exp_xy=np.hypot(picked.sigma_xy, sigma_plan),
+        exp_z=exp_z,
+        control_sigma_xy=picked.sigma_xy,
+        metres_per_mm=metres_per_mm,
+        sigma_plan=sigma_plan,
+        sigma_height=sigma_height,
+        served=served,
+        sections=options.sections,
+        max_iterations=options.max_iterations,
+    )
+
+
+class _FirstLook(NamedTuple):
+    """The strip scaled to the plan control, before any fit (per control row
+    C: ``guess``, ``target`` work frame, ``strip_xyz``, ``exp_z``)."""
+
+    guess: FloatArray
+    target: FloatArray
+    strip_xyz: FloatArray
+    metres_per_model: float
+    metres_per_mm: float
+    sigma_plan: float
+    sigma_height: float
+    exp_z: FloatArray
+
+
+def _first_look(
+    strip: StripModel, picked: ControlRows, crs: GroundCRS, route: Route
+) -> _FirstLook:
+    """Start values of what the control does not give, the image scale from
+    the plan control and the expected errors of the passes."""
     given, use_xy, use_z = picked.given, picked.use_xy, picked.use_z
     active = use_xy | use_z
     strip_xyz = strip.points[picked.index]
@@ -223,33 +293,53 @@ def _prepare(
     # estimate of the image scale (control spread in plan, work frame over
     # strip), the same in every fit: a fit repeated in a frame turned only in
     # azimuth is then the same fit turned, so the azimuth pass is not repeated.
-    target0 = make_work_frame(route, crs, guess[active], 0.0).to_work(guess)
-    metres_per_mm = model_per_mm * _plan_scale(strip_xyz[use_xy], target0[use_xy])
+    target = make_work_frame(route, crs, guess[active], 0.0).to_work(guess)
+    metres_per_model = _plan_scale(strip_xyz[use_xy], target[use_xy])
+    metres_per_mm = model_per_mm * metres_per_model
     sigma_plan = exact_median(strip.observations.sigma) * metres_per_mm
     sigma_height = sigma_plan * h_to_b
-
-    served = served_points(strip)
-    return StripProblem(
-        strip=strip,
-        crs=crs,
-        route=route,
-        lines=lines,
-        line_index=line_index,
-        ids=picked.ids,
-        given=given,
+    return _FirstLook(
         guess=guess,
-        check=picked.check,
+        target=target,
         strip_xyz=strip_xyz,
-        exp_xy=np.hypot(picked.sigma_xy, sigma_plan),
-        exp_z=np.hypot(picked.sigma_h, sigma_height),
-        control_sigma_xy=picked.sigma_xy,
+        metres_per_model=metres_per_model,
         metres_per_mm=metres_per_mm,
         sigma_plan=sigma_plan,
         sigma_height=sigma_height,
-        served=served,
-        sections=options.sections,
-        max_iterations=options.max_iterations,
+        exp_z=np.hypot(picked.sigma_h, sigma_height),
     )
+
+
+def _unit_problems(first: _FirstLook, picked: ControlRows, name: str) -> list[str]:
+    """Control heights in another unit than the plan control: the heights of
+    the height control against the strip's, scaled to the plan control
+    (:func:`strip_aerotri.ground.height_units.height_unit_problems`)."""
+    z = picked.use_z
+    return height_unit_problems(
+        first.strip_xyz[z] * first.metres_per_model, first.target[z, 2], first.exp_z[z], file=name
+    )
+
+
+def height_unit_check(
+    strip: StripModel,
+    control: ControlPoints,
+    crs: GroundCRS | str,
+    route: Route | None = None,
+    control_name: str = "control",
+) -> list[str]:
+    """The ground stage's test of the control heights' unit on a formed
+    strip, without the ground stage (``stripaero check``): one message when
+    the heights are in another unit than the plan control, else none (also
+    when the control is too scant for the similarity: its own rules say so).
+    """
+    if not isinstance(crs, GroundCRS):
+        crs = GroundCRS.from_user_input(crs)
+    picked = control_rows(strip, control)
+    try:
+        first = _first_look(strip, picked, crs, resolve_route(route, crs))
+    except GeometryError:
+        return []
+    return _unit_problems(first, picked, control_name)
 
 
 def _snoop(

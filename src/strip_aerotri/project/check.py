@@ -19,6 +19,9 @@ follow list every problem, each by the rule of the stage that applies it
   (:func:`strip_aerotri.geometry.deformation.polynomial_count_problems`, J(16));
 * control not mirrored against the photos
   (:func:`strip_aerotri.plausibility.control_problems`);
+* on the formed strip, control heights in the plan control's unit
+  (:func:`strip_aerotri.ground.polynomials.height_unit_check`, the ground
+  stage's rule);
 * every straight-line point is measured on both photos of a pair (J(18));
 * the output folder may be written.
 
@@ -190,6 +193,7 @@ def check_project(project: Project, out: Path | None = None) -> CheckReport:
         _add_plane(rep, plane)
     if formed is not None:
         _check_breaks(rep, project, formed)
+        _check_height_units(rep, project, formed)
     _doubts(rep, project, formed)
     _check_lines(rep, project, facts.triangulable)
     _check_polynomial(rep, project, plan_ids, height_ids)
@@ -517,6 +521,23 @@ def _check_height_plane(
         rep.warnings.append(f"{project.control_file}: the {warning}")
 
 
+def _check_height_units(rep: CheckReport, project: Project, strip: StripModel) -> None:
+    """Control heights in another unit than the plan control, judged on the
+    formed strip by the ground stage's own rule
+    (:func:`~strip_aerotri.ground.polynomials.height_unit_check`)."""
+    if rep.problems:
+        return  # the control's count or geometry is already wrong
+    from ..ground.polynomials import height_unit_check
+
+    rep.problems += height_unit_check(
+        strip,
+        project.control,
+        project.crs,
+        project.adjustment.route,
+        control_name=str(project.control_file),
+    )
+
+
 def _check_formation(
     rep: CheckReport, project: Project, strip: str | None = None
 ) -> StripModel | None:
@@ -551,7 +572,7 @@ def _check_placement(rep: CheckReport, project: Project, strips: tuple[StripMode
     over the strip's points), the others by their common points with the
     strips placed."""
     from ..block.problem import _start_in_crs
-    from ..errors import GeometryError
+    from ..errors import GeometryError, HeightUnitError
     from ..geodesy import GroundCRS
 
     try:
@@ -562,6 +583,8 @@ def _check_placement(rep: CheckReport, project: Project, strips: tuple[StripMode
             project.strips,
             strips,
         )
+    except HeightUnitError as exc:
+        rep.problems.append(f"{project.control_file}: {exc.detail}")
     except GeometryError as exc:
         rep.problems.append(f"{project.control_file}: {exc}")
 
