@@ -353,6 +353,12 @@ class FormedNormals:
         blocks: FloatArray = self._normals.band[self.structure.pattern.position, 0]
         return blocks
 
+    def chord_step(self, solution: NormalSolution) -> tuple[FloatArray, FloatArray]:
+        """The step (units (n, d), points (p, 3)) of these normals' gradients
+        with the factor of an earlier undamped `solution` of the same
+        structure (:meth:`NormalSolution.chord_step`); without a border."""
+        return solution.chord_step(self._normals.g_unit, self._normals.g_point)
+
     def solve(self, damping: float = 0.0) -> NormalSolution:
         """The step with Levenberg-Marquardt `damping` (diagonals of the unit,
         point and border blocks times ``1 + damping``)."""
