@@ -30,9 +30,9 @@ def _refined(chord_from: float,
     bundles: list[BundleResult] = []
     solve, chord = normals_module.FormedNormals.solve, normals_module.FormedNormals.chord_step
 
-    def counted_solve(self, damping=0.0):  # type: ignore[no-untyped-def]
+    def counted_solve(self, damping=0.0, **kwargs):  # type: ignore[no-untyped-def]
         solves.append(damping)
-        return solve(self, damping)
+        return solve(self, damping, **kwargs)
 
     def counted_chord(self, solution):  # type: ignore[no-untyped-def]
         chords[0] += 1

@@ -599,3 +599,21 @@ def test_gram_sums_from_the_lower_triangle_equal_the_full_products_to_the_bit(d:
     np.add.at(expected, np.searchsorted(starts, np.arange(500), side="right") - 1,
               np.einsum("rak,rbk->kab", x, x))
     np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("case", ["strip", "strip-border", "block-border"])
+def test_a_solve_without_its_step_gives_the_same_cofactors(case: str) -> None:
+    # the factor and the cofactors alone (the bundle's precision): every block
+    # the bits of a full solve's, the steps NaN, the pivots the same
+    prob = make_problem(**CASES[case])  # type: ignore[arg-type]
+    st = _structure(prob)
+    formed = st.form(prob.upr, prob.ur, prob.pr, prob.br)
+    full, bare = formed.solve(), formed.solve(step=False)
+    assert np.all(np.isnan(bare.unit_step)) and np.all(np.isnan(bare.point_step))
+    assert np.all(np.isnan(bare.border_step)) and bare.border_step.shape == (prob.k,)
+    assert bare.min_pivot == full.min_pivot
+    np.testing.assert_array_equal(bare.border_cofactor, full.border_cofactor)
+    a, b = full.cofactors(), bare.cofactors()
+    for name in ("unit", "point", "border", "unit_border", "point_border", "band", "pair"):
+        np.testing.assert_array_equal(getattr(b, name), getattr(a, name), err_msg=name)
+    np.testing.assert_array_equal(b.redundancy(prob.upr[0]), a.redundancy(prob.upr[0]))

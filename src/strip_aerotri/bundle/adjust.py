@@ -388,14 +388,14 @@ def _check_points(prob: _Problem, normals: _Normals, point_ids: tuple[str, ...])
         )
 
 
-def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
+def _solve(prob: _Problem, normals: _Normals, lam: float, step: bool = True) -> _Reduced:
     """Reduce to the photos (Schur complement on the point blocks), solve, back-substitute.
 
     ``lam`` is the Levenberg-Marquardt factor: the diagonals of U and V are
-    multiplied by ``1 + lam``.
+    multiplied by ``1 + lam``; without ``step`` the factor alone (steps NaN).
     """
     try:
-        solution = normals.formed.solve(lam)
+        solution = normals.formed.solve(lam, step=step)
     except SingularNormalsError as exc:
         if exc.kind == "border" and exc.index >= prob.n_camera:
             g, axis = divmod(exc.index - prob.n_camera, 3)
@@ -951,7 +951,7 @@ def _precision_products(
     camera, motion = None, None
     border_q = np.zeros((0, 0))
     if compute_precision or normals.image.border_jacobian is not None:
-        solution = _solve(prob, normals, 0.0).solution
+        solution = _solve(prob, normals, 0.0, step=linearised).solution  # the factor alone
         border_q = solution.border_cofactor  # without the selected inverse of the band
     k = prob.n_camera
     if prob.camera is not None:

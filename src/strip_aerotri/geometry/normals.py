@@ -359,13 +359,14 @@ class FormedNormals:
         structure (:meth:`NormalSolution.chord_step`); without a border."""
         return solution.chord_step(self._normals.g_unit, self._normals.g_point)
 
-    def solve(self, damping: float = 0.0) -> NormalSolution:
+    def solve(self, damping: float = 0.0, *, step: bool = True) -> NormalSolution:
         """The step with Levenberg-Marquardt `damping` (diagonals of the unit,
-        point and border blocks times ``1 + damping``)."""
+        point and border blocks times ``1 + damping``); without `step` the
+        factor and the cofactors alone (the steps NaN)."""
 
         if not damping >= 0.0:
             raise ValueError(f"Expected a non-negative `damping`, got {damping}")
-        reduced = reduce_points(self.structure, self._normals, damping)
+        reduced = reduce_points(self.structure, self._normals, damping, step)
         return NormalSolution._from(self.structure, self._normals, reduced, damping)
 
 
