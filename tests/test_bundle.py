@@ -470,9 +470,9 @@ def test_poor_start_needs_damping_and_still_converges(monkeypatch):
     damping = []
     solve = bundle_module._solve
 
-    def recording_solve(prob, normals, lam):
+    def recording_solve(prob, normals, lam, **kwargs):
         damping.append(lam)
-        return solve(prob, normals, lam)
+        return solve(prob, normals, lam, **kwargs)
 
     monkeypatch.setattr(bundle_module, "_solve", recording_solve)
     strip = make_strip()

@@ -579,3 +579,41 @@ def test_run_sums_and_blocks_equal_a_plain_scatter(
         assert np.all(ordered[span][starts] == seen)
     assert np.all(covered == 1)
     np.testing.assert_allclose(got, expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("d", [1, 3, 6, 7])
+def test_gram_sums_from_the_lower_triangle_equal_the_full_products_to_the_bit(d: int) -> None:
+    # U = Σ aᵀ a per unit and V per point from the d (d + 1) / 2 lower entries:
+    # the same bits as the full einsum, and symmetric
+    from strip_aerotri.geometry import _normal_entries as ne
+
+    rng = np.random.default_rng(d)
+    x = rng.normal(size=(2, d, 500)) * np.exp(rng.normal(size=(1, d, 500)) * 3.0)
+    starts = np.r_[0, np.sort(rng.choice(np.arange(1, 500), 40, replace=False))]
+    full = ne._summed(np.einsum("rak,rbk->abk", x, x), starts)
+    got = ne._gram_summed(x, starts)
+    assert got.shape == (41, d, d)
+    np.testing.assert_array_equal(got, full)
+    np.testing.assert_array_equal(got, np.swapaxes(got, 1, 2))
+    expected = np.zeros((41, d, d))
+    np.add.at(expected, np.searchsorted(starts, np.arange(500), side="right") - 1,
+              np.einsum("rak,rbk->kab", x, x))
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("case", ["strip", "strip-border", "block-border"])
+def test_a_solve_without_its_step_gives_the_same_cofactors(case: str) -> None:
+    # the factor and the cofactors alone (the bundle's precision): every block
+    # the bits of a full solve's, the steps NaN, the pivots the same
+    prob = make_problem(**CASES[case])  # type: ignore[arg-type]
+    st = _structure(prob)
+    formed = st.form(prob.upr, prob.ur, prob.pr, prob.br)
+    full, bare = formed.solve(), formed.solve(step=False)
+    assert np.all(np.isnan(bare.unit_step)) and np.all(np.isnan(bare.point_step))
+    assert np.all(np.isnan(bare.border_step)) and bare.border_step.shape == (prob.k,)
+    assert bare.min_pivot == full.min_pivot
+    np.testing.assert_array_equal(bare.border_cofactor, full.border_cofactor)
+    a, b = full.cofactors(), bare.cofactors()
+    for name in ("unit", "point", "border", "unit_border", "point_border", "band", "pair"):
+        np.testing.assert_array_equal(getattr(b, name), getattr(a, name), err_msg=name)
+    np.testing.assert_array_equal(b.redundancy(prob.upr[0]), a.redundancy(prob.upr[0]))

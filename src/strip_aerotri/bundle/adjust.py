@@ -70,11 +70,13 @@ from ..geometry.normals import (
     UnitPointRows,
     UnitRows,
 )
-from ..geometry.rotation import matrix_from_rotvec, rotvec_from_matrix, skew
+from ..geometry.rotation import matrix_from_rotvec, skew
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
 from ..results import BundleResult, CameraEstimate, ShutterEstimate
 from ._given import along_axis_order, check_rotations, given_weights, observed_with_sigma
+from ._so3 import imu_residual as _imu_residual
+from ._so3 import right_jacobian_inv as _right_jacobian_inv
 from ._structures import structure_for
 
 __all__ = ["NOT_CONVERGED", "BundleResult", "CameraUndetermined", "bundle_adjust"]
@@ -120,34 +122,6 @@ _PHOTO_PARAMETER_NAMES = (
     "rotation about y",
     "rotation about z",
 )
-
-
-# --- SO(3) kernels -----------------------------------------------------------
-
-
-def _right_jacobian_inv(e: FloatArray) -> FloatArray:
-    """Inverse right Jacobian of SO(3), ``log(exp(e) exp(d)) = e + Jr^-1(e) d + O(d^2)``."""
-    theta = np.linalg.norm(e, axis=-1)
-    small = theta < 1e-4
-    t = np.where(small, 1.0, theta)
-    coef = np.where(
-        small,
-        1.0 / 12.0 + theta**2 / 720.0,
-        1.0 / t**2 - (1.0 + np.cos(t)) / (2.0 * t * np.sin(t)),
-    )
-    k = skew(e)
-    return np.eye(3) + 0.5 * k + coef[..., None, None] * (k @ k)
-
-
-# --- Observation equations ---------------------------------------------------
-
-
-def _imu_residual(rotations: FloatArray, imu_rotations: FloatArray) -> FloatArray:
-    """Attitude residuals ``e = log(R_imu.T @ R)``, shape (M, 3), radians.
-
-    Their Jacobian with respect to ``delta`` is ``_right_jacobian_inv(e)``.
-    """
-    return rotvec_from_matrix(np.einsum("mji,mjk->mik", imu_rotations, rotations))
 
 
 # --- Problem data ------------------------------------------------------------
@@ -414,14 +388,14 @@ def _check_points(prob: _Problem, normals: _Normals, point_ids: tuple[str, ...])
         )
 
 
-def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
+def _solve(prob: _Problem, normals: _Normals, lam: float, step: bool = True) -> _Reduced:
     """Reduce to the photos (Schur complement on the point blocks), solve, back-substitute.
 
     ``lam`` is the Levenberg-Marquardt factor: the diagonals of U and V are
-    multiplied by ``1 + lam``.
+    multiplied by ``1 + lam``; without ``step`` the factor alone (steps NaN).
     """
     try:
-        solution = normals.formed.solve(lam)
+        solution = normals.formed.solve(lam, step=step)
     except SingularNormalsError as exc:
         if exc.kind == "border" and exc.index >= prob.n_camera:
             g, axis = divmod(exc.index - prob.n_camera, 3)
@@ -450,6 +424,21 @@ def _solve(prob: _Problem, normals: _Normals, lam: float) -> _Reduced:
         ) from None
     j = 6 * solution.min_pivot_unit + solution.min_pivot_parameter
     return _Reduced(solution.unit_step, solution.point_step, solution, solution.min_pivot, j)
+
+
+#: A chord step (:func:`_chord`) follows a full Gauss-Newton step that moved the
+#: unknowns by less than this (relative, as the tolerance's test measures them).
+_CHORD_FROM = 1e-4
+
+
+def _chord(normals: _Normals, full: _Reduced) -> _Reduced:
+    """The step of ``normals``' gradients with the factor of the last full
+    step `full` (no new forming of the reduced system nor factoring): where
+    that step moved the unknowns by less than :data:`_CHORD_FROM`, the normal
+    matrix changed by about as little, and the chord step differs from the
+    full one by that share of its own size (a 1e-6 m step by 1e-10 m)."""
+    unit, point = normals.formed.chord_step(full.solution)
+    return dataclasses.replace(full, d_photo=unit, d_point=point)
 
 
 def _apply(state: _State, step: _Reduced) -> _State:
@@ -841,11 +830,16 @@ def _iterate(
     lam = 0.0
     iterations = 0
     warned_weak = False
+    chord_from: _Reduced | None = None  # a small full step's factor (_chord)
     for _ in range(max_iterations):
         cost = normals.cost
         while True:
-            step = _solve(prob, normals, lam)
-            if lam == 0.0:
+            chord = lam == 0.0 and chord_from is not None
+            if chord_from is not None and lam == 0.0:
+                step = _chord(normals, chord_from)
+            else:
+                step = _solve(prob, normals, lam)
+            if lam == 0.0 and not chord:
                 if step.min_pivot < _SINGULAR_PIVOT:
                     j = step.min_pivot_index
                     raise GeometryError(
@@ -878,6 +872,9 @@ def _iterate(
             trial_cost = float("inf") if trial_normals is None else trial_normals.cost
             if trial_cost <= cost:
                 break
+            if chord:  # a chord that does not lower the cost gives way to a full step
+                chord_from = None
+                continue
             if max_step < tolerance or trial_cost - cost <= tolerance * cost:
                 trial, trial_cost = state, cost  # at the noise floor: nothing to gain
                 break
@@ -896,6 +893,8 @@ def _iterate(
         # only an undamped (Gauss-Newton) step can end the iteration.
         if lam == 0.0 and (max_step < tolerance or (cost - trial_cost) <= tolerance * cost):
             return state, normals, history, iterations, True
+        small = lam == 0.0 and not chord and max_step < _CHORD_FROM
+        chord_from = step if small and prob.n_camera + prob.n_motion == 0 else None
         lam = 0.0 if lam <= 1e-3 else lam / 10.0
     return state, normals, history, iterations, False
 
@@ -952,7 +951,7 @@ def _precision_products(
     camera, motion = None, None
     border_q = np.zeros((0, 0))
     if compute_precision or normals.image.border_jacobian is not None:
-        solution = _solve(prob, normals, 0.0).solution
+        solution = _solve(prob, normals, 0.0, step=linearised).solution  # the factor alone
         border_q = solution.border_cofactor  # without the selected inverse of the band
     k = prob.n_camera
     if prob.camera is not None:

@@ -338,9 +338,11 @@ def _schur_band(st: NormalStructure, band: FloatArray, z: FloatArray) -> FloatAr
 
 
 @_in_workers
-def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Reduced:
+def reduce_points(st: NormalStructure, normals: _Normals, damping: float,
+                  step: bool = True) -> Reduced:
     """Schur complement on the points, the banded factor, the border after
-    the band, the step (units, points, border) and its predicted cost.
+    the band, the step (units, points, border) and its predicted cost;
+    without `step` what the cofactors need alone (the steps NaN).
 
     Length: the four stages of method.md 6B 1-2 for one step, which share
     their intermediate products."""
@@ -362,12 +364,13 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
     def pairs_block(at: slice) -> None:
         m_pair[:, at] = take(pf.m, pat.pair_point[at])
         z[..., at] = times_lower_t(normals.w[..., at], m_pair[:, at])
-        np.einsum("ack,ck->ak", z[..., at], take(mb, pat.pair_point[at]), out=zmb[:, at])
+        if step:
+            np.einsum("ack,ck->ak", z[..., at], take(mb, pat.pair_point[at]), out=zmb[:, at])
 
     split_map(pairs_block, spans(n_pairs))
     s_band = _schur_band(st, band, z)
     # Σ_pairs W V⁻¹ b_p = Σ Z (M b_p), by unit
-    rhs_unit = -normals.g_unit - run_sums(zmb, pat.pair_unit_runs, n)
+    rhs_unit = -normals.g_unit - run_sums(zmb, pat.pair_unit_runs, n) if step else None
     try:
         factor = factor_band(s_band)
     except NotPositiveDefinite as exc:
@@ -381,7 +384,6 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
             exc.index % d,
         ) from None
     order = pat.order
-    rhs_pos = rhs_unit[order].reshape(-1)
     y_border = np.zeros((st.n_points, k, 3))
     x = np.zeros((n * d, k))
     t_inv = np.zeros((k, k))
@@ -402,6 +404,12 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float) -> Red
         x = factor.solve(s_b_pos)
         t = s_bb - s_b_pos.T @ x
         t_inv, border_min_pivot = _border_inverse(st, t)
+    if rhs_unit is None:  # the cofactors' share alone
+        nan = np.full((n, d), np.nan), np.full((st.n_points, 3), np.nan), np.full(k, np.nan)
+        return Reduced(factor, *nan, pf.v_inv, z, m_pair, y_border, x, t_inv,
+                       border_min_pivot, normals)
+    rhs_pos = rhs_unit[order].reshape(-1)
+    if k:
         u0 = factor.solve(rhs_pos)
         border_step = t_inv @ (r_b - s_b_pos.T @ u0)
         x_pos = u0 - x @ border_step

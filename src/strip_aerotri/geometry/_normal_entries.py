@@ -170,7 +170,7 @@ def pair_blocks(
 
     def unit_block(places: slice | IntArray, starts: IntArray, seen: IntArray) -> None:
         bu, _, bf, *bb = entries(records[places])
-        u[seen] = _summed(np.einsum("rak,rbk->abk", bu, bu), starts)
+        u[seen] = _gram_summed(bu, starts)
         g_unit[seen] = _summed(np.einsum("rak,rk->ak", bu, bf[:, 0]), starts)
         if bb:
             unit_border[seen] = _summed(np.einsum("rak,rbk->abk", bu, bb[0]), starts)
@@ -179,7 +179,7 @@ def pair_blocks(
                     seen: IntArray) -> None:
         pu, pp, pf, *pb = entries(np.take(records, rows[places], axis=0))
         np.einsum("rak,rbk->abk", pu, pp, out=w[..., span])
-        v[seen] = _summed(np.einsum("rak,rbk->abk", pp, pp), starts)
+        v[seen] = _gram_summed(pp, starts)
         g_point[seen] = _summed(np.einsum("rak,rk->ak", pp, pf[:, 0]), starts)
         if pb:
             point_border[seen] = _summed(np.einsum("rak,rbk->abk", pp, pb[0]), starts)
@@ -208,6 +208,24 @@ def _summed(products: FloatArray, starts: IntArray) -> FloatArray:
     """Sums over the runs starting at `starts` of entry-major products (…, m):
     (runs, …)."""
     out: FloatArray = np.moveaxis(np.add.reduceat(products, starts, axis=-1), -1, 0)
+    return out
+
+
+def _gram_summed(x: FloatArray, starts: IntArray) -> FloatArray:
+    """``Σ_r x[r, a] x[r, b]`` of entry-major x (r, d, m) summed over the runs
+    starting at `starts`: (runs, d, d), as ``_summed(einsum("rak,rbk->abk"))``
+    to the bit (a product commutes exactly) from its lower triangle alone,
+    d (d + 1) / 2 of the d² entries."""
+    d = x.shape[1]
+    lower = np.empty((d * (d + 1) // 2, x.shape[2]))
+    for a in range(d):  # row a of the lower triangle: entries (a, 0..a)
+        lo = a * (a + 1) // 2
+        np.einsum("rk,rbk->bk", x[:, a], x[:, : a + 1], out=lower[lo : lo + a + 1])
+    sums = np.add.reduceat(lower, starts, axis=-1).T  # (runs, d (d + 1) / 2)
+    ia, ib = np.tril_indices(d)
+    out = np.empty((sums.shape[0], d, d))
+    out[:, ia, ib] = sums
+    out[:, ib, ia] = sums
     return out
 
 

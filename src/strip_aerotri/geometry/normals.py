@@ -353,13 +353,20 @@ class FormedNormals:
         blocks: FloatArray = self._normals.band[self.structure.pattern.position, 0]
         return blocks
 
-    def solve(self, damping: float = 0.0) -> NormalSolution:
+    def chord_step(self, solution: NormalSolution) -> tuple[FloatArray, FloatArray]:
+        """The step (units (n, d), points (p, 3)) of these normals' gradients
+        with the factor of an earlier undamped `solution` of the same
+        structure (:meth:`NormalSolution.chord_step`); without a border."""
+        return solution.chord_step(self._normals.g_unit, self._normals.g_point)
+
+    def solve(self, damping: float = 0.0, *, step: bool = True) -> NormalSolution:
         """The step with Levenberg-Marquardt `damping` (diagonals of the unit,
-        point and border blocks times ``1 + damping``)."""
+        point and border blocks times ``1 + damping``); without `step` the
+        factor and the cofactors alone (the steps NaN)."""
 
         if not damping >= 0.0:
             raise ValueError(f"Expected a non-negative `damping`, got {damping}")
-        reduced = reduce_points(self.structure, self._normals, damping)
+        reduced = reduce_points(self.structure, self._normals, damping, step)
         return NormalSolution._from(self.structure, self._normals, reduced, damping)
 
 
