@@ -16,12 +16,12 @@ from strip_aerotri.pipeline import triangulate
 from strip_aerotri.results import BundleResult, RefinedResult
 from strip_aerotri.simulate import simulate_strip
 
-CHORD_FROM = adjust._CHORD_FROM  # the module's own, before any test changes it
+CHORD_FROM = adjust._CHORD_BELOW_MOVE  # the module's own, before any test changes it
 
 
 def _refined(chord_from: float,
              **kwargs: object) -> tuple[RefinedResult, list[float], int, list[BundleResult]]:
-    """A refinement with ``_CHORD_FROM = chord_from``: its result, the
+    """A refinement with ``_CHORD_BELOW_MOVE = chord_from``: its result, the
     dampings of its solves, its count of chord steps and its bundles."""
     sim = simulate_strip(30, preset="drone", seed=5, control="every_k_models", control_every=5)
     strip = triangulate(sim.observations, sim.control, sim.crs)
@@ -43,7 +43,7 @@ def _refined(chord_from: float,
         return bundles[-1]
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(adjust, "_CHORD_FROM", chord_from)
+        mp.setattr(adjust, "_CHORD_BELOW_MOVE", chord_from)
         mp.setattr(normals_module.FormedNormals, "solve", counted_solve)
         mp.setattr(normals_module.FormedNormals, "chord_step", counted_chord)
         mp.setattr(snoop_camera, "bundle_adjust", kept)

@@ -428,13 +428,13 @@ def _solve(prob: _Problem, normals: _Normals, lam: float, step: bool = True) -> 
 
 #: A chord step (:func:`_chord`) follows a full Gauss-Newton step that moved the
 #: unknowns by less than this (relative, as the tolerance's test measures them).
-_CHORD_FROM = 1e-4
+_CHORD_BELOW_MOVE = 1e-4
 
 
 def _chord(normals: _Normals, full: _Reduced) -> _Reduced:
     """The step of ``normals``' gradients with the factor of the last full
     step `full` (no new forming of the reduced system nor factoring): where
-    that step moved the unknowns by less than :data:`_CHORD_FROM`, the normal
+    that step moved the unknowns by less than :data:`_CHORD_BELOW_MOVE`, the normal
     matrix changed by about as little, and the chord step differs from the
     full one by that share of its own size (a 1e-6 m step by 1e-10 m)."""
     unit, point = normals.formed.chord_step(full.solution)
@@ -696,7 +696,7 @@ def bundle_adjust(
                 StripAerotriWarning,
                 stacklevel=2,
             )
-        at_start = iterations == 0  # no step: the camera's values are one step's
+        at_start = int(max_iterations) == 0  # asked for no step: the camera's values are one step's
         precision = _precision_products(prob, state, normals, sigma0, compute_precision, at_start)
         control_used = prob.control_weight > 0
         return BundleResult(
@@ -835,7 +835,7 @@ def _iterate(
         cost = normals.cost
         while True:
             chord = lam == 0.0 and chord_from is not None
-            if chord_from is not None and lam == 0.0:
+            if chord:
                 step = _chord(normals, chord_from)
             else:
                 step = _solve(prob, normals, lam)
@@ -893,7 +893,7 @@ def _iterate(
         # only an undamped (Gauss-Newton) step can end the iteration.
         if lam == 0.0 and (max_step < tolerance or (cost - trial_cost) <= tolerance * cost):
             return state, normals, history, iterations, True
-        small = lam == 0.0 and not chord and max_step < _CHORD_FROM
+        small = lam == 0.0 and not chord and max_step < _CHORD_BELOW_MOVE
         chord_from = step if small and prob.n_camera + prob.n_motion == 0 else None
         lam = 0.0 if lam <= 1e-3 else lam / 10.0
     return state, normals, history, iterations, False
