@@ -324,6 +324,12 @@ def test_control_points_lost_alike_are_one_line_unless_verbose() -> None:
         "last",
     ]
     assert summary.warning_lines(texts, every=True) == texts
+    # lost check points are summed up the same way (each had its own line)
+    checks = [PointWarning.not_triangulated(f"C{i}", unseen, check=True) for i in range(3)]
+    assert summary.warning_lines(checks) == [
+        "3 check points are not triangulated ('C0', 'C1', 'C2') and "
+        f"left out (each: {unseen}) (listed in report.json / report.html; -v lists them here)"
+    ]
 
 
 def _lost_control(ids: list[str]):  # type: ignore[no-untyped-def]

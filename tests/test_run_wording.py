@@ -80,10 +80,12 @@ def test_the_page_says_when_the_camera_is_left_as_given() -> None:
     kept = calibration_html({**base, "kept": ["k1"]}, (None, None))
     assert "kept: k1. sigma0 0.380 (with the camera as given: 0.400)." in kept
     none = calibration_html(
-        {**base, "kept": [], "sigma0": 0.40, "parameters": [_parameter("k1", False, "t 1.2")]},
+        {**base, "kept": [], "sigma0": None, "parameters": [_parameter("k1", False, "t 1.2")]},
         (None, None),
     )
+    # with nothing kept there is no adjusted sigma0: the given camera's is shown
     assert "no parameter kept: the camera is left as given (camera.toml holds it)." in none
+    assert "sigma0 0.400." in none
     assert "without" not in none and "kept: none" not in none
 
 

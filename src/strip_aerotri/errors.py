@@ -52,9 +52,10 @@ class HeightUnitError(GeometryError):
         The message without the control's name (``"control: "`` before it).
     """
 
-    def __init__(self, name: str, detail: str) -> None:
-        super().__init__(f"{name}: {detail}")
-        self.detail = detail
+    def __init__(self, name: str, detail: str | None = None) -> None:
+        # one argument: the whole message (as ``type(exc)(message)`` rewraps it)
+        super().__init__(name if detail is None else f"{name}: {detail}")
+        self.detail = name if detail is None else detail
 
 
 class FlightAxisError(GeometryError):
@@ -97,6 +98,7 @@ __all__ = [
     "ConvergenceError",
     "FlightAxisError",
     "GeometryError",
+    "HeightUnitError",
     "MissingExtraError",
     "PhotoOrderError",
     "StripAerotriError",

@@ -169,9 +169,11 @@ def echo_warning(message: object, *, where: str = "") -> None:
     """``stripaero: warning: <message>`` on stderr unless ``-q`` (the
     warnings stay in report.json and report.html).  A long warning is a
     list cut after a whole item, with how many more ``where`` (the file
-    that keeps the whole text) lists."""
+    that keeps the whole text) lists; without ``where`` (nothing keeps the
+    whole text) it is shortened in the middle, its head and its end kept."""
     if settings().level >= 0:
-        click.echo(f"{PROG}: warning: {one_line(message, items=True, where=where)}", err=True)
+        line = one_line(message, items=bool(where), where=where)
+        click.echo(f"{PROG}: warning: {line}", err=True)
 
 
 def echo_progress(message: object, *, level: int = 0) -> None:

@@ -26,8 +26,8 @@ __all__ = ["height_slope", "height_unit_problems"]
 #: (below), where a strip's own height deformation, not its units, lowers
 #: the slope, and 0.35 would be too near to refuse a project on.
 _HEIGHT_UNIT_SLOPES = (
-    (1.0 / 0.3048, "H in feet with X, Y in metres"),
-    (10.0, "H in decimetres with X, Y in metres"),
+    (1.0 / 0.3048, "H in feet (heights are metres, whatever the unit of X, Y)"),
+    (10.0, "H in decimetres (heights are metres, whatever the unit of X, Y)"),
     (0.1, "X, Y in decimetres with H in metres"),
 )
 #: The slope is told (enough height spread) when its standard deviation is at

@@ -235,7 +235,7 @@ def calibration_html(record: dict[str, Any] | None, figures: tuple[str | None, s
             f"(with the camera as given: {_fmt(record['sigma0_without'])}). "
             if record["kept"]
             else "no parameter kept: the camera is left as given (camera.toml holds it). "
-            f"sigma0 {_fmt(record['sigma0'])}. "
+            f"sigma0 {_fmt(record['sigma0_without'])}. "
         )
         + "Estimates are increments from the "
         "start camera; r(EO) is the multiple correlation with the photos' orientation and "

@@ -365,6 +365,10 @@ _PER_POINT = {
         "control points are not triangulated",
         "and left out (each: {cause})",
     ),
+    "check not triangulated": (
+        "check points are not triangulated",
+        "and left out (each: {cause})",
+    ),
 }
 
 
