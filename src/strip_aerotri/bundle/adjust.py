@@ -835,7 +835,7 @@ def _iterate(
         cost = normals.cost
         while True:
             chord = lam == 0.0 and chord_from is not None
-            if chord:
+            if chord and chord_from is not None:  # (the second test narrows the type)
                 step = _chord(normals, chord_from)
             else:
                 step = _solve(prob, normals, lam)
