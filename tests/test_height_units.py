@@ -126,7 +126,12 @@ def test_too_little_relief_to_tell_passes() -> None:
 def _copy_with_heights(tmp_path: Path, factor: float) -> Path:
     folder = tmp_path / "film"
     shutil.copytree(FILM, folder, ignore=shutil.ignore_patterns("out", "out*"))
-    path = folder / "control.csv"
+    _scale_heights(folder / "control.csv", factor)
+    return folder
+
+
+def _scale_heights(path: Path, factor: float) -> None:
+    """Every height of the control file ``path`` multiplied by ``factor``."""
     with path.open(newline="", encoding="utf-8") as f:
         rows = list(csv.DictReader(f))
     with path.open("w", newline="", encoding="utf-8") as f:
@@ -136,7 +141,6 @@ def _copy_with_heights(tmp_path: Path, factor: float) -> Path:
             if row["H"]:
                 row["H"] = repr(float(row["H"]) * factor)
             writer.writerow(row)
-    return folder
 
 
 @pytest.fixture(scope="module")
@@ -194,15 +198,7 @@ def test_a_block_in_feet_stops_naming_the_control(tmp_path: Path) -> None:
     fine = CliRunner().invoke(cli, ["-qq", "check", str(out / "strip.toml")])
     assert fine.exit_code == 0, fine.stderr
     path = out / "control.csv"
-    with path.open(newline="", encoding="utf-8") as f:
-        rows = list(csv.DictReader(f))
-    with path.open("w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        for row in rows:
-            if row["H"]:
-                row["H"] = repr(float(row["H"]) * FEET)
-            writer.writerow(row)
+    _scale_heights(path, FEET)
     for command in ("run", "check"):
         result = CliRunner().invoke(cli, [command, str(out / "strip.toml")])
         assert result.exit_code == 1, (command, result.output)

@@ -170,7 +170,7 @@ def _echo_calibration(summary: RunSummary, target: Path) -> None:
     without = calibration.sigma0_without
     given = f"{without:.3g}" if math.isfinite(without) else ""
     camera = f"; camera: {target / 'camera.toml'}" if calibration.camera_written else ""
-    if not calibration.kept or calibration.sigma0 is None:
+    if calibration.sigma0 is None:  # nothing kept (selfcal: no sigma0 without a kept set)
         # camera.toml follows every self-calibration (docs/outputs.md): the given camera
         echo_result(
             "self-calibration: no parameter kept, the camera is left as given"

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .._text import named
 from ..results import AccuracyStatistics, BlockResult, PointWarning, Rejection, StripResult
 from . import outputs
 from .block import block_outputs, block_tolerances_record, build_block_report, joins_record
@@ -387,10 +388,8 @@ def _grouped_per_point(texts: list[str], listed: str) -> list[str]:
         if len(group) < 2:
             continue
         head, tail = _PER_POINT[kind]
-        names = [repr(w.point) for _, w in group]
-        more = f" and {len(names) - 5} more" if len(names) > 5 else ""
         summed[group[0][0]] = (
-            f"{len(names)} {head} ({', '.join(names[:5])}{more}) "
+            f"{len(group)} {head} ({named([w.point for _, w in group])}) "
             f"{tail.format(cause=cause)} ({where}-v lists them here)"
         )
         gone.update(i for i, _ in group[1:])
