@@ -374,21 +374,22 @@ def _point_rows(prob: _Problem, st: _State) -> list[Any]:
     equations (``Y − a − b X``, weight 1/σ², ``a, b`` in the border) at ``st``."""
     from .normals import PointRows
 
-    rows = []
-    used = prob.control_used
-    cp, given = prob.control_point[used], prob.control_given[used]
-    sig = prob.control_sigma[used]
-    rows.append(
-        PointRows(
-            prob.engine_point[cp],
-            np.broadcast_to(np.eye(3), (cp.shape[0], 3, 3)),
-            np.where(given, st.points[cp] - np.where(given, prob.control_xyz[used], 0.0), 0.0),
-            np.where(given, 1.0 / np.where(given, sig, 1.0) ** 2, 0.0),
-        )
-    )
+    cp, f, weight = _control_terms(prob, st)
+    rows = [PointRows(prob.engine_point[cp], np.broadcast_to(np.eye(3), (cp.shape[0], 3, 3)),
+                      f, weight)]
     for k in range(prob.n_lines):
         rows.append(_line_rows(prob, st, k))
     return rows
+
+
+def _control_terms(prob: _Problem, st: _State) -> tuple[IntArray, FloatArray, FloatArray]:
+    """The control rows on observed points: their point, their residual
+    ``X_p − X_c`` and weight ``1/σ²`` (C, 3), both 0 where not given."""
+    used = prob.control_used
+    cp, given = prob.control_point[used], prob.control_given[used]
+    f = np.where(given, st.points[cp] - np.where(given, prob.control_xyz[used], 0.0), 0.0)
+    weight = np.where(given, 1.0 / np.where(given, prob.control_sigma[used], 1.0) ** 2, 0.0)
+    return cp, f, weight
 
 
 def _line_rows(prob: _Problem, st: _State, k: int) -> Any:
@@ -435,23 +436,32 @@ def _solve(prob: _Problem, st: _State) -> NormalSolution:
 def _gradients(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
     """``Aᵀ P f`` of the units (U, width) and of the engine's points (p, 3) at
     ``st``: the right-hand side :meth:`NormalStructure.form` would form for
-    a chord step (no lines, no polynomial)."""
+    a chord step (no lines, no polynomial).
+
+    Without the design: a row's is ``A = [I | -[y]× | y]`` on its unit and
+    ``-I`` on its point, so with ``q = W v`` (``W = L Lᵀ``) its share is
+    ``Aᵀ q = [q, y × q, y · q]`` and ``-q``."""
     from ._normal_assembly import sum_into
 
     obs = prob.obs
     y, v = _predict(prob, st)
     lt = prob.whiten
-    r = _whitened(prob, v)  # the whitened residuals
-    design = _whitened_design(prob, st, y)
-    g_unit = sum_into(obs.unit, np.einsum("nik,ni->nk", design, r), prob.n_units)
+    per_row = np.empty((v.shape[0], N_UNIT))
+
+    def block(rows: slice) -> None:
+        lr, yr = lt[rows], y[rows]
+        q = np.einsum("nji,nj->ni", lr, np.einsum("nij,nj->ni", lr, v[rows]))  # L Lᵀ v
+        out = per_row[rows]
+        out[:, 0:3] = q
+        out[:, 3:6] = np.cross(yr, q)
+        out[:, 6] = np.einsum("ni,ni->n", yr, q)
+
+    _by_rows(v.shape[0], block)
+    g_unit = sum_into(obs.unit, per_row, prob.n_units)
     n_used = prob.points_used.size
-    # the point's whitened Jacobian is -Lᵀ: (-Lᵀ)ᵀ r
-    g_point = -sum_into(prob.engine_point[obs.point], np.einsum("nij,ni->nj", lt, r), n_used)
-    used = prob.control_used
-    cp, given = prob.control_point[used], prob.control_given[used]
-    f = np.where(given, st.points[cp] - np.where(given, prob.control_xyz[used], 0.0), 0.0)
-    w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma[used], 1.0) ** 2, 0.0)
-    g_point += sum_into(prob.engine_point[cp], w_c * f, n_used)
+    g_point = -sum_into(prob.engine_point[obs.point], per_row[:, 0:3], n_used)
+    cp, f, weight = _control_terms(prob, st)
+    g_point += sum_into(prob.engine_point[cp], weight * f, n_used)
     return g_unit, g_point
 
 
@@ -686,14 +696,23 @@ def _full_step(
 #: A full step below this many times the tolerance (relative, as the
 #: convergence test measures it) is followed by chord steps (:class:`_Chords`).
 _CHORD_FROM = 1e3
+#: So is a full step below this move (relative, as the convergence test
+#: measures it), whatever the tolerance: the normal matrix changes by about
+#: that share, and the chord converges faster than the weights' turning lets
+#: a full step converge (a 1000-photo strip's models: 5e-6, then chords of
+#: 7e-8 and 1e-9 where full steps moved 7e-8 and then 1e-9).  At 1e-3 the
+#: chord's slower convergence ends it 1.5 mm short on a weakly controlled
+#: strip (the cost's change meets the tolerance first).
+_CHORD_BELOW_MOVE = 1e-5
 
 
 class _Chords:
     """Chord (simplified Gauss-Newton) steps near the solution.
 
     Once a full step has moved the unknowns by less than :data:`_CHORD_FROM`
-    times the tolerance, the normal matrix hardly changes any more (the
-    units turn by 1e-7 rad and less): the next steps solve the new
+    times the tolerance or less than :data:`_CHORD_BELOW_MOVE`, the normal
+    matrix hardly changes any more (the units turn by 1e-5 rad and less):
+    the next steps solve the new
     right-hand side ``Aᵀ P f`` (:func:`_gradients`) with the factor of that
     last full step (:meth:`NormalSolution.chord_step`), a fifth of a full
     step's cost, and the points follow their own step (no projection).
@@ -709,7 +728,7 @@ class _Chords:
     def __init__(self, prob: _Problem, tolerance: float) -> None:
         self.prob = prob
         self.allowed = prob.n_lines == 0 and prob.polynomial is None
-        self.threshold = _CHORD_FROM * tolerance
+        self.threshold = max(_CHORD_FROM * tolerance, _CHORD_BELOW_MOVE)
         self.last_full = np.inf  # largest (relative) move of the last full step
         self.previous = np.inf  # of the step before the last
         self.last = np.inf  # of the last step
