@@ -587,6 +587,41 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     )
 
 
+def point_cofactors(
+    st: NormalStructure, red: Reduced, band_inverse: FloatArray, points: IntArray
+) -> FloatArray:
+    """``Q_pp`` (m, 3, 3) of the points `points` (m,) alone, without a border:
+    ``V⁻¹ + Σ_ab Y_aᵀ Q_ab Y_b`` over the point's units a, b (``Y = W V⁻¹`` of
+    its pairs, ``Q_ab`` from `band_inverse`, the selected inverse of the
+    band), as :func:`cofactors` forms them for every point; the points
+    grouped by their number of units q."""
+    if st.n_border:
+        raise ValueError("Expected a structure without a border for the points' cofactors")
+    pat = st.pattern
+    d = st.unit_size
+    points = np.asarray(points, np.intp).reshape(-1)
+    out: FloatArray = red.v_inv[points].copy()
+    order, starts, values = pat.point_runs
+    assert order is None  # a point's pairs are contiguous (build_pattern)
+    run = np.full(st.n_points, -1, dtype=np.intp)
+    run[values] = np.arange(values.size)
+    count = np.diff(np.r_[starts, pat.pair_point.size])
+    r = run[points]
+    q_of = np.where(r >= 0, count[r], 0)
+    flat = band_inverse.reshape(-1, d, d)
+    for q in np.unique(q_of[q_of > 0]).tolist():
+        sel = np.flatnonzero(q_of == q)
+        pairs = (starts[r[sel]][:, None] + np.arange(q)).reshape(-1)  # (m q,)
+        y = times_lower(take(red.z, pairs), take(red.m_pair, pairs))  # W V⁻¹, (d, 3, m q)
+        y = np.moveaxis(y, -1, 0).reshape(sel.size, q, d, 3)
+        units = pat.pair_unit[pairs].reshape(sel.size, q)
+        idx, upper = pat.block_index(units[:, :, None], units[:, None, :])  # (m, q, q)
+        blocks = flat[idx]
+        blocks = np.where(upper[..., None, None], np.swapaxes(blocks, -1, -2), blocks)
+        out[sel] += np.einsum("makp,mabkl,mblj->mpj", y, blocks, y)
+    return out
+
+
 def _joint(blocks: list[list[FloatArray]]) -> FloatArray:
     """A batch of block matrices (g, m, m) from a grid of (g, a, b) blocks."""
     return np.concatenate([np.concatenate(row, axis=2) for row in blocks], axis=1)

@@ -57,7 +57,7 @@ from .units import (
 )
 
 if TYPE_CHECKING:
-    from .normals import Cofactors, NormalSolution
+    from .normals import NormalSolution
 
 __all__ = [
     "LineCondition",
@@ -869,17 +869,20 @@ def _result(
     _, v = _predict(prob, st)
     redundancy = prob.n_observations - prob.n_unknowns
     sigma0 = float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
-    cof = sol.cofactors() if statistics or prob.polynomial is not None else None
+    # every block of the selected inverse where the lines' or the coefficients'
+    # statistics need it; else the control's and the probes' point blocks alone
+    full = (statistics and prob.n_lines > 0) or prob.polynomial is not None
+    cof = sol.cofactors() if full else None
 
     # Cofactors of the control points (the selected inverse's point blocks):
     # the diagonal of the given components, which the tests need.
     cp = prob.control_point
     given = prob.control_given
     q_diag = np.full(given.shape, np.nan)
-    if statistics and cof is not None:
+    if statistics:
         q_all = np.zeros((cp.shape[0], 3, 3))  # a point no row observes: V⁻¹ = 0
         used = prob.control_used
-        q_all[used] = cof.point[prob.engine_point[cp[used]]]
+        q_all[used] = sol.point_cofactors(prob.engine_point[cp[used]])
         q_diag = np.where(given, np.einsum("cii->ci", q_all), np.nan)
     cof_blocks = np.full((cp.shape[0], 3, 3), np.nan)
     cof_blocks[:, [0, 1, 2], [0, 1, 2]] = q_diag
@@ -941,8 +944,8 @@ def _result(
     points = st.points.copy()
     points[~prob.observed] = np.nan
     probe = probe_sigma = None
-    if statistics and cof is not None:
-        probe, probe_sigma = _probe_plan_sigma(prob, cof)
+    if statistics:
+        probe, probe_sigma = _probe_plan_sigma(prob, sol)
     return SimultaneousResult(
         transforms=transforms,
         points=points,
@@ -970,7 +973,7 @@ _PROBES = 24
 """Units whose plan precision :func:`_probe_plan_sigma` gives, at most."""
 
 
-def _probe_plan_sigma(prob: _Problem, cof: Cofactors) -> tuple[IntArray, FloatArray]:
+def _probe_plan_sigma(prob: _Problem, sol: NormalSolution) -> tuple[IntArray, FloatArray]:
     """For at most :data:`_PROBES` units evenly along the block, the point most
     units share (ties first) and its a priori plan standard deviation (from
     the selected inverse's point block); -1 and NaN for the other units."""
@@ -989,6 +992,6 @@ def _probe_plan_sigma(prob: _Problem, cof: Cofactors) -> tuple[IntArray, FloatAr
     probe[~sampled] = -1
     sigma = np.full(prob.n_units, np.nan)
     has = probe >= 0
-    q = cof.point[prob.engine_point[probe[has]]]
+    q = sol.point_cofactors(prob.engine_point[probe[has]])
     sigma[has] = np.sqrt(np.maximum(q[:, 0, 0] + q[:, 1, 1], 0.0))
     return probe, sigma
