@@ -375,3 +375,20 @@ def test_the_rows_work_on_two_threads_gives_the_result_of_one(monkeypatch):
         np.testing.assert_array_equal(getattr(two, name), getattr(one, name), err_msg=name)
     np.testing.assert_array_equal(two.transforms.rotation, one.transforms.rotation)
     assert two.iterations == one.iterations and two.sigma0 == one.sigma0
+
+
+def test_rows_whitening_is_the_cholesky_factor_and_refuses_weights_not_positive_definite():
+    """The rows' whitening in closed form is LAPACK's Cholesky factor
+    transposed; a weight that is not positive definite (a zero pivot, a
+    negative one, NaN) is refused."""
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    rng = np.random.default_rng(11)
+    a = rng.normal(size=(50, 3, 3))
+    weight = a @ np.swapaxes(a, 1, 2) + 1e-3 * np.eye(3)
+    got = sim_module._rows_whitening(weight)
+    np.testing.assert_allclose(got, np.swapaxes(np.linalg.cholesky(weight), 1, 2), atol=1e-12)
+    np.testing.assert_allclose(np.swapaxes(got, 1, 2) @ got, weight, atol=1e-12)
+    for bad in (np.diag([1.0, 0.0, 1.0]), np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan)):
+        with pytest.raises(ValueError, match="positive definite"):
+            sim_module._rows_whitening(np.concatenate([weight, bad[None]]))

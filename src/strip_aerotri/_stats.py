@@ -73,6 +73,8 @@ def leading_failures(score: ArrayLike, critical: float, *groups: ArrayLike) -> I
     """
     s = np.asarray(score, dtype=np.float64).reshape(-1)
     s = np.where(np.isfinite(s), s, -np.inf)
+    if not np.any(s > critical):  # nothing fails (a clean strip): no sort of every test
+        return np.zeros(0, dtype=np.intp)
     order = np.argsort(-s, kind="stable")
     lead = s[order] > critical
     for labels in groups:

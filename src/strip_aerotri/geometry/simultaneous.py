@@ -99,12 +99,17 @@ def _by_rows(n_rows: int, block: Callable[[slice], object]) -> None:
 
 
 def _rows_whitening(weight: FloatArray) -> FloatArray:
-    """``Lᵀ`` of each row's weight ``W = L Lᵀ`` (n, 3, 3): ``‖Lᵀ v‖² = vᵀ W v``."""
-    try:
-        low = np.linalg.cholesky(weight)
-    except np.linalg.LinAlgError as exc:
-        raise ValueError("Expected positive definite row weights") from exc
-    return np.swapaxes(low, 1, 2)
+    """``Lᵀ`` of each row's weight ``W = L Lᵀ`` (n, 3, 3): ``‖Lᵀ v‖² = vᵀ W v``
+    (the Cholesky factor in closed form)."""
+    from ._normal_entries import lower_factor
+
+    entries = lower_factor(weight)
+    if not np.all(entries[[0, 2, 5]] > 0.0) or not np.all(np.isfinite(entries)):
+        raise ValueError("Expected positive definite row weights")
+    upper = np.zeros(weight.shape)
+    for k, (i, j) in enumerate(((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))):
+        upper[:, i, j] = entries[k]  # Lᵀ[i, j] = L[j, i]
+    return upper
 
 
 class _Problem:
@@ -205,8 +210,8 @@ class _Problem:
         self.turned_at = rotation.copy()
         delta_t = np.swapaxes(rotation @ np.swapaxes(self.weight_rotation, 1, 2), 1, 2)
         unit, whiten0 = self.obs.unit, self.whiten0
-        # C order, as the product on all rows at once gives them (whiten0 is
-        # a transposed view; other strides change the later products' last bits)
+        # C order, as the product on all rows at once gives them (other
+        # strides change the later products' last bits)
         whiten, point_jacobian = np.empty(whiten0.shape), np.empty(whiten0.shape)
 
         def block(rows: slice) -> None:
