@@ -645,12 +645,13 @@ def point_cofactors(
         sel = np.flatnonzero(q_of == q)
         pairs = (starts[r[sel]][:, None] + np.arange(q)).reshape(-1)  # (m q,)
         y = times_lower(take(red.z, pairs), take(red.m_pair, pairs))  # W V⁻¹, (d, 3, m q)
-        y = np.moveaxis(y, -1, 0).reshape(sel.size, q, d, 3)
+        y = np.moveaxis(y, -1, 0).reshape(sel.size, q * d, 3)  # the point's Y_a stacked
         units = pat.pair_unit[pairs].reshape(sel.size, q)
         idx, upper = pat.block_index(units[:, :, None], units[:, None, :])  # (m, q, q)
         blocks = flat[idx]
         blocks = np.where(upper[..., None, None], np.swapaxes(blocks, -1, -2), blocks)
-        out[sel] += np.einsum("makp,mabkl,mblj->mpj", y, blocks, y)
+        q_rr = blocks.transpose(0, 1, 3, 2, 4).reshape(sel.size, q * d, q * d)
+        out[sel] += np.swapaxes(y, 1, 2) @ (q_rr @ y)
     return out
 
 
