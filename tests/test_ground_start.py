@@ -6,11 +6,14 @@ end at a centimetre."""
 from __future__ import annotations
 
 import dataclasses
+import functools
+import warnings
 
 import numpy as np
 import pytest
 
 import strip_aerotri as sa
+import strip_aerotri.ground.models as ground_models
 import strip_aerotri.ground.passes as passes
 import strip_aerotri.ground.polynomials as polynomials
 from strip_aerotri.geodesy import GroundCRS
@@ -47,12 +50,18 @@ def test_similarity_start_is_adjust_to_ground_with_the_points_at_the_control(
             np.testing.assert_array_equal(a, b, err_msg=field.name)
 
 
+@functools.cache
+def _long_strip():  # type: ignore[no-untyped-def]
+    """A 300-photo drone strip with height control and its formed strip."""
+    sim = sa.simulate_strip(300, preset="drone", seed=5)
+    return sim, sa.form_strip(sim.observations)
+
+
 def test_the_start_passes_stop_at_a_centimetre() -> None:
     # the default start, in fewer passes: its points at the control within a
     # centimetre of the converged passes' (measured 7e-9 m: the guesses of
     # the last passes move the work frame, hardly the fit)
-    sim = sa.simulate_strip(300, preset="drone", seed=5)
-    strip = sa.form_strip(sim.observations)
+    sim, strip = _long_strip()
     crs = GroundCRS.from_user_input(sim.crs)
     want = adjust_to_ground(
         strip,
@@ -66,3 +75,30 @@ def test_the_start_passes_stop_at_a_centimetre() -> None:
     at = np.isin(ids, np.asarray(sim.control.point_ids)[want.control_index])
     assert got.passes < want.passes
     np.testing.assert_allclose(got.points[at], want.points[at], rtol=0, atol=0.01)
+
+
+def test_the_models_end_where_the_strict_start_ends_them(monkeypatch: pytest.MonkeyPatch) -> None:
+    # the models' solution from the start of a centimetre is that of the strict start
+    sim, strip = _long_strip()
+    starts = []
+    real = ground_models.similarity_start
+
+    def recorded(*args, **kwargs):  # type: ignore[no-untyped-def]
+        starts.append(real(*args, **kwargs))
+        return starts[-1]
+
+    monkeypatch.setattr(ground_models, "similarity_start", recorded)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sa.StripAerotriWarning)
+        loose = ground_models.adjust_models_to_ground(strip, sim.control, sim.crs)
+        monkeypatch.setattr(polynomials, "_START_PASS_TOLERANCE_M", 1e-5)
+        strict = ground_models.adjust_models_to_ground(strip, sim.control, sim.crs)
+    # height control: the plan positions are guessed, pass after pass
+    assert not sim.control.uses_xy.all()
+    assert starts[0].passes < starts[1].passes
+    np.testing.assert_allclose(loose.points, strict.points, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(loose.photo_centres, strict.photo_centres, rtol=0, atol=1e-8)
+    assert [r.point for r in loose.rejections] == [r.point for r in strict.rejections]
+    np.testing.assert_allclose(
+        loose.control_redundancy, strict.control_redundancy, rtol=0, atol=1e-6
+    )
