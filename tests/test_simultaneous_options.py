@@ -237,11 +237,9 @@ def _long_problem():
     return posed["call"]
 
 
-def test_gradients_and_chord_step_are_the_engines_own():
-    """At one state, the right-hand side the chord steps form
-    (_gradients) is the one the engine forms with the full normal
-    equations, and the chord step on that state's own factor is its full
-    step (to rounding)."""
+def _posed():
+    """The 300-photo strip's models posed as adjust_units poses them: the
+    problem, its start state (weights turned to it) and the call's keywords."""
     from strip_aerotri.geometry import simultaneous as sim_module
 
     args, kwargs = _long_problem()
@@ -252,6 +250,17 @@ def test_gradients_and_chord_step_are_the_engines_own():
     )  # fmt: skip
     st = sim_module._start_state(prob, kwargs["start"], kwargs["points0"])
     prob.turn_weights(st.rotation)
+    return prob, st, kwargs
+
+
+def test_gradients_and_chord_step_are_the_engines_own():
+    """At one state, the right-hand side the chord steps form
+    (_gradients) is the one the engine forms with the full normal
+    equations, and the chord step on that state's own factor is its full
+    step (to rounding)."""
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    prob, st, _ = _posed()
     st = sim_module._projected(prob, st)
     formed = prob.structure.form(*sim_module._engine_rows(prob, st))
     g_unit, g_point = sim_module._gradients(prob, st)
@@ -392,3 +401,32 @@ def test_rows_whitening_is_the_cholesky_factor_and_refuses_weights_not_positive_
     for bad in (np.diag([1.0, 0.0, 1.0]), np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan)):
         with pytest.raises(ValueError, match="positive definite"):
             sim_module._rows_whitening(np.concatenate([weight, bad[None]]))
+
+
+def test_rows_gram_and_the_cost_of_a_state():
+    """``L Lᵀ`` of the rows' whitening written out equals the batched product;
+    the rows' share of the cost is kept per state and whitening: a control
+    that moves changes the cost by its own share alone, a turned whitening
+    recomputes it."""
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    rng = np.random.default_rng(5)
+    lt = rng.normal(size=(30, 3, 3))
+    np.testing.assert_allclose(
+        sim_module._gram(lt), np.swapaxes(lt, 1, 2) @ lt, rtol=0, atol=1e-13
+    )
+    prob, st, kwargs = _posed()
+    first = sim_module._cost(prob, st)
+    assert st.rows_cost is not None and st.rows_cost[0] is prob.whiten
+    fresh = sim_module._start_state(prob, kwargs["start"], kwargs["points0"])
+    assert sim_module._cost(prob, fresh) == first
+    moved = np.where(prob.control_given, prob.control_xyz + 0.01, np.nan)
+    prob.set_control(moved)
+    recomputed = sim_module._start_state(prob, kwargs["start"], kwargs["points0"])
+    assert sim_module._cost(prob, st) == sim_module._cost(prob, recomputed)
+    assert sim_module._cost(prob, st) != first
+    turned = st.rotation @ matrix_from_rotvec(np.array([0.0, 0.0, 1e-3]))
+    prob.turn_weights(turned)
+    before = st.rows_cost[1]
+    sim_module._cost(prob, st)
+    assert st.rows_cost[0] is prob.whiten and st.rows_cost[1] != before

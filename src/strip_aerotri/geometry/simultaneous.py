@@ -252,6 +252,8 @@ class _State:
         self.line_ab = line_ab
         self.coefficients = coefficients
         self.turned: FloatArray | None = None  # s R (x − c) of the rows, once computed
+        # Σ ‖Lᵀ v‖² of the rows with the whitening it was computed with, once computed
+        self.rows_cost: tuple[FloatArray, float] | None = None
 
     def with_points(self, points: FloatArray) -> _State:
         """The same units (and their rows as turned) with other points."""
@@ -305,9 +307,15 @@ def _line_terms(prob: _Problem, st: _State, k: int) -> tuple[FloatArray, FloatAr
 
 
 def _cost(prob: _Problem, st: _State) -> float:
-    _, v = _predict(prob, st)
-    wv = _whitened(prob, v)
-    total = float(np.einsum("ij,ij->", wv, wv))
+    """The weighted sum of squares at ``st``: the rows' share computed once
+    per state and whitening (the control moving between passes leaves it)."""
+    if st.rows_cost is not None and st.rows_cost[0] is prob.whiten:
+        total = st.rows_cost[1]
+    else:
+        _, v = _predict(prob, st)
+        wv = _whitened(prob, v)
+        total = float(np.einsum("ij,ij->", wv, wv))
+        st.rows_cost = (prob.whiten, total)
     c = st.points[prob.control_point] - prob.control_xyz
     g = prob.control_given
     total += float(np.sum((c[g] / prob.control_sigma[g]) ** 2))
@@ -801,6 +809,7 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     control.  Nothing when there are lines (they tie the points to each
     other), or when a point's rows do not fix it."""
     from ._normal_assembly import sum_into
+    from ._normal_entries import point_factor
 
     if prob.n_lines:
         return st
@@ -822,10 +831,8 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     )
     used = prob.points_used
     if inverse is None:
-        v = sum_into(obs.point, np.swapaxes(lt, 1, 2) @ lt, n)[used]
-        try:
-            inverse = np.asarray(np.linalg.inv(v), dtype=np.float64)
-        except np.linalg.LinAlgError:  # a point its rows do not fix: the step's own
+        inverse = point_factor(sum_into(obs.point, _gram(lt), n)[used]).v_inv
+        if not np.all(np.isfinite(inverse)):  # a point its rows do not fix: the step's own
             return st
     else:
         cp, given = prob.control_point, prob.control_given
@@ -835,6 +842,21 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     assert inverse is not None  # computed above when not given
     points[used] = np.einsum("pij,pj->pi", inverse, rhs[used])
     return st.with_points(points)
+
+
+def _gram(lt: FloatArray) -> FloatArray:
+    """``L Lᵀ`` of every row's whitening ``Lᵀ`` (n, 3, 3): its six distinct
+    entries, each a sum of three products (a batched 3 x 3 product costs
+    three times as much)."""
+    out = np.empty(lt.shape)
+    for i in range(3):
+        for j in range(i + 1):
+            value = lt[:, 0, i] * lt[:, 0, j]
+            value += lt[:, 1, i] * lt[:, 1, j]
+            value += lt[:, 2, i] * lt[:, 2, j]
+            out[:, i, j] = value
+            out[:, j, i] = value
+    return out
 
 
 def _step(
