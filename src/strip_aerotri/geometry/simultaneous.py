@@ -930,9 +930,8 @@ def _result(
     leverage = np.empty(v.shape[0])
 
     def block(rows: slice) -> None:
-        # trace(Lᵀ V⁻¹ L), row by row of Lᵀ: Σ_i l_i V⁻¹ l_iᵀ
-        lr = lt[rows]
-        leverage[rows] = np.einsum("nij,nij->n", lr @ v_inv[row_point[rows]], lr)
+        # trace(Lᵀ V⁻¹ L) = Σ_ij (L Lᵀ)_ij (V⁻¹)_ij
+        leverage[rows] = np.einsum("nij,nij->n", _gram(lt[rows]), v_inv[row_point[rows]])
 
     _by_rows(v.shape[0], block)
     free = 3.0 - leverage
