@@ -44,6 +44,9 @@ import numpy as np
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError
 from ..options import DEFAULT_MAX_ITERATIONS
+from ._row_kernels import by_rows as _by_rows
+from ._row_kernels import row_gram as _gram
+from ._row_kernels import rows_whitening as _rows_whitening
 from .rotation import matrix_from_rotvec
 from .units import (
     N_UNIT,
@@ -84,32 +87,6 @@ _MIN_TESTED_REDUNDANCY = 1e-3
 #: a 3000-photo strip depended on the path to it by 0.8 mm (two starts);
 #: at 1e-10 rad by 1.3e-6 m.
 _WEIGHT_TURN = 1e-10
-
-
-def _by_rows(n_rows: int, block: Callable[[slice], object]) -> None:
-    """``block(rows)`` for consecutive blocks of the ``n_rows`` rows, shared
-    with the worker thread of :func:`~strip_aerotri._threads.compute_workers`
-    where one is open (:func:`adjust_units` opens it): each block reads and
-    writes its own rows only, so the result is that of one call on all rows,
-    bit for bit."""
-    from .._threads import split_map
-    from ._normal_entries import spans
-
-    split_map(block, spans(n_rows))
-
-
-def _rows_whitening(weight: FloatArray) -> FloatArray:
-    """``Lᵀ`` of each row's weight ``W = L Lᵀ`` (n, 3, 3): ``‖Lᵀ v‖² = vᵀ W v``
-    (the Cholesky factor in closed form)."""
-    from ._normal_entries import lower_factor
-
-    entries = lower_factor(weight)
-    if not np.all(entries[[0, 2, 5]] > 0.0) or not np.all(np.isfinite(entries)):
-        raise ValueError("Expected positive definite row weights")
-    upper = np.zeros(weight.shape)
-    for k, (i, j) in enumerate(((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))):
-        upper[:, i, j] = entries[k]  # Lᵀ[i, j] = L[j, i]
-    return upper
 
 
 class _Problem:
@@ -842,21 +819,6 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     assert inverse is not None  # computed above when not given
     points[used] = np.einsum("pij,pj->pi", inverse, rhs[used])
     return st.with_points(points)
-
-
-def _gram(lt: FloatArray) -> FloatArray:
-    """``L Lᵀ`` of every row's whitening ``Lᵀ`` (n, 3, 3): its six distinct
-    entries, each a sum of three products (a batched 3 x 3 product costs
-    three times as much)."""
-    out = np.empty(lt.shape)
-    for i in range(3):
-        for j in range(i + 1):
-            value = lt[:, 0, i] * lt[:, 0, j]
-            value += lt[:, 1, i] * lt[:, 1, j]
-            value += lt[:, 2, i] * lt[:, 2, j]
-            out[:, i, j] = value
-            out[:, j, i] = value
-    return out
 
 
 def _step(
