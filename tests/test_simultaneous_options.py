@@ -401,6 +401,14 @@ def test_rows_whitening_is_the_cholesky_factor_and_refuses_weights_not_positive_
     for bad in (np.diag([1.0, 0.0, 1.0]), np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan)):
         with pytest.raises(ValueError, match="positive definite"):
             sim_module._rows_whitening(np.concatenate([weight, bad[None]]))
+    # the whitening turned (upper triangular times any matrix), entry by entry
+    from strip_aerotri.geometry._row_kernels import upper_entries, upper_times
+
+    turn = rng.normal(size=(50, 3, 3))
+    np.testing.assert_allclose(
+        upper_times(upper_entries(got), np.ascontiguousarray(turn.reshape(-1, 9).T)),
+        got @ turn, rtol=0, atol=1e-13 * np.abs(got @ turn).max(),
+    )  # fmt: skip
 
 
 def test_rows_gram_and_the_cost_of_a_state():

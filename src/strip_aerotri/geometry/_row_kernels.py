@@ -12,7 +12,11 @@ import numpy as np
 
 from .._typing import FloatArray
 
-__all__ = ["by_rows", "row_gram", "rows_whitening"]
+__all__ = ["by_rows", "row_gram", "rows_whitening", "upper_entries", "upper_times"]
+
+#: The entries (i, k) of an upper-triangular 3 x 3 matrix, in their order in
+#: :func:`upper_entries`.
+_UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
 def by_rows(n_rows: int, block: Callable[[slice], object]) -> None:
@@ -54,3 +58,28 @@ def row_gram(lt: FloatArray) -> FloatArray:
             out[:, i, j] = value
             out[:, j, i] = value
     return out
+
+
+def upper_entries(upper: FloatArray) -> FloatArray:
+    """The six entries of upper-triangular 3 x 3 matrices (n, 3, 3) as
+    (6, n), in the order of :data:`_UPPER`."""
+    return np.stack([upper[:, i, k] for i, k in _UPPER])
+
+
+def upper_times(entries: FloatArray, g: FloatArray) -> FloatArray:
+    """``U G`` (b, 3, 3) of upper-triangular U given by its :func:`upper_entries`
+    (6, b) and G entry-major (9, b), entry ``3 k + j`` its (k, j): 18 products
+    over long vectors (a batched product of 3 x 3 matrices takes half as
+    long again)."""
+    place = {ik: m for m, ik in enumerate(_UPPER)}
+    b = g.shape[1]
+    out = np.empty((9, b))
+    term = np.empty(b)
+    for i in range(3):
+        for j in range(3):
+            target = out[3 * i + j]
+            np.multiply(entries[place[(i, i)]], g[3 * i + j], out=target)
+            for k in range(i + 1, 3):
+                np.multiply(entries[place[(i, k)]], g[3 * k + j], out=term)
+                target += term
+    return out.T.reshape(b, 3, 3)

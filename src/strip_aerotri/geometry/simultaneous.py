@@ -47,6 +47,7 @@ from ..options import DEFAULT_MAX_ITERATIONS
 from ._row_kernels import by_rows as _by_rows
 from ._row_kernels import row_gram as _gram
 from ._row_kernels import rows_whitening as _rows_whitening
+from ._row_kernels import upper_entries, upper_times
 from .rotation import matrix_from_rotvec
 from .units import (
     N_UNIT,
@@ -122,6 +123,7 @@ class _Problem:
         self.n_points = n_points
         self.whiten0 = _rows_whitening(obs.weight)
         self.whiten = self.whiten0
+        self.whiten0_entries = upper_entries(self.whiten0)  # for turn_weights
         self.weight_rotation = weight_rotation
         self.turned_at: FloatArray | None = None
         self.control_point = control_point
@@ -186,13 +188,15 @@ class _Problem:
                 return False
         self.turned_at = rotation.copy()
         delta_t = np.swapaxes(rotation @ np.swapaxes(self.weight_rotation, 1, 2), 1, 2)
-        unit, whiten0 = self.obs.unit, self.whiten0
-        # C order, as the product on all rows at once gives them (other
-        # strides change the later products' last bits)
-        whiten, point_jacobian = np.empty(whiten0.shape), np.empty(whiten0.shape)
+        delta_entries = np.ascontiguousarray(delta_t.reshape(-1, 9).T)  # (9, U)
+        unit, entries = self.obs.unit, self.whiten0_entries
+        shape = self.whiten0.shape
+        whiten, point_jacobian = np.empty(shape), np.empty(shape)
 
         def block(rows: slice) -> None:
-            np.matmul(whiten0[rows], delta_t[unit[rows]], out=whiten[rows])
+            # L₀ᵀ is upper triangular: its product with Δᵀ entry by entry
+            g = np.take(delta_entries, unit[rows], axis=1)
+            whiten[rows] = upper_times(entries[:, rows], g)
             np.negative(whiten[rows], out=point_jacobian[rows])
 
         _by_rows(unit.size, block)
