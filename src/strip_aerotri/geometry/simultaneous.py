@@ -233,6 +233,7 @@ class _State:
         self.line_ab = line_ab
         self.coefficients = coefficients
         self.turned: FloatArray | None = None  # s R (x − c) of the rows, once computed
+        self.residual: FloatArray | None = None  # T_u(x) − X_p of the rows, once computed
         # Σ ‖Lᵀ v‖² of the rows with the whitening it was computed with, once computed
         self.rows_cost: tuple[FloatArray, float] | None = None
 
@@ -263,7 +264,9 @@ def _predict(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
 
         _by_rows(u.size, block)
         st.turned = y = turned
-    v = st.translation[u] + y - st.points[prob.obs.point]
+    v = st.residual
+    if v is None:
+        st.residual = v = st.translation[u] + y - st.points[prob.obs.point]
     return y, v
 
 
@@ -941,7 +944,7 @@ def _result(
     return SimultaneousResult(
         transforms=transforms,
         points=points,
-        residuals=v,
+        residuals=v.copy(),  # the state keeps its own
         row_statistic=stat,
         control_residuals=resid_c,
         control_cofactor=cof_blocks,
