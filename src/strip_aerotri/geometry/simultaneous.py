@@ -249,6 +249,15 @@ class _State:
 def _predict(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
     """Rows in the work frame relative to their unit's translation
     (``s R (x − c)``, n × 3) and their residuals ``T_u(x) − X_p``."""
+    y = _turned(prob, st)
+    v = st.residual
+    if v is None:
+        st.residual = v = st.translation[prob.obs.unit] + y - st.points[prob.obs.point]
+    return y, v
+
+
+def _turned(prob: _Problem, st: _State) -> FloatArray:
+    """``s R (x − c)`` of the rows (n, 3), once per state."""
     u = prob.obs.unit
     y = st.turned
     if y is None:
@@ -264,10 +273,7 @@ def _predict(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
 
         _by_rows(u.size, block)
         st.turned = y = turned
-    v = st.residual
-    if v is None:
-        st.residual = v = st.translation[u] + y - st.points[prob.obs.point]
-    return y, v
+    return y
 
 
 def _whitened(prob: _Problem, v: FloatArray) -> FloatArray:
@@ -798,7 +804,7 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     if prob.n_lines:
         return st
     obs = prob.obs
-    y, _ = _predict(prob, st)
+    y = _turned(prob, st)
     lt = prob.whiten
     n = prob.n_points
     weighted = np.empty(y.shape)
