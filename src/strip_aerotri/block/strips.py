@@ -56,7 +56,7 @@ from ..results import (
     StripModel,
 )
 from ..strip.densify import form_strip_stepped
-from .problem import _prepare, _Problem
+from .problem import _prepare, _Problem, control_rows
 from .snooping import _band_order, _determined_terms, _snoop, _Solution
 
 __all__ = ["adjust_block", "strip_observations"]
@@ -339,40 +339,41 @@ def _with_restored_control(
     restored (``restored`` (P,), start values ``points_work``), appended to
     the problem, to its solution's guesses (a missing component from the
     start value, as the block's own rows take the block's) and to the block's
-    tables, where their residuals are NaN: the block had none."""
-    if not restored.any():
+    tables, where their residuals are NaN: the block had none.  A control
+    point the block left out after the strips determined it (its rows all
+    rejected) keeps the one row it has."""
+    has_row = np.zeros(restored.shape[0], dtype=bool)
+    has_row[p.idx] = True
+    new = control_rows(p.observations, p.control, restored & ~has_row)
+    if not new.rows.size:
         return p, sol, use_xy, use_z, block
-    lookup = {pid: i for i, pid in enumerate(p.observations.point_ids)}
-    point_of = np.array([lookup.get(pid, -1) for pid in p.control.point_ids], dtype=np.intp)
-    new = np.flatnonzero((point_of >= 0) & restored[np.maximum(point_of, 0)])
-    new = new[~np.isin(new, p.control_rows)]
-    if not new.size:
-        return p, sol, use_xy, use_z, block
-    ctrl, idx = p.control, point_of[new]
-    check = ctrl.is_check[new]
-    new_xy, new_z = ctrl.uses_xy[new] & ~check, ctrl.uses_h[new] & ~check
-    given = ctrl.xyz[new]
     p = replace(
         p,
-        control_rows=np.concatenate([p.control_rows, new]),
-        idx=np.concatenate([p.idx, idx]),
-        given=np.vstack([p.given, given]),
-        sigma=np.vstack(
-            [p.sigma, np.column_stack([ctrl.sigma_xy[new], ctrl.sigma_xy[new], ctrl.sigma_h[new]])]
-        ),
-        use_xy=np.concatenate([p.use_xy, new_xy]),
-        use_z=np.concatenate([p.use_z, new_z]),
-        check=np.concatenate([p.check, check]),
+        control_rows=np.concatenate([p.control_rows, new.rows]),
+        idx=np.concatenate([p.idx, new.idx]),
+        given=np.vstack([p.given, new.given]),
+        sigma=np.vstack([p.sigma, new.sigma]),
+        use_xy=np.concatenate([p.use_xy, new.use_xy]),
+        use_z=np.concatenate([p.use_z, new.use_z]),
+        check=np.concatenate([p.check, new.check]),
     )
-    guess = np.where(np.isnan(given), p.work.from_work(points_work[idx]), given)
+    guess = np.where(np.isnan(new.given), p.work.from_work(points_work[new.idx]), new.given)
     sol = replace(sol, guess=np.vstack([sol.guess, guess]))
     block = replace(
         block,
         control_index=p.control_rows,
         is_check=p.check,
-        control_residuals=np.vstack([block.control_residuals, np.full((new.size, 3), np.nan)]),
+        control_residuals=np.vstack(
+            [block.control_residuals, np.full((new.rows.size, 3), np.nan)]
+        ),
     )
-    return p, sol, np.concatenate([use_xy, new_xy]), np.concatenate([use_z, new_z]), block
+    return (
+        p,
+        sol,
+        np.concatenate([use_xy, new.use_xy]),
+        np.concatenate([use_z, new.use_z]),
+        block,
+    )
 
 
 def _refine(
