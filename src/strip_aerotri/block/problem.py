@@ -75,16 +75,20 @@ def _prepare(
     construction: Construction,
     max_iterations: int,
     polynomial: int = 0,
+    *,
+    control_name: str = "control",
 ) -> _Problem:
     """Start values (each strip to the ground), the work frame, and the rows
     (``polynomial``: J(16)'s type of every strip's own deformation with
-    ``"strips"``, 0 for none)."""
+    ``"strips"``, 0 for none; ``control_name`` the control in messages)."""
     determined = np.zeros(observations.n_points, dtype=bool)
     for strip in strips:
         determined |= np.isfinite(strip.points).all(axis=1)
     c = control_rows(observations, control, determined)
     rows, idx, given, use_xy, use_z = c.rows, c.idx, c.given, c.use_xy, c.use_z
-    placed_crs, azimuth = _start_in_crs(observations, control, crs, specs, strips)
+    placed_crs, azimuth = _start_in_crs(
+        observations, control, crs, specs, strips, control_name=control_name
+    )
     active = use_xy | use_z
     guess = np.where(np.isnan(given), placed_crs[idx], given)
     work = make_work_frame(route, crs, guess[active], azimuth)
@@ -195,6 +199,8 @@ def _start_in_crs(
     crs: GroundCRS,
     specs: tuple[StripSpec, ...],
     strips: tuple[StripModel, ...],
+    *,
+    control_name: str = "control",
 ) -> tuple[FloatArray, float]:
     """Every point in the CRS from the strips placed so far, and the azimuth of
     the first placed strip's work frame.
@@ -202,7 +208,9 @@ def _start_in_crs(
     A strip whose own control carries J's similarity is placed by it; the
     others, in turn, by a similarity on the points they share with the strips
     placed (the strip sharing most first).  A strip placed neither way is an
-    error naming it.
+    error naming it; control heights in another unit than its plan raise
+    :class:`~strip_aerotri.errors.HeightUnitError` naming the control
+    ``control_name``.
     """
     n_points = observations.n_points
     placed = np.full((n_points, 3), np.nan)
@@ -219,6 +227,7 @@ def _start_in_crs(
                     crs,
                     options=start_options,
                     blunders=_NO_TESTS,
+                    control_name=control_name,
                 )
         except HeightUnitError:
             raise  # the control's, not the strip's: no strip would do

@@ -108,6 +108,7 @@ def adjust_block(
     polynomial: int | None = None,
     self_calibration: SelfCalibration | None = None,
     variance_components: bool = False,
+    control_name: str = "control",
 ) -> BlockResult:
     """Form every strip, then transform all strips at once to the control.
 
@@ -148,6 +149,8 @@ def adjust_block(
     variance_components : bool
         The refinement estimates its observation groups' weights
         (:mod:`strip_aerotri.bundle.variance`).
+    control_name : str
+        The control in messages (its file, for one).
 
     Raises
     ------
@@ -155,6 +158,10 @@ def adjust_block(
         A strip that shares fewer than three points with the rest of the
         block and has too little control of its own; too little control for
         the block; a strip that cannot be formed.
+    HeightUnitError
+        The control heights in another unit than its plan
+        (:mod:`strip_aerotri.ground.height_units`), the message naming the
+        control ``control_name``.
     """
     t0 = time.perf_counter()
     if not isinstance(crs, GroundCRS):
@@ -177,6 +184,7 @@ def adjust_block(
         Construction.create(construction),
         max_iterations,
         DEFAULT_BLOCK_POLYNOMIAL if polynomial is None else polynomial,
+        control_name=control_name,
     )
     problem, dropped = _determined_terms(problem)
     solution, used_xy, used_z, keep_rows, rejections = _snoop(problem, blunders)

@@ -582,9 +582,10 @@ def _check_placement(rep: CheckReport, project: Project, strips: tuple[StripMode
             GroundCRS.from_user_input(project.crs),
             project.strips,
             strips,
+            control_name=str(project.control_file),
         )
     except HeightUnitError as exc:
-        rep.problems.append(f"{project.control_file}: {exc.detail}")
+        rep.problems.append(str(exc))  # it names the control file
     except GeometryError as exc:
         rep.problems.append(f"{project.control_file}: {exc}")
 
