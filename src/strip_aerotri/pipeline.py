@@ -313,9 +313,7 @@ def _strip_warnings(
     for cause in ("seen on fewer than two photos", "their observations failed the blunder tests"):
         group = [p for p in ids if (p in why) == cause.startswith("their")]
         if group:
-            names = ", ".join(map(repr, group[:5]))
-            more = f" and {len(group) - 5} more" if len(group) > 5 else ""
-            notes.append(f"{len(group)} point(s) not triangulated ({cause}): {names}{more}")
+            notes.append(PointWarning.points_not_triangulated(group, cause))
     return notes
 
 

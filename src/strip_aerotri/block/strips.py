@@ -401,7 +401,7 @@ def _refine(
     frame (plan-only and height-only control keep the block's value of their
     other coordinate)."""
     from ..bundle.refine import gnss_imu_in_frame, gnss_imu_outcomes, lost_points_note
-    from ..bundle.start_points import restore_points, restored_points_note
+    from ..bundle.start_points import restore_points, restored_ids, restored_points_note
     from ..bundle.variance import refine_frame_weighted
 
     block_points, centres0, rot0 = _in_work_frame(p, sol)
@@ -488,6 +488,7 @@ def _refine(
         imu=imu_out,
         self_calibration=fr.self_calibration,
         variance_components=fr.variance_components,
+        restored_points=restored_ids(p.observations.point_ids, restored.restored, fr.point_used),
     )
 
 

@@ -44,7 +44,7 @@ from ..options import BlunderOptions
 from ..strip.densify import intersect_rays
 from .snooping import IMAGE_STAGE
 
-__all__ = ["RestoredPoints", "restore_points", "restored_points_note"]
+__all__ = ["RestoredPoints", "restore_points", "restored_ids", "restored_points_note"]
 
 #: Fewer rays of determined points than this: the start photos' scale is taken as 1.
 _MIN_RAYS_FOR_SCALE = 20
@@ -286,16 +286,22 @@ def _round(
     return xyz, agree, drop
 
 
+def restored_ids(point_ids: Sequence[str], restored: ArrayLike, used: ArrayLike) -> tuple[str, ...]:
+    """The points the strip method left out that the refinement restored
+    (``restored`` (P,) bool) and determined (``used`` (P,) bool), in point order."""
+    back = np.flatnonzero(np.asarray(restored, dtype=bool) & np.asarray(used, dtype=bool))
+    return tuple(point_ids[i] for i in back.tolist())
+
+
 def restored_points_note(
     point_ids: Sequence[str], restored: ArrayLike, used: ArrayLike
 ) -> list[str]:
     """The note naming the points the strip method left out that the
     refinement restored and determined (``restored``, ``used``: (P,) bool)."""
-    back = np.flatnonzero(np.asarray(restored, dtype=bool) & np.asarray(used, dtype=bool))
-    if not back.size:
+    back = restored_ids(point_ids, restored, used)
+    if not back:
         return []
     return [
-        f"bundle: {back.size} point(s) left out before the refinement were intersected from "
-        f"the photos and determined, their rays tested one by one: "
-        f"{named([point_ids[i] for i in back.tolist()])}"
+        f"bundle: {len(back)} point(s) left out before the refinement were intersected from "
+        f"the photos and determined, their rays tested one by one: {named(back)}"
     ]
