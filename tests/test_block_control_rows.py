@@ -56,3 +56,55 @@ def test_control_rows_match_a_dictionary_lookup(sorted_ids):
     np.testing.assert_array_equal(
         got.use_z, [k in (ControlType.FULL, ControlType.HEIGHT) for k in kind]
     )
+
+
+def test_restored_control_rows_are_added_once():
+    """The refinement's restored points take their control rows again, each
+    once: a restored control point that already has a row (its block rows all
+    rejected, NaN in the block's solution) keeps the one row it has."""
+    from dataclasses import replace
+
+    from strip_aerotri.block.problem import _prepare
+    from strip_aerotri.block.snooping import _snoop
+    from strip_aerotri.block.strips import _form, _products, _with_restored_control
+    from strip_aerotri.options import BlunderOptions, Construction, Route
+    from strip_aerotri.simulate import simulate_block
+
+    sim = simulate_block(n_strips=2, n_photos_per_strip=8, preset="film", seed=4)
+    blunders = BlunderOptions()
+    from strip_aerotri.geodesy import GroundCRS
+
+    formed = tuple(_form(sim.observations, s, None, blunders) for s in sim.strips)
+    p = _prepare(
+        sim.observations, sim.control, GroundCRS.from_user_input(sim.crs), tuple(sim.strips),
+        formed,
+        Route.GEOCENTRIC, Construction.MODELS, 10,
+    )  # fmt: skip
+    sol, use_xy, use_z, keep_rows, rejections = _snoop(p, blunders)
+    block = _products(p, sol, use_xy, use_z, keep_rows, rejections)
+    # take two control rows out of the problem, as if the block had left their points out
+    gone = np.array([0, 3])
+    keep = np.setdiff1d(np.arange(p.idx.size), gone)
+    cut = replace(
+        p, control_rows=p.control_rows[keep], idx=p.idx[keep], given=p.given[keep],
+        sigma=p.sigma[keep], use_xy=p.use_xy[keep], use_z=p.use_z[keep], check=p.check[keep],
+    )  # fmt: skip
+    cut_block = replace(
+        block, control_index=cut.control_rows, is_check=cut.check,
+        control_residuals=block.control_residuals[keep],
+    )  # fmt: skip
+    cut_sol = replace(sol, guess=sol.guess[keep])
+    restored = np.zeros(p.observations.n_points, dtype=bool)
+    restored[p.idx[gone]] = True  # the two left out ...
+    restored[p.idx[keep[0]]] = True  # ... and one that still has its row
+    points = np.zeros((p.observations.n_points, 3))
+    q, _, new_xy, new_z, new_block = _with_restored_control(
+        cut, cut_sol, use_xy[keep], use_z[keep], cut_block, restored, points
+    )
+    assert q.control_rows.size == p.control_rows.size  # two rows back, none twice
+    assert np.unique(q.control_rows).size == q.control_rows.size
+    np.testing.assert_array_equal(np.sort(q.control_rows), np.sort(p.control_rows))
+    order = np.argsort(q.control_rows)
+    np.testing.assert_array_equal(q.idx[order], p.idx[np.argsort(p.control_rows)])
+    assert new_xy.size == new_z.size == q.control_rows.size
+    assert np.all(np.isnan(new_block.control_residuals[-gone.size :]))
