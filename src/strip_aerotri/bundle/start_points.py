@@ -286,7 +286,9 @@ def _round(
     return xyz, agree, drop
 
 
-def restored_ids(point_ids: Sequence[str], restored: ArrayLike, used: ArrayLike) -> tuple[str, ...]:
+def restored_ids(
+    point_ids: Sequence[str], restored: ArrayLike, used: ArrayLike
+) -> tuple[str, ...]:
     """The points the strip method left out that the refinement restored
     (``restored`` (P,) bool) and determined (``used`` (P,) bool), in point order."""
     back = np.flatnonzero(np.asarray(restored, dtype=bool) & np.asarray(used, dtype=bool))
