@@ -170,6 +170,17 @@ def test_the_block_refinement_keeps_the_good_rays_of_points_the_block_dropped(se
     index_of = {pid: i for i, pid in enumerate(obs.point_ids)}
     at = [index_of[p] for p in block.restored_points]
     assert at == sorted(at) and np.all(np.isfinite(block.points[at]))
+    # the summary no longer counts them among the points the block left out
+    from strip_aerotri.report.summary import summarize
+
+    said_lost = [
+        w for w in block.warnings if "not triangulated" in w and w.point in block.restored_points
+    ]
+    assert said_lost, "the block's own warning should name a restored control or check point"
+    lines = summarize(block).warning_lines(block.warnings)
+    assert not any(w in lines for w in said_lost)
+    lost_lines = [ln for ln in lines if "not triangulated" in ln]
+    assert not any(repr(p) in ln for ln in lost_lines for p in block.restored_points)
     # their wrong rays are out; each keeps three good rays or more
     ph = {p: i for i, p in enumerate(obs.photo_ids)}
     rejected = {(ph[r.photos[0]], r.point) for r in block.rejections if r.stage == "bundle"}
