@@ -119,11 +119,16 @@ def test_the_database_is_found_along_the_whole_search_path(monkeypatch, tmp_path
     empty = [tmp_path / "a", tmp_path / "b"]
     for folder in empty:
         folder.mkdir()
+    crs3d = _crs3d("EPSG:32634")[0]
+    xyz = _sample(crs3d, 200)
+    ecef = Transformer.from_crs(crs3d, expected, always_xy=True).transform(*xyz.T)
     for paths in ([*empty, real], [empty[0], real, empty[1]], ["", real]):
         listed = os.pathsep.join(map(str, paths))
         monkeypatch.setattr("pyproj.datadir.get_data_dir", lambda listed=listed: listed)
         found = geodesy._registered_geocentric(geodetic3d)
         assert found is not None and found == expected, listed
+        again = Transformer.from_crs(crs3d, found, always_xy=True).transform(*xyz.T)
+        np.testing.assert_array_equal(again, ecef)  # the same coordinates to the bit
     monkeypatch.setattr("pyproj.datadir.get_data_dir", lambda: os.pathsep.join(map(str, empty)))
     assert geodesy._registered_geocentric(geodetic3d) is None
 
