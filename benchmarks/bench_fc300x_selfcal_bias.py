@@ -58,29 +58,36 @@ class MappedBundle(reference.ReferenceBundle):
     start: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     mapped: bool = True
 
-    def residuals(self, v: np.ndarray) -> np.ndarray:
-        rot, centres, points, _ = self.unpack(v)
-        m, p = len(self.centres0), len(self.points0)
-        theta = self.start + v[6 * m + 3 * p :]
+    def image_residuals(
+        self, rot: np.ndarray, centres: np.ndarray, points: np.ndarray, q: dict[str, float]
+    ) -> np.ndarray:
+        theta = self.start + np.array(list(q.values()))
         u = np.einsum("kji,kj->ki", rot[self.photo], points[self.point] - centres[self.photo])
         computed = -self.c * u[:, :2] / u[:, 2:3]
         r = computed - (self.xy + self.model.correction(self.xy, theta))
         if self.mapped:
             jac = np.eye(2) + self.model.xy_partials(self.xy, theta)
             r = np.linalg.solve(jac, r[:, :, None])[:, :, 0]
-        control = (points[self.control_point] - self.control_xyz) / self.control_sigma
-        return np.concatenate([(r / self.sigma[:, None]).ravel(), control[self._given].ravel()])
+        out: np.ndarray = r / self.sigma[:, None]
+        return out
 
 
-def mapped_solution(result: Any, mapped: bool = True) -> tuple[MappedBundle, dict[str, float]]:
+def mapped_solution(
+    result: Any, mapped: bool = True, gnss: tuple[np.ndarray, np.ndarray] | None = None
+) -> tuple[MappedBundle, dict[str, float]]:
     """The refinement's problem solved again with mapped residuals; the
     solution and the camera's values (absolute increments from the given
-    camera, the refinement's names)."""
+    camera, the refinement's names).  ``gnss``: observed centres (M, 3) in
+    the result's site system and their sigmas (M, 3), if the refinement had
+    them."""
     est = result.self_calibration.estimate
     used = reference._used_rays(result)
     names = tuple(est.names)
     base = reference.from_block(result, used=used, camera=tuple(f"t{i}" for i in range(len(names))))
     fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(base) if f.init}
+    if gnss is not None:
+        fields["centre_xyz"] = gnss[0] - np.mean(result.photo_centres, axis=0)
+        fields["centre_sigma"] = gnss[1]
     bundle = MappedBundle(**fields, model=est.model, start=np.asarray(est.values), mapped=mapped)
     bundle.solve(iterations=12, tolerance=1e-12)
     _, _, _, q = bundle.unpack(bundle.solution)

@@ -135,3 +135,24 @@ def test_unmapped_residuals_shrink_as_c_grows() -> None:
     plain = _mapped(False, dc).residuals(np.zeros(n))[:32]
     mapped = _mapped(True, dc).residuals(np.zeros(n))[:32]
     np.testing.assert_allclose(plain, (1.0 - dc / 3.6) * mapped, rtol=1e-12)
+
+
+def test_observed_centres_enter_the_reference_with_their_sigmas() -> None:
+    """Observed centres add one residual per given component, (centre -
+    observed) / sigma, and the sparsity the solver is given covers every
+    nonzero of the Jacobian."""
+    from scipy.optimize._numdiff import approx_derivative
+
+    bundle = _small_problem(("c", "k1"))
+    n_plain = bundle.residuals(np.zeros(bundle.n_unknowns)).size
+    observed = bundle.centres0 + np.array([[0.1, -0.2, 0.3], [np.nan, 0.05, -0.1]])
+    bundle.centre_xyz, bundle.centre_sigma = observed, np.full((2, 3), 0.5)
+    v = np.zeros(bundle.n_unknowns)
+    r = bundle.residuals(v)
+    assert r.size == n_plain + 5
+    np.testing.assert_allclose(r[n_plain:], [-0.2, 0.4, -0.6, -0.1, 0.2], atol=1e-12)
+    v[3 * 2 + 3 * 1 + 1] = 0.25  # the second photo's centre Y
+    assert bundle.residuals(v)[n_plain + 3] == pytest.approx(0.4)
+    dense = approx_derivative(bundle.residuals, v, "3-point")
+    pattern = bundle._sparsity().toarray() != 0
+    assert not np.any((np.abs(dense) > 1e-9) & ~pattern)
