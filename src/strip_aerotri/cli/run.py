@@ -80,10 +80,11 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
       stripaero -q run strip.toml            # the summary only (no warnings)
     """
     from ..errors import StripAerotriWarning
-    from ..project import load_project, output_folder
+    from ..project import output_folder
     from ..report.files import ResultFolder
     from ..report.lock import FolderLock
     from .imports import defer_numpy_submodules
+    from .loading import load_while_importing
     from .memory import keep_freed_memory
 
     if OWNS_PROCESS:  # what is process-wide, only where the run owns the process
@@ -93,7 +94,8 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     echo_progress(f"loading {project_file}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", StripAerotriWarning)
-        project = load_project(project_file)
+        # loaded by a second process while this one imports the run's modules
+        project = load_while_importing(project_file, caught)
         target = output_folder(project, out)
         lock = FolderLock(target)
         folder = ResultFolder(target, protect=project.input_files)

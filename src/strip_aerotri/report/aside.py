@@ -40,6 +40,7 @@ import contextlib
 import gc
 import os
 import pickle
+import select
 import signal
 import sys
 import threading
@@ -141,6 +142,13 @@ class Aside(Generic[_T]):
                     os.close(fd)
             self._pid = self._read = None
 
+    def ready(self) -> bool:
+        """Whether :meth:`result` would return without waiting for the child:
+        it has answered (or ended), or there is no child."""
+        if self._done or self._read is None:
+            return True
+        return bool(select.select([self._read], [], [], 0.0)[0])
+
     def result(self) -> _T:
         """The function's value: the child's, or the function called here when
         there is no child or the child failed (its error is raised here)."""
@@ -155,7 +163,7 @@ class Aside(Generic[_T]):
             self._reap()
             if data[:1] == _VALUE:
                 try:
-                    value, received = pickle.loads(data[1:]), True
+                    value, received = pickle.loads(memoryview(data)[1:]), True
                 except Exception:  # a truncated message: the child died writing
                     received = False
         if not received:

@@ -1,0 +1,81 @@
+"""The project of ``stripaero run`` loaded by a forked process while this one
+imports the modules of the run.
+
+At its start a run has two things to do that do not depend on each other:
+load the project (read and check strip.toml and the CSVs: about 0.15 s for a
+1000-photo strip with 100 000 image points) and import what adjusts it and
+writes its report (scipy.linalg, scipy.special and the package's own
+stages: about 0.2 s).  Imports cannot be handed from one process to
+another, a loaded project can: :func:`load_while_importing` loads it in a
+child forked by :func:`..report.aside.aside` (on the machine's second core),
+imports here meanwhile, and takes the project through the pipe (5 MB
+pickled for that strip, a few ms).
+
+The child changes nothing a user sees:
+
+* an error of the project (a ConfigError with its file, line and column) is
+  raised by loading it here again, so it reads exactly as without the child;
+* the warnings of the loading are recorded in the child and handed to the
+  caller as the :class:`warnings.WarningMessage` they would have been here;
+* without fork (``STRIPAERO_FORK=0``, other systems, other threads) the
+  project is loaded here, after the imports, as before.
+"""
+
+from __future__ import annotations
+
+import importlib
+import warnings
+from functools import partial
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ..project import Project
+
+__all__ = ["RUN_MODULES", "WHILE_WAITING", "load_recorded", "load_while_importing"]
+
+#: What every run imports after loading its project, imported meanwhile
+#: (numerical libraries first: the longest).  A name here that a run did not
+#: need would only cost its import; each is imported by the run anyway.
+RUN_MODULES = (
+    "scipy.linalg",
+    "scipy.special",
+    "strip_aerotri.project.run",
+    "strip_aerotri.report.summary",
+    "strip_aerotri.report.html",
+)
+
+#: Imported too while the child is still loading: what a geodetic project's run
+#: imports (its checks and points.geojson), which a local one does not need.
+WHILE_WAITING = ("pyproj",)
+
+
+def load_recorded(project_file: Path) -> tuple[Project, list[warnings.WarningMessage]]:
+    """:func:`..project.load_project` and the warnings it gave (recorded under the
+    caller's filters), ready to be pickled (no ``source`` objects)."""
+    from ..project import load_project
+
+    with warnings.catch_warnings(record=True) as caught:
+        project = load_project(project_file)
+    for item in caught:
+        item.source = None  # any object the warning was about: not needed, may not pickle
+    return project, caught
+
+
+def load_while_importing(
+    project_file: Path, caught: list[warnings.WarningMessage]
+) -> Project:
+    """The project of ``project_file``, loaded in a forked child while the
+    :data:`RUN_MODULES` are imported here; its warnings appended to ``caught``
+    (the list of an enclosing ``warnings.catch_warnings(record=True)``)."""
+    from ..report.aside import aside
+
+    with aside(partial(load_recorded, project_file)) as loading:
+        for name in RUN_MODULES:
+            importlib.import_module(name)
+        for name in WHILE_WAITING:
+            if not loading.ready():
+                importlib.import_module(name)
+        project, seen = loading.result()
+    caught.extend(seen)
+    return project

@@ -1,0 +1,126 @@
+"""``stripaero run`` loads its project in a forked child while it imports
+(cli/loading.py): the same project, the same warnings and the same error
+line as loading it here."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import strip_aerotri.project as project_module
+from strip_aerotri.cli import loading
+from strip_aerotri.cli.main import cli
+from strip_aerotri.errors import ConfigError, StripAerotriWarning
+from strip_aerotri.report.aside import FORK_ENV, aside
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forks on Linux only")
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "film-strip" / "strip.toml"
+PARENT = os.getpid()
+
+
+def _same(a: object, b: object) -> None:
+    """``a`` and ``b`` equal field by field (arrays by value, dtype and
+    writeability)."""
+    if dataclasses.is_dataclass(a) and not isinstance(a, type):
+        assert type(a) is type(b)
+        for f in dataclasses.fields(a):
+            _same(getattr(a, f.name), getattr(b, f.name))
+    elif isinstance(a, np.ndarray):
+        assert isinstance(b, np.ndarray)
+        assert a.dtype == b.dtype and a.shape == b.shape
+        assert a.flags.writeable == b.flags.writeable
+        np.testing.assert_array_equal(a, b)
+    elif isinstance(a, tuple | list) and a and not isinstance(a[0], str | int | float):
+        assert len(a) == len(b)  # type: ignore[arg-type]
+        for x, y in zip(a, b, strict=True):  # type: ignore[call-overload]
+            _same(x, y)
+    else:
+        assert a == b
+
+
+@pytest.mark.parametrize("fork", ["1", "0"])
+def test_the_project_loaded_aside_equals_the_project_loaded_here(monkeypatch, fork):
+    monkeypatch.setenv(FORK_ENV, fork)
+    caught: list[warnings.WarningMessage] = []
+    project = loading.load_while_importing(EXAMPLE, caught)
+    _same(project, project_module.load_project(EXAMPLE))
+    assert caught == []
+    for name in loading.RUN_MODULES:
+        assert name in sys.modules
+
+
+def _warns_in_the_child(path: Path) -> str:
+    where = "child" if os.getpid() != PARENT else "here"
+    warnings.warn(f"{path.name}: a note from {where}", StripAerotriWarning, stacklevel=2)
+    return where
+
+
+def test_the_warnings_of_the_loading_come_back_from_the_child(monkeypatch):
+    monkeypatch.delenv(FORK_ENV, raising=False)
+    monkeypatch.setattr(project_module, "load_project", _warns_in_the_child)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", StripAerotriWarning)
+        where = loading.load_while_importing(Path("strip.toml"), caught)
+    assert where == "child"
+    assert [str(w.message) for w in caught] == ["strip.toml: a note from child"]
+    assert caught[0].category is StripAerotriWarning
+
+
+def _fails_in_the_child_only(path: Path) -> str:
+    if os.getpid() != PARENT:
+        raise ConfigError(f"{path}:3: the child's own message")
+    return "loaded here"
+
+
+def test_a_failed_child_is_replaced_by_loading_here(monkeypatch):
+    monkeypatch.delenv(FORK_ENV, raising=False)
+    monkeypatch.setattr(project_module, "load_project", _fails_in_the_child_only)
+    assert loading.load_while_importing(Path("strip.toml"), []) == "loaded here"
+
+
+def test_a_bad_project_reads_as_loaded_here(tmp_path, monkeypatch):
+    bad = tmp_path / "strip.toml"
+    images = tmp_path / "image_points.csv"
+    for name in ("strip.toml", "control.csv", "image_points.csv"):
+        (tmp_path / name).write_bytes((EXAMPLE.parent / name).read_bytes())
+    lines = images.read_text(encoding="utf-8").splitlines()
+    lines[5] = lines[5].rsplit(",", 1)[0] + ",12,5"  # a decimal comma: one field too many
+    images.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    with pytest.raises(ConfigError) as here:
+        project_module.load_project(bad)
+    assert "image_points.csv:6:" in str(here.value)
+    monkeypatch.delenv(FORK_ENV, raising=False)
+    with pytest.raises(ConfigError) as aside_error:
+        loading.load_while_importing(bad, [])
+    assert str(aside_error.value) == str(here.value)
+    result = CliRunner().invoke(cli, ["run", str(bad), "--out", str(tmp_path / "out")])
+    assert result.exit_code != 0
+    assert str(here.value) in result.output
+    assert "Traceback" not in result.output
+
+
+def _answers_late() -> int:
+    import time
+
+    time.sleep(0.3)
+    return 5
+
+
+def test_ready_says_whether_the_value_waits(monkeypatch):
+    monkeypatch.delenv(FORK_ENV, raising=False)
+    with aside(_answers_late) as pending:
+        assert not pending.ready()
+        assert pending.result() == 5
+        assert pending.ready()
+    monkeypatch.setenv(FORK_ENV, "0")
+    with aside(_answers_late) as pending:
+        assert pending.ready()  # no child: called here when asked
+        assert pending.result() == 5
