@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import subprocess
 import sys
 import warnings
 from pathlib import Path
@@ -124,3 +125,24 @@ def test_ready_says_whether_the_value_waits(monkeypatch):
     with aside(_answers_late) as pending:
         assert pending.ready()  # no child: called here when asked
         assert pending.result() == 5
+
+
+def test_a_run_of_a_strip_imports_neither_matplotlib_nor_scipy_sparse(tmp_path):
+    """The run's own process: matplotlib is the drawing child's, scipy.sparse
+    only for a pair of photos without common points (plausibility)."""
+    code = (
+        "import atexit, os, sys\n"
+        "pid = os.getpid()\n"
+        "def said():\n"
+        "    if os.getpid() == pid:\n"
+        "        names = ('matplotlib', 'scipy.sparse', 'scipy.linalg')\n"
+        "        print('MODULES', ','.join(m for m in names if m in sys.modules))\n"
+        "atexit.register(said)\n"
+        "from strip_aerotri.cli.main import main\n"
+        f"sys.argv = ['stripaero', '-q', 'run', {str(EXAMPLE)!r}, '--out', {str(tmp_path)!r}]\n"
+        "main()\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode in (0, 3), out.stderr
+    assert "MODULES scipy.linalg\n" in out.stdout
+    assert (tmp_path / "report.html").read_text(encoding="utf-8").count("data:image/png") >= 4
