@@ -19,7 +19,7 @@ import strip_aerotri.project as project_module
 from strip_aerotri.cli import loading
 from strip_aerotri.cli.main import cli
 from strip_aerotri.errors import ConfigError, StripAerotriWarning
-from strip_aerotri.report.aside import FORK_ENV, aside
+from strip_aerotri.report.aside import FORK_ENV
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forks on Linux only")
 
@@ -54,7 +54,7 @@ def test_the_project_loaded_aside_equals_the_project_loaded_here(monkeypatch, fo
     project = loading.load_while_importing(EXAMPLE, caught)
     _same(project, project_module.load_project(EXAMPLE))
     assert caught == []
-    for name in loading.RUN_MODULES:
+    for name in (*loading.BEFORE_FORK, *loading.RUN_MODULES):
         assert name in sys.modules
 
 
@@ -106,25 +106,6 @@ def test_a_bad_project_reads_as_loaded_here(tmp_path, monkeypatch):
     assert result.exit_code != 0
     assert str(here.value) in result.output
     assert "Traceback" not in result.output
-
-
-def _answers_late() -> int:
-    import time
-
-    time.sleep(0.3)
-    return 5
-
-
-def test_ready_says_whether_the_value_waits(monkeypatch):
-    monkeypatch.delenv(FORK_ENV, raising=False)
-    with aside(_answers_late) as pending:
-        assert not pending.ready()
-        assert pending.result() == 5
-        assert pending.ready()
-    monkeypatch.setenv(FORK_ENV, "0")
-    with aside(_answers_late) as pending:
-        assert pending.ready()  # no child: called here when asked
-        assert pending.result() == 5
 
 
 def test_a_run_of_a_strip_imports_neither_matplotlib_nor_scipy_sparse(tmp_path):

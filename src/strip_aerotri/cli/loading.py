@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from ..project import Project
 
-__all__ = ["RUN_MODULES", "WHILE_WAITING", "load_recorded", "load_while_importing"]
+__all__ = ["BEFORE_FORK", "RUN_MODULES", "load_recorded", "load_while_importing"]
 
 #: What every run imports after loading its project, imported meanwhile
 #: (numerical libraries first: the longest).  A name here that a run did not
@@ -45,9 +45,11 @@ RUN_MODULES = (
     "strip_aerotri.report.html",
 )
 
-#: Imported too while the child is still loading: what a geodetic project's run
-#: imports (its checks and points.geojson), which a local one does not need.
-WHILE_WAITING = ("pyproj",)
+#: Imported here before the child is forked, so that both have it: what a
+#: geodetic project (every real one) needs both to be loaded (its CRS checked)
+#: and in its run (points.geojson); a local project's run imports it for
+#: nothing (0.04 s), as the child would otherwise import it a second time.
+BEFORE_FORK = ("pyproj",)
 
 
 def load_recorded(project_file: Path) -> tuple[Project, list[warnings.WarningMessage]]:
@@ -70,12 +72,11 @@ def load_while_importing(
     (the list of an enclosing ``warnings.catch_warnings(record=True)``)."""
     from ..report.aside import aside
 
+    for name in BEFORE_FORK:
+        importlib.import_module(name)
     with aside(partial(load_recorded, project_file)) as loading:
         for name in RUN_MODULES:
             importlib.import_module(name)
-        for name in WHILE_WAITING:
-            if not loading.ready():
-                importlib.import_module(name)
         project, seen = loading.result()
     caught.extend(seen)
     return project

@@ -40,7 +40,6 @@ import contextlib
 import gc
 import os
 import pickle
-import select
 import signal
 import sys
 import threading
@@ -141,13 +140,6 @@ class Aside(Generic[_T]):
                 with contextlib.suppress(OSError):
                     os.close(fd)
             self._pid = self._read = None
-
-    def ready(self) -> bool:
-        """Whether :meth:`result` would return without waiting for the child:
-        it has answered (or ended), or there is no child."""
-        if self._done or self._read is None:
-            return True
-        return bool(select.select([self._read], [], [], 0.0)[0])
 
     def result(self) -> _T:
         """The function's value: the child's, or the function called here when
