@@ -127,3 +127,23 @@ def test_a_run_of_a_strip_imports_neither_matplotlib_nor_scipy_sparse(tmp_path):
     assert out.returncode in (0, 3), out.stderr
     assert "MODULES scipy.linalg\n" in out.stdout
     assert (tmp_path / "report.html").read_text(encoding="utf-8").count("data:image/png") >= 4
+
+
+def test_the_modules_imported_meanwhile_are_those_a_run_imports_anyway(tmp_path):
+    """RUN_MODULES cost nothing a run would not spend: adjusting the film strip
+    and building its outputs, without the CLI, imports every one of them."""
+    code = (
+        "import sys, warnings\n"
+        "from strip_aerotri import load_project\n"
+        "from strip_aerotri.project.run import run_project\n"
+        "from strip_aerotri.report.summary import build_run\n"
+        "warnings.simplefilter('ignore')\n"
+        f"project = load_project({str(EXAMPLE)!r})\n"
+        "build_run(run_project(project), project=project, map_scale=None)\n"
+        "from strip_aerotri.cli.loading import BEFORE_FORK, RUN_MODULES\n"
+        "print('MISSING', [m for m in (*BEFORE_FORK, *RUN_MODULES) if m not in sys.modules])\n"
+    )
+    env = dict(os.environ, STRIPAERO_FORK="0")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert out.returncode == 0, out.stderr
+    assert "MISSING []" in out.stdout

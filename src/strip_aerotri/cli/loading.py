@@ -43,6 +43,8 @@ RUN_MODULES = (
     "strip_aerotri.project.run",
     "strip_aerotri.report.summary",
     "strip_aerotri.report.html",
+    "strip_aerotri.ground.check_precision",
+    "threadpoolctl",
 )
 
 #: Imported here before the child is forked, so that both have it: what a
