@@ -51,17 +51,32 @@ def _same(a: object, b: object) -> None:
 def test_the_project_loaded_aside_equals_the_project_loaded_here(monkeypatch, fork):
     monkeypatch.setenv(FORK_ENV, fork)
     caught: list[warnings.WarningMessage] = []
-    project = loading.load_while_importing(EXAMPLE, caught)
-    _same(project, project_module.load_project(EXAMPLE))
+    with loading.loaded(EXAMPLE, caught) as (project, standby):
+        _same(project, project_module.load_project(EXAMPLE))
+        assert standby is not None  # a strip: the child waits to draw
     assert caught == []
     for name in (*loading.BEFORE_FORK, *loading.RUN_MODULES):
         assert name in sys.modules
 
 
-def _warns_in_the_child(path: Path) -> str:
+@dataclasses.dataclass(frozen=True)
+class _Stand:
+    """A stand-in project: a block, so that the child prepares no drawing."""
+
+    text: str
+    is_block: bool = True
+
+
+def _loaded_value(path: Path, caught: list[warnings.WarningMessage]) -> str:
+    with loading.loaded(path, caught) as (project, standby):
+        assert standby is None  # a block: nothing to draw, the child is ended
+        return project.text  # type: ignore[attr-defined]
+
+
+def _warns_in_the_child(path: Path) -> _Stand:
     where = "child" if os.getpid() != PARENT else "here"
     warnings.warn(f"{path.name}: a note from {where}", StripAerotriWarning, stacklevel=2)
-    return where
+    return _Stand(where)
 
 
 def test_the_warnings_of_the_loading_come_back_from_the_child(monkeypatch):
@@ -69,22 +84,22 @@ def test_the_warnings_of_the_loading_come_back_from_the_child(monkeypatch):
     monkeypatch.setattr(project_module, "load_project", _warns_in_the_child)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", StripAerotriWarning)
-        where = loading.load_while_importing(Path("strip.toml"), caught)
+        where = _loaded_value(Path("strip.toml"), caught)
     assert where == "child"
     assert [str(w.message) for w in caught] == ["strip.toml: a note from child"]
     assert caught[0].category is StripAerotriWarning
 
 
-def _fails_in_the_child_only(path: Path) -> str:
+def _fails_in_the_child_only(path: Path) -> _Stand:
     if os.getpid() != PARENT:
         raise ConfigError(f"{path}:3: the child's own message")
-    return "loaded here"
+    return _Stand("loaded here")
 
 
 def test_a_failed_child_is_replaced_by_loading_here(monkeypatch):
     monkeypatch.delenv(FORK_ENV, raising=False)
     monkeypatch.setattr(project_module, "load_project", _fails_in_the_child_only)
-    assert loading.load_while_importing(Path("strip.toml"), []) == "loaded here"
+    assert _loaded_value(Path("strip.toml"), []) == "loaded here"
 
 
 def test_a_bad_project_reads_as_loaded_here(tmp_path, monkeypatch):
@@ -100,7 +115,8 @@ def test_a_bad_project_reads_as_loaded_here(tmp_path, monkeypatch):
     assert "image_points.csv:6:" in str(here.value)
     monkeypatch.delenv(FORK_ENV, raising=False)
     with pytest.raises(ConfigError) as aside_error:
-        loading.load_while_importing(bad, [])
+        with loading.loaded(bad, []):
+            pass
     assert str(aside_error.value) == str(here.value)
     result = CliRunner().invoke(cli, ["run", str(bad), "--out", str(tmp_path / "out")])
     assert result.exit_code != 0

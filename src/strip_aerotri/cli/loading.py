@@ -6,10 +6,11 @@ load the project (read and check strip.toml and the CSVs: about 0.15 s for a
 1000-photo strip with 100 000 image points) and import what adjusts it and
 writes its report (scipy.linalg, scipy.special and the package's own
 stages: about 0.2 s).  Imports cannot be handed from one process to
-another, a loaded project can: :func:`load_while_importing` loads it in a
-child forked by :func:`..report.aside.aside` (on the machine's second core),
-imports here meanwhile, and takes the project through the pipe (5 MB
-pickled for that strip, a few ms).
+another, a loaded project can: :func:`loaded` forks the run's one child
+(:class:`..report.aside.Standby`) at the start, when this process is small;
+the child loads the project and sends it back (5 MB pickled for that strip,
+a few ms) while this process imports, then, for a strip, imports matplotlib
+and waits to draw the report's figures.
 
 The child changes nothing a user sees:
 
@@ -25,14 +26,17 @@ from __future__ import annotations
 
 import importlib
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 if TYPE_CHECKING:
     from ..project import Project
+    from ..report.aside import Standby
 
-__all__ = ["BEFORE_FORK", "RUN_MODULES", "load_recorded", "load_while_importing"]
+__all__ = ["BEFORE_FORK", "RUN_MODULES", "load_recorded", "loaded"]
 
 #: What every run imports after loading its project, imported meanwhile
 #: (numerical libraries first: the longest).  A name here that a run did not
@@ -53,8 +57,10 @@ RUN_MODULES = (
 #: nothing (0.04 s), as the child would otherwise import it a second time.
 BEFORE_FORK = ("pyproj",)
 
+Loaded = tuple["Project", list[warnings.WarningMessage]]
 
-def load_recorded(project_file: Path) -> tuple[Project, list[warnings.WarningMessage]]:
+
+def load_recorded(project_file: Path) -> Loaded:
     """:func:`..project.load_project` and the warnings it gave (recorded under the
     caller's filters), ready to be pickled (no ``source`` objects)."""
     from ..project import load_project
@@ -66,19 +72,36 @@ def load_recorded(project_file: Path) -> tuple[Project, list[warnings.WarningMes
     return project, caught
 
 
-def load_while_importing(
+def _prepare_for(loaded: Loaded) -> None:
+    """In the child, once the project is sent: matplotlib made ready for a
+    strip's figures (a block's page draws its own)."""
+    from ..report.html import prepare_drawing
+
+    if not loaded[0].is_block:
+        prepare_drawing()
+
+
+@contextmanager
+def loaded(
     project_file: Path, caught: list[warnings.WarningMessage]
-) -> Project:
-    """The project of ``project_file``, loaded in a forked child while the
-    :data:`RUN_MODULES` are imported here; its warnings appended to ``caught``
-    (the list of an enclosing ``warnings.catch_warnings(record=True)``)."""
-    from ..report.aside import aside
+) -> Iterator[tuple[Project, Standby | None]]:
+    """The project of ``project_file`` and the child that draws a strip's
+    figures (None for a block), for the ``with`` block.
+
+    The project is loaded in the child while the :data:`RUN_MODULES` are
+    imported here; its warnings are appended to ``caught`` (the list of an
+    enclosing ``warnings.catch_warnings(record=True)``).  The child is
+    killed and reaped however the block is left.
+    """
+    from ..report.aside import Standby
 
     for name in BEFORE_FORK:
         importlib.import_module(name)
-    with aside(partial(load_recorded, project_file)) as loading:
+    with Standby(_prepare_for, first=partial(load_recorded, project_file)) as standby:
         for name in RUN_MODULES:
             importlib.import_module(name)
-        project, seen = loading.result()
-    caught.extend(seen)
-    return project
+        project, seen = cast(Loaded, standby.first_result())
+        caught.extend(seen)
+        if project.is_block:
+            standby.close()  # no figures to wait for: the child ends now
+        yield project, None if project.is_block else standby
