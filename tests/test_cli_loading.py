@@ -163,3 +163,38 @@ def test_the_modules_imported_meanwhile_are_those_a_run_imports_anyway(tmp_path)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert out.returncode == 0, out.stderr
     assert "MISSING []" in out.stdout
+
+
+def test_a_real_loading_warning_comes_back_from_the_child(tmp_path, monkeypatch):
+    """A GNSS file with a photo the strip does not list: the warning of
+    project/tables.py, given in the child, is the caller's as it would be here."""
+    import shutil
+
+    folder = tmp_path / "proj"
+    shutil.copytree(Path(__file__).parent / "data" / "minimal", folder)
+    with (folder / "strip.toml").open("a", encoding="utf-8") as f:
+        f.write('\n[adjustment]\nrefine = "bundle"\n\n[gnss]\nfile = "gnss.csv"\n')
+    (folder / "gnss.csv").write_text(
+        "photo,X,Y,Z\n1201,0.0,0.0,1223.0\n1202,600.0,1.5,1224.25\n"
+        "1203,1200.0,-2.0,1222.5\n9001,5.0,5.0,1200.0\n",
+        encoding="utf-8",
+    )
+    toml = folder / "strip.toml"
+    with warnings.catch_warnings(record=True) as here:
+        warnings.simplefilter("always", StripAerotriWarning)
+        project_module.load_project(toml)
+    assert [str(w.message) for w in here] == [
+        f"{folder / 'gnss.csv'}:5: 1 row(s) of photo(s) not in [strip] photos ignored: '9001'"
+    ]
+    seen = {}
+    for fork in ("1", "0"):
+        monkeypatch.setenv(FORK_ENV, fork)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", StripAerotriWarning)
+            with loading.loaded(toml, caught) as (project, _):
+                assert project.gnss is not None
+        seen[fork] = [(str(w.message), w.category, w.filename, w.lineno) for w in caught]
+    # as in one process: the message and category of load_project's, the place
+    # the one its stacklevel names (load_recorded, which calls it)
+    assert seen["1"] == seen["0"]
+    assert [item[:2] for item in seen["1"]] == [(str(w.message), w.category) for w in here]
