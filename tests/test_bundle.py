@@ -534,3 +534,36 @@ def test_a_block_is_numbered_across_its_strips():
     assert width < 0.6 * given.width  # strip after strip: about two strips' length
     assert width <= 4 * 8  # four strips, a window of at most 8 photos each
     assert res.converged and 0.8 < res.sigma0 < 1.2
+
+
+def test_results_per_observation_follow_the_observations_order():
+    """The adjustment runs on its rows in the normal structure's order of
+    pairs (bundle/adjust.py ``_Problem.rows``); residuals and redundancy
+    numbers come back in the observations' own order, whatever it is: the
+    observations shuffled give the same adjustment and the same values
+    shuffled alike (to 1e-9), and a point behind a photo is named by the
+    first such observation as given."""
+    strip = make_strip()
+    rng = np.random.default_rng(3)
+    obs = strip.observations(rng)
+    ctrl, ctrl_sigma = full_control(strip, corner_points(strip)[:4])
+    start = perturbed(strip, rng)
+    perm = rng.permutation(obs.photo.size)
+    shuffled = ImageObservations(
+        obs.photo_ids, obs.point_ids, obs.photo[perm], obs.point[perm], obs.xy[perm],
+        obs.sigma[perm], obs.principal_distance,
+    )
+    a = bundle_adjust(obs, *start, control_xyz=ctrl, control_sigma=ctrl_sigma)
+    b = bundle_adjust(shuffled, *start, control_xyz=ctrl, control_sigma=ctrl_sigma)
+    np.testing.assert_allclose(b.points, a.points, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(b.residuals_mm, a.residuals_mm[perm], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(b.image_redundancy, a.image_redundancy[perm], rtol=1e-9)
+    predicted = (strip.xy - obs.xy)[perm]  # computed minus observed, near the truth
+    assert np.sqrt(np.mean((b.residuals_mm - predicted) ** 2)) < SIGMA_MM
+    # behind a photo: two points moved above the photos; the first named
+    behind = start[2].copy()
+    first, second = shuffled.point[0], shuffled.point[1]
+    behind[[first, second]] = strip.centres[0] + [0.0, 0.0, 500.0]
+    with pytest.raises(GeometryError, match=f"point 'p{first:03d}' lies behind"):
+        bundle_adjust(shuffled, start[0], start[1], behind, control_xyz=ctrl,
+                      control_sigma=ctrl_sigma)

@@ -25,6 +25,7 @@ from ._normal_entries import (
     pair_blocks,
     point_factor,
     run_sums,
+    shift_pair_blocks,
     spans,
     take,
     times_lower,
@@ -217,7 +218,15 @@ def _pair_blocks(
     if not (np.array_equal(unit, pat.row_unit) and np.array_equal(point, pat.row_point)):
         return None
     au, ap, f, ab = (_joined([a[i] for a in whitened]) for i in range(4))
-    return pair_blocks(pat, pat.pair_row, st.n_units, st.unit_size, st.n_points, st.n_border,
+    d = st.unit_size
+    if st.n_border == 0 and d >= 3 and all(r.unit_shift for r in unit_point_rows):
+        if not np.array_equal(entry_major(au)[:, :3], -entry_major(ap)):
+            raise ValueError(
+                "Expected unit_jacobian[..., :3] == -point_jacobian of rows with unit_shift"
+            )
+        rows = None if pat.rows_in_pair_order else pat.pair_row
+        return shift_pair_blocks(pat, rows, st.n_units, d, st.n_points, au, ap, f)
+    return pair_blocks(pat, pat.pair_row, st.n_units, d, st.n_points, st.n_border,
                        au, ap, f, ab)
 
 

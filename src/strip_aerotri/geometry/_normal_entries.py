@@ -35,6 +35,7 @@ __all__ = [
     "pair_blocks",
     "point_factor",
     "run_sums",
+    "shift_pair_blocks",
     "spans",
     "take",
 ]
@@ -198,6 +199,104 @@ def pair_blocks(
         u, w, v, g_unit, g_point, unit_border, point_border,
         np.einsum("gra,grb->ab", ab, ab), np.einsum("gra,gr->a", ab, f), cost,
     )
+
+
+def shift_pair_blocks(
+    pat: Pattern, rows: IntArray | None, n: int, d: int, p: int,
+    au: FloatArray, ap: FloatArray, f: FloatArray,
+) -> PairBlocks:
+    """:func:`pair_blocks` without a border for rows whose unit's first three
+    parameters move them as the opposite shift of their point does,
+    ``au[..., :3] == -ap`` (a photo's projection centre against its image
+    points); ``rows`` as there, None when the rows are in the pairs' order.
+    With ``ar = au[..., 3:]`` the blocks need only ``apᵀ ap``, ``arᵀ ap``,
+    ``arᵀ ar``, ``apᵀ f`` and ``arᵀ f`` per row (27 of the 54 products for
+    d = 6): ``W = [-apᵀ ap; arᵀ ap]``, per point ``V = Σ apᵀ ap``,
+    ``g_point = Σ apᵀ f``, per unit ``U = [[Σ apᵀ ap, -Σ (arᵀ ap)ᵀ],
+    [-Σ arᵀ ap, Σ arᵀ ar]]``, ``g_unit = [-Σ apᵀ f, Σ arᵀ f]``.
+
+    The products are formed once per row in the rows' own order from the
+    entry-major Jacobians (no copy when they are laid out so, as
+    :func:`~strip_aerotri.geometry.collinearity.collinearity_jacobians`
+    lays them out); the pairs' share is read in place when the rows are in
+    the pairs' order (else gathered), the units' summed by their runs (or,
+    rows not sorted by unit, by ``np.bincount``).  Equal to
+    :func:`pair_blocks` of the same rows up to the rounding of the sums'
+    order (the products are the same)."""
+    g, r = f.shape
+    e = d - 3
+    a_u, a_p, f_e = entry_major(au), entry_major(ap), entry_major(f)
+    a_r = a_u[:, 3:]
+    # rows of `prod`: apᵀ ap (lower), apᵀ f, arᵀ ap, then arᵀ f and arᵀ ar
+    # (lower), the units' alone
+    at_gp, at_rp = 6, 9
+    at_gr, at_rr = at_rp + 3 * e, at_rp + 4 * e
+    prod = np.empty((at_rr + e * (e + 1) // 2, g))
+
+    def products(span: slice) -> None:
+        xp, xr, xf = a_p[..., span], a_r[..., span], f_e[:, span]
+        _lower_gram(xp, prod[:at_gp, span])
+        np.einsum("rak,rk->ak", xp, xf, out=prod[at_gp:at_rp, span])
+        np.einsum("rak,rbk->abk", xr, xp, out=prod[at_rp:at_gr, span].reshape(e, 3, -1))
+        np.einsum("rak,rk->ak", xr, xf, out=prod[at_gr:at_rr, span])
+        _lower_gram(xr, prod[at_rr:, span])
+
+    split_map(products, spans(g))
+    w = np.empty((d, 3, g if rows is None else rows.size))
+    v, g_point = np.zeros((p, 3, 3)), np.zeros((p, 3))
+    ip, jp = np.tril_indices(3)
+
+    def point_block(span: slice, places: slice | IntArray, starts: IntArray,
+                    seen: IntArray) -> None:
+        # the pairs' products, by point
+        part = prod[:at_gr, places] if rows is None else take(prod[:at_gr], rows[places])
+        top = w[:3, :, span]
+        top[ip, jp] = top[jp, ip] = -part[:at_gp]
+        w[3:, :, span] = part[at_rp:at_gr].reshape(e, 3, -1)
+        sums = np.add.reduceat(part[:at_rp], starts, axis=-1).T  # (runs, 9)
+        blocks = np.empty((seen.size, 3, 3))
+        blocks[:, ip, jp] = blocks[:, jp, ip] = sums[:, :at_gp]
+        v[seen] = blocks
+        g_point[seen] = sums[:, at_gp:]
+
+    split_map(_star(point_block), blocks_of(pat.point_runs, w.shape[-1]))
+    sums = _unit_sums(prod, pat, n)  # (n, entries)
+    u = np.empty((n, d, d))
+    u[:, ip, jp] = u[:, jp, ip] = sums[:, :at_gp]
+    rp = sums[:, at_rp:at_gr].reshape(n, e, 3)
+    np.negative(rp, out=u[:, 3:, :3])
+    np.negative(np.swapaxes(rp, 1, 2), out=u[:, :3, 3:])
+    ir, jr = np.tril_indices(e)
+    u[:, 3 + ir, 3 + jr] = u[:, 3 + jr, 3 + ir] = sums[:, at_rr:]
+    g_unit = np.concatenate([-sums[:, at_gp:at_rp], sums[:, at_gr:at_rr]], axis=1)
+    cost = float(np.einsum("rk,rk->", f_e, f_e))
+    return PairBlocks(u, w, v, g_unit, g_point, np.zeros((n, d, 0)), np.zeros((p, 3, 0)),
+                      np.zeros((0, 0)), np.zeros(0), cost)
+
+
+def _unit_sums(values: FloatArray, pat: Pattern, n: int) -> FloatArray:
+    """Sums (n, e) of entry-major per-row values (e, G) over each unit's rows:
+    by the runs of rows sorted by unit, else one ``np.bincount`` per entry
+    (a gather of the rows by unit would read them at random)."""
+    order = pat.row_unit_runs[0]
+    if order is None:
+        return run_sums(values, pat.row_unit_runs, n)
+    out = np.empty((values.shape[0], n))
+
+    def entry(i: int) -> None:
+        out[i] = np.bincount(pat.row_unit, values[i], minlength=n)
+
+    split_map(entry, range(values.shape[0]))
+    return out.T
+
+
+def _lower_gram(x: FloatArray, out: FloatArray) -> None:
+    """``Σ_r x[r, a] x[r, b]`` of entry-major x (r, m, g) for a >= b, row by
+    row of the lower triangle (``np.tril_indices(m)``'s order), into out
+    (m (m + 1) / 2, g)."""
+    for a in range(x.shape[1]):
+        lo = a * (a + 1) // 2
+        np.einsum("rk,rbk->bk", x[:, a], x[:, : a + 1], out=out[lo : lo + a + 1])
 
 
 def _call(task: Callable[[], None]) -> None:
