@@ -227,66 +227,72 @@ def shift_pair_blocks(
     e = d - 3
     a_u, a_p, f_e = entry_major(au), entry_major(ap), entry_major(f)
     a_r = a_u[:, 3:]
-    # rows of `prod`: apᵀ ap (lower), apᵀ f, arᵀ ap, then arᵀ f and arᵀ ar
-    # (lower), the units' alone
-    at_gp, at_rp = 6, 9
-    at_gr, at_rr = at_rp + 3 * e, at_rp + 4 * e
+    # rows of `prod`: W of each row (d, 3) in C order, then apᵀ f (3), arᵀ f
+    # (e) and arᵀ ar (lower); W's top -apᵀ ap, its bottom arᵀ ap
+    at_gp = 3 * d
+    at_gr, at_rr = at_gp + 3, at_gp + 3 + e
     prod = np.empty((at_rr + e * (e + 1) // 2, g))
+    w_rows = prod[:at_gp].reshape(d, 3, g)
+    lower = [3 * i + j for i in range(3) for j in range(i + 1)]  # -apᵀ ap's own entries
 
     def products(span: slice) -> None:
         xp, xr, xf = a_p[..., span], a_r[..., span], f_e[:, span]
-        _lower_gram(xp, prod[:at_gp, span])
-        np.einsum("rak,rk->ak", xp, xf, out=prod[at_gp:at_rp, span])
-        np.einsum("rak,rbk->abk", xr, xp, out=prod[at_rp:at_gr, span].reshape(e, 3, -1))
+        for i in range(3):  # W[i, :i + 1] = -Σ_r ap[r, i] ap[r, :i + 1]
+            row = w_rows[i, : i + 1, span]
+            np.einsum("rk,rbk->bk", xp[:, i], xp[:, : i + 1], out=row)
+            np.negative(row, out=row)
+            w_rows[: i, i, span] = w_rows[i, : i, span]
+        np.einsum("rak,rbk->abk", xr, xp, out=w_rows[3:, :, span])
+        np.einsum("rak,rk->ak", xp, xf, out=prod[at_gp:at_gr, span])
         np.einsum("rak,rk->ak", xr, xf, out=prod[at_gr:at_rr, span])
         _lower_gram(xr, prod[at_rr:, span])
 
     split_map(products, spans(g))
-    w = np.empty((d, 3, g if rows is None else rows.size))
+    # W: the rows' own in the pairs' order, else gathered
+    w = w_rows if rows is None else take(w_rows, rows)
     v, g_point = np.zeros((p, 3, 3)), np.zeros((p, 3))
-    ip, jp = np.tril_indices(3)
 
     def point_block(span: slice, places: slice | IntArray, starts: IntArray,
                     seen: IntArray) -> None:
-        # the pairs' products, by point
-        part = prod[:at_gr, places] if rows is None else take(prod[:at_gr], rows[places])
-        top = w[:3, :, span]
-        top[ip, jp] = top[jp, ip] = -part[:at_gp]
-        w[3:, :, span] = part[at_rp:at_gr].reshape(e, 3, -1)
-        sums = np.add.reduceat(part[:at_rp], starts, axis=-1).T  # (runs, 9)
-        blocks = np.empty((seen.size, 3, 3))
-        blocks[:, ip, jp] = blocks[:, jp, ip] = sums[:, :at_gp]
-        v[seen] = blocks
-        g_point[seen] = sums[:, at_gp:]
+        top = w[:3, :, span].reshape(9, -1)
+        gp = prod[at_gp:at_gr, places] if rows is None else take(
+            prod[at_gp:at_gr], rows[places]
+        )
+        v[seen] = -np.add.reduceat(top, starts, axis=-1).T.reshape(-1, 3, 3)
+        g_point[seen] = np.add.reduceat(gp, starts, axis=-1).T
 
     split_map(_star(point_block), blocks_of(pat.point_runs, w.shape[-1]))
-    sums = _unit_sums(prod, pat, n)  # (n, entries)
+    own = np.r_[lower, 9 : at_gp, at_gp:at_rr, at_rr : prod.shape[0]]
+    sums = _unit_sums(prod, own, pat, n)  # (n, entries of `own`)
+    ip, jp = np.tril_indices(3)
+    n_rp = 3 * e
     u = np.empty((n, d, d))
-    u[:, ip, jp] = u[:, jp, ip] = sums[:, :at_gp]
-    rp = sums[:, at_rp:at_gr].reshape(n, e, 3)
+    u[:, ip, jp] = u[:, jp, ip] = -sums[:, :6]
+    rp = sums[:, 6 : 6 + n_rp].reshape(n, e, 3)
     np.negative(rp, out=u[:, 3:, :3])
     np.negative(np.swapaxes(rp, 1, 2), out=u[:, :3, 3:])
     ir, jr = np.tril_indices(e)
-    u[:, 3 + ir, 3 + jr] = u[:, 3 + jr, 3 + ir] = sums[:, at_rr:]
-    g_unit = np.concatenate([-sums[:, at_gp:at_rp], sums[:, at_gr:at_rr]], axis=1)
+    at = 6 + n_rp
+    u[:, 3 + ir, 3 + jr] = u[:, 3 + jr, 3 + ir] = sums[:, at + 3 + e :]
+    g_unit = np.concatenate([-sums[:, at : at + 3], sums[:, at + 3 : at + 3 + e]], axis=1)
     cost = float(np.einsum("rk,rk->", f_e, f_e))
     return PairBlocks(u, w, v, g_unit, g_point, np.zeros((n, d, 0)), np.zeros((p, 3, 0)),
                       np.zeros((0, 0)), np.zeros(0), cost)
 
 
-def _unit_sums(values: FloatArray, pat: Pattern, n: int) -> FloatArray:
-    """Sums (n, e) of entry-major per-row values (e, G) over each unit's rows:
-    by the runs of rows sorted by unit, else one ``np.bincount`` per entry
-    (a gather of the rows by unit would read them at random)."""
-    order = pat.row_unit_runs[0]
-    if order is None:
-        return run_sums(values, pat.row_unit_runs, n)
-    out = np.empty((values.shape[0], n))
+def _unit_sums(values: FloatArray, entries: IntArray, pat: Pattern, n: int) -> FloatArray:
+    """Sums (n, len(entries)) of the `entries` of entry-major per-row values
+    (E, G) over each unit's rows: by the runs of rows sorted by unit, else
+    one ``np.bincount`` per entry (a gather of the rows by unit would read
+    them at random)."""
+    if pat.row_unit_runs[0] is None:
+        return run_sums(values[entries], pat.row_unit_runs, n)
+    out = np.empty((entries.size, n))
 
     def entry(i: int) -> None:
-        out[i] = np.bincount(pat.row_unit, values[i], minlength=n)
+        out[i] = np.bincount(pat.row_unit, values[entries[i]], minlength=n)
 
-    split_map(entry, range(values.shape[0]))
+    split_map(entry, range(entries.size))
     return out.T
 
 
