@@ -549,15 +549,19 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     pair = np.zeros((d, 3, pat.pair_unit.size))
     point = red.v_inv.copy()
     point_border = np.zeros((p, 3, k))
-    zflat = z.reshape(-1, d, d)
+    w = w1 - 1
+    both = _both_sides(z).reshape(-1, d, d)
 
     def chunk(c: Chunk) -> None:  # writes the chunk's own pairs and points
         q, n_g, groups = c.q, c.size, c.groups
         qd = q * d
         span = slice(c.pair_start, c.pair_start + groups * n_g * q)
-        blocks = zflat[c.gather]  # (G, q, q, d, d): the same for all points of a group
-        blocks = np.where(c.upper[None, :, :, None, None], np.swapaxes(blocks, -1, -2), blocks)
-        q_rr = blocks.transpose(0, 1, 3, 2, 4).reshape(groups, qd, qd)
+        # Q[a, b] of a group's units (G, q, q, d, d), the same for all its
+        # points: from the band's block (lo + off, lo) at (lo + off, w - off)
+        # of `both`, or its transpose at (lo, w + off) where a < b
+        lo, off = np.divmod(c.gather, w1)
+        at = np.where(c.upper, lo * (2 * w + 1) + w + off, (lo + off) * (2 * w + 1) + w - off)
+        q_rr = both[at].transpose(0, 1, 3, 2, 4).reshape(groups, qd, qd)
         y = times_lower(red.z[..., span], red.m_pair[..., span])  # W V⁻¹ = Z M of the chunk
         y_r = _group_major(y, c, d, 0)  # (G, qd, 3 n_g)
         if k:
@@ -594,6 +598,20 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
         band=z,
         pair=pair,
     )
+
+
+def _both_sides(band: FloatArray) -> FloatArray:
+    """The band of a symmetric block matrix, ``band[J, o] = Q[J + o, J]`` (n,
+    w+1, d, d), on both sides of the diagonal: (n, 2w+1, d, d) with
+    ``Q[J, J + o]`` at ``[J, w + o]`` for ``|o| <= w`` (zero past the ends),
+    so that any block within the band is read as it stands."""
+    n, w1, d, _ = band.shape
+    w = w1 - 1
+    out = np.zeros((n, 2 * w + 1, d, d))
+    for o in range(min(w1, n)):
+        out[: n - o, w + o] = np.swapaxes(band[: n - o, o], 1, 2)  # Q[J, J + o]
+        out[o:, w - o] = band[: n - o, o]  # Q[J + o, J]
+    return out
 
 
 def _joint(blocks: list[list[FloatArray]]) -> FloatArray:
