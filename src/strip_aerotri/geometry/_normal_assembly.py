@@ -648,11 +648,36 @@ def _pair_leverage(cof: Cofactors, rows: UnitPointRows) -> FloatArray:
         return out
 
     h = np.empty((a_u.shape[0], a_u.shape[2]))  # (r, g)
+    in_order = same and pat.rows_in_pair_order  # row i is pair i
+
+    def q_pair(at: slice) -> FloatArray:
+        return cof.pair[..., at] if in_order else take(cof.pair, pairs[at])
+
+    def shift_block(at: slice) -> None:
+        # a_u = [-a_p, a_r]: a_p (Q11 + Q_pp - Q_up1 - Q_up1ᵀ) a_pᵀ
+        # + 2 a_r (Q_up2 - Q21) a_pᵀ + a_r Q22 a_rᵀ, with Q11 Q21 Q22 the
+        # unit's block split after its first three parameters, Q_up1 Q_up2 the
+        # unit-point block's rows so split
+        x, y = a_p[..., at], a_u[:, 3:, at]
+        q_uu, q_up = take(q_unit, unit[at]), q_pair(at)
+        c = take(q_point, point[at]) + q_uu[:3, :3]
+        c -= q_up[:3]
+        c -= q_up[:3].transpose(1, 0, 2)
+        h[:, at] = form(x, c, x) + 2.0 * form(y, q_up[3:] - q_uu[3:, :3], x)
+        h[:, at] += form(y, q_uu[3:, 3:], y)
+
+    if rows.unit_shift and k == 0 and st.unit_size >= 3:
+        if not np.array_equal(a_u[:, :3], -a_p):
+            raise ValueError(
+                "Expected unit_jacobian[..., :3] == -point_jacobian of rows with unit_shift"
+            )
+        split_map(shift_block, spans(h.shape[1]))
+        return h.T
 
     def rows_block(at: slice) -> None:  # blocks of rows: the gathered blocks stay small
         u, pt = unit[at], point[at]
         bu, bp = a_u[..., at], a_p[..., at]
-        part = form(bu, take(q_unit, u), bu) + 2.0 * form(bu, take(cof.pair, pairs[at]), bp)
+        part = form(bu, take(q_unit, u), bu) + 2.0 * form(bu, q_pair(at), bp)
         part += form(bp, take(q_point, pt), bp)
         if a_b is not None:
             bb = a_b[..., at]
