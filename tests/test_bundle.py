@@ -567,3 +567,28 @@ def test_results_per_observation_follow_the_observations_order():
     with pytest.raises(GeometryError, match=f"point 'p{first:03d}' lies behind"):
         bundle_adjust(shuffled, start[0], start[1], behind, control_xyz=ctrl,
                       control_sigma=ctrl_sigma)
+
+
+def test_the_image_rows_centre_columns_are_their_points_negated_on_every_row():
+    """The bundle marks its image rows ``unit_shift`` (the engine forms their
+    blocks from the distinct products and checks a sample): every row's
+    centre columns are its point's negated, to the bit, whitened or not."""
+    from strip_aerotri.bundle import adjust
+
+    strip = make_strip()
+    rng = np.random.default_rng(8)
+    obs = strip.observations(rng)
+    obs = ImageObservations(
+        obs.photo_ids, obs.point_ids, obs.photo, obs.point, obs.xy,
+        rng.uniform(0.002, 0.01, obs.photo.size), obs.principal_distance,
+    )  # a sigma of its own per observation: the rows whitened unequally
+    ctrl, ctrl_sigma = full_control(strip, corner_points(strip)[:4])
+    centres, rotations, points = perturbed(strip, rng)
+    prob = adjust._make_problem(
+        obs, centres, rotations, points, ctrl, ctrl_sigma, None, None, None, None
+    )
+    normals = adjust._normals(prob, adjust._State(centres, rotations, points))
+    assert normals is not None and normals.image.unit_shift
+    np.testing.assert_array_equal(
+        normals.image.unit_jacobian[..., :3], -normals.image.point_jacobian
+    )

@@ -707,3 +707,6 @@ def test_unit_shift_rows_must_have_the_opposite_columns() -> None:
                         rows.weight, unit_shift=True)
     with pytest.raises(ValueError, match="unit_shift"):
         _structure(prob).form([bad], prob.ur, prob.pr)
+    cof = _structure(prob).solve(prob.upr, prob.ur, prob.pr).cofactors()
+    with pytest.raises(ValueError, match="unit_shift"):
+        cof.redundancy(bad)

@@ -347,6 +347,9 @@ def test_whitened_rows_equal_rows_whitened_after(monkeypatch: pytest.MonkeyPatch
         image.residual, ((xy - observed) * inv_s[:, None])[rows], rtol=1e-12
     )
     assert np.count_nonzero(border[:, :, 2:]) > 0  # the motion's columns are there
+    # every row's centre columns are its point's negated (the rows' unit_shift)
+    assert image.unit_shift
+    np.testing.assert_array_equal(image.unit_jacobian[..., :3], -image.point_jacobian)
 
 
 def test_fractions_are_computed_once_per_linearisation(monkeypatch: pytest.MonkeyPatch) -> None:
