@@ -51,6 +51,8 @@ OLD_BUNDLE_KEYS = {
     "rejections",
     "strip_method_check",
 }
+# The keys since, the old ones and each addition (docs/outputs.md).
+NEW_BUNDLE_KEYS = OLD_BUNDLE_KEYS | {"gnss", "imu", "check_with_weak", "restored_points"}
 
 
 def strip(crs: str):
@@ -227,7 +229,8 @@ def test_report_json_has_the_sections_with_the_numbers(local_run) -> None:
     rep = build_report(run)
     json.dumps(rep, allow_nan=False)
     bundle = rep["bundle"]
-    assert set(bundle) == OLD_BUNDLE_KEYS | {"gnss", "imu", "check_with_weak"}
+    assert set(bundle) == NEW_BUNDLE_KEYS
+    assert bundle["restored_points"] == list(run.restored_points)
     g, i = bundle["gnss"], bundle["imu"]
     ids = list(sim.observations.photo_ids)
     assert (g["n_given"], g["n_used"], g["n_unmatched"], g["unmatched_photos"]) == (
@@ -278,7 +281,7 @@ def test_without_gnss_and_imu_nothing_is_added(local_run) -> None:
     assert refined.gnss is None and refined.imu is None
     assert not any("GNSS" in w or "IMU" in w for w in refined.warnings)
     rep = build_report(dataclasses.replace(result, refined=refined))
-    assert set(rep["bundle"]) == OLD_BUNDLE_KEYS | {"gnss", "imu", "check_with_weak"}
+    assert set(rep["bundle"]) == NEW_BUNDLE_KEYS
     assert rep["bundle"]["gnss"] is None and rep["bundle"]["imu"] is None
     html = "\n".join(_html_tables(rep))
     assert "GNSS" not in html and "IMU" not in html

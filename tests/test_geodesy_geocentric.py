@@ -104,6 +104,34 @@ def test_unreadable_database_falls_back_to_projjson(monkeypatch, tmp_path):
     np.testing.assert_allclose(ground.from_ecef(expected), xyz, rtol=0, atol=1e-6)
 
 
+
+def test_the_database_is_found_along_the_whole_search_path(monkeypatch, tmp_path):
+    # pyproj's data directory may be a list (PROJ_DATA=a:b, or pyproj's own
+    # directory after the user's); proj.db is the first one found along it
+    import os
+
+    from pyproj.datadir import get_data_dir
+
+    real = get_data_dir()
+    _, geodetic3d = _crs3d("EPSG:32634")
+    expected = geodesy._registered_geocentric(geodetic3d)
+    assert expected is not None
+    empty = [tmp_path / "a", tmp_path / "b"]
+    for folder in empty:
+        folder.mkdir()
+    crs3d = _crs3d("EPSG:32634")[0]
+    xyz = _sample(crs3d, 200)
+    ecef = Transformer.from_crs(crs3d, expected, always_xy=True).transform(*xyz.T)
+    for paths in ([*empty, real], [empty[0], real, empty[1]], ["", real]):
+        listed = os.pathsep.join(map(str, paths))
+        monkeypatch.setattr("pyproj.datadir.get_data_dir", lambda listed=listed: listed)
+        found = geodesy._registered_geocentric(geodetic3d)
+        assert found is not None and found == expected, listed
+        again = Transformer.from_crs(crs3d, found, always_xy=True).transform(*xyz.T)
+        np.testing.assert_array_equal(again, ecef)  # the same coordinates to the bit
+    monkeypatch.setattr("pyproj.datadir.get_data_dir", lambda: os.pathsep.join(map(str, empty)))
+    assert geodesy._registered_geocentric(geodetic3d) is None
+
 def test_transformers_built_once_per_ground_crs(monkeypatch):
     built: list[tuple[object, object]] = []
     from_crs = Transformer.from_crs

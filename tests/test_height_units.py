@@ -217,3 +217,20 @@ def test_the_models_construction_stops_as_well(film_strip: tuple[Project, StripM
             strip, _scaled(project.control, US_FEET), project.crs, control_name="c.csv"
         )
     assert caught.value.detail.startswith("the control heights change 3.2")
+
+
+def test_the_block_names_the_control_it_is_given() -> None:
+    # the name goes down to the placement of the strips (adjust_block ->
+    # _prepare -> _start_in_crs), as adjust_to_ground's does
+    from strip_aerotri.block.strips import adjust_block
+    from strip_aerotri.observations import StripSpec
+    from strip_aerotri.simulate import simulate_block
+
+    sim = simulate_block(n_strips=2, n_photos_per_strip=8, preset="film", seed=4)
+    strips = [StripSpec(s.name, s.photo_ids) for s in sim.strips]
+    control = _scaled(sim.control, FEET)
+    with pytest.raises(HeightUnitError, match=r"^heights\.csv: the control heights .*feet") as e:
+        adjust_block(sim.observations, control, sim.crs, strips, control_name="heights.csv")
+    assert str(e.value) == f"heights.csv: {e.value.detail}"
+    with pytest.raises(HeightUnitError, match=r"^control: the control heights"):
+        adjust_block(sim.observations, control, sim.crs, strips)

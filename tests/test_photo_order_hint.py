@@ -180,3 +180,35 @@ def test_a_block_strip_out_of_order_is_named_with_its_strip(tmp_path: Path) -> N
     assert any(
         "strip 'S2'" in ln and "out of flight order" in ln for ln in check.stderr.splitlines()
     ), check.stderr
+
+
+def test_check_and_run_give_one_hint_with_a_photo_step(tmp_path: Path) -> None:
+    """With ``photo_step = 2`` the models are formed on every other photo:
+    ``check`` and ``run`` judge the order on those model photos alike and
+    give the same hint (the run used to skip it and stop on the pair's
+    points lying on one line)."""
+    folder = tmp_path / "drone"
+    made = CliRunner().invoke(
+        cli, ["-q", "simulate", "drone", "--photos", "16", "--out", str(folder)]
+    )
+    assert made.exit_code == 0, made.output
+    toml = folder / "strip.toml"
+    in_order = toml.read_text("utf-8").replace("[adjustment]\n", "[adjustment]\nphoto_step = 2\n")
+    shuffled = [f"{1000 + i}" for i in (*range(1, 17, 2), *range(2, 17, 2))]
+    listed = "photos = [" + ", ".join(f'"{p}"' for p in shuffled) + "]"
+    toml.write_text(re.sub(r"^photos = \[.*\]$", listed, in_order, flags=re.M), "utf-8")
+    run = CliRunner().invoke(cli, ["run", str(toml)])
+    assert run.exit_code == 1
+    (line,) = run.stderr.splitlines()
+    assert "pair 1009-1013: fewer than 5 points" in line, line
+    hint = line[line.index("the photos seem listed out of flight order") :]
+    check = CliRunner().invoke(cli, ["check", str(toml)])
+    assert check.exit_code == 1
+    assert any(ln.endswith(hint) for ln in check.stderr.splitlines()), (hint, check.stderr)
+    assert not (folder / "out").exists()
+    # in flight order with the same step, neither says anything of the order
+    toml.write_text(in_order, "utf-8")
+    for command in ("check", "run"):
+        result = CliRunner().invoke(cli, ["-q", command, str(toml)])
+        assert result.exit_code == 0, (command, result.stderr)
+        assert "flight order" not in result.stderr

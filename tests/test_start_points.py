@@ -163,6 +163,24 @@ def test_the_block_refinement_keeps_the_good_rays_of_points_the_block_dropped(se
     back = [i for i, pid in enumerate(obs.point_ids) if repr(pid) in note[0]]
     assert len(back) >= 2
     assert np.all(np.isfinite(block.points[back]))
+    # the result names them all, in point order (the note names five at most)
+    n_back = int(note[0].removeprefix("bundle: ").split(" ")[0])
+    assert len(block.restored_points) == n_back
+    assert {obs.point_ids[i] for i in back} <= set(block.restored_points)
+    index_of = {pid: i for i, pid in enumerate(obs.point_ids)}
+    at = [index_of[p] for p in block.restored_points]
+    assert at == sorted(at) and np.all(np.isfinite(block.points[at]))
+    # the summary no longer counts them among the points the block left out
+    from strip_aerotri.report.summary import summarize
+
+    said_lost = [
+        w for w in block.warnings if "not triangulated" in w and w.point in block.restored_points
+    ]
+    assert said_lost, "the block's own warning should name a restored control or check point"
+    lines = summarize(block).warning_lines(block.warnings)
+    assert not any(w in lines for w in said_lost)
+    lost_lines = [ln for ln in lines if "not triangulated" in ln]
+    assert not any(repr(p) in ln for ln in lost_lines for p in block.restored_points)
     # their wrong rays are out; each keeps three good rays or more
     ph = {p: i for i, p in enumerate(obs.photo_ids)}
     rejected = {(ph[r.photos[0]], r.point) for r in block.rejections if r.stage == "bundle"}
@@ -270,8 +288,11 @@ def test_stripaero_run_delivers_a_restored_control_point(tmp_path):
     """``stripaero run`` with ``refine = "bundle"`` on a strip whose strip
     method dropped height point P0043 (a wrong ray): points.csv has it as
     height control with its residual, no model behind it (n_models 0), and
-    the warning names it."""
+    the warning names it as restored; the command line no longer counts it
+    among the points left out, report.json keeps both stages' texts and
+    lists it in ``bundle.restored_points``."""
     import csv
+    import json
 
     from click.testing import CliRunner
 
@@ -284,9 +305,16 @@ def test_stripaero_run_delivers_a_restored_control_point(tmp_path):
     )
     result = CliRunner().invoke(cli, ["run", str(toml), "--out", str(tmp_path / "out")])
     assert result.exit_code == 0, result.output
-    assert "not triangulated" in result.output  # the strip method's own warning
     assert "intersected from the photos and determined" in result.output
     assert "'P0043'" in result.output.split("intersected from the photos")[1]
+    # restored, not lost: neither its own "left out" nor the count of lost points
+    assert "P0043' is not triangulated" not in result.output
+    assert "not triangulated" not in result.output, result.output
+    report = json.loads((tmp_path / "out" / "report.json").read_text("utf-8"))
+    assert report["bundle"]["restored_points"] == ["P0043"]
+    assert report["inputs"]["control_left_out"] == ["P0043"]  # the strip method's, as before
+    stage_texts = [w for w in report["warnings"] if "'P0043'" in w and "not triangulated" in w]
+    assert len(stage_texts) == 2, report["warnings"]  # its own, and the count of the lost
     with open(tmp_path / "out" / "points.csv", newline="") as f:
         rows = {r["point"]: r for r in csv.DictReader(f)}
     row = rows["P0043"]

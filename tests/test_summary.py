@@ -244,6 +244,46 @@ def test_warning_lines_sum_up_each_stage_s_rejections():
     assert summary.warning_lines(texts, every=True) == list(dict.fromkeys(texts))
 
 
+
+def test_warning_lines_count_restored_points_as_restored():
+    """The points the refinement restored are left out of the strip method's
+    warnings of points left out (their own, and the count of the points
+    not triangulated, made again without them); every other warning, and
+    ``every`` (``-v``, as report.json), stay as they are."""
+    import pickle
+
+    from strip_aerotri.report.summary import Accuracy, RunSummary
+    from strip_aerotri.report.verdict import Verdict
+    from strip_aerotri.results import PointWarning
+
+    none = Accuracy(0, 0, math.nan, math.nan)
+    restored = ("A", "C", "Q,'x")
+    summary = RunSummary(
+        "strip", "s", 1, 2, 3, True, "models", none, none, Verdict("na", "nothing"),
+        restored=restored, files=("report.json",),
+    )  # fmt: skip
+    cause = "their observations failed the blunder tests"
+    own = [PointWarning.not_triangulated(p, "a cause") for p in ("A", "B")]
+    own.append(PointWarning.not_triangulated("Q,'x", "a cause", check=True))
+    lost = PointWarning.points_not_triangulated(["A", "B", "C", "D", "E", "F", "G", "Q,'x"], cause)
+    only_restored = PointWarning.points_not_triangulated(["C"], "seen on fewer than two photos")
+    weak = PointWarning.weak_check("Q,'x", "check point 'Q,\'x' is weak")
+    assert str(lost) == (
+        f"8 point(s) not triangulated ({cause}): 'A', 'B', 'C', 'D', 'E' and 3 more"
+    )  # the text the strip's run has always written
+    assert pickle.loads(pickle.dumps(lost)).points == lost.points
+    texts = ["first", *own, lost, only_restored, weak]
+    assert summary.warning_lines(texts) == [
+        "first",
+        own[1],
+        f"5 point(s) not triangulated ({cause}): 'B', 'D', 'E', 'F', 'G'",
+        weak,
+    ]
+    assert summary.warning_lines(texts, every=True) == texts
+    lines = dataclasses.replace(summary, restored=()).warning_lines(texts)
+    assert lines[1].startswith("2 control points are not triangulated ('A', 'B')")
+    assert str(lost) in lines and str(only_restored) in lines
+
 # the ground stage before the bundle sees the camera error in the control
 @pytest.mark.filterwarnings("ignore:control.*fail the blunder test alike")
 def test_a_refined_strip_s_summary_is_the_bundle_s(tmp_path):

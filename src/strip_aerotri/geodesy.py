@@ -138,8 +138,9 @@ _SAME_DATUM_GEOCENTRIC = (
 
 def _registered_geocentric(geodetic: CRS) -> CRS | None:
     """The registered geocentric CRS of the datum of ``geodetic`` (same datum,
-    X, Y, Z in metres) or None: no authority code, none in PROJ's database,
-    or the database not readable."""
+    X, Y, Z in metres) or None: no authority code, none in PROJ's database
+    (the first ``proj.db`` along pyproj's data directories), or the database
+    not readable."""
     import sqlite3
     from pathlib import Path
 
@@ -149,7 +150,11 @@ def _registered_geocentric(geodetic: CRS) -> CRS | None:
     authority = geodetic.to_authority(min_confidence=100)
     if authority is None:
         return None
-    database = Path(get_data_dir().split(os.pathsep)[0]) / "proj.db"
+    # PROJ reads the first proj.db along its search path
+    found = (Path(d) / "proj.db" for d in get_data_dir().split(os.pathsep) if d)
+    database = next((path for path in found if path.is_file()), None)
+    if database is None:
+        return None
     try:
         with closing(sqlite3.connect(f"{database.as_uri()}?mode=ro", uri=True)) as db:
             rows = db.execute(_SAME_DATUM_GEOCENTRIC, authority).fetchall()

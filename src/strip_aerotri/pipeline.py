@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from ._threads import limit_blas_threads
-from .errors import GeometryError, HeightUnitError
+from .errors import GeometryError
 from .geodesy import GroundCRS
 from .ground.common import image_scale
 from .ground.polynomials import adjust_to_ground
@@ -293,16 +293,6 @@ def _likely_cause(notes: Sequence[str]) -> Iterator[None]:
         raise GeometryError(f"{exc}; likely cause: {notes[0]}") from exc
 
 
-@contextmanager
-def _control_named(name: str) -> Iterator[None]:
-    """Control heights in another unit found within (a block's placement
-    does not know the control's file) name the control ``name``."""
-    try:
-        yield
-    except HeightUnitError as exc:
-        raise HeightUnitError(name, exc.detail) from None
-
-
 def _strip_warnings(
     observations: ImageObservations,
     strip: StripModel,
@@ -323,9 +313,7 @@ def _strip_warnings(
     for cause in ("seen on fewer than two photos", "their observations failed the blunder tests"):
         group = [p for p in ids if (p in why) == cause.startswith("their")]
         if group:
-            names = ", ".join(map(repr, group[:5]))
-            more = f" and {len(group) - 5} more" if len(group) > 5 else ""
-            notes.append(f"{len(group)} point(s) not triangulated ({cause}): {names}{more}")
+            notes.append(PointWarning.points_not_triangulated(group, cause))
     return notes
 
 
@@ -403,7 +391,7 @@ def triangulate_block(
         )
     with self_calibration_follows(
         self_calibration is not None and options.refine is Refine.BUNDLE
-    ), _control_named(control_name):
+    ):
         result = adjust_block(
             observations,
             control,
@@ -420,6 +408,7 @@ def triangulate_block(
             polynomial=int(options.polynomial),
             self_calibration=self_calibration,
             variance_components=options.weights is Weights.ESTIMATED,
+            control_name=control_name,
         )
     sigma = image_sigma_problems(
         np.concatenate([strip.relative.sigma0_um for strip in result.strips]), observations.sigma

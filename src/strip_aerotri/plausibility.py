@@ -769,9 +769,9 @@ def control_relief_problems(
     if span <= _RELIEF_FACTOR * height_above:
         return []
     return [
-        f"{file}: the control heights on a photo span {span:.4g} m (the median of "
+        f"{file}: the control heights on a photo span {span:.4g} in H's unit (the median of "
         f"{int(shown.sum())} photos) while the plan control puts the camera about "
-        f"{height_above:.4g} m above the ground (the photos' scale with c = "
+        f"{height_above:.4g} in X, Y's unit above the ground (the photos' scale with c = "
         f"{observations.principal_distance:.6g} mm); every point lies below the camera: "
         "are X, Y and H in different units (X, Y in km, or H in mm or feet)?"
     ]

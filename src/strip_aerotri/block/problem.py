@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from ..frames import WorkFrame, make_work_frame
 from ..geodesy import GroundCRS
 from ..geometry.similarity import SimilarityTransform, similarity_from_points
 from ..geometry.simultaneous import UnitObservations, UnitPolynomial, UnitTransforms
+from ..ground.common import index_of
 from ..ground.models import model_weights
 from ..ground.polynomials import adjust_to_ground
 from ..observations import ControlPoints, ImageObservations, StripSpec
@@ -73,29 +75,25 @@ def _prepare(
     construction: Construction,
     max_iterations: int,
     polynomial: int = 0,
+    *,
+    control_name: str = "control",
 ) -> _Problem:
     """Start values (each strip to the ground), the work frame, and the rows
     (``polynomial``: J(16)'s type of every strip's own deformation with
-    ``"strips"``, 0 for none)."""
-    n_points = observations.n_points
-    lookup = {pid: i for i, pid in enumerate(observations.point_ids)}
-    point_of = np.array([lookup.get(p, -1) for p in control.point_ids], dtype=np.intp)
-    determined = np.zeros(n_points, dtype=bool)
+    ``"strips"``, 0 for none; ``control_name`` the control in messages)."""
+    determined = np.zeros(observations.n_points, dtype=bool)
     for strip in strips:
         determined |= np.isfinite(strip.points).all(axis=1)
-    rows = np.flatnonzero((point_of >= 0) & determined[np.maximum(point_of, 0)])
-    idx = point_of[rows]
-    given = control.xyz[rows]
-    check = control.is_check[rows]
-    use_xy = control.uses_xy[rows] & ~check
-    use_z = control.uses_h[rows] & ~check
-    placed_crs, azimuth = _start_in_crs(observations, control, crs, specs, strips)
+    c = control_rows(observations, control, determined)
+    rows, idx, given, use_xy, use_z = c.rows, c.idx, c.given, c.use_xy, c.use_z
+    placed_crs, azimuth = _start_in_crs(
+        observations, control, crs, specs, strips, control_name=control_name
+    )
     active = use_xy | use_z
     guess = np.where(np.isnan(given), placed_crs[idx], given)
     work = make_work_frame(route, crs, guess[active], azimuth)
     start_work = work.to_work(np.where(np.isfinite(placed_crs), placed_crs, 0.0))
     units = _units(observations, strips, start_work, construction)
-    sig_xy, sig_h = control.sigma_xy[rows], control.sigma_h[rows]
     deformation = (
         UnitPolynomial.fit(units.rows.unit, units.rows.xyz, units.unit_strip.shape[0], polynomial)
         if polynomial and construction is Construction.STRIPS
@@ -118,16 +116,64 @@ def _prepare(
         control_rows=rows,
         idx=idx,
         given=given,
-        sigma=np.column_stack([sig_xy, sig_xy, sig_h]),
+        sigma=c.sigma,
         use_xy=use_xy,
         use_z=use_z,
-        check=check,
+        check=c.check,
         max_iterations=max_iterations,
         construction=construction,
         polynomial=deformation,
         tie_rejected=units.tie_rejected,
         unit_sigma=units.unit_sigma,
         unit_order=_across_strips(units.rows, units.start, units.unit_strip.shape[0]),
+    )
+
+
+class ControlRowTable(NamedTuple):
+    """Rows of the control table and what the block takes from each.
+
+    Attributes
+    ----------
+    rows : ndarray of int, shape (C,)
+        Rows of the control table, in its order.
+    idx : ndarray of int, shape (C,)
+        Their points (index into the observations' points).
+    given : ndarray, shape (C, 3)
+        Their coordinates in the CRS (NaN where not given).
+    sigma : ndarray, shape (C, 3)
+        Their sigmas (plan, plan, height; CRS units).
+    use_xy, use_z : ndarray of bool, shape (C,)
+        Plan and height used as control (never for a check point).
+    check : ndarray of bool, shape (C,)
+    """
+
+    rows: IntArray
+    idx: IntArray
+    given: FloatArray
+    sigma: FloatArray
+    use_xy: BoolArray
+    use_z: BoolArray
+    check: BoolArray
+
+
+def control_rows(
+    observations: ImageObservations, control: ControlPoints, points: BoolArray
+) -> ControlRowTable:
+    """The control rows of the points ``points`` (P,) bool (the control's
+    ids found among the observations' by binary search,
+    :func:`~strip_aerotri.ground.common.index_of`)."""
+    point_of = index_of(observations.point_ids, control.point_ids)
+    rows = np.flatnonzero((point_of >= 0) & points[np.maximum(point_of, 0)])
+    check = control.is_check[rows]
+    sig_xy, sig_h = control.sigma_xy[rows], control.sigma_h[rows]
+    return ControlRowTable(
+        rows=rows,
+        idx=point_of[rows],
+        given=control.xyz[rows],
+        sigma=np.column_stack([sig_xy, sig_xy, sig_h]),
+        use_xy=control.uses_xy[rows] & ~check,
+        use_z=control.uses_h[rows] & ~check,
+        check=check,
     )
 
 
@@ -153,6 +199,8 @@ def _start_in_crs(
     crs: GroundCRS,
     specs: tuple[StripSpec, ...],
     strips: tuple[StripModel, ...],
+    *,
+    control_name: str = "control",
 ) -> tuple[FloatArray, float]:
     """Every point in the CRS from the strips placed so far, and the azimuth of
     the first placed strip's work frame.
@@ -160,7 +208,9 @@ def _start_in_crs(
     A strip whose own control carries J's similarity is placed by it; the
     others, in turn, by a similarity on the points they share with the strips
     placed (the strip sharing most first).  A strip placed neither way is an
-    error naming it.
+    error naming it; control heights in another unit than its plan raise
+    :class:`~strip_aerotri.errors.HeightUnitError` naming the control
+    ``control_name``.
     """
     n_points = observations.n_points
     placed = np.full((n_points, 3), np.nan)
@@ -177,6 +227,7 @@ def _start_in_crs(
                     crs,
                     options=start_options,
                     blunders=_NO_TESTS,
+                    control_name=control_name,
                 )
         except HeightUnitError:
             raise  # the control's, not the strip's: no strip would do

@@ -56,7 +56,7 @@ from ..results import (
     StripModel,
 )
 from ..strip.densify import form_strip_stepped
-from .problem import _prepare, _Problem
+from .problem import _prepare, _Problem, control_rows
 from .snooping import _band_order, _determined_terms, _snoop, _Solution
 
 __all__ = ["adjust_block", "strip_observations"]
@@ -108,6 +108,7 @@ def adjust_block(
     polynomial: int | None = None,
     self_calibration: SelfCalibration | None = None,
     variance_components: bool = False,
+    control_name: str = "control",
 ) -> BlockResult:
     """Form every strip, then transform all strips at once to the control.
 
@@ -148,6 +149,8 @@ def adjust_block(
     variance_components : bool
         The refinement estimates its observation groups' weights
         (:mod:`strip_aerotri.bundle.variance`).
+    control_name : str
+        The control in messages (its file, for one).
 
     Raises
     ------
@@ -155,6 +158,10 @@ def adjust_block(
         A strip that shares fewer than three points with the rest of the
         block and has too little control of its own; too little control for
         the block; a strip that cannot be formed.
+    HeightUnitError
+        The control heights in another unit than its plan
+        (:mod:`strip_aerotri.ground.height_units`), the message naming the
+        control ``control_name``.
     """
     t0 = time.perf_counter()
     if not isinstance(crs, GroundCRS):
@@ -177,6 +184,7 @@ def adjust_block(
         Construction.create(construction),
         max_iterations,
         DEFAULT_BLOCK_POLYNOMIAL if polynomial is None else polynomial,
+        control_name=control_name,
     )
     problem, dropped = _determined_terms(problem)
     solution, used_xy, used_z, keep_rows, rejections = _snoop(problem, blunders)
@@ -339,40 +347,41 @@ def _with_restored_control(
     restored (``restored`` (P,), start values ``points_work``), appended to
     the problem, to its solution's guesses (a missing component from the
     start value, as the block's own rows take the block's) and to the block's
-    tables, where their residuals are NaN: the block had none."""
-    if not restored.any():
+    tables, where their residuals are NaN: the block had none.  A control
+    point the block left out after the strips determined it (its rows all
+    rejected) keeps the one row it has."""
+    has_row = np.zeros(restored.shape[0], dtype=bool)
+    has_row[p.idx] = True
+    new = control_rows(p.observations, p.control, restored & ~has_row)
+    if not new.rows.size:
         return p, sol, use_xy, use_z, block
-    lookup = {pid: i for i, pid in enumerate(p.observations.point_ids)}
-    point_of = np.array([lookup.get(pid, -1) for pid in p.control.point_ids], dtype=np.intp)
-    new = np.flatnonzero((point_of >= 0) & restored[np.maximum(point_of, 0)])
-    new = new[~np.isin(new, p.control_rows)]
-    if not new.size:
-        return p, sol, use_xy, use_z, block
-    ctrl, idx = p.control, point_of[new]
-    check = ctrl.is_check[new]
-    new_xy, new_z = ctrl.uses_xy[new] & ~check, ctrl.uses_h[new] & ~check
-    given = ctrl.xyz[new]
     p = replace(
         p,
-        control_rows=np.concatenate([p.control_rows, new]),
-        idx=np.concatenate([p.idx, idx]),
-        given=np.vstack([p.given, given]),
-        sigma=np.vstack(
-            [p.sigma, np.column_stack([ctrl.sigma_xy[new], ctrl.sigma_xy[new], ctrl.sigma_h[new]])]
-        ),
-        use_xy=np.concatenate([p.use_xy, new_xy]),
-        use_z=np.concatenate([p.use_z, new_z]),
-        check=np.concatenate([p.check, check]),
+        control_rows=np.concatenate([p.control_rows, new.rows]),
+        idx=np.concatenate([p.idx, new.idx]),
+        given=np.vstack([p.given, new.given]),
+        sigma=np.vstack([p.sigma, new.sigma]),
+        use_xy=np.concatenate([p.use_xy, new.use_xy]),
+        use_z=np.concatenate([p.use_z, new.use_z]),
+        check=np.concatenate([p.check, new.check]),
     )
-    guess = np.where(np.isnan(given), p.work.from_work(points_work[idx]), given)
+    guess = np.where(np.isnan(new.given), p.work.from_work(points_work[new.idx]), new.given)
     sol = replace(sol, guess=np.vstack([sol.guess, guess]))
     block = replace(
         block,
         control_index=p.control_rows,
         is_check=p.check,
-        control_residuals=np.vstack([block.control_residuals, np.full((new.size, 3), np.nan)]),
+        control_residuals=np.vstack(
+            [block.control_residuals, np.full((new.rows.size, 3), np.nan)]
+        ),
     )
-    return p, sol, np.concatenate([use_xy, new_xy]), np.concatenate([use_z, new_z]), block
+    return (
+        p,
+        sol,
+        np.concatenate([use_xy, new.use_xy]),
+        np.concatenate([use_z, new.use_z]),
+        block,
+    )
 
 
 def _refine(
@@ -392,7 +401,7 @@ def _refine(
     frame (plan-only and height-only control keep the block's value of their
     other coordinate)."""
     from ..bundle.refine import gnss_imu_in_frame, gnss_imu_outcomes, lost_points_note
-    from ..bundle.start_points import restore_points, restored_points_note
+    from ..bundle.start_points import restore_points, restored_ids, restored_points_note
     from ..bundle.variance import refine_frame_weighted
 
     block_points, centres0, rot0 = _in_work_frame(p, sol)
@@ -479,6 +488,7 @@ def _refine(
         imu=imu_out,
         self_calibration=fr.self_calibration,
         variance_components=fr.variance_components,
+        restored_points=restored_ids(p.observations.point_ids, restored.restored, fr.point_used),
     )
 
 

@@ -38,11 +38,13 @@ import numpy as np
 
 from .._text import named
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
+from ..geometry.collinearity import project
 from ..observations import ImageObservations
 from ..options import BlunderOptions
+from ..strip.densify import intersect_rays
 from .snooping import IMAGE_STAGE
 
-__all__ = ["RestoredPoints", "restore_points", "restored_points_note"]
+__all__ = ["RestoredPoints", "restore_points", "restored_ids", "restored_points_note"]
 
 #: Fewer rays of determined points than this: the start photos' scale is taken as 1.
 _MIN_RAYS_FOR_SCALE = 20
@@ -134,12 +136,10 @@ def _normalised_residuals(
 ) -> FloatArray:
     """|image residual| / sigma of rays ``rows`` at points ``xyz`` (len(rows), 3):
     the larger of x and y; inf for a point not in front of the photo."""
-    ph = obs.photo[rows]
-    u = np.einsum("kji,kj->ki", rot[ph], xyz - c[ph])
     with np.errstate(divide="ignore", invalid="ignore"):
-        xy = -obs.principal_distance * u[:, :2] / u[:, 2:3]
+        xy, v = project(c, rot, xyz, obs.photo[rows], np.arange(rows.size), obs.principal_distance)
         w = np.max(np.abs(xy - obs.xy[rows]), axis=1) / obs.sigma[rows]
-    out: FloatArray = np.where((u[:, 2] < 0) & np.isfinite(w), w, np.inf)
+    out: FloatArray = np.where((v[:, 2] < 0) & np.isfinite(w), w, np.inf)
     return out
 
 
@@ -150,10 +150,9 @@ def _start_scale(
     at the start, not below 1; 1 with fewer than :data:`_MIN_RAYS_FOR_SCALE`."""
     if rows.size < _MIN_RAYS_FOR_SCALE:
         return 1.0
-    ph = obs.photo[rows]
-    u = np.einsum("kji,kj->ki", rot[ph], pts[obs.point[rows]] - c[ph])
     with np.errstate(divide="ignore", invalid="ignore"):
-        v = (-obs.principal_distance * u[:, :2] / u[:, 2:3] - obs.xy[rows]) / obs.sigma[rows, None]
+        xy = project(c, rot, pts, obs.photo[rows], obs.point[rows], obs.principal_distance)[0]
+        v = (xy - obs.xy[rows]) / obs.sigma[rows, None]
     v = v[np.all(np.isfinite(v), axis=1)]
     if v.size < _MIN_RAYS_FOR_SCALE:
         return 1.0
@@ -191,7 +190,7 @@ def _rays(obs: ImageObservations, c: FloatArray, rot: FloatArray, rows: IntArray
     d = np.einsum("kij,kj->ki", rot[ph], image)
     d /= np.linalg.norm(d, axis=1)[:, None]
     proj = np.eye(3) - d[:, :, None] * d[:, None, :]
-    first = _solve(*_sums(group, labels.size, proj, np.einsum("kij,kj->ki", proj, c[ph])))
+    first = intersect_rays(c[ph], d, group, labels.size, image_weights=False).points
     t = np.einsum("ki,ki->k", first[group] - c[ph], d)
     with np.errstate(divide="ignore", invalid="ignore"):
         weight = np.where(np.isfinite(t) & (t > 0), 1.0 / t**2, 0.0)
@@ -287,16 +286,24 @@ def _round(
     return xyz, agree, drop
 
 
+def restored_ids(
+    point_ids: Sequence[str], restored: ArrayLike, used: ArrayLike
+) -> tuple[str, ...]:
+    """The points the strip method left out that the refinement restored
+    (``restored`` (P,) bool) and determined (``used`` (P,) bool), in point order."""
+    back = np.flatnonzero(np.asarray(restored, dtype=bool) & np.asarray(used, dtype=bool))
+    return tuple(point_ids[i] for i in back.tolist())
+
+
 def restored_points_note(
     point_ids: Sequence[str], restored: ArrayLike, used: ArrayLike
 ) -> list[str]:
     """The note naming the points the strip method left out that the
     refinement restored and determined (``restored``, ``used``: (P,) bool)."""
-    back = np.flatnonzero(np.asarray(restored, dtype=bool) & np.asarray(used, dtype=bool))
-    if not back.size:
+    back = restored_ids(point_ids, restored, used)
+    if not back:
         return []
     return [
-        f"bundle: {back.size} point(s) left out before the refinement were intersected from "
-        f"the photos and determined, their rays tested one by one: "
-        f"{named([point_ids[i] for i in back.tolist()])}"
+        f"bundle: {len(back)} point(s) left out before the refinement were intersected from "
+        f"the photos and determined, their rays tested one by one: {named(back)}"
     ]

@@ -24,7 +24,8 @@ __all__ = ["height_slope", "height_unit_problems"]
 #: (1200/3937 m) differ by 2e-6: one factor.  X, Y in feet with H in metres
 #: (a slope of 0.3048) is not stopped here: a real block's strips reach 0.57
 #: (below), where a strip's own height deformation, not its units, lowers
-#: the slope, and 0.35 would be too near to refuse a project on.
+#: the slope, and 0.35 would be too near to refuse a project on; the other
+#: rules weighed for it, and why none is safe: docs/project-file.md.
 _HEIGHT_UNIT_SLOPES = (
     (1.0 / 0.3048, "H in feet (heights are metres, whatever the unit of X, Y)"),
     (10.0, "H in decimetres (heights are metres, whatever the unit of X, Y)"),

@@ -332,14 +332,11 @@ def _check_pairs(rep: CheckReport, project: Project) -> _PairFacts:
     n_photos = obs.n_photos
     # Models on every k-th photo with [adjustment] photo_step = k (densify); "auto"
     # chooses k from a first relative orientation, so it is checked as k = 1.
+    from .run import model_photos  # the run's own rule for its photo-order hint
+
     chosen = project.adjustment.photo_step
     step = chosen if isinstance(chosen, int) else DEFAULT_PHOTO_STEP
-    if step > 1:
-        from ..strip.densify import model_photo_index
-
-        seq = model_photo_index(n_photos, step)
-    else:
-        seq = np.arange(n_photos, dtype=np.intp)
+    seq = model_photos(n_photos, chosen)
     ids = [all_ids[i] for i in seq]
     n_models = len(seq) - 1
     labels = [f"pair {ids[m]}-{ids[m + 1]}" for m in range(n_models)]
@@ -582,9 +579,10 @@ def _check_placement(rep: CheckReport, project: Project, strips: tuple[StripMode
             GroundCRS.from_user_input(project.crs),
             project.strips,
             strips,
+            control_name=str(project.control_file),
         )
     except HeightUnitError as exc:
-        rep.problems.append(f"{project.control_file}: {exc.detail}")
+        rep.problems.append(str(exc))  # it names the control file
     except GeometryError as exc:
         rep.problems.append(f"{project.control_file}: {exc}")
 

@@ -3,12 +3,16 @@ project's own observations and options."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from .._threads import limit_blas_threads
+from .._typing import IntArray
 from ..errors import FlightAxisError, GeometryError, PhotoOrderError
-from ..options import BlunderOptions, GroundOptions, StripOptions
+from ..options import DEFAULT_PHOTO_STEP, BlunderOptions, GroundOptions, StripOptions
 from ..pipeline import Progress, triangulate, triangulate_block
 from ..plausibility import flight_axis_message, photo_order_hint, photo_order_message
 from ..results import BlockResult, StripResult
+from ..strip.densify import model_photo_index
 from ..strip.relative import MIN_POINTS_PER_PAIR
 from .model import Project
 
@@ -70,18 +74,30 @@ def run_project(
         raise explain(project, exc) from exc
 
 
+def model_photos(n_photos: int, photo_step: int | str) -> IntArray:
+    """The photos (positions in a strip's listed order) whose consecutive
+    pairs the run orients first: every k-th with ``photo_step = k``
+    (:func:`strip_aerotri.strip.densify.model_photo_index`), every photo
+    with ``"auto"`` (its first relative orientation is of all consecutive
+    pairs, :func:`~strip_aerotri.strip.densify.choose_photo_step`)."""
+    step = photo_step if isinstance(photo_step, int) else DEFAULT_PHOTO_STEP
+    if step > 1:
+        return model_photo_index(n_photos, step)
+    return np.arange(n_photos, dtype=np.intp)
+
+
 def _photo_order_problem(project: Project) -> str:
-    """Consecutive photos of a strip without enough common points for their
-    relative orientation, because the photos are listed out of flight order
-    (:func:`strip_aerotri.plausibility.photo_order_hint`): the pair's
-    failure, with its cause.  Empty when the order is not to blame or the
-    models are not formed on consecutive photos (``photo_step``)."""
-    if project.adjustment.photo_step != 1:
-        return ""
+    """Consecutive model photos of a strip (:func:`model_photos`) without
+    enough common points for their relative orientation, because the photos
+    are listed out of flight order
+    (:func:`strip_aerotri.plausibility.photo_order_hint`, as ``check`` runs
+    it): the pair's failure, with its cause.  Empty when the order is not to
+    blame."""
     obs = project.observations
     index = {pid: i for i, pid in enumerate(obs.photo_ids)}
     for spec in project.strips or (None,):
-        ids = obs.photo_ids if spec is None else spec.photo_ids
+        listed = obs.photo_ids if spec is None else spec.photo_ids
+        ids = [listed[i] for i in model_photos(len(listed), project.adjustment.photo_step)]
         m, hint = photo_order_hint(obs, [index[p] for p in ids], None, MIN_POINTS_PER_PAIR)
         if hint:
             where = "" if spec is None else f"strip '{spec.name}': "

@@ -160,6 +160,7 @@ def build_block_report(
                 else statistics(_check_rows(result, result.block_control_residuals)),
                 "gnss": _bundle_gnss(result.gnss),
                 "imu": _bundle_imu(result.imu),
+                "restored_points": list(result.restored_points),
             }
             if result.refined
             else None

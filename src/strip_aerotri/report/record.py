@@ -514,6 +514,7 @@ def _bundle(result: StripResult) -> dict[str, Any] | None:
         "strip_method_check": statistics(result.check_statistics),
         "gnss": _bundle_gnss(getattr(refined, "gnss", None)),
         "imu": _bundle_imu(getattr(refined, "imu", None)),
+        "restored_points": list(result.restored_points),
     }
 
 

@@ -223,6 +223,10 @@ class RunSummary:
     output_warnings : tuple of str
         The warnings the outputs add (the plan drift at the map scale,
         points.geojson not written); report.json lists both.
+    restored : tuple of str
+        The points the strip method (a block) left out that the bundle
+        refinement restored and determined: counted as restored, not lost
+        (:meth:`warning_lines`).
     rejections : tuple of Rejection
         Every rejection of the run: a block's strips', the adjustment's and
         the bundle refinement's.
@@ -253,6 +257,7 @@ class RunSummary:
     weights: EstimatedWeights | None = None
     warnings: tuple[str, ...] = ()
     output_warnings: tuple[str, ...] = ()
+    restored: tuple[str, ...] = ()
     rejections: tuple[Rejection, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
     details: tuple[tuple[int, str], ...] = ()
@@ -272,9 +277,11 @@ class RunSummary:
 
     def warning_lines(self, texts: Sequence[str], *, every: bool = False) -> list[str]:
         """The warnings to print, each once in the order given: with ``every``
-        (``-v``) all of them; else each stage's blunder rejections (two or
-        more) summed up in one line, at the place of its first, naming the
-        files that list them."""
+        (``-v``) all of them, as report.json lists them; else each stage's
+        blunder rejections (two or more) summed up in one line, at the place
+        of its first, naming the files that list them, and the points the
+        refinement restored no longer counted among those the strip method
+        left out (the refinement's note names them)."""
         unique = list(dict.fromkeys(texts))
         if every:
             return unique
@@ -282,6 +289,7 @@ class RunSummary:
             n for n in ("report.json", self.report_name) if n and n in self.files
         )
         listed = " / ".join(names)
+        unique = _without_restored(unique, frozenset(self.restored))
         return _grouped_per_point(_grouped(unique, self.rejections, listed), listed)
 
 
@@ -371,6 +379,25 @@ _PER_POINT = {
         "and left out (each: {cause})",
     ),
 }
+
+
+def _without_restored(texts: list[str], restored: frozenset[str]) -> list[str]:
+    """The strip method's warnings about the points it left out, without
+    those the refinement restored and determined: a control or check point's
+    own warning left out, the count of the points not triangulated for a
+    cause made again without them (and left out when none is left)."""
+    if not restored:
+        return texts
+    out: list[str] = []
+    for text in texts:
+        if not isinstance(text, PointWarning) or not restored.intersection(text.points):
+            out.append(text)
+        elif text.kind == "points not triangulated":
+            left = [p for p in text.points if p not in restored]
+            out += [PointWarning.points_not_triangulated(left, text.cause)] if left else []
+        elif text.kind not in ("control not triangulated", "check not triangulated"):
+            out.append(text)
+    return out
 
 
 def _grouped_per_point(texts: list[str], listed: str) -> list[str]:
@@ -556,6 +583,7 @@ def _block_summary(
         calibration=Calibration.of(result.self_calibration, files),
         weights=EstimatedWeights.of(result.variance_components),
         warnings=tuple(result.warnings),
+        restored=result.restored_points,
         rejections=_rejections(result),
         timings=dict(result.timings),
         details=_block_details(result),
@@ -606,6 +634,7 @@ def summarize(
         weights=None if refined is None else EstimatedWeights.of(refined.variance_components),
         warnings=tuple(result.warnings),
         output_warnings=(*local, *drift_warnings(result, map_scale)),
+        restored=result.restored_points,
         rejections=_rejections(result),
         timings=dict(result.timings),
         details=_strip_details(result),

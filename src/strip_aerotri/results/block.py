@@ -134,6 +134,10 @@ class BlockResult:
     variance_components : VarianceComponents or None
         The refinement's observation weights estimated from its residuals
         (None unless asked for).
+    restored_points : tuple of str
+        The points the block left out that the bundle refinement restored
+        and determined (:mod:`strip_aerotri.bundle.start_points`), in point
+        order; empty without a refinement.
     """
 
     specs: tuple[StripSpec, ...]
@@ -172,6 +176,7 @@ class BlockResult:
     options: AdjustmentOptions | None = None
     weak_checks: tuple[str, ...] = ()
     variance_components: VarianceComponents | None = None
+    restored_points: tuple[str, ...] = ()
 
     @property
     def photo_ids(self) -> tuple[str, ...]:

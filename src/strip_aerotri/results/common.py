@@ -3,11 +3,13 @@ and accuracy figures."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from .._text import named
 from .._typing import FloatArray
 
 __all__ = ["AccuracyStatistics", "PointWarning", "Rejection"]
@@ -84,20 +86,34 @@ class PointWarning(str):
     kind : str
         ``"weak check"`` (a check point weakly determined by its own rays),
         ``"control not triangulated"`` or ``"check not triangulated"`` (a
-        ground point left out).
+        ground point left out); ``"points not triangulated"`` for the one
+        warning about all the points the strip method left out for a cause.
     point : str
-        The point's id, as given (any characters).
+        The point's id, as given (any characters); ``""`` for a warning
+        about several.
     cause : str
         Why, where the text names one (``""`` otherwise).
+    points : tuple of str
+        The points of a warning about several (``(point,)`` for one).
     """
 
     kind: str
     point: str
     cause: str
+    points: tuple[str, ...]
 
-    def __new__(cls, text: str, *, kind: str, point: str, cause: str = "") -> PointWarning:
+    def __new__(
+        cls,
+        text: str,
+        *,
+        kind: str,
+        point: str,
+        cause: str = "",
+        points: tuple[str, ...] | None = None,
+    ) -> PointWarning:
         self = super().__new__(cls, text)
-        for name, value in (("kind", kind), ("point", point), ("cause", cause)):
+        about = (point,) if points is None else tuple(points)
+        for name, value in (("kind", kind), ("point", point), ("cause", cause), ("points", about)):
             object.__setattr__(self, name, value)
         return self
 
@@ -105,7 +121,7 @@ class PointWarning(str):
         raise AttributeError(f"PointWarning is immutable (setting {name!r})")
 
     def __reduce__(self) -> tuple[Any, ...]:
-        return _point_warning, (str(self), self.kind, self.point, self.cause)
+        return _point_warning, (str(self), self.kind, self.point, self.cause, self.points)
 
     @classmethod
     def weak_check(cls, point: str, text: str) -> PointWarning:
@@ -123,10 +139,21 @@ class PointWarning(str):
             kind=f"{kind} not triangulated", point=point, cause=cause,
         )  # fmt: skip
 
+    @classmethod
+    def points_not_triangulated(cls, points: Sequence[str], cause: str) -> PointWarning:
+        """All the points the strip method left out for one ``cause``:
+        ``N point(s) not triangulated (cause): 'A', 'B' ...`` (five named)."""
+        return cls(
+            f"{len(points)} point(s) not triangulated ({cause}): {named(points)}",
+            kind="points not triangulated", point="", cause=cause, points=tuple(points),
+        )  # fmt: skip
 
-def _point_warning(text: str, kind: str, point: str, cause: str) -> PointWarning:
+
+def _point_warning(
+    text: str, kind: str, point: str, cause: str, points: tuple[str, ...] | None = None
+) -> PointWarning:
     """:class:`PointWarning` from its pickled fields."""
-    return PointWarning(text, kind=kind, point=point, cause=cause)
+    return PointWarning(text, kind=kind, point=point, cause=cause, points=points)
 
 
 @dataclass(frozen=True)

@@ -79,6 +79,17 @@ class StripResult:
         return self.ground.points if self.refined is None else self.refined.points
 
     @property
+    def restored_points(self) -> tuple[str, ...]:
+        """The points the strip method left out that the bundle refinement
+        restored and determined (:mod:`strip_aerotri.bundle.start_points`),
+        in point order; empty without a refinement."""
+        if self.refined is None:
+            return ()
+        back = np.isfinite(self.refined.points).all(axis=1)
+        back &= ~np.isfinite(self.ground.points).all(axis=1)
+        return tuple(self.point_ids[i] for i in np.flatnonzero(back).tolist())
+
+    @property
     def photo_centres(self) -> FloatArray:
         """(M, 3) projection centres X, Y, Z in the control CRS."""
         return self.ground.photo_centres if self.refined is None else self.refined.photo_centres
