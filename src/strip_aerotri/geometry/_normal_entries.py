@@ -223,7 +223,7 @@ def shift_pair_blocks(
     rows not sorted by unit, by ``np.bincount``).  Equal to
     :func:`pair_blocks` of the same rows up to the rounding of the sums'
     order (the products are the same)."""
-    g, r = f.shape
+    g = f.shape[0]
     e = d - 3
     a_u, a_p, f_e = entry_major(au), entry_major(ap), entry_major(f)
     a_r = a_u[:, 3:]
