@@ -6,13 +6,13 @@ out in closed form."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from .._typing import FloatArray
 
-__all__ = ["by_rows", "row_gram", "rows_whitening", "upper_entries", "upper_times"]
+__all__ = ["by_rows", "outer_sum", "row_gram", "rows_whitening", "upper_entries", "upper_times"]
 
 #: The entries (i, k) of an upper-triangular 3 x 3 matrix, in their order in
 #: :func:`upper_entries`.
@@ -45,19 +45,27 @@ def rows_whitening(weight: FloatArray) -> FloatArray:
     return upper
 
 
-def row_gram(lt: FloatArray) -> FloatArray:
-    """``L Lᵀ`` of every row's whitening ``Lᵀ`` (n, 3, 3): its six distinct
-    entries, each a sum of three products (a batched 3 x 3 product costs
-    three times as much)."""
-    out = np.empty(lt.shape)
+def outer_sum(rows: Sequence[FloatArray]) -> FloatArray:
+    """``Σ_k r_k r_kᵀ`` of rows ``r_k`` (n, 3), in their order: (n, 3, 3),
+    its six distinct entries computed once each (the broadcast products'
+    values to the bit, without their (n, 3, 3) temporaries)."""
+    first = rows[0]
+    out = np.empty((first.shape[0], 3, 3))
     for i in range(3):
         for j in range(i + 1):
-            value = lt[:, 0, i] * lt[:, 0, j]
-            value += lt[:, 1, i] * lt[:, 1, j]
-            value += lt[:, 2, i] * lt[:, 2, j]
+            value = first[:, i] * first[:, j]
+            for r in rows[1:]:
+                value += r[:, i] * r[:, j]
             out[:, i, j] = value
             out[:, j, i] = value
     return out
+
+
+def row_gram(lt: FloatArray) -> FloatArray:
+    """``L Lᵀ`` of every row's whitening ``Lᵀ`` (n, 3, 3): the sum of the
+    outer products of its rows (a batched 3 x 3 product costs three times
+    as much)."""
+    return outer_sum((lt[:, 0], lt[:, 1], lt[:, 2]))
 
 
 def upper_entries(upper: FloatArray) -> FloatArray:
