@@ -130,6 +130,10 @@ class _Problem:
         self.control_xyz = control_xyz
         self.control_sigma = control_sigma
         self.control_given = np.isfinite(control_xyz)
+        # 1 / σ² of the given control components, 0 where not given (C, 3)
+        self.control_weight = np.where(
+            self.control_given, 1.0 / np.where(self.control_given, control_sigma, 1.0) ** 2, 0.0
+        )
         self.lines = list(lines)
         self.n_lines = len(self.lines)
         counts = np.bincount(obs.unit, minlength=n_units).astype(np.float64)
@@ -391,8 +395,7 @@ def _control_terms(prob: _Problem, st: _State) -> tuple[IntArray, FloatArray, Fl
     used = prob.control_used
     cp, given = prob.control_point[used], prob.control_given[used]
     f = np.where(given, st.points[cp] - np.where(given, prob.control_xyz[used], 0.0), 0.0)
-    weight = np.where(given, 1.0 / np.where(given, prob.control_sigma[used], 1.0) ** 2, 0.0)
-    return cp, f, weight
+    return cp, f, prob.control_weight[used]
 
 
 def _line_rows(prob: _Problem, st: _State, k: int) -> Any:
@@ -825,9 +828,10 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
         if not np.all(np.isfinite(inverse)):  # a point its rows do not fix: the step's own
             return st
     else:
-        cp, given = prob.control_point, prob.control_given
-        w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma, 1.0) ** 2, 0.0)
-        rhs += sum_into(cp, w_c * np.where(given, prob.control_xyz, 0.0), n)
+        given = prob.control_given
+        rhs += sum_into(
+            prob.control_point, prob.control_weight * np.where(given, prob.control_xyz, 0.0), n
+        )
     points = st.points.copy()
     assert inverse is not None  # computed above when not given
     points[used] = np.einsum("pij,pj->pi", inverse, rhs[used])
