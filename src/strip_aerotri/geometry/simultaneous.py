@@ -47,7 +47,7 @@ from ..options import DEFAULT_MAX_ITERATIONS
 from ._row_kernels import by_rows as _by_rows
 from ._row_kernels import row_gram as _gram
 from ._row_kernels import rows_whitening as _rows_whitening
-from ._row_kernels import upper_entries, upper_times
+from ._row_kernels import upper_times
 from .rotation import matrix_from_rotvec
 from .units import (
     N_UNIT,
@@ -121,9 +121,9 @@ class _Problem:
         self.width = N_UNIT + self.n_extra  # parameters of a unit
         self.n_units = n_units
         self.n_points = n_points
-        self.whiten0 = _rows_whitening(obs.weight)
+        # the whitening and its entries (for turn_weights)
+        self.whiten0, self.whiten0_entries = _rows_whitening(obs.weight)
         self.whiten = self.whiten0
-        self.whiten0_entries = upper_entries(self.whiten0)  # for turn_weights
         self.weight_rotation = weight_rotation
         self.turned_at: FloatArray | None = None
         self.control_point = control_point
