@@ -12,7 +12,7 @@ import numpy as np
 
 from .._typing import FloatArray
 
-__all__ = ["by_rows", "outer_sum", "row_gram", "rows_whitening", "upper_times"]
+__all__ = ["by_rows", "outer_sum", "row_gram", "rows_times", "rows_whitening", "upper_times"]
 
 #: The entries (i, k) of an upper-triangular 3 x 3 matrix ``Lᵀ`` in their
 #: order in :func:`rows_whitening` (that of ``L``'s entries l00, l10, l11,
@@ -30,6 +30,18 @@ def by_rows(n_rows: int, block: Callable[[slice], object]) -> None:
     from ._normal_entries import spans
 
     split_map(block, spans(n_rows))
+
+
+def rows_times(m: FloatArray, v: FloatArray) -> FloatArray:
+    """``M v`` of every row (n, 3) of matrices M (n, 3, 3) and vectors v
+    (n, 3), by blocks of rows (:func:`by_rows`)."""
+    out = np.empty(v.shape)
+
+    def block(rows: slice) -> None:
+        out[rows] = np.einsum("nij,nj->ni", m[rows], v[rows])
+
+    by_rows(v.shape[0], block)
+    return out
 
 
 def rows_whitening(weight: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -72,8 +84,9 @@ def row_gram(lt: FloatArray) -> FloatArray:
 
 def upper_times(entries: FloatArray, g: FloatArray) -> FloatArray:
     """``U G`` (b, 3, 3) of upper-triangular U given by its six entries in the
-    order of :data:`_UPPER` (6, b; :func:`rows_whitening`'s) and G entry-major (9, b), entry ``3 k + j`` its (k, j): 18 products
-    over long vectors (a batched product of 3 x 3 matrices takes half as
+    order of :data:`_UPPER` (6, b; :func:`rows_whitening`'s) and G
+    entry-major (9, b), entry ``3 k + j`` its (k, j): 18 products over long
+    vectors (a batched product of 3 x 3 matrices takes half as
     long again)."""
     place = {ik: m for m, ik in enumerate(_UPPER)}
     b = g.shape[1]

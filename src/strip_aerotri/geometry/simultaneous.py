@@ -46,6 +46,7 @@ from ..errors import ConvergenceError, GeometryError
 from ..options import DEFAULT_MAX_ITERATIONS
 from ._row_kernels import by_rows as _by_rows
 from ._row_kernels import row_gram as _gram
+from ._row_kernels import rows_times as _rows_times
 from ._row_kernels import rows_whitening as _rows_whitening
 from ._row_kernels import upper_times
 from .rotation import matrix_from_rotvec
@@ -121,7 +122,6 @@ class _Problem:
         self.width = N_UNIT + self.n_extra  # parameters of a unit
         self.n_units = n_units
         self.n_points = n_points
-        # the whitening and its entries (for turn_weights)
         self.whiten0, self.whiten0_entries = _rows_whitening(obs.weight)
         self.whiten = self.whiten0
         # the whitening W = L Lᵀ was last computed from, and W (:attr:`weight`)
@@ -214,15 +214,8 @@ class _Problem:
         """The rows' weight ``W = L Lᵀ`` (n, 3, 3) of the whitening in use
         (the given weight's lower triangle, as the whitening reads it), once
         per whitening: a turn of the weights replaces it."""
-        whiten = self.whiten
-        if self._weight is None or self._weight[0] is not whiten:
-            weight = np.empty(whiten.shape)
-
-            def block(rows: slice) -> None:
-                weight[rows] = _gram(whiten[rows])
-
-            _by_rows(whiten.shape[0], block)
-            self._weight = (whiten, weight)
+        if self._weight is None or self._weight[0] is not self.whiten:
+            self._weight = (self.whiten, _gram(self.whiten))
         return self._weight[1]
 
     @property
@@ -298,18 +291,6 @@ def _turned(prob: _Problem, st: _State) -> FloatArray:
     return y
 
 
-def _whitened(prob: _Problem, v: FloatArray) -> FloatArray:
-    """``Lᵀ v`` of every row (n, 3), by blocks of rows (:func:`_by_rows`)."""
-    whiten = prob.whiten
-    out = np.empty(v.shape)
-
-    def block(rows: slice) -> None:
-        out[rows] = np.einsum("nij,nj->ni", whiten[rows], v[rows])
-
-    _by_rows(v.shape[0], block)
-    return out
-
-
 def _line_terms(prob: _Problem, st: _State, k: int) -> tuple[FloatArray, FloatArray, float]:
     line = prob.lines[k]
     xyz = st.points[line.point]
@@ -325,7 +306,7 @@ def _cost(prob: _Problem, st: _State) -> float:
         total = st.rows_cost[1]
     else:
         _, v = _predict(prob, st)
-        wv = _whitened(prob, v)
+        wv = _rows_times(prob.whiten, v)
         total = float(np.einsum("ij,ij->", wv, wv))
         st.rows_cost = (prob.whiten, total)
     c = st.points[prob.control_point] - prob.control_xyz
@@ -353,7 +334,7 @@ def _engine_rows(prob: _Problem, st: _State) -> tuple[list[Any], list[Any], list
             prob.engine_point[obs.point],
             _whitened_design(prob, st, y),
             prob.point_jacobian,
-            _whitened(prob, v),
+            _rows_times(prob.whiten, v),
         )
     ]
     unit_rows = []
@@ -919,7 +900,7 @@ def _result(
     # Row statistics: the row's leverage on its own point with the units
     # fixed, h = W^(1/2) V⁻¹ W^(1/2); the units' 7 U parameters spread evenly.
     weight = prob.weight
-    wv = _whitened(prob, v)
+    wv = _rows_times(prob.whiten, v)
     # V⁻¹ of the points the rows observe: the engine's (statistics only)
     v_inv = sol.point_inverse
     row_point = prob.engine_point[obs.point]
