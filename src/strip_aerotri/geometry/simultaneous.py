@@ -124,8 +124,6 @@ class _Problem:
         self.n_points = n_points
         self.whiten0, self.whiten0_entries = _rows_whitening(obs.weight)
         self.whiten = self.whiten0
-        # the whitening W = L Lᵀ was last computed from, and W (:attr:`weight`)
-        self._weight: tuple[FloatArray, FloatArray] | None = None
         self.weight_rotation = weight_rotation
         self.turned_at: FloatArray | None = None
         self.control_point = control_point
@@ -208,15 +206,6 @@ class _Problem:
         _by_rows(unit.size, block)
         self.whiten, self.point_jacobian = whiten, point_jacobian
         return True
-
-    @property
-    def weight(self) -> FloatArray:
-        """The rows' weight ``W = L Lᵀ`` (n, 3, 3) of the whitening in use
-        (the given weight's lower triangle, as the whitening reads it), once
-        per whitening: a turn of the weights replaces it."""
-        if self._weight is None or self._weight[0] is not self.whiten:
-            self._weight = (self.whiten, _gram(self.whiten))
-        return self._weight[1]
 
     @property
     def n_observations(self) -> int:
@@ -450,12 +439,12 @@ def _gradients(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
 
     obs = prob.obs
     y, v = _predict(prob, st)
-    weight = prob.weight
+    lt = prob.whiten
     per_row = np.empty((v.shape[0], N_UNIT))
 
     def block(rows: slice) -> None:
-        yr = y[rows]
-        q = np.einsum("nij,nj->ni", weight[rows], v[rows])  # W v
+        lr, yr = lt[rows], y[rows]
+        q = np.einsum("nji,nj->ni", lr, np.einsum("nij,nj->ni", lr, v[rows]))  # L Lᵀ v
         out = per_row[rows]
         out[:, 0:3] = q
         out[:, 3:6] = np.cross(yr, q)
@@ -807,14 +796,15 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
         return st
     obs = prob.obs
     y = _turned(prob, st)
-    weight = prob.weight
+    lt = prob.whiten
     n = prob.n_points
     weighted = np.empty(y.shape)
 
     def block(rows: slice) -> None:
         placed = st.translation[obs.unit[rows]] + y[rows]  # T_u(x) of the rows
-        # W x of each row (summed per point below)
-        weighted[rows] = np.einsum("nij,nj->ni", weight[rows], placed)
+        # W x of each row, W = L Lᵀ (summed per point below)
+        lr = lt[rows]
+        weighted[rows] = np.einsum("nji,nj->ni", lr, np.einsum("nij,nj->ni", lr, placed))
 
     _by_rows(y.shape[0], block)
     rhs: FloatArray = np.column_stack(
@@ -822,7 +812,7 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     )
     used = prob.points_used
     if inverse is None:
-        inverse = point_factor(sum_into(obs.point, weight, n)[used]).v_inv
+        inverse = point_factor(sum_into(obs.point, _gram(lt), n)[used]).v_inv
         if not np.all(np.isfinite(inverse)):  # a point its rows do not fix: the step's own
             return st
     else:
@@ -899,8 +889,8 @@ def _result(
 
     # Row statistics: the row's leverage on its own point with the units
     # fixed, h = W^(1/2) V⁻¹ W^(1/2); the units' 7 U parameters spread evenly.
-    weight = prob.weight
-    wv = _rows_times(prob.whiten, v)
+    lt = prob.whiten
+    wv = _rows_times(lt, v)
     # V⁻¹ of the points the rows observe: the engine's (statistics only)
     v_inv = sol.point_inverse
     row_point = prob.engine_point[obs.point]
@@ -908,7 +898,7 @@ def _result(
 
     def block(rows: slice) -> None:
         # trace(Lᵀ V⁻¹ L) = Σ_ij (L Lᵀ)_ij (V⁻¹)_ij
-        leverage[rows] = np.einsum("nij,nij->n", weight[rows], v_inv[row_point[rows]])
+        leverage[rows] = np.einsum("nij,nij->n", _gram(lt[rows]), v_inv[row_point[rows]])
 
     _by_rows(v.shape[0], block)
     free = 3.0 - leverage
