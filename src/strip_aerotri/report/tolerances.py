@@ -400,7 +400,7 @@ def chance_beyond(
     """
     # Neither scipy.stats (0.2-0.35 s to import, a tenth of a run) nor
     # scipy.special (25 ms): P(X >= k) of X ~ B(n, p) is a finite sum
-    # (_stats.binomial_tail; scipy's ``binom.sf(k - 1, n, p)`` within 1e-13),
+    # (_stats.binomial_tail; scipy's ``binom.sf(k - 1, n, p)`` within 2e-13),
     # and Φ(−x) is ``erfc(x √½) / 2``, as scipy's ``ndtr(-x)`` within an ulp.
     if count <= 0:
         return 1.0
