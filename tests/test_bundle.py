@@ -534,3 +534,61 @@ def test_a_block_is_numbered_across_its_strips():
     assert width < 0.6 * given.width  # strip after strip: about two strips' length
     assert width <= 4 * 8  # four strips, a window of at most 8 photos each
     assert res.converged and 0.8 < res.sigma0 < 1.2
+
+
+def test_results_per_observation_follow_the_observations_order():
+    """The adjustment runs on its rows in the normal structure's order of
+    pairs (bundle/adjust.py ``_Problem.rows``); residuals and redundancy
+    numbers come back in the observations' own order, whatever it is: the
+    observations shuffled give the same adjustment and the same values
+    shuffled alike (to 1e-9), and a point behind a photo is named by the
+    first such observation as given."""
+    strip = make_strip()
+    rng = np.random.default_rng(3)
+    obs = strip.observations(rng)
+    ctrl, ctrl_sigma = full_control(strip, corner_points(strip)[:4])
+    start = perturbed(strip, rng)
+    perm = rng.permutation(obs.photo.size)
+    shuffled = ImageObservations(
+        obs.photo_ids, obs.point_ids, obs.photo[perm], obs.point[perm], obs.xy[perm],
+        obs.sigma[perm], obs.principal_distance,
+    )
+    a = bundle_adjust(obs, *start, control_xyz=ctrl, control_sigma=ctrl_sigma)
+    b = bundle_adjust(shuffled, *start, control_xyz=ctrl, control_sigma=ctrl_sigma)
+    np.testing.assert_allclose(b.points, a.points, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(b.residuals_mm, a.residuals_mm[perm], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(b.image_redundancy, a.image_redundancy[perm], rtol=1e-9)
+    predicted = (strip.xy - obs.xy)[perm]  # computed minus observed, near the truth
+    assert np.sqrt(np.mean((b.residuals_mm - predicted) ** 2)) < SIGMA_MM
+    # behind a photo: two points moved above the photos; the first named
+    behind = start[2].copy()
+    first, second = shuffled.point[0], shuffled.point[1]
+    behind[[first, second]] = strip.centres[0] + [0.0, 0.0, 500.0]
+    with pytest.raises(GeometryError, match=f"point 'p{first:03d}' lies behind"):
+        bundle_adjust(shuffled, start[0], start[1], behind, control_xyz=ctrl,
+                      control_sigma=ctrl_sigma)
+
+
+def test_the_image_rows_centre_columns_are_their_points_negated_on_every_row():
+    """The bundle marks its image rows ``unit_shift`` (the engine forms their
+    blocks from the distinct products and checks a sample): every row's
+    centre columns are its point's negated, to the bit, whitened or not."""
+    from strip_aerotri.bundle import adjust
+
+    strip = make_strip()
+    rng = np.random.default_rng(8)
+    obs = strip.observations(rng)
+    obs = ImageObservations(
+        obs.photo_ids, obs.point_ids, obs.photo, obs.point, obs.xy,
+        rng.uniform(0.002, 0.01, obs.photo.size), obs.principal_distance,
+    )  # a sigma of its own per observation: the rows whitened unequally
+    ctrl, ctrl_sigma = full_control(strip, corner_points(strip)[:4])
+    centres, rotations, points = perturbed(strip, rng)
+    prob = adjust._make_problem(
+        obs, centres, rotations, points, ctrl, ctrl_sigma, None, None, None, None
+    )
+    normals = adjust._normals(prob, adjust._State(centres, rotations, points))
+    assert normals is not None and normals.image.unit_shift
+    np.testing.assert_array_equal(
+        normals.image.unit_jacobian[..., :3], -normals.image.point_jacobian
+    )

@@ -636,3 +636,96 @@ def test_the_cofactors_of_some_points_equal_the_dense_inverse(case: str) -> None
     np.testing.assert_allclose(got, expected, atol=1e-10 * scale)
     np.testing.assert_allclose(got, sol.cofactors().point[chosen], atol=1e-12 * scale)
     assert sol.point_cofactors(np.zeros(0, np.intp)).shape == (0, 3, 3)
+
+
+def _shift_problem(case: dict[str, object], *, shuffle_rows: bool, flag: bool = True) -> Problem:
+    """The case's rows as one group whose unit's first three columns are the
+    point's negated (a projection centre against its image points), marked
+    `unit_shift`, sorted by unit or shuffled; without a border (the kernel's
+    case)."""
+    prob = make_problem(**case)  # type: ignore[arg-type]
+    a, b = prob.upr
+    unit, point = np.r_[a.unit, b.unit], np.r_[a.point, b.point]
+    au = np.concatenate([a.unit_jacobian, b.unit_jacobian])
+    ap = np.concatenate([a.point_jacobian, b.point_jacobian])
+    f = np.concatenate([a.residual, b.residual])
+    assert a.weight is not None and b.weight is not None
+    w = np.concatenate([a.weight, b.weight])
+    au[..., :3] = -ap
+    # rows sorted by unit (the units' sums by their runs) or at random (by bincount)
+    perm = (
+        np.random.default_rng(5).permutation(unit.size) if shuffle_rows
+        else np.argsort(unit, kind="stable")
+    )
+    unit, point, au, ap, f, w = unit[perm], point[perm], au[perm], ap[perm], f[perm], w[perm]
+    rows = UnitPointRows(unit, point, au, ap, f, w, unit_shift=flag)
+    return Problem(prob.n, prob.d, prob.p, 0, [rows], prob.ur, prob.pr, [])
+
+
+SHIFT_CASES = {
+    "strip": {},
+    "strip-d7": {"d": 7},
+    "block-shuffled": {"strips": 2, "n": 16, "shuffle_units": True},
+    "strip-full-weights": {"full_weights": True},
+}
+
+
+@pytest.mark.parametrize("case", list(SHIFT_CASES), ids=list(SHIFT_CASES))
+@pytest.mark.parametrize("shuffle_rows", [False, True], ids=["by-unit", "shuffled"])
+def test_unit_shift_rows_in_either_order_equal_the_dense_solution(
+    case: str, shuffle_rows: bool
+) -> None:
+    """Rows marked `unit_shift` (their blocks from the distinct products), as
+    given and in the pairs' order of :meth:`NormalStructure.in_pair_order`,
+    give the dense solution, cofactors and redundancy numbers, and the
+    general kernel's blocks to rounding."""
+    prob = _shift_problem(SHIFT_CASES[case], shuffle_rows=shuffle_rows)
+    plain = _shift_problem(SHIFT_CASES[case], shuffle_rows=shuffle_rows, flag=False)
+    a, f, _ = dense(prob)
+    expected = np.linalg.solve(a.T @ a, -a.T @ f)
+    q_dense = np.linalg.inv(a.T @ a)
+    st = _structure(prob)
+    ordered = st.in_pair_order()
+    assert ordered is not None
+    st_pairs, places = ordered
+    (rows,) = prob.upr
+    in_pairs = UnitPointRows(
+        rows.unit[places], rows.point[places], rows.unit_jacobian[places],
+        rows.point_jacobian[places], rows.residual[places],
+        None if rows.weight is None else rows.weight[places], unit_shift=True,
+    )
+    assert st_pairs.pattern.rows_in_pair_order and not st.pattern.rows_in_pair_order
+    general = st.form(plain.upr, prob.ur, prob.pr).unit_blocks
+    for structure, upr in ((st, prob.upr), (st_pairs, [in_pairs])):
+        formed = structure.form(upr, prob.ur, prob.pr)
+        np.testing.assert_allclose(formed.unit_blocks, general, rtol=1e-13, atol=1e-12)
+        sol = formed.solve()
+        got = np.concatenate([sol.unit_step.ravel(), sol.point_step.ravel()])
+        assert np.linalg.norm(got - expected) <= 1e-10 * np.linalg.norm(expected)
+        assert sol.cost == pytest.approx(float(f @ f), rel=1e-12)
+        cof = sol.cofactors()
+        n_d = prob.n * prob.d
+        q_units = q_dense[:n_d, :n_d].reshape(prob.n, prob.d, prob.n, prob.d)
+        idx = np.arange(prob.n)
+        np.testing.assert_allclose(cof.unit, q_units[idx, :, idx, :], rtol=1e-9, atol=1e-12)
+        h = cof.redundancy(upr[0])
+        plain_h = _structure(plain).solve(plain.upr, prob.ur, prob.pr).cofactors().redundancy(
+            plain.upr[0]
+        )
+        if upr[0] is in_pairs:
+            plain_h = plain_h[places]
+        np.testing.assert_allclose(h, plain_h, rtol=1e-9, atol=1e-12)
+
+
+def test_unit_shift_rows_must_have_the_opposite_columns() -> None:
+    prob = _shift_problem({}, shuffle_rows=False)
+    (rows,) = prob.upr
+    au = rows.unit_jacobian.copy()
+    au[3, 1, 2] += 1e-9
+    bad = UnitPointRows(rows.unit, rows.point, au, rows.point_jacobian, rows.residual,
+                        rows.weight, unit_shift=True)
+    with pytest.raises(ValueError, match="unit_shift"):
+        _structure(prob).form([bad], prob.ur, prob.pr)
+    cof = _structure(prob).solve(prob.upr, prob.ur, prob.pr).cofactors()
+    with pytest.raises(ValueError, match="unit_shift"):
+        cof.redundancy(bad)

@@ -287,10 +287,14 @@ def test_rows_are_read_from_the_sensor_top() -> None:
         assert np.allclose(shutter.fractions(flight), [-0.5, 0.5, 0.0])
 
 
-def _linearised(monkeypatch: pytest.MonkeyPatch) -> tuple[object, np.ndarray, int]:
+def _linearised(
+    monkeypatch: pytest.MonkeyPatch,
+) -> tuple[object, np.ndarray, int, np.ndarray]:
     """The bundle's image rows for seed 6's network with a camera of two
     parameters (k1, b1 at -3e-6, 2e-4) and the simulated motion; the
-    camera's values; the number of times the rows' fractions were computed."""
+    camera's values; the number of times the rows' fractions were computed;
+    the observation of each row (the bundle's rows are in its structure's
+    order)."""
     from strip_aerotri.bundle import adjust
     from strip_aerotri.geometry.camera_model import CameraModel
 
@@ -311,7 +315,7 @@ def _linearised(monkeypatch: pytest.MonkeyPatch) -> tuple[object, np.ndarray, in
     normals = adjust._normals(prob, adjust._State(centres, rotations, points, camera, TRUTH))
     monkeypatch.undo()
     assert normals is not None
-    return normals.image, camera, calls[0]
+    return normals.image, camera, calls[0], prob.rows
 
 
 def test_whitened_rows_equal_rows_whitened_after(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -320,7 +324,7 @@ def test_whitened_rows_equal_rows_whitened_after(monkeypatch: pytest.MonkeyPatch
     (rtol 1e-12): the motion's columns s dx/dS are linear in dx/dS."""
     from strip_aerotri.geometry.camera_model import CameraModel
 
-    image, camera, _ = _linearised(monkeypatch)
+    image, camera, _, rows = _linearised(monkeypatch)
     obs, shutter, centres, rotations, points = _network(TRUTH, seed=6)
     model = CameraModel("brown", ("k1", "b1"), C)
     s = shutter.fractions(obs.xy)
@@ -335,12 +339,17 @@ def test_whitened_rows_equal_rows_whitened_after(monkeypatch: pytest.MonkeyPatch
     )
     inv_s = 1.0 / obs.sigma
     w = inv_s[:, None, None]
-    np.testing.assert_allclose(image.unit_jacobian, jac_photo * w, rtol=1e-12, atol=0)
-    np.testing.assert_allclose(image.point_jacobian, jac_point * w, rtol=1e-12, atol=0)
-    np.testing.assert_allclose(image.border_jacobian, border * w, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(image.unit_jacobian, (jac_photo * w)[rows], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(image.point_jacobian, (jac_point * w)[rows], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(image.border_jacobian, (border * w)[rows], rtol=1e-12, atol=0)
     observed = obs.xy + model.correction(obs.xy, camera)
-    np.testing.assert_allclose(image.residual, (xy - observed) * inv_s[:, None], rtol=1e-12)
+    np.testing.assert_allclose(
+        image.residual, ((xy - observed) * inv_s[:, None])[rows], rtol=1e-12
+    )
     assert np.count_nonzero(border[:, :, 2:]) > 0  # the motion's columns are there
+    # every row's centre columns are its point's negated (the rows' unit_shift)
+    assert image.unit_shift
+    np.testing.assert_array_equal(image.unit_jacobian[..., :3], -image.point_jacobian)
 
 
 def test_fractions_are_computed_once_per_linearisation(monkeypatch: pytest.MonkeyPatch) -> None:

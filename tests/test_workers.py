@@ -276,14 +276,19 @@ def test_two_threads_give_the_results_of_one_bit_for_bit(
         return refine_bundle(result, self_calibration=spec)
 
     names: set[str] = set()
-    products = _normal_entries._summed
 
-    def summed(*args):  # type: ignore[no-untyped-def]
-        names.add(threading.current_thread().name)
-        time.sleep(0.0005)  # pieces long enough for the worker to start and take some
-        return products(*args)
+    def seen(function):  # type: ignore[no-untyped-def]
+        def traced(*args, **kwargs):  # type: ignore[no-untyped-def]
+            names.add(threading.current_thread().name)
+            time.sleep(0.0005)  # pieces long enough for the worker to start and take some
+            return function(*args, **kwargs)
 
-    monkeypatch.setattr(_normal_entries, "_summed", summed)
+        return traced
+
+    # the rows' products: by the general kernel (a border) or the photos' own
+    # (`unit_shift` rows)
+    monkeypatch.setattr(_normal_entries, "_summed", seen(_normal_entries._summed))
+    monkeypatch.setattr(_normal_entries, "_lower_gram", seen(_normal_entries._lower_gram))
     two = run()
     assert any(name.startswith("strip_aerotri-worker") for name in names)
     monkeypatch.setenv(WORKERS_VARIABLE, "1")
@@ -328,14 +333,19 @@ def test_the_ground_stage_on_two_threads_gives_the_results_of_one(
         image_blunders=2,
     )  # fmt: skip
     names: set[str] = set()
-    products = _normal_entries._summed
 
-    def summed(*args):  # type: ignore[no-untyped-def]
-        names.add(threading.current_thread().name)
-        time.sleep(0.0005)  # pieces long enough for the worker to start and take some
-        return products(*args)
+    def seen(function):  # type: ignore[no-untyped-def]
+        def traced(*args, **kwargs):  # type: ignore[no-untyped-def]
+            names.add(threading.current_thread().name)
+            time.sleep(0.0005)  # pieces long enough for the worker to start and take some
+            return function(*args, **kwargs)
 
-    monkeypatch.setattr(_normal_entries, "_summed", summed)
+        return traced
+
+    # the rows' products: by the general kernel (a border) or the photos' own
+    # (`unit_shift` rows)
+    monkeypatch.setattr(_normal_entries, "_summed", seen(_normal_entries._summed))
+    monkeypatch.setattr(_normal_entries, "_lower_gram", seen(_normal_entries._lower_gram))
     two = triangulate(sim.observations, sim.control, sim.crs)
     assert any(name.startswith("strip_aerotri-worker") for name in names)
     monkeypatch.setenv(WORKERS_VARIABLE, "1")

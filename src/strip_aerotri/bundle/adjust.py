@@ -70,10 +70,11 @@ from ..geometry.normals import (
     UnitPointRows,
     UnitRows,
 )
-from ..geometry.rotation import matrix_from_rotvec, skew
+from ..geometry.rotation import matrix_from_rotvec
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS
 from ..results import BundleResult, CameraEstimate, ShutterEstimate
+from ._datum import free_motions
 from ._given import along_axis_order, check_rotations, given_weights, observed_with_sigma
 from ._so3 import imu_residual as _imu_residual
 from ._so3 import right_jacobian_inv as _right_jacobian_inv
@@ -94,10 +95,6 @@ class CameraUndetermined(GeometryError):
 _SINGULAR_PIVOT = 1e-11
 #: Relative pivot below which a near-singular reduced matrix is warned about.
 _WEAK_PIVOT = 1e-8
-#: Ratio of smallest to largest singular value of the datum matrix (unit
-#: weights, coordinates reduced to the centroid and scaled by the net's size)
-#: below which a similarity degree of freedom counts as free.
-_DATUM_RANK_TOL = 1e-9
 #: How the warning of an adjustment out of iterations begins (callers that run
 #: trial adjustments filter it by this text).
 NOT_CONVERGED = "bundle adjustment did not converge"
@@ -105,15 +102,6 @@ NOT_CONVERGED = "bundle adjustment did not converge"
 #: below which the point counts as undetermined (e.g. seen on one photo only).
 _POINT_RANK_TOL = 1e-10
 
-_MOTION_NAMES = (
-    "shift along X",
-    "shift along Y",
-    "shift along Z",
-    "rotation about X",
-    "rotation about Y",
-    "rotation about Z",
-    "scale",
-)
 _PHOTO_PARAMETER_NAMES = (
     "X0",
     "Y0",
@@ -130,6 +118,7 @@ _PHOTO_PARAMETER_NAMES = (
 @dataclass(frozen=True)
 class _Problem:
     photo_ids: tuple[str, ...]
+    rows: IntArray  # (K,) the observation of each row (the rows in the structure's pairs' order)
     photo: IntArray
     point: IntArray
     xy: FloatArray
@@ -228,12 +217,18 @@ def _make_problem(
             point_names=tuple(obs.point_ids), parameter_names=_PHOTO_PARAMETER_NAMES,
         ),
     ).with_border(n_border)
+    # the rows in the pairs' order, so that the normal blocks read them in place
+    ordered = structure.in_pair_order()
+    rows = np.arange(k, dtype=np.intp)
+    if ordered is not None:
+        structure, rows = ordered
     return _Problem(
         photo_ids=tuple(obs.photo_ids),
-        photo=photo,
-        point=point,
-        xy=xy,
-        sigma=np.array(sigma),
+        rows=rows,
+        photo=photo[rows],
+        point=point[rows],
+        xy=xy[rows],
+        sigma=sigma[rows],
         c=c,
         n_photos=m,
         n_points=p,
@@ -273,7 +268,7 @@ class _Normals:
     photo_rows: tuple[UnitRows, ...]  # GNSS centres, IMU attitudes
     formed: FormedNormals
     cost: float
-    residuals_mm: FloatArray  # (K, 2), computed - observed
+    residuals_mm: FloatArray  # (K, 2) per row (prob.rows), computed - observed
 
 
 @dataclass(frozen=True)
@@ -310,7 +305,7 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     border = _border(prob, state, jac_photo, inv_s, shutter)
     image = UnitPointRows(
         prob.photo, prob.point, jac_photo, jac_point, res * inv_s[:, None],
-        border_jacobian=border,
+        border_jacobian=border, unit_shift=True,
     )  # fmt: skip
     cp = prob.control_points
     control = PointRows(
@@ -451,59 +446,6 @@ def _apply(state: _State, step: _Reduced) -> _State:
         camera=state.camera + border[:k] if k else state.camera,
         motion=state.motion + border[k:].reshape(-1, 3) if state.motion.size else state.motion,
     )
-
-
-# --- Datum -------------------------------------------------------------------
-
-
-def _free_motions(prob: _Problem, state: _State) -> list[str]:
-    """Describe the similarity degrees of freedom left free by control, GNSS and IMU.
-
-    The 7 infinitesimal similarity motions of the whole net (shifts, rotations
-    about the frame axes through the centroid, scale; coordinates scaled by
-    the net's size) are applied to the observed quantities; the rank of that
-    n x 7 matrix (unit weights) tells which motions the observations fix.
-    """
-    ref = np.concatenate([state.points, state.centres])
-    x0 = ref.mean(axis=0)
-    size = float(np.sqrt(np.mean(np.sum((ref - x0) ** 2, axis=1)))) or 1.0
-
-    def motion_rows(xyz: FloatArray) -> FloatArray:
-        q = (xyz - x0) / size
-        g = np.zeros((xyz.shape[0], 3, 7))
-        g[:, :, :3] = np.eye(3)
-        g[:, :, 3:6] = -skew(q)  # d(omega x q)/d(omega)
-        g[:, :, 6] = q
-        return g
-
-    g_imu = np.zeros((prob.n_photos, 3, 7))
-    g_imu[:, :, 3:6] = np.swapaxes(state.rotations, 1, 2)  # e -> e + R.T omega
-    g = np.concatenate(
-        [
-            motion_rows(state.points)[prob.control_weight > 0],
-            motion_rows(state.centres)[prob.gnss_weight > 0],
-            g_imu[prob.imu_weight > 0],
-        ]
-    )
-    if g.shape[0] == 0:
-        return list(_MOTION_NAMES)
-    r_factor = np.zeros((7, 7))
-    # same singular values, at most 7 x 7; mode "r" gives R alone (the stubs say QRResult)
-    r_part: FloatArray = np.linalg.qr(g, mode="r")  # type: ignore[assignment]
-    r_factor[: r_part.shape[0]] = r_part
-    _, sv, vt = np.linalg.svd(r_factor)
-    rank = int(np.count_nonzero(sv > _DATUM_RANK_TOL * sv[0]))
-    null = vt[rank:]  # (7 - rank, 7) orthonormal basis of the free motions
-    if null.shape[0] == 0:
-        return []
-    share = np.sum(null**2, axis=0)  # squared length of each motion in the null space
-    whole = share > 1.0 - 1e-6
-    free = [_MOTION_NAMES[i] for i in np.flatnonzero(whole)]
-    rest = null.shape[0] - len(free)
-    if rest > 0:
-        parts = [_MOTION_NAMES[i] for i in np.flatnonzero(~whole & (share > 1e-3))]
-        free.append(f"{rest} combination(s) of {', '.join(parts)}")
-    return free
 
 
 # --- Precision ---------------------------------------------------------------
@@ -707,7 +649,7 @@ def bundle_adjust(
             redundancy=int(redundancy),
             iterations=iterations,
             converged=converged,
-            residuals_mm=normals.residuals_mm,
+            residuals_mm=_as_given(prob, normals.residuals_mm),
             control_residuals=np.where(control_used, state.points - prob.control_xyz, np.nan),
             point_std=precision.point_std,
             centre_std=precision.centre_std,
@@ -718,10 +660,17 @@ def bundle_adjust(
             imu_residuals=np.where(prob.imu_weight > 0, precision.imu_residuals, np.nan),
             gnss_residual_cofactor=precision.gnss_cofactor,
             imu_residual_cofactor=precision.imu_cofactor,
-            image_redundancy=precision.image_redundancy,
+            image_redundancy=_as_given(prob, precision.image_redundancy),
             camera=precision.camera,
             motion=precision.motion,
         )
+
+
+def _as_given(prob: _Problem, per_row: FloatArray) -> FloatArray:
+    """Values of the rows (K, ...) in the observations' order."""
+    out = np.empty_like(per_row)
+    out[prob.rows] = per_row
+    return out
 
 
 def _start_state(
@@ -789,7 +738,10 @@ def _check_datum_and_sides(
     """GeometryError when the control, GNSS and IMU leave the datum free or a
     point lies behind a photo at the start values; returns the median depth
     of the points below their photos (the scale of the steps' test)."""
-    free = _free_motions(prob, state)
+    free = free_motions(
+        state.points, state.centres, state.rotations, prob.control_weight, prob.gnss_weight,
+        prob.imu_weight,
+    )
     if free:
         counts = (
             f"{np.count_nonzero(prob.control_weight)} control coordinate(s), "
@@ -805,7 +757,7 @@ def _check_datum_and_sides(
     _, v0 = project(state.centres, state.rotations, state.points, prob.photo, prob.point, prob.c)
     behind = ~(v0[:, 2] < 0.0)
     if np.any(behind):
-        kk = int(np.flatnonzero(behind)[0])
+        kk = int(np.argmin(np.where(behind, prob.rows, prob.rows.size)))  # the first observation
         raise GeometryError(
             f"point '{observations.point_ids[prob.point[kk]]}' lies behind photo "
             f"'{observations.photo_ids[prob.photo[kk]]}' at the initial values"

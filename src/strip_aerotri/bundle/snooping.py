@@ -413,8 +413,11 @@ def _round_statistics(
     k_all = obs.photo.shape[0]
     tested = pt_used[obs.point]
     v_all = np.full((k_all, 2), np.nan)
-    rows_t = _every_or(np.flatnonzero(tested), k_all)
     sel = _every_or(rows, k_all)
+    v_all[sel] = res.residuals_mm  # the adjusted rays' own, computed minus corrected observed
+    left_out = tested.copy()
+    left_out[rows] = False
+    rows_t = np.flatnonzero(left_out)  # rays of used points out of the adjustment
     ray_points = new_points[obs.point[rows_t]]
     if res.motion is not None:  # a rolling shutter: each ray from its moved centre
         shutter = res.motion.model

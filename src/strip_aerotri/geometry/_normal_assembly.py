@@ -25,6 +25,7 @@ from ._normal_entries import (
     pair_blocks,
     point_factor,
     run_sums,
+    shift_pair_blocks,
     spans,
     take,
     times_lower,
@@ -217,7 +218,15 @@ def _pair_blocks(
     if not (np.array_equal(unit, pat.row_unit) and np.array_equal(point, pat.row_point)):
         return None
     au, ap, f, ab = (_joined([a[i] for a in whitened]) for i in range(4))
-    return pair_blocks(pat, pat.pair_row, st.n_units, st.unit_size, st.n_points, st.n_border,
+    d = st.unit_size
+    if st.n_border == 0 and d >= 3 and all(r.unit_shift for r in unit_point_rows):
+        if not np.array_equal(entry_major(au)[:, :3], -entry_major(ap)):
+            raise ValueError(
+                "Expected unit_jacobian[..., :3] == -point_jacobian of rows with unit_shift"
+            )
+        rows = None if pat.rows_in_pair_order else pat.pair_row
+        return shift_pair_blocks(pat, rows, st.n_units, d, st.n_points, au, ap, f)
+    return pair_blocks(pat, pat.pair_row, st.n_units, d, st.n_points, st.n_border,
                        au, ap, f, ab)
 
 
@@ -572,15 +581,19 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     pair = np.zeros((d, 3, pat.pair_unit.size))
     point = red.v_inv.copy()
     point_border = np.zeros((p, 3, k))
-    zflat = z.reshape(-1, d, d)
+    w = w1 - 1
+    both = _both_sides(z).reshape(-1, d, d)
 
     def chunk(c: Chunk) -> None:  # writes the chunk's own pairs and points
         q, n_g, groups = c.q, c.size, c.groups
         qd = q * d
         span = slice(c.pair_start, c.pair_start + groups * n_g * q)
-        blocks = zflat[c.gather]  # (G, q, q, d, d): the same for all points of a group
-        blocks = np.where(c.upper[None, :, :, None, None], np.swapaxes(blocks, -1, -2), blocks)
-        q_rr = blocks.transpose(0, 1, 3, 2, 4).reshape(groups, qd, qd)
+        # Q[a, b] of a group's units (G, q, q, d, d), the same for all its
+        # points: from the band's block (lo + off, lo) at (lo + off, w - off)
+        # of `both`, or its transpose at (lo, w + off) where a < b
+        lo, off = np.divmod(c.gather, w1)
+        at = np.where(c.upper, lo * (2 * w + 1) + w + off, (lo + off) * (2 * w + 1) + w - off)
+        q_rr = both[at].transpose(0, 1, 3, 2, 4).reshape(groups, qd, qd)
         y = times_lower(red.z[..., span], red.m_pair[..., span])  # W V⁻¹ = Z M of the chunk
         y_r = _group_major(y, c, d, 0)  # (G, qd, 3 n_g)
         if k:
@@ -655,6 +668,20 @@ def point_cofactors(
     return out
 
 
+def _both_sides(band: FloatArray) -> FloatArray:
+    """The band of a symmetric block matrix, ``band[J, o] = Q[J + o, J]`` (n,
+    w+1, d, d), on both sides of the diagonal: (n, 2w+1, d, d) with
+    ``Q[J, J + o]`` at ``[J, w + o]`` for ``|o| <= w`` (zero past the ends),
+    so that any block within the band is read as it stands."""
+    n, w1, d, _ = band.shape
+    w = w1 - 1
+    out = np.zeros((n, 2 * w + 1, d, d))
+    for o in range(min(w1, n)):
+        out[: n - o, w + o] = np.swapaxes(band[: n - o, o], 1, 2)  # Q[J, J + o]
+        out[o:, w - o] = band[: n - o, o]  # Q[J + o, J]
+    return out
+
+
 def _joint(blocks: list[list[FloatArray]]) -> FloatArray:
     """A batch of block matrices (g, m, m) from a grid of (g, a, b) blocks."""
     return np.concatenate([np.concatenate(row, axis=2) for row in blocks], axis=1)
@@ -689,11 +716,36 @@ def _pair_leverage(cof: Cofactors, rows: UnitPointRows) -> FloatArray:
         return out
 
     h = np.empty((a_u.shape[0], a_u.shape[2]))  # (r, g)
+    in_order = same and pat.rows_in_pair_order  # row i is pair i
+
+    def q_pair(at: slice) -> FloatArray:
+        return cof.pair[..., at] if in_order else take(cof.pair, pairs[at])
+
+    def shift_block(at: slice) -> None:
+        # a_u = [-a_p, a_r]: a_p (Q11 + Q_pp - Q_up1 - Q_up1ᵀ) a_pᵀ
+        # + 2 a_r (Q_up2 - Q21) a_pᵀ + a_r Q22 a_rᵀ, with Q11 Q21 Q22 the
+        # unit's block split after its first three parameters, Q_up1 Q_up2 the
+        # unit-point block's rows so split
+        x, y = a_p[..., at], a_u[:, 3:, at]
+        q_uu, q_up = take(q_unit, unit[at]), q_pair(at)
+        c = take(q_point, point[at]) + q_uu[:3, :3]
+        c -= q_up[:3]
+        c -= q_up[:3].transpose(1, 0, 2)
+        h[:, at] = form(x, c, x) + 2.0 * form(y, q_up[3:] - q_uu[3:, :3], x)
+        h[:, at] += form(y, q_uu[3:, 3:], y)
+
+    if rows.unit_shift and k == 0 and st.unit_size >= 3:
+        if not np.array_equal(a_u[:, :3], -a_p):
+            raise ValueError(
+                "Expected unit_jacobian[..., :3] == -point_jacobian of rows with unit_shift"
+            )
+        split_map(shift_block, spans(h.shape[1]))
+        return h.T
 
     def rows_block(at: slice) -> None:  # blocks of rows: the gathered blocks stay small
         u, pt = unit[at], point[at]
         bu, bp = a_u[..., at], a_p[..., at]
-        part = form(bu, take(q_unit, u), bu) + 2.0 * form(bu, take(cof.pair, pairs[at]), bp)
+        part = form(bu, take(q_unit, u), bu) + 2.0 * form(bu, q_pair(at), bp)
         part += form(bp, take(q_point, pt), bp)
         if a_b is not None:
             bb = a_b[..., at]

@@ -35,6 +35,7 @@ __all__ = [
     "pair_blocks",
     "point_factor",
     "run_sums",
+    "shift_pair_blocks",
     "spans",
     "take",
 ]
@@ -198,6 +199,110 @@ def pair_blocks(
         u, w, v, g_unit, g_point, unit_border, point_border,
         np.einsum("gra,grb->ab", ab, ab), np.einsum("gra,gr->a", ab, f), cost,
     )
+
+
+def shift_pair_blocks(
+    pat: Pattern, rows: IntArray | None, n: int, d: int, p: int,
+    au: FloatArray, ap: FloatArray, f: FloatArray,
+) -> PairBlocks:
+    """:func:`pair_blocks` without a border for rows whose unit's first three
+    parameters move them as the opposite shift of their point does,
+    ``au[..., :3] == -ap`` (a photo's projection centre against its image
+    points); ``rows`` as there, None when the rows are in the pairs' order.
+    With ``ar = au[..., 3:]`` the blocks need only ``apᵀ ap``, ``arᵀ ap``,
+    ``arᵀ ar``, ``apᵀ f`` and ``arᵀ f`` per row (27 of the 54 products for
+    d = 6): ``W = [-apᵀ ap; arᵀ ap]``, per point ``V = Σ apᵀ ap``,
+    ``g_point = Σ apᵀ f``, per unit ``U = [[Σ apᵀ ap, -Σ (arᵀ ap)ᵀ],
+    [-Σ arᵀ ap, Σ arᵀ ar]]``, ``g_unit = [-Σ apᵀ f, Σ arᵀ f]``.
+
+    The products are formed once per row in the rows' own order from the
+    entry-major Jacobians (no copy when they are laid out so, as
+    :func:`~strip_aerotri.geometry.collinearity.collinearity_jacobians`
+    lays them out); the pairs' share is read in place when the rows are in
+    the pairs' order (else gathered), the units' summed by their runs (or,
+    rows not sorted by unit, by ``np.bincount``).  Equal to
+    :func:`pair_blocks` of the same rows up to the rounding of the sums'
+    order (the products are the same)."""
+    g = f.shape[0]
+    e = d - 3
+    a_u, a_p, f_e = entry_major(au), entry_major(ap), entry_major(f)
+    a_r = a_u[:, 3:]
+    # rows of `prod`: W of each row (d, 3) in C order, then apᵀ f (3), arᵀ f
+    # (e) and arᵀ ar (lower); W's top -apᵀ ap, its bottom arᵀ ap
+    at_gp = 3 * d
+    at_gr, at_rr = at_gp + 3, at_gp + 3 + e
+    prod = np.empty((at_rr + e * (e + 1) // 2, g))
+    w_rows = prod[:at_gp].reshape(d, 3, g)
+    lower = [3 * i + j for i in range(3) for j in range(i + 1)]  # -apᵀ ap's own entries
+
+    def products(span: slice) -> None:
+        xp, xr, xf = a_p[..., span], a_r[..., span], f_e[:, span]
+        for i in range(3):  # W[i, :i + 1] = -Σ_r ap[r, i] ap[r, :i + 1]
+            row = w_rows[i, : i + 1, span]
+            np.einsum("rk,rbk->bk", xp[:, i], xp[:, : i + 1], out=row)
+            np.negative(row, out=row)
+            w_rows[: i, i, span] = w_rows[i, : i, span]
+        np.einsum("rak,rbk->abk", xr, xp, out=w_rows[3:, :, span])
+        np.einsum("rak,rk->ak", xp, xf, out=prod[at_gp:at_gr, span])
+        np.einsum("rak,rk->ak", xr, xf, out=prod[at_gr:at_rr, span])
+        _lower_gram(xr, prod[at_rr:, span])
+
+    split_map(products, spans(g))
+    # W: the rows' own in the pairs' order, else gathered
+    w = w_rows if rows is None else take(w_rows, rows)
+    v, g_point = np.zeros((p, 3, 3)), np.zeros((p, 3))
+
+    def point_block(span: slice, places: slice | IntArray, starts: IntArray,
+                    seen: IntArray) -> None:
+        top = w[:3, :, span].reshape(9, -1)
+        gp = prod[at_gp:at_gr, places] if rows is None else take(
+            prod[at_gp:at_gr], rows[places]
+        )
+        v[seen] = -np.add.reduceat(top, starts, axis=-1).T.reshape(-1, 3, 3)
+        g_point[seen] = np.add.reduceat(gp, starts, axis=-1).T
+
+    split_map(_star(point_block), blocks_of(pat.point_runs, w.shape[-1]))
+    own = np.r_[lower, 9 : at_gp, at_gp:at_rr, at_rr : prod.shape[0]]
+    sums = _unit_sums(prod, own, pat, n)  # (n, entries of `own`)
+    ip, jp = np.tril_indices(3)
+    n_rp = 3 * e
+    u = np.empty((n, d, d))
+    u[:, ip, jp] = u[:, jp, ip] = -sums[:, :6]
+    rp = sums[:, 6 : 6 + n_rp].reshape(n, e, 3)
+    np.negative(rp, out=u[:, 3:, :3])
+    np.negative(np.swapaxes(rp, 1, 2), out=u[:, :3, 3:])
+    ir, jr = np.tril_indices(e)
+    at = 6 + n_rp
+    u[:, 3 + ir, 3 + jr] = u[:, 3 + jr, 3 + ir] = sums[:, at + 3 + e :]
+    g_unit = np.concatenate([-sums[:, at : at + 3], sums[:, at + 3 : at + 3 + e]], axis=1)
+    cost = float(np.einsum("rk,rk->", f_e, f_e))
+    return PairBlocks(u, w, v, g_unit, g_point, np.zeros((n, d, 0)), np.zeros((p, 3, 0)),
+                      np.zeros((0, 0)), np.zeros(0), cost)
+
+
+def _unit_sums(values: FloatArray, entries: IntArray, pat: Pattern, n: int) -> FloatArray:
+    """Sums (n, len(entries)) of the `entries` of entry-major per-row values
+    (E, G) over each unit's rows: by the runs of rows sorted by unit, else
+    one ``np.bincount`` per entry (a gather of the rows by unit would read
+    them at random)."""
+    if pat.row_unit_runs[0] is None:
+        return run_sums(values[entries], pat.row_unit_runs, n)
+    out = np.empty((entries.size, n))
+
+    def entry(i: int) -> None:
+        out[i] = np.bincount(pat.row_unit, values[entries[i]], minlength=n)
+
+    split_map(entry, range(entries.size))
+    return out.T
+
+
+def _lower_gram(x: FloatArray, out: FloatArray) -> None:
+    """``Σ_r x[r, a] x[r, b]`` of entry-major x (r, m, g) for a >= b, row by
+    row of the lower triangle (``np.tril_indices(m)``'s order), into out
+    (m (m + 1) / 2, g)."""
+    for a in range(x.shape[1]):
+        lo = a * (a + 1) // 2
+        np.einsum("rk,rbk->bk", x[:, a], x[:, : a + 1], out=out[lo : lo + a + 1])
 
 
 def _call(task: Callable[[], None]) -> None:

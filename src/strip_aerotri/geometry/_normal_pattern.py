@@ -86,6 +86,27 @@ class Pattern:
     pair_unit_runs: tuple[IntArray | None, IntArray, IntArray]
     row_unit_runs: tuple[IntArray | None, IntArray, IntArray]
     pair_by_key: IntArray  # the pair of each sorted key
+    #: the unit-point rows are the pairs themselves, in their order (row i is
+    #: pair i's: :meth:`in_pair_order`)
+    rows_in_pair_order: bool = False
+
+    def in_pair_order(self) -> Pattern | None:
+        """The same pattern for its unit-point rows given in the pairs' order
+        (``row_unit[pair_row]``, ``row_point[pair_row]``), so that the pairs'
+        blocks are read in place; None when a pair has more than one row."""
+        if self.pair_row is None:
+            return None
+        if self.rows_in_pair_order:
+            return self
+        rows = np.arange(self.pair_row.size, dtype=np.intp)
+        # the runs by unit of the rows as given, renumbered (no new sort)
+        by_unit, starts, units = self.row_unit_runs
+        new_row = self.row_pair  # the new place of each row as given
+        return dataclasses.replace(
+            self, row_unit=self.row_unit[self.pair_row], row_point=self.row_point[self.pair_row],
+            row_pair=rows, pair_row=rows, rows_in_pair_order=True,
+            row_unit_runs=(new_row if by_unit is None else new_row[by_unit], starts, units),
+        )
 
     def pair_of(self, unit: IntArray, point: IntArray) -> IntArray:
         """Pair index of (unit, point) couplings; ValueError if not in the pattern."""

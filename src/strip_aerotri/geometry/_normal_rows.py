@@ -96,7 +96,13 @@ def _check(a: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:
 
 @dataclass(frozen=True)
 class UnitPointRows:
-    """Rows on one unit and one point each (see the module docstring)."""
+    """Rows on one unit and one point each (see the module docstring).
+
+    ``unit_shift``: the unit's first three parameters shift it as the
+    opposite shift of the point does, ``unit_jacobian[..., :3] ==
+    -point_jacobian`` exactly (a photo's projection centre against its image
+    points); the blocks are then formed from the distinct products alone
+    (ValueError when the Jacobians do not agree)."""
 
     unit: IntArray
     point: IntArray
@@ -105,6 +111,7 @@ class UnitPointRows:
     residual: FloatArray
     weight: FloatArray | None = None
     border_jacobian: FloatArray | None = None
+    unit_shift: bool = False
 
     def whitened(self, k: int, d: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """T A_unit, T A_point, T f, T A_border for k border and d unit parameters."""

@@ -194,6 +194,7 @@ class NormalStructure:
         for s in sets:
             if s.ndim != 2 or (s.size and (s.min() < 0 or s.max() >= n_units)):
                 raise ValueError("Expected `units` of shape (g, q) with indices of units")
+        self._pair_ordered: tuple[NormalStructure, IntArray] | None = None
         self._order = self._choose_order(order, row_unit, row_point, sets, candidates)
         self.pattern: Pattern = build_pattern(
             n_units, unit_size, n_points, row_unit, row_point, sets, self._order
@@ -209,6 +210,23 @@ class NormalStructure:
         other = copy.copy(self)
         other.n_border = n_border
         return other
+
+    def in_pair_order(self) -> tuple[NormalStructure, IntArray] | None:
+        """The same structure for its unit-point rows given in the pairs'
+        order, and the place among the rows as given of each row so ordered
+        (rows in the pairs' order are ``rows[places]``): the pairs' blocks
+        are then formed without gathering the rows.  None when a pair has
+        more than one row.  Built once per structure."""
+        if self._pair_ordered is None:
+            pattern = self.pattern.in_pair_order()
+            if pattern is None or self.pattern.pair_row is None:
+                return None
+            other = copy.copy(self)
+            other.pattern = pattern
+            other._pair_ordered = None
+            self._pair_ordered = (other, self.pattern.pair_row)
+        ordered, places = self._pair_ordered
+        return ordered.with_border(self.n_border), places
 
     def _choose_order(
         self,
