@@ -729,3 +729,25 @@ def test_unit_shift_rows_must_have_the_opposite_columns() -> None:
     cof = _structure(prob).solve(prob.upr, prob.ur, prob.pr).cofactors()
     with pytest.raises(ValueError, match="unit_shift"):
         cof.redundancy(bad)
+
+
+def test_group_q_reads_any_block_within_the_band_as_it_stands() -> None:
+    """``Q[a, b]`` of groups of units read from the band laid out on both
+    sides equals the dense symmetric matrix's blocks to the bit, whichever
+    of a, b comes first."""
+    from strip_aerotri.geometry._normal_assembly import _both_sides, _group_q
+
+    rng = np.random.default_rng(8)
+    n, w, d = 7, 2, 3
+    dense = rng.normal(size=(n * d, n * d))
+    dense = dense + dense.T
+    blocks = dense.reshape(n, d, n, d).transpose(0, 2, 1, 3)  # [a, b] -> Q[a, b]
+    band = np.zeros((n, w + 1, d, d))
+    for o in range(w + 1):
+        band[: n - o, o] = blocks[np.arange(o, n), np.arange(n - o)]  # Q[J + o, J]
+    units = np.array([[0, 2, 1], [4, 6, 5], [3, 3, 2]])  # (G, q), all within the band
+    a, b = units[:, :, None], units[:, None, :]
+    gather = np.minimum(a, b) * (w + 1) + np.abs(a - b)
+    got = _group_q(_both_sides(band), gather, a < b)
+    expected = blocks[a, b].transpose(0, 1, 3, 2, 4).reshape(3, 3 * d, 3 * d)
+    np.testing.assert_array_equal(got, expected)

@@ -103,9 +103,15 @@ def test_rays_information_against_finite_differences() -> None:
 
 
 def test_outer_sums_are_the_broadcast_products_to_the_bit():
-    from strip_aerotri.geometry.precision import _outer_sum
+    from strip_aerotri.geometry._row_kernels import outer_sum, row_gram
 
     rng = np.random.default_rng(3)
     a, b = rng.normal(size=(40, 3)), rng.normal(size=(40, 3))
     expected = a[:, :, None] * a[:, None, :] + b[:, :, None] * b[:, None, :]
-    np.testing.assert_array_equal(_outer_sum(a, b), expected)
+    np.testing.assert_array_equal(outer_sum((a, b)), expected)
+    # three rows: the whitening's L Lᵀ, summed in the same order
+    c = rng.normal(size=(40, 3))
+    lt = np.stack([a, b, c], axis=1)
+    expected += c[:, :, None] * c[:, None, :]
+    np.testing.assert_array_equal(outer_sum((a, b, c)), expected)
+    np.testing.assert_array_equal(row_gram(lt), expected)

@@ -395,18 +395,20 @@ def test_rows_whitening_is_the_cholesky_factor_and_refuses_weights_not_positive_
     rng = np.random.default_rng(11)
     a = rng.normal(size=(50, 3, 3))
     weight = a @ np.swapaxes(a, 1, 2) + 1e-3 * np.eye(3)
-    got = sim_module._rows_whitening(weight)
+    got, entries = sim_module._rows_whitening(weight)
     np.testing.assert_allclose(got, np.swapaxes(np.linalg.cholesky(weight), 1, 2), atol=1e-12)
     np.testing.assert_allclose(np.swapaxes(got, 1, 2) @ got, weight, atol=1e-12)
     for bad in (np.diag([1.0, 0.0, 1.0]), np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan)):
         with pytest.raises(ValueError, match="positive definite"):
             sim_module._rows_whitening(np.concatenate([weight, bad[None]]))
     # the whitening turned (upper triangular times any matrix), entry by entry
-    from strip_aerotri.geometry._row_kernels import upper_entries, upper_times
+    from strip_aerotri.geometry._row_kernels import _UPPER, upper_times
+
+    np.testing.assert_array_equal(entries, np.stack([got[:, i, k] for i, k in _UPPER]))
 
     turn = rng.normal(size=(50, 3, 3))
     np.testing.assert_allclose(
-        upper_times(upper_entries(got), np.ascontiguousarray(turn.reshape(-1, 9).T)),
+        upper_times(entries, np.ascontiguousarray(turn.reshape(-1, 9).T)),
         got @ turn, rtol=0, atol=1e-13 * np.abs(got @ turn).max(),
     )  # fmt: skip
 

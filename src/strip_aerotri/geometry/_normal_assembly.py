@@ -14,7 +14,7 @@ from typing import Concatenate, NamedTuple, ParamSpec, TypeVar
 import numpy as np
 
 from .._threads import compute_workers, split_map
-from .._typing import ArrayLike, FloatArray, IntArray
+from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ._blockband import BandFactor, NotPositiveDefinite, factor_band, selected_inverse
 from ._normal_entries import (
     PairBlocks,
@@ -220,10 +220,7 @@ def _pair_blocks(
     au, ap, f, ab = (_joined([a[i] for a in whitened]) for i in range(4))
     d = st.unit_size
     if st.n_border == 0 and d >= 3 and all(r.unit_shift for r in unit_point_rows):
-        if not np.array_equal(entry_major(au)[:, :3], -entry_major(ap)):
-            raise ValueError(
-                "Expected unit_jacobian[..., :3] == -point_jacobian of rows with unit_shift"
-            )
+        _check_unit_shift(au, ap)
         rows = None if pat.rows_in_pair_order else pat.pair_row
         return shift_pair_blocks(pat, rows, st.n_units, d, st.n_points, au, ap, f)
     return pair_blocks(pat, pat.pair_row, st.n_units, d, st.n_points, st.n_border,
@@ -557,6 +554,17 @@ def predicted_cost(st: NormalStructure, red: Reduced) -> float:
     return normals.cost + 2.0 * lin + quad
 
 
+def _check_unit_shift(a_unit: FloatArray, a_point: FloatArray) -> None:
+    """The contract of rows with ``unit_shift``: the first three columns of
+    their (whitened) unit Jacobian (g, r, d) are minus their point Jacobian
+    (g, r, 3), to the bit.  Compared as laid out (the entry-major copies of
+    both cost five times as much on rows laid out row by row)."""
+    if not np.array_equal(a_unit[..., :3], -a_point):
+        raise ValueError(
+            "Expected unit_jacobian[..., :3] == -point_jacobian of rows with unit_shift"
+        )
+
+
 @_in_workers
 def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     """The selected inverse: the band of the units' block (with the border's
@@ -581,19 +589,13 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
     pair = np.zeros((d, 3, pat.pair_unit.size))
     point = red.v_inv.copy()
     point_border = np.zeros((p, 3, k))
-    w = w1 - 1
-    both = _both_sides(z).reshape(-1, d, d)
+    both = _both_sides(z)
 
     def chunk(c: Chunk) -> None:  # writes the chunk's own pairs and points
         q, n_g, groups = c.q, c.size, c.groups
         qd = q * d
         span = slice(c.pair_start, c.pair_start + groups * n_g * q)
-        # Q[a, b] of a group's units (G, q, q, d, d), the same for all its
-        # points: from the band's block (lo + off, lo) at (lo + off, w - off)
-        # of `both`, or its transpose at (lo, w + off) where a < b
-        lo, off = np.divmod(c.gather, w1)
-        at = np.where(c.upper, lo * (2 * w + 1) + w + off, (lo + off) * (2 * w + 1) + w - off)
-        q_rr = both[at].transpose(0, 1, 3, 2, 4).reshape(groups, qd, qd)
+        q_rr = _group_q(both, c.gather, c.upper)  # the same for all the group's points
         y = times_lower(red.z[..., span], red.m_pair[..., span])  # W V⁻¹ = Z M of the chunk
         y_r = _group_major(y, c, d, 0)  # (G, qd, 3 n_g)
         if k:
@@ -653,7 +655,7 @@ def point_cofactors(
     count = np.diff(np.r_[starts, pat.pair_point.size])
     r = run[points]
     q_of = np.where(r >= 0, count[r], 0)
-    flat = band_inverse.reshape(-1, d, d)
+    both = _both_sides(band_inverse)
     for q in np.unique(q_of[q_of > 0]).tolist():
         sel = np.flatnonzero(q_of == q)
         pairs = (starts[r[sel]][:, None] + np.arange(q)).reshape(-1)  # (m q,)
@@ -661,9 +663,7 @@ def point_cofactors(
         y = np.moveaxis(y, -1, 0).reshape(sel.size, q * d, 3)  # the point's Y_a stacked
         units = pat.pair_unit[pairs].reshape(sel.size, q)
         idx, upper = pat.block_index(units[:, :, None], units[:, None, :])  # (m, q, q)
-        blocks = flat[idx]
-        blocks = np.where(upper[..., None, None], np.swapaxes(blocks, -1, -2), blocks)
-        q_rr = blocks.transpose(0, 1, 3, 2, 4).reshape(sel.size, q * d, q * d)
+        q_rr = _group_q(both, idx, upper)
         out[sel] += np.swapaxes(y, 1, 2) @ (q_rr @ y)
     return out
 
@@ -679,6 +679,24 @@ def _both_sides(band: FloatArray) -> FloatArray:
     for o in range(min(w1, n)):
         out[: n - o, w + o] = np.swapaxes(band[: n - o, o], 1, 2)  # Q[J, J + o]
         out[o:, w - o] = band[: n - o, o]  # Q[J + o, J]
+    return out
+
+
+def _group_q(both: FloatArray, gather: IntArray, upper: BoolArray) -> FloatArray:
+    """``Q[a, b]`` of each group's units (G, q d, q d) from the band laid out
+    on both sides (:func:`_both_sides`, (n, 2w+1, d, d)): the pairs (a, b)
+    given by their band block ``gather`` (G, q, q), ``lo (w+1) + off``
+    (:meth:`~strip_aerotri.geometry._normal_pattern.Pattern.block_index`),
+    and ``upper`` where a < b (broadcast to ``gather``); the band's block
+    (lo + off, lo) is read at (lo + off, w - off) of ``both``, its transpose
+    at (lo, w + off) where a < b: no transposing of gathered blocks."""
+    w2, d = both.shape[1], both.shape[2]
+    w = w2 // 2
+    lo, off = np.divmod(gather, w + 1)
+    at = np.where(upper, lo * w2 + w + off, (lo + off) * w2 + w - off)
+    g, q = gather.shape[0], gather.shape[1]
+    blocks = both.reshape(-1, d, d)[at]  # (G, q, q, d, d)
+    out: FloatArray = blocks.transpose(0, 1, 3, 2, 4).reshape(g, q * d, q * d)
     return out
 
 
@@ -735,10 +753,7 @@ def _pair_leverage(cof: Cofactors, rows: UnitPointRows) -> FloatArray:
         h[:, at] += form(y, q_uu[3:, 3:], y)
 
     if rows.unit_shift and k == 0 and st.unit_size >= 3:
-        if not np.array_equal(a_u[:, :3], -a_p):
-            raise ValueError(
-                "Expected unit_jacobian[..., :3] == -point_jacobian of rows with unit_shift"
-            )
+        _check_unit_shift(au, ap)
         split_map(shift_block, spans(h.shape[1]))
         return h.T
 

@@ -6,17 +6,18 @@ out in closed form."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from .._typing import FloatArray
 
-__all__ = ["by_rows", "row_gram", "rows_whitening", "upper_entries", "upper_times"]
+__all__ = ["by_rows", "outer_sum", "row_gram", "rows_times", "rows_whitening", "upper_times"]
 
-#: The entries (i, k) of an upper-triangular 3 x 3 matrix, in their order in
-#: :func:`upper_entries`.
-_UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+#: The entries (i, k) of an upper-triangular 3 x 3 matrix ``Lᵀ`` in their
+#: order in :func:`rows_whitening` (that of ``L``'s entries l00, l10, l11,
+#: l20, l21, l22 in :func:`~strip_aerotri.geometry._normal_entries.lower_factor`).
+_UPPER = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))
 
 
 def by_rows(n_rows: int, block: Callable[[slice], object]) -> None:
@@ -31,45 +32,61 @@ def by_rows(n_rows: int, block: Callable[[slice], object]) -> None:
     split_map(block, spans(n_rows))
 
 
-def rows_whitening(weight: FloatArray) -> FloatArray:
+def rows_times(m: FloatArray, v: FloatArray) -> FloatArray:
+    """``M v`` of every row (n, 3) of matrices M (n, 3, 3) and vectors v
+    (n, 3), by blocks of rows (:func:`by_rows`)."""
+    out = np.empty(v.shape)
+
+    def block(rows: slice) -> None:
+        out[rows] = np.einsum("nij,nj->ni", m[rows], v[rows])
+
+    by_rows(v.shape[0], block)
+    return out
+
+
+def rows_whitening(weight: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``Lᵀ`` of each row's weight ``W = L Lᵀ`` (n, 3, 3): ``‖Lᵀ v‖² = vᵀ W v``
-    (the Cholesky factor in closed form)."""
+    (the Cholesky factor in closed form), and its six entries (6, n) in the
+    order of :data:`_UPPER` (for :func:`upper_times`)."""
     from ._normal_entries import lower_factor
 
     entries = lower_factor(weight)
     if not np.all(entries[[0, 2, 5]] > 0.0) or not np.all(np.isfinite(entries)):
         raise ValueError("Expected positive definite row weights")
     upper = np.zeros(weight.shape)
-    for k, (i, j) in enumerate(((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))):
+    for k, (i, j) in enumerate(_UPPER):
         upper[:, i, j] = entries[k]  # Lᵀ[i, j] = L[j, i]
-    return upper
+    return upper, entries
 
 
-def row_gram(lt: FloatArray) -> FloatArray:
-    """``L Lᵀ`` of every row's whitening ``Lᵀ`` (n, 3, 3): its six distinct
-    entries, each a sum of three products (a batched 3 x 3 product costs
-    three times as much)."""
-    out = np.empty(lt.shape)
+def outer_sum(rows: Sequence[FloatArray]) -> FloatArray:
+    """``Σ_k r_k r_kᵀ`` of rows ``r_k`` (n, 3), in their order: (n, 3, 3),
+    its six distinct entries computed once each (the broadcast products'
+    values to the bit, without their (n, 3, 3) temporaries)."""
+    first = rows[0]
+    out = np.empty((first.shape[0], 3, 3))
     for i in range(3):
         for j in range(i + 1):
-            value = lt[:, 0, i] * lt[:, 0, j]
-            value += lt[:, 1, i] * lt[:, 1, j]
-            value += lt[:, 2, i] * lt[:, 2, j]
+            value = first[:, i] * first[:, j]
+            for r in rows[1:]:
+                value += r[:, i] * r[:, j]
             out[:, i, j] = value
             out[:, j, i] = value
     return out
 
 
-def upper_entries(upper: FloatArray) -> FloatArray:
-    """The six entries of upper-triangular 3 x 3 matrices (n, 3, 3) as
-    (6, n), in the order of :data:`_UPPER`."""
-    return np.stack([upper[:, i, k] for i, k in _UPPER])
+def row_gram(lt: FloatArray) -> FloatArray:
+    """``L Lᵀ`` of every row's whitening ``Lᵀ`` (n, 3, 3): the sum of the
+    outer products of its rows (a batched 3 x 3 product costs three times
+    as much)."""
+    return outer_sum((lt[:, 0], lt[:, 1], lt[:, 2]))
 
 
 def upper_times(entries: FloatArray, g: FloatArray) -> FloatArray:
-    """``U G`` (b, 3, 3) of upper-triangular U given by its :func:`upper_entries`
-    (6, b) and G entry-major (9, b), entry ``3 k + j`` its (k, j): 18 products
-    over long vectors (a batched product of 3 x 3 matrices takes half as
+    """``U G`` (b, 3, 3) of upper-triangular U given by its six entries in the
+    order of :data:`_UPPER` (6, b; :func:`rows_whitening`'s) and G
+    entry-major (9, b), entry ``3 k + j`` its (k, j): 18 products over long
+    vectors (a batched product of 3 x 3 matrices takes half as
     long again)."""
     place = {ik: m for m, ik in enumerate(_UPPER)}
     b = g.shape[1]

@@ -46,8 +46,9 @@ from ..errors import ConvergenceError, GeometryError
 from ..options import DEFAULT_MAX_ITERATIONS
 from ._row_kernels import by_rows as _by_rows
 from ._row_kernels import row_gram as _gram
+from ._row_kernels import rows_times as _rows_times
 from ._row_kernels import rows_whitening as _rows_whitening
-from ._row_kernels import upper_entries, upper_times
+from ._row_kernels import upper_times
 from .rotation import matrix_from_rotvec
 from .units import (
     N_UNIT,
@@ -121,15 +122,18 @@ class _Problem:
         self.width = N_UNIT + self.n_extra  # parameters of a unit
         self.n_units = n_units
         self.n_points = n_points
-        self.whiten0 = _rows_whitening(obs.weight)
+        self.whiten0, self.whiten0_entries = _rows_whitening(obs.weight)
         self.whiten = self.whiten0
-        self.whiten0_entries = upper_entries(self.whiten0)  # for turn_weights
         self.weight_rotation = weight_rotation
         self.turned_at: FloatArray | None = None
         self.control_point = control_point
         self.control_xyz = control_xyz
         self.control_sigma = control_sigma
         self.control_given = np.isfinite(control_xyz)
+        # 1 / σ² of the given control components, 0 where not given (C, 3)
+        self.control_weight = np.where(
+            self.control_given, 1.0 / np.where(self.control_given, control_sigma, 1.0) ** 2, 0.0
+        )
         self.lines = list(lines)
         self.n_lines = len(self.lines)
         counts = np.bincount(obs.unit, minlength=n_units).astype(np.float64)
@@ -276,18 +280,6 @@ def _turned(prob: _Problem, st: _State) -> FloatArray:
     return y
 
 
-def _whitened(prob: _Problem, v: FloatArray) -> FloatArray:
-    """``Lᵀ v`` of every row (n, 3), by blocks of rows (:func:`_by_rows`)."""
-    whiten = prob.whiten
-    out = np.empty(v.shape)
-
-    def block(rows: slice) -> None:
-        out[rows] = np.einsum("nij,nj->ni", whiten[rows], v[rows])
-
-    _by_rows(v.shape[0], block)
-    return out
-
-
 def _line_terms(prob: _Problem, st: _State, k: int) -> tuple[FloatArray, FloatArray, float]:
     line = prob.lines[k]
     xyz = st.points[line.point]
@@ -303,7 +295,7 @@ def _cost(prob: _Problem, st: _State) -> float:
         total = st.rows_cost[1]
     else:
         _, v = _predict(prob, st)
-        wv = _whitened(prob, v)
+        wv = _rows_times(prob.whiten, v)
         total = float(np.einsum("ij,ij->", wv, wv))
         st.rows_cost = (prob.whiten, total)
     c = st.points[prob.control_point] - prob.control_xyz
@@ -331,7 +323,7 @@ def _engine_rows(prob: _Problem, st: _State) -> tuple[list[Any], list[Any], list
             prob.engine_point[obs.point],
             _whitened_design(prob, st, y),
             prob.point_jacobian,
-            _whitened(prob, v),
+            _rows_times(prob.whiten, v),
         )
     ]
     unit_rows = []
@@ -391,8 +383,7 @@ def _control_terms(prob: _Problem, st: _State) -> tuple[IntArray, FloatArray, Fl
     used = prob.control_used
     cp, given = prob.control_point[used], prob.control_given[used]
     f = np.where(given, st.points[cp] - np.where(given, prob.control_xyz[used], 0.0), 0.0)
-    weight = np.where(given, 1.0 / np.where(given, prob.control_sigma[used], 1.0) ** 2, 0.0)
-    return cp, f, weight
+    return cp, f, prob.control_weight[used]
 
 
 def _line_rows(prob: _Problem, st: _State, k: int) -> Any:
@@ -825,9 +816,10 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
         if not np.all(np.isfinite(inverse)):  # a point its rows do not fix: the step's own
             return st
     else:
-        cp, given = prob.control_point, prob.control_given
-        w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma, 1.0) ** 2, 0.0)
-        rhs += sum_into(cp, w_c * np.where(given, prob.control_xyz, 0.0), n)
+        given = prob.control_given
+        rhs += sum_into(
+            prob.control_point, prob.control_weight * np.where(given, prob.control_xyz, 0.0), n
+        )
     points = st.points.copy()
     assert inverse is not None  # computed above when not given
     points[used] = np.einsum("pij,pj->pi", inverse, rhs[used])
@@ -898,7 +890,7 @@ def _result(
     # Row statistics: the row's leverage on its own point with the units
     # fixed, h = W^(1/2) V⁻¹ W^(1/2); the units' 7 U parameters spread evenly.
     lt = prob.whiten
-    wv = _whitened(prob, v)
+    wv = _rows_times(lt, v)
     # V⁻¹ of the points the rows observe: the engine's (statistics only)
     v_inv = sol.point_inverse
     row_point = prob.engine_point[obs.point]

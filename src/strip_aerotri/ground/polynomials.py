@@ -54,7 +54,7 @@ from .common import (
     resolve_route,
 )
 from .height_units import height_unit_problems
-from .passes import Solution, StripProblem, _plan_scale, solve_passes
+from .passes import _PASS_TOLERANCE_M, Solution, StripProblem, _plan_scale, solve_passes
 from .systematic import kept_control, kept_if_alike, rejected_components
 
 __all__ = [
@@ -185,20 +185,18 @@ def _adjusted(
     *,
     all_points: bool,
     name: str = "control",
-    pass_tolerance_m: float | None = None,
+    pass_tolerance_m: float = _PASS_TOLERANCE_M,
 ) -> GroundResult:
     """:func:`adjust_to_ground`; with ``all_points`` False its ``points`` in
     the CRS at the control points only; ``name`` the control in messages;
-    ``pass_tolerance_m`` that of the passes (default the stage's own)."""
+    ``pass_tolerance_m`` (metres) that of the passes (default the stage's own)."""
     options = options or GroundOptions()
     blunders = blunders or BlunderOptions()
     if not isinstance(crs, GroundCRS):
         crs = GroundCRS.from_user_input(crs)
     route = resolve_route(options.route, crs)
     picked = control_rows(strip, control)
-    problem = _prepare(strip, picked, crs, route, tuple(lines), options, name)
-    if pass_tolerance_m is not None:
-        problem = replace(problem, pass_tolerance_m=pass_tolerance_m)
+    problem = _prepare(strip, picked, crs, route, tuple(lines), options, name, pass_tolerance_m)
     sol, use_xy, use_z, line_keep, rejections = _snoop(problem, picked, blunders, options)
     if not sol.converged:
         warnings.warn(
@@ -224,13 +222,16 @@ def _prepare(
     lines: tuple[LineSpec, ...],
     options: GroundOptions,
     name: str = "control",
+    pass_tolerance_m: float = _PASS_TOLERANCE_M,
 ) -> StripProblem:
     """The fixed data of the passes: start values of what the control does
     not give, and the expected errors that weight it.
 
     The strip scaled to the plan control meets the control heights here
     first: heights in another unit than the plan stop (``name`` the control
-    in the message; :func:`strip_aerotri.ground.height_units.height_unit_problems`).
+    in the message; :func:`strip_aerotri.ground.height_units.height_unit_problems`);
+    the passes end when the guessed control coordinates move by less than
+    ``pass_tolerance_m`` (metres).
     """
     line_index = line_indices(strip, lines)
     first = _first_look(strip, picked, crs, route)
@@ -262,6 +263,7 @@ def _prepare(
         served=served,
         sections=options.sections,
         max_iterations=options.max_iterations,
+        pass_tolerance_m=pass_tolerance_m,
     )
 
 
