@@ -65,7 +65,8 @@ class ReferenceBundle:
     -> frame and ``points0`` (P, 3) the start; ``control_point`` (N,) the
     points with full control at ``control_xyz`` (N, 3) with sigmas
     ``control_sigma`` (N, 3) (NaN components not given); ``c`` mm;
-    ``camera`` the camera terms estimated.
+    ``camera`` the camera terms estimated; ``centre_xyz`` (M, 3) observed
+    centres (GNSS; NaN or None where not) with ``centre_sigma`` (M, 3).
     """
 
     xy: np.ndarray
@@ -84,6 +85,8 @@ class ReferenceBundle:
     sigma0: float = float("nan")
     redundancy: int = 0
     normal: Any = None
+    centre_xyz: np.ndarray | None = None
+    centre_sigma: np.ndarray | None = None
 
     @property
     def n_unknowns(self) -> int:
@@ -98,6 +101,25 @@ class ReferenceBundle:
 
     def residuals(self, v: np.ndarray) -> np.ndarray:
         rot, centres, points, q = self.unpack(v)
+        image = self.image_residuals(rot, centres, points, q)
+        control = (points[self.control_point] - self.control_xyz) / self.control_sigma
+        parts = [image.ravel(), control[self._given].ravel()]
+        if self.centre_xyz is not None:
+            assert self.centre_sigma is not None
+            parts.append(((centres - self.centre_xyz) / self.centre_sigma)[self._centred])
+        return np.concatenate(parts)
+
+    @property
+    def _centred(self) -> np.ndarray:
+        """The observed centre components (M, 3) (none without ``centre_xyz``)."""
+        if self.centre_xyz is None:
+            return np.zeros((len(self.centres0), 3), dtype=bool)
+        return np.isfinite(self.centre_xyz)
+
+    def image_residuals(
+        self, rot: np.ndarray, centres: np.ndarray, points: np.ndarray, q: dict[str, float]
+    ) -> np.ndarray:
+        """(K, 2) image residuals, computed minus corrected measured, over sigma."""
         u = np.einsum("kji,kj->ki", rot[self.photo], points[self.point] - centres[self.photo])
         computed = -(self.c + q.get("c", 0.0)) * u[:, :2] / u[:, 2:3]
         m = self.xy - np.array([q.get("x0", 0.0), q.get("y0", 0.0)])
@@ -108,9 +130,8 @@ class ReferenceBundle:
         dx = x * radial + p1 * (r2 + 2 * x * x) + 2 * p2 * x * y
         dx += q.get("b1", 0.0) * x + q.get("b2", 0.0) * y
         dy = y * radial + 2 * p1 * x * y + p2 * (r2 + 2 * y * y)
-        image = (computed - (m + np.column_stack([dx, dy]))) / self.sigma[:, None]
-        control = (points[self.control_point] - self.control_xyz) / self.control_sigma
-        return np.concatenate([image.ravel(), control[self._given].ravel()])
+        out: np.ndarray = (computed - (m + np.column_stack([dx, dy]))) / self.sigma[:, None]
+        return out
 
     @property
     def _given(self) -> np.ndarray:
@@ -132,9 +153,13 @@ class ReferenceBundle:
         rows.append(2 * k + np.arange(n_c))
         point, axis = np.nonzero(self._given)
         cols.append(6 * m + 3 * self.control_point[point] + axis)
+        n_g = int(self._centred.sum())
+        rows.append(2 * k + n_c + np.arange(n_g))
+        photo, axis = np.nonzero(self._centred)
+        cols.append(3 * (m + photo) + axis)
         r_all, c_all = np.concatenate(rows), np.concatenate(cols)
         return sp.csr_matrix(
-            (np.ones(r_all.size), (r_all, c_all)), shape=(2 * k + n_c, self.n_unknowns)
+            (np.ones(r_all.size), (r_all, c_all)), shape=(2 * k + n_c + n_g, self.n_unknowns)
         )
 
     def solve(self, iterations: int = 10, tolerance: float = 1e-9) -> ReferenceBundle:
