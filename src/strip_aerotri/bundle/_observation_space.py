@@ -1,0 +1,119 @@
+"""The self-calibration's image observation equation in the observations' space.
+
+With a camera model Δ(x; θ) (:class:`strip_aerotri.geometry.camera_model.CameraModel`)
+the measured point's true position ``x̂`` is where the corrected coordinates
+meet the projection::
+
+    x̂ + Δ(x̂; θ) = x(S, R, X)
+
+and the observation equation is ``v = x̂ - x_obs``, weighted with the sigma of
+``x_obs``: the residual is the measurement's own error, whatever c or the
+affinity do to the image's scale.  (Writing it ``x(S, R, X) - (x_obs +
+Δ(x_obs))`` instead scales the residual by ``I + ∂Δ/∂x``, about ``1 - dc/c``
+for c, and draws the least-squares c by ``Q_cc Ω / c``: docs/bundle.md.)
+
+``x̂`` is the fixed point of ``x̂ <- x - Δ(x̂)`` from ``x_obs``: ∂Δ/∂x is of
+the order of 1e-3 and each sweep gains three digits, so two or three sweeps
+reach :data:`TOLERANCE_MM`.  Its derivatives follow by the implicit function
+theorem: with ``M = (I + ∂Δ/∂x(x̂))⁻¹`` (2 x 2 per ray)::
+
+    ∂v/∂(photo, point, motion) = M ∂x/∂(photo, point, motion)
+    ∂v/∂θ                      = -M ∂Δ/∂θ(x̂)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..geometry.camera_model import CameraModel
+
+__all__ = ["TOLERANCE_MM", "ObservationSpace", "observation_space", "premultiply"]
+
+#: The fixed point's sweeps stop when no coordinate moved by more than this (mm).
+TOLERANCE_MM = 1e-11
+#: The sweeps give up after this many (∂Δ/∂x near 1: no contraction).
+MAX_SWEEPS = 50
+
+
+@dataclass(frozen=True)
+class ObservationSpace:
+    """The rays' true positions and what the observation equations take of them.
+
+    Attributes
+    ----------
+    true_xy : ndarray, shape (K, 2)
+        ``x̂`` (mm, the coordinates' axes).
+    residuals : ndarray, shape (K, 2)
+        ``v = x̂ - x_obs`` (mm).
+    mapping : ndarray, shape (K, 2, 2)
+        ``M = (I + ∂Δ/∂x(x̂))⁻¹``.
+    sweeps : int
+        The fixed-point sweeps taken.
+    converged : bool
+        Whether the last sweep moved no coordinate by more than :data:`TOLERANCE_MM`
+        (all False, and NaN everywhere, when a computed coordinate is not finite).
+    """
+
+    true_xy: FloatArray
+    residuals: FloatArray
+    mapping: FloatArray
+    sweeps: int
+    converged: bool
+
+
+def true_positions(
+    model: CameraModel, values: FloatArray, computed: FloatArray, observed: FloatArray
+) -> tuple[FloatArray, int, bool]:
+    """``x̂`` (K, 2) with ``x̂ + Δ(x̂) = computed``, by sweeps from ``observed``;
+    the sweeps taken and whether they reached :data:`TOLERANCE_MM`."""
+    xhat = observed
+    for sweep in range(1, MAX_SWEEPS + 1):
+        nxt = computed - model.correction(xhat, values)
+        change = float(np.max(np.abs(nxt - xhat), initial=0.0))
+        xhat = nxt
+        if change <= TOLERANCE_MM:
+            return xhat, sweep, True
+        if not np.isfinite(change):
+            break
+    return xhat, sweep, False
+
+
+def inverse_2x2(a: FloatArray) -> FloatArray:
+    """``(I + a)⁻¹`` per row of ``a`` (K, 2, 2), in closed form."""
+    p, q = 1.0 + a[:, 0, 0], 1.0 + a[:, 1, 1]
+    det = p * q - a[:, 0, 1] * a[:, 1, 0]
+    out = np.empty_like(a)
+    out[:, 0, 0] = q / det
+    out[:, 0, 1] = -a[:, 0, 1] / det
+    out[:, 1, 0] = -a[:, 1, 0] / det
+    out[:, 1, 1] = p / det
+    return out
+
+
+def observation_space(
+    model: CameraModel, values: FloatArray, computed: FloatArray, observed: FloatArray
+) -> ObservationSpace:
+    """The true positions, residuals and mappings of rays whose projections are
+    ``computed`` (K, 2) and observations ``observed`` (K, 2), camera ``model``
+    at ``values``."""
+    xhat, sweeps, converged = true_positions(model, values, computed, observed)
+    if not converged:
+        nan = np.full_like(observed, np.nan)
+        return ObservationSpace(nan, nan, np.full((observed.shape[0], 2, 2), np.nan), sweeps, False)
+    mapping = inverse_2x2(model.xy_partials(xhat, values))
+    return ObservationSpace(xhat, xhat - observed, mapping, sweeps, True)
+
+
+def premultiply(mapping: FloatArray, jac: FloatArray) -> None:
+    """``jac <- M jac`` in place, per ray: ``mapping`` (K, 2, 2), ``jac`` (K, 2, n)
+    (any strides, e.g. the collinearity's views laid out entry by entry)."""
+    m00, m01 = mapping[:, 0, 0, None], mapping[:, 0, 1, None]
+    m10, m11 = mapping[:, 1, 0, None], mapping[:, 1, 1, None]
+    first = jac[:, 0].copy()
+    jac[:, 0] *= m00
+    jac[:, 0] += m01 * jac[:, 1]
+    jac[:, 1] *= m11
+    jac[:, 1] += m10 * first
