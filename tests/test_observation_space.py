@@ -122,10 +122,10 @@ def test_rows_are_the_derivatives_of_the_mapped_residuals() -> None:
     def v(d_photo: np.ndarray, d_point: np.ndarray, theta: np.ndarray, motion: np.ndarray) -> np.ndarray:
         cen = centres + d_photo[:, :3]
         rot = rotations @ matrix_from_rotvec(d_photo[:, 3:])
-        shift = prob.motion.centre_shift(motion, prob.photo, s)  # type: ignore[union-attr]
+        shift = prob.motion.centre_shift(motion, prob.photo, s)
         xy, _ = project(cen[prob.photo] + shift, rot[prob.photo], (points + d_point)[prob.point],
                         rays, rays, C)  # fmt: skip
-        out: np.ndarray = mapped.residuals(prob.camera, theta, xy, prob.xy) / prob.sigma[:, None]  # type: ignore[arg-type]
+        out: np.ndarray = mapped.residuals(prob.camera, theta, xy, prob.xy) / prob.sigma[:, None]
         return out
 
     zero_photo, zero_point = np.zeros((3, 6)), np.zeros_like(points)
@@ -135,25 +135,25 @@ def test_rows_are_the_derivatives_of_the_mapped_residuals() -> None:
     assert np.max(np.abs(image.residual * prob.sigma[:, None])) > 0.1  # away from the solution
 
     def central(shifted: object, h: float) -> np.ndarray:
-        plus, minus = shifted(h), shifted(-h)  # type: ignore[operator]
+        plus, minus = shifted(h), shifted(-h)
         out: np.ndarray = (plus - minus) / (2.0 * h)
         return out
 
-    def photo_shift(j: int, a: int):  # type: ignore[no-untyped-def]
+    def photo_shift(j: int, a: int):
         def f(h: float) -> np.ndarray:
             d = zero_photo.copy()
             d[j, a] = h
             return v(d, zero_point, THETA, MOTION)
         return f
 
-    def point_shift(i: int, a: int):  # type: ignore[no-untyped-def]
+    def point_shift(i: int, a: int):
         def f(h: float) -> np.ndarray:
             d = zero_point.copy()
             d[i, a] = h
             return v(zero_photo, d, THETA, MOTION)
         return f
 
-    def border_shift(b: int):  # type: ignore[no-untyped-def]
+    def border_shift(b: int):
         def f(h: float) -> np.ndarray:
             theta, motion = THETA.copy(), MOTION.copy()
             if b < THETA.size:

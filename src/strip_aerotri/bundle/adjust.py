@@ -535,10 +535,12 @@ def bundle_adjust(
         Compute ``point_std``, ``centre_std`` and ``rotation_std`` (else NaN).
     camera : CameraModel, optional
         Self-calibration: the camera parameters estimated with the block, the
-        dense border of the normal equations (method.md 6B, 6C); the image
-        observations are corrected by ``Δ(x_obs; θ)``
-        (:mod:`strip_aerotri.geometry.camera_model`) and the observation
-        equation is ``x(S, R, X) - (x_obs + Δ(x_obs; θ))``.
+        dense border of the normal equations (method.md 6B, 6C); with the
+        correction ``Δ(x; θ)`` (:mod:`strip_aerotri.geometry.camera_model`)
+        the measured point's true position ``x̂`` satisfies ``x̂ + Δ(x̂; θ) =
+        x(S, R, X)`` and the observation equation is ``x̂ - x_obs``, in the
+        observations' space with their sigmas
+        (:mod:`strip_aerotri.bundle._observation_space`).
     camera0 : array_like, shape (k,), optional
         Start values of the camera parameters (default 0: the start camera).
     motion : ShutterMotion, optional

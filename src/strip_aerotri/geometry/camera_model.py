@@ -22,7 +22,9 @@ coordinates:
   which is method.md 6C's formula with its ``Δx0`` written as the principal
   point's own change (``x̄ = x - x0``: a principal point moved by ``+x0``
   shifts the reduced coordinates by ``-x0``).  The corrected coordinates
-  ``x + Δx`` are what the collinearity equations with the start ``c`` see;
+  ``x + Δx`` are what the collinearity equations with the start ``c`` see
+  (the bundle takes its residual at the true position ``x̂``, ``x̂ + Δ(x̂) =
+  x(S, R, X)``, in the observations' space: :mod:`strip_aerotri.bundle._observation_space`);
   the adjusted camera is ``c + dc``, ``x0 + dx0``, the distortion
   coefficients added to the start ones (:mod:`strip_aerotri.interior`'s
   ``model = "correction"``, ``units = "mm"``).
