@@ -12,15 +12,19 @@ affinity do to the image's scale.  (Writing it ``x(S, R, X) - (x_obs +
 Δ(x_obs))`` instead scales the residual by ``I + ∂Δ/∂x``, about ``1 - dc/c``
 for c, and draws the least-squares c by ``Q_cc Ω / c``: docs/bundle.md.)
 
-``x̂`` is found by sweeps from ``x_obs``: ``x̂ <- x̂ - M₀ (x̂ + Δ(x̂) - x)``
-with ``M₀ = (I + ∂Δ/∂x(x_obs))⁻¹`` (the chord of Newton's method).  The plain
-fixed point ``x̂ <- x - Δ(x̂)`` contracts by ``|∂Δ/∂x|``, 1e-3 for a camera
-close to its start but 0.03-0.1 at the format's corners for distortion an
-uncalibrated camera leaves (five to eleven sweeps for 1e-11 mm); the chord's
-contracts by the change of ``∂Δ/∂x`` between ``x_obs`` and ``x̂`` (a residual
-apart: 1e-6 and less), two or three sweeps to :data:`TOLERANCE_MM` either way.
-The derivatives follow by the implicit function theorem: with ``M = (I +
-∂Δ/∂x(x̂))⁻¹`` (2 x 2 per ray)::
+``x̂`` is found by Newton's sweeps from ``x_obs``: ``x̂ <- x̂ - M (x̂ + Δ(x̂)
+- x)`` with ``M = (I + ∂Δ/∂x(x̂))⁻¹`` (2 x 2 per ray, closed form; Δ and
+∂Δ/∂x from one evaluation of the camera's terms).  The plain fixed point
+``x̂ <- x - Δ(x̂)`` contracts by ``|∂Δ/∂x|``, 1e-3 for a camera close to its
+start but 0.03-0.1 at the format's corners for distortion an uncalibrated
+camera leaves (five to eleven sweeps for 1e-11 mm); Newton's first step
+leaves an error of the change of ``∂Δ/∂x`` over the residual (1e-6 of it and
+less), the second one of that squared.  The sweeps stop when the last step,
+times its ratio to the one before (the contraction seen), is below
+:data:`TOLERANCE_MM`: two sweeps in general.  The derivatives follow by the
+implicit function theorem, with ``M`` evaluated at ``x̂`` once more (the
+last sweep's is a step away: a relative 1e-11 of M where the residuals are
+of 0.01 mm)::
 
     ∂v/∂(photo, point, motion) = M ∂x/∂(photo, point, motion)
     ∂v/∂θ                      = -M ∂Δ/∂θ(x̂)
@@ -37,7 +41,7 @@ from ..geometry.camera_model import CameraModel
 
 __all__ = ["TOLERANCE_MM", "ObservationSpace", "observation_space", "premultiply"]
 
-#: The fixed point's sweeps stop when no coordinate moved by more than this (mm).
+#: The sweeps stop when the error they leave is estimated below this (mm).
 TOLERANCE_MM = 1e-11
 #: The sweeps give up after this many (I + ∂Δ/∂x near singular: no contraction).
 MAX_SWEEPS = 20
@@ -56,10 +60,11 @@ class ObservationSpace:
     mapping : ndarray, shape (K, 2, 2)
         ``M = (I + ∂Δ/∂x(x̂))⁻¹``.
     sweeps : int
-        The fixed-point sweeps taken.
+        The sweeps taken.
     converged : bool
-        Whether the last sweep moved no coordinate by more than :data:`TOLERANCE_MM`
-        (all False, and NaN everywhere, when a computed coordinate is not finite).
+        Whether the sweeps reached :data:`TOLERANCE_MM` (False, and NaN
+        everywhere, when they did not: I + ∂Δ/∂x singular, a computed
+        coordinate not finite).
     """
 
     true_xy: FloatArray
@@ -67,25 +72,6 @@ class ObservationSpace:
     mapping: FloatArray
     sweeps: int
     converged: bool
-
-
-def true_positions(
-    model: CameraModel, values: FloatArray, computed: FloatArray, observed: FloatArray
-) -> tuple[FloatArray, int, bool]:
-    """``x̂`` (K, 2) with ``x̂ + Δ(x̂) = computed``, by the chord's sweeps from
-    ``observed``; the sweeps taken and whether they reached :data:`TOLERANCE_MM`."""
-    chord = inverse_2x2(model.xy_partials(observed, values))
-    xhat = observed
-    for sweep in range(1, MAX_SWEEPS + 1):
-        step = (xhat + model.correction(xhat, values) - computed)[:, :, None]
-        premultiply(chord, step)
-        xhat = xhat - step[:, :, 0]
-        change = float(np.max(np.abs(step), initial=0.0))
-        if change <= TOLERANCE_MM:
-            return xhat, sweep, True
-        if not np.isfinite(change):
-            break
-    return xhat, sweep, False
 
 
 def inverse_2x2(a: FloatArray) -> FloatArray:
@@ -105,13 +91,24 @@ def observation_space(
 ) -> ObservationSpace:
     """The true positions, residuals and mappings of rays whose projections are
     ``computed`` (K, 2) and observations ``observed`` (K, 2), camera ``model``
-    at ``values``."""
-    xhat, sweeps, converged = true_positions(model, values, computed, observed)
-    if not converged:
-        nan = np.full_like(observed, np.nan)
-        return ObservationSpace(nan, nan, np.full((observed.shape[0], 2, 2), np.nan), sweeps, False)
-    mapping = inverse_2x2(model.xy_partials(xhat, values))
-    return ObservationSpace(xhat, xhat - observed, mapping, sweeps, True)
+    at ``values``, by Newton's sweeps from ``observed``."""
+    xhat, last = observed, np.inf
+    for sweep in range(1, MAX_SWEEPS + 1):
+        delta, d_xy = model.correction_and_xy_partials(xhat, values)
+        mapping = inverse_2x2(d_xy)
+        m00, m01, m10, m11 = (mapping[:, i, j] for i in (0, 1) for j in (0, 1))
+        fx, fy = (xhat + delta - computed).T
+        step = np.column_stack([m00 * fx + m01 * fy, m10 * fx + m11 * fy])
+        xhat = xhat - step
+        size = float(np.max(np.abs(step), initial=0.0))
+        if not np.isfinite(size):
+            break
+        if size <= TOLERANCE_MM or (sweep > 1 and size * (size / last) <= TOLERANCE_MM):
+            mapping = inverse_2x2(model.xy_partials(xhat, values))  # at x̂ itself
+            return ObservationSpace(xhat, xhat - observed, mapping, sweep, True)
+        last = size
+    nan = np.full_like(observed, np.nan)
+    return ObservationSpace(nan, nan, np.full((observed.shape[0], 2, 2), np.nan), sweep, False)
 
 
 def premultiply(mapping: FloatArray, jac: FloatArray) -> None:
