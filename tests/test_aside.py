@@ -214,6 +214,48 @@ def test_a_standby_without_fork_or_with_a_job_that_does_not_pickle_calls_here(mo
             assert pending.result() == PARENT
 
 
+def _first() -> tuple[int, np.ndarray]:
+    return os.getpid(), np.arange(300_000, dtype=np.float64)  # 2.4 MB: more than a pipe holds
+
+
+def _prepare_with(first: tuple[int, np.ndarray]) -> None:
+    os.environ["STRIPAERO_TEST_PREPARED"] = f"{first[0]}:{first[1].size}"
+
+
+def _first_fails_in_the_child_only() -> tuple[int, np.ndarray]:
+    if os.getpid() != PARENT:
+        raise ValueError("in the child")
+    return PARENT, np.zeros(2)
+
+
+def test_a_standby_sends_first_s_value_then_prepares_with_it_then_does_the_job(monkeypatch):
+    monkeypatch.delenv(FORK_ENV, raising=False)
+    values = np.linspace(0.0, 1.0, 11)
+    with Standby(_prepare_with, first=_first) as standby:
+        pid, first = standby.first_result()  # type: ignore[misc]
+        assert standby.first_result()[1] is first  # type: ignore[index]  # read once
+        with standby.submit(_job, 3.0, values) as pending:
+            job_pid, prepared, tripled = pending.result()
+    assert pid != PARENT and job_pid == pid  # the same child, first then the job
+    assert prepared == f"{pid}:300000"  # prepared with first's value
+    assert np.array_equal(first, np.arange(300_000, dtype=np.float64))
+    assert np.array_equal(tripled, 3.0 * values)
+    assert "STRIPAERO_TEST_PREPARED" not in os.environ
+
+
+def test_a_standby_s_first_failing_in_the_child_or_without_fork_is_called_here(monkeypatch):
+    monkeypatch.delenv(FORK_ENV, raising=False)
+    with Standby(_prepare_with, first=_first_fails_in_the_child_only) as standby:
+        assert standby.first_result()[0] == PARENT  # type: ignore[index]
+        with standby.submit(_job, 1.0, np.ones(2)) as pending:
+            assert pending.result()[0] not in (PARENT, None)  # the child still does the job
+    monkeypatch.setenv(FORK_ENV, "0")
+    with Standby(_prepare_with, first=_first) as standby:
+        assert standby.first_result()[0] == PARENT  # type: ignore[index]
+    with Standby(_prepare) as standby, pytest.raises(ValueError, match="without a first"):
+        standby.first_result()
+
+
 def _names_itself(path: str) -> None:
     Path(path).write_text(str(os.getpid()))
 

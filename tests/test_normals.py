@@ -619,6 +619,25 @@ def test_a_solve_without_its_step_gives_the_same_cofactors(case: str) -> None:
     np.testing.assert_array_equal(b.redundancy(prob.upr[0]), a.redundancy(prob.upr[0]))
 
 
+@pytest.mark.parametrize("case", list(CASES), ids=list(CASES))
+def test_the_cofactors_of_some_points_equal_the_dense_inverse(case: str) -> None:
+    # a few points' blocks from the band of the selected inverse alone (every
+    # point's block through cofactors() where there is a border), in any
+    # order and repeated, equal to the dense inverse and to cofactors()' blocks
+    prob = make_problem(**CASES[case])  # type: ignore[arg-type]
+    a, _, _ = dense(prob)
+    q = np.linalg.inv(a.T @ a)
+    o, scale = prob.n * prob.d, np.abs(q).max()
+    _, sol = _solve(prob)
+    chosen = np.array([prob.p - 1, 0, 3, 3, prob.p // 2])
+    got = sol.point_cofactors(chosen)
+    assert sol._cofactors is None or prob.k  # no selected inverse of every point without a border
+    expected = np.stack([q[o + 3 * j : o + 3 * j + 3, o + 3 * j : o + 3 * j + 3] for j in chosen])
+    np.testing.assert_allclose(got, expected, atol=1e-10 * scale)
+    np.testing.assert_allclose(got, sol.cofactors().point[chosen], atol=1e-12 * scale)
+    assert sol.point_cofactors(np.zeros(0, np.intp)).shape == (0, 3, 3)
+
+
 def _shift_problem(case: dict[str, object], *, shuffle_rows: bool, flag: bool = True) -> Problem:
     """The case's rows as one group whose unit's first three columns are the
     point's negated (a projection centre against its image points), marked

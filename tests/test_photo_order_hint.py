@@ -212,3 +212,34 @@ def test_check_and_run_give_one_hint_with_a_photo_step(tmp_path: Path) -> None:
         result = CliRunner().invoke(cli, ["-q", command, str(toml)])
         assert result.exit_code == 0, (command, result.stderr)
         assert "flight order" not in result.stderr
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_consecutive_common_counts_as_sets_do(seed: int) -> None:
+    """consecutive_common (numpy alone) against sets of points per photo, on
+    random incidences with repeated pairs, empty photos and the last photo
+    observing the next point's first key (point * n + n - 1 + 1)."""
+    from strip_aerotri.plausibility import consecutive_common
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 30))
+    m = int(rng.integers(0, 400))
+    row = rng.integers(0, n, size=m)
+    point = rng.integers(0, int(rng.integers(1, 60)), size=m)
+    row[: m // 10] = n - 1  # the last photo: its key + 1 is the next point's first photo
+    sets = [set(point[row == k].tolist()) for k in range(n)]
+    expected = [len(sets[k] & sets[k + 1]) for k in range(n - 1)]
+    got = consecutive_common(row, point, n)
+    assert got.shape == (n - 1,)
+    assert got.tolist() == expected
+
+
+def test_consecutive_common_on_a_project_matches_its_common_points() -> None:
+    obs = load_project(FILM / "strip.toml").observations
+    common = _common_by_sets(obs)
+    from strip_aerotri.plausibility import consecutive_common
+
+    got = consecutive_common(obs.photo, obs.point, obs.n_photos)
+    ids = obs.photo_ids
+    assert got.tolist() == [common[(ids[k], ids[k + 1])] for k in range(obs.n_photos - 1)]
+    assert got.min() > 0

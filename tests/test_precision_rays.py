@@ -100,3 +100,12 @@ def test_rays_information_against_finite_differences() -> None:
     stacked = np.vstack(rows)
     cov = np.linalg.inv(stacked.T @ stacked)[:3, :3]
     np.testing.assert_allclose(centre[0], np.linalg.inv(cov), rtol=1e-5)
+
+
+def test_outer_sums_are_the_broadcast_products_to_the_bit():
+    from strip_aerotri.geometry.precision import _outer_sum
+
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(size=(40, 3)), rng.normal(size=(40, 3))
+    expected = a[:, :, None] * a[:, None, :] + b[:, :, None] * b[:, None, :]
+    np.testing.assert_array_equal(_outer_sum(a, b), expected)

@@ -237,11 +237,9 @@ def _long_problem():
     return posed["call"]
 
 
-def test_gradients_and_chord_step_are_the_engines_own():
-    """At one state, the right-hand side the chord steps form
-    (_gradients) is the one the engine forms with the full normal
-    equations, and the chord step on that state's own factor is its full
-    step (to rounding)."""
+def _posed():
+    """The 300-photo strip's models posed as adjust_units poses them: the
+    problem, its start state (weights turned to it) and the call's keywords."""
     from strip_aerotri.geometry import simultaneous as sim_module
 
     args, kwargs = _long_problem()
@@ -252,6 +250,17 @@ def test_gradients_and_chord_step_are_the_engines_own():
     )  # fmt: skip
     st = sim_module._start_state(prob, kwargs["start"], kwargs["points0"])
     prob.turn_weights(st.rotation)
+    return prob, st, kwargs
+
+
+def test_gradients_and_chord_step_are_the_engines_own():
+    """At one state, the right-hand side the chord steps form
+    (_gradients) is the one the engine forms with the full normal
+    equations, and the chord step on that state's own factor is its full
+    step (to rounding)."""
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    prob, st, _ = _posed()
     st = sim_module._projected(prob, st)
     formed = prob.structure.form(*sim_module._engine_rows(prob, st))
     g_unit, g_point = sim_module._gradients(prob, st)
@@ -266,12 +275,10 @@ def test_gradients_and_chord_step_are_the_engines_own():
         np.testing.assert_allclose(chord, full, rtol=0, atol=1e-9 * np.abs(full).max())
 
 
-def test_chord_steps_change_the_cost_not_the_solution(monkeypatch):
-    """The ground stage's adjustment of a 300-photo strip's models: with chord
-    steps near the solution it forms the normal equations fewer times and
-    ends where full steps all the way end (to 1e-8 m), its statistics
-    (from the last full factor, 1e-7 of the strip from the solution) within
-    1e-6 of theirs."""
+def _counted_runs(monkeypatch, *rules):
+    """``adjust_units`` on the 300-photo strip's models once per rule
+    (``_CHORD_FROM``, ``_CHORD_BELOW_MOVE``): the result and its count of
+    formed normal equations, per rule."""
     from strip_aerotri.geometry import simultaneous as sim_module
 
     args, kwargs = _long_problem()
@@ -283,13 +290,28 @@ def test_chord_steps_change_the_cost_not_the_solution(monkeypatch):
         return real_solve(prob, st)
 
     monkeypatch.setattr(sim_module, "_solve", counted)
-    with_chords = sim_module.adjust_units(*args, **kwargs)
-    n_chorded = len(solves)
-    monkeypatch.setattr(sim_module, "_CHORD_FROM", 0.0)
-    solves.clear()
-    full = sim_module.adjust_units(*args, **kwargs)
+    out = []
+    for chord_from, below_move in rules:
+        monkeypatch.setattr(sim_module, "_CHORD_FROM", chord_from)
+        monkeypatch.setattr(sim_module, "_CHORD_BELOW_MOVE", below_move)
+        solves.clear()
+        out.append((sim_module.adjust_units(*args, **kwargs), len(solves)))
+    return out
+
+
+def test_chord_steps_change_the_cost_not_the_solution(monkeypatch):
+    """The ground stage's adjustment of a 300-photo strip's models: with chord
+    steps once a full step is below 1e3 times the tolerance it forms the
+    normal equations fewer times and ends where full steps all the way end
+    (to 1e-8 m), its statistics (from the last full factor, 1e-7 of the
+    strip from the solution) within 1e-6 of theirs."""
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    (with_chords, n_chorded), (full, n_full) = _counted_runs(
+        monkeypatch, (sim_module._CHORD_FROM, 0.0), (0.0, 0.0)
+    )
     assert with_chords.converged and full.converged
-    assert n_chorded < len(solves)
+    assert n_chorded < n_full
     np.testing.assert_allclose(with_chords.points, full.points, rtol=0, atol=1e-8)
     np.testing.assert_allclose(
         with_chords.control_redundancy, full.control_redundancy, rtol=0, atol=1e-6
@@ -299,6 +321,34 @@ def test_chord_steps_change_the_cost_not_the_solution(monkeypatch):
     np.testing.assert_allclose(
         with_chords.row_statistic[finite], full.row_statistic[finite], rtol=1e-6
     )
+
+
+def test_chords_from_a_small_move_spare_a_factor_and_keep_the_solution(monkeypatch):
+    """The default rule also starts the chords after a full step below
+    ``_CHORD_BELOW_MOVE`` (relative): one formation fewer than the rule of
+    the tolerance alone, the same solution as full steps all the way (to
+    1e-8 m).  The statistics come from the factor of a state about 5e-6 (of
+    the strip) from the solution, instead of 1e-7: the redundancy numbers
+    within 1e-6 of the full steps', w and the rows' statistics within 1e-4
+    relative (measured: 9e-6 and 2.7e-5; a model point's weight is weak
+    along its rays, so a turn of 5e-6 rad changes it by more than that
+    share)."""
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    (fast, n_fast), (tolerance_only, n_tolerance), (full, _) = _counted_runs(
+        monkeypatch,
+        (sim_module._CHORD_FROM, sim_module._CHORD_BELOW_MOVE),
+        (sim_module._CHORD_FROM, 0.0),
+        (0.0, 0.0),
+    )
+    assert fast.converged and full.converged
+    assert n_fast == n_tolerance - 1
+    np.testing.assert_allclose(fast.points, full.points, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(fast.control_redundancy, full.control_redundancy, rtol=0, atol=1e-6)
+    finite = np.isfinite(full.control_w)
+    np.testing.assert_allclose(fast.control_w[finite], full.control_w[finite], rtol=1e-4)
+    finite = np.isfinite(full.row_statistic)
+    np.testing.assert_allclose(fast.row_statistic[finite], full.row_statistic[finite], rtol=1e-4)
 
 
 def test_the_rows_work_on_two_threads_gives_the_result_of_one(monkeypatch):
@@ -334,3 +384,57 @@ def test_the_rows_work_on_two_threads_gives_the_result_of_one(monkeypatch):
         np.testing.assert_array_equal(getattr(two, name), getattr(one, name), err_msg=name)
     np.testing.assert_array_equal(two.transforms.rotation, one.transforms.rotation)
     assert two.iterations == one.iterations and two.sigma0 == one.sigma0
+
+
+def test_rows_whitening_is_the_cholesky_factor_and_refuses_weights_not_positive_definite():
+    """The rows' whitening in closed form is LAPACK's Cholesky factor
+    transposed; a weight that is not positive definite (a zero pivot, a
+    negative one, NaN) is refused."""
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    rng = np.random.default_rng(11)
+    a = rng.normal(size=(50, 3, 3))
+    weight = a @ np.swapaxes(a, 1, 2) + 1e-3 * np.eye(3)
+    got = sim_module._rows_whitening(weight)
+    np.testing.assert_allclose(got, np.swapaxes(np.linalg.cholesky(weight), 1, 2), atol=1e-12)
+    np.testing.assert_allclose(np.swapaxes(got, 1, 2) @ got, weight, atol=1e-12)
+    for bad in (np.diag([1.0, 0.0, 1.0]), np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan)):
+        with pytest.raises(ValueError, match="positive definite"):
+            sim_module._rows_whitening(np.concatenate([weight, bad[None]]))
+    # the whitening turned (upper triangular times any matrix), entry by entry
+    from strip_aerotri.geometry._row_kernels import upper_entries, upper_times
+
+    turn = rng.normal(size=(50, 3, 3))
+    np.testing.assert_allclose(
+        upper_times(upper_entries(got), np.ascontiguousarray(turn.reshape(-1, 9).T)),
+        got @ turn, rtol=0, atol=1e-13 * np.abs(got @ turn).max(),
+    )  # fmt: skip
+
+
+def test_rows_gram_and_the_cost_of_a_state():
+    """``L Lᵀ`` of the rows' whitening written out equals the batched product;
+    the rows' share of the cost is kept per state and whitening: a control
+    that moves changes the cost by its own share alone, a turned whitening
+    recomputes it."""
+    from strip_aerotri.geometry import simultaneous as sim_module
+
+    rng = np.random.default_rng(5)
+    lt = rng.normal(size=(30, 3, 3))
+    np.testing.assert_allclose(
+        sim_module._gram(lt), np.swapaxes(lt, 1, 2) @ lt, rtol=0, atol=1e-13
+    )
+    prob, st, kwargs = _posed()
+    first = sim_module._cost(prob, st)
+    assert st.rows_cost is not None and st.rows_cost[0] is prob.whiten
+    fresh = sim_module._start_state(prob, kwargs["start"], kwargs["points0"])
+    assert sim_module._cost(prob, fresh) == first
+    moved = np.where(prob.control_given, prob.control_xyz + 0.01, np.nan)
+    prob.set_control(moved)
+    recomputed = sim_module._start_state(prob, kwargs["start"], kwargs["points0"])
+    assert sim_module._cost(prob, st) == sim_module._cost(prob, recomputed)
+    assert sim_module._cost(prob, st) != first
+    turned = st.rotation @ matrix_from_rotvec(np.array([0.0, 0.0, 1e-3]))
+    prob.turn_weights(turned)
+    before = st.rows_cost[1]
+    sim_module._cost(prob, st)
+    assert st.rows_cost[0] is prob.whiten and st.rows_cost[1] != before

@@ -312,6 +312,32 @@ def photo_order_message(
 _ORDER_MAX_PHOTOS = 1000
 
 
+def consecutive_common(row: IntArray, point: IntArray, n: int) -> IntArray:
+    """Points observed on both photos of each consecutive pair.
+
+    Parameters
+    ----------
+    row : array_like of int, shape (m,)
+        Each observation's photo, by its position 0 .. n-1 in the strip.
+    point : array_like of int, shape (m,)
+        Each observation's point; a (row, point) pair may repeat (counted once).
+    n : int
+        The strip's photos.
+
+    Returns
+    -------
+    ndarray of int, shape (n - 1,)
+        Entry ``k``: the points observed on both photos ``k`` and ``k + 1``.
+    """
+    row = np.asarray(row, dtype=np.int64)
+    key = np.sort(np.asarray(point, dtype=np.int64) * n + row)  # point-major, then row
+    # the same point on the next photo: the next key, within the point's keys (a
+    # repeated key meets its successor once, at the end of its run)
+    on_next = (key[1:] == key[:-1] + 1) & (key[:-1] % n < n - 1)
+    left = (key[:-1] % n)[on_next]
+    return np.bincount(left, minlength=max(n - 1, 0))[: max(n - 1, 0)].astype(np.intp)
+
+
 def photo_order_hint(
     observations: ImageObservations,
     sequence: ArrayLike,
@@ -355,9 +381,6 @@ def photo_order_hint(
     hint : str
         The sentence naming where its photos belong, or "".
     """
-    from scipy import sparse
-    from scipy.sparse.csgraph import connected_components, laplacian
-
     seq = np.asarray(sequence, dtype=np.intp)
     n = seq.shape[0]
     if n < 3 or n > _ORDER_MAX_PHOTOS:
@@ -366,17 +389,22 @@ def photo_order_hint(
     position[seq] = np.arange(n)
     row = position[observations.photo]
     keep = row >= 0
-    incidence = sparse.csr_matrix(
-        (np.ones(int(keep.sum())), (row[keep], observations.point[keep])),
-        shape=(n, max(observations.n_points, 1)),
-    )
     if failing is None:
-        consecutive = np.asarray(incidence[:-1].multiply(incidence[1:]).sum(axis=1)).ravel()
+        consecutive = consecutive_common(row[keep], observations.point[keep], n)
         failing = np.flatnonzero(consecutive < min_common)
     pairs = np.unique(np.asarray(failing, dtype=np.intp))
     pairs = pairs[(pairs >= 0) & (pairs < n - 1)]
     if not pairs.size:
         return -1, ""
+    # scipy.sparse only for a pair that fails (about 0.045 s to import, with
+    # csgraph: a run whose consecutive photos share their points never needs it)
+    from scipy import sparse
+    from scipy.sparse.csgraph import connected_components, laplacian
+
+    incidence = sparse.csr_matrix(
+        (np.ones(int(keep.sum())), (row[keep], observations.point[keep])),
+        shape=(n, max(observations.n_points, 1)),
+    )
     common = (incidence @ incidence.T).toarray()
     np.fill_diagonal(common, 0.0)
     if connected_components(sparse.csr_matrix(common > 0), directed=False)[0] != 1:

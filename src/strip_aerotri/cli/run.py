@@ -6,7 +6,6 @@ import math
 import time
 import warnings
 from collections.abc import Callable
-from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -30,6 +29,7 @@ OWNS_PROCESS = False
 
 if TYPE_CHECKING:  # the numerical modules are imported when the command runs
     from ..project import Project
+    from ..report.aside import Standby
     from ..report.files import ResultFolder
     from ..report.summary import RunOutputs, RunSummary
 
@@ -80,10 +80,11 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
       stripaero -q run strip.toml            # the summary only (no warnings)
     """
     from ..errors import StripAerotriWarning
-    from ..project import load_project, output_folder
+    from ..project import output_folder
     from ..report.files import ResultFolder
     from ..report.lock import FolderLock
     from .imports import defer_numpy_submodules
+    from .loading import loaded
     from .memory import keep_freed_memory
 
     if OWNS_PROCESS:  # what is process-wide, only where the run owns the process
@@ -93,29 +94,31 @@ def run(project_file: Path, out: Path | None, map_scale: float | None) -> None:
     echo_progress(f"loading {project_file}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", StripAerotriWarning)
-        project = load_project(project_file)
-        target = output_folder(project, out)
-        lock = FolderLock(target)
-        folder = ResultFolder(target, protect=project.input_files)
-        # before the lock is taken, so that a Ctrl-C as soon as it exists is told too
-        settings().interrupted = _folder_state(folder)
-        with lock:
-            outputs = _adjust_and_report(project, map_scale)
-            summary, files = outputs.summary, outputs.files
-            # Warnings only once the run has succeeded: a failed run prints its one
-            # error line.
-            texts = (
-                *project.warnings,
-                *summary.warnings,
-                *(str(w.message) for w in caught),
-                *summary.output_warnings,
-            )
-            for text in summary.warning_lines(texts, every=settings().level >= 1):
-                echo_warning(text, where="report.json")
-            echo_progress(f"writing {len(files)} files to {target}")
-            with folder:
-                for name, data in files.items():
-                    folder.write_bytes(name, data)
+        # loaded by the run's second process while this one imports the run's
+        # modules; that process then draws a strip's figures (cli/loading.py)
+        with loaded(project_file, caught) as (project, standby):
+            target = output_folder(project, out)
+            lock = FolderLock(target)
+            folder = ResultFolder(target, protect=project.input_files)
+            # before the lock is taken, so that a Ctrl-C as soon as it exists is told too
+            settings().interrupted = _folder_state(folder)
+            with lock:
+                outputs = _adjust_and_report(project, map_scale, standby)
+                summary, files = outputs.summary, outputs.files
+                # Warnings only once the run has succeeded: a failed run prints its one
+                # error line.
+                texts = (
+                    *project.warnings,
+                    *summary.warnings,
+                    *(str(w.message) for w in caught),
+                    *summary.output_warnings,
+                )
+                for text in summary.warning_lines(texts, every=settings().level >= 1):
+                    echo_warning(text, where="report.json")
+                echo_progress(f"writing {len(files)} files to {target}")
+                with folder:
+                    for name, data in files.items():
+                        folder.write_bytes(name, data)
     _echo_kept(folder)
     for level, line in summary.details:
         echo_progress(line, level=level)
@@ -207,8 +210,11 @@ def _echo_weights(summary: RunSummary) -> None:
     echo_result(f"observation weights estimated from the data, {how}: {groups}")
 
 
-def _adjust_and_report(project: Project, map_scale: float | None) -> RunOutputs:
-    """Adjust the project and make the result folder's files and their summary."""
+def _adjust_and_report(
+    project: Project, map_scale: float | None, standby: Standby | None
+) -> RunOutputs:
+    """Adjust the project and make the result folder's files and their summary
+    (a strip's figures drawn by ``standby``, cli/loading.py)."""
     from ..errors import ConvergenceError, GeometryError
     from ..project import run as project_run
     from ..report.summary import build_run
@@ -218,20 +224,14 @@ def _adjust_and_report(project: Project, map_scale: float | None) -> RunOutputs:
         f"{project.observations.n_points} points, {len(project.control.point_ids)} "
         f"control and check points, crs {project.crs}"
     )
-    from ..report.aside import Standby
-    from ..report.html import prepare_drawing
-
-    # A strip's figures are drawn by a process that imports matplotlib on the
-    # second core while this one adjusts (report/aside.py).
-    with Standby(prepare_drawing) if not project.is_block else nullcontext() as standby:
-        try:
-            result = project_run.run_project(project, progress=echo_progress)
-        except (GeometryError, ConvergenceError) as exc:
-            if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
-                raise  # the message names its file already
-            raise type(exc)(f"{project.path}: {exc}") from exc
-        echo_progress("writing the report")
-        return build_run(result, project=project, map_scale=map_scale, standby=standby)
+    try:
+        result = project_run.run_project(project, progress=echo_progress)
+    except (GeometryError, ConvergenceError) as exc:
+        if str(exc).startswith(tuple(f"{f}:" for f in project.input_files)):
+            raise  # the message names its file already
+        raise type(exc)(f"{project.path}: {exc}") from exc
+    echo_progress("writing the report")
+    return build_run(result, project=project, map_scale=map_scale, standby=standby)
 
 
 def _folder_state(folder: ResultFolder) -> Callable[[], str]:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Concatenate, ParamSpec, TypeVar
+from typing import Concatenate, NamedTuple, ParamSpec, TypeVar
 
 import numpy as np
 
@@ -263,6 +263,7 @@ class Reduced:
     border_step: FloatArray
     v_inv: FloatArray  # (p, 3, 3), undamped when damping == 0
     z: FloatArray  # (d, 3, n_pairs) W Mᵀ, entry-major (M = L⁻¹, V = L Lᵀ)
+    m_point: FloatArray  # (6, p) M of each point
     m_pair: FloatArray  # (6, n_pairs) M of each pair's point
     y_border: FloatArray  # (p, k, 3) Vbᵀ V⁻¹
     x: FloatArray  # (n d, k) S⁻¹ Sb, position order
@@ -396,7 +397,6 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float,
     y_border = np.zeros((st.n_points, k, 3))
     x = np.zeros((n * d, k))
     t_inv = np.zeros((k, k))
-    border_step = np.zeros(k)
     border_min_pivot = np.inf
     if k:
         # Sb = Ub - Σ W V⁻¹ Vb ; Sbb = C - Σ Vbᵀ V⁻¹ Vb ; rb = b_b - Σ Vbᵀ V⁻¹ b_p,
@@ -415,33 +415,68 @@ def reduce_points(st: NormalStructure, normals: _Normals, damping: float,
         t_inv, border_min_pivot = _border_inverse(st, t)
     if rhs_unit is None:  # the cofactors' share alone
         nan = np.full((n, d), np.nan), np.full((st.n_points, 3), np.nan), np.full(k, np.nan)
-        return Reduced(factor, *nan, pf.v_inv, z, m_pair, y_border, x, t_inv,
+        return Reduced(factor, *nan, pf.v_inv, z, pf.m, m_pair, y_border, x, t_inv,
                        border_min_pivot, normals)
+    with_border = _BorderTerms(x, t_inv, r_b, s_b_pos, normals.point_border) if k else None
+    unit_step, point_step, border_step = _steps(
+        st, factor, normals.w, pf.m, rhs_unit, b_point, with_border
+    )
+    return Reduced(
+        factor, unit_step, point_step, border_step, pf.v_inv, z, pf.m, m_pair, y_border, x,
+        t_inv, border_min_pivot, normals,
+    )
+
+
+class _BorderTerms(NamedTuple):
+    """What the border's step needs after the band: ``x = S⁻¹ Sb`` (n d, k,
+    position order), ``T⁻¹`` (k, k), its right-hand side ``r_b`` (k,), ``Sb``
+    (n d, k, position order) and the points' border blocks ``Vb`` (p, 3, k)."""
+
+    x: FloatArray
+    t_inv: FloatArray
+    r_b: FloatArray
+    s_b_pos: FloatArray
+    point_border: FloatArray
+
+
+def _steps(
+    st: NormalStructure,
+    factor: BandFactor,
+    w: FloatArray,
+    m: FloatArray,
+    rhs_unit: FloatArray,
+    b_point: FloatArray,
+    border: _BorderTerms | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The steps of units (n, d), points (p, 3) and border (k,) from the
+    reduced right-hand side ``rhs_unit`` (n, d) and the points' ``b_point``
+    (p, 3): the band solved with `factor` (the border after it), then the
+    points back-substituted, ``V⁻¹ (b_p - Σ Wᵀ δu - Vb δb)`` with
+    ``V⁻¹ = Mᵀ M`` (`m` (6, p); `w` the pairs' W, entry-major)."""
+    pat = st.pattern
+    n, d = st.n_units, st.unit_size
+    order = pat.order
     rhs_pos = rhs_unit[order].reshape(-1)
-    if k:
+    border_step = np.zeros(0 if border is None else border.t_inv.shape[0])
+    if border is not None:
         u0 = factor.solve(rhs_pos)
-        border_step = t_inv @ (r_b - s_b_pos.T @ u0)
-        x_pos = u0 - x @ border_step
+        border_step = border.t_inv @ (border.r_b - border.s_b_pos.T @ u0)
+        x_pos = u0 - border.x @ border_step
     else:
         x_pos = factor.solve(rhs_pos)
     unit_step = np.empty((n, d))
     unit_step[order] = x_pos.reshape(n, d)
-    # points: V⁻¹ (b_p - Σ Wᵀ δu - Vb δb)
-    wu = np.empty((3, n_pairs))  # Wᵀ δu per pair
+    wu = np.empty((3, pat.pair_unit.size))  # Wᵀ δu per pair
 
     def back_block(at: slice) -> None:
-        np.einsum("abk,ak->bk", normals.w[..., at], take(unit_step.T, pat.pair_unit[at]),
-                  out=wu[:, at])
+        np.einsum("abk,ak->bk", w[..., at], take(unit_step.T, pat.pair_unit[at]), out=wu[:, at])
 
-    split_map(back_block, spans(n_pairs))
+    split_map(back_block, spans(pat.pair_unit.size))
     t_p = b_point - run_sums(wu, pat.point_runs, st.n_points)
-    if k:
-        t_p -= normals.point_border @ border_step
-    point_step = np.ascontiguousarray(lower_t_times(pf.m, lower_times(pf.m, t_p.T)).T)
-    return Reduced(
-        factor, unit_step, point_step, border_step, pf.v_inv, z, m_pair, y_border, x, t_inv,
-        border_min_pivot, normals,
-    )
+    if border is not None:
+        t_p -= border.point_border @ border_step
+    point_step = np.ascontiguousarray(lower_t_times(m, lower_times(m, t_p.T)).T)
+    return unit_step, point_step, border_step
 
 
 def chord_step(
@@ -457,16 +492,13 @@ def chord_step(
     if st.n_border:
         raise ValueError("Expected a structure without a border for a chord step")
     pat = st.pattern
-    n, d = st.n_units, st.unit_size
     b_point = -g_point
     mb = lower_times(red.m_pair, take(b_point.T, pat.pair_point))  # M b_p of each pair
     zmb = np.einsum("ack,ck->ak", red.z, mb)  # W V⁻¹ b_p of each pair
-    rhs_unit = -g_unit - run_sums(zmb, pat.pair_unit_runs, n)
-    unit_step = np.empty((n, d))
-    unit_step[pat.order] = red.factor.solve(rhs_unit[pat.order].reshape(-1)).reshape(n, d)
-    wu = np.einsum("abk,ak->bk", red.normals.w, take(unit_step.T, pat.pair_unit))
-    t_p = b_point - run_sums(wu, pat.point_runs, st.n_points)
-    point_step: FloatArray = np.einsum("pij,pj->pi", red.v_inv, t_p)
+    rhs_unit = -g_unit - run_sums(zmb, pat.pair_unit_runs, st.n_units)
+    unit_step, point_step, _ = _steps(
+        st, red.factor, red.normals.w, red.m_point, rhs_unit, b_point
+    )
     return unit_step, point_step
 
 
@@ -598,6 +630,42 @@ def cofactors(st: NormalStructure, red: Reduced) -> Cofactors:
         band=z,
         pair=pair,
     )
+
+
+def point_cofactors(
+    st: NormalStructure, red: Reduced, band_inverse: FloatArray, points: IntArray
+) -> FloatArray:
+    """``Q_pp`` (m, 3, 3) of the points `points` (m,) alone, without a border:
+    ``V⁻¹ + Σ_ab Y_aᵀ Q_ab Y_b`` over the point's units a, b (``Y = W V⁻¹`` of
+    its pairs, ``Q_ab`` from `band_inverse`, the selected inverse of the
+    band), as :func:`cofactors` forms them for every point; the points
+    grouped by their number of units q."""
+    if st.n_border:
+        raise ValueError("Expected a structure without a border for the points' cofactors")
+    pat = st.pattern
+    d = st.unit_size
+    points = np.asarray(points, np.intp).reshape(-1)
+    out: FloatArray = red.v_inv[points].copy()
+    order, starts, values = pat.point_runs
+    assert order is None  # a point's pairs are contiguous (build_pattern)
+    run = np.full(st.n_points, -1, dtype=np.intp)
+    run[values] = np.arange(values.size)
+    count = np.diff(np.r_[starts, pat.pair_point.size])
+    r = run[points]
+    q_of = np.where(r >= 0, count[r], 0)
+    flat = band_inverse.reshape(-1, d, d)
+    for q in np.unique(q_of[q_of > 0]).tolist():
+        sel = np.flatnonzero(q_of == q)
+        pairs = (starts[r[sel]][:, None] + np.arange(q)).reshape(-1)  # (m q,)
+        y = times_lower(take(red.z, pairs), take(red.m_pair, pairs))  # W V⁻¹, (d, 3, m q)
+        y = np.moveaxis(y, -1, 0).reshape(sel.size, q * d, 3)  # the point's Y_a stacked
+        units = pat.pair_unit[pairs].reshape(sel.size, q)
+        idx, upper = pat.block_index(units[:, :, None], units[:, None, :])  # (m, q, q)
+        blocks = flat[idx]
+        blocks = np.where(upper[..., None, None], np.swapaxes(blocks, -1, -2), blocks)
+        q_rr = blocks.transpose(0, 1, 3, 2, 4).reshape(sel.size, q * d, q * d)
+        out[sel] += np.swapaxes(y, 1, 2) @ (q_rr @ y)
+    return out
 
 
 def _both_sides(band: FloatArray) -> FloatArray:

@@ -62,7 +62,9 @@ and returns a :class:`NormalSolution`: ``unit_step`` (n, d),
 ``point_step`` (p, 3), ``border_step`` (k,), ``cost``, ``predicted_cost``
 (``Σ‖T (f + A δ)‖²``), ``min_pivot`` (smallest relative pivot of the
 equilibrated reduced matrix, ``min_pivot_unit``, ``min_pivot_parameter``)
-and :meth:`NormalSolution.cofactors`, a :class:`Cofactors` (undamped
+:meth:`NormalSolution.point_cofactors` (the 3 x 3 blocks of some points
+alone, from the band of the selected inverse: a ground stage's control) and
+:meth:`NormalSolution.cofactors`, a :class:`Cofactors` (undamped
 solutions only) with ``unit`` (n, d, d), ``point`` (p, 3, 3), ``border``
 (k, k), ``unit_border`` (n, d, k), ``point_border`` (p, 3, k),
 :meth:`Cofactors.unit_blocks` (any unit pair within the band),
@@ -95,6 +97,7 @@ from ._normal_assembly import (
     assemble,
     chord_step,
     cofactors,
+    point_cofactors,
     predicted_cost,
     reduce_points,
     undetermined_points,
@@ -403,6 +406,7 @@ class NormalSolution:
     _structure: NormalStructure = field(repr=False)
     _state: object = field(repr=False)
     _cofactors: Cofactors | None = field(default=None, repr=False)
+    _band_inverse: FloatArray | None = field(default=None, repr=False)
 
     @classmethod
     def _from(cls, structure: NormalStructure, normals: _Normals, reduced: object,
@@ -460,6 +464,22 @@ class NormalSolution:
             raise ValueError("cofactors of a damped system are not those of the adjustment")
         assert isinstance(self._state, Reduced)
         return self._state.t_inv
+
+    def point_cofactors(self, points: ArrayLike) -> FloatArray:
+        """The points' blocks of ``N⁻¹`` (m, 3, 3) for the points `points`
+        (m,) alone, from the band of the selected inverse: a few points
+        (the control of a ground stage) without the cost of every point's
+        block (:meth:`cofactors`, which serves when it is computed already
+        or there is a border).  Undamped solutions only."""
+        if self.damping != 0.0:
+            raise ValueError("cofactors of a damped system are not those of the adjustment")
+        index = np.asarray(points, dtype=np.intp)
+        if self._cofactors is not None or self._structure.n_border:
+            return self.cofactors().point[index]
+        assert isinstance(self._state, Reduced)
+        if self._band_inverse is None:
+            self._band_inverse = selected_inverse(self._state.factor)
+        return point_cofactors(self._structure, self._state, self._band_inverse, index)
 
     def cofactors(self) -> Cofactors:
         """The selected inverse of the normal matrix (undamped solutions only)."""

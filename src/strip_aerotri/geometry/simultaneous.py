@@ -44,6 +44,10 @@ import numpy as np
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ConvergenceError, GeometryError
 from ..options import DEFAULT_MAX_ITERATIONS
+from ._row_kernels import by_rows as _by_rows
+from ._row_kernels import row_gram as _gram
+from ._row_kernels import rows_whitening as _rows_whitening
+from ._row_kernels import upper_entries, upper_times
 from .rotation import matrix_from_rotvec
 from .units import (
     N_UNIT,
@@ -57,7 +61,7 @@ from .units import (
 )
 
 if TYPE_CHECKING:
-    from .normals import Cofactors, NormalSolution
+    from .normals import NormalSolution
 
 __all__ = [
     "LineCondition",
@@ -84,27 +88,6 @@ _MIN_TESTED_REDUNDANCY = 1e-3
 #: a 3000-photo strip depended on the path to it by 0.8 mm (two starts);
 #: at 1e-10 rad by 1.3e-6 m.
 _WEIGHT_TURN = 1e-10
-
-
-def _by_rows(n_rows: int, block: Callable[[slice], object]) -> None:
-    """``block(rows)`` for consecutive blocks of the ``n_rows`` rows, shared
-    with the worker thread of :func:`~strip_aerotri._threads.compute_workers`
-    where one is open (:func:`adjust_units` opens it): each block reads and
-    writes its own rows only, so the result is that of one call on all rows,
-    bit for bit."""
-    from .._threads import split_map
-    from ._normal_entries import spans
-
-    split_map(block, spans(n_rows))
-
-
-def _rows_whitening(weight: FloatArray) -> FloatArray:
-    """``Lᵀ`` of each row's weight ``W = L Lᵀ`` (n, 3, 3): ``‖Lᵀ v‖² = vᵀ W v``."""
-    try:
-        low = np.linalg.cholesky(weight)
-    except np.linalg.LinAlgError as exc:
-        raise ValueError("Expected positive definite row weights") from exc
-    return np.swapaxes(low, 1, 2)
 
 
 class _Problem:
@@ -140,6 +123,7 @@ class _Problem:
         self.n_points = n_points
         self.whiten0 = _rows_whitening(obs.weight)
         self.whiten = self.whiten0
+        self.whiten0_entries = upper_entries(self.whiten0)  # for turn_weights
         self.weight_rotation = weight_rotation
         self.turned_at: FloatArray | None = None
         self.control_point = control_point
@@ -204,13 +188,15 @@ class _Problem:
                 return False
         self.turned_at = rotation.copy()
         delta_t = np.swapaxes(rotation @ np.swapaxes(self.weight_rotation, 1, 2), 1, 2)
-        unit, whiten0 = self.obs.unit, self.whiten0
-        # C order, as the product on all rows at once gives them (whiten0 is
-        # a transposed view; other strides change the later products' last bits)
-        whiten, point_jacobian = np.empty(whiten0.shape), np.empty(whiten0.shape)
+        delta_entries = np.ascontiguousarray(delta_t.reshape(-1, 9).T)  # (9, U)
+        unit, entries = self.obs.unit, self.whiten0_entries
+        shape = self.whiten0.shape
+        whiten, point_jacobian = np.empty(shape), np.empty(shape)
 
         def block(rows: slice) -> None:
-            np.matmul(whiten0[rows], delta_t[unit[rows]], out=whiten[rows])
+            # L₀ᵀ is upper triangular: its product with Δᵀ entry by entry
+            g = np.take(delta_entries, unit[rows], axis=1)
+            whiten[rows] = upper_times(entries[:, rows], g)
             np.negative(whiten[rows], out=point_jacobian[rows])
 
         _by_rows(unit.size, block)
@@ -247,6 +233,9 @@ class _State:
         self.line_ab = line_ab
         self.coefficients = coefficients
         self.turned: FloatArray | None = None  # s R (x − c) of the rows, once computed
+        self.residual: FloatArray | None = None  # T_u(x) − X_p of the rows, once computed
+        # Σ ‖Lᵀ v‖² of the rows with the whitening it was computed with, once computed
+        self.rows_cost: tuple[FloatArray, float] | None = None
 
     def with_points(self, points: FloatArray) -> _State:
         """The same units (and their rows as turned) with other points."""
@@ -260,6 +249,15 @@ class _State:
 def _predict(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
     """Rows in the work frame relative to their unit's translation
     (``s R (x − c)``, n × 3) and their residuals ``T_u(x) − X_p``."""
+    y = _turned(prob, st)
+    v = st.residual
+    if v is None:
+        st.residual = v = st.translation[prob.obs.unit] + y - st.points[prob.obs.point]
+    return y, v
+
+
+def _turned(prob: _Problem, st: _State) -> FloatArray:
+    """``s R (x − c)`` of the rows (n, 3), once per state."""
     u = prob.obs.unit
     y = st.turned
     if y is None:
@@ -275,8 +273,7 @@ def _predict(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
 
         _by_rows(u.size, block)
         st.turned = y = turned
-    v = st.translation[u] + y - st.points[prob.obs.point]
-    return y, v
+    return y
 
 
 def _whitened(prob: _Problem, v: FloatArray) -> FloatArray:
@@ -300,9 +297,15 @@ def _line_terms(prob: _Problem, st: _State, k: int) -> tuple[FloatArray, FloatAr
 
 
 def _cost(prob: _Problem, st: _State) -> float:
-    _, v = _predict(prob, st)
-    wv = _whitened(prob, v)
-    total = float(np.einsum("ij,ij->", wv, wv))
+    """The weighted sum of squares at ``st``: the rows' share computed once
+    per state and whitening (the control moving between passes leaves it)."""
+    if st.rows_cost is not None and st.rows_cost[0] is prob.whiten:
+        total = st.rows_cost[1]
+    else:
+        _, v = _predict(prob, st)
+        wv = _whitened(prob, v)
+        total = float(np.einsum("ij,ij->", wv, wv))
+        st.rows_cost = (prob.whiten, total)
     c = st.points[prob.control_point] - prob.control_xyz
     g = prob.control_given
     total += float(np.sum((c[g] / prob.control_sigma[g]) ** 2))
@@ -374,21 +377,22 @@ def _point_rows(prob: _Problem, st: _State) -> list[Any]:
     equations (``Y − a − b X``, weight 1/σ², ``a, b`` in the border) at ``st``."""
     from .normals import PointRows
 
-    rows = []
-    used = prob.control_used
-    cp, given = prob.control_point[used], prob.control_given[used]
-    sig = prob.control_sigma[used]
-    rows.append(
-        PointRows(
-            prob.engine_point[cp],
-            np.broadcast_to(np.eye(3), (cp.shape[0], 3, 3)),
-            np.where(given, st.points[cp] - np.where(given, prob.control_xyz[used], 0.0), 0.0),
-            np.where(given, 1.0 / np.where(given, sig, 1.0) ** 2, 0.0),
-        )
-    )
+    cp, f, weight = _control_terms(prob, st)
+    rows = [PointRows(prob.engine_point[cp], np.broadcast_to(np.eye(3), (cp.shape[0], 3, 3)),
+                      f, weight)]
     for k in range(prob.n_lines):
         rows.append(_line_rows(prob, st, k))
     return rows
+
+
+def _control_terms(prob: _Problem, st: _State) -> tuple[IntArray, FloatArray, FloatArray]:
+    """The control rows on observed points: their point, their residual
+    ``X_p − X_c`` and weight ``1/σ²`` (C, 3), both 0 where not given."""
+    used = prob.control_used
+    cp, given = prob.control_point[used], prob.control_given[used]
+    f = np.where(given, st.points[cp] - np.where(given, prob.control_xyz[used], 0.0), 0.0)
+    weight = np.where(given, 1.0 / np.where(given, prob.control_sigma[used], 1.0) ** 2, 0.0)
+    return cp, f, weight
 
 
 def _line_rows(prob: _Problem, st: _State, k: int) -> Any:
@@ -435,23 +439,32 @@ def _solve(prob: _Problem, st: _State) -> NormalSolution:
 def _gradients(prob: _Problem, st: _State) -> tuple[FloatArray, FloatArray]:
     """``Aᵀ P f`` of the units (U, width) and of the engine's points (p, 3) at
     ``st``: the right-hand side :meth:`NormalStructure.form` would form for
-    a chord step (no lines, no polynomial)."""
+    a chord step (no lines, no polynomial).
+
+    Without the design: a row's is ``A = [I | -[y]× | y]`` on its unit and
+    ``-I`` on its point, so with ``q = W v`` (``W = L Lᵀ``) its share is
+    ``Aᵀ q = [q, y × q, y · q]`` and ``-q``."""
     from ._normal_assembly import sum_into
 
     obs = prob.obs
     y, v = _predict(prob, st)
     lt = prob.whiten
-    r = _whitened(prob, v)  # the whitened residuals
-    design = _whitened_design(prob, st, y)
-    g_unit = sum_into(obs.unit, np.einsum("nik,ni->nk", design, r), prob.n_units)
+    per_row = np.empty((v.shape[0], N_UNIT))
+
+    def block(rows: slice) -> None:
+        lr, yr = lt[rows], y[rows]
+        q = np.einsum("nji,nj->ni", lr, np.einsum("nij,nj->ni", lr, v[rows]))  # L Lᵀ v
+        out = per_row[rows]
+        out[:, 0:3] = q
+        out[:, 3:6] = np.cross(yr, q)
+        out[:, 6] = np.einsum("ni,ni->n", yr, q)
+
+    _by_rows(v.shape[0], block)
+    g_unit = sum_into(obs.unit, per_row, prob.n_units)
     n_used = prob.points_used.size
-    # the point's whitened Jacobian is -Lᵀ: (-Lᵀ)ᵀ r
-    g_point = -sum_into(prob.engine_point[obs.point], np.einsum("nij,ni->nj", lt, r), n_used)
-    used = prob.control_used
-    cp, given = prob.control_point[used], prob.control_given[used]
-    f = np.where(given, st.points[cp] - np.where(given, prob.control_xyz[used], 0.0), 0.0)
-    w_c = np.where(given, 1.0 / np.where(given, prob.control_sigma[used], 1.0) ** 2, 0.0)
-    g_point += sum_into(prob.engine_point[cp], w_c * f, n_used)
+    g_point = -sum_into(prob.engine_point[obs.point], per_row[:, 0:3], n_used)
+    cp, f, weight = _control_terms(prob, st)
+    g_point += sum_into(prob.engine_point[cp], weight * f, n_used)
     return g_unit, g_point
 
 
@@ -686,14 +699,23 @@ def _full_step(
 #: A full step below this many times the tolerance (relative, as the
 #: convergence test measures it) is followed by chord steps (:class:`_Chords`).
 _CHORD_FROM = 1e3
+#: So is a full step below this move (relative, as the convergence test
+#: measures it), whatever the tolerance: the normal matrix changes by about
+#: that share, and the chord converges faster than the weights' turning lets
+#: a full step converge (a 1000-photo strip's models: 5e-6, then chords of
+#: 7e-8 and 1e-9 where full steps moved 7e-8 and then 1e-9).  At 1e-3 the
+#: chord's slower convergence ends it 1.5 mm short on a weakly controlled
+#: strip (the cost's change meets the tolerance first).
+_CHORD_BELOW_MOVE = 1e-5
 
 
 class _Chords:
     """Chord (simplified Gauss-Newton) steps near the solution.
 
     Once a full step has moved the unknowns by less than :data:`_CHORD_FROM`
-    times the tolerance, the normal matrix hardly changes any more (the
-    units turn by 1e-7 rad and less): the next steps solve the new
+    times the tolerance or less than :data:`_CHORD_BELOW_MOVE`, the normal
+    matrix hardly changes any more (the units turn by 1e-5 rad and less):
+    the next steps solve the new
     right-hand side ``Aᵀ P f`` (:func:`_gradients`) with the factor of that
     last full step (:meth:`NormalSolution.chord_step`), a fifth of a full
     step's cost, and the points follow their own step (no projection).
@@ -709,7 +731,7 @@ class _Chords:
     def __init__(self, prob: _Problem, tolerance: float) -> None:
         self.prob = prob
         self.allowed = prob.n_lines == 0 and prob.polynomial is None
-        self.threshold = _CHORD_FROM * tolerance
+        self.threshold = max(_CHORD_FROM * tolerance, _CHORD_BELOW_MOVE)
         self.last_full = np.inf  # largest (relative) move of the last full step
         self.previous = np.inf  # of the step before the last
         self.last = np.inf  # of the last step
@@ -777,11 +799,12 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     control.  Nothing when there are lines (they tie the points to each
     other), or when a point's rows do not fix it."""
     from ._normal_assembly import sum_into
+    from ._normal_entries import point_factor
 
     if prob.n_lines:
         return st
     obs = prob.obs
-    y, _ = _predict(prob, st)
+    y = _turned(prob, st)
     lt = prob.whiten
     n = prob.n_points
     weighted = np.empty(y.shape)
@@ -798,10 +821,8 @@ def _projected(prob: _Problem, st: _State, inverse: FloatArray | None = None) ->
     )
     used = prob.points_used
     if inverse is None:
-        v = sum_into(obs.point, np.swapaxes(lt, 1, 2) @ lt, n)[used]
-        try:
-            inverse = np.asarray(np.linalg.inv(v), dtype=np.float64)
-        except np.linalg.LinAlgError:  # a point its rows do not fix: the step's own
+        inverse = point_factor(sum_into(obs.point, _gram(lt), n)[used]).v_inv
+        if not np.all(np.isfinite(inverse)):  # a point its rows do not fix: the step's own
             return st
     else:
         cp, given = prob.control_point, prob.control_given
@@ -850,17 +871,20 @@ def _result(
     _, v = _predict(prob, st)
     redundancy = prob.n_observations - prob.n_unknowns
     sigma0 = float(np.sqrt(cost / redundancy)) if redundancy > 0 else float("nan")
-    cof = sol.cofactors() if statistics or prob.polynomial is not None else None
+    # every block of the selected inverse where the lines' or the coefficients'
+    # statistics need it; else the control's and the probes' point blocks alone
+    full = (statistics and prob.n_lines > 0) or prob.polynomial is not None
+    cof = sol.cofactors() if full else None
 
     # Cofactors of the control points (the selected inverse's point blocks):
     # the diagonal of the given components, which the tests need.
     cp = prob.control_point
     given = prob.control_given
     q_diag = np.full(given.shape, np.nan)
-    if statistics and cof is not None:
+    if statistics:
         q_all = np.zeros((cp.shape[0], 3, 3))  # a point no row observes: V⁻¹ = 0
         used = prob.control_used
-        q_all[used] = cof.point[prob.engine_point[cp[used]]]
+        q_all[used] = sol.point_cofactors(prob.engine_point[cp[used]])
         q_diag = np.where(given, np.einsum("cii->ci", q_all), np.nan)
     cof_blocks = np.full((cp.shape[0], 3, 3), np.nan)
     cof_blocks[:, [0, 1, 2], [0, 1, 2]] = q_diag
@@ -881,9 +905,8 @@ def _result(
     leverage = np.empty(v.shape[0])
 
     def block(rows: slice) -> None:
-        # trace(Lᵀ V⁻¹ L), row by row of Lᵀ: Σ_i l_i V⁻¹ l_iᵀ
-        lr = lt[rows]
-        leverage[rows] = np.einsum("nij,nij->n", lr @ v_inv[row_point[rows]], lr)
+        # trace(Lᵀ V⁻¹ L) = Σ_ij (L Lᵀ)_ij (V⁻¹)_ij
+        leverage[rows] = np.einsum("nij,nij->n", _gram(lt[rows]), v_inv[row_point[rows]])
 
     _by_rows(v.shape[0], block)
     free = 3.0 - leverage
@@ -922,12 +945,12 @@ def _result(
     points = st.points.copy()
     points[~prob.observed] = np.nan
     probe = probe_sigma = None
-    if statistics and cof is not None:
-        probe, probe_sigma = _probe_plan_sigma(prob, cof)
+    if statistics:
+        probe, probe_sigma = _probe_plan_sigma(prob, sol)
     return SimultaneousResult(
         transforms=transforms,
         points=points,
-        residuals=v,
+        residuals=v.copy(),  # the state keeps its own
         row_statistic=stat,
         control_residuals=resid_c,
         control_cofactor=cof_blocks,
@@ -951,7 +974,7 @@ _PROBES = 24
 """Units whose plan precision :func:`_probe_plan_sigma` gives, at most."""
 
 
-def _probe_plan_sigma(prob: _Problem, cof: Cofactors) -> tuple[IntArray, FloatArray]:
+def _probe_plan_sigma(prob: _Problem, sol: NormalSolution) -> tuple[IntArray, FloatArray]:
     """For at most :data:`_PROBES` units evenly along the block, the point most
     units share (ties first) and its a priori plan standard deviation (from
     the selected inverse's point block); -1 and NaN for the other units."""
@@ -970,6 +993,6 @@ def _probe_plan_sigma(prob: _Problem, cof: Cofactors) -> tuple[IntArray, FloatAr
     probe[~sampled] = -1
     sigma = np.full(prob.n_units, np.nan)
     has = probe >= 0
-    q = cof.point[prob.engine_point[probe[has]]]
+    q = sol.point_cofactors(prob.engine_point[probe[has]])
     sigma[has] = np.sqrt(np.maximum(q[:, 0, 0] + q[:, 1, 1], 0.0))
     return probe, sigma

@@ -82,6 +82,8 @@ class StripProblem:
         A sample of the strip's points the similarity serves (its test of
         height control nearly in one vertical plane, the roll's relief).
     sections, max_iterations : int
+    pass_tolerance_m : float
+        The passes end when the guessed control coordinates move by less.
     """
 
     strip: StripModel
@@ -103,6 +105,7 @@ class StripProblem:
     served: FloatArray
     sections: int
     max_iterations: int
+    pass_tolerance_m: float = _PASS_TOLERANCE_M
 
 
 class Solution(NamedTuple):
@@ -198,7 +201,7 @@ def solve_passes(
         # control point is full): another pass would repeat this one.
         change = float(np.nanmax(np.abs(new_guess - guess)))
         guess = new_guess
-        if change < _PASS_TOLERANCE_M:
+        if change < p.pass_tolerance_m:
             converged = along
             break
         work = make_work_frame(p.route, p.crs, guess[active], azimuth)

@@ -78,6 +78,13 @@ _SERVED_SAMPLE = 8192  # strip points for the similarity's test of the cross til
 #: A control observation whose rejection the polynomial cannot afford goes
 #: only when its |w| is at least this many times the critical value.
 _CERTAIN = 3.0
+#: Metres the guessed control coordinates of :func:`similarity_start` may
+#: still move when its passes end: it is only the start of the models,
+#: whose own passes carry the guesses on and whose first step moves the
+#: models by up to a metre.  A 1000-photo strip: 4 passes instead of the 8
+#: of 1e-5 m (the passes converge linearly, by a seventh each), 28-31 ->
+#: 17-18 ms, the models' solution the same to 1e-9 m.
+_START_PASS_TOLERANCE_M = 1e-2
 
 
 def served_points(strip: StripModel) -> FloatArray:
@@ -157,13 +164,15 @@ def similarity_start(
     the points no model determined (seen only on photos between the model
     photos) are left NaN instead of intersected from their rays: the models'
     stage has no row on them (control and line points are triangulated
-    points) and intersects them itself at the end.
+    points) and intersects them itself at the end; and its passes end at
+    :data:`_START_PASS_TOLERANCE_M`.
     """
     options = GroundOptions(route=route, polynomial=0, max_iterations=max_iterations)
     blunders = BlunderOptions(action=BlunderAction.OFF)
     return _adjusted(
-        strip, control, crs, (), options, blunders, all_points=False, name=control_name
-    )
+        strip, control, crs, (), options, blunders, all_points=False, name=control_name,
+        pass_tolerance_m=_START_PASS_TOLERANCE_M,
+    )  # fmt: skip
 
 
 def _adjusted(
@@ -176,9 +185,11 @@ def _adjusted(
     *,
     all_points: bool,
     name: str = "control",
+    pass_tolerance_m: float | None = None,
 ) -> GroundResult:
     """:func:`adjust_to_ground`; with ``all_points`` False its ``points`` in
-    the CRS at the control points only; ``name`` the control in messages."""
+    the CRS at the control points only; ``name`` the control in messages;
+    ``pass_tolerance_m`` that of the passes (default the stage's own)."""
     options = options or GroundOptions()
     blunders = blunders or BlunderOptions()
     if not isinstance(crs, GroundCRS):
@@ -186,6 +197,8 @@ def _adjusted(
     route = resolve_route(options.route, crs)
     picked = control_rows(strip, control)
     problem = _prepare(strip, picked, crs, route, tuple(lines), options, name)
+    if pass_tolerance_m is not None:
+        problem = replace(problem, pass_tolerance_m=pass_tolerance_m)
     sol, use_xy, use_z, line_keep, rejections = _snoop(problem, picked, blunders, options)
     if not sol.converged:
         warnings.warn(

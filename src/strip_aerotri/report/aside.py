@@ -155,7 +155,7 @@ class Aside(Generic[_T]):
             self._reap()
             if data[:1] == _VALUE:
                 try:
-                    value, received = pickle.loads(data[1:]), True
+                    value, received = pickle.loads(memoryview(data)[1:]), True
                 except Exception:  # a truncated message: the child died writing
                     received = False
         if not received:
@@ -196,17 +196,30 @@ class Standby:
     needs (``prepare``: importing matplotlib, 0.2-0.3 s) on the second core
     meanwhile, then does the one job :meth:`submit` sends it.
 
+    With ``first``, the child calls it before it prepares and sends its
+    value at once (:meth:`first_result`), then calls ``prepare`` with that
+    value: ``stripaero run`` forks its one child at its start, when its
+    process is small, and has the child load the project while it imports
+    (the pages a child shares with this process are copied at this
+    process's first write to each, for as long as the child lives: a child
+    forked after the loading cost the adjustment 8 000-10 000 page faults).
+
     Use as a context manager: the child is forked when the block is entered,
     and killed and reaped however the block is left (a failed run, Ctrl-C),
     also when no job was sent.  Without a child (:func:`fork_allowed`
-    false), :meth:`submit` is :func:`aside`.
+    false), :meth:`first_result` calls ``first`` here and :meth:`submit` is
+    :func:`aside`.
     """
 
-    def __init__(self, prepare: Callable[[], object]) -> None:
+    def __init__(
+        self, prepare: Callable[..., object], *, first: Callable[[], object] | None = None
+    ) -> None:
         self._prepare = prepare
+        self._first = first
+        self._first_value: tuple[object] | None = None  # (value,) once known
         self._pid: int | None = None
         self._jobs: int | None = None  # write end: the job, then EOF
-        self._replies: int | None = None  # read end: the value
+        self._replies: int | None = None  # read end: first's value, then the job's
 
     def _start(self) -> None:
         job_read, job_write = os.pipe()
@@ -215,7 +228,7 @@ class Standby:
         def work() -> None:
             os.close(job_write)
             os.close(reply_read)
-            _standby_child(self._prepare, job_read, reply_write)
+            _standby_child(self._prepare, self._first, job_read, reply_write)
 
         def kept(pid: int) -> None:
             self._pid, self._jobs, self._replies = pid, job_write, reply_read
@@ -229,6 +242,24 @@ class Standby:
                 with contextlib.suppress(OSError):
                     os.close(fd)
             self._pid = self._jobs = self._replies = None
+
+    def first_result(self) -> object:
+        """The value of ``first`` (given to the constructor): the child's, sent
+        before it prepares, or ``first()`` called here when there is no
+        child or the child failed (its error is raised here)."""
+        if self._first is None:
+            raise ValueError("this Standby was made without a first function")
+        if self._first_value is None:
+            value: tuple[object] | None = None
+            if self._replies is not None:
+                try:
+                    if _read_exact(self._replies, 1) == _VALUE:
+                        size = int.from_bytes(_read_exact(self._replies, 8), "little")
+                        value = (pickle.loads(_read_exact(self._replies, size)),)
+                except Exception:  # the child died before or while answering
+                    value = None
+            self._first_value = value if value is not None else (self._first(),)
+        return self._first_value[0]
 
     def submit(self, function: Callable[..., _T], *args: object) -> Aside[_T]:
         """``function(*args)`` in the waiting child (both pickled: a function
@@ -281,10 +312,27 @@ def aside(function: Callable[[], _T]) -> Aside[_T]:
     return Aside(function)
 
 
-def _standby_child(prepare: Callable[[], object], jobs: int, write: int) -> None:
-    """The standby child: prepare, wait for the job (until EOF), do it, exit."""
-    with contextlib.suppress(Exception):
-        prepare()  # a failure shows when the job runs (here or in the parent)
+def _standby_child(
+    prepare: Callable[..., object], first: Callable[[], object] | None, jobs: int, write: int
+) -> None:
+    """The standby child: ``first`` and its value sent (when given), prepare
+    (with that value), wait for the job (until EOF), do it, exit."""
+    if first is None:
+        with contextlib.suppress(Exception):
+            prepare()  # a failure shows when the job runs (here or in the parent)
+    else:
+        try:
+            value = first()
+            data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+        except BaseException:  # the parent calls first() again and reports it
+            _write_all(write, _FAILED)
+        else:
+            _write_all(write, _VALUE + len(data).to_bytes(8, "little"))
+            _write_all(write, data)
+            del data
+            with contextlib.suppress(Exception):
+                prepare(value)
+            del value
     try:
         with os.fdopen(jobs, "rb") as pipe:
             data = pipe.read()
@@ -309,3 +357,22 @@ def _child(function: Callable[[], object], write: int) -> None:
         code = 1
     finally:
         os._exit(code)
+
+
+def _read_exact(fd: int, size: int) -> bytes:
+    """``size`` bytes from ``fd``; EOFError if it ends before."""
+    parts, left = [], size
+    while left:
+        part = os.read(fd, min(left, 1 << 20))
+        if not part:
+            raise EOFError(f"{left} of {size} bytes missing")
+        parts.append(part)
+        left -= len(part)
+    return b"".join(parts)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    """Write all of ``data`` to ``fd``."""
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view) :]
