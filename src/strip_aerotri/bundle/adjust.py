@@ -287,9 +287,10 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
 
     Rows (residual computed minus observed): image ``x - x_obs`` whitened by
     its sigma, with a camera model ``x̂ - x_obs`` (``x̂ + Δ(x̂) = x``, the
-    design premultiplied per ray by ``(I + ∂Δ/∂x)⁻¹``: :mod:`._observation_space`); control ``X - X_c`` (m, design identity); GNSS ``S - S_g`` (m,
-    design identity on the centre); IMU ``log(R_imu.T R)`` (rad, design
-    ``Jr^-1(e)`` on the rotation)."""
+    design premultiplied per ray by ``(I + ∂Δ/∂x)⁻¹``:
+    :mod:`._observation_space`); control ``X - X_c`` (m, design identity);
+    GNSS ``S - S_g`` (m, design identity on the centre); IMU ``log(R_imu.T
+    R)`` (rad, design ``Jr^-1(e)`` on the rotation)."""
     inv_s = 1.0 / prob.sigma
     shutter = None if prob.motion is None else (prob.motion, prob.motion.fractions(prob.xy))
     xy, v, jac_photo, jac_point = _collinearity(prob, state, inv_s, shutter)
