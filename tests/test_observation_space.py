@@ -119,68 +119,44 @@ def test_rows_are_the_derivatives_of_the_mapped_residuals() -> None:
     s = prob.motion.fractions(prob.xy)
     rays = np.arange(prob.photo.size)
 
-    def v(d_photo: np.ndarray, d_point: np.ndarray, theta: np.ndarray, motion: np.ndarray) -> np.ndarray:
+    n_photo, n_point = 6 * 3, 3 * points.shape[0]
+
+    def v(x: np.ndarray) -> np.ndarray:
+        """Whitened v at the unknowns x: photo and point increments, θ, motions."""
+        d_photo = x[:n_photo].reshape(3, 6)
         cen = centres + d_photo[:, :3]
         rot = rotations @ matrix_from_rotvec(d_photo[:, 3:])
+        pts = points + x[n_photo : n_photo + n_point].reshape(-1, 3)
+        theta, motion = x[n_photo + n_point : -6], x[-6:].reshape(2, 3)
         shift = prob.motion.centre_shift(motion, prob.photo, s)
-        xy, _ = project(cen[prob.photo] + shift, rot[prob.photo], (points + d_point)[prob.point],
-                        rays, rays, C)  # fmt: skip
+        xy, _ = project(cen[prob.photo] + shift, rot[prob.photo], pts[prob.point], rays, rays, C)
         out: np.ndarray = mapped.residuals(prob.camera, theta, xy, prob.xy) / prob.sigma[:, None]
         return out
 
-    zero_photo, zero_point = np.zeros((3, 6)), np.zeros_like(points)
+    x0 = np.concatenate([np.zeros(n_photo + n_point), THETA, MOTION.ravel()])
     image = normals.image
-    np.testing.assert_allclose(image.residual, v(zero_photo, zero_point, THETA, MOTION),
-                               rtol=1e-10, atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(image.residual, v(x0), rtol=1e-10, atol=1e-12)
     assert np.max(np.abs(image.residual * prob.sigma[:, None])) > 0.1  # away from the solution
-
-    def central(shifted: object, h: float) -> np.ndarray:
-        plus, minus = shifted(h), shifted(-h)
-        out: np.ndarray = (plus - minus) / (2.0 * h)
-        return out
-
-    def photo_shift(j: int, a: int):
-        def f(h: float) -> np.ndarray:
-            d = zero_photo.copy()
-            d[j, a] = h
-            return v(d, zero_point, THETA, MOTION)
-        return f
-
-    def point_shift(i: int, a: int):
-        def f(h: float) -> np.ndarray:
-            d = zero_point.copy()
-            d[i, a] = h
-            return v(zero_photo, d, THETA, MOTION)
-        return f
-
-    def border_shift(b: int):
-        def f(h: float) -> np.ndarray:
-            theta, motion = THETA.copy(), MOTION.copy()
-            if b < THETA.size:
-                theta[b] += h
-            else:
-                motion.reshape(-1)[b - THETA.size] += h
-            return v(zero_photo, zero_point, theta, motion)
-        return f
-
-    for j in range(3):
-        rows = prob.photo == j
-        for a in range(6):
-            num = central(photo_shift(j, a), 1e-4 if a < 3 else 1e-7)
-            np.testing.assert_allclose(image.unit_jacobian[rows, :, a], num[rows], rtol=1e-6,
-                                       atol=1e-6 * np.max(np.abs(num[rows])))  # fmt: skip
+    camera_steps = [1e-4, 1e-5, 1e-5, 1e-9, 1e-13, 1e-17, 1e-8, 1e-8, 1e-6, 1e-6]
+    steps = [*([1e-4] * 3 + [1e-7] * 3) * 3, *[1e-4] * n_point, *camera_steps, *[1e-3] * 6]
+    photo_of = np.arange(n_photo) // 6
+    point_of = np.arange(n_point) // 3
+    for i, h in enumerate(steps):
+        e = np.zeros_like(x0)
+        e[i] = h
+        num = (v(x0 + e) - v(x0 - e)) / (2.0 * h)
+        if i < n_photo:
+            rows = prob.photo == photo_of[i]
+            analytic = image.unit_jacobian[rows, :, i % 6]
             assert np.all(num[~rows] == 0.0)
-    for i in range(points.shape[0]):
-        rows = prob.point == i
-        for a in range(3):
-            num = central(point_shift(i, a), 1e-4)
-            np.testing.assert_allclose(image.point_jacobian[rows, :, a], num[rows], rtol=1e-6,
-                                       atol=1e-6 * np.max(np.abs(num[rows])))  # fmt: skip
-    steps = [1e-4, 1e-5, 1e-5, 1e-9, 1e-13, 1e-17, 1e-8, 1e-8, 1e-6, 1e-6, *[1e-3] * 6]
-    for b, h in enumerate(steps):
-        num = central(border_shift(b), h)
-        np.testing.assert_allclose(image.border_jacobian[:, :, b], num, rtol=1e-6,
-                                   atol=1e-6 * np.max(np.abs(num)))  # fmt: skip
+        elif i < n_photo + n_point:
+            rows = prob.point == point_of[i - n_photo]
+            analytic = image.point_jacobian[rows, :, (i - n_photo) % 3]
+        else:
+            rows = np.ones(prob.photo.size, bool)
+            analytic = image.border_jacobian[:, :, i - n_photo - n_point]
+        np.testing.assert_allclose(analytic, num[rows], rtol=1e-6,
+                                   atol=1e-6 * np.max(np.abs(num[rows])))  # fmt: skip
 
 
 def test_c_alone_divides_the_corrected_observations_residuals_by_its_scale() -> None:
