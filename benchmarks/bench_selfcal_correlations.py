@@ -45,11 +45,17 @@ DRONE_ERRORS = {"k1": 4e-5, "p1": 1.6e-4, "b1": 1e-3}
 FILM_ERRORS = {"k1": 4.6e-9, "p1": 3.8e-7, "b1": 6e-5}
 
 
+def _outcome(result: Any) -> Any:
+    """The self-calibration's outcome of a block's or a strip's refinement."""
+    refined = getattr(result, "refined", None)
+    return (result if refined is None or isinstance(refined, bool) else refined).self_calibration
+
+
 def _row(label: str, auto: Any, ten: Any) -> str:
-    corr = {p.name: p.orientation_correlation for p in auto.self_calibration.parameters}
-    t = {p.name: p.t for p in ten.self_calibration.parameters} if ten is not None else {}
+    corr = {p.name: p.orientation_correlation for p in _outcome(auto).parameters}
+    t = {p.name: p.t for p in _outcome(ten).parameters} if ten is not None else {}
     cells = "  ".join(f"{n} {corr.get(n, np.nan):.6f} (t {t.get(n, np.nan):+6.1f})" for n in NAMES)
-    kept = " ".join(auto.self_calibration.kept) or "nothing"
+    kept = " ".join(_outcome(auto).kept) or "nothing"
     return f"{label:22s} {cells}   auto kept {kept}"
 
 
@@ -85,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         toml = splits._import(args.data, Path(tmp) / "imported")
         cases = splits._splits(toml.parent / "control.csv")
-        for name in args.splits.split(","):
+        for name in filter(None, args.splits.split(",")):
             res = []
             for choice in ('"auto"', "[" + ",".join(f'"{n}"' for n in ALL_TEN) + "]"):
                 folder = Path(tmp) / f"case_{name}_{len(res)}"
