@@ -358,6 +358,13 @@ class GroundCRS:
     def _transformer(self, key: str) -> Transformer: ...
 
     def _transformer(self, key: str) -> Transformer:
+        # Made here, in the process and thread that use them (30-50 ms for a
+        # run's first ones, the PROJ database's first queries): a pyproj
+        # Transformer is per thread (a thread-local PJ, re-made in any other
+        # thread) and pickles as its from_crs recipe, made again when unpickled,
+        # so neither a helper thread nor stripaero run's loading child can hand
+        # one over; a pipeline string would, but from_crs may hold several
+        # operations chosen point by point (datum shifts), which one would not.
         from pyproj import CRS, Proj, Transformer
 
         cached: Transformer | None = self._cache.get(key)

@@ -19,13 +19,12 @@ from ..frames import WorkFrame, make_work_frame
 from ..geodesy import GroundCRS
 from ..geometry.similarity import SimilarityTransform, similarity_from_points
 from ..geometry.simultaneous import UnitObservations, UnitPolynomial, UnitTransforms
-from ..ground.common import index_of
+from ..ground.common import control_rows_of
 from ..ground.models import model_weights
 from ..ground.polynomials import adjust_to_ground
 from ..observations import ControlPoints, ImageObservations, StripSpec
 from ..options import BlunderAction, BlunderOptions, Construction, GroundOptions, Route
 from ..results import StripModel
-
 
 #: Common points a strip needs with the placed strips when its own control
 #: cannot place it (a 3D similarity needs three).
@@ -159,21 +158,18 @@ class ControlRowTable(NamedTuple):
 def control_rows(
     observations: ImageObservations, control: ControlPoints, points: BoolArray
 ) -> ControlRowTable:
-    """The control rows of the points ``points`` (P,) bool (the control's
-    ids found among the observations' by binary search,
-    :func:`~strip_aerotri.ground.common.index_of`)."""
-    point_of = index_of(observations.point_ids, control.point_ids)
-    rows = np.flatnonzero((point_of >= 0) & points[np.maximum(point_of, 0)])
-    check = control.is_check[rows]
-    sig_xy, sig_h = control.sigma_xy[rows], control.sigma_h[rows]
+    """The control rows of the points ``points`` (P,) bool, as the strip's
+    (:func:`~strip_aerotri.ground.common.control_rows_of`), their sigmas as
+    one (C, 3) table."""
+    picked = control_rows_of(observations, control, points)
     return ControlRowTable(
-        rows=rows,
-        idx=point_of[rows],
-        given=control.xyz[rows],
-        sigma=np.column_stack([sig_xy, sig_xy, sig_h]),
-        use_xy=control.uses_xy[rows] & ~check,
-        use_z=control.uses_h[rows] & ~check,
-        check=check,
+        rows=picked.rows,
+        idx=picked.index,
+        given=picked.given,
+        sigma=np.column_stack([picked.sigma_xy, picked.sigma_xy, picked.sigma_h]),
+        use_xy=picked.use_xy,
+        use_z=picked.use_z,
+        check=picked.check,
     )
 
 

@@ -4,7 +4,7 @@ imports the modules of the run.
 At its start a run has two things to do that do not depend on each other:
 load the project (read and check strip.toml and the CSVs: about 0.15 s for a
 1000-photo strip with 100 000 image points) and import what adjusts it and
-writes its report (scipy.linalg, scipy.special and the package's own
+writes its report (scipy.linalg and the package's own
 stages: about 0.2 s).  Imports cannot be handed from one process to
 another, a loaded project can: :func:`loaded` forks the run's one child
 (:class:`..report.aside.Standby`) at the start, when this process is small;
@@ -43,7 +43,6 @@ __all__ = ["BEFORE_FORK", "RUN_MODULES", "load_recorded", "loaded"]
 #: need would only cost its import; each is imported by the run anyway.
 RUN_MODULES = (
     "scipy.linalg",
-    "scipy.special",
     "strip_aerotri.project.run",
     "strip_aerotri.report.summary",
     "strip_aerotri.report.html",

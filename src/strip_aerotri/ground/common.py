@@ -16,7 +16,7 @@ from ..errors import GeometryError
 from ..geodesy import GroundCRS
 from ..geometry.deformation import DeformationResult
 from ..geometry.rotation import matrix_from_rotvec
-from ..observations import ControlPoints, LineSpec
+from ..observations import ControlPoints, ImageObservations, LineSpec
 from ..options import BlunderOptions, Route
 from ..results import StripModel
 
@@ -24,6 +24,7 @@ __all__ = [
     "ControlRows",
     "control_detectability",
     "control_rows",
+    "control_rows_of",
     "index_of",
     "intersect_unmodelled",
     "line_indices",
@@ -121,14 +122,23 @@ def control_rows(strip: StripModel, control: ControlPoints) -> ControlRows:
     GeometryError
         If no control point is triangulated.
     """
-    obs = strip.observations
-    row_point = index_of(obs.point_ids, control.point_ids)
-    triangulated = np.zeros(len(control.point_ids), dtype=bool)
-    seen = row_point >= 0
-    triangulated[seen] = strip.triangulated[row_point[seen]]
-    left_out = tuple(p for p, ok in zip(control.point_ids, triangulated, strict=True) if not ok)
-    rows = np.flatnonzero(triangulated)
-    picked = ControlRows(
+    picked = control_rows_of(strip.observations, control, strip.triangulated)
+    if not (picked.use_xy | picked.use_z).any():
+        raise GeometryError(_no_control_message(control))
+    return picked
+
+
+def control_rows_of(
+    observations: ImageObservations, control: ControlPoints, determined: BoolArray
+) -> ControlRows:
+    """The control rows whose point is among the observations' and
+    ``determined`` (P,) bool, the control's ids found by binary search
+    (:func:`index_of`); the others are ``left_out``."""
+    row_point = index_of(observations.point_ids, control.point_ids)
+    found = row_point >= 0
+    kept = found & determined[np.where(found, row_point, 0)]
+    rows = np.flatnonzero(kept)
+    return ControlRows(
         rows=rows,
         index=row_point[rows],
         ids=tuple(control.point_ids[r] for r in rows),
@@ -138,11 +148,8 @@ def control_rows(strip: StripModel, control: ControlPoints) -> ControlRows:
         check=control.is_check[rows],
         sigma_xy=control.sigma_xy[rows],
         sigma_h=control.sigma_h[rows],
-        left_out=left_out,
+        left_out=tuple(p for p, ok in zip(control.point_ids, kept, strict=True) if not ok),
     )
-    if not (picked.use_xy | picked.use_z).any():
-        raise GeometryError(_no_control_message(control))
-    return picked
 
 
 def _no_control_message(control: ControlPoints) -> str:

@@ -53,7 +53,6 @@ from ..geometry.similarity import (
     control_count_problems,
     cross_tilt,
 )
-from ..options import DEFAULT_PHOTO_STEP
 from ..plausibility import (
     control_coverage_problems,
     control_problems,
@@ -61,6 +60,7 @@ from ..plausibility import (
     photo_order_hint,
 )
 from ..strip.chaining import pair_rows
+from ..strip.densify import first_model_step, model_photo_index
 from ..strip.relative import MIN_POINTS_PER_PAIR, pair_count_problems
 from .output import output_folder
 
@@ -332,11 +332,8 @@ def _check_pairs(rep: CheckReport, project: Project) -> _PairFacts:
     n_photos = obs.n_photos
     # Models on every k-th photo with [adjustment] photo_step = k (densify); "auto"
     # chooses k from a first relative orientation, so it is checked as k = 1.
-    from .run import model_photos  # the run's own rule for its photo-order hint
-
-    chosen = project.adjustment.photo_step
-    step = chosen if isinstance(chosen, int) else DEFAULT_PHOTO_STEP
-    seq = model_photos(n_photos, chosen)
+    step = first_model_step(project.adjustment.photo_step)  # the run's own rule
+    seq = model_photo_index(n_photos, step)
     ids = [all_ids[i] for i in seq]
     n_models = len(seq) - 1
     labels = [f"pair {ids[m]}-{ids[m + 1]}" for m in range(n_models)]

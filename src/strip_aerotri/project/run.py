@@ -3,16 +3,14 @@ project's own observations and options."""
 
 from __future__ import annotations
 
-import numpy as np
-
 from .._threads import limit_blas_threads
 from .._typing import IntArray
 from ..errors import FlightAxisError, GeometryError, PhotoOrderError
-from ..options import DEFAULT_PHOTO_STEP, BlunderOptions, GroundOptions, StripOptions
+from ..options import BlunderOptions, GroundOptions, StripOptions
 from ..pipeline import Progress, triangulate, triangulate_block
 from ..plausibility import flight_axis_message, photo_order_hint, photo_order_message
 from ..results import BlockResult, StripResult
-from ..strip.densify import model_photo_index
+from ..strip.densify import first_model_step, model_photo_index
 from ..strip.relative import MIN_POINTS_PER_PAIR
 from .model import Project
 
@@ -80,10 +78,7 @@ def model_photos(n_photos: int, photo_step: int | str) -> IntArray:
     (:func:`strip_aerotri.strip.densify.model_photo_index`), every photo
     with ``"auto"`` (its first relative orientation is of all consecutive
     pairs, :func:`~strip_aerotri.strip.densify.choose_photo_step`)."""
-    step = photo_step if isinstance(photo_step, int) else DEFAULT_PHOTO_STEP
-    if step > 1:
-        return model_photo_index(n_photos, step)
-    return np.arange(n_photos, dtype=np.intp)
+    return model_photo_index(n_photos, first_model_step(photo_step))
 
 
 def _photo_order_problem(project: Project) -> str:

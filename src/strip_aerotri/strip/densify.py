@@ -73,6 +73,13 @@ _MIN_TIE_POINTS = 3
 # --------------------------------------------------------------------------- model photos
 
 
+def first_model_step(photo_step: int | str) -> int:
+    """The photo step of a strip's first models: ``photo_step`` itself, or 1
+    for ``"auto"``, whose first relative orientation is of all consecutive
+    pairs (:func:`choose_photo_step`)."""
+    return photo_step if isinstance(photo_step, int) else 1
+
+
 def model_photo_index(n_photos: int, photo_step: int) -> IntArray:
     """The model photos for a step: every k-th photo, first and last included.
 
