@@ -158,3 +158,22 @@ def test_subset_columns_and_errors() -> None:
         CameraModel("brown", ("k9",), C)
     with pytest.raises(ValueError, match="grid spacing"):
         CameraModel("ebner", EBNER_PARAMETERS, 152.0)
+
+
+@pytest.mark.parametrize("family", ["brown", "ebner"])
+def test_correction_and_xy_partials_at_once_equal_each_alone(family: str) -> None:
+    """The shared evaluation gives correction and xy_partials to the bit, in
+    turned flight axes too; xy_partials is M ∂Δ/∂s Mᵀ of the sensor's."""
+    turn = np.array([[0.0, 1.0], [-1.0, 0.0]])
+    flight = flight_from_sensor(_points(), "+y")
+    names, values = (BROWN_PARAMETERS, BROWN) if family == "brown" else (EBNER_PARAMETERS, EBNER)
+    model = CameraModel(family, names, C if family == "brown" else 152.0, base_mm=92.0,
+                        flight_matrix=turn)  # fmt: skip
+    delta, d_xy = model.correction_and_xy_partials(flight, values)
+    np.testing.assert_array_equal(delta, model.correction(flight, values))
+    np.testing.assert_array_equal(d_xy, model.xy_partials(flight, values))
+    sensor = flight @ turn
+    own = brown_xy_partials(sensor, values, C) if family == "brown" else ebner_xy_partials(
+        sensor, values, 92.0
+    )
+    np.testing.assert_allclose(d_xy, turn @ own @ turn.T, rtol=1e-15, atol=1e-18)

@@ -7,6 +7,7 @@ import warnings
 
 import numpy as np
 import pytest
+import _observation_space as mapped
 
 from strip_aerotri.bundle.adjust import bundle_adjust
 from strip_aerotri.errors import GeometryError
@@ -47,7 +48,7 @@ def _small_network(seed: int = 3) -> tuple[ImageObservations, np.ndarray, np.nda
 
 def _residuals(obs, model, centres, rotations, points, camera, control, c_sigma):  # type: ignore[no-untyped-def]
     xy, _ = project(centres, rotations, points, obs.photo, obs.point, C)
-    img = (xy - (obs.xy + model.correction(obs.xy, camera))) / obs.sigma[:, None]
+    img = mapped.residuals(model, camera, xy, obs.xy) / obs.sigma[:, None]
     ctrl = (points - control) / c_sigma
     return np.concatenate([img.ravel(), ctrl[np.isfinite(ctrl)]])
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import _observation_space as mapped
 
 from strip_aerotri.bundle.adjust import bundle_adjust
 from strip_aerotri.geometry.camera_model import ShutterMotion
@@ -238,7 +239,7 @@ def test_camera_and_motion_share_the_border() -> None:
         cam = x[6 * m + 3 * p : 6 * m + 3 * p + 2]
         shift = shutter.centre_shift(x[6 * m + 3 * p + 2 :].reshape(2, 3), obs.photo, s)
         xy, _ = project(cen[obs.photo] + shift, rot[obs.photo], pts[obs.point], rays, rays, C)
-        img = (xy - (obs.xy + model.correction(obs.xy, cam))) / obs.sigma[:, None]
+        img = mapped.residuals(model, cam, xy, obs.xy) / obs.sigma[:, None]
         ctrl = (pts - control) / 0.05
         return np.concatenate([img.ravel(), ctrl[np.isfinite(ctrl)]])
 
@@ -320,8 +321,10 @@ def _linearised(
 
 def test_whitened_rows_equal_rows_whitened_after(monkeypatch: pytest.MonkeyPatch) -> None:
     """The image rows, border included, built from the Jacobians whitened in
-    the collinearity's blocks equal those of unwhitened Jacobians times 1/σ
-    (rtol 1e-12): the motion's columns s dx/dS are linear in dx/dS."""
+    the collinearity's blocks equal those of unwhitened Jacobians mapped to
+    the observations' space (premultiplied by ``(I + ∂Δ/∂x)⁻¹`` from numpy's
+    inverse, ``x̂`` by Newton's method) times 1/σ: the motion's columns s dx/dS
+    are linear in dx/dS."""
     from strip_aerotri.geometry.camera_model import CameraModel
 
     image, camera, _, rows = _linearised(monkeypatch)
@@ -333,8 +336,12 @@ def test_whitened_rows_equal_rows_whitened_after(monkeypatch: pytest.MonkeyPatch
     xy, _, jac_photo, jac_point = collinearity_jacobians(
         centres, rotations, moved, obs.photo, rays, C
     )
+    # the observations' space: x̂ + Δ(x̂) = x, every column premultiplied by (I + ∂Δ/∂x)⁻¹
+    true_xy = mapped.true_xy(model, camera, xy, obs.xy)
+    m = np.linalg.inv(np.eye(2) + model.xy_partials(true_xy, camera))
+    jac_photo, jac_point = m @ jac_photo, m @ jac_point
     border = np.concatenate(
-        [-model.partials(obs.xy, camera), shutter.border(jac_photo[:, :, :3], obs.photo, s)],
+        [-m @ model.partials(true_xy, camera), shutter.border(jac_photo[:, :, :3], obs.photo, s)],
         axis=2,
     )
     inv_s = 1.0 / obs.sigma
@@ -342,9 +349,8 @@ def test_whitened_rows_equal_rows_whitened_after(monkeypatch: pytest.MonkeyPatch
     np.testing.assert_allclose(image.unit_jacobian, (jac_photo * w)[rows], rtol=1e-12, atol=0)
     np.testing.assert_allclose(image.point_jacobian, (jac_point * w)[rows], rtol=1e-12, atol=0)
     np.testing.assert_allclose(image.border_jacobian, (border * w)[rows], rtol=1e-12, atol=0)
-    observed = obs.xy + model.correction(obs.xy, camera)
     np.testing.assert_allclose(
-        image.residual, ((xy - observed) * inv_s[:, None])[rows], rtol=1e-12
+        image.residual, ((true_xy - obs.xy) * inv_s[:, None])[rows], rtol=1e-12, atol=0
     )
     assert np.count_nonzero(border[:, :, 2:]) > 0  # the motion's columns are there
     # every row's centre columns are its point's negated (the rows' unit_shift)

@@ -76,6 +76,7 @@ from ..options import DEFAULT_MAX_ITERATIONS
 from ..results import BundleResult, CameraEstimate, ShutterEstimate
 from ._datum import free_motions
 from ._given import along_axis_order, check_rotations, given_weights, observed_with_sigma
+from ._observation_space import ObservationSpace, observation_space, premultiply
 from ._so3 import imu_residual as _imu_residual
 from ._so3 import right_jacobian_inv as _right_jacobian_inv
 from ._structures import structure_for
@@ -280,29 +281,31 @@ class _Reduced:
     min_pivot_index: int  # 6 * photo + parameter
 
 
-def _observed(prob: _Problem, state: _State) -> FloatArray:
-    """The image observations corrected by the camera's parameters (mm)."""
-    if prob.camera is None:
-        return prob.xy
-    out: FloatArray = prob.xy + prob.camera.correction(prob.xy, state.camera)
-    return out
-
-
 def _normals(prob: _Problem, state: _State) -> _Normals | None:
     """Linearise all observation equations at ``state`` and form the normal
     blocks; None when a point lies behind a photo.
 
     Rows (residual computed minus observed): image ``x - x_obs`` whitened by
-    its sigma; control ``X - X_c`` (m, design identity); GNSS ``S - S_g`` (m,
-    design identity on the centre); IMU ``log(R_imu.T R)`` (rad, design
-    ``Jr^-1(e)`` on the rotation)."""
+    its sigma, with a camera model ``x̂ - x_obs`` (``x̂ + Δ(x̂) = x``, the
+    design premultiplied per ray by ``(I + ∂Δ/∂x)⁻¹``:
+    :mod:`._observation_space`); control ``X - X_c`` (m, design identity);
+    GNSS ``S - S_g`` (m, design identity on the centre); IMU ``log(R_imu.T
+    R)`` (rad, design ``Jr^-1(e)`` on the rotation)."""
     inv_s = 1.0 / prob.sigma
     shutter = None if prob.motion is None else (prob.motion, prob.motion.fractions(prob.xy))
     xy, v, jac_photo, jac_point = _collinearity(prob, state, inv_s, shutter)
     if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
         return None  # a point behind a photo: no linearisation (the cost is infinite)
-    res = xy - _observed(prob, state)
-    border = _border(prob, state, jac_photo, inv_s, shutter)
+    if prob.camera is None:
+        res, space = xy - prob.xy, None
+    else:
+        space = observation_space(prob.camera, state.camera, xy, prob.xy)
+        if not space.converged:
+            return None  # no true positions for this camera: the cost is infinite
+        res = space.residuals
+        premultiply(space.mapping, jac_photo)  # before the shutter's columns copy the centre's
+        premultiply(space.mapping, jac_point)
+    border = _border(prob, state, jac_photo, inv_s, shutter, space)
     image = UnitPointRows(
         prob.photo, prob.point, jac_photo, jac_point, res * inv_s[:, None],
         border_jacobian=border, unit_shift=True,
@@ -356,14 +359,17 @@ def _border(
     jac_photo: FloatArray,
     inv_s: FloatArray,
     shutter: tuple[ShutterMotion, FloatArray] | None,
+    space: ObservationSpace | None,
 ) -> FloatArray | None:
     """The border's whitened design columns (K, 2, k): the camera's
-    ``d(x - (x_obs + Δ))/dθ = -dΔ/dθ`` times ``inv_s`` (K,) = 1/σ, then the
-    motions' ``s dx/dS`` from the centre columns of ``jac_photo``, which are
-    whitened already."""
+    ``dv/dθ = -M dΔ/dθ(x̂)`` (``space``) times ``inv_s`` (K,) = 1/σ, then the
+    motions' ``s dv/dS`` from the centre columns of ``jac_photo``, which are
+    whitened (and premultiplied by M) already."""
     parts = []
-    if prob.camera is not None:
-        parts.append(prob.camera.partials(prob.xy, state.camera) * -inv_s[:, None, None])
+    if prob.camera is not None and space is not None:
+        theta = prob.camera.partials(space.true_xy, state.camera) * -inv_s[:, None, None]
+        premultiply(space.mapping, theta)
+        parts.append(theta)
     if shutter is not None:
         motion, s = shutter
         parts.append(motion.border(jac_photo[:, :, :3], prob.photo, s))
@@ -530,10 +536,12 @@ def bundle_adjust(
         Compute ``point_std``, ``centre_std`` and ``rotation_std`` (else NaN).
     camera : CameraModel, optional
         Self-calibration: the camera parameters estimated with the block, the
-        dense border of the normal equations (method.md 6B, 6C); the image
-        observations are corrected by ``Δ(x_obs; θ)``
-        (:mod:`strip_aerotri.geometry.camera_model`) and the observation
-        equation is ``x(S, R, X) - (x_obs + Δ(x_obs; θ))``.
+        dense border of the normal equations (method.md 6B, 6C); with the
+        correction ``Δ(x; θ)`` (:mod:`strip_aerotri.geometry.camera_model`)
+        the measured point's true position ``x̂`` satisfies ``x̂ + Δ(x̂; θ) =
+        x(S, R, X)`` and the observation equation is ``x̂ - x_obs``, in the
+        observations' space with their sigmas
+        (:mod:`strip_aerotri.bundle._observation_space`).
     camera0 : array_like, shape (k,), optional
         Start values of the camera parameters (default 0: the start camera).
     motion : ShutterMotion, optional

@@ -438,15 +438,17 @@ def residual_cells(
 ) -> ResidualCells | None:
     """Image residuals (K, 2; flight axes, mm) at the observations ``xy`` (K, 2)
     averaged in ``n_cells`` x ``n_cells`` cells over the format, in the sensor
-    axes and µm, with the camera's correction (``after``) and with it added
-    back (``before``)."""
+    axes and µm, with the camera's correction (``after``: ``v = x̂ - x_obs``,
+    ``x̂ + Δ(x̂) = x`` the projection) and without it (``before``: ``x - x_obs
+    = v + Δ(x̂)``, ``x̂ = x_obs + v``)."""
     good = np.all(np.isfinite(residuals_mm), axis=1) & np.all(np.isfinite(xy), axis=1)
     if not good.any():
         return None
     turn = cam.model.flight_matrix
     xy_s = xy[good] @ turn  # rows f = M s: s = f M
     after = residuals_mm[good] @ turn
-    before = after + cam.model.correction(xy[good], cam.values) @ turn
+    true_xy = xy[good] + residuals_mm[good]
+    before = after + cam.model.correction(true_xy, cam.values) @ turn
     lo, hi = xy_s.min(axis=0), xy_s.max(axis=0)
     x_edges = np.linspace(lo[0], hi[0], n_cells + 1)
     y_edges = np.linspace(lo[1], hi[1], n_cells + 1)

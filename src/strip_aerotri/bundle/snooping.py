@@ -28,6 +28,7 @@ from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection
+from ._observation_space import observation_space
 from ._snoop_camera import _adjust, _Camera
 from ._structures import reusing_structures
 from ._snoop_sets import (
@@ -414,7 +415,7 @@ def _round_statistics(
     tested = pt_used[obs.point]
     v_all = np.full((k_all, 2), np.nan)
     sel = _every_or(rows, k_all)
-    v_all[sel] = res.residuals_mm  # the adjusted rays' own, computed minus corrected observed
+    v_all[sel] = res.residuals_mm  # the adjusted rays' own, x̂ - x_obs with a camera
     left_out = tested.copy()
     left_out[rows] = False
     rows_t = np.flatnonzero(left_out)  # rays of used points out of the adjustment
@@ -427,9 +428,12 @@ def _round_statistics(
     vv = image_vectors(
         res.centres[obs.photo[rows_t]], res.rotations[obs.photo[rows_t]], ray_points
     )
-    v_all[rows_t] = -obs.principal_distance * vv[:, :2] / vv[:, 2:3] - obs.xy[rows_t]
-    if res.camera is not None:  # computed minus corrected observed
-        v_all[rows_t] -= res.camera.model.correction(obs.xy[rows_t], res.camera.values)
+    computed = -obs.principal_distance * vv[:, :2] / vv[:, 2:3]
+    if res.camera is None:
+        v_all[rows_t] = computed - obs.xy[rows_t]
+    else:  # x̂ - x_obs with x̂ + Δ(x̂) = x, as the adjustment's own rays
+        cam = res.camera
+        v_all[rows_t] = observation_space(cam.model, cam.values, computed, obs.xy[rows_t]).residuals
 
     ctrl_on, c_sig, given = sets.ctrl_on, inp.c_sig, inp.c_given
     r_img = np.full((k_all, 2), np.nan)

@@ -22,7 +22,9 @@ coordinates:
   which is method.md 6C's formula with its ``Δx0`` written as the principal
   point's own change (``x̄ = x - x0``: a principal point moved by ``+x0``
   shifts the reduced coordinates by ``-x0``).  The corrected coordinates
-  ``x + Δx`` are what the collinearity equations with the start ``c`` see;
+  ``x + Δx`` are what the collinearity equations with the start ``c`` see
+  (the bundle takes its residual at the true position ``x̂``, ``x̂ + Δ(x̂) =
+  x(S, R, X)``, in the observations' space: :mod:`strip_aerotri.bundle._observation_space`);
   the adjusted camera is ``c + dc``, ``x0 + dx0``, the distortion
   coefficients added to the start ones (:mod:`strip_aerotri.interior`'s
   ``model = "correction"``, ``units = "mm"``).
@@ -162,7 +164,16 @@ def brown_correction(xy: ArrayLike, values: ArrayLike, c: float) -> FloatArray:
     the start principal distance (mm).
     """
     arr, v = _xy(xy), _brown_values(values)
-    xb, yb, r2, radial, _ = _brown_terms(arr, v, c)
+    return _brown_delta(arr, v, c, _brown_terms(arr, v, c))
+
+
+def _brown_delta(
+    arr: FloatArray,
+    v: FloatArray,
+    c: float,
+    terms: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+) -> FloatArray:
+    xb, yb, r2, radial, _ = terms
     out = np.empty_like(arr)
     out[:, 0] = (
         -v[1]
@@ -179,9 +190,15 @@ def brown_correction(xy: ArrayLike, values: ArrayLike, c: float) -> FloatArray:
     return out
 
 
-def _brown_dd(xy: FloatArray, v: FloatArray, c: float) -> FloatArray:
-    """Derivative (K, 2, 2) of the correction's non-shift part with respect to (x̄, ȳ)."""
-    xb, yb, _, radial, d_radial = _brown_terms(xy, v, c)
+def _brown_dd(
+    xy: FloatArray,
+    v: FloatArray,
+    c: float,
+    terms: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray] | None = None,
+) -> FloatArray:
+    """Derivative (K, 2, 2) of the correction's non-shift part with respect to
+    (x̄, ȳ) (``terms``: :func:`_brown_terms` of the same arguments, if at hand)."""
+    xb, yb, _, radial, d_radial = _brown_terms(xy, v, c) if terms is None else terms
     jac = np.empty((xy.shape[0], 2, 2))
     common = -v[0] / c + radial
     cross = 2.0 * xb * yb * d_radial
@@ -300,8 +317,11 @@ class CameraModel:
     principal_distance_mm: float
     base_mm: float = 0.0
     flight_matrix: FloatArray = field(default_factory=lambda: np.eye(2))
+    #: the flight axes are the sensor's (no turn to apply)
+    _unturned: bool = field(init=False, repr=False, compare=False, default=False)
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "_unturned", bool(np.array_equal(self.flight_matrix, np.eye(2))))
         names = self.all_names
         if self.family not in ("brown", "ebner"):
             raise ValueError(f"Expected family 'brown' or 'ebner', got {self.family!r}")
@@ -331,7 +351,16 @@ class CameraModel:
         return out
 
     def _sensor(self, xy: ArrayLike) -> FloatArray:
+        if self._unturned:
+            return _xy(xy)
         out: FloatArray = _times_2x2(_xy(xy), self.flight_matrix)  # rows f = M s: s = Mᵀ f
+        return out
+
+    def _flight(self, delta: FloatArray) -> FloatArray:
+        """Vectors (K, 2) in the sensor axes turned to the flight axes."""
+        if self._unturned:
+            return delta
+        out: FloatArray = _times_2x2(delta, self.flight_matrix.T)
         return out
 
     def correction(self, xy: ArrayLike, values: ArrayLike) -> FloatArray:
@@ -341,8 +370,7 @@ class CameraModel:
             delta = brown_correction(s, full, self.principal_distance_mm)
         else:
             delta = ebner_correction(s, full, self.base_mm)
-        out: FloatArray = _times_2x2(delta, self.flight_matrix.T)
-        return out
+        return self._flight(delta)
 
     def partials(self, xy: ArrayLike, values: ArrayLike) -> FloatArray:
         """∂Δ/∂(estimated values), shape (K, 2, len(estimated)), flight axes."""
@@ -352,6 +380,8 @@ class CameraModel:
         else:
             jac = ebner_partials(s, self.base_mm)
         picked = jac[:, :, self.columns]  # (K, 2, k): M @ each column pair
+        if self._unturned:
+            return picked
         m = self.flight_matrix
         out: FloatArray = np.stack(
             [m[i, 0] * picked[:, 0] + m[i, 1] * picked[:, 1] for i in range(2)], axis=1
@@ -365,7 +395,30 @@ class CameraModel:
             jac = brown_xy_partials(s, full, self.principal_distance_mm)
         else:
             jac = ebner_xy_partials(s, full, self.base_mm)
-        out: FloatArray = self.flight_matrix @ jac @ self.flight_matrix.T
+        return self._flight_2x2(jac)
+
+    def correction_and_xy_partials(
+        self, xy: ArrayLike, values: ArrayLike
+    ) -> tuple[FloatArray, FloatArray]:
+        """:meth:`correction` and :meth:`xy_partials` at once (Brown/Fraser
+        shares their terms: the same values, at the cost of about one)."""
+        if self.family != "brown":
+            return self.correction(xy, values), self.xy_partials(xy, values)
+        full, s = self.full(values), self._sensor(xy)
+        c = self.principal_distance_mm
+        terms = _brown_terms(s, full, c)
+        delta = self._flight(_brown_delta(s, full, c, terms))
+        return delta, self._flight_2x2(_brown_dd(s, full, c, terms))
+
+    def _flight_2x2(self, jac: FloatArray) -> FloatArray:
+        """``M jac Mᵀ`` (K, 2, 2) of a derivative in the sensor axes."""
+        if self._unturned:
+            return jac
+        m = self.flight_matrix  # M jac Mᵀ per row, entry by entry (a batched matmul is slower)
+        right = [_times_2x2(jac[:, i, :], m.T) for i in range(2)]  # rows of jac Mᵀ
+        out = np.empty_like(jac)
+        for i in range(2):
+            out[:, i, :] = m[i, 0] * right[0] + m[i, 1] * right[1]
         return out
 
 

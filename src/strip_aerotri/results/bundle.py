@@ -120,11 +120,11 @@ class ResidualCells:
     x_edges, y_edges : ndarray
         Cell edges in mm.
     after : ndarray, shape (ny, nx, 2)
-        Mean residual (computed minus corrected observed) per cell, µm, with
-        the self-calibration; NaN in empty cells.
+        Mean residual ``x̂ - x_obs`` per cell, µm, with the
+        self-calibration (``x̂ + Δ(x̂) = x`` the projection); NaN in empty cells.
     before : ndarray, shape (ny, nx, 2)
-        The same with the camera's correction added back: what the
-        orientation would have to absorb without it.
+        The same with the camera's correction added back, ``x - x_obs``:
+        what the orientation would have to absorb without it.
     count : ndarray of int, shape (ny, nx)
     """
 
@@ -236,7 +236,8 @@ class BundleResult:
         False when ``max_iterations`` was reached first.
     residuals_mm : ndarray, shape (K, 2)
         Image residuals ``v = computed - observed`` in mm at the solution
-        (observed + v = adjusted).
+        (observed + v = adjusted); with a camera model ``v = x̂ - x_obs``,
+        ``x̂ + Δ(x̂) = x(S, R, X)``.
     control_residuals : ndarray, shape (P, 3)
         ``adjusted - given`` ground coordinates of the control in metres, NaN
         for components without control.
