@@ -217,12 +217,14 @@ def _make_problem(
             m, 6, p, photo, point, candidates=[along], unit_names=tuple(obs.photo_ids),
             point_names=tuple(obs.point_ids), parameter_names=_PHOTO_PARAMETER_NAMES,
         ),
-    ).with_border(n_border)
-    # the rows in the pairs' order, so that the normal blocks read them in place
+    )
+    # the rows in the pairs' order, so that the normal blocks read them in place;
+    # ordered before the border is added, so that the shared structure keeps it
     ordered = structure.in_pair_order()
     rows = np.arange(k, dtype=np.intp)
     if ordered is not None:
         structure, rows = ordered
+    structure = structure.with_border(n_border)
     return _Problem(
         photo_ids=tuple(obs.photo_ids),
         rows=rows,
