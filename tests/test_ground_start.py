@@ -21,13 +21,9 @@ from strip_aerotri.ground.polynomials import adjust_to_ground, similarity_start
 from strip_aerotri.options import BlunderAction, BlunderOptions, GroundOptions
 
 
-def test_similarity_start_is_adjust_to_ground_with_the_points_at_the_control(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    # with the ground stage's own pass tolerance, the same to the bit
-    monkeypatch.setattr(polynomials, "_START_PASS_TOLERANCE_M", passes._PASS_TOLERANCE_M)
-    sim = sa.simulate_strip(20, preset="drone", seed=3)
-    strip = sa.form_strip(sim.observations)
+def _both_starts(sim, strip):  # type: ignore[no-untyped-def]
+    """adjust_to_ground's untested similarity and similarity_start on the same
+    strip, and the points at the control (bool over the strip's points)."""
     crs = GroundCRS.from_user_input(sim.crs)
     want = adjust_to_ground(
         strip,
@@ -39,6 +35,17 @@ def test_similarity_start_is_adjust_to_ground_with_the_points_at_the_control(
     got = similarity_start(strip, sim.control, crs, route=None, max_iterations=30)
     ids = np.asarray(strip.observations.point_ids)
     at = np.isin(ids, np.asarray(sim.control.point_ids)[want.control_index])
+    return want, got, at
+
+
+def test_similarity_start_is_adjust_to_ground_with_the_points_at_the_control(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # with the ground stage's own pass tolerance, the same to the bit
+    monkeypatch.setattr(polynomials, "_START_PASS_TOLERANCE_M", passes._PASS_TOLERANCE_M)
+    sim = sa.simulate_strip(20, preset="drone", seed=3)
+    strip = sa.form_strip(sim.observations)
+    want, got, at = _both_starts(sim, strip)
     assert at.sum() == want.control_index.size
     np.testing.assert_array_equal(got.points[at], want.points[at])
     assert np.isnan(got.points[~at]).all()
@@ -62,17 +69,7 @@ def test_the_start_passes_stop_at_a_centimetre() -> None:
     # centimetre of the converged passes' (measured 7e-9 m: the guesses of
     # the last passes move the work frame, hardly the fit)
     sim, strip = _long_strip()
-    crs = GroundCRS.from_user_input(sim.crs)
-    want = adjust_to_ground(
-        strip,
-        sim.control,
-        crs,
-        options=GroundOptions(polynomial=0, max_iterations=30),
-        blunders=BlunderOptions(action=BlunderAction.OFF),
-    )
-    got = similarity_start(strip, sim.control, crs, route=None, max_iterations=30)
-    ids = np.asarray(strip.observations.point_ids)
-    at = np.isin(ids, np.asarray(sim.control.point_ids)[want.control_index])
+    want, got, at = _both_starts(sim, strip)
     assert got.passes < want.passes
     np.testing.assert_allclose(got.points[at], want.points[at], rtol=0, atol=0.01)
 
