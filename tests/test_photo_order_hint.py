@@ -19,6 +19,7 @@ import pytest
 from click.testing import CliRunner
 
 import strip_aerotri as sa
+from _shuffled import shuffled_block
 from strip_aerotri.cli.main import cli
 from strip_aerotri.plausibility import photo_order_hint
 from strip_aerotri.project import load_project
@@ -161,17 +162,7 @@ def test_two_swapped_photos_are_named_by_check_and_run(tmp_path: Path) -> None:
 
 
 def test_a_block_strip_out_of_order_is_named_with_its_strip(tmp_path: Path) -> None:
-    folder = tmp_path / "block"
-    made = CliRunner().invoke(
-        cli, ["-q", "simulate", "drone", "--strips", "2", "--photos", "8", "--out", str(folder)]
-    )
-    assert made.exit_code == 0, made.output
-    toml = folder / "strip.toml"
-    shuffled = ", ".join(f'"S2_0{i}"' for i in (1, 3, 5, 7, 2, 4, 6, 8))
-    text = re.sub(
-        r"^photos = \[\"S2_.*\]$", f"photos = [{shuffled}]", toml.read_text("utf-8"), flags=re.M
-    )
-    toml.write_text(text, encoding="utf-8")
+    toml = shuffled_block(tmp_path)
     run = CliRunner().invoke(cli, ["run", str(toml)])
     assert run.exit_code == 1
     (line,) = run.stderr.splitlines()

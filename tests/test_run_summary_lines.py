@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from _shuffled import shuffled_block
 from strip_aerotri._text import MAX_LINE, cut_at_items, shorten
 from strip_aerotri.cli.main import cli
 from strip_aerotri.simulate import simulate_block, simulate_strip
@@ -90,23 +91,8 @@ def test_a_block_prints_its_calibration_where_a_strip_does(tmp_path):
         assert order == sorted(order) and order[1] == order[0] + 1, orders
 
 
-def _shuffled_block(tmp_path: Path) -> Path:
-    folder = tmp_path / "block"
-    made = CliRunner().invoke(
-        cli, ["-q", "simulate", "drone", "--strips", "2", "--photos", "8", "--out", str(folder)]
-    )
-    assert made.exit_code == 0, made.output
-    toml = folder / "strip.toml"
-    shuffled = ", ".join(f'"S2_0{i}"' for i in (1, 3, 5, 7, 2, 4, 6, 8))
-    text = re.sub(
-        r"^photos = \[\"S2_.*\]$", f"photos = [{shuffled}]", toml.read_text("utf-8"), flags=re.M
-    )
-    toml.write_text(text, encoding="utf-8")
-    return toml
-
-
 def test_check_and_run_name_the_file_then_the_strip(tmp_path):
-    toml = _shuffled_block(tmp_path)
+    toml = shuffled_block(tmp_path)
     images = str(toml.parent / "image_points.csv")
     head = f"stripaero: error: {images}: strip 'S2': "
     run = CliRunner().invoke(cli, ["run", str(toml)])

@@ -254,6 +254,24 @@ def _assert_identical(a: object, b: object, where: str = "") -> None:
         assert a == b, where
 
 
+def _threads_forming_rows(monkeypatch: pytest.MonkeyPatch) -> set[str]:
+    """The names of the threads that form the rows' products from now on: by
+    the general kernel (a border) or the photos' own (`unit_shift` rows)."""
+    names: set[str] = set()
+
+    def seen(function):  # type: ignore[no-untyped-def]
+        def traced(*args, **kwargs):  # type: ignore[no-untyped-def]
+            names.add(threading.current_thread().name)
+            time.sleep(0.0005)  # pieces long enough for the worker to start and take some
+            return function(*args, **kwargs)
+
+        return traced
+
+    monkeypatch.setattr(_normal_entries, "_summed", seen(_normal_entries._summed))
+    monkeypatch.setattr(_normal_entries, "_lower_gram", seen(_normal_entries._lower_gram))
+    return names
+
+
 @pytest.mark.parametrize(
     "case", ["blunders", "self-calibration"]
 )
@@ -275,20 +293,7 @@ def test_two_threads_give_the_results_of_one_bit_for_bit(
     def run():  # type: ignore[no-untyped-def]
         return refine_bundle(result, self_calibration=spec)
 
-    names: set[str] = set()
-
-    def seen(function):  # type: ignore[no-untyped-def]
-        def traced(*args, **kwargs):  # type: ignore[no-untyped-def]
-            names.add(threading.current_thread().name)
-            time.sleep(0.0005)  # pieces long enough for the worker to start and take some
-            return function(*args, **kwargs)
-
-        return traced
-
-    # the rows' products: by the general kernel (a border) or the photos' own
-    # (`unit_shift` rows)
-    monkeypatch.setattr(_normal_entries, "_summed", seen(_normal_entries._summed))
-    monkeypatch.setattr(_normal_entries, "_lower_gram", seen(_normal_entries._lower_gram))
+    names = _threads_forming_rows(monkeypatch)
     two = run()
     assert any(name.startswith("strip_aerotri-worker") for name in names)
     monkeypatch.setenv(WORKERS_VARIABLE, "1")
@@ -332,20 +337,7 @@ def test_the_ground_stage_on_two_threads_gives_the_results_of_one(
         30, preset="drone", crs="local", seed=2, control="every_k_models", control_every=10,
         image_blunders=2,
     )  # fmt: skip
-    names: set[str] = set()
-
-    def seen(function):  # type: ignore[no-untyped-def]
-        def traced(*args, **kwargs):  # type: ignore[no-untyped-def]
-            names.add(threading.current_thread().name)
-            time.sleep(0.0005)  # pieces long enough for the worker to start and take some
-            return function(*args, **kwargs)
-
-        return traced
-
-    # the rows' products: by the general kernel (a border) or the photos' own
-    # (`unit_shift` rows)
-    monkeypatch.setattr(_normal_entries, "_summed", seen(_normal_entries._summed))
-    monkeypatch.setattr(_normal_entries, "_lower_gram", seen(_normal_entries._lower_gram))
+    names = _threads_forming_rows(monkeypatch)
     two = triangulate(sim.observations, sim.control, sim.crs)
     assert any(name.startswith("strip_aerotri-worker") for name in names)
     monkeypatch.setenv(WORKERS_VARIABLE, "1")
