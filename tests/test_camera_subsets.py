@@ -4,6 +4,8 @@ made by adjusting every subset; the screening's correlations."""
 
 from __future__ import annotations
 
+import re
+
 import warnings
 
 import numpy as np
@@ -176,6 +178,15 @@ def _adjusting_every_subset(frame: _Frame) -> tuple[tuple[str, ...], dict[str, s
     return tuple(active), held
 
 
+def _t_values(reason: str) -> list[float]:
+    return [float(x) for x in re.findall(r"t = ([-0-9.]+)", reason)]
+
+
+def _words(reason: str) -> str:
+    """The reason with its t values blanked (the correlations kept)."""
+    return re.sub(r"t = [-0-9.]+", "t = _", reason)
+
+
 @pytest.mark.parametrize("errors", [_ERRORS, None])
 def test_the_choice_equals_adjusting_every_subset(errors: dict[str, float] | None) -> None:
     frame = _Frame(errors)
@@ -183,10 +194,16 @@ def test_the_choice_equals_adjusting_every_subset(errors: dict[str, float] | Non
     cam, outcome = selfcal._auto(SelfCalibration("auto"), trials, frame.c_mm, 0.0)
     kept, held = _adjusting_every_subset(frame)
     reasons = {p.name: p.reason for p in outcome.parameters if not p.kept}
-    # the same decisions, told with the same values (t and correlations to
-    # the printed digits)
+    # the same decisions, told with the same values: correlations to the
+    # printed digits, t values within 2 %.  (c, 1 - rho of 4e-6 here, goes into
+    # the walk; the border's algebra at the first adjustment's point and an
+    # adjustment of each subset differ in its t by about 1 %: 1.54 against
+    # 1.52, both far below 3.)
     assert set(outcome.kept) == set(kept) == set(errors or ())
-    assert reasons == held
+    assert reasons.keys() == held.keys()
+    for name, reason in reasons.items():
+        assert _words(reason) == _words(held[name]), (reason, held[name])
+        assert np.allclose(_t_values(reason), _t_values(held[name]), rtol=0.02, atol=0)
     assert (cam is None) == (errors is None)
     # one screening and one or two adjustments, not one per decision
     assert trials.screens == 1 and trials.adjustments <= 2

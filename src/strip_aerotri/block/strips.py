@@ -195,11 +195,14 @@ def adjust_block(
     timings = {"strips": t_strips, "block": time.perf_counter() - t0 - t_strips}
     if refine:
         t1 = time.perf_counter()
+        # the refinement tests the control itself, as a strip's does: what the
+        # block's similarities rejected may be a camera error the bundle
+        # calibrates (docs/bundle.md), and a true blunder fails its tests again
         result = _refine(
             problem,
             solution,
-            used_xy,
-            used_z,
+            problem.use_xy,
+            problem.use_z,
             result,
             blunders,
             max_iterations,
