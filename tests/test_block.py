@@ -374,6 +374,25 @@ def test_the_refinement_tests_the_blocks_control_itself():
     assert result.check_statistics.rmse[2] < 1.5 * reference.check_statistics.rmse[2]
 
 
+@pytest.mark.parametrize("preset", ["drone", "film"])
+def test_auto_chooses_again_without_the_control_blunders(preset: str) -> None:
+    """An error-free block with two control points off by 0.5-2 m: chosen
+    with them, "auto" kept k1 and k3 for their bending (drone; film seeds
+    1-4: 7 of 8 blocks kept a set); once the tests reject them it chooses
+    again without them, keeps nothing, and the refinement is the plain one."""
+    from strip_aerotri.options import SelfCalibration
+
+    sim = simulate_block(3, 10, preset=preset, side_overlap=0.3, seed=2, control_blunders=2)
+    args = (sim.observations, sim.control, sim.crs, specs(sim))
+    plain = adjust_block(*args, refine=True)
+    auto = adjust_block(*args, refine=True, self_calibration=SelfCalibration("auto"))
+    outcome = auto.self_calibration
+    assert outcome is not None and outcome.kept == ()
+    assert any("chosen again without the" in n and "control" in n for n in outcome.notes)
+    assert auto.check_statistics.rmse_plan == pytest.approx(plain.check_statistics.rmse_plan)
+    assert auto.check_statistics.rmse[2] == pytest.approx(plain.check_statistics.rmse[2])
+
+
 def test_rejected_control_in_a_block_keeps_its_residual():
     """A control point the block's tests reject is listed with its residual
     (given - adjusted, about the planted error), as a strip's is; the control

@@ -155,19 +155,29 @@ class _Camera:
         max_iterations: int,
         state: tuple[FloatArray, FloatArray, FloatArray],
         rejected: int,
+        rejected_control: int = 0,
     ) -> _Camera | None:
         """``"auto"``'s choice made again, once, on ``sets``: the image
-        observations the blunder tests kept (``rejected`` of them rejected),
-        the control, GNSS and IMU as given (a control point the unmodelled
-        camera bent may have failed); None when there is nothing to check
-        (another choice, checked already, no image observation rejected).
+        observations and control components the blunder tests kept
+        (``rejected`` and ``rejected_control`` of them rejected), GNSS and IMU
+        as given; None when there is nothing to check (another choice,
+        checked already, nothing rejected).  The tests then start over from
+        all the control, so a control point that failed only for the camera
+        chosen first is tested again with the new one.
 
         A blunder inflates sigma0 and so deflates every t value (or lends a
         parameter a t of its own): on simulated drone strips with 5-15
         blunders and a camera error the set chosen before the tests missed
         the affinity that the blunder-free data keep, and the check points
-        lost half their plan accuracy (docs/bundle.md)."""
-        if self.spec is None or self.spec.choice != "auto" or self.rechecked or not rejected:
+        lost half their plan accuracy; two control points off by 0.5-2 m
+        on an error-free block lent k1 and k3 t values of their own
+        (docs/bundle.md)."""
+        if (
+            self.spec is None
+            or self.spec.choice != "auto"
+            or self.rechecked
+            or not (rejected or rejected_control)
+        ):
             return None
         again = _Camera.start(inp, sets, self.spec, max_iterations, state)
         again = dataclasses.replace(again, rechecked=True)
@@ -177,8 +187,16 @@ class _Camera:
             # the same set: this round's adjustment stands, told the reasons
             # and values of the choice on the data kept
             return dataclasses.replace(self, chosen=again.chosen or self.chosen, rechecked=True)
+        what = " and ".join(
+            f"{n} {kind}"
+            for n, kind in (
+                (rejected, "image observation(s)"),
+                (rejected_control, "control coordinate(s)"),
+            )
+            if n
+        )
         note = (
-            f"self-calibration chosen again without the {rejected} image observation(s) the "
+            f"self-calibration chosen again without the {what} the "
             f"blunder tests rejected: {', '.join(old) or 'none'} became "
             f"{', '.join(new) or 'none'}, and the tests started over with it"
         )
