@@ -56,9 +56,12 @@ _HEIGHT_UNIT_SLOPES = tuple(f for f in _GRADIENT_FACTORS if f[0] != 0.3048)
 #: then 3 of them wide, and 1 is 14 of them from 3.28 (0.3048: 46).
 _SLOPE_PRECISION = 0.05
 #: A ratio or slope within this share of a unit factor names that unit.
-#: Real projects keep the ratio between 0.96 and 1.05 and the slope between
-#: 0.57 and 1.26 (docs/project-file.md): the nearest window edges are 0.35
-#: and 2.85.
+#: Real projects keep the ratio between 0.94 and 1.07 where told (the
+#: examples, the external strips, the FC300X block's strips over six
+#: control splits, simulated strips and blocks) and the slope between 0.57
+#: and 1.26 (the FC300X strips' models are not stretched but turned: their
+#: z axes 44 degrees from the vertical); the nearest window edges are 0.35
+#: and 2.85 (docs/project-file.md).
 _SLOPE_WINDOW = 0.15
 
 
