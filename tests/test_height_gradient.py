@@ -215,3 +215,43 @@ def test_the_fc300x_block_as_imported_passes(fc300x: Path) -> None:
 def test_an_external_strip_with_plan_in_feet_stops(tmp_path: Path) -> None:
     _refused(_copy(ONE_INCH, tmp_path, "X,Y", FEET), ("X, Y in feet with H in metres",),
              ("check",))  # fmt: skip
+
+
+def test_without_a_ratio_the_slope_decides() -> None:
+    """Three plan points give no plan gradient: the slope stops heights in
+    feet on a level model, as it did alone; on a model 44 degrees from the
+    vertical it cannot (3.28 cos 44 = 2.36), the limit the ratio lifts."""
+    ground = _ground(12, 6)
+    n = len(ground)
+    for tilt, stops in ((0.0, True), (44.0, False)):
+        model = _model(ground, tilt, 1.0)
+        problems = height_unit_problems(
+            model, FEET * ground[:, 2], np.full(n, 0.05),
+            plan=(model[:3], ground[:3, :2], np.full(3, 0.05)),
+            given=(FEET * ground[:, 2], np.full(n, 0.05), 0.0),
+        )  # fmt: skip
+        assert bool(problems) is stops, (tilt, problems)
+        if stops:
+            assert "the strip's heights" in problems[0] and "H in feet" in problems[0]
+
+
+def test_the_model_heights_error_is_taken_to_the_heights_unit() -> None:
+    """X, Y in feet: the model heights' expected error, in the plan's unit,
+    is 3.28 times too large for H in metres; the ratio's second fit weights
+    the heights with it times the first ratio, and its standard deviation
+    is then the one of the same project in metres (within 10 %)."""
+    rng = np.random.default_rng(7)
+    ground = _ground(12, 7, relief=6.0)
+    noisy = ground + np.column_stack([np.zeros((12, 2)), rng.normal(0.0, 0.1, 12)])
+    n = len(ground)
+    fits = []
+    for plan in (1.0, FEET):
+        model = _model(ground, 3.0, 1.0) * plan  # scaled to the plan control
+        fits.append(gradient_ratio(
+            model, plan * ground[:, :2], np.full(n, 0.01), model, noisy[:, 2],
+            np.full(n, 0.01), 0.1 * plan,
+        ))  # fmt: skip
+    metres, feet = fits
+    assert metres is not None and feet is not None
+    assert feet.ratio == pytest.approx(metres.ratio / FEET, rel=1e-9)
+    assert feet.sd / feet.ratio == pytest.approx(metres.sd / metres.ratio, rel=0.1)
