@@ -549,7 +549,9 @@ MUTATIONS: tuple[Mutation, ...] = (
         "control: heights in decimetres",
         FAIL,
         lambda p: p.map_column(p.control, "H", _scale(10.0)),
-        (("control",), ("decimetres",)),
+        # the FC300X block's relief (0.37 of the flying height) so changed
+        # stops first on the heights' span on a photo, "in H's unit"
+        (("control",), ("decimetres", "H's unit")),
     ),
     # X, Y in feet with H in metres: the ratio of the heights' gradient over
     # the strip to the plan's (ground/height_units.py) names it; under a UTM
