@@ -11,7 +11,7 @@ differing from the plan unit shows as a height scale.  Two measures of it:
   the model coordinates against that of the plan coordinates' gradients:
   the model is a similarity of the ground, so the three are equal when the
   units agree, whatever the model's rotation (the oblique FC300X strips:
-  0.993-1.000); 3.28 for H in feet, 0.3048 for X, Y in feet with H in
+  0.986-1.002 over six control splits); 3.28 for H in feet, 0.3048 for X, Y in feet with H in
   metres.  It needs four plan and four height points spanning the model in
   three dimensions;
 * :func:`height_slope`, the slope of the control heights on the model's
@@ -21,8 +21,9 @@ differing from the plan unit shows as a height scale.  Two measures of it:
   photos 44 degrees from the vertical).
 
 The ratio decides where its relief tells it; the slope only where the ratio
-cannot be told (fewer than four plan or height points, or too little relief
-across the plan points: docs/project-file.md gives the measurements).
+cannot be told (fewer than four plan or height points, points on one plane
+of the model, too little relief: docs/project-file.md gives the
+measurements, ``benchmarks/bench_height_units.py`` makes them).
 """
 
 from __future__ import annotations
