@@ -73,12 +73,22 @@ def test_the_ratio_is_the_unit_factor_whatever_the_tilt(
     assert slope[0] == pytest.approx(height * np.cos(np.radians(tilt)) / 1.3, rel=1e-6)
 
 
-def test_the_standard_deviation_matches_the_scatter_of_the_ratio() -> None:
-    """300 draws of 5 cm noise on 10 points over 8 m of relief: the stated
-    standard deviation within 20 % of the ratio's own scatter."""
+@pytest.mark.parametrize("n", [10, 16])
+@pytest.mark.parametrize("bending", [0.0, 3.0])
+def test_the_standard_deviation_matches_the_scatter_of_the_ratio(n: int, bending: float) -> None:
+    """300 draws of 5 cm noise on n points over 8 m of relief, the model
+    straight or bent (a cubic of 3 m at the ends); the ratio is the better
+    told of the affine fit and the fit with the bending.  The stated standard
+    deviation within 20 % of the ratio's own scatter.  Straight: the mean 1
+    within its own precision, 1 within two standard deviations in 90-99 % of
+    the draws (95 % for a normal estimate).  Bent: where the affine fit is
+    chosen it keeps some bending, which moves the mean by less than one
+    standard deviation (measured 0.9 % at 10 points, 0.5 % at 16; within two
+    of them in 89 % and 94 % of the draws)."""
     rng = np.random.default_rng(2345)
-    ground = _ground(10, 2, relief=8.0)
+    ground = _ground(n, 2, relief=8.0)
     model = _model(ground, 30.0, 1.0)
+    model[:, 2] += bending * ((model[:, 0] - model[:, 0].mean()) / 600.0) ** 3
     ratios, stated = [], []
     for _ in range(300):
         noisy = ground + rng.normal(0.0, 0.05, ground.shape)
@@ -86,8 +96,15 @@ def test_the_standard_deviation_matches_the_scatter_of_the_ratio() -> None:
         assert got is not None
         ratios.append(got.ratio)
         stated.append(got.sd)
-    assert np.median(stated) == pytest.approx(np.std(ratios), rel=0.2)
-    assert abs(np.mean(ratios) - 1.0) < 3.0 * np.std(ratios) / np.sqrt(300) + 2e-3
+    spread = float(np.std(ratios))
+    assert np.median(stated) == pytest.approx(spread, rel=0.2)
+    covered = np.mean(np.abs(np.asarray(ratios) - 1.0) < 2.0 * np.asarray(stated))
+    if bending == 0.0:
+        assert abs(np.mean(ratios) - 1.0) < 3.0 * spread / np.sqrt(300) + 1e-3
+        assert 0.90 <= covered <= 0.99
+    else:
+        assert abs(np.mean(ratios) - 1.0) < spread
+        assert 0.85 <= covered <= 0.99
 
 
 def test_a_bent_strip_gives_its_ratio_with_the_bending_terms() -> None:
