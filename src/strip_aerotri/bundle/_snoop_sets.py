@@ -198,6 +198,13 @@ class _Sets:
         }
         return dataclasses.replace(self, **arrays)
 
+    def with_images_of(self, other: _Sets) -> _Sets:
+        """A copy with ``other``'s image observations in use and rejected (and
+        this one's control, GNSS and IMU)."""
+        return dataclasses.replace(
+            self.copy(), keep=other.keep.copy(), obs_rejected=other.obs_rejected.copy()
+        )
+
     def with_tests_of(self, other: _Sets) -> _Sets:
         """A copy with ``other``'s image observations and control in use and
         rejected (and this one's GNSS and IMU)."""

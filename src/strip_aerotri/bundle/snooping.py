@@ -221,11 +221,7 @@ def refine_frame(
             if first_control is None:
                 first_control = (*_control_w(sets, stats), failures.crit_ctrl)
             if not failures.found:
-                again = camera.checked_again(
-                    inp, initial.with_tests_of(sets), max_iterations, state,
-                    int(np.count_nonzero(sets.obs_rejected)),
-                    int(np.count_nonzero(sets.ctrl_rejected)),
-                )  # fmt: skip
+                again = camera.checked_again(inp, initial, sets, max_iterations, state)
                 if again is None or again.estimated == camera.estimated:
                     return result if again is None else again.told(result, sets, obs)
                 # another set: the tests start over with it, from this solution
