@@ -23,7 +23,7 @@ from .._threads import compute_workers
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
 from ..geometry.camera_model import ShutterMotion
-from ..geometry.collinearity import image_jacobian, image_vectors
+from ..geometry.collinearity import image_jacobian, image_vectors, project
 from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
@@ -425,10 +425,10 @@ def _round_statistics(
         ray_points = ray_points - shutter.centre_shift(
             res.motion.values, obs.photo[rows_t], shutter.fractions(obs.xy[rows_t])
         )
-    vv = image_vectors(
-        res.centres[obs.photo[rows_t]], res.rotations[obs.photo[rows_t]], ray_points
-    )
-    computed = -obs.principal_distance * vv[:, :2] / vv[:, 2:3]
+    computed = project(
+        res.centres, res.rotations, ray_points, obs.photo[rows_t], np.arange(rows_t.size),
+        obs.principal_distance,
+    )[0]  # fmt: skip
     if res.camera is None:
         v_all[rows_t] = computed - obs.xy[rows_t]
     else:  # x̂ - x_obs with x̂ + Δ(x̂) = x, as the adjustment's own rays
