@@ -10,9 +10,11 @@ import pytest
 
 from strip_aerotri.bundle.refine import refine_bundle
 from strip_aerotri.bundle.start_points import restore_points
+from strip_aerotri.observations import ImageObservations
 from strip_aerotri.options import BlunderOptions
 from strip_aerotri.pipeline import triangulate
 from strip_aerotri.simulate import simulate_strip
+from strip_aerotri.strip.densify import intersect_rays
 
 
 @pytest.fixture(scope="module")
@@ -320,3 +322,40 @@ def test_stripaero_run_delivers_a_restored_control_point(tmp_path):
     row = rows["P0043"]
     assert row["role"] == "control-height" and row["n_models"] == "0"
     assert abs(float(row["dH"])) < 0.01 and row["dE"] == ""
+
+
+@pytest.mark.parametrize(
+    ("base_m", "intersected"),
+    [(10.0, True), (6e-4, True), (0.0, False)],
+    ids=["base-10m", "rays-1.2e-5rad-apart", "parallel"],
+)
+def test_rays_intersected_as_densify_intersects_them(base_m: float, intersected: bool):
+    """A point's rays are intersected, and judged parallel, by the same rule
+    as :func:`intersect_rays` (strip/densify.py: the determinant of the normal
+    matrix against its trace cubed, two rays or more).  Three vertical photos
+    at 100 m, ``base_m`` apart, see point 'A' at the origin without noise;
+    the other points are determined.  Rays 1.2e-5 rad apart (0.6 mm of base:
+    the determinant is 3e-12 of the trace cubed, the smallest eigenvalue
+    2.4e-11 of the largest) are still intersected by that rule, where the
+    eigenvalue ratio of 1e-10 once used here alone refused them; rays from
+    one centre never are."""
+    c = 50.0  # mm
+    ground = np.array([[0.0, 0.0, 0.0], [30.0, 20.0, 1.0], [-25.0, 15.0, -2.0], [5.0, -30.0, 3.0]])
+    centres = np.column_stack([np.arange(3) * base_m, np.zeros(3), np.full(3, 100.0)])
+    rotations = np.broadcast_to(np.eye(3), (3, 3, 3))  # image axes = frame axes, looking down
+    photo, point = np.divmod(np.arange(3 * 4), 4)
+    v = ground[point] - centres[photo]
+    xy = -c * v[:, :2] / v[:, 2:]
+    obs = ImageObservations.from_ids(
+        [f"{i}" for i in photo], ["ABCD"[j] for j in point], xy, c, sigma=0.002
+    )
+    start = ground.copy()
+    start[0] = np.nan
+    out = restore_points(obs, centres, rotations, start)
+    d = np.column_stack([xy, np.full(xy.shape[0], -c)])  # rotations are the identity
+    rays = intersect_rays(centres[photo], d, point, 4)
+    assert np.isfinite(rays.points[0]).all() == intersected
+    assert out.restored.tolist() == [intersected, False, False, False]
+    assert np.isfinite(out.points[0]).all() == intersected
+    if base_m > 1.0:  # well conditioned: the point itself
+        np.testing.assert_allclose(out.points[0], ground[0], rtol=0, atol=1e-9)
