@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import html
+import json
+import re
 import warnings
 
 import numpy as np
@@ -41,6 +44,13 @@ def _without(obs, rows):
         obs, photo=obs.photo[keep], point=obs.point[keep], xy=obs.xy[keep],
         sigma=obs.sigma[keep], source_line=np.zeros(0, np.intp),
     )  # fmt: skip
+
+
+def _page_warnings(page: str) -> list[str]:
+    """The items of a report page's list of warnings, as text."""
+    section = page.split("<h2>Warnings</h2>", 1)[1].split("<h2>", 1)[0]
+    items = re.findall(r"<li>(.*?)</li>", section, flags=re.S)
+    return [html.unescape(re.sub(r"<[^>]+>", "", item)) for item in items]
 
 
 def _points_with(obs, n_rays, count):
@@ -183,6 +193,16 @@ def test_the_block_refinement_keeps_the_good_rays_of_points_the_block_dropped(se
     assert not any(w in lines for w in said_lost)
     lost_lines = [ln for ln in lines if "not triangulated" in ln]
     assert not any(repr(p) in ln for ln in lost_lines for p in block.restored_points)
+    # nor does the page, where report.json keeps both stages' texts
+    from strip_aerotri.report.block import build_block_outputs
+
+    files = build_block_outputs(block)
+    page = _page_warnings(files["report.html"].decode("utf-8"))
+    kept = json.loads(files["report.json"])["warnings"]
+    assert all(w in kept for w in said_lost)
+    assert not any(w in page for w in said_lost)
+    page_lost = [w for w in page if "not triangulated" in w]
+    assert not any(repr(p) in w for w in page_lost for p in block.restored_points)
     # their wrong rays are out; each keeps three good rays or more
     ph = {p: i for i, p in enumerate(obs.photo_ids)}
     rejected = {(ph[r.photos[0]], r.point) for r in block.rejections if r.stage == "bundle"}
@@ -294,7 +314,6 @@ def test_stripaero_run_delivers_a_restored_control_point(tmp_path):
     among the points left out, report.json keeps both stages' texts and
     lists it in ``bundle.restored_points``."""
     import csv
-    import json
 
     from click.testing import CliRunner
 
@@ -317,6 +336,12 @@ def test_stripaero_run_delivers_a_restored_control_point(tmp_path):
     assert report["inputs"]["control_left_out"] == ["P0043"]  # the strip method's, as before
     stage_texts = [w for w in report["warnings"] if "'P0043'" in w and "not triangulated" in w]
     assert len(stage_texts) == 2, report["warnings"]  # its own, and the count of the lost
+    # the page lists it as the command line does: restored (the bundle's note), not lost
+    page = _page_warnings((tmp_path / "out" / "report.html").read_text("utf-8"))
+    assert not any("not triangulated" in w for w in page), page
+    restored_note = [w for w in page if "intersected from the photos and determined" in w]
+    assert len(restored_note) == 1 and "'P0043'" in restored_note[0]
+    assert len(page) == len(report["warnings"]) - 2  # every other warning as it is
     with open(tmp_path / "out" / "points.csv", newline="") as f:
         rows = {r["point"]: r for r in csv.DictReader(f)}
     row = rows["P0043"]

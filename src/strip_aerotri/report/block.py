@@ -307,7 +307,9 @@ def block_outputs(
         "points.csv": points_text.encode("utf-8"),
         "photos.csv": photos_text.encode("utf-8"),
         "report.json": text.encode("utf-8"),
-        "report.html": block_html(report, figure, calibration=section).encode("utf-8"),
+        "report.html": block_html(
+            report, figure, calibration=section, warnings=result.warnings
+        ).encode("utf-8"),
     }
     if cal_toml is not None:
         files["camera.toml"] = cal_toml
