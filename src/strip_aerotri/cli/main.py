@@ -155,8 +155,9 @@ cli.add_command(docs)
 
 
 def main() -> None:
-    """The ``stripaero`` console script (and ``python -m strip_aerotri``):
-    :func:`cli`, then the process ends with its exit code at once.
+    """The ``stripaero`` command, once imported (:func:`.entry.main`, the
+    console script and ``python -m strip_aerotri``): :func:`cli`, then the
+    process ends with its exit code at once.
 
     When a command has finished, its files are written and closed; what the
     interpreter's teardown would still do (free every object of the run one
