@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from strip_aerotri.report import figures, figures_ticks
-from strip_aerotri.report.figures_frame import PAD_PT, fit, fixed_title
+from strip_aerotri.report.figures_frame import PAD_PT, fixed_title
 from strip_aerotri.report.figures_png import png_bytes
 
 from _figures import outside_canvas

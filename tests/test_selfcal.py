@@ -66,7 +66,7 @@ def test_border_cofactors_match_a_dense_inverse() -> None:
         control_xyz=control, control_sigma=0.05, camera=model,
     )
     assert res.camera is not None
-    m, p, k = 3, 30, 3
+    m, p = 3, 30
     x0 = np.concatenate([np.zeros(6 * m), res.points.ravel(), res.camera.values])
 
     def f(x: np.ndarray) -> np.ndarray:

@@ -18,12 +18,12 @@ from typing import Any, TextIO
 import click
 
 from .._version import __version__
+from . import run as run_module  # the module; `run` below is its command
 from .check import check
 from .docs import docs
 from .export import export
 from .importer import import_group
 from .options import DOCS_EPILOG, Settings, common_options, echo_error, settings
-from . import run as run_module  # the module; `run` below is its command
 from .run import run
 from .simulate import simulate
 
