@@ -76,7 +76,13 @@ from ..options import DEFAULT_MAX_ITERATIONS
 from ..results import BundleResult, CameraEstimate, ShutterEstimate
 from ._datum import free_motions
 from ._given import along_axis_order, check_rotations, given_weights, observed_with_sigma
-from ._observation_space import ObservationSpace, observation_space, premultiply
+from ._observation_space import (
+    ObservationSpace,
+    Readout,
+    moving_space,
+    observation_space,
+    premultiply,
+)
 from ._so3 import imu_residual as _imu_residual
 from ._so3 import right_jacobian_inv as _right_jacobian_inv
 from ._structures import structure_for
@@ -294,19 +300,25 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     GNSS ``S - S_g`` (m, design identity on the centre); IMU ``log(R_imu.T
     R)`` (rad, design ``Jr^-1(e)`` on the rotation)."""
     inv_s = 1.0 / prob.sigma
-    shutter = None if prob.motion is None else (prob.motion, prob.motion.fractions(prob.xy))
+    at = None if prob.motion is None else _rows_read(prob, state)
+    if prob.motion is not None and at is None:
+        return None  # no first solution of the rows read: the cost is infinite
+    shutter = None if at is None or prob.motion is None else (prob.motion, prob.motion.fractions(at))
     xy, v, jac_photo, jac_point = _collinearity(prob, state, inv_s, shutter)
     if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
         return None  # a point behind a photo: no linearisation (the cost is infinite)
-    if prob.camera is None:
+    if prob.camera is None and shutter is None:
         res, space = xy - prob.xy, None
     else:
-        space = observation_space(prob.camera, state.camera, xy, prob.xy)
+        readout = None if at is None else _readout(prob, state, v, at)
+        space = observation_space(prob.camera, state.camera, xy, prob.xy, readout)
         if not space.converged:
             return None  # no true positions for this camera: the cost is infinite
         res = space.residuals
         premultiply(space.mapping, jac_photo)  # before the shutter's columns copy the centre's
         premultiply(space.mapping, jac_point)
+        if shutter is not None:  # the motion's columns at the row x̂ is read at
+            shutter = (shutter[0], shutter[0].fractions(space.true_xy))
     border = _border(prob, state, jac_photo, inv_s, shutter, space)
     image = UnitPointRows(
         prob.photo, prob.point, jac_photo, jac_point, res * inv_s[:, None],
@@ -353,6 +365,31 @@ def _collinearity(
     return collinearity_jacobians(
         state.centres, state.rotations, ray_points, prob.photo, rays, prob.c, inv_s
     )
+
+
+def _readout(prob: _Problem, state: _State, vectors: FloatArray, at: FloatArray) -> Readout:
+    """The rolling shutter's share in the projections computed at the
+    fractions of ``at`` (K, 2), their image vectors ``vectors`` (K, 3)."""
+    assert prob.motion is not None
+    velocity = prob.motion.image_velocity(state.motion, state.rotations, prob.photo, vectors, prob.c)
+    return Readout(velocity, prob.motion.row_gradient, at)
+
+
+def _rows_read(prob: _Problem, state: _State) -> FloatArray | None:
+    """Coordinates (K, 2) at whose fractions the rays are projected: the true
+    positions ``x̂`` of one pass of :func:`._observation_space.moving_space`
+    (the observations' rows), so that the linearisation's projections are
+    those of ``x̂``'s rows to 1e-14 mm; the observations themselves when no
+    centre moves (the fraction moves nothing); None when no first solution
+    exists."""
+    assert prob.motion is not None
+    if not np.any(state.motion):
+        return prob.xy
+    rays = (state.centres, state.rotations, state.points[prob.point], prob.photo, prob.c)
+    first = moving_space(
+        prob.motion, state.motion, rays, prob.camera, state.camera, prob.xy, passes=1
+    )
+    return None if first is None or not first.converged else first.true_xy
 
 
 def _border(

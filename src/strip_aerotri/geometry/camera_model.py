@@ -472,6 +472,31 @@ class ShutterMotion:
         out: FloatArray = -sensor_y / self.readout_mm
         return out
 
+    @property
+    def row_gradient(self) -> FloatArray:
+        """``a = ∂s/∂x`` (2,), mm⁻¹: :meth:`fractions` is ``aᵀ x``."""
+        out: FloatArray = -np.asarray(self.flight_matrix, dtype=np.float64)[:, 1] / self.readout_mm
+        return out
+
+    def image_velocity(
+        self,
+        motion: FloatArray,
+        rotations: FloatArray,
+        photo: IntArray,
+        vectors: FloatArray,
+        c: float,
+    ) -> FloatArray:
+        """``u = ∂x/∂s`` (K, 2), mm: how each projection ``x = -c v_xy / v_z``
+        moves with the fraction ``s`` as its centre moves by ``s d_g``.  With
+        ``v = Rᵀ(X - S - s d)`` (``vectors`` (K, 3), at the ray's fraction)
+        and ``w = Rᵀ d`` (``rotations`` (M, 3, 3) of the photos, ``motion``
+        (G, 3), m), ``u = c (w_xy v_z - v_xy w_z) / v_z²``."""
+        d = np.asarray(motion, dtype=np.float64)[self.group]  # (M, 3) per photo
+        w = np.einsum("mji,mj->mi", rotations, d)[photo]  # Rᵀ d per ray
+        vz = vectors[:, 2:3]
+        out: FloatArray = c * (w[:, :2] * vz - vectors[:, :2] * w[:, 2:3]) / vz**2
+        return out
+
     def centre_shift(self, motion: FloatArray, photo: IntArray, s: FloatArray) -> FloatArray:
         """The centre's displacement ``s d_g`` (K, 3), m, at each observation
         (``motion`` (G, 3), ``photo`` (K,) its photo, ``s`` its fraction)."""
