@@ -402,3 +402,35 @@ def test_fractions_are_computed_thrice_per_linearisation(monkeypatch: pytest.Mon
     fractions three times: at the observations (the first solution), at its
     true positions (the projections) and at theirs (the motion's columns)."""
     assert _linearised(monkeypatch)[2] == 3
+
+
+@pytest.mark.parametrize("with_camera", [False, True])
+def test_residuals_at_the_truth_are_the_measurement_errors(with_camera: bool) -> None:
+    """The rows are read where the rays land, at their true positions x̂
+    (``x̂ + Δ(x̂) = x(S + s(x̂) d)``): at the true state the residuals are
+    the measurements' errors, ``v = -e``, to 1e-12 mm.  Read at the measured
+    rows instead, the projections carry ``u aᵀ e`` (here 1e-6 to 1e-5 mm):
+    the convention this holds."""
+    from strip_aerotri.bundle import adjust
+    from strip_aerotri.geometry.camera_model import CameraModel
+
+    obs, shutter, centres, rotations, points = _network(None, seed=8, noise_mm=0.0)
+    model = CameraModel("brown", ("k1", "b1"), C) if with_camera else None
+    theta = np.array([-3e-6, 2e-4]) if with_camera else np.zeros(0)
+    at = _projector(shutter, obs, centres, rotations, points, TRUTH)
+    xhat = mapped.rows_read(at, shutter.fractions, model, theta, obs.xy)
+    e = np.random.default_rng(9).normal(0.0, 0.003, xhat.shape)
+    measured = ImageObservations(
+        obs.photo_ids, obs.point_ids, obs.photo, obs.point, xhat + e, np.full(e.shape[0], 0.003), C
+    )
+    prob = adjust._make_problem(
+        measured, centres, rotations, points, _control(points), 0.05, None, None, None, None,
+        camera=model, motion=shutter,
+    )  # fmt: skip
+    normals = adjust._normals(prob, adjust._State(centres, rotations, points, theta, TRUTH))
+    assert normals is not None
+    np.testing.assert_allclose(normals.residuals_mm, -e[prob.rows], rtol=0, atol=1e-12)
+    # the measured rows' projections: x + Δ... off by u aᵀ e, far above the tolerance
+    measured_rows = at(shutter.fractions(xhat + e))
+    true_rows = at(shutter.fractions(xhat))
+    assert np.max(np.abs(measured_rows - true_rows)) > 1e-6
