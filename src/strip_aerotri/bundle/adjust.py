@@ -295,8 +295,9 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
 
     Rows (residual computed minus observed): image ``x - x_obs`` whitened by
     its sigma, with a camera model ``x̂ - x_obs`` (``x̂ + Δ(x̂) = x``, the
-    design premultiplied per ray by ``(I + ∂Δ/∂x)⁻¹``:
-    :mod:`._observation_space`); control ``X - X_c`` (m, design identity);
+    design premultiplied per ray by ``(I + ∂Δ/∂x)⁻¹``), with a rolling
+    shutter each ray read at ``x̂``'s row (``x̂ + Δ(x̂) = x(S + s(x̂) d)``,
+    ``(I + ∂Δ/∂x - u aᵀ)⁻¹``; :mod:`._observation_space`); control ``X - X_c`` (m, design identity);
     GNSS ``S - S_g`` (m, design identity on the centre); IMU ``log(R_imu.T
     R)`` (rad, design ``Jr^-1(e)`` on the rotation)."""
     inv_s = 1.0 / prob.sigma
@@ -585,7 +586,8 @@ def bundle_adjust(
         Start values of the camera parameters (default 0: the start camera).
     motion : ShutterMotion, optional
         A rolling shutter: one motion of the centre over the readout per
-        group of photos, estimated in the border after the camera's
+        group of photos, each ray read at its true position's row,
+        estimated in the border after the camera's
         (:class:`strip_aerotri.geometry.camera_model.ShutterMotion`; start 0).
 
     Returns

@@ -53,7 +53,10 @@ coordinates:
   with a translation and a small rotation; here one ``d`` per group of
   photos (a strip, flown at a steady speed and heading), translation only.
   The collinearity equation of an observation on photo ``j`` of group ``g``
-  is ``x(S_j + s d_g, R_j, X)`` with ``s = t - 1/2``, so ``dx/dd_g = s
+  is ``x(S_j + s d_g, R_j, X)`` with ``s = t - 1/2`` of the row the ray
+  lands on, its true position's (:meth:`ShutterMotion.row_gradient`,
+  :meth:`ShutterMotion.image_velocity`;
+  :mod:`strip_aerotri.bundle._observation_space`), so ``dx/dd_g = s
   dx/dS_j``: the centre's columns of the collinearity Jacobian times ``s``,
   three columns per group in the dense border of the normal equations
   (method.md 6B).  Rows are read along the sensor's y axis from the top (y
