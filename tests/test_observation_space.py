@@ -5,6 +5,8 @@ refinement untouched."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 import _observation_space as mapped
@@ -212,3 +214,29 @@ def test_a_camera_at_zero_gives_the_plain_rows_to_the_bit(monkeypatch: pytest.Mo
     np.testing.assert_array_equal(a.unit_jacobian, b.unit_jacobian)
     np.testing.assert_array_equal(a.point_jacobian, b.point_jacobian)
     np.testing.assert_array_equal(a.residual, b.residual)
+
+
+def test_without_a_shutter_nothing_of_the_readout_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A plain refinement and a self-calibration without a rolling shutter
+    never project at rows nor pass a readout to the sweeps: their arithmetic
+    is as it was (the outputs byte-identical)."""
+    obs, centres, rotations, points = _network()
+
+    def refused(*args: object, **kwargs: object) -> object:
+        raise AssertionError("a refinement without a shutter read rows")
+
+    sweeps = space.observation_space
+
+    def no_readout(*args: Any, **kwargs: Any) -> space.ObservationSpace:
+        readout = args[4] if len(args) > 4 else kwargs.get("readout")
+        assert readout is None, "a readout passed without a shutter"
+        return sweeps(*args, **kwargs)
+
+    monkeypatch.setattr(adjust, "moving_space", refused)
+    monkeypatch.setattr(adjust, "observation_space", no_readout)
+    for camera in (None, CameraModel("brown", BROWN_PARAMETERS, C)):
+        prob = adjust._make_problem(
+            obs, centres, rotations, points, None, None, None, None, None, None, camera=camera
+        )
+        values = np.zeros(0) if camera is None else THETA
+        assert adjust._normals(prob, adjust._State(centres, rotations, points, values)) is not None
