@@ -66,7 +66,9 @@ def _with_motion(groups: str, axis: str, log: list[Any]) -> Callable[..., Any]:
     return plain
 
 
-def _save(path: Path, res: Any, obs: Any, types: dict[str, str], rmse: tuple[float, float]) -> None:
+def _save(
+    path: Path, res: Any, obs: Any, types: dict[str, str], rmse: tuple[float, float]
+) -> None:
     """The adjustment's points, image residuals (mm) by photo and point, the
     motion and sigma0, the split's check points and its check RMSE."""
     motion = np.zeros((0, 3)) if res.motion is None else res.motion.values

@@ -289,7 +289,8 @@ def test_an_undetermined_motion_is_named() -> None:
     ray = np.column_stack([np.linspace(-55.0, 5.0, n), np.full(n, y0), np.full(n, -C)])
     depth = (1000.0 + rng.uniform(-40.0, 40.0, n)) / C  # relief: the photo is determined
     row_points = centre + depth[:, None] * (ray @ rotation.T)
-    all_centres, all_rotations = np.vstack([centres, centre]), np.concatenate([rotations, [rotation]])
+    all_centres = np.vstack([centres, centre])
+    all_rotations = np.concatenate([rotations, [rotation]])
     all_points = np.vstack([points, row_points])
     new = points.shape[0] + np.arange(n)
     photo = np.concatenate([np.full(n, 12), np.full(n, 11), np.full(n, 10)])

@@ -44,9 +44,9 @@ taken along ``s`` to first order, ``x(s) = x(s_r) + u (s - s_r)`` with ``u =
 :data:`TOLERANCE_MM` once ``x_r`` is a first solution's ``x̂`` (1e-13 mm
 with residuals of 1-2 mm: :func:`moving_space`'s two passes; the bundle
 takes the first's ``x̂`` and projects at its rows with the Jacobians).  The
-sweeps' matrix becomes ``I + ∂Δ/∂x - u aᵀ``, M its inverse (``u aᵀ`` is 7e-4 for the FC300X, c 3.61 mm
-at 53 m, moving 5 cm over its readout of 4.686 mm), and the derivatives
-are as above with this M.  The rows' fraction taken from ``x_obs`` instead puts the
+sweeps' matrix becomes ``I + ∂Δ/∂x - u aᵀ``, M its inverse (``u aᵀ`` is
+7e-4 for the FC300X, c 3.61 mm at 53 m, moving 5 cm over its readout of
+4.686 mm), and the derivatives are as above with this M.  The rows' fraction taken from ``x_obs`` instead puts the
 measurement's error into the projection: the residual becomes ``(I - u aᵀ)``
 times the error, a scale of the rows' axis that moves with ``d`` and pulls
 the motion along the rows, as the scale ``I + ∂Δ/∂x`` pulled c

@@ -297,14 +297,15 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     its sigma, with a camera model ``x̂ - x_obs`` (``x̂ + Δ(x̂) = x``, the
     design premultiplied per ray by ``(I + ∂Δ/∂x)⁻¹``), with a rolling
     shutter each ray read at ``x̂``'s row (``x̂ + Δ(x̂) = x(S + s(x̂) d)``,
-    ``(I + ∂Δ/∂x - u aᵀ)⁻¹``; :mod:`._observation_space`); control ``X - X_c`` (m, design identity);
-    GNSS ``S - S_g`` (m, design identity on the centre); IMU ``log(R_imu.T
+    ``(I + ∂Δ/∂x - u aᵀ)⁻¹``; :mod:`._observation_space`); control ``X -
+    X_c`` (m, design identity); GNSS ``S - S_g`` (m, design identity on the centre); IMU ``log(R_imu.T
     R)`` (rad, design ``Jr^-1(e)`` on the rotation)."""
     inv_s = 1.0 / prob.sigma
     at = None if prob.motion is None else _rows_read(prob, state)
     if prob.motion is not None and at is None:
         return None  # no first solution of the rows read: the cost is infinite
-    shutter = None if at is None or prob.motion is None else (prob.motion, prob.motion.fractions(at))
+    motion = prob.motion
+    shutter = None if at is None or motion is None else (motion, motion.fractions(at))
     xy, v, jac_photo, jac_point = _collinearity(prob, state, inv_s, shutter)
     if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
         return None  # a point behind a photo: no linearisation (the cost is infinite)
@@ -372,8 +373,9 @@ def _readout(prob: _Problem, state: _State, vectors: FloatArray, at: FloatArray)
     """The rolling shutter's share in the projections computed at the
     fractions of ``at`` (K, 2), their image vectors ``vectors`` (K, 3)."""
     assert prob.motion is not None
-    velocity = prob.motion.image_velocity(state.motion, state.rotations, prob.photo, vectors, prob.c)
-    return Readout(velocity, prob.motion.row_gradient, at)
+    motion = prob.motion
+    velocity = motion.image_velocity(state.motion, state.rotations, prob.photo, vectors, prob.c)
+    return Readout(velocity, motion.row_gradient, at)
 
 
 def _rows_read(prob: _Problem, state: _State) -> FloatArray | None:

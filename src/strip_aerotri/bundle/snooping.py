@@ -437,7 +437,8 @@ def _round_statistics(
         if cam is None:
             v_all[rows_t] = computed - obs.xy[rows_t]
         else:  # x̂ - x_obs with x̂ + Δ(x̂) = x, as the adjustment's own rays
-            v_all[rows_t] = observation_space(cam.model, cam.values, computed, obs.xy[rows_t]).residuals
+            mapped = observation_space(cam.model, cam.values, computed, obs.xy[rows_t])
+            v_all[rows_t] = mapped.residuals
 
     ctrl_on, c_sig, given = sets.ctrl_on, inp.c_sig, inp.c_given
     r_img = np.full((k_all, 2), np.nan)
