@@ -71,6 +71,7 @@ __all__ = [
     "moving_space",
     "observation_space",
     "premultiply",
+    "readout_at",
 ]
 
 #: The sweeps stop when the error they leave is estimated below this (mm).
@@ -174,6 +175,20 @@ def observation_space(
     return ObservationSpace(nan, nan, np.full((observed.shape[0], 2, 2), np.nan), sweep, False)
 
 
+def readout_at(
+    motion: ShutterMotion,
+    shifts: FloatArray,
+    rays: tuple[FloatArray, IntArray, FloatArray, float],
+    at: FloatArray,
+) -> Readout:
+    """The readout of projections computed at the fractions of ``at`` (K,
+    2): ``rays`` = (the photos' rotations (M, 3, 3), the rays' photos (K,),
+    their image vectors (K, 3), c), the centres moving by ``shifts`` (G, 3)."""
+    rotations, photo, vectors, c = rays
+    velocity = motion.image_velocity(shifts, rotations, photo, vectors, c)
+    return Readout(velocity, motion.row_gradient, at)
+
+
 def moving_space(
     motion: ShutterMotion,
     shifts: FloatArray,
@@ -198,10 +213,8 @@ def moving_space(
         xy, v = project(centres, rotations, moved, photo, index, c)
         if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
             return None
-        velocity = motion.image_velocity(shifts, rotations, photo, v, c)
-        space = observation_space(
-            model, values, xy, observed, Readout(velocity, motion.row_gradient, at)
-        )
+        readout = readout_at(motion, shifts, (rotations, photo, v, c), at)
+        space = observation_space(model, values, xy, observed, readout)
         if not space.converged:
             return space
         at = space.true_xy

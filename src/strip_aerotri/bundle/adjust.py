@@ -78,10 +78,10 @@ from ._datum import free_motions
 from ._given import along_axis_order, check_rotations, given_weights, observed_with_sigma
 from ._observation_space import (
     ObservationSpace,
-    Readout,
     moving_space,
     observation_space,
     premultiply,
+    readout_at,
 )
 from ._so3 import imu_residual as _imu_residual
 from ._so3 import right_jacobian_inv as _right_jacobian_inv
@@ -312,7 +312,10 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     if prob.camera is None and shutter is None:
         res, space = xy - prob.xy, None
     else:
-        readout = None if at is None else _readout(prob, state, v, at)
+        readout = None
+        if shutter is not None and at is not None:
+            rays = (state.rotations, prob.photo, v, prob.c)
+            readout = readout_at(shutter[0], state.motion, rays, at)
         space = observation_space(prob.camera, state.camera, xy, prob.xy, readout)
         if not space.converged:
             return None  # no true positions for this camera: the cost is infinite
@@ -367,15 +370,6 @@ def _collinearity(
     return collinearity_jacobians(
         state.centres, state.rotations, ray_points, prob.photo, rays, prob.c, inv_s
     )
-
-
-def _readout(prob: _Problem, state: _State, vectors: FloatArray, at: FloatArray) -> Readout:
-    """The rolling shutter's share in the projections computed at the
-    fractions of ``at`` (K, 2), their image vectors ``vectors`` (K, 3)."""
-    assert prob.motion is not None
-    motion = prob.motion
-    velocity = motion.image_velocity(state.motion, state.rotations, prob.photo, vectors, prob.c)
-    return Readout(velocity, motion.row_gradient, at)
 
 
 def _rows_read(prob: _Problem, state: _State) -> FloatArray | None:
