@@ -23,7 +23,7 @@ from strip_aerotri.errors import StripAerotriWarning
 ERROR_C_MM = 0.5
 
 
-def _run(folder: Path, choice: str):  # type: ignore[no-untyped-def]
+def _run(folder: Path, choice: str, name: str):  # type: ignore[no-untyped-def]
     from strip_aerotri.project import load_project, run_project
 
     toml = folder / "strip.toml"
@@ -35,7 +35,7 @@ def _run(folder: Path, choice: str):  # type: ignore[no-untyped-def]
         count=1,
         flags=re.M,
     )
-    path = folder / f"run_{len(choice)}.toml"
+    path = folder / f"run_{name}.toml"
     path.write_text(text)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StripAerotriWarning)
@@ -52,8 +52,8 @@ def test_relief_determines_c(tmp_path: Path, seed: int) -> None:
     ]  # fmt: skip
     res = CliRunner().invoke(cli, args)
     assert res.exit_code == 0, res.output
-    auto = _run(tmp_path, '"auto"')
-    held = _run(tmp_path, '["k1"]')
+    auto = _run(tmp_path, '"auto"', "auto")
+    held = _run(tmp_path, '["k1"]', "held")
     outcome = auto.self_calibration
     assert outcome is not None and {"c", "k1"} <= set(outcome.kept)
     c = next(p for p in outcome.parameters if p.name == "c")

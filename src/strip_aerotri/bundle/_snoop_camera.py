@@ -187,19 +187,18 @@ class _Camera:
         trials = [
             (data, what)
             for data, what, rejected in (
-                (initial.with_images_of(tested), f"{images} image observation(s)", images),
+                (initial.with_images_of(tested), _rejected_text(images, 0), images),
                 (initial.with_tests_of(tested), _rejected_text(images, control), control),
             )
             if rejected
         ]
         if not trials:
             return None
-        old = self.chosen.kept if self.chosen is not None else ()
-        chosen = self.chosen
+        assert self.chosen is not None  # "auto" always tells its choice
+        old, chosen = self.chosen.kept, self.chosen
         for data, what in trials:
             again = _Camera.start(inp, data, self.spec, max_iterations, state)
-            if again.chosen is None:
-                continue
+            assert again.chosen is not None
             new = again.chosen.kept
             if set(new) != set(old):
                 note = (

@@ -209,9 +209,7 @@ class _Sets:
         """A copy with ``other``'s image observations and control in use and
         rejected (and this one's GNSS and IMU)."""
         return dataclasses.replace(
-            self.copy(),
-            keep=other.keep.copy(),
-            obs_rejected=other.obs_rejected.copy(),
+            self.with_images_of(other),
             ctrl_on=other.ctrl_on.copy(),
             ctrl_rejected=other.ctrl_rejected.copy(),
         )

@@ -13,7 +13,8 @@ set is stable:
    flying height's twin over flat ground seen from vertical photos, and x0,
    y0 the centres' unless GNSS centres or oblique photos separate them: a
    confusion the geometry makes exact.  c's bound holds only that exact
-   confusion; above it its t value decides, as for the lens terms, because
+   confusion; with 1 - rho above 1e-6 its t value decides, as for the lens
+   terms, because
    relief and oblique photos do determine c (its own information is the
    depth's spread within a photo) and, with the residuals in the
    observations' space, its t value is honest.  The correlation does not
@@ -115,12 +116,14 @@ MAX_ORIENTATION_CORRELATION = 0.9999
 INTERIOR_CORRELATION = 0.999
 #: The bound for c: 1 - rho below 1e-6 (a variance inflation above 5e5) is
 #: the flying height's confusion made exact, vertical photos over flat ground
-#: (1 - rho from 8e-9 to 3e-5 over the sweep's 78 simulated strips and
-#: blocks, continuously; a film strip at 2e-7 with 49 um of uncorrected lens
-#: error fails its blunder tests when c is let in there).  Above it c's t
-#: value decides: the oblique FC300X block (1 - rho 3e-5 to 6e-5) determines
-#: c at t of 3-10, and a start c 0.4 % off (the EXIF focal length) is
-#: corrected to within 0.5 sd of the calibrated one (docs/bundle.md).
+#: (1 - rho from 8e-9 to 3e-5 over the sweep's 78 simulated strips,
+#: continuously; a film strip at 2e-7 with 49 um of uncorrected lens error
+#: fails its blunder tests when c is let in there).  With 1 - rho above 1e-6
+#: c's t value decides: the oblique FC300X block (1 - rho 3e-5 to 6e-5)
+#: determines c at t of 3-10, and a start c 0.4 % off (the EXIF focal
+#: length) is corrected to within 0.5 sd of the calibrated one; film strips
+#: over relief of a quarter of their height, at 5e-6 to 1.4e-5, find a c
+#: 0.33 % off within 3 sd (docs/bundle.md).
 PRINCIPAL_DISTANCE_CORRELATION = 1.0 - 1e-6
 #: False-alarm probability of the F test of the chosen set against none.
 ALPHA_SET = 0.001
@@ -312,10 +315,10 @@ def _absorbed(
 ) -> list[tuple[str, str]]:
     """Rule 1: the parameters whose multiple correlation with the orientation
     is over their bound, with the reason; ``absorbed`` those held so far for it."""
-    over_interior = {
-        n for n, r in zip(names, r_eo, strict=True) if n in _ABSORBED_BY and r > _bound(n, True)
+    principal_point = {
+        n for n, r in zip(names, r_eo, strict=True) if n in ("x0", "y0") and r > _bound(n, True)
     }
-    coupled = bool((absorbed | over_interior) & {"x0", "y0"})
+    coupled = bool((absorbed | principal_point) & {"x0", "y0"})
     why = dict(_ABSORBED_BY, **(_COUPLED_WITH_PRINCIPAL_POINT if coupled else {}))
     return [
         (n, _correlation_reason(n, r, why))
