@@ -8,7 +8,8 @@ messages (``stripaero check`` lists them all; a run stops at the first):
 * :func:`image_coordinate_problems` — image coordinates far outside any
   film or sensor format (micrometres or pixels taken for millimetres), far
   inside it (metres), or not centred on the principal point (measured from
-  a corner of the format);
+  a corner of the format; along the flight alone: a principal point outside
+  the format);
 * :func:`ray_direction_problems` — photos listed against the flight, or a
   pair in the wrong order: after the relative orientation, the rays of such
   pairs meet behind the photos (a negative x-parallax); image x across the
@@ -158,10 +159,13 @@ def image_coordinate_problems(
 #: the least to the greatest) beyond this fraction of their half range, on
 #: both axes, means another origin (a corner of the format).  Real projects
 #: stay under 0.04 (the examples, the external strips, the FC300X block,
-#: the import samples, tests/data).  One axis alone is not enough: a strip
-#: flown along a coast or a river bank has its points on one side of the
-#: flight line, across it, while the forward overlap still spreads them
-#: along it.
+#: the import samples, tests/data).  Across the flight (y) alone it is not
+#: enough: a strip flown along a coast or a river bank has its points on one
+#: side of the flight line, across it.  Along the flight (x) alone it is:
+#: the forward overlap puts every point on both sides of the principal point
+#: of consecutive photos (0.000-0.026 on the projects above), so a middle
+#: beyond the fraction there is a principal point outside the format or an
+#: origin at an edge of it.
 _OFF_CENTRE = 0.5
 #: Fewer image points than this say nothing about the format's middle.
 _OFF_CENTRE_MIN_POINTS = 20
@@ -176,14 +180,22 @@ def _off_centre_problems(xy: FloatArray, file: str) -> list[str]:
     middle, half = 0.5 * (low + high), 0.5 * (high - low)
     with np.errstate(divide="ignore", invalid="ignore"):
         off = np.abs(middle) / half
-    if not all(half[a] > 0.0 and off[a] > _OFF_CENTRE for a in (0, 1)):
-        return []
+    beyond = [bool(half[a] > 0.0 and off[a] > _OFF_CENTRE) for a in (0, 1)]
     ranges = ", ".join(f"{'xy'[a]} from {low[a]:.4g} to {high[a]:.4g} mm" for a in (0, 1))
+    if all(beyond):
+        return [
+            f"{file}: the image points are not centred on the principal point ({ranges}, after "
+            "[camera] principal_point_mm): are they measured from a corner of the format? "
+            "Give the principal point's position in that system as principal_point_mm (or "
+            '[images] units = "pixel" with pixel_size_mm and principal_point_px)'
+        ]
+    if not beyond[0]:
+        return []
     return [
-        f"{file}: the image points are not centred on the principal point ({ranges}, after "
-        "[camera] principal_point_mm): are they measured from a corner of the format? "
-        "Give the principal point's position in that system as principal_point_mm (or "
-        '[images] units = "pixel" with pixel_size_mm and principal_point_px)'
+        f"{file}: the image points are not centred on the principal point along the flight "
+        f"({ranges}, x along the flight after [camera] principal_point_mm and [images] "
+        "flight_direction), which the forward overlap spreads them on both sides of: is the "
+        "principal point outside the format, or x measured from an edge of it?"
     ]
 
 

@@ -46,6 +46,7 @@ from ..options import (
     describe,
 )
 from ..plausibility import image_coordinate_problems
+from .camera_checks import camera_problems
 from .csvfiles import MAX_TOML_BYTES, CsvTable, decode, read_bytes
 from .model import Camera, Project, readonly
 from .output import check_output
@@ -541,9 +542,16 @@ def _image_reduction(
     """The reduction of raw image coordinates to the photo system (mm) of this
     project.  When the distortion cannot be removed, coordinates that no
     camera gives (far outside the format, from its corner) are named as the
-    cause before the coefficients are."""
+    cause before the coefficients are; when the reduced coordinates are
+    implausible but the measurements are not, the principal point or the
+    distortion is named (:mod:`.camera_checks`)."""
 
-    def reduce(xy: FloatArray, photo: IntArray, lens: BrownDistortion | None) -> FloatArray:
+    def reduce(
+        xy: FloatArray,
+        photo: IntArray,
+        lens: BrownDistortion | None,
+        centre: tuple[float, float] = principal_point,
+    ) -> FloatArray:
         return reduce_image_coordinates(
             xy,
             photo,
@@ -552,14 +560,14 @@ def _image_reduction(
             pixel_size_mm=image_options.pixel_size_mm,
             principal_point_px=image_options.principal_point_px,
             fiducials=fiducials or None,
-            principal_point_mm=principal_point,
+            principal_point_mm=centre,
             distortion=lens,
             flight_direction=image_options.flight_direction,
         )
 
     def reduce_all(xy: FloatArray, photo: IntArray) -> FloatArray:
         try:
-            return reduce(xy, photo, distortion)
+            corrected = reduce(xy, photo, distortion)
         except ConvergenceError as exc:
             plain = reduce(xy, photo, None)
             problems = image_coordinate_problems(plain, principal_distance, file=str(images_file))
@@ -568,6 +576,13 @@ def _image_reduction(
                 if problems
                 else f"{toml_path}: [distortion]: {exc}"
             ) from None
+        problems = camera_problems(
+            toml_path, corrected, lambda lens, centre: reduce(xy, photo, lens, centre),
+            principal_point, distortion, principal_distance,
+        )  # fmt: skip
+        if problems:
+            raise ConfigError(problems[0])
+        return corrected
 
     return reduce_all
 

@@ -1,0 +1,144 @@
+"""The ``[camera]`` and ``[distortion]`` tables judged on the image points.
+
+The plausibility of the image coordinates
+(:func:`~strip_aerotri.plausibility.image_coordinate_problems`) is judged
+on the coordinates reduced to the principal point and corrected for the
+distortion.  When those are implausible but the measurements as given are
+not, the cause is the camera, not the coordinates: a principal point in
+pixels or outside the format, or distortion coefficients in another unit or
+of the wrong size.  :func:`camera_problems` names the table and the key;
+it also refuses a correction that moves a point by more than its distance
+from the principal point, or whose radial terms fold the image over the
+measured radii (the corrected radius shrinking as the measured one grows):
+no lens does either, and the coordinates' own checks may not see them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..interior import BrownDistortion
+from ..options import DistortionModel, DistortionUnits
+from ..plausibility import image_coordinate_problems
+
+__all__ = ["camera_problems"]
+
+#: Coordinates from the measurements to the photo system: ``reduce(lens,
+#: principal_point)`` with or without the distortion and the principal point.
+Reduce = Callable[[BrownDistortion | None, tuple[float, float]], FloatArray]
+
+
+def _lens(distortion: BrownDistortion) -> str:
+    """The distortion's non-zero coefficients, units and model, for a message."""
+    names = ("k1", "k2", "k3", "p1", "p2", "b1", "b2")
+    given = [f"{n} = {getattr(distortion, n):.6g}" for n in names if getattr(distortion, n)]
+    units = f'units = "{distortion.units.value}", model = "{distortion.model.value}"'
+    return ", ".join([*given, units])
+
+
+def camera_problems(
+    toml_path: Path,
+    corrected: FloatArray,
+    reduce: Reduce,
+    principal_point: tuple[float, float],
+    distortion: BrownDistortion | None,
+    principal_distance: float,
+) -> list[str]:
+    """Problems of the camera tables seen on the image points.
+
+    Parameters
+    ----------
+    toml_path : Path
+        The project file, named in the messages.
+    corrected : ndarray, shape (n, 2)
+        The image points reduced with the principal point and the
+        distortion (mm, x along the flight).
+    reduce : callable
+        ``reduce(distortion, principal_point)``: the same points reduced with
+        another distortion (None: none) and principal point.
+    principal_point : (float, float)
+        ``[camera] principal_point_mm``.
+    distortion : BrownDistortion or None
+        ``[distortion]``.
+    principal_distance : float
+        c in mm.
+
+    Returns
+    -------
+    list of str
+        At most one message naming ``[camera] principal_point_mm`` or
+        ``[distortion]``; empty when the camera is not the cause (the
+        measurements' own problems are then the coordinates' checks').
+    """
+    lens = distortion if distortion is not None and not distortion.is_zero else None
+    shifted = any(principal_point)
+    if lens is None and not shifted:
+        return []
+    c = float(principal_distance)
+    centred = corrected if lens is None else reduce(None, principal_point)
+    if lens is not None and (problem := _lens_problem(toml_path, centred, corrected, lens, c)):
+        return [problem]
+    if not image_coordinate_problems(corrected, c):
+        return []
+    measured = reduce(None, (0.0, 0.0)) if shifted else centred
+    if image_coordinate_problems(measured, c):
+        return []  # the coordinates themselves: their own checks name them
+    if lens is None or image_coordinate_problems(centred, c):
+        low, high = measured.min(axis=0), measured.max(axis=0)
+        x0, y0 = principal_point
+        return [
+            f"{toml_path}: [camera] principal_point_mm = [{x0:.6g}, {y0:.6g}] lies outside the "
+            f"image points (measured: x from {low[0]:.4g} to {high[0]:.4g}, y from "
+            f"{low[1]:.4g} to {high[1]:.4g} mm, x along the flight): in pixels, or from another "
+            "origin? It is in mm in the measurements' axes (pixels: [images] units = \"pixel\" "
+            "with principal_point_px)"
+        ]
+    return [
+        f"{toml_path}: [distortion] ({_lens(lens)}) moves the image points where no camera has "
+        'them, though they are plausible without it: another unit (units = "normalized" '
+        "divides r by c), pixels, a wrong size?"
+    ]
+
+
+def _lens_problem(
+    toml_path: Path,
+    centred: FloatArray,
+    corrected: FloatArray,
+    distortion: BrownDistortion,
+    principal_distance: float,
+) -> str:
+    """A correction larger than the point's distance from the principal point,
+    or a radial correction that folds the image over the measured radii."""
+    shift = np.hypot(*(corrected - centred).T)
+    radius = np.hypot(*centred.T)
+    with np.errstate(invalid="ignore"):
+        too_large = ~(shift <= radius)  # NaN too
+    head = f"{toml_path}: [distortion] ({_lens(distortion)})"
+    cause = 'another unit (units = "normalized" divides r by c), pixels, a wrong size or sign?'
+    if too_large.any():
+        k = int(np.flatnonzero(too_large)[np.argmax(shift[too_large])])
+        return (
+            f"{head} moves a point {radius[k]:.4g} mm from the principal point by "
+            f"{shift[k]:.4g} mm, more than its distance ({int(too_large.sum())} of "
+            f"{too_large.size} points): no lens does; {cause}"
+        )
+    # d(r + Δr)/dr of the radial terms at the radii where the polynomials are
+    # evaluated: the measured point (correction) or the ideal one (projection)
+    at = centred if distortion.model is DistortionModel.CORRECTION else corrected
+    norm = principal_distance if distortion.units is DistortionUnits.NORMALIZED else 1.0
+    r2 = np.einsum("ij,ij->i", at, at) / norm**2
+    d = distortion
+    slope = 1.0 + r2 * (3.0 * d.k1 + r2 * (5.0 * d.k2 + r2 * 7.0 * d.k3))
+    folded = np.flatnonzero(slope <= 0.0)
+    if not folded.size:
+        return ""
+    first = float(np.sqrt(r2[folded].min()) * norm)
+    return (
+        f"{head} folds the image beyond {first:.4g} mm from the principal point (the corrected "
+        "radius shrinks as the measured grows: 1 + 3k1 r² + 5k2 r⁴ + 7k3 r⁶ ≤ 0 at "
+        f"{folded.size} of {slope.size} points): no lens does; {cause}"
+    )

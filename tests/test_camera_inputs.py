@@ -1,0 +1,160 @@
+"""Mistakes in the camera inputs (``[camera]``, ``[distortion]``,
+``[adjustment] self_calibration``) found by the catalogue fuzz
+(``benchmarks/fuzz_inputs.py``, its camera entries): each is one line
+naming the key and the likely cause.
+
+Before these checks, a principal point beyond the format's edge along the
+flight ran to exit 0 (the drone corridor with [7.0, 0.0] mm: check points at
+5 m instead of 0.1 m); a principal point in pixels, or a k1 a million times too
+large, was blamed on the image coordinates ("not in millimetres"); a k1 for
+normalised coordinates read as mm folded the drone format and stopped the run
+on the image sigma.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from strip_aerotri.cli.main import cli
+from strip_aerotri.interior import BrownDistortion, correct_distortion
+from strip_aerotri.plausibility import image_coordinate_problems
+from strip_aerotri.project import load_project
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _project(tmp_path: Path, example: str, old: str, new: str) -> Path:
+    folder = tmp_path / example
+    shutil.copytree(EXAMPLES / example, folder, ignore=shutil.ignore_patterns("out"))
+    toml = folder / "strip.toml"
+    text = toml.read_text(encoding="utf-8")
+    assert old in text
+    toml.write_text(text.replace(old, new, 1), encoding="utf-8")
+    return toml
+
+
+def _camera(tmp_path: Path, example: str, lines: str) -> Path:
+    """``lines`` added to the example's [camera] table."""
+    return _project(tmp_path, example, "[camera]\n", f"[camera]\n{lines}\n")
+
+
+def _lens(tmp_path: Path, example: str, table: str) -> Path:
+    """A [distortion] table added to the example."""
+    return _project(tmp_path, example, "[images]\n", f"[distortion]\n{table}\n\n[images]\n")
+
+
+def _one_line(toml: Path, *words: str) -> None:
+    """check and run: exit 1, one line holding the words, no result folder."""
+    for command in ("check", "run"):
+        result = CliRunner().invoke(cli, [command, str(toml)])
+        assert result.exit_code == 1, result.output
+        (line,) = result.stderr.splitlines()
+        assert line.startswith("stripaero: error: ") and len(line) < 500, line
+        for word in words:
+            assert word in line, (word, line)
+    assert not (toml.parent / "out").exists()
+
+
+# ---------------------------------------------------------------- the principal point
+
+
+def test_flight_axis_off_centre_alone_is_a_problem() -> None:
+    """Along the flight the forward overlap spreads the points on both sides of
+    the principal point: a middle beyond half the half range there alone is
+    refused (across it, alone, it is a strip along a coast: allowed)."""
+    obs = load_project(EXAMPLES / "drone-corridor" / "strip.toml").observations
+    xy = np.asarray(obs.xy)
+    half = 0.5 * np.ptp(xy, axis=0)
+    c = obs.principal_distance
+    (message,) = image_coordinate_problems(xy + [0.6 * half[0], 0.0], c, file="i.csv")
+    assert message.startswith("i.csv: the image points are not centred on the principal point "
+                              "along the flight"), message  # fmt: skip
+    assert image_coordinate_problems(xy + [0.4 * half[0], 0.0], c) == []
+    assert image_coordinate_problems(xy + [0.0, 0.6 * half[1]], c) == []
+
+
+@pytest.mark.parametrize(
+    ("example", "principal_point"),
+    [
+        ("drone-corridor", "[5.0, 0.0]"),  # beyond the 4.4 mm half format along the flight
+        ("drone-corridor", "[2736.0, 1824.0]"),  # pixels of the 5472 x 3648 sensor
+        ("film-strip", "[11500.0, 11500.0]"),  # pixels of 10 um film scans
+    ],
+)
+def test_a_principal_point_outside_the_format_is_named(
+    tmp_path: Path, example: str, principal_point: str
+) -> None:
+    toml = _camera(tmp_path, example, f"principal_point_mm = {principal_point}")
+    _one_line(toml, "[camera] principal_point_mm", "lies outside the image points", "in pixels")
+
+
+def test_a_plausible_principal_point_still_runs(tmp_path: Path) -> None:
+    """0.3 mm (120 pixels) off the image centre: unusual, not impossible."""
+    toml = _camera(tmp_path, "drone-corridor", "principal_point_mm = [0.3, -0.2]")
+    assert load_project(toml).camera.principal_point_mm.tolist() == [0.3, -0.2]
+
+
+def test_coordinates_from_the_corner_are_still_the_coordinates(tmp_path: Path) -> None:
+    """Measurements that are implausible without the camera are named as the
+    coordinates, whatever the principal point."""
+    toml = _camera(tmp_path, "film-strip", "principal_point_mm = [0.01, 0.02]")
+    images = toml.parent / "image_points.csv"
+    header, *rows = images.read_text(encoding="utf-8").splitlines()
+    scaled = [r.split(",") for r in rows]
+    for r in scaled:
+        r[2], r[3] = repr(float(r[2]) * 1000), repr(float(r[3]) * 1000)
+    images.write_text("\n".join([header, *map(",".join, scaled)]) + "\n", encoding="utf-8")
+    _one_line(toml, "image_points.csv", "the coordinates are not in millimetres")
+
+
+# ---------------------------------------------------------------- the distortion
+
+
+@pytest.mark.parametrize(
+    ("example", "table", "words"),
+    [
+        # k1 a million times too large: moved by 1e5 mm (was "not in millimetres")
+        ("drone-corridor", "k1 = -300.0", ("k1 = -300,", "moves a point", "more than its")),
+        ("film-strip", "k1 = -3e-2", ("k1 = -0.03,", "moves a point")),
+        ("film-strip", "k1 = 3e-2", ("k1 = 0.03,", "moves a point")),
+        # the FC300X k1 for normalised coordinates read as mm on the 8.8 mm
+        # lens: folds the format's outer third (was "the image sigma")
+        ("drone-corridor", "k1 = -0.0114", ("k1 = -0.0114,", "folds the image beyond")),
+        ("drone-corridor", "b1 = 1.5", ("b1 = 1.5,", "moves a point")),
+    ],
+)
+def test_an_impossible_distortion_is_named(
+    tmp_path: Path, example: str, table: str, words: tuple[str, ...]
+) -> None:
+    toml = _lens(tmp_path, example, table)
+    _one_line(toml, "strip.toml: [distortion] (", *words)
+
+
+def test_the_fold_rule_against_a_dense_radial_profile() -> None:
+    """The rule (1 + 3 k1 r² + ... <= 0 at a measured radius) against the
+    corrected radius itself on a fine radial line: it falls first beyond
+    r = 1/sqrt(-3 k1) (Brown's correction model, radial terms only)."""
+    k1 = -0.0114
+    lens = BrownDistortion(k1=k1)
+    r = np.linspace(0.0, 7.5, 15001)
+    corrected = correct_distortion(np.column_stack([r, np.zeros_like(r)]), lens, 8.8)[:, 0]
+    falls = r[1:][np.diff(corrected) <= 0.0]
+    assert falls.min() == pytest.approx(1.0 / np.sqrt(-3.0 * k1), abs=1e-3)
+
+
+@pytest.mark.parametrize(
+    "table",
+    [
+        "k1 = -3e-4\nk2 = 2e-6",  # a wide-angle drone lens, tens of micrometres
+        'units = "normalized"\nmodel = "projection"\nk1 = -0.0114\nk2 = 0.0148',  # FC300X
+        "k1 = 3e-4\np1 = 1e-5\np2 = -1e-5\nb1 = 1e-4\nb2 = -1e-4",
+    ],
+)
+def test_a_plausible_distortion_still_loads(tmp_path: Path, table: str) -> None:
+    project = load_project(_lens(tmp_path, "drone-corridor", table))
+    assert project.observations.xy.shape[0] > 300
