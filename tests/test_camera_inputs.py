@@ -8,7 +8,7 @@ flight ran to exit 0 (the drone corridor with [7.0, 0.0] mm: check points at
 5 m instead of 0.1 m); a principal point in pixels, or a k1 a million times too
 large, was blamed on the image coordinates ("not in millimetres"); a k1 for
 normalised coordinates read as mm folded the drone format and stopped the run
-on the image sigma.
+on the image sigma; and ``self_calibration = []`` said "got a list".
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import pytest
 from click.testing import CliRunner
 
 from strip_aerotri.cli.main import cli
+from strip_aerotri.errors import ConfigError
 from strip_aerotri.interior import BrownDistortion, correct_distortion
 from strip_aerotri.plausibility import image_coordinate_problems
 from strip_aerotri.project import load_project
@@ -158,3 +159,29 @@ def test_the_fold_rule_against_a_dense_radial_profile() -> None:
 def test_a_plausible_distortion_still_loads(tmp_path: Path, table: str) -> None:
     project = load_project(_lens(tmp_path, "drone-corridor", table))
     assert project.observations.xy.shape[0] > 300
+
+
+# ---------------------------------------------------------------- self_calibration
+
+
+@pytest.mark.parametrize(
+    ("value", "said"),
+    [
+        ("[]", 'got an empty list (to estimate nothing: "none")'),
+        ('"k1"', 'got the string "k1" (one parameter is a list too: ["k1"])'),
+        ('["k1", 2]', "got a list whose item 2 is the number 2 (names in quotes"),
+        ('"ebner"', 'got the string "ebner" (did you mean "ebner12"?)'),
+        ("true", "got the boolean true"),
+    ],
+)
+def test_a_refused_self_calibration_says_what_was_meant(
+    tmp_path: Path, value: str, said: str
+) -> None:
+    toml = _project(
+        tmp_path, "film-strip", "[adjustment]\n",
+        f'[adjustment]\nrefine = "bundle"\nself_calibration = {value}\n',
+    )  # fmt: skip
+    with pytest.raises(ConfigError) as info:
+        load_project(toml)
+    message = str(info.value)
+    assert "[adjustment] self_calibration: expected" in message and said in message, message
