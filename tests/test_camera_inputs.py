@@ -185,3 +185,28 @@ def test_a_refused_self_calibration_says_what_was_meant(
         load_project(toml)
     message = str(info.value)
     assert "[adjustment] self_calibration: expected" in message and said in message, message
+
+
+# ---------------------------------------------------------------- camera.toml pasted
+
+
+def test_a_camera_toml_added_instead_of_replacing_is_named(tmp_path: Path) -> None:
+    """camera.toml appended to a project that keeps its own [camera]: tomllib's
+    "Cannot declare ('camera',) twice" now says where the first is and why."""
+    toml = _project(tmp_path, "film-strip", "[report]\n", "[report]\n")
+    camera = (
+        "# The camera adjusted by the bundle's self-calibration\n[camera]\n"
+        "principal_distance_mm = 152.9\nprincipal_point_mm = [0.0, 0.0]\n\n"
+        '[distortion]\nunits = "mm"\nmodel = "correction"\nk1 = -3e-8\n'
+    )
+    toml.write_text(toml.read_text(encoding="utf-8") + "\n" + camera, encoding="utf-8")
+    _one_line(
+        toml, "TOML syntax error: Cannot declare ('camera',) twice",
+        "(the table [camera] is declared twice (first at line 6): merge them",
+        "camera.toml replace the project's [camera] and [distortion]",
+    )  # fmt: skip
+
+
+def test_a_key_given_twice_is_named(tmp_path: Path) -> None:
+    toml = _camera(tmp_path, "film-strip", "principal_distance_mm = 152.9")
+    _one_line(toml, "Cannot overwrite a value", "the key 'principal_distance_mm' is given twice")

@@ -122,6 +122,28 @@ def _toml_hint(text: str, message: str, line: int, column: int) -> str:
         in_array = row[:start].rstrip().endswith(("[", ","))
         value = token if in_array else row[start:].split("#")[0].strip()
         return f' (a string must be in quotes: "{shorten(value, 40)}")'
+    return _twice_hint(lines, message, row)
+
+
+def _twice_hint(lines: list[str], message: str, row: str) -> str:
+    """A table declared twice (where first), or a key given twice in its table;
+    a pasted camera.toml is the likely cause for [camera] and [distortion]."""
+    table = re.fullmatch(r"Cannot declare \('([^']*)',\) twice", message)
+    if table:
+        name = table.group(1)
+        header = re.compile(rf"\s*\[\s*{re.escape(name)}\s*\]\s*(#.*)?")
+        first = next((k + 1 for k, ln in enumerate(lines) if header.fullmatch(ln)), None)
+        where = f" (first at line {first})" if first else ""
+        pasted = (
+            "; the tables of a self-calibration's camera.toml replace the project's [camera] "
+            "and [distortion], they are not added to them"
+            if name in ("camera", "distortion")
+            else ""
+        )
+        return f" (the table [{shorten(name, 40)}] is declared twice{where}: merge them{pasted})"
+    if message == "Cannot overwrite a value" and "=" in row:
+        key = row.split("=", 1)[0].strip()
+        return f" (the key '{shorten(key, 40)}' is given twice in its table)"
     return ""
 
 
