@@ -210,3 +210,18 @@ def test_a_camera_toml_added_instead_of_replacing_is_named(tmp_path: Path) -> No
 def test_a_key_given_twice_is_named(tmp_path: Path) -> None:
     toml = _camera(tmp_path, "film-strip", "principal_distance_mm = 152.9")
     _one_line(toml, "Cannot overwrite a value", "the key 'principal_distance_mm' is given twice")
+
+
+# ---------------------------------------------------------------- the principal distance
+
+
+@pytest.mark.parametrize(
+    ("example", "c"),
+    [("film-strip", "30574.0"), ("drone-corridor", "3666.7")],  # c in pixels of 5 and 2.4 um
+)
+def test_a_principal_distance_in_pixels_is_named(tmp_path: Path, example: str, c: str) -> None:
+    """It was 'are the coordinates in metres instead of millimetres?' for
+    coordinates spanning the film's 228 mm."""
+    toml = _project(tmp_path, example, "principal_distance_mm = ", f"principal_distance_mm = {c}\n#")
+    _one_line(toml, "less than 0.02 of the principal distance", "[camera] principal_distance_mm "
+              "not in millimetres (pixels? micrometres?)")  # fmt: skip

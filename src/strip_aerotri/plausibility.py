@@ -83,6 +83,9 @@ _MAX_RADIUS_OVER_C = 5.0
 #: Image points all within this fraction of c: a field of view narrower
 #: than 2.3 deg (a 610 mm lens on 230 mm film still spans 0.27).
 _MIN_SPAN_OVER_C = 0.02
+#: Image points spanning at least this are on a real format (a phone's
+#: sensor spans 5 mm); in metres no format spans it (230 mm film: 0.23).
+_MIN_FORMAT_MM = 1.0
 #: A photo votes "mirrored" when the reflected fit leaves less than this
 #: fraction of the rotated fit's residual (and the other way round).
 _MIRROR_RATIO = 0.1
@@ -142,10 +145,15 @@ def image_coordinate_problems(
         )
     span = float(np.max(np.ptp(xy, axis=0)))
     if xy.shape[0] >= 3 and span < _MIN_SPAN_OVER_C * c:
+        cause = (
+            "a format that size is plausible, so is [camera] principal_distance_mm not in "
+            "millimetres (pixels? micrometres?)"
+            if span >= _MIN_FORMAT_MM
+            else "are the coordinates in metres instead of millimetres?"
+        )
         problems.append(
             f"{file}: all image points lie within {span:.3g} mm of each other, less than "
-            f"{_MIN_SPAN_OVER_C:g} of the principal distance c = {c:g} mm: are the "
-            "coordinates in metres instead of millimetres?"
+            f"{_MIN_SPAN_OVER_C:g} of the principal distance c = {c:g} mm: {cause}"
         )
     # from a corner of the format, some points also lie beyond the radius:
     # the origin is the cause, unless most do (then the unit is)
