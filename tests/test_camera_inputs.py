@@ -126,7 +126,11 @@ def test_coordinates_from_the_corner_are_still_the_coordinates(tmp_path: Path) -
         # the FC300X k1 for normalised coordinates read as mm on the 8.8 mm
         # lens: folds the format's outer third (was "the image sigma")
         ("drone-corridor", "k1 = -0.0114", ("k1 = -0.0114,", "folds the image beyond")),
-        ("drone-corridor", "b1 = 1.5", ("b1 = 1.5,", "moves a point")),
+        ("drone-corridor", "b1 = 1.5", ("b1 is 1.5, an affinity",)),
+        # an affinity or shear in percent: 50 % (it stopped the run on its
+        # control: "more than 20% of the control observations fail")
+        ("film-strip", "b1 = 0.5", ("b1 is 0.5, an affinity of more than 1%",)),
+        ("drone-corridor", "b2 = -0.02", ("b2 is -0.02, a shear of more than 1%",)),
     ],
 )
 def test_an_impossible_distortion_is_named(

@@ -27,6 +27,13 @@ from ..plausibility import image_coordinate_problems
 
 __all__ = ["camera_problems"]
 
+#: Largest affinity b1 or shear b2 of a film or sensor: film's differential
+#: shrinkage and a scanner's affinity are 1e-4 to 1e-3 (R4 §1.7.7.1: the
+#: fiducials' scales agree to a few units of the 4th decimal); the FC300X
+#: block's self-calibration gives b1 = 7.5e-4.
+MAX_AFFINITY = 0.01
+_SKEW = {"b1": "an affinity", "b2": "a shear"}
+
 #: Coordinates from the measurements to the photo system: ``reduce(lens,
 #: principal_point)`` with or without the distortion and the principal point.
 Reduce = Callable[[BrownDistortion | None, tuple[float, float]], FloatArray]
@@ -113,11 +120,18 @@ def _lens_problem(
 ) -> str:
     """A correction larger than the point's distance from the principal point,
     or a radial correction that folds the image over the measured radii."""
+    head = f"{toml_path}: [distortion] ({_lens(distortion)})"
+    skew = max(("b1", "b2"), key=lambda n: abs(getattr(distortion, n)))
+    if abs(getattr(distortion, skew)) > MAX_AFFINITY:
+        return (
+            f"{head}: {skew} is {getattr(distortion, skew):.3g}, {_SKEW[skew]} of more than "
+            f"{MAX_AFFINITY:.0%}, where film and sensors differ by parts per thousand at most: a "
+            "value in percent?"
+        )
     shift = np.hypot(*(corrected - centred).T)
     radius = np.hypot(*centred.T)
     with np.errstate(invalid="ignore"):
         too_large = ~(shift <= radius)  # NaN too
-    head = f"{toml_path}: [distortion] ({_lens(distortion)})"
     cause = 'another unit (units = "normalized" divides r by c), pixels, a wrong size or sign?'
     if too_large.any():
         k = int(np.flatnonzero(too_large)[np.argmax(shift[too_large])])
