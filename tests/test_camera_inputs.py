@@ -229,3 +229,23 @@ def test_a_principal_distance_in_pixels_is_named(tmp_path: Path, example: str, c
     toml = _project(tmp_path, example, "principal_distance_mm = ", f"principal_distance_mm = {c}\n#")
     _one_line(toml, "less than 0.02 of the principal distance", "[camera] principal_distance_mm "
               "not in millimetres (pixels? micrometres?)")  # fmt: skip
+
+
+@pytest.mark.parametrize(("example", "c"), [("film-strip", "0.15287"), ("drone-corridor", "0.0088")])
+def test_a_principal_distance_in_metres_is_named(tmp_path: Path, example: str, c: str) -> None:
+    """It was 'the coordinates are not in millimetres (micrometres? pixels?)'
+    for the film's coordinates, which are."""
+    toml = _project(tmp_path, example, "principal_distance_mm = ", f"principal_distance_mm = {c}\n#")
+    _one_line(toml, "is [camera] principal_distance_mm in metres instead of millimetres?")
+
+
+def test_coordinates_in_pixels_are_still_the_coordinates(tmp_path: Path) -> None:
+    """With c in mm, coordinates far beyond any format are the coordinates'."""
+    toml = _project(tmp_path, "drone-corridor", "[camera]\n", "[camera]\n")
+    images = toml.parent / "image_points.csv"
+    header, *rows = images.read_text(encoding="utf-8").splitlines()
+    scaled = [r.split(",") for r in rows]
+    for r in scaled:
+        r[2], r[3] = repr(float(r[2]) / 0.0024), repr(float(r[3]) / 0.0024)
+    images.write_text("\n".join([header, *map(",".join, scaled)]) + "\n", encoding="utf-8")
+    _one_line(toml, "image_points.csv", "the coordinates are not in millimetres")

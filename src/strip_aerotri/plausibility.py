@@ -85,6 +85,7 @@ _MAX_RADIUS_OVER_C = 5.0
 _MIN_SPAN_OVER_C = 0.02
 #: Image points spanning at least this are on a real format (a phone's
 #: sensor spans 5 mm); in metres no format spans it (230 mm film: 0.23).
+#: No camera's principal distance is shorter either (a phone's: 4 mm).
 _MIN_FORMAT_MM = 1.0
 #: A photo votes "mirrored" when the reflected fit leaves less than this
 #: fraction of the rotated fit's residual (and the other way round).
@@ -127,7 +128,12 @@ def image_coordinate_problems(
         k = int(outside[np.argmax(radius[outside])])
         at = where(k) if where is not None else file
         share = outside.size / xy.shape[0]
-        if share > 0.5:
+        if c < _MIN_FORMAT_MM and radius.max() <= MAX_IMAGE_RADIUS_MM:
+            cause = (
+                f"a principal distance under {_MIN_FORMAT_MM:g} mm and points within a real "
+                "format: is [camera] principal_distance_mm in metres instead of millimetres?"
+            )
+        elif share > 0.5:
             cause = (
                 f"{outside.size} of the {xy.shape[0]} points ({share:.0%}) lie that far out, so "
                 "the coordinates are not in millimetres (micrometres? pixels? then [images] "
