@@ -473,8 +473,20 @@ def _bundle(choice: str) -> Callable[[Project], None]:
 
 
 def _camera_keys(lines: str) -> Callable[[Project], None]:
-    """Keys added to [camera]."""
-    return _toml_line("[camera]\n", f"[camera]\n{lines}\n")
+    """Keys set in [camera] (in place of the project's own of the same name)."""
+
+    def apply(p: Project) -> None:
+        text = p.toml.read_text("utf-8")
+        table = re.search(r"^\[camera\]\n(?:[^\[\n].*\n|\n)*", text, re.M)
+        if table is None:
+            raise ValueError(f"{p.toml}: no [camera] table")
+        body = table.group()
+        for key in re.findall(r"^(\w+)\s*=", lines, re.M):
+            body = re.sub(rf"^{key}\s*=.*\n", "", body, flags=re.M)
+        body = body.replace("[camera]\n", f"[camera]\n{lines}\n", 1)
+        p.toml.write_text(text[: table.start()] + body + text[table.end() :], encoding="utf-8")
+
+    return apply
 
 
 def _image_reach(p: Project) -> tuple[float, float]:
