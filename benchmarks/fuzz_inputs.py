@@ -669,7 +669,24 @@ MUTATIONS: tuple[Mutation, ...] = (
         "control: heights in decimetres",
         FAIL,
         lambda p: p.map_column(p.control, "H", _scale(10.0)),
-        (("control",), ("decimetres",)),
+        # the FC300X block's relief (0.37 of the flying height) so changed
+        # stops first on the heights' span on a photo, "in H's unit"
+        (("control",), ("decimetres", "H's unit")),
+    ),
+    # X, Y in feet with H in metres: the ratio of the heights' gradient over
+    # the strip to the plan's (ground/height_units.py) names it; under a UTM
+    # CRS the coordinates so changed leave its area of use first
+    Mutation(
+        "control: X, Y in feet, H in metres",
+        FAIL,
+        lambda p: [p.map_column(p.control, c, _scale(1 / 0.3048)) for c in ("X", "Y")] and None,
+        (("control",), ("feet", "implausible coordinates")),
+    ),
+    Mutation(
+        "control: X, Y in decimetres, H in metres",
+        FAIL,
+        lambda p: [p.map_column(p.control, c, _scale(10.0)) for c in ("X", "Y")] and None,
+        (("control",), ("decimetres", "implausible coordinates")),
     ),
     Mutation("control: H and X swapped", FAIL, _swap_columns("control", "X", "H")),
     # photos and points

@@ -104,8 +104,9 @@ def test_a_unit_factor_stops_with_the_file_and_the_unit(factor: float, named: st
     assert "\n" not in problems[0]
 
 
-# 0.3048 (X, Y in feet) is let through: real strips reach 0.57 for their own
-# height deformation (the FC300X block), too near to refuse a project on
+# the slope alone lets 0.3048 (X, Y in feet) through: an oblique strip's
+# model tilt lowers it to 0.57-0.66 with agreeing units (the FC300X block);
+# the gradient ratio, given the plan control, names it (test_height_gradient)
 @pytest.mark.parametrize("factor", [1.0, 0.3048, 0.6, 1.3, 2.0, 5.0])
 def test_slopes_away_from_every_unit_factor_pass(factor: float) -> None:
     model = _model(8, 80.0)

@@ -25,10 +25,12 @@ messages (``stripaero check`` lists them all; a run stops at the first):
   different units (X, Y in km with H in m): the control heights on a photo
   span more than the flying height the plan control's scale gives;
 * :func:`strip_aerotri.ground.height_units.height_unit_problems` (the
-  ground stage's, on the formed strip) — heights in feet (or decimetres) with X, Y
-  in metres, which the span cannot see: once the strip is formed and scaled
-  to the plan control (the ground stage), the control heights against the
-  strip's heights have a slope near the unit factor instead of 1;
+  ground stage's, on the formed strip) — heights in feet (or decimetres)
+  with X, Y in metres, or X, Y in feet with H in metres, which the span
+  cannot see: once the strip is formed and scaled to the plan control (the
+  ground stage), the control heights' gradient over the strip model has a
+  norm near the unit factor times the plan coordinates' instead of 1,
+  whatever the model's tilt;
 * :func:`control_coverage_problems` — a warning, not a stop: strip ends
   beyond the outermost plan or height control, where the strip is
   extrapolated;

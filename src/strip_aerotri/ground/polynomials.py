@@ -326,12 +326,16 @@ def _first_look(
 
 
 def _unit_problems(first: _FirstLook, picked: ControlRows, name: str) -> list[str]:
-    """Control heights in another unit than the plan control: the heights of
-    the height control against the strip's, scaled to the plan control
+    """Control heights in another unit than the plan control: the gradients
+    of the height and plan control over the strip, scaled to the plan
+    control, or the heights against the strip's
     (:func:`strip_aerotri.ground.height_units.height_unit_problems`)."""
-    z = picked.use_z
+    z, xy = picked.use_z, picked.use_xy
+    scaled = first.strip_xyz * first.metres_per_model
+    plan = (scaled[xy], first.target[xy, :2], np.hypot(picked.sigma_xy, first.sigma_plan)[xy])
+    given = (picked.given[z, 2], picked.sigma_h[z], first.sigma_height)
     return height_unit_problems(
-        first.strip_xyz[z] * first.metres_per_model, first.target[z, 2], first.exp_z[z], file=name
+        scaled[z], first.target[z, 2], first.exp_z[z], file=name, plan=plan, given=given
     )
 
 
