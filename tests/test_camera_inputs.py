@@ -225,10 +225,10 @@ def test_a_key_given_twice_is_named(tmp_path: Path) -> None:
 )
 def test_a_principal_distance_in_pixels_is_named(tmp_path: Path, example: str, c: str) -> None:
     """It was 'are the coordinates in metres instead of millimetres?' for
-    coordinates spanning the film's 228 mm."""
+    coordinates spanning the film's 228 mm: c alone says it."""
     toml = _project(tmp_path, example, "principal_distance_mm = ", f"principal_distance_mm = {c}\n#")
-    _one_line(toml, "less than 0.02 of the principal distance", "[camera] principal_distance_mm "
-              "not in millimetres (pixels? micrometres?)")  # fmt: skip
+    _one_line(toml, f"strip.toml: [camera] principal_distance_mm = {float(c):g} is longer than any "
+              "aerial camera's", "in pixels (c divided by the pixel size) or micrometres")  # fmt: skip
 
 
 @pytest.mark.parametrize(("example", "c"), [("film-strip", "0.15287"), ("drone-corridor", "0.0088")])
@@ -236,7 +236,8 @@ def test_a_principal_distance_in_metres_is_named(tmp_path: Path, example: str, c
     """It was 'the coordinates are not in millimetres (micrometres? pixels?)'
     for the film's coordinates, which are."""
     toml = _project(tmp_path, example, "principal_distance_mm = ", f"principal_distance_mm = {c}\n#")
-    _one_line(toml, "is [camera] principal_distance_mm in metres instead of millimetres?")
+    _one_line(toml, f"strip.toml: [camera] principal_distance_mm = {float(c):g} is shorter than "
+              "any camera's", "in metres instead of millimetres?")  # fmt: skip
 
 
 def test_coordinates_in_pixels_are_still_the_coordinates(tmp_path: Path) -> None:
@@ -249,3 +250,4 @@ def test_coordinates_in_pixels_are_still_the_coordinates(tmp_path: Path) -> None
         r[2], r[3] = repr(float(r[2]) / 0.0024), repr(float(r[3]) / 0.0024)
     images.write_text("\n".join([header, *map(",".join, scaled)]) + "\n", encoding="utf-8")
     _one_line(toml, "image_points.csv", "the coordinates are not in millimetres")
+

@@ -85,10 +85,6 @@ _MAX_RADIUS_OVER_C = 5.0
 #: Image points all within this fraction of c: a field of view narrower
 #: than 2.3 deg (a 610 mm lens on 230 mm film still spans 0.27).
 _MIN_SPAN_OVER_C = 0.02
-#: Image points spanning at least this are on a real format (a phone's
-#: sensor spans 5 mm); in metres no format spans it (230 mm film: 0.23).
-#: No camera's principal distance is shorter either (a phone's: 4 mm).
-_MIN_FORMAT_MM = 1.0
 #: A photo votes "mirrored" when the reflected fit leaves less than this
 #: fraction of the rotated fit's residual (and the other way round).
 _MIRROR_RATIO = 0.1
@@ -130,12 +126,7 @@ def image_coordinate_problems(
         k = int(outside[np.argmax(radius[outside])])
         at = where(k) if where is not None else file
         share = outside.size / xy.shape[0]
-        if c < _MIN_FORMAT_MM and radius.max() <= MAX_IMAGE_RADIUS_MM:
-            cause = (
-                f"a principal distance under {_MIN_FORMAT_MM:g} mm and points within a real "
-                "format: is [camera] principal_distance_mm in metres instead of millimetres?"
-            )
-        elif share > 0.5:
+        if share > 0.5:
             cause = (
                 f"{outside.size} of the {xy.shape[0]} points ({share:.0%}) lie that far out, so "
                 "the coordinates are not in millimetres (micrometres? pixels? then [images] "
@@ -153,15 +144,10 @@ def image_coordinate_problems(
         )
     span = float(np.max(np.ptp(xy, axis=0)))
     if xy.shape[0] >= 3 and span < _MIN_SPAN_OVER_C * c:
-        cause = (
-            "a format that size is plausible, so is [camera] principal_distance_mm not in "
-            "millimetres (pixels? micrometres?)"
-            if span >= _MIN_FORMAT_MM
-            else "are the coordinates in metres instead of millimetres?"
-        )
         problems.append(
             f"{file}: all image points lie within {span:.3g} mm of each other, less than "
-            f"{_MIN_SPAN_OVER_C:g} of the principal distance c = {c:g} mm: {cause}"
+            f"{_MIN_SPAN_OVER_C:g} of the principal distance c = {c:g} mm: are the "
+            "coordinates in metres instead of millimetres?"
         )
     # from a corner of the format, some points also lie beyond the radius:
     # the origin is the cause, unless most do (then the unit is)
@@ -175,13 +161,10 @@ def image_coordinate_problems(
 #: the least to the greatest) beyond this fraction of their half range, on
 #: both axes, means another origin (a corner of the format).  Real projects
 #: stay under 0.04 (the examples, the external strips, the FC300X block,
-#: the import samples, tests/data).  Across the flight (y) alone it is not
-#: enough: a strip flown along a coast or a river bank has its points on one
-#: side of the flight line, across it.  Along the flight (x) alone it is:
-#: the forward overlap puts every point on both sides of the principal point
-#: of consecutive photos (0.000-0.026 on the projects above), so a middle
-#: beyond the fraction there is a principal point outside the format or an
-#: origin at an edge of it.
+#: the import samples, tests/data).  Across the flight (y) alone it says
+#: nothing (a strip along a coast sees land on one side); along it (x) alone
+#: it is a principal point outside the format or an origin at its edge (the
+#: forward overlap spreads the points on both sides: 0.000-0.026 above).
 _OFF_CENTRE = 0.5
 #: Fewer image points than this say nothing about the format's middle.
 _OFF_CENTRE_MIN_POINTS = 20
@@ -197,16 +180,16 @@ def _off_centre_problems(xy: FloatArray, file: str) -> list[str]:
     with np.errstate(divide="ignore", invalid="ignore"):
         off = np.abs(middle) / half
     beyond = [bool(half[a] > 0.0 and off[a] > _OFF_CENTRE) for a in (0, 1)]
+    if not beyond[0]:
+        return []
     ranges = ", ".join(f"{'xy'[a]} from {low[a]:.4g} to {high[a]:.4g} mm" for a in (0, 1))
-    if all(beyond):
+    if beyond[1]:
         return [
             f"{file}: the image points are not centred on the principal point ({ranges}, after "
             "[camera] principal_point_mm): are they measured from a corner of the format? "
             "Give the principal point's position in that system as principal_point_mm (or "
             '[images] units = "pixel" with pixel_size_mm and principal_point_px)'
         ]
-    if not beyond[0]:
-        return []
     return [
         f"{file}: the image points are not centred on the principal point along the flight "
         f"({ranges}, x along the flight after [camera] principal_point_mm and [images] "

@@ -25,7 +25,14 @@ from ..interior import BrownDistortion
 from ..options import DistortionModel, DistortionUnits
 from ..plausibility import image_coordinate_problems
 
-__all__ = ["camera_problems"]
+__all__ = ["camera_problems", "principal_distance_problems"]
+
+#: No camera's principal distance is shorter (a phone's is 4 mm); in metres
+#: every camera's is (the longest mapping lens, 610 mm on film: 0.61).
+MIN_PRINCIPAL_DISTANCE_MM = 1.0
+#: Nor longer (mapping lenses reach 610 mm, reconnaissance ones 1676 mm); in
+#: pixels or micrometres almost every camera's is (the FC300X: 2320 px).
+MAX_PRINCIPAL_DISTANCE_MM = 2000.0
 
 #: Largest affinity b1 or shear b2 of a film or sensor: film's differential
 #: shrinkage and a scanner's affinity are 1e-4 to 1e-3 (R4 §1.7.7.1: the
@@ -45,6 +52,26 @@ def _lens(distortion: BrownDistortion) -> str:
     given = [f"{n} = {getattr(distortion, n):.6g}" for n in names if getattr(distortion, n)]
     units = f'units = "{distortion.units.value}", model = "{distortion.model.value}"'
     return ", ".join([*given, units])
+
+
+def principal_distance_problems(toml_path: Path, principal_distance: float) -> list[str]:
+    """``[camera] principal_distance_mm`` outside every camera's range (in
+    metres, pixels or micrometres), named before the image points it would
+    make implausible are."""
+    c = float(principal_distance)
+    if MIN_PRINCIPAL_DISTANCE_MM <= c <= MAX_PRINCIPAL_DISTANCE_MM:
+        return []
+    key = f"{toml_path}: [camera] principal_distance_mm = {c:g}"
+    if c < MIN_PRINCIPAL_DISTANCE_MM:
+        return [
+            f"{key} is shorter than any camera's ({MIN_PRINCIPAL_DISTANCE_MM:g} mm; a phone's is "
+            "4 mm): is it in metres instead of millimetres?"
+        ]
+    return [
+        f"{key} is longer than any aerial camera's ({MAX_PRINCIPAL_DISTANCE_MM:g} mm; mapping "
+        "lenses reach 610 mm): is it in pixels (c divided by the pixel size) or micrometres "
+        "instead of millimetres?"
+    ]
 
 
 def camera_problems(

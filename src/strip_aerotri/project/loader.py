@@ -46,7 +46,7 @@ from ..options import (
     describe,
 )
 from ..plausibility import image_coordinate_problems
-from .camera_checks import camera_problems
+from .camera_checks import camera_problems, principal_distance_problems
 from .csvfiles import MAX_TOML_BYTES, CsvTable, decode, read_bytes
 from .model import Camera, Project, readonly
 from .output import check_output
@@ -290,6 +290,8 @@ def load_project(path: str | Path) -> Project:
 
     principal_point: tuple[float, float] = camera["principal_point_mm"]  # type: ignore[assignment]
     principal_distance = float(camera["principal_distance_mm"])  # type: ignore[arg-type]
+    for problem in principal_distance_problems(toml_path, principal_distance):
+        raise ConfigError(problem)
     images_file = folder / str(images["file"])
     control_file = folder / str(control["file"])
     gnss_file, imu_file = (
