@@ -251,3 +251,15 @@ def test_coordinates_in_pixels_are_still_the_coordinates(tmp_path: Path) -> None
     images.write_text("\n".join([header, *map(",".join, scaled)]) + "\n", encoding="utf-8")
     _one_line(toml, "image_points.csv", "the coordinates are not in millimetres")
 
+
+
+def test_the_imports_control_comment_reads_as_a_rule(tmp_path: Path) -> None:
+    """The comment an import writes at the top of strip.toml said '..., 2 when
+    fewer qualify, two of them consecutive)', which reads as two consecutive
+    control points; the rule is on the photos that see each point."""
+    samples = EXAMPLES / "import-samples" / "fc300x"
+    out = tmp_path / "p"
+    result = CliRunner().invoke(cli, ["-q", "import", "uav-fc300x", str(samples), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    (line,) = [ln for ln in (out / "strip.toml").read_text("utf-8").splitlines() if "full control" in ln]
+    assert "seen on 3 or more photos (2 when fewer qualify) of which two are consecutive)" in line
