@@ -83,6 +83,7 @@ def test_flight_axis_off_centre_alone_is_a_problem() -> None:
     ("example", "principal_point"),
     [
         ("drone-corridor", "[5.0, 0.0]"),  # beyond the 4.4 mm half format along the flight
+        ("drone-corridor", "[3.0, 0.0]"),  # inside it, 0.68 of the half format off the middle
         ("drone-corridor", "[2736.0, 1824.0]"),  # pixels of the 5472 x 3648 sensor
         ("film-strip", "[11500.0, 11500.0]"),  # pixels of 10 um film scans
     ],
@@ -91,7 +92,7 @@ def test_a_principal_point_outside_the_format_is_named(
     tmp_path: Path, example: str, principal_point: str
 ) -> None:
     toml = _camera(tmp_path, example, f"principal_point_mm = {principal_point}")
-    _one_line(toml, "[camera] principal_point_mm", "lies outside the image points", "in pixels")
+    _one_line(toml, "[camera] principal_point_mm", "lies outside the image points or far off", "in pixels")
 
 
 def test_a_plausible_principal_point_still_runs(tmp_path: Path) -> None:

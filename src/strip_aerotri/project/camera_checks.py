@@ -1,6 +1,8 @@
-"""The ``[camera]`` and ``[distortion]`` tables judged on the image points.
+"""The ``[camera]`` and ``[distortion]`` tables judged on their own and on
+the image points.
 
-The plausibility of the image coordinates
+:func:`principal_distance_problems` refuses a c outside every camera's
+range (in metres, pixels or micrometres).  The plausibility of the image coordinates
 (:func:`~strip_aerotri.plausibility.image_coordinate_problems`) is judged
 on the coordinates reduced to the principal point and corrected for the
 distortion.  When those are implausible but the measurements as given are
@@ -10,7 +12,8 @@ of the wrong size.  :func:`camera_problems` names the table and the key;
 it also refuses a correction that moves a point by more than its distance
 from the principal point, or whose radial terms fold the image over the
 measured radii (the corrected radius shrinking as the measured one grows):
-no lens does either, and the coordinates' own checks may not see them.
+no lens does either, and the coordinates' own checks may not see them; and
+an affinity or shear beyond 1 %.
 """
 
 from __future__ import annotations
@@ -126,10 +129,10 @@ def camera_problems(
         x0, y0 = principal_point
         return [
             f"{toml_path}: [camera] principal_point_mm = [{x0:.6g}, {y0:.6g}] lies outside the "
-            f"image points (measured: x from {low[0]:.4g} to {high[0]:.4g}, y from "
-            f"{low[1]:.4g} to {high[1]:.4g} mm, x along the flight): in pixels, or from another "
-            "origin? It is in mm in the measurements' axes (pixels: [images] units = \"pixel\" "
-            "with principal_point_px)"
+            f"image points or far off their middle (measured: x from {low[0]:.4g} to "
+            f"{high[0]:.4g}, y from {low[1]:.4g} to {high[1]:.4g} mm, x along the flight): in "
+            "pixels, or from another origin? It is in mm in the measurements' axes (pixels: "
+            '[images] units = "pixel" with principal_point_px)'
         ]
     return [
         f"{toml_path}: [distortion] ({_lens(lens)}) moves the image points where no camera has "
