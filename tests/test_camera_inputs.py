@@ -80,19 +80,24 @@ def test_flight_axis_off_centre_alone_is_a_problem() -> None:
 
 
 @pytest.mark.parametrize(
-    ("example", "principal_point"),
+    ("example", "principal_point", "said"),
     [
-        ("drone-corridor", "[5.0, 0.0]"),  # beyond the 4.4 mm half format along the flight
-        ("drone-corridor", "[3.0, 0.0]"),  # inside it, 0.68 of the half format off the middle
-        ("drone-corridor", "[2736.0, 1824.0]"),  # pixels of the 5472 x 3648 sensor
-        ("film-strip", "[11500.0, 11500.0]"),  # pixels of 10 um film scans
+        # beyond the 4.4 mm half format along the flight, and the 6.6 mm across
+        ("drone-corridor", "[5.0, 0.0]", "lies outside the image points"),
+        ("drone-corridor", "[0.0, -7.0]", "lies outside the image points"),
+        # inside the format, 0.68 of its half off the middle along the flight
+        ("drone-corridor", "[3.0, 0.0]", "lies far off the middle of the image points"),
+        # pixels of the 5472 x 3648 sensor, of 10 um film scans
+        ("drone-corridor", "[2736.0, 1824.0]", "lies outside the image points"),
+        ("film-strip", "[11500.0, 11500.0]", "lies outside the image points"),
     ],
 )
 def test_a_principal_point_outside_the_format_is_named(
-    tmp_path: Path, example: str, principal_point: str
+    tmp_path: Path, example: str, principal_point: str, said: str
 ) -> None:
     toml = _camera(tmp_path, example, f"principal_point_mm = {principal_point}")
-    _one_line(toml, "[camera] principal_point_mm", "lies outside the image points or far off", "in pixels")
+    _one_line(toml, f"[camera] principal_point_mm = {principal_point.replace('.0', '')} {said}",
+              "in pixels, or from another origin?")  # fmt: skip
 
 
 def test_a_plausible_principal_point_still_runs(tmp_path: Path) -> None:
@@ -232,6 +237,16 @@ def test_a_principal_distance_in_pixels_is_named(tmp_path: Path, example: str, c
               "aerial camera's", "in pixels (c divided by the pixel size) or micrometres")  # fmt: skip
 
 
+def test_a_principal_distance_in_pixels_under_2000_is_named_by_the_span(tmp_path: Path) -> None:
+    """The corridor's 8.8 mm in pixels of 5 um, 1760, is within every camera's
+    range: the points' span, 13 mm, a real format, under 0.02 c names it
+    (as the FC300X block's 3.6 mm in pixels of 2.4 um, 1510, was not)."""
+    toml = _project(tmp_path, "drone-corridor", "principal_distance_mm = 8.8",
+                    "principal_distance_mm = 1760.0")  # fmt: skip
+    _one_line(toml, "strip.toml: [camera] principal_distance_mm = 1760: the image points span 13",
+              "a real format, but less than 0.02 c", "is c in pixels")  # fmt: skip
+
+
 @pytest.mark.parametrize(("example", "c"), [("film-strip", "0.15287"), ("drone-corridor", "0.0088")])
 def test_a_principal_distance_in_metres_is_named(tmp_path: Path, example: str, c: str) -> None:
     """It was 'the coordinates are not in millimetres (micrometres? pixels?)'
@@ -264,3 +279,18 @@ def test_the_imports_control_comment_reads_as_a_rule(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     (line,) = [ln for ln in (out / "strip.toml").read_text("utf-8").splitlines() if "full control" in ln]
     assert "seen on 3 or more photos (2 when fewer qualify) of which two are consecutive)" in line
+
+
+def test_a_principal_point_across_the_flight_before_the_distortion(tmp_path: Path) -> None:
+    """The FC300X layout (flight along image +y, a projection-model
+    [distortion] from cal.cal): x0 beyond the sensor's half width stopped on
+    '[distortion]: ... did not converge ...; check the coefficients'."""
+    out = tmp_path / "p"
+    samples = EXAMPLES / "import-samples" / "fc300x"
+    result = CliRunner().invoke(cli, ["-q", "import", "uav-fc300x", str(samples), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    toml = out / "strip.toml"
+    text = toml.read_text(encoding="utf-8")
+    old = next(ln for ln in text.splitlines() if ln.startswith("principal_point_mm"))
+    toml.write_text(text.replace(old, "principal_point_mm = [5.0, 0.0]"), encoding="utf-8")
+    _one_line(toml, "[camera] principal_point_mm = [5, 0] lies outside the image points")

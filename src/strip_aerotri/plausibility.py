@@ -63,6 +63,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MAX_IMAGE_RADIUS_MM",
+    "MIN_SPAN_OVER_C",
     "control_coverage_problems",
     "control_degree_problems",
     "control_distance_problems",
@@ -84,7 +85,7 @@ MAX_IMAGE_RADIUS_MM = 250.0
 _MAX_RADIUS_OVER_C = 5.0
 #: Image points all within this fraction of c: a field of view narrower
 #: than 2.3 deg (a 610 mm lens on 230 mm film still spans 0.27).
-_MIN_SPAN_OVER_C = 0.02
+MIN_SPAN_OVER_C = 0.02
 #: A photo votes "mirrored" when the reflected fit leaves less than this
 #: fraction of the rotated fit's residual (and the other way round).
 _MIRROR_RATIO = 0.1
@@ -143,10 +144,10 @@ def image_coordinate_problems(
             f"(at most {limit:.4g} mm); {cause}"
         )
     span = float(np.max(np.ptp(xy, axis=0)))
-    if xy.shape[0] >= 3 and span < _MIN_SPAN_OVER_C * c:
+    if xy.shape[0] >= 3 and span < MIN_SPAN_OVER_C * c:
         problems.append(
             f"{file}: all image points lie within {span:.3g} mm of each other, less than "
-            f"{_MIN_SPAN_OVER_C:g} of the principal distance c = {c:g} mm: are the "
+            f"{MIN_SPAN_OVER_C:g} of the principal distance c = {c:g} mm: are the "
             "coordinates in metres instead of millimetres?"
         )
     # from a corner of the format, some points also lie beyond the radius:

@@ -24,11 +24,17 @@ from pathlib import Path
 import numpy as np
 
 from .._typing import FloatArray
-from ..interior import BrownDistortion
-from ..options import DistortionModel, DistortionUnits
-from ..plausibility import image_coordinate_problems
+from ..interior import BrownDistortion, flight_from_sensor
+from ..options import DistortionModel, DistortionUnits, FlightDirection
+from ..plausibility import MIN_SPAN_OVER_C, image_coordinate_problems
 
-__all__ = ["camera_problems", "principal_distance_problems"]
+__all__ = ["camera_problems", "measured_problems", "principal_distance_problems"]
+
+#: Image points spanning at least this are on a real format (a phone's
+#: sensor spans 5 mm); in metres no format does (230 mm film: 0.23).
+_MIN_FORMAT_MM = 1.0
+#: Fewer image points than this may all lie near the image's centre.
+_MIN_POINTS = 20
 
 #: No camera's principal distance is shorter (a phone's is 4 mm); in metres
 #: every camera's is (the longest mapping lens, 610 mm on film: 0.61).
@@ -77,9 +83,64 @@ def principal_distance_problems(toml_path: Path, principal_distance: float) -> l
     ]
 
 
+def measured_problems(
+    toml_path: Path,
+    measured: FloatArray,
+    principal_point: tuple[float, float],
+    flight_direction: FlightDirection,
+    principal_distance: float,
+) -> list[str]:
+    """The camera against the image points as measured: a principal point
+    farther from their origin than every point along an axis (outside the
+    image, whatever the points cover: a true one lies within a few hundredths
+    of the format of its centre), and a c the points' span, a real format,
+    makes a field of view under 2.3 deg (c in pixels or micrometres).
+
+    Parameters
+    ----------
+    toml_path : Path
+    measured : ndarray, shape (n, 2)
+        The image points in mm before the principal point and the distortion
+        (x along the flight).
+    principal_point : (float, float)
+        ``[camera] principal_point_mm``, sensor axes.
+    flight_direction : FlightDirection
+    principal_distance : float
+        c in mm.
+
+    Returns
+    -------
+    list of str
+        At most one message naming ``[camera]`` and the key.
+    """
+    if measured.shape[0] < 3:  # as the coordinates' own span rule
+        return []
+    c = float(principal_distance)
+    span = float(np.max(np.ptp(measured, axis=0)))
+    if _MIN_FORMAT_MM <= span < MIN_SPAN_OVER_C * c:
+        return [
+            f"{toml_path}: [camera] principal_distance_mm = {c:g}: the image points span "
+            f"{span:.3g} mm, a real format, but less than {MIN_SPAN_OVER_C:g} c (a field of view "
+            "under 2.3 deg): is c in pixels (c divided by the pixel size) or micrometres "
+            "instead of millimetres?"
+        ]
+    along = flight_from_sensor(np.asarray([principal_point], dtype=np.float64), flight_direction)
+    reach = np.max(np.abs(measured), axis=0)
+    if measured.shape[0] < _MIN_POINTS or not np.any(np.abs(along[0]) > reach):
+        return []
+    x0, y0 = principal_point
+    return [
+        f"{toml_path}: [camera] principal_point_mm = [{x0:.6g}, {y0:.6g}] lies outside the image "
+        f"points (measured: up to {reach[0]:.4g} mm from their origin along the flight, "
+        f"{reach[1]:.4g} mm across it): in pixels, or from another origin? It is in mm in the "
+        'measurements\' axes (pixels: [images] units = "pixel" with principal_point_px)'
+    ]
+
+
 def camera_problems(
     toml_path: Path,
     corrected: FloatArray,
+    measured: FloatArray,
     reduce: Reduce,
     principal_point: tuple[float, float],
     distortion: BrownDistortion | None,
@@ -94,6 +155,8 @@ def camera_problems(
     corrected : ndarray, shape (n, 2)
         The image points reduced with the principal point and the
         distortion (mm, x along the flight).
+    measured : ndarray, shape (n, 2)
+        The same before the principal point and the distortion.
     reduce : callable
         ``reduce(distortion, principal_point)``: the same points reduced with
         another distortion (None: none) and principal point.
@@ -121,15 +184,14 @@ def camera_problems(
         return [problem]
     if not image_coordinate_problems(corrected, c):
         return []
-    measured = reduce(None, (0.0, 0.0)) if shifted else centred
     if image_coordinate_problems(measured, c):
         return []  # the coordinates themselves: their own checks name them
     if lens is None or image_coordinate_problems(centred, c):
         low, high = measured.min(axis=0), measured.max(axis=0)
         x0, y0 = principal_point
         return [
-            f"{toml_path}: [camera] principal_point_mm = [{x0:.6g}, {y0:.6g}] lies outside the "
-            f"image points or far off their middle (measured: x from {low[0]:.4g} to "
+            f"{toml_path}: [camera] principal_point_mm = [{x0:.6g}, {y0:.6g}] lies far off the "
+            f"middle of the image points (measured: x from {low[0]:.4g} to "
             f"{high[0]:.4g}, y from {low[1]:.4g} to {high[1]:.4g} mm, x along the flight): in "
             "pixels, or from another origin? It is in mm in the measurements' axes (pixels: "
             '[images] units = "pixel" with principal_point_px)'

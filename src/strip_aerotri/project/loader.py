@@ -46,7 +46,7 @@ from ..options import (
     describe,
 )
 from ..plausibility import image_coordinate_problems
-from .camera_checks import camera_problems, principal_distance_problems
+from .camera_checks import camera_problems, measured_problems, principal_distance_problems
 from .csvfiles import MAX_TOML_BYTES, CsvTable, decode, read_bytes
 from .model import Camera, Project, readonly
 from .output import check_output
@@ -589,7 +589,18 @@ def _image_reduction(
             flight_direction=image_options.flight_direction,
         )
 
+    no_lens = distortion is None or distortion.is_zero
+
     def reduce_all(xy: FloatArray, photo: IntArray) -> FloatArray:
+        measured = reduce(xy, photo, None, (0.0, 0.0))  # as measured: no camera applied
+        first = measured_problems(
+            toml_path, measured, principal_point, image_options.flight_direction,
+            principal_distance,
+        )  # fmt: skip
+        if first:
+            raise ConfigError(first[0])
+        if no_lens and not any(principal_point):
+            return measured
         try:
             corrected = reduce(xy, photo, distortion)
         except ConvergenceError as exc:
@@ -601,7 +612,7 @@ def _image_reduction(
                 else f"{toml_path}: [distortion]: {exc}"
             ) from None
         problems = camera_problems(
-            toml_path, corrected, lambda lens, centre: reduce(xy, photo, lens, centre),
+            toml_path, corrected, measured, lambda lens, centre: reduce(xy, photo, lens, centre),
             principal_point, distortion, principal_distance,
         )  # fmt: skip
         if problems:
