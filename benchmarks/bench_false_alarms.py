@@ -27,8 +27,6 @@ import warnings
 from collections import Counter
 from pathlib import Path
 
-import numpy as np
-
 from strip_aerotri.pipeline import triangulate
 from strip_aerotri.simulate import simulate_strip
 

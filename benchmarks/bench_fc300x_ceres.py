@@ -53,8 +53,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_reference_bundle as reference  # noqa: E402
 
-from strip_aerotri.geometry.rotation import matrix_from_opk  # noqa: E402
-
 #: Distance (m) of the virtual cameras that observe the control.
 VIRTUAL_DISTANCE_M = 1000.0
 #: Ceres settings: run to convergence (pycolmap's defaults stop at a

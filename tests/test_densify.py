@@ -18,7 +18,9 @@ from strip_aerotri.strip.densify import (
     intersect_rays,
     model_photo_index,
     photo_step_table,
+    ray_normal_sums,
     resect,
+    solve_ray_normals,
 )
 
 
@@ -168,3 +170,32 @@ def test_intersect_rays() -> None:
     assert np.isnan(result.points[~two]).all()
     np.testing.assert_array_equal(result.n_rays, n_rays)
     assert np.nanmax(result.rms_distance) < 1e-9
+
+
+def test_ray_normals_summed_and_solved_per_point() -> None:
+    """The normal equations of each point are the sums of its rays' shares
+    (checked against a loop over the points), and their solution is the
+    point for two rays or more, NaN for one ray (however regular its
+    matrix) and for parallel rays."""
+    rng = np.random.default_rng(2345)
+    points = rng.uniform(-50, 50, (6, 3))
+    n_rays = np.array([1, 2, 3, 4, 2, 3])
+    point = np.repeat(np.arange(6), n_rays)
+    centres = rng.uniform(-10, 10, (point.size, 3)) + np.array([0.0, 0.0, 120.0])
+    centres[point == 5] = centres[np.flatnonzero(point == 5)[0]]  # one centre: parallel
+    d = points[point] - centres
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    w = rng.uniform(0.5, 2.0, point.size)
+    a = w[:, None, None] * (np.eye(3) - d[:, :, None] * d[:, None, :])
+    b = np.einsum("kij,kj->ki", a, centres)
+    normal, rhs = ray_normal_sums(point, 6, a, b)
+    for j in range(6):  # to rounding of sums of four terms at most
+        np.testing.assert_allclose(normal[j], a[point == j].sum(axis=0), rtol=0, atol=1e-14 * 8)
+        np.testing.assert_allclose(
+            rhs[j], b[point == j].sum(axis=0), rtol=0, atol=1e-14 * np.abs(b).max()
+        )
+    out = solve_ray_normals(normal, rhs, n_rays)
+    np.testing.assert_allclose(out[1:5], points[1:5], rtol=0, atol=1e-9)
+    assert np.isnan(out[[0, 5]]).all()
+    one_ray = solve_ray_normals(normal[1:2], rhs[1:2], np.array([1]))  # two rays, told one
+    assert np.isnan(one_ray).all()

@@ -147,7 +147,9 @@ def _scale_heights(path: Path, factor: float) -> None:
 @pytest.fixture(scope="module")
 def film_strip() -> tuple[Project, StripModel]:
     project = load_project(FILM / "strip.toml")
-    return project, form_strip_of(project.observations, project.adjustment, blunders=project.blunders)
+    return project, form_strip_of(
+        project.observations, project.adjustment, blunders=project.blunders
+    )
 
 
 def _scaled(control: ControlPoints, factor: float) -> ControlPoints:

@@ -256,7 +256,8 @@ def test_selected_inverse_equals_dense_inverse(case: str) -> None:
     ia, ib = np.nonzero(np.abs(pos[:, None] - pos[None, :]) <= st.width)
     blocks = cof.unit_blocks(ia, ib)
     for i, j, blk in zip(ia, ib, blocks):
-        np.testing.assert_allclose(blk, q[i * d : (i + 1) * d, j * d : (j + 1) * d], atol=1e-10 * scale)
+        q_ij = q[i * d : (i + 1) * d, j * d : (j + 1) * d]
+        np.testing.assert_allclose(blk, q_ij, atol=1e-10 * scale)
     if k:
         b = n * d + 3 * p
         np.testing.assert_allclose(cof.border, q[b:, b:], atol=1e-10 * scale)
@@ -466,7 +467,9 @@ def test_singular_border_is_named() -> None:
 
 
 @pytest.mark.parametrize("seed", range(12))
-def test_random_shapes_equal_the_dense_solution(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_random_shapes_equal_the_dense_solution(
+    seed: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Random sizes, block shapes, borders and weights; the pattern's chunks
     made small (every chunk a few groups) so that the split paths run."""
     from strip_aerotri.geometry import _normal_pattern

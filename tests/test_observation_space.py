@@ -185,7 +185,9 @@ def test_a_camera_at_zero_gives_the_plain_rows_to_the_bit(monkeypatch: pytest.Mo
     before); a camera at zero values maps by the identity: its photo and point
     rows and its residuals are the plain ones to the bit."""
     obs, centres, rotations, points = _network()
-    plain = adjust._make_problem(obs, centres, rotations, points, None, None, None, None, None, None)
+    plain = adjust._make_problem(
+        obs, centres, rotations, points, None, None, None, None, None, None
+    )
     camera = adjust._make_problem(
         obs, centres, rotations, points, None, None, None, None, None, None,
         camera=CameraModel("brown", BROWN_PARAMETERS, C),

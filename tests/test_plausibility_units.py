@@ -201,7 +201,10 @@ def test_image_points_off_centre_by_the_rule_and_its_figures() -> None:
     # both axes beyond the rule's half of the half range are needed
     half = 0.5 * np.ptp(xy, axis=0)
     assert image_coordinate_problems(xy + 0.6 * half, obs.principal_distance)
-    assert image_coordinate_problems(xy + np.array([0.0, 0.6 * half[1]]), obs.principal_distance) == []
+    assert (
+        image_coordinate_problems(xy + np.array([0.0, 0.6 * half[1]]), obs.principal_distance)
+        == []
+    )
     assert image_coordinate_problems(xy + 0.4 * half, obs.principal_distance) == []
     # too few points to tell
     assert image_coordinate_problems(moved[:19], obs.principal_distance) == []

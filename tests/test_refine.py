@@ -314,6 +314,15 @@ def test_several_image_blunders_are_rejected_in_one_round():
     np.testing.assert_array_equal(fr.observation_rejected, blundered)
     assert fr.rounds == 2
     assert not fr.control_rejected.any()
+    # every ray's residual, the rejected ones' (out of the last adjustment)
+    # included, is the collinearity projection at the solution minus the
+    # observation (computed here from the image vectors, -c v_xy / v_z)
+    b = fr.bundle
+    v = np.einsum(
+        "kji,kj->ki", b.rotations[obs.photo], fr.points[obs.point] - b.centres[obs.photo]
+    )
+    expected = -obs.principal_distance * v[:, :2] / v[:, 2:] - obs.xy
+    np.testing.assert_allclose(fr.image_residuals_mm, expected, rtol=0, atol=1e-12)
 
 
 def test_gnss_for_unknown_photos_warns_and_bad_inputs_raise():

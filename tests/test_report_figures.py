@@ -187,7 +187,9 @@ def test_plan_residuals_without_heights_have_no_colour_bar(caught):
     assert data.control is not None and not data.plan.long
     residuals = data.control.residuals.copy()
     residuals[:, 2] = np.nan
-    plan_only = dataclasses.replace(data, control=dataclasses.replace(data.control, residuals=residuals))
+    plan_only = dataclasses.replace(
+        data, control=dataclasses.replace(data.control, residuals=residuals)
+    )
     assert figures.figure_residuals(plan_only) is not None
     (fig,) = caught
     assert len(fig.axes) == 1  # no colour bar

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from strip_aerotri.report import figures, figures_ticks
-from strip_aerotri.report.figures_frame import PAD_PT, fit, fixed_title
+from strip_aerotri.report.figures_frame import PAD_PT, fixed_title
 from strip_aerotri.report.figures_png import png_bytes
 
 from _figures import outside_canvas
@@ -179,9 +179,14 @@ def test_fit_places_the_axis_labels_where_matplotlib_would():
     _draw(fig, **kwargs)
     renderer = fig.canvas.get_renderer()
     ax = fig.axes[0]
-    pinned = [ax.xaxis.label.get_window_extent(renderer), ax.yaxis.label.get_window_extent(renderer)]
+    pinned = [
+        ax.xaxis.label.get_window_extent(renderer),
+        ax.yaxis.label.get_window_extent(renderer),
+    ]
     labels = [t for t in ax.texts if t.get_text()]
-    ticks_bottom = min(t.get_window_extent(renderer).y0 for t in labels if t.get_position()[1] == 0)
+    ticks_bottom = min(
+        t.get_window_extent(renderer).y0 for t in labels if t.get_position()[1] == 0
+    )
     ticks_left = min(t.get_window_extent(renderer).x0 for t in labels if t.get_position()[0] == 0)
     px = DPI / 72.0
     assert pinned[0].y1 == pytest.approx(ticks_bottom - ax.xaxis.labelpad * px, abs=1.0)

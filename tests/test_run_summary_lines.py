@@ -126,7 +126,8 @@ def test_a_long_list_is_cut_after_a_whole_item():
     assert kept == "; ".join(items[:n_kept])  # whole items, in order
     assert more == f"… and {len(items) - n_kept} more in report.json"
     # the longest such prefix: one more item would not fit
-    longer = "; ".join(items[: n_kept + 1]) + f"; … and {len(items) - n_kept - 1} more in report.json"
+    tail = f"; … and {len(items) - n_kept - 1} more in report.json"
+    longer = "; ".join(items[: n_kept + 1]) + tail
     assert len(longer) > MAX_LINE
     assert "characters)" not in cut
 

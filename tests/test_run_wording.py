@@ -58,7 +58,10 @@ def test_the_page_s_correlations_are_between_the_kept_parameters():
         "kept": ["k1"],
         "sigma0": 0.38,
         "sigma0_without": 0.40,
-        "parameters": [_parameter("k1", True), _parameter("k2", False, "correlation 0.981 with k1")],
+        "parameters": [
+            _parameter("k1", True),
+            _parameter("k2", False, "correlation 0.981 with k1"),
+        ],
         "correlations_above_0_9": [],
     }
     page = calibration_html(record, (None, None))

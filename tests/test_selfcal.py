@@ -66,7 +66,7 @@ def test_border_cofactors_match_a_dense_inverse() -> None:
         control_xyz=control, control_sigma=0.05, camera=model,
     )
     assert res.camera is not None
-    m, p, k = 3, 30, 3
+    m, p = 3, 30
     x0 = np.concatenate([np.zeros(6 * m), res.points.ravel(), res.camera.values])
 
     def f(x: np.ndarray) -> np.ndarray:
@@ -336,7 +336,8 @@ def test_camera_toml_calibrates_the_next_project(tmp_path) -> None:  # type: ign
     # the fit's RMS in plain figures (it read "within 8.28e-15 µm RMS")
     fit = re.search(r"within (\S+) µm RMS", camera)
     assert fit is not None and re.fullmatch(r"\d+\.\d{3}", fit.group(1)), camera
-    assert float(fit.group(1)) == pytest.approx(record["camera"]["distortion_fit_rms_um"], abs=5e-4)
+    fit_rms_um = record["camera"]["distortion_fit_rms_um"]
+    assert float(fit.group(1)) == pytest.approx(fit_rms_um, abs=5e-4)
     # the next project: the same data with camera.toml's tables, the strip method
     nxt = tmp_path / "b" / "strip.toml"
     nxt.parent.mkdir()
@@ -368,7 +369,10 @@ def test_simulator_camera_errors_are_the_corrections_needed() -> None:
     errors = {"k1": -3e-8, "p1": 2e-6, "b1": 6e-5, "b2": -2e-5}
     bent = simulate_strip(8, seed=3, crs="local", camera_errors=errors)
     pa, pb = plain.observations, bent.observations
-    key_a = {(pa.photo_ids[f], pa.point_ids[q]): k for k, (f, q) in enumerate(zip(pa.photo, pa.point))}
+    key_a = {
+        (pa.photo_ids[f], pa.point_ids[q]): k
+        for k, (f, q) in enumerate(zip(pa.photo, pa.point, strict=True))
+    }
     pairs = np.array(
         [
             (key_a[(pb.photo_ids[f], pb.point_ids[q])], k)
@@ -451,7 +455,8 @@ def test_ebner12_finds_a_film_affinity() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = triangulate(
-            sim.observations, sim.control, sim.crs, ground_options=GroundOptions(route="projected"),
+            sim.observations, sim.control, sim.crs,
+            ground_options=GroundOptions(route="projected"),
             refine="bundle", self_calibration=SelfCalibration("ebner12"),
         )
     assert res.refined is not None and res.refined.self_calibration is not None

@@ -26,4 +26,6 @@ def test_c_is_not_pulled_and_equals_the_reference() -> None:
     z = error / sd
     assert abs(float(np.mean(z))) < 1.0, z
     increment = error + pull.ERROR_C_MM
-    np.testing.assert_allclose(error, reference_error, rtol=0, atol=1e-6 * float(np.min(increment)))
+    np.testing.assert_allclose(
+        error, reference_error, rtol=0, atol=1e-6 * float(np.min(increment))
+    )

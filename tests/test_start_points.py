@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import html
+import json
+import re
 import warnings
 
 import numpy as np
@@ -10,9 +13,11 @@ import pytest
 
 from strip_aerotri.bundle.refine import refine_bundle
 from strip_aerotri.bundle.start_points import restore_points
+from strip_aerotri.observations import ImageObservations
 from strip_aerotri.options import BlunderOptions
 from strip_aerotri.pipeline import triangulate
 from strip_aerotri.simulate import simulate_strip
+from strip_aerotri.strip.densify import intersect_rays
 
 
 @pytest.fixture(scope="module")
@@ -39,6 +44,13 @@ def _without(obs, rows):
         obs, photo=obs.photo[keep], point=obs.point[keep], xy=obs.xy[keep],
         sigma=obs.sigma[keep], source_line=np.zeros(0, np.intp),
     )  # fmt: skip
+
+
+def _page_warnings(page: str) -> list[str]:
+    """The items of a report page's list of warnings, as text."""
+    section = page.split("<h2>Warnings</h2>", 1)[1].split("<h2>", 1)[0]
+    items = re.findall(r"<li>(.*?)</li>", section, flags=re.S)
+    return [html.unescape(re.sub(r"<[^>]+>", "", item)) for item in items]
 
 
 def _points_with(obs, n_rays, count):
@@ -181,6 +193,16 @@ def test_the_block_refinement_keeps_the_good_rays_of_points_the_block_dropped(se
     assert not any(w in lines for w in said_lost)
     lost_lines = [ln for ln in lines if "not triangulated" in ln]
     assert not any(repr(p) in ln for ln in lost_lines for p in block.restored_points)
+    # nor does the page, where report.json keeps both stages' texts
+    from strip_aerotri.report.block import build_block_outputs
+
+    files = build_block_outputs(block)
+    page = _page_warnings(files["report.html"].decode("utf-8"))
+    kept = json.loads(files["report.json"])["warnings"]
+    assert all(w in kept for w in said_lost)
+    assert not any(w in page for w in said_lost)
+    page_lost = [w for w in page if "not triangulated" in w]
+    assert not any(repr(p) in w for w in page_lost for p in block.restored_points)
     # their wrong rays are out; each keeps three good rays or more
     ph = {p: i for i, p in enumerate(obs.photo_ids)}
     rejected = {(ph[r.photos[0]], r.point) for r in block.rejections if r.stage == "bundle"}
@@ -292,7 +314,6 @@ def test_stripaero_run_delivers_a_restored_control_point(tmp_path):
     among the points left out, report.json keeps both stages' texts and
     lists it in ``bundle.restored_points``."""
     import csv
-    import json
 
     from click.testing import CliRunner
 
@@ -315,8 +336,51 @@ def test_stripaero_run_delivers_a_restored_control_point(tmp_path):
     assert report["inputs"]["control_left_out"] == ["P0043"]  # the strip method's, as before
     stage_texts = [w for w in report["warnings"] if "'P0043'" in w and "not triangulated" in w]
     assert len(stage_texts) == 2, report["warnings"]  # its own, and the count of the lost
+    # the page lists it as the command line does: restored (the bundle's note), not lost
+    page = _page_warnings((tmp_path / "out" / "report.html").read_text("utf-8"))
+    assert not any("not triangulated" in w for w in page), page
+    restored_note = [w for w in page if "intersected from the photos and determined" in w]
+    assert len(restored_note) == 1 and "'P0043'" in restored_note[0]
+    assert len(page) == len(report["warnings"]) - 2  # every other warning as it is
     with open(tmp_path / "out" / "points.csv", newline="") as f:
         rows = {r["point"]: r for r in csv.DictReader(f)}
     row = rows["P0043"]
     assert row["role"] == "control-height" and row["n_models"] == "0"
     assert abs(float(row["dH"])) < 0.01 and row["dE"] == ""
+
+
+@pytest.mark.parametrize(
+    ("base_m", "intersected"),
+    [(10.0, True), (6e-4, True), (0.0, False)],
+    ids=["base-10m", "rays-1.2e-5rad-apart", "parallel"],
+)
+def test_rays_intersected_as_densify_intersects_them(base_m: float, intersected: bool):
+    """A point's rays are intersected, and judged parallel, by the same rule
+    as :func:`intersect_rays` (strip/densify.py: the determinant of the normal
+    matrix against its trace cubed, two rays or more).  Three vertical photos
+    at 100 m, ``base_m`` apart, see point 'A' at the origin without noise;
+    the other points are determined.  Rays 1.2e-5 rad apart (0.6 mm of base:
+    the determinant is 3e-12 of the trace cubed, the smallest eigenvalue
+    2.4e-11 of the largest) are still intersected by that rule, where the
+    eigenvalue ratio of 1e-10 once used here alone refused them; rays from
+    one centre never are."""
+    c = 50.0  # mm
+    ground = np.array([[0.0, 0.0, 0.0], [30.0, 20.0, 1.0], [-25.0, 15.0, -2.0], [5.0, -30.0, 3.0]])
+    centres = np.column_stack([np.arange(3) * base_m, np.zeros(3), np.full(3, 100.0)])
+    rotations = np.broadcast_to(np.eye(3), (3, 3, 3))  # image axes = frame axes, looking down
+    photo, point = np.divmod(np.arange(3 * 4), 4)
+    v = ground[point] - centres[photo]
+    xy = -c * v[:, :2] / v[:, 2:]
+    obs = ImageObservations.from_ids(
+        [f"{i}" for i in photo], ["ABCD"[j] for j in point], xy, c, sigma=0.002
+    )
+    start = ground.copy()
+    start[0] = np.nan
+    out = restore_points(obs, centres, rotations, start)
+    d = np.column_stack([xy, np.full(xy.shape[0], -c)])  # rotations are the identity
+    rays = intersect_rays(centres[photo], d, point, 4)
+    assert np.isfinite(rays.points[0]).all() == intersected
+    assert out.restored.tolist() == [intersected, False, False, False]
+    assert np.isfinite(out.points[0]).all() == intersected
+    if base_m > 1.0:  # well conditioned: the point itself
+        np.testing.assert_allclose(out.points[0], ground[0], rtol=0, atol=1e-9)

@@ -340,7 +340,9 @@ def test_the_run_prints_the_estimated_weights_as_report_json(tmp_path):
     weights = outputs.summary.weights
     assert weights is not None and weights.applied == record["applied"]
     assert [g[0] for g in weights.groups] == [g["group"] for g in record["groups"]]
-    for (_, unit, given, sigma, estimated), g in zip(weights.groups, record["groups"], strict=True):
+    for (_, unit, given, sigma, estimated), g in zip(
+        weights.groups, record["groups"], strict=True
+    ):
         assert (unit, estimated) == (g["unit"], g["estimated"])
         assert (given, sigma) == pytest.approx((g["sigma_apriori"], g["sigma"]), rel=1e-9)
     ran = CliRunner().invoke(cli, ["run", str(project.path)])
@@ -349,10 +351,15 @@ def test_the_run_prints_the_estimated_weights_as_report_json(tmp_path):
     assert len(lines) == 1, ran.output
     ties = record["groups"][0]
     assert ties["estimated"] and ties["unit"] == "µm"
-    assert f"{ties['group']} {ties['sigma']:.3g} µm (given {ties['sigma_apriori']:.3g})" in lines[0]
+    tie_text = f"{ties['group']} {ties['sigma']:.3g} µm (given {ties['sigma_apriori']:.3g})"
+    assert tie_text in lines[0]
     held = [g for g in record["groups"] if not g["estimated"]]
-    assert held and all(f"{g['group']} {g['sigma_apriori']:.3g} {g['unit']} as given" in lines[0] for g in held)
-    plain = _with_weights(_project(tmp_path / "plain", simulate_strip(10, seed=2, crs="local")), False)
+    assert held and all(
+        f"{g['group']} {g['sigma_apriori']:.3g} {g['unit']} as given" in lines[0] for g in held
+    )
+    plain = _with_weights(
+        _project(tmp_path / "plain", simulate_strip(10, seed=2, crs="local")), False
+    )
     assert build_run(run_project(plain), project=plain).summary.weights is None
     ran = CliRunner().invoke(cli, ["run", str(plain.path)])
     assert ran.exit_code == 0 and "observation weights" not in ran.output

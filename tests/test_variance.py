@@ -129,7 +129,9 @@ def test_given_weights_change_nothing():
 
 def test_estimated_only_reports_without_moving_the_solution():
     obs, control, sigma_c, start = _problem(seed=7)
-    kwargs = dict(control_xyz=control, control_sigma=sigma_c, blunders=BlunderOptions(action="off"))
+    kwargs = dict(
+        control_xyz=control, control_sigma=sigma_c, blunders=BlunderOptions(action="off")
+    )
     estimated = refine_frame_weighted(obs, *start, variance_components=True, apply=False, **kwargs)
     given = refine_frame_weighted(obs, *start, **kwargs)
     np.testing.assert_allclose(estimated.points, given.points, atol=1e-9)
@@ -161,7 +163,9 @@ def test_report_gives_every_group_and_the_page_its_section(tmp_path):
     plain = toml.read_text()
     pages = {}
     for label, extra in (("given", ""), ("estimated", 'weights = "estimated"\n')):
-        toml.write_text(re.sub(r"\[adjustment\]\n", f'[adjustment]\nrefine = "bundle"\n{extra}', plain))
+        toml.write_text(
+            re.sub(r"\[adjustment\]\n", f'[adjustment]\nrefine = "bundle"\n{extra}', plain)
+        )
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", StripAerotriWarning)
             project = load_project(toml)
@@ -275,9 +279,7 @@ def test_groups_of_the_callers_own_recover_their_sigmas():
     marks = np.isin(clean.point, np.flatnonzero(np.any(np.isfinite(control), axis=1)))
     true = np.where(marks, 0.006, np.where(half, 0.004, 0.002))
     xy = clean.xy + np.random.default_rng(11).normal(size=clean.xy.shape) * true[:, None]
-    observed = dataclasses.replace(
-        clean, xy=xy, sigma=np.full(clean.photo.size, STATED_IMAGE_MM)
-    )
+    observed = dataclasses.replace(clean, xy=xy, sigma=np.full(clean.photo.size, STATED_IMAGE_MM))
     labels = np.where(marks, "marks", np.where(half, "ties, second half", "ties, first half"))
     fr = refine_frame_weighted(
         observed, *start, control_xyz=control, control_sigma=sigma_c,

@@ -32,7 +32,6 @@ control no longer change by more than 1 µm.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 import warnings
 from collections.abc import Sequence
@@ -46,6 +45,7 @@ from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..errors import StripAerotriWarning
 from ..frames import LocalTangentFrame, TangentWorkFrame, WorkFrame, enu_residuals
 from ..geometry.rotation import matrix_from_opk, opk_from_matrix, rotvec_from_matrix
+from ..ground.common import index_of
 from ..observations import ControlPoints, GnssCentres, ImuAttitudes
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import (
@@ -337,8 +337,7 @@ def refine_bundle(
     t_start = time.perf_counter()
     obs = result.strip.observations
     control = result.control if control is None else control
-    point_lookup = {pid: i for i, pid in enumerate(obs.point_ids)}
-    row_point = np.array([point_lookup.get(pid, -1) for pid in control.point_ids], dtype=np.intp)
+    row_point = index_of(obs.point_ids, control.point_ids)
     seen = row_point >= 0
     has_point = np.zeros(len(control.point_ids), bool)
     has_point[seen] = np.all(np.isfinite(result.points[row_point[seen]]), axis=1)

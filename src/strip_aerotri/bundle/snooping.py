@@ -23,14 +23,13 @@ from .._threads import compute_workers
 from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..blunders import robust_variance_factor
 from ..geometry.camera_model import ShutterMotion
-from ..geometry.collinearity import image_jacobian, image_vectors
+from ..geometry.collinearity import image_jacobian, image_vectors, project
 from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection
 from ._observation_space import observation_space
 from ._snoop_camera import _adjust, _Camera
-from ._structures import reusing_structures
 from ._snoop_sets import (
     CONTROL_STAGE,
     GNSS_STAGE,
@@ -41,6 +40,7 @@ from ._snoop_sets import (
     _inputs,
     _Sets,
 )
+from ._structures import reusing_structures
 from .photo_tests import _photo_tests
 
 __all__ = ["CONTROL_STAGE", "GNSS_STAGE", "IMAGE_STAGE", "IMU_STAGE", "refine_frame"]
@@ -256,7 +256,11 @@ def _round(
     max_iterations: int,
     compute_precision: bool,
 ) -> tuple[
-    BundleResult, _RoundStatistics, FloatArray, BoolArray, tuple[FloatArray, FloatArray, FloatArray]
+    BundleResult,
+    _RoundStatistics,
+    FloatArray,
+    BoolArray,
+    tuple[FloatArray, FloatArray, FloatArray],
 ]:
     """One adjustment of the data in use from ``state``: the adjustment, its
     test statistics, the points (P, 3; NaN where not used), the points used
@@ -425,15 +429,16 @@ def _round_statistics(
         ray_points = ray_points - shutter.centre_shift(
             res.motion.values, obs.photo[rows_t], shutter.fractions(obs.xy[rows_t])
         )
-    vv = image_vectors(
-        res.centres[obs.photo[rows_t]], res.rotations[obs.photo[rows_t]], ray_points
-    )
-    computed = -obs.principal_distance * vv[:, :2] / vv[:, 2:3]
+    computed = project(
+        res.centres, res.rotations, ray_points, obs.photo[rows_t], np.arange(rows_t.size),
+        obs.principal_distance,
+    )[0]  # fmt: skip
     if res.camera is None:
         v_all[rows_t] = computed - obs.xy[rows_t]
     else:  # x̂ - x_obs with x̂ + Δ(x̂) = x, as the adjustment's own rays
         cam = res.camera
-        v_all[rows_t] = observation_space(cam.model, cam.values, computed, obs.xy[rows_t]).residuals
+        space = observation_space(cam.model, cam.values, computed, obs.xy[rows_t])
+        v_all[rows_t] = space.residuals
 
     ctrl_on, c_sig, given = sets.ctrl_on, inp.c_sig, inp.c_given
     r_img = np.full((k_all, 2), np.nan)

@@ -26,7 +26,9 @@ intersection best is given up, one at a time, while four or more are left.
 wrong ray pulls that intersection, and a good ray at the end of a long base
 can then fit it worse than the wrong one.)  Intersections minimise the
 rays' distances weighted by the inverse square of their length (image-scale
-residuals), as in :func:`strip_aerotri.strip.densify.intersect_rays`.
+residuals), as in :func:`strip_aerotri.strip.densify.intersect_rays`, and
+their normal equations are summed and solved by its functions (the same
+test of parallel rays: a determinant, two rays or more).
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ from .._typing import ArrayLike, BoolArray, FloatArray, IntArray
 from ..geometry.collinearity import project
 from ..observations import ImageObservations
 from ..options import BlunderOptions
-from ..strip.densify import intersect_rays
+from ..strip.densify import intersect_rays, ray_normal_sums, solve_ray_normals
 from .snooping import IMAGE_STAGE
 
 __all__ = ["RestoredPoints", "restore_points", "restored_ids", "restored_points_note"]
@@ -159,19 +161,11 @@ def _start_scale(
     return max(1.0, 1.4826 * float(np.median(np.abs(v))))
 
 
-def _solve(a: FloatArray, b: FloatArray) -> FloatArray:
-    """Batched 3 x 3 solves; NaN rows where ``a`` is (nearly) singular."""
-    out = np.full(b.shape, np.nan)
-    eig = np.linalg.eigvalsh(a)
-    ok = eig[:, 0] > 1e-10 * np.maximum(eig[:, 2], np.finfo(float).tiny)
-    out[ok] = np.linalg.solve(a[ok], b[ok, :, None])[:, :, 0]
-    return out
-
-
 class _Rays(NamedTuple):
     """The rays of the points to restore, sorted by point: ``rows`` into the
     observations, ``group`` (R,) the point's rank among ``labels``, each
-    ray's weighted projector ``a`` (R, 3, 3) and ``b = a @ centre`` (R, 3)."""
+    ray's share of the normal equations, ``a = w (I - d dᵀ)`` (R, 3, 3) and
+    ``b = a @ centre`` (R, 3)."""
 
     rows: IntArray
     group: IntArray
@@ -196,13 +190,6 @@ def _rays(obs: ImageObservations, c: FloatArray, rot: FloatArray, rows: IntArray
         weight = np.where(np.isfinite(t) & (t > 0), 1.0 / t**2, 0.0)
     a = proj * weight[:, None, None]
     return _Rays(rows, group.astype(np.intp), labels, a, np.einsum("kij,kj->ki", a, c[ph]))
-
-
-def _sums(group: IntArray, n: int, a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
-    a_sum, b_sum = np.zeros((n, 3, 3)), np.zeros((n, 3))
-    np.add.at(a_sum, group, a)
-    np.add.at(b_sum, group, b)
-    return a_sum, b_sum
 
 
 def _agreeing_intersections(
@@ -251,8 +238,8 @@ def _round(
     on = np.flatnonzero(active)
     group = rays.group[on]
     sizes = np.bincount(group, minlength=g_count)
-    a_all, b_all = _sums(group, g_count, rays.a[on], rays.b[on])
-    xyz = _solve(a_all, b_all)
+    a_all, b_all = ray_normal_sums(group, g_count, rays.a[on], rays.b[on])
+    xyz = solve_ray_normals(a_all, b_all, sizes)
     w = _normalised_residuals(obs, c, rot, rays.rows[on], xyz[group])
     score = np.zeros(g_count)
     np.maximum.at(score, group, w)
@@ -262,7 +249,9 @@ def _round(
     if not loo.size:
         return xyz, agree, drop
     g = group[loo]
-    others = _solve(a_all[g] - rays.a[on[loo]], b_all[g] - rays.b[on[loo]])
+    others = solve_ray_normals(  # each point of three or more rays less one of them
+        a_all[g] - rays.a[on[loo]], b_all[g] - rays.b[on[loo]], sizes[g] - 1
+    )
     # pairs (leave-one-out candidate, another active ray of its point); the
     # active rays are sorted by point, so a point's rays are contiguous in ``on``
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])

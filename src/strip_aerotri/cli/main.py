@@ -18,12 +18,12 @@ from typing import Any, TextIO
 import click
 
 from .._version import __version__
+from . import run as run_module  # the module; `run` below is its command
 from .check import check
 from .docs import docs
 from .export import export
 from .importer import import_group
 from .options import DOCS_EPILOG, Settings, common_options, echo_error, settings
-from . import run as run_module  # the module; `run` below is its command
 from .run import run
 from .simulate import simulate
 
@@ -155,8 +155,9 @@ cli.add_command(docs)
 
 
 def main() -> None:
-    """The ``stripaero`` console script (and ``python -m strip_aerotri``):
-    :func:`cli`, then the process ends with its exit code at once.
+    """The ``stripaero`` command, once imported (:func:`.entry.main`, the
+    console script and ``python -m strip_aerotri``): :func:`cli`, then the
+    process ends with its exit code at once.
 
     When a command has finished, its files are written and closed; what the
     interpreter's teardown would still do (free every object of the run one

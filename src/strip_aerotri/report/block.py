@@ -211,9 +211,8 @@ def _tolerances(result: BlockResult, map_scale: float | None) -> dict[str, Any]:
     """R4 §1.7.7's check-point criteria for the block, as a strip's (the
     mean plan discrepancy at the map scale, and the distribution of dE, dN);
     the joins carry the criteria of the common points."""
-    from .tolerances import check_mean_plan, residual_distribution
-
     from ..ground.check_precision import strong_checks
+    from .tolerances import check_mean_plan, residual_distribution
 
     resid = np.asarray(result.control_residuals, dtype=np.float64).reshape(-1, 3)
     # the check points of the statistics: without the weakly determined ones
@@ -307,7 +306,9 @@ def block_outputs(
         "points.csv": points_text.encode("utf-8"),
         "photos.csv": photos_text.encode("utf-8"),
         "report.json": text.encode("utf-8"),
-        "report.html": block_html(report, figure, calibration=section).encode("utf-8"),
+        "report.html": block_html(
+            report, figure, calibration=section, warnings=result.warnings
+        ).encode("utf-8"),
     }
     if cal_toml is not None:
         files["camera.toml"] = cal_toml

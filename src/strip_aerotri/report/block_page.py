@@ -9,7 +9,7 @@ observations, every control and check point, and the rejections.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from .html import (
@@ -21,6 +21,7 @@ from .html import (
     verdict_banner,
 )
 from .html_parts import _esc, _figure, _fmt, _table, weak_check_sentence
+from .restored import page_warnings
 from .verdict import overall_verdict
 
 __all__ = ["block_html"]
@@ -225,8 +226,16 @@ def _rejections(rejections: list[str]) -> str:
     return f"{summary}<ul class='small'>{items}</ul>"
 
 
-def block_html(report: Mapping[str, Any], figure: str | None = None, calibration: str = "") -> str:
-    """The page of a block's ``report.json`` content and its figure (PNG, base64)."""
+def block_html(
+    report: Mapping[str, Any],
+    figure: str | None = None,
+    calibration: str = "",
+    *,
+    warnings: Iterable[str] = (),
+) -> str:
+    """The page of a block's ``report.json`` content and its figure (PNG, base64);
+    ``warnings``, the result's own (with their points), let the page list the
+    points the refinement restored as restored (:func:`.restored.page_warnings`)."""
     block = report["block"]
     project = report["project"]
     name = project["name"] or "Block"
@@ -247,7 +256,7 @@ def block_html(report: Mapping[str, Any], figure: str | None = None, calibration
         for s in block["strips"]
     ]
     rejections = [r for s in block["strips"] for r in s["rejections"]] + list(report["rejections"])
-    others = [w for w in report["warnings"] if w not in set(rejections)]
+    others = [w for w in page_warnings(report, warnings) if w not in set(rejections)]
     stats = [stat_row("control (used)", report["control"]["statistics"])]
     if report["control"].get("fit_statistics") is not None:
         units = str(block["construction"] or "units")

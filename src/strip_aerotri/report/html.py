@@ -5,7 +5,7 @@ from ``report.json``'s content and the figures.
 from __future__ import annotations
 
 import gc
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
@@ -26,6 +26,7 @@ from .figures import (
     figure_ties,
 )
 from .html_parts import _esc, _figure, _fmt, _table, weak_check_sentence
+from .restored import page_warnings
 from .verdict import Verdict, criterion_label, overall_verdict
 
 if TYPE_CHECKING:
@@ -89,7 +90,7 @@ def build_html(result: StripResult, report: Mapping[str, Any]) -> str:
     """
     calibration = (report.get("bundle") or {}).get("self_calibration") is not None
     data = figure_data(result, report["models"], calibration=calibration)
-    return html_page(report, draw_figures(data))
+    return html_page(report, draw_figures(data), warnings=result.warnings)
 
 
 #: The figures' rc (no layout engine: each figure's axes are placed once by
@@ -158,11 +159,15 @@ def _parallax_and_ties(data: StripFigureData) -> tuple[str, str | None]:
     return figure_parallax(data), figure_ties(data)
 
 
-def html_page(report: Mapping[str, Any], figures: StripFigures) -> str:
-    """The page of ``report`` (report.json's content) with its ``figures``."""
+def html_page(
+    report: Mapping[str, Any], figures: StripFigures, *, warnings: Iterable[str] = ()
+) -> str:
+    """The page of ``report`` (report.json's content) with its ``figures``;
+    ``warnings``, the result's own (with their points), let the page list the
+    points the refinement restored as restored (:func:`.restored.page_warnings`)."""
     record = (report.get("bundle") or {}).get("self_calibration")
     return _html_page(
-        report,
+        {**report, "warnings": page_warnings(report, warnings)},
         figures.layout,
         figures.residuals,
         figures.parallax,

@@ -133,6 +133,7 @@ def strip_outputs(
             files["camera.toml"] = cal_toml
         text = json_text.dumps(report, indent=1) + "\n"
         if figures is not None:
-            files["report.html"] = html_page(report, figures.result()).encode("utf-8")
+            page = html_page(report, figures.result(), warnings=result.warnings)
+            files["report.html"] = page.encode("utf-8")
     files["report.json"] = text.encode("utf-8")
     return files, report

@@ -28,6 +28,7 @@ from . import outputs
 from .block import block_outputs, block_tolerances_record, build_block_report, joins_record
 from .outputs import GEOJSON_LOCAL_NOTE
 from .record import drift_warnings, tolerances_record
+from .restored import without_restored
 from .tolerances import TRANSFER_UM, transfer_passed
 from .values import delivered_points
 from .verdict import Verdict
@@ -289,7 +290,7 @@ class RunSummary:
             n for n in ("report.json", self.report_name) if n and n in self.files
         )
         listed = " / ".join(names)
-        unique = _without_restored(unique, frozenset(self.restored))
+        unique = without_restored(unique, frozenset(self.restored))
         return _grouped_per_point(_grouped(unique, self.rejections, listed), listed)
 
 
@@ -379,25 +380,6 @@ _PER_POINT = {
         "and left out (each: {cause})",
     ),
 }
-
-
-def _without_restored(texts: list[str], restored: frozenset[str]) -> list[str]:
-    """The strip method's warnings about the points it left out, without
-    those the refinement restored and determined: a control or check point's
-    own warning left out, the count of the points not triangulated for a
-    cause made again without them (and left out when none is left)."""
-    if not restored:
-        return texts
-    out: list[str] = []
-    for text in texts:
-        if not isinstance(text, PointWarning) or not restored.intersection(text.points):
-            out.append(text)
-        elif text.kind == "points not triangulated":
-            left = [p for p in text.points if p not in restored]
-            out += [PointWarning.points_not_triangulated(left, text.cause)] if left else []
-        elif text.kind not in ("control not triangulated", "check not triangulated"):
-            out.append(text)
-    return out
 
 
 def _grouped_per_point(texts: list[str], listed: str) -> list[str]:

@@ -483,22 +483,43 @@ class RayIntersection(NamedTuple):
     rms_distance: FloatArray
 
 
+def ray_normal_sums(
+    point: IntArray, n_points: int, a: FloatArray, b: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The normal equations ``N X = n`` of each point's intersection, ``N``
+    (P, 3, 3) and ``n`` (P, 3): the sums of its rays' shares ``a = w (I - d dᵀ)``
+    (R, 3, 3) and ``b = a c`` (R, 3) (``d`` a ray's unit direction, ``c`` its
+    origin, ``w`` its weight); ``point`` (R,) is each ray's point, 0 .. P - 1."""
+    normal = np.zeros((n_points, 3, 3))
+    rhs = np.zeros((n_points, 3))
+    np.add.at(normal, point, a)
+    np.add.at(rhs, point, b)
+    return normal, rhs
+
+
+def solve_ray_normals(normal: FloatArray, rhs: FloatArray, n_rays: IntArray) -> FloatArray:
+    """The intersections ``X = N⁻¹ n`` of points from their normal equations
+    ``normal`` (P, 3, 3), ``rhs`` (P, 3) (:func:`ray_normal_sums`); NaN for a
+    point of fewer than two rays (``n_rays`` (P,)) or whose rays are parallel
+    (``|det N|`` at most 1e-12 of ``(trace N)³``)."""
+    det = np.linalg.det(normal)
+    scale = np.maximum(np.einsum("pii->p", normal), 1e-300) ** 3
+    ok = (n_rays >= 2) & (np.abs(det) > 1e-12 * scale)
+    out = np.full((normal.shape[0], 3), np.nan)
+    if ok.any():
+        out[ok] = np.linalg.solve(normal[ok], rhs[ok][:, :, None])[:, :, 0]
+    return out
+
+
 def _solve_rays(
     c: FloatArray, d: FloatArray, idx: IntArray, n_points: int, w: FloatArray
 ) -> tuple[FloatArray, IntArray]:
     proj = np.eye(3) - d[:, :, None] * d[:, None, :]  # I - d d^T
-    normal = np.zeros((n_points, 3, 3))
-    rhs = np.zeros((n_points, 3))
-    np.add.at(normal, idx, w[:, None, None] * proj)
-    np.add.at(rhs, idx, w[:, None] * np.einsum("kij,kj->ki", proj, c))
+    normal, rhs = ray_normal_sums(
+        idx, n_points, w[:, None, None] * proj, w[:, None] * np.einsum("kij,kj->ki", proj, c)
+    )
     n_rays = np.bincount(idx, minlength=n_points)
-    det = np.linalg.det(normal)
-    scale = np.maximum(np.einsum("pii->p", normal), 1e-300) ** 3
-    ok = (n_rays >= 2) & (np.abs(det) > 1e-12 * scale)
-    out = np.full((n_points, 3), np.nan)
-    if ok.any():
-        out[ok] = np.linalg.solve(normal[ok], rhs[ok][:, :, None])[:, :, 0]
-    return out, n_rays
+    return solve_ray_normals(normal, rhs, n_rays), n_rays
 
 
 def intersect_rays(

@@ -1,0 +1,50 @@
+"""The warnings a report page lists when a refinement restored points
+(report/restored.py): report.json's texts, the restored points no longer
+among the points left out."""
+
+from __future__ import annotations
+
+from strip_aerotri.report.restored import page_warnings
+from strip_aerotri.results import PointWarning
+
+CAUSE = "their observations failed the blunder tests"
+
+
+def _stage_warnings() -> list[str]:
+    return [
+        "relative_orientation: a plain text",
+        PointWarning.not_triangulated("A", "a cause"),
+        PointWarning.not_triangulated("B", "a cause", check=True),
+        PointWarning.points_not_triangulated(["A", "B", "C", "D", "E", "F", "G"], CAUSE),
+        PointWarning.points_not_triangulated(["C"], "seen on fewer than two photos"),
+    ]
+
+
+def test_the_page_lists_restored_points_as_restored():
+    """'A' and 'C' restored: A's own warning goes, B's stays; the count of the
+    points left out for a cause is made again without them (names beyond
+    the five report.json's text shows included), and goes when only
+    restored points were in it; every other text stays, in its place."""
+    stage = _stage_warnings()
+    note = "bundle: 2 point(s) left out before the refinement were intersected: 'A', 'C'"
+    report = {
+        "warnings": [*(str(w) for w in stage), note],
+        "bundle": {"restored_points": ["A", "C"]},
+    }
+    assert "'F'" not in report["warnings"][3]  # report.json names five of seven
+    assert page_warnings(report, stage) == [
+        "relative_orientation: a plain text",
+        "check point 'B' is not triangulated (a cause): left out",
+        f"5 point(s) not triangulated ({CAUSE}): 'B', 'D', 'E', 'F', 'G'",
+        note,
+    ]
+
+
+def test_without_restored_points_or_the_results_warnings_the_page_is_report_json():
+    stage = _stage_warnings()
+    texts = [str(w) for w in stage]
+    for bundle in (None, {"restored_points": []}):
+        assert page_warnings({"warnings": texts, "bundle": bundle}, stage) == texts
+    # report.json alone cannot say which points a count names: kept as it is
+    restored = {"warnings": texts, "bundle": {"restored_points": ["A", "C"]}}
+    assert page_warnings(restored) == texts
