@@ -541,8 +541,11 @@ def _camera_toml(p: Project, camera: str, distortion: str, replace: bool = True)
     p.toml.write_text(text + "\n" + pasted, encoding="utf-8")
 
 
-def _pasted(camera: str = "c", distortion: str = 'units = "mm"\nmodel = "correction"\nk1 = K1',
-            replace: bool = True) -> Callable[[Project], None]:  # fmt: skip
+def _pasted(
+    camera: str = "c",
+    distortion: str = 'units = "mm"\nmodel = "correction"\nk1 = K1',
+    replace: bool = True,
+) -> Callable[[Project], None]:
     """camera.toml's tables with the project's c (``c``) and a plausible k1 (``K1``)."""
 
     def apply(p: Project) -> None:
@@ -764,126 +767,155 @@ MUTATIONS: tuple[Mutation, ...] = (
     # the camera: [camera]
     Mutation("camera: c negative", FAIL, lambda p: _set_c(p, -1.0), (("principal_distance_mm",),)),
     Mutation(
-        "camera: c in pixels of 2.4 um", FAIL, lambda p: _set_c(p, 1 / 0.0024),
+        "camera: c in pixels of 2.4 um",
+        FAIL,
+        lambda p: _set_c(p, 1 / 0.0024),
         (("principal_distance_mm",), ("pixels",)),
-    ),  # fmt: skip
+    ),
     Mutation(
-        "camera: principal point beyond the format", FAIL, _principal_point_beyond_the_format,
+        "camera: principal point beyond the format",
+        FAIL,
+        _principal_point_beyond_the_format,
         (("principal_point_mm",),),
-    ),  # fmt: skip
+    ),
     Mutation(
-        "camera: principal point in pixels", FAIL,
+        "camera: principal point in pixels",
+        FAIL,
         _camera_keys("principal_point_mm = [2736.0, 1824.0]"),
         (("principal_point_mm",), ("pixels",)),
-    ),  # fmt: skip
-    Mutation("camera: principal point of 0.3 mm", OK, _camera_keys("principal_point_mm = [0.3, -0.2]")),
+    ),
     Mutation(
-        "camera: principal point with one number", FAIL,
-        _camera_keys("principal_point_mm = [0.01]"), (("principal_point_mm",),),
-    ),  # fmt: skip
+        "camera: principal point of 0.3 mm", OK, _camera_keys("principal_point_mm = [0.3, -0.2]")
+    ),
     Mutation(
-        "camera: principal point as a table", FAIL,
-        _camera_keys("principal_point_mm = { x = 0.0, y = 0.0 }"), (("principal_point_mm",),),
-    ),  # fmt: skip
+        "camera: principal point with one number",
+        FAIL,
+        _camera_keys("principal_point_mm = [0.01]"),
+        (("principal_point_mm",),),
+    ),
     Mutation(
-        "camera: focal_length_mm as well", FAIL, _camera_keys("focal_length_mm = 8.8"),
+        "camera: principal point as a table",
+        FAIL,
+        _camera_keys("principal_point_mm = { x = 0.0, y = 0.0 }"),
+        (("principal_point_mm",),),
+    ),
+    Mutation(
+        "camera: focal_length_mm as well",
+        FAIL,
+        _camera_keys("focal_length_mm = 8.8"),
         (("focal_length_mm",),),
-    ),  # fmt: skip
+    ),
     Mutation(
-        "camera: self_calibration in [camera]", FAIL, _camera_keys('self_calibration = "auto"'),
+        "camera: self_calibration in [camera]",
+        FAIL,
+        _camera_keys('self_calibration = "auto"'),
         (("self_calibration",),),
-    ),  # fmt: skip
+    ),
     Mutation(
-        "camera: the table twice", FAIL, _toml_line("[images]\n", "[camera]\n\n[images]\n"),
+        "camera: the table twice",
+        FAIL,
+        _toml_line("[images]\n", "[camera]\n\n[images]\n"),
         (("[camera]",), ("twice",)),
-    ),  # fmt: skip
+    ),
     # [distortion]
     Mutation("distortion: a plausible k1", OK, _distortion(lambda p: f"k1 = {_k1(p)!r}")),
-    Mutation("distortion: k1 of the wrong sign", EITHER, _distortion(lambda p: f"k1 = {-_k1(p)!r}")),
     Mutation(
-        "distortion: k1 1e6 times too large", FAIL,
-        _distortion(lambda p: f"k1 = {1e6 * _k1(p)!r}"), (("[distortion]",), ("k1 =",)),
-    ),  # fmt: skip
+        "distortion: k1 of the wrong sign", EITHER, _distortion(lambda p: f"k1 = {-_k1(p)!r}")
+    ),
     Mutation(
-        "distortion: k1 1e6 times too large, other sign", FAIL,
-        _distortion(lambda p: f"k1 = {-1e6 * _k1(p)!r}"), (("[distortion]",), ("k1 =",)),
-    ),  # fmt: skip
+        "distortion: k1 1e6 times too large",
+        FAIL,
+        _distortion(lambda p: f"k1 = {1e6 * _k1(p)!r}"),
+        (("[distortion]",), ("k1 =",)),
+    ),
     Mutation(
-        "distortion: projection k1 1e6 times too large", FAIL,
+        "distortion: k1 1e6 times too large, other sign",
+        FAIL,
+        _distortion(lambda p: f"k1 = {-1e6 * _k1(p)!r}"),
+        (("[distortion]",), ("k1 =",)),
+    ),
+    Mutation(
+        "distortion: projection k1 1e6 times too large",
+        FAIL,
         _distortion(lambda p: f'model = "projection"\nk1 = {1e6 * _k1(p)!r}'),
         (("[distortion]",),),
-    ),  # fmt: skip
-    Mutation(
-        "distortion: normalized k1 read as mm", EITHER,  # the drone: 20 % at the corner
-        _distortion(lambda p: f"k1 = {_k1(p) * _c(p) ** 2!r}"),
-    ),  # fmt: skip
-    Mutation(
-        "distortion: units pixel", FAIL, _distortion(lambda p: 'units = "pixel"\nk1 = 1e-9'),
-        (("units",), ("pixel",)),
-    ),  # fmt: skip
-    Mutation(
-        "distortion: units px", FAIL, _distortion(lambda p: 'units = "px"'), (("units",),)
     ),
+    Mutation(
+        "distortion: normalized k1 read as mm",
+        EITHER,  # the drone: 20 % at the corner
+        _distortion(lambda p: f"k1 = {_k1(p) * _c(p) ** 2!r}"),
+    ),
+    Mutation(
+        "distortion: units pixel",
+        FAIL,
+        _distortion(lambda p: 'units = "pixel"\nk1 = 1e-9'),
+        (("units",), ("pixel",)),
+    ),
+    Mutation("distortion: units px", FAIL, _distortion(lambda p: 'units = "px"'), (("units",),)),
     Mutation("distortion: k4", FAIL, _distortion(lambda p: "k4 = 1e-9"), (("k4",),)),
     Mutation("distortion: K1 in capitals", FAIL, _distortion(lambda p: "K1 = 1e-9"), (("K1",),)),
     Mutation("distortion: k1 as a string", FAIL, _distortion(lambda p: 'k1 = "1e-9"'), (("k1",),)),
     Mutation("distortion: k1 nan", FAIL, _distortion(lambda p: "k1 = nan"), (("k1",),)),
     Mutation("distortion: an empty table", OK, _distortion(lambda p: "")),
     Mutation(
-        "distortion: affinity in percent", FAIL, _distortion(lambda p: "b1 = 0.5"),
+        "distortion: affinity in percent",
+        FAIL,
+        _distortion(lambda p: "b1 = 0.5"),
         (("b1",), ("affinity",)),
-    ),  # fmt: skip
+    ),
     # [adjustment] self_calibration
     Mutation("self_calibration: auto", OK, _bundle('"auto"')),
     Mutation("self_calibration: a list", OK, _bundle('["k1", "b1"]')),
     Mutation("self_calibration: ebner12", EITHER, _bundle('"ebner12"')),  # the drone: a film model
     Mutation(
-        "self_calibration: auto without refine", FAIL, _adjustment('self_calibration = "auto"'),
+        "self_calibration: auto without refine",
+        FAIL,
+        _adjustment('self_calibration = "auto"'),
         (("self_calibration",), ('refine = "bundle"',)),
-    ),  # fmt: skip
-    Mutation(
-        "self_calibration: unknown name", FAIL, _bundle('["k1", "k4"]'), (("'k4'",),)
     ),
+    Mutation("self_calibration: unknown name", FAIL, _bundle('["k1", "k4"]'), (("'k4'",),)),
     Mutation(
         "self_calibration: unknown choice", FAIL, _bundle('"everything"'), (("self_calibration",),)
     ),
-    Mutation(
-        "self_calibration: ebner misspelt", FAIL, _bundle('"ebner"'), (('"ebner12"?',),)
-    ),
+    Mutation("self_calibration: ebner misspelt", FAIL, _bundle('"ebner"'), (('"ebner12"?',),)),
     Mutation("self_calibration: a name twice", FAIL, _bundle('["k1", "k1"]'), (("twice",),)),
-    Mutation(
-        "self_calibration: an empty list", FAIL, _bundle("[]"), (("an empty list",),)
-    ),
-    Mutation(
-        "self_calibration: a bare name", FAIL, _bundle('"k1"'), (('["k1"]',),)
-    ),
-    Mutation(
-        "self_calibration: a number in the list", FAIL, _bundle('["k1", 2]'), (("item 2",),)
-    ),
+    Mutation("self_calibration: an empty list", FAIL, _bundle("[]"), (("an empty list",),)),
+    Mutation("self_calibration: a bare name", FAIL, _bundle('"k1"'), (('["k1"]',),)),
+    Mutation("self_calibration: a number in the list", FAIL, _bundle('["k1", 2]'), (("item 2",),)),
     Mutation("self_calibration: true", FAIL, _bundle("true"), (("self_calibration",),)),
     Mutation(
-        "self_calibration: auto, refine none", FAIL,
-        _adjustment('refine = "none"\nself_calibration = "auto"'), (('refine = "bundle"',),),
-    ),  # fmt: skip
+        "self_calibration: auto, refine none",
+        FAIL,
+        _adjustment('refine = "none"\nself_calibration = "auto"'),
+        (('refine = "bundle"',),),
+    ),
     # a self-calibration's camera.toml in the next project
     Mutation("camera.toml: pasted in place", OK, _pasted("c\nPP")),
     Mutation(
-        "camera.toml: added, [camera] kept", FAIL, _pasted("c\nPP", replace=False),
+        "camera.toml: added, [camera] kept",
+        FAIL,
+        _pasted("c\nPP", replace=False),
         (("camera.toml",), ("twice",)),
-    ),  # fmt: skip
+    ),
     Mutation(
-        "camera.toml: principal_distance_mm missing", FAIL, _pasted("PP"),
+        "camera.toml: principal_distance_mm missing",
+        FAIL,
+        _pasted("PP"),
         (("principal_distance_mm",),),
-    ),  # fmt: skip
+    ),
     Mutation("camera.toml: [distortion] without units, model", OK, _pasted("c", "k1 = K1")),
     Mutation(
-        "camera.toml: an extra key", FAIL,
-        _pasted("c", "k1 = K1\ndistortion_fit_rms_um = 1e-14"), (("distortion_fit_rms_um",),),
-    ),  # fmt: skip
+        "camera.toml: an extra key",
+        FAIL,
+        _pasted("c", "k1 = K1\ndistortion_fit_rms_um = 1e-14"),
+        (("distortion_fit_rms_um",),),
+    ),
     Mutation(
-        "camera.toml: the report's camera keys", FAIL,
-        _pasted("c\ndistortion = { k1 = 0.0 }"), (("distortion",),),
-    ),  # fmt: skip
+        "camera.toml: the report's camera keys",
+        FAIL,
+        _pasted("c\ndistortion = { k1 = 0.0 }"),
+        (("distortion",),),
+    ),
 )
 
 

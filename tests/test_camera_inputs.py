@@ -72,11 +72,12 @@ def test_flight_axis_off_centre_alone_is_a_problem() -> None:
     xy = np.asarray(obs.xy)
     half = 0.5 * np.ptp(xy, axis=0)
     c = obs.principal_distance
-    (message,) = image_coordinate_problems(xy + [0.6 * half[0], 0.0], c, file="i.csv")
-    assert message.startswith("i.csv: the image points are not centred on the principal point "
-                              "along the flight"), message  # fmt: skip
-    assert image_coordinate_problems(xy + [0.4 * half[0], 0.0], c) == []
-    assert image_coordinate_problems(xy + [0.0, 0.6 * half[1]], c) == []
+    (message,) = image_coordinate_problems(xy + half * [0.6, 0.0], c, file="i.csv")
+    assert message.startswith(
+        "i.csv: the image points are not centred on the principal point along the flight"
+    ), message
+    assert image_coordinate_problems(xy + half * [0.4, 0.0], c) == []
+    assert image_coordinate_problems(xy + half * [0.0, 0.6], c) == []
 
 
 @pytest.mark.parametrize(
@@ -96,8 +97,11 @@ def test_a_principal_point_outside_the_format_is_named(
     tmp_path: Path, example: str, principal_point: str, said: str
 ) -> None:
     toml = _camera(tmp_path, example, f"principal_point_mm = {principal_point}")
-    _one_line(toml, f"[camera] principal_point_mm = {principal_point.replace('.0', '')} {said}",
-              "in pixels, or from another origin?")  # fmt: skip
+    _one_line(
+        toml,
+        f"[camera] principal_point_mm = {principal_point.replace('.0', '')} {said}",
+        "in pixels, or from another origin?",
+    )
 
 
 def test_a_plausible_principal_point_still_runs(tmp_path: Path) -> None:
@@ -188,9 +192,11 @@ def test_a_refused_self_calibration_says_what_was_meant(
     tmp_path: Path, value: str, said: str
 ) -> None:
     toml = _project(
-        tmp_path, "film-strip", "[adjustment]\n",
+        tmp_path,
+        "film-strip",
+        "[adjustment]\n",
         f'[adjustment]\nrefine = "bundle"\nself_calibration = {value}\n',
-    )  # fmt: skip
+    )
     with pytest.raises(ConfigError) as info:
         load_project(toml)
     message = str(info.value)
@@ -211,10 +217,11 @@ def test_a_camera_toml_added_instead_of_replacing_is_named(tmp_path: Path) -> No
     )
     toml.write_text(toml.read_text(encoding="utf-8") + "\n" + camera, encoding="utf-8")
     _one_line(
-        toml, "TOML syntax error: Cannot declare ('camera',) twice",
+        toml,
+        "TOML syntax error: Cannot declare ('camera',) twice",
         "(the table [camera] is declared twice (first at line 6): merge them",
         "camera.toml replace the project's [camera] and [distortion]",
-    )  # fmt: skip
+    )
 
 
 def test_a_key_given_twice_is_named(tmp_path: Path) -> None:
@@ -232,28 +239,46 @@ def test_a_key_given_twice_is_named(tmp_path: Path) -> None:
 def test_a_principal_distance_in_pixels_is_named(tmp_path: Path, example: str, c: str) -> None:
     """It was 'are the coordinates in metres instead of millimetres?' for
     coordinates spanning the film's 228 mm: c alone says it."""
-    toml = _project(tmp_path, example, "principal_distance_mm = ", f"principal_distance_mm = {c}\n#")
-    _one_line(toml, f"strip.toml: [camera] principal_distance_mm = {float(c):g} is longer than any "
-              "aerial camera's", "in pixels (c divided by the pixel size) or micrometres")  # fmt: skip
+    toml = _project(
+        tmp_path, example, "principal_distance_mm = ", f"principal_distance_mm = {c}\n#"
+    )
+    _one_line(
+        toml,
+        f"strip.toml: [camera] principal_distance_mm = {float(c):g} is longer than any "
+        "aerial camera's",
+        "in pixels (c divided by the pixel size) or micrometres",
+    )
 
 
 def test_a_principal_distance_in_pixels_under_2000_is_named_by_the_span(tmp_path: Path) -> None:
     """The corridor's 8.8 mm in pixels of 5 um, 1760, is within every camera's
     range: the points' span, 13 mm, a real format, under 0.02 c names it
     (as the FC300X block's 3.6 mm in pixels of 2.4 um, 1510, was not)."""
-    toml = _project(tmp_path, "drone-corridor", "principal_distance_mm = 8.8",
-                    "principal_distance_mm = 1760.0")  # fmt: skip
-    _one_line(toml, "strip.toml: [camera] principal_distance_mm = 1760: the image points span 13",
-              "a real format, but less than 0.02 c", "is c in pixels")  # fmt: skip
+    toml = _project(
+        tmp_path, "drone-corridor", "principal_distance_mm = 8.8", "principal_distance_mm = 1760.0"
+    )
+    _one_line(
+        toml,
+        "strip.toml: [camera] principal_distance_mm = 1760: the image points span 13",
+        "a real format, but less than 0.02 c",
+        "is c in pixels",
+    )
 
 
-@pytest.mark.parametrize(("example", "c"), [("film-strip", "0.15287"), ("drone-corridor", "0.0088")])
+@pytest.mark.parametrize(
+    ("example", "c"), [("film-strip", "0.15287"), ("drone-corridor", "0.0088")]
+)
 def test_a_principal_distance_in_metres_is_named(tmp_path: Path, example: str, c: str) -> None:
     """It was 'the coordinates are not in millimetres (micrometres? pixels?)'
     for the film's coordinates, which are."""
-    toml = _project(tmp_path, example, "principal_distance_mm = ", f"principal_distance_mm = {c}\n#")
-    _one_line(toml, f"strip.toml: [camera] principal_distance_mm = {float(c):g} is shorter than "
-              "any camera's", "in metres instead of millimetres?")  # fmt: skip
+    toml = _project(
+        tmp_path, example, "principal_distance_mm = ", f"principal_distance_mm = {c}\n#"
+    )
+    _one_line(
+        toml,
+        f"strip.toml: [camera] principal_distance_mm = {float(c):g} is shorter than any camera's",
+        "in metres instead of millimetres?",
+    )
 
 
 def test_coordinates_in_pixels_are_still_the_coordinates(tmp_path: Path) -> None:
@@ -268,16 +293,19 @@ def test_coordinates_in_pixels_are_still_the_coordinates(tmp_path: Path) -> None
     _one_line(toml, "image_points.csv", "the coordinates are not in millimetres")
 
 
-
 def test_the_imports_control_comment_reads_as_a_rule(tmp_path: Path) -> None:
     """The comment an import writes at the top of strip.toml said '..., 2 when
     fewer qualify, two of them consecutive)', which reads as two consecutive
     control points; the rule is on the photos that see each point."""
     samples = EXAMPLES / "import-samples" / "fc300x"
     out = tmp_path / "p"
-    result = CliRunner().invoke(cli, ["-q", "import", "uav-fc300x", str(samples), "--out", str(out)])
+    result = CliRunner().invoke(
+        cli, ["-q", "import", "uav-fc300x", str(samples), "--out", str(out)]
+    )
     assert result.exit_code == 0, result.output
-    (line,) = [ln for ln in (out / "strip.toml").read_text("utf-8").splitlines() if "full control" in ln]
+    (line,) = [
+        ln for ln in (out / "strip.toml").read_text("utf-8").splitlines() if "full control" in ln
+    ]
     assert "seen on 3 or more photos (2 when fewer qualify) of which two are consecutive)" in line
 
 
@@ -287,7 +315,9 @@ def test_a_principal_point_across_the_flight_before_the_distortion(tmp_path: Pat
     '[distortion]: ... did not converge ...; check the coefficients'."""
     out = tmp_path / "p"
     samples = EXAMPLES / "import-samples" / "fc300x"
-    result = CliRunner().invoke(cli, ["-q", "import", "uav-fc300x", str(samples), "--out", str(out)])
+    result = CliRunner().invoke(
+        cli, ["-q", "import", "uav-fc300x", str(samples), "--out", str(out)]
+    )
     assert result.exit_code == 0, result.output
     toml = out / "strip.toml"
     text = toml.read_text(encoding="utf-8")
