@@ -16,7 +16,7 @@ shutter has one axis).
         'refine="bundle"' --groups strip
 
 The motion enters through the refinement's one call of ``bundle_adjust``
-(``bundle/snooping.py``), wrapped here: the project file has no key for it.
+(``bundle/_snoop_camera.py``), wrapped here: the project file has no key for it.
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ _GROUPS: dict[str, Callable[[str], str]] = {
 
 
 def _with_motion(groups: str, axis: str, log: list[Any]) -> Callable[..., Any]:
-    from strip_aerotri.bundle import snooping
+    from strip_aerotri.bundle import _snoop_camera as snooping
     from strip_aerotri.geometry.camera_model import ShutterMotion
 
     plain = snooping.bundle_adjust
@@ -59,11 +59,26 @@ def _with_motion(groups: str, axis: str, log: list[Any]) -> Callable[..., Any]:
         group = np.array([names.index(key(p)) for p in obs.photo_ids])
         kwargs["motion"] = ShutterMotion(group, tuple(names), READOUT_MM, flight)
         res = plain(obs, *args, **kwargs)
-        log.append(res)
+        log.append((res, obs))
         return res
 
     snooping.bundle_adjust = adjust  # type: ignore[assignment]
     return plain
+
+
+def _save(
+    path: Path, res: Any, obs: Any, types: dict[str, str], rmse: tuple[float, float]
+) -> None:
+    """The adjustment's points, image residuals (mm) by photo and point, the
+    motion and sigma0, the split's check points and its check RMSE."""
+    motion = np.zeros((0, 3)) if res.motion is None else res.motion.values
+    std = np.zeros((0, 3)) if res.motion is None else res.motion.std
+    np.savez(
+        path, point_ids=np.array(obs.point_ids), photo_ids=np.array(obs.photo_ids),
+        photo=obs.photo, point=obs.point, points=res.points, residuals=res.residuals_mm,
+        motion=motion, motion_std=std, sigma0=res.sigma0, rmse=np.array(rmse),
+        check=np.array(sorted(p for p, t in types.items() if t.startswith("check"))),
+    )  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -73,7 +88,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--groups", choices=sorted(_GROUPS), default="strip")
     parser.add_argument("--readout-axis", choices=("x", "y"), default="y")
     parser.add_argument("--none", action="store_true", help="without the motion (reference)")
+    parser.add_argument(
+        "--save", type=Path, help="a folder for each split's last adjustment (.npz)"
+    )
     args = parser.parse_args(argv)
+    if args.save is not None:
+        args.save.mkdir(parents=True, exist_ok=True)
     log: list[Any] = []
     if not args.none:
         _with_motion(args.groups, args.readout_axis, log)
@@ -90,7 +110,9 @@ def main(argv: list[str] | None = None) -> int:
             plan.append(p)
             height.append(h)
             line = f"{name:9s} {p:.4f}/{h:.4f}"
-            last = log[-1] if log else None
+            last, obs = log[-1] if log else (None, None)
+            if args.save is not None and last is not None and obs is not None:
+                _save(args.save / f"{name}.npz", last, obs, cases[name], (p, h))
             if last is not None and last.motion is not None and last.motion.values.shape[0] <= 3:
                 mo = last.motion
                 line += "  " + "  ".join(

@@ -5,6 +5,8 @@ refinement untouched."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 import _observation_space as mapped
@@ -108,15 +110,15 @@ def _linearised(
 def test_rows_are_the_derivatives_of_the_mapped_residuals() -> None:
     """Every column of the image rows (photos, points, the ten camera
     parameters, the shutter's motions) equals the central difference of the
-    whitened ``v = x̂ - x_obs`` (x̂ by Newton's method) at a state away from
-    the solution (residuals of 0.1-1 mm, so that x̂ is not x_obs)."""
+    whitened ``v = x̂ - x_obs`` (x̂ by Newton's method, read at its own row
+    by the fixed point on the fraction) at a state away from the solution
+    (residuals of 0.1-1 mm, so that x̂ is not x_obs)."""
     obs, centres, rotations, points = _network()
     rng = np.random.default_rng(4)
     centres = centres + rng.normal(0, 0.5, centres.shape)
     points = points + rng.normal(0, 0.5, points.shape)
     prob, normals = _linearised(obs, centres, rotations, points)
     assert prob.motion is not None and prob.camera is not None
-    s = prob.motion.fractions(prob.xy)
     rays = np.arange(prob.photo.size)
 
     n_photo, n_point = 6 * 3, 3 * points.shape[0]
@@ -128,9 +130,16 @@ def test_rows_are_the_derivatives_of_the_mapped_residuals() -> None:
         rot = rotations @ matrix_from_rotvec(d_photo[:, 3:])
         pts = points + x[n_photo : n_photo + n_point].reshape(-1, 3)
         theta, motion = x[n_photo + n_point : -6], x[-6:].reshape(2, 3)
-        shift = prob.motion.centre_shift(motion, prob.photo, s)
-        xy, _ = project(cen[prob.photo] + shift, rot[prob.photo], pts[prob.point], rays, rays, C)
-        out: np.ndarray = mapped.residuals(prob.camera, theta, xy, prob.xy) / prob.sigma[:, None]
+
+        def at(s: np.ndarray) -> np.ndarray:
+            shift = prob.motion.centre_shift(motion, prob.photo, s)
+            xy, _ = project(
+                cen[prob.photo] + shift, rot[prob.photo], pts[prob.point], rays, rays, C
+            )
+            return xy
+
+        xhat = mapped.rows_read(at, prob.motion.fractions, prob.camera, theta, prob.xy)
+        out: np.ndarray = (xhat - prob.xy) / prob.sigma[:, None]
         return out
 
     x0 = np.concatenate([np.zeros(n_photo + n_point), THETA, MOTION.ravel()])
@@ -207,3 +216,29 @@ def test_a_camera_at_zero_gives_the_plain_rows_to_the_bit(monkeypatch: pytest.Mo
     np.testing.assert_array_equal(a.unit_jacobian, b.unit_jacobian)
     np.testing.assert_array_equal(a.point_jacobian, b.point_jacobian)
     np.testing.assert_array_equal(a.residual, b.residual)
+
+
+def test_without_a_shutter_nothing_of_the_readout_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A plain refinement and a self-calibration without a rolling shutter
+    never project at rows nor pass a readout to the sweeps: their arithmetic
+    is as it was (the outputs byte-identical)."""
+    obs, centres, rotations, points = _network()
+
+    def refused(*args: object, **kwargs: object) -> object:
+        raise AssertionError("a refinement without a shutter read rows")
+
+    sweeps = space.observation_space
+
+    def no_readout(*args: Any, **kwargs: Any) -> space.ObservationSpace:
+        readout = args[4] if len(args) > 4 else kwargs.get("readout")
+        assert readout is None, "a readout passed without a shutter"
+        return sweeps(*args, **kwargs)
+
+    monkeypatch.setattr(adjust, "moving_space", refused)
+    monkeypatch.setattr(adjust, "observation_space", no_readout)
+    for camera in (None, CameraModel("brown", BROWN_PARAMETERS, C)):
+        prob = adjust._make_problem(
+            obs, centres, rotations, points, None, None, None, None, None, None, camera=camera
+        )
+        values = np.zeros(0) if camera is None else THETA
+        assert adjust._normals(prob, adjust._State(centres, rotations, points, values)) is not None

@@ -4,6 +4,8 @@ recovered, and a still camera left as it is."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 import _observation_space as mapped
@@ -57,6 +59,25 @@ def _network(
     return obs, shutter, centres, rotations, points
 
 
+def _projector(
+    shutter: ShutterMotion,
+    obs: ImageObservations,
+    centres: np.ndarray,
+    rotations: np.ndarray,
+    points: np.ndarray,
+    motion: np.ndarray,
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The rays' projections (K, 2) as a function of their fractions (K,)."""
+    rays = np.arange(obs.photo.size)
+
+    def at(s: np.ndarray) -> np.ndarray:
+        moved = centres[obs.photo] + shutter.centre_shift(motion, obs.photo, s)
+        xy, _ = project(moved, rotations[obs.photo], points[obs.point], rays, rays, C)
+        return xy
+
+    return at
+
+
 def _control(points: np.ndarray) -> np.ndarray:
     control = np.full_like(points, np.nan)
     control[::12] = points[::12]
@@ -108,18 +129,16 @@ def test_motion_cofactors_match_a_dense_inverse() -> None:
     )
     assert res.motion is not None
     m, p = centres.shape[0], points.shape[0]
-    s = shutter.fractions(obs.xy)
-    rays = np.arange(obs.photo.size)
 
     def f(x: np.ndarray) -> np.ndarray:
         d = x[: 6 * m].reshape(m, 6)
         cen = res.centres + d[:, :3]
         rot = res.rotations @ matrix_from_rotvec(d[:, 3:])
         pts = x[6 * m : 6 * m + 3 * p].reshape(p, 3)
-        shift = shutter.centre_shift(x[6 * m + 3 * p :].reshape(2, 3), obs.photo, s)
-        xy, _ = project(cen[obs.photo] + shift, rot[obs.photo], pts[obs.point], rays, rays, C)
+        at = _projector(shutter, obs, cen, rot, pts, x[6 * m + 3 * p :].reshape(2, 3))
+        xhat = mapped.rows_read(at, shutter.fractions, None, np.zeros(0), obs.xy)
         ctrl = (pts - control) / 0.05
-        img = (xy - obs.xy) / obs.sigma[:, None]
+        img = (xhat - obs.xy) / obs.sigma[:, None]
         return np.concatenate([img.ravel(), ctrl[np.isfinite(ctrl)]])
 
     x0 = np.concatenate([np.zeros(6 * m), res.points.ravel(), res.motion.values.ravel()])
@@ -228,8 +247,6 @@ def test_camera_and_motion_share_the_border() -> None:
     )
     assert res.camera is not None and res.motion is not None
     m, p = centres.shape[0], points.shape[0]
-    s = shutter.fractions(obs.xy)
-    rays = np.arange(obs.photo.size)
 
     def f(x: np.ndarray) -> np.ndarray:
         d = x[: 6 * m].reshape(m, 6)
@@ -237,9 +254,9 @@ def test_camera_and_motion_share_the_border() -> None:
         rot = res.rotations @ matrix_from_rotvec(d[:, 3:])
         pts = x[6 * m : 6 * m + 3 * p].reshape(p, 3)
         cam = x[6 * m + 3 * p : 6 * m + 3 * p + 2]
-        shift = shutter.centre_shift(x[6 * m + 3 * p + 2 :].reshape(2, 3), obs.photo, s)
-        xy, _ = project(cen[obs.photo] + shift, rot[obs.photo], pts[obs.point], rays, rays, C)
-        img = mapped.residuals(model, cam, xy, obs.xy) / obs.sigma[:, None]
+        at = _projector(shutter, obs, cen, rot, pts, x[6 * m + 3 * p + 2 :].reshape(2, 3))
+        xhat = mapped.rows_read(at, shutter.fractions, model, cam, obs.xy)
+        img = (xhat - obs.xy) / obs.sigma[:, None]
         ctrl = (pts - control) / 0.05
         return np.concatenate([img.ravel(), ctrl[np.isfinite(ctrl)]])
 
@@ -260,19 +277,35 @@ def test_camera_and_motion_share_the_border() -> None:
 
 
 def test_an_undetermined_motion_is_named() -> None:
-    """A group whose rows are all read at the middle (every image point at
-    y = 0) has no motion to estimate: one GeometryError naming it."""
+    """A group whose rays are all read on one row (a photo of its own whose
+    points lie on its row y = 20 mm, seen by two photos of the other group
+    too) has a motion that its centre takes: one GeometryError naming it."""
     from strip_aerotri.errors import GeometryError
 
-    obs, shutter, centres, rotations, points = _network(None, seed=1)
-    middle = ImageObservations(
-        obs.photo_ids, obs.point_ids, obs.photo, obs.point,
-        np.where((shutter.group[obs.photo] == 1)[:, None], obs.xy * [1.0, 0.0], obs.xy),
-        obs.sigma, C,
+    obs, _, centres, rotations, points = _network(None, seed=1, noise_mm=0.0)
+    rng = np.random.default_rng(7)
+    centre, rotation = centres[11] + [0.0, 30.0, 0.0], rotations[11]
+    n, y0 = 12, 20.0
+    ray = np.column_stack([np.linspace(-55.0, 5.0, n), np.full(n, y0), np.full(n, -C)])
+    depth = (1000.0 + rng.uniform(-40.0, 40.0, n)) / C  # relief: the photo is determined
+    row_points = centre + depth[:, None] * (ray @ rotation.T)
+    all_centres = np.vstack([centres, centre])
+    all_rotations = np.concatenate([rotations, [rotation]])
+    all_points = np.vstack([points, row_points])
+    new = points.shape[0] + np.arange(n)
+    photo = np.concatenate([np.full(n, 12), np.full(n, 11), np.full(n, 10)])
+    xy, _ = project(all_centres, all_rotations, all_points, photo, np.tile(new, 3), C)
+    assert np.all(np.abs(xy) < READOUT / 2) and np.allclose(xy[:n, 1], y0)
+    k = obs.photo.size + 3 * n
+    rows = ImageObservations(
+        (*obs.photo_ids, "f12"), (*obs.point_ids, *(f"r{i}" for i in range(n))),
+        np.concatenate([obs.photo, photo]), np.concatenate([obs.point, np.tile(new, 3)]),
+        np.vstack([obs.xy, xy]), np.full(k, 1e-3), C,
     )
+    shutter = ShutterMotion(np.repeat([0, 1], [12, 1]), ("one", "two"), READOUT)
     with pytest.raises(GeometryError, match="motion along [XYZ] of 'two' is not determined"):
         bundle_adjust(
-            middle, centres, rotations, points, control_xyz=_control(points),
+            rows, all_centres, all_rotations, all_points, control_xyz=_control(all_points),
             control_sigma=0.05, motion=shutter,
         )
 
@@ -322,23 +355,27 @@ def _linearised(
 def test_whitened_rows_equal_rows_whitened_after(monkeypatch: pytest.MonkeyPatch) -> None:
     """The image rows, border included, built from the Jacobians whitened in
     the collinearity's blocks equal those of unwhitened Jacobians mapped to
-    the observations' space (premultiplied by ``(I + ∂Δ/∂x)⁻¹`` from numpy's
-    inverse, ``x̂`` by Newton's method) times 1/σ: the motion's columns s dx/dS
-    are linear in dx/dS."""
+    the observations' space (premultiplied by ``(I + ∂Δ/∂x - u aᵀ)⁻¹`` from
+    numpy's inverse, ``u = (dx/dS) d`` the image's motion over the readout,
+    ``a`` the fraction's gradient, ``x̂`` read at its own row by the fixed
+    point) times 1/σ: the motion's columns s dx/dS are linear in dx/dS."""
     from strip_aerotri.geometry.camera_model import CameraModel
 
     image, camera, _, rows = _linearised(monkeypatch)
     obs, shutter, centres, rotations, points = _network(TRUTH, seed=6)
     model = CameraModel("brown", ("k1", "b1"), C)
-    s = shutter.fractions(obs.xy)
+    at = _projector(shutter, obs, centres, rotations, points, TRUTH)
+    true_xy = mapped.rows_read(at, shutter.fractions, model, camera, obs.xy)
+    s = shutter.fractions(true_xy)
     rays = np.arange(obs.photo.size)
     moved = points[obs.point] - shutter.centre_shift(TRUTH, obs.photo, s)
     xy, _, jac_photo, jac_point = collinearity_jacobians(
         centres, rotations, moved, obs.photo, rays, C
     )
-    # the observations' space: x̂ + Δ(x̂) = x, every column premultiplied by (I + ∂Δ/∂x)⁻¹
-    true_xy = mapped.true_xy(model, camera, xy, obs.xy)
-    m = np.linalg.inv(np.eye(2) + model.xy_partials(true_xy, camera))
+    # x̂ + Δ(x̂) = x(s(x̂)): every column premultiplied by (I + ∂Δ/∂x - u aᵀ)⁻¹
+    u = np.einsum("kij,kj->ki", jac_photo[:, :, :3], TRUTH[shutter.group[obs.photo]])
+    a = shutter.fractions(np.eye(2))
+    m = np.linalg.inv(np.eye(2) + model.xy_partials(true_xy, camera) - u[:, :, None] * a)
     jac_photo, jac_point = m @ jac_photo, m @ jac_point
     border = np.concatenate(
         [-m @ model.partials(true_xy, camera), shutter.border(jac_photo[:, :, :3], obs.photo, s)],
@@ -346,18 +383,97 @@ def test_whitened_rows_equal_rows_whitened_after(monkeypatch: pytest.MonkeyPatch
     )
     inv_s = 1.0 / obs.sigma
     w = inv_s[:, None, None]
-    np.testing.assert_allclose(image.unit_jacobian, (jac_photo * w)[rows], rtol=1e-12, atol=0)
-    np.testing.assert_allclose(image.point_jacobian, (jac_point * w)[rows], rtol=1e-12, atol=0)
-    np.testing.assert_allclose(image.border_jacobian, (border * w)[rows], rtol=1e-12, atol=0)
-    np.testing.assert_allclose(
-        image.residual, ((true_xy - obs.xy) * inv_s[:, None])[rows], rtol=1e-12, atol=0
-    )
+    # the engine's Jacobians are at the first solution's rows, 1e-14 mm / h
+    # from x̂'s: the same to 1e-12 of each array's largest entry
+    for got, want in (
+        (image.unit_jacobian, (jac_photo * w)[rows]),
+        (image.point_jacobian, (jac_point * w)[rows]),
+        (image.border_jacobian, (border * w)[rows]),
+        (image.residual, ((true_xy - obs.xy) * inv_s[:, None])[rows]),
+    ):
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.max(np.abs(want)))
     assert np.count_nonzero(border[:, :, 2:]) > 0  # the motion's columns are there
     # every row's centre columns are its point's negated (the rows' unit_shift)
     assert image.unit_shift
     np.testing.assert_array_equal(image.unit_jacobian[..., :3], -image.point_jacobian)
 
 
-def test_fractions_are_computed_once_per_linearisation(monkeypatch: pytest.MonkeyPatch) -> None:
-    """One build of the normal equations reads the rows' fractions once."""
-    assert _linearised(monkeypatch)[2] == 1
+def test_fractions_are_computed_thrice_per_linearisation(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One build of the normal equations with a moving centre reads the rows'
+    fractions three times: at the observations (the first solution), at its
+    true positions (the projections) and at theirs (the motion's columns)."""
+    assert _linearised(monkeypatch)[2] == 3
+
+
+@pytest.mark.parametrize("with_camera", [False, True])
+def test_residuals_at_the_truth_are_the_measurement_errors(with_camera: bool) -> None:
+    """The rows are read where the rays land, at their true positions x̂
+    (``x̂ + Δ(x̂) = x(S + s(x̂) d)``): at the true state the residuals are
+    the measurements' errors, ``v = -e``, to 1e-12 mm.  Read at the measured
+    rows instead, the projections carry ``u aᵀ e`` (here 1e-6 to 1e-5 mm):
+    the convention this holds."""
+    from strip_aerotri.bundle import adjust
+    from strip_aerotri.geometry.camera_model import CameraModel
+
+    obs, shutter, centres, rotations, points = _network(None, seed=8, noise_mm=0.0)
+    model = CameraModel("brown", ("k1", "b1"), C) if with_camera else None
+    theta = np.array([-3e-6, 2e-4]) if with_camera else np.zeros(0)
+    at = _projector(shutter, obs, centres, rotations, points, TRUTH)
+    xhat = mapped.rows_read(at, shutter.fractions, model, theta, obs.xy)
+    e = np.random.default_rng(9).normal(0.0, 0.003, xhat.shape)
+    measured = ImageObservations(
+        obs.photo_ids, obs.point_ids, obs.photo, obs.point, xhat + e, np.full(e.shape[0], 0.003), C
+    )
+    prob = adjust._make_problem(
+        measured, centres, rotations, points, _control(points), 0.05, None, None, None, None,
+        camera=model, motion=shutter,
+    )  # fmt: skip
+    normals = adjust._normals(prob, adjust._State(centres, rotations, points, theta, TRUTH))
+    assert normals is not None
+    np.testing.assert_allclose(normals.residuals_mm, -e[prob.rows], rtol=0, atol=1e-12)
+    # the measured rows' projections: x + Δ... off by u aᵀ e, far above the tolerance
+    measured_rows = at(shutter.fractions(xhat + e))
+    true_rows = at(shutter.fractions(xhat))
+    assert np.max(np.abs(measured_rows - true_rows)) > 1e-6
+
+
+def test_image_velocity_is_the_projections_derivative_in_the_fraction() -> None:
+    """``ShutterMotion.image_velocity`` is d x(S + s d, R, X) / ds by central
+    differences; ``row_gradient`` is the fractions' gradient in x."""
+    obs, shutter, centres, rotations, points = _network(TRUTH, noise_mm=0.0)
+    at = _projector(shutter, obs, centres, rotations, points, TRUTH)
+    s = shutter.fractions(obs.xy)
+    rays = np.arange(obs.photo.size)
+    moved = centres[obs.photo] + shutter.centre_shift(TRUTH, obs.photo, s)
+    _, vectors = project(moved, rotations[obs.photo], points[obs.point], rays, rays, C)
+    velocity = shutter.image_velocity(TRUTH, rotations, obs.photo, vectors, C)
+    fd = (at(s + 1e-3) - at(s - 1e-3)) / 2e-3
+    np.testing.assert_allclose(velocity, fd, rtol=1e-7, atol=1e-9 * np.max(np.abs(fd)))
+    assert np.max(np.abs(velocity)) > 0.05  # mm: the motions move the images
+    xy = np.random.default_rng(1).uniform(-60.0, 60.0, (50, 2))
+    for turn in (np.eye(2), np.array([[0.0, 1.0], [-1.0, 0.0]])):
+        turned = ShutterMotion(np.array([0]), ("a",), READOUT, turn)
+        np.testing.assert_allclose(turned.fractions(xy), xy @ turned.row_gradient, rtol=1e-14)
+
+
+def test_two_passes_reach_the_rows_read() -> None:
+    """``moving_space``'s second pass, projecting at its first ``x̂``'s rows,
+    meets the reference fixed point to 1e-11 mm and a third pass moves
+    nothing, even 1-2 mm from the solution (blunders, first iterations) with
+    a motion twice the simulated one; the first pass alone is off by more."""
+    from strip_aerotri.bundle._observation_space import moving_space
+    from strip_aerotri.geometry.camera_model import CameraModel
+
+    obs, shutter, centres, rotations, points = _network(None, noise_mm=0.0)
+    observed = obs.xy + np.random.default_rng(3).normal(0.0, 1.0, obs.xy.shape)
+    model, theta = CameraModel("brown", ("k1", "b1"), C), np.array([-3e-6, 2e-4])
+    shifts = 2.0 * TRUTH
+    rays = (centres, rotations, points[obs.point], obs.photo, C)
+    spaces = [moving_space(shutter, shifts, rays, model, theta, observed, k) for k in (1, 2, 3)]
+    assert all(sp is not None and sp.converged for sp in spaces)
+    one, two, three = (sp.true_xy for sp in spaces if sp is not None)
+    at = _projector(shutter, obs, centres, rotations, points, shifts)
+    reference = mapped.rows_read(at, shutter.fractions, model, theta, observed)
+    np.testing.assert_allclose(two, reference, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(three, two, rtol=0, atol=1e-11)
+    assert np.max(np.abs(one - reference)) > 1e-10

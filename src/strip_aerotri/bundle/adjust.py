@@ -76,7 +76,13 @@ from ..options import DEFAULT_MAX_ITERATIONS
 from ..results import BundleResult, CameraEstimate, ShutterEstimate
 from ._datum import free_motions
 from ._given import along_axis_order, check_rotations, given_weights, observed_with_sigma
-from ._observation_space import ObservationSpace, observation_space, premultiply
+from ._observation_space import (
+    ObservationSpace,
+    moving_space,
+    observation_space,
+    premultiply,
+    readout_at,
+)
 from ._so3 import imu_residual as _imu_residual
 from ._so3 import right_jacobian_inv as _right_jacobian_inv
 from ._structures import structure_for
@@ -289,24 +295,35 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
 
     Rows (residual computed minus observed): image ``x - x_obs`` whitened by
     its sigma, with a camera model ``x̂ - x_obs`` (``x̂ + Δ(x̂) = x``, the
-    design premultiplied per ray by ``(I + ∂Δ/∂x)⁻¹``:
-    :mod:`._observation_space`); control ``X - X_c`` (m, design identity);
-    GNSS ``S - S_g`` (m, design identity on the centre); IMU ``log(R_imu.T
+    design premultiplied per ray by ``(I + ∂Δ/∂x)⁻¹``), with a rolling
+    shutter each ray read at ``x̂``'s row (``x̂ + Δ(x̂) = x(S + s(x̂) d)``,
+    ``(I + ∂Δ/∂x - u aᵀ)⁻¹``; :mod:`._observation_space`); control ``X -
+    X_c`` (m, design identity); GNSS ``S - S_g`` (m, design identity on the centre); IMU ``log(R_imu.T
     R)`` (rad, design ``Jr^-1(e)`` on the rotation)."""
     inv_s = 1.0 / prob.sigma
-    shutter = None if prob.motion is None else (prob.motion, prob.motion.fractions(prob.xy))
+    at = None if prob.motion is None else _rows_read(prob, state)
+    if prob.motion is not None and at is None:
+        return None  # no first solution of the rows read: the cost is infinite
+    motion = prob.motion
+    shutter = None if at is None or motion is None else (motion, motion.fractions(at))
     xy, v, jac_photo, jac_point = _collinearity(prob, state, inv_s, shutter)
     if not (np.all(v[:, 2] < 0.0) and np.all(np.isfinite(xy))):
         return None  # a point behind a photo: no linearisation (the cost is infinite)
-    if prob.camera is None:
+    if prob.camera is None and shutter is None:
         res, space = xy - prob.xy, None
     else:
-        space = observation_space(prob.camera, state.camera, xy, prob.xy)
+        readout = None
+        if shutter is not None and at is not None:
+            rays = (state.rotations, prob.photo, v, prob.c)
+            readout = readout_at(shutter[0], state.motion, rays, at)
+        space = observation_space(prob.camera, state.camera, xy, prob.xy, readout)
         if not space.converged:
             return None  # no true positions for this camera: the cost is infinite
         res = space.residuals
         premultiply(space.mapping, jac_photo)  # before the shutter's columns copy the centre's
         premultiply(space.mapping, jac_point)
+        if shutter is not None:  # the motion's columns at the row x̂ is read at
+            shutter = (shutter[0], shutter[0].fractions(space.true_xy))
     border = _border(prob, state, jac_photo, inv_s, shutter, space)
     image = UnitPointRows(
         prob.photo, prob.point, jac_photo, jac_point, res * inv_s[:, None],
@@ -353,6 +370,23 @@ def _collinearity(
     return collinearity_jacobians(
         state.centres, state.rotations, ray_points, prob.photo, rays, prob.c, inv_s
     )
+
+
+def _rows_read(prob: _Problem, state: _State) -> FloatArray | None:
+    """Coordinates (K, 2) at whose fractions the rays are projected: the true
+    positions ``x̂`` of one pass of :func:`._observation_space.moving_space`
+    (the observations' rows), so that the linearisation's projections are
+    those of ``x̂``'s rows to 1e-14 mm; the observations themselves when no
+    centre moves (the fraction moves nothing); None when no first solution
+    exists."""
+    assert prob.motion is not None
+    if not np.any(state.motion):
+        return prob.xy
+    rays = (state.centres, state.rotations, state.points[prob.point], prob.photo, prob.c)
+    first = moving_space(
+        prob.motion, state.motion, rays, prob.camera, state.camera, prob.xy, passes=1
+    )
+    return None if first is None or not first.converged else first.true_xy
 
 
 def _border(
@@ -548,7 +582,8 @@ def bundle_adjust(
         Start values of the camera parameters (default 0: the start camera).
     motion : ShutterMotion, optional
         A rolling shutter: one motion of the centre over the readout per
-        group of photos, estimated in the border after the camera's
+        group of photos, each ray read at its true position's row,
+        estimated in the border after the camera's
         (:class:`strip_aerotri.geometry.camera_model.ShutterMotion`; start 0).
 
     Returns

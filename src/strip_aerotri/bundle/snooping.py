@@ -28,7 +28,7 @@ from ..ground.systematic import kept_control, kept_if_alike, rejected_components
 from ..observations import ImageObservations
 from ..options import DEFAULT_MAX_ITERATIONS, BlunderOptions, SelfCalibration
 from ..results import BundleResult, FrameRefinement, Rejection
-from ._observation_space import observation_space
+from ._observation_space import moving_space, observation_space
 from ._snoop_camera import _adjust, _Camera
 from ._snoop_sets import (
     CONTROL_STAGE,
@@ -424,21 +424,25 @@ def _round_statistics(
     left_out[rows] = False
     rows_t = np.flatnonzero(left_out)  # rays of used points out of the adjustment
     ray_points = new_points[obs.point[rows_t]]
-    if res.motion is not None:  # a rolling shutter: each ray from its moved centre
-        shutter = res.motion.model
-        ray_points = ray_points - shutter.centre_shift(
-            res.motion.values, obs.photo[rows_t], shutter.fractions(obs.xy[rows_t])
-        )
-    computed = project(
-        res.centres, res.rotations, ray_points, obs.photo[rows_t], np.arange(rows_t.size),
-        obs.principal_distance,
-    )[0]  # fmt: skip
-    if res.camera is None:
-        v_all[rows_t] = computed - obs.xy[rows_t]
-    else:  # x̂ - x_obs with x̂ + Δ(x̂) = x, as the adjustment's own rays
-        cam = res.camera
-        space = observation_space(cam.model, cam.values, computed, obs.xy[rows_t])
-        v_all[rows_t] = space.residuals
+    cam = res.camera
+    if res.motion is not None:  # a rolling shutter: each ray read at its x̂'s row
+        moved = moving_space(
+            res.motion.model, res.motion.values,
+            (res.centres, res.rotations, ray_points, obs.photo[rows_t], obs.principal_distance),
+            None if cam is None else cam.model, np.zeros(0) if cam is None else cam.values,
+            obs.xy[rows_t],
+        )  # fmt: skip
+        v_all[rows_t] = np.nan if moved is None else moved.residuals
+    else:
+        computed = project(
+            res.centres, res.rotations, ray_points, obs.photo[rows_t], np.arange(rows_t.size),
+            obs.principal_distance,
+        )[0]  # fmt: skip
+        if cam is None:
+            v_all[rows_t] = computed - obs.xy[rows_t]
+        else:  # x̂ - x_obs with x̂ + Δ(x̂) = x, as the adjustment's own rays
+            space = observation_space(cam.model, cam.values, computed, obs.xy[rows_t])
+            v_all[rows_t] = space.residuals
 
     ctrl_on, c_sig, given = sets.ctrl_on, inp.c_sig, inp.c_given
     r_img = np.full((k_all, 2), np.nan)

@@ -53,7 +53,10 @@ coordinates:
   with a translation and a small rotation; here one ``d`` per group of
   photos (a strip, flown at a steady speed and heading), translation only.
   The collinearity equation of an observation on photo ``j`` of group ``g``
-  is ``x(S_j + s d_g, R_j, X)`` with ``s = t - 1/2``, so ``dx/dd_g = s
+  is ``x(S_j + s d_g, R_j, X)`` with ``s = t - 1/2`` of the row the ray
+  lands on, its true position's (:meth:`ShutterMotion.row_gradient`,
+  :meth:`ShutterMotion.image_velocity`;
+  :mod:`strip_aerotri.bundle._observation_space`), so ``dx/dd_g = s
   dx/dS_j``: the centre's columns of the collinearity Jacobian times ``s``,
   three columns per group in the dense border of the normal equations
   (method.md 6B).  Rows are read along the sensor's y axis from the top (y
@@ -470,6 +473,31 @@ class ShutterMotion:
         last."""
         sensor_y = _times_2x2(np.asarray(xy, dtype=np.float64), self.flight_matrix)[:, 1]
         out: FloatArray = -sensor_y / self.readout_mm
+        return out
+
+    @property
+    def row_gradient(self) -> FloatArray:
+        """``a = ∂s/∂x`` (2,), mm⁻¹: :meth:`fractions` is ``aᵀ x``."""
+        out: FloatArray = -np.asarray(self.flight_matrix, dtype=np.float64)[:, 1] / self.readout_mm
+        return out
+
+    def image_velocity(
+        self,
+        motion: FloatArray,
+        rotations: FloatArray,
+        photo: IntArray,
+        vectors: FloatArray,
+        c: float,
+    ) -> FloatArray:
+        """``u = ∂x/∂s`` (K, 2), mm: how each projection ``x = -c v_xy / v_z``
+        moves with the fraction ``s`` as its centre moves by ``s d_g``.  With
+        ``v = Rᵀ(X - S - s d)`` (``vectors`` (K, 3), at the ray's fraction)
+        and ``w = Rᵀ d`` (``rotations`` (M, 3, 3) of the photos, ``motion``
+        (G, 3), m), ``u = c (w_xy v_z - v_xy w_z) / v_z²``."""
+        d = np.asarray(motion, dtype=np.float64)[self.group]  # (M, 3) per photo
+        w = np.einsum("mji,mj->mi", rotations, d)[photo]  # Rᵀ d per ray
+        vz = vectors[:, 2:3]
+        out: FloatArray = c * (w[:, :2] * vz - vectors[:, :2] * w[:, 2:3]) / vz**2
         return out
 
     def centre_shift(self, motion: FloatArray, photo: IntArray, s: FloatArray) -> FloatArray:
