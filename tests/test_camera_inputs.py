@@ -13,6 +13,7 @@ on the image sigma; and ``self_calibration = []`` said "got a list".
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -324,3 +325,23 @@ def test_a_principal_point_across_the_flight_before_the_distortion(tmp_path: Pat
     old = next(ln for ln in text.splitlines() if ln.startswith("principal_point_mm"))
     toml.write_text(text.replace(old, "principal_point_mm = [5.0, 0.0]"), encoding="utf-8")
     _one_line(toml, "[camera] principal_point_mm = [5, 0] lies outside the image points")
+
+
+# ---------------------------------------------------------------- camera.toml's comments
+
+
+def test_ebner_estimates_in_camera_toml_carry_no_unit_1(tmp_path: Path) -> None:
+    """After "ebner12" camera.toml lists the twelve estimates as comments; the
+    dimensionless ones ended in a bare '1' ('e1 = -2.67e-05 (2.3e-05) 1'), read
+    as a number; the others keep their unit."""
+    toml = _project(
+        tmp_path, "film-strip", "[adjustment]\n",
+        '[adjustment]\nrefine = "bundle"\nself_calibration = "ebner12"\n',
+    )  # fmt: skip
+    result = CliRunner().invoke(cli, ["-qq", "run", str(toml)])
+    assert result.exit_code == 0, result.output
+    lines = (toml.parent / "out" / "camera.toml").read_text(encoding="utf-8").splitlines()
+    listed = {ln.split()[1]: ln for ln in lines if re.match(r"#   e\d+ = ", ln)}
+    assert sorted(listed, key=lambda n: int(n[1:])) == [f"e{k}" for k in range(1, 13)]
+    assert listed["e1"].endswith(")") and listed["e2"].endswith(")"), listed
+    assert listed["e3"].endswith(") mm^-1") and listed["e12"].endswith(") mm^-3"), listed
