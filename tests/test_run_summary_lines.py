@@ -158,3 +158,31 @@ def test_the_held_parameters_are_all_named_on_stderr(tmp_path):
     assert names is not None and sorted(names[1].split(", ")) == sorted(held), line
     assert "characters)" not in line
     assert re.search(r"; … and \d+ more in report\.json$", line), line
+
+
+def test_the_two_sigma0_of_a_calibration_have_three_significant_digits(capsys):
+    """"sigma0 0.38 (with the camera as given: 0.577)" mixed two formats: both
+    carry 3 significant digits, a trailing zero kept, an integral value
+    without a bare point."""
+    from types import SimpleNamespace
+
+    import click
+
+    from strip_aerotri.cli.run import _echo_calibration
+    from strip_aerotri.report.summary import Calibration
+
+    expected = {
+        (0.38, 0.577): "sigma0 0.380 (with the camera as given: 0.577)",
+        (1.0, 12.0): "sigma0 1.00 (with the camera as given: 12.0)",
+        (0.0412, 100.0): "sigma0 0.0412 (with the camera as given: 100)",
+    }
+    with click.Context(cli):
+        for (sigma0, without), text in expected.items():
+            summary = SimpleNamespace(calibration=Calibration(("k1",), sigma0, without, False))
+            _echo_calibration(summary, Path("out"))  # type: ignore[arg-type]
+            line = capsys.readouterr().out.strip()
+            assert line == f"self-calibration: kept k1, {text}", line
+        # nothing kept: the given camera's sigma0 alone, in the same format
+        summary = SimpleNamespace(calibration=Calibration((), None, 0.5, False))
+        _echo_calibration(summary, Path("out"))  # type: ignore[arg-type]
+        assert capsys.readouterr().out.strip().endswith("(sigma0 0.500)")

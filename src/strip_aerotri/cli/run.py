@@ -171,7 +171,7 @@ def _echo_calibration(summary: RunSummary, target: Path) -> None:
     if calibration is None:
         return
     without = calibration.sigma0_without
-    given = f"{without:.3g}" if math.isfinite(without) else ""
+    given = _three_digits(without) if math.isfinite(without) else ""
     camera = f"; camera: {target / 'camera.toml'}" if calibration.camera_written else ""
     if calibration.sigma0 is None:  # nothing kept (selfcal: no sigma0 without a kept set)
         # camera.toml follows every self-calibration (docs/outputs.md): the given camera
@@ -182,10 +182,17 @@ def _echo_calibration(summary: RunSummary, target: Path) -> None:
         )
         return
     echo_result(
-        f"self-calibration: kept {', '.join(calibration.kept)}, sigma0 {calibration.sigma0:.3g}"
+        f"self-calibration: kept {', '.join(calibration.kept)}, sigma0 {_three_digits(calibration.sigma0)}"
         + (f" (with the camera as given: {given})" if given else "")
         + camera
     )
+
+
+def _three_digits(value: float) -> str:
+    """``value`` to 3 significant digits, trailing zeros kept (0.38: "0.380",
+    so that two sigma0 side by side read alike; 100.0: "100")."""
+    text = f"{value:#.3g}"
+    return text[:-1] if text.endswith(".") else text
 
 
 def _echo_weights(summary: RunSummary) -> None:
