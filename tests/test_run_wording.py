@@ -189,3 +189,28 @@ def test_a_block_s_refinement_names_the_points_it_loses(tmp_path):
     index = [results[1].observations.point_ids.index(n) for n in named]
     assert len(named) == 5 and not np.isfinite(results[1].points[index]).all(axis=1).any()
     assert np.isfinite(results[0].points[index]).all()
+
+
+def test_the_page_leaves_the_unit_of_dimensionless_parameters_out() -> None:
+    """b1, b2 (and Ebner's e1, e2) are dimensionless: their unit cell shows
+    "–", not "1" (read as a number beside the estimate); k1 keeps mm^-2."""
+    import re
+
+    record = {
+        "choice": "auto",
+        "kept": ["k1", "b1"],
+        "sigma0": 0.38,
+        "sigma0_without": 0.40,
+        "parameters": [
+            _parameter("k1", True),
+            {**_parameter("b1", True), "unit": "1"},
+            {**_parameter("e2", False, "t 0.4"), "unit": "1"},
+        ],
+        "correlations_above_0_9": [],
+    }
+    page = calibration_html(record, (None, None))
+    cells = {
+        m[1]: m[2]
+        for m in re.finditer(r"<tr><td[^>]*>(k1|b1|e2)</td><td[^>]*>([^<]*)</td>", page)
+    }
+    assert cells == {"k1": "mm^-2", "b1": "–", "e2": "–"}, cells

@@ -208,6 +208,14 @@ def calibration_figures(outcome: SelfCalibrationOutcome | None) -> tuple[str | N
     return figure_distortion(outcome), figure_cells(outcome.cells)
 
 
+def _unit_cell(unit: str) -> str:
+    """A unit for the page's tables (HTML): "–" for the dimensionless ("1",
+    read as a number beside an estimate)."""
+    from .html_parts import _esc
+
+    return "–" if unit == "1" else _esc(unit)
+
+
 def calibration_html(record: dict[str, Any] | None, figures: tuple[str | None, str | None]) -> str:
     """The page's section on the self-calibration ('' without one)."""
     if record is None:
@@ -217,7 +225,7 @@ def calibration_html(record: dict[str, Any] | None, figures: tuple[str | None, s
     rows = [
         [
             p["name"],
-            (_esc(p["unit"]),),
+            (_unit_cell(p["unit"]),),
             (f"{p['estimate']:.4g}",) if p["estimate"] is not None else ("–",),
             (f"{p['sd']:.2g}",) if p["sd"] is not None else ("–",),
             _fmt(p["t"], 1),
