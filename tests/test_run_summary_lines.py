@@ -4,6 +4,7 @@ project/check.py, _text.py)."""
 
 from __future__ import annotations
 
+import json
 import re
 import tomllib
 from pathlib import Path
@@ -186,3 +187,44 @@ def test_the_two_sigma0_of_a_calibration_have_three_significant_digits(capsys):
         summary = SimpleNamespace(calibration=Calibration((), None, 0.5, False))
         _echo_calibration(summary, Path("out"))  # type: ignore[arg-type]
         assert capsys.readouterr().out.strip().endswith("(sigma0 0.500)")
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_the_page_shows_the_adjusted_camera_and_names_camera_toml(tmp_path):
+    """The page's self-calibration section gives the adjusted camera as
+    camera.toml has it (c, x0, y0 and the kept distortion terms, each with
+    its sd or "held") and names the file written beside it."""
+    import html as html_text
+
+    toml = _auto(tmp_path, simulate_strip(12, preset="drone", seed=2, camera_errors={"k1": -3e-4}))
+    _run(toml)
+    out = tmp_path / "out"
+    page = (out / "report.html").read_text("utf-8")
+    section = page[page.index("<h3>The adjusted camera</h3>") :]
+    section = section[: section.index("</p>")]
+    assert "<code>camera.toml</code>, written beside this page" in section
+    rows = {
+        m[1]: (html_text.unescape(m[2]), m[3], m[4])
+        for m in re.finditer(
+            r"<tr><td[^>]*>(\w+)</td><td>([^<]*)</td><td>([^<]*)</td><td>([^<]*)</td></tr>",
+            section,
+        )
+    }
+    written = tomllib.loads((out / "camera.toml").read_text("utf-8"))
+    record = json.loads((out / "report.json").read_text("utf-8"))["bundle"]["self_calibration"]
+    params = {p["name"]: p for p in record["parameters"]}
+    assert "k1" in record["kept"]
+    distortion = {k: v for k, v in written["distortion"].items() if k not in ("units", "model")}
+    shown = {"c", "x0", "y0"} | {k for k, v in distortion.items() if v != 0.0}
+    assert set(rows) == shown | set(record["kept"]), rows
+    given = {
+        "c": written["camera"]["principal_distance_mm"],
+        "x0": written["camera"]["principal_point_mm"][0],
+        "y0": written["camera"]["principal_point_mm"][1],
+        **distortion,
+    }
+    for name, (value, sd, unit) in rows.items():
+        assert float(value) == pytest.approx(given[name], rel=1e-5, abs=5e-5), name
+        p = params[name]
+        assert sd == (f"{p['sd']:.2g}" if p["kept"] else "held"), name
+        assert unit == ("–" if p["unit"] == "1" else p["unit"]), name

@@ -214,3 +214,25 @@ def test_the_page_leaves_the_unit_of_dimensionless_parameters_out() -> None:
         for m in re.finditer(r"<tr><td[^>]*>(k1|b1|e2)</td><td[^>]*>([^<]*)</td>", page)
     }
     assert cells == {"k1": "mm^-2", "b1": "–", "e2": "–"}, cells
+
+
+def test_the_page_names_camera_toml_when_it_holds_the_start_camera() -> None:
+    """Without an adjusted [distortion] (Ebner's family, or nothing kept) the
+    section still names camera.toml and says what it holds."""
+    base = {
+        "choice": "ebner12",
+        "family": "ebner",
+        "sigma0": 0.38,
+        "sigma0_without": 0.40,
+        "parameters": [{**_parameter("e1", True), "unit": "1"}],
+        "correlations_above_0_9": [],
+        "camera": None,
+    }
+    ebner = calibration_html({**base, "kept": ["e1"]}, (None, None))
+    assert (
+        "<code>camera.toml</code>, written beside this page, holds the start camera, "
+        "Ebner's estimates as comments: paste its [camera] and [distortion] tables" in ebner
+    )
+    none = calibration_html({**base, "kept": [], "sigma0": None}, (None, None))
+    assert "<code>camera.toml</code>, written beside this page, holds the start camera:" in none
+    assert "The adjusted camera" not in ebner + none

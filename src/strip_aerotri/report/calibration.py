@@ -10,7 +10,8 @@ observations cover, measured coordinates reduced to the new principal point;
 the RMS of that fit is written beside it (exact up to the increments'
 evaluation point, below 0.01 µm for the start tables of practice).  Ebner's
 parameters have no counterpart in ``[distortion]``: camera.toml then keeps the
-start tables and lists the estimates as comments.
+start tables and lists the estimates as comments.  The page's section shows
+the adjusted camera as camera.toml has it and names that file.
 """
 
 from __future__ import annotations
@@ -216,6 +217,65 @@ def _unit_cell(unit: str) -> str:
     return "–" if unit == "1" else _esc(unit)
 
 
+def _camera_rows(camera: dict[str, Any], parameters: list[dict[str, Any]]) -> list[list[Any]]:
+    """The adjusted camera's rows (term, value, sd, unit) as camera.toml has
+    it: c, x0, y0, then the distortion terms kept or carried from the start;
+    the sd is the estimate's (the start value is exact), "held" for a term
+    held at its start value."""
+    from .html_parts import _esc
+
+    by_name = {p["name"]: p for p in parameters}
+
+    def row(name: str, value: float | None, text: str) -> list[Any]:
+        p = by_name.get(name)
+        sd = ("held",) if p is None or not p["kept"] or p["sd"] is None else (f"{p['sd']:.2g}",)
+        unit = _unit_cell(p["unit"]) if p is not None else "mm"
+        return [name, (_esc(text),) if value is not None else ("–",), sd, (unit,)]
+
+    c, (x0, y0) = camera["principal_distance_mm"], camera["principal_point_mm"]
+    rows = [
+        row("c", c, f"{c:.4f}" if c is not None else ""),
+        row("x0", x0, f"{x0:.4f}" if x0 is not None else ""),
+        row("y0", y0, f"{y0:.4f}" if y0 is not None else ""),
+    ]
+    for name, value in camera["distortion"].items():
+        kept = name in by_name and by_name[name]["kept"]
+        if kept or (value is not None and value != 0.0):
+            rows.append(row(name, value, f"{value:.6g}" if value is not None else ""))
+    return rows
+
+
+def _camera_html(record: dict[str, Any]) -> str:
+    """The adjusted camera (c, the principal point and the distortion terms
+    with their sd, as camera.toml has them) and the file that holds it."""
+    from .html_parts import _fmt, _table
+
+    camera = record.get("camera")
+    paste = (
+        "<code>camera.toml</code>, written beside this page, holds {what}: paste its "
+        "[camera] and [distortion] tables into the next project's strip.toml in place of "
+        "its own."
+    )
+    if camera is None:
+        what = (
+            "the start camera, Ebner's estimates as comments"
+            if record.get("family") == "ebner" and record["kept"]
+            else "the start camera"
+        )
+        return "<p>" + paste.format(what=what) + "</p>"
+    return "\n".join(
+        [
+            "<h3>The adjusted camera</h3>",
+            _table(["term", "value", "sd", "unit"], _camera_rows(camera, record["parameters"])),
+            "<p>"
+            + paste.format(what="these values")
+            + " Principal distance and point in mm, as [camera] gives them; "
+            "[distortion] in mm, model \"correction\", fitted over the observed area within "
+            f"{_fmt(camera['distortion_fit_rms_um'])} µm RMS.</p>",
+        ]
+    )
+
+
 def calibration_html(record: dict[str, Any] | None, figures: tuple[str | None, str | None]) -> str:
     """The page's section on the self-calibration ('' without one)."""
     if record is None:
@@ -252,6 +312,7 @@ def calibration_html(record: dict[str, Any] | None, figures: tuple[str | None, s
         "<p>Correlations above 0.9 between the kept parameters: "
         + (_esc(", ".join(f"{c['a']}-{c['b']} {c['r']:.3f}" for c in corr)) or "none")
         + "</p>",
+        _camera_html(record),
         _figure(
             figures[0],
             "The camera's correction over the format (sensor axes), and its radial profile.",
