@@ -149,7 +149,22 @@ def _columns() -> tuple[Figure, dict]:
     return fig, {}
 
 
+def _side_titles() -> tuple[Figure, dict]:
+    """Titles at the left and right of their axes (not matplotlib's
+    ``ax.title``), the only texts above the axes."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8, 3.5))
+    left, right = fig.subplots(1, 2)
+    left.plot([0.0, 1.0], [0.0, 1.0])
+    fixed_title(left, "A title at the left, large", loc="left", fontsize=14)
+    right.plot([0.0, 1.0], [1.0, 0.0])
+    fixed_title(right, "and one at the right", loc="right", fontsize=14)
+    return fig, {}
+
+
 FIGURES: dict[str, Callable[[], tuple[Figure, dict]]] = {
+    "titles left and right": _side_titles,
     "long tick labels": _long_labels,
     "offset texts": _offsets,
     "rotated labels, legend beside": _rotated_beside,

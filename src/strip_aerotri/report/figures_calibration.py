@@ -3,6 +3,7 @@ the image residuals averaged in cells (sensor axes, x right, y up)."""
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -12,11 +13,18 @@ from .figures_frame import fixed_title
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
     from .._typing import FloatArray
     from ..results import ResidualCells, SelfCalibrationOutcome
 
-__all__ = ["distortion_field", "figure_cells", "figure_distortion"]
+__all__ = [
+    "distortion_field",
+    "distortion_figure",
+    "figure_cells",
+    "figure_distortion",
+    "key_length",
+]
 
 #: The interior orientation's parameters, left out of the distortion field.
 _INTERIOR = ("c", "x0", "y0")
@@ -33,16 +41,44 @@ def distortion_field(outcome: SelfCalibrationOutcome, xy_sensor: FloatArray) -> 
     return out
 
 
-def _quiver(ax: Axes, x: FloatArray, y: FloatArray, d: FloatArray, scale: float) -> None:
-    ax.quiver(x, y, d[..., 0], d[..., 1], angles="xy", scale_units="xy", scale=scale, width=0.004)
+def key_length(largest_um: float) -> float:
+    """The key arrow's length (µm): the largest 1, 2 or 5 times a power of
+    ten not above ``largest_um`` (0 for no vector)."""
+    if not (math.isfinite(largest_um) and largest_um > 0.0):
+        return 0.0
+    power = 10.0 ** math.floor(math.log10(largest_um))
+    return max(m * power for m in (1.0, 2.0, 5.0) if m * power <= largest_um * (1 + 1e-12))
+
+
+def _quiver(
+    ax: Axes, x: FloatArray, y: FloatArray, d: FloatArray, scale: float, largest: float = 0.0
+) -> None:
+    """Vectors ``d`` (µm) at ``x, y`` (mm), ``scale`` µm per mm of the axes;
+    with ``largest`` (µm) a key arrow above the axes' right end gives the
+    length of :func:`key_length` in µm (the title then goes left)."""
+    arrows = ax.quiver(
+        x, y, d[..., 0], d[..., 1], angles="xy", scale_units="xy", scale=scale, width=0.004
+    )
+    length = key_length(largest)
+    if length > 0.0:
+        ax.quiverkey(
+            arrows, 1.0, 1.045, length, f"{length:g} µm", labelpos="W", coordinates="axes"
+        )
     ax.set_aspect("equal")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
 
 
 def figure_distortion(outcome: SelfCalibrationOutcome) -> str | None:
-    """Vectors of the correction on a 15 x 15 grid over the observed area, and
-    its radial component's mean over the directions against r."""
+    """The PNG (base64) of :func:`distortion_figure`."""
+    fig = distortion_figure(outcome)
+    return None if fig is None else _fitted_png(fig)
+
+
+def distortion_figure(outcome: SelfCalibrationOutcome) -> Figure | None:
+    """Vectors of the correction on a 15 x 15 grid over the observed area
+    (µm, with a key arrow), and its radial component's mean over the
+    directions against r."""
     from matplotlib.figure import Figure
 
     cells = outcome.cells
@@ -57,8 +93,8 @@ def figure_distortion(outcome: SelfCalibrationOutcome) -> str | None:
     fig = Figure(figsize=(9.0, 3.8))
     ax1, ax2 = fig.subplots(1, 2)
     step = float(hi[0] - lo[0]) / 14.0
-    _quiver(ax1, grid[:, 0], grid[:, 1], d_um, max(largest, 1e-9) / (0.9 * step))
-    fixed_title(ax1, f"correction, largest {largest:.1f} µm")
+    _quiver(ax1, grid[:, 0], grid[:, 1], d_um, max(largest, 1e-9) / (0.9 * step), largest)
+    fixed_title(ax1, f"correction, largest {largest:.1f} µm", loc="left")
     r_max = float(np.max(np.hypot(*np.abs(np.vstack([lo, hi])).max(axis=0)), initial=1.0))
     radii = np.linspace(0.0, r_max, 60)
     angles = np.linspace(0.0, 2 * np.pi, 36, endpoint=False)
@@ -70,7 +106,7 @@ def figure_distortion(outcome: SelfCalibrationOutcome) -> str | None:
     ax2.set_xlabel("r (mm)")
     ax2.set_ylabel("radial correction (µm)")
     fixed_title(ax2, "radial profile (mean over directions)")
-    return _fitted_png(fig)
+    return fig
 
 
 def figure_cells(cells: ResidualCells) -> str | None:

@@ -316,6 +316,9 @@ def _needs(ax: Axes, renderer: RendererAgg, found: _Found) -> FloatArray:
     need = np.maximum(
         _axis_needs(ax.xaxis, renderer, px, found), _axis_needs(ax.yaxis, renderer, px, found)
     )
+    for side in (getattr(ax, "_left_title", None), getattr(ax, "_right_title", None)):
+        if side is not None and side.get_visible() and side.get_text():
+            need = np.maximum(need, _beyond(side.get_window_extent(renderer), ax))
     title = ax.title
     if title.get_visible() and title.get_text():
         need = np.maximum(need, _beyond(title.get_window_extent(renderer), ax))
