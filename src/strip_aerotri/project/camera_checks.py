@@ -18,6 +18,7 @@ an affinity or shear beyond 1 %.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 
@@ -28,7 +29,12 @@ from ..interior import BrownDistortion, flight_from_sensor
 from ..options import DistortionModel, DistortionUnits, FlightDirection
 from ..plausibility import MIN_SPAN_OVER_C, image_coordinate_problems
 
-__all__ = ["camera_problems", "measured_problems", "principal_distance_problems"]
+__all__ = [
+    "camera_problems",
+    "ebner_on_digital",
+    "measured_problems",
+    "principal_distance_problems",
+]
 
 #: Image points spanning at least this are on a real format (a phone's
 #: sensor spans 5 mm); in metres no format does (230 mm film: 0.23).
@@ -49,6 +55,14 @@ MAX_PRINCIPAL_DISTANCE_MM = 2000.0
 #: block's self-calibration gives b1 = 7.5e-4.
 MAX_AFFINITY = 0.01
 _SKEW = {"b1": "an affinity", "b2": "a shear"}
+
+#: Every film mapping camera's principal distance is longer (the super-wide
+#: angle's 88 mm); most digital ones' is shorter (drones 4-25 mm, medium
+#: format 35-50 mm).
+FILM_MIN_PRINCIPAL_DISTANCE_MM = 50.0
+#: Image points of a film camera span more of its 230 mm format; a digital
+#: camera's sensor is under 40 mm up to 36 x 24 mm full frame.
+FILM_MIN_SPAN_MM = 40.0
 
 #: Coordinates from the measurements to the photo system: ``reduce(lens,
 #: principal_point)`` with or without the distortion and the principal point.
@@ -248,3 +262,40 @@ def _lens_problem(
         "radius shrinks as the measured grows: 1 + 3k1 r² + 5k2 r⁴ + 7k3 r⁶ ≤ 0 at "
         f"{folded.size} of {slope.size} points): no lens does; {cause}"
     )
+
+
+def ebner_on_digital(
+    toml_path: Path, principal_distance: float, xy_mm: FloatArray, fiducials: bool
+) -> list[str]:
+    """A warning (one line) when ``self_calibration = "ebner12"`` is asked for
+    a camera that is not a film camera (an empty list otherwise): Ebner's 12
+    parameters model film's deformation between the 3 x 3 points of the
+    standard overlap, not a lens; "auto" is the usual choice.
+
+    The camera is taken as digital when the project has no fiducials (a film
+    camera's photos are reduced through them) and either its principal
+    distance is under :data:`FILM_MIN_PRINCIPAL_DISTANCE_MM` or its image
+    points ``xy_mm`` (K, 2; mm) span less than :data:`FILM_MIN_SPAN_MM` on
+    both axes: no film mapping camera has either.  A pixel size does not
+    tell (scanned film is measured in pixels too), and a large-format
+    digital camera (c 100-120 mm, format 68-104 mm) passes for film: the
+    run is not changed, so a missed warning costs nothing more than now.
+    """
+    if fiducials:
+        return []
+    finite = xy_mm[np.all(np.isfinite(xy_mm), axis=1)]
+    span = float(np.ptp(finite, axis=0).max()) if finite.size else math.nan
+    short = principal_distance < FILM_MIN_PRINCIPAL_DISTANCE_MM
+    small = span < FILM_MIN_SPAN_MM
+    if not (short or small):
+        return []
+    seen = [
+        f"c {principal_distance:.4g} mm" if short else "",
+        f"image points over {span:.3g} mm" if small else "",
+    ]
+    return [
+        f'{toml_path}: [adjustment] self_calibration = "ebner12" on a digital camera '
+        f"({', '.join(w for w in seen if w)}, no fiducials): Ebner's 12 parameters model "
+        "film's deformation on a 3 x 3 grid, not a lens; \"auto\" (the lens and sensor "
+        "terms the data determine) is the usual choice; the run estimates Ebner's as asked"
+    ]

@@ -46,7 +46,12 @@ from ..options import (
     describe,
 )
 from ..plausibility import image_coordinate_problems
-from .camera_checks import camera_problems, measured_problems, principal_distance_problems
+from .camera_checks import (
+    camera_problems,
+    ebner_on_digital,
+    measured_problems,
+    principal_distance_problems,
+)
 from .csvfiles import MAX_TOML_BYTES, CsvTable, decode, read_bytes
 from .model import Camera, Project, readonly
 from .output import check_output
@@ -347,6 +352,10 @@ def load_project(path: str | Path) -> Project:
     options = _adjustment_options(
         toml_path, adjustment, doc.get("adjustment", {}), route, block=bool(strips)
     )
+    if options.self_calibration == "ebner12":
+        warnings += ebner_on_digital(
+            toml_path, principal_distance, observations.xy, bool(fiducials)
+        )
     map_scale = report["map_scale"]
     return Project(
         path=toml_path,
