@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -16,6 +17,13 @@ from strip_aerotri.project.camera_checks import ebner_on_digital
 from strip_aerotri.simulate import simulate_strip
 
 TOML = Path("strip.toml")
+EBNER = SimpleNamespace(self_calibration="ebner12")
+
+
+def _warned(c_mm: float, xy: np.ndarray, fiducials: bool, options=EBNER) -> list[str]:
+    return ebner_on_digital(
+        TOML, options, c_mm, SimpleNamespace(xy=xy), (object(),) if fiducials else ()
+    )  # type: ignore[arg-type]
 
 
 def _square(half_mm: float) -> np.ndarray:
@@ -33,7 +41,7 @@ def _square(half_mm: float) -> np.ndarray:
     ],
 )
 def test_a_digital_camera_is_told_once(c_mm, half_mm, fiducials, seen):
-    (line,) = ebner_on_digital(TOML, c_mm, _square(half_mm), fiducials)
+    (line,) = _warned(c_mm, _square(half_mm), fiducials)
     assert line.startswith('strip.toml: [adjustment] self_calibration = "ebner12" on a digital')
     assert f"({seen}, no fiducials)" in line
     assert '"auto"' in line and "film" in line and "\n" not in line
@@ -49,14 +57,19 @@ def test_a_digital_camera_is_told_once(c_mm, half_mm, fiducials, seen):
     ],
 )
 def test_a_film_camera_is_not(c_mm, half_mm, fiducials):
-    assert ebner_on_digital(TOML, c_mm, _square(half_mm), fiducials) == []
+    assert _warned(c_mm, _square(half_mm), fiducials) == []
 
 
 def test_no_point_leaves_only_the_principal_distance_to_judge():
     empty = np.full((3, 2), np.nan)
-    assert ebner_on_digital(TOML, 152.9, empty, False) == []
-    (line,) = ebner_on_digital(TOML, 8.8, empty, False)
+    assert _warned(152.9, empty, False) == []
+    (line,) = _warned(8.8, empty, False)
     assert "(c 8.8 mm, no fiducials)" in line
+
+
+@pytest.mark.parametrize("choice", ["auto", ("k1", "b1"), "none"])
+def test_other_choices_are_not_judged(choice):
+    assert _warned(3.61, _square(3.0), False, SimpleNamespace(self_calibration=choice)) == []
 
 
 def _ebner(folder: Path, preset: str) -> Path:

@@ -19,14 +19,15 @@ an affinity or shear beyond 1 %.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from .._typing import FloatArray
 from ..interior import BrownDistortion, flight_from_sensor
-from ..options import DistortionModel, DistortionUnits, FlightDirection
+from ..observations import ImageObservations
+from ..options import AdjustmentOptions, DistortionModel, DistortionUnits, FlightDirection
 from ..plausibility import MIN_SPAN_OVER_C, image_coordinate_problems
 
 __all__ = [
@@ -265,24 +266,30 @@ def _lens_problem(
 
 
 def ebner_on_digital(
-    toml_path: Path, principal_distance: float, xy_mm: FloatArray, fiducials: bool
+    toml_path: Path,
+    options: AdjustmentOptions,
+    principal_distance: float,
+    observations: ImageObservations,
+    fiducials: Sequence[object],
 ) -> list[str]:
-    """A warning (one line) when ``self_calibration = "ebner12"`` is asked for
-    a camera that is not a film camera (an empty list otherwise): Ebner's 12
-    parameters model film's deformation between the 3 x 3 points of the
-    standard overlap, not a lens; "auto" is the usual choice.
+    """A warning (one line) when ``options`` ask ``self_calibration =
+    "ebner12"`` for a camera that is not a film camera (an empty list
+    otherwise): Ebner's 12 parameters model film's deformation between the
+    3 x 3 points of the standard overlap, not a lens; "auto" is the usual
+    choice.
 
-    The camera is taken as digital when the project has no fiducials (a film
-    camera's photos are reduced through them) and either its principal
-    distance is under :data:`FILM_MIN_PRINCIPAL_DISTANCE_MM` or its image
-    points ``xy_mm`` (K, 2; mm) span less than :data:`FILM_MIN_SPAN_MM` on
-    both axes: no film mapping camera has either.  A pixel size does not
+    The camera is taken as digital when the project has no ``fiducials`` (a
+    film camera's photos are reduced through them) and either its principal
+    distance (mm) is under :data:`FILM_MIN_PRINCIPAL_DISTANCE_MM` or its image
+    points (``observations.xy``, mm) span less than :data:`FILM_MIN_SPAN_MM`
+    on both axes: no film mapping camera has either.  A pixel size does not
     tell (scanned film is measured in pixels too), and a large-format
     digital camera (c 100-120 mm, format 68-104 mm) passes for film: the
     run is not changed, so a missed warning costs nothing more than now.
     """
-    if fiducials:
+    if options.self_calibration != "ebner12" or fiducials:
         return []
+    xy_mm = observations.xy
     finite = xy_mm[np.all(np.isfinite(xy_mm), axis=1)]
     span = float(np.ptp(finite, axis=0).max()) if finite.size else math.nan
     short = principal_distance < FILM_MIN_PRINCIPAL_DISTANCE_MM

@@ -292,7 +292,6 @@ def load_project(path: str | Path) -> Project:
     if project_table is not None and project_table["name"] is not None:
         name = str(project_table["name"])
     crs = "local" if str(control["crs"]).lower() == "local" else str(control["crs"])
-
     principal_point: tuple[float, float] = camera["principal_point_mm"]  # type: ignore[assignment]
     principal_distance = float(camera["principal_distance_mm"])  # type: ignore[arg-type]
     for problem in principal_distance_problems(toml_path, principal_distance):
@@ -352,10 +351,7 @@ def load_project(path: str | Path) -> Project:
     options = _adjustment_options(
         toml_path, adjustment, doc.get("adjustment", {}), route, block=bool(strips)
     )
-    if options.self_calibration == "ebner12":
-        warnings += ebner_on_digital(
-            toml_path, principal_distance, observations.xy, bool(fiducials)
-        )
+    warnings += ebner_on_digital(toml_path, options, principal_distance, observations, fiducials)
     map_scale = report["map_scale"]
     return Project(
         path=toml_path,
