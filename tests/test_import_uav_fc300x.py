@@ -224,3 +224,30 @@ def test_real_calibration_matches_its_3dm_calibcam_export() -> None:
     # -K1 (f s)^2 and -K2 (f s)^4.
     assert cal.distortion.k1 == pytest.approx(-8.653781038e-4 * (f * s) ** 2, rel=1e-6)
     assert cal.distortion.k2 == pytest.approx(8.592621298e-5 * (f * s) ** 4, rel=1e-6)
+
+
+def test_no_distortion_is_said_in_strip_toml(tmp_path: Path) -> None:
+    """Without cal.cal's distortion (--no-distortion) strip.toml has no
+    [distortion] and a comment says it was left out, as the other import
+    comments do; with it, neither the comment nor the absence."""
+    from click.testing import CliRunner
+
+    from strip_aerotri.cli.main import cli
+
+    texts = {}
+    for flag in ([], ["--no-distortion"]):
+        out = tmp_path / ("without" if flag else "with")
+        ran = CliRunner().invoke(
+            cli, ["import", "uav-fc300x", str(SAMPLE / "fc300x"), "-o", str(out), *flag]
+        )
+        assert ran.exit_code == 0, ran.output
+        texts[bool(flag)] = (out / "strip.toml").read_text("utf-8")
+    comment = (
+        "# no [distortion]: cal.cal's radial distortion left out (--no-distortion), so the "
+        "coordinates are taken as free of it; to estimate the lens from these photos: "
+        '[adjustment] refine = "bundle" and self_calibration = "auto"'
+    )
+    assert comment in texts[True].splitlines()
+    assert "distortion" not in tomllib.loads(texts[True])
+    assert "distortion left out" not in texts[False]
+    assert "distortion" in tomllib.loads(texts[False])

@@ -337,6 +337,12 @@ def import_uav_fc300x(
         f"camera from {cal_path.name}: c = {cal.camera.principal_distance_mm:.6f} mm, "
         f"pixel {cal.pixel_size_mm:.8f} mm"
     )
+    if not distortion:
+        notes.append(
+            f"no [distortion]: {cal_path.name}'s radial distortion left out (--no-distortion), "
+            "so the coordinates are taken as free of it; to estimate the lens from these "
+            'photos: [adjustment] refine = "bundle" and self_calibration = "auto"'
+        )
     if crs.strip().lower() == "local":
         notes.append(
             'crs = "local": GCP_UTM.txt gives UTM E, N without the zone, so they serve as a '
