@@ -320,8 +320,9 @@ def calibration_html(record: dict[str, Any] | None, figures: tuple[str | None, s
         ),
         _figure(
             figures[1],
-            "Image residuals averaged in cells over the format: with the camera's correction "
-            "added back (left), and after the self-calibration (right).",
+            "Image residuals averaged in cells over the format, at one scale: before, with "
+            "the camera's correction added back (left), and after the self-calibration "
+            "(right).",
             "residuals over the format",
         ),
     ]

@@ -19,6 +19,7 @@ if TYPE_CHECKING:
     from ..results import ResidualCells, SelfCalibrationOutcome
 
 __all__ = [
+    "cells_figure",
     "distortion_field",
     "distortion_figure",
     "figure_cells",
@@ -59,12 +60,23 @@ def _quiver(
     arrows = ax.quiver(
         x, y, d[..., 0], d[..., 1], angles="xy", scale_units="xy", scale=scale, width=0.004
     )
+    # the axes hold the points and the arrows' tips (matplotlib's limits
+    # hold the points only: an arrow of an edge cell ran off the axes)
+    (x0, x1), (y0, y1) = (
+        (float(np.min([p, p + q / scale])), float(np.max([p, p + q / scale])))
+        for p, q in ((x, d[..., 0]), (y, d[..., 1]))
+    )
+    pad = 0.05 * max(x1 - x0, y1 - y0, 1e-9)
+    ax.set_xlim(x0 - pad, x1 + pad)
+    ax.set_ylim(y0 - pad, y1 + pad)
+    ax.set_aspect("equal")
     length = key_length(largest)
     if length > 0.0:
+        # the arrow (centred on its place) ends at the axes' right edge
+        end = 1.0 - 0.5 * length / scale / (x1 - x0 + 2.0 * pad)
         ax.quiverkey(
-            arrows, 1.0, 1.045, length, f"{length:g} µm", labelpos="W", coordinates="axes"
+            arrows, end, 1.045, length, f"{length:g} µm", labelpos="W", coordinates="axes"
         )
-    ax.set_aspect("equal")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
 
@@ -110,7 +122,14 @@ def distortion_figure(outcome: SelfCalibrationOutcome) -> Figure | None:
 
 
 def figure_cells(cells: ResidualCells) -> str | None:
-    """Mean residual per cell, before (correction added back) and after."""
+    """The PNG (base64) of :func:`cells_figure`."""
+    fig = cells_figure(cells)
+    return None if fig is None else _fitted_png(fig)
+
+
+def cells_figure(cells: ResidualCells) -> Figure | None:
+    """Mean residual per cell (µm), before (correction added back) and
+    after, at one scale with a key arrow on each panel."""
     from matplotlib.figure import Figure
 
     if not np.any(cells.count):
@@ -127,10 +146,10 @@ def figure_cells(cells: ResidualCells) -> str | None:
     for ax, field, title in zip(
         fig.subplots(1, 2),
         (cells.before, cells.after),
-        ("without the camera's correction", "after self-calibration"),
+        ("before", "after"),  # the page's caption says what each is
         strict=True,
     ):
-        _quiver(ax, gx, gy, np.nan_to_num(field), scale)
+        _quiver(ax, gx, gy, np.nan_to_num(field), scale, largest)
         rms = float(np.sqrt(np.nanmean(np.sum(field**2, axis=-1))))
-        fixed_title(ax, f"{title}: RMS {rms:.2f} µm")
-    return _fitted_png(fig)
+        fixed_title(ax, f"{title}: RMS {rms:.2f} µm", loc="left")
+    return fig
