@@ -116,7 +116,7 @@ def measure(project: Any, strip: Any, control: Any) -> dict[str, Any]:
         picked.sigma_h[z], first.sigma_height,
     )  # fmt: skip
     problems = polynomials.height_unit_check(strip, control, crs, project.adjustment.route)
-    told = ratio is not None and ratio.sd <= height_units._SLOPE_PRECISION * ratio.ratio
+    told = ratio is not None and ratio.told
     verdict = problems[0].rsplit(": ", 1)[-1].split(" (")[0] if problems else "pass"
     return {"slope": slope, "ratio": ratio, "by": "ratio" if told else "slope",
             "verdict": verdict}  # fmt: skip
