@@ -19,9 +19,9 @@ it prints:
 * **slope**: :func:`height_slope` and its standard deviation;
 * **ratio**: :func:`gradient_ratio` and its standard deviation, with the
   plan and height points of its fits (``-`` where it cannot be formed);
-* **verdict**: what :func:`strip_aerotri.ground.polynomials.height_unit_check`
-  answers (``pass``, or the cause named), by which measure (``ratio`` when
-  the ratio is told, else ``slope``).
+* **verdict**: what :func:`strip_aerotri.ground.height_units.height_unit_problems`
+  answers on the ground stage's inputs (``pass``, or the cause named), by
+  which measure (``ratio`` when the ratio is told, else ``slope``).
 """
 
 from __future__ import annotations
@@ -106,16 +106,10 @@ def measure(project: Any, strip: Any, control: Any) -> dict[str, Any]:
     crs = GroundCRS.from_user_input(project.crs)
     route = resolve_route(project.adjustment.route, crs)
     picked = control_rows(strip, control)
-    first = polynomials._first_look(strip, picked, crs, route)
-    z, xy = picked.use_z, picked.use_xy
-    scaled = first.strip_xyz * first.metres_per_model
-    sigma_xy = np.hypot(picked.sigma_xy, first.sigma_plan)
-    slope = height_units.height_slope(scaled[z], first.target[z, 2], first.exp_z[z])
-    ratio = height_units.gradient_ratio(
-        scaled[xy], first.target[xy, :2], sigma_xy[xy], scaled[z], picked.given[z, 2],
-        picked.sigma_h[z], first.sigma_height,
-    )  # fmt: skip
-    problems = polynomials.height_unit_check(strip, control, crs, project.adjustment.route)
+    inputs = polynomials._unit_inputs(polynomials._first_look(strip, picked, crs, route), picked)
+    slope = height_units.height_slope(inputs["model_xyz"], inputs["height"], inputs["sigma"])
+    ratio = height_units.gradient_ratio(*inputs["plan"], inputs["model_xyz"], *inputs["given"])
+    problems = height_units.height_unit_problems(**inputs)
     told = ratio is not None and ratio.told
     verdict = problems[0].rsplit(": ", 1)[-1].split(" (")[0] if problems else "pass"
     return {"slope": slope, "ratio": ratio, "by": "ratio" if told else "slope",
