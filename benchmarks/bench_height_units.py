@@ -74,13 +74,7 @@ SIMULATED = {
 def changed(control: Any, plan: float, height: float) -> Any:
     """The control with X, Y times ``plan`` and H times ``height`` (their
     sigmas as given: a unit mistake in the coordinates' columns only)."""
-    from strip_aerotri.observations import ControlPoints
-
-    xyz = control.xyz * np.array([plan, plan, height])
-    return ControlPoints(
-        control.point_ids, xyz, control.kind, control.sigma_xy, control.sigma_h,
-        control.source_line,
-    )  # fmt: skip
+    return dataclasses.replace(control, xyz=control.xyz * np.array([plan, plan, height]))
 
 
 def strips_of(project: Any) -> Iterator[tuple[str, Any]]:
