@@ -48,3 +48,17 @@ def test_without_restored_points_or_the_results_warnings_the_page_is_report_json
     # report.json alone cannot say which points a count names: kept as it is
     restored = {"warnings": texts, "bundle": {"restored_points": ["A", "C"]}}
     assert page_warnings(restored) == texts
+
+
+def test_the_pages_must_be_given_the_results_warnings():
+    """Without the result's own warnings a page lists the restored points as
+    left out again: html_page and block_html take them as a required keyword."""
+    import inspect
+
+    from strip_aerotri.report.block_page import block_html
+    from strip_aerotri.report.html import html_page
+
+    for page in (html_page, block_html):
+        param = inspect.signature(page).parameters["warnings"]
+        assert param.kind is inspect.Parameter.KEYWORD_ONLY
+        assert param.default is inspect.Parameter.empty
