@@ -62,3 +62,22 @@ def test_the_pages_must_be_given_the_results_warnings():
         param = inspect.signature(page).parameters["warnings"]
         assert param.kind is inspect.Parameter.KEYWORD_ONLY
         assert param.default is inspect.Parameter.empty
+
+
+def test_two_strips_counts_alike_are_matched_in_order():
+    """Two strips each leave out six points, the first five the same: their
+    counts read alike in report.json.  'F' (the first strip's sixth)
+    restored: the first count is made again without it, the second stays;
+    'G' (the second's) restored: the other way round."""
+    first = PointWarning.points_not_triangulated(["A", "B", "C", "D", "E", "F"], CAUSE)
+    second = PointWarning.points_not_triangulated(["A", "B", "C", "D", "E", "G"], CAUSE)
+    assert str(first) == str(second)
+    five = f"5 point(s) not triangulated ({CAUSE}): 'A', 'B', 'C', 'D', 'E'"
+    stage = ["S1: a plain text", first, second]
+    texts = [str(w) for w in stage]
+    for restored, expected in (("F", [five, str(second)]), ("G", [str(first), five])):
+        report = {"warnings": texts, "bundle": {"restored_points": [restored]}}
+        assert page_warnings(report, stage) == [texts[0], *expected]
+    # a text report.json repeats more often than the result: the rest as they are
+    report = {"warnings": [*texts, texts[1]], "bundle": {"restored_points": ["F"]}}
+    assert page_warnings(report, stage) == [texts[0], five, str(second), texts[1]]
