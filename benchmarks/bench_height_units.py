@@ -21,7 +21,10 @@ it prints:
   plan and height points of its fits (``-`` where it cannot be formed);
 * **verdict**: what :func:`strip_aerotri.ground.height_units.height_unit_problems`
   answers on the ground stage's inputs (``pass``, or the cause named), by
-  which measure (``ratio`` when the ratio is told, else ``slope``).
+  which measure (``ratio`` when the ratio is told, else ``slope``);
+  ``pass (no similarity)`` by ``-`` where the strip's control is too scant
+  for the first look (``stripaero check`` passes it: the similarity's own
+  rules say so).
 """
 
 from __future__ import annotations
@@ -93,6 +96,7 @@ def strips_of(project: Any) -> Iterator[tuple[str, Any]]:
 
 def measure(project: Any, strip: Any, control: Any) -> dict[str, Any]:
     """Slope, ratio and verdict of one strip under ``control``."""
+    from strip_aerotri.errors import GeometryError
     from strip_aerotri.geodesy import GroundCRS
     from strip_aerotri.ground import height_units, polynomials
     from strip_aerotri.ground.common import control_rows, resolve_route
@@ -100,7 +104,11 @@ def measure(project: Any, strip: Any, control: Any) -> dict[str, Any]:
     crs = GroundCRS.from_user_input(project.crs)
     route = resolve_route(project.adjustment.route, crs)
     picked = control_rows(strip, control)
-    inputs = polynomials._unit_inputs(polynomials._first_look(strip, picked, crs, route), picked)
+    try:
+        first = polynomials._first_look(strip, picked, crs, route)
+    except GeometryError:  # too little control for the similarity: the check passes
+        return {"slope": None, "ratio": None, "by": "-", "verdict": "pass (no similarity)"}
+    inputs = polynomials._unit_inputs(first, picked)
     slope = height_units.height_slope(inputs["model_xyz"], inputs["height"], inputs["sigma"])
     ratio = height_units.gradient_ratio(*inputs["plan"], inputs["model_xyz"], *inputs["given"])
     problems = height_units.height_unit_problems(**inputs)
