@@ -13,6 +13,17 @@ formats.md, the contract):
   photos.csv and report.json;
 * ``EITHER``: 0 or 1, each with the rules above.
 
+The camera's entries (``-k camera -k distortion -k self_calibration``) put
+the mistakes of a first self-calibrated project into ``[camera]``,
+``[distortion]`` and ``[adjustment] self_calibration``, and paste a
+self-calibration's ``camera.toml`` into the next project: c and the
+principal point in pixels, metres or beyond the format, coefficients a
+million times too large or for normalised coordinates, unknown, repeated or
+missing names and keys.  An entry whose answer may rightly differ between a
+film and a drone camera (k1 of the wrong sign, normalised coefficients read
+as mm: a 20 % correction at the drone format's corner, 20 times the radius on film; Ebner's film
+parameters on the drone) is ``EITHER``.
+
 Every run, whatever its answer: no traceback, no stderr line that is neither
 an error nor a warning, the input files byte-identical afterwards, and the
 project folder either holds a new complete result (exit 0) or exactly what it
@@ -437,6 +448,114 @@ def _toml_line(old: str, new: str) -> Callable[[Project], None]:
     return lambda p: p.edit_toml(old, new)
 
 
+# ----------------------------------------------------------------------------- the camera
+
+
+def _without_table(text: str, name: str) -> str:
+    """``text`` without the table ``[name]`` (its header and keys)."""
+    return re.sub(rf"^\[{name}\]\n(?:[^\[\n].*\n|\n)*", "", text, count=1, flags=re.M)
+
+
+def _adjustment(lines: str) -> Callable[[Project], None]:
+    """Keys added to [adjustment] (the table added when the project has none)."""
+
+    def apply(p: Project) -> None:
+        text = p.toml.read_text("utf-8")
+        if re.search(r"^\[adjustment\]\n", text, re.M) is None:
+            text += "\n[adjustment]\n"
+        p.toml.write_text(text.replace("[adjustment]\n", f"[adjustment]\n{lines}\n", 1), "utf-8")
+
+    return apply
+
+
+def _bundle(choice: str) -> Callable[[Project], None]:
+    return _adjustment(f'refine = "bundle"\nself_calibration = {choice}')
+
+
+def _camera_keys(lines: str) -> Callable[[Project], None]:
+    """Keys set in [camera] (in place of the project's own of the same name)."""
+
+    def apply(p: Project) -> None:
+        text = p.toml.read_text("utf-8")
+        table = re.search(r"^\[camera\]\n(?:[^\[\n].*\n|\n)*", text, re.M)
+        if table is None:
+            raise ValueError(f"{p.toml}: no [camera] table")
+        body = table.group()
+        for key in re.findall(r"^(\w+)\s*=", lines, re.M):
+            body = re.sub(rf"^{key}\s*=.*\n", "", body, flags=re.M)
+        body = body.replace("[camera]\n", f"[camera]\n{lines}\n", 1)
+        p.toml.write_text(text[: table.start()] + body + text[table.end() :], encoding="utf-8")
+
+    return apply
+
+
+def _image_reach(p: Project) -> tuple[float, float]:
+    """The largest |x| and the largest distance of the image points from the origin (mm)."""
+    header, rows = p.rows(p.images)
+    ix, iy = header.index("x"), header.index("y")
+    x = [float(r[ix]) for r in rows]
+    y = [float(r[iy]) for r in rows]
+    return max(map(abs, x)), max(a * a + b * b for a, b in zip(x, y, strict=True)) ** 0.5
+
+
+def _k1(p: Project) -> float:
+    """A plausible k1 (mm^-2) of the project's camera: 20 um at its farthest point."""
+    return -0.020 / _image_reach(p)[1] ** 3
+
+
+def _distortion(table: Callable[[Project], str]) -> Callable[[Project], None]:
+    """A [distortion] table (its lines from the project) before [images], in
+    place of the project's own."""
+
+    def apply(p: Project) -> None:
+        lines = table(p)
+        text = _without_table(p.toml.read_text("utf-8"), "distortion")
+        text = text.replace("[images]\n", f"[distortion]\n{lines}\n\n[images]\n", 1)
+        p.toml.write_text(text, encoding="utf-8")
+
+    return apply
+
+
+def _principal_point_beyond_the_format(p: Project) -> None:
+    """x0 beyond the farthest image point along the flight (x)."""
+    _camera_keys(f"principal_point_mm = [{1.3 * _image_reach(p)[0]!r}, 0.0]")(p)
+
+
+def _c(p: Project) -> float:
+    match = re.search(r"principal_distance_mm\s*=\s*([0-9.eE+-]+)", p.toml.read_text("utf-8"))
+    if match is None:
+        raise ValueError("no principal_distance_mm")
+    return float(match.group(1))
+
+
+def _camera_toml(p: Project, camera: str, distortion: str, replace: bool = True) -> None:
+    """A self-calibration's camera.toml pasted in place of [camera] (``replace``)
+    or added after the project's own."""
+    text = p.toml.read_text("utf-8")
+    if replace:
+        text = _without_table(_without_table(text, "camera"), "distortion")
+    pasted = (
+        "# The camera adjusted by the bundle's self-calibration; paste these tables\n"
+        f"[camera]\n{camera}\n\n[distortion]\n{distortion}\n"
+    )
+    p.toml.write_text(text + "\n" + pasted, encoding="utf-8")
+
+
+def _pasted(
+    camera: str = "c",
+    distortion: str = 'units = "mm"\nmodel = "correction"\nk1 = K1',
+    replace: bool = True,
+) -> Callable[[Project], None]:
+    """camera.toml's tables with the project's c (``c``) and a plausible k1 (``K1``)."""
+
+    def apply(p: Project) -> None:
+        cam = camera.replace("c", f"principal_distance_mm = {_c(p)!r}", 1) if camera else ""
+        cam = cam.replace("PP", "principal_point_mm = [0.0012, -0.0021]")
+        _camera_toml(p, cam, distortion.replace("K1", repr(_k1(p))), replace)
+
+    return apply
+
+
 MUTATIONS: tuple[Mutation, ...] = (
     # columns
     Mutation("images: column x missing", FAIL, _drop_column("images", "x"), (("column(s) x",),)),
@@ -530,8 +649,12 @@ MUTATIONS: tuple[Mutation, ...] = (
         FAIL,
         lambda p: p.map_column(p.images, "x", lambda v: repr(-float(v))),
     ),
-    Mutation("camera: c in metres", FAIL, lambda p: _set_c(p, 1e-3)),
-    Mutation("camera: c in micrometres", FAIL, lambda p: _set_c(p, 1e3)),
+    Mutation(
+        "camera: c in metres", FAIL, lambda p: _set_c(p, 1e-3), (("principal_distance_mm",),)
+    ),
+    Mutation(
+        "camera: c in micrometres", FAIL, lambda p: _set_c(p, 1e3), (("principal_distance_mm",),)
+    ),
     Mutation("control: X, Y swapped", FAIL, _swap_columns("control", "X", "Y")),
     Mutation(
         "control: X, Y in km",
@@ -641,6 +764,158 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation("control: every point a check point", FAIL, lambda p: _control_types(p, "check")),
     Mutation("control: two full points only", FAIL, lambda p: _control_types(p, "check", 2)),
     Mutation("control: sigma_xy 0", FAIL, _cell("control", "sigma_xy", "0"), (("sigma_xy",),)),
+    # the camera: [camera]
+    Mutation("camera: c negative", FAIL, lambda p: _set_c(p, -1.0), (("principal_distance_mm",),)),
+    Mutation(
+        "camera: c in pixels of 2.4 um",
+        FAIL,
+        lambda p: _set_c(p, 1 / 0.0024),
+        (("principal_distance_mm",), ("pixels",)),
+    ),
+    Mutation(
+        "camera: principal point beyond the format",
+        FAIL,
+        _principal_point_beyond_the_format,
+        (("principal_point_mm",),),
+    ),
+    Mutation(
+        "camera: principal point in pixels",
+        FAIL,
+        _camera_keys("principal_point_mm = [2736.0, 1824.0]"),
+        (("principal_point_mm",), ("pixels",)),
+    ),
+    Mutation(
+        "camera: principal point of 0.3 mm", OK, _camera_keys("principal_point_mm = [0.3, -0.2]")
+    ),
+    Mutation(
+        "camera: principal point with one number",
+        FAIL,
+        _camera_keys("principal_point_mm = [0.01]"),
+        (("principal_point_mm",),),
+    ),
+    Mutation(
+        "camera: principal point as a table",
+        FAIL,
+        _camera_keys("principal_point_mm = { x = 0.0, y = 0.0 }"),
+        (("principal_point_mm",),),
+    ),
+    Mutation(
+        "camera: focal_length_mm as well",
+        FAIL,
+        _camera_keys("focal_length_mm = 8.8"),
+        (("focal_length_mm",),),
+    ),
+    Mutation(
+        "camera: self_calibration in [camera]",
+        FAIL,
+        _camera_keys('self_calibration = "auto"'),
+        (("self_calibration",),),
+    ),
+    Mutation(
+        "camera: the table twice",
+        FAIL,
+        _toml_line("[images]\n", "[camera]\n\n[images]\n"),
+        (("[camera]",), ("twice",)),
+    ),
+    # [distortion]
+    Mutation("distortion: a plausible k1", OK, _distortion(lambda p: f"k1 = {_k1(p)!r}")),
+    Mutation(
+        "distortion: k1 of the wrong sign", EITHER, _distortion(lambda p: f"k1 = {-_k1(p)!r}")
+    ),
+    Mutation(
+        "distortion: k1 1e6 times too large",
+        FAIL,
+        _distortion(lambda p: f"k1 = {1e6 * _k1(p)!r}"),
+        (("[distortion]",), ("k1 =",)),
+    ),
+    Mutation(
+        "distortion: k1 1e6 times too large, other sign",
+        FAIL,
+        _distortion(lambda p: f"k1 = {-1e6 * _k1(p)!r}"),
+        (("[distortion]",), ("k1 =",)),
+    ),
+    Mutation(
+        "distortion: projection k1 1e6 times too large",
+        FAIL,
+        _distortion(lambda p: f'model = "projection"\nk1 = {1e6 * _k1(p)!r}'),
+        (("[distortion]",),),
+    ),
+    Mutation(
+        "distortion: normalized k1 read as mm",
+        EITHER,  # the drone: 20 % at the corner
+        _distortion(lambda p: f"k1 = {_k1(p) * _c(p) ** 2!r}"),
+    ),
+    Mutation(
+        "distortion: units pixel",
+        FAIL,
+        _distortion(lambda p: 'units = "pixel"\nk1 = 1e-9'),
+        (("units",), ("pixel",)),
+    ),
+    Mutation("distortion: units px", FAIL, _distortion(lambda p: 'units = "px"'), (("units",),)),
+    Mutation("distortion: k4", FAIL, _distortion(lambda p: "k4 = 1e-9"), (("k4",),)),
+    Mutation("distortion: K1 in capitals", FAIL, _distortion(lambda p: "K1 = 1e-9"), (("K1",),)),
+    Mutation("distortion: k1 as a string", FAIL, _distortion(lambda p: 'k1 = "1e-9"'), (("k1",),)),
+    Mutation("distortion: k1 nan", FAIL, _distortion(lambda p: "k1 = nan"), (("k1",),)),
+    Mutation("distortion: an empty table", OK, _distortion(lambda p: "")),
+    Mutation(
+        "distortion: affinity in percent",
+        FAIL,
+        _distortion(lambda p: "b1 = 0.5"),
+        (("b1",), ("affinity",)),
+    ),
+    # [adjustment] self_calibration
+    Mutation("self_calibration: auto", OK, _bundle('"auto"')),
+    Mutation("self_calibration: a list", OK, _bundle('["k1", "b1"]')),
+    Mutation("self_calibration: ebner12", EITHER, _bundle('"ebner12"')),  # the drone: a film model
+    Mutation(
+        "self_calibration: auto without refine",
+        FAIL,
+        _adjustment('self_calibration = "auto"'),
+        (("self_calibration",), ('refine = "bundle"',)),
+    ),
+    Mutation("self_calibration: unknown name", FAIL, _bundle('["k1", "k4"]'), (("'k4'",),)),
+    Mutation(
+        "self_calibration: unknown choice", FAIL, _bundle('"everything"'), (("self_calibration",),)
+    ),
+    Mutation("self_calibration: ebner misspelt", FAIL, _bundle('"ebner"'), (('"ebner12"?',),)),
+    Mutation("self_calibration: a name twice", FAIL, _bundle('["k1", "k1"]'), (("twice",),)),
+    Mutation("self_calibration: an empty list", FAIL, _bundle("[]"), (("an empty list",),)),
+    Mutation("self_calibration: a bare name", FAIL, _bundle('"k1"'), (('["k1"]',),)),
+    Mutation("self_calibration: a number in the list", FAIL, _bundle('["k1", 2]'), (("item 2",),)),
+    Mutation("self_calibration: true", FAIL, _bundle("true"), (("self_calibration",),)),
+    Mutation(
+        "self_calibration: auto, refine none",
+        FAIL,
+        _adjustment('refine = "none"\nself_calibration = "auto"'),
+        (('refine = "bundle"',),),
+    ),
+    # a self-calibration's camera.toml in the next project
+    Mutation("camera.toml: pasted in place", OK, _pasted("c\nPP")),
+    Mutation(
+        "camera.toml: added, [camera] kept",
+        FAIL,
+        _pasted("c\nPP", replace=False),
+        (("camera.toml",), ("twice",)),
+    ),
+    Mutation(
+        "camera.toml: principal_distance_mm missing",
+        FAIL,
+        _pasted("PP"),
+        (("principal_distance_mm",),),
+    ),
+    Mutation("camera.toml: [distortion] without units, model", OK, _pasted("c", "k1 = K1")),
+    Mutation(
+        "camera.toml: an extra key",
+        FAIL,
+        _pasted("c", "k1 = K1\ndistortion_fit_rms_um = 1e-14"),
+        (("distortion_fit_rms_um",),),
+    ),
+    Mutation(
+        "camera.toml: the report's camera keys",
+        FAIL,
+        _pasted("c\ndistortion = { k1 = 0.0 }"),
+        (("distortion",),),
+    ),
 )
 
 

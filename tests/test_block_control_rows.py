@@ -98,13 +98,11 @@ def test_restored_control_rows_are_added_once():
     restored[p.idx[gone]] = True  # the two left out ...
     restored[p.idx[keep[0]]] = True  # ... and one that still has its row
     points = np.zeros((p.observations.n_points, 3))
-    q, _, new_xy, new_z, new_block = _with_restored_control(
-        cut, cut_sol, use_xy[keep], use_z[keep], cut_block, restored, points
-    )
+    q, _, new_block = _with_restored_control(cut, cut_sol, cut_block, restored, points)
     assert q.control_rows.size == p.control_rows.size  # two rows back, none twice
     assert np.unique(q.control_rows).size == q.control_rows.size
     np.testing.assert_array_equal(np.sort(q.control_rows), np.sort(p.control_rows))
     order = np.argsort(q.control_rows)
     np.testing.assert_array_equal(q.idx[order], p.idx[np.argsort(p.control_rows)])
-    assert new_xy.size == new_z.size == q.control_rows.size
+    assert q.use_xy.size == q.use_z.size == q.control_rows.size
     assert np.all(np.isnan(new_block.control_residuals[-gone.size :]))

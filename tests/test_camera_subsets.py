@@ -4,6 +4,8 @@ made by adjusting every subset; the screening's correlations."""
 
 from __future__ import annotations
 
+import re
+
 import warnings
 
 import numpy as np
@@ -176,6 +178,15 @@ def _adjusting_every_subset(frame: _Frame) -> tuple[tuple[str, ...], dict[str, s
     return tuple(active), held
 
 
+def _t_values(reason: str) -> list[float]:
+    return [float(x) for x in re.findall(r"t = ([-0-9.]+)", reason)]
+
+
+def _words(reason: str) -> str:
+    """The reason with its t values blanked (the correlations kept)."""
+    return re.sub(r"t = [-0-9.]+", "t = _", reason)
+
+
 @pytest.mark.parametrize("errors", [_ERRORS, None])
 def test_the_choice_equals_adjusting_every_subset(errors: dict[str, float] | None) -> None:
     frame = _Frame(errors)
@@ -183,10 +194,16 @@ def test_the_choice_equals_adjusting_every_subset(errors: dict[str, float] | Non
     cam, outcome = selfcal._auto(SelfCalibration("auto"), trials, frame.c_mm, 0.0)
     kept, held = _adjusting_every_subset(frame)
     reasons = {p.name: p.reason for p in outcome.parameters if not p.kept}
-    # the same decisions, told with the same values (t and correlations to
-    # the printed digits)
+    # the same decisions, told with the same values: correlations to the
+    # printed digits, t values within 2 %.  (c, 1 - rho of 4e-6 here, goes into
+    # the walk; the border's algebra at the first adjustment's point and an
+    # adjustment of each subset differ in its t by about 1 %: 1.54 against
+    # 1.52, both far below 3.)
     assert set(outcome.kept) == set(kept) == set(errors or ())
-    assert reasons == held
+    assert reasons.keys() == held.keys()
+    for name, reason in reasons.items():
+        assert _words(reason) == _words(held[name]), (reason, held[name])
+        assert np.allclose(_t_values(reason), _t_values(held[name]), rtol=0.02, atol=0)
     assert (cam is None) == (errors is None)
     # one screening and one or two adjustments, not one per decision
     assert trials.screens == 1 and trials.adjustments <= 2
@@ -343,7 +360,9 @@ def test_the_trials_tolerance_leaves_the_t_values() -> None:
 def test_an_error_free_block_with_blunders_keeps_no_camera() -> None:
     """The envelope's error-free 3 x 12 drone block with 6 image blunders and a
     control blunder (docs/ground.md 7.7): chosen on the data as given,
-    "auto" kept p1; chosen again without the blunders, nothing."""
+    "auto" keeps k1 and b1 (p1 when the refinement took only the control the
+    block's similarities kept); chosen again on the image observations the
+    tests kept it still does, and without the control blunder too, nothing."""
     from strip_aerotri.observations import StripSpec
     from strip_aerotri.pipeline import triangulate_block
     from strip_aerotri.simulate import simulate_block
@@ -358,5 +377,5 @@ def test_an_error_free_block_with_blunders_keeps_no_camera() -> None:
         )  # fmt: skip
     sc = res.self_calibration
     assert sc is not None and sc.kept == ()
-    assert any("p1 became none" in n for n in sc.notes)
+    assert any("control coordinate(s)" in n and "became none" in n for n in sc.notes)
     assert res.check_statistics.rmse_plan < 0.02 and res.check_statistics.rmse[2] < 0.025

@@ -30,6 +30,7 @@ docs/project-file.md.
 
 from __future__ import annotations
 
+import difflib
 import functools
 import math
 from collections.abc import Callable, Collection, Mapping
@@ -378,8 +379,28 @@ def check_self_calibration(value: object) -> str | tuple[str, ...]:
     raise OptionError(
         "self_calibration",
         f'expected "none", "auto", "ebner12" or a non-empty list from '
-        f"{list(SELF_CALIBRATION_PARAMETERS)}, got {describe(value)}",
+        f"{list(SELF_CALIBRATION_PARAMETERS)}, got {_describe_self_calibration(value)}",
     )
+
+
+def _describe_self_calibration(value: object) -> str:
+    """A refused ``self_calibration`` and what was probably meant."""
+    if isinstance(value, list | tuple):
+        if not value:
+            return 'an empty list (to estimate nothing: "none")'
+        k = next(i for i, v in enumerate(value) if not isinstance(v, str))
+        return (
+            f"a list whose item {k + 1} is {describe(value[k])} (names in quotes, "
+            'e.g. ["k1", "k2"])'
+        )
+    if isinstance(value, str):
+        name = value.strip().lower()
+        if name in SELF_CALIBRATION_PARAMETERS:
+            return f'{describe(value)} (one parameter is a list too: ["{name}"])'
+        close = difflib.get_close_matches(name, SELF_CALIBRATION_CHOICES, n=1, cutoff=0.6)
+        if close:
+            return f'{describe(value)} (did you mean "{close[0]}"?)'
+    return describe(value)
 
 
 #: The rule of every option of ``[adjustment]`` and ``[blunders]`` that is not

@@ -8,7 +8,8 @@ messages (``stripaero check`` lists them all; a run stops at the first):
 * :func:`image_coordinate_problems` — image coordinates far outside any
   film or sensor format (micrometres or pixels taken for millimetres), far
   inside it (metres), or not centred on the principal point (measured from
-  a corner of the format);
+  a corner of the format; along the flight alone: a principal point outside
+  the format);
 * :func:`ray_direction_problems` — photos listed against the flight, or a
   pair in the wrong order: after the relative orientation, the rays of such
   pairs meet behind the photos (a negative x-parallax); image x across the
@@ -62,6 +63,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MAX_IMAGE_RADIUS_MM",
+    "MIN_SPAN_OVER_C",
     "control_coverage_problems",
     "control_degree_problems",
     "control_distance_problems",
@@ -83,7 +85,7 @@ MAX_IMAGE_RADIUS_MM = 250.0
 _MAX_RADIUS_OVER_C = 5.0
 #: Image points all within this fraction of c: a field of view narrower
 #: than 2.3 deg (a 610 mm lens on 230 mm film still spans 0.27).
-_MIN_SPAN_OVER_C = 0.02
+MIN_SPAN_OVER_C = 0.02
 #: A photo votes "mirrored" when the reflected fit leaves less than this
 #: fraction of the rotated fit's residual (and the other way round).
 _MIRROR_RATIO = 0.1
@@ -142,10 +144,10 @@ def image_coordinate_problems(
             f"(at most {limit:.4g} mm); {cause}"
         )
     span = float(np.max(np.ptp(xy, axis=0)))
-    if xy.shape[0] >= 3 and span < _MIN_SPAN_OVER_C * c:
+    if xy.shape[0] >= 3 and span < MIN_SPAN_OVER_C * c:
         problems.append(
             f"{file}: all image points lie within {span:.3g} mm of each other, less than "
-            f"{_MIN_SPAN_OVER_C:g} of the principal distance c = {c:g} mm: are the "
+            f"{MIN_SPAN_OVER_C:g} of the principal distance c = {c:g} mm: are the "
             "coordinates in metres instead of millimetres?"
         )
     # from a corner of the format, some points also lie beyond the radius:
@@ -160,10 +162,10 @@ def image_coordinate_problems(
 #: the least to the greatest) beyond this fraction of their half range, on
 #: both axes, means another origin (a corner of the format).  Real projects
 #: stay under 0.04 (the examples, the external strips, the FC300X block,
-#: the import samples, tests/data).  One axis alone is not enough: a strip
-#: flown along a coast or a river bank has its points on one side of the
-#: flight line, across it, while the forward overlap still spreads them
-#: along it.
+#: the import samples, tests/data).  Across the flight (y) alone it says
+#: nothing (a strip along a coast sees land on one side); along it (x) alone
+#: it is a principal point outside the format or an origin at its edge (the
+#: forward overlap spreads the points on both sides: 0.000-0.026 above).
 _OFF_CENTRE = 0.5
 #: Fewer image points than this say nothing about the format's middle.
 _OFF_CENTRE_MIN_POINTS = 20
@@ -178,14 +180,22 @@ def _off_centre_problems(xy: FloatArray, file: str) -> list[str]:
     middle, half = 0.5 * (low + high), 0.5 * (high - low)
     with np.errstate(divide="ignore", invalid="ignore"):
         off = np.abs(middle) / half
-    if not all(half[a] > 0.0 and off[a] > _OFF_CENTRE for a in (0, 1)):
+    beyond = [bool(half[a] > 0.0 and off[a] > _OFF_CENTRE) for a in (0, 1)]
+    if not beyond[0]:
         return []
     ranges = ", ".join(f"{'xy'[a]} from {low[a]:.4g} to {high[a]:.4g} mm" for a in (0, 1))
+    if beyond[1]:
+        return [
+            f"{file}: the image points are not centred on the principal point ({ranges}, after "
+            "[camera] principal_point_mm): are they measured from a corner of the format? "
+            "Give the principal point's position in that system as principal_point_mm (or "
+            '[images] units = "pixel" with pixel_size_mm and principal_point_px)'
+        ]
     return [
-        f"{file}: the image points are not centred on the principal point ({ranges}, after "
-        "[camera] principal_point_mm): are they measured from a corner of the format? "
-        "Give the principal point's position in that system as principal_point_mm (or "
-        '[images] units = "pixel" with pixel_size_mm and principal_point_px)'
+        f"{file}: the image points are not centred on the principal point along the flight "
+        f"({ranges}, x along the flight after [camera] principal_point_mm and [images] "
+        "flight_direction), which the forward overlap spreads them on both sides of: is the "
+        "principal point outside the format, or x measured from an edge of it?"
     ]
 
 

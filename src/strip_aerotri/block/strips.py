@@ -198,8 +198,6 @@ def adjust_block(
         result = _refine(
             problem,
             solution,
-            used_xy,
-            used_z,
             result,
             blunders,
             max_iterations,
@@ -337,12 +335,10 @@ def _keep_given(resid: FloatArray, p: _Problem) -> None:
 def _with_restored_control(
     p: _Problem,
     sol: _Solution,
-    use_xy: BoolArray,
-    use_z: BoolArray,
     block: BlockResult,
     restored: BoolArray,
     points_work: FloatArray,
-) -> tuple[_Problem, _Solution, BoolArray, BoolArray, BlockResult]:
+) -> tuple[_Problem, _Solution, BlockResult]:
     """The control rows of the points the block left out and the refinement
     restored (``restored`` (P,), start values ``points_work``), appended to
     the problem, to its solution's guesses (a missing component from the
@@ -354,7 +350,7 @@ def _with_restored_control(
     has_row[p.idx] = True
     new = control_rows(p.observations, p.control, restored & ~has_row)
     if not new.rows.size:
-        return p, sol, use_xy, use_z, block
+        return p, sol, block
     p = replace(
         p,
         control_rows=np.concatenate([p.control_rows, new.rows]),
@@ -375,20 +371,12 @@ def _with_restored_control(
             [block.control_residuals, np.full((new.rows.size, 3), np.nan)]
         ),
     )
-    return (
-        p,
-        sol,
-        np.concatenate([use_xy, new.use_xy]),
-        np.concatenate([use_z, new.use_z]),
-        block,
-    )
+    return p, sol, block
 
 
 def _refine(
     p: _Problem,
     sol: _Solution,
-    use_xy: BoolArray,
-    use_z: BoolArray,
     block: BlockResult,
     blunders: BlunderOptions,
     max_iterations: int,
@@ -399,7 +387,10 @@ def _refine(
 ) -> BlockResult:
     """The bundle adjustment of the whole block from its solution, in the work
     frame (plan-only and height-only control keep the block's value of their
-    other coordinate)."""
+    other coordinate).  It starts from all the control, as a strip's
+    refinement does, and tests it itself: what the block's similarities
+    rejected may be a camera error the self-calibration takes out
+    (docs/block.md), and a true blunder fails its tests again."""
     from ..bundle.refine import gnss_imu_in_frame, gnss_imu_outcomes, lost_points_note
     from ..bundle.start_points import restore_points, restored_ids, restored_points_note
     from ..bundle.variance import refine_frame_weighted
@@ -409,9 +400,8 @@ def _refine(
     # a control or check point among them takes its control row again
     restored = restore_points(p.observations, centres0, rot0, block_points, blunders=blunders)
     points0 = restored.points
-    p, sol, use_xy, use_z, block = _with_restored_control(
-        p, sol, use_xy, use_z, block, restored.restored, points0
-    )
+    p, sol, block = _with_restored_control(p, sol, block, restored.restored, points0)
+    use_xy, use_z = p.use_xy, p.use_z
     n_points = p.observations.n_points
     target = p.work.to_work(sol.guess)
     control_xyz = np.full((n_points, 3), np.nan)
@@ -462,6 +452,7 @@ def _refine(
     used[~used_xy, :2] = np.nan
     used[~used_z, 2] = np.nan
     notes = tuple(r.describe() for r in fr.rejections)
+    notes += _used_again_note(p, block, used_xy, used_z)
     notes += tuple(lost_points_note(p.observations.point_ids, block_points, fr.point_used))
     notes += tuple(
         restored_points_note(p.observations.point_ids, restored.restored, fr.point_used)
@@ -489,6 +480,23 @@ def _refine(
         self_calibration=fr.self_calibration,
         variance_components=fr.variance_components,
         restored_points=restored_ids(p.observations.point_ids, restored.restored, fr.point_used),
+    )
+
+
+def _used_again_note(
+    p: _Problem, block: BlockResult, used_xy: BoolArray, used_z: BoolArray
+) -> tuple[str, ...]:
+    """The control points the block's tests rejected and the refinement's
+    kept (``used_xy``, ``used_z``: the refinement's), named in a note: their
+    rejection above is the block's, not the result's."""
+    n = block.used_xy.size  # the block's rows; restored control comes after
+    again = (~block.used_xy & used_xy[:n]) | (~block.used_h & used_z[:n])
+    if not again.any():
+        return ()
+    names = [p.control.point_ids[r] for r in p.control_rows[:n][again]]
+    return (
+        f"bundle: {len(names)} control point(s) the block's tests rejected pass the "
+        f"refinement's and are used in it: {', '.join(repr(n) for n in names)}",
     )
 
 

@@ -205,6 +205,15 @@ class _Sets:
             self.copy(), keep=other.keep.copy(), obs_rejected=other.obs_rejected.copy()
         )
 
+    def with_tests_of(self, other: _Sets) -> _Sets:
+        """A copy with ``other``'s image observations and control in use and
+        rejected (and this one's GNSS and IMU)."""
+        return dataclasses.replace(
+            self.with_images_of(other),
+            ctrl_on=other.ctrl_on.copy(),
+            ctrl_rejected=other.ctrl_rejected.copy(),
+        )
+
     def used_points(self, inp: _Inputs) -> BoolArray:
         """Points with a start value and enough rays.
 

@@ -7,19 +7,26 @@ determine or that are not significant, one decision per adjustment, until the
 set is stable:
 
 1. every parameter whose multiple correlation with the photos' orientation and
-   the points exceeds :data:`INTERIOR_CORRELATION` (0.999) for c, x0, y0 (c
-   with the flying height over flat ground, x0 and y0 with the centres unless
-   GNSS centres or oblique photos separate them: a confusion the geometry
-   makes exact) or :data:`MAX_ORIENTATION_CORRELATION` (0.9999) for the
-   others; the correlation does not depend on the other camera parameters,
-   so all such are held at once.  While x0 or y0 is held so, the decentring
-   terms p1, p2 are judged by the bound of c, x0, y0: over a small format
-   the decentring field is mostly a shift of the principal point and a tilt
-   of the image (Fraser 1997, the projective coupling of p1, p2 with x0,
-   y0), so with the principal point absorbed by the orientation they stand
-   in for its remainder rather than for the lens (on the real FC300X block
-   they are held at a multiple correlation of 0.9995, and the check points
-   gain 3 mm in plan over six control splits; docs/bundle.md);
+   the points exceeds its bound: :data:`PRINCIPAL_DISTANCE_CORRELATION`
+   (1 - 1e-6) for c, :data:`INTERIOR_CORRELATION` (0.999) for x0, y0,
+   :data:`MAX_ORIENTATION_CORRELATION` (0.9999) for the others.  c is the
+   flying height's twin over flat ground seen from vertical photos, and x0,
+   y0 the centres' unless GNSS centres or oblique photos separate them: a
+   confusion the geometry makes exact.  c's bound holds only that exact
+   confusion; with 1 - rho above 1e-6 its t value decides, as for the lens
+   terms, because
+   relief and oblique photos do determine c (its own information is the
+   depth's spread within a photo) and, with the residuals in the
+   observations' space, its t value is honest.  The correlation does not
+   depend on the other camera parameters, so all such are held at once.
+   While x0 or y0 is held so, the decentring terms p1, p2 are judged by the
+   bound of x0, y0: over a small format the decentring field is mostly a
+   shift of the principal point and a tilt of the image (Fraser 1997, the
+   projective coupling of p1, p2 with x0, y0), so with the principal point
+   absorbed by the orientation they stand in for its remainder rather than
+   for the lens (on the real FC300X block they are held at a multiple
+   correlation of 0.9995, and the check points gain 3 mm in plan over six
+   control splits; docs/bundle.md);
 2. of the most correlated pair of parameters above :data:`MAX_CORRELATION`,
    the one with the smaller t value;
 3. the parameter with the smallest t value, if below :data:`T_CRITICAL`.
@@ -75,9 +82,10 @@ from .adjust import CameraUndetermined
 from .camera_subsets import LinearisedCamera
 
 __all__ = [
-    "MAX_CORRELATION",
     "INTERIOR_CORRELATION",
+    "MAX_CORRELATION",
     "MAX_ORIENTATION_CORRELATION",
+    "PRINCIPAL_DISTANCE_CORRELATION",
     "T_CRITICAL",
     "SelfCalibration",
     "Trials",
@@ -101,10 +109,22 @@ MAX_CORRELATION = 0.9
 #: real FC300X block), so the pairwise bound of 0.9 does not apply to it;
 #: below this bound the t test decides.
 MAX_ORIENTATION_CORRELATION = 0.9999
-#: The same bound for c, x0 and y0, whose confusion with the flying height and
-#: the centres the geometry makes exact on flat ground (0.9999-1.0000 on every
-#: block here, where a t of 5.7 for c was spurious: the simulated c was exact).
+#: The same bound for x0 and y0, whose confusion with the centres the geometry
+#: makes exact on flat ground (0.9999-1.0000 on every block here; on the real
+#: FC300X block, oblique, x0 and y0 let in by their t values lower the check
+#: RMSE of no control split: docs/bundle.md).
 INTERIOR_CORRELATION = 0.999
+#: The bound for c: 1 - rho below 1e-6 (a variance inflation above 5e5) is
+#: the flying height's confusion made exact, vertical photos over flat ground
+#: (1 - rho from 8e-9 to 3e-5 over the sweep's 78 simulated strips,
+#: continuously; a film strip at 2e-7 with 49 um of uncorrected lens error
+#: fails its blunder tests when c is let in there).  With 1 - rho above 1e-6
+#: c's t value decides: the oblique FC300X block (1 - rho 3e-5 to 6e-5)
+#: determines c at t of 3-10, and a start c 0.4 % off (the EXIF focal
+#: length) is corrected to within 0.5 sd of the calibrated one; film strips
+#: over relief of a quarter of their height, at 5e-6 to 1.4e-5, find a c
+#: 0.33 % off within 3 sd (docs/bundle.md).
+PRINCIPAL_DISTANCE_CORRELATION = 1.0 - 1e-6
 #: False-alarm probability of the F test of the chosen set against none.
 ALPHA_SET = 0.001
 
@@ -295,22 +315,33 @@ def _absorbed(
 ) -> list[tuple[str, str]]:
     """Rule 1: the parameters whose multiple correlation with the orientation
     is over their bound, with the reason; ``absorbed`` those held so far for it."""
-    over_interior = {
-        n
-        for n, r in zip(names, r_eo, strict=True)
-        if n in _ABSORBED_BY and r > INTERIOR_CORRELATION
+    principal_point = {
+        n for n, r in zip(names, r_eo, strict=True) if n in ("x0", "y0") and r > _bound(n, True)
     }
-    coupled = bool((absorbed | over_interior) & {"x0", "y0"})
+    coupled = bool((absorbed | principal_point) & {"x0", "y0"})
     why = dict(_ABSORBED_BY, **(_COUPLED_WITH_PRINCIPAL_POINT if coupled else {}))
     return [
-        (
-            n,
-            f"correlation {r:.4f} with the exterior orientation"
-            + (f": {why[n]}" if n in why else ""),
-        )
+        (n, _correlation_reason(n, r, why))
         for n, r in zip(names, r_eo, strict=True)
-        if r > (INTERIOR_CORRELATION if n in why else MAX_ORIENTATION_CORRELATION)
+        if r > _bound(n, n in why)
     ]
+
+
+def _bound(name: str, absorbed: bool) -> float:
+    """Rule 1's bound for ``name``; ``absorbed``: judged as a parameter the
+    orientation absorbs (c, x0, y0, and p1, p2 while x0 or y0 is held)."""
+    if name == "c":
+        return PRINCIPAL_DISTANCE_CORRELATION
+    return INTERIOR_CORRELATION if absorbed else MAX_ORIENTATION_CORRELATION
+
+
+def _correlation_reason(name: str, r: float, why: dict[str, str]) -> str:
+    """``name``'s multiple correlation ``r`` with the orientation, and what
+    absorbs it (six digits: c's bound is within 1e-6 of one)."""
+    digits = 6 if r > 0.9999 else 4
+    return f"correlation {r:.{digits}f} with the exterior orientation" + (
+        f": {why[name]}" if name in why else ""
+    )
 
 
 def _next_to_hold(cam: CameraEstimate, absorbed: set[str]) -> list[tuple[str, str, bool]]:
@@ -334,7 +365,11 @@ def _next_to_hold(cam: CameraEstimate, absorbed: set[str]) -> list[tuple[str, st
         ]
     worst = int(np.argmin(t))
     if t[worst] < T_CRITICAL:
-        return [(cam.names[worst], f"t = {t[worst]:.2f}, below {T_CRITICAL:g}", False)]
+        name, r = cam.names[worst], float(cam.orientation_correlation[worst])
+        reason = f"t = {t[worst]:.2f}, below {T_CRITICAL:g}"
+        if name in _ABSORBED_BY and r > INTERIOR_CORRELATION:  # say what the t value means
+            reason += f"; {_correlation_reason(name, r, _ABSORBED_BY)}"
+        return [(name, reason, False)]
     return []
 
 

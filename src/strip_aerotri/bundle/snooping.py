@@ -121,8 +121,8 @@ def refine_frame(
         Estimate the camera with the block (:mod:`strip_aerotri.bundle.selfcal`);
         ``"auto"`` chooses the parameters before the blunder tests, which
         then run with the chosen camera, and once more on the image
-        observations they kept (:meth:`_Camera.checked_again`): with another
-        set the tests start over.
+        observations and control they kept (:meth:`_Camera.checked_again`):
+        with another set the tests start over.
     control_tested : bool
         False: the control is not tested (an earlier call kept it for
         failing alike).
@@ -221,10 +221,7 @@ def refine_frame(
             if first_control is None:
                 first_control = (*_control_w(sets, stats), failures.crit_ctrl)
             if not failures.found:
-                again = camera.checked_again(
-                    inp, initial.with_images_of(sets), max_iterations, state,
-                    int(np.count_nonzero(sets.obs_rejected)),
-                )  # fmt: skip
+                again = camera.checked_again(inp, initial, sets, max_iterations, state)
                 if again is None or again.estimated == camera.estimated:
                     return result if again is None else again.told(result, sets, obs)
                 # another set: the tests start over with it, from this solution

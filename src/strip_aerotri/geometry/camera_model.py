@@ -471,8 +471,9 @@ class ShutterMotion:
         """``s = t - 1/2`` (K,) of image observations ``xy`` (K, 2; flight
         axes, mm from the principal point): -1/2 at the first row, +1/2 at the
         last."""
-        sensor_y = _times_2x2(np.asarray(xy, dtype=np.float64), self.flight_matrix)[:, 1]
-        out: FloatArray = -sensor_y / self.readout_mm
+        xy = np.asarray(xy, dtype=np.float64)
+        a = self.row_gradient
+        out: FloatArray = xy[:, 0] * a[0] + xy[:, 1] * a[1]
         return out
 
     @property

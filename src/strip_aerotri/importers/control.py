@@ -141,8 +141,8 @@ def split_control(
         listed = ", ".join(sorted(chosen, key=natural_key))
         notes.append(
             f"full control: {listed} (per strip the GCPs nearest its start, middle and end, "
-            "one on each side of the strip axis, among those seen on 3 or more photos, "
-            "2 when fewer qualify, two of them consecutive); "
+            "one on each side of the strip axis, among those seen on 3 or more photos (2 "
+            "when fewer qualify) of which two are consecutive); "
             "every other GCP is a check point (change with --control / --check)"
         )
     table = control.take(np.flatnonzero(keep))

@@ -46,6 +46,7 @@ from ..options import (
     describe,
 )
 from ..plausibility import image_coordinate_problems
+from .camera_checks import camera_problems, measured_problems, principal_distance_problems
 from .csvfiles import MAX_TOML_BYTES, CsvTable, decode, read_bytes
 from .model import Camera, Project, readonly
 from .output import check_output
@@ -121,6 +122,28 @@ def _toml_hint(text: str, message: str, line: int, column: int) -> str:
         in_array = row[:start].rstrip().endswith(("[", ","))
         value = token if in_array else row[start:].split("#")[0].strip()
         return f' (a string must be in quotes: "{shorten(value, 40)}")'
+    return _twice_hint(lines, message, row)
+
+
+def _twice_hint(lines: list[str], message: str, row: str) -> str:
+    """A table declared twice (where first), or a key given twice in its table;
+    a pasted camera.toml is the likely cause for [camera] and [distortion]."""
+    table = re.fullmatch(r"Cannot declare \('([^']*)',\) twice", message)
+    if table:
+        name = table.group(1)
+        header = re.compile(rf"\s*\[\s*{re.escape(name)}\s*\]\s*(#.*)?")
+        first = next((k + 1 for k, ln in enumerate(lines) if header.fullmatch(ln)), None)
+        where = f" (first at line {first})" if first else ""
+        pasted = (
+            "; the tables of a self-calibration's camera.toml replace the project's [camera] "
+            "and [distortion], they are not added to them"
+            if name in ("camera", "distortion")
+            else ""
+        )
+        return f" (the table [{shorten(name, 40)}] is declared twice{where}: merge them{pasted})"
+    if message == "Cannot overwrite a value" and "=" in row:
+        key = row.split("=", 1)[0].strip()
+        return f" (the key '{shorten(key, 40)}' is given twice in its table)"
     return ""
 
 
@@ -267,6 +290,8 @@ def load_project(path: str | Path) -> Project:
 
     principal_point: tuple[float, float] = camera["principal_point_mm"]  # type: ignore[assignment]
     principal_distance = float(camera["principal_distance_mm"])  # type: ignore[arg-type]
+    for problem in principal_distance_problems(toml_path, principal_distance):
+        raise ConfigError(problem)
     images_file = folder / str(images["file"])
     control_file = folder / str(control["file"])
     gnss_file, imu_file = (
@@ -541,9 +566,16 @@ def _image_reduction(
     """The reduction of raw image coordinates to the photo system (mm) of this
     project.  When the distortion cannot be removed, coordinates that no
     camera gives (far outside the format, from its corner) are named as the
-    cause before the coefficients are."""
+    cause before the coefficients are; when the reduced coordinates are
+    implausible but the measurements are not, the principal point or the
+    distortion is named (:mod:`.camera_checks`)."""
 
-    def reduce(xy: FloatArray, photo: IntArray, lens: BrownDistortion | None) -> FloatArray:
+    def reduce(
+        xy: FloatArray,
+        photo: IntArray,
+        lens: BrownDistortion | None,
+        centre: tuple[float, float] = principal_point,
+    ) -> FloatArray:
         return reduce_image_coordinates(
             xy,
             photo,
@@ -552,14 +584,25 @@ def _image_reduction(
             pixel_size_mm=image_options.pixel_size_mm,
             principal_point_px=image_options.principal_point_px,
             fiducials=fiducials or None,
-            principal_point_mm=principal_point,
+            principal_point_mm=centre,
             distortion=lens,
             flight_direction=image_options.flight_direction,
         )
 
+    no_lens = distortion is None or distortion.is_zero
+
     def reduce_all(xy: FloatArray, photo: IntArray) -> FloatArray:
+        measured = reduce(xy, photo, None, (0.0, 0.0))  # as measured: no camera applied
+        first = measured_problems(
+            toml_path, measured, principal_point, image_options.flight_direction,
+            principal_distance,
+        )  # fmt: skip
+        if first:
+            raise ConfigError(first[0])
+        if no_lens and not any(principal_point):
+            return measured
         try:
-            return reduce(xy, photo, distortion)
+            corrected = reduce(xy, photo, distortion)
         except ConvergenceError as exc:
             plain = reduce(xy, photo, None)
             problems = image_coordinate_problems(plain, principal_distance, file=str(images_file))
@@ -568,6 +611,13 @@ def _image_reduction(
                 if problems
                 else f"{toml_path}: [distortion]: {exc}"
             ) from None
+        problems = camera_problems(
+            toml_path, corrected, measured, lambda lens, centre: reduce(xy, photo, lens, centre),
+            principal_point, distortion, principal_distance,
+        )  # fmt: skip
+        if problems:
+            raise ConfigError(problems[0])
+        return corrected
 
     return reduce_all
 

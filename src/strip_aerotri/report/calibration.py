@@ -170,7 +170,7 @@ def camera_toml(
             " start camera's, the estimates follow (estimate, sd).",
         ]
         lines += [
-            f"#   {p.name} = {p.value:.6g} ({p.std:.2g}) {p.unit}"
+            f"#   {p.name} = {p.value:.6g} ({p.std:.2g})" + ("" if p.unit == "1" else f" {p.unit}")
             for p in outcome.parameters
             if p.kept
         ]
