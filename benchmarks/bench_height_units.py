@@ -19,9 +19,12 @@ it prints:
 * **slope**: :func:`height_slope` and its standard deviation;
 * **ratio**: :func:`gradient_ratio` and its standard deviation, with the
   plan and height points of its fits (``-`` where it cannot be formed);
-* **verdict**: what :func:`strip_aerotri.ground.polynomials.height_unit_check`
-  answers (``pass``, or the cause named), by which measure (``ratio`` when
-  the ratio is told, else ``slope``).
+* **verdict**: what :func:`strip_aerotri.ground.height_units.height_unit_problems`
+  answers on the ground stage's inputs (``pass``, or the cause named), by
+  which measure (``ratio`` when the ratio is told, else ``slope``);
+  ``pass (no similarity)`` by ``-`` where the strip's control is too scant
+  for the first look (``stripaero check`` passes it: the similarity's own
+  rules say so).
 """
 
 from __future__ import annotations
@@ -74,13 +77,7 @@ SIMULATED = {
 def changed(control: Any, plan: float, height: float) -> Any:
     """The control with X, Y times ``plan`` and H times ``height`` (their
     sigmas as given: a unit mistake in the coordinates' columns only)."""
-    from strip_aerotri.observations import ControlPoints
-
-    xyz = control.xyz * np.array([plan, plan, height])
-    return ControlPoints(
-        control.point_ids, xyz, control.kind, control.sigma_xy, control.sigma_h,
-        control.source_line,
-    )  # fmt: skip
+    return dataclasses.replace(control, xyz=control.xyz * np.array([plan, plan, height]))
 
 
 def strips_of(project: Any) -> Iterator[tuple[str, Any]]:
@@ -99,6 +96,7 @@ def strips_of(project: Any) -> Iterator[tuple[str, Any]]:
 
 def measure(project: Any, strip: Any, control: Any) -> dict[str, Any]:
     """Slope, ratio and verdict of one strip under ``control``."""
+    from strip_aerotri.errors import GeometryError
     from strip_aerotri.geodesy import GroundCRS
     from strip_aerotri.ground import height_units, polynomials
     from strip_aerotri.ground.common import control_rows, resolve_route
@@ -106,17 +104,15 @@ def measure(project: Any, strip: Any, control: Any) -> dict[str, Any]:
     crs = GroundCRS.from_user_input(project.crs)
     route = resolve_route(project.adjustment.route, crs)
     picked = control_rows(strip, control)
-    first = polynomials._first_look(strip, picked, crs, route)
-    z, xy = picked.use_z, picked.use_xy
-    scaled = first.strip_xyz * first.metres_per_model
-    sigma_xy = np.hypot(picked.sigma_xy, first.sigma_plan)
-    slope = height_units.height_slope(scaled[z], first.target[z, 2], first.exp_z[z])
-    ratio = height_units.gradient_ratio(
-        scaled[xy], first.target[xy, :2], sigma_xy[xy], scaled[z], picked.given[z, 2],
-        picked.sigma_h[z], first.sigma_height,
-    )  # fmt: skip
-    problems = polynomials.height_unit_check(strip, control, crs, project.adjustment.route)
-    told = ratio is not None and ratio.sd <= height_units._SLOPE_PRECISION * ratio.ratio
+    try:
+        first = polynomials._first_look(strip, picked, crs, route)
+    except GeometryError:  # too little control for the similarity: the check passes
+        return {"slope": None, "ratio": None, "by": "-", "verdict": "pass (no similarity)"}
+    inputs = polynomials._unit_inputs(first, picked)
+    slope = height_units.height_slope(inputs["model_xyz"], inputs["height"], inputs["sigma"])
+    ratio = height_units.gradient_ratio(*inputs["plan"], inputs["model_xyz"], *inputs["given"])
+    problems = height_units.height_unit_problems(**inputs)
+    told = ratio is not None and ratio.told
     verdict = problems[0].rsplit(": ", 1)[-1].split(" (")[0] if problems else "pass"
     return {"slope": slope, "ratio": ratio, "by": "ratio" if told else "slope",
             "verdict": verdict}  # fmt: skip

@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from strip_aerotri.cli.main import cli
 from strip_aerotri.ground.height_units import (
+    GradientRatio,
     gradient_ratio,
     height_slope,
     height_unit_problems,
@@ -118,6 +119,29 @@ def test_a_bent_strip_gives_its_ratio_with_the_bending_terms() -> None:
     got = _ratio(model, ground, 1.0, 1.0, sd=0.02)
     assert got is not None
     assert abs(got.ratio - 1.0) < 0.02 and got.sd < 0.05 * got.ratio
+
+
+def test_a_ratio_is_told_up_to_a_twentieth_of_it() -> None:
+    assert GradientRatio(FEET, 0.05 * FEET, 4, 4).told
+    assert not GradientRatio(FEET, 0.0501 * FEET, 4, 4).told
+    assert not GradientRatio(FEET, float("nan"), 4, 4).told
+    ground = _ground(12, 5)
+    model = _model(ground, 10.0, 1.0)
+    told = _ratio(model, ground, 1.0, FEET, sd=0.05)
+    untold = _ratio(model, ground, 1.0, FEET, sd=10.0)  # 40 m of relief, 10 m errors
+    assert told is not None and told.told and untold is not None and not untold.told
+
+
+def test_the_message_counts_the_points_of_the_ratio() -> None:
+    ground = _ground(12, 5)
+    model = _model(ground, 44.0, 1.0)
+    n = len(ground)
+    problems = height_unit_problems(
+        model, FEET * ground[:, 2], np.full(n, 0.05),
+        plan=(model[:9], ground[:9, :2], np.full(9, 0.05)),
+        given=(FEET * ground[:, 2], np.full(n, 0.05), 0.0),
+    )  # fmt: skip
+    assert len(problems) == 1 and "over 9 plan and 12 height points" in problems[0]
 
 
 def test_too_few_points_or_points_on_one_plane_give_no_ratio() -> None:

@@ -16,9 +16,16 @@ from click.testing import CliRunner
 
 from strip_aerotri.cli.main import cli
 from strip_aerotri.errors import HeightUnitError
-from strip_aerotri.ground.polynomials import adjust_to_ground, height_unit_check
+from strip_aerotri.geodesy import GroundCRS
+from strip_aerotri.ground.common import control_rows, resolve_route
+from strip_aerotri.ground.height_units import gradient_ratio, height_slope, height_unit_problems
+from strip_aerotri.ground.polynomials import (
+    _first_look,
+    _unit_inputs,
+    adjust_to_ground,
+    height_unit_check,
+)
 from strip_aerotri.observations import ControlPoints
-from strip_aerotri.ground.height_units import height_slope, height_unit_problems
 from strip_aerotri.pipeline import form_strip_of
 from strip_aerotri.project import Project, load_project
 from strip_aerotri.results import StripModel
@@ -177,6 +184,37 @@ def test_the_ground_stage_stops_on_the_film_example_in_another_unit(
 def test_the_film_example_in_metres_passes(film_strip: tuple[Project, StripModel]) -> None:
     project, strip = film_strip
     assert height_unit_check(strip, project.control, project.crs) == []
+
+
+@pytest.mark.parametrize("factor", [1.0, FEET])
+def test_the_unit_inputs_are_the_ground_stages(
+    film_strip: tuple[Project, StripModel], factor: float
+) -> None:
+    """The inputs of the unit test read off the first look: the plan and
+    height control's rows, the ratio of the heights' gradient to the plan's
+    at the heights' unit factor (film example: 8 plan, 12 height points),
+    the plan control's expected errors its own and the photogrammetric
+    ones, and the same verdict as :func:`height_unit_check`."""
+    project, strip = film_strip
+    control = _scaled(project.control, factor)
+    crs = GroundCRS.from_user_input(project.crs)
+    picked = control_rows(strip, control)
+    first = _first_look(strip, picked, crs, resolve_route(project.adjustment.route, crs))
+    inputs = _unit_inputs(first, picked)
+    n_plan, n_height = int(picked.use_xy.sum()), int(picked.use_z.sum())
+    assert (n_plan, n_height) == (8, 12)
+    assert inputs["model_xyz"].shape == (n_height, 3) and inputs["plan"][0].shape == (n_plan, 3)
+    np.testing.assert_array_equal(inputs["given"][0], control.xyz[picked.rows[picked.use_z], 2])
+    # the photogrammetric plan error: the median image error at the image scale
+    sigma_plan = np.median(strip.observations.sigma) * first.metres_per_mm
+    np.testing.assert_allclose(
+        first.exp_xy**2 - picked.sigma_xy**2, sigma_plan**2, rtol=1e-9, atol=1e-15
+    )
+    ratio = gradient_ratio(*inputs["plan"], inputs["model_xyz"], *inputs["given"])
+    assert ratio is not None and ratio.told and abs(ratio.ratio - factor) < 3.0 * ratio.sd
+    problems = height_unit_problems(**inputs, file="c.csv")
+    assert problems == height_unit_check(strip, control, project.crs, control_name="c.csv")
+    assert bool(problems) is (factor != 1.0)
 
 
 @pytest.mark.parametrize("command", ["run", "check"])

@@ -48,3 +48,36 @@ def test_without_restored_points_or_the_results_warnings_the_page_is_report_json
     # report.json alone cannot say which points a count names: kept as it is
     restored = {"warnings": texts, "bundle": {"restored_points": ["A", "C"]}}
     assert page_warnings(restored) == texts
+
+
+def test_the_pages_must_be_given_the_results_warnings():
+    """Without the result's own warnings a page lists the restored points as
+    left out again: html_page and block_html take them as a required keyword."""
+    import inspect
+
+    from strip_aerotri.report.block_page import block_html
+    from strip_aerotri.report.html import html_page
+
+    for page in (html_page, block_html):
+        param = inspect.signature(page).parameters["warnings"]
+        assert param.kind is inspect.Parameter.KEYWORD_ONLY
+        assert param.default is inspect.Parameter.empty
+
+
+def test_two_strips_counts_alike_are_matched_in_order():
+    """Two strips each leave out six points, the first five the same: their
+    counts read alike in report.json.  'F' (the first strip's sixth)
+    restored: the first count is made again without it, the second stays;
+    'G' (the second's) restored: the other way round."""
+    first = PointWarning.points_not_triangulated(["A", "B", "C", "D", "E", "F"], CAUSE)
+    second = PointWarning.points_not_triangulated(["A", "B", "C", "D", "E", "G"], CAUSE)
+    assert str(first) == str(second)
+    five = f"5 point(s) not triangulated ({CAUSE}): 'A', 'B', 'C', 'D', 'E'"
+    stage = ["S1: a plain text", first, second]
+    texts = [str(w) for w in stage]
+    for restored, expected in (("F", [five, str(second)]), ("G", [str(first), five])):
+        report = {"warnings": texts, "bundle": {"restored_points": [restored]}}
+        assert page_warnings(report, stage) == [texts[0], *expected]
+    # a text report.json repeats more often than the result: the rest as they are
+    report = {"warnings": [*texts, texts[1]], "bundle": {"restored_points": ["F"]}}
+    assert page_warnings(report, stage) == [texts[0], five, str(second), texts[1]]

@@ -66,6 +66,12 @@ _SLOPE_PRECISION = 0.05
 _SLOPE_WINDOW = 0.15
 
 
+def _told(value: float, sd: float) -> bool:
+    """Whether a ratio or slope ``value`` is told by its standard deviation
+    ``sd``: at most :data:`_SLOPE_PRECISION` of it (False for a NaN)."""
+    return bool(sd <= _SLOPE_PRECISION * value)
+
+
 class GradientRatio(NamedTuple):
     """The height's gradient over the strip model against the plan's
     (:func:`gradient_ratio`): ``ratio``, its standard deviation ``sd``, and
@@ -75,6 +81,12 @@ class GradientRatio(NamedTuple):
     sd: float
     n_plan: int
     n_height: int
+
+    @property
+    def told(self) -> bool:
+        """Whether the ratio is told: its standard deviation at most
+        :data:`_SLOPE_PRECISION` of it (enough height spread)."""
+        return _told(self.ratio, self.sd)
 
 
 #: Points from which the fits are also tried with the strip's bending: terms
@@ -200,10 +212,12 @@ def _ratio(
         return None
     g_plan, cov_plan = plan
     rho = float(np.sqrt(0.5 * np.sum(g_plan**2)))
+    if not rho > 0.0:
+        return None
     k = 1.0
     for _ in range(2):
         fit = _gradients(height_m, h, np.hypot(sigmas[1], k * sigmas[2]), bending)
-        if fit is None or not rho > 0.0:
+        if fit is None:
             return None
         g_h, cov_h = fit
         norm_h = float(np.linalg.norm(g_h))
@@ -256,11 +270,11 @@ def _near_factor(
     value: float, sd: float, factors: tuple[tuple[float, str], ...]
 ) -> str | None:
     """The cause of the unit factor ``value`` lies near, when ``sd`` tells it
-    (at most :data:`_SLOPE_PRECISION` of it) and it lies within
-    :data:`_SLOPE_WINDOW` of one; else None."""
+    (:func:`_told`) and it lies within :data:`_SLOPE_WINDOW` of one; else
+    None."""
     if not (np.isfinite(value) and np.isfinite(sd)) or value <= 0.0:
         return None
-    if sd > _SLOPE_PRECISION * value:
+    if not _told(value, sd):
         return None
     for factor, cause in factors:
         if abs(np.log(value / factor)) <= np.log1p(_SLOPE_WINDOW):
@@ -307,22 +321,22 @@ def height_unit_problems(
     list of str
         One message when the units disagree (empty otherwise).
     """
-    n = np.asarray(height).size
     ratio = (
         None
         if plan is None or given is None
         else gradient_ratio(*plan, model_xyz, *given)
     )
-    if ratio is not None and ratio.sd <= _SLOPE_PRECISION * ratio.ratio:
+    if ratio is not None and ratio.told:
         cause = _near_factor(ratio.ratio, ratio.sd, _GRADIENT_FACTORS)
         if cause is None:
             return []
         return [
             f"{file}: the control heights change {ratio.ratio:.4g} times as fast as the "
             f"plan coordinates over the strip (± {ratio.sd:.2g}; the gradients over "
-            f"{ratio.n_plan} plan and {n} height points, whatever the strip's tilt) where "
-            f"the units agree at 1: {cause}?"
+            f"{ratio.n_plan} plan and {ratio.n_height} height points, whatever the "
+            f"strip's tilt) where the units agree at 1: {cause}?"
         ]
+    n = np.asarray(height).size
     fit = height_slope(model_xyz, height, sigma)
     cause = None if fit is None else _near_factor(*fit, _HEIGHT_UNIT_SLOPES)
     if fit is None or cause is None:

@@ -25,7 +25,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import Literal, NamedTuple
+from typing import Literal, NamedTuple, TypedDict
 
 import numpy as np
 
@@ -254,7 +254,7 @@ def _prepare(
         guess=guess,
         check=picked.check,
         strip_xyz=strip_xyz,
-        exp_xy=np.hypot(picked.sigma_xy, sigma_plan),
+        exp_xy=first.exp_xy,
         exp_z=exp_z,
         control_sigma_xy=picked.sigma_xy,
         metres_per_mm=metres_per_mm,
@@ -269,7 +269,9 @@ def _prepare(
 
 class _FirstLook(NamedTuple):
     """The strip scaled to the plan control, before any fit (per control row
-    C: ``guess``, ``target`` work frame, ``strip_xyz``, ``exp_z``)."""
+    C: ``guess``, ``target`` work frame, ``strip_xyz``; ``exp_xy``,
+    ``exp_z`` the expected errors of the control's plan coordinates and
+    heights, their own and the photogrammetric ones, metres)."""
 
     guess: FloatArray
     target: FloatArray
@@ -278,6 +280,7 @@ class _FirstLook(NamedTuple):
     metres_per_mm: float
     sigma_plan: float
     sigma_height: float
+    exp_xy: FloatArray
     exp_z: FloatArray
 
 
@@ -321,7 +324,38 @@ def _first_look(
         metres_per_mm=metres_per_mm,
         sigma_plan=sigma_plan,
         sigma_height=sigma_height,
+        exp_xy=np.hypot(picked.sigma_xy, sigma_plan),
         exp_z=np.hypot(picked.sigma_h, sigma_height),
+    )
+
+
+class _UnitInputs(TypedDict):
+    """The arguments of
+    :func:`strip_aerotri.ground.height_units.height_unit_problems` but
+    ``file``."""
+
+    model_xyz: FloatArray
+    height: FloatArray
+    sigma: FloatArray
+    plan: tuple[FloatArray, FloatArray, FloatArray]
+    given: tuple[FloatArray, FloatArray, float]
+
+
+def _unit_inputs(first: _FirstLook, picked: ControlRows) -> _UnitInputs:
+    """What the test of the control heights' unit reads of the strip scaled
+    to the plan control: the height control in it (``model_xyz`` (n, 3),
+    the work frame's ``height`` (n,) and ``sigma`` (n,)), the plan control
+    (``plan``: model points (p, 3), work frame X, Y (p, 2), expected errors
+    (p,)) and the heights as given (``given``: (n,), their own errors (n,),
+    the model heights' expected error)."""
+    z, xy = picked.use_z, picked.use_xy
+    scaled = first.strip_xyz * first.metres_per_model
+    return _UnitInputs(
+        model_xyz=scaled[z],
+        height=first.target[z, 2],
+        sigma=first.exp_z[z],
+        plan=(scaled[xy], first.target[xy, :2], first.exp_xy[xy]),
+        given=(picked.given[z, 2], picked.sigma_h[z], first.sigma_height),
     )
 
 
@@ -330,13 +364,7 @@ def _unit_problems(first: _FirstLook, picked: ControlRows, name: str) -> list[st
     of the height and plan control over the strip, scaled to the plan
     control, or the heights against the strip's
     (:func:`strip_aerotri.ground.height_units.height_unit_problems`)."""
-    z, xy = picked.use_z, picked.use_xy
-    scaled = first.strip_xyz * first.metres_per_model
-    plan = (scaled[xy], first.target[xy, :2], np.hypot(picked.sigma_xy, first.sigma_plan)[xy])
-    given = (picked.given[z, 2], picked.sigma_h[z], first.sigma_height)
-    return height_unit_problems(
-        scaled[z], first.target[z, 2], first.exp_z[z], file=name, plan=plan, given=given
-    )
+    return height_unit_problems(**_unit_inputs(first, picked), file=name)
 
 
 def height_unit_check(

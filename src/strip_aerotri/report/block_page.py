@@ -231,11 +231,12 @@ def block_html(
     figure: str | None = None,
     calibration: str = "",
     *,
-    warnings: Iterable[str] = (),
+    warnings: Iterable[str],
 ) -> str:
     """The page of a block's ``report.json`` content and its figure (PNG, base64);
     ``warnings``, the result's own (with their points), let the page list the
-    points the refinement restored as restored (:func:`.restored.page_warnings`)."""
+    points the refinement restored as restored (:func:`.restored.page_warnings`):
+    required, since without them a restored point is listed as left out."""
     block = report["block"]
     project = report["project"]
     name = project["name"] or "Block"

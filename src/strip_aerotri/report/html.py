@@ -160,11 +160,12 @@ def _parallax_and_ties(data: StripFigureData) -> tuple[str, str | None]:
 
 
 def html_page(
-    report: Mapping[str, Any], figures: StripFigures, *, warnings: Iterable[str] = ()
+    report: Mapping[str, Any], figures: StripFigures, *, warnings: Iterable[str]
 ) -> str:
     """The page of ``report`` (report.json's content) with its ``figures``;
     ``warnings``, the result's own (with their points), let the page list the
-    points the refinement restored as restored (:func:`.restored.page_warnings`)."""
+    points the refinement restored as restored (:func:`.restored.page_warnings`):
+    required, since without them a restored point is listed as left out."""
     record = (report.get("bundle") or {}).get("self_calibration")
     return _html_page(
         {**report, "warnings": page_warnings(report, warnings)},

@@ -47,7 +47,14 @@ def page_warnings(report: Mapping[str, Any], warnings: Iterable[str] = ()) -> li
     ``warnings`` are the result's own warnings, with their points
     (:class:`~strip_aerotri.results.PointWarning`): report.json keeps their
     text alone, and a count of points left out names five of them at most.
-    Without them the page lists report.json's warnings as they are."""
+    Without them the page lists report.json's warnings as they are.  Texts
+    alike (two strips' counts naming the same five points) are matched in
+    order: report.json's first with the first of the result's, and so on."""
     restored = frozenset((report.get("bundle") or {}).get("restored_points") or ())
-    known = {str(w): w for w in warnings if isinstance(w, PointWarning)}
-    return without_restored([known.get(w, w) for w in report["warnings"]], restored)
+    alike: dict[str, list[PointWarning]] = {}
+    for warning in warnings:
+        if isinstance(warning, PointWarning):
+            alike.setdefault(str(warning), []).append(warning)
+    unused = {text: iter(own) for text, own in alike.items()}
+    texts = [next(unused[w], w) if w in unused else w for w in report["warnings"]]
+    return without_restored(texts, restored)
