@@ -28,6 +28,7 @@ LAYERS: dict[str, int] = {
             "_text",
             "_version",
             "_threads",
+            "_signals",
             "errors",
             "options",
             "choices",

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from strip_aerotri._threads import BLAS_THREADS_VARIABLE, blas_thread_limit
+from strip_aerotri._threads import BLAS_THREADS_VARIABLE, blas_thread_limit, blas_threads
 from strip_aerotri.errors import ConfigError
 
 #: Runs a strip (library call, project run, refinement) and a block in a fresh
@@ -328,3 +328,42 @@ def test_a_block_inside_one_of_the_same_limit_changes_nothing(
 def _in_limit(blas_threads, blas):  # type: ignore[no-untyped-def]
     with blas_threads():
         return blas()
+
+
+def test_a_ctrl_c_while_threadpoolctl_scans_the_libraries_is_not_lost(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """threadpoolctl finds the BLAS libraries through a ctypes callback, where
+    a KeyboardInterrupt is printed and dropped: a Ctrl-C landing there let a
+    run go on to its end (seen in CI, exit 0 after SIGINT).  It is now held
+    over the scan and raised after it, and the limits set are restored."""
+    import ctypes
+    import os
+    import signal
+
+    import threadpoolctl
+
+    events: list[str] = []
+    scan = ctypes.CFUNCTYPE(None)
+
+    def interrupted_scan() -> None:  # what dl_iterate_phdr's callback would run
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(100_000):  # the handler runs here, inside the callback
+            pass
+
+    class Limits:
+        def __init__(self, limits: int, user_api: str) -> None:
+            scan(interrupted_scan)()
+            events.append("set")
+
+        def __enter__(self) -> Limits:
+            return self
+
+        def __exit__(self, *exc: object) -> None:
+            events.append("restored")
+
+    monkeypatch.setattr(threadpoolctl, "threadpool_limits", Limits)
+    with pytest.raises(KeyboardInterrupt):
+        with blas_threads(1):
+            events.append("body")
+    assert events == ["set", "restored"]

@@ -60,6 +60,7 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 from typing import Literal, ParamSpec, TypeVar
 
+from ._signals import sigint_held
 from .errors import ConfigError
 
 __all__ = [
@@ -141,7 +142,12 @@ def blas_threads(limit: int | None | Literal["env"] = "env") -> Iterator[None]:
     import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
 
-    with threadpool_limits(limits=n, user_api="blas"):
+    with contextlib.ExitStack() as stack:
+        # threadpoolctl finds the libraries through a ctypes callback, where a
+        # KeyboardInterrupt is dropped: a Ctrl-C there is delivered after it
+        # (and the limits, set by then, are restored on the way out)
+        with sigint_held():
+            stack.enter_context(threadpool_limits(limits=n, user_api="blas"))
         entered.append(n)
         try:
             yield

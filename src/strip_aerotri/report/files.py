@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from .._atomic import folder_beside, input_inside, swap_folder
+from .._signals import sigint_held
 from .._typing import ArrayLike
 from ..errors import StripAerotriError
 
@@ -423,39 +424,6 @@ def _link_or_copy(source: str | os.PathLike[str], dest: str | os.PathLike[str]) 
         shutil.copy2(source, dest)
 
 
-class _sigint_held:
-    """Hold SIGINT back inside the block and deliver it at its end.
-
-    Outside the main thread (where signals cannot be handled) it does nothing.
-    """
-
-    def __enter__(self) -> None:
-        import signal
-        import threading
-
-        self._received = False
-        self._previous: object = None
-        if threading.current_thread() is not threading.main_thread():
-            return
-
-        def hold(signum: int, frame: object) -> None:
-            self._received = True
-
-        self._previous = signal.signal(signal.SIGINT, hold)
-
-    def __exit__(self, *exc: object) -> None:
-        import signal
-
-        if self._previous is None:
-            return
-        signal.signal(signal.SIGINT, self._previous)  # type: ignore[arg-type]
-        if self._received and exc[0] is None:
-            if callable(self._previous):
-                self._previous(signal.SIGINT, None)
-            elif self._previous == signal.SIG_DFL:
-                raise KeyboardInterrupt
-
-
 class ResultFolder:
     """Write a result folder atomically.
 
@@ -570,7 +538,7 @@ class ResultFolder:
         try:
             kept, exports = _carry_over(target, tmp, self._written)
             _write_marker(tmp, self._written, exports)
-            with _sigint_held():
+            with sigint_held():
                 swap_folder(tmp, target)
                 self._tmp = None
                 self._done = True
