@@ -5,7 +5,6 @@ made by adjusting every subset; the screening's correlations."""
 from __future__ import annotations
 
 import re
-
 import warnings
 
 import numpy as np

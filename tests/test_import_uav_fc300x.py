@@ -20,8 +20,8 @@ import pytest
 
 from strip_aerotri.errors import ConfigError
 from strip_aerotri.importers.common import ImportOptions, write_project
-from strip_aerotri.interior import flight_matrix
 from strip_aerotri.importers.uav_fc300x import import_uav_fc300x, read_calibration
+from strip_aerotri.interior import flight_matrix
 from strip_aerotri.project import load_project
 
 REPO = Path(__file__).resolve().parents[1]

@@ -46,8 +46,9 @@ with residuals of 1-2 mm: :func:`moving_space`'s two passes; the bundle
 takes the first's ``x̂`` and projects at its rows with the Jacobians).  The
 sweeps' matrix becomes ``I + ∂Δ/∂x - u aᵀ``, M its inverse (``u aᵀ`` is
 7e-4 for the FC300X, c 3.61 mm at 53 m, moving 5 cm over its readout of
-4.686 mm), and the derivatives are as above with this M.  The rows' fraction taken from ``x_obs`` instead puts the
-measurement's error into the projection: the residual becomes ``(I - u aᵀ)``
+4.686 mm), and the derivatives are as above with this M.  The rows'
+fraction taken from ``x_obs`` instead puts the measurement's error into the
+projection: the residual becomes ``(I - u aᵀ)``
 times the error, a scale of the rows' axis that moves with ``d`` and pulls
 the motion along the rows, as the scale ``I + ∂Δ/∂x`` pulled c
 (docs/bundle.md).  Without a camera (``model`` None) Δ is zero: the first

@@ -298,8 +298,9 @@ def _normals(prob: _Problem, state: _State) -> _Normals | None:
     design premultiplied per ray by ``(I + ∂Δ/∂x)⁻¹``), with a rolling
     shutter each ray read at ``x̂``'s row (``x̂ + Δ(x̂) = x(S + s(x̂) d)``,
     ``(I + ∂Δ/∂x - u aᵀ)⁻¹``; :mod:`._observation_space`); control ``X -
-    X_c`` (m, design identity); GNSS ``S - S_g`` (m, design identity on the centre); IMU ``log(R_imu.T
-    R)`` (rad, design ``Jr^-1(e)`` on the rotation)."""
+    X_c`` (m, design identity); GNSS ``S - S_g`` (m, design identity on the
+    centre); IMU ``log(R_imu.T R)`` (rad, design ``Jr^-1(e)`` on the
+    rotation)."""
     inv_s = 1.0 / prob.sigma
     at = None if prob.motion is None else _rows_read(prob, state)
     if prob.motion is not None and at is None:

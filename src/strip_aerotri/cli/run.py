@@ -181,8 +181,9 @@ def _echo_calibration(summary: RunSummary, target: Path) -> None:
             + (f"{camera} (the given camera)" if camera else "")
         )
         return
+    sigma0 = _three_digits(calibration.sigma0)
     echo_result(
-        f"self-calibration: kept {', '.join(calibration.kept)}, sigma0 {_three_digits(calibration.sigma0)}"
+        f"self-calibration: kept {', '.join(calibration.kept)}, sigma0 {sigma0}"
         + (f" (with the camera as given: {given})" if given else "")
         + camera
     )

@@ -294,8 +294,8 @@ def load_project(path: str | Path) -> Project:
     crs = "local" if str(control["crs"]).lower() == "local" else str(control["crs"])
     principal_point: tuple[float, float] = camera["principal_point_mm"]  # type: ignore[assignment]
     principal_distance = float(camera["principal_distance_mm"])  # type: ignore[arg-type]
-    for problem in principal_distance_problems(toml_path, principal_distance):
-        raise ConfigError(problem)
+    if problems := principal_distance_problems(toml_path, principal_distance):
+        raise ConfigError(problems[0])
     images_file = folder / str(images["file"])
     control_file = folder / str(control["file"])
     gnss_file, imu_file = (

@@ -226,22 +226,18 @@ def _camera_rows(camera: dict[str, Any], parameters: list[dict[str, Any]]) -> li
 
     by_name = {p["name"]: p for p in parameters}
 
-    def row(name: str, value: float | None, text: str) -> list[Any]:
+    def row(name: str, value: float | None, spec: str) -> list[Any]:
         p = by_name.get(name)
         sd = ("held",) if p is None or not p["kept"] or p["sd"] is None else (f"{p['sd']:.2g}",)
         unit = _unit_cell(p["unit"]) if p is not None else "mm"
-        return [name, (_esc(text),) if value is not None else ("–",), sd, (unit,)]
+        return [name, (_esc(format(value, spec)),) if value is not None else ("–",), sd, (unit,)]
 
     c, (x0, y0) = camera["principal_distance_mm"], camera["principal_point_mm"]
-    rows = [
-        row("c", c, f"{c:.4f}" if c is not None else ""),
-        row("x0", x0, f"{x0:.4f}" if x0 is not None else ""),
-        row("y0", y0, f"{y0:.4f}" if y0 is not None else ""),
-    ]
+    rows = [row("c", c, ".4f"), row("x0", x0, ".4f"), row("y0", y0, ".4f")]
     for name, value in camera["distortion"].items():
         kept = name in by_name and by_name[name]["kept"]
         if kept or (value is not None and value != 0.0):
-            rows.append(row(name, value, f"{value:.6g}" if value is not None else ""))
+            rows.append(row(name, value, ".6g"))
     return rows
 
 
